@@ -1,0 +1,65 @@
+"""Parameter checks with messages in one shared style."""
+
+from __future__ import annotations
+
+import numbers
+
+import numpy as np
+
+from .errors import FtcalError
+
+
+def check_int(value: object, name: str, owner: str, low: int, high: int | None = None) -> int:
+    """Return ``value`` as an int in ``[low, high]`` or raise :class:`FtcalError`."""
+    ok = isinstance(value, numbers.Integral) and not isinstance(value, bool)
+    if ok and value >= low and (high is None or value <= high):
+        return int(value)
+    bound = f"[{low}, {high}]" if high is not None else f">= {low}"
+    raise FtcalError(
+        f"The '{name}' parameter of {owner} must be an int in {bound}. Got {value!r} instead."
+    )
+
+
+def check_float(value: object, name: str, owner: str, low: float = 0.0,
+                low_inclusive: bool = True) -> float:
+    """Return ``value`` as a finite float ``>= low`` (or ``> low``) or raise."""
+    ok = isinstance(value, numbers.Real) and not isinstance(value, bool) and np.isfinite(value)
+    if ok and (value >= low if low_inclusive else value > low):
+        return float(value)
+    op = ">=" if low_inclusive else ">"
+    raise FtcalError(
+        f"The '{name}' parameter of {owner} must be a finite number {op} {low}. Got {value!r} instead."
+    )
+
+
+def check_choice(value: object, name: str, owner: str, choices: tuple[str, ...]) -> str:
+    """Return ``value`` if it is one of ``choices`` or raise."""
+    if value in choices:
+        return str(value)
+    raise FtcalError(
+        f"The '{name}' parameter of {owner} must be one of {', '.join(map(repr, choices))}. "
+        f"Got {value!r} instead."
+    )
+
+
+def check_finite_matrix(array: object, name: str, n_columns: int | None = None,
+                        column_names: tuple[str, ...] | None = None) -> np.ndarray:
+    """Return a 2-D float64 array, raising on wrong shape or NaN/inf cells.
+
+    The message names the first bad column (by name when given) and row.
+    """
+    arr = np.asarray(array, dtype=np.float64)
+    if arr.ndim == 1 and n_columns == 1:
+        arr = arr[:, None]
+    if arr.ndim != 2:
+        raise FtcalError(f"{name} must be a 2-D array of shape (n_samples, n_columns); got shape {arr.shape}.")
+    if n_columns is not None and arr.shape[1] != n_columns:
+        raise FtcalError(f"{name} has {arr.shape[1]} columns; the model expects {n_columns}.")
+    bad = ~np.isfinite(arr)
+    if bad.any():
+        row, col = np.argwhere(bad)[0]
+        label = column_names[col] if column_names is not None else f"column {col}"
+        raise FtcalError(
+            f"{name}: {int(bad.sum())} non-finite value(s) (NaN or inf); first in {label!r} at row {row}."
+        )
+    return arr

@@ -1,0 +1,68 @@
+"""The ``ftcal`` command line: thin commands over the library.
+
+Each command lives in its own module with ``register(subparsers)``, which adds
+a sub-parser whose ``func`` default takes the parsed arguments and returns an
+exit code. Heavy imports happen inside the commands so ``ftcal --help`` is fast.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+import warnings
+
+COMMAND_MODULES = (
+    "fit", "evaluate", "predict", "convert", "info", "demo",
+    "sensors", "expected", "dataset", "report",
+)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="ftcal",
+        description="In-situ nonlinear calibration of six-axis force/torque sensors.")
+    parser.add_argument("--version", action="store_true", help="print the version and exit")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in COMMAND_MODULES:
+        try:
+            module = importlib.import_module(f"ftcal.cli.cmd_{name}")
+        except ModuleNotFoundError as exc:
+            if exc.name == f"ftcal.cli.cmd_{name}":
+                continue  # command not built yet
+            raise
+        module.register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    from ..errors import FtcalError, FtcalWarning
+
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.version:
+        from importlib.metadata import version
+        print(version("ftcal"))
+        return 0
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 2
+    # Our own warnings go to stderr as one line each, not as Python warning noise.
+    def show(message, category, filename, lineno, file=None, line=None):
+        if issubclass(category, FtcalWarning):
+            print(f"warning: {message}", file=sys.stderr)
+        else:
+            print(f"{category.__name__}: {message}", file=sys.stderr)
+    warnings.showwarning = show
+    try:
+        return int(args.func(args) or 0)
+    except FtcalError as exc:
+        print(f"ftcal {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"ftcal {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

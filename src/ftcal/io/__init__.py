@@ -1,0 +1,1 @@
+"""Readers and writers: tables, robot logs, model files."""
