@@ -1,0 +1,1 @@
+"""Simulated sensors, trajectories and robot-logger recordings (no robot needed)."""
