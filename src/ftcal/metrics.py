@@ -1,0 +1,100 @@
+"""Calibration metrics: plain functions of (y_true, y_pred), arrays of shape (n_samples, n_outputs).
+
+Definitions follow the paper: BestFit = 1 − sqrt(MSE / mean((y − ȳ)²)) per axis,
+and the "RMSE of force norm" is the RMSE of ‖f‖ − ‖f̂‖ (a scalar per sample),
+which ignores direction errors; ``*_error_norm_rmse`` (RMSE of ‖f − f̂‖)
+counts them too.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Sequence
+
+import numpy as np
+
+_FORCE = re.compile(r"(^|[_\W])F[xyz]$")
+_TORQUE = re.compile(r"(^|[_\W])(T|M|tau)[xyz]$")
+
+
+def rmse(y_true: np.ndarray, y_pred: np.ndarray) -> np.ndarray:
+    """Root mean square error per output, shape (n_outputs,)."""
+    return np.sqrt(np.mean((y_true - y_pred) ** 2, axis=0))
+
+
+def best_fit(y_true: np.ndarray, y_pred: np.ndarray) -> np.ndarray:
+    """1 − sqrt(MSE / variance of y) per output; 1 is perfect, 0 is the mean predictor."""
+    mse = np.mean((y_true - y_pred) ** 2, axis=0)
+    variance = np.var(y_true, axis=0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(variance > 0, 1.0 - np.sqrt(mse / variance), np.nan)
+
+
+def max_abs_error(y_true: np.ndarray, y_pred: np.ndarray) -> np.ndarray:
+    """Largest absolute error per output."""
+    return np.max(np.abs(y_true - y_pred), axis=0)
+
+
+def norm_rmse(true_vectors: np.ndarray, pred_vectors: np.ndarray) -> float:
+    """RMSE of ‖v‖ − ‖v̂‖ over samples (the paper's "RMSE of force norm")."""
+    diff = np.linalg.norm(true_vectors, axis=1) - np.linalg.norm(pred_vectors, axis=1)
+    return float(np.sqrt(np.mean(diff ** 2)))
+
+
+def error_norm_rmse(true_vectors: np.ndarray, pred_vectors: np.ndarray) -> float:
+    """RMSE of ‖v − v̂‖ over samples (direction errors included)."""
+    return float(np.sqrt(np.mean(np.sum((true_vectors - pred_vectors) ** 2, axis=1))))
+
+
+def residual_autocorrelation(y_true: np.ndarray, y_pred: np.ndarray, max_lag: int = 20) -> np.ndarray:
+    """Normalized autocorrelation of residuals per output at lags 0..max_lag, shape (max_lag+1, n_outputs).
+
+    Values well above 2/sqrt(N) at small lags mean unmodelled dynamics (try ARX).
+    """
+    r = y_true - y_pred
+    r = r - r.mean(axis=0)
+    denom = np.sum(r * r, axis=0)
+    lags = min(max_lag, r.shape[0] - 1)
+    acf = np.array([np.sum(r[k:] * r[:r.shape[0] - k], axis=0) for k in range(lags + 1)])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(denom > 0, acf / denom, 0.0)
+
+
+def force_torque_columns(output_names: Sequence[str]) -> tuple[list[int] | None, list[int] | None]:
+    """Indices of the three force and three torque outputs, by name (``Fx``, ``r_arm_ft_Ty``...).
+
+    Six outputs with other names are taken as (Fx, Fy, Fz, Tx, Ty, Tz) in order.
+    """
+    forces = [i for i, n in enumerate(output_names) if _FORCE.search(n)]
+    torques = [i for i, n in enumerate(output_names) if _TORQUE.search(n)]
+    if len(forces) == 3 and len(torques) == 3:
+        return forces, torques
+    if len(output_names) == 6:
+        return [0, 1, 2], [3, 4, 5]
+    return (forces if len(forces) == 3 else None), (torques if len(torques) == 3 else None)
+
+
+def summarize(y_true: np.ndarray, y_pred: np.ndarray, output_names: Sequence[str]) -> dict:
+    """All metrics as a JSON-ready dict (the keys of ``ftcal evaluate --json``)."""
+    forces, torques = force_torque_columns(output_names)
+    summary: dict = {
+        "n_samples": int(y_true.shape[0]),
+        "outputs": list(output_names),
+        "rmse": rmse(y_true, y_pred).tolist(),
+        "best_fit": _json_list(best_fit(y_true, y_pred)),
+        "max_abs_error": max_abs_error(y_true, y_pred).tolist(),
+        "force_norm_rmse": None, "torque_norm_rmse": None,
+        "force_error_norm_rmse": None, "torque_error_norm_rmse": None,
+    }
+    if forces is not None:
+        summary["force_norm_rmse"] = norm_rmse(y_true[:, forces], y_pred[:, forces])
+        summary["force_error_norm_rmse"] = error_norm_rmse(y_true[:, forces], y_pred[:, forces])
+    if torques is not None:
+        summary["torque_norm_rmse"] = norm_rmse(y_true[:, torques], y_pred[:, torques])
+        summary["torque_error_norm_rmse"] = error_norm_rmse(y_true[:, torques], y_pred[:, torques])
+    return summary
+
+
+def _json_list(values: np.ndarray) -> list:
+    """Floats for JSON, with None where a value is undefined (NaN)."""
+    return [float(v) if np.isfinite(v) else None for v in values]
