@@ -1,0 +1,131 @@
+"""Sufficient statistics against AᵀA, AᵀB built explicitly with numpy."""
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from ftcal.dataset import Dataset
+from ftcal.features import MonomialBasis, RegressorLayout
+from ftcal.model import CalibrationModel
+from ftcal.normalization import Normalization
+from ftcal.statistics import (
+    SufficientStatistics, dense_statistics, layout_statistics, static_statistics, sum_statistics,
+)
+
+
+def _assert_stats_equal(stats, a, y):
+    gram = a.T @ a
+    np.testing.assert_allclose(stats.gram, gram, rtol=1e-12, atol=1e-12 * np.abs(gram).max())
+    cross = a.T @ y
+    np.testing.assert_allclose(stats.cross, cross, rtol=1e-12, atol=1e-12 * np.abs(cross).max())
+    np.testing.assert_allclose(stats.target_sq, (y**2).sum(axis=0), rtol=1e-12)
+    np.testing.assert_allclose(stats.target_sum, y.sum(axis=0), rtol=1e-12, atol=1e-12)
+    np.testing.assert_array_equal(stats.column_maxabs, np.abs(a).max(axis=0))
+    assert stats.n_samples == a.shape[0]
+
+
+@pytest.mark.parametrize("nu, degree", [(1, 1), (1, 5), (2, 3), (3, 4), (4, 5), (7, 3), (8, 2), (8, 3)])
+def test_moment_gram_equals_explicit_gram(rng, ref_features, nu, degree):
+    u = rng.uniform(-1, 1, size=(700, nu))
+    y = rng.normal(size=(700, 3))
+    # chunk=128 leaves a partial last chunk (700 = 5·128 + 60)
+    stats = static_statistics(MonomialBasis(nu, degree), u, y, chunk=128)
+    _assert_stats_equal(stats, ref_features(u, degree), y)
+
+
+def test_moment_gram_on_a_single_sample_and_default_chunk(rng, ref_features):
+    basis = MonomialBasis(3, 3)
+    u1 = rng.uniform(-1, 1, size=(1, 3))
+    _assert_stats_equal(static_statistics(basis, u1, np.ones((1, 1))), ref_features(u1, 3), np.ones((1, 1)))
+    u = rng.uniform(-1, 1, size=(2500, 3))  # more than the default chunk
+    y = rng.normal(size=(2500, 2))
+    _assert_stats_equal(static_statistics(basis, u, y), ref_features(u, 3), y)
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(nu=st.integers(1, 8), degree=st.integers(1, 4), n=st.integers(1, 60), seed=st.integers(0, 2**31))
+def test_moment_gram_property(ref_features, nu, degree, n, seed):
+    r = np.random.default_rng(seed)
+    u = r.uniform(-1.5, 1.5, size=(n, nu))
+    y = r.normal(size=(n, 1))
+    stats = static_statistics(MonomialBasis(nu, degree), u, y, chunk=16)
+    _assert_stats_equal(stats, ref_features(u, degree), y)
+
+
+def test_statistics_add_up_across_chunks(rng, ref_features):
+    u = rng.uniform(-1, 1, size=(900, 4))
+    y = rng.normal(size=(900, 2))
+    basis = MonomialBasis(4, 3)
+    parts = [static_statistics(basis, u[a:b], y[a:b]) for a, b in [(0, 1), (1, 400), (400, 401), (401, 900)]]
+    total = sum_statistics(parts)
+    _assert_stats_equal(total, ref_features(u, 3), y)
+    assert isinstance(parts[0] + parts[1], SufficientStatistics)
+
+
+def test_dense_statistics_add_up_across_splits(rng):
+    a = rng.normal(size=(50, 5)) * np.array([1, 10, 0.1, 3, 1])
+    y = rng.normal(size=(50, 2))
+    total = dense_statistics(a[:20], y[:20]) + dense_statistics(a[20:], y[20:])
+    _assert_stats_equal(total, a, y)
+    # Empty block is neutral.
+    _assert_stats_equal(dense_statistics(a[:0], y[:0]) + dense_statistics(a, y), a, y)
+
+
+def test_restrict_to_lower_degree_equals_lower_degree_statistics(rng, ref_features):
+    u = rng.uniform(-1, 1, size=(500, 5))
+    y = rng.normal(size=(500, 2))
+    high, low = MonomialBasis(5, 4), MonomialBasis(5, 2)
+    restricted = static_statistics(high, u, y).restrict(low.index_in(high))
+    _assert_stats_equal(restricted, ref_features(u, 2), y)
+
+
+def test_residual_sum_of_squares_from_statistics(rng, ref_features):
+    u = rng.uniform(-1, 1, size=(300, 3))
+    y = rng.normal(size=(300, 2))
+    a = ref_features(u, 2)
+    coef = rng.normal(size=(a.shape[1], 2))
+    stats = static_statistics(MonomialBasis(3, 2), u, y)
+    np.testing.assert_allclose(stats.residual_sum_of_squares(coef), ((a @ coef - y) ** 2).sum(axis=0),
+                               rtol=1e-9)
+
+
+def _hand_arx_regressor(u, y_past, na, nb):
+    """Degree-1 ARX rows k = max(na, nb)..n-1 of one segment, DESIGN.md order."""
+    lag = max(na, nb)
+    rows = []
+    for k in range(lag, len(u)):
+        row = [y_past[k - j, l] for j in range(1, na + 1) for l in range(y_past.shape[1])]
+        row += [u[k - j, i] for j in range(nb + 1) for i in range(u.shape[1])]
+        rows.append(row + [1.0])
+    return np.array(rows).reshape(-1, y_past.shape[1] * na + u.shape[1] * (nb + 1) + 1)
+
+
+@pytest.mark.parametrize("chunk", [1, 5, 1000])
+def test_arx_layout_statistics_match_hand_regressor(rng, chunk):
+    u = rng.uniform(-1, 1, size=(23, 2))
+    y = rng.normal(size=(23, 2))
+    y_past = rng.normal(size=(23, 2))
+    layout = RegressorLayout(MonomialBasis(2, 1), n_outputs=2, na=2, nb=3)
+    stats = layout_statistics(layout, u, y, y_past, chunk=chunk)
+    _assert_stats_equal(stats, _hand_arx_regressor(u, y_past, 2, 3), y[3:])
+
+
+def test_static_layout_statistics_take_the_moment_path(rng, ref_features):
+    u = rng.uniform(-1, 1, size=(100, 3))
+    y = rng.normal(size=(100, 1))
+    stats = layout_statistics(RegressorLayout(MonomialBasis(3, 2), 1), u, y, None)
+    _assert_stats_equal(stats, ref_features(u, 2), y)
+
+
+def test_arx_lags_never_cross_segment_boundaries(rng):
+    # Two recordings of 7 and 6 samples; na = 1, nb = 2 so each loses its first 2 rows.
+    u = rng.uniform(-1, 1, size=(13, 2))
+    y = rng.normal(size=(13, 1))
+    data = Dataset.from_arrays(u, y, segments=np.r_[np.zeros(7), np.ones(6)].astype(int))
+    layout = RegressorLayout(MonomialBasis(2, 1), n_outputs=1, na=1, nb=2)
+    identity_in, identity_out = Normalization.identity(2), Normalization.identity(1)
+    stats = CalibrationModel.statistics(data, layout, identity_in, identity_out)
+    a = np.vstack([_hand_arx_regressor(u[:7], y[:7], 1, 2), _hand_arx_regressor(u[7:], y[7:], 1, 2)])
+    assert a.shape == (5 + 4, 8)
+    _assert_stats_equal(stats, a, np.vstack([y[2:7], y[9:]]))
