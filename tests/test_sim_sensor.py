@@ -67,7 +67,7 @@ def test_not_exactly_a_polynomial_of_degree_5():
     assert np.all(residual[:3] > 5 * floor[:3])
 
 
-def test_workbench_calibration_is_good_on_small_loads_only():
+def test_firmware_error_grows_with_load():
     sensor = StrainGaugeSensor.create(seed=5)
     rng = np.random.default_rng(6)
     direction = rng.standard_normal((2000, 3))
@@ -77,9 +77,8 @@ def test_workbench_calibration_is_good_on_small_loads_only():
     for mass in (1.0, 10.0):
         w = np.hstack([mass * 9.81 * direction, np.zeros((2000, 3))])
         errors[mass] = np.abs(sensor.measure(w, temps)[:, :3] - w[:, :3]).mean()
-    # Relative to the load, the error grows with it (the calibration was affine and
-    # fitted within 30 N): a few newtons at 10 kg.
-    assert errors[10.0] / 10.0 > errors[1.0] / 1.0
+    # The firmware calibration is affine, fitted within 60 N: a few newtons off at 10 kg.
+    assert errors[10.0] > 2 * errors[1.0]
     assert errors[10.0] > 1.0
 
 

@@ -76,8 +76,8 @@ class SensorParams:
     saturation: float = 0.9
     noise_counts: float = 40.0
     reference_temperature: float = 25.0
-    workbench_force: float = 30.0
-    workbench_torque: float = 3.0
+    workbench_force: float = 60.0
+    workbench_torque: float = 8.0
     workbench_temperature: float = 25.0
     workbench_samples: int = 2000
 
