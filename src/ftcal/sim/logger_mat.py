@@ -25,7 +25,7 @@ All numbers are ``double``. Every stream has its own timestamps (s, YARP clock).
 ``version="7.3"`` writes HDF5 the way MATLAB does: a 512-byte user block holding the
 MAT-file header text (``MATLAB 7.3 MAT-file, ...``, version 0x0200, endian ``IM``);
 structs are groups with attribute ``MATLAB_class = "struct"`` and ``MATLAB_fields``;
-arrays are datasets with ``MATLAB_class = "double"`` stored with their dimensions
+arrays are datasets with ``MATLAB_class = "double"`` (gzip-compressed from 1024 elements) stored with their dimensions
 reversed (HDF5 row-major holds MATLAB's column-major data, so a MATLAB ``6 × 1 × N``
 array is an HDF5 dataset of shape ``(N, 1, 6)``); a cell array is a dataset of object
 references (``MATLAB_class = "cell"``, HDF5 shape reversed: ``(1, J)``) to datasets in
@@ -192,7 +192,10 @@ def _h5_node(parent, refs, counter, name: str, node) -> None:
         _h5_char(parent, name, node)
     else:
         # MATLAB is column-major: its k × 1 × N array is HDF5 (N, 1, k), i.e. the transpose.
-        ds = parent.create_dataset(name, data=np.asarray(node, dtype=np.float64).T)
+        data = np.asarray(node, dtype=np.float64).T
+        # Deflate, as MATLAB's own -v7.3 files do; joint streams shrink several-fold.
+        packed = {"compression": "gzip", "compression_opts": 4} if data.size >= 1024 else {}
+        ds = parent.create_dataset(name, data=data, **packed)
         ds.attrs["MATLAB_class"] = np.bytes_("double")
 
 
