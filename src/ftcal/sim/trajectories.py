@@ -49,13 +49,21 @@ class JointTrajectory(NamedTuple):
     positions: np.ndarray
 
 
-def joint_limits(urdf: str | Path, joints: Sequence[str] = ARM_JOINTS) -> np.ndarray:
-    """Position limits of ``joints`` from a URDF, ndarray of shape (n_joints, 2), rad."""
+def load_idyntree():
+    """Import ``idyntree.swig`` with its import-time DeprecationWarnings silenced.
+
+    SWIG's module init warns; under ``-W error`` (our pytest setting) the warning becomes
+    an exception inside the C extension's init and the interpreter crashes.
+    """
     with warnings.catch_warnings():
-        # SWIG's module init warns (DeprecationWarning); raised as an error it crashes the import.
         warnings.simplefilter("ignore", DeprecationWarning)
         import idyntree.swig as idyn
+    return idyn
 
+
+def joint_limits(urdf: str | Path, joints: Sequence[str] = ARM_JOINTS) -> np.ndarray:
+    """Position limits of ``joints`` from a URDF, ndarray of shape (n_joints, 2), rad."""
+    idyn = load_idyntree()
     loader = idyn.ModelLoader()
     if not loader.loadReducedModelFromFile(str(urdf), list(joints)):
         raise FtcalError(f"URDF {urdf}: iDynTree cannot load the joints {', '.join(joints)}.")
