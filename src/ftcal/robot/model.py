@@ -141,6 +141,27 @@ class RobotModel:
         return float(sum(m.getLink(m.getLinkIndex(n)).getInertia().getMass()
                          for n in self.links_beyond(sensor, base)))
 
+    def joint_matrix(self, names: Sequence[str], values, where: str) -> "np.ndarray":
+        """Place columns named ``names`` into the model's joint order; joints not given are 0.
+
+        values : array of shape (n_samples, len(names)); returns (n_samples, n_dofs).
+        ``where`` names the source in error messages (file and stream).
+        """
+        import numpy as np
+
+        index = {n: i for i, n in enumerate(self.joint_names)}
+        unknown = [n for n in names if n not in index]
+        if unknown:
+            raise FtcalError(f"{where}: joint(s) {', '.join(map(repr, unknown[:5]))} not in URDF {self.source} "
+                             f"(it has {len(self.joint_names)} movable joints, e.g. "
+                             f"{', '.join(self.joint_names[:4])}).")
+        if len(set(names)) != len(names):
+            raise FtcalError(f"{where}: a joint name appears more than once.")
+        values = np.asarray(values, dtype=np.float64)
+        out = np.zeros((values.shape[0], len(self.joint_names)))
+        out[:, [index[n] for n in names]] = values
+        return out
+
     def total_mass(self) -> float:
         m = self.model
         return float(sum(m.getLink(i).getInertia().getMass() for i in range(m.getNrOfLinks())))

@@ -1,0 +1,161 @@
+"""Load cases: which payloads were attached during which recording.
+
+A TOML file (``--payload-file``) describes them::
+
+    # attached in every recording (e.g. the metal supports)
+    [[payload]]
+    frame = "r_forearm"
+    mass = 0.4
+    com = [0.0, 0.0, -0.05]               # optional, m, in frame coordinates
+    inertia = [1e-4, 1e-4, 1e-4, 0, 0, 0]  # optional, kg m², about the COM
+
+    # named load cases; a recording belongs to the case that lists its file
+    # name or stem, or whose name is its stem or one of its folder names
+    [[case]]
+    name = "r5kg"
+    recordings = ["grid_1.mat"]           # optional
+    [[case.payload]]
+    frame = "r_forearm"
+    mass = 5.0
+
+    # the paper's folder convention l<x>kg-r<y>kg: x kg on the left mount,
+    # y kg on the right mount, masses read from the folder or file name
+    [convention.left]
+    frame = "l_forearm"
+    com = [0.0, 0.0, -0.05]
+    [convention.right]
+    frame = "r_forearm"
+    com = [0.0, 0.0, -0.05]
+
+Recordings matching nothing get no extra payload and form their own group.
+"""
+
+from __future__ import annotations
+
+import re
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ..errors import FtcalError
+from .payloads import Payload
+
+CONVENTION = re.compile(r"^l(?P<left>\d+(?:\.\d+)?)kg-r(?P<right>\d+(?:\.\d+)?)kg$")
+
+
+@dataclass(frozen=True)
+class LoadCase:
+    """The payloads of one recording; ``name`` is its group label."""
+
+    name: str
+    payloads: tuple[Payload, ...] = ()
+
+
+@dataclass(frozen=True)
+class Mount:
+    """Where the paper's weights go on one arm (mass comes from the folder name)."""
+
+    frame: str
+    com: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    inertia: tuple[float, ...] = (0.0,) * 6
+
+
+@dataclass(frozen=True)
+class LoadCaseConfig:
+    """Payloads always attached, named cases, and the l<x>kg-r<y>kg convention."""
+
+    payloads: tuple[Payload, ...] = ()
+    cases: tuple[tuple[str, tuple[str, ...], tuple[Payload, ...]], ...] = ()
+    mounts: dict[str, Mount] = field(default_factory=dict)
+
+    def resolve(self, recording: str | Path, extra: tuple[Payload, ...] = ()) -> LoadCase:
+        """The load case of ``recording``, with the always-on and ``extra`` payloads added."""
+        path = Path(recording)
+        always = (*self.payloads, *extra)
+        for name, files, payloads in self.cases:
+            if path.name in files or path.stem in files:
+                return LoadCase(name, (*always, *payloads))
+        components = [path.stem, *(p.name for p in path.parents if p.name)]
+        for component in components:
+            for name, _, payloads in self.cases:
+                if component == name:
+                    return LoadCase(name, (*always, *payloads))
+        for component in components:
+            match = CONVENTION.match(component)
+            if match:
+                return LoadCase(component, (*always, *self._convention(match, path)))
+        return LoadCase(path.stem, always)
+
+    def _convention(self, match: re.Match, path: Path) -> tuple[Payload, ...]:
+        out = []
+        for side in ("left", "right"):
+            mass = float(match.group(side))
+            if mass == 0:
+                continue
+            mount = self.mounts.get(side)
+            if mount is None:
+                raise FtcalError(f"Recording {path} follows the l<x>kg-r<y>kg convention but the payload file "
+                                 f"has no [convention.{side}] section saying where the {side} weight goes.")
+            out.append(Payload(mount.frame, mass, mount.com, mount.inertia,  # type: ignore[arg-type]
+                               name=f"{side} {match.group(0)}"))
+        return tuple(out)
+
+
+def load_case_config(path: str | Path) -> LoadCaseConfig:
+    """Read a payload/load-case TOML file (see the module docstring)."""
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise FtcalError(f"Payload file {path}: no such file.") from None
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise FtcalError(f"Payload file {path}: cannot read it as TOML ({exc}).") from None
+    unknown = set(data) - {"payload", "case", "convention"}
+    if unknown:
+        raise FtcalError(f"Payload file {path}: unknown section(s) {', '.join(sorted(unknown))}; "
+                         f"expected payload, case, convention.")
+    payloads = tuple(_payload(p, path, f"payload[{i}]") for i, p in enumerate(_list(data, "payload", path)))
+    cases = []
+    for i, case in enumerate(_list(data, "case", path)):
+        where = f"case[{i}]"
+        name = case.get("name")
+        if not isinstance(name, str) or not name:
+            raise FtcalError(f"Payload file {path}: {where} needs a non-empty 'name'.")
+        files = case.get("recordings", [])
+        if not isinstance(files, list) or not all(isinstance(f, str) for f in files):
+            raise FtcalError(f"Payload file {path}: {where}.recordings must be a list of file names.")
+        items = tuple(_payload(p, path, f"{where}.payload[{j}]") for j, p in enumerate(_list(case, "payload", path)))
+        cases.append((name, tuple(files), items))
+    mounts = {}
+    for side, spec in data.get("convention", {}).items():
+        if side not in ("left", "right") or not isinstance(spec, dict):
+            raise FtcalError(f"Payload file {path}: [convention.{side}] must be convention.left or convention.right.")
+        probe = _payload({**spec, "mass": 1.0}, path, f"convention.{side}")
+        mounts[side] = Mount(probe.frame, probe.com, probe.inertia)
+    return LoadCaseConfig(payloads, tuple(cases), mounts)
+
+
+def _list(table: dict, key: str, path: Path) -> list[dict]:
+    items = table.get(key, [])
+    if not isinstance(items, list) or not all(isinstance(i, dict) for i in items):
+        raise FtcalError(f"Payload file {path}: '{key}' must be an array of tables ([[{key}]]).")
+    return items
+
+
+def _payload(spec: dict[str, Any], path: Path, where: str) -> Payload:
+    unknown = set(spec) - {"frame", "mass", "com", "inertia", "name"}
+    if unknown:
+        raise FtcalError(f"Payload file {path}: {where} has unknown key(s) {', '.join(sorted(unknown))}.")
+    try:
+        inertia = tuple(float(v) for v in spec.get("inertia", (0.0,) * 6))
+        if len(inertia) == 3:
+            inertia = (*inertia, 0.0, 0.0, 0.0)
+        return Payload(str(spec.get("frame", "")), float(spec.get("mass", float("nan"))),
+                       tuple(float(v) for v in spec.get("com", (0.0, 0.0, 0.0))),  # type: ignore[arg-type]
+                       inertia, name=str(spec.get("name", where)))  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise FtcalError(f"Payload file {path}: {where} must have a frame name and numbers for "
+                         f"mass, com [x, y, z] and inertia.") from None
+    except FtcalError as exc:
+        raise FtcalError(f"Payload file {path}: {where}: {exc}") from None
