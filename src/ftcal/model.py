@@ -10,11 +10,11 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Sequence
-from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
 from . import metrics
+from ._threads import map_ranges
 from ._checks import check_choice, check_finite_matrix, check_int
 from .dataset import Dataset
 from .errors import FtcalError, IllPosedFitWarning, NotFittedError, OutOfRangeWarning
@@ -230,7 +230,6 @@ class CalibrationModel:
         basis = self.layout_.basis
         coef_t = np.ascontiguousarray(self.coef_.T)
         out = np.empty((u_norm.shape[0], coef_t.shape[0]))
-        starts = range(0, u_norm.shape[0], PREDICT_CHUNK)
 
         def work(begin: int, end: int) -> None:
             features = np.empty((basis.n_terms, PREDICT_CHUNK))
@@ -240,14 +239,7 @@ class CalibrationModel:
                                               features[:, :stop - start])
                 out[start:stop] = (coef_t @ f).T
 
-        # Feature evaluation is memory-bound numpy work that releases the GIL:
-        # two threads over two halves use both cores.
-        if len(starts) < 8:
-            work(0, u_norm.shape[0])
-        else:
-            half = starts[len(starts) // 2]
-            with ThreadPoolExecutor(2) as pool:
-                list(pool.map(lambda ab: work(*ab), [(0, half), (half, u_norm.shape[0])]))
+        map_ranges(work, u_norm.shape[0], PREDICT_CHUNK)
         return out
 
     def _predict_arx_segment(self, u_norm: np.ndarray, y_measured: np.ndarray | None, mode: str) -> np.ndarray:

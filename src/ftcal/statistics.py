@@ -23,6 +23,7 @@ from itertools import combinations_with_replacement
 
 import numpy as np
 
+from ._threads import map_ranges
 from .features import MonomialBasis, MonomialEvaluator, RegressorLayout
 
 CHUNK_SAMPLES = 1024  # terms × samples chunks of this width stay in cache
@@ -183,29 +184,38 @@ class _GradedMonomials:
 
 def static_statistics(basis: MonomialBasis, u_norm: np.ndarray, y: np.ndarray,
                       chunk: int = CHUNK_SAMPLES, advance=None) -> SufficientStatistics:
-    """Statistics of a static polynomial model over normalized inputs (N, nu) and targets (N, ny)."""
-    moments_engine = MomentGram(basis)
-    moments = moments_engine.new_moments()
-    stats = SufficientStatistics.zeros(basis.n_terms, y.shape[1])
-    features = np.empty((basis.n_terms, chunk))
-    n = u_norm.shape[0]
-    for start in range(0, n, chunk):
-        stop = min(start + chunk, n)
-        u_t = np.ascontiguousarray(u_norm[start:stop].T)
-        y_c = y[start:stop]
-        a_t = basis.evaluate_transposed(u_t, features[:, :stop - start])
-        moments_engine.accumulate(u_t, moments)
-        stats.cross += a_t @ y_c
-        # max and -min instead of abs(): no chunk-sized temporary.
-        np.maximum(stats.column_maxabs, a_t.max(axis=1), out=stats.column_maxabs)
-        np.maximum(stats.column_maxabs, -a_t.min(axis=1), out=stats.column_maxabs)
-        if advance is not None:
-            advance(stop - start)
-    stats.gram = moments_engine.gram(moments)
-    stats.target_sq = np.einsum("ij,ij->j", y, y)
-    stats.target_sum = y.sum(axis=0)
-    stats.n_samples = n
-    return stats
+    """Statistics of a static polynomial model over normalized inputs (N, nu) and targets (N, ny).
+
+    Sample ranges are processed by parallel worker threads and their
+    statistics summed.
+    """
+
+    def work(begin: int, end: int) -> tuple[np.ndarray, SufficientStatistics]:
+        engine = MomentGram(basis)
+        moments = engine.new_moments()
+        stats = SufficientStatistics.zeros(basis.n_terms, y.shape[1])
+        features = np.empty((basis.n_terms, chunk))
+        for start in range(begin, end, chunk):
+            stop = min(start + chunk, end)
+            u_t = np.ascontiguousarray(u_norm[start:stop].T)
+            a_t = basis.evaluate_transposed(u_t, features[:, :stop - start])
+            engine.accumulate(u_t, moments)
+            stats.cross += a_t @ y[start:stop]
+            # max and -min instead of abs(): no chunk-sized temporary.
+            np.maximum(stats.column_maxabs, a_t.max(axis=1), out=stats.column_maxabs)
+            np.maximum(stats.column_maxabs, -a_t.min(axis=1), out=stats.column_maxabs)
+            if advance is not None:
+                advance(stop - start)
+        return moments, stats
+
+    parts = map_ranges(work, u_norm.shape[0], chunk)
+    total = sum_statistics([stats for _, stats in parts]) if parts else SufficientStatistics.zeros(basis.n_terms, y.shape[1])
+    moments = sum(m for m, _ in parts) if parts else np.zeros(MomentGram(basis).n_moments)
+    total.gram = MomentGram(basis).gram(moments)
+    total.target_sq = np.einsum("ij,ij->j", y, y)
+    total.target_sum = y.sum(axis=0)
+    total.n_samples = u_norm.shape[0]
+    return total
 
 
 def dense_statistics(a: np.ndarray, y: np.ndarray) -> SufficientStatistics:

@@ -21,11 +21,14 @@ import numpy as np
 import scipy.linalg
 
 from .._checks import check_float
+from .._threads import single_threaded_blas
 from ..errors import FtcalWarning
 from .base import ScaledProblem, SolverResult, Spectrum
 
 KKT_RTOL = 1e-7
 POLISH_EVERY = 20
+RHO_EVERY = 10
+RELAXATION = 1.6
 MAX_ITER = 20000
 
 
@@ -44,6 +47,10 @@ class Lasso:
     def fit_path(self, problem: ScaledProblem, lams: Sequence[float]) -> list[SolverResult]:
         """Solutions for each λ in ``lams`` (returned in the given order)."""
         lams = [check_float(lam, "lam", "Lasso", 0.0, low_inclusive=False) for lam in lams]
+        with single_threaded_blas():
+            return self._fit_path(problem, lams)
+
+    def _fit_path(self, problem: ScaledProblem, lams: list[float]) -> list[SolverResult]:
         values, vectors = np.linalg.eigh(problem.gram)
         equilibrated = Spectrum.of(problem.gram)
         state = _AdmmState.cold(problem, values)
@@ -94,35 +101,46 @@ def _solve_one_lambda(problem, values, vectors, lam, state, max_iter):
     done |= zero
     z, w, rho = state.z, state.w, state.rho
     c_vt = vectors.T @ cross
+    # Polish only when the sign pattern has settled and differs from the last failure.
+    tried = [None] * ny
+    previous_signs = np.sign(z)
     iterations = 0
     while not done.all() and iterations < max_iter:
         todo = np.flatnonzero(~done)
-        for _ in range(POLISH_EVERY):
+        for step in range(POLISH_EVERY):
             rhs = c_vt[:, todo] + rho[todo] * (vectors.T @ (z[:, todo] - w[:, todo]))
             x = vectors @ (rhs / (values[:, None] + rho[todo]))
             z_old = z[:, todo]
-            v = x + w[:, todo]
-            threshold = lam / rho[todo]
-            z_new = np.sign(v) * np.maximum(np.abs(v) - threshold, 0.0)
+            # Over-relaxation (α = 1.6) speeds ADMM up on QPs at no cost.
+            x_hat = RELAXATION * x + (1.0 - RELAXATION) * z_old
+            v = x_hat + w[:, todo]
+            z_new = np.sign(v) * np.maximum(np.abs(v) - lam / rho[todo], 0.0)
             w[:, todo] = v - z_new
             z[:, todo] = z_new
             iterations += 1
-            # Residual balancing keeps primal and dual progress comparable.
-            primal = np.linalg.norm(x - z_new, axis=0)
-            dual = rho[todo] * np.linalg.norm(z_new - z_old, axis=0)
-            up = primal > 10 * dual
-            down = dual > 10 * primal
-            factor = np.where(up, 2.0, np.where(down, 0.5, 1.0))
-            rho[todo] *= factor
-            w[:, todo] /= factor
+            if step % RHO_EVERY == RHO_EVERY - 1:
+                # Residual balancing keeps primal and dual progress comparable.
+                primal = np.linalg.norm(x - z_new, axis=0)
+                dual = rho[todo] * np.linalg.norm(z_new - z_old, axis=0)
+                factor = np.where(primal > 10 * dual, 2.0, np.where(dual > 10 * primal, 0.5, 1.0))
+                rho[todo] *= factor
+                w[:, todo] /= factor
+        signs = np.sign(z)
         for i in todo:
+            pattern = signs[:, i]
+            settled = np.array_equal(pattern, previous_signs[:, i])
+            if not settled or (tried[i] is not None and np.array_equal(pattern, tried[i])):
+                continue
             polished = _polish(gram, cross[:, i], z[:, i], lam)
-            if polished is not None:
-                coef[:, i] = polished
-                done[i] = True
-                # Exact primal/dual pair as the warm start for the next λ.
-                z[:, i] = polished
-                w[:, i] = (cross[:, i] - gram @ polished) / rho[i]
+            if polished is None:
+                tried[i] = pattern.copy()
+                continue
+            coef[:, i] = polished
+            done[i] = True
+            # Exact primal/dual pair as the warm start for the next λ.
+            z[:, i] = polished
+            w[:, i] = (cross[:, i] - gram @ polished) / rho[i]
+        previous_signs = signs
     for i in np.flatnonzero(~done):
         coef[:, i] = z[:, i]
     coef[:, zero] = 0.0

@@ -1,0 +1,140 @@
+"""CSV and Parquet tables: one row per sample, named columns (FORMATS.md §5).
+
+Each file is one segment and one group unless ``segment_by`` / ``group_by``
+name a column; then every distinct value of that column (within a file) is a
+segment or group of its own.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from ..dataset import Dataset, concatenate
+from ..errors import FtcalError
+from .atomic import atomic_path
+
+TABLE_SUFFIXES = (".csv", ".parquet", ".pq")
+
+
+def read_table(path: str | os.PathLike):
+    """Read a CSV or Parquet file into a pandas DataFrame, with clear errors."""
+    import pandas as pd
+
+    path = Path(path)
+    if not path.exists():
+        raise FtcalError(f"{path}: no such file.")
+    if path.is_dir():
+        raise FtcalError(f"{path}: is a directory, not a CSV or Parquet file.")
+    suffix = path.suffix.lower()
+    try:
+        if suffix in (".parquet", ".pq"):
+            frame = pd.read_parquet(path)
+        elif suffix == ".csv":
+            frame = pd.read_csv(path)
+        else:
+            raise FtcalError(f"{path}: unknown table type {suffix!r}; use .csv or .parquet.")
+    except FtcalError:
+        raise
+    except Exception as exc:  # pandas/pyarrow raise many types for corrupt files
+        raise FtcalError(f"{path}: cannot be read as {suffix[1:].upper()} ({type(exc).__name__}: "
+                         f"{str(exc).splitlines()[0] if str(exc) else 'no detail'}).") from None
+    if frame.shape[0] == 0:
+        raise FtcalError(f"{path}: the table has no rows.")
+    return frame
+
+
+def numeric_columns(frame, columns: Sequence[str], path: Path, role: str) -> np.ndarray:
+    """The named columns as a float64 array, naming the first missing, non-numeric or non-finite cell."""
+    missing = [c for c in columns if c not in frame.columns]
+    if missing:
+        raise FtcalError(f"{path}: missing {role} column(s) {', '.join(map(repr, missing))}; "
+                         f"the file has {', '.join(map(str, frame.columns))}.")
+    out = np.empty((frame.shape[0], len(columns)))
+    for j, name in enumerate(columns):
+        column = frame[name]
+        try:
+            values = column.to_numpy(dtype=np.float64)
+        except (TypeError, ValueError):
+            import pandas as pd
+
+            coerced = pd.to_numeric(column, errors="coerce")
+            row = int(np.flatnonzero(coerced.isna() & column.notna())[0])
+            raise FtcalError(f"{path}: column {name!r} row {row + 2 if path.suffix == '.csv' else row} "
+                             f"holds {column.iloc[row]!r}, not a number.") from None
+        bad = ~np.isfinite(values)
+        if bad.any():
+            row = int(np.flatnonzero(bad)[0])
+            where = f"line {row + 2}" if path.suffix.lower() == ".csv" else f"row {row}"
+            raise FtcalError(f"{path}: column {name!r} has {int(bad.sum())} empty, NaN or infinite "
+                             f"cell(s), first at {where}.")
+        out[:, j] = values
+    return out
+
+
+def _labels(frame, column: str | None, path: Path, role: str) -> np.ndarray | None:
+    if column is None:
+        return None
+    if column not in frame.columns:
+        raise FtcalError(f"{path}: no {role} column {column!r}; the file has "
+                         f"{', '.join(map(str, frame.columns))}.")
+    values = frame[column]
+    if values.isna().any():
+        raise FtcalError(f"{path}: {role} column {column!r} has empty cells.")
+    return values.to_numpy()
+
+
+def read_dataset(paths: Sequence[str | os.PathLike], inputs: Sequence[str], outputs: Sequence[str] | None,
+                 *, segment_by: str | None = None, group_by: str | None = None,
+                 require_outputs: bool = True) -> Dataset:
+    """Read tables into one :class:`Dataset`.
+
+    ``outputs=None`` or ``require_outputs=False`` with absent output columns
+    gives a dataset without outputs (for prediction).
+    """
+    if not paths:
+        raise FtcalError("No data files given.")
+    parts = []
+    for index, raw_path in enumerate(paths):
+        path = Path(raw_path)
+        frame = read_table(path)
+        u = numeric_columns(frame, inputs, path, "input")
+        y = None
+        if outputs:
+            if require_outputs or all(c in frame.columns for c in outputs):
+                y = numeric_columns(frame, outputs, path, "output")
+        seg_labels = _labels(frame, segment_by, path, "segment")
+        grp_labels = _labels(frame, group_by, path, "group")
+        segments = _segment_ids(seg_labels, len(frame))
+        groups = (np.full(len(frame), str(path), dtype=object) if grp_labels is None
+                  else np.asarray(grp_labels, dtype=object))
+        part = Dataset(u, y, tuple(inputs), tuple(outputs) if y is not None else (), segments, groups,
+                       (str(path),))
+        parts.append(part)
+    if any(p.outputs is None for p in parts) and not all(p.outputs is None for p in parts):
+        raise FtcalError("Some data files have the output columns and some do not.")
+    return concatenate(parts)
+
+
+def _segment_ids(labels: np.ndarray | None, n: int) -> np.ndarray:
+    """Segment id per row: a new segment wherever the label changes."""
+    if labels is None:
+        return np.zeros(n, dtype=np.int64)
+    change = np.r_[True, labels[1:] != labels[:-1]]
+    return np.cumsum(change) - 1
+
+
+def write_table(frame, path: str | os.PathLike) -> None:
+    """Write a DataFrame as CSV or Parquet (by suffix), atomically."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in TABLE_SUFFIXES:
+        raise FtcalError(f"{path}: output must end in .csv or .parquet.")
+    with atomic_path(path) as tmp:
+        if suffix == ".csv":
+            frame.to_csv(tmp, index=False, float_format="%.17g")
+        else:
+            frame.to_parquet(tmp, index=False)
