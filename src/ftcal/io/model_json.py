@@ -1,0 +1,281 @@
+"""The native model file: JSON validated by ``schemas/model-1.json``, with a sha256 digest.
+
+The file keeps the normalized-basis coefficients the model was fitted with,
+every float written by ``repr`` (which round-trips exactly), so a loaded model
+predicts bit-identically to the saved one. Non-finite numbers (NaN metrics, an
+unknown condition number, unknown training ranges) are written as ``null``.
+
+The digest is the sha256 of the canonical JSON (sorted keys, no spaces, UTF-8)
+of every field except ``sha256``; it is computed from parsed values, so the
+file's layout and number spelling do not matter, only its content.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from collections.abc import Sequence
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from functools import cache
+from importlib import metadata, resources
+from pathlib import Path
+
+import jsonschema
+import numpy as np
+
+from ..errors import FtcalError
+from ..features import MonomialBasis, RegressorLayout
+from ..model import CalibrationModel, model_from_fitted
+from ..normalization import Normalization
+from .atomic import write_text_atomic
+
+FORMAT = "ftcal-model"
+FORMAT_VERSION = "1.0"
+SCHEMA_RESOURCE = "schemas/model-1.json"
+_MESSAGE_LIMIT = 160
+
+
+@dataclass(frozen=True)
+class ModelFile:
+    """A loaded model file: the model plus what the model object does not carry."""
+
+    model: CalibrationModel
+    input_units: tuple[str | None, ...]
+    output_units: tuple[str | None, ...]
+    sources: tuple[str, ...]
+    created_utc: str | None  # None for formats without creation metadata
+    ftcal_version: str | None
+
+
+# ---------------------------------------------------------------- writing
+def save_model(model: CalibrationModel, path: str | Path, *, sources: Sequence[str] = (),
+               input_units: Sequence[str | None] | None = None,
+               output_units: Sequence[str | None] | None = None) -> None:
+    """Write ``model`` to ``path`` as a native JSON model file (atomically)."""
+    write_text_atomic(path, format_document(model_document(model, sources=sources, input_units=input_units,
+                                                           output_units=output_units)))
+
+
+def model_document(model: CalibrationModel, *, sources: Sequence[str] = (),
+                   input_units: Sequence[str | None] | None = None,
+                   output_units: Sequence[str | None] | None = None) -> dict:
+    """The model file content as a JSON-ready dict, digest included."""
+    model._check_fitted()
+    layout = model.layout_
+    exponents, lags = layout.exponent_rows()
+    info = _jsonable(model.solver_info_)
+    doc = {
+        "format": FORMAT,
+        "format_version": FORMAT_VERSION,
+        "model": {"degree": layout.basis.degree, "na": layout.na, "nb": layout.nb,
+                  "normalization": model.normalization},
+        "inputs": _variables(model.input_names_, input_units, model.input_normalization_,
+                             model.input_range_, "input_units"),
+        "outputs": _variables(model.output_names_, output_units, model.output_normalization_,
+                              model.output_range_, "output_units"),
+        "terms": {"exponents": exponents.tolist(), "lags": lags.tolist(),
+                  "names": layout.column_names(model.input_names_, model.output_names_)},
+        "coefficients": _jsonable(model.coef_),
+        "fit": {
+            "solver": {**info, "name": info.get("name"), "lambda": info.get("lambda")},
+            "n_samples": model.n_samples_fit_,
+            "rank": model.rank_,
+            "condition_number": _jsonable(model.condition_number_),
+            "metrics": _jsonable(model.training_metrics_),
+        },
+        "created": {
+            "ftcal_version": _ftcal_version(),
+            "time_utc": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+            "sources": [str(s) for s in sources],
+        },
+    }
+    if any(v is None for row in doc["coefficients"] for v in row):
+        raise FtcalError("The model has non-finite coefficients (NaN or inf); refusing to save it.")
+    doc["sha256"] = digest(doc)
+    return doc
+
+
+def _variables(names: Sequence[str], units: Sequence[str | None] | None, norm: Normalization,
+               ranges: np.ndarray, what: str) -> list[dict]:
+    if units is not None and len(units) != len(names):
+        raise FtcalError(f"{what} has {len(units)} entries; the model has {len(names)} ({', '.join(names)}).")
+    units = list(units) if units is not None else [None] * len(names)
+    return [{"name": n, "unit": u, "offset": float(o), "scale": float(s), "range": _jsonable(r)}
+            for n, u, o, s, r in zip(names, units, norm.offset, norm.scale, ranges)]
+
+
+def _jsonable(value):
+    """Plain JSON values: numpy scalars and arrays converted, non-finite floats as None."""
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        return float(value) if np.isfinite(value) else None
+    if value is None or isinstance(value, str):
+        return value
+    return str(value)
+
+
+def _ftcal_version() -> str:
+    try:
+        return metadata.version("ftcal")
+    except metadata.PackageNotFoundError:  # running from a source tree that is not installed
+        return "unknown"
+
+
+def digest(doc: dict) -> str:
+    """sha256 hex digest of the canonical JSON of ``doc`` without its ``sha256`` field."""
+    content = {k: v for k, v in doc.items() if k != "sha256"}
+    canonical = json.dumps(content, sort_keys=True, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
+    return hashlib.sha256(canonical.encode("utf-8")).hexdigest()
+
+
+def format_document(doc: dict) -> str:
+    """Indented JSON with each flat list (a coefficient row, an exponent row) on one line."""
+    return _format(doc, 0) + "\n"
+
+
+def _format(value, depth: int) -> str:
+    pad, close = "  " * (depth + 1), "  " * depth
+    if isinstance(value, dict) and value:
+        items = [f"{pad}{json.dumps(k, ensure_ascii=False)}: {_format(v, depth + 1)}" for k, v in value.items()]
+        return "{\n" + ",\n".join(items) + "\n" + close + "}"
+    if isinstance(value, list) and any(isinstance(v, (dict, list)) for v in value):
+        return "[\n" + ",\n".join(pad + _format(v, depth + 1) for v in value) + "\n" + close + "]"
+    return json.dumps(value, ensure_ascii=False, allow_nan=False)
+
+
+# ---------------------------------------------------------------- reading
+def load_model(path: str | Path) -> CalibrationModel:
+    """Read a native JSON model file; raises :class:`FtcalError` saying what is wrong and where."""
+    return load_model_file(path).model
+
+
+def load_model_file(path: str | Path) -> ModelFile:
+    """Like :func:`load_model`, also returning units, data sources and creation metadata."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise FtcalError(f"{path}: not a JSON model file (not UTF-8 text at byte {exc.start}).") from None
+    except OSError as exc:
+        raise FtcalError(f"Cannot read model file {path}: {exc.strerror}.") from None
+    return parse_model(text, str(path))
+
+
+def parse_model(text: str, source: str = "<model>") -> ModelFile:
+    """Parse and validate model-file ``text``; ``source`` names it in error messages."""
+    doc = _parse_json(text, source)
+    _check_version(doc, source)
+    error = jsonschema.exceptions.best_match(_validator().iter_errors(doc))
+    if error is not None:
+        message = error.message if len(error.message) <= _MESSAGE_LIMIT else error.message[:_MESSAGE_LIMIT] + "…"
+        raise FtcalError(f"{source}: invalid model file at {error.json_path}: {message}.")
+    if digest(doc) != doc["sha256"]:
+        raise FtcalError(f"{source}: the sha256 digest does not match the content: the file was modified "
+                         "after it was written. Re-export it from the original model.")
+    return _build(doc, source)
+
+
+def _parse_json(text: str, source: str) -> dict:
+    def reject_constant(name: str):
+        raise FtcalError(f"{source}: {name} is not valid JSON (model files write unknown numbers as null).")
+
+    try:
+        doc = json.loads(text, parse_constant=reject_constant)
+    except json.JSONDecodeError as exc:
+        raise FtcalError(f"{source}: not valid JSON: {exc.msg} at line {exc.lineno}, column {exc.colno}.") from None
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+        raise FtcalError(f"{source}: not an ftcal model file (expected a JSON object with "
+                         f"\"format\": \"{FORMAT}\").")
+    return doc
+
+
+def _check_version(doc: dict, source: str) -> None:
+    version = doc.get("format_version")
+    if version == FORMAT_VERSION:
+        return
+    try:
+        newer = tuple(map(int, str(version).split("."))) > tuple(map(int, FORMAT_VERSION.split(".")))
+    except ValueError:
+        newer = False
+    if newer:
+        raise FtcalError(f"{source}: format_version {version} is newer than this ftcal ({_ftcal_version()}) "
+                         f"reads (up to {FORMAT_VERSION}); upgrade ftcal to load it.")
+    raise FtcalError(f"{source}: unknown format_version {version!r}; this ftcal reads {FORMAT_VERSION}.")
+
+
+@cache
+def _validator() -> jsonschema.protocols.Validator:
+    schema = json.loads(resources.files("ftcal").joinpath(SCHEMA_RESOURCE).read_text(encoding="utf-8"))
+    return jsonschema.Draft202012Validator(schema)
+
+
+def _build(doc: dict, source: str) -> ModelFile:
+    """The model from a schema-valid document, after checks the schema cannot express."""
+    spec, inputs, outputs = doc["model"], doc["inputs"], doc["outputs"]
+    for what, variables in (("inputs", inputs), ("outputs", outputs)):
+        names = [v["name"] for v in variables]
+        if len(set(names)) != len(names):
+            raise FtcalError(f"{source}: {what} names repeat ({', '.join(names)}); each must be unique.")
+    layout = RegressorLayout(MonomialBasis(len(inputs), spec["degree"]), len(outputs), spec["na"], spec["nb"])
+    _check_terms(doc["terms"], layout, spec, source)
+    coef = doc["coefficients"]
+    if len(coef) != layout.n_features:
+        raise FtcalError(f"{source}: coefficients has {len(coef)} rows; the model needs {layout.n_features} "
+                         "(one per term).")
+    bad_row = next((i for i, row in enumerate(coef) if len(row) != len(outputs)), None)
+    if bad_row is not None:
+        raise FtcalError(f"{source}: coefficients[{bad_row}] has {len(coef[bad_row])} values; the model has "
+                         f"{len(outputs)} outputs.")
+    fit = doc["fit"]
+    model = model_from_fitted(
+        degree=spec["degree"], na=spec["na"], nb=spec["nb"], normalization=spec["normalization"],
+        coef=np.array(coef, dtype=np.float64),
+        input_normalization=_normalization(inputs), output_normalization=_normalization(outputs),
+        input_names=[v["name"] for v in inputs], output_names=[v["name"] for v in outputs],
+        input_range=_ranges(inputs), output_range=_ranges(outputs),
+        n_samples_fit=fit["n_samples"], rank=fit["rank"],
+        condition_number=_number(fit["condition_number"]),
+        solver_info=fit["solver"], training_metrics=fit["metrics"])
+    created = doc["created"]
+    return ModelFile(model, tuple(v["unit"] for v in inputs), tuple(v["unit"] for v in outputs),
+                     tuple(created["sources"]), created["time_utc"], created["ftcal_version"])
+
+
+def _check_terms(terms: dict, layout: RegressorLayout, spec: dict, source: str) -> None:
+    expected_exps, expected_lags = layout.exponent_rows()
+    model_class = (f"degree {spec['degree']}, na={spec['na']}, nb={spec['nb']} with "
+                   f"{layout.basis.n_inputs} inputs and {layout.n_outputs} outputs")
+    for field in ("exponents", "lags", "names"):
+        if len(terms[field]) != layout.n_features:
+            raise FtcalError(f"{source}: terms.{field} has {len(terms[field])} entries; "
+                             f"{model_class} has {layout.n_features} terms.")
+    for row, (got, want) in enumerate(zip(terms["exponents"], expected_exps.tolist())):
+        if got != want:
+            raise FtcalError(f"{source}: terms.exponents[{row}] is {got}; {model_class} has {want} there "
+                             "(the paper's column order).")
+    for row, (got, want) in enumerate(zip(terms["lags"], expected_lags.tolist())):
+        if got != want:
+            raise FtcalError(f"{source}: terms.lags[{row}] is {got}; {model_class} has {want} there.")
+
+
+def _normalization(variables: list[dict]) -> Normalization:
+    return Normalization(np.array([v["offset"] for v in variables], dtype=np.float64),
+                         np.array([v["scale"] for v in variables], dtype=np.float64))
+
+
+def _ranges(variables: list[dict]) -> np.ndarray:
+    # null means unknown: an unbounded range, so predictions never warn.
+    return np.array([[-np.inf if lo is None else lo, np.inf if hi is None else hi]
+                     for lo, hi in (v["range"] for v in variables)], dtype=np.float64)
+
+
+def _number(value: float | None) -> float:
+    return float("nan") if value is None else float(value)
