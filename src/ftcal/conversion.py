@@ -136,8 +136,11 @@ def predict_raw(layout: RegressorLayout, raw_coef: np.ndarray, u: np.ndarray,
         cols = lags == lag
         shifted = u[start - lag:n - lag]
         for a in range(0, shifted.shape[0], _RAW_CHUNK):
-            block = shifted[a:a + _RAW_CHUNK]
-            monomials = np.prod(block[:, None, :] ** exps[cols][None], axis=2)
+            # powers[:, i, e] = u_i^e; a monomial is the product of one power per input.
+            powers = shifted[a:a + _RAW_CHUNK, :, None] ** np.arange(layout.basis.degree + 1)
+            monomials = np.ones((powers.shape[0], int(cols.sum())))
+            for i, e in enumerate(exps[cols].T):
+                monomials *= powers[:, i, e]
             result[a:a + _RAW_CHUNK] += monomials @ raw_coef[cols]
     ny = layout.n_outputs
     for j in range(1, layout.na + 1):
