@@ -275,3 +275,28 @@ def test_arx_segments_shorter_than_lag_raise(rng):
     with pytest.raises(FtcalError, match="No regressor rows"), warnings.catch_warnings():
         warnings.simplefilter("ignore", IllPosedFitWarning)
         CalibrationModel(1, na=2, nb=0).fit(Dataset.from_arrays(u, u))
+
+
+@pytest.mark.xfail(strict=True, reason="CalibrationModel.predict feeds data.outputs to the ARX recursion in "
+                   "column order, without selecting the model's outputs by name")
+@pytest.mark.parametrize("mode", ["one-step", "free-run"])
+def test_arx_predict_selects_measured_outputs_by_name(rng, mode):
+    model = CalibrationModel(1, na=2, nb=1).fit(_arx_data(rng, [300]))
+    fresh = _arx_data(rng, [40])
+    swapped = Dataset.from_arrays(fresh.inputs, fresh.outputs[:, ::-1], input_names=["u1", "u2"],
+                                  output_names=["Fy", "Fx"])
+    expected = _hand_predict(fresh.inputs, fresh.outputs, mode)
+    np.testing.assert_allclose(model.predict(swapped, mode=mode, warn_out_of_range=False), expected, atol=1e-8)
+
+
+def test_input_lags_only_model_is_a_fir_filter(rng):
+    u = rng.uniform(-1, 1, size=(120, 2))
+    y = np.zeros((120, 1))
+    y[2:, 0] = u[2:, 0] - 0.5 * u[1:-1, 1] + 0.25 * u[:-2, 0] + 0.1
+    model = CalibrationModel(1, nb=2).fit(Dataset.from_arrays(u, y))
+    fresh = rng.uniform(-1, 1, size=(30, 2))
+    padded = np.r_[fresh[:1], fresh[:1], fresh]  # documented: history repeats the first sample
+    expected = padded[2:, 0] - 0.5 * padded[1:-1, 1] + 0.25 * padded[:-2, 0] + 0.1
+    for mode in ("free-run", "one-step"):
+        got = model.predict(Dataset.from_arrays(fresh, np.zeros((30, 1))), mode=mode, warn_out_of_range=False)
+        np.testing.assert_allclose(got[:, 0], expected, atol=1e-9)
