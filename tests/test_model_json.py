@@ -174,7 +174,7 @@ def test_coefficient_shape_must_match(saved_text):
         parse_model(resign(doc), "m.json")
     doc = json.loads(saved_text)
     doc["coefficients"].pop()
-    with pytest.raises(FtcalError, match="coefficients has 3 rows; the model needs 4"):
+    with pytest.raises(FtcalError, match="coefficients has 3 entries; degree 1, na=0, nb=0 with 3 inputs and 2 outputs has 4 terms"):
         parse_model(resign(doc), "m.json")
 
 

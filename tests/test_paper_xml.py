@@ -118,6 +118,8 @@ def edit(pattern, replacement):
     (edit(r'\s*<param name="row8">.*?</param>', ""),
      r"hand\.xml: 7 rowK parameters, but np=1, nu=7, ny=6, na=0, nb=0 needs 8"),
     (edit('row8', 'row9'), r"hand\.xml: row8 is missing"),
+    # 1 + C(70,1) + C(71,2) + C(72,3) + C(73,4) + C(74,5) = 1 + 70 + 2485 + 59640 + 1088430 + 16108764.
+    (edit('"np">1<', '"np">5<').replace('"nu">7<', '"nu">70<'), r"needs 17259390 "),
     (edit(r"\(0\t0\t3\.0", "(0\t0x\t3.0"), r"hand\.xml: row3, value 2 is '0x'; expected a finite number"),
     (edit(r"-\.5", "nan"), r"row5, value 5 is 'nan'"),
     (edit(r"\( 0 2 0 0 0 0 \)", "(0 2 0 0 0)"), r"row2 has 5 numbers; ny=6 needs 6"),

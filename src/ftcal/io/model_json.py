@@ -25,7 +25,7 @@ import jsonschema
 import numpy as np
 
 from ..errors import FtcalError
-from ..features import MonomialBasis, RegressorLayout
+from ..features import MonomialBasis, RegressorLayout, n_coefficients
 from ..model import CalibrationModel, model_from_fitted
 from ..normalization import Normalization
 from .atomic import write_text_atomic
@@ -224,12 +224,18 @@ def _build(doc: dict, source: str) -> ModelFile:
         names = [v["name"] for v in variables]
         if len(set(names)) != len(names):
             raise FtcalError(f"{source}: {what} names repeat ({', '.join(names)}); each must be unique.")
-    layout = RegressorLayout(MonomialBasis(len(inputs), spec["degree"]), len(outputs), spec["na"], spec["nb"])
-    _check_terms(doc["terms"], layout, spec, source)
+    nu, ny = len(inputs), len(outputs)
+    model_class = (f"degree {spec['degree']}, na={spec['na']}, nb={spec['nb']} with {nu} inputs "
+                   f"and {ny} outputs")
+    # Count by formula before building the basis, which enumerates every term.
+    n_terms = n_coefficients(nu, spec["degree"], ny, spec["na"], spec["nb"]) // ny
     coef = doc["coefficients"]
-    if len(coef) != layout.n_features:
-        raise FtcalError(f"{source}: coefficients has {len(coef)} rows; the model needs {layout.n_features} "
-                         "(one per term).")
+    for field, entries in (("terms.exponents", doc["terms"]["exponents"]), ("terms.lags", doc["terms"]["lags"]),
+                           ("terms.names", doc["terms"]["names"]), ("coefficients", coef)):
+        if len(entries) != n_terms:
+            raise FtcalError(f"{source}: {field} has {len(entries)} entries; {model_class} has {n_terms} terms.")
+    layout = RegressorLayout(MonomialBasis(nu, spec["degree"]), ny, spec["na"], spec["nb"])
+    _check_terms(doc["terms"], layout, model_class, source)
     bad_row = next((i for i, row in enumerate(coef) if len(row) != len(outputs)), None)
     if bad_row is not None:
         raise FtcalError(f"{source}: coefficients[{bad_row}] has {len(coef[bad_row])} values; the model has "
@@ -249,14 +255,8 @@ def _build(doc: dict, source: str) -> ModelFile:
                      tuple(created["sources"]), created["time_utc"], created["ftcal_version"])
 
 
-def _check_terms(terms: dict, layout: RegressorLayout, spec: dict, source: str) -> None:
+def _check_terms(terms: dict, layout: RegressorLayout, model_class: str, source: str) -> None:
     expected_exps, expected_lags = layout.exponent_rows()
-    model_class = (f"degree {spec['degree']}, na={spec['na']}, nb={spec['nb']} with "
-                   f"{layout.basis.n_inputs} inputs and {layout.n_outputs} outputs")
-    for field in ("exponents", "lags", "names"):
-        if len(terms[field]) != layout.n_features:
-            raise FtcalError(f"{source}: terms.{field} has {len(terms[field])} entries; "
-                             f"{model_class} has {layout.n_features} terms.")
     for row, (got, want) in enumerate(zip(terms["exponents"], expected_exps.tolist())):
         if got != want:
             raise FtcalError(f"{source}: terms.exponents[{row}] is {got}; {model_class} has {want} there "

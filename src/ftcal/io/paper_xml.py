@@ -19,7 +19,7 @@ import numpy as np
 from ..conversion import from_raw, precision_loss, to_raw
 from ..dataset import DEFAULT_INPUTS, DEFAULT_OUTPUTS, default_names
 from ..errors import FtcalError
-from ..features import MAX_DEGREE, RegressorLayout, MonomialBasis
+from ..features import MAX_DEGREE, n_coefficients
 from ..model import CalibrationModel
 from .atomic import write_text_atomic
 
@@ -75,16 +75,16 @@ def parse_paper_xml(data: bytes | str, source: str = "<xml>", *, input_names: Se
     params = _params(data, source)
     ints = {name: _int_param(params, name, low, high, source) for name, low, high in INT_PARAMS}
     degree, ny, nu, na, nb = (ints[k] for k in ("np", "ny", "nu", "na", "nb"))
-    layout = RegressorLayout(MonomialBasis(nu, degree), ny, na, nb)
+    # Count by formula before building the basis: a typo such as nu=70 must not enumerate millions of terms.
+    n_rows = n_coefficients(nu, degree, ny, na, nb) // ny
     rows = {int(m.group(1)): value for name, value in params.items() if (m := _ROW.fullmatch(name))}
-    if len(rows) != layout.n_features:
+    if len(rows) != n_rows:
         raise FtcalError(f"{source}: {len(rows)} rowK parameters, but np={degree}, nu={nu}, ny={ny}, "
-                         f"na={na}, nb={nb} needs {layout.n_features} "
-                         f"(ny·na + 1 + Σ_p (nb+1)·C(nu+p−1, p)).")
-    missing = next((k for k in range(1, layout.n_features + 1) if k not in rows), None)
+                         f"na={na}, nb={nb} needs {n_rows} (ny·na + 1 + Σ_p (nb+1)·C(nu+p−1, p)).")
+    missing = next((k for k in range(1, n_rows + 1) if k not in rows), None)
     if missing is not None:
-        raise FtcalError(f"{source}: row{missing} is missing (rows must be numbered 1..{layout.n_features}).")
-    raw = np.array([_row_values(rows[k], k, ny, source) for k in range(1, layout.n_features + 1)])
+        raise FtcalError(f"{source}: row{missing} is missing (rows must be numbered 1..{n_rows}).")
+    raw = np.array([_row_values(rows[k], k, ny, source) for k in range(1, n_rows + 1)])
     names_in = _names(input_names, DEFAULT_INPUTS, "u", nu, "input", source)
     names_out = _names(output_names, DEFAULT_OUTPUTS, "y", ny, "output", source)
     return from_raw(raw, degree=degree, na=na, nb=nb, input_names=names_in, output_names=names_out)
