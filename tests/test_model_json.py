@@ -196,5 +196,7 @@ def test_read_model_dispatches_on_content(tmp_path):
     (tmp_path / "junk").write_text("hello")
     with pytest.raises(FtcalError, match="neither an ftcal JSON model file nor a paper XML"):
         read_model(tmp_path / "junk")
+    with pytest.raises(FtcalError, match="is a directory; give the path of the json file"):
+        write_model(model, tmp_path, "json")
     with pytest.raises(FtcalError, match="'fmt' parameter of write_model must be one of"):
         write_model(model, tmp_path / "x", "pickle")

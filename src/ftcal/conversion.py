@@ -98,6 +98,7 @@ def from_raw(raw_coef: np.ndarray, *, degree: int, input_names: Sequence[str],
     nu, ny = len(input_names), len(output_names)
     inn = input_normalization or Normalization.identity(nu)
     out = output_normalization or Normalization.identity(ny)
+    # ``normalization`` is only the mode a refit would use; the default is as good as any.
     model = model_from_fitted(
         degree=degree, na=na, nb=nb, normalization="center", coef=raw_coef,
         input_normalization=inn, output_normalization=out,

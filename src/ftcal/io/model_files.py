@@ -53,6 +53,8 @@ def write_model(model: CalibrationModel, path: str | Path, fmt: str, *, sources:
     """
     check_choice(fmt, "fmt", "write_model", WRITE_FORMATS)
     path = Path(path)
+    if path.is_dir() and fmt != "icub-firmware":
+        raise FtcalError(f"{path} is a directory; give the path of the {fmt} file to write.")
     if fmt == "json":
         save_model(model, path, sources=sources, input_units=input_units, output_units=output_units)
     elif fmt == "paper-xml":
