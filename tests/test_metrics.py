@@ -77,8 +77,6 @@ def test_force_torque_columns_by_name(names, forces, torques):
     assert metrics.force_torque_columns(names) == (forces, torques)
 
 
-@pytest.mark.xfail(strict=True, reason="force_torque_columns falls back to positions 0-2 as forces when "
-                   "the forces are found by name but the torques are not, so 'tau_x' becomes a force")
 def test_forces_found_by_name_are_kept_when_torques_are_not():
     forces, _ = metrics.force_torque_columns(("tau_x", "tau_y", "tau_z", "Fx", "Fy", "Fz"))
     assert forces == [3, 4, 5]

@@ -277,8 +277,6 @@ def test_arx_segments_shorter_than_lag_raise(rng):
         CalibrationModel(1, na=2, nb=0).fit(Dataset.from_arrays(u, u))
 
 
-@pytest.mark.xfail(strict=True, reason="CalibrationModel.predict feeds data.outputs to the ARX recursion in "
-                   "column order, without selecting the model's outputs by name")
 @pytest.mark.parametrize("mode", ["one-step", "free-run"])
 def test_arx_predict_selects_measured_outputs_by_name(rng, mode):
     model = CalibrationModel(1, na=2, nb=1).fit(_arx_data(rng, [300]))

@@ -134,9 +134,6 @@ def test_lasso_path_equals_separate_fits(rng):
         np.testing.assert_array_equal(result.coef == 0, alone.coef == 0)
 
 
-@pytest.mark.xfail(strict=True, reason="lasso._polish needs G_SS positive definite, so with two identical "
-                   "columns both in the support it never accepts the (optimal) ADMM iterate: runs max_iter "
-                   "and warns that it did not converge")
 def test_lasso_with_duplicate_columns_converges(rng):
     # Exact duplicates happen in practice: with the paper's max-abs input scaling a constant
     # temperature input becomes a copy of the offset column.
@@ -167,8 +164,6 @@ def test_lasso_rejects_bad_lambda(rng, lam):
 OSQP_PENDING = "ignore:The default value of raise_error:PendingDeprecationWarning"
 
 
-@pytest.mark.xfail(strict=True, reason="osqp_qp._solve_qp calls OSQP.solve() without raise_error, "
-                   "so every OSQP fit emits osqp's PendingDeprecationWarning to the user")
 def test_osqp_solvers_emit_no_warnings(rng):
     a, b = _problem(rng, n=30, p=4, ny=1)
     a_s = _scaled(a)

@@ -13,8 +13,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-_FORCE = re.compile(r"(^|[_\W])F[xyz]$")
-_TORQUE = re.compile(r"(^|[_\W])(T|M|tau)[xyz]$")
+_FORCE = re.compile(r"(^|[_\W])(F|f)_?[xyz]$")
+_TORQUE = re.compile(r"(^|[_\W])(T|M|tau)_?[xyz]$")
 
 
 def rmse(y_true: np.ndarray, y_pred: np.ndarray) -> np.ndarray:
@@ -67,11 +67,15 @@ def force_torque_columns(output_names: Sequence[str]) -> tuple[list[int] | None,
     """
     forces = [i for i, n in enumerate(output_names) if _FORCE.search(n)]
     torques = [i for i, n in enumerate(output_names) if _TORQUE.search(n)]
-    if len(forces) == 3 and len(torques) == 3:
-        return forces, torques
+    found_forces = forces if len(forces) == 3 else None
+    found_torques = torques if len(torques) == 3 else None
     if len(output_names) == 6:
-        return [0, 1, 2], [3, 4, 5]
-    return (forces if len(forces) == 3 else None), (torques if len(torques) == 3 else None)
+        # Unnamed halves of a six-axis wrench follow the (F, T) order, unless named otherwise.
+        if found_forces is None and found_torques != [0, 1, 2]:
+            found_forces = [0, 1, 2] if found_torques is None else [i for i in range(6) if i not in found_torques]
+        if found_torques is None and found_forces is not None:
+            found_torques = [i for i in range(6) if i not in found_forces]
+    return found_forces, found_torques
 
 
 def summarize(y_true: np.ndarray, y_pred: np.ndarray, output_names: Sequence[str]) -> dict:

@@ -221,8 +221,8 @@ class CalibrationModel:
             return self._predict_static(u_norm)
         if mode == "one-step" and data.outputs is None:
             raise FtcalError("One-step-ahead prediction needs the measured outputs in the data.")
-        return np.concatenate([self._predict_arx_segment(u_norm[a:b],
-                                                         None if data.outputs is None else data.outputs[a:b],
+        measured = None if data.outputs is None else _outputs_in_order(data, self.output_names_)
+        return np.concatenate([self._predict_arx_segment(u_norm[a:b], None if measured is None else measured[a:b],
                                                          mode)
                                for a, b in data.segment_bounds()])
 

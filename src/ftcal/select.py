@@ -237,4 +237,42 @@ def fit_best(data: Dataset, result: CrossValidationResult, *, normalization: str
 
 
 __all__ = ["Candidate", "CrossValidationResult", "PAPER_LAMBDAS", "cross_validate", "default_candidates",
-           "fit_best", "grouped_folds"]
+           "fit_best", "fit_candidates", "grouped_folds"]
+
+
+def fit_candidates(data: Dataset, candidates: Sequence[Candidate], *, normalization: str = "center",
+                   advance=None) -> dict[Candidate, CalibrationModel]:
+    """Fit every static candidate on all of ``data`` from one pass of statistics.
+
+    The statistics are accumulated once at the highest degree; each degree's
+    problem is a sub-block, and LASSO candidates of one degree run as one
+    warm-started λ path. Equivalent to fitting each candidate separately.
+    """
+    if data.outputs is None:
+        raise FtcalError("Fitting needs reference outputs in the data.")
+    u, y = data.inputs, data.outputs
+    in_norm = normalization_from_range(u.min(axis=0), u.max(axis=0), normalization)
+    out_norm = normalization_from_range(y.min(axis=0), y.max(axis=0), "center")
+    top = RegressorLayout(MonomialBasis(u.shape[1], max(c.degree for c in candidates)), y.shape[1])
+    stats = CalibrationModel.statistics(data, top, in_norm, out_norm)
+    models = {}
+    for degree in sorted({c.degree for c in candidates}):
+        layout = RegressorLayout(MonomialBasis(u.shape[1], degree), y.shape[1])
+        problem = ScaledProblem.from_statistics(stats.restrict(layout.basis.index_in(top.basis)))
+        group = [c for c in candidates if c.degree == degree]
+        for candidate, result in _solve_group(problem, group):
+            model = model_from_fitted(
+                degree=degree, na=0, nb=0, normalization=normalization,
+                coef=result.coef / problem.column_scale[:, None],
+                input_normalization=in_norm, output_normalization=out_norm,
+                input_names=data.input_names, output_names=data.output_names,
+                input_range=np.c_[u.min(axis=0), u.max(axis=0)], output_range=np.c_[y.min(axis=0), y.max(axis=0)],
+                n_samples_fit=data.n_samples, rank=result.rank, condition_number=result.condition_number,
+                solver_info={"name": candidate.solver().name, "lambda": candidate.lam,
+                             **{k: v for k, v in result.info.items() if k != "lambda"}},
+                solver=candidate.solver())
+            model.training_metrics_ = model.score(data, warn_out_of_range=False)
+            models[candidate] = model
+            if advance is not None:
+                advance(1)
+    return models

@@ -59,6 +59,10 @@ def main(argv: list[str] | None = None) -> int:
     except FtcalError as exc:
         print(f"ftcal {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except BrokenPipeError:
+        # Output piped into e.g. `head`: stop quietly like other command-line tools.
+        sys.stderr.close()
+        return 0
     except KeyboardInterrupt:
         print(f"ftcal {args.command}: interrupted", file=sys.stderr)
         return 130

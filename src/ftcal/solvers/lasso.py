@@ -157,11 +157,17 @@ def _polish(gram: np.ndarray, c: np.ndarray, z: np.ndarray, lam: float) -> np.nd
     signs = np.sign(z[support])
     x = np.zeros_like(z)
     if support.size:
+        block = gram[np.ix_(support, support)]
+        rhs = c[support] - lam * signs
         try:
-            factor = scipy.linalg.cho_factor(gram[np.ix_(support, support)], check_finite=False)
+            factor = scipy.linalg.cho_factor(block, check_finite=False)
+            x_s = scipy.linalg.cho_solve(factor, rhs, check_finite=False)
         except np.linalg.LinAlgError:
-            return None
-        x_s = scipy.linalg.cho_solve(factor, c[support] - lam * signs, check_finite=False)
+            # Duplicate columns in the support: the optimum is not unique; take
+            # the minimum-norm one if the reduced system is consistent.
+            x_s = np.linalg.lstsq(block, rhs, rcond=None)[0]
+            if np.linalg.norm(block @ x_s - rhs) > KKT_RTOL * max(np.linalg.norm(rhs), lam):
+                return None
         if np.any(x_s * signs <= 0):
             return None
         x[support] = x_s

@@ -29,7 +29,7 @@ def _solve_qp(P, q, A, lower, upper, eps: float, max_iter: int):
     problem = osqp.OSQP()
     problem.setup(P=sp.csc_matrix(P), q=q, A=sp.csc_matrix(A), l=lower, u=upper,
                   eps_abs=eps, eps_rel=eps, max_iter=max_iter, verbose=False, polishing=False)
-    result = problem.solve()
+    result = problem.solve(raise_error=False)  # we check the status ourselves
     status = str(result.info.status)
     if "solved" not in status.lower():
         raise FtcalError(f"OSQP did not solve the problem (status: {status}); "

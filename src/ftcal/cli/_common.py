@@ -1,0 +1,78 @@
+"""Argument helpers shared by the commands."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from collections.abc import Sequence
+
+from ..dataset import DEFAULT_INPUTS, DEFAULT_OUTPUTS
+from ..errors import FtcalError
+
+
+def column_list(text: str) -> tuple[str, ...]:
+    """Parse ``"u1,u2,T"``; rejects empty names."""
+    names = tuple(part.strip() for part in text.split(","))
+    if not names or any(not n for n in names):
+        raise argparse.ArgumentTypeError(f"expected comma-separated column names, got {text!r}")
+    if len(set(names)) != len(names):
+        raise argparse.ArgumentTypeError(f"column names repeat in {text!r}")
+    return names
+
+
+def positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not math.isfinite(value) or value <= 0:
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text!r}")
+    return value
+
+
+def nonnegative_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0, got {text!r}")
+    return value
+
+
+def float_list(text: str) -> tuple[float, ...]:
+    return tuple(positive_float(part) for part in text.split(","))
+
+
+def add_column_options(parser: argparse.ArgumentParser, outputs: bool = True) -> None:
+    parser.add_argument("--inputs", type=column_list, metavar="C1,C2,...",
+                        help=f"input columns (default {','.join(DEFAULT_INPUTS)}; T is optional)")
+    if outputs:
+        parser.add_argument("--outputs", type=column_list, metavar="C1,...",
+                            help=f"reference output columns (default {','.join(DEFAULT_OUTPUTS)})")
+    parser.add_argument("--segment-by", metavar="COL",
+                        help="column whose runs of equal values are separate segments (default: one per file)")
+    parser.add_argument("--group-by", metavar="COL",
+                        help="column naming validation groups, e.g. the load case (default: one per file)")
+
+
+def default_inputs(paths: Sequence[str]) -> tuple[str, ...]:
+    """u1..u6,T, or u1..u6 when the first file has no T column (temperature is optional)."""
+    from ..io.tables import read_table
+
+    if not paths:
+        return DEFAULT_INPUTS
+    columns = set(read_table(paths[0]).columns)
+    return DEFAULT_INPUTS if "T" in columns else DEFAULT_INPUTS[:-1]
+
+
+def print_json(payload: dict) -> None:
+    json.dump(payload, sys.stdout, indent=2, allow_nan=False)
+    sys.stdout.write("\n")
+
+
+def require_suffix(path: str, suffixes: Sequence[str], option: str) -> None:
+    if not any(path.lower().endswith(s) for s in suffixes):
+        raise FtcalError(f"{option} {path}: must end in {' or '.join(suffixes)}.")

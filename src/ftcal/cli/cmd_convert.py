@@ -1,0 +1,25 @@
+"""``ftcal convert``: write a model in another format."""
+
+from __future__ import annotations
+
+
+def register(sub) -> None:
+    p = sub.add_parser("convert", help="convert a model file (json, paper-xml, icub-firmware, wbd)")
+    p.add_argument("model", metavar="MODEL", help="ftcal JSON or paper XML model file")
+    p.add_argument("--to", required=True, choices=("json", "paper-xml", "icub-firmware", "wbd"))
+    p.add_argument("-o", "--output", required=True, metavar="OUT",
+                   help="output file (for icub-firmware: a file or a directory for matrix_<serial>.txt)")
+    p.add_argument("--serial", help="sensor serial number for the firmware file name")
+    p.add_argument("--sensor", help="sensor name in the wholeBodyDynamics configuration (wbd)")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from ..io.model_files import read_model_file, write_model
+
+    loaded = read_model_file(args.model)
+    written = write_model(loaded.model, args.output, args.to, sources=loaded.sources or (args.model,),
+                          input_units=loaded.input_units, output_units=loaded.output_units,
+                          serial=args.serial, sensor=args.sensor)
+    print(f"wrote {written}")
+    return 0

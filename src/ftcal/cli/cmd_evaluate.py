@@ -1,0 +1,58 @@
+"""``ftcal evaluate``: metrics of a model on data with reference outputs."""
+
+from __future__ import annotations
+
+import warnings
+
+from ._common import print_json
+
+JSON_KEYS = ("rmse", "best_fit", "max_abs_error", "force_norm_rmse", "torque_norm_rmse",
+             "force_error_norm_rmse", "torque_error_norm_rmse", "n_samples", "n_out_of_range", "outputs")
+
+
+def register(sub) -> None:
+    p = sub.add_parser("evaluate", help="metrics of a model on held-out data")
+    p.add_argument("model", metavar="MODEL", help="model file (ftcal JSON or paper XML)")
+    p.add_argument("data", nargs="+", metavar="DATA", help="CSV or Parquet files with the model's columns")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--mode", choices=("free-run", "one-step"), default="free-run",
+                   help="ARX prediction mode (default free-run); both are reported for ARX models")
+    p.add_argument("--segment-by", metavar="COL", help="column separating segments (ARX)")
+    p.add_argument("--group-by", metavar="COL", help="accepted for symmetry with fit; unused")
+    p.set_defaults(func=run)
+
+
+def evaluate(args):
+    from ..errors import OutOfRangeWarning
+    from ..io.model_files import read_model
+    from ..io.tables import read_dataset
+
+    model = read_model(args.model)
+    data = read_dataset(args.data, model.input_names_, model.output_names_, segment_by=args.segment_by)
+    with warnings.catch_warnings():
+        # The count is reported in the output; no separate warning line.
+        warnings.simplefilter("ignore", OutOfRangeWarning)
+        return model, model.score(data, mode=args.mode)
+
+
+def run(args) -> int:
+    model, summary = evaluate(args)
+    if args.json:
+        payload = {k: summary[k] for k in JSON_KEYS}
+        if "one_step" in summary:
+            payload["one_step"] = {k: summary["one_step"][k] for k in JSON_KEYS if k in summary["one_step"]}
+        print_json(payload)
+        return 0
+    print(f"{summary['n_samples']} samples, {summary['n_out_of_range']} outside the training input range")
+    print(f"{'output':<10}{'RMSE':>12}{'BestFit':>10}{'max |err|':>12}")
+    for name, r, b, m in zip(summary["outputs"], summary["rmse"], summary["best_fit"], summary["max_abs_error"]):
+        best = f"{b:.4f}" if b is not None else "n/a"
+        print(f"{name:<10}{r:>12.5g}{best:>10}{m:>12.5g}")
+    for key, label in (("force_norm_rmse", "force-norm RMSE"), ("torque_norm_rmse", "torque-norm RMSE"),
+                       ("force_error_norm_rmse", "RMSE of force error norm"),
+                       ("torque_error_norm_rmse", "RMSE of torque error norm")):
+        if summary[key] is not None:
+            print(f"{label}: {summary[key]:.5g}")
+    if "one_step" in summary:
+        print(f"one-step-ahead force-norm RMSE: {summary['one_step']['force_norm_rmse']}")
+    return 0

@@ -1,0 +1,47 @@
+"""``ftcal info``: what a model file holds."""
+
+from __future__ import annotations
+
+import numpy as np
+
+N_LARGEST = 10
+
+
+def register(sub) -> None:
+    p = sub.add_parser("info", help="model class, counts, training ranges, largest terms")
+    p.add_argument("model", metavar="MODEL", help="ftcal JSON or paper XML model file")
+    p.add_argument("--terms", type=int, default=N_LARGEST, help=f"largest terms to list (default {N_LARGEST})")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from ..io.model_files import read_model_file
+
+    loaded = read_model_file(args.model)
+    model = loaded.model
+    info = model.describe()
+    lam = model.solver_info_.get("lambda")
+    arx = f", ARX na={info['na']} nb={info['nb']}" if info["na"] or info["nb"] else ""
+    print(f"{args.model}: polynomial degree {info['degree']}{arx}, {info['n_inputs']} inputs -> "
+          f"{info['n_outputs']} outputs")
+    print(f"coefficients {info['n_coefficients']}, nonzero {info['n_nonzero']}; solver "
+          f"{model.solver_info_.get('name') or 'unknown'}" + (f", lambda {lam:g}" if lam else ""))
+    if loaded.created_utc:
+        print(f"created {loaded.created_utc} by ftcal {loaded.ftcal_version}; "
+              f"trained on {model.n_samples_fit_} samples from {len(loaded.sources)} file(s)")
+    print("training ranges:")
+    for name, unit, (low, high) in zip(model.input_names_, loaded.input_units, model.input_range_):
+        print(f"  {name:<8} {low:>14.6g} .. {high:<14.6g} {unit or ''}")
+    metrics = model.training_metrics_ or {}
+    if metrics.get("force_norm_rmse") is not None:
+        print(f"training force-norm RMSE {metrics['force_norm_rmse']:.4g}, "
+              f"torque-norm RMSE {metrics['torque_norm_rmse']:.4g}")
+    names = model.layout_.column_names(model.input_names_, model.output_names_)
+    # Features are normalized to about [-1, 1], so |coefficient| measures a term's contribution.
+    magnitude = np.abs(model.coef_)
+    order = np.argsort(-magnitude, axis=None)[:max(args.terms, 0)]
+    print(f"largest terms (coefficients of normalized features):")
+    for flat in order:
+        row, col = np.unravel_index(flat, magnitude.shape)
+        print(f"  {model.output_names_[col]:<6} {names[row]:<28} {model.coef_[row, col]: .6g}")
+    return 0
