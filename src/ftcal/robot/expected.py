@@ -45,6 +45,7 @@ import multiprocessing
 
 import numpy as np
 
+from .._checks import check_int
 from ..errors import FtcalError
 from ..progress import progress_bar
 from .model import RobotModel
@@ -153,6 +154,7 @@ def expected_wrenches(robot: RobotModel, q: np.ndarray, *, dq: np.ndarray | None
     Large inputs are split across ``workers`` processes; a progress bar shows
     the samples done.
     """
+    workers = check_int(workers, "workers", "expected_wrenches", 1, 64)
     q = _check_joints(robot, q, "joint positions")
     dq = None if dq is None else _check_joints(robot, dq, "joint velocities", q.shape[0])
     ddq = None if ddq is None else _check_joints(robot, ddq, "joint accelerations", q.shape[0])
