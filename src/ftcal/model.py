@@ -14,7 +14,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from . import metrics
-from ._threads import map_ranges
+from ._threads import map_ranges, single_threaded_blas
 from ._checks import check_choice, check_finite_matrix, check_int
 from .dataset import Dataset
 from .errors import FtcalError, IllPosedFitWarning, NotFittedError, OutOfRangeWarning
@@ -103,7 +103,8 @@ class CalibrationModel:
             column_scale = problem.column_scale
 
         self.layout_ = layout
-        self.coef_ = result.coef / column_scale[:, None]
+        # C order, as loaded files have: BLAS sums in a layout-dependent order.
+        self.coef_ = np.ascontiguousarray(result.coef / column_scale[:, None])
         self.input_normalization_ = in_norm
         self.output_normalization_ = out_norm
         self.input_names_ = tuple(data.input_names)
@@ -222,9 +223,11 @@ class CalibrationModel:
         if mode == "one-step" and data.outputs is None:
             raise FtcalError("One-step-ahead prediction needs the measured outputs in the data.")
         measured = None if data.outputs is None else _outputs_in_order(data, self.output_names_)
-        return np.concatenate([self._predict_arx_segment(u_norm[a:b], None if measured is None else measured[a:b],
-                                                         mode)
-                               for a, b in data.segment_bounds()])
+        # One BLAS thread: results must not depend on thread scheduling (bit-identical reruns).
+        with single_threaded_blas():
+            return np.concatenate([self._predict_arx_segment(u_norm[a:b], None if measured is None else measured[a:b],
+                                                             mode)
+                                   for a, b in data.segment_bounds()])
 
     def _predict_static(self, u_norm: np.ndarray) -> np.ndarray:
         basis = self.layout_.basis
@@ -345,7 +348,7 @@ def model_from_fitted(*, degree: int, na: int, nb: int, normalization: str, coef
                          f"with {len(input_names)} inputs and {len(output_names)} outputs needs "
                          f"{(layout.n_features, len(output_names))}.")
     model.layout_ = layout
-    model.coef_ = coef
+    model.coef_ = np.ascontiguousarray(coef)
     model.input_normalization_ = input_normalization
     model.output_normalization_ = output_normalization
     model.input_names_ = tuple(input_names)

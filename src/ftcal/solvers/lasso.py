@@ -23,7 +23,7 @@ import scipy.linalg
 from .._checks import check_float
 from .._threads import single_threaded_blas
 from ..errors import FtcalWarning
-from .base import ScaledProblem, SolverResult, Spectrum
+from .base import Conditioning, ScaledProblem, SolverResult
 
 KKT_RTOL = 1e-7
 POLISH_EVERY = 20
@@ -52,7 +52,7 @@ class Lasso:
 
     def _fit_path(self, problem: ScaledProblem, lams: list[float]) -> list[SolverResult]:
         values, vectors = np.linalg.eigh(problem.gram)
-        equilibrated = Spectrum.of(problem.gram)
+        equilibrated = Conditioning.of(problem.gram)
         state = _AdmmState.cold(problem, values)
         results: dict[int, SolverResult] = {}
         for index in sorted(range(len(lams)), key=lambda i: -lams[i]):

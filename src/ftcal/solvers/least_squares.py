@@ -6,7 +6,7 @@ import numpy as np
 import scipy.linalg
 
 from .._checks import check_float
-from .base import ScaledProblem, SolverResult, Spectrum
+from .base import Conditioning, ScaledProblem, SolverResult
 
 
 class LeastSquares:
@@ -16,9 +16,9 @@ class LeastSquares:
     lam = 0.0
 
     def fit(self, problem: ScaledProblem) -> SolverResult:
-        spectrum = Spectrum.of(problem.gram)
-        coef = spectrum.solve(problem.cross)
-        return SolverResult(coef, spectrum.rank, spectrum.condition_number)
+        conditioning = Conditioning.of(problem.gram)
+        coef = conditioning.solve(problem.cross)
+        return SolverResult(coef, conditioning.rank, conditioning.condition_number)
 
 
 class Ridge:
@@ -35,8 +35,8 @@ class Ridge:
 
     def fit(self, problem: ScaledProblem) -> SolverResult:
         lam = check_float(self.lam, "lam", "Ridge", 0.0, low_inclusive=False)
-        spectrum = Spectrum.of(problem.gram)
+        conditioning = Conditioning.of(problem.gram)
         system = problem.gram + lam * np.eye(problem.n_features)
         factor = scipy.linalg.cho_factor(system, lower=True, check_finite=False)
         coef = scipy.linalg.cho_solve(factor, problem.cross, check_finite=False)
-        return SolverResult(coef, spectrum.rank, spectrum.condition_number)
+        return SolverResult(coef, conditioning.rank, conditioning.condition_number)

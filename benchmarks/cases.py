@@ -1,0 +1,195 @@
+"""Benchmark cases. Each runs in a fresh process (``python -m benchmarks.cases NAME JSON``)
+so its peak resident memory is its own; it prints one JSON line with the
+measured seconds and peak RSS (MB, including ~150 MB of interpreter and imports).
+
+Data: inputs like the paper's (6 raw channels in wrench units plus temperature
+25–44 °C), outputs a smooth nonlinear function of them; generated before the
+clock starts.
+"""
+
+from __future__ import annotations
+
+import json
+import resource
+import sys
+import time
+from itertools import combinations_with_replacement
+
+import numpy as np
+
+N_OUTPUTS = 6
+
+
+def make_data(n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    scale = np.array([120.0, 120.0, 110.0, 25.0, 25.0, 12.0])
+    raw = rng.uniform(-1.0, 1.0, (n, 6)) * scale
+    temperature = rng.uniform(25.0, 44.0, (n, 1))
+    u = np.hstack([raw, temperature])
+    x = raw / scale
+    t = (temperature[:, 0] - 34.5) / 9.5
+    y = np.column_stack([
+        scale[i] * (x[:, i] + 0.05 * np.tanh(2 * x[:, (i + 1) % 6]) + 0.02 * t * x[:, i] + 0.01 * x[:, i] ** 3)
+        for i in range(N_OUTPUTS)]) + rng.normal(0.0, 0.3, (n, N_OUTPUTS))
+    return u, y
+
+
+def paper_features(u: np.ndarray, degree: int) -> np.ndarray:
+    """The dense regressor as the paper's code builds it: one column per monomial, offset last."""
+    combos = [c for p in range(1, degree + 1) for c in combinations_with_replacement(range(u.shape[1]), p)]
+    a = np.empty((u.shape[0], len(combos) + 1))
+    for k, combo in enumerate(combos):
+        a[:, k] = np.prod(u[:, list(combo)], axis=1)
+    a[:, -1] = 1.0
+    return a
+
+
+def peak_mb() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+# ----------------------------------------------------------------- fitting
+def ftcal_fit(n: int, degree: int) -> dict:
+    from ftcal.dataset import Dataset
+    from ftcal.model import CalibrationModel
+
+    u, y = make_data(n)
+    data = Dataset.from_arrays(u, y)
+    start = time.perf_counter()
+    model = CalibrationModel(degree).fit(data)
+    seconds = time.perf_counter() - start
+    return {"seconds": seconds, "train_force_norm_rmse": model.training_metrics_["force_norm_rmse"]}
+
+
+def ftcal_statistics(n: int, degree: int) -> dict:
+    """Only the streaming pass (the part that scales with N)."""
+    from ftcal.features import MonomialBasis
+    from ftcal.normalization import normalization_from_range
+    from ftcal.statistics import static_statistics
+
+    u, y = make_data(n)
+    norm = normalization_from_range(u.min(0), u.max(0))
+    u_norm = norm.apply(u)
+    start = time.perf_counter()
+    static_statistics(MonomialBasis(u.shape[1], degree), u_norm, y)
+    return {"seconds": time.perf_counter() - start}
+
+
+def paper_recipe_fit(n: int, degree: int, eps: float = 1e-4) -> dict:
+    """Dense max-abs scaled regressor, then OSQP per output (the paper's least-squares QP)."""
+    from ftcal.solvers.osqp_qp import OsqpLeastSquares
+
+    u, y = make_data(n)
+    start = time.perf_counter()
+    a = paper_features(u, degree)
+    a /= np.abs(a).max(axis=0)
+    result = OsqpLeastSquares(eps=eps).fit_dense(a, y)
+    seconds = time.perf_counter() - start
+    return {"seconds": seconds, "osqp_iterations": result.info["iterations"]}
+
+
+def numpy_lstsq_fit(n: int, degree: int) -> dict:
+    from ftcal.features import MonomialBasis
+
+    u, y = make_data(n)
+    start = time.perf_counter()
+    u_norm = (u - u.mean(0)) / u.std(0)
+    a = MonomialBasis(u.shape[1], degree).evaluate(u_norm)
+    np.linalg.lstsq(a, y, rcond=None)
+    return {"seconds": time.perf_counter() - start}
+
+
+def sklearn_fit(n: int, degree: int) -> dict:
+    from sklearn.linear_model import LinearRegression
+    from sklearn.pipeline import make_pipeline
+    from sklearn.preprocessing import MaxAbsScaler, PolynomialFeatures
+
+    u, y = make_data(n)
+    start = time.perf_counter()
+    make_pipeline(PolynomialFeatures(degree), MaxAbsScaler(), LinearRegression()).fit(u, y)
+    return {"seconds": time.perf_counter() - start}
+
+
+# ------------------------------------------------------------------- LASSO
+LAMBDAS = (0.5, 1.0, 10.0, 50.0, 100.0, 200.0)
+
+
+def ftcal_lasso(n: int, degree: int) -> dict:
+    """Statistics pass + warm-started path over the six λ, all six outputs."""
+    from ftcal.dataset import Dataset
+    from ftcal.select import Candidate, fit_candidates
+
+    u, y = make_data(n)
+    data = Dataset.from_arrays(u, y)
+    start = time.perf_counter()
+    models = fit_candidates(data, [Candidate(degree, "lasso", lam) for lam in LAMBDAS])
+    seconds = time.perf_counter() - start
+    return {"seconds": seconds, "n_nonzero": [int(np.count_nonzero(m.coef_)) for m in models.values()]}
+
+
+def paper_lasso(n: int, degree: int, outputs: int = 1, lam: float = 50.0) -> dict:
+    """The paper's OSQP LASSO (one residual variable per sample), ``outputs`` outputs, one λ."""
+    from ftcal.solvers.osqp_qp import OsqpLasso
+
+    u, y = make_data(n)
+    start = time.perf_counter()
+    a = paper_features(u, degree)
+    a /= np.abs(a).max(axis=0)
+    OsqpLasso(lam).fit_dense(a, y[:, :outputs])
+    return {"seconds": time.perf_counter() - start}
+
+
+def sklearn_lasso(n: int, degree: int) -> dict:
+    """PolynomialFeatures + MaxAbsScaler + lasso_path over the six λ (α = λ/N), all outputs."""
+    from sklearn.linear_model import lasso_path
+    from sklearn.preprocessing import MaxAbsScaler, PolynomialFeatures
+
+    u, y = make_data(n)
+    start = time.perf_counter()
+    a = MaxAbsScaler().fit_transform(PolynomialFeatures(degree).fit_transform(u))
+    alphas = np.array(sorted(LAMBDAS, reverse=True)) / n
+    for i in range(y.shape[1]):
+        lasso_path(a, y[:, i], alphas=alphas, max_iter=5000, tol=1e-4)
+    return {"seconds": time.perf_counter() - start}
+
+
+# -------------------------------------------------------------- prediction
+def ftcal_predict(n: int, degree: int) -> dict:
+    from ftcal.dataset import Dataset
+    from ftcal.model import CalibrationModel
+
+    u, y = make_data(20_000)
+    model = CalibrationModel(degree).fit(Dataset.from_arrays(u, y))
+    big, _ = make_data(n, seed=1)
+    data = Dataset.from_arrays(big)
+    model.predict(Dataset.from_arrays(big[:1000]))  # warm-up: thread pool, caches
+    start = time.perf_counter()
+    model.predict(data, warn_out_of_range=False)
+    seconds = time.perf_counter() - start
+    return {"seconds": seconds, "samples_per_s": n / seconds}
+
+
+def sklearn_predict(n: int, degree: int) -> dict:
+    from sklearn.linear_model import LinearRegression
+    from sklearn.pipeline import make_pipeline
+    from sklearn.preprocessing import MaxAbsScaler, PolynomialFeatures
+
+    u, y = make_data(20_000)
+    pipe = make_pipeline(PolynomialFeatures(degree), MaxAbsScaler(), LinearRegression()).fit(u, y)
+    big, _ = make_data(n, seed=1)
+    start = time.perf_counter()
+    for s in range(0, n, 100_000):  # chunked, as anyone would at this size
+        pipe.predict(big[s:s + 100_000])
+    seconds = time.perf_counter() - start
+    return {"seconds": seconds, "samples_per_s": n / seconds}
+
+
+CASES = {f.__name__: f for f in (ftcal_fit, ftcal_statistics, paper_recipe_fit, numpy_lstsq_fit, sklearn_fit,
+                                 ftcal_lasso, paper_lasso, sklearn_lasso, ftcal_predict, sklearn_predict)}
+
+
+if __name__ == "__main__":
+    name, kwargs = sys.argv[1], json.loads(sys.argv[2])
+    outcome = CASES[name](**kwargs)
+    outcome["peak_rss_mb"] = peak_mb()
+    print(json.dumps(outcome))
