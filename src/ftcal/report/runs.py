@@ -1,0 +1,120 @@
+"""What a report is made of: one :class:`ModelRun` per evaluated model.
+
+A run carries the metrics and the validation prediction, so the report never
+refits or re-predicts; :func:`evaluate` makes a run from a fitted model.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..dataset import Dataset
+from ..errors import FtcalError
+from ..metrics import force_torque_columns
+from ..model import CalibrationModel
+
+LASSO_SOLVERS = ("lasso", "osqp-lasso")
+RIDGE_SOLVERS = ("ridge",)
+_TEMPERATURE = re.compile(r"(^|[_\W])(t|temp|temperature)$", re.IGNORECASE)
+
+
+@dataclass
+class ModelRun:
+    """One model evaluated on the validation set (and optionally the training set).
+
+    Attributes
+    ----------
+    name : label in tables and legends, e.g. ``"np4"`` or ``"np4 λ=50"``
+    model : the fitted :class:`~ftcal.model.CalibrationModel`
+    train_metrics : ``model.score(train)`` style dict, or None
+    validation_metrics : ``model.score(validation)`` style dict
+    validation_prediction : ndarray of shape (n_validation, n_outputs), columns in
+        ``model.output_names_`` order
+    """
+
+    name: str
+    model: CalibrationModel
+    train_metrics: dict | None
+    validation_metrics: dict
+    validation_prediction: np.ndarray
+
+    @property
+    def family(self) -> str:
+        """"least squares", "LASSO" or "ridge": which paper experiment the run belongs to."""
+        solver = str(self.model.solver_info_.get("name") or "")
+        if solver in LASSO_SOLVERS:
+            return "LASSO"
+        if solver in RIDGE_SOLVERS:
+            return "ridge"
+        return "least squares"
+
+    @property
+    def lam(self) -> float | None:
+        lam = self.model.solver_info_.get("lambda")
+        return None if lam is None else float(lam)
+
+
+def default_name(model: CalibrationModel) -> str:
+    """``np4``, ``np4 lasso λ=50``, ``np2 na=1 nb=1`` (the labels of cross-validation tables)."""
+    d = model.describe()
+    name = f"np{d['degree']}"
+    if d["na"] or d["nb"]:
+        name += f" na={d['na']} nb={d['nb']}"
+    solver = model.solver_info_.get("name")
+    lam = model.solver_info_.get("lambda")
+    if solver in LASSO_SOLVERS + RIDGE_SOLVERS and lam is not None:
+        name += f" {'lasso' if solver in LASSO_SOLVERS else 'ridge'} λ={float(lam):g}"
+    return name
+
+
+def evaluate(model: CalibrationModel, validation: Dataset, *, name: str | None = None,
+             train: Dataset | None = None) -> ModelRun:
+    """Score ``model`` on ``validation`` (and ``train``) and keep its validation prediction.
+
+    Samples outside the training range are counted (``n_out_of_range`` in the
+    metrics, a column of the report) instead of warned about.
+    """
+    validation_metrics = model.score(validation, warn_out_of_range=False)
+    prediction = model.predict(validation, warn_out_of_range=False)
+    train_metrics = None if train is None else model.score(train, warn_out_of_range=False)
+    return ModelRun(name or default_name(model), model, train_metrics, validation_metrics, prediction)
+
+
+def expected_outputs(run: ModelRun, data: Dataset) -> np.ndarray:
+    """The reference outputs of ``data`` in the order of the run's prediction columns."""
+    if data.outputs is None:
+        raise FtcalError("The report needs reference outputs (the expected wrench) in the validation data.")
+    index = {n: i for i, n in enumerate(data.output_names)}
+    missing = [n for n in run.model.output_names_ if n not in index]
+    if missing:
+        raise FtcalError(f"Model {run.name!r} predicts {', '.join(missing)}, which the validation data lacks.")
+    return data.outputs[:, [index[n] for n in run.model.output_names_]]
+
+
+def output_units(names: Sequence[str]) -> list[str]:
+    """'N' for force outputs, 'Nm' for torque outputs, '' when the names do not say."""
+    forces, torques = force_torque_columns(names)
+    units = [""] * len(names)
+    for i in forces or ():
+        units[i] = "N"
+    for i in torques or ():
+        units[i] = "Nm"
+    return units
+
+
+def temperature_column(names: Sequence[str]) -> int | None:
+    """Index of the temperature input (``T``, ``temp``, ``r_arm_ft_T``...), or None."""
+    for i, name in enumerate(names):
+        if _TEMPERATURE.search(name):
+            return i
+    return None
+
+
+def natural_key(label) -> tuple:
+    """Sort ``l2kg`` before ``l10kg``: digit runs compare as numbers."""
+    parts = re.split(r"(\d+(?:\.\d+)?)", str(label))
+    return tuple(float(p) if i % 2 else p for i, p in enumerate(parts))
