@@ -1,0 +1,110 @@
+"""``ftcal report``: evaluate model files on data files and write one self-contained HTML page."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from ._common import column_list
+
+MODEL_SUFFIXES = (".json", ".xml")
+DATA_SUFFIXES = (".csv", ".parquet", ".pq")
+REPORT_SUFFIXES = (".html", ".htm")
+
+
+def register(sub) -> None:
+    p = sub.add_parser(
+        "report", help="HTML report comparing models on validation data",
+        description="Evaluate every model file on the data files (the validation set) and write one "
+                    "self-contained HTML page: per-axis validation errors with BestFit, force and torque "
+                    "norms, the data coverage, the temperature effect, the validation curve over degree, "
+                    "the LASSO path, and tables of all models. Model files (.json, .xml) and data files "
+                    "(.csv, .parquet) are told apart by extension.")
+    p.add_argument("files", nargs="+", metavar="FILE", help="model files (.json, .xml) and data files (.csv, .parquet)")
+    p.add_argument("-o", "--output", metavar="HTML", required=True, help="the report file (.html)")
+    p.add_argument("--train", action="append", default=[], metavar="DATA",
+                   help="training data file (repeatable): adds training metrics and plots its coverage")
+    p.add_argument("--inputs", type=column_list, metavar="C1,C2,...",
+                   help="input columns to read (default: every input any model uses)")
+    p.add_argument("--outputs", type=column_list, metavar="C1,...",
+                   help="reference output columns (default: the models' outputs)")
+    p.add_argument("--segment-by", metavar="COL",
+                   help="column whose runs of equal values are separate segments (default: one per file)")
+    p.add_argument("--group-by", metavar="COL",
+                   help="column naming groups, e.g. the load case (default: one per file)")
+    p.add_argument("--title", default="ftcal calibration report", help="page title")
+    p.set_defaults(func=run)
+
+
+def split_files(files: list[str]) -> tuple[list[str], list[str]]:
+    """(model files, data files) by extension; anything else is an error."""
+    from ..errors import FtcalError
+
+    models, data = [], []
+    for name in files:
+        suffix = Path(name).suffix.lower()
+        if suffix in MODEL_SUFFIXES:
+            models.append(name)
+        elif suffix in DATA_SUFFIXES:
+            data.append(name)
+        else:
+            raise FtcalError(f"{name}: unknown file type {suffix or '(no extension)'!r}; model files end in "
+                             f"{', '.join(MODEL_SUFFIXES)} and data files in {', '.join(DATA_SUFFIXES)}.")
+    if not models:
+        raise FtcalError("No model files given (.json or .xml).")
+    if not data:
+        raise FtcalError("No data files given (.csv or .parquet) to evaluate the models on.")
+    return models, data
+
+
+def run_names(paths: list[str]) -> list[str]:
+    """Each model's file name without extension; the whole path where two names would clash."""
+    stems = [Path(p).stem for p in paths]
+    return [stem if stems.count(stem) == 1 else str(p) for stem, p in zip(stems, paths)]
+
+
+def _union(name_lists) -> tuple[str, ...]:
+    out: list[str] = []
+    for names in name_lists:
+        out += [n for n in names if n not in out]
+    return tuple(out)
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..errors import FtcalError
+    from ..io.model_files import read_model
+    from ..io.tables import read_dataset
+
+    model_paths, data_paths = split_files(args.files)
+    out = Path(args.output)
+    if out.suffix.lower() not in REPORT_SUFFIXES:
+        raise FtcalError(f"--output {out}: must end in .html.")
+    for given in [*args.files, *args.train]:
+        if Path(given).resolve() == out.resolve():
+            raise FtcalError(f"--output {out} is also an input file; choose another name.")
+    train_paths = list(args.train)
+    for name in train_paths:
+        if Path(name).suffix.lower() not in DATA_SUFFIXES:
+            raise FtcalError(f"--train {name}: data files end in {', '.join(DATA_SUFFIXES)}.")
+
+    models = [read_model(p) for p in model_paths]
+    inputs = args.inputs or _union(m.input_names_ for m in models)
+    outputs = args.outputs or _union(m.output_names_ for m in models)
+
+    def read(paths):
+        return read_dataset(paths, inputs, outputs, segment_by=args.segment_by, group_by=args.group_by)
+
+    validation = read(data_paths)
+    train = read(train_paths) if train_paths else None
+
+    from ..report import build_report, evaluate
+
+    runs = [evaluate(model, validation, name=name, train=train)
+            for model, name in zip(models, run_names(model_paths))]
+    notes = [f"Model files: {', '.join(model_paths)}.", f"Validation data files: {', '.join(data_paths)}."]
+    if train_paths:
+        notes.append(f"Training data files: {', '.join(train_paths)}.")
+    path = build_report(runs, validation, out, train=train, title=args.title, notes=notes)
+    size_mb = path.stat().st_size / 1e6
+    print(f"wrote {path} ({len(runs)} model(s), {validation.n_samples} validation samples, {size_mb:.1f} MB)")
+    return 0
