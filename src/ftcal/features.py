@@ -68,6 +68,7 @@ class MonomialEvaluator:
         for p in range(2, degree + 1):
             starts[p] = starts[p - 1] + n_monomials(n_inputs, p - 1)
         self.n_rows = starts[degree] + n_monomials(n_inputs, degree) if n_inputs else first_row
+        self.top_start = starts[degree]
         steps = []
         for p in range(2, degree + 1):
             dst = starts[p]
@@ -78,16 +79,25 @@ class MonomialEvaluator:
                 steps.append((i, slice(src_stop - count, src_stop), slice(dst, dst + count)))
                 dst += count
         self._steps = steps
+        n_top = n_inputs if degree >= 2 else 0
+        self.top_steps = steps[len(steps) - n_top:] if n_top else []
 
     def evaluate_transposed(self, u_t: np.ndarray, out: np.ndarray) -> np.ndarray:
         """Fill rows ``first_row..`` of ``out`` (rows, m) from ``u_t`` (n_inputs, m).
 
         Terms-by-samples layout keeps every operand a contiguous block.
         """
+        return self._evaluate(u_t, out, self._steps)
+
+    def evaluate_below_top(self, u_t: np.ndarray, out: np.ndarray) -> np.ndarray:
+        """Like :meth:`evaluate_transposed` but without the highest degree's rows."""
+        return self._evaluate(u_t, out, self._steps[:len(self._steps) - len(self.top_steps)])
+
+    def _evaluate(self, u_t, out, steps):
         if self.n_inputs == 0:
             return out
         out[self.first_row:self.first_row + self.n_inputs] = u_t
-        for i, src, dst in self._steps:
+        for i, src, dst in steps:
             np.multiply(out[src], u_t[i], out=out[dst])
         return out
 
@@ -153,6 +163,27 @@ class MonomialBasis:
         """Readable names such as ``'u1·T'`` or ``'s0^2·s3'``; the offset is ``'1'``."""
         names = list(input_names) if input_names is not None else [f"x{j}" for j in range(self.n_inputs)]
         return [monomial_name(row, names) for row in self.exponents]
+
+    def combine_transposed(self, u_t: np.ndarray, coef_t: np.ndarray, work: np.ndarray) -> np.ndarray:
+        """``coef_t`` (k, n_terms) times the features of ``u_t`` (n_inputs, m): shape (k, m).
+
+        The highest degree's features are never formed: its terms with first
+        factor u_i are u_i times a block of the degree below, so their share is
+        u_i ⊙ (coef block @ that block). That skips most of the feature work
+        (210 of 330 rows at degree 4 over 7 inputs). ``work`` is scratch of
+        shape (n_terms, >= m).
+        """
+        evaluator = self._evaluator
+        if not evaluator.top_steps:
+            return coef_t @ self.evaluate_transposed(u_t, work)
+        m = u_t.shape[1]
+        below = evaluator.top_start
+        features = evaluator.evaluate_below_top(u_t, work[:, :m])
+        result = coef_t[:, :below] @ features[:below]
+        result += coef_t[:, -1:]
+        for i, src, dst in evaluator.top_steps:
+            result += (coef_t[:, dst] @ features[src]) * u_t[i]
+        return result
 
     def index_in(self, larger: "MonomialBasis") -> np.ndarray:
         """Positions of this basis's terms inside a basis of higher degree."""

@@ -25,7 +25,7 @@ from .solvers.base import ScaledProblem
 from .solvers.least_squares import LeastSquares
 from .statistics import SufficientStatistics, layout_statistics, sum_statistics
 
-PREDICT_CHUNK = 512
+PREDICT_CHUNK = 1024
 PREDICTION_MODES = ("free-run", "one-step")
 # The OSQP comparison path builds the dense regressor; refuse beyond this many cells.
 DENSE_LIMIT_CELLS = 200_000_000
@@ -235,12 +235,11 @@ class CalibrationModel:
         out = np.empty((u_norm.shape[0], coef_t.shape[0]))
 
         def work(begin: int, end: int) -> None:
-            features = np.empty((basis.n_terms, PREDICT_CHUNK))
+            work = np.empty((basis.n_terms, PREDICT_CHUNK))
             for start in range(begin, end, PREDICT_CHUNK):
                 stop = min(start + PREDICT_CHUNK, end)
-                f = basis.evaluate_transposed(np.ascontiguousarray(u_norm[start:stop].T),
-                                              features[:, :stop - start])
-                out[start:stop] = (coef_t @ f).T
+                u_t = np.ascontiguousarray(u_norm[start:stop].T)
+                out[start:stop] = basis.combine_transposed(u_t, coef_t, work).T
 
         map_ranges(work, u_norm.shape[0], PREDICT_CHUNK)
         return out
