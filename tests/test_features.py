@@ -176,3 +176,19 @@ def test_invalid_layout_parameters_raise(kwargs):
     args = {"n_outputs": 1, **kwargs}
     with pytest.raises(FtcalError, match="parameter of RegressorLayout"):
         RegressorLayout(MonomialBasis(2, 1), **args)
+
+
+@pytest.mark.parametrize("n_inputs,degree", [(1, 1), (1, 3), (7, 1), (7, 2), (7, 4), (3, 5)])
+def test_combine_transposed_equals_coefficients_times_explicit_features(n_inputs, degree):
+    # Reference: sklearn's PolynomialFeatures columns (offset moved last) times the coefficients.
+    from sklearn.preprocessing import PolynomialFeatures
+
+    rng = np.random.default_rng(degree)
+    basis = MonomialBasis(n_inputs, degree)
+    u = rng.uniform(-1.0, 1.0, (300, n_inputs))
+    coef_t = rng.normal(size=(4, basis.n_terms))
+    explicit = PolynomialFeatures(degree).fit_transform(u)
+    explicit = np.column_stack([explicit[:, 1:], explicit[:, 0]])
+    work = np.empty((basis.n_terms, 512))  # wider than the chunk, as in prediction
+    got = basis.combine_transposed(np.ascontiguousarray(u.T), coef_t, work)
+    np.testing.assert_allclose(got, coef_t @ explicit.T, rtol=1e-12, atol=1e-12)

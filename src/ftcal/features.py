@@ -175,7 +175,7 @@ class MonomialBasis:
         """
         evaluator = self._evaluator
         if not evaluator.top_steps:
-            return coef_t @ self.evaluate_transposed(u_t, work)
+            return coef_t @ self.evaluate_transposed(u_t, work[:, :u_t.shape[1]])
         m = u_t.shape[1]
         below = evaluator.top_start
         features = evaluator.evaluate_below_top(u_t, work[:, :m])
