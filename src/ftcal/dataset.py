@@ -114,6 +114,8 @@ class Dataset:
         if missing:
             raise FtcalError(f"Dataset has no input column(s) {', '.join(map(repr, missing))}; "
                              f"it has {', '.join(self.input_names)}.")
+        if tuple(names) == self.input_names:
+            return self.inputs  # already in order: no copy
         return self.inputs[:, [index[n] for n in names]]
 
 

@@ -164,26 +164,12 @@ class MonomialBasis:
         names = list(input_names) if input_names is not None else [f"x{j}" for j in range(self.n_inputs)]
         return [monomial_name(row, names) for row in self.exponents]
 
-    def combine_transposed(self, u_t: np.ndarray, coef_t: np.ndarray, work: np.ndarray) -> np.ndarray:
+    def combine_transposed(self, u_t: np.ndarray, coef_t: np.ndarray, work: np.ndarray | None = None) -> np.ndarray:
         """``coef_t`` (k, n_terms) times the features of ``u_t`` (n_inputs, m): shape (k, m).
 
-        The highest degree's features are never formed: its terms with first
-        factor u_i are u_i times a block of the degree below, so their share is
-        u_i ⊙ (coef block @ that block). That skips most of the feature work
-        (210 of 330 rows at degree 4 over 7 inputs). ``work`` is scratch of
-        shape (n_terms, >= m).
+        See :class:`FeatureCombination`, which also reuses its buffers across chunks.
         """
-        evaluator = self._evaluator
-        if not evaluator.top_steps:
-            return coef_t @ self.evaluate_transposed(u_t, work[:, :u_t.shape[1]])
-        m = u_t.shape[1]
-        below = evaluator.top_start
-        features = evaluator.evaluate_below_top(u_t, work[:, :m])
-        result = coef_t[:, :below] @ features[:below]
-        result += coef_t[:, -1:]
-        for i, src, dst in evaluator.top_steps:
-            result += (coef_t[:, dst] @ features[src]) * u_t[i]
-        return result
+        return FeatureCombination(self, coef_t, u_t.shape[1])(u_t).copy()
 
     def index_in(self, larger: "MonomialBasis") -> np.ndarray:
         """Positions of this basis's terms inside a basis of higher degree."""
@@ -191,6 +177,46 @@ class MonomialBasis:
             raise ValueError("index_in needs a basis over the same inputs of at least this degree")
         position = {c: i for i, c in enumerate(larger.combinations)}
         return np.array([position[c] for c in self.combinations], dtype=np.intp)
+
+
+class FeatureCombination:
+    """Evaluate ``coef_t @ features(u)`` chunk by chunk, without forming the top degree.
+
+    The highest degree's features are never formed: its terms with first
+    factor u_i are u_i times a contiguous block of the degree below, so their
+    share is u_i ⊙ (coefficient block @ that block). That skips most of the
+    feature work (210 of 330 rows at degree 4 over 7 inputs). Coefficient
+    blocks and scratch buffers are prepared once, for chunks up to ``width``.
+    """
+
+    def __init__(self, basis: "MonomialBasis", coef_t: np.ndarray, width: int):
+        self._basis = basis
+        self._evaluator = basis._evaluator
+        k = coef_t.shape[0]
+        self._below = self._evaluator.top_start if self._evaluator.top_steps else basis.n_terms - 1
+        self._coef_below = np.ascontiguousarray(coef_t[:, :self._below])
+        self._offset = np.ascontiguousarray(coef_t[:, -1:])
+        self._top = [(i, src, np.ascontiguousarray(coef_t[:, dst])) for i, src, dst in self._evaluator.top_steps]
+        self._features = np.empty((basis.n_terms, width))
+        self._scratch = np.empty((k, width))
+        self._result = np.empty((k, width))
+
+    def __call__(self, u_t: np.ndarray) -> np.ndarray:
+        """(k, m) for ``u_t`` (n_inputs, m <= width); a view into a reused buffer."""
+        m = u_t.shape[1]
+        features = self._features[:, :m]
+        if self._top:
+            self._evaluator.evaluate_below_top(u_t, features)
+        else:
+            self._evaluator.evaluate_transposed(u_t, features)
+        result, scratch = self._result[:, :m], self._scratch[:, :m]
+        np.matmul(self._coef_below, features[:self._below], out=result)
+        result += self._offset
+        for i, src, block in self._top:
+            np.matmul(block, features[src], out=scratch)
+            np.multiply(scratch, u_t[i], out=scratch)
+            np.add(result, scratch, out=result)
+        return result
 
 
 def monomial_name(exponents: Sequence[int], names: Sequence[str]) -> str:

@@ -18,14 +18,14 @@ from ._threads import map_ranges, single_threaded_blas
 from ._checks import check_choice, check_finite_matrix, check_int
 from .dataset import Dataset
 from .errors import FtcalError, IllPosedFitWarning, NotFittedError, OutOfRangeWarning
-from .features import MonomialBasis, RegressorLayout, n_coefficients
+from .features import FeatureCombination, MonomialBasis, RegressorLayout, n_coefficients
 from .normalization import MODES, Normalization, normalization_from_range
 from .progress import progress_bar
 from .solvers.base import ScaledProblem
 from .solvers.least_squares import LeastSquares
 from .statistics import SufficientStatistics, layout_statistics, sum_statistics
 
-PREDICT_CHUNK = 1024
+PREDICT_CHUNK = 4096
 PREDICTION_MODES = ("free-run", "one-step")
 # The OSQP comparison path builds the dense regressor; refuse beyond this many cells.
 DENSE_LIMIT_CELLS = 200_000_000
@@ -217,9 +217,9 @@ class CalibrationModel:
                 warnings.warn(
                     f"{n_out} of {len(u)} samples have inputs outside the training range; "
                     "predictions there are extrapolations.", OutOfRangeWarning, stacklevel=2)
-        u_norm = self.input_normalization_.apply(u)
         if self.layout_.is_static:
-            return self._predict_static(u_norm)
+            return self._predict_static(u)
+        u_norm = self.input_normalization_.apply(u)
         if mode == "one-step" and data.outputs is None:
             raise FtcalError("One-step-ahead prediction needs the measured outputs in the data.")
         measured = None if data.outputs is None else _outputs_in_order(data, self.output_names_)
@@ -229,19 +229,22 @@ class CalibrationModel:
                                                              mode)
                                    for a, b in data.segment_bounds()])
 
-    def _predict_static(self, u_norm: np.ndarray) -> np.ndarray:
+    def _predict_static(self, u: np.ndarray) -> np.ndarray:
         basis = self.layout_.basis
         coef_t = np.ascontiguousarray(self.coef_.T)
-        out = np.empty((u_norm.shape[0], coef_t.shape[0]))
+        out = np.empty((u.shape[0], coef_t.shape[0]))
+        offset = self.input_normalization_.offset[:, None]
+        inv_scale = (1.0 / self.input_normalization_.scale)[:, None]
 
         def work(begin: int, end: int) -> None:
-            work = np.empty((basis.n_terms, PREDICT_CHUNK))
+            combine = FeatureCombination(basis, coef_t, PREDICT_CHUNK)
             for start in range(begin, end, PREDICT_CHUNK):
                 stop = min(start + PREDICT_CHUNK, end)
-                u_t = np.ascontiguousarray(u_norm[start:stop].T)
-                out[start:stop] = basis.combine_transposed(u_t, coef_t, work).T
+                # Normalize per chunk, in cache, instead of a full pass over u.
+                u_t = (u[start:stop].T - offset) * inv_scale
+                out[start:stop] = combine(u_t).T
 
-        map_ranges(work, u_norm.shape[0], PREDICT_CHUNK)
+        map_ranges(work, u.shape[0], PREDICT_CHUNK)
         return out
 
     def _predict_arx_segment(self, u_norm: np.ndarray, y_measured: np.ndarray | None, mode: str) -> np.ndarray:
