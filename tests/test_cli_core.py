@@ -495,9 +495,6 @@ def test_non_numeric_cell_names_column_and_value(capsys, work, tmp_path, text):
           "12 holds", out=out)  # line 12: the header, then data rows 0..10
 
 
-@pytest.mark.xfail(strict=True, reason="tables.numeric_columns: the non-numeric branch tests path.suffix == '.csv' "
-                   "case-sensitively, so DATA.CSV reports the 0-based row (10) instead of the line (12) "
-                   "that the NaN branch and data.csv report")
 def test_non_numeric_cell_location_does_not_depend_on_suffix_case(capsys, work, tmp_path):
     frame = work.val_frame.astype({"u1": object})
     frame.loc[10, "u1"] = "abc"
@@ -644,10 +641,13 @@ def test_convert_refusals_leave_nothing(capsys, work, tmp_path, degree1_model):
     fails(capsys, ["convert", degree1_model[0], "--to", "wbd", "--sensor", "bad name", "-o", out],
           "'bad name'", out=out)
     fails(capsys, ["convert", work.model3, "--to", "wbd", "--sensor", "s", "-o", out], "affine", out=out)
-    fails(capsys, ["convert", work.model3, "--to", "json", "-o", tmp_path], "is a directory", "json")
+    fails(capsys, ["convert", work.model3, "--to", "json", "-o", out], "must end in .json", out=out)
+    folder = tmp_path / "folder.json"
+    folder.mkdir()
+    fails(capsys, ["convert", work.model3, "--to", "json", "-o", folder], "is a directory")
     fails(capsys, ["convert", work.model3, "--to", "icub-firmware", "-o", tmp_path], "serial number")
     usage_fails(capsys, ["convert", work.model3, "--to", "matlab", "-o", out], "--to", out=out)
-    assert listing(tmp_path) == []
+    assert listing(tmp_path) == ["folder.json"] and listing(folder) == []
 
 
 # ------------------------------------------------------------------ parameter errors
@@ -676,11 +676,11 @@ def test_fit_rejects_bad_options(capsys, work, tmp_path, args, fragments):
 
 
 @pytest.mark.parametrize("args, fragments", [
-    (["--na", "51"], ["'na'", "[0, 50]", "51"]),
-    (["--solver", "osqp", "--ridge", "1"], ["--solver osqp", "not ridge"]),
+    (["--na", "51"], ["--na", "at most 50", "51"]),
+    (["--solver", "osqp", "--ridge", "1"], ["--solver osqp", "not --ridge"]),
     (["--degree", "auto"], ["at least 2 groups", "--group-by"]),
     (["--degree", "auto", "--group-by", "load", "--solver", "osqp"], ["--degree auto", "--solver osqp"]),
-    (["--degree", "auto", "--group-by", "load", "--folds", "1"], ["'n_folds'", "2", "Got 1"]),
+    (["--degree", "auto", "--group-by", "load", "--folds", "1"], ["--folds", "at least 2", "got 1"]),
 ])
 def test_fit_rejects_impossible_requests(capsys, work, tmp_path, args, fragments):
     out = tmp_path / "m.json"
@@ -707,9 +707,6 @@ def test_failed_fit_keeps_an_existing_output_untouched(capsys, work, tmp_path):
     assert listing(tmp_path) == ["data.csv", "m.json"]
 
 
-@pytest.mark.xfail(strict=True, reason="io.atomic.atomic_path: os.replace onto an existing directory raises "
-                   "IsADirectoryError, which the CLI does not turn into an FtcalError (traceback, exit 1); "
-                   "convert checks this, fit and predict do not")
 @pytest.mark.parametrize("command", ["fit", "predict"])
 def test_output_path_that_is_a_directory(capsys, work, tmp_path, command):
     target = tmp_path / ("m.json" if command == "fit" else "p.csv")
@@ -720,9 +717,6 @@ def test_output_path_that_is_a_directory(capsys, work, tmp_path, command):
     assert listing(tmp_path) == [target.name] and listing(target) == []
 
 
-@pytest.mark.xfail(strict=True, reason="io.atomic.atomic_path: mkdir of the output's parent raises "
-                   "FileExistsError when the parent is a regular file; fit/predict/convert crash with a "
-                   "traceback and exit 1 instead of a one-line error")
 @pytest.mark.parametrize("command", ["fit", "predict", "convert"])
 def test_output_below_a_regular_file(capsys, work, tmp_path, command):
     blocker = tmp_path / "blocker"

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 
+SUFFIXES = {"json": (".json",), "paper-xml": (".xml",)}
+
+
 def register(sub) -> None:
     p = sub.add_parser("convert", help="convert a model file (json, paper-xml, icub-firmware, wbd)")
     p.add_argument("model", metavar="MODEL", help="ftcal JSON or paper XML model file")
@@ -17,6 +20,10 @@ def register(sub) -> None:
 def run(args) -> int:
     from ..io.model_files import read_model_file, write_model
 
+    from ._common import require_suffix
+
+    if args.to in SUFFIXES:
+        require_suffix(args.output, SUFFIXES[args.to], "-o")
     loaded = read_model_file(args.model)
     written = write_model(loaded.model, args.output, args.to, sources=loaded.sources or (args.model,),
                           input_units=loaded.input_units, output_units=loaded.output_units,

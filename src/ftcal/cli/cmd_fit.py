@@ -56,15 +56,27 @@ def make_solver(args):
     from ..solvers.osqp_qp import OsqpLasso, OsqpLeastSquares
 
     if args.solver == "osqp":
-        if args.ridge:
-            from ..errors import FtcalError
-            raise FtcalError("--solver osqp implements the paper's least-squares and LASSO programs, not ridge.")
         return OsqpLasso(args.lasso) if args.lasso else OsqpLeastSquares()
     if args.lasso:
         return Lasso(args.lasso)
     if args.ridge:
         return Ridge(args.ridge)
     return LeastSquares()
+
+
+def check_options(args) -> None:
+    """Option combinations that cannot work, refused before any data is read."""
+    from ..errors import FtcalError
+
+    if args.solver == "osqp" and args.ridge:
+        raise FtcalError("--solver osqp implements the paper's least-squares and LASSO programs, not --ridge.")
+    if args.degree == "auto" and args.solver == "osqp":
+        raise FtcalError("--degree auto uses the streaming solvers; drop --solver osqp.")
+    if args.folds < 2:
+        raise FtcalError(f"--folds must be at least 2; got {args.folds}.")
+    for flag in ("na", "nb"):
+        if getattr(args, flag) > 50:
+            raise FtcalError(f"--{flag} must be at most 50; got {getattr(args, flag)}.")
 
 
 def run(args) -> int:
@@ -74,14 +86,13 @@ def run(args) -> int:
     from ..model import CalibrationModel
 
     require_suffix(args.output, (".json",), "-o")
+    check_options(args)
     inputs = args.inputs or default_inputs(args.data)
     outputs = args.outputs or ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
     data = read_dataset(args.data, inputs, outputs, segment_by=args.segment_by, group_by=args.group_by)
     print(f"read {data.n_samples} samples from {len(args.data)} file(s): inputs {','.join(inputs)} "
           f"-> outputs {','.join(outputs)}", file=sys.stderr)
     if args.degree == "auto":
-        if args.solver == "osqp":
-            raise FtcalError("--degree auto uses the streaming solvers; drop --solver osqp.")
         from ..select import PAPER_LAMBDAS, Candidate, cross_validate, default_candidates, fit_best
 
         if args.lasso or args.ridge:

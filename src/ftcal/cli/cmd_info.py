@@ -40,7 +40,9 @@ def run(args) -> int:
     # Features are normalized to about [-1, 1], so |coefficient| measures a term's contribution.
     magnitude = np.abs(model.coef_)
     order = np.argsort(-magnitude, axis=None)[:max(args.terms, 0)]
-    print(f"largest terms (coefficients of normalized features):")
+    norm = model.input_normalization_
+    basis = "raw inputs" if not (norm.offset.any() or (norm.scale != 1).any()) else "normalized features"
+    print(f"largest terms (coefficients of {basis}):")
     for flat in order:
         row, col = np.unravel_index(flat, magnitude.shape)
         print(f"  {model.output_names_[col]:<6} {names[row]:<28} {model.coef_[row, col]: .6g}")

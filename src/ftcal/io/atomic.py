@@ -11,13 +11,24 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+from ..errors import FtcalError
+
 
 @contextmanager
 def atomic_path(target: str | os.PathLike) -> Iterator[Path]:
-    """Yield a temporary path; on success it is renamed onto ``target``."""
+    """Yield a temporary path; on success it is renamed onto ``target``.
+
+    Problems with the destination (a directory in the way, a parent that is a
+    file, no permission, a full disk) become one-line :class:`FtcalError`s.
+    """
     target = Path(target)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    if target.is_dir():
+        raise FtcalError(f"{target}: is a directory; give a file name to write.")
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    except OSError as exc:
+        raise FtcalError(f"{target}: cannot create the output file ({exc.strerror or exc}).") from None
     os.close(fd)
     # mkstemp makes the file private (0600); outputs get the usual permissions.
     umask = os.umask(0)
@@ -27,6 +38,8 @@ def atomic_path(target: str | os.PathLike) -> Iterator[Path]:
     try:
         yield tmp_path
         os.replace(tmp_path, target)
+    except OSError as exc:
+        raise FtcalError(f"{target}: cannot write the output file ({exc.strerror or exc}).") from None
     finally:
         if tmp_path.exists():
             tmp_path.unlink()

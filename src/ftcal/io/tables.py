@@ -63,8 +63,9 @@ def numeric_columns(frame, columns: Sequence[str], path: Path, role: str) -> np.
 
             coerced = pd.to_numeric(column, errors="coerce")
             row = int(np.flatnonzero(coerced.isna() & column.notna())[0])
-            raise FtcalError(f"{path}: column {name!r} row {row + 2 if path.suffix == '.csv' else row} "
-                             f"holds {column.iloc[row]!r}, not a number.") from None
+            where = f"line {row + 2}" if path.suffix.lower() == ".csv" else f"row {row}"
+            raise FtcalError(f"{path}: column {name!r} {where} holds {column.iloc[row]!r}, "
+                             "not a number.") from None
         bad = ~np.isfinite(values)
         if bad.any():
             row = int(np.flatnonzero(bad)[0])
