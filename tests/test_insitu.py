@@ -125,5 +125,5 @@ def test_write_dataset(tmp_path, tiny, suffix):
     assert sorted(set(frame["segment"])) == [0, 1]
     assert set(frame["group"]) == {"run"}
     assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".data")] == []
-    with pytest.raises(FtcalError, match="use a .parquet or .csv"):
+    with pytest.raises(FtcalError, match="must end in .csv or .parquet"):
         write_dataset(ds, tmp_path / "data.xlsx")

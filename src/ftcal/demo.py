@@ -103,6 +103,7 @@ def run_demo(config: DemoConfig = DemoConfig()) -> dict:
                      "n_nonzero_raw_1e9": _raw_nonzero(model),
                      "train": _public(model.training_metrics_), "validation": _public(val_metrics)})
         runs.append((candidate, model, val_metrics, prediction))
+    _write_artifacts(config.out_dir, runs, train, validation)
     raw = _raw_baseline(validation)
     summary = {"models": rows, "raw_firmware_validation": raw,
                "n_train_samples": train.n_samples, "n_validation_samples": validation.n_samples,
@@ -115,10 +116,20 @@ def run_demo(config: DemoConfig = DemoConfig()) -> dict:
     return summary
 
 
+def _write_artifacts(out_dir: Path, runs, train: Dataset, validation: Dataset) -> None:
+    """Models as JSON and the two datasets as Parquet, to try `ftcal fit/evaluate/report` on."""
+    from .insitu import write_dataset
+    from .io.model_json import save_model
+
+    for candidate, model, _, _ in runs:
+        name = f"np{candidate.degree}" + (f"-lasso{candidate.lam:g}" if candidate.lam is not None else "")
+        save_model(model, out_dir / "models" / f"{name}.json", sources=list(train.sources))
+    write_dataset(train, out_dir / "train.parquet")
+    write_dataset(validation, out_dir / "validation.parquet")
+
+
 def _public(summary: dict) -> dict:
-    keys = ("rmse", "best_fit", "max_abs_error", "force_norm_rmse", "torque_norm_rmse", "n_samples",
-            "n_out_of_range")
-    return {k: summary.get(k) for k in keys}
+    return {k: summary.get(k) for k in metrics.EVALUATION_KEYS}
 
 
 def _raw_nonzero(model) -> int:

@@ -153,20 +153,12 @@ def write_dataset(dataset: Dataset, path: str | Path) -> None:
     """
     import pandas as pd
 
-    from .io.atomic import write_with
+    from .io.tables import write_table
 
-    path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix not in (".parquet", ".pq", ".csv"):
-        raise FtcalError(f"Output {path}: use a .parquet or .csv file name.")
     if dataset.outputs is None:
         raise FtcalError("The dataset has no outputs to write.")
     columns = {name: dataset.inputs[:, i] for i, name in enumerate(dataset.input_names)}
     columns.update({name: dataset.outputs[:, i] for i, name in enumerate(dataset.output_names)})
     columns["segment"] = dataset.segments
     columns["group"] = np.asarray(dataset.groups).astype(str)
-    frame = pd.DataFrame(columns)
-    if suffix == ".csv":
-        write_with(path, lambda tmp: frame.to_csv(tmp, index=False))
-    else:
-        write_with(path, lambda tmp: frame.to_parquet(tmp, index=False))
+    write_table(pd.DataFrame(columns), path)

@@ -78,6 +78,11 @@ def force_torque_columns(output_names: Sequence[str]) -> tuple[list[int] | None,
     return found_forces, found_torques
 
 
+# The keys of `ftcal evaluate --json` (and of the train/validation entries of the demo's summary.json).
+EVALUATION_KEYS = ("rmse", "best_fit", "max_abs_error", "force_norm_rmse", "torque_norm_rmse",
+                   "force_error_norm_rmse", "torque_error_norm_rmse", "n_samples", "n_out_of_range", "outputs")
+
+
 def summarize(y_true: np.ndarray, y_pred: np.ndarray, output_names: Sequence[str]) -> dict:
     """All metrics as a JSON-ready dict (the keys of ``ftcal evaluate --json``)."""
     forces, torques = force_torque_columns(output_names)

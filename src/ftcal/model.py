@@ -241,7 +241,9 @@ class CalibrationModel:
             for start in range(begin, end, PREDICT_CHUNK):
                 stop = min(start + PREDICT_CHUNK, end)
                 # Normalize per chunk, in cache, instead of a full pass over u.
-                u_t = (u[start:stop].T - offset) * inv_scale
+                u_t = np.ascontiguousarray(u[start:stop].T)  # rows contiguous for the features
+                u_t -= offset
+                u_t *= inv_scale
                 out[start:stop] = combine(u_t).T
 
         map_ranges(work, u.shape[0], PREDICT_CHUNK)

@@ -6,8 +6,6 @@ import warnings
 
 from ._common import print_json
 
-JSON_KEYS = ("rmse", "best_fit", "max_abs_error", "force_norm_rmse", "torque_norm_rmse",
-             "force_error_norm_rmse", "torque_error_norm_rmse", "n_samples", "n_out_of_range", "outputs")
 
 
 def register(sub) -> None:
@@ -36,6 +34,8 @@ def evaluate(args):
 
 
 def run(args) -> int:
+    from ..metrics import EVALUATION_KEYS as JSON_KEYS
+
     model, summary = evaluate(args)
     if args.json:
         payload = {k: summary[k] for k in JSON_KEYS}

@@ -39,7 +39,7 @@ def run(args: argparse.Namespace) -> int:
 
     from ..errors import FtcalError
     from ..io.atomic import write_with
-    from ..io.logs_table import read_table
+    from ..io.tables import read_table
     from ..robot.cache import cache_key, cached
     from ..robot.expected import expected_wrenches
 

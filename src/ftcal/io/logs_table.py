@@ -23,23 +23,10 @@ import numpy as np
 
 from ..errors import FtcalError
 from .logs import Recording, Stream
+from .tables import read_table
 
 FT_COLUMN = re.compile(r"^(?P<sensor>.+)_u(?P<ch>[1-6])$")
 TEMP_COLUMN = re.compile(r"^(?P<sensor>.+)_T$")
-
-
-def read_table(path: Path):
-    """A pandas DataFrame from CSV or Parquet, with read errors as :class:`FtcalError`."""
-    import pandas as pd
-
-    try:
-        if path.suffix.lower() == ".csv":
-            return pd.read_csv(path)
-        return pd.read_parquet(path)
-    except FileNotFoundError:
-        raise FtcalError(f"{path}: no such file.") from None
-    except Exception as exc:  # pandas/pyarrow raise many types on malformed files
-        raise FtcalError(f"{path}: cannot read the table ({type(exc).__name__}: {exc}).") from None
 
 
 def read_table_recording(path: Path) -> Recording:
