@@ -298,3 +298,16 @@ def test_input_lags_only_model_is_a_fir_filter(rng):
     for mode in ("free-run", "one-step"):
         got = model.predict(Dataset.from_arrays(fresh, np.zeros((30, 1))), mode=mode, warn_out_of_range=False)
         np.testing.assert_allclose(got[:, 0], expected, atol=1e-9)
+
+
+@pytest.mark.parametrize("n_inputs", [1, 3])
+def test_predict_leaves_the_callers_inputs_untouched(n_inputs):
+    # A one-input chunk transposed is already contiguous; normalizing it in place
+    # would overwrite the caller's array.
+    rng = np.random.default_rng(5)
+    u = rng.uniform(20.0, 40.0, (50, n_inputs))
+    y = np.column_stack([u.sum(axis=1) ** 2, u[:, 0]])
+    model = CalibrationModel(2).fit(Dataset.from_arrays(u, y))
+    before = u.copy()
+    model.predict(u)
+    np.testing.assert_array_equal(u, before)

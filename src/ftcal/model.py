@@ -241,7 +241,8 @@ class CalibrationModel:
             for start in range(begin, end, PREDICT_CHUNK):
                 stop = min(start + PREDICT_CHUNK, end)
                 # Normalize per chunk, in cache, instead of a full pass over u.
-                u_t = np.ascontiguousarray(u[start:stop].T)  # rows contiguous for the features
+                # A contiguous copy (never a view: it is modified in place) with contiguous rows.
+                u_t = np.array(u[start:stop].T, order="C")
                 u_t -= offset
                 u_t *= inv_scale
                 out[start:stop] = combine(u_t).T
