@@ -80,7 +80,8 @@ def force_torque_columns(output_names: Sequence[str]) -> tuple[list[int] | None,
 
 # The keys of `ftcal evaluate --json` (and of the train/validation entries of the demo's summary.json).
 EVALUATION_KEYS = ("rmse", "best_fit", "max_abs_error", "force_norm_rmse", "torque_norm_rmse",
-                   "force_error_norm_rmse", "torque_error_norm_rmse", "n_samples", "n_out_of_range", "outputs")
+                   "force_error_norm_rmse", "torque_error_norm_rmse", "residual_autocorrelation_lag1",
+                   "n_samples", "n_out_of_range", "outputs")
 
 
 def summarize(y_true: np.ndarray, y_pred: np.ndarray, output_names: Sequence[str]) -> dict:
@@ -92,6 +93,9 @@ def summarize(y_true: np.ndarray, y_pred: np.ndarray, output_names: Sequence[str
         "rmse": rmse(y_true, y_pred).tolist(),
         "best_fit": _json_list(best_fit(y_true, y_pred)),
         "max_abs_error": max_abs_error(y_true, y_pred).tolist(),
+        # Near 1: the residual is slow, unmodelled dynamics or drift (try ARX, --na/--nb).
+        "residual_autocorrelation_lag1": (residual_autocorrelation(y_true, y_pred, 1)[-1].tolist()
+                                          if y_true.shape[0] > 1 else [0.0] * y_true.shape[1]),
         "force_norm_rmse": None, "torque_norm_rmse": None,
         "force_error_norm_rmse": None, "torque_error_norm_rmse": None,
     }

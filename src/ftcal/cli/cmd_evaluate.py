@@ -44,10 +44,11 @@ def run(args) -> int:
         print_json(payload)
         return 0
     print(f"{summary['n_samples']} samples, {summary['n_out_of_range']} outside the training input range")
-    print(f"{'output':<10}{'RMSE':>12}{'BestFit':>10}{'max |err|':>12}")
-    for name, r, b, m in zip(summary["outputs"], summary["rmse"], summary["best_fit"], summary["max_abs_error"]):
+    print(f"{'output':<10}{'RMSE':>12}{'BestFit':>10}{'max |err|':>12}{'resid. acf(1)':>15}")
+    for name, r, b, m, a in zip(summary["outputs"], summary["rmse"], summary["best_fit"],
+                                summary["max_abs_error"], summary["residual_autocorrelation_lag1"]):
         best = f"{b:.4f}" if b is not None else "n/a"
-        print(f"{name:<10}{r:>12.5g}{best:>10}{m:>12.5g}")
+        print(f"{name:<10}{r:>12.5g}{best:>10}{m:>12.5g}{a:>15.3f}")
     for key, label in (("force_norm_rmse", "force-norm RMSE"), ("torque_norm_rmse", "torque-norm RMSE"),
                        ("force_error_norm_rmse", "RMSE of force error norm"),
                        ("torque_error_norm_rmse", "RMSE of torque error norm")):

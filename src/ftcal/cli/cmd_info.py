@@ -26,6 +26,10 @@ def run(args) -> int:
           f"{info['n_outputs']} outputs")
     print(f"coefficients {info['n_coefficients']}, nonzero {info['n_nonzero']}; solver "
           f"{model.solver_info_.get('name') or 'unknown'}" + (f", lambda {lam:g}" if lam else ""))
+    from ..conversion import to_raw
+
+    raw_nonzero = int(np.sum(np.abs(to_raw(model)) > 1e-9))
+    print(f"raw-input coefficients with |value| > 1e-9 (the paper's count): {raw_nonzero}")
     if loaded.created_utc:
         print(f"created {loaded.created_utc} by ftcal {loaded.ftcal_version}; "
               f"trained on {model.n_samples_fit_} samples from {len(loaded.sources)} file(s)")
