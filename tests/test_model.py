@@ -99,7 +99,7 @@ def test_fit_returns_self_and_counts_coefficients(rng):
     model = CalibrationModel(2)
     assert model.fit(Dataset.from_arrays(u, y)) is model
     assert model.n_coefficients == 216  # paper Table II, np = 2
-    assert model.describe()["n_coefficients_formula"] == 216
+    assert model.describe()["n_coefficients"] == 216
     assert model.coef_.shape == (36, 6)
 
 

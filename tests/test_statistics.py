@@ -80,16 +80,6 @@ def test_restrict_to_lower_degree_equals_lower_degree_statistics(rng, ref_featur
     _assert_stats_equal(restricted, ref_features(u, 2), y)
 
 
-def test_residual_sum_of_squares_from_statistics(rng, ref_features):
-    u = rng.uniform(-1, 1, size=(300, 3))
-    y = rng.normal(size=(300, 2))
-    a = ref_features(u, 2)
-    coef = rng.normal(size=(a.shape[1], 2))
-    stats = static_statistics(MonomialBasis(3, 2), u, y)
-    np.testing.assert_allclose(stats.residual_sum_of_squares(coef), ((a @ coef - y) ** 2).sum(axis=0),
-                               rtol=1e-9)
-
-
 def _hand_arx_regressor(u, y_past, na, nb):
     """Degree-1 ARX rows k = max(na, nb)..n-1 of one segment, DESIGN.md order."""
     lag = max(na, nb)

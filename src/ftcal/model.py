@@ -18,7 +18,7 @@ from ._threads import map_ranges, single_threaded_blas
 from ._checks import check_choice, check_finite_matrix, check_int
 from .dataset import Dataset
 from .errors import FtcalError, IllPosedFitWarning, NotFittedError, OutOfRangeWarning
-from .features import FeatureCombination, MonomialBasis, RegressorLayout, n_coefficients
+from .features import FeatureCombination, MonomialBasis, RegressorLayout
 from .normalization import MODES, Normalization, normalization_from_range
 from .progress import progress_bar
 from .solvers.base import ScaledProblem
@@ -254,7 +254,6 @@ class CalibrationModel:
         layout, lag = self.layout_, self.layout_.max_lag
         ny = len(self.output_names_)
         padded_u = np.concatenate([np.repeat(u_norm[:1], lag, axis=0), u_norm])
-        past = layout.n_past_outputs
         if mode == "one-step":
             y_norm = self.output_normalization_.apply(y_measured)
             padded_y = np.concatenate([np.repeat(y_norm[:1], lag, axis=0), y_norm])
@@ -312,8 +311,6 @@ class CalibrationModel:
             "degree": self.layout_.basis.degree, "na": self.layout_.na, "nb": self.layout_.nb,
             "n_inputs": len(self.input_names_), "n_outputs": len(self.output_names_),
             "n_coefficients": int(self.coef_.size),
-            "n_coefficients_formula": n_coefficients(len(self.input_names_), self.layout_.basis.degree,
-                                                     len(self.output_names_), self.layout_.na, self.layout_.nb),
             "n_nonzero": int(np.count_nonzero(self.coef_)),
         }
 

@@ -33,9 +33,6 @@ class Normalization:
     def apply(self, values: np.ndarray) -> np.ndarray:
         return (values - self.offset) / self.scale
 
-    def invert(self, values: np.ndarray) -> np.ndarray:
-        return values * self.scale + self.offset
-
     @classmethod
     def identity(cls, n_columns: int) -> "Normalization":
         return cls(np.zeros(n_columns), np.ones(n_columns))

@@ -31,6 +31,9 @@ from .solvers.lasso import Lasso
 from .solvers.least_squares import LeastSquares, Ridge
 from .statistics import layout_statistics, sum_statistics
 
+__all__ = ["Candidate", "CrossValidationResult", "PAPER_LAMBDAS", "cross_validate", "default_candidates",
+           "fit_best", "fit_candidates", "grouped_folds"]
+
 PAPER_LAMBDAS = (0.5, 1.0, 10.0, 50.0, 100.0, 200.0)
 TIE_TOLERANCE = 0.01  # candidates within 1% of the best score count as tied
 
@@ -236,8 +239,6 @@ def fit_best(data: Dataset, result: CrossValidationResult, *, normalization: str
                             normalization=normalization).fit(data)
 
 
-__all__ = ["Candidate", "CrossValidationResult", "PAPER_LAMBDAS", "cross_validate", "default_candidates",
-           "fit_best", "fit_candidates", "grouped_folds"]
 
 
 def fit_candidates(data: Dataset, candidates: Sequence[Candidate], *, normalization: str = "center",

@@ -17,7 +17,7 @@ them exactly once. ARX models (lagged columns) use plain chunked AᵀA.
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from functools import cached_property
 from itertools import combinations_with_replacement
 
@@ -49,7 +49,6 @@ class SufficientStatistics:
     target_sum: np.ndarray
     column_maxabs: np.ndarray
     n_samples: int = 0
-    extra: dict = field(default_factory=dict)
 
     @classmethod
     def zeros(cls, n_features: int, n_outputs: int) -> "SufficientStatistics":
@@ -70,12 +69,7 @@ class SufficientStatistics:
     def restrict(self, columns: np.ndarray) -> "SufficientStatistics":
         """Statistics of the sub-regressor made of ``columns`` (e.g. a lower degree)."""
         return replace(self, gram=self.gram[np.ix_(columns, columns)], cross=self.cross[columns],
-                       column_maxabs=self.column_maxabs[columns], extra={})
-
-    def residual_sum_of_squares(self, coef: np.ndarray) -> np.ndarray:
-        """‖A x - b‖² per output for coefficients ``coef`` (p, ny), from the statistics alone."""
-        return (self.target_sq - 2.0 * np.einsum("pi,pi->i", coef, self.cross)
-                + np.einsum("pi,pq,qi->i", coef, self.gram, coef))
+                       column_maxabs=self.column_maxabs[columns])
 
 
 def sum_statistics(parts: Iterable[SufficientStatistics]) -> SufficientStatistics:

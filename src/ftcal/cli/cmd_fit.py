@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ._common import add_column_options, column_list, default_inputs, float_list, nonnegative_int, positive_float, require_suffix
+from ._common import add_column_options, default_inputs, float_list, nonnegative_int, positive_float, require_suffix
 
 EPILOG = """examples:
   ftcal fit train/*.csv -o model.json                      affine model, u1..u6,T -> Fx..Tz
@@ -80,7 +80,6 @@ def check_options(args) -> None:
 
 
 def run(args) -> int:
-    from ..errors import FtcalError
     from ..io.model_json import save_model
     from ..io.tables import read_dataset
     from ..model import CalibrationModel

@@ -141,7 +141,7 @@ class RobotModel:
         return float(sum(m.getLink(m.getLinkIndex(n)).getInertia().getMass()
                          for n in self.links_beyond(sensor, base)))
 
-    def joint_matrix(self, names: Sequence[str], values, where: str) -> "np.ndarray":
+    def joint_matrix(self, names: Sequence[str], values, where: str):
         """Place columns named ``names`` into the model's joint order; joints not given are 0.
 
         values : array of shape (n_samples, len(names)); returns (n_samples, n_dofs).

@@ -49,11 +49,6 @@ class ScaledProblem:
     def n_features(self) -> int:
         return self.gram.shape[0]
 
-    def objective(self, coef: np.ndarray) -> np.ndarray:
-        """½‖Ax − b‖² per output, from the statistics alone."""
-        quad = np.einsum("pi,pq,qi->i", coef, self.gram, coef)
-        return 0.5 * (self.target_sq - 2.0 * np.einsum("pi,pi->i", coef, self.cross) + quad)
-
 
 @dataclass(frozen=True)
 class Spectrum:
