@@ -167,6 +167,8 @@ class CalibrationModel:
                     IllPosedFitWarning, stacklevel=3)
 
     def _warn_if_rank_deficient(self, layout: RegressorLayout) -> None:
+        if self.solver_info_.get("lambda"):
+            return  # ridge and LASSO penalties make collinear problems well posed
         p = layout.n_features
         if self.rank_ < p:
             warnings.warn(
