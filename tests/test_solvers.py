@@ -350,3 +350,24 @@ def test_model_osqp_least_squares_close_to_lstsq(rng, ref_features, make_sensor_
     expected = _standardized_lstsq(ref_features, u, y, u, 2)
     np.testing.assert_allclose(model.predict(u), expected, atol=1e-5 * np.abs(y).max())
     assert model.solver_info_["name"] == "osqp"
+
+
+def test_lasso_polish_repairs_a_nearly_right_support(rng):
+    # Start the active-set polish from sklearn's solution with one active coefficient
+    # dropped and one inactive one added: it must still land on sklearn's optimum.
+    from ftcal.solvers.lasso import _polish
+
+    a, b = _problem(rng, n=300, p=12, ny=1)
+    a_s = _scaled(a)
+    lam = 2.0
+    reference = SklearnLasso(alpha=lam / len(a), fit_intercept=False, tol=1e-12, max_iter=1_000_000).fit(a_s, b[:, 0])
+    active = np.flatnonzero(reference.coef_)
+    inactive = np.flatnonzero(reference.coef_ == 0)
+    assert active.size >= 2 and inactive.size >= 1
+    guess = reference.coef_.copy()
+    guess[active[0]] = 0.0
+    guess[inactive[0]] = 1.0
+    polished = _polish(a_s.T @ a_s, a_s.T @ b[:, 0], guess, lam)
+    assert polished is not None
+    np.testing.assert_allclose(polished, reference.coef_, rtol=1e-6, atol=1e-8)
+    assert np.array_equal(np.flatnonzero(polished), active)
