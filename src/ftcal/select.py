@@ -130,10 +130,10 @@ def default_candidates(degrees: Sequence[int] = (1, 2, 3, 4, 5), lams: Sequence[
 
 
 def _score(y: np.ndarray, prediction: np.ndarray, output_names: Sequence[str]) -> tuple[float, str]:
-    summary = metrics.summarize(y, prediction, output_names)
-    if summary["force_norm_rmse"] is not None:
-        return summary["force_norm_rmse"], "force-norm RMSE"
-    return float(np.mean(summary["rmse"])), "mean RMSE"
+    forces, _ = metrics.force_torque_columns(output_names)
+    if forces is not None:
+        return metrics.norm_rmse(y[:, forces], prediction[:, forces]), "force-norm RMSE"
+    return float(np.mean(metrics.rmse(y, prediction))), "mean RMSE"
 
 
 def cross_validate(data: Dataset, candidates: Sequence[Candidate], *, n_folds: int = 5,
