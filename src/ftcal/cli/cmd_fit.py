@@ -120,6 +120,11 @@ def report_fit(model, path: str) -> None:
           + f", solver {model.solver_info_.get('name')}" + (f" lambda={lam:g}" if lam else ""))
     print(f"coefficients: {info['n_coefficients']} ({info['n_nonzero']} nonzero); samples: {model.n_samples_fit_}; "
           f"condition number: {model.condition_number_:.3g}")
+    if lam:
+        from ..conversion import to_raw
+
+        raw_count = int((abs(to_raw(model)) > 1e-9).sum())
+        print(f"raw-input coefficients with |value| > 1e-9 (the paper's count): {raw_count}")
     if metrics.get("force_norm_rmse") is not None:
         print(f"training force-norm RMSE {metrics['force_norm_rmse']:.4f}, "
               f"torque-norm RMSE {metrics['torque_norm_rmse']:.4f}")
