@@ -189,6 +189,9 @@ def test_runs_table_matches_metrics_computed_here(report, data, models):
         assert row["nonzero"] == str(np.count_nonzero(model.coef_))
     # Coefficient counts per the paper: ny · (1 + Σ_p C(nu+p−1, p)), nu = 7, ny = 6.
     assert rows["np1"]["coefficients"] == "48"
+    # The paper's count for the affine model: raw coefficients above 1e-9 of numpy's lstsq on [u, 1].
+    raw = np.linalg.lstsq(np.column_stack([train.inputs, np.ones(train.n_samples)]), train.outputs, rcond=None)[0]
+    assert rows["np1"]["raw > 1e-9"] == str(int((np.abs(raw) > 1e-9).sum()))
     assert rows["np2"]["coefficients"] == "216"
     assert rows["np1"]["λ"] == "–" and rows["np2 λ=10"]["λ"] == "10"
     assert rows["np2 λ=10"]["solver"] == "lasso" and rows["np2"]["solver"] == "lstsq"
