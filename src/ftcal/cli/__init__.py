@@ -53,6 +53,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"warning: {message}", file=sys.stderr)
         else:
             print(f"{category.__name__}: {message}", file=sys.stderr)
+    previous = warnings.showwarning
     warnings.showwarning = show
     try:
         return int(args.func(args) or 0)
@@ -66,6 +67,8 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"ftcal {args.command}: interrupted", file=sys.stderr)
         return 130
+    finally:
+        warnings.showwarning = previous  # main() may be called in-process (tests, scripts)
 
 
 if __name__ == "__main__":
