@@ -311,3 +311,21 @@ def test_predict_leaves_the_callers_inputs_untouched(n_inputs):
     before = u.copy()
     model.predict(u)
     np.testing.assert_array_equal(u, before)
+
+
+def test_arx_one_step_is_exact_across_prediction_chunks():
+    # A noise-free linear ARX system, longer than a prediction chunk: every one-step
+    # prediction after the first sample must equal the system's output, so the lag
+    # history has to be carried correctly across chunk boundaries.
+    from ftcal import model as model_module
+
+    rng = np.random.default_rng(11)
+    n = 3 * model_module.PREDICT_CHUNK + 123
+    u = rng.uniform(-1.0, 1.0, (n, 2))
+    y = np.zeros((n, 1))
+    for k in range(1, n):
+        y[k, 0] = 0.6 * y[k - 1, 0] + 2.0 * u[k, 0] - 1.5 * u[k - 1, 1] + 0.3
+    data = Dataset.from_arrays(u, y, input_names=("a", "b"), output_names=("Fx",))
+    model = CalibrationModel(1, na=1, nb=1).fit(data)
+    one_step = model.predict(data, mode="one-step")
+    np.testing.assert_allclose(one_step[1:], y[1:], rtol=0, atol=1e-9)

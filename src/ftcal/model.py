@@ -259,10 +259,9 @@ class CalibrationModel:
         if mode == "one-step":
             y_norm = self.output_normalization_.apply(y_measured)
             padded_y = np.concatenate([np.repeat(y_norm[:1], lag, axis=0), y_norm])
-            return layout.evaluate_segment(padded_u, padded_y) @ self.coef_
+            return self._arx_product(padded_u, padded_y)
         # Free run: the input part once for all samples, then the output recursion.
-        zeros = np.zeros((padded_u.shape[0], ny))
-        exogenous = layout.evaluate_segment(padded_u, zeros) @ self.coef_
+        exogenous = self._arx_product(padded_u, np.zeros((padded_u.shape[0], ny)))
         feedback = [self.coef_[(j - 1) * ny:j * ny] for j in range(1, layout.na + 1)]
         scale = self.output_normalization_.scale
         offset = self.output_normalization_.offset
@@ -279,6 +278,17 @@ class CalibrationModel:
             history.append((value - offset) / scale)
             history.pop(0)
         return result
+
+    def _arx_product(self, padded_u: np.ndarray, padded_y: np.ndarray) -> np.ndarray:
+        """Regressor rows times coefficients, ``PREDICT_CHUNK`` rows at a time (never the whole N × p)."""
+        lag = self.layout_.max_lag
+        n = padded_u.shape[0] - lag
+        out = np.empty((n, self.coef_.shape[1]))
+        for start in range(0, n, PREDICT_CHUNK):
+            stop = min(start + PREDICT_CHUNK, n)
+            rows = self.layout_.evaluate_segment(padded_u[start:stop + lag], padded_y[start:stop + lag])
+            out[start:stop] = rows @ self.coef_
+        return out
 
     def _steady_state(self, exogenous: np.ndarray, feedback: list[np.ndarray]) -> np.ndarray:
         """Output y with y = g + Σ_j ((y − o)/s) S_j, i.e. the fixed point for constant input."""
