@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from ._common import require_suffix
 from .cmd_sensors import add_robot_arguments
 
 
@@ -49,14 +50,12 @@ def register(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from ..errors import FtcalError
     from ..insitu import InsituOptions, build_dataset, write_dataset
     from ..robot import load_case_config, parse_payload_spec
     from ..robot.model import RobotModel
 
+    require_suffix(args.output, (".csv", ".parquet", ".pq"), "-o")
     out = Path(args.output)
-    if out.suffix.lower() not in (".csv", ".parquet", ".pq"):
-        raise FtcalError(f"Output {out}: use a .parquet or .csv file name.")
     robot = RobotModel.load(urdf=args.urdf, name=args.model)
     payloads = [parse_payload_spec(spec) for spec in args.payload]
     config = load_case_config(args.payload_file) if args.payload_file else None

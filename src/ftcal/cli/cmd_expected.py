@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from ._common import require_suffix
 from .cmd_sensors import add_robot_arguments, load_robot
 
 WRENCH = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
@@ -43,9 +44,8 @@ def run(args: argparse.Namespace) -> int:
     from ..robot.cache import cache_key, cached
     from ..robot.expected import expected_wrenches
 
+    require_suffix(args.output, (".csv", ".parquet", ".pq"), "-o")
     out = Path(args.output)
-    if out.suffix.lower() not in (".csv", ".parquet", ".pq"):
-        raise FtcalError(f"Output {out}: use a .csv or .parquet file name.")
     robot = load_robot(args)
     sensors = [robot.sensor(name) for name in args.sensor] or list(robot.ft_sensors)
     labels = args.sensor or [s.name for s in sensors]
