@@ -30,8 +30,8 @@ from .accumulate import AxisStatistics
 from .regressor import DYNAMIC_PARAMETERS, STATIC_PARAMETERS, inertia_about_com, inertia_matrix
 
 AXES = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
-# VIF above this (standard errors inflated more than ~30×) means the poses hardly excite a parameter.
-EXCITATION_LIMIT = 1e3
+# VIF above this (standard errors inflated more than 10×) means the poses hardly excite a parameter.
+EXCITATION_LIMIT = 100.0
 
 _GRAVITY_HINT = ("add poses that tilt the sensor so gravity points along different sensor axes "
                  "(tool down, sideways, up)")
@@ -154,8 +154,8 @@ def identify_payload(groups: Mapping[str, AxisStatistics], *, cross_validate: bo
         raise FtcalError(f"the poses leave {_describe(missing)} undetermined (regressor rank "
                          f"{conditioning.rank} of {p}): {'; '.join(hints)}.")
     theta0 = conditioning.solve(total.cross()[:, None])[:, 0]
-    dof = 6 * n - p
-    variance = total.residual_sum_of_squares(theta0) / dof
+    # Each axis carries n of the 6n − p residual degrees of freedom.
+    variance = total.residual_sum_of_squares(theta0) / (n - p / 6)
     scale = np.array([s.target_sq[0] for s in total.axes]) / n
     variance = np.maximum(variance, 1e-24 * np.maximum(scale, 1.0))  # exact synthetic data: no zero weights
     weights = 1.0 / variance
