@@ -3,7 +3,8 @@
 The stacked regressor has six rows per sample; keeping the statistics of
 each axis apart (they simply add up to the stacked ones) gives the residual
 RMS of every axis and a per-axis noise weighting without a second pass over
-the data.
+the data. Static poses need only the moments of ``[g, 1, wrench]`` (one
+10 × 10 product per chunk); the dynamic regressor is built chunk by chunk.
 """
 
 from __future__ import annotations
@@ -71,18 +72,17 @@ def payload_statistics(wrench: np.ndarray, kinematics: Kinematics, dynamic: bool
     -------
     AxisStatistics
     """
+    if not dynamic:
+        return _static_statistics(wrench, kinematics.gravity, chunk)
     n = wrench.shape[0]
-    p = 16 if dynamic else 10
+    p = 16
 
     def work(begin: int, end: int) -> AxisStatistics:
         parts = [SufficientStatistics.zeros(p, 1) for _ in range(6)]
         for start in range(begin, end, chunk):
             stop = min(start + chunk, end)
             rows = kinematics.rows(start, stop)
-            if dynamic:
-                y = dynamic_regressor(rows.proper(), rows.angular_velocity, rows.angular_acceleration)
-            else:
-                y = static_regressor(rows.gravity)
+            y = dynamic_regressor(rows.proper(), rows.angular_velocity, rows.angular_acceleration)
             for axis in range(6):
                 parts[axis] = parts[axis] + dense_statistics(np.ascontiguousarray(y[:, axis, :]),
                                                              wrench[start:stop, axis:axis + 1])
@@ -92,3 +92,44 @@ def payload_statistics(wrench: np.ndarray, kinematics: Kinematics, dynamic: bool
     if not pieces:
         return AxisStatistics(tuple(SufficientStatistics.zeros(p, 1) for _ in range(6)))
     return AxisStatistics(tuple(sum_statistics([piece.axes[a] for piece in pieces]) for a in range(6)))
+
+
+def _static_maps() -> np.ndarray:
+    """L of shape (6, 10, 4): the static regressor row of axis i is ``L[i] @ [g, 1]`` (affine in g)."""
+    constant = static_regressor(np.zeros(3))[0]
+    slopes = [static_regressor(e)[0] - constant for e in np.eye(3)]
+    return np.stack([np.column_stack([slopes[0][i], slopes[1][i], slopes[2][i], constant[i]]) for i in range(6)])
+
+
+def _static_statistics(wrench: np.ndarray, gravity: np.ndarray, chunk: int) -> AxisStatistics:
+    """Static statistics from the moments of z = [g, 1, wrench] alone: one 10 × 10 product per chunk.
+
+    Every static regressor row is ``L_i [g, 1]``, so AᵀA of axis i is
+    ``L_i (Σ z zᵀ) L_iᵀ`` and Aᵀb is ``L_i Σ z w_i``; exact, and far cheaper
+    than forming the N × 6 × 10 regressor.
+    """
+    n = wrench.shape[0]
+
+    def work(begin: int, end: int) -> tuple[np.ndarray, np.ndarray]:
+        moments = np.zeros((10, 10))
+        z = np.empty((min(chunk, end - begin), 10))
+        maxabs = np.zeros(4)
+        for start in range(begin, end, chunk):
+            stop = min(start + chunk, end)
+            block = z[:stop - start]
+            block[:, :3] = gravity[start:stop]
+            block[:, 3] = 1.0
+            block[:, 4:] = wrench[start:stop]
+            moments += block.T @ block
+            np.maximum(maxabs, np.abs(block[:, :4]).max(axis=0), out=maxabs)
+        return moments, maxabs
+
+    parts = map_ranges(work, n, chunk)
+    moments = sum((m for m, _ in parts), np.zeros((10, 10)))
+    maxabs = np.max([a for _, a in parts], axis=0) if parts else np.zeros(4)
+    zz, zw, ww = moments[:4, :4], moments[:4, 4:], np.diag(moments[4:, 4:])
+    axes = []
+    for i, lmap in enumerate(_static_maps()):
+        axes.append(SufficientStatistics(lmap @ zz @ lmap.T, (lmap @ zw[:, i])[:, None], ww[i:i + 1].copy(),
+                                         np.array([moments[3, 4 + i]]), np.abs(lmap) @ maxabs, n))
+    return AxisStatistics(tuple(axes))
