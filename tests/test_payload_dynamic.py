@@ -67,3 +67,31 @@ def test_rotation_about_one_axis_leaves_inertia_undetermined():
     wrench = rng.normal(size=(n, 6))
     with pytest.raises(FtcalError, match=r"leave Ixx, Ixy, Iyy undetermined .*about the sensor's x axis"):
         identify_payload({"a": payload_statistics(wrench, kinematics, dynamic=True)})
+
+
+def test_cli_dynamic_identification_and_compensation(simulated, tmp_path, capsys):
+    import json
+
+    import pandas as pd
+
+    from ftcal.cli import main
+
+    kinematics, exact, measured = simulated
+    columns = {"gx": kinematics.gravity, "wx": kinematics.angular_velocity, "alx": kinematics.angular_acceleration,
+               "ax": kinematics.proper_acceleration, "u1": measured}
+    names = {"gx": ["gx", "gy", "gz"], "wx": ["wx", "wy", "wz"], "alx": ["alx", "aly", "alz"],
+             "ax": ["ax", "ay", "az"], "u1": ["u1", "u2", "u3", "u4", "u5", "u6"]}
+    frame = pd.concat([pd.DataFrame(v, columns=names[k]) for k, v in columns.items()], axis=1)
+    data = tmp_path / "motion.parquet"
+    frame.to_parquet(data)
+    options = ["--gravity-columns", "gx,gy,gz", "--dynamic", "--angular-acceleration", "alx,aly,alz"]
+    assert main(["payload", str(data), *options, "-o", str(tmp_path / "p.json")]) == 0
+    out = capsys.readouterr().out
+    assert "dynamic (inertia included)" in out and "Ixx (com)" in out
+    doc = json.loads((tmp_path / "p.json").read_text())
+    rot = Rotation.from_euler("xyz", RPY).as_matrix()
+    inertia_com = rot @ inertia_matrix([IXX, IXY, IXZ, IYY, IYZ, IZZ]) @ rot.T
+    assert np.all(np.abs(np.array(doc["inertia"]) - inertia_com) < 4 * np.array(doc["stderr"]["inertia"]) + 1e-12)
+    assert main(["compensate", str(tmp_path / "p.json"), str(data), *options, "-o", str(tmp_path / "c.csv")]) == 0
+    contact = pd.read_csv(tmp_path / "c.csv")[["Fx", "Fy", "Fz", "Tx", "Ty", "Tz"]].to_numpy()
+    np.testing.assert_allclose(np.sqrt(np.mean(contact ** 2, axis=0)), NOISE, rtol=0.2)
