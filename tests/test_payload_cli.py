@@ -236,3 +236,23 @@ def test_real_process_error_is_one_line(tmp_path):
     assert done.returncode == 2 and "Traceback" not in done.stderr
     assert done.stderr.strip().splitlines() == [f"ftcal payload: error: {tmp_path / 'nothere.csv'}: no such file."]
     assert not out.exists()
+
+
+def test_poorly_excited_poses_warn_and_still_write(capsys, tmp_path):
+    # The sensor only turns about its own z axis, tilted 3° from the vertical.
+    frame = poses_frame(seed=4)
+    phi = np.repeat(np.linspace(0.0, 2 * np.pi, N_POSES, endpoint=False), PER_POSE)
+    rot = Rotation.from_euler("x", 3.0, degrees=True) * Rotation.from_euler("z", phi[:, None])
+    g = rot.inv().apply([0.0, 0.0, -G])
+    wrench = np.c_[MASS * g, np.cross(COM, MASS * g)] + BIAS
+    frame[["qx", "qy", "qz", "qw"]] = rot.as_quat()
+    frame[["u1", "u2", "u3", "u4", "u5", "u6"]] = wrench + np.random.default_rng(0).normal(size=wrench.shape) * NOISE
+    path, out = tmp_path / "cone.csv", tmp_path / "p.json"
+    frame.to_csv(path, index=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", FtcalWarning)
+        assert main(["payload", str(path), "--orientation", "qx,qy,qz,qw", "-o", str(out)]) == 0
+    captured = capsys.readouterr()
+    lines = [l for l in captured.err.splitlines() if l.startswith("warning: the poses hardly excite mass")]
+    assert lines and "tilt the sensor" in lines[0]
+    assert "poorly excited: m," in captured.out and out.exists()

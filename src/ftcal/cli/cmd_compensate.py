@@ -13,7 +13,8 @@ def register(sub) -> None:
                        description="Contact wrench = measured wrench (or the wrench a calibration model "
                                    "predicts from the raw channels) minus the bias minus the payload's gravity "
                                    "wrench (and, with --dynamic, its inertial wrench), written as Fx..Tz in the "
-                                   "sign of the readings; the other columns are kept.")
+                                   "sign of the readings (replacing any Fx..Tz columns of DATA); the other "
+                                   "columns are kept.")
     p.add_argument("payload", metavar="PAYLOAD.json", help="payload file from `ftcal payload`")
     p.add_argument("data", nargs="+", metavar="DATA", help="CSV or Parquet files")
     p.add_argument("-o", "--output", required=True, metavar="OUT.csv|OUT.parquet",

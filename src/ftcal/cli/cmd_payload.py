@@ -108,11 +108,10 @@ def read_inputs(args, source, columns):
 
 def run(args) -> int:
     import sys
-    import warnings
 
     import numpy as np
 
-    from ..errors import FtcalError, IllPosedFitWarning
+    from ..errors import FtcalError
     from ..io.payload_json import save_payload
     from ..payload.accumulate import payload_statistics
     from ..payload.identify import identify_payload
@@ -137,11 +136,7 @@ def run(args) -> int:
             part = kinematics if whole else kinematics.take(rows)
             stats = payload_statistics(sign * (wrench if whole else wrench[rows]), part, dynamic=args.dynamic)
             groups[label] = stats if label not in groups else groups[label] + stats
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", IllPosedFitWarning)
-        fit = identify_payload(groups)
-    for w in caught:
-        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    fit = identify_payload(groups)
     check_sign(fit)
     print_fit(fit, len(groups), args)
     payload = PayloadParameters.from_fit(fit, gravity=args.g, frame=args.frame, reaction=args.reaction,
