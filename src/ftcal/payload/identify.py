@@ -161,10 +161,12 @@ def identify_payload(groups: Mapping[str, AxisStatistics], *, cross_validate: bo
     weights = 1.0 / variance
     wgram = total.gram(weights)
     theta = _solve(wgram, total.cross(weights))
-    covariance = np.linalg.inv(wgram)
-    covariance = 0.5 * (covariance + covariance.T)
-    diag = np.diag(wgram)
-    vif = np.diag(covariance) * diag
+    # Invert the equilibrated Gram (unit diagonal): the columns' units differ by orders of magnitude.
+    jacobi = 1.0 / np.sqrt(np.diag(wgram))
+    inverse = np.linalg.inv(wgram * jacobi[:, None] * jacobi[None, :])
+    inverse = 0.5 * (inverse + inverse.T)
+    covariance = inverse * jacobi[:, None] * jacobi[None, :]
+    vif = np.diag(inverse)
     poorly = tuple(names[j] for j in np.flatnonzero(vif > EXCITATION_LIMIT))
     for name in poorly:
         j = names.index(name)
