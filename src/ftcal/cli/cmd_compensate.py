@@ -3,9 +3,7 @@
 from __future__ import annotations
 
 from ._common import column_list, require_suffix
-from .cmd_payload import WRENCH_DEFAULT, add_kinematics_options, check_not_input, kinematics_source
-
-OUTPUT_COLUMNS = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
+from .cmd_payload import add_kinematics_options, check_not_input, kinematics_source
 
 
 def register(sub) -> None:
@@ -29,15 +27,14 @@ def register(sub) -> None:
 
 def run(args) -> int:
     import sys
-    from pathlib import Path
 
     import pandas as pd
 
     from ..errors import FtcalError
     from ..io.model_files import read_model
     from ..io.payload_json import load_payload
-    from ..io.tables import numeric_columns, read_table, write_table
-    from ..payload.compensate import contact_wrench
+    from ..io.tables import write_table
+    from ..payload.tables import compensate_table
 
     require_suffix(args.output, (".csv", ".parquet"), "-o")
     check_not_input(args.output, [args.payload, *args.data] + ([args.model] if args.model else []))
@@ -47,23 +44,7 @@ def run(args) -> int:
                          "compensate without --dynamic or re-identify with it.")
     source = kinematics_source(args)
     model = read_model(args.model) if args.model else None
-    columns = args.wrench or tuple(payload.fit.get("wrench_columns", WRENCH_DEFAULT))
-    if model is None and len(columns) != 6:
-        raise FtcalError(f"--wrench needs 6 columns Fx,Fy,Fz,Tx,Ty,Tz; got {','.join(columns)}.")
-    if model is not None and len(model.output_names_) != 6:
-        raise FtcalError(f"{args.model}: the model has {len(model.output_names_)} outputs; a wrench needs 6.")
-    parts = []
-    for path in args.data:
-        frame = read_table(path)
-        if model is not None:
-            measured = model.predict(numeric_columns(frame, model.input_names_, Path(path), "input"))
-        else:
-            measured = numeric_columns(frame, columns, Path(path), "wrench")
-        contact = contact_wrench(measured, payload, source(frame, str(path)))
-        out = frame.copy()
-        for j, name in enumerate(OUTPUT_COLUMNS):
-            out[name] = contact[:, j]
-        parts.append(out)
+    parts = [compensate_table(path, payload, source, wrench=args.wrench, model=model) for path in args.data]
     table = pd.concat(parts, ignore_index=True) if len(parts) > 1 else parts[0]
     write_table(table, args.output)
     print(f"wrote {len(table)} contact wrenches to {args.output}", file=sys.stderr)

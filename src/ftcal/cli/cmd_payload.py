@@ -6,9 +6,6 @@ import argparse
 
 from ._common import column_list, positive_float, require_suffix
 
-WRENCH_DEFAULT = ("u1", "u2", "u3", "u4", "u5", "u6")
-# |mass| below this many standard errors is not distinguishable from zero.
-SIGNIFICANT_STDERR = 2.0
 MAX_GROUPS_PRINTED = 8
 
 
@@ -80,7 +77,8 @@ def register(sub) -> None:
                                    "report the opposite sign.")
     p.add_argument("data", nargs="+", metavar="DATA", help="CSV or Parquet files, one row per sample")
     p.add_argument("-o", "--output", required=True, metavar="PAYLOAD.json")
-    p.add_argument("--wrench", type=column_list, default=WRENCH_DEFAULT, metavar="FX,FY,FZ,TX,TY,TZ",
+    p.add_argument("--wrench", type=column_list, default=("u1", "u2", "u3", "u4", "u5", "u6"),
+                   metavar="FX,FY,FZ,TX,TY,TZ",
                    help="measured wrench columns, N and N·m (default u1,...,u6)")
     add_kinematics_options(p)
     p.add_argument("--group-by", metavar="COL",
@@ -91,71 +89,26 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def read_inputs(args, source, columns):
-    """Per file: (path, frame, wrench array, kinematics)."""
-    from pathlib import Path
-
-    from ..errors import FtcalError
-    from ..io.tables import numeric_columns, read_table
-
-    if len(columns) != 6:
-        raise FtcalError(f"--wrench needs 6 columns Fx,Fy,Fz,Tx,Ty,Tz; got {','.join(columns)}.")
-    for path in args.data:
-        frame = read_table(path)
-        wrench = numeric_columns(frame, columns, Path(path), "wrench")
-        yield path, frame, wrench, source(frame, str(path))
-
-
 def run(args) -> int:
     import sys
 
-    import numpy as np
-
-    from ..errors import FtcalError
     from ..io.payload_json import save_payload
-    from ..payload.accumulate import payload_statistics
-    from ..payload.identify import identify_payload
+    from ..payload.identify import check_mass_sign, identify_payload
     from ..payload.parameters import PayloadParameters
+    from ..payload.tables import table_statistics
 
     require_suffix(args.output, (".json",), "-o")
     check_not_input(args.output, args.data)
-    source = kinematics_source(args)
-    sign = -1.0 if args.reaction else 1.0
-    groups = {}
-    for path, frame, wrench, kinematics in read_inputs(args, source, args.wrench):
-        if args.group_by is None:
-            labels = np.full(len(frame), str(path), dtype=object)
-        else:
-            if args.group_by not in frame.columns:
-                raise FtcalError(f"{path}: no group column {args.group_by!r}; the file has "
-                                 f"{', '.join(map(str, frame.columns))}.")
-            labels = frame[args.group_by].astype(str).to_numpy()
-        for label in dict.fromkeys(labels):
-            rows = np.flatnonzero(labels == label)
-            whole = len(rows) == len(labels)
-            part = kinematics if whole else kinematics.take(rows)
-            stats = payload_statistics(sign * (wrench if whole else wrench[rows]), part, dynamic=args.dynamic)
-            groups[label] = stats if label not in groups else groups[label] + stats
+    groups = table_statistics(args.data, kinematics_source(args), wrench=args.wrench, group_by=args.group_by,
+                              reaction=args.reaction, dynamic=args.dynamic)
     fit = identify_payload(groups)
-    check_sign(fit)
+    check_mass_sign(fit)
     print_fit(fit, len(groups), args)
     payload = PayloadParameters.from_fit(fit, gravity=args.g, frame=args.frame, reaction=args.reaction,
                                          wrench_columns=tuple(args.wrench))
     save_payload(payload, args.output, sources=args.data)
     print(f"wrote {args.output}", file=sys.stderr)
     return 0
-
-
-def check_sign(fit) -> None:
-    from ..errors import FtcalError
-
-    se = fit.stderr["mass"]
-    if fit.mass < 0 and -fit.mass > SIGNIFICANT_STDERR * se:
-        raise FtcalError(f"the estimated mass is {fit.mass:.6g} ± {se:.2g} kg, negative: the sensor reports the "
-                         "opposite sign convention (the wrench it applies on the tool); re-run with --reaction.")
-    if fit.mass <= SIGNIFICANT_STDERR * se:
-        raise FtcalError(f"the estimated mass {fit.mass:.6g} ± {se:.2g} kg is not distinguishable from zero: "
-                         "no payload to identify (check the wrench columns and the orientation source).")
 
 
 def print_fit(fit, n_groups: int, args) -> None:

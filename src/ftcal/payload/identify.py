@@ -50,6 +50,8 @@ _HINTS = {
     "Ixz": "add motions rotating about the sensor's x and z axes",
     "Iyz": "add motions rotating about the sensor's y and z axes",
 }
+# |mass| below this many standard errors is not distinguishable from zero.
+SIGNIFICANT_STDERR = 2.0
 # Readable names for messages.
 LABELS = {"m": "mass", "mcx": "com x", "mcy": "com y", "mcz": "com z",
           "Fx_bias": "force bias x", "Fy_bias": "force bias y", "Fz_bias": "force bias z",
@@ -179,6 +181,25 @@ def identify_payload(groups: Mapping[str, AxisStatistics], *, cross_validate: bo
     return PayloadFit(names, theta, covariance, residual_rms=rms, n_samples=n,
                       condition_number=Conditioning.of(wgram).condition_number,
                       variance_inflation=vif, poorly_excited=poorly, cross_validation=residuals, **fit)
+
+
+def check_mass_sign(fit: PayloadFit) -> None:
+    """Refuse a mass that is negative or not distinguishable from zero.
+
+    Raises
+    ------
+    FtcalError
+        A significantly negative mass means the sensor reports the opposite
+        sign convention (the message offers ``--reaction``); a mass within
+        :data:`SIGNIFICANT_STDERR` standard errors of zero leaves nothing to identify.
+    """
+    se = fit.stderr["mass"]
+    if fit.mass < 0 and -fit.mass > SIGNIFICANT_STDERR * se:
+        raise FtcalError(f"the estimated mass is {fit.mass:.6g} ± {se:.2g} kg, negative: the sensor reports the "
+                         "opposite sign convention (the wrench it applies on the tool); re-run with --reaction.")
+    if fit.mass <= SIGNIFICANT_STDERR * se:
+        raise FtcalError(f"the estimated mass {fit.mass:.6g} ± {se:.2g} kg is not distinguishable from zero: "
+                         "no payload to identify (check the wrench columns and the orientation source).")
 
 
 def _derive(names: tuple[str, ...], theta: np.ndarray, cov: np.ndarray) -> dict:
