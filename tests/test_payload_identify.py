@@ -202,3 +202,16 @@ def test_statistics_add_over_chunks_and_threads():
         np.testing.assert_allclose(a.cross, b.cross, rtol=1e-12)
     a = dense_regressor(gravity)
     np.testing.assert_allclose(one.gram(), a.T @ a, rtol=1e-12)
+
+
+def test_mass_sign_checks():
+    from ftcal.payload.identify import check_mass_sign
+
+    gravity = random_gravity(20, 5, seed=6)
+    rng = np.random.default_rng(4)
+    bare = BIAS + rng.normal(size=(len(gravity), 6)) * NOISE  # nothing mounted: bias only
+    with pytest.raises(FtcalError, match="not distinguishable from zero"):
+        check_mass_sign(fit(gravity, bare))
+    with pytest.raises(FtcalError, match="negative: .*re-run with --reaction"):
+        check_mass_sign(fit(gravity, -readings(gravity, rng)))
+    check_mass_sign(fit(gravity, readings(gravity, rng)))
