@@ -215,3 +215,13 @@ def test_mass_sign_checks():
     with pytest.raises(FtcalError, match="negative: .*re-run with --reaction"):
         check_mass_sign(fit(gravity, -readings(gravity, rng)))
     check_mass_sign(fit(gravity, readings(gravity, rng)))
+
+
+def test_a_full_turn_about_one_horizontal_axis_identifies_everything():
+    # Gravity sweeps the sensor's y-z plane: m from Fy/Fz, com y/z from Tx, com x from Ty/Tz.
+    phi = np.linspace(0.0, 2 * np.pi, 12, endpoint=False)
+    gravity = np.repeat(G * np.column_stack([np.zeros(12), np.sin(phi), -np.cos(phi)]), 10, axis=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", IllPosedFitWarning)
+        result = fit(gravity, readings(gravity, np.random.default_rng(0)))
+    assert np.all(result.variance_inflation < 10)
