@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from ._common import require_suffix
-from .cmd_sensors import add_robot_arguments
+from .cmd_sensors import add_robot_arguments, load_robot
 
 
 def register(subparsers) -> None:
@@ -52,11 +52,10 @@ def run(args: argparse.Namespace) -> int:
 
     from ..insitu import InsituOptions, build_dataset, write_dataset
     from ..robot import load_case_config, parse_payload_spec
-    from ..robot.model import RobotModel
 
     require_suffix(args.output, (".csv", ".parquet", ".pq"), "-o")
     out = Path(args.output)
-    robot = RobotModel.load(urdf=args.urdf, name=args.model)
+    robot = load_robot(args, payloads=False)
     payloads = [parse_payload_spec(spec) for spec in args.payload]
     config = load_case_config(args.payload_file) if args.payload_file else None
     options = InsituOptions(

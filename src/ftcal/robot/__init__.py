@@ -6,10 +6,11 @@ what every F/T sensor should measure for given joint data. The output
 convention (frame, sign) is documented in :mod:`ftcal.robot.expected`.
 """
 
+from .declare import SensorDeclaration
 from .expected import FloatingBase, WrenchPredictor, expected_wrenches
 from .loadcases import LoadCase, LoadCaseConfig, load_case_config
 from .model import FTSensor, RobotModel
 from .payloads import Payload, parse_payload_spec
 
 __all__ = ["FTSensor", "FloatingBase", "LoadCase", "LoadCaseConfig", "Payload", "RobotModel",
-           "WrenchPredictor", "expected_wrenches", "load_case_config", "parse_payload_spec"]
+           "SensorDeclaration", "WrenchPredictor", "expected_wrenches", "load_case_config", "parse_payload_spec"]
