@@ -27,10 +27,8 @@ from ..errors import FtcalError
 from .expected import GRAVITY, FloatingBase, check_joints
 from .model import RobotModel
 
-# Inertial parameters of a rigid body, in the order of ftcal.payload.regressor:
-# mass, first moments m·c (link frame), rotational inertia about the link origin (link axes).
-PAYLOAD_PARAMETERS = ("m", "mcx", "mcy", "mcz", "Ixx", "Ixy", "Ixz", "Iyy", "Iyz", "Izz")
-STATIC_PARAMETERS = PAYLOAD_PARAMETERS[:4]
+# Mass and first moments: the only inertial parameters a static pose sees.
+N_STATIC_PARAMETERS = 4
 
 
 @dataclass(frozen=True)
@@ -138,8 +136,12 @@ def _sensor_frame(robot: RobotModel, sensor: str) -> tuple[str, np.ndarray]:
     ft = robot.sensor(sensor)
     native = robot.sensors.getSixAxisForceTorqueSensor(ft.index)
     link = robot.model.getLinkIndex(ft.parent_link)
-    link_H_sensor = native.getLinkSensorTransform(link).asHomogeneousTransform().toNumPy()
-    return ft.parent_link, link_H_sensor
+    import idyntree.swig as idyn
+
+    transform = idyn.Transform()
+    if not native.getLinkSensorTransform(link, transform):
+        raise FtcalError(f"iDynTree has no transform from link {ft.parent_link!r} to F/T sensor {ft.name!r}.")
+    return ft.parent_link, transform.asHomogeneousTransform().toNumPy()
 
 
 def frame_kinematics(robot: RobotModel, frame: str, q: np.ndarray, dq: np.ndarray | None = None,
@@ -207,7 +209,7 @@ def payload_regressor(robot: RobotModel, sensor: str, link: str, q: np.ndarray, 
     """Per-sample matrix Y with ``wrench = Y @ pi`` for an unknown payload on ``link``.
 
     ``pi`` are the payload's inertial parameters in ``link`` coordinates, in the
-    order of :data:`PAYLOAD_PARAMETERS` (m kg; m·c kg m; inertia about the link
+    order of :data:`ftcal.payload.regressor.INERTIAL_PARAMETERS` (m kg; m·c kg m; inertia about the link
     origin, link axes, kg m²), and ``wrench`` (Fx..Tz, N and N m) is what the
     payload adds to ``sensor``'s expected wrench, with the convention of
     :mod:`ftcal.robot.expected`. ``link`` must be on the far side of the sensor
@@ -222,35 +224,34 @@ def payload_regressor(robot: RobotModel, sensor: str, link: str, q: np.ndarray, 
     ------
     FtcalError : unknown sensor or link, a link on the base side of the sensor.
     """
-    from ..payload.regressor import regressor
+    from ..payload.regressor import INERTIAL_PARAMETERS, inertial_regressor
 
     q, dq, ddq = _prepare(robot, q, dq, ddq, floating)
     ft = robot.sensor(sensor)
-    if link not in robot.links_beyond(ft, None if floating is not None else base):
-        raise FtcalError(f"--estimate-payload {link!r}: not a link on the far side of F/T sensor {ft.name!r} "
-                         f"(the sensor would not feel it); links beyond it: "
-                         f"{', '.join(robot.links_beyond(ft, None if floating is not None else base)) or 'none'}.")
+    beyond = robot.links_beyond(ft, None if floating is not None else base)
+    if link not in beyond:
+        raise FtcalError(f"Payload link {link!r}: not on the far side of F/T sensor {ft.name!r}, so the "
+                         f"sensor does not feel it; links beyond it: {', '.join(beyond) or 'none'}.")
     sensor_link, link_H_sensor = _sensor_frame(robot, sensor)
     kin = _Kinematics(robot, base, gravity, floating)
     sensor_index = kin.frame_index(sensor_link, robot.source)
     link_index = kin.frame_index(link, robot.source)
     n = q.shape[0]
-    width = len(STATIC_PARAMETERS) if static else len(PAYLOAD_PARAMETERS)
-    out = np.empty((n, 6, width))
+    sensor_R_link = np.empty((n, 3, 3))
+    lever = np.empty((n, 3))
+    motion = np.empty((3, n, 3))
     for k in range(n):
         kin.update(k, q, dq, ddq)
         rot_l, p_l, omega, alpha, proper = kin.frame(link_index)
         rot_s, p_s, *_ = kin.frame(sensor_index)
-        to_link = rot_l.T
-        # Wrench the payload applies on the link, about the link origin, in link axes.
-        y_link = regressor(to_link @ proper, to_link @ omega, to_link @ alpha)
-        # Move it to the sensor frame: rotate, and take the torque about the sensor origin.
         world_R_sensor = rot_s @ link_H_sensor[:3, :3]
-        sensor_origin = rot_s @ link_H_sensor[:3, 3] + p_s
-        sensor_R_link = world_R_sensor.T @ rot_l
-        lever = world_R_sensor.T @ (p_l - sensor_origin)
-        force = sensor_R_link @ y_link[:3]
-        torque = sensor_R_link @ y_link[3:] + np.cross(lever, force, axis=0)
-        out[k, :3] = force[:, :width]
-        out[k, 3:] = torque[:, :width]
-    return out
+        sensor_R_link[k] = world_R_sensor.T @ rot_l
+        lever[k] = world_R_sensor.T @ (p_l - rot_s @ link_H_sensor[:3, 3] - p_s)
+        motion[:, k] = (rot_l.T @ proper, rot_l.T @ omega, rot_l.T @ alpha)
+    # Wrench the payload applies at the link origin, link axes; then rotate it into the sensor
+    # frame and take the torque about the sensor origin.
+    y_link = inertial_regressor(*motion)
+    width = N_STATIC_PARAMETERS if static else len(INERTIAL_PARAMETERS)
+    force = np.einsum("nij,njk->nik", sensor_R_link, y_link[:, :3, :width])
+    torque = np.einsum("nij,njk->nik", sensor_R_link, y_link[:, 3:, :width]) + np.cross(lever[:, :, None], force, axis=1)
+    return np.concatenate([force, torque], axis=1)
