@@ -133,11 +133,11 @@ def _prepare(robot: RobotModel, q, dq, ddq, floating):
 
 def _sensor_frame(robot: RobotModel, sensor: str) -> tuple[str, np.ndarray]:
     """Name of the link the sensor's frame is fixed to, and link_H_sensor (4, 4)."""
+    import idyntree.swig as idyn
+
     ft = robot.sensor(sensor)
     native = robot.sensors.getSixAxisForceTorqueSensor(ft.index)
     link = robot.model.getLinkIndex(ft.parent_link)
-    import idyntree.swig as idyn
-
     transform = idyn.Transform()
     if not native.getLinkSensorTransform(link, transform):
         raise FtcalError(f"iDynTree has no transform from link {ft.parent_link!r} to F/T sensor {ft.name!r}.")
