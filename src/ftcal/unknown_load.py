@@ -213,10 +213,7 @@ def fit_with_payload(data: Dataset, payload: np.ndarray, link: str, *, degree: i
 
 
 def _unidentifiable_message(link: str, parameters: list[str], mass_free: bool) -> str:
-    what = " and ".join(parameters)
-    if mass_free:
-        return (f"The payload on {link} cannot be identified together with the calibration ({what} trade against "
-                f"the calibration gains: nothing known beyond the sensor moves relative to {link}); "
-                f"give its mass with --payload-mass KG, or move the robot's own links beyond the sensor.")
-    return (f"The payload on {link}: {what} are not excited by these poses; record poses that rotate "
-            f"{link} about different axes relative to gravity.")
+    advice = "record poses that move them" + (", or give the payload's mass with --payload-mass KG" if mass_free else "")
+    return (f"The payload on {link} cannot be separated from the calibration: {' and '.join(parameters)} trade "
+            f"against the calibration's gains. The scale comes from the robot's own links beyond the sensor "
+            f"that move relative to {link} (e.g. a hand beyond wrist joints); {advice}.")
