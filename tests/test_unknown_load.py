@@ -185,6 +185,5 @@ def test_cli_fit_estimate_payload(tmp_path, icub_plate):
     assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1
     assert "Y_r_hand_Fx_m" in bad.stderr and "--estimate-payload r_hand" in bad.stderr
     assert not (tmp_path / "b.json").exists()
-    lasso = run_cli("fit", str(tmp_path / "data.parquet"), "--estimate-payload", "r_forearm", "--lasso", "1",
-                    "-o", str(tmp_path / "c.json"))
-    assert lasso.returncode == 2 and "drop --lasso" in lasso.stderr
+    stray = run_cli("fit", str(tmp_path / "data.parquet"), "--payload-mass", "2", "-o", str(tmp_path / "c.json"))
+    assert stray.returncode == 2 and "--payload-mass goes with --estimate-payload" in stray.stderr

@@ -177,6 +177,11 @@ def estimate_payload(data: Dataset, payload: np.ndarray, link: str, *,
     stderr[free] = np.sqrt(np.clip(np.diag(covariance), 0.0, None)) / scale
     if payload_mass is not None:
         values[0] = payload_mass
+    vague = [names[j] for j in free if stderr[j] > abs(values[j])]
+    if vague:
+        warnings.warn(f"Payload on {link}: {', '.join(vague)} poorly determined (standard error larger than the "
+                      f"value); record poses that turn {link} about other axes relative to gravity, or that move "
+                      "the robot's own links beyond the sensor relative to it.", IllPosedFitWarning, stacklevel=2)
     if values[0] <= 0:
         warnings.warn(f"The estimated payload mass on {link} is {values[0]:.4g} kg (not positive): the data "
                       "do not determine it; give --payload-mass or record more varied poses.",

@@ -1,4 +1,4 @@
-"""``ftcal fit --estimate-payload LINK``: the calibration and an unknown payload fitted together."""
+"""``ftcal fit --estimate-payload LINK``: estimate an unknown payload, then fit the calibration to the completed wrench."""
 
 from __future__ import annotations
 
@@ -6,30 +6,25 @@ import sys
 
 
 def check_payload_options(args) -> None:
-    """Refuse options the joint calibration + payload fit does not support, before reading data."""
+    """Refuse option combinations before any data is read."""
     from ..errors import FtcalError
 
     if args.payload_mass is not None and args.estimate_payload is None:
         raise FtcalError("--payload-mass goes with --estimate-payload LINK.")
-    if args.estimate_payload is None:
-        return
-    unsupported = [flag for flag, used in (("--degree auto", args.degree == "auto"), ("--lasso", args.lasso),
-                                           ("--ridge", args.ridge), ("--solver osqp", args.solver == "osqp"),
-                                           ("--na", args.na), ("--nb", args.nb)) if used]
-    if unsupported:
-        raise FtcalError(f"--estimate-payload fits a static least-squares model; drop {', '.join(unsupported)}.")
 
 
-def run_with_payload(args, inputs, outputs) -> int:
-    """Read the data with the payload regressor columns, fit both, write the model, report the payload."""
+def read_with_payload(args, inputs, outputs):
+    """The dataset with the payload's wrench added to the outputs; prints the payload estimate.
+
+    Reads the ``Y_<LINK>_<output>_<parameter>`` columns written by
+    ``ftcal dataset --estimate-payload LINK`` (4 static or 10 parameters).
+    """
     from dataclasses import replace
 
     from ..errors import FtcalError
-    from ..io.model_json import save_model
     from ..io.tables import read_dataset, read_table
     from ..payload.regressor import INERTIAL_PARAMETERS
-    from ..unknown_load import fit_with_payload, payload_column
-    from .cmd_fit import report_fit
+    from ..unknown_load import estimate_payload, payload_column
 
     link = args.estimate_payload
     header = set(read_table(args.data[0]).columns)
@@ -42,11 +37,9 @@ def run_with_payload(args, inputs, outputs) -> int:
     data = read_dataset(args.data, inputs, (*outputs, *columns), segment_by=args.segment_by, group_by=args.group_by)
     print(f"read {data.n_samples} samples from {len(args.data)} file(s): inputs {','.join(inputs)} "
           f"-> outputs {','.join(outputs)} + payload on {link} ({k} parameters)", file=sys.stderr)
+    known = data.outputs[:, :len(outputs)]
     regressor = data.outputs[:, len(outputs):].reshape(data.n_samples, len(outputs), k)
-    known = replace(data, outputs=data.outputs[:, :len(outputs)], output_names=tuple(outputs))
-    model, estimate = fit_with_payload(known, regressor, link, degree=args.degree,
-                                       normalization=args.normalization, payload_mass=args.payload_mass)
-    save_model(model, args.output, sources=[str(p) for p in args.data])
+    data = replace(data, outputs=known, output_names=tuple(outputs))
+    estimate = estimate_payload(data, regressor, link, payload_mass=args.payload_mass)
     print("\n".join(estimate.lines()))
-    report_fit(model, args.output)
-    return 0
+    return replace(data, outputs=known + regressor @ estimate.values)

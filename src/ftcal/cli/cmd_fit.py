@@ -47,8 +47,9 @@ def register(sub) -> None:
     p.add_argument("--lambdas", type=float_list, metavar="L1,L2,...",
                    help="lambda grid for --degree auto (default the paper's 0.5,1,10,50,100,200)")
     p.add_argument("--estimate-payload", metavar="LINK",
-                   help="fit an unknown payload on LINK (mass, first moments; inertia with dynamic data) together "
-                        "with the calibration; needs a dataset from 'ftcal dataset --estimate-payload LINK'")
+                   help="estimate an unknown payload on LINK (mass, first moments; inertia with dynamic data) from "
+                        "the same data, then fit the calibration to the completed wrench; needs a dataset from "
+                        "'ftcal dataset --estimate-payload LINK'")
     p.add_argument("--payload-mass", type=positive_float, metavar="KG",
                    help="known mass of that payload (needed when nothing else beyond the sensor moves relative "
                         "to LINK: the mass would trade against the force gains)")
@@ -89,7 +90,7 @@ def run(args) -> int:
     from ..io.model_json import save_model
     from ..io.tables import read_dataset
     from ..model import CalibrationModel
-    from ._fit_payload import check_payload_options, run_with_payload
+    from ._fit_payload import check_payload_options, read_with_payload
 
     require_suffix(args.output, (".json",), "-o")
     check_options(args)
@@ -97,10 +98,11 @@ def run(args) -> int:
     inputs = args.inputs or default_inputs(args.data)
     outputs = args.outputs or ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
     if args.estimate_payload is not None:
-        return run_with_payload(args, inputs, outputs)
-    data = read_dataset(args.data, inputs, outputs, segment_by=args.segment_by, group_by=args.group_by)
-    print(f"read {data.n_samples} samples from {len(args.data)} file(s): inputs {','.join(inputs)} "
-          f"-> outputs {','.join(outputs)}", file=sys.stderr)
+        data = read_with_payload(args, inputs, outputs)
+    else:
+        data = read_dataset(args.data, inputs, outputs, segment_by=args.segment_by, group_by=args.group_by)
+        print(f"read {data.n_samples} samples from {len(args.data)} file(s): inputs {','.join(inputs)} "
+              f"-> outputs {','.join(outputs)}", file=sys.stderr)
     if args.degree == "auto":
         from ..select import PAPER_LAMBDAS, Candidate, cross_validate, default_candidates, fit_best
 
