@@ -145,6 +145,20 @@ def predict_section(sizes: dict) -> list[str]:
             f"{sk['samples_per_s'] / ours['samples_per_s']:.2f}× | {sk['peak_rss_mb']:,.0f} MB |", ""]
 
 
+def payload_section(sizes: dict) -> list[str]:
+    n = sizes["payload_n"]
+    ours = run_case("ftcal_payload", n=n)
+    base = run_case("numpy_payload_lstsq", n=n)
+    HEADLINE["payload"] = (f"{n:,} static samples: {ours['seconds']:.2f} s (target < 1 s); "
+                           f"{base['seconds'] / ours['seconds']:.1f}× numpy lstsq on the stacked regressor")
+    return ["## Payload and bias identification (10 parameters, static poses)", "",
+            "| method | N | time | vs ftcal | peak memory |", "|---|---:|---:|---:|---:|",
+            f"| ftcal (quaternions → gravity, streaming statistics, weighted fit + stderr) | {n:,} | "
+            f"{fmt_s(ours['seconds'])} | 1.0× | {ours['peak_rss_mb']:,.0f} MB |",
+            f"| numpy: stacked 6N × 10 regressor + lstsq | {n:,} | {fmt_s(base['seconds'])} | "
+            f"{base['seconds'] / ours['seconds']:.2f}× | {base['peak_rss_mb']:,.0f} MB |", ""]
+
+
 def expected_section(sizes: dict) -> list[str]:
     # In its own process: its worker processes' peak memory must not include other cases'.
     code = ("import contextlib, json, sys\nfrom benchmarks import bench_expected\n"
@@ -169,10 +183,12 @@ def expected_section(sizes: dict) -> list[str]:
 
 FULL = {"fit_big": 1_000_000, "fit_mid": 100_000, "scaling_n": (10_000, 100_000, 1_000_000), "dense_max_n": 100_000,
         "degree_n": 100_000, "lasso_n": 200_000, "paper_lasso_n": 10_000, "predict_n": 2_000_000,
-        "expected_n": 100_000, "expected_baseline_n": 10_000}
+        "expected_n": 100_000, "expected_baseline_n": 10_000,
+        "payload_n": 1_000_000}
 QUICK = {"fit_big": 20_000, "fit_mid": 5_000, "scaling_n": (2_000, 10_000), "dense_max_n": 10_000,
          "degree_n": 5_000, "lasso_n": 5_000, "paper_lasso_n": 1_000, "predict_n": 100_000,
-         "expected_n": 2_000, "expected_baseline_n": 500}
+         "expected_n": 2_000, "expected_baseline_n": 500,
+         "payload_n": 20_000}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -188,10 +204,12 @@ def main(argv: list[str] | None = None) -> int:
              "interpreter and libraries. Ratios compare cases measured in the same run.", "",
              f"Machine: {machine()}.", ""]
     body = []
-    for section in (fit_section, lasso_section, predict_section, scaling_section, expected_section):
+    for section in (fit_section, lasso_section, predict_section, scaling_section, expected_section,
+                    payload_section):
         print(f"{section.__name__} ...", file=sys.stderr, flush=True)
         body += section(sizes)
-    labels = {"fit": "Fit", "lasso": "LASSO", "predict": "Prediction", "expected": "Expected wrenches"}
+    labels = {"fit": "Fit", "lasso": "LASSO", "predict": "Prediction", "expected": "Expected wrenches",
+              "payload": "Payload identification"}
     lines += ["## Against the targets", ""] + [f"- **{labels[k]}**: {v}." for k, v in HEADLINE.items()] + [""]
     lines += body
     lines += [f"Total benchmark time: {time.perf_counter() - started:.0f} s.", ""]

@@ -184,8 +184,53 @@ def sklearn_predict(n: int, degree: int) -> dict:
     return {"seconds": seconds, "samples_per_s": n / seconds}
 
 
+# ----------------------------------------------------------------- payload identification
+def make_payload_data(n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Sensor orientations (quaternions x, y, z, w) and static readings of a 1.3 kg tool plus bias and noise."""
+    from scipy.spatial.transform import Rotation
+
+    rot = Rotation.random(n, random_state=seed)
+    g = rot.inv().apply([0.0, 0.0, -9.81])
+    com, bias = np.array([0.01, -0.02, 0.07]), np.array([3.0, -2.0, 5.0, 0.1, -0.2, 0.05])
+    wrench = np.c_[1.3 * g, np.cross(com, 1.3 * g)] + bias
+    wrench += np.random.default_rng(seed).normal(size=wrench.shape) * [0.3, 0.3, 0.3, 0.01, 0.01, 0.01]
+    return rot.as_quat(), wrench
+
+
+def ftcal_payload(n: int) -> dict:
+    """Quaternions → gravity, streaming per-axis statistics, weighted fit with standard errors."""
+    from ftcal.payload.accumulate import payload_statistics
+    from ftcal.payload.identify import identify_payload
+    from ftcal.payload.kinematics import Kinematics, gravity_from_quaternions
+
+    q, wrench = make_payload_data(n)
+    start = time.perf_counter()
+    gravity = gravity_from_quaternions(q)
+    fit = identify_payload({"all": payload_statistics(wrench, Kinematics(gravity))})
+    seconds = time.perf_counter() - start
+    return {"seconds": seconds, "mass": fit.mass}
+
+
+def numpy_payload_lstsq(n: int) -> dict:
+    """The stacked 6N × 10 regressor built with numpy, then ``numpy.linalg.lstsq`` (no weights, no stderr)."""
+    q, wrench = make_payload_data(n)
+    start = time.perf_counter()
+    x, y, z, w = q.T
+    g = -9.81 * np.column_stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)])
+    a = np.zeros((n, 6, 10))
+    a[:, :3, 0] = g
+    a[:, 3, 2], a[:, 3, 3] = g[:, 2], -g[:, 1]  # (m c) × g
+    a[:, 4, 1], a[:, 4, 3] = -g[:, 2], g[:, 0]
+    a[:, 5, 1], a[:, 5, 2] = g[:, 1], -g[:, 0]
+    a[:, :, 4:] = np.eye(6)
+    theta = np.linalg.lstsq(a.reshape(6 * n, 10), wrench.reshape(6 * n), rcond=None)[0]
+    seconds = time.perf_counter() - start
+    return {"seconds": seconds, "mass": float(theta[0])}
+
+
 CASES = {f.__name__: f for f in (ftcal_fit, ftcal_statistics, paper_recipe_fit, numpy_lstsq_fit, sklearn_fit,
-                                 ftcal_lasso, paper_lasso, sklearn_lasso, ftcal_predict, sklearn_predict)}
+                                 ftcal_lasso, paper_lasso, sklearn_lasso, ftcal_predict, sklearn_predict,
+                                 ftcal_payload, numpy_payload_lstsq)}
 
 
 if __name__ == "__main__":

@@ -15,6 +15,7 @@ import warnings
 COMMAND_MODULES = (
     "fit", "evaluate", "predict", "convert", "info", "demo",
     "sensors", "expected", "dataset", "report",
+    "payload", "compensate",
 )
 
 

@@ -173,47 +173,59 @@ def parse_model(text: str, source: str = "<model>") -> ModelFile:
     """Parse and validate model-file ``text``; ``source`` names it in error messages."""
     doc = _parse_json(text, source)
     _check_version(doc, source)
-    error = jsonschema.exceptions.best_match(_validator().iter_errors(doc))
-    if error is not None:
-        message = error.message if len(error.message) <= _MESSAGE_LIMIT else error.message[:_MESSAGE_LIMIT] + "…"
-        raise FtcalError(f"{source}: invalid model file at {error.json_path}: {message}.")
-    if digest(doc) != doc["sha256"]:
-        raise FtcalError(f"{source}: the sha256 digest does not match the content: the file was modified "
-                         "after it was written. Re-export it from the original model.")
+    check_document(doc, source)
     return _build(doc, source)
 
 
-def _parse_json(text: str, source: str) -> dict:
+def check_document(doc: dict, source: str, resource: str = SCHEMA_RESOURCE, kind: str = "model") -> None:
+    """Validate ``doc`` against the packaged schema ``resource``, then its sha256 digest.
+
+    Raises
+    ------
+    FtcalError
+        Naming ``source``, where the document breaks the schema, or that the
+        content no longer matches its digest.
+    """
+    error = jsonschema.exceptions.best_match(_validator(resource).iter_errors(doc))
+    if error is not None:
+        message = error.message if len(error.message) <= _MESSAGE_LIMIT else error.message[:_MESSAGE_LIMIT] + "…"
+        raise FtcalError(f"{source}: invalid {kind} file at {error.json_path}: {message}.")
+    if digest(doc) != doc["sha256"]:
+        raise FtcalError(f"{source}: the sha256 digest does not match the content: the file was modified "
+                         f"after it was written. Re-export it from the original {kind}.")
+
+
+def _parse_json(text: str, source: str, fmt: str = FORMAT, kind: str = "model") -> dict:
     def reject_constant(name: str):
-        raise FtcalError(f"{source}: {name} is not valid JSON (model files write unknown numbers as null).")
+        raise FtcalError(f"{source}: {name} is not valid JSON ({kind} files write unknown numbers as null).")
 
     try:
         doc = json.loads(text, parse_constant=reject_constant)
     except json.JSONDecodeError as exc:
         raise FtcalError(f"{source}: not valid JSON: {exc.msg} at line {exc.lineno}, column {exc.colno}.") from None
-    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
-        raise FtcalError(f"{source}: not an ftcal model file (expected a JSON object with "
-                         f"\"format\": \"{FORMAT}\").")
+    if not isinstance(doc, dict) or doc.get("format") != fmt:
+        raise FtcalError(f"{source}: not an ftcal {kind} file (expected a JSON object with "
+                         f"\"format\": \"{fmt}\").")
     return doc
 
 
-def _check_version(doc: dict, source: str) -> None:
+def _check_version(doc: dict, source: str, supported: str = FORMAT_VERSION) -> None:
     version = doc.get("format_version")
-    if version == FORMAT_VERSION:
+    if version == supported:
         return
     try:
-        newer = tuple(map(int, str(version).split("."))) > tuple(map(int, FORMAT_VERSION.split(".")))
+        newer = tuple(map(int, str(version).split("."))) > tuple(map(int, supported.split(".")))
     except ValueError:
         newer = False
     if newer:
         raise FtcalError(f"{source}: format_version {version} is newer than this ftcal ({_ftcal_version()}) "
-                         f"reads (up to {FORMAT_VERSION}); upgrade ftcal to load it.")
-    raise FtcalError(f"{source}: unknown format_version {version!r}; this ftcal reads {FORMAT_VERSION}.")
+                         f"reads (up to {supported}); upgrade ftcal to load it.")
+    raise FtcalError(f"{source}: unknown format_version {version!r}; this ftcal reads {supported}.")
 
 
 @cache
-def _validator() -> jsonschema.protocols.Validator:
-    schema = json.loads(resources.files("ftcal").joinpath(SCHEMA_RESOURCE).read_text(encoding="utf-8"))
+def _validator(resource: str = SCHEMA_RESOURCE) -> jsonschema.protocols.Validator:
+    schema = json.loads(resources.files("ftcal").joinpath(resource).read_text(encoding="utf-8"))
     return jsonschema.Draft202012Validator(schema)
 
 

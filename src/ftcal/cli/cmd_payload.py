@@ -1,0 +1,197 @@
+"""``ftcal payload``: identify the sensor bias and the tool's mass, centre of mass (and inertia)."""
+
+from __future__ import annotations
+
+import argparse
+
+from ._common import column_list, positive_float, require_suffix
+
+WRENCH_DEFAULT = ("u1", "u2", "u3", "u4", "u5", "u6")
+# |mass| below this many standard errors is not distinguishable from zero.
+SIGNIFICANT_STDERR = 2.0
+MAX_GROUPS_PRINTED = 8
+
+
+def add_kinematics_options(p: argparse.ArgumentParser) -> None:
+    """Gravity source (orientation or gravity columns), --g and the --dynamic motion columns."""
+    source = p.add_mutually_exclusive_group()
+    source.add_argument("--orientation", type=column_list, metavar="QX,QY,QZ,QW",
+                        help="quaternion columns, ROS order x,y,z,w: rotation from the sensor frame to a "
+                             "world frame with gravity along -z (e.g. qx,qy,qz,qw)")
+    source.add_argument("--gravity-columns", type=column_list, metavar="GX,GY,GZ",
+                        help="gravity vector in the sensor frame, m/s² (e.g. gx,gy,gz)")
+    p.add_argument("--g", type=positive_float, default=9.81, metavar="M/S2",
+                   help="gravity magnitude (default 9.81 m/s²)")
+    p.add_argument("--dynamic", action="store_true",
+                   help="use angular velocity/acceleration and linear acceleration too (10 inertial parameters)")
+    p.add_argument("--angular-velocity", type=column_list, default=("wx", "wy", "wz"), metavar="WX,WY,WZ",
+                   help="gyroscope columns in the sensor frame, rad/s (default wx,wy,wz; --dynamic)")
+    p.add_argument("--linear-acceleration", type=column_list, default=("ax", "ay", "az"), metavar="AX,AY,AZ",
+                   help="accelerometer columns at the sensor origin, sensor frame, m/s², gravity included "
+                        "(default ax,ay,az; used with --dynamic when present, else the origin is at rest)")
+    p.add_argument("--angular-acceleration", type=column_list, metavar="C1,C2,C3",
+                   help="angular acceleration columns, rad/s² (default: differentiate the angular velocity)")
+    p.add_argument("--time", default="time", metavar="COL", help="time column in s (default time)")
+
+
+def kinematics_source(args):
+    """The :class:`~ftcal.payload.kinematics.KinematicsSource` the options describe."""
+    from ..errors import FtcalError
+    from ..payload.kinematics import GravityColumnsSource, MotionSource, OrientationSource
+
+    if args.orientation is not None:
+        if len(args.orientation) != 4:
+            raise FtcalError(f"--orientation needs 4 columns qx,qy,qz,qw; got {','.join(args.orientation)}.")
+        source = OrientationSource(args.orientation, args.g)
+    elif args.gravity_columns is not None:
+        if len(args.gravity_columns) != 3:
+            raise FtcalError(f"--gravity-columns needs 3 columns; got {','.join(args.gravity_columns)}.")
+        source = GravityColumnsSource(args.gravity_columns, args.g)
+    else:
+        raise FtcalError("give the sensor's orientation: --orientation qx,qy,qz,qw or --gravity-columns gx,gy,gz.")
+    if not args.dynamic:
+        return source
+    for option, cols in (("--angular-velocity", args.angular_velocity),
+                         ("--linear-acceleration", args.linear_acceleration),
+                         ("--angular-acceleration", args.angular_acceleration)):
+        if cols is not None and len(cols) != 3:
+            raise FtcalError(f"{option} needs 3 columns; got {','.join(cols)}.")
+    return MotionSource(source, args.angular_velocity, args.linear_acceleration, args.angular_acceleration,
+                        args.time)
+
+
+def check_not_input(output: str, inputs) -> None:
+    from pathlib import Path
+
+    from ..errors import FtcalError
+
+    target = Path(output).resolve()
+    if any(Path(p).resolve() == target for p in inputs):
+        raise FtcalError(f"-o {output}: is also an input file; write to another file.")
+
+
+def register(sub) -> None:
+    p = sub.add_parser("payload", help="identify the sensor bias and the tool's mass and centre of mass",
+                       description="Identify, by linear least squares, the F/T sensor's force and torque bias "
+                                   "and the attached tool's mass and centre of mass (sensor frame) from static "
+                                   "poses; --dynamic adds the inertia from angular velocity/acceleration and "
+                                   "linear acceleration. Sign convention: the sensor reads the wrench the tool "
+                                   "applies on it (a mass m at rest adds m·g); use --reaction for sensors that "
+                                   "report the opposite sign.")
+    p.add_argument("data", nargs="+", metavar="DATA", help="CSV or Parquet files, one row per sample")
+    p.add_argument("-o", "--output", required=True, metavar="PAYLOAD.json")
+    p.add_argument("--wrench", type=column_list, default=WRENCH_DEFAULT, metavar="FX,FY,FZ,TX,TY,TZ",
+                   help="measured wrench columns, N and N·m (default u1,...,u6)")
+    add_kinematics_options(p)
+    p.add_argument("--group-by", metavar="COL",
+                   help="column naming the cross-validation groups, e.g. the pose (default: one per file)")
+    p.add_argument("--reaction", action="store_true",
+                   help="the sensor reports the wrench it applies on the tool (opposite sign): negate readings")
+    p.add_argument("--frame", metavar="NAME", help="name of the sensor frame, stored in the file (e.g. ft_sensor)")
+    p.set_defaults(func=run)
+
+
+def read_inputs(args, source, columns):
+    """Per file: (path, frame, wrench array, kinematics)."""
+    from pathlib import Path
+
+    from ..errors import FtcalError
+    from ..io.tables import numeric_columns, read_table
+
+    if len(columns) != 6:
+        raise FtcalError(f"--wrench needs 6 columns Fx,Fy,Fz,Tx,Ty,Tz; got {','.join(columns)}.")
+    for path in args.data:
+        frame = read_table(path)
+        wrench = numeric_columns(frame, columns, Path(path), "wrench")
+        yield path, frame, wrench, source(frame, str(path))
+
+
+def run(args) -> int:
+    import sys
+
+    import numpy as np
+
+    from ..errors import FtcalError
+    from ..io.payload_json import save_payload
+    from ..payload.accumulate import payload_statistics
+    from ..payload.identify import identify_payload
+    from ..payload.parameters import PayloadParameters
+
+    require_suffix(args.output, (".json",), "-o")
+    check_not_input(args.output, args.data)
+    source = kinematics_source(args)
+    sign = -1.0 if args.reaction else 1.0
+    groups = {}
+    for path, frame, wrench, kinematics in read_inputs(args, source, args.wrench):
+        if args.group_by is None:
+            labels = np.full(len(frame), str(path), dtype=object)
+        else:
+            if args.group_by not in frame.columns:
+                raise FtcalError(f"{path}: no group column {args.group_by!r}; the file has "
+                                 f"{', '.join(map(str, frame.columns))}.")
+            labels = frame[args.group_by].astype(str).to_numpy()
+        for label in dict.fromkeys(labels):
+            rows = np.flatnonzero(labels == label)
+            whole = len(rows) == len(labels)
+            part = kinematics if whole else kinematics.take(rows)
+            stats = payload_statistics(sign * (wrench if whole else wrench[rows]), part, dynamic=args.dynamic)
+            groups[label] = stats if label not in groups else groups[label] + stats
+    fit = identify_payload(groups)
+    check_sign(fit)
+    print_fit(fit, len(groups), args)
+    payload = PayloadParameters.from_fit(fit, gravity=args.g, frame=args.frame, reaction=args.reaction,
+                                         wrench_columns=tuple(args.wrench))
+    save_payload(payload, args.output, sources=args.data)
+    print(f"wrote {args.output}", file=sys.stderr)
+    return 0
+
+
+def check_sign(fit) -> None:
+    from ..errors import FtcalError
+
+    se = fit.stderr["mass"]
+    if fit.mass < 0 and -fit.mass > SIGNIFICANT_STDERR * se:
+        raise FtcalError(f"the estimated mass is {fit.mass:.6g} ± {se:.2g} kg, negative: the sensor reports the "
+                         "opposite sign convention (the wrench it applies on the tool); re-run with --reaction.")
+    if fit.mass <= SIGNIFICANT_STDERR * se:
+        raise FtcalError(f"the estimated mass {fit.mass:.6g} ± {se:.2g} kg is not distinguishable from zero: "
+                         "no payload to identify (check the wrench columns and the orientation source).")
+
+
+def print_fit(fit, n_groups: int, args) -> None:
+    import numpy as np
+
+    from ..payload.identify import AXES
+
+    unit = {"mass": "kg", "com": "m", "force_bias": "N", "torque_bias": "N·m", "inertia": "kg·m²"}
+    kind = "dynamic (inertia included)" if fit.dynamic else "static"
+    print(f"payload from {fit.n_samples} samples in {n_groups} group(s), {kind} model, "
+          f"gravity {args.g:g} m/s²")
+    print(f"  {'mass':<14}{fit.mass:>14.6g} ± {fit.stderr['mass']:.2g} {unit['mass']}")
+    for key in ("com", "force_bias", "torque_bias"):
+        for axis, value, se in zip("xyz", getattr(fit, key), fit.stderr[key]):
+            print(f"  {key.replace('_', ' ') + ' ' + axis:<14}{value:>14.6g} ± {se:.2g} {unit[key]}")
+    if fit.dynamic:
+        for (i, j) in ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)):
+            name = "I" + "xyz"[i] + "xyz"[j] + " (com)"
+            print(f"  {name:<14}{fit.inertia[i, j]:>14.6g} ± {fit.stderr['inertia'][i, j]:.2g} {unit['inertia']}")
+    print("residual RMS: " + "  ".join(f"{a} {v:.4g}" for a, v in zip(AXES, fit.residual_rms)) + "  (N, N·m)")
+    if fit.cross_validation:
+        scored = [g for g in fit.cross_validation if g.rms is not None]
+        if scored:
+            pooled = np.sqrt(sum(g.n_samples * g.rms ** 2 for g in scored) / sum(g.n_samples for g in scored))
+            print("cross-validated residual RMS (each group left out of the fit in turn): "
+                  + "  ".join(f"{a} {v:.4g}" for a, v in zip(AXES, pooled)))
+        # The groups that fit worst when left out come first: they are the suspicious poses.
+        ranked = sorted(fit.cross_validation, key=lambda g: -np.inf if g.rms is None else -float(
+            np.sum((g.rms / np.maximum(fit.residual_rms, 1e-300)) ** 2)))
+        for g in ranked[:MAX_GROUPS_PRINTED]:
+            text = ("not identifiable without this group" if g.rms is None
+                    else "  ".join(f"{a} {v:.4g}" for a, v in zip(AXES, g.rms)))
+            print(f"  {g.group} ({g.n_samples} samples): {text}")
+        if len(ranked) > MAX_GROUPS_PRINTED:
+            print(f"  ... {len(ranked) - MAX_GROUPS_PRINTED} more group(s) fit better")
+    else:
+        print("cross-validation: one group only (give several files or --group-by COL)")
+    print(f"condition number of the weighted regressor: {fit.condition_number:.3g}"
+          + ("" if not fit.poorly_excited else f"; poorly excited: {', '.join(fit.poorly_excited)}"))
