@@ -108,3 +108,39 @@ def test_floating_base_at_rest_matches_fixed_base_gravity():
 def test_payload_link_must_be_beyond_the_sensor(ur5):
     with pytest.raises(FtcalError, match="not on the far side of F/T sensor"):
         payload_regressor(ur5, "ee_fixed_joint", "forearm_link", np.zeros((1, 6)), base="base_link")
+
+
+def test_cli_payload_with_gravity_from_the_urdf(tmp_path):
+    import json
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import pandas as pd
+
+    rng = np.random.default_rng(9)
+    q = rng.uniform(-3, 3, (40, 6))
+    mass, com = 1.3, np.array([0.01, -0.02, 0.07])
+    force_bias, torque_bias = np.array([2.0, -1.0, 0.5]), np.array([0.1, 0.05, -0.2])
+    rows = []
+    for k in range(len(q)):
+        rotation, _ = ur5_chain_rotation(q[k], "ee_link")
+        g_sensor = rotation.T @ G_BASE
+        wrench = np.r_[mass * g_sensor + force_bias, np.cross(com, mass * g_sensor) + torque_bias]
+        names = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint",
+                 "wrist_3_joint"]
+        rows.append({**dict(zip(names, q[k])), **{f"u{i + 1}": v for i, v in enumerate(wrench)}})
+    pd.DataFrame(rows).to_csv(tmp_path / "poses.csv", index=False)
+    ftcal = str(Path(sys.executable).with_name("ftcal"))
+    done = subprocess.run([ftcal, "payload", str(tmp_path / "poses.csv"), "--urdf", str(UR5), "--ft-joint",
+                           "ee_fixed_joint", "--base", "base_link", "--g", "9.81", "-o", str(tmp_path / "p.json")],
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    result = json.loads((tmp_path / "p.json").read_text())
+    assert result["mass"] == pytest.approx(mass, abs=1e-9)
+    np.testing.assert_allclose(result["com"], com, atol=1e-9)
+    np.testing.assert_allclose(result["force_bias"], force_bias, atol=1e-9)
+    np.testing.assert_allclose(result["torque_bias"], torque_bias, atol=1e-9)
+    nothing = subprocess.run([ftcal, "payload", str(tmp_path / "poses.csv"), "--urdf", str(UR5), "-o",
+                              str(tmp_path / "q.json")], capture_output=True, text=True)
+    assert nothing.returncode == 2 and "--ft-joint" in nothing.stderr and not (tmp_path / "q.json").exists()

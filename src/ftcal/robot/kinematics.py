@@ -255,3 +255,43 @@ def payload_regressor(robot: RobotModel, sensor: str, link: str, q: np.ndarray, 
     force = np.einsum("nij,njk->nik", sensor_R_link, y_link[:, :3, :width])
     torque = np.einsum("nij,njk->nik", sensor_R_link, y_link[:, 3:, :width]) + np.cross(lever[:, :, None], force, axis=1)
     return np.concatenate([force, torque], axis=1)
+
+
+@dataclass(frozen=True)
+class JointColumnsSource:
+    """Sensor-frame gravity from joint-position columns and a URDF: a kinematics source for ``ftcal payload``.
+
+    Implements :class:`ftcal.payload.kinematics.KinematicsSource`: called with a
+    table, it reads every column named like a movable joint of ``robot`` (rad, or
+    degrees with ``degrees``; joints without a column are 0) and returns the
+    gravity vector ``(0, 0, -g)`` of the fixed ``base`` frame expressed in the
+    frame of F/T ``sensor``, per row (static poses).
+    """
+
+    robot: RobotModel
+    sensor: str
+    base: str | None = None
+    g: float = 9.81
+    degrees: bool = False
+
+    @property
+    def columns(self) -> tuple[str, ...]:
+        return self.robot.joint_names
+
+    def __call__(self, frame, source: str):
+        from ..payload.kinematics import Kinematics
+
+        known = set(self.robot.joint_names)
+        names = [str(c) for c in frame.columns if c in known]
+        if not names:
+            raise FtcalError(f"{source}: no column is named like a joint of URDF {self.robot.source} "
+                             f"(e.g. {', '.join(self.robot.joint_names[:4])}).")
+        non_numeric = [c for c in names if not np.issubdtype(frame[c].dtype, np.number)]
+        if non_numeric:
+            raise FtcalError(f"{source}: joint column {non_numeric[0]!r} is not numeric.")
+        values = frame[names].to_numpy(np.float64)
+        if self.degrees:
+            values = np.deg2rad(values)
+        q = self.robot.joint_matrix(names, values, source)
+        kinematics = sensor_kinematics(self.robot, self.sensor, q, base=self.base, gravity=(0.0, 0.0, -self.g))
+        return Kinematics(kinematics.gravity)
