@@ -1,8 +1,10 @@
 """Robot models and expected F/T wrenches (iDynTree).
 
 :class:`RobotModel` loads a URDF (a path, or an iCub by name), attaches
-payloads and lists the six-axis F/T sensors; :func:`expected_wrenches` predicts
-what every F/T sensor should measure for given joint data. The output
+payloads and lists the six-axis F/T sensors (also declared on plain URDFs,
+:mod:`ftcal.robot.declare`); :func:`expected_wrenches` predicts what every F/T
+sensor should measure for given joint data; :mod:`ftcal.robot.kinematics` gives
+sensor-frame gravity and motion and the regressor of an unknown payload. The output
 convention (frame, sign) is documented in :mod:`ftcal.robot.expected`.
 """
 

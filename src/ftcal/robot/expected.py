@@ -17,6 +17,10 @@ the parent side (the iCub arms and legs seen from ``root_link``), the force is
 the weight of everything beyond the sensor: ``F = M · g`` with ``g`` the
 gravity vector in sensor axes and ``M`` the mass beyond the sensor, and
 ``T = Σ m_i c_i × g`` with ``c_i`` the centres of mass relative to the sensor.
+This is iDynTree's and Gazebo's ``child_to_parent`` measure direction, the one
+of sensors declared with ``--ft-joint`` (:mod:`ftcal.robot.declare`) and the
+ROS force_torque_tools convention; a Gazebo tag saying ``parent_to_child``
+gets the opposite sign, as that simulated sensor reports.
 
 Kinematics
 ----------

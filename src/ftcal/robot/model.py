@@ -3,7 +3,9 @@
 Load a URDF from any path or an iCub by name (via the ``icub-models``
 package); attach payloads in memory; look F/T sensors up by sensor name
 (``r_arm_ft``) or joint name (``r_arm_ft_sensor``); find the links (and mass)
-on the far side of a sensor as seen from the base frame.
+on the far side of a sensor as seen from the base frame. Sensors come from
+iDynTree sensor tags, Gazebo force_torque tags, or declarations on fixed
+joints (:mod:`ftcal.robot.declare`).
 
 Joint positions handed to iDynTree follow :attr:`RobotModel.joint_names`: the
 one-degree-of-freedom joints of the URDF, in iDynTree's DOF order.
