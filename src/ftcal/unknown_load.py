@@ -31,8 +31,11 @@ payload's link: the robot's own links beyond the sensor that move relative to
 that link (a hand beyond wrist joints) fix the scale. Otherwise (a tool on a
 wrist sensor with nothing else beyond) give the mass (``payload_mass``).
 
-Standard errors assume independent residuals; consecutive samples of a slow
-trajectory are correlated, so treat them as lower bounds.
+Standard errors assume independent residuals and an affine sensor; consecutive
+samples of a slow trajectory are correlated, and nonlinearity, creep or
+temperature-dependent gains that the affine model lacks bias the estimate
+beyond them (on the demo's simulated sensor, markedly): treat them as lower
+bounds and prefer a known mass.
 """
 
 from __future__ import annotations
@@ -59,7 +62,7 @@ def payload_column(link: str, output: str, parameter: str) -> str:
 
 @dataclass(frozen=True)
 class PayloadEstimate:
-    """Inertial parameters of a payload fitted together with a calibration.
+    """Inertial parameters of a payload estimated from calibration data.
 
     Attributes
     ----------
