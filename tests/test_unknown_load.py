@@ -187,3 +187,22 @@ def test_cli_fit_estimate_payload(tmp_path, icub_plate):
     assert not (tmp_path / "b.json").exists()
     stray = run_cli("fit", str(tmp_path / "data.parquet"), "--payload-mass", "2", "-o", str(tmp_path / "c.json"))
     assert stray.returncode == 2 and "--payload-mass goes with --estimate-payload" in stray.stderr
+
+
+def test_cli_dataset_estimate_payload_columns(tmp_path):
+    path = tmp_path / "rec.mat"
+    t, _, _ = make_recording(path, write_v73)
+    (tmp_path / "tiny.urdf").write_text(TINY_URDF)
+    out = tmp_path / "ds.csv"
+    done = run_cli("dataset", str(path), "--urdf", str(tmp_path / "tiny.urdf"), "--sensor", "arm_ft", "--no-filter",
+                   "--estimate-payload", "forearm", "-o", str(out))
+    assert done.returncode == 0, done.stderr
+    table = pd.read_csv(out)
+    g = np.array([gravity_in_sensor(0.5 * tk) for tk in t])
+    np.testing.assert_allclose(table[payload_column("forearm", "Fz", "m")], g[:, 2], atol=1e-9)
+    assert payload_column("forearm", "Tz", "mcz") in table.columns
+    assert payload_column("forearm", "Fx", "Ixx") not in table.columns  # static data: 4 parameters
+    bad = run_cli("dataset", str(path), "--urdf", str(tmp_path / "tiny.urdf"), "--sensor", "arm_ft",
+                  "--estimate-payload", "upper", "-o", str(tmp_path / "bad.csv"))
+    assert bad.returncode == 2 and "not on the far side of F/T sensor 'arm_ft'" in bad.stderr
+    assert not (tmp_path / "bad.csv").exists()
