@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from ._common import require_suffix
-from .cmd_sensors import add_robot_arguments
+from .cmd_sensors import add_robot_arguments, load_robot
 
 
 def register(subparsers) -> None:
@@ -40,6 +40,9 @@ def register(subparsers) -> None:
                              "first sample equals the expected wrench")
     parser.add_argument("--adc-limits", nargs=2, type=float, metavar=("LOW", "HIGH"),
                         help="raw values meaning the ADC saturated (reported as warnings)")
+    parser.add_argument("--estimate-payload", metavar="LINK",
+                        help="also write the regressor columns Y_<LINK>_<axis>_<parameter> of an unknown payload "
+                             "on LINK, for 'ftcal fit --estimate-payload LINK'")
     parser.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
     parser.add_argument("--no-cache", action="store_true",
                         help="do not read or write <LOG>.ftcal-cache/")
@@ -52,11 +55,10 @@ def run(args: argparse.Namespace) -> int:
 
     from ..insitu import InsituOptions, build_dataset, write_dataset
     from ..robot import load_case_config, parse_payload_spec
-    from ..robot.model import RobotModel
 
     require_suffix(args.output, (".csv", ".parquet", ".pq"), "-o")
     out = Path(args.output)
-    robot = RobotModel.load(urdf=args.urdf, name=args.model)
+    robot = load_robot(args, payloads=False)
     payloads = [parse_payload_spec(spec) for spec in args.payload]
     config = load_case_config(args.payload_file) if args.payload_file else None
     options = InsituOptions(
@@ -66,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
         imu=args.imu, imu_frame=args.imu_frame, align_first_sample=args.align_first_sample,
         joint_units="deg" if args.degrees else "rad",
         adc_limits=tuple(args.adc_limits) if args.adc_limits else None,
-        cache=not args.no_cache, workers=args.workers)
+        cache=not args.no_cache, workers=args.workers, payload_link=args.estimate_payload)
     dataset = build_dataset(args.logs, robot, args.sensor, payloads=payloads, load_cases=config, options=options)
     write_dataset(dataset, out)
     groups = sorted(set(map(str, dataset.groups)))

@@ -46,6 +46,13 @@ def register(sub) -> None:
     p.add_argument("--folds", type=int, default=5, help="cross-validation folds for --degree auto (default 5)")
     p.add_argument("--lambdas", type=float_list, metavar="L1,L2,...",
                    help="lambda grid for --degree auto (default the paper's 0.5,1,10,50,100,200)")
+    p.add_argument("--estimate-payload", metavar="LINK",
+                   help="estimate an unknown payload on LINK (mass, first moments; inertia with dynamic data) from "
+                        "the same data, then fit the calibration to the completed wrench; needs a dataset from "
+                        "'ftcal dataset --estimate-payload LINK'")
+    p.add_argument("--payload-mass", type=positive_float, metavar="KG",
+                   help="known mass of that payload (needed when nothing else beyond the sensor moves relative "
+                        "to LINK: the mass would trade against the force gains)")
     p.add_argument("-o", "--output", required=True, metavar="MODEL.json", help="model file to write")
     p.set_defaults(func=run)
 
@@ -83,14 +90,19 @@ def run(args) -> int:
     from ..io.model_json import save_model
     from ..io.tables import read_dataset
     from ..model import CalibrationModel
+    from ._fit_payload import check_payload_options, read_with_payload
 
     require_suffix(args.output, (".json",), "-o")
     check_options(args)
+    check_payload_options(args)
     inputs = args.inputs or default_inputs(args.data)
     outputs = args.outputs or ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
-    data = read_dataset(args.data, inputs, outputs, segment_by=args.segment_by, group_by=args.group_by)
-    print(f"read {data.n_samples} samples from {len(args.data)} file(s): inputs {','.join(inputs)} "
-          f"-> outputs {','.join(outputs)}", file=sys.stderr)
+    if args.estimate_payload is not None:
+        data = read_with_payload(args, inputs, outputs)
+    else:
+        data = read_dataset(args.data, inputs, outputs, segment_by=args.segment_by, group_by=args.group_by)
+        print(f"read {data.n_samples} samples from {len(args.data)} file(s): inputs {','.join(inputs)} "
+              f"-> outputs {','.join(outputs)}", file=sys.stderr)
     if args.degree == "auto":
         from ..select import PAPER_LAMBDAS, Candidate, cross_validate, default_candidates, fit_best
 

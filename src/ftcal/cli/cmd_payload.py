@@ -31,12 +31,28 @@ def add_kinematics_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--time", default="time", metavar="COL", help="time column in s (default time)")
 
 
+def add_robot_source_options(p: argparse.ArgumentParser) -> None:
+    """--urdf/--model, --sensor, --ft-joint/--ft-frame, --base, --degrees: gravity from joint columns."""
+    robot = p.add_argument_group("gravity from a robot model and joint columns (named as the URDF's joints)")
+    which = robot.add_mutually_exclusive_group()
+    which.add_argument("--urdf", dest="robot_urdf", metavar="PATH", help="URDF of the robot (with --sensor)")
+    which.add_argument("--model", dest="robot_model", metavar="NAME",
+                       help="robot model from icub-models, e.g. iCubGenova04 (with --sensor)")
+    robot.add_argument("--sensor", metavar="NAME", help="F/T sensor of the model (sensor or joint name)")
+    robot.add_argument("--ft-joint", metavar="JOINT", help="declare the F/T sensor on this fixed joint (plain URDFs)")
+    robot.add_argument("--ft-frame", metavar="LINK", help="sensor frame of --ft-joint (default: its child link)")
+    robot.add_argument("--base", metavar="FRAME", help="fixed base frame, gravity along its -z")
+    robot.add_argument("--degrees", action="store_true", help="joint columns are in degrees")
+
+
 def kinematics_source(args):
     """The :class:`~ftcal.payload.kinematics.KinematicsSource` the options describe."""
     from ..errors import FtcalError
     from ..payload.kinematics import GravityColumnsSource, MotionSource, OrientationSource
 
-    if args.orientation is not None:
+    if getattr(args, "robot_urdf", None) is not None or getattr(args, "robot_model", None) is not None:
+        source = robot_source(args)
+    elif args.orientation is not None:
         if len(args.orientation) != 4:
             raise FtcalError(f"--orientation needs 4 columns qx,qy,qz,qw; got {','.join(args.orientation)}.")
         source = OrientationSource(args.orientation, args.g)
@@ -45,7 +61,8 @@ def kinematics_source(args):
             raise FtcalError(f"--gravity-columns needs 3 columns; got {','.join(args.gravity_columns)}.")
         source = GravityColumnsSource(args.gravity_columns, args.g)
     else:
-        raise FtcalError("give the sensor's orientation: --orientation qx,qy,qz,qw or --gravity-columns gx,gy,gz.")
+        raise FtcalError("give the sensor's orientation: --orientation qx,qy,qz,qw, --gravity-columns gx,gy,gz, "
+                         "or a robot model (--urdf PATH or --model NAME) with --sensor.")
     if not args.dynamic:
         return source
     for option, cols in (("--angular-velocity", args.angular_velocity),
@@ -55,6 +72,25 @@ def kinematics_source(args):
             raise FtcalError(f"{option} needs 3 columns; got {','.join(cols)}.")
     return MotionSource(source, args.angular_velocity, args.linear_acceleration, args.angular_acceleration,
                         args.time)
+
+
+def robot_source(args):
+    """Gravity in the sensor frame from joint columns and the robot model (--urdf/--model, --sensor)."""
+    from ..errors import FtcalError
+    from ..robot import RobotModel
+    from ..robot.kinematics import JointColumnsSource
+    from .cmd_sensors import declared_sensors
+
+    if args.orientation is not None or args.gravity_columns is not None:
+        raise FtcalError("give one gravity source: a robot model (--urdf/--model), --orientation or "
+                         "--gravity-columns.")
+    robot = RobotModel.load(urdf=args.robot_urdf, name=args.robot_model, declared=declared_sensors(args))
+    robot.require_ft_sensors()
+    if args.sensor is None and len(robot.ft_sensors) > 1:
+        raise FtcalError(f"--sensor: URDF {robot.source} has {len(robot.ft_sensors)} F/T sensors; name one of "
+                         f"{', '.join(s.name for s in robot.ft_sensors)}.")
+    sensor = robot.sensor(args.sensor) if args.sensor is not None else robot.ft_sensors[0]
+    return JointColumnsSource(robot, sensor.name, args.base, args.g, args.degrees)
 
 
 def check_not_input(output: str, inputs) -> None:
@@ -81,6 +117,7 @@ def register(sub) -> None:
                    metavar="FX,FY,FZ,TX,TY,TZ",
                    help="measured wrench columns, N and N·m (default u1,...,u6)")
     add_kinematics_options(p)
+    add_robot_source_options(p)
     p.add_argument("--group-by", metavar="COL",
                    help="column naming the cross-validation groups, e.g. the pose (default: one per file)")
     p.add_argument("--reaction", action="store_true",

@@ -28,6 +28,8 @@ def cache_key(robot: RobotModel, arrays: Sequence[np.ndarray | None], options: S
     h.update(robot.urdf_text.encode("utf-8"))
     for payload in robot.payloads:
         h.update(payload.key().encode("utf-8"))
+    for declaration in robot.declared:
+        h.update(declaration.key().encode("utf-8"))
     h.update(repr(robot.joint_names).encode("utf-8"))
     for arr in arrays:
         if arr is None:

@@ -17,6 +17,10 @@ the parent side (the iCub arms and legs seen from ``root_link``), the force is
 the weight of everything beyond the sensor: ``F = M · g`` with ``g`` the
 gravity vector in sensor axes and ``M`` the mass beyond the sensor, and
 ``T = Σ m_i c_i × g`` with ``c_i`` the centres of mass relative to the sensor.
+This is iDynTree's and Gazebo's ``child_to_parent`` measure direction, the one
+of sensors declared with ``--ft-joint`` (:mod:`ftcal.robot.declare`) and the
+ROS force_torque_tools convention; a Gazebo tag saying ``parent_to_child``
+gets the opposite sign, as that simulated sensor reports.
 
 Kinematics
 ----------
@@ -48,6 +52,7 @@ import numpy as np
 from .._checks import check_int
 from ..errors import FtcalError
 from ..progress import progress_bar
+from .declare import SensorDeclaration
 from .model import RobotModel
 from .payloads import Payload
 
@@ -89,8 +94,7 @@ class WrenchPredictor:
         model = robot.model
         self.n_dofs = model.getNrOfDOFs()
         self.n_sensors = len(robot.ft_sensors)
-        if self.n_sensors == 0:
-            raise FtcalError(f"URDF {robot.source} has no six-axis F/T sensor (<sensor type=\"force_torque\">).")
+        robot.require_ft_sensors()
         # Only the F/T sensors: iDynTree would otherwise also predict every IMU of the model.
         only_ft = idyn.SensorsList()
         for s in robot.ft_sensors:
@@ -156,9 +160,9 @@ def expected_wrenches(robot: RobotModel, q: np.ndarray, *, dq: np.ndarray | None
     ``if __name__ == "__main__":`` guard); a progress bar shows the samples done.
     """
     workers = check_int(workers, "workers", "expected_wrenches", 1, 64)
-    q = _check_joints(robot, q, "joint positions")
-    dq = None if dq is None else _check_joints(robot, dq, "joint velocities", q.shape[0])
-    ddq = None if ddq is None else _check_joints(robot, ddq, "joint accelerations", q.shape[0])
+    q = check_joints(robot, q, "joint positions")
+    dq = None if dq is None else check_joints(robot, dq, "joint velocities", q.shape[0])
+    ddq = None if ddq is None else check_joints(robot, ddq, "joint accelerations", q.shape[0])
     if floating is not None and not robot.model.isFrameNameUsed(floating.frame):
         raise FtcalError(f"URDF {robot.source} has no frame named {floating.frame!r} (IMU frame).")
     n = q.shape[0]
@@ -178,7 +182,7 @@ def expected_wrenches(robot: RobotModel, q: np.ndarray, *, dq: np.ndarray | None
             return out
         # spawn, not fork: the parent may run threads (progress bar) that fork would copy mid-flight.
         context = multiprocessing.get_context("spawn")
-        init = (robot.urdf_text, robot.source, robot.payloads, predictor.base, tuple(gravity))
+        init = (robot.urdf_text, robot.source, robot.payloads, robot.declared, predictor.base, tuple(gravity))
         with ProcessPoolExecutor(max_workers=workers, mp_context=context,
                                  initializer=_init_worker, initargs=init) as pool:
             futures = [(a, b, pool.submit(_work, *job(a, b))) for a, b in bounds]
@@ -188,7 +192,8 @@ def expected_wrenches(robot: RobotModel, q: np.ndarray, *, dq: np.ndarray | None
     return out
 
 
-def _check_joints(robot: RobotModel, values: np.ndarray, what: str, n: int | None = None) -> np.ndarray:
+def check_joints(robot: RobotModel, values: np.ndarray, what: str, n: int | None = None) -> np.ndarray:
+    """``values`` as a float array of shape (n_samples, n_dofs), finite, with ``n`` rows if given."""
     arr = np.asarray(values, dtype=np.float64)
     if arr.ndim != 2 or arr.shape[1] != len(robot.joint_names):
         raise FtcalError(f"{what} must have shape (n_samples, {len(robot.joint_names)}) for URDF "
@@ -205,10 +210,10 @@ def _check_joints(robot: RobotModel, values: np.ndarray, what: str, n: int | Non
 _PREDICTOR: WrenchPredictor | None = None
 
 
-def _init_worker(urdf_text: str, source: str, payloads: tuple[Payload, ...], base: str,
-                 gravity: tuple[float, float, float]) -> None:
+def _init_worker(urdf_text: str, source: str, payloads: tuple[Payload, ...],
+                 declared: tuple[SensorDeclaration, ...], base: str, gravity: tuple[float, float, float]) -> None:
     global _PREDICTOR
-    _PREDICTOR = WrenchPredictor(RobotModel(urdf_text, source, payloads), base, gravity)
+    _PREDICTOR = WrenchPredictor(RobotModel(urdf_text, source, payloads, declared), base, gravity)
 
 
 def _work(q, dq, ddq, floating) -> np.ndarray:
