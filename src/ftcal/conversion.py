@@ -160,9 +160,7 @@ def precision_loss(model: CalibrationModel, raw_coef: np.ndarray, *, n_points: i
     """
     model._check_fitted()
     rng = np.random.default_rng(seed)
-    inn = model.input_normalization_
-    low, high = _box(model.input_range_, inn.offset - inn.scale, inn.offset + inn.scale)
-    u = np.vstack([_corners(low, high, rng), rng.uniform(low, high, (n_points, low.size))])
+    u = sample_training_box(model, n_points, rng)
     layout = model.layout_
     if layout.is_static:
         native = model.predict(u, warn_out_of_range=False)
@@ -187,6 +185,19 @@ def precision_loss(model: CalibrationModel, raw_coef: np.ndarray, *, n_points: i
             f"range) inside the training range. The native JSON model file keeps full precision.",
             PrecisionLossWarning, stacklevel=2)
     return float(diff.max())
+
+
+def sample_training_box(model: CalibrationModel, n_points: int, rng: np.random.Generator) -> np.ndarray:
+    """Inputs spanning the training box: its corners plus ``n_points`` uniform samples.
+
+    Returns
+    -------
+    ndarray of shape (n_corners + n_points, n_inputs); where a training range is
+    unknown, the normalization's ±1 box stands in for it.
+    """
+    inn = model.input_normalization_
+    low, high = _box(model.input_range_, inn.offset - inn.scale, inn.offset + inn.scale)
+    return np.vstack([_corners(low, high, rng), rng.uniform(low, high, (n_points, low.size))])
 
 
 def _box(stored: np.ndarray, low_fallback: np.ndarray, high_fallback: np.ndarray):
