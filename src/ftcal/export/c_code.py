@@ -67,7 +67,8 @@ def check_name(name: str) -> str:
     return name
 
 
-def _check_finite(model: CalibrationModel) -> None:
+def check_finite(model: CalibrationModel) -> None:
+    """Raise :class:`FtcalError` unless coefficients and normalizations are all finite."""
     inn, out = model.input_normalization_, model.output_normalization_
     for what, values in (("coefficients", model.coef_), ("input normalization", np.r_[inn.offset, inn.scale]),
                          ("output normalization", np.r_[out.offset, out.scale])):
@@ -154,7 +155,7 @@ def generate_c(model: CalibrationModel, *, name: str = DEFAULT_NAME, single_prec
     """
     model._check_fitted()
     check_name(name)
-    _check_finite(model)
+    check_finite(model)
     layout = model.layout_
     if single_precision and not layout.is_static:
         raise FtcalError("--float is for static models; an ARX model's free run feeds its rounding back "
