@@ -216,12 +216,15 @@ def _corners(low: np.ndarray, high: np.ndarray, rng: np.random.Generator) -> np.
     return np.where(pick, high, low)
 
 
-def affine_part(model: CalibrationModel, n_linear: int, target: str) -> tuple[np.ndarray, np.ndarray]:
+def affine_part(model: CalibrationModel, n_linear: int, target: str,
+                advice: str = "Export a degree-1 model without other terms, or use the JSON or paper-xml format."
+                ) -> tuple[np.ndarray, np.ndarray]:
     """Matrix (n_outputs, n_linear) and offset (n_outputs,) of a model affine in its first inputs.
 
     Raises :class:`FtcalError` naming the first other term (higher degree, lag,
     past output, or a later input such as temperature) with a nonzero raw
-    coefficient; ``target`` names the export in that message.
+    coefficient; ``target`` names the export in that message and ``advice``
+    ends it.
     """
     model._check_fitted()
     layout = model.layout_
@@ -238,5 +241,5 @@ def affine_part(model: CalibrationModel, n_linear: int, target: str) -> tuple[np
             raise FtcalError(
                 f"{target} holds only an affine map of the inputs {kept}; this model's term "
                 f"{names[c]!r} has nonzero coefficients (largest |value| {np.max(np.abs(raw[c])):.3g}). "
-                "Export a degree-1 model without other terms, or use the JSON or paper-xml format.")
+                + advice)
     return raw[linear].T.copy(), raw[-1].copy()
