@@ -86,4 +86,4 @@ def test_convert_writes_the_temperature_group(tmp_path, capsys):
     # By hand: k = K, T_ref = (20 + 40) / 2 = 30, FT_OFFSET = −(O + 30 K); e.g. Fx: −(1 + 15) = −16.
     np.testing.assert_allclose(g["FT_TEMPERATURE_COEFFICIENTS"], [0.5, -0.2, 1.0, 0.0, 0.01, -0.03, 30.0],
                                rtol=1e-14)
-    np.testing.assert_allclose(g["FT_OFFSET"], [-16.0, 4.0, -33.0, -0.1, -0.5, 0.6], rtol=1e-13)
+    np.testing.assert_allclose(g["FT_OFFSET"], [-16.0, 4.0, -27.0, -0.1, -0.5, 0.6], rtol=1e-13)
