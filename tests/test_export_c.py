@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import shutil
 import subprocess
 import sys
@@ -156,7 +157,7 @@ def test_lasso_exact_zeros_emit_no_code(tmp_path):
     n_zero = int(np.sum(model.coef_ == 0))
     assert n_zero > model.coef_.size // 4  # the λ gives many exact zeros
     code = generate_c(model, name="sparse")
-    accumulations = [line for line in code.source.splitlines() if line.lstrip().startswith("a") and "+=" in line]
+    accumulations = [line for line in code.source.splitlines() if re.match(r"\s+a\d+_\d \+= ", line)]
     assert len(accumulations) == np.count_nonzero(model.coef_)
     exe = build(tmp_path, model, "sparse")
     u_test, _ = sensor_data(200, seed=8)

@@ -6,8 +6,9 @@ does, in the model's normalized basis with its own coefficients (printed with
 is its parent monomial times one normalized input (the folded product of
 :class:`ftcal.features.MonomialEvaluator`, one multiply per term), and each
 output accumulates its nonzero coefficients times the monomials, term by
-term. Exact zeros (LASSO) emit no code. The result equals ``predict`` to
-rounding; only the order of the final sums differs.
+term, into :data:`PARTIAL_SUMS` partial sums added pairwise at the end.
+Exact zeros (LASSO) emit no code. The result equals ``predict`` to rounding;
+only the order of the sums differs.
 
 The code is straight-line C: no allocation, no library calls, no headers
 beyond its own, one monomial array on the stack; it compiles with
@@ -43,6 +44,9 @@ from ..model import RANGE_TOLERANCE, CalibrationModel
 from .targets import ConvertOptions, Written
 
 DEFAULT_NAME = "ftcal_model"
+# Independent partial sums per output of a static model: four addition chains the CPU overlaps
+# (measured faster than one chain or eight at degrees 4 and 5, benchmarks/cases.py c_predict).
+PARTIAL_SUMS = 4
 _IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 _C_KEYWORDS = frozenset(
     "auto break case char const continue default do double else enum extern float for goto if inline "
@@ -176,15 +180,23 @@ def generate_c(model: CalibrationModel, *, name: str = DEFAULT_NAME, single_prec
         inv_scale = 1.0 / inn.scale  # predict multiplies by the inverse scale
         lines = [f"void {name}_predict(const {lit.real} *u, {lit.real} *y)", "{",
                  f"    {lit.real} m[{n_monomials}];"]
-        lines += [f"    {lit.real} a{k} = 0;" for k in range(ny)]
+        lines += [f"    {lit.real} {', '.join(f'a{k}_{j} = 0' for j in range(PARTIAL_SUMS))};" for k in range(ny)]
         lines += [f"    m[{i}] = (u[{i}] - {lit(inn.offset[i])}) * {lit(inv_scale[i])};" for i in range(nu)]
         lines += _accumulate(plan, lit, nu)
-        lines += [f"    y[{k}] = a{k};" for k in range(ny)]
+        lines += [f"    y[{k}] = {_pairwise([f'a{k}_{j}' for j in range(PARTIAL_SUMS)], lambda a, b: f'({a} + {b})')};"
+                  for k in range(ny)]
         lines.append("}")
         body += lines
     else:
         body += _arx_functions(model, name, macro, plan, lit, n_monomials)
     return GeneratedC(name, header, "\n".join(body) + "\n")
+
+
+def _pairwise(parts: list, add):
+    """Sum ``parts`` as a balanced tree, ``add`` combining two: ((p0 + p1) + (p2 + p3)) for four."""
+    while len(parts) > 1:
+        parts = [add(parts[i], parts[i + 1]) if i + 1 < len(parts) else parts[i] for i in range(0, len(parts), 2)]
+    return parts[0]
 
 
 def _header_comment(model, name, single, sha256, source_name, input_units, output_units) -> str:
@@ -268,6 +280,7 @@ def _in_range(model, name, lit) -> str:
 def _accumulate(plan: _Plan, lit: _Literals, nu: int) -> list[str]:
     """Static model: monomials (parent × input) interleaved with the accumulations that use them."""
     lines, computed = [], nu
+    used = {}  # terms per output so far: term i of output k goes to partial sum i % PARTIAL_SUMS
 
     def compute_up_to(t: int) -> None:
         nonlocal computed
@@ -277,11 +290,13 @@ def _accumulate(plan: _Plan, lit: _Literals, nu: int) -> list[str]:
             computed += 1
 
     for kind, _, t, k, c in plan.terms:
+        j = used.get(k, 0) % PARTIAL_SUMS
+        used[k] = used.get(k, 0) + 1
         if kind == "1":
-            lines.append(f"    a{k} += {lit(c)};")
+            lines.append(f"    a{k}_{j} += {lit(c)};")
         else:
             compute_up_to(t)
-            lines.append(f"    a{k} += {lit(c)} * m[{t}];")
+            lines.append(f"    a{k}_{j} += {lit(c)} * m[{t}];")
     compute_up_to(nu + len(plan.parents) - 1)  # monomials whose own coefficients are all zero
     return lines
 
@@ -388,11 +403,13 @@ def evaluate_like_c(model: CalibrationModel, u: np.ndarray, *, single_precision:
     m = [x[:, i] for i in range(nu)]
     for parent, factor in plan.parents:
         m.append(m[parent] * m[factor])
-    acc = np.zeros((ny, x.shape[0]), dtype=dtype)
+    acc = np.zeros((ny, PARTIAL_SUMS, x.shape[0]), dtype=dtype)
+    used = np.zeros(ny, dtype=int)
     for kind, _, t, k, c in plan.terms:
         coefficient = dtype(lit.value(c))
-        acc[k] += coefficient if kind == "1" else coefficient * m[t]
-    return acc.T
+        acc[k, used[k] % PARTIAL_SUMS] += coefficient if kind == "1" else coefficient * m[t]
+        used[k] += 1
+    return _pairwise(list(acc.transpose(1, 0, 2)), lambda a, b: a + b).T
 
 
 def float_error(model: CalibrationModel, *, n_points: int = 2000, seed: int = 0) -> tuple[float, float, str]:
