@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
+import hashlib
 import re
 import shutil
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -114,7 +114,7 @@ def assert_relative(actual, expected, rtol=1e-12):
     assert np.all(np.abs(actual - expected) <= rtol * scale), np.max(np.abs(actual - expected) / scale)
 
 
-def test_compile_error_is_reported_as_c(tmp_path):
+def test_names_that_are_not_c_identifiers_are_refused():
     u, y = sensor_data(100)
     model = CalibrationModel(1).fit(u, y)
     with pytest.raises(FtcalError, match="not a C identifier"):
@@ -215,7 +215,6 @@ def test_cli_writes_both_files_and_reports_float_error(tmp_path, capsys):
     assert main(["convert", str(path), "--to", "c", "--name", "arm_ft", "-o", str(out_dir)]) == 0
     assert sorted(p.name for p in out_dir.iterdir()) == ["arm_ft.c", "arm_ft.h"]
     header = (out_dir / "arm_ft.h").read_text()
-    import hashlib
     assert hashlib.sha256(path.read_bytes()).hexdigest() in header
     assert "u1 [count]" in header and "Tz [Nm]" in header and "#define ARM_FT_N_INPUTS 7" in header
     subprocess.run([CC, *STRICT, "-c", "arm_ft.c"], cwd=out_dir, check=True)
@@ -250,7 +249,7 @@ def test_cli_refusals_write_nothing(tmp_path, capsys):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["arx.json", "file.txt", "m.json"]
 
 
-def test_non_finite_coefficients_are_refused(tmp_path, capsys):
+def test_non_finite_coefficients_are_refused():
     u, y = sensor_data(300)
     model = CalibrationModel(1).fit(u, y)
     model.coef_[2, 1] = np.inf

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import hashlib
+
 import numpy as np
 import onnx
 import onnxruntime as ort
@@ -46,7 +48,6 @@ def test_cli_writes_a_checked_graph(tmp_path, capsys):
     assert [i.name for i in proto.graph.input] == ["u"] and [o.name for o in proto.graph.output] == ["y"]
     assert proto.graph.input[0].type.tensor_type.elem_type == onnx.TensorProto.DOUBLE
     props = {p.key: p.value for p in proto.metadata_props}
-    import hashlib
     assert props["model_sha256"] == hashlib.sha256(path.read_bytes()).hexdigest()
     assert props["inputs"].startswith("u1 [count],")
     u_test, _ = sensor_data(50, seed=3)

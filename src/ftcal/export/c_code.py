@@ -29,7 +29,6 @@ precision, the same operations in the same order).
 from __future__ import annotations
 
 import hashlib
-import keyword
 import re
 from dataclasses import dataclass
 from pathlib import Path
