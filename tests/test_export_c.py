@@ -255,3 +255,15 @@ def test_non_finite_coefficients_are_refused():
     model.coef_[2, 1] = np.inf
     with pytest.raises(FtcalError, match="not all finite"):
         generate_c(model)
+
+
+def test_code_is_self_contained_with_one_multiply_per_monomial():
+    u, y = sensor_data(900)
+    model = CalibrationModel(4).fit(u, y)
+    code = generate_c(model, name="fold")
+    includes = [line for line in (code.source + code.header).splitlines() if line.startswith("#include")]
+    assert includes == ['#include "fold.h"']
+    assert not any(word in code.source for word in ("malloc", "calloc", "static double"))
+    # C(7+4, 4) − 1 = 329 monomials; the 7 inputs are normalized, each other one is a single product.
+    products = re.findall(r"^    m\[(\d+)\] = m\[(\d+)\] \* m\[(\d+)\];$", code.source, flags=re.M)
+    assert [int(t) for t, _, _ in products] == list(range(7, 329))
