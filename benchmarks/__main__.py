@@ -157,6 +157,22 @@ def payload_section(sizes: dict) -> list[str]:
             f"{fmt_s(ours['seconds'])} | 1.0× | {ours['peak_rss_mb']:,.0f} MB |",
             f"| numpy: stacked 6N × 10 regressor + lstsq | {n:,} | {fmt_s(base['seconds'])} | "
             f"{base['seconds'] / ours['seconds']:.2f}× | {base['peak_rss_mb']:,.0f} MB |", ""]
+def c_section(sizes: dict) -> list[str]:
+    """Generated C (``ftcal convert --to c``, ``cc -O2``) against Python predict, one core."""
+    out = ["## Generated C on one core: 7 inputs, 6 outputs", "",
+           "CPU time per sample of `NAME_predict` (`cc -std=c99 -O2`, no `-march`), cycling over 1,024 "
+           "samples; Python `predict` with `FTCAL_THREADS=1`, one sample per call and in one batch of 200,000.", "",
+           "| degree | generated C | Python, one sample per call | Python, batched | C vs one call | C vs batched |",
+           "|---:|---:|---:|---:|---:|---:|"]
+    for degree in (4, 5):
+        c = run_case("c_predict", n=sizes["c_evals"], degree=degree)
+        py = run_case("ftcal_predict_one", n=sizes["python_calls"], degree=degree)
+        if degree == 4:
+            HEADLINE["c"] = f"degree 4: {c['ns_per_sample']:.0f} ns per sample on one core (target ≤ 1,000 ns)"
+        out.append(f"| {degree} | {c['ns_per_sample']:,.0f} ns | {py['ns_per_call'] / 1e3:,.0f} µs | "
+                   f"{py['batch_ns_per_sample']:,.0f} ns | {py['ns_per_call'] / c['ns_per_sample']:,.0f}× | "
+                   f"{py['batch_ns_per_sample'] / c['ns_per_sample']:.1f}× |")
+    return out + [""]
 
 
 def expected_section(sizes: dict) -> list[str]:
@@ -183,11 +199,11 @@ def expected_section(sizes: dict) -> list[str]:
 
 FULL = {"fit_big": 1_000_000, "fit_mid": 100_000, "scaling_n": (10_000, 100_000, 1_000_000), "dense_max_n": 100_000,
         "degree_n": 100_000, "lasso_n": 200_000, "paper_lasso_n": 10_000, "predict_n": 2_000_000,
-        "expected_n": 100_000, "expected_baseline_n": 10_000,
+        "expected_n": 100_000, "expected_baseline_n": 10_000, "c_evals": 2_000_000, "python_calls": 2_000,
         "payload_n": 1_000_000}
 QUICK = {"fit_big": 20_000, "fit_mid": 5_000, "scaling_n": (2_000, 10_000), "dense_max_n": 10_000,
          "degree_n": 5_000, "lasso_n": 5_000, "paper_lasso_n": 1_000, "predict_n": 100_000,
-         "expected_n": 2_000, "expected_baseline_n": 500,
+         "expected_n": 2_000, "expected_baseline_n": 500, "c_evals": 100_000, "python_calls": 200,
          "payload_n": 20_000}
 
 
@@ -204,12 +220,12 @@ def main(argv: list[str] | None = None) -> int:
              "interpreter and libraries. Ratios compare cases measured in the same run.", "",
              f"Machine: {machine()}.", ""]
     body = []
-    for section in (fit_section, lasso_section, predict_section, scaling_section, expected_section,
+    for section in (fit_section, lasso_section, predict_section, c_section, scaling_section, expected_section,
                     payload_section):
         print(f"{section.__name__} ...", file=sys.stderr, flush=True)
         body += section(sizes)
-    labels = {"fit": "Fit", "lasso": "LASSO", "predict": "Prediction", "expected": "Expected wrenches",
-              "payload": "Payload identification"}
+    labels = {"fit": "Fit", "lasso": "LASSO", "predict": "Prediction", "c": "Generated C",
+              "expected": "Expected wrenches", "payload": "Payload identification"}
     lines += ["## Against the targets", ""] + [f"- **{labels[k]}**: {v}." for k, v in HEADLINE.items()] + [""]
     lines += body
     lines += [f"Total benchmark time: {time.perf_counter() - started:.0f} s.", ""]

@@ -226,11 +226,96 @@ def numpy_payload_lstsq(n: int) -> dict:
     theta = np.linalg.lstsq(a.reshape(6 * n, 10), wrench.reshape(6 * n), rcond=None)[0]
     seconds = time.perf_counter() - start
     return {"seconds": seconds, "mass": float(theta[0])}
+# ------------------------------------------------- generated C (one core)
+C_DRIVER = r"""
+#include <stdio.h>
+#include <time.h>
+#include "bench_model.h"
+#define SAMPLES 1024
+int main(int argc, char **argv)
+{
+    static double u[SAMPLES][BENCH_MODEL_N_INPUTS];
+    double y[BENCH_MODEL_N_OUTPUTS], checksum = 0;
+    long n = argc > 1 ? atol(argv[1]) : 1000000, k;
+    struct timespec t0, t1;
+    int s, i;
+    for (s = 0; s < SAMPLES; ++s)
+        for (i = 0; i < BENCH_MODEL_N_INPUTS; ++i)
+            if (scanf("%lf", &u[s][i]) != 1) return 1;
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t0);
+    for (k = 0; k < n; ++k) {
+        bench_model_predict(u[k % SAMPLES], y);
+        checksum += y[k % BENCH_MODEL_N_OUTPUTS];  /* keeps every call alive */
+    }
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t1);
+    printf("%.9f %.17g\n", (t1.tv_sec - t0.tv_sec) + 1e-9 * (t1.tv_nsec - t0.tv_nsec), checksum);
+    return 0;
+}
+"""
+
+
+def c_predict(n: int, degree: int) -> dict:
+    """Generated C (``-O2``, one core): ``n`` calls of ``predict`` cycling over 1024 samples."""
+    import shutil
+    import subprocess
+    import tempfile
+    from pathlib import Path
+
+    from ftcal.dataset import Dataset
+    from ftcal.export.c_code import generate_c
+    from ftcal.model import CalibrationModel
+
+    cc = shutil.which("cc")
+    if cc is None:
+        raise RuntimeError("no system C compiler `cc` for the generated-C benchmark")
+    u, y = make_data(20_000)
+    model = CalibrationModel(degree).fit(Dataset.from_arrays(u, y))
+    code = generate_c(model, name="bench_model")
+    samples, _ = make_data(1024, seed=1)
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        (folder / "bench_model.h").write_text(code.header)
+        (folder / "bench_model.c").write_text(code.source)
+        (folder / "driver.c").write_text("#define _POSIX_C_SOURCE 199309L\n#include <stdlib.h>\n" + C_DRIVER)
+        compile_start = time.perf_counter()
+        subprocess.run([cc, "-std=c99", "-O2", "-c", "bench_model.c"], cwd=folder, check=True)
+        compile_seconds = time.perf_counter() - compile_start
+        subprocess.run([cc, "-std=c99", "-O2", "driver.c", "bench_model.o", "-o", "bench"], cwd=folder, check=True)
+        text = "\n".join(" ".join(repr(float(v)) for v in row) for row in samples)
+        out = subprocess.run([str(folder / "bench"), str(n)], input=text, capture_output=True, text=True,
+                             check=True).stdout.split()
+    seconds = float(out[0])
+    return {"seconds": seconds, "ns_per_sample": seconds / n * 1e9, "compile_seconds": compile_seconds,
+            "source_lines": code.source.count("\n")}
+
+
+def ftcal_predict_one(n: int, degree: int) -> dict:
+    """Python ``predict`` one sample per call (as a Python control loop would), and in one batch, one thread."""
+    import os
+
+    from ftcal.dataset import Dataset
+    from ftcal.model import CalibrationModel
+
+    u, y = make_data(20_000)
+    model = CalibrationModel(degree).fit(Dataset.from_arrays(u, y))
+    os.environ["FTCAL_THREADS"] = "1"  # one core, like the C figure
+    samples, _ = make_data(n, seed=1)
+    rows = [samples[k:k + 1] for k in range(n)]
+    model.predict(rows[0], warn_out_of_range=False)  # warm-up
+    start = time.perf_counter()
+    for row in rows:
+        model.predict(row, warn_out_of_range=False)
+    seconds = time.perf_counter() - start
+    batch, _ = make_data(200_000, seed=2)
+    batch_start = time.perf_counter()
+    model.predict(batch, warn_out_of_range=False)
+    batch_seconds = time.perf_counter() - batch_start
+    return {"seconds": seconds, "ns_per_call": seconds / n * 1e9, "batch_ns_per_sample": batch_seconds / 200_000 * 1e9}
 
 
 CASES = {f.__name__: f for f in (ftcal_fit, ftcal_statistics, paper_recipe_fit, numpy_lstsq_fit, sklearn_fit,
                                  ftcal_lasso, paper_lasso, sklearn_lasso, ftcal_predict, sklearn_predict,
-                                 ftcal_payload, numpy_payload_lstsq)}
+                                 ftcal_payload, numpy_payload_lstsq, c_predict, ftcal_predict_one)}
 
 
 if __name__ == "__main__":

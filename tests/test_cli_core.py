@@ -646,7 +646,7 @@ def test_convert_refusals_leave_nothing(capsys, work, tmp_path, degree1_model):
     folder.mkdir()
     fails(capsys, ["convert", work.model3, "--to", "json", "-o", folder], "is a directory")
     fails(capsys, ["convert", work.model3, "--to", "icub-firmware", "-o", tmp_path], "serial number")
-    usage_fails(capsys, ["convert", work.model3, "--to", "matlab", "-o", out], "--to", out=out)
+    fails(capsys, ["convert", work.model3, "--to", "matlab", "-o", out], "--to matlab: unknown target", out=out)
     assert listing(tmp_path) == ["folder.json"] and listing(folder) == []
 
 

@@ -256,3 +256,25 @@ def test_poorly_excited_poses_warn_and_still_write(capsys, tmp_path):
     lines = [l for l in captured.err.splitlines() if l.startswith("warning: the poses hardly excite mass")]
     assert lines and "tilt the sensor" in lines[0]
     assert "poorly excited: m," in captured.out and out.exists()
+
+
+def test_convert_payload_to_ros_files(capsys, data):
+    yaml = pytest.importorskip("yaml")
+    root, path = data
+    payload = root / "for-ros.json"
+    run(capsys, ["payload", path, "--orientation", "qx,qy,qz,qw", "--frame", "ft_sensor", "-o", payload])
+    doc = json.loads(payload.read_text())
+    run(capsys, ["convert", payload, "--to", "ros-yaml", "--com-frame", "tool_com", "-o", root / "ft_calib.yaml"])
+    ros1 = yaml.safe_load((root / "ft_calib.yaml").read_text())
+    # force_torque_tools keys (ft_calib_node.cpp saveCalibData); values are the payload file's own.
+    assert ros1["gripper_mass"] == doc["mass"] and ros1["bias"] == doc["force_bias"] + doc["torque_bias"]
+    assert ros1["gripper_com_frame_id"] == "ft_sensor" and ros1["gripper_com_child_frame_id"] == "tool_com"
+    assert ros1["gripper_com_pose"] == doc["com"] + [0.0, 0.0, 0.0]
+    run(capsys, ["convert", payload, "--to", "ft-tools-ros2", "-o", root / "calibration.yaml"])
+    ros2 = yaml.safe_load((root / "calibration.yaml").read_text())
+    # ft_tools_ros2 keys (FtParameters::from_yaml).
+    assert ros2 == {"mass": doc["mass"], "sensor_frame_to_com": doc["com"],
+                    "force_offset": doc["force_bias"], "torque_offset": doc["torque_bias"]}
+    fails(capsys, ["convert", payload, "--to", "onnx", "-o", root / "p.onnx"], "ftcal-payload file", root / "p.onnx")
+    fails(capsys, ["convert", payload, "--to", "ros-yaml", "-o", root / "p.txt"], "must end in .yaml",
+          root / "p.txt")

@@ -104,6 +104,7 @@ def run_demo(config: DemoConfig = DemoConfig()) -> dict:
                      "train": _public(model.training_metrics_), "validation": _public(val_metrics)})
         runs.append((candidate, model, val_metrics, prediction))
     _write_artifacts(config.out_dir, runs, train, validation)
+    _write_adc_datasets(config, train, validation)
     raw = _raw_baseline(validation)
     summary = {"models": rows, "raw_firmware_validation": raw,
                "n_train_samples": train.n_samples, "n_validation_samples": validation.n_samples,
@@ -126,6 +127,27 @@ def _write_artifacts(out_dir: Path, runs, train: Dataset, validation: Dataset) -
         save_model(model, out_dir / "models" / f"{name}.json", sources=list(train.sources))
     write_dataset(train, out_dir / "train.parquet")
     write_dataset(validation, out_dir / "validation.parquet")
+
+
+def _write_adc_datasets(config: DemoConfig, train: Dataset, validation: Dataset) -> None:
+    """``train-adc.parquet`` / ``validation-adc.parquet``: u1..u6 in the sensor's raw ADC counts.
+
+    These are what an affine model for the iCub firmware matrix is fitted on. The
+    logged channels are the board's workbench calibration ``W · counts + b`` of
+    the simulated sensor (``ftcal.sim.sensor``); undoing it gives the 16-bit
+    counts through the same smoothing and resampling, which are linear and keep
+    constants.
+    """
+    import dataclasses
+
+    from .insitu import write_dataset
+    from .sim.sensor import StrainGaugeSensor
+
+    sensor = StrainGaugeSensor.create(seed=config.seed)  # the sensor run_experiment simulated
+    for name, data in (("train-adc", train), ("validation-adc", validation)):
+        counts = np.linalg.solve(sensor.workbench_matrix, (data.inputs[:, :6] - sensor.workbench_offset).T).T
+        inputs = np.column_stack([counts, data.inputs[:, 6:]])
+        write_dataset(dataclasses.replace(data, inputs=inputs), config.out_dir / f"{name}.parquet")
 
 
 def _public(summary: dict) -> dict:

@@ -47,7 +47,8 @@ def write_model(model: CalibrationModel, path: str | Path, fmt: str, *, sources:
                 serial: str | None = None, sensor: str | None = None) -> Path:
     """Write ``model`` in format ``fmt`` (one of :data:`WRITE_FORMATS`); returns the path written.
 
-    ``sources`` and the units go into JSON files only. For ``icub-firmware`` a
+    ``sources`` and the units go into JSON files (``icub-firmware`` checks the input
+    units are ADC counts). For ``icub-firmware`` a
     directory ``path`` gets ``matrix_<serial>.txt`` inside it. ``wbd`` needs the
     ``sensor`` name used in the wholeBodyDynamics configuration.
     """
@@ -65,7 +66,7 @@ def write_model(model: CalibrationModel, path: str | Path, fmt: str, *, sources:
                 raise FtcalError(f"{path} is a directory: give the sensor serial number to name "
                                  "matrix_<serial>.txt, or a file path.")
             path = path / firmware_filename(serial)
-        write_firmware_matrix(model, path)
+        write_firmware_matrix(model, path, input_units)
     else:
         if sensor is None:
             raise FtcalError("The wbd format needs the sensor name used by wholeBodyDynamics "

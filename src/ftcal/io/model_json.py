@@ -85,7 +85,7 @@ def model_document(model: CalibrationModel, *, sources: Sequence[str] = (),
             "metrics": _jsonable(model.training_metrics_),
         },
         "created": {
-            "ftcal_version": _ftcal_version(),
+            "ftcal_version": ftcal_version(),
             "time_utc": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
             "sources": [str(s) for s in sources],
         },
@@ -122,7 +122,8 @@ def _jsonable(value):
     return str(value)
 
 
-def _ftcal_version() -> str:
+def ftcal_version() -> str:
+    """The installed ftcal version, or ``"unknown"`` in a source tree that is not installed."""
     try:
         return metadata.version("ftcal")
     except metadata.PackageNotFoundError:  # running from a source tree that is not installed
@@ -218,7 +219,7 @@ def _check_version(doc: dict, source: str, supported: str = FORMAT_VERSION) -> N
     except ValueError:
         newer = False
     if newer:
-        raise FtcalError(f"{source}: format_version {version} is newer than this ftcal ({_ftcal_version()}) "
+        raise FtcalError(f"{source}: format_version {version} is newer than this ftcal ({ftcal_version()}) "
                          f"reads (up to {supported}); upgrade ftcal to load it.")
     raise FtcalError(f"{source}: unknown format_version {version!r}; this ftcal reads {supported}.")
 

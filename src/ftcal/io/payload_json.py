@@ -16,7 +16,7 @@ import numpy as np
 from ..errors import FtcalError
 from ..payload.parameters import PayloadParameters
 from .atomic import write_text_atomic
-from .model_json import _check_version, _ftcal_version, _jsonable, _parse_json, check_document, digest, \
+from .model_json import _check_version, ftcal_version, _jsonable, _parse_json, check_document, digest, \
     format_document
 
 FORMAT = "ftcal-payload"
@@ -45,7 +45,7 @@ def payload_document(payload: PayloadParameters, *, sources: Sequence[str] = ())
         "reaction": bool(payload.reaction),
         "stderr": stderr,
         "fit": _jsonable(payload.fit),
-        "created": {"ftcal_version": _ftcal_version(),
+        "created": {"ftcal_version": ftcal_version(),
                     "time_utc": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
                     "sources": [str(s) for s in sources]},
     }
