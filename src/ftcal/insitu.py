@@ -29,9 +29,10 @@ import numpy as np
 
 from .dataset import DEFAULT_INPUTS, DEFAULT_OUTPUTS, Dataset, concatenate
 from .errors import FtcalError, FtcalWarning
-from .io.logs import read_recording, sensor_aliases
-from .io.logs_quality import channel_issues, smooth
-from .io.logs_sync import Aligned, align
+from .io.logs import read_recording
+from .io.recording import sensor_aliases
+from .signals import channel_issues, smooth
+from .alignment import Aligned, align
 from .robot.cache import cache_key, cached
 from .robot.expected import GRAVITY, FloatingBase, expected_wrenches
 from .robot.loadcases import LoadCase, LoadCaseConfig

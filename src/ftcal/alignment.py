@@ -14,9 +14,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import FtcalError, FtcalWarning
-from .logs import Recording, Stream
-from .logs_quality import check_finite
+from .errors import FtcalError, FtcalWarning
+from .io.recording import Recording, Stream
+from .signals import check_finite
 
 
 @dataclass(frozen=True)
