@@ -8,13 +8,16 @@ module plus one line here. Today:
 * YARP robot-logger ``.mat`` files, v7.3 (HDF5) and v5 (FORMATS.md §4), see
   :mod:`ftcal.io.logs_mat`;
 * CSV/Parquet tables, one row per sample, see :mod:`ftcal.io.logs_table` for
-  the column convention.
+  the column convention;
+* ROS 1 ``.bag`` files, ROS 2 bag folders, ``.db3`` and ``.mcap`` files, see
+  :mod:`ftcal.io.bags` (their reader takes ``topics=BagTopics(...)``).
 
 ``joint_units="deg"`` converts logged joint data from degrees to radians.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 from pathlib import Path
 from typing import Any
@@ -30,6 +33,10 @@ READERS: dict[str, str] = {
     ".csv": "ftcal.io.logs_table:read_table_recording",
     ".parquet": "ftcal.io.logs_table:read_table_recording",
     ".pq": "ftcal.io.logs_table:read_table_recording",
+    ".bag": "ftcal.io.bags:read_bag",
+    ".db3": "ftcal.io.bags:read_bag",
+    ".mcap": "ftcal.io.bags:read_bag",
+    "/": "ftcal.io.bags:read_bag",  # a ROS 2 bag folder
 }
 
 
@@ -76,7 +83,7 @@ def read_recording(path: str | Path, joint_units: str = "rad", **options: Any) -
 
 def _joints_in_radians(rec: Recording) -> Recording:
     def conv(s: Stream | None) -> Stream | None:
-        return None if s is None else Stream(s.name, s.time, np.deg2rad(s.data), s.columns)
+        return None if s is None else dataclasses.replace(s, data=np.deg2rad(s.data))
 
-    return Recording(rec.path, rec.ft, rec.temperature, conv(rec.joints), conv(rec.joint_velocities),
-                     conv(rec.joint_accelerations), rec.accelerometers, rec.gyros)
+    return dataclasses.replace(rec, joints=conv(rec.joints), joint_velocities=conv(rec.joint_velocities),
+                               joint_accelerations=conv(rec.joint_accelerations))

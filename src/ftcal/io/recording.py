@@ -26,12 +26,17 @@ class Stream:
     data : ndarray of shape (n_samples, n_columns)
     columns : one name per column
     name : where it came from, for messages (e.g. ``FTs/r_arm_ft``)
+    clock : what the timestamps are, when the format says (e.g. ``"header stamps"`` or
+        ``"receive time"`` for ROS bags), else None
+    frame : the frame the data is expressed in, when the format says (``header.frame_id``), else None
     """
 
     name: str
     time: np.ndarray
     data: np.ndarray
     columns: tuple[str, ...]
+    clock: str | None = None
+    frame: str | None = None
 
     def __post_init__(self) -> None:
         if self.data.ndim != 2 or self.data.shape[1] != len(self.columns):
@@ -54,6 +59,8 @@ class Recording:
     joints : joint positions (columns = joint names), or None
     joint_velocities, joint_accelerations : same columns as ``joints``, or None
     accelerometers, gyros : IMU name → stream with 3 columns
+    orientations : source name → stream ``qx, qy, qz, qw`` (sensor or IMU frame to a
+        gravity-aligned world), e.g. from an IMU or a tf chain
     """
 
     path: Path
@@ -64,6 +71,7 @@ class Recording:
     joint_accelerations: Stream | None = None
     accelerometers: dict[str, Stream] = field(default_factory=dict)
     gyros: dict[str, Stream] = field(default_factory=dict)
+    orientations: dict[str, Stream] = field(default_factory=dict)
 
     def ft_stream(self, *aliases: str) -> Stream:
         """The F/T stream logged under any of ``aliases`` (``r_arm_ft`` / ``r_arm_ft_sensor``)."""

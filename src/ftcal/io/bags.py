@@ -1,0 +1,361 @@
+"""ROS 1 and ROS 2 bags (FORMATS.md §6), read with the pure-Python ``rosbags`` package.
+
+A bag is a ROS 1 ``.bag`` file, a ROS 2 bag folder (``metadata.yaml`` plus
+``.db3`` or ``.mcap`` storage), or a single ``.db3``/``.mcap`` file; no ROS
+install is needed. :func:`read_bag` turns the topics named in a
+:class:`BagTopics` into a :class:`~ftcal.io.recording.Recording`:
+
+==============================  =================================================
+``--wrench-topic``              ``geometry_msgs/WrenchStamped`` or ``Wrench`` →
+                                F/T stream ``u1..u6`` (force N, torque N m)
+``--joints-topic``              ``sensor_msgs/JointState`` → joint positions by name
+``--temperature-topic``         ``sensor_msgs/Temperature`` or ``std_msgs/Float64``
+                                → ``T`` (°C)
+``--imu-topic``                 ``sensor_msgs/Imu`` → orientation ``qx,qy,qz,qw``
+                                (when the IMU reports one), ``wx,wy,wz``, ``ax,ay,az``
+``--tf BASE:SENSOR_FRAME``      ``tf2_msgs/TFMessage`` on ``/tf`` and ``/tf_static``
+                                → orientation ``qx,qy,qz,qw`` of SENSOR_FRAME in BASE
+==============================  =================================================
+
+Stamps are the messages' ``header.stamp`` when the type has a header and the
+stamps are set (not all zero), else the bag's receive time; each stream's
+:attr:`~ftcal.io.recording.Stream.clock` says which. Times are seconds since
+the Unix epoch.
+
+Wrench messages are decoded straight from their serialized bytes: the stamp
+sits 4 bytes into the message and the six float64 of the wrench are its last
+48 bytes, in both the ROS 1 layout and little-endian CDR (whatever the length
+of ``frame_id``). Every other type goes through rosbags' deserializer.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from itertools import islice
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import FtcalError
+from .recording import Recording, Stream
+from .tf_chain import QUATERNION_COLUMNS, TransformTree, check_unit_quaternions
+
+WRENCH_TYPES = ("geometry_msgs/msg/WrenchStamped", "geometry_msgs/msg/Wrench")
+JOINT_TYPES = ("sensor_msgs/msg/JointState",)
+IMU_TYPES = ("sensor_msgs/msg/Imu",)
+TEMPERATURE_TYPES = ("sensor_msgs/msg/Temperature", "std_msgs/msg/Float64")
+TF_TYPES = ("tf2_msgs/msg/TFMessage",)
+TF_TOPICS = ("/tf", "/tf_static")
+HEADER_STAMPS = "header stamps"
+RECEIVE_TIME = "receive time"
+WRENCH_COLUMNS = ("u1", "u2", "u3", "u4", "u5", "u6")
+# Messages decoded per numpy batch (bounds the memory of the raw bytes held at once).
+BATCH = 1 << 16
+
+
+@dataclass(frozen=True)
+class BagTopics:
+    """Which topics of a bag make up a recording.
+
+    wrench : topic of the F/T sensor (WrenchStamped or Wrench); its clock is the dataset's
+    joints, temperature, imu : optional topics
+    tf : optional (base frame, sensor frame): the sensor's orientation from /tf and /tf_static
+    """
+
+    wrench: str
+    joints: str | None = None
+    temperature: str | None = None
+    imu: str | None = None
+    tf: tuple[str, str] | None = None
+
+
+@dataclass(frozen=True)
+class TopicSummary:
+    """One topic of a bag: message type, message count and mean rate (Hz, receive time)."""
+
+    name: str
+    msgtype: str
+    count: int
+    rate: float | None
+
+
+@contextmanager
+def open_bag(path: str | Path) -> Iterator:
+    """An open ``rosbags.highlevel.AnyReader`` on ``path``, errors as :class:`FtcalError`."""
+    from rosbags.highlevel import AnyReader, AnyReaderError
+    from rosbags.typesys import Stores, get_typestore
+
+    path = Path(path)
+    if not path.exists():
+        raise FtcalError(f"Bag {path}: no such file or folder.")
+    try:
+        reader = AnyReader([path], default_typestore=get_typestore(Stores.LATEST))
+        reader.open()
+    except (AnyReaderError, FileNotFoundError, OSError, KeyError, ValueError) as exc:
+        raise FtcalError(f"Bag {path}: cannot open it as a ROS 1 .bag, ROS 2 bag folder, .db3 or .mcap "
+                         f"({type(exc).__name__}: {exc}).") from None
+    try:
+        yield reader
+    finally:
+        reader.close()
+
+
+def list_topics(path: str | Path) -> list[TopicSummary]:
+    """Every topic of the bag at ``path`` with its type, count and mean receive rate.
+
+    Returns
+    -------
+    list of TopicSummary, sorted by topic name
+
+    Raises
+    ------
+    FtcalError
+        If the bag cannot be opened.
+    """
+    with open_bag(path) as reader:
+        first: dict[str, int] = {}
+        last: dict[str, int] = {}
+        for connection, stamp, _ in reader.messages():
+            first.setdefault(connection.topic, stamp)
+            last[connection.topic] = stamp
+        out = []
+        for name, info in sorted(reader.topics.items()):
+            count = int(info.msgcount)
+            span = (last.get(name, 0) - first.get(name, 0)) * 1e-9
+            rate = (count - 1) / span if count > 1 and span > 0 else None
+            out.append(TopicSummary(name, info.msgtype or "(mixed types)", count, rate))
+    return out
+
+
+def read_bag(path: Path, topics: BagTopics | None = None) -> Recording:
+    """Read the topics named in ``topics`` from the bag at ``path``.
+
+    Parameters
+    ----------
+    path : Path
+        ROS 1 ``.bag``, ROS 2 bag folder, ``.db3`` or ``.mcap`` file.
+    topics : BagTopics
+        The wrench topic (required) and the optional joints, temperature, IMU and tf selections.
+
+    Returns
+    -------
+    Recording
+        ``ft`` / ``temperature`` / ``accelerometers`` / ``gyros`` / ``orientations`` keyed by
+        topic (orientation from tf keyed ``tf:BASE:SENSOR``), ``joints`` by joint name.
+
+    Raises
+    ------
+    FtcalError
+        A missing topic (the message lists the bag's topics), a topic of the wrong message type,
+        non-unit quaternions, or a tf chain that does not connect the two frames.
+    """
+    if topics is None:
+        raise FtcalError(f"Bag {path}: name the F/T topic (--wrench-topic); see 'ftcal topics {path}'.")
+    path = Path(path)
+    with open_bag(path) as reader:
+        by_topic = reader.topics
+        wanted = {"--wrench-topic": (topics.wrench, WRENCH_TYPES), "--joints-topic": (topics.joints, JOINT_TYPES),
+                  "--temperature-topic": (topics.temperature, TEMPERATURE_TYPES),
+                  "--imu-topic": (topics.imu, IMU_TYPES)}
+        for option, (topic, types) in wanted.items():
+            if topic is not None:
+                _check_topic(path, by_topic, topic, types, option)
+        ft = _read_wrench(path, reader, by_topic[topics.wrench])
+        recording = Recording(path, {topics.wrench: ft})
+        extra: dict = {}
+        if topics.temperature is not None:
+            extra["temperature"] = {topics.temperature: _read_temperature(path, reader, by_topic[topics.temperature])}
+        if topics.joints is not None:
+            extra["joints"] = _read_joints(path, reader, by_topic[topics.joints])
+        orientations = {}
+        if topics.imu is not None:
+            acc, gyro, orientation = _read_imu(path, reader, by_topic[topics.imu])
+            extra["accelerometers"] = {topics.imu: acc}
+            extra["gyros"] = {topics.imu: gyro}
+            if orientation is not None:
+                orientations[topics.imu] = orientation
+        if topics.tf is not None:
+            base, frame = topics.tf
+            tree = _read_tf(path, reader, by_topic)
+            orientations[f"tf:{base}:{frame}"] = tree.orientation_stream(base, frame, ft.time,
+                                                                         f"{path.name}:tf {base}->{frame}")
+    return Recording(path, recording.ft, orientations=orientations, **extra)
+
+
+def _check_topic(path: Path, by_topic: dict, topic: str, types: tuple[str, ...], option: str) -> None:
+    if topic not in by_topic:
+        have = ", ".join(sorted(by_topic)) or "none"
+        raise FtcalError(f"Bag {path}: no topic {topic!r} ({option}); the bag has: {have}.")
+    msgtype = by_topic[topic].msgtype
+    if msgtype not in types:
+        raise FtcalError(f"Bag {path}: topic {topic!r} has type {msgtype}; {option} needs "
+                         f"{' or '.join(types)}.")
+    if by_topic[topic].msgcount == 0:
+        raise FtcalError(f"Bag {path}: topic {topic!r} ({option}) has no messages.")
+
+
+def _stamps(header_ns: np.ndarray | None, receive_ns: np.ndarray) -> tuple[np.ndarray, str]:
+    """Header stamps when present and set, else receive times, both as float seconds."""
+    if header_ns is not None and np.any(header_ns != 0):
+        return header_ns * 1e-9, HEADER_STAMPS
+    return np.asarray(receive_ns, dtype=np.float64) * 1e-9, RECEIVE_TIME
+
+
+def _read_wrench(path: Path, reader, info) -> Stream:
+    """Decode every wrench message of the topic from its bytes, one numpy batch at a time."""
+    topic = info.connections[0].topic
+    stamped = info.msgtype == WRENCH_TYPES[0]
+    cdr = reader.is2
+    receive = np.empty(info.msgcount, np.int64)
+    header = np.empty(info.msgcount, np.int64)
+    wrench = np.empty((info.msgcount, 6))
+    frame_id = None
+    done = 0
+    messages = reader.messages(info.connections)
+    while batch := list(islice(messages, BATCH)):
+        n = len(batch)
+        raws = [m[2] for m in batch]
+        receive[done:done + n] = [m[1] for m in batch]
+        lengths = np.fromiter(map(len, raws), np.int64, n)
+        buffer = np.frombuffer(b"".join(raws), np.uint8)
+        starts = np.cumsum(lengths) - lengths
+        _check_wrench_layout(path, topic, buffer, starts, lengths, stamped, cdr, done)
+        ends = starts + lengths
+        wrench[done:done + n] = _gather(buffer, ends - 48, 48).view("<f8")
+        if stamped:
+            stamp = _gather(buffer, starts + 4, 8)
+            sec = stamp[:, :4].copy().view("<i4" if cdr else "<u4")[:, 0].astype(np.int64)
+            nsec = stamp[:, 4:].copy().view("<u4")[:, 0].astype(np.int64)
+            header[done:done + n] = sec * 1_000_000_000 + nsec
+            if frame_id is None:
+                strlen = int(buffer[12:16].view("<u4")[0])
+                frame_id = bytes(buffer[16:16 + strlen]).rstrip(b"\0").decode("utf-8", "replace")
+        done += n
+    time, clock = _stamps(header if stamped else None, receive)
+    name = f"{path.name}:{topic}"
+    return Stream(name, time, wrench, WRENCH_COLUMNS, clock=clock, frame=frame_id)
+
+
+def _check_wrench_layout(path: Path, topic: str, buffer: np.ndarray, starts: np.ndarray, lengths: np.ndarray,
+                         stamped: bool, cdr: bool, first: int) -> None:
+    """Each message's length must match its frame_id length (else the bytes are not what we decode)."""
+    if cdr:
+        encapsulation = _gather(buffer, starts, 2)
+        little = (encapsulation[:, 0] == 0) & (encapsulation[:, 1] == 1)
+        if not little.all():
+            k = int(np.argmin(little))
+            raise FtcalError(f"Bag {path}: topic {topic!r} message {first + k} is not little-endian CDR.")
+    if stamped:
+        strlen = _gather(buffer, np.minimum(starts + 12, buffer.size - 4), 4).view("<u4")[:, 0].astype(np.int64)
+        body = 12 + strlen  # CDR: after the 4-byte encapsulation, aligned to 8 for the float64s
+        expected = 4 + ((body + 7) & ~7) + 48 if cdr else 16 + strlen + 48
+    else:
+        expected = np.full(lengths.shape, 4 + 48 if cdr else 48)
+    bad = (lengths != expected) | (lengths < (16 + 48 if stamped else 48))
+    if bad.any():
+        k = int(np.argmax(bad))
+        raise FtcalError(f"Bag {path}: topic {topic!r} message {first + k} has {lengths[k]} bytes, not a "
+                         f"serialized {'WrenchStamped' if stamped else 'Wrench'}.")
+
+
+def _gather(buffer: np.ndarray, offsets: np.ndarray, width: int) -> np.ndarray:
+    """Rows ``buffer[o:o + width]`` for each offset, as a contiguous (n, width) uint8 array."""
+    return buffer[offsets[:, None] + np.arange(width)]
+
+
+def _deserialized(reader, info) -> Iterator[tuple[int, object]]:
+    for connection, stamp, raw in reader.messages(info.connections):
+        yield stamp, reader.deserialize(raw, connection.msgtype)
+
+
+def _header_ns(msg) -> int:
+    stamp = msg.header.stamp
+    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+
+
+def _read_temperature(path: Path, reader, info) -> Stream:
+    topic = info.connections[0].topic
+    receive, header, values = [], [], []
+    stamped = info.msgtype == TEMPERATURE_TYPES[0]
+    for stamp, msg in _deserialized(reader, info):
+        receive.append(stamp)
+        header.append(_header_ns(msg) if stamped else 0)
+        values.append(msg.temperature if stamped else msg.data)
+    time, clock = _stamps(np.array(header) if stamped else None, np.array(receive))
+    return Stream(f"{path.name}:{topic}", time, np.array(values, dtype=np.float64)[:, None], ("T",), clock=clock)
+
+
+def _read_joints(path: Path, reader, info) -> Stream:
+    """Joint positions by name; messages that carry different joint sets are merged on the largest set's clock."""
+    topic = info.connections[0].topic
+    groups: dict[tuple[str, ...], tuple[list, list, list]] = {}
+    for stamp, msg in _deserialized(reader, info):
+        names = tuple(msg.name)
+        if len(msg.position) != len(names):
+            raise FtcalError(f"Bag {path}: topic {topic!r}: a JointState message has {len(names)} names but "
+                             f"{len(msg.position)} positions.")
+        receive, header, rows = groups.setdefault(names, ([], [], []))
+        receive.append(stamp)
+        header.append(_header_ns(msg))
+        rows.append(np.asarray(msg.position, dtype=np.float64))
+    streams = []
+    for names, (receive, header, rows) in groups.items():
+        time, clock = _stamps(np.array(header), np.array(receive))
+        streams.append(Stream(f"{path.name}:{topic}", time, np.array(rows).reshape(len(rows), len(names)),
+                              names, clock=clock))
+    main = max(streams, key=lambda s: s.n_samples)
+    if len(streams) == 1:
+        return main
+    columns, data = list(main.columns), [main.data]
+    for s in streams:
+        if s is main:
+            continue
+        for c, name in enumerate(s.columns):
+            if name not in columns:
+                columns.append(name)
+                data.append(np.interp(main.time, s.time, s.data[:, c])[:, None])
+    return Stream(main.name, main.time, np.hstack(data), tuple(columns), clock=main.clock)
+
+
+def _read_imu(path: Path, reader, info) -> tuple[Stream, Stream, Stream | None]:
+    """Linear acceleration, angular velocity and (when reported) orientation of an IMU topic."""
+    topic = info.connections[0].topic
+    receive, header, rows, has_orientation = [], [], [], []
+    for stamp, msg in _deserialized(reader, info):
+        receive.append(stamp)
+        header.append(_header_ns(msg))
+        o, w, a = msg.orientation, msg.angular_velocity, msg.linear_acceleration
+        rows.append((a.x, a.y, a.z, w.x, w.y, w.z, o.x, o.y, o.z, o.w))
+        # REP 145: orientation_covariance[0] == -1 means the IMU does not estimate orientation.
+        has_orientation.append(msg.orientation_covariance[0] != -1)
+    time, clock = _stamps(np.array(header), np.array(receive))
+    data = np.array(rows, dtype=np.float64)
+    name = f"{path.name}:{topic}"
+    acc = Stream(name, time, data[:, 0:3], ("ax", "ay", "az"), clock=clock)
+    gyro = Stream(name, time, data[:, 3:6], ("wx", "wy", "wz"), clock=clock)
+    if not any(has_orientation):
+        return acc, gyro, None
+    quaternions = data[:, 6:10]
+    check_unit_quaternions(quaternions, time, f"Bag {path}: topic {topic!r}")
+    return acc, gyro, Stream(name, time, quaternions, QUATERNION_COLUMNS, clock=clock)
+
+
+def _read_tf(path: Path, reader, by_topic: dict) -> TransformTree:
+    present = [t for t in TF_TOPICS if t in by_topic]
+    if not present:
+        have = ", ".join(sorted(by_topic)) or "none"
+        raise FtcalError(f"Bag {path}: --tf needs /tf or /tf_static; the bag has: {have}.")
+    tree = TransformTree(f"Bag {path}")
+    for topic in present:
+        info = by_topic[topic]
+        if info.msgtype not in TF_TYPES:
+            raise FtcalError(f"Bag {path}: topic {topic!r} has type {info.msgtype}; --tf needs {TF_TYPES[0]}.")
+        for stamp, msg in _deserialized(reader, info):
+            for t in msg.transforms:
+                header = _header_ns(t)
+                r = t.transform.rotation
+                tree.add(t.header.frame_id, t.child_frame_id, (header or stamp) * 1e-9,
+                         (r.x, r.y, r.z, r.w), static=topic == "/tf_static")
+    return tree
