@@ -290,21 +290,22 @@ def _read_temperature(path: Path, reader, info) -> Stream:
 def _read_joints(path: Path, reader, info) -> Stream:
     """Joint positions by name; messages that carry different joint sets are merged on the largest set's clock."""
     topic = info.connections[0].topic
-    groups: dict[tuple[str, ...], tuple[list, list, list]] = {}
+    groups: dict[frozenset, tuple[tuple[str, ...], list, list, list]] = {}
     for stamp, msg in _deserialized(reader, info):
         names = tuple(msg.name)
-        if len(msg.position) != len(names):
-            raise FtcalError(f"Bag {path}: topic {topic!r}: a JointState message has {len(names)} names but "
-                             f"{len(msg.position)} positions.")
-        receive, header, rows = groups.setdefault(names, ([], [], []))
+        if len(msg.position) != len(names) or len(set(names)) != len(names):
+            raise FtcalError(f"Bag {path}: topic {topic!r}: a JointState message has {len(names)} names "
+                             f"({len(set(names))} distinct) but {len(msg.position)} positions.")
+        columns, receive, header, rows = groups.setdefault(frozenset(names), (names, [], [], []))
+        position = np.asarray(msg.position, dtype=np.float64)
         receive.append(stamp)
         header.append(_header_ns(msg))
-        rows.append(np.asarray(msg.position, dtype=np.float64))
+        rows.append(position if names == columns else position[[names.index(c) for c in columns]])
     streams = []
-    for names, (receive, header, rows) in groups.items():
+    for columns, receive, header, rows in groups.values():
         time, clock = _stamps(np.array(header), np.array(receive))
-        streams.append(Stream(f"{path.name}:{topic}", time, np.array(rows).reshape(len(rows), len(names)),
-                              names, clock=clock))
+        streams.append(Stream(f"{path.name}:{topic}", time, np.array(rows).reshape(len(rows), len(columns)),
+                              columns, clock=clock))
     main = max(streams, key=lambda s: s.n_samples)
     if len(streams) == 1:
         return main
