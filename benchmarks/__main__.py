@@ -167,12 +167,19 @@ def expected_section(sizes: dict) -> list[str]:
     return out + [""]
 
 
+def bag_section(sizes: dict) -> list[str]:
+    from benchmarks.bench_bags import bags_section
+
+    rows, HEADLINE["bags"] = bags_section(run_case, sizes["bag_n"])
+    return rows
+
+
 FULL = {"fit_big": 1_000_000, "fit_mid": 100_000, "scaling_n": (10_000, 100_000, 1_000_000), "dense_max_n": 100_000,
         "degree_n": 100_000, "lasso_n": 200_000, "paper_lasso_n": 10_000, "predict_n": 2_000_000,
-        "expected_n": 100_000, "expected_baseline_n": 10_000}
+        "expected_n": 100_000, "expected_baseline_n": 10_000, "bag_n": 500_000}
 QUICK = {"fit_big": 20_000, "fit_mid": 5_000, "scaling_n": (2_000, 10_000), "dense_max_n": 10_000,
          "degree_n": 5_000, "lasso_n": 5_000, "paper_lasso_n": 1_000, "predict_n": 100_000,
-         "expected_n": 2_000, "expected_baseline_n": 500}
+         "expected_n": 2_000, "expected_baseline_n": 500, "bag_n": 20_000}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -188,10 +195,11 @@ def main(argv: list[str] | None = None) -> int:
              "interpreter and libraries. Ratios compare cases measured in the same run.", "",
              f"Machine: {machine()}.", ""]
     body = []
-    for section in (fit_section, lasso_section, predict_section, scaling_section, expected_section):
+    for section in (fit_section, lasso_section, predict_section, scaling_section, expected_section, bag_section):
         print(f"{section.__name__} ...", file=sys.stderr, flush=True)
         body += section(sizes)
-    labels = {"fit": "Fit", "lasso": "LASSO", "predict": "Prediction", "expected": "Expected wrenches"}
+    labels = {"fit": "Fit", "lasso": "LASSO", "predict": "Prediction", "expected": "Expected wrenches",
+              "bags": "Bag reading"}
     lines += ["## Against the targets", ""] + [f"- **{labels[k]}**: {v}." for k, v in HEADLINE.items()] + [""]
     lines += body
     lines += [f"Total benchmark time: {time.perf_counter() - started:.0f} s.", ""]

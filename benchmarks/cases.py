@@ -187,6 +187,11 @@ def sklearn_predict(n: int, degree: int) -> dict:
 CASES = {f.__name__: f for f in (ftcal_fit, ftcal_statistics, paper_recipe_fit, numpy_lstsq_fit, sklearn_fit,
                                  ftcal_lasso, paper_lasso, sklearn_lasso, ftcal_predict, sklearn_predict)}
 
+# Bag reading (benchmarks/bench_bags.py).
+from benchmarks.bench_bags import CASES as BAG_CASES  # noqa: E402
+
+CASES.update(BAG_CASES)
+
 
 if __name__ == "__main__":
     name, kwargs = sys.argv[1], json.loads(sys.argv[2])
