@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 from rosbags.rosbag1 import Writer as Writer1
-from rosbags.rosbag2 import StoragePlugin
+from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin
 from rosbags.rosbag2 import Writer as Writer2
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
@@ -83,12 +83,18 @@ class Bag:
         self.add("/tf_static" if static else "/tf", "tf2_msgs/msg/TFMessage", receive_ns,
                  self.t("tf2_msgs/msg/TFMessage")(items))
 
-    def write(self, path: Path) -> Path:
+    def write(self, path: Path, compress: bool = False, ros1_chunk_bytes: int | None = None) -> Path:
+        """Write the bag; ``compress``: lz4 chunks (ROS 1) or zstd chunks (MCAP)."""
         path = Path(path)
         ordered = sorted(self.messages, key=lambda m: m[2])
         if self.kind == "ros1":
             target = path.with_suffix(".bag")
-            with Writer1(target) as writer:
+            writer = Writer1(target)
+            if compress:
+                writer.set_compression(Writer1.CompressionFormat.LZ4)
+            if ros1_chunk_bytes:
+                writer.chunk_threshold = ros1_chunk_bytes
+            with writer:
                 conns = {}
                 for topic, msgtype, stamp, msg in ordered:
                     if topic not in conns:
@@ -96,7 +102,10 @@ class Bag:
                     writer.write(conns[topic], stamp, self.ts.serialize_ros1(msg, msgtype))
             return target
         plugin = StoragePlugin.SQLITE3 if self.kind == "db3" else StoragePlugin.MCAP
-        with Writer2(path, version=9, storage_plugin=plugin) as writer:
+        writer = Writer2(path, version=9, storage_plugin=plugin)
+        if compress:
+            writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
+        with writer:
             conns = {}
             for topic, msgtype, stamp, msg in ordered:
                 if topic not in conns:

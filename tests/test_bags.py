@@ -65,6 +65,35 @@ def test_wrench_matches_rosbags_deserializer(tmp_path, kind):
     assert stream.frame == "wrist_ft_sensor_link"
 
 
+@pytest.mark.parametrize("kind,compress", [("ros1", False), ("ros1", True), ("mcap", False), ("mcap", True),
+                                           ("mcap-file", True)])
+def test_many_chunks_interleaved_topics_compression(tmp_path, kind, compress):
+    """Over 1 MB of messages (MCAP chunks at 1 MB; ROS 1 chunks forced to 4 kB), two wrench topics, a third one."""
+    n = 12_000
+    values = wrench_values(2 * n, seed=11)
+    bag = Bag(kind)
+    for k in range(n):
+        bag.wrench("/left", T0 + k * MS, values[k], frame="left_ft")
+        bag.wrench("/right", T0 + k * MS + 1, values[n + k], frame="right_ft_frame")
+        if k % 10 == 0:
+            bag.temperature("/temp", T0 + k * MS + 2, 30.0)
+    path = bag.write(tmp_path / "run", compress=compress, ros1_chunk_bytes=4096)
+    with AnyReader([path]) as reader:
+        want = {}
+        for conn, receive, raw in reader.messages():
+            if conn.topic != "/temp":
+                msg = reader.deserialize(raw, conn.msgtype)
+                f, t = msg.wrench.force, msg.wrench.torque
+                want.setdefault(conn.topic, []).append((f.x, f.y, f.z, t.x, t.y, t.z))
+    rec_right = read_bag(path, BagTopics("/right")).ft["/right"]
+    rec_left = read_bag(path, BagTopics("/left")).ft["/left"]
+    np.testing.assert_array_equal(rec_left.data, want["/left"])
+    np.testing.assert_array_equal(rec_right.data, want["/right"])
+    np.testing.assert_array_equal(rec_right.data, values[n:])
+    np.testing.assert_array_equal(rec_left.time, secs(T0 + np.arange(n) * MS))
+    assert (rec_left.frame, rec_right.frame) == ("left_ft", "right_ft_frame")
+
+
 @pytest.mark.parametrize("kind", ["ros1", "mcap"])
 def test_unstamped_wrench_uses_receive_time(tmp_path, kind):
     bag = Bag(kind)
@@ -310,3 +339,11 @@ def test_bad_bags(tmp_path, capfd):
           "--wrench-topic applies to ROS bags only", out)
     fails(capfd, ["dataset", str(path), str(mat), "--wrench-topic", "/ft", "-o", str(out)], "mix of ROS bags", out)
     fails(capfd, ["topics", str(mat)], "cannot open it as a ROS 1 .bag", out)
+    for kind in ("ros1", "mcap-file"):
+        bag = Bag(kind)
+        for k in range(2000):
+            bag.wrench("/ft", T0 + k * MS, np.ones(6))
+        whole = bag.write(tmp_path / f"whole-{kind}")
+        cut = whole.with_name("cut" + whole.suffix)
+        cut.write_bytes(whole.read_bytes()[: whole.stat().st_size // 2])
+        fails(capfd, ["dataset", str(cut), "--wrench-topic", "/ft", "-o", str(out)], f"Bag {cut}: cannot", out)
