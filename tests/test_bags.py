@@ -1,5 +1,6 @@
 """ROS 1 / ROS 2 bags: exact values and stamps back, tf chains, the topics and dataset commands, bad input."""
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -10,7 +11,7 @@ from scipy.spatial.transform import Rotation
 
 from bag_data import KINDS, Bag
 from ftcal.cli import main
-from ftcal.errors import FtcalError
+from ftcal.errors import FtcalError, FtcalWarning
 from ftcal.io.bags import BagTopics, read_bag
 from ftcal.io.logs import read_recording
 from test_robot_expected import FOREARM, static_wrench
@@ -347,3 +348,23 @@ def test_bad_bags(tmp_path, capfd):
         cut = whole.with_name("cut" + whole.suffix)
         cut.write_bytes(whole.read_bytes()[: whole.stat().st_size // 2])
         fails(capfd, ["dataset", str(cut), "--wrench-topic", "/ft", "-o", str(out)], f"Bag {cut}: cannot", out)
+
+
+def test_two_bags_segments_groups_and_gap_warning(tmp_path, capfd):
+    paths = []
+    for j, kind in enumerate(("mcap", "ros1")):
+        bag = Bag(kind)
+        ticks = [k for k in range(200) if not (j == 1 and 100 <= k < 110)]  # the second bag drops 10 messages
+        for k in ticks:
+            bag.wrench("/ft", T0 + k * 10 * MS, 10.0 + np.sin(0.1 * k + np.arange(6)))
+        paths.append(str(bag.write(tmp_path / f"run{j}")))
+    out = tmp_path / "data.csv"
+    with warnings.catch_warnings():  # the CLI prints its warnings on stderr itself
+        warnings.simplefilter("always", FtcalWarning)
+        assert main(["dataset", *paths, "--wrench-topic", "/ft", "--savgol-frame", "11", "-o", str(out)]) == 0
+    err = capfd.readouterr().err
+    assert ("warning: run1.bag:/ft: 1 gap(s) in the timestamps, about 10 dropped sample(s) "
+            "(largest gap 0.110 s)") in err
+    frame = pd.read_csv(out)
+    assert frame.groupby("segment").size().to_dict() == {0: 200, 1: 190}
+    assert frame.groupby("segment")["group"].first().to_dict() == {0: "run0", 1: "run1.bag"}

@@ -86,6 +86,11 @@ def build_bag_table(bags: Sequence[str | Path], topics: BagTopics, *, robot=None
     """
     if not bags:
         raise FtcalError("No bags given.")
+    unsupported = {"--dynamic": options.derivatives, "--imu/--imu-frame (YARP logs; use --imu-topic)": options.imu,
+                   "--align-first-sample without --urdf/--model": options.align_first_sample and robot is None}
+    for option, given in unsupported.items():
+        if given:
+            raise FtcalError(f"{option} is not available for ROS bags.")
     if robot is not None:
         if sensor is None:
             raise FtcalError("--sensor is required with --urdf/--model.")
@@ -114,7 +119,7 @@ def bag_columns(path: Path, topics: BagTopics, segment: int, group: str, robot=N
     """The table of one bag (see the module docstring); ``robot`` already carries its payloads."""
     from .io.logs import read_recording
 
-    recording = read_recording(path, topics=topics)
+    recording = read_recording(path, options.joint_units, topics=topics)
     ft = recording.ft[topics.wrench]
     for issue in channel_issues(ft, options.adc_limits):
         warnings.warn(str(issue), FtcalWarning, stacklevel=2)
@@ -149,6 +154,9 @@ def bag_columns(path: Path, topics: BagTopics, segment: int, group: str, robot=N
             columns.update({name: on_clock[key][:, i] for i, name in enumerate(names)})
     if robot is not None:
         expected = _expected(path, robot, sensor, streams["q"].columns, on_clock["q"], options)
+        if options.align_first_sample:
+            raw = raw - (raw[0] - expected[0])
+        columns.update({f"u{i + 1}": raw[:, i] for i in range(6)})
         columns.update({name: expected[:, i] for i, name in enumerate(DEFAULT_OUTPUTS)})
     n = clock.size
     columns["segment"] = np.full(n, segment)
