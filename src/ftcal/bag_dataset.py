@@ -165,9 +165,8 @@ def bag_columns(path: Path, topics: BagTopics, segment: int, group: str, robot=N
              + (f", frame {ft.frame}" if ft.frame else "") + f"), {n} samples kept"
              + (f" ({trimmed[0]} cut at the start, {trimmed[1]} at the end to overlap the other topics)"
                 if any(trimmed) else "")]
-    for key, stream in streams.items():
-        if key != "ft":
-            notes.append(f"  {stream.name}: {stream.n_samples} samples ({stream.clock})")
+    for stream in {id(s): s for key, s in streams.items() if key != "ft"}.values():
+        notes.append(f"  {stream.name}: {stream.n_samples} samples ({stream.clock})")
     return BagTable(columns, tuple(notes))
 
 

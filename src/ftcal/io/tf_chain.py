@@ -119,7 +119,7 @@ class TransformTree:
             else:
                 step = Rotation.from_quat(np.tile(self._static[(parent, child)], (at.size, 1)))
             rotation = rotation * (step.inv() if backwards else step)
-        return Stream(name, at, rotation.as_quat(), QUATERNION_COLUMNS, clock="F/T clock (tf composed)")
+        return Stream(name, at, rotation.as_quat(), QUATERNION_COLUMNS, clock="tf composed at the F/T stamps")
 
 
 def check_unit_quaternions(q: np.ndarray, time: np.ndarray, where: str) -> None:
