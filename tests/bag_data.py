@@ -2,8 +2,8 @@
 
 ``Bag(kind)`` collects messages (receive time in ns, header stamps in ns) and
 ``write(path)`` stores them as a ROS 1 ``.bag`` (``ros1``), a ROS 2 bag folder
-with sqlite3 (``db3``) or MCAP (``mcap``) storage, or a lone ``.mcap`` file
-(``mcap-file``). Returns the path to hand to ftcal.
+with sqlite3 (``db3``) or MCAP (``mcap``) storage, or a lone ``.mcap``/``.db3``
+file (``mcap-file``, ``db3-file``). Returns the path to hand to ftcal.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin
 from rosbags.rosbag2 import Writer as Writer2
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-KINDS = ("ros1", "db3", "mcap", "mcap-file")
+KINDS = ("ros1", "db3", "mcap", "mcap-file", "db3-file")
 
 
 class Bag:
@@ -101,7 +101,7 @@ class Bag:
                         conns[topic] = writer.add_connection(topic, msgtype, typestore=self.ts)
                     writer.write(conns[topic], stamp, self.ts.serialize_ros1(msg, msgtype))
             return target
-        plugin = StoragePlugin.SQLITE3 if self.kind == "db3" else StoragePlugin.MCAP
+        plugin = StoragePlugin.SQLITE3 if self.kind.startswith("db3") else StoragePlugin.MCAP
         writer = Writer2(path, version=9, storage_plugin=plugin)
         if compress:
             writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
@@ -111,9 +111,10 @@ class Bag:
                 if topic not in conns:
                     conns[topic] = writer.add_connection(topic, msgtype, typestore=self.ts)
                 writer.write(conns[topic], stamp, self.ts.serialize_cdr(msg, msgtype))
-        if self.kind != "mcap-file":
+        if not self.kind.endswith("-file"):
             return path
-        lone = path.parent / (path.name + ".mcap")
-        shutil.move(next(path.glob("*.mcap")), lone)
+        suffix = ".mcap" if self.kind == "mcap-file" else ".db3"
+        lone = path.parent / (path.name + suffix)
+        shutil.move(next(path.glob("*" + suffix)), lone)
         shutil.rmtree(path)
         return lone

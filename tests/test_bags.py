@@ -138,11 +138,13 @@ def test_joints_temperature_imu(tmp_path, kind):
     assert float64.clock == "receive time"
 
 
-def test_imu_without_orientation(tmp_path):
+@pytest.mark.parametrize("covariance_flag", [True, False])
+def test_imu_without_orientation(tmp_path, covariance_flag):
+    """REP 145's covariance[0] = -1, or all-zero quaternions, mean the IMU gives no orientation."""
     bag = Bag("mcap")
     bag.wrench("/ft", T0, np.ones(6))
     for k in range(3):
-        bag.imu("/imu", T0 + k * MS, (0, 0, 0, 0), (1, 2, 3), (4, 5, 6), has_orientation=False)
+        bag.imu("/imu", T0 + k * MS, (0, 0, 0, 0), (1, 2, 3), (4, 5, 6), has_orientation=not covariance_flag)
     rec = read_bag(bag.write(tmp_path / "run"), BagTopics("/ft", imu="/imu"))
     assert rec.orientations == {} and rec.gyros["/imu"].n_samples == 3
 
@@ -162,11 +164,12 @@ def test_tf_chain_composed_and_slerped(tmp_path, kind):
     r_arm_sensor = Rotation.from_euler("zyx", [1.0, 0.4, -0.7])
     omega = 0.8  # rad/s
     bag = Bag(kind)
-    bag.tf(T0, [("world", "base", r_world_base.as_quat(), T0), ("arm", "sensor", r_arm_sensor.as_quat(), T0)],
-           static=True)
+    s = "/" if kind == "ros1" else ""  # old ROS 1 bags name frames with a leading slash; tf2 drops it
+    bag.tf(T0, [(s + "world", s + "base", r_world_base.as_quat(), T0),
+                (s + "arm", s + "sensor", r_arm_sensor.as_quat(), T0)], static=True)
     for k in range(11):  # tf at 10 Hz over 0..1 s
         t = T0 + k * 100 * MS
-        bag.tf(t, [("world", "arm", rz(np.array([omega * k * 0.1])).as_quat()[0], t)])
+        bag.tf(t, [(s + "world", s + "arm", rz(np.array([omega * k * 0.1])).as_quat()[0], t)])
     ft_times = T0 + np.arange(-20, 120) * 10 * MS  # F/T at 100 Hz, starting before and ending after the tf
     for t in ft_times:
         bag.wrench("/ft", t, np.ones(6))

@@ -116,7 +116,26 @@ def build_bag_table(bags: Sequence[str | Path], topics: BagTopics, *, robot=None
 
 def bag_columns(path: Path, topics: BagTopics, segment: int, group: str, robot=None, sensor: str | None = None,
                 options: InsituOptions = InsituOptions()) -> BagTable:
-    """The table of one bag (see the module docstring); ``robot`` already carries its payloads."""
+    """The table of one bag (see the module docstring).
+
+    Parameters
+    ----------
+    path : Path
+        The bag.
+    topics : BagTopics
+    segment : int
+        Segment id of its samples.
+    group : str
+        Group label of its samples.
+    robot : RobotModel or None
+        Already carrying the bag's load-case payloads; with ``sensor``, adds ``Fx..Tz``.
+    sensor : str or None
+    options : InsituOptions
+
+    Returns
+    -------
+    BagTable
+    """
     from .io.logs import read_recording
 
     recording = read_recording(path, options.joint_units, topics=topics)

@@ -183,7 +183,7 @@ def read_bag(path: Path, topics: BagTopics | None = None) -> Recording:
             if orientation is not None:
                 orientations[topics.imu] = orientation
         if topics.tf is not None:
-            base, frame = topics.tf
+            base, frame = (f.lstrip("/") for f in topics.tf)  # tf2 frame ids carry no leading slash
             tree = _read_tf(path, reader, by_topic)
             orientations[f"tf:{base}:{frame}"] = tree.orientation_stream(base, frame, ft.time,
                                                                          f"{path.name}:tf {base}->{frame}")
@@ -433,9 +433,10 @@ def _read_imu(path: Path, reader, info) -> tuple[Stream, Stream, Stream | None]:
     name = f"{path.name}:{topic}"
     acc = Stream(name, time, data[:, 0:3], ("ax", "ay", "az"), clock=clock)
     gyro = Stream(name, time, data[:, 3:6], ("wx", "wy", "wz"), clock=clock)
-    if not any(has_orientation):
-        return acc, gyro, None
     quaternions = data[:, 6:10]
+    # REP 145 marks a missing orientation with covariance[0] = -1; many drivers just send zeros.
+    if not any(has_orientation) or not np.any(quaternions):
+        return acc, gyro, None
     check_unit_quaternions(quaternions, time, f"Bag {path}: topic {topic!r}")
     return acc, gyro, Stream(name, time, quaternions, QUATERNION_COLUMNS, clock=clock)
 
@@ -454,6 +455,6 @@ def _read_tf(path: Path, reader, by_topic: dict) -> TransformTree:
             for t in msg.transforms:
                 header = _header_ns(t)
                 r = t.transform.rotation
-                tree.add(t.header.frame_id, t.child_frame_id, (header or stamp) * 1e-9,
+                tree.add(t.header.frame_id.lstrip("/"), t.child_frame_id.lstrip("/"), (header or stamp) * 1e-9,
                          (r.x, r.y, r.z, r.w), static=topic == "/tf_static")
     return tree
