@@ -174,8 +174,8 @@ def test_tf_chain_composed_and_slerped(tmp_path, kind):
     for t in ft_times:
         bag.wrench("/ft", t, np.ones(6))
     path = bag.write(tmp_path / "run")
-    rec = read_bag(path, BagTopics("/ft", tf=("base", "sensor")))
-    stream = rec.orientations["tf:base:sensor"]
+    rec = read_bag(path, BagTopics("/ft", tf=("base", "/sensor")))
+    stream = rec.orientations["tf:base:/sensor"]
     inside = ft_times[(ft_times >= T0) & (ft_times <= T0 + 1000 * MS)]
     np.testing.assert_array_equal(stream.time, secs(inside))
     t = secs(inside) - secs(T0)

@@ -32,7 +32,7 @@ from .alignment import align_streams
 from .dataset import DEFAULT_OUTPUTS
 from .errors import FtcalError, FtcalWarning
 from .insitu import InsituOptions
-from .io.bags import BagTopics
+from .io.bags import BagTopics, tf_key
 from .io.recording import Stream
 from .robot.loadcases import LoadCaseConfig
 from .robot.payloads import Payload
@@ -149,7 +149,7 @@ def bag_columns(path: Path, topics: BagTopics, segment: int, group: str, robot=N
         streams["q"] = recording.joints
     orientation_source = None
     if topics.tf is not None:
-        orientation_source = f"tf:{topics.tf[0]}:{topics.tf[1]}"
+        orientation_source = tf_key(topics.tf)
     elif topics.imu is not None and topics.imu in recording.orientations:
         orientation_source = topics.imu
     if orientation_source is not None:

@@ -88,7 +88,7 @@ def open_bag(path: str | Path) -> Iterator:
     from rosbags.highlevel import AnyReader, AnyReaderError
     from rosbags.rosbag1 import ReaderError as Ros1ReaderError
     from rosbags.rosbag2 import ReaderError as Ros2ReaderError
-    from rosbags.typesys import Stores, get_typestore
+    from rosbags.typesys import Stores, TypesysError, get_typestore
 
     path = Path(path)
     if not path.exists():
@@ -96,7 +96,7 @@ def open_bag(path: str | Path) -> Iterator:
     try:
         reader = AnyReader([path], default_typestore=get_typestore(Stores.LATEST))
         reader.open()
-    except (AnyReaderError, FileNotFoundError, OSError, KeyError, ValueError) as exc:
+    except (AnyReaderError, TypesysError, OSError, KeyError, ValueError) as exc:
         raise FtcalError(f"Bag {path}: cannot open it as a ROS 1 .bag, ROS 2 bag folder, .db3 or .mcap "
                          f"({type(exc).__name__}: {exc}).") from None
     try:
@@ -169,7 +169,6 @@ def read_bag(path: Path, topics: BagTopics | None = None) -> Recording:
             if topic is not None:
                 _check_topic(path, by_topic, topic, types, option)
         ft = _read_wrench(path, reader, by_topic[topics.wrench])
-        recording = Recording(path, {topics.wrench: ft})
         extra: dict = {}
         if topics.temperature is not None:
             extra["temperature"] = {topics.temperature: _read_temperature(path, reader, by_topic[topics.temperature])}
@@ -185,9 +184,14 @@ def read_bag(path: Path, topics: BagTopics | None = None) -> Recording:
         if topics.tf is not None:
             base, frame = (f.lstrip("/") for f in topics.tf)  # tf2 frame ids carry no leading slash
             tree = _read_tf(path, reader, by_topic)
-            orientations[f"tf:{base}:{frame}"] = tree.orientation_stream(base, frame, ft.time,
-                                                                         f"{path.name}:tf {base}->{frame}")
-    return Recording(path, recording.ft, orientations=orientations, **extra)
+            orientations[tf_key(topics.tf)] = tree.orientation_stream(base, frame, ft.time,
+                                                                      f"{path.name}:tf {base}->{frame}")
+    return Recording(path, {topics.wrench: ft}, orientations=orientations, **extra)
+
+
+def tf_key(frames: tuple[str, str]) -> str:
+    """Key of the orientation from the tf chain ``frames`` = (base, sensor) in ``Recording.orientations``."""
+    return f"tf:{frames[0]}:{frames[1]}"
 
 
 def _check_topic(path: Path, by_topic: dict, topic: str, types: tuple[str, ...], option: str) -> None:
