@@ -172,7 +172,7 @@ def test_tf_chain_composed_and_slerped(tmp_path, kind):
         bag.tf(t, [(s + "world", s + "arm", rz(np.array([omega * k * 0.1])).as_quat()[0], t)])
     ft_times = T0 + np.arange(-20, 120) * 10 * MS  # F/T at 100 Hz, starting before and ending after the tf
     for t in ft_times:
-        bag.wrench("/ft", t, np.ones(6))
+        bag.wrench("/ft", t, np.ones(6), frame="sensor")
     path = bag.write(tmp_path / "run")
     rec = read_bag(path, BagTopics("/ft", tf=("base", "/sensor")))
     stream = rec.orientations["tf:base:/sensor"]
@@ -228,7 +228,7 @@ def arm_bag(kind, tmp_path, *, n=300, temperature=True, imu=True, tf=True, joint
         if joints:
             bag.joints("/joint_states", T0 + t, ["shoulder"], [0.5 * t * 1e-9])
     if tf:
-        bag.tf(T0, [("base", "sensor", Rotation.from_rotvec([0.0, 0.3, 0.0]).as_quat(), T0)], static=True)
+        bag.tf(T0, [("base", "ft_sensor", Rotation.from_rotvec([0.0, 0.3, 0.0]).as_quat(), T0)], static=True)
     return bag.write(tmp_path / "arm")
 
 
@@ -236,7 +236,7 @@ def test_dataset_from_bag_columns(tmp_path, capfd):
     path = arm_bag("db3", tmp_path)
     out = tmp_path / "data.csv"
     assert main(["dataset", str(path), "--wrench-topic", "/ft", "--temperature-topic", "/temp",
-                 "--imu-topic", "/imu", "--tf", "base:sensor", "--no-filter", "-o", str(out)]) == 0
+                 "--imu-topic", "/imu", "--tf", "base", "--no-filter", "-o", str(out)]) == 0  # frame: header.frame_id
     printed = capfd.readouterr().out
     assert "/ft 300 messages (header stamps, frame ft_sensor)" in printed
     frame = pd.read_csv(out)
@@ -298,10 +298,8 @@ def test_bad_bags(tmp_path, capfd):
     fails(capfd, [*run, "--wrench-topic", "/imu"], "topic '/imu' has type sensor_msgs/msg/Imu; --wrench-topic "
           "needs geometry_msgs/msg/WrenchStamped or geometry_msgs/msg/Wrench", out)
     fails(capfd, [*run, "--wrench-topic", "/ft", "--temperature-topic", "/imu"], "topic '/imu' has type", out)
-    fails(capfd, [*run, "--wrench-topic", "/ft", "--tf", "base:tool"],
-          "no tf chain from 'base' to 'tool' (frames known: base, sensor)", out)
-    fails(capfd, [*run, "--wrench-topic", "/ft", "--tf", "world:sensor"],
-          "no tf chain from 'world' to 'sensor'", out)
+    fails(capfd, [*run, "--wrench-topic", "/ft", "--tf", "world"],
+          "no tf chain from 'world' to 'ft_sensor' (frames known: base, ft_sensor)", out)
     fails(capfd, [*run], "--wrench-topic is required", out)
     fails(capfd, ["dataset", str(tmp_path / "absent.bag"), "--wrench-topic", "/ft", "-o", str(out)],
           "absent.bag: no such file", out)
@@ -330,10 +328,15 @@ def test_bad_bags(tmp_path, capfd):
                   "-o", str(out)], "topic '/imu': quaternion at t=", out)
 
     bag = Bag("mcap")
-    bag.wrench("/ft", T0, np.ones(6))
+    bag.wrench("/ft", T0, np.ones(6), frame="sensor")
     bag.tf(T0, [("base", "sensor", (0.0, 0.0, 0.0, 2.0), T0)], static=True)
     fails(capfd, ["dataset", str(bag.write(tmp_path / "badtf")), "--wrench-topic", "/ft", "--tf",
                   "base:sensor", "-o", str(out)], "tf base->sensor: quaternion at t=", out)
+    bag = Bag("db3")
+    bag.wrench("/ft", T0, np.ones(6), frame="")
+    fails(capfd, ["dataset", str(bag.write(tmp_path / "noframe")), "--wrench-topic", "/ft", "--tf", "base",
+                  "-o", str(out)], "names no frame (header.frame_id); give the sensor frame as --tf base:SENSOR_FRAME",
+          out)
 
     fails(capfd, ["dataset", str(path), "--wrench-topic", "/ft", "--joints-topic", "/joint_states",
                   "--sensor", "arm_ft", "--urdf", str(tmp_path / "none.urdf"), "-o", str(out)], "none.urdf", out)
@@ -371,3 +374,18 @@ def test_two_bags_segments_groups_and_gap_warning(tmp_path, capfd):
     frame = pd.read_csv(out)
     assert frame.groupby("segment").size().to_dict() == {0: 200, 1: 190}
     assert frame.groupby("segment")["group"].first().to_dict() == {0: "run0", 1: "run1.bag"}
+
+
+def test_tf_frame_other_than_the_wrench_frame_warns(tmp_path, capfd):
+    bag = Bag("mcap")
+    for k in range(5):
+        bag.wrench("/ft", T0 + k * MS, np.ones(6) + k, frame="ft_sensor")
+    bag.tf(T0, [("base", "tool0", (0.0, 0.0, 0.0, 1.0), T0)], static=True)
+    out = tmp_path / "data.csv"
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", FtcalWarning)
+        assert main(["dataset", str(bag.write(tmp_path / "run")), "--wrench-topic", "/ft", "--tf", "base:tool0",
+                     "--no-filter", "-o", str(out)]) == 0
+    assert ("/ft is expressed in frame 'ft_sensor' (header.frame_id) but the tf chain ends at 'tool0'"
+            in capfd.readouterr().err)
+    np.testing.assert_array_equal(pd.read_csv(out)[["qx", "qy", "qz", "qw"]].to_numpy(), [[0, 0, 0, 1]] * 5)

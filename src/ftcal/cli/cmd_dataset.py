@@ -17,7 +17,7 @@ def register(subparsers) -> None:
                     "(load case or recording), ready for 'ftcal fit DATA --segment-by segment "
                     "--group-by group'. ROS bags (.bag, ROS 2 bag folders, .db3, .mcap; see 'ftcal topics') "
                     "take --wrench-topic and optional --joints-topic, --temperature-topic, --imu-topic, "
-                    "--tf BASE:SENSOR_FRAME; they need no URDF: the table then holds the measured wrench "
+                    "--tf BASE[:SENSOR_FRAME]; they need no URDF: the table then holds the measured wrench "
                     "u1..u6, time, and the orientation qx,qy,qz,qw (sensor to a gravity-aligned BASE, "
                     "gravity -z) and IMU columns wx..wz, ax..az when asked for, ready for 'ftcal payload'; "
                     "with --urdf/--model, --sensor and --joints-topic it adds the expected wrench Fx..Tz.")
@@ -34,9 +34,10 @@ def register(subparsers) -> None:
     bags.add_argument("--imu-topic", metavar="TOPIC",
                       help="sensor_msgs/Imu topic on the sensor -> wx,wy,wz (rad/s), ax,ay,az (m/s^2) and, "
                            "without --tf, qx,qy,qz,qw")
-    bags.add_argument("--tf", metavar="BASE:SENSOR_FRAME", type=_frame_pair,
-                      help="sensor orientation from /tf and /tf_static: the chain BASE -> ... -> SENSOR_FRAME "
-                           "(BASE gravity-aligned, z up) -> qx,qy,qz,qw")
+    bags.add_argument("--tf", metavar="BASE[:SENSOR_FRAME]", type=_frame_pair,
+                      help="sensor orientation from /tf and /tf_static: the chain BASE -> ... -> SENSOR_FRAME, "
+                           "BASE gravity-aligned with z up -> qx,qy,qz,qw (SENSOR_FRAME defaults to the wrench "
+                           "messages' header.frame_id)")
     parser.add_argument("--payload-file", metavar="TOML",
                         help="payloads and load cases per recording (incl. the l<x>kg-r<y>kg folder convention)")
     parser.add_argument("--gravity", metavar=("X", "Y", "Z"), nargs=3, type=float,
@@ -65,11 +66,11 @@ def register(subparsers) -> None:
     parser.set_defaults(func=run)
 
 
-def _frame_pair(text: str) -> tuple[str, str]:
+def _frame_pair(text: str) -> tuple[str, str | None]:
     base, sep, frame = text.partition(":")
-    if not sep or not base.strip() or not frame.strip():
-        raise argparse.ArgumentTypeError(f"expected BASE:SENSOR_FRAME, got {text!r}")
-    return base.strip(), frame.strip()
+    if not base.strip() or (sep and not frame.strip()):
+        raise argparse.ArgumentTypeError(f"expected BASE or BASE:SENSOR_FRAME, got {text!r}")
+    return base.strip(), frame.strip() or None
 
 
 BAG_OPTIONS = ("wrench_topic", "joints_topic", "temperature_topic", "imu_topic", "tf")

@@ -31,6 +31,7 @@ of ``frame_id``). Every other type goes through rosbags' deserializer.
 from __future__ import annotations
 
 import struct
+import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -39,7 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import FtcalError
+from ..errors import FtcalError, FtcalWarning
 from .recording import Recording, Stream
 from .tf_chain import QUATERNION_COLUMNS, TransformTree, check_unit_quaternions
 
@@ -62,14 +63,15 @@ class BagTopics:
 
     wrench : topic of the F/T sensor (WrenchStamped or Wrench); its clock is the dataset's
     joints, temperature, imu : optional topics
-    tf : optional (base frame, sensor frame): the sensor's orientation from /tf and /tf_static
+    tf : optional (base frame, sensor frame): the sensor's orientation from /tf and /tf_static; a sensor
+        frame of None means the wrench messages' ``header.frame_id``
     """
 
     wrench: str
     joints: str | None = None
     temperature: str | None = None
     imu: str | None = None
-    tf: tuple[str, str] | None = None
+    tf: tuple[str, str | None] | None = None
 
 
 @dataclass(frozen=True)
@@ -182,16 +184,31 @@ def read_bag(path: Path, topics: BagTopics | None = None) -> Recording:
             if orientation is not None:
                 orientations[topics.imu] = orientation
         if topics.tf is not None:
-            base, frame = (f.lstrip("/") for f in topics.tf)  # tf2 frame ids carry no leading slash
+            base, frame = _tf_frames(path, topics, ft)
             tree = _read_tf(path, reader, by_topic)
             orientations[tf_key(topics.tf)] = tree.orientation_stream(base, frame, ft.time,
                                                                       f"{path.name}:tf {base}->{frame}")
     return Recording(path, {topics.wrench: ft}, orientations=orientations, **extra)
 
 
-def tf_key(frames: tuple[str, str]) -> str:
+def tf_key(frames: tuple[str, str | None]) -> str:
     """Key of the orientation from the tf chain ``frames`` = (base, sensor) in ``Recording.orientations``."""
-    return f"tf:{frames[0]}:{frames[1]}"
+    return f"tf:{frames[0]}:{frames[1] or ''}"
+
+
+def _tf_frames(path: Path, topics: BagTopics, ft: Stream) -> tuple[str, str]:
+    """(base, sensor) frames of the tf chain; the sensor frame defaults to the wrench's ``header.frame_id``."""
+    base, frame = (None if f is None else f.lstrip("/") for f in topics.tf)  # tf2 ids have no leading slash
+    wrench_frame = ft.frame.lstrip("/") if ft.frame else None
+    if frame is None:
+        if not wrench_frame:
+            raise FtcalError(f"Bag {path}: topic {topics.wrench!r} names no frame (header.frame_id); "
+                             f"give the sensor frame as --tf {base}:SENSOR_FRAME.")
+        return base, wrench_frame
+    if wrench_frame and wrench_frame != frame:
+        warnings.warn(f"Bag {path}: {topics.wrench} is expressed in frame {wrench_frame!r} (header.frame_id) but "
+                      f"the tf chain ends at {frame!r}; the orientation is that of {frame!r}.", FtcalWarning, stacklevel=3)
+    return base, frame
 
 
 def _check_topic(path: Path, by_topic: dict, topic: str, types: tuple[str, ...], option: str) -> None:
