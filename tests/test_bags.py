@@ -264,6 +264,16 @@ def test_dataset_from_bag_imu_orientation_slerped_and_no_temperature(tmp_path):
     t = frame["time"].to_numpy() - secs(T0)
     q = Rotation.from_quat(frame[["qx", "qy", "qz", "qw"]].to_numpy())
     np.testing.assert_allclose((q.inv() * rz(0.5 * t)).magnitude(), 0.0, atol=1e-6)
+    # a uniform 40 Hz clock instead of the F/T stamps: every column on it, orientation slerped
+    assert main(["dataset", str(path), "--wrench-topic", "/ft", "--imu-topic", "/imu", "--no-filter",
+                 "--rate", "40", "-o", str(out)]) == 0
+    frame = pd.read_parquet(out)
+    t = frame["time"].to_numpy() - secs(T0)
+    np.testing.assert_allclose(np.diff(t), 0.025, atol=1e-6)
+    assert len(frame) == 120  # 0 .. 2.975 s: the F/T stream ends at 2.99 s
+    np.testing.assert_allclose(frame["wx"], 0.1 * t, atol=1e-6)
+    q = Rotation.from_quat(frame[["qx", "qy", "qz", "qw"]].to_numpy())
+    np.testing.assert_allclose((q.inv() * rz(0.5 * t)).magnitude(), 0.0, atol=1e-6)
 
 
 def test_dataset_from_bag_with_urdf_expected_wrench(tmp_path):
