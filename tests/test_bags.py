@@ -225,8 +225,8 @@ def arm_bag(kind, tmp_path, *, n=300, temperature=True, imu=True, tf=True, joint
         if imu:
             bag.imu("/imu", T0 + t, rz(np.array([0.5 * t * 1e-9])).as_quat()[0], (0.1 * t * 1e-9, 0, 0),
                     (0, 0, 9.81))
-        if joints:
-            bag.joints("/joint_states", T0 + t, ["shoulder"], [0.5 * t * 1e-9])
+        if joints:  # the gripper's joint is not in the URDF, and its position is unknown (NaN)
+            bag.joints("/joint_states", T0 + t, ["gripper_finger", "shoulder"], [np.nan, 0.5 * t * 1e-9])
     if tf:
         bag.tf(T0, [("base", "ft_sensor", Rotation.from_rotvec([0.0, 0.3, 0.0]).as_quat(), T0)], static=True)
     return bag.write(tmp_path / "arm")
@@ -276,14 +276,17 @@ def test_dataset_from_bag_imu_orientation_slerped_and_no_temperature(tmp_path):
     np.testing.assert_allclose((q.inv() * rz(0.5 * t)).magnitude(), 0.0, atol=1e-6)
 
 
-def test_dataset_from_bag_with_urdf_expected_wrench(tmp_path):
+def test_dataset_from_bag_with_urdf_expected_wrench(tmp_path, capfd):
     path = arm_bag("mcap", tmp_path, temperature=False, imu=False, tf=False, joints=True)
     urdf = tmp_path / "tiny.urdf"
     urdf.write_text(TINY_URDF)
     out = tmp_path / "data.csv"
-    assert main(["dataset", str(path), "--wrench-topic", "/ft", "--joints-topic", "/joint_states",
-                 "--urdf", str(urdf), "--sensor", "arm_ft", "--savgol-frame", "21", "--workers", "1",
-                 "-o", str(out)]) == 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", FtcalWarning)
+        assert main(["dataset", str(path), "--wrench-topic", "/ft", "--joints-topic", "/joint_states",
+                     "--urdf", str(urdf), "--sensor", "arm_ft", "--savgol-frame", "21", "--workers", "1",
+                     "-o", str(out)]) == 0
+    assert "joint(s) gripper_finger are not in the URDF; ignored" in capfd.readouterr().err
     frame = pd.read_csv(out)
     t = frame["time"].to_numpy() - secs(T0)
     reference = np.array([static_wrench([FOREARM], 0.5 * tk) for tk in t])
@@ -350,6 +353,8 @@ def test_bad_bags(tmp_path, capfd):
 
     fails(capfd, ["dataset", str(path), "--wrench-topic", "/ft", "--joints-topic", "/joint_states",
                   "--sensor", "arm_ft", "--urdf", str(tmp_path / "none.urdf"), "-o", str(out)], "none.urdf", out)
+    fails(capfd, [*run, "--wrench-topic", "/ft", "--joints-topic", "/imu"],
+          "--joints-topic needs --urdf/--model and --sensor", out)
     mat = tmp_path / "log.csv"
     mat.write_text("time\n0\n")
     fails(capfd, ["dataset", str(mat), "--wrench-topic", "/ft", "-o", str(out)],

@@ -21,6 +21,7 @@ for ``.mat`` logs) and returns named columns (project-wide names):
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -98,6 +99,8 @@ def build_bag_table(bags: Sequence[str | Path], topics: BagTopics, *, robot=None
             raise FtcalError("--joints-topic is required with --urdf/--model (the expected wrench needs the joints).")
         robot.sensor(sensor)
         robot.base_frame(options.base)
+    elif topics.joints is not None:
+        raise FtcalError("--joints-topic needs --urdf/--model and --sensor (joints give the expected wrench).")
     config = load_cases or LoadCaseConfig()
     parts = []
     models: dict = {}
@@ -146,7 +149,7 @@ def bag_columns(path: Path, topics: BagTopics, segment: int, group: str, robot=N
     if topics.temperature is not None:
         streams["T"] = recording.temperature[topics.temperature]
     if topics.joints is not None:
-        streams["q"] = recording.joints
+        streams["q"] = _urdf_joints(path, recording.joints, robot)
     orientation_source = None
     if topics.tf is not None:
         orientation_source = tf_key(topics.tf)
@@ -187,6 +190,25 @@ def bag_columns(path: Path, topics: BagTopics, segment: int, group: str, robot=N
     for stream in {id(s): s for key, s in streams.items() if key != "ft"}.values():
         notes.append(f"  {stream.name}: {stream.n_samples} samples ({stream.clock})")
     return BagTable(columns, tuple(notes))
+
+
+def _urdf_joints(path: Path, joints: Stream, robot) -> Stream:
+    """The URDF's joints of a JointState stream; others (a gripper's, say) are dropped with a warning."""
+    known = set(robot.joint_names)
+    keep = [c for c, name in enumerate(joints.columns) if name in known]
+    if not keep:
+        raise FtcalError(f"Bag {path}: {joints.name} has none of the URDF's joints (it has "
+                         f"{', '.join(joints.columns[:5]) or 'no names'}; the URDF has "
+                         f"{', '.join(robot.joint_names[:5])}, ...).")
+    if len(keep) < len(joints.columns):
+        dropped = [name for name in joints.columns if name not in known]
+        warnings.warn(f"Bag {path}: {joints.name}: joint(s) {', '.join(dropped[:5])} are not in the URDF; "
+                      f"ignored.", FtcalWarning, stacklevel=3)
+    missing = [name for name in robot.joint_names if name not in joints.columns]
+    if missing:
+        warnings.warn(f"Bag {path}: {joints.name} lacks URDF joint(s) {', '.join(missing[:5])}; they are held "
+                      f"at 0 rad.", FtcalWarning, stacklevel=3)
+    return dataclasses.replace(joints, data=joints.data[:, keep], columns=tuple(joints.columns[c] for c in keep))
 
 
 def _expected(path: Path, robot, sensor: str, joint_names: tuple[str, ...], q: np.ndarray,
