@@ -266,7 +266,7 @@ Batch = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]  # receive ns, byt
 
 
 def _fastest_batches(path: Path, reader, info) -> Iterator[Batch]:
-    """Chunk by chunk from the storage when rosbags exposes it as expected (ROS 1, MCAP), else its loop."""
+    """Straight from the storage when rosbags exposes it as expected (ROS 1, MCAP, sqlite3), else its loop."""
     if len(reader.readers) == 1:
         if not reader.is2 and hasattr(reader.readers[0], "indexes"):
             return _ros1_batches(path, reader, info)
@@ -274,6 +274,8 @@ def _fastest_batches(path: Path, reader, info) -> Iterator[Batch]:
         storages = getattr(storage, "storages", [storage])
         if storages and all(getattr(s, "chunks", None) and hasattr(s, "bio") for s in storages):
             return _mcap_batches(storages, info)
+        if storages and all(getattr(s, "dbconn", None) for s in storages):
+            return _sqlite_batches(storages, info)
     return _batches(reader, info)
 
 
@@ -319,6 +321,21 @@ def _ros1_batches(path: Path, reader, info) -> Iterator[Batch]:
             raise FtcalError(f"Bag {path}: chunk at byte {int(table[a, 1])} does not hold the message records its "
                              f"index points to (corrupt bag?).")
         yield table[a:b, 0], buffer, starts, lengths
+
+
+def _sqlite_batches(storages: list, info) -> Iterator[Batch]:
+    """ROS 2 sqlite3: the messages table read straight from the database cursor, ``BATCH`` rows at a time."""
+    for storage in storages:
+        ids = sorted({c.id for c in storage.connections if c.topic == info.connections[0].topic})
+        if not ids:
+            continue
+        cursor = storage.dbconn.execute(f"SELECT timestamp, data FROM messages WHERE topic_id IN "
+                                        f"({','.join('?' * len(ids))}) ORDER BY timestamp", ids)
+        while rows := list(islice(cursor, BATCH)):
+            raws = [r[1] for r in rows]
+            lengths = np.fromiter(map(len, raws), np.int64, len(raws))
+            yield (np.fromiter((r[0] for r in rows), np.int64, len(rows)), np.frombuffer(b"".join(raws), np.uint8),
+                   np.cumsum(lengths) - lengths, lengths)
 
 
 def _mcap_batches(storages: list, info) -> Iterator[Batch]:
