@@ -12,6 +12,7 @@ from scipy.spatial.transform import Rotation
 from bag_data import KINDS, Bag
 from ftcal.cli import main
 from ftcal.errors import FtcalError, FtcalWarning
+from ftcal.io import bags
 from ftcal.io.bags import BagTopics, read_bag
 from ftcal.io.logs import read_recording
 from test_robot_expected import FOREARM, static_wrench
@@ -46,8 +47,12 @@ def test_wrench_values_and_header_stamps_exact(tmp_path, kind):
     assert stream.clock == "header stamps" and stream.columns == ("u1", "u2", "u3", "u4", "u5", "u6")
 
 
+@pytest.mark.parametrize("generic", [False, True])
 @pytest.mark.parametrize("kind", KINDS)
-def test_wrench_matches_rosbags_deserializer(tmp_path, kind):
+def test_wrench_matches_rosbags_deserializer(tmp_path, monkeypatch, kind, generic):
+    """Both the storage-level readers and rosbags' message loop (used when its internals differ)."""
+    if generic:
+        monkeypatch.setattr(bags, "_fastest_batches", lambda path, reader, info: bags._batches(reader, info))
     bag = Bag(kind)
     values = wrench_values(200, seed=3)
     for k in range(200):
