@@ -366,6 +366,15 @@ def test_bad_bags(tmp_path, capfd):
           "--wrench-topic applies to ROS bags only", out)
     fails(capfd, ["dataset", str(path), str(mat), "--wrench-topic", "/ft", "-o", str(out)], "mix of ROS bags", out)
     fails(capfd, ["topics", str(mat)], "cannot open it as a ROS 1 .bag", out)
+    imu_bags = []
+    for j, q in enumerate([(0, 0, 0, 1), (0, 0, 0, 0)]):  # the second IMU gives no orientation
+        bag = Bag("db3")
+        for k in range(10):
+            bag.wrench("/ft", T0 + k * MS, np.ones(6) + k)
+            bag.imu("/imu", T0 + k * MS, q, (0, 0, 0), (0, 0, 9.81))
+        imu_bags.append(str(bag.write(tmp_path / f"imu{j}")))
+    fails(capfd, ["dataset", *imu_bags, "--wrench-topic", "/ft", "--imu-topic", "/imu", "--no-filter", "-o", str(out)],
+          "imu1: gives columns time,u1,u2,u3,u4,u5,u6,wx,wy,wz,ax,ay,az,segment,group but", out)
     for kind in ("ros1", "mcap-file"):
         bag = Bag(kind)
         for k in range(2000):
@@ -393,7 +402,7 @@ def test_two_bags_segments_groups_and_gap_warning(tmp_path, capfd):
             "(largest gap 0.110 s)") in err
     frame = pd.read_csv(out)
     assert frame.groupby("segment").size().to_dict() == {0: 200, 1: 190}
-    assert frame.groupby("segment")["group"].first().to_dict() == {0: "run0", 1: "run1.bag"}
+    assert frame.groupby("segment")["group"].first().to_dict() == {0: "run0", 1: "run1"}
 
 
 def test_tf_frame_other_than_the_wrench_frame_warns(tmp_path, capfd):

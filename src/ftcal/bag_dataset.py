@@ -15,7 +15,7 @@ for ``.mat`` logs) and returns named columns (project-wide names):
                    BASE assumed gravity-aligned with gravity along −z, else from the IMU)
 ``wx..wz, ax..az`` IMU angular velocity (rad/s) and linear acceleration (m/s², with gravity)
 ``Fx..Tz``         expected wrench from the robot model (only with a URDF and a joints topic)
-``segment``        one per bag; ``group``: the bag's load case, else its name
+``segment``        one per bag; ``group``: the bag's load case, else its stem
 =================  =============================================================
 """
 
@@ -105,14 +105,16 @@ def build_bag_table(bags: Sequence[str | Path], topics: BagTopics, *, robot=None
     parts = []
     models: dict = {}
     for segment, path in enumerate(bags):
-        case = config.resolve(path, tuple(payloads)) if robot is not None else None
+        case = config.resolve(path, tuple(payloads))  # group: the load case, else the bag's stem
         model = None
         if robot is not None:
             if case.payloads not in models:
                 models[case.payloads] = robot.with_payloads(case.payloads)
             model = models[case.payloads]
-        group = case.name if case is not None else Path(path).name
-        parts.append(bag_columns(Path(path), topics, segment, group, model, sensor, options))
+        parts.append(bag_columns(Path(path), topics, segment, case.name, model, sensor, options))
+        if list(parts[-1].columns) != list(parts[0].columns):
+            raise FtcalError(f"Bag {path}: gives columns {','.join(parts[-1].columns)} but {bags[0]} gives "
+                             f"{','.join(parts[0].columns)} (an IMU without orientation in one of them?).")
     columns = {name: np.concatenate([p.columns[name] for p in parts]) for name in parts[0].columns}
     return BagTable(columns, tuple(line for p in parts for line in p.notes))
 
