@@ -171,7 +171,8 @@ def test_tf_chain_composed_and_slerped(tmp_path, kind):
     bag = Bag(kind)
     s = "/" if kind == "ros1" else ""  # old ROS 1 bags name frames with a leading slash; tf2 drops it
     bag.tf(T0, [(s + "world", s + "base", r_world_base.as_quat(), T0),
-                (s + "arm", s + "sensor", r_arm_sensor.as_quat(), T0)], static=True)
+                (s + "arm", s + "sensor", r_arm_sensor.as_quat(), T0),
+                (s + "world", s + "camera", (0.0, 0.0, 0.0, 0.0), T0)], static=True)  # off the chain: not used
     for k in range(11):  # tf at 10 Hz over 0..1 s
         t = T0 + k * 100 * MS
         bag.tf(t, [(s + "world", s + "arm", rz(np.array([omega * k * 0.1])).as_quat()[0], t)])

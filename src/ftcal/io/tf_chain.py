@@ -35,19 +35,15 @@ class TransformTree:
 
     def __init__(self, where: str) -> None:
         self.where = where
-        self._static: dict[tuple[str, str], tuple[float, ...]] = {}
+        self._static: dict[tuple[str, str], tuple[float, tuple[float, ...]]] = {}
         self._dynamic: dict[tuple[str, str], list[tuple[float, tuple[float, ...]]]] = {}
 
     def add(self, parent: str, child: str, time: float, quaternion: tuple[float, ...], static: bool) -> None:
-        """Record R_parent_child at ``time`` (s) as quaternion (x, y, z, w)."""
-        q = np.asarray(quaternion, dtype=np.float64)
-        if not np.all(np.isfinite(q)):
-            raise FtcalError(f"{self.where}: tf {parent}->{child} at t={time:.6f} s has a non-finite quaternion.")
-        check_unit_quaternions(q[None, :], np.array([time]), f"{self.where}: tf {parent}->{child}")
+        """Record R_parent_child at ``time`` (s) as quaternion (x, y, z, w); checked when a chain uses it."""
         if static:
-            self._static[(parent, child)] = tuple(q)
+            self._static[(parent, child)] = (time, tuple(quaternion))
         else:
-            self._dynamic.setdefault((parent, child), []).append((time, tuple(q)))
+            self._dynamic.setdefault((parent, child), []).append((time, tuple(quaternion)))
 
     def frames(self) -> list[str]:
         """Every frame named by a transform, sorted."""
@@ -102,9 +98,14 @@ class TransformTree:
         lo, hi = -np.inf, np.inf
         samples = {}
         for parent, child, _ in edges:
-            if (parent, child) in self._dynamic:
-                t, q = _sorted_unique(self._dynamic[(parent, child)])
-                samples[(parent, child)] = (t, q)
+            static = (parent, child) not in self._dynamic
+            t, q = _sorted_unique([self._static[(parent, child)]] if static else self._dynamic[(parent, child)])
+            if not np.all(np.isfinite(q)):
+                k = int(np.argmax(~np.isfinite(q).all(axis=1)))
+                raise FtcalError(f"{self.where}: tf {parent}->{child} at t={t[k]:.6f} s has a non-finite quaternion.")
+            check_unit_quaternions(q, t, f"{self.where}: tf {parent}->{child}")
+            samples[(parent, child)] = (t, q)
+            if not static:
                 lo, hi = max(lo, t[0]), min(hi, t[-1])
         keep = (times >= lo) & (times <= hi)
         if not keep.any():
@@ -113,11 +114,8 @@ class TransformTree:
         at = times[keep]
         rotation = Rotation.identity(at.size)
         for parent, child, backwards in edges:
-            if (parent, child) in samples:
-                t, q = samples[(parent, child)]
-                step = Slerp(t, Rotation.from_quat(q))(at) if t.size > 1 else Rotation.from_quat(np.tile(q[0], (at.size, 1)))
-            else:
-                step = Rotation.from_quat(np.tile(self._static[(parent, child)], (at.size, 1)))
+            t, q = samples[(parent, child)]
+            step = Slerp(t, Rotation.from_quat(q))(at) if t.size > 1 else Rotation.from_quat(np.tile(q[0], (at.size, 1)))
             rotation = rotation * (step.inv() if backwards else step)
         return Stream(name, at, rotation.as_quat(), QUATERNION_COLUMNS, clock="tf composed at the F/T stamps")
 
