@@ -45,6 +45,9 @@ def test_wrench_values_and_header_stamps_exact(tmp_path, kind):
     np.testing.assert_array_equal(stream.data, values)
     np.testing.assert_array_equal(stream.time, secs(stamps))
     assert stream.clock == "header stamps" and stream.columns == ("u1", "u2", "u3", "u4", "u5", "u6")
+    by_receive = read_bag(path, BagTopics("/ft", receive_time=True)).ft["/ft"]
+    np.testing.assert_array_equal(by_receive.time, secs(receive))
+    assert by_receive.clock == "receive time"
 
 
 @pytest.mark.parametrize("generic", [False, True])
@@ -320,6 +323,16 @@ def test_bad_bags(tmp_path, capfd):
     fails(capfd, [*run, "--wrench-topic", "/ft", "--tf", "world"],
           "no tf chain from 'world' to 'ft_sensor' (frames known: base, ft_sensor)", out)
     fails(capfd, [*run], "--wrench-topic is required", out)
+    bag = Bag("mcap")  # a driver whose header stamps repeat: refused, and --receive-time reads it
+    for k in range(20):
+        bag.wrench("/ft", T0 + k * MS, np.ones(6) + np.sin(k + np.arange(6)), stamp_ns=T0 + (k // 2) * MS)
+    repeats = bag.write(tmp_path / "repeats")
+    fails(capfd, ["dataset", str(repeats), "--wrench-topic", "/ft", "--no-filter", "-o", str(out)],
+          "repeats:/ft: timestamps do not increase at sample 1", out)
+    assert main(["dataset", str(repeats), "--wrench-topic", "/ft", "--no-filter", "--receive-time",
+                 "-o", str(out)]) == 0
+    assert "(receive time, frame ft_sensor)" in capfd.readouterr().out
+    out.unlink()
     fails(capfd, ["dataset", str(tmp_path / "absent.bag"), "--wrench-topic", "/ft", "-o", str(out)],
           "absent.bag: no such file", out)
 

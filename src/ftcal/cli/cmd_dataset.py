@@ -34,6 +34,9 @@ def register(subparsers) -> None:
     bags.add_argument("--imu-topic", metavar="TOPIC",
                       help="sensor_msgs/Imu topic on the sensor -> wx,wy,wz (rad/s), ax,ay,az (m/s^2) and, "
                            "without --tf, qx,qy,qz,qw")
+    bags.add_argument("--receive-time", action="store_true",
+                      help="time every message by the bag's receive time, not its header stamp (default: header "
+                           "stamps where messages have them, e.g. when a driver's stamps repeat or jump)")
     bags.add_argument("--tf", metavar="BASE[:SENSOR_FRAME]", type=_frame_pair,
                       help="sensor orientation from /tf and /tf_static: the chain BASE -> ... -> SENSOR_FRAME, "
                            "BASE gravity-aligned with z up -> qx,qy,qz,qw (SENSOR_FRAME defaults to the wrench "
@@ -73,7 +76,7 @@ def _frame_pair(text: str) -> tuple[str, str | None]:
     return base.strip(), frame.strip() or None
 
 
-BAG_OPTIONS = ("wrench_topic", "joints_topic", "temperature_topic", "imu_topic", "tf")
+BAG_OPTIONS = ("wrench_topic", "joints_topic", "temperature_topic", "imu_topic", "tf", "receive_time")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -92,7 +95,7 @@ def run(args: argparse.Namespace) -> int:
         raise FtcalError(f"LOG {args.logs[is_bag.index(False)]}: mix of ROS bags and other logs; "
                          "build one dataset per kind.")
     if not any(is_bag):
-        given = [f"--{o.replace('_', '-')}" for o in BAG_OPTIONS if getattr(args, o) is not None]
+        given = [f"--{o.replace('_', '-')}" for o in BAG_OPTIONS if getattr(args, o) not in (None, False)]
         if given:
             raise FtcalError(f"{given[0]} applies to ROS bags only; {args.logs[0]} is not a bag.")
         if args.urdf is None and args.model is None:
@@ -128,7 +131,8 @@ def _run_bags(args, out, robot, payloads, config, options) -> int:
     if args.wrench_topic is None:
         raise FtcalError(f"Bag {args.logs[0]}: --wrench-topic is required (list the topics with "
                          f"'ftcal topics {args.logs[0]}').")
-    topics = BagTopics(args.wrench_topic, args.joints_topic, args.temperature_topic, args.imu_topic, args.tf)
+    topics = BagTopics(args.wrench_topic, args.joints_topic, args.temperature_topic, args.imu_topic, args.tf,
+                       receive_time=args.receive_time)
     table = build_bag_table(args.logs, topics, robot=robot, sensor=args.sensor, payloads=payloads,
                             load_cases=config, options=options)
     write_bag_table(table, out)

@@ -18,7 +18,7 @@ install is needed. :func:`read_bag` turns the topics named in a
 ==============================  =================================================
 
 Stamps are the messages' ``header.stamp`` when the type has a header and the
-stamps are set (not all zero), else the bag's receive time; each stream's
+stamps are set (not all zero), else (or with ``receive_time``) the bag's receive time; each stream's
 :attr:`~ftcal.io.recording.Stream.clock` says which. Times are seconds since
 the Unix epoch.
 
@@ -65,6 +65,7 @@ class BagTopics:
     joints, temperature, imu : optional topics
     tf : optional (base frame, sensor frame): the sensor's orientation from /tf and /tf_static; a sensor
         frame of None means the wrench messages' ``header.frame_id``
+    receive_time : use the bag's receive time even where messages carry header stamps
     """
 
     wrench: str
@@ -72,6 +73,7 @@ class BagTopics:
     temperature: str | None = None
     imu: str | None = None
     tf: tuple[str, str | None] | None = None
+    receive_time: bool = False
 
 
 @dataclass(frozen=True)
@@ -170,22 +172,24 @@ def read_bag(path: Path, topics: BagTopics | None = None) -> Recording:
         for option, (topic, types) in wanted.items():
             if topic is not None:
                 _check_topic(path, by_topic, topic, types, option)
-        ft = _read_wrench(path, reader, by_topic[topics.wrench])
+        receive_time = topics.receive_time
+        ft = _read_wrench(path, reader, by_topic[topics.wrench], receive_time)
         extra: dict = {}
         if topics.temperature is not None:
-            extra["temperature"] = {topics.temperature: _read_temperature(path, reader, by_topic[topics.temperature])}
+            extra["temperature"] = {topics.temperature: _read_temperature(path, reader, by_topic[topics.temperature],
+                                                                              receive_time)}
         if topics.joints is not None:
-            extra["joints"] = _read_joints(path, reader, by_topic[topics.joints])
+            extra["joints"] = _read_joints(path, reader, by_topic[topics.joints], receive_time)
         orientations = {}
         if topics.imu is not None:
-            acc, gyro, orientation = _read_imu(path, reader, by_topic[topics.imu])
+            acc, gyro, orientation = _read_imu(path, reader, by_topic[topics.imu], receive_time)
             extra["accelerometers"] = {topics.imu: acc}
             extra["gyros"] = {topics.imu: gyro}
             if orientation is not None:
                 orientations[topics.imu] = orientation
         if topics.tf is not None:
             base, frame = _tf_frames(path, topics, ft)
-            tree = _read_tf(path, reader, by_topic)
+            tree = _read_tf(path, reader, by_topic, receive_time)
             orientations[tf_key(topics.tf)] = tree.orientation_stream(base, frame, ft.time,
                                                                       f"{path.name}:tf {base}->{frame}")
     return Recording(path, {topics.wrench: ft}, orientations=orientations, **extra)
@@ -223,14 +227,14 @@ def _check_topic(path: Path, by_topic: dict, topic: str, types: tuple[str, ...],
         raise FtcalError(f"Bag {path}: topic {topic!r} ({option}) has no messages.")
 
 
-def _stamps(header_ns: np.ndarray | None, receive_ns: np.ndarray) -> tuple[np.ndarray, str]:
-    """Header stamps when present and set, else receive times, both as float seconds."""
-    if header_ns is not None and np.any(header_ns != 0):
+def _stamps(header_ns: np.ndarray | None, receive_ns: np.ndarray, receive_time: bool) -> tuple[np.ndarray, str]:
+    """Header stamps when present, set and not overridden by ``receive_time``, else receive times (float s)."""
+    if header_ns is not None and not receive_time and np.any(header_ns != 0):
         return header_ns * 1e-9, HEADER_STAMPS
     return np.asarray(receive_ns, dtype=np.float64) * 1e-9, RECEIVE_TIME
 
 
-def _read_wrench(path: Path, reader, info) -> Stream:
+def _read_wrench(path: Path, reader, info, receive_time: bool) -> Stream:
     """Decode every wrench message of the topic from its bytes, one numpy batch at a time."""
     topic = info.connections[0].topic
     stamped = info.msgtype == WRENCH_TYPES[0]
@@ -258,7 +262,7 @@ def _read_wrench(path: Path, reader, info) -> Stream:
     if done != info.msgcount:
         raise FtcalError(f"Bag {path}: topic {topic!r} indexes {info.msgcount} messages but {done} were read.")
     order = np.argsort(receive, kind="stable")  # the bag's order, as rosbags' loop yields it
-    time, clock = _stamps(header[order] if stamped else None, receive[order])
+    time, clock = _stamps(header[order] if stamped else None, receive[order], receive_time)
     return Stream(f"{path.name}:{topic}", time, wrench[order], WRENCH_COLUMNS, clock=clock, frame=frame_id)
 
 
@@ -410,7 +414,7 @@ def _header_ns(msg) -> int:
     return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
 
 
-def _read_temperature(path: Path, reader, info) -> Stream:
+def _read_temperature(path: Path, reader, info, receive_time: bool) -> Stream:
     topic = info.connections[0].topic
     receive, header, values = [], [], []
     stamped = info.msgtype == TEMPERATURE_TYPES[0]
@@ -418,11 +422,11 @@ def _read_temperature(path: Path, reader, info) -> Stream:
         receive.append(stamp)
         header.append(_header_ns(msg) if stamped else 0)
         values.append(msg.temperature if stamped else msg.data)
-    time, clock = _stamps(np.array(header) if stamped else None, np.array(receive))
+    time, clock = _stamps(np.array(header) if stamped else None, np.array(receive), receive_time)
     return Stream(f"{path.name}:{topic}", time, np.array(values, dtype=np.float64)[:, None], ("T",), clock=clock)
 
 
-def _read_joints(path: Path, reader, info) -> Stream:
+def _read_joints(path: Path, reader, info, receive_time: bool) -> Stream:
     """Joint positions by name; messages that carry different joint sets are merged on the largest set's clock."""
     topic = info.connections[0].topic
     groups: dict[frozenset, tuple[tuple[str, ...], list, list, list]] = {}
@@ -438,7 +442,7 @@ def _read_joints(path: Path, reader, info) -> Stream:
         rows.append(position if names == columns else position[[names.index(c) for c in columns]])
     streams = []
     for columns, receive, header, rows in groups.values():
-        time, clock = _stamps(np.array(header), np.array(receive))
+        time, clock = _stamps(np.array(header), np.array(receive), receive_time)
         streams.append(Stream(f"{path.name}:{topic}", time, np.array(rows).reshape(len(rows), len(columns)),
                               columns, clock=clock))
     main = max(streams, key=lambda s: s.n_samples)
@@ -455,7 +459,7 @@ def _read_joints(path: Path, reader, info) -> Stream:
     return Stream(main.name, main.time, np.hstack(data), tuple(columns), clock=main.clock)
 
 
-def _read_imu(path: Path, reader, info) -> tuple[Stream, Stream, Stream | None]:
+def _read_imu(path: Path, reader, info, receive_time: bool) -> tuple[Stream, Stream, Stream | None]:
     """Linear acceleration, angular velocity and (when reported) orientation of an IMU topic."""
     topic = info.connections[0].topic
     receive, header, rows, has_orientation = [], [], [], []
@@ -466,7 +470,7 @@ def _read_imu(path: Path, reader, info) -> tuple[Stream, Stream, Stream | None]:
         rows.append((a.x, a.y, a.z, w.x, w.y, w.z, o.x, o.y, o.z, o.w))
         # REP 145: orientation_covariance[0] == -1 means the IMU does not estimate orientation.
         has_orientation.append(msg.orientation_covariance[0] != -1)
-    time, clock = _stamps(np.array(header), np.array(receive))
+    time, clock = _stamps(np.array(header), np.array(receive), receive_time)
     data = np.array(rows, dtype=np.float64)
     name = f"{path.name}:{topic}"
     acc = Stream(name, time, data[:, 0:3], ("ax", "ay", "az"), clock=clock)
@@ -479,7 +483,7 @@ def _read_imu(path: Path, reader, info) -> tuple[Stream, Stream, Stream | None]:
     return acc, gyro, Stream(name, time, quaternions, QUATERNION_COLUMNS, clock=clock)
 
 
-def _read_tf(path: Path, reader, by_topic: dict) -> TransformTree:
+def _read_tf(path: Path, reader, by_topic: dict, receive_time: bool) -> TransformTree:
     present = [t for t in TF_TOPICS if t in by_topic]
     if not present:
         have = ", ".join(sorted(by_topic)) or "none"
@@ -493,6 +497,6 @@ def _read_tf(path: Path, reader, by_topic: dict) -> TransformTree:
             for t in msg.transforms:
                 header = _header_ns(t)
                 r = t.transform.rotation
-                tree.add(t.header.frame_id.lstrip("/"), t.child_frame_id.lstrip("/"), (header or stamp) * 1e-9,
+                tree.add(t.header.frame_id.lstrip("/"), t.child_frame_id.lstrip("/"), (stamp if receive_time else header or stamp) * 1e-9,
                          (r.x, r.y, r.z, r.w), static=topic == "/tf_static")
     return tree
