@@ -300,6 +300,10 @@ def test_dataset_from_bag_with_urdf_expected_wrench(tmp_path, capfd):
     t = frame["time"].to_numpy() - secs(T0)
     reference = np.array([static_wrench([FOREARM], 0.5 * tk) for tk in t])
     np.testing.assert_allclose(frame[["Fx", "Fy", "Fz", "Tx", "Ty", "Tz"]].to_numpy(), reference, atol=1e-5)
+    assert "T" not in frame.columns  # no temperature topic asked for: the fit uses u1..u6 alone
+    model = tmp_path / "model.json"
+    assert main(["fit", str(out), "--segment-by", "segment", "--group-by", "group", "-o", str(model)]) == 0
+    assert model.is_file()
 
 
 def fails(capfd, argv, message, out):
