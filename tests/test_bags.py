@@ -101,6 +101,10 @@ def test_many_chunks_interleaved_topics_compression(tmp_path, kind, compress):
     np.testing.assert_array_equal(rec_right.data, values[n:])
     np.testing.assert_array_equal(rec_left.time, secs(T0 + np.arange(n) * MS))
     assert (rec_left.frame, rec_right.frame) == ("left_ft", "right_ft_frame")
+    with bags.open_bag(path) as reader:
+        assert bags._indexed_spans(reader) == {"/left": (T0, T0 + (n - 1) * MS),
+                                               "/right": (T0 + 1, T0 + (n - 1) * MS + 1),
+                                               "/temp": (T0 + 2, T0 + (n - 10) * MS + 2)}
 
 
 @pytest.mark.parametrize("kind", ["ros1", "mcap"])
@@ -206,13 +210,16 @@ def test_registry_reads_bags_and_rejects_unknown(tmp_path):
 
 
 # ------------------------------------------------------------------ commands
-def test_topics_command(tmp_path, capfd):
-    bag = Bag("mcap")
+@pytest.mark.parametrize("kind", KINDS)
+def test_topics_command(tmp_path, capfd, kind):
+    bag = Bag(kind)
     for k in range(101):  # 100 Hz over 1 s
         bag.wrench("/ft", T0 + k * 10 * MS, np.ones(6))
     for k in range(11):
         bag.temperature("/temp", T0 + k * 100 * MS, 30.0)
     path = bag.write(tmp_path / "run")
+    with bags.open_bag(path) as reader:  # from the indexes, without reading message data
+        assert bags._indexed_spans(reader) == {"/ft": (T0, T0 + 1000 * MS), "/temp": (T0, T0 + 1000 * MS)}
     assert main(["topics", str(path)]) == 0
     out = capfd.readouterr().out.splitlines()
     assert out[0] == f"{path}: 2 topic(s)"

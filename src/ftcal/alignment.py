@@ -3,7 +3,8 @@
 The reference clock is the sensor's own F/T timestamps (or a uniform grid at
 ``rate`` Hz). Samples outside the time span that every stream covers are
 trimmed; the other streams are linearly interpolated onto the reference
-times (orientations, columns ``qx, qy, qz, qw``, with slerp). Gaps (intervals longer than 1.5× a stream's median period) are
+times (orientations, columns ``qx, qy, qz, qw``, with slerp). Gaps
+(intervals longer than 1.5× a stream's median period) are
 reported with the number of samples they dropped.
 """
 

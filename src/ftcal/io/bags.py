@@ -125,18 +125,69 @@ def list_topics(path: str | Path) -> list[TopicSummary]:
         If the bag cannot be opened.
     """
     with open_bag(path) as reader:
-        first: dict[str, int] = {}
-        last: dict[str, int] = {}
-        for connection, stamp, _ in reader.messages():
-            first.setdefault(connection.topic, stamp)
-            last[connection.topic] = stamp
+        spans = _indexed_spans(reader)
+        if spans is None:  # no index rosbags exposes: read every message's receive time
+            spans = {}
+            for connection, stamp, _ in reader.messages():
+                first, _ = spans.get(connection.topic, (stamp, stamp))
+                spans[connection.topic] = (first, stamp)
         out = []
         for name, info in sorted(reader.topics.items()):
             count = int(info.msgcount)
-            span = (last.get(name, 0) - first.get(name, 0)) * 1e-9
+            first, last = spans.get(name, (0, 0))
+            span = (last - first) * 1e-9
             rate = (count - 1) / span if count > 1 and span > 0 else None
             out.append(TopicSummary(name, info.msgtype or "(mixed types)", count, rate))
     return out
+
+
+def _indexed_spans(reader) -> dict[str, tuple[int, int]] | None:
+    """(first, last) receive time (ns) per topic from the bag's indexes, without reading message data.
+
+    ROS 1: rosbags' per-connection index; sqlite3: one SQL query; MCAP: the message index records
+    after each chunk. None when rosbags does not expose them as expected.
+    """
+    spans: dict[str, tuple[int, int]] = {}
+
+    def widen(topic: str, first: int, last: int) -> None:
+        old = spans.get(topic, (first, last))
+        spans[topic] = (min(old[0], first), max(old[1], last))
+
+    if len(reader.readers) != 1:
+        return None
+    bag = reader.readers[0]
+    if not reader.is2:
+        if not hasattr(bag, "indexes"):
+            return None
+        for connection in bag.connections:
+            index = bag.indexes[connection.id]
+            if index:
+                widen(connection.topic, index[0].time, index[-1].time)
+        return spans
+    storage = getattr(bag, "storage", None)
+    storages = getattr(storage, "storages", [storage])
+    if storages and all(getattr(s, "dbconn", None) for s in storages):
+        for s in storages:
+            for topic, first, last in s.dbconn.execute(
+                    "SELECT topics.name, MIN(messages.timestamp), MAX(messages.timestamp) FROM messages "
+                    "JOIN topics ON messages.topic_id = topics.id GROUP BY topics.name"):
+                widen(topic, first, last)
+        return spans
+    if not (storages and all(getattr(s, "chunks", None) and hasattr(s, "bio") for s in storages)):
+        return None
+    for s in storages:
+        topic_of = {c.id: c.topic for c in s.connections}
+        for chunk in s.chunks:
+            for channel, offset in chunk.message_index_offsets.items():
+                s.bio.seek(offset)
+                head = s.bio.read(15)  # opcode 0x07, record length, channel id, byte length of the entries
+                if len(head) != 15 or head[0] != 0x07:
+                    return None
+                size = int.from_bytes(head[11:15], "little")
+                entries = np.frombuffer(s.bio.read(size), "<u8")[::2]  # (log_time, offset) pairs
+                if entries.size and channel in topic_of:
+                    widen(topic_of[channel], int(entries.min()), int(entries.max()))
+    return spans
 
 
 def read_bag(path: Path, topics: BagTopics | None = None) -> Recording:
@@ -211,7 +262,8 @@ def _tf_frames(path: Path, topics: BagTopics, ft: Stream) -> tuple[str, str]:
         return base, wrench_frame
     if wrench_frame and wrench_frame != frame:
         warnings.warn(f"Bag {path}: {topics.wrench} is expressed in frame {wrench_frame!r} (header.frame_id) but "
-                      f"the tf chain ends at {frame!r}; the orientation is that of {frame!r}.", FtcalWarning, stacklevel=3)
+                      f"the tf chain ends at {frame!r}; the orientation is that of {frame!r}.",
+                      FtcalWarning, stacklevel=3)
     return base, frame
 
 
@@ -497,6 +549,7 @@ def _read_tf(path: Path, reader, by_topic: dict, receive_time: bool) -> Transfor
             for t in msg.transforms:
                 header = _header_ns(t)
                 r = t.transform.rotation
-                tree.add(t.header.frame_id.lstrip("/"), t.child_frame_id.lstrip("/"), (stamp if receive_time else header or stamp) * 1e-9,
+                when = stamp if receive_time else header or stamp
+                tree.add(t.header.frame_id.lstrip("/"), t.child_frame_id.lstrip("/"), when * 1e-9,
                          (r.x, r.y, r.z, r.w), static=topic == "/tf_static")
     return tree

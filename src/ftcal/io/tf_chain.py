@@ -115,7 +115,10 @@ class TransformTree:
         rotation = Rotation.identity(at.size)
         for parent, child, backwards in edges:
             t, q = samples[(parent, child)]
-            step = Slerp(t, Rotation.from_quat(q))(at) if t.size > 1 else Rotation.from_quat(np.tile(q[0], (at.size, 1)))
+            if t.size > 1:
+                step = Slerp(t, Rotation.from_quat(q))(at)
+            else:
+                step = Rotation.from_quat(np.tile(q[0], (at.size, 1)))
             rotation = rotation * (step.inv() if backwards else step)
         return Stream(name, at, rotation.as_quat(), QUATERNION_COLUMNS, clock="tf composed at the F/T stamps")
 
