@@ -390,6 +390,8 @@ def test_bad_bags(tmp_path, capfd):
     fails(capfd, ["dataset", str(mat), "--wrench-topic", "/ft", "-o", str(out)],
           "--wrench-topic applies to ROS bags only", out)
     fails(capfd, ["dataset", str(path), str(mat), "--wrench-topic", "/ft", "-o", str(out)], "mix of ROS bags", out)
+    fails(capfd, ["dataset", str(mat), "-o", str(out)], "--urdf or --model is required for .mat/.csv/.parquet", out)
+    fails(capfd, ["dataset", str(mat), "--model", "iCubGenova04", "-o", str(out)], "--sensor is required", out)
     fails(capfd, ["topics", str(mat)], "cannot open it as a ROS 1 .bag", out)
     imu_bags = []
     for j, q in enumerate([(0, 0, 0, 1), (0, 0, 0, 0)]):  # the second IMU gives no orientation

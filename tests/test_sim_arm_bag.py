@@ -2,10 +2,13 @@
 
 import numpy as np
 import pandas as pd
+import pytest
 from scipy.spatial.transform import Rotation
 
 from ftcal.cli import main
-from ftcal.sim.arm_bag import ArmScenario, write_arm_bag
+from ftcal.errors import FtcalError
+from ftcal.io.bags import BagTopics, read_bag
+from ftcal.sim.arm_bag import WRENCH_TOPIC, ArmScenario, write_arm_bag
 
 
 def test_arm_bag_round_trip(tmp_path, capfd):
@@ -49,3 +52,16 @@ def test_arm_bag_round_trip(tmp_path, capfd):
     y = np.linalg.lstsq(b, rows[["u4", "u5", "u6"]].to_numpy().ravel(), rcond=None)[0]
     np.testing.assert_allclose(y[:3], truth.torque_bias, atol=5e-3)
     np.testing.assert_allclose(y[3:] / truth.mass, truth.com, atol=1e-3)
+
+
+def test_arm_bag_sqlite_and_bad_arguments(tmp_path):
+    scenario = ArmScenario(n_poses=3, hold_s=0.5, move_s=0.5, rate=100.0)
+    truth = write_arm_bag(tmp_path / "arm", scenario, storage="sqlite3")
+    stream = read_bag(truth.path, BagTopics(WRENCH_TOPIC)).ft[WRENCH_TOPIC]
+    assert stream.n_samples == 251 and stream.frame == "ft_sensor"  # 2.5 s at 100 Hz, both ends included
+    with pytest.raises(FtcalError, match="already exists"):
+        write_arm_bag(truth.path, scenario)
+    with pytest.raises(FtcalError, match="'storage' parameter must be 'mcap' or 'sqlite3'"):
+        write_arm_bag(tmp_path / "other", scenario, storage="db3")
+    with pytest.raises(FtcalError, match="n_poses >= 3"):
+        ArmScenario(n_poses=2)
