@@ -291,30 +291,29 @@ def _read_wrench(path: Path, reader, info, receive_time: bool) -> Stream:
     topic = info.connections[0].topic
     stamped = info.msgtype == WRENCH_TYPES[0]
     cdr = reader.is2
-    receive = np.empty(info.msgcount, np.int64)
-    header = np.empty(info.msgcount, np.int64)
-    wrench = np.empty((info.msgcount, 6))
+    receives, headers, wrenches = [], [], []
     frame_id = None
     done = 0
     for batch_receive, buffer, starts, lengths in _fastest_batches(path, reader, info):
-        n = starts.size
         _check_wrench_layout(path, topic, buffer, starts, lengths, stamped, cdr, done)
-        receive[done:done + n] = batch_receive
-        wrench[done:done + n] = _gather(buffer, starts + lengths - 48, 48).view("<f8")
+        receives.append(batch_receive)
+        wrenches.append(_gather(buffer, starts + lengths - 48, 48).view("<f8"))
         if stamped:
             stamp = _gather(buffer, starts + 4, 8)
             sec = stamp[:, :4].copy().view("<i4" if cdr else "<u4")[:, 0].astype(np.int64)
             nsec = stamp[:, 4:].copy().view("<u4")[:, 0].astype(np.int64)
-            header[done:done + n] = sec * 1_000_000_000 + nsec
+            headers.append(sec * 1_000_000_000 + nsec)
             if frame_id is None:
                 at = int(starts[0]) + 16
                 strlen = int(buffer[at - 4:at].view("<u4")[0])
                 frame_id = bytes(buffer[at:at + strlen]).rstrip(b"\0").decode("utf-8", "replace")
-        done += n
-    if done != info.msgcount:
-        raise FtcalError(f"Bag {path}: topic {topic!r} indexes {info.msgcount} messages but {done} were read.")
+        done += starts.size
+    if not done:
+        raise FtcalError(f"Bag {path}: topic {topic!r} has no messages.")
+    receive, wrench = np.concatenate(receives), np.concatenate(wrenches)
+    header = np.concatenate(headers) if stamped else None
     order = np.argsort(receive, kind="stable")  # the bag's order, as rosbags' loop yields it
-    time, clock = _stamps(header[order] if stamped else None, receive[order], receive_time)
+    time, clock = _stamps(None if header is None else header[order], receive[order], receive_time)
     return Stream(f"{path.name}:{topic}", time, wrench[order], WRENCH_COLUMNS, clock=clock, frame=frame_id)
 
 
