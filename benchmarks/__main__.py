@@ -197,14 +197,27 @@ def expected_section(sizes: dict) -> list[str]:
     return out + [""]
 
 
+def bag_section(sizes: dict) -> list[str]:
+    from benchmarks.bench_bags import bags_section
+
+    rows, HEADLINE["bags"] = bags_section(run_case, sizes["bag_n"])
+    return rows
+
+
+# One line per section; HEADLINE keys name the targets summary's rows.
+SECTIONS = (fit_section, lasso_section, predict_section, c_section, scaling_section, expected_section,
+            payload_section, bag_section)
+LABELS = {"fit": "Fit", "lasso": "LASSO", "predict": "Prediction", "c": "Generated C",
+          "expected": "Expected wrenches", "payload": "Payload identification", "bags": "Bag reading"}
+
 FULL = {"fit_big": 1_000_000, "fit_mid": 100_000, "scaling_n": (10_000, 100_000, 1_000_000), "dense_max_n": 100_000,
         "degree_n": 100_000, "lasso_n": 200_000, "paper_lasso_n": 10_000, "predict_n": 2_000_000,
         "expected_n": 100_000, "expected_baseline_n": 10_000, "c_evals": 2_000_000, "python_calls": 2_000,
-        "payload_n": 1_000_000}
+        "payload_n": 1_000_000, "bag_n": 500_000}
 QUICK = {"fit_big": 20_000, "fit_mid": 5_000, "scaling_n": (2_000, 10_000), "dense_max_n": 10_000,
          "degree_n": 5_000, "lasso_n": 5_000, "paper_lasso_n": 1_000, "predict_n": 100_000,
          "expected_n": 2_000, "expected_baseline_n": 500, "c_evals": 100_000, "python_calls": 200,
-         "payload_n": 20_000}
+         "payload_n": 20_000, "bag_n": 20_000}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -220,13 +233,10 @@ def main(argv: list[str] | None = None) -> int:
              "interpreter and libraries. Ratios compare cases measured in the same run.", "",
              f"Machine: {machine()}.", ""]
     body = []
-    for section in (fit_section, lasso_section, predict_section, c_section, scaling_section, expected_section,
-                    payload_section):
+    for section in SECTIONS:
         print(f"{section.__name__} ...", file=sys.stderr, flush=True)
         body += section(sizes)
-    labels = {"fit": "Fit", "lasso": "LASSO", "predict": "Prediction", "c": "Generated C",
-              "expected": "Expected wrenches", "payload": "Payload identification"}
-    lines += ["## Against the targets", ""] + [f"- **{labels[k]}**: {v}." for k, v in HEADLINE.items()] + [""]
+    lines += ["## Against the targets", ""] + [f"- **{LABELS[k]}**: {v}." for k, v in HEADLINE.items()] + [""]
     lines += body
     lines += [f"Total benchmark time: {time.perf_counter() - started:.0f} s.", ""]
     Path(args.out).write_text("\n".join(lines))

@@ -317,6 +317,11 @@ CASES = {f.__name__: f for f in (ftcal_fit, ftcal_statistics, paper_recipe_fit, 
                                  ftcal_lasso, paper_lasso, sklearn_lasso, ftcal_predict, sklearn_predict,
                                  ftcal_payload, numpy_payload_lstsq, c_predict, ftcal_predict_one)}
 
+# Bag reading (benchmarks/bench_bags.py).
+from benchmarks.bench_bags import CASES as BAG_CASES  # noqa: E402
+
+CASES.update(BAG_CASES)
+
 
 if __name__ == "__main__":
     name, kwargs = sys.argv[1], json.loads(sys.argv[2])

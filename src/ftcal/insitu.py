@@ -27,16 +27,17 @@ from pathlib import Path
 
 import numpy as np
 
+from .alignment import Aligned, align
 from .dataset import DEFAULT_INPUTS, DEFAULT_OUTPUTS, Dataset, concatenate
 from .errors import FtcalError, FtcalWarning
-from .io.logs import read_recording, sensor_aliases
-from .io.logs_quality import channel_issues, smooth
-from .io.logs_sync import Aligned, align
+from .io.logs import read_recording
+from .io.recording import sensor_aliases
 from .robot.cache import cache_key, cached
 from .robot.expected import GRAVITY, FloatingBase, expected_wrenches
 from .robot.loadcases import LoadCase, LoadCaseConfig
 from .robot.model import RobotModel
 from .robot.payloads import Payload
+from .signals import channel_issues, smooth
 
 
 @dataclass(frozen=True)

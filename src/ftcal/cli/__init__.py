@@ -14,7 +14,7 @@ import warnings
 
 COMMAND_MODULES = (
     "fit", "evaluate", "predict", "convert", "info", "demo",
-    "sensors", "expected", "dataset", "report",
+    "sensors", "expected", "dataset", "topics", "report",
     "payload", "compensate",
 )
 

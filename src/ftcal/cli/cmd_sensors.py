@@ -8,9 +8,10 @@ from __future__ import annotations
 import argparse
 
 
-def add_robot_arguments(parser: argparse.ArgumentParser) -> None:
-    """--urdf PATH | --model NAME, --ft-joint JOINT [--ft-frame LINK], --payload SPEC..., --base FRAME."""
-    which = parser.add_mutually_exclusive_group(required=True)
+def add_robot_arguments(parser: argparse.ArgumentParser, required: bool = True) -> None:
+    """--urdf PATH | --model NAME (optional unless ``required``), --ft-joint JOINT [--ft-frame LINK],
+    --payload SPEC..., --base FRAME."""
+    which = parser.add_mutually_exclusive_group(required=required)
     which.add_argument("--urdf", metavar="PATH", help="URDF file of the robot")
     which.add_argument("--model", metavar="NAME",
                        help="robot model shipped by icub-models, e.g. iCubGenova04")

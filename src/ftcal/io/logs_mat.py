@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import FtcalError
-from .logs import Recording, Stream
+from .recording import Recording, Stream
 
 ROOT = "robot_logger_device"
 GROUPS = ("FTs", "temperatures", "joints_state", "accelerometers", "gyros", "description_list")

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FtcalError
-from .logs import Recording, Stream
+from .recording import Recording, Stream
 from .tables import read_table
 
 FT_COLUMN = re.compile(r"^(?P<sensor>.+)_u(?P<ch>[1-6])$")

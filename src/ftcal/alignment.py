@@ -3,7 +3,8 @@
 The reference clock is the sensor's own F/T timestamps (or a uniform grid at
 ``rate`` Hz). Samples outside the time span that every stream covers are
 trimmed; the other streams are linearly interpolated onto the reference
-times. Gaps (intervals longer than 1.5× a stream's median period) are
+times (orientations, columns ``qx, qy, qz, qw``, with slerp). Gaps
+(intervals longer than 1.5× a stream's median period) are
 reported with the number of samples they dropped.
 """
 
@@ -14,9 +15,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import FtcalError, FtcalWarning
-from .logs import Recording, Stream
-from .logs_quality import check_finite
+from .errors import FtcalError, FtcalWarning
+from .io.recording import Recording, Stream
+from .io.tf_chain import QUATERNION_COLUMNS
+from .signals import check_finite
 
 
 @dataclass(frozen=True)
@@ -91,41 +93,86 @@ def align(recording: Recording, sensor: tuple[str, ...], *, temperature: bool = 
         streams["acc"] = _imu(recording, recording.accelerometers, imu, "accelerometers")
         streams["gyro"] = _imu(recording, recording.gyros, imu, "gyros")
     used = {k: s for k, s in streams.items() if s is not None}
-    reports = tuple(timing(s) for s in used.values())
-    for r in reports:
-        if r.dropped:
-            warnings.warn(f"{r.name}: {r.gaps} gap(s) in the timestamps, about {r.dropped} dropped sample(s) "
-                          f"(largest gap {r.largest_gap:.3f} s); values across gaps are interpolated.",
-                          FtcalWarning, stacklevel=2)
-    start = max(s.time[0] for s in used.values())
-    end = min(s.time[-1] for s in used.values())
-    if end <= start:
-        raise FtcalError(f"Recording {recording.path}: the streams do not overlap in time "
-                         f"(F/T, joints{', temperature' if temperature else ''}).")
-    if rate is not None:
-        if not rate > 0:
-            raise FtcalError(f"The 'rate' parameter must be > 0 Hz. Got {rate!r} instead.")
-        clock = start + np.arange(int(np.floor((end - start) * rate)) + 1) / rate
-        trimmed = (int(np.sum(ft.time < start)), int(np.sum(ft.time > end)))
-    else:
-        keep = (ft.time >= start) & (ft.time <= end)
-        clock = ft.time[keep]
-        trimmed = (int(np.argmax(keep)), int(ft.n_samples - 1 - np.flatnonzero(keep)[-1]))
-
-    def on_clock(key: str) -> np.ndarray | None:
-        s = used.get(key)
-        if s is None:
-            return None
-        return np.column_stack([np.interp(clock, s.time, s.data[:, c]) for c in range(s.data.shape[1])])
-
-    temp = on_clock("T")
+    names = "F/T, joints" + (", temperature" if temperature else "")
+    clock, on_clock, trimmed, reports = align_streams(used, "ft", rate=rate,
+                                                      where=f"Recording {recording.path}", names=names)
+    clocked = {key: on_clock.get(key) for key in ("ft", "q", "T", "dq", "ddq", "acc", "gyro")}
+    temp = clocked["T"]
     q_stream = used["q"]
     for key in ("dq", "ddq"):
         if key in used and used[key].columns != q_stream.columns:
             raise FtcalError(f"{used[key].name}: joint columns differ from the joint positions.")
-    return Aligned(clock, on_clock("ft"), None if temp is None else temp[:, 0], q_stream.columns,
-                   on_clock("q"), on_clock("dq"), on_clock("ddq"), on_clock("acc"), on_clock("gyro"),
+    return Aligned(clock, clocked["ft"], None if temp is None else temp[:, 0], q_stream.columns,
+                   clocked["q"], clocked["dq"], clocked["ddq"], clocked["acc"], clocked["gyro"],
                    trimmed, reports)
+
+
+def align_streams(streams: dict[str, Stream], reference: str, *, rate: float | None = None,
+                  where: str = "recording", names: str | None = None
+                  ) -> tuple[np.ndarray, dict[str, np.ndarray], tuple[int, int], tuple[StreamReport, ...]]:
+    """Put ``streams`` on the clock of ``streams[reference]`` (or a uniform ``rate`` grid).
+
+    Samples outside the span every stream covers are trimmed; the other streams are
+    interpolated: linearly, except quaternion streams (columns ``qx, qy, qz, qw``), which
+    are slerped. Gaps are reported as warnings.
+
+    Parameters
+    ----------
+    streams : dict of str to Stream
+        Streams by key; ``reference`` is one of the keys.
+    reference : str
+        Key of the stream whose timestamps are the clock.
+    rate : float or None
+        Hz of a uniform clock instead of the reference's timestamps.
+    where, names : str
+        Name the recording and its streams in the error messages.
+
+    Returns
+    -------
+    clock : ndarray of shape (n_samples,), seconds
+    on_clock : dict of str to ndarray of shape (n_samples, n_columns)
+        Each stream's values at ``clock``, by key.
+    trimmed : (int, int)
+        Reference samples cut at the start and at the end.
+    reports : tuple of StreamReport
+
+    Raises
+    ------
+    FtcalError
+        Non-finite values, timestamps that do not increase, or streams that do not overlap.
+    """
+    ref = streams[reference]
+    reports = tuple(timing(s) for s in streams.values())
+    for r in reports:
+        if r.dropped:
+            warnings.warn(f"{r.name}: {r.gaps} gap(s) in the timestamps, about {r.dropped} dropped sample(s) "
+                          f"(largest gap {r.largest_gap:.3f} s); values across gaps are interpolated.",
+                          FtcalWarning, stacklevel=3)
+    start = max(s.time[0] for s in streams.values())
+    end = min(s.time[-1] for s in streams.values())
+    if end <= start:
+        listed = names or ", ".join(s.name for s in streams.values())
+        raise FtcalError(f"{where}: the streams do not overlap in time ({listed}).")
+    if rate is not None:
+        if not (rate > 0 and np.isfinite(rate)):
+            raise FtcalError(f"The 'rate' parameter must be a finite number > 0 Hz. Got {rate!r} instead.")
+        clock = start + np.arange(int(np.floor((end - start) * rate)) + 1) / rate
+        trimmed = (int(np.sum(ref.time < start)), int(np.sum(ref.time > end)))
+    else:
+        keep = (ref.time >= start) & (ref.time <= end)
+        clock = ref.time[keep]
+        trimmed = (int(np.argmax(keep)), int(ref.n_samples - 1 - np.flatnonzero(keep)[-1]))
+    return clock, {key: _on_clock(s, clock) for key, s in streams.items()}, trimmed, reports
+
+
+def _on_clock(stream: Stream, clock: np.ndarray) -> np.ndarray:
+    if stream.columns == QUATERNION_COLUMNS:
+        from scipy.spatial.transform import Rotation, Slerp
+
+        if stream.n_samples == clock.size and np.array_equal(stream.time, clock):
+            return stream.data.copy()
+        return Slerp(stream.time, Rotation.from_quat(stream.data))(clock).as_quat()
+    return np.column_stack([np.interp(clock, stream.time, stream.data[:, c]) for c in range(stream.data.shape[1])])
 
 
 def _imu(recording: Recording, streams: dict[str, Stream], name: str, group: str) -> Stream:
