@@ -60,12 +60,9 @@ def add_column_options(parser: argparse.ArgumentParser, outputs: bool = True) ->
 
 def default_inputs(paths: Sequence[str]) -> tuple[str, ...]:
     """u1..u6,T, or u1..u6 when the first file has no T column (temperature is optional)."""
-    from ..io.tables import read_table
+    from ..io.tables import default_inputs as from_files
 
-    if not paths:
-        return DEFAULT_INPUTS
-    columns = set(read_table(paths[0]).columns)
-    return DEFAULT_INPUTS if "T" in columns else DEFAULT_INPUTS[:-1]
+    return from_files(paths)
 
 
 def print_json(payload: dict) -> None:

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..dataset import Dataset, concatenate
+from ..dataset import DEFAULT_INPUTS, Dataset, concatenate
 from ..errors import FtcalError
 from .atomic import atomic_path
 
@@ -45,6 +45,26 @@ def read_table(path: str | os.PathLike):
     if frame.shape[0] == 0:
         raise FtcalError(f"{path}: the table has no rows.")
     return frame
+
+
+def default_inputs(paths: Sequence[str | os.PathLike]) -> tuple[str, ...]:
+    """u1..u6,T, or u1..u6 when the first file has no T column (temperature is optional)."""
+    if not paths:
+        return DEFAULT_INPUTS
+    return DEFAULT_INPUTS if "T" in table_columns(paths[0]) else DEFAULT_INPUTS[:-1]
+
+
+def table_columns(path: str | os.PathLike) -> tuple[str, ...]:
+    """The column names of a CSV or Parquet file, read from its header only."""
+    path = Path(path)
+    if path.suffix.lower() in (".parquet", ".pq") and path.is_file():
+        try:
+            import pyarrow.parquet as pq
+
+            return tuple(pq.read_schema(path).names)
+        except Exception:  # noqa: BLE001 - a corrupt file: read_table names the problem
+            pass
+    return tuple(map(str, read_table(path).columns))
 
 
 def numeric_columns(frame, columns: Sequence[str], path: Path, role: str) -> np.ndarray:
