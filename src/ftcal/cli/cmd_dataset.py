@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from ._common import require_suffix
-from .cmd_sensors import add_robot_arguments
+from .cmd_sensors import add_cache_arguments, add_robot_arguments
 
 
 def register(subparsers) -> None:
@@ -41,8 +41,7 @@ def register(subparsers) -> None:
     parser.add_argument("--adc-limits", nargs=2, type=float, metavar=("LOW", "HIGH"),
                         help="raw values meaning the ADC saturated (reported as warnings)")
     parser.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
-    parser.add_argument("--no-cache", action="store_true",
-                        help="do not read or write <LOG>.ftcal-cache/")
+    add_cache_arguments(parser)
     parser.add_argument("-o", "--output", metavar="DATASET", required=True, help="output .parquet or .csv")
     parser.set_defaults(func=run)
 
@@ -66,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
         imu=args.imu, imu_frame=args.imu_frame, align_first_sample=args.align_first_sample,
         joint_units="deg" if args.degrees else "rad",
         adc_limits=tuple(args.adc_limits) if args.adc_limits else None,
-        cache=not args.no_cache, workers=args.workers)
+        cache=not args.no_cache, cache_dir=args.cache_dir, workers=args.workers)
     dataset = build_dataset(args.logs, robot, args.sensor, payloads=payloads, load_cases=config, options=options)
     write_dataset(dataset, out)
     groups = sorted(set(map(str, dataset.groups)))

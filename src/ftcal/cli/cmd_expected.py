@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from ._common import require_suffix
-from .cmd_sensors import add_robot_arguments, load_robot
+from .cmd_sensors import add_cache_arguments, add_robot_arguments, load_robot
 
 WRENCH = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
 
@@ -26,8 +26,7 @@ def register(subparsers) -> None:
                         default=(0.0, 0.0, -9.81), help="gravity in base-frame axes (default 0 0 -9.81)")
     parser.add_argument("--degrees", action="store_true", help="joint positions are in degrees")
     parser.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
-    parser.add_argument("--no-cache", action="store_true",
-                        help="do not read or write <FILE>.ftcal-cache/")
+    add_cache_arguments(parser)
     parser.add_argument("-o", "--output", metavar="OUT", required=True, help="output .csv or .parquet")
     parser.set_defaults(func=run)
 
@@ -67,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
         wrenches = compute()
     else:
         key = cache_key(robot, [q], (base, tuple(args.gravity), None))
-        wrenches = cached(args.joints, key, [s.name for s in robot.ft_sensors], compute)
+        wrenches = cached(key, [s.name for s in robot.ft_sensors], q.shape[0], compute, args.cache_dir)
     columns = {"time": table["time"].to_numpy()} if "time" in table.columns else {}
     for label, sensor in zip(labels, sensors):
         for axis, name in enumerate(WRENCH):
