@@ -149,7 +149,7 @@ def write_example_inputs(config: DemoConfig, manifest: list[dict], validation: D
 
     import pandas as pd
 
-    from .io.atomic import write_with
+    from .io.tables import write_table
     from .robot.model import RobotModel
     from .sim.experiment import ExperimentConfig
     from .sim.trajectories import ARM_JOINTS, grid_trajectory, joint_limits
@@ -187,9 +187,9 @@ frame = "l_forearm"
     every = max(1, len(poses.time) // 200)
     joints = pd.DataFrame(poses.positions[::every], columns=list(poses.joint_names))
     joints.insert(0, "time", poses.time[::every])
-    write_with(out / "joints.csv", lambda tmp: joints.to_csv(tmp, index=False, float_format="%.17g"))
+    write_table(joints, out / "joints.csv")
     raw = pd.DataFrame(validation.inputs[:2000], columns=list(validation.input_names))
-    write_with(out / "new_data.csv", lambda tmp: raw.to_csv(tmp, index=False, float_format="%.17g"))
+    write_table(raw, out / "new_data.csv")
 
 
 def _public(summary: dict) -> dict:

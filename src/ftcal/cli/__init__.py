@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 import warnings
 
@@ -16,6 +17,9 @@ COMMAND_MODULES = (
     "fit", "evaluate", "predict", "convert", "info", "demo",
     "sensors", "expected", "dataset", "report",
 )
+
+# Argument names (dest) of output files and folders: never inputs, never equal to one.
+OUTPUT_OPTIONS = ("output", "out")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -35,8 +39,21 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def input_files(args: argparse.Namespace) -> list[str]:
+    """Every argument value that names an existing file, except the outputs: the command's inputs."""
+    found = []
+    for name, value in vars(args).items():
+        if name in OUTPUT_OPTIONS or name == "func":
+            continue
+        for item in value if isinstance(value, (list, tuple)) else [value]:
+            if isinstance(item, str) and item and os.path.isfile(item):
+                found.append(item)
+    return found
+
+
 def main(argv: list[str] | None = None) -> int:
     from ..errors import FtcalError, FtcalWarning
+    from ..io.atomic import check_not_an_input, protected_inputs
 
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -56,7 +73,11 @@ def main(argv: list[str] | None = None) -> int:
     previous = warnings.showwarning
     warnings.showwarning = show
     try:
-        return int(args.func(args) or 0)
+        with protected_inputs(input_files(args)):
+            for option in OUTPUT_OPTIONS:
+                if getattr(args, option, None):
+                    check_not_an_input(getattr(args, option), f"--{option}")
+            return int(args.func(args) or 0)
     except FtcalError as exc:
         print(f"ftcal {args.command}: error: {exc}", file=sys.stderr)
         return 2
@@ -64,6 +85,11 @@ def main(argv: list[str] | None = None) -> int:
         # Output piped into e.g. `head`: stop quietly like other command-line tools.
         sys.stderr.close()
         return 0
+    except OSError as exc:
+        # The environment refused (read-only folder, full disk, ...): one line, like any bad input.
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"ftcal {args.command}: error: {where}{exc.strerror or exc}.", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         print(f"ftcal {args.command}: interrupted", file=sys.stderr)
         return 130

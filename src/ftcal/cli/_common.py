@@ -22,6 +22,16 @@ def column_list(text: str) -> tuple[str, ...]:
     return names
 
 
+def finite_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"must be a finite number, got {text!r}")
+    return value
+
+
 def positive_float(text: str) -> float:
     try:
         value = float(text)
@@ -66,8 +76,12 @@ def default_inputs(paths: Sequence[str]) -> tuple[str, ...]:
 
 
 def print_json(payload: dict) -> None:
-    json.dump(payload, sys.stdout, indent=2, allow_nan=False)
-    sys.stdout.write("\n")
+    """Print ``payload`` as JSON, all or nothing: a non-finite number is an error, not partial output."""
+    try:
+        text = json.dumps(payload, indent=2, allow_nan=False)
+    except ValueError:
+        raise FtcalError("the result holds a non-finite number (inf or NaN); refusing to print invalid JSON.") from None
+    sys.stdout.write(text + "\n")
 
 
 def require_suffix(path: str, suffixes: Sequence[str], option: str) -> None:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from ._common import require_suffix
+from ._common import finite_float, require_suffix
 from .cmd_sensors import add_cache_arguments, add_robot_arguments, load_robot
 
 WRENCH = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
@@ -22,8 +22,8 @@ def register(subparsers) -> None:
                              "not given are 0; an optional 'time' column is copied to the output")
     parser.add_argument("--sensor", metavar="NAME", action="append", default=[],
                         help="F/T sensor (sensor or joint name); repeatable; default all")
-    parser.add_argument("--gravity", metavar=("X", "Y", "Z"), nargs=3, type=float,
-                        default=(0.0, 0.0, -9.81), help="gravity in base-frame axes (default 0 0 -9.81)")
+    parser.add_argument("--gravity", metavar=("X", "Y", "Z"), nargs=3, type=finite_float,
+                        default=(0.0, 0.0, -9.81), help="gravity in base-frame axes, m/s² (default 0 0 -9.81)")
     parser.add_argument("--degrees", action="store_true", help="joint positions are in degrees")
     parser.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
     add_cache_arguments(parser)
@@ -38,8 +38,7 @@ def run(args: argparse.Namespace) -> int:
     import pandas as pd
 
     from ..errors import FtcalError
-    from ..io.atomic import write_with
-    from ..io.tables import read_table
+    from ..io.tables import read_table, write_table
     from ..robot.cache import cache_key, cached
     from ..robot.expected import expected_wrenches
 
@@ -72,9 +71,6 @@ def run(args: argparse.Namespace) -> int:
         for axis, name in enumerate(WRENCH):
             columns[f"{label}_{name}"] = wrenches[:, sensor.index, axis]
     frame = pd.DataFrame(columns)
-    if out.suffix.lower() == ".csv":
-        write_with(out, lambda tmp: frame.to_csv(tmp, index=False))
-    else:
-        write_with(out, lambda tmp: frame.to_parquet(tmp, index=False))
+    write_table(frame, out)
     print(f"wrote {len(frame)} samples x {len(sensors)} sensor(s) to {out}")
     return 0

@@ -79,9 +79,6 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.output)
     if out.suffix.lower() not in REPORT_SUFFIXES:
         raise FtcalError(f"--output {out}: must end in .html.")
-    for given in [*args.files, *args.train]:
-        if Path(given).resolve() == out.resolve():
-            raise FtcalError(f"--output {out} is also an input file; choose another name.")
     train_paths = list(args.train)
     for name in train_paths:
         if Path(name).suffix.lower() not in DATA_SUFFIXES:

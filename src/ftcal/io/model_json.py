@@ -92,6 +92,8 @@ def model_document(model: CalibrationModel, *, sources: Sequence[str] = (),
     }
     if any(v is None for row in doc["coefficients"] for v in row):
         raise FtcalError("The model has non-finite coefficients (NaN or inf); refusing to save it.")
+    if any(v[key] is None for v in (*doc["inputs"], *doc["outputs"]) for key in ("offset", "scale")):
+        raise FtcalError("The model has a non-finite normalization offset or scale; refusing to save it.")
     doc["sha256"] = digest(doc)
     return doc
 

@@ -148,12 +148,25 @@ def _segment_ids(labels: np.ndarray | None, n: int) -> np.ndarray:
     return np.cumsum(change) - 1
 
 
+def check_finite_output(frame, path: Path) -> None:
+    """Refuse to write a table with an infinite or NaN number (naming the column and count)."""
+    for name in frame.columns:
+        values = frame[name].to_numpy()
+        if values.dtype.kind == "f":
+            bad = ~np.isfinite(values)
+            if bad.any():
+                raise FtcalError(f"{path}: column {name!r} would hold {int(bad.sum())} non-finite value(s) "
+                                 f"(inf or NaN), first at row {int(np.flatnonzero(bad)[0])}; nothing written. "
+                                 "Inputs far outside the training range can overflow a high-degree model.")
+
+
 def write_table(frame, path: str | os.PathLike) -> None:
     """Write a DataFrame as CSV or Parquet (by suffix), atomically."""
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in TABLE_SUFFIXES:
         raise FtcalError(f"{path}: output must end in .csv or .parquet.")
+    check_finite_output(frame, path)
     with atomic_path(path) as tmp:
         if suffix == ".csv":
             frame.to_csv(tmp, index=False, float_format="%.17g")

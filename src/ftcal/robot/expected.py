@@ -96,6 +96,9 @@ class WrenchPredictor:
         for s in robot.ft_sensors:
             only_ft.addSensor(robot.sensors.getSixAxisForceTorqueSensor(s.index))
         self.base_index, self.base = robot.base_frame(base)
+        gravity = np.asarray(gravity, dtype=float)
+        if gravity.shape != (3,) or not np.isfinite(gravity).all():
+            raise FtcalError(f"gravity must be three finite numbers (m/s², base-frame axes); got {gravity.tolist()}.")
         self.estimator = idyn.ExtWrenchesAndJointTorquesEstimator()
         if not self.estimator.setModelAndSensors(model, only_ft):
             raise FtcalError(f"iDynTree could not set up the estimator for URDF {robot.source}.")
