@@ -124,11 +124,14 @@ def run_demo(config: DemoConfig = DemoConfig()) -> dict:
 def _write_artifacts(out_dir: Path, runs, train: Dataset, validation: Dataset) -> None:
     """Models as JSON and the two datasets as Parquet, to try `ftcal fit/evaluate/report` on."""
     from .insitu import write_dataset
+    from .fingerprint import segment_fingerprints
     from .io.model_json import save_model
 
+    fingerprints = segment_fingerprints(train)
     for candidate, model, _, _ in runs:
         name = f"np{candidate.degree}" + (f"-lasso{candidate.lam:g}" if candidate.lam is not None else "")
-        save_model(model, out_dir / "models" / f"{name}.json", sources=list(train.sources))
+        save_model(model, out_dir / "models" / f"{name}.json", sources=list(train.sources),
+                   training_segments=fingerprints)
     write_dataset(train, out_dir / "train.parquet")
     write_dataset(validation, out_dir / "validation.parquet")
 

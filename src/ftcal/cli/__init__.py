@@ -18,13 +18,20 @@ COMMAND_MODULES = (
     "sensors", "expected", "dataset", "report",
 )
 
+ENVIRONMENT = """environment variables:
+  FTCAL_PROGRESS=0|1   progress bars off / on (default: on when stderr is a terminal)
+  FTCAL_THREADS=N      worker threads for chunked fitting (default: usable cores, at most 8)
+  XDG_CACHE_HOME       the expected-wrench cache is $XDG_CACHE_HOME/ftcal (default ~/.cache/ftcal)
+
+exit codes: 0 success, 2 bad input (one line on stderr), 130 interrupted"""
+
 # Argument names (dest) of output files and folders: never inputs, never equal to one.
 OUTPUT_OPTIONS = ("output", "out")
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="ftcal",
+        prog="ftcal", epilog=ENVIRONMENT, formatter_class=argparse.RawDescriptionHelpFormatter,
         description="In-situ nonlinear calibration of six-axis force/torque sensors.")
     parser.add_argument("--version", action="store_true", help="print the version and exit")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")

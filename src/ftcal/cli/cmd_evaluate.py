@@ -23,11 +23,14 @@ def register(sub) -> None:
 
 def evaluate(args):
     from ..errors import OutOfRangeWarning
-    from ..io.model_files import read_model
+    from ..fingerprint import warn_if_trained_on
+    from ..io.model_files import read_model_file
     from ..io.tables import read_dataset
 
-    model = read_model(args.model)
+    loaded = read_model_file(args.model)
+    model = loaded.model
     data = read_dataset(args.data, model.input_names_, model.output_names_, segment_by=args.segment_by)
+    warn_if_trained_on(data, loaded.training_segments, args.model)
     with warnings.catch_warnings():
         # The count is reported in the output; no separate warning line.
         warnings.simplefilter("ignore", OutOfRangeWarning)

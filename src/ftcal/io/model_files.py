@@ -9,7 +9,7 @@ from .._checks import check_choice
 from ..errors import FtcalError
 from ..model import CalibrationModel
 from .firmware import firmware_filename, write_firmware_matrix
-from .model_json import ModelFile, load_model_file, save_model
+from .model_json import ModelFile, check_model_size, load_model_file, save_model
 from .paper_xml import read_paper_xml, write_paper_xml
 from .wbd import write_wbd
 
@@ -25,6 +25,7 @@ def read_model(path: str | Path) -> CalibrationModel:
 def read_model_file(path: str | Path) -> ModelFile:
     """Like :func:`read_model`, with units and sources (empty for paper XML, which has none)."""
     path = Path(path)
+    check_model_size(path)
     try:
         with open(path, "rb") as fh:
             head = fh.read(_SNIFF_BYTES)
