@@ -10,8 +10,12 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import signal
 import sys
+import threading
 import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 COMMAND_MODULES = (
     "fit", "evaluate", "predict", "convert", "info", "demo",
@@ -44,6 +48,37 @@ def build_parser() -> argparse.ArgumentParser:
             raise
         module.register(sub)
     return parser
+
+
+class Terminated(BaseException):
+    """SIGTERM or SIGHUP arrived: unwind like Ctrl-C (temporary files are removed) and exit 128 + signal."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = signum
+
+
+TERMINATING_SIGNALS = tuple(getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name))
+
+
+def _raise_terminated(signum, frame) -> None:
+    for sig in TERMINATING_SIGNALS:  # a second signal must not interrupt the clean-up
+        signal.signal(sig, signal.SIG_IGN)
+    raise Terminated(signum)
+
+
+@contextmanager
+def terminating_signals_unwind() -> Iterator[None]:
+    """Inside the block, SIGTERM and SIGHUP raise :class:`Terminated` (main thread only)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {sig: signal.signal(sig, _raise_terminated) for sig in TERMINATING_SIGNALS}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
 
 
 def input_files(args: argparse.Namespace) -> list[str]:
@@ -80,7 +115,7 @@ def main(argv: list[str] | None = None) -> int:
     previous = warnings.showwarning
     warnings.showwarning = show
     try:
-        with protected_inputs(input_files(args)):
+        with terminating_signals_unwind(), protected_inputs(input_files(args)):
             for option in OUTPUT_OPTIONS:
                 if getattr(args, option, None):
                     check_not_an_input(getattr(args, option), f"--{option}")
@@ -100,6 +135,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"ftcal {args.command}: interrupted", file=sys.stderr)
         return 130
+    except Terminated as exc:
+        print(f"ftcal {args.command}: terminated by {signal.Signals(exc.signum).name}", file=sys.stderr)
+        return 128 + exc.signum
     finally:
         warnings.showwarning = previous  # main() may be called in-process (tests, scripts)
 

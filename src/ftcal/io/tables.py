@@ -22,8 +22,6 @@ TABLE_SUFFIXES = (".csv", ".parquet", ".pq")
 
 def read_table(path: str | os.PathLike):
     """Read a CSV or Parquet file into a pandas DataFrame, with clear errors."""
-    import pandas as pd
-
     path = Path(path)
     if not path.exists():
         raise FtcalError(f"{path}: no such file.")
@@ -32,11 +30,22 @@ def read_table(path: str | os.PathLike):
     suffix = path.suffix.lower()
     try:
         if suffix in (".parquet", ".pq"):
-            frame = pd.read_parquet(path)
+            import pyarrow.parquet as pq
+
+            table = pq.read_table(path)
         elif suffix == ".csv":
-            frame = pd.read_csv(path)
+            import pyarrow.csv as pv
+
+            # multi-threaded, and keeps repeated column names (so they can be refused); empty cells are missing
+            table = pv.read_csv(path, convert_options=pv.ConvertOptions(strings_can_be_null=True))
         else:
             raise FtcalError(f"{path}: unknown table type {suffix!r}; use .csv or .parquet.")
+        names = table.column_names
+        twice = next((n for n in names if names.count(n) > 1), None)
+        if twice is not None:
+            raise FtcalError(f"{path}: the column name {twice!r} appears {names.count(twice)} times; "
+                             "column names must be unique.")
+        frame = table.to_pandas()
     except FtcalError:
         raise
     except Exception as exc:  # pandas/pyarrow raise many types for corrupt files
@@ -76,6 +85,11 @@ def numeric_columns(frame, columns: Sequence[str], path: Path, role: str) -> np.
     out = np.empty((frame.shape[0], len(columns)))
     for j, name in enumerate(columns):
         column = frame[name]
+        kind = column.dtype.kind
+        if kind in "bMm" or (kind == "O" and column.map(_not_a_number).any()):
+            first = column.iloc[int(np.argmax(column.map(_not_a_number)))] if kind == "O" else column.iloc[0]
+            raise FtcalError(f"{path}: {role} column {name!r} holds {type(first).__name__} values such as "
+                             f"{first!r}, not numbers.")
         try:
             values = column.to_numpy(dtype=np.float64)
         except (TypeError, ValueError):
@@ -94,6 +108,13 @@ def numeric_columns(frame, columns: Sequence[str], path: Path, role: str) -> np.
                              f"cell(s), first at {where}.")
         out[:, j] = values
     return out
+
+
+def _not_a_number(value) -> bool:
+    """Cells a numeric column must not hold although they convert to float: booleans, dates, times."""
+    import datetime
+
+    return isinstance(value, (bool, np.bool_, datetime.date, datetime.time, datetime.timedelta))
 
 
 def _labels(frame, column: str | None, path: Path, role: str) -> np.ndarray | None:

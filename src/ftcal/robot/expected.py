@@ -39,9 +39,9 @@ URDF text and payloads.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass
 import multiprocessing
+import signal
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -182,12 +182,18 @@ def expected_wrenches(robot: RobotModel, q: np.ndarray, *, dq: np.ndarray | None
         # spawn, not fork: the parent may run threads (progress bar) that fork would copy mid-flight.
         context = multiprocessing.get_context("spawn")
         init = (robot.urdf_text, robot.source, robot.payloads, predictor.base, tuple(gravity))
-        with ProcessPoolExecutor(max_workers=workers, mp_context=context,
-                                 initializer=_init_worker, initargs=init) as pool:
-            futures = [(a, b, pool.submit(_work, *job(a, b))) for a, b in bounds]
-            for a, b, future in futures:
-                out[a:b] = future.result()
+        pool = context.Pool(workers, initializer=_init_worker, initargs=init)
+        try:
+            for (a, b), chunk in zip(bounds, pool.imap(_work, [job(a, b) for a, b in bounds])):
+                out[a:b] = chunk
                 advance(b - a)
+        except BaseException:
+            # Ctrl-C, a signal or a worker's error: stop the workers now instead of waiting for them.
+            pool.terminate()
+            raise
+        finally:
+            pool.close()
+            pool.join()
     return out
 
 
@@ -211,9 +217,12 @@ _PREDICTOR: WrenchPredictor | None = None
 def _init_worker(urdf_text: str, source: str, payloads: tuple[Payload, ...], base: str,
                  gravity: tuple[float, float, float]) -> None:
     global _PREDICTOR
+    # The parent handles Ctrl-C and termination (a terminal sends SIGINT to the whole process group):
+    # workers ignore it, so they print no tracebacks and the parent can stop them cleanly.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     _PREDICTOR = WrenchPredictor(RobotModel(urdf_text, source, payloads), base, gravity)
 
 
-def _work(q, dq, ddq, floating) -> np.ndarray:
+def _work(job: tuple) -> np.ndarray:
     assert _PREDICTOR is not None
-    return _PREDICTOR.compute(q, dq, ddq, floating)
+    return _PREDICTOR.compute(*job)
