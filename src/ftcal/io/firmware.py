@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._checks import check_safe_name
 from ..conversion import affine_part
 from ..errors import FtcalError, FtcalWarning
 from ..model import CalibrationModel
@@ -49,7 +50,15 @@ class FirmwareMatrix:
 
 
 def firmware_filename(serial: str) -> str:
-    """``matrix_<serial>.txt``, the name the board tools expect."""
+    """``matrix_<serial>.txt``, the name the board tools expect.
+
+    Raises
+    ------
+    FtcalError
+        ``serial`` is not 1 to 64 letters, digits, ``-``, ``_`` or ``.`` (not starting with ``.``):
+        a name used in a path must not lead out of the output folder.
+    """
+    check_safe_name(serial, "--serial")
     return f"matrix_{serial}.txt"
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -53,6 +54,7 @@ def write_model(model: CalibrationModel, path: str | Path, fmt: str, *, sources:
     ``sensor`` name used in the wholeBodyDynamics configuration.
     """
     check_choice(fmt, "fmt", "write_model", WRITE_FORMATS)
+    folder = str(path).endswith(("/", os.sep))  # "-o firmware/": a folder, made if missing
     path = Path(path)
     if path.is_dir() and fmt != "icub-firmware":
         raise FtcalError(f"{path} is a directory; give the path of the {fmt} file to write.")
@@ -61,7 +63,7 @@ def write_model(model: CalibrationModel, path: str | Path, fmt: str, *, sources:
     elif fmt == "paper-xml":
         write_paper_xml(model, path)
     elif fmt == "icub-firmware":
-        if path.is_dir():
+        if path.is_dir() or folder:
             if serial is None:
                 raise FtcalError(f"{path} is a directory: give the sensor serial number to name "
                                  "matrix_<serial>.txt, or a file path.")
