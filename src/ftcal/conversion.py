@@ -82,7 +82,7 @@ def to_raw(model: CalibrationModel) -> np.ndarray:
     """
     model._check_fitted()
     inn, out = model.input_normalization_, model.output_normalization_
-    with np.errstate(over="ignore", invalid="ignore"):
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         t = substitution_matrix(model.layout_, inn.offset, inn.scale, out.offset, out.scale)
         return np.asarray(t @ model.coef_)
 

@@ -22,6 +22,8 @@ def register(sub) -> None:
 
 
 def evaluate(args):
+    import numpy as np
+
     from ..errors import OutOfRangeWarning
     from ..fingerprint import warn_if_trained_on
     from ..io.model_files import read_model_file
@@ -31,8 +33,8 @@ def evaluate(args):
     model = loaded.model
     data = read_dataset(args.data, model.input_names_, model.output_names_, segment_by=args.segment_by)
     warn_if_trained_on(data, loaded.training_segments, args.model)
-    with warnings.catch_warnings():
-        # The count is reported in the output; no separate warning line.
+    with warnings.catch_warnings(), np.errstate(over="ignore", invalid="ignore"):
+        # The count is reported in the output; no separate warning line. Overflow is refused in run().
         warnings.simplefilter("ignore", OutOfRangeWarning)
         return model, model.score(data, mode=args.mode)
 

@@ -37,8 +37,7 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
     import pandas as pd
 
-    from ..errors import FtcalError
-    from ..io.tables import read_table, write_table
+    from ..io.tables import numeric_columns, read_table, write_table
     from ..robot.cache import cache_key, cached
     from ..robot.expected import expected_wrenches
 
@@ -50,10 +49,7 @@ def run(args: argparse.Namespace) -> int:
     _, base = robot.base_frame(args.base)
     table = read_table(Path(args.joints))
     joint_cols = [c for c in table.columns if c != "time"]
-    non_numeric = [c for c in joint_cols if not np.issubdtype(table[c].dtype, np.number)]
-    if non_numeric:
-        raise FtcalError(f"{args.joints}: column {non_numeric[0]!r} is not numeric.")
-    values = table[joint_cols].to_numpy(np.float64)
+    values = numeric_columns(table, joint_cols, Path(args.joints), "joint")
     if args.degrees:
         values = np.deg2rad(values)
     q = robot.joint_matrix(joint_cols, values, str(args.joints))

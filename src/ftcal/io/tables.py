@@ -76,8 +76,11 @@ def table_columns(path: str | os.PathLike) -> tuple[str, ...]:
     return tuple(map(str, read_table(path).columns))
 
 
-def numeric_columns(frame, columns: Sequence[str], path: Path, role: str) -> np.ndarray:
-    """The named columns as a float64 array, naming the first missing, non-numeric or non-finite cell."""
+def numeric_columns(frame, columns: Sequence[str], path: Path, role: str, *, finite: bool = True) -> np.ndarray:
+    """The named columns as a float64 array, naming the first missing, non-numeric or (``finite``) non-finite cell.
+
+    Booleans, dates and times are refused although they would convert to numbers.
+    """
     missing = [c for c in columns if c not in frame.columns]
     if missing:
         raise FtcalError(f"{path}: missing {role} column(s) {', '.join(map(repr, missing))}; "
@@ -100,7 +103,7 @@ def numeric_columns(frame, columns: Sequence[str], path: Path, role: str) -> np.
             where = f"line {row + 2}" if path.suffix.lower() == ".csv" else f"row {row}"
             raise FtcalError(f"{path}: column {name!r} {where} holds {column.iloc[row]!r}, "
                              "not a number.") from None
-        bad = ~np.isfinite(values)
+        bad = ~np.isfinite(values) if finite else np.zeros(0, dtype=bool)
         if bad.any():
             row = int(np.flatnonzero(bad)[0])
             where = f"line {row + 2}" if path.suffix.lower() == ".csv" else f"row {row}"

@@ -41,6 +41,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 import multiprocessing
 import signal
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -182,7 +183,7 @@ def expected_wrenches(robot: RobotModel, q: np.ndarray, *, dq: np.ndarray | None
         # spawn, not fork: the parent may run threads (progress bar) that fork would copy mid-flight.
         context = multiprocessing.get_context("spawn")
         init = (robot.urdf_text, robot.source, robot.payloads, predictor.base, tuple(gravity))
-        pool = context.Pool(workers, initializer=_init_worker, initargs=init)
+        pool = _start_pool(context, workers, init)
         try:
             for (a, b), chunk in zip(bounds, pool.imap(_work, [job(a, b) for a, b in bounds])):
                 out[a:b] = chunk
@@ -212,6 +213,21 @@ def _check_joints(robot: RobotModel, values: np.ndarray, what: str, n: int | Non
 
 
 _PREDICTOR: WrenchPredictor | None = None
+
+
+def _start_pool(context, workers: int, init: tuple):
+    """A pool of workers that ignore SIGINT from their first instruction (the parent handles Ctrl-C).
+
+    A signal disposition of "ignore" survives the exec of a spawned worker, and Python keeps it,
+    so a Ctrl-C while a worker still imports its modules prints no traceback there.
+    """
+    in_main = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if in_main else None
+    try:
+        return context.Pool(workers, initializer=_init_worker, initargs=init)
+    finally:
+        if in_main:
+            signal.signal(signal.SIGINT, previous)
 
 
 def _init_worker(urdf_text: str, source: str, payloads: tuple[Payload, ...], base: str,
