@@ -20,7 +20,6 @@ README = Path(__file__).resolve().parents[1] / "README.md"
 FTCAL = str(Path(sys.executable).with_name("ftcal"))
 DEMO = ["demo", "--out", "ftcal-demo", "--quick"]
 OUTPUT_OPTIONS = ("-o", "--output", "--out")
-pytestmark = pytest.mark.slow
 
 
 def code_blocks(text: str, languages: tuple[str, ...]) -> list[str]:
@@ -69,6 +68,7 @@ def test_the_readme_has_commands_for_the_whole_flow():
     assert {"fit", "evaluate", "predict", "dataset"} <= {c[0] for c in commands}
 
 
+@pytest.mark.slow
 def test_every_readme_command_runs_as_written(repo_root):
     for words in ftcal_commands(README.read_text(encoding="utf-8")):
         args = expand(words, repo_root)
@@ -91,6 +91,7 @@ def test_every_readme_command_runs_as_written(repo_root):
         assert not list(repo_root.rglob("*.tmp")), f"{shown} left a temporary file"
 
 
+@pytest.mark.slow
 def test_the_python_snippet_runs_as_written(repo_root):
     blocks = code_blocks(README.read_text(encoding="utf-8"), ("python",))
     assert blocks
@@ -100,3 +101,15 @@ def test_the_python_snippet_runs_as_written(repo_root):
         assert done.returncode == 0, done.stderr
     # The snippet's last line saves a model that the CLI reads back.
     assert run_ftcal(["info", "ftcal-demo/np4.json"], repo_root).returncode == 0
+
+
+def test_every_file_the_code_and_docs_cite_is_in_the_repository():
+    root = README.parent
+    cited = re.compile(r"(?<![\w/.-])((?:[\w-]+/)*[\w-]+\.md)\b")
+    missing = []
+    for path in [*root.glob("src/**/*.py"), *root.glob("tests/*.py"), *root.glob("benchmarks/*.py"),
+                 *root.glob("*.md"), *root.glob("docs/*.md")]:
+        for name in cited.findall(path.read_text(encoding="utf-8")):
+            if not (root / name).exists() and not (path.parent / name).exists():
+                missing.append(f"{path.relative_to(root)} cites {name}")
+    assert not missing

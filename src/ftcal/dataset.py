@@ -15,10 +15,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._checks import check_finite_matrix
+from .columns import DEFAULT_INPUTS, DEFAULT_OUTPUTS
 from .errors import FtcalError
 
-DEFAULT_INPUTS = ("u1", "u2", "u3", "u4", "u5", "u6", "T")
-DEFAULT_OUTPUTS = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
 
 
 @dataclass(frozen=True)

@@ -8,7 +8,7 @@ import math
 import sys
 from collections.abc import Sequence
 
-from ..dataset import DEFAULT_INPUTS, DEFAULT_OUTPUTS
+from ..columns import DEFAULT_INPUTS, DEFAULT_OUTPUTS
 from ..errors import FtcalError
 
 

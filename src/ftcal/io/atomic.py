@@ -10,6 +10,7 @@ resolving symbolic links, or the same inode: a hard link).
 from __future__ import annotations
 
 import os
+import signal
 import tempfile
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
@@ -78,16 +79,23 @@ def atomic_path(target: str | os.PathLike) -> Iterator[Path]:
     check_not_an_input(target)
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
     except OSError as exc:
         raise FtcalError(f"{target}: cannot create the output file ({exc.strerror or exc}).") from None
-    os.close(fd)
-    # mkstemp makes the file private (0600); outputs get the usual permissions.
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(tmp, 0o666 & ~umask)
+    # Signals wait while the temporary file is created and not yet owned by the clean-up below.
+    held = _hold_signals()
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    except OSError as exc:
+        _release_signals(held)
+        raise FtcalError(f"{target}: cannot create the output file ({exc.strerror or exc}).") from None
     tmp_path = Path(tmp)
     try:
+        _release_signals(held)
+        os.close(fd)
+        # mkstemp makes the file private (0600); outputs get the usual permissions.
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
         yield tmp_path
         os.replace(tmp_path, target)
     except OSError as exc:
@@ -95,6 +103,18 @@ def atomic_path(target: str | os.PathLike) -> Iterator[Path]:
     finally:
         if tmp_path.exists():
             tmp_path.unlink()
+
+
+_HELD_SIGNALS = {getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)}
+
+
+def _hold_signals():
+    return signal.pthread_sigmask(signal.SIG_BLOCK, _HELD_SIGNALS) if hasattr(signal, "pthread_sigmask") else None
+
+
+def _release_signals(previous) -> None:
+    if previous is not None:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
 def write_text_atomic(target: str | os.PathLike, text: str, newline: str | None = None) -> None:

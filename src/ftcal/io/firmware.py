@@ -1,4 +1,4 @@
-"""The iCub strain-board calibration matrix file (FORMATS.md §2), for affine models only.
+"""The iCub strain-board calibration matrix file (docs/formats.md §2), for affine models only.
 
 The board computes ``wrench_i = FS_i · Σ_j Cs_ij · raw_j / 32767`` from the six
 raw channels in signed 16-bit ADC counts, with ``Cs`` stored in Q1.15. So the

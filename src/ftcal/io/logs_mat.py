@@ -1,4 +1,4 @@
-"""YARP robot-logger ``.mat`` files (FORMATS.md §4), MATLAB v7.3 (HDF5) and v5.
+"""YARP robot-logger ``.mat`` files (docs/formats.md §4), MATLAB v7.3 (HDF5) and v5.
 
 Layout, under the struct ``robot_logger_device``::
 

@@ -1,4 +1,4 @@
-"""The paper's model XML (FORMATS.md §1): raw-input coefficients, one ``rowK`` per regressor column.
+"""The paper's model XML (docs/formats.md §1): raw-input coefficients, one ``rowK`` per regressor column.
 
 Writing converts the model to raw-input monomials (:func:`ftcal.conversion.to_raw`)
 and warns when that loses precision; every float is written with ``repr``.

@@ -1,4 +1,4 @@
-"""CSV and Parquet tables: one row per sample, named columns (FORMATS.md §5).
+"""CSV and Parquet tables: one row per sample, named columns (docs/formats.md §5).
 
 Each file is one segment and one group unless ``segment_by`` / ``group_by``
 name a column; then every distinct value of that column (within a file) is a

@@ -1,4 +1,4 @@
-"""Load cases: which payloads were attached during which recording.
+"""Load cases: which payloads were attached during which recording (docs/formats.md §6).
 
 A TOML file (``--payload-file``) describes them::
 
