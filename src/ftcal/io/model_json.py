@@ -21,7 +21,6 @@ from functools import cache
 from importlib import metadata, resources
 from pathlib import Path
 
-import jsonschema
 import numpy as np
 
 from ..errors import FtcalError
@@ -203,6 +202,8 @@ def parse_model(text: str, source: str = "<model>") -> ModelFile:
     """Parse and validate model-file ``text``; ``source`` names it in error messages."""
     doc = _parse_json(text, source)
     _check_version(doc, source)
+    import jsonschema
+
     error = jsonschema.exceptions.best_match(_validator().iter_errors(doc))
     if error is not None:
         message = error.message if len(error.message) <= _MESSAGE_LIMIT else error.message[:_MESSAGE_LIMIT] + "…"
@@ -264,7 +265,10 @@ def _check_version(doc: dict, source: str) -> None:
 
 
 @cache
-def _validator() -> jsonschema.protocols.Validator:
+def _validator():
+    """The schema validator (jsonschema is imported only when a model file is read)."""
+    import jsonschema
+
     schema = json.loads(resources.files("ftcal").joinpath(SCHEMA_RESOURCE).read_text(encoding="utf-8"))
     # JSON integers only: jsonschema would also accept 2.0 as an "integer".
     strict = jsonschema.Draft202012Validator.TYPE_CHECKER.redefine(

@@ -22,6 +22,17 @@ TABLE_SUFFIXES = (".csv", ".parquet", ".pq")
 
 def read_table(path: str | os.PathLike):
     """Read a CSV or Parquet file into a pandas DataFrame, with clear errors."""
+    return read_arrow(path).to_pandas()
+
+
+def read_arrow(path: str | os.PathLike):
+    """Read a CSV or Parquet file into a pyarrow Table (no pandas), with clear errors.
+
+    Raises
+    ------
+    FtcalError
+        No such file, not a table, a repeated column name, or no rows.
+    """
     path = Path(path)
     if not path.exists():
         raise FtcalError(f"{path}: no such file.")
@@ -40,20 +51,48 @@ def read_table(path: str | os.PathLike):
             table = pv.read_csv(path, convert_options=pv.ConvertOptions(strings_can_be_null=True))
         else:
             raise FtcalError(f"{path}: unknown table type {suffix!r}; use .csv or .parquet.")
-        names = table.column_names
-        twice = next((n for n in names if names.count(n) > 1), None)
-        if twice is not None:
-            raise FtcalError(f"{path}: the column name {twice!r} appears {names.count(twice)} times; "
-                             "column names must be unique.")
-        frame = table.to_pandas()
     except FtcalError:
         raise
-    except Exception as exc:  # pandas/pyarrow raise many types for corrupt files
+    except Exception as exc:  # pyarrow raises many types for corrupt files
         raise FtcalError(f"{path}: cannot be read as {suffix[1:].upper()} ({type(exc).__name__}: "
                          f"{str(exc).splitlines()[0] if str(exc) else 'no detail'}).") from None
-    if frame.shape[0] == 0:
+    names = table.column_names
+    twice = next((n for n in names if names.count(n) > 1), None)
+    if twice is not None:
+        raise FtcalError(f"{path}: the column name {twice!r} appears {names.count(twice)} times; "
+                         "column names must be unique.")
+    if table.num_rows == 0:
         raise FtcalError(f"{path}: the table has no rows.")
-    return frame
+    return table
+
+
+# Arrow types whose values buffer is a plain little-endian numpy array.
+_PLAIN_NUMBERS = {"double": "<f8", "float": "<f4", "int64": "<i8", "int32": "<i4", "int16": "<i2", "int8": "i1",
+                  "uint64": "<u8", "uint32": "<u4", "uint16": "<u2", "uint8": "u1"}
+
+
+def _arrow_numbers(table, columns: Sequence[str], path: Path, role: str) -> np.ndarray:
+    """:func:`numeric_columns` of an arrow table: float or integer columns without missing cells
+    convert directly; anything else goes through pandas for the exact message."""
+    names = set(table.column_names)
+    if not all(c in names for c in columns):
+        return numeric_columns(table.to_pandas(), columns, path, role)
+    out = np.empty((table.num_rows, len(columns)))
+    for j, name in enumerate(columns):
+        column = table.column(name)
+        dtype = _PLAIN_NUMBERS.get(str(column.type))
+        if dtype is None or column.null_count:
+            return numeric_columns(table.to_pandas(), columns, path, role)
+        row = 0
+        for chunk in column.chunks:
+            # The values buffer itself: pyarrow's to_numpy would import pandas (half a second).
+            n = len(chunk)
+            out[row:row + n, j] = np.frombuffer(chunk.buffers()[1], dtype=dtype, count=n,
+                                                offset=chunk.offset * np.dtype(dtype).itemsize)
+            row += n
+    if not np.isfinite(out).all():
+        return numeric_columns(table.to_pandas(), columns, path, role)
+    return out
 
 
 def default_inputs(paths: Sequence[str | os.PathLike]) -> tuple[str, ...]:
@@ -66,14 +105,20 @@ def default_inputs(paths: Sequence[str | os.PathLike]) -> tuple[str, ...]:
 def table_columns(path: str | os.PathLike) -> tuple[str, ...]:
     """The column names of a CSV or Parquet file, read from its header only."""
     path = Path(path)
-    if path.suffix.lower() in (".parquet", ".pq") and path.is_file():
+    suffix = path.suffix.lower()
+    if path.is_file() and suffix in (".parquet", ".pq", ".csv"):
         try:
+            if suffix == ".csv":
+                import pyarrow.csv as pv
+
+                with pv.open_csv(path) as reader:  # reads the first block only
+                    return tuple(reader.schema.names)
             import pyarrow.parquet as pq
 
             return tuple(pq.read_schema(path).names)
-        except Exception:  # noqa: BLE001 - a corrupt file: read_table names the problem
+        except Exception:  # noqa: BLE001 - a corrupt file: read_arrow names the problem
             pass
-    return tuple(map(str, read_table(path).columns))
+    return tuple(read_arrow(path).column_names)
 
 
 def numeric_columns(frame, columns: Sequence[str], path: Path, role: str, *, finite: bool = True) -> np.ndarray:
@@ -120,16 +165,16 @@ def _not_a_number(value) -> bool:
     return isinstance(value, (bool, np.bool_, datetime.date, datetime.time, datetime.timedelta))
 
 
-def _labels(frame, column: str | None, path: Path, role: str) -> np.ndarray | None:
+def _labels(table, column: str | None, path: Path, role: str) -> np.ndarray | None:
     if column is None:
         return None
-    if column not in frame.columns:
+    if column not in table.column_names:
         raise FtcalError(f"{path}: no {role} column {column!r}; the file has "
-                         f"{', '.join(map(str, frame.columns))}.")
-    values = frame[column]
-    if values.isna().any():
+                         f"{', '.join(map(str, table.column_names))}.")
+    values = table.column(column)
+    if values.null_count:
         raise FtcalError(f"{path}: {role} column {column!r} has empty cells.")
-    return values.to_numpy()
+    return np.asarray(values.to_pylist(), dtype=object)
 
 
 def read_dataset(paths: Sequence[str | os.PathLike], inputs: Sequence[str], outputs: Sequence[str] | None,
@@ -145,16 +190,16 @@ def read_dataset(paths: Sequence[str | os.PathLike], inputs: Sequence[str], outp
     parts = []
     for index, raw_path in enumerate(paths):
         path = Path(raw_path)
-        frame = read_table(path)
-        u = numeric_columns(frame, inputs, path, "input")
+        table = read_arrow(path)
+        u = _arrow_numbers(table, inputs, path, "input")
         y = None
         if outputs:
-            if require_outputs or all(c in frame.columns for c in outputs):
-                y = numeric_columns(frame, outputs, path, "output")
-        seg_labels = _labels(frame, segment_by, path, "segment")
-        grp_labels = _labels(frame, group_by, path, "group")
-        segments = _segment_ids(seg_labels, len(frame))
-        groups = (np.full(len(frame), str(path), dtype=object) if grp_labels is None
+            if require_outputs or all(c in table.column_names for c in outputs):
+                y = _arrow_numbers(table, outputs, path, "output")
+        seg_labels = _labels(table, segment_by, path, "segment")
+        grp_labels = _labels(table, group_by, path, "group")
+        segments = _segment_ids(seg_labels, table.num_rows)
+        groups = (np.full(table.num_rows, str(path), dtype=object) if grp_labels is None
                   else np.asarray(grp_labels, dtype=object))
         part = Dataset(u, y, tuple(inputs), tuple(outputs) if y is not None else (), segments, groups,
                        (str(path),))
