@@ -11,7 +11,8 @@ from ._common import nonnegative_int
 def register(sub) -> None:
     p = sub.add_parser("demo", help="simulate the paper's experiment and calibrate (no robot needed)")
     p.add_argument("--out", default="ftcal-demo", metavar="DIR",
-                   help="folder for recordings, summary.json and report.html (default ftcal-demo/)")
+                   help="folder for the recordings, models, summary.json, report.html and the inputs "
+                        "README.md's examples use (default ftcal-demo/)")
     p.add_argument("--seed", type=nonnegative_int, default=0, help="simulation seed, >= 0 (default 0)")
     p.add_argument("--quick", action="store_true", help="a smaller experiment (a few recordings)")
     p.set_defaults(func=run)
