@@ -27,7 +27,8 @@ ENVIRONMENT = """environment variables:
   FTCAL_THREADS=N      worker threads for chunked fitting (default: usable cores, at most 8)
   XDG_CACHE_HOME       the expected-wrench cache is $XDG_CACHE_HOME/ftcal (default ~/.cache/ftcal)
 
-exit codes: 0 success, 2 bad input (one line on stderr), 130 interrupted"""
+exit codes: 0 success, 2 bad input (one line on stderr), 130 Ctrl-C, 143 SIGTERM, 129 SIGHUP
+(temporary files are removed on every one of them)"""
 
 # Argument names (dest) of output files and folders: never inputs, never equal to one.
 OUTPUT_OPTIONS = ("output", "out")
