@@ -109,10 +109,12 @@ def table_columns(path: str | os.PathLike) -> tuple[str, ...]:
     if path.is_file() and suffix in (".parquet", ".pq", ".csv"):
         try:
             if suffix == ".csv":
-                import pyarrow.csv as pv
+                import csv
 
-                with pv.open_csv(path) as reader:  # reads the first block only
-                    return tuple(reader.schema.names)
+                with open(path, newline="", encoding="utf-8-sig") as fh:  # the header line only
+                    header = next(csv.reader(fh), None)
+                if header:
+                    return tuple(header)
             import pyarrow.parquet as pq
 
             return tuple(pq.read_schema(path).names)
@@ -206,7 +208,7 @@ def read_dataset(paths: Sequence[str | os.PathLike], inputs: Sequence[str], outp
         parts.append(part)
     if any(p.outputs is None for p in parts) and not all(p.outputs is None for p in parts):
         raise FtcalError("Some data files have the output columns and some do not.")
-    return concatenate(parts)
+    return parts[0] if len(parts) == 1 else concatenate(parts)  # one file: already numbered from 0
 
 
 def _segment_ids(labels: np.ndarray | None, n: int) -> np.ndarray:
