@@ -17,6 +17,8 @@ from itertools import combinations_with_replacement
 
 import numpy as np
 
+from benchmarks.bench_bags import CASES as BAG_CASES
+
 N_OUTPUTS = 6
 
 
@@ -313,14 +315,73 @@ def ftcal_predict_one(n: int, degree: int) -> dict:
     return {"seconds": seconds, "ns_per_call": seconds / n * 1e9, "batch_ns_per_sample": batch_seconds / 200_000 * 1e9}
 
 
+
+
+# ----------------------------------------------------------------- whole process, from a CSV file
+CSV_INPUTS = ("u1", "u2", "u3", "u4", "u5", "u6", "T")
+CSV_OUTPUTS = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
+
+PAPER_RECIPE_SCRIPT = """
+import sys
+import numpy as np
+import pandas as pd
+from benchmarks.cases import CSV_INPUTS, CSV_OUTPUTS, paper_features
+from ftcal.solvers.osqp_qp import OsqpLeastSquares
+
+frame = pd.read_csv(sys.argv[1])
+a = paper_features(frame[list(CSV_INPUTS)].to_numpy(), int(sys.argv[2]))
+a /= np.abs(a).max(axis=0)
+OsqpLeastSquares(eps=1e-4).fit_dense(a, frame[list(CSV_OUTPUTS)].to_numpy())
+"""
+
+
+def _csv(folder: str, n: int) -> str:
+    import pandas as pd
+
+    u, y = make_data(n)
+    path = f"{folder}/data.csv"
+    frame = pd.DataFrame(np.hstack([u, y]), columns=[*CSV_INPUTS, *CSV_OUTPUTS])
+    frame.to_csv(path, index=False)
+    return path
+
+
+def _timed_process(argv: list[str]) -> dict:
+    import subprocess
+
+    start = time.perf_counter()
+    done = subprocess.run(argv, capture_output=True, text=True)
+    seconds = time.perf_counter() - start
+    if done.returncode != 0:
+        raise RuntimeError(done.stderr[-2000:])
+    # The child's own peak memory (this process only waits).
+    return {"seconds": seconds, "child_peak_rss_mb": resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0}
+
+
+def ftcal_cli_fit(n: int, degree: int) -> dict:
+    """`ftcal fit data.csv --degree D` as a user runs it: start-up, imports, CSV reading, fit, model file."""
+    import tempfile
+    from pathlib import Path
+
+    with tempfile.TemporaryDirectory() as folder:
+        data = _csv(folder, n)
+        ftcal = str(Path(sys.executable).with_name("ftcal"))
+        return _timed_process([ftcal, "fit", data, "--degree", str(degree), "-o", f"{folder}/m.json"])
+
+
+def paper_recipe_cli(n: int, degree: int) -> dict:
+    """The paper's recipe as a script from the same CSV: pandas, dense max-abs regressor, OSQP per output."""
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as folder:
+        data = _csv(folder, n)
+        return _timed_process([sys.executable, "-c", PAPER_RECIPE_SCRIPT, data, str(degree)])
+
+
 CASES = {f.__name__: f for f in (ftcal_fit, ftcal_statistics, paper_recipe_fit, numpy_lstsq_fit, sklearn_fit,
-                                 ftcal_lasso, paper_lasso, sklearn_lasso, ftcal_predict, sklearn_predict,
-                                 ftcal_payload, numpy_payload_lstsq, c_predict, ftcal_predict_one)}
-
-# Bag reading (benchmarks/bench_bags.py).
-from benchmarks.bench_bags import CASES as BAG_CASES  # noqa: E402
-
-CASES.update(BAG_CASES)
+                                 ftcal_cli_fit, paper_recipe_cli, ftcal_lasso, paper_lasso, sklearn_lasso,
+                                 ftcal_predict, sklearn_predict, ftcal_payload, numpy_payload_lstsq, c_predict,
+                                 ftcal_predict_one)}
+CASES.update(BAG_CASES)  # bag reading: benchmarks/bench_bags.py
 
 
 if __name__ == "__main__":

@@ -44,8 +44,8 @@ def test_output_kinds_are_checked_before_reading(tmp_path, capsys):
     folder.mkdir()
     for argv, fragment in [(["--to", "onnx", "-o", folder], "is a directory; --to onnx writes a file"),
                            (["--to", "onnx", "-o", tmp_path / "m.txt"], "must end in .onnx"),
-                           (["--to", "wbd", "-o", missing], "is the input file")]:
-        if fragment == "is the input file":
+                           (["--to", "wbd", "-o", missing], "is also an input")]:
+        if fragment == "is also an input":
             missing.write_text("{}")
         assert main(["convert", str(missing), *map(str, argv)]) == 2
         err = capsys.readouterr().err.strip().splitlines()

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._checks import check_float
 from .errors import FtcalError, FtcalWarning
 from .io.recording import Recording, Stream
 from .io.tf_chain import QUATERNION_COLUMNS
@@ -56,6 +57,9 @@ class Aligned:
     gyro: np.ndarray | None
     trimmed: tuple[int, int]
     reports: tuple[StreamReport, ...]
+
+# A uniform clock may resample, but not invent more than this many samples per F/T sample.
+MAX_UPSAMPLING = 100
 
 
 def timing(stream: Stream) -> StreamReport:
@@ -154,9 +158,13 @@ def align_streams(streams: dict[str, Stream], reference: str, *, rate: float | N
         listed = names or ", ".join(s.name for s in streams.values())
         raise FtcalError(f"{where}: the streams do not overlap in time ({listed}).")
     if rate is not None:
-        if not (rate > 0 and np.isfinite(rate)):
-            raise FtcalError(f"The 'rate' parameter must be a finite number > 0 Hz. Got {rate!r} instead.")
-        clock = start + np.arange(int(np.floor((end - start) * rate)) + 1) / rate
+        rate = check_float(rate, "rate", "align", 0.0, low_inclusive=False)
+        n_clock = int(np.floor((end - start) * rate)) + 1
+        if n_clock > MAX_UPSAMPLING * ref.n_samples:
+            raise FtcalError(f"{where}: rate {rate:g} Hz gives {n_clock} samples, more than "
+                             f"{MAX_UPSAMPLING} times the {ref.n_samples} {ref.name} samples; choose a rate near "
+                             f"the sensor's ({1 / timing(ref).period:.4g} Hz).")
+        clock = start + np.arange(n_clock) / rate
         trimmed = (int(np.sum(ref.time < start)), int(np.sum(ref.time > end)))
     else:
         keep = (ref.time >= start) & (ref.time <= end)

@@ -5,6 +5,19 @@ from __future__ import annotations
 from ..export.targets import TARGETS
 
 
+def safe_name(text: str) -> str:
+    import argparse
+
+    from .._checks import check_safe_name
+    from ..errors import FtcalError
+
+    try:
+        return check_safe_name(text, "")
+    except FtcalError:
+        raise argparse.ArgumentTypeError(f"{text!r}: use 1 to 64 letters, digits, '_', '-' or '.' (not first); "
+                                         "it becomes part of a file name") from None
+
+
 def register(sub) -> None:
     listing = "; ".join(f"{name}: {spec.summary}" for name, spec in TARGETS.items())
     p = sub.add_parser("convert", help=f"convert a model or payload file ({', '.join(TARGETS)})")
@@ -15,7 +28,8 @@ def register(sub) -> None:
     p.add_argument("-o", "--output", required=True, metavar="OUT",
                    help="output file; for icub-firmware a file or a directory for matrix_<serial>.txt; "
                         "for c a directory for NAME.h and NAME.c")
-    p.add_argument("--serial", help="sensor serial number for the firmware file name")
+    p.add_argument("--serial", type=safe_name, help="sensor serial number for the firmware file name "
+                                                  "(letters, digits, '_', '-', '.')")
     p.add_argument("--sensor", help="sensor name in the wholeBodyDynamics configuration (wbd)")
     p.add_argument("--name", help="C identifier prefixing the generated files and functions (c; default "
                                   "ftcal_model)")

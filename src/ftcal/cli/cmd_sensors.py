@@ -28,6 +28,14 @@ def add_robot_arguments(parser: argparse.ArgumentParser, required: bool = True) 
                         help="fixed base frame (default: root_link if the URDF has it, else its base link)")
 
 
+def add_cache_arguments(parser: argparse.ArgumentParser) -> None:
+    """--cache-dir DIR, --no-cache: where expected wrenches are cached (ftcal.robot.cache)."""
+    parser.add_argument("--cache-dir", metavar="DIR",
+                        help="folder of the expected-wrench cache (default $XDG_CACHE_HOME/ftcal, "
+                             "else ~/.cache/ftcal)")
+    parser.add_argument("--no-cache", action="store_true", help="neither read nor write the cache")
+
+
 def declared_sensors(args: argparse.Namespace) -> tuple:
     """The sensor declared by --ft-joint/--ft-frame, as a tuple of SensorDeclaration (empty if none)."""
     from ..errors import FtcalError

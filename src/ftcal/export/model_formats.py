@@ -6,6 +6,7 @@ with the options its format uses.
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 from ..io.model_files import write_model
@@ -27,7 +28,8 @@ def write_paper_xml(source: ModelFile, output: Path, options: ConvertOptions) ->
 
 def write_icub_firmware(source: ModelFile, output: Path, options: ConvertOptions) -> Written:
     """``matrix_<serial>.txt`` (``output`` a file, or a directory plus ``serial``)."""
-    return Written((write_model(source.model, output, "icub-firmware", serial=options.get("serial"),
+    target = f"{output}{os.sep}" if options.output_is_folder else output
+    return Written((write_model(source.model, target, "icub-firmware", serial=options.get("serial"),
                                 input_units=source.input_units),))
 
 

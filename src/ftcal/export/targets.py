@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import importlib
 import json
+import os
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -65,6 +66,7 @@ class ConvertOptions:
 
     input_path: Path
     values: Mapping[str, Any] = field(default_factory=dict)
+    output_is_folder: bool = False  # ``-o DIR/``: a trailing separator names a folder (made if missing)
 
     def get(self, name: str, default: Any = None) -> Any:
         value = self.values.get(name)
@@ -168,7 +170,10 @@ def convert(input_path: str | Path, name: str, output: str | Path, values: Mappi
         or anything the writer refuses; nothing is written then.
     """
     spec = target(name)
+    output_is_folder = str(output).endswith(("/", os.sep))
     input_path, output = Path(input_path), Path(output)
+    if output_is_folder and spec.output == FILE:
+        raise FtcalError(f"-o {output}{os.sep} names a folder; --to {name} writes a file.")
     check_output(name, spec, output, input_path)
     kind = input_kind(input_path)
     if kind != spec.accepts:
@@ -176,4 +181,4 @@ def convert(input_path: str | Path, name: str, output: str | Path, values: Mappi
     if kind not in INPUT_READERS:
         raise FtcalError(f"{input_path}: this ftcal cannot read {kind} files.")
     source = resolve(INPUT_READERS[kind])(input_path)
-    return resolve(spec.writer)(source, output, ConvertOptions(input_path, dict(values)))
+    return resolve(spec.writer)(source, output, ConvertOptions(input_path, dict(values), output_is_folder))

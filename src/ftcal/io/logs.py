@@ -5,7 +5,7 @@
 returns a :class:`~ftcal.io.recording.Recording`. Adding a log format is one
 module plus one line here. Today:
 
-* YARP robot-logger ``.mat`` files, v7.3 (HDF5) and v5 (FORMATS.md §4), see
+* YARP robot-logger ``.mat`` files, v7.3 (HDF5) and v5 (docs/formats.md §4), see
   :mod:`ftcal.io.logs_mat`;
 * CSV/Parquet tables, one row per sample, see :mod:`ftcal.io.logs_table` for
   the column convention;
