@@ -1,4 +1,4 @@
-"""ROS 1 and ROS 2 bags (FORMATS.md §6), read with the pure-Python ``rosbags`` package.
+"""ROS 1 and ROS 2 bags (docs/formats.md §9), read with the pure-Python ``rosbags`` package.
 
 A bag is a ROS 1 ``.bag`` file, a ROS 2 bag folder (``metadata.yaml`` plus
 ``.db3`` or ``.mcap`` storage), or a single ``.db3``/``.mcap`` file; no ROS
