@@ -1,4 +1,4 @@
-"""`ftcal demo --scenario arm`: the bag → dataset → payload → compensate pipeline recovers the simulator's gripper.
+"""`ftcal demo --scenario arm`: bag → dataset → payload → compensate recovers the simulator's gripper.
 
 The true values come from the ArmScenario the simulator ran (an independent source);
 the noise levels the residuals must reach are the scenario's declared noise.

@@ -1,4 +1,4 @@
-"""``ftcal demo``: the paper's experiment on simulated data, end to end."""
+"""``ftcal demo``: the paper's experiment (or the arm scenario) on simulated data, end to end."""
 
 from __future__ import annotations
 
@@ -8,7 +8,8 @@ SCENARIOS = ("paper", "arm")
 
 
 def register(sub) -> None:
-    p = sub.add_parser("demo", help="simulate the paper's experiment and calibrate (no robot needed)")
+    p = sub.add_parser("demo", help="simulate the paper's experiment (or --scenario arm) and calibrate "
+                                    "(no robot needed)")
     p.add_argument("--scenario", default="paper", metavar="NAME",
                    help="paper: the paper's iCub experiment (default; also writes the arm scenario's ROS 2 bag "
                         "to DIR/arm); arm: a wrist sensor with an unknown gripper, from a ROS 2 bag")
