@@ -102,3 +102,10 @@ def test_unknown_scenario_is_one_line(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "--scenario ur5" in err and "paper, arm" in err
     assert not (tmp_path / "x").exists()
+
+
+def test_cli_arm_scenario_prints_the_table(tmp_path, capsys):
+    assert main(["demo", "--scenario", "arm", "--quick", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert re.search(r"^mass\s+kg\s+1\.35\s", out, re.MULTILINE)  # the simulator's default gripper mass
+    assert "Residual RMS" in out and (tmp_path / "report.html").is_file() and (tmp_path / "ft_calib.yaml").is_file()

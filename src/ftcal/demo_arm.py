@@ -34,6 +34,8 @@ AXES = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
 # A temperature-stable sensor: the 10 + 6 parameter model has a constant bias (temperature drift is what
 # `ftcal fit` with T models), so the identified bias is directly comparable with the simulator's.
 ARM_DEMO_SCENARIO = ArmScenario(force_bias_tc=(0.0, 0.0, 0.0))
+# `ftcal demo --scenario arm --quick`: fewer poses, lower rates
+ARM_QUICK = {"n_poses": 8, "rate": 200.0, "tf_rate": 50.0, "imu_rate": 100.0}
 BAG_NAME = "arm"  # the bag folder inside the output folder
 DATASET_NAME, CONTACT_NAME, PAYLOAD_NAME = "arm.parquet", "contact.parquet", "payload.json"
 ROS_YAML_FILES = {"ros-yaml": "ft_calib.yaml", "ft-tools-ros2": "calibration.yaml"}

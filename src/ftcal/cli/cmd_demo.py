@@ -17,7 +17,7 @@ def register(sub) -> None:
                    help="folder for recordings, summary.json and report.html "
                         "(default ftcal-demo/, ftcal-arm-demo/ for --scenario arm)")
     p.add_argument("--seed", type=int, default=0, help="simulation seed (default 0)")
-    p.add_argument("--quick", action="store_true", help="a smaller experiment (a few recordings)")
+    p.add_argument("--quick", action="store_true", help="a smaller experiment (a few recordings; arm: 8 poses)")
     p.set_defaults(func=run)
 
 
@@ -43,9 +43,9 @@ def run(args) -> int:
 def run_arm(args) -> int:
     import dataclasses
 
-    from ..demo_arm import ARM_DEMO_SCENARIO, ArmDemoConfig, format_arm_tables, run_arm_demo
+    from ..demo_arm import ARM_DEMO_SCENARIO, ARM_QUICK, ArmDemoConfig, format_arm_tables, run_arm_demo
 
-    scenario = dataclasses.replace(ARM_DEMO_SCENARIO, seed=args.seed)
+    scenario = dataclasses.replace(ARM_DEMO_SCENARIO, seed=args.seed, **(ARM_QUICK if args.quick else {}))
     summary = run_arm_demo(ArmDemoConfig(out_dir=Path(args.out or "ftcal-arm-demo"), scenario=scenario))
     print(format_arm_tables(summary))
     print(f"\n{summary['n_samples']} samples; done in {summary['elapsed_s']:.0f} s")
