@@ -27,10 +27,10 @@ from pathlib import Path
 import numpy as np
 
 from .io.atomic import write_text_atomic
+from .payload.identify import AXES
 from .sim.arm_bag import (BASE_FRAME, IMU_TOPIC, SENSOR_FRAME, TEMPERATURE_TOPIC, WRENCH_TOPIC, ArmScenario,
                           ArmTruth, write_arm_bag)
 
-AXES = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
 # A temperature-stable sensor: the 10 + 6 parameter model has a constant bias (temperature drift is what
 # `ftcal fit` with T models), so the identified bias is directly comparable with the simulator's.
 ARM_DEMO_SCENARIO = ArmScenario(force_bias_tc=(0.0, 0.0, 0.0))
