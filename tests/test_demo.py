@@ -136,3 +136,15 @@ def test_firmware_refusal_for_the_wrench_model_says_what_to_fit(quick_demo, tmp_
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "ADC-count channels" in err[0] and "train-adc.parquet" in err[0], err
     assert not (tmp_path / "m.txt").exists()
+
+
+def test_the_paper_demo_also_records_the_arm_bag(quick_demo):
+    """README's ROS example reads ftcal-demo/arm after `make demo`: the arm scenario's ROS 2 bag."""
+    from ftcal.demo_arm import ARM_DEMO_SCENARIO as s
+    from ftcal.io.bags import BagTopics, read_bag
+
+    out, _ = quick_demo
+    stream = read_bag(out / "arm", BagTopics("/ft_sensor/wrench")).ft["/ft_sensor/wrench"]
+    # n_poses holds and n_poses - 1 moves at `rate`, both ends included
+    assert stream.n_samples == round((s.n_poses * (s.hold_s + s.move_s) - s.move_s) * s.rate) + 1
+    assert stream.frame == "ft_sensor"
