@@ -333,6 +333,10 @@ def test_arx_one_step_predictions_equal_numpy_lstsq(capsys, work, tmp_path):
     assert "ARX na=1 nb=1" in info and f"coefficients {n_coef}," in info
     text, _ = run(capsys, ["evaluate", model, work.val, "--json"])  # evaluate counts, never warns
     payload = json.loads(text)
+    # The paper's evaluation by default: one-step, without the first max(na, nb) = 1 row of the segment.
+    assert "free_run" in payload and payload["n_samples"] == N_VAL - 1
+    text, _ = run(capsys, ["evaluate", model, work.val, "--json", "--mode", "free-run", "--warmup", "keep"])
+    payload = json.loads(text)
     assert "one_step" in payload and payload["n_samples"] == N_VAL
 
 

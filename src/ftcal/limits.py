@@ -29,5 +29,8 @@ PREDICTION_MODES = ("one-step", "free-run")
 FREE_RUN_STARTS = ("zeros", "measured")
 """Free-run history before the first sample: zeros (the paper's code) or the first measured output."""
 
+ARX_WARMUP = ("drop", "keep")
+"""Metrics over ARX predictions: drop the first max(na, nb) rows of each segment (the paper's code) or keep them."""
+
 PAPER_LAMBDAS = (0.5, 1.0, 10.0, 50.0, 100.0, 200.0)
 """The LASSO weights of the paper's Table III."""

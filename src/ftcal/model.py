@@ -26,7 +26,7 @@ from ._checks import check_choice, check_finite_matrix, check_int
 from .dataset import Dataset
 from .errors import FtcalError, IllPosedFitWarning, NotFittedError, OutOfRangeWarning
 from .features import FeatureCombination, MonomialBasis, RegressorLayout, substitution_matrix
-from .limits import MAX_DEGREE, MAX_LAG, NORMALIZATIONS, PREDICTION_MODES
+from .limits import ARX_WARMUP, FREE_RUN_STARTS, MAX_DEGREE, MAX_LAG, NORMALIZATIONS, PREDICTION_MODES
 from .normalization import Normalization, normalization_from_range
 from .progress import progress_bar
 from .solvers.base import ScaledProblem, Solver, SolverResult
@@ -416,17 +416,42 @@ class CalibrationModel:
         slack = RANGE_TOLERANCE * np.maximum(high - low, 1.0)
         return np.any((inputs < low - slack) | (inputs > high + slack), axis=1)
 
-    def predict(self, data: Dataset | np.ndarray, *, mode: str = "free-run",
+    def predict(self, data: Dataset | np.ndarray, *, mode: str = "free-run", start: str = "zeros",
                 warn_out_of_range: bool = True) -> np.ndarray:
-        """Predicted outputs, shape (n_samples, n_outputs).
+        """Predicted outputs.
 
-        ``mode`` matters only for ARX models: ``"free-run"`` feeds back past
-        predictions (deployment on the robot), ``"one-step"`` uses the measured
-        past outputs in ``data`` (one-step-ahead). The first max(na, nb) samples
-        of each segment see their first sample repeated as history.
+        Parameters
+        ----------
+        data : Dataset, or ndarray of shape (n_samples, n_inputs)
+            Raw inputs (and, for one-step ARX prediction, measured outputs).
+        mode : {"free-run", "one-step"}
+            Matters only for ARX models: ``"free-run"`` feeds back past
+            predictions (deployment on the robot), ``"one-step"`` uses the
+            measured past outputs in ``data`` (the paper's evaluation).
+        start : {"zeros", "measured"}
+            Free-run history at each segment start. ``"zeros"`` (the paper's
+            code): past outputs are zero, so the first max(na, nb) rows are 0
+            and the recursion starts at row max(na, nb). ``"measured"``
+            (ftcal's): every row is predicted, with the first measured output
+            (or, without outputs, the steady state for the first input) as
+            history. Models with na = 0 have no feedback: free-run is one-step.
+        warn_out_of_range : bool
+            Warn (:class:`~ftcal.errors.OutOfRangeWarning`) about inputs outside the training range.
+
+        Returns
+        -------
+        ndarray of shape (n_samples, n_outputs)
+            Rows before max(na, nb) within a segment see their first input
+            sample repeated as input history.
+
+        Raises
+        ------
+        FtcalError
+            On non-finite inputs, missing columns, or one-step without outputs.
         """
         self._check_fitted()
         check_choice(mode, "mode", "CalibrationModel.predict", PREDICTION_MODES)
+        check_choice(start, "start", "CalibrationModel.predict", FREE_RUN_STARTS)
         data = _as_dataset(data, None, self.input_names_)
         u = check_finite_matrix(data.select_inputs(self.input_names_), "inputs",
                                 len(self.input_names_), self.input_names_)
@@ -445,7 +470,7 @@ class CalibrationModel:
         # One BLAS thread: results must not depend on thread scheduling (bit-identical reruns).
         with single_threaded_blas():
             return np.concatenate([self._predict_arx_segment(u_norm[a:b], None if measured is None else measured[a:b],
-                                                             mode)
+                                                             mode, start)
                                    for a, b in data.segment_bounds()])
 
     def _predict_static(self, u: np.ndarray) -> np.ndarray:
@@ -469,10 +494,13 @@ class CalibrationModel:
         map_ranges(work, u.shape[0], PREDICT_CHUNK)
         return out
 
-    def _predict_arx_segment(self, u_norm: np.ndarray, y_measured: np.ndarray | None, mode: str) -> np.ndarray:
+    def _predict_arx_segment(self, u_norm: np.ndarray, y_measured: np.ndarray | None, mode: str,
+                             start: str) -> np.ndarray:
         layout, lag = self.layout_, self.layout_.max_lag
         ny = len(self.output_names_)
         padded_u = np.concatenate([np.repeat(u_norm[:1], lag, axis=0), u_norm])
+        if layout.na == 0:
+            return self._arx_product(padded_u, np.zeros((padded_u.shape[0], ny)))
         if mode == "one-step":
             y_norm = self.output_normalization_.apply(y_measured)
             padded_y = np.concatenate([np.repeat(y_norm[:1], lag, axis=0), y_norm])
@@ -482,12 +510,18 @@ class CalibrationModel:
         feedback = [self.coef_[(j - 1) * ny:j * ny] for j in range(1, layout.na + 1)]
         scale = self.output_normalization_.scale
         offset = self.output_normalization_.offset
-        if y_measured is not None:
+        result = np.empty_like(exogenous)
+        first = 0
+        if start == "zeros":
+            # The paper's predictor: zero outputs before row max(na, nb), recursion from there.
+            first = min(lag, exogenous.shape[0])
+            result[:first] = 0.0
+            history = [self.output_normalization_.apply(np.zeros(ny))] * layout.na
+        elif y_measured is not None:
             history = [self.output_normalization_.apply(y_measured[0])] * layout.na
         else:
             history = [self.output_normalization_.apply(self._steady_state(exogenous[0], feedback))] * layout.na
-        result = np.empty_like(exogenous)
-        for k in range(exogenous.shape[0]):
+        for k in range(first, exogenous.shape[0]):
             value = exogenous[k].copy()
             for j, block in enumerate(feedback):
                 value += history[-1 - j] @ block
@@ -519,18 +553,47 @@ class CalibrationModel:
         except np.linalg.LinAlgError:
             return exogenous
 
-    def score(self, data: Dataset, *, mode: str = "free-run", warn_out_of_range: bool = True) -> dict:
-        """Metrics of :func:`ftcal.metrics.summarize` plus ``n_out_of_range``."""
+    def score(self, data: Dataset, *, mode: str = "one-step", start: str = "zeros", warmup: str = "drop",
+              warn_out_of_range: bool = True) -> dict:
+        """Metrics of :func:`ftcal.metrics.summarize` plus ``n_out_of_range``.
+
+        Parameters
+        ----------
+        data : Dataset
+            With reference outputs.
+        mode, start : str
+            ARX prediction (see :meth:`predict`); the default is the paper's
+            evaluation, one-step-ahead.
+        warmup : {"drop", "keep"}
+            ``"drop"`` (the paper's code) leaves the first max(na, nb) rows of
+            each segment out of the metrics; no effect on static models.
+        warn_out_of_range : bool
+
+        Returns
+        -------
+        dict
+            For ARX models also the other mode's metrics, under ``"free_run"``
+            or ``"one_step"``.
+        """
         self._check_fitted()
+        check_choice(warmup, "warmup", "CalibrationModel.score", ARX_WARMUP)
         if data.outputs is None:
             raise FtcalError("Evaluating needs reference outputs in the data.")
         y = _outputs_in_order(data, self.output_names_)
-        prediction = self.predict(data, mode=mode, warn_out_of_range=warn_out_of_range)
-        summary = metrics.summarize(y, prediction, self.output_names_)
+        rows = np.ones(data.n_samples, dtype=bool)
+        if warmup == "drop" and self.layout_.max_lag:
+            for a, b in data.segment_bounds():
+                rows[a:a + self.layout_.max_lag] = False
+        if not rows.any():
+            raise FtcalError(f"Nothing to evaluate: every segment is shorter than the ARX warm-up "
+                             f"max(na, nb) = {self.layout_.max_lag} rows.")
+        prediction = self.predict(data, mode=mode, start=start, warn_out_of_range=warn_out_of_range)
+        summary = metrics.summarize(y[rows], prediction[rows], self.output_names_)
         summary["n_out_of_range"] = int(self.out_of_range(data.select_inputs(self.input_names_)).sum())
-        if not self.layout_.is_static and mode == "free-run":
-            one_step = self.predict(data, mode="one-step", warn_out_of_range=False)
-            summary["one_step"] = metrics.summarize(y, one_step, self.output_names_)
+        if not self.layout_.is_static and data.outputs is not None:
+            other = "free-run" if mode == "one-step" else "one-step"
+            second = self.predict(data, mode=other, start=start, warn_out_of_range=False)
+            summary[other.replace("-", "_")] = metrics.summarize(y[rows], second[rows], self.output_names_)
         return summary
 
     def describe(self) -> dict:

@@ -10,7 +10,7 @@ from ._common import add_column_options, default_inputs, float_list, nonnegative
 
 EPILOG = """examples:
   ftcal fit train/*.csv -o model.json                      affine model, u1..u6,T -> Fx..Tz
-  ftcal fit data.parquet --degree 4 --lasso 50 -o m4.json  LASSO, the paper's lambda scale
+  ftcal fit data.parquet --degree 4 --lasso 50 -o m4.json  LASSO: the paper's problem and lambda scale
   ftcal fit logs/*.parquet --degree auto --group-by group -o best.json
 """
 
@@ -37,14 +37,23 @@ def register(sub) -> None:
                         "(default 1)")
     penalty = p.add_mutually_exclusive_group()
     penalty.add_argument("--lasso", type=positive_float, metavar="LAMBDA",
-                         help="LASSO weight on max-abs scaled features (paper: 0.5 .. 200)")
-    penalty.add_argument("--ridge", type=positive_float, metavar="LAMBDA", help="ridge weight on scaled features")
+                         help="LASSO: minimize 1/2|A t - y|^2 + LAMBDA |t|_1 on the paper's regressor A (raw "
+                              "monomials, each column divided by its max |value|, offset column 1); the paper "
+                              "uses 0.5 .. 200")
+    penalty.add_argument("--ridge", type=positive_float, metavar="LAMBDA",
+                         help="ridge: minimize 1/2|A t - y|^2 + 1/2 LAMBDA |t|^2 on the same regressor (sklearn "
+                              "Ridge alpha; a QP written 1/2|A t - y|^2 + L |t|^2, as in the paper's MATLAB, "
+                              "has LAMBDA = 2 L)")
     p.add_argument("--na", type=nonnegative_int, default=0, help=f"ARX: number of past outputs, 0-{MAX_LAG} (default 0)")
     p.add_argument("--nb", type=nonnegative_int, default=0, help=f"ARX: input lags, 0-{MAX_LAG} (default 0)")
     p.add_argument("--solver", choices=SOLVERS, default="lstsq",
                    help="lstsq: streaming exact solver (default); osqp: the paper's QP, for comparison")
     p.add_argument("--normalization", choices=NORMALIZATIONS, default=None,
-                   help="input normalization: center (better conditioned) or maxabs (the paper's)")
+                   help="basis of the coefficients: maxabs (the paper's: inputs over max |u|; default with "
+                        "--lasso/--ridge, whose LAMBDA is defined on its columns) or center (inputs mapped to "
+                        "[-1, 1]; default for least squares). Least squares is exact whatever this says: it is "
+                        "solved in the centred basis and mapped. 'center' with --lasso is the centred LASSO, "
+                        "a different problem")
     p.add_argument("--folds", type=int, default=5, help="cross-validation folds for --degree auto (default 5)")
     p.add_argument("--lambdas", type=float_list, metavar="L1,L2,...",
                    help="lambda grid for --degree auto (default the paper's 0.5,1,10,50,100,200)")
