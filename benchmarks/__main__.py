@@ -145,6 +145,26 @@ def predict_section(sizes: dict) -> list[str]:
             f"{sk['samples_per_s'] / ours['samples_per_s']:.2f}× | {sk['peak_rss_mb']:,.0f} MB |", ""]
 
 
+def selection_section(sizes: dict) -> list[str]:
+    n = sizes["select_n"]
+    ours = run_case("select_auto_new", n=n)
+    base = run_case("select_auto_baseline", n=n)
+    cli = run_case("select_auto", n=n)
+    HEADLINE["select"] = (f"`--degree auto`, N = {n:,}, 8 inputs, 60 load cases, 5 folds: {fmt_s(ours['seconds'])}, "
+                          f"{base['seconds'] / ours['seconds']:.1f}× faster than the previous strategy "
+                          f"(target ≥ 5×), with {ours['n_candidates']} candidates against its 35")
+    return ["## Model selection: `--degree auto`, 8 inputs, 60 load cases (groups), 5 folds", "",
+            "| method | N | time | vs ftcal | best | peak memory |", "|---|---:|---:|---:|---|---:|",
+            f"| ftcal `select_model` (scores from statistics, data-driven λ grid, LASSO + ridge, early stop) | "
+            f"{n:,} | {fmt_s(ours['seconds'])} | 1.0× | {ours['best']} | {ours['peak_rss_mb']:,.0f} MB |",
+            f"| previous strategy (paper's six λ, LASSO only, every candidate predicted per fold) | {n:,} | "
+            f"{fmt_s(base['seconds'])} | {base['seconds'] / ours['seconds']:.1f}× | {base['best']} | "
+            f"{base['peak_rss_mb']:,.0f} MB |",
+            f"| `ftcal fit --degree auto` (whole command in-process, file read and final fit included) | {n:,} | "
+            f"{fmt_s(cli['seconds'])} | {cli['seconds'] / ours['seconds']:.1f}× | | {cli['peak_rss_mb']:,.0f} MB |",
+            ""]
+
+
 def expected_section(sizes: dict) -> list[str]:
     # In its own process: its worker processes' peak memory must not include other cases'.
     code = ("import contextlib, json, sys\nfrom benchmarks import bench_expected\n"
@@ -169,10 +189,10 @@ def expected_section(sizes: dict) -> list[str]:
 
 FULL = {"fit_big": 1_000_000, "fit_mid": 100_000, "scaling_n": (10_000, 100_000, 1_000_000), "dense_max_n": 100_000,
         "degree_n": 100_000, "lasso_n": 200_000, "paper_lasso_n": 10_000, "predict_n": 2_000_000,
-        "expected_n": 100_000, "expected_baseline_n": 10_000}
+        "expected_n": 100_000, "expected_baseline_n": 10_000, "select_n": 74_000}
 QUICK = {"fit_big": 20_000, "fit_mid": 5_000, "scaling_n": (2_000, 10_000), "dense_max_n": 10_000,
          "degree_n": 5_000, "lasso_n": 5_000, "paper_lasso_n": 1_000, "predict_n": 100_000,
-         "expected_n": 2_000, "expected_baseline_n": 500}
+         "expected_n": 2_000, "expected_baseline_n": 500, "select_n": 6_000}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -188,10 +208,12 @@ def main(argv: list[str] | None = None) -> int:
              "interpreter and libraries. Ratios compare cases measured in the same run.", "",
              f"Machine: {machine()}.", ""]
     body = []
-    for section in (fit_section, lasso_section, predict_section, scaling_section, expected_section):
+    for section in (fit_section, lasso_section, predict_section, selection_section, scaling_section,
+                    expected_section):
         print(f"{section.__name__} ...", file=sys.stderr, flush=True)
         body += section(sizes)
-    labels = {"fit": "Fit", "lasso": "LASSO", "predict": "Prediction", "expected": "Expected wrenches"}
+    labels = {"fit": "Fit", "lasso": "LASSO", "predict": "Prediction", "select": "Model selection",
+              "expected": "Expected wrenches"}
     lines += ["## Against the targets", ""] + [f"- **{labels[k]}**: {v}." for k, v in HEADLINE.items()] + [""]
     lines += body
     lines += [f"Total benchmark time: {time.perf_counter() - started:.0f} s.", ""]

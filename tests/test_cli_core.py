@@ -351,9 +351,10 @@ def test_degree_auto_picks_at_least_the_true_degree(capsys, tmp_path):
     model = tmp_path / "auto.json"
     out, _ = run(capsys, ["fit", tmp_path / "three.csv", "--inputs", "u1,u2,u3", "--degree", "auto",
                           "--group-by", "case", "--lambdas", "1,10", "-o", model])
-    assert "grouped 4-fold cross-validation" in out  # 4 groups cap the default 5 folds
-    for label in ("np1", "np5", "np3 lasso λ=1", "np5 lasso λ=10"):
+    assert "force error-norm RMSE, 4 folds" in out  # 4 groups cap the default 5 folds
+    for label in ("np1", "np3", "np3 lasso λ=1", "np3 ridge λ=10"):
         assert re.search(rf"^\s*\*?{re.escape(label)}\s", out, re.M), label
+    assert re.search(r"^selected np\d.*margin over np1", out, re.M)
     doc = json.loads(model.read_text())
     assert doc["model"]["degree"] >= 3
     assert [v["name"] for v in doc["inputs"]] == ["u1", "u2", "u3"]
@@ -374,7 +375,7 @@ def test_each_file_is_one_segment_and_one_group(capsys, work, tmp_path):
     assert json.loads(by_file.read_text())["created"]["sources"] == [str(f) for f in files]
     out, _ = run(capsys, ["fit", *files, "--degree", "auto", "--lambdas", "10", "--inputs", "u1,u2", "-o",
                           tmp_path / "auto.json"])
-    assert "grouped 4-fold cross-validation" in out
+    assert "RMSE, 4 folds)" in out and "selected np" in out
     # evaluate concatenates its files.
     payload = json.loads(run(capsys, ["evaluate", work.model3, work.val, work.val, "--json"])[0])
     assert payload["n_samples"] == 2 * N_VAL and payload["n_out_of_range"] == 2 * N_OUTSIDE

@@ -12,7 +12,23 @@ EPILOG = """examples:
   ftcal fit train/*.csv -o model.json                      affine model, u1..u6,T -> Fx..Tz
   ftcal fit data.parquet --degree 4 --lasso 50 -o m4.json  LASSO: the paper's problem and lambda scale
   ftcal fit logs/*.parquet --degree auto --group-by group -o best.json
+  ftcal fit new/*.csv --degree 2 --ridge 10 --prior last_month.json -o m.json   shrink toward a calibration
 """
+
+
+def lambda_grid(text: str) -> tuple[float, ...]:
+    """``paper`` (the paper's six values) or a comma-separated list of positive numbers."""
+    from ..limits import PAPER_LAMBDAS
+
+    return PAPER_LAMBDAS if text == "paper" else float_list(text)
+
+
+def penalty_list(text: str) -> tuple[str, ...]:
+    names = tuple(part.strip() for part in text.split(",") if part.strip())
+    bad = [n for n in names if n not in ("lasso", "ridge")]
+    if bad or not names:
+        raise argparse.ArgumentTypeError(f"expected a list of lasso, ridge; got {text!r}")
+    return names
 
 
 def degree_value(text: str) -> int | str:
@@ -55,8 +71,16 @@ def register(sub) -> None:
                         "solved in the centred basis and mapped. 'center' with --lasso is the centred LASSO, "
                         "a different problem")
     p.add_argument("--folds", type=int, default=5, help="cross-validation folds for --degree auto (default 5)")
-    p.add_argument("--lambdas", type=float_list, metavar="L1,L2,...",
-                   help="lambda grid for --degree auto (default the paper's 0.5,1,10,50,100,200)")
+    p.add_argument("--penalties", type=penalty_list, default=("lasso", "ridge"), metavar="P1,P2",
+                   help="penalized candidates for --degree auto beside least squares (default lasso,ridge)")
+    p.add_argument("--lambdas", type=lambda_grid, metavar="L1,L2,...",
+                   help="fixed lambda grid for --degree auto, or 'paper' for the paper's 0.5,1,10,50,100,200 "
+                        "(default: from the data, lambda_max of each degree down three decades for LASSO, six "
+                        "decades under trace(A'A)/p for ridge, extended where the best value sits at an edge)")
+    p.add_argument("--prior", metavar="MODEL.json",
+                   help="shrink toward this model (e.g. the workbench or last month's calibration) instead of "
+                        "toward zero: the --ridge/--lasso penalty acts on theta - theta_prior (same inputs, "
+                        "outputs and lags, degree at most this fit's)")
     p.add_argument("-o", "--output", required=True, metavar="MODEL.json", help="model file to write")
     p.set_defaults(func=run)
 
@@ -83,6 +107,9 @@ def check_options(args) -> None:
         raise FtcalError("--solver osqp implements the paper's least-squares and LASSO programs, not --ridge.")
     if args.degree == "auto" and args.solver == "osqp":
         raise FtcalError("--degree auto uses the streaming solvers; drop --solver osqp.")
+    if args.prior and args.degree != "auto" and not (args.lasso or args.ridge):
+        raise FtcalError("--prior shrinks a penalized fit toward another model; add --ridge or --lasso "
+                         "(or --degree auto).")
     if args.folds < 2:
         raise FtcalError(f"--folds must be at least 2; got {args.folds}.")
     for flag in ("na", "nb"):
@@ -102,22 +129,26 @@ def run(args) -> int:
     data = read_dataset(args.data, inputs, outputs, segment_by=args.segment_by, group_by=args.group_by)
     print(f"read {data.n_samples} samples from {len(args.data)} file(s): inputs {','.join(inputs)} "
           f"-> outputs {','.join(outputs)}", file=sys.stderr)
+    prior = None
+    if args.prior:
+        from ..io.model_files import read_model
+
+        prior = read_model(args.prior)
+    template = CalibrationModel(na=args.na, nb=args.nb, normalization=args.normalization, prior=prior)
     if args.degree == "auto":
-        from ..select import PAPER_LAMBDAS, Candidate, cross_validate, default_candidates, fit_best
+        from ..select import Candidate, cross_validate, fit_best, select_model
 
         if args.lasso or args.ridge:
             kind = "lasso" if args.lasso else "ridge"
             candidates = [Candidate(d, kind, args.lasso or args.ridge) for d in range(1, 6)]
+            result = cross_validate(data, candidates, template=template, n_folds=args.folds)
         else:
-            candidates = default_candidates(lams=args.lambdas or PAPER_LAMBDAS)
-        template = CalibrationModel(na=args.na, nb=args.nb, normalization=args.normalization)
-        result = cross_validate(data, candidates, template=template, n_folds=args.folds)
+            result = select_model(data, template=template, penalties=args.penalties, lambdas=args.lambdas,
+                                  n_folds=args.folds)
         print(result.table())
         model = fit_best(data, result, template=template)
-        print(f"selected {result.best.label} by grouped {result.n_folds}-fold cross-validation")
     else:
-        model = CalibrationModel(args.degree, solver=make_solver(args), na=args.na, nb=args.nb,
-                                 normalization=args.normalization).fit(data)
+        model = template.clone(degree=args.degree, solver=make_solver(args)).fit(data)
     save_model(model, args.output, sources=[str(p) for p in args.data])
     report_fit(model, args.output)
     return 0

@@ -74,13 +74,21 @@ class Lasso:
         """
         return self.fit_path(problem, [self.lam])[0]
 
-    def fit_path(self, problem: ScaledProblem, lams: Sequence[float]) -> list[SolverResult]:
+    def fit_path(self, problem: ScaledProblem, lams: Sequence[float], *,
+                 eigen: tuple[np.ndarray, np.ndarray] | None = None,
+                 starts: Sequence[np.ndarray | None] | None = None) -> list[SolverResult]:
         """Solutions for each λ in ``lams`` (returned in the given order), warm-started from large to small λ.
 
         Parameters
         ----------
         problem : ScaledProblem
         lams : sequence of float > 0
+        eigen : (values, vectors), optional
+            ``numpy.linalg.eigh(problem.gram)`` when the caller has it (cross-validation
+            shares it with ridge); rank and condition number then come from these values.
+        starts : sequence of ndarray (p, n_outputs) or None, optional
+            Per λ, a solution of a nearby problem (the previous fold's) to start from
+            instead of the previous λ's.
 
         Returns
         -------
@@ -88,15 +96,22 @@ class Lasso:
         """
         lams = [check_float(lam, "lam", "Lasso", 0.0, low_inclusive=False) for lam in lams]
         with single_threaded_blas():
-            return self._fit_path(problem, lams)
+            return self._fit_path(problem, lams, eigen, starts)
 
-    def _fit_path(self, problem: ScaledProblem, lams: list[float]) -> list[SolverResult]:
-        values, vectors = np.linalg.eigh(problem.gram)
-        equilibrated = Conditioning.of(problem.gram)
+    def _fit_path(self, problem: ScaledProblem, lams: list[float], eigen, starts) -> list[SolverResult]:
+        if eigen is None:
+            values, vectors = np.linalg.eigh(problem.gram)
+            equilibrated = Conditioning.of(problem.gram)
+            rank, condition = equilibrated.rank, equilibrated.condition_number
+        else:
+            values, vectors = eigen
+            rank, condition = _rank_and_condition(values)
         state = _AdmmState.cold(problem, values)
         results: dict[int, SolverResult] = {}
         for index in sorted(range(len(lams)), key=lambda i: -lams[i]):
             state.rescale_dual(lams[index])
+            if starts is not None and starts[index] is not None:
+                state.start_from(problem, starts[index], lams[index])
             coef, info = _solve_one_lambda(problem, values, vectors, lams[index], state, self.max_iter)
             if not info["converged"]:
                 warnings.warn(
@@ -106,8 +121,16 @@ class Lasso:
                     FtcalWarning, stacklevel=2)
             info["lambda"] = lams[index]
             info["n_nonzero"] = np.count_nonzero(coef, axis=0).tolist()
-            results[index] = SolverResult(coef, equilibrated.rank, equilibrated.condition_number, info)
+            results[index] = SolverResult(coef, rank, condition, info)
         return [results[i] for i in range(len(lams))]
+
+
+def _rank_and_condition(values: np.ndarray) -> tuple[int, float]:
+    """Rank and condition number of A from the eigenvalues of AᵀA (ascending)."""
+    top = max(values[-1], 0.0)
+    keep = values > top * np.finfo(float).eps * max(values.size, 10) * 10
+    smallest = values[0]
+    return int(keep.sum()), float(np.sqrt(top / smallest)) if smallest > 0 else float("inf")
 
 
 class _AdmmState:
@@ -123,6 +146,12 @@ class _AdmmState:
         # Geometric mean of the spectrum's ends: a standard good ADMM step for QPs.
         rho0 = float(np.sqrt(positive[0] * positive[-1])) if positive.size else 1.0
         return cls(np.zeros((p, ny)), np.zeros((p, ny)), np.full(ny, rho0), None)
+
+    def start_from(self, problem: ScaledProblem, coef: np.ndarray, lam: float) -> None:
+        # The exact primal/dual pair of a nearby problem (w from the optimality conditions).
+        self.z = coef.copy()
+        self.w = (problem.cross - problem.gram @ coef) / self.rho
+        self.lam = lam
 
     def rescale_dual(self, lam: float) -> None:
         # w = y/ρ with y a subgradient of λ‖z‖₁; keep it consistent with the new λ.

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 import scipy.linalg
 
@@ -91,3 +93,27 @@ class Ridge:
         factor = scipy.linalg.cho_factor(system, lower=True, check_finite=False)
         coef = scipy.linalg.cho_solve(factor, problem.cross, check_finite=False)
         return SolverResult(coef, conditioning.rank, conditioning.condition_number, {"lambda": lam})
+
+    def fit_path(self, problem: ScaledProblem, lams: Sequence[float], *,
+                 eigen: tuple[np.ndarray, np.ndarray] | None = None) -> list[SolverResult]:
+        """Solutions for each λ in ``lams`` from one eigen-decomposition of G.
+
+        Parameters
+        ----------
+        problem : ScaledProblem
+        lams : sequence of float > 0
+        eigen : (values, vectors), optional
+            ``numpy.linalg.eigh(problem.gram)``, when the caller has it.
+
+        Returns
+        -------
+        list of SolverResult, one per λ (``info["lambda"]`` set)
+        """
+        lams = [check_float(lam, "lam", "Ridge", 0.0, low_inclusive=False) for lam in lams]
+        values, vectors = eigen if eigen is not None else np.linalg.eigh(problem.gram)
+        projected = vectors.T @ problem.cross
+        top = max(values[-1], 0.0)
+        rank = int(np.sum(values > top * np.finfo(float).eps * max(values.size, 10) * 10))
+        condition = float(np.sqrt(top / values[0])) if values[0] > 0 else float("inf")
+        return [SolverResult(vectors @ (projected / (values + lam)[:, None]), rank, condition, {"lambda": lam})
+                for lam in lams]
