@@ -13,7 +13,7 @@ from ftcal.errors import FtcalError
 from ftcal.model import CalibrationModel
 from ftcal.select import (PAPER_LAMBDAS, Candidate, cross_validate, default_candidates, fit_best, fit_candidates,
                           grouped_folds, select_model)
-from ftcal.solvers import Lasso
+from ftcal.solvers import Lasso, Ridge
 
 OUTPUTS = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
 
@@ -176,22 +176,37 @@ def test_auto_selection_never_loses_to_affine_by_more_than_the_fold_noise(rng):
         assert held_out_error(best, fresh) <= held_out_error(affine, fresh) + noise
 
 
-def test_lasso_grid_spans_three_decades_below_lambda_max_and_grows_at_the_small_edge(rng):
-    # Noise-free quadratic data: the least penalty is best, so the grid is extended downwards.
-    data = load_case_sensor(rng, 10, 50, nonlinear=True, noise=0.0)
+def test_lasso_grid_spans_three_decades_below_lambda_max(rng):
+    from ftcal.select import lasso_lambda_max
+    from ftcal.solvers.base import ScaledProblem
+
+    data = load_case_sensor(rng, 10, 50, nonlinear=True)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         result = select_model(data, degrees=(2,), penalties=("lasso",))
     lams = sorted(s.candidate.lam for s in result.scores if s.candidate.penalty == "lasso")
-    from ftcal.select import lasso_lambda_max
-    from ftcal.solvers.base import ScaledProblem
-
-    model = CalibrationModel(2, solver=Lasso(1.0))
-    frame = model.frame(data)
+    frame = CalibrationModel(2, solver=Lasso(1.0)).frame(data)
     stats = CalibrationModel.statistics(data, frame.layout, frame.input_normalization, frame.output_normalization)
     top = lasso_lambda_max(ScaledProblem.from_statistics(stats))
-    assert lams[-1] < top and np.isclose(lams[-1], top * 10 ** -0.3)
-    assert lams[0] < top * 1e-3 * 0.99  # extended past the default three decades
+    np.testing.assert_allclose(lams[-10:], top * 10.0 ** (-0.3 * np.arange(10, 0, -1)), rtol=1e-9)
+
+
+def test_ridge_grid_grows_past_its_heavy_edge_when_the_best_sits_there(rng):
+    # Zero-mean noise for outputs: the heaviest penalty (predict ~0) is best, so the grid grows upwards.
+    from ftcal.solvers.base import ScaledProblem
+
+    data = load_case_sensor(rng, 8, 40, nonlinear=False)
+    data = Dataset.from_arrays(data.inputs, rng.standard_normal(data.outputs.shape), input_names=data.input_names,
+                               output_names=OUTPUTS, groups=data.groups)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = select_model(data, degrees=(2,), penalties=("ridge",))
+    frame = CalibrationModel(2, solver=Ridge(1.0)).frame(data)
+    stats = CalibrationModel.statistics(data, frame.layout, frame.input_normalization, frame.output_normalization)
+    problem = ScaledProblem.from_statistics(stats)
+    default_top = np.trace(problem.gram) / problem.n_features
+    lams = [s.candidate.lam for s in result.scores if s.candidate.penalty == "ridge"]
+    assert max(lams) > 5 * default_top
 
 
 def test_fixed_lambdas_and_penalties(rng):
@@ -221,8 +236,6 @@ def test_degrees_past_a_worse_one_are_not_tried(rng):
 
 def test_ridge_prior_shrinks_toward_the_prior_exactly(rng):
     """½‖Aθ − y‖² + ½λ‖θ − θp‖² on the paper's regressor: θ = (AᵀA + λI)⁻¹(Aᵀy + λθp), by numpy."""
-    from ftcal.solvers import Ridge
-
     data = load_case_sensor(rng, 6, 50, nonlinear=True)
     prior = CalibrationModel(1).fit(load_case_sensor(np.random.default_rng(5), 6, 50, nonlinear=False))
     lam = 30.0
@@ -238,3 +251,33 @@ def test_ridge_prior_shrinks_toward_the_prior_exactly(rng):
     # A huge L1 weight leaves exactly the prior (θ − θp = 0).
     stuck = CalibrationModel(1, solver=Lasso(1e12), prior=prior).fit(data)
     np.testing.assert_allclose(stuck.predict(u), prior_on_u, rtol=0, atol=1e-8 * np.abs(data.outputs).max())
+
+
+def test_cli_selection_options_and_prior(tmp_path, capsys, rng):
+    import pandas as pd
+
+    from ftcal.cli import main
+    from ftcal.io.model_json import load_model
+
+    data = load_case_sensor(rng, 6, 40, nonlinear=True)
+    table = pd.DataFrame(data.inputs, columns=data.input_names)
+    table[list(OUTPUTS)] = data.outputs
+    table["case"] = data.groups
+    path = tmp_path / "cases.csv"
+    table.to_csv(path, index=False)
+    common = ["fit", str(path), "--inputs", "s1,s2,s3,s4", "--group-by", "case"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert main([*common, "--degree", "auto", "--penalties", "ridge", "--lambdas", "paper",
+                     "-o", str(tmp_path / "auto.json")]) == 0
+    out = capsys.readouterr().out
+    assert "np2 ridge λ=200" in out and "lasso" not in out.split("selected")[0]
+    # A heavy ridge toward a prior stays at the prior; without a penalty --prior is refused.
+    assert main([*common, "-o", str(tmp_path / "prior.json")]) == 0
+    assert main([*common, "--ridge", "1e9", "--prior", str(tmp_path / "prior.json"),
+                 "-o", str(tmp_path / "shrunk.json")]) == 0
+    prior, shrunk = load_model(tmp_path / "prior.json"), load_model(tmp_path / "shrunk.json")
+    np.testing.assert_allclose(shrunk.predict(data.inputs), prior.predict(data.inputs), rtol=0, atol=1e-4)
+    capsys.readouterr()
+    assert main([*common, "--prior", str(tmp_path / "prior.json"), "-o", str(tmp_path / "x.json")]) == 2
+    assert "--prior" in capsys.readouterr().err

@@ -35,7 +35,7 @@ from .errors import FtcalError, FtcalWarning, IllPosedFitWarning
 from .limits import PAPER_LAMBDAS
 from .model import CalibrationModel, FitFrame
 from .progress import progress_bar
-from .solvers.base import ScaledProblem, Solver, SolverResult
+from .solvers.base import ScaledProblem, Solver
 from .solvers.lasso import Lasso
 from .solvers.least_squares import LeastSquares, Ridge
 from .statistics import SufficientStatistics, sum_statistics
@@ -436,6 +436,11 @@ class _Search:
             best = min((s for c, s in self.scores.items() if c.degree == degree and c.penalty == penalty),
                        key=lambda s: s.score).candidate.lam
             factors = 10.0 ** (-step * np.arange(1, int(round(1.0 / step)) + 1))
+            plain = self.scores.get(Candidate(degree, "none", None))
+            if best == tried[0] and plain is not None and plain.score <= self.scores[
+                    Candidate(degree, penalty, best)].score:
+                # Smaller λ only moves toward least squares, which already scores better.
+                return
             if best == tried[0]:
                 new = tried[0] * factors
             elif best == tried[-1] and penalty == "ridge":
