@@ -75,8 +75,7 @@ class Lasso:
         return self.fit_path(problem, [self.lam])[0]
 
     def fit_path(self, problem: ScaledProblem, lams: Sequence[float], *,
-                 eigen: tuple[np.ndarray, np.ndarray] | None = None,
-                 starts: Sequence[np.ndarray | None] | None = None) -> list[SolverResult]:
+                 eigen: tuple[np.ndarray, np.ndarray] | None = None) -> list[SolverResult]:
         """Solutions for each λ in ``lams`` (returned in the given order), warm-started from large to small λ.
 
         Parameters
@@ -86,9 +85,6 @@ class Lasso:
         eigen : (values, vectors), optional
             ``numpy.linalg.eigh(problem.gram)`` when the caller has it (cross-validation
             shares it with ridge); rank and condition number then come from these values.
-        starts : sequence of ndarray (p, n_outputs) or None, optional
-            Per λ, a solution of a nearby problem (the previous fold's) to start from
-            instead of the previous λ's.
 
         Returns
         -------
@@ -96,9 +92,9 @@ class Lasso:
         """
         lams = [check_float(lam, "lam", "Lasso", 0.0, low_inclusive=False) for lam in lams]
         with single_threaded_blas():
-            return self._fit_path(problem, lams, eigen, starts)
+            return self._fit_path(problem, lams, eigen)
 
-    def _fit_path(self, problem: ScaledProblem, lams: list[float], eigen, starts) -> list[SolverResult]:
+    def _fit_path(self, problem: ScaledProblem, lams: list[float], eigen) -> list[SolverResult]:
         if eigen is None:
             values, vectors = np.linalg.eigh(problem.gram)
             equilibrated = Conditioning.of(problem.gram)
@@ -110,8 +106,6 @@ class Lasso:
         results: dict[int, SolverResult] = {}
         for index in sorted(range(len(lams)), key=lambda i: -lams[i]):
             state.rescale_dual(lams[index])
-            if starts is not None and starts[index] is not None:
-                state.start_from(problem, starts[index], lams[index])
             coef, info = _solve_one_lambda(problem, values, vectors, lams[index], state, self.max_iter)
             if not info["converged"]:
                 warnings.warn(
@@ -146,12 +140,6 @@ class _AdmmState:
         # Geometric mean of the spectrum's ends: a standard good ADMM step for QPs.
         rho0 = float(np.sqrt(positive[0] * positive[-1])) if positive.size else 1.0
         return cls(np.zeros((p, ny)), np.zeros((p, ny)), np.full(ny, rho0), None)
-
-    def start_from(self, problem: ScaledProblem, coef: np.ndarray, lam: float) -> None:
-        # The exact primal/dual pair of a nearby problem (w from the optimality conditions).
-        self.z = coef.copy()
-        self.w = (problem.cross - problem.gram @ coef) / self.rho
-        self.lam = lam
 
     def rescale_dual(self, lam: float) -> None:
         # w = y/ρ with y a subgradient of λ‖z‖₁; keep it consistent with the new λ.
