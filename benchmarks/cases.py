@@ -17,6 +17,8 @@ from itertools import combinations_with_replacement
 
 import numpy as np
 
+from benchmarks.bench_bags import CASES as BAG_CASES
+
 N_OUTPUTS = 6
 
 
@@ -309,9 +311,202 @@ def sklearn_predict(n: int, degree: int) -> dict:
     return {"seconds": seconds, "samples_per_s": n / seconds}
 
 
+# ----------------------------------------------------------------- payload identification
+def make_payload_data(n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Sensor orientations (quaternions x, y, z, w) and static readings of a 1.3 kg tool plus bias and noise."""
+    from scipy.spatial.transform import Rotation
+
+    rot = Rotation.random(n, random_state=seed)
+    g = rot.inv().apply([0.0, 0.0, -9.81])
+    com, bias = np.array([0.01, -0.02, 0.07]), np.array([3.0, -2.0, 5.0, 0.1, -0.2, 0.05])
+    wrench = np.c_[1.3 * g, np.cross(com, 1.3 * g)] + bias
+    wrench += np.random.default_rng(seed).normal(size=wrench.shape) * [0.3, 0.3, 0.3, 0.01, 0.01, 0.01]
+    return rot.as_quat(), wrench
+
+
+def ftcal_payload(n: int) -> dict:
+    """Quaternions → gravity, streaming per-axis statistics, weighted fit with standard errors."""
+    from ftcal.payload.accumulate import payload_statistics
+    from ftcal.payload.identify import identify_payload
+    from ftcal.payload.kinematics import Kinematics, gravity_from_quaternions
+
+    q, wrench = make_payload_data(n)
+    start = time.perf_counter()
+    gravity = gravity_from_quaternions(q)
+    fit = identify_payload({"all": payload_statistics(wrench, Kinematics(gravity))})
+    seconds = time.perf_counter() - start
+    return {"seconds": seconds, "mass": fit.mass}
+
+
+def numpy_payload_lstsq(n: int) -> dict:
+    """The stacked 6N × 10 regressor built with numpy, then ``numpy.linalg.lstsq`` (no weights, no stderr)."""
+    q, wrench = make_payload_data(n)
+    start = time.perf_counter()
+    x, y, z, w = q.T
+    g = -9.81 * np.column_stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)])
+    a = np.zeros((n, 6, 10))
+    a[:, :3, 0] = g
+    a[:, 3, 2], a[:, 3, 3] = g[:, 2], -g[:, 1]  # (m c) × g
+    a[:, 4, 1], a[:, 4, 3] = -g[:, 2], g[:, 0]
+    a[:, 5, 1], a[:, 5, 2] = g[:, 1], -g[:, 0]
+    a[:, :, 4:] = np.eye(6)
+    theta = np.linalg.lstsq(a.reshape(6 * n, 10), wrench.reshape(6 * n), rcond=None)[0]
+    seconds = time.perf_counter() - start
+    return {"seconds": seconds, "mass": float(theta[0])}
+# ------------------------------------------------- generated C (one core)
+C_DRIVER = r"""
+#include <stdio.h>
+#include <time.h>
+#include "bench_model.h"
+#define SAMPLES 1024
+int main(int argc, char **argv)
+{
+    static double u[SAMPLES][BENCH_MODEL_N_INPUTS];
+    double y[BENCH_MODEL_N_OUTPUTS], checksum = 0;
+    long n = argc > 1 ? atol(argv[1]) : 1000000, k;
+    struct timespec t0, t1;
+    int s, i;
+    for (s = 0; s < SAMPLES; ++s)
+        for (i = 0; i < BENCH_MODEL_N_INPUTS; ++i)
+            if (scanf("%lf", &u[s][i]) != 1) return 1;
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t0);
+    for (k = 0; k < n; ++k) {
+        bench_model_predict(u[k % SAMPLES], y);
+        checksum += y[k % BENCH_MODEL_N_OUTPUTS];  /* keeps every call alive */
+    }
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t1);
+    printf("%.9f %.17g\n", (t1.tv_sec - t0.tv_sec) + 1e-9 * (t1.tv_nsec - t0.tv_nsec), checksum);
+    return 0;
+}
+"""
+
+
+def c_predict(n: int, degree: int) -> dict:
+    """Generated C (``-O2``, one core): ``n`` calls of ``predict`` cycling over 1024 samples."""
+    import shutil
+    import subprocess
+    import tempfile
+    from pathlib import Path
+
+    from ftcal.dataset import Dataset
+    from ftcal.export.c_code import generate_c
+    from ftcal.model import CalibrationModel
+
+    cc = shutil.which("cc")
+    if cc is None:
+        raise RuntimeError("no system C compiler `cc` for the generated-C benchmark")
+    u, y = make_data(20_000)
+    model = CalibrationModel(degree).fit(Dataset.from_arrays(u, y))
+    code = generate_c(model, name="bench_model")
+    samples, _ = make_data(1024, seed=1)
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        (folder / "bench_model.h").write_text(code.header)
+        (folder / "bench_model.c").write_text(code.source)
+        (folder / "driver.c").write_text("#define _POSIX_C_SOURCE 199309L\n#include <stdlib.h>\n" + C_DRIVER)
+        compile_start = time.perf_counter()
+        subprocess.run([cc, "-std=c99", "-O2", "-c", "bench_model.c"], cwd=folder, check=True)
+        compile_seconds = time.perf_counter() - compile_start
+        subprocess.run([cc, "-std=c99", "-O2", "driver.c", "bench_model.o", "-o", "bench"], cwd=folder, check=True)
+        text = "\n".join(" ".join(repr(float(v)) for v in row) for row in samples)
+        out = subprocess.run([str(folder / "bench"), str(n)], input=text, capture_output=True, text=True,
+                             check=True).stdout.split()
+    seconds = float(out[0])
+    return {"seconds": seconds, "ns_per_sample": seconds / n * 1e9, "compile_seconds": compile_seconds,
+            "source_lines": code.source.count("\n")}
+
+
+def ftcal_predict_one(n: int, degree: int) -> dict:
+    """Python ``predict`` one sample per call (as a Python control loop would), and in one batch, one thread."""
+    import os
+
+    from ftcal.dataset import Dataset
+    from ftcal.model import CalibrationModel
+
+    u, y = make_data(20_000)
+    model = CalibrationModel(degree).fit(Dataset.from_arrays(u, y))
+    os.environ["FTCAL_THREADS"] = "1"  # one core, like the C figure
+    samples, _ = make_data(n, seed=1)
+    rows = [samples[k:k + 1] for k in range(n)]
+    model.predict(rows[0], warn_out_of_range=False)  # warm-up
+    start = time.perf_counter()
+    for row in rows:
+        model.predict(row, warn_out_of_range=False)
+    seconds = time.perf_counter() - start
+    batch, _ = make_data(200_000, seed=2)
+    batch_start = time.perf_counter()
+    model.predict(batch, warn_out_of_range=False)
+    batch_seconds = time.perf_counter() - batch_start
+    return {"seconds": seconds, "ns_per_call": seconds / n * 1e9, "batch_ns_per_sample": batch_seconds / 200_000 * 1e9}
+
+
+
+
+# ----------------------------------------------------------------- whole process, from a CSV file
+CSV_INPUTS = ("u1", "u2", "u3", "u4", "u5", "u6", "T")
+CSV_OUTPUTS = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
+
+PAPER_RECIPE_SCRIPT = """
+import sys
+import numpy as np
+import pandas as pd
+from benchmarks.cases import CSV_INPUTS, CSV_OUTPUTS, paper_features
+from ftcal.solvers.osqp_qp import OsqpLeastSquares
+
+frame = pd.read_csv(sys.argv[1])
+a = paper_features(frame[list(CSV_INPUTS)].to_numpy(), int(sys.argv[2]))
+a /= np.abs(a).max(axis=0)
+OsqpLeastSquares(eps=1e-4).fit_dense(a, frame[list(CSV_OUTPUTS)].to_numpy())
+"""
+
+
+def _csv(folder: str, n: int) -> str:
+    import pandas as pd
+
+    u, y = make_data(n)
+    path = f"{folder}/data.csv"
+    frame = pd.DataFrame(np.hstack([u, y]), columns=[*CSV_INPUTS, *CSV_OUTPUTS])
+    frame.to_csv(path, index=False)
+    return path
+
+
+def _timed_process(argv: list[str]) -> dict:
+    import subprocess
+
+    start = time.perf_counter()
+    done = subprocess.run(argv, capture_output=True, text=True)
+    seconds = time.perf_counter() - start
+    if done.returncode != 0:
+        raise RuntimeError(done.stderr[-2000:])
+    # The child's own peak memory (this process only waits).
+    return {"seconds": seconds, "child_peak_rss_mb": resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0}
+
+
+def ftcal_cli_fit(n: int, degree: int) -> dict:
+    """`ftcal fit data.csv --degree D` as a user runs it: start-up, imports, CSV reading, fit, model file."""
+    import tempfile
+    from pathlib import Path
+
+    with tempfile.TemporaryDirectory() as folder:
+        data = _csv(folder, n)
+        ftcal = str(Path(sys.executable).with_name("ftcal"))
+        return _timed_process([ftcal, "fit", data, "--degree", str(degree), "-o", f"{folder}/m.json"])
+
+
+def paper_recipe_cli(n: int, degree: int) -> dict:
+    """The paper's recipe as a script from the same CSV: pandas, dense max-abs regressor, OSQP per output."""
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as folder:
+        data = _csv(folder, n)
+        return _timed_process([sys.executable, "-c", PAPER_RECIPE_SCRIPT, data, str(degree)])
+
+
 CASES = {f.__name__: f for f in (ftcal_fit, ftcal_statistics, paper_recipe_fit, numpy_lstsq_fit, sklearn_fit,
-                                 ftcal_lasso, paper_lasso, sklearn_lasso, ftcal_predict, sklearn_predict,
-                                 select_auto, select_auto_baseline, select_auto_new)}
+                                 ftcal_cli_fit, paper_recipe_cli, ftcal_lasso, paper_lasso, sklearn_lasso,
+                                 ftcal_predict, sklearn_predict, ftcal_payload, numpy_payload_lstsq, c_predict,
+                                 ftcal_predict_one, select_auto, select_auto_baseline, select_auto_new)}
+CASES.update(BAG_CASES)  # bag reading: benchmarks/bench_bags.py
 
 
 if __name__ == "__main__":

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import warnings
 from math import comb
 
 import numpy as np
@@ -10,6 +11,7 @@ import pandas as pd
 import pytest
 
 from ftcal.cli import main
+from ftcal.errors import FtcalWarning
 from ftcal.io.model_json import load_model
 
 FORCES = ["Fx", "Fy", "Fz"]
@@ -87,3 +89,62 @@ def test_full_demo_shows_what_the_paper_shows(tmp_path):
     assert val[5] > val[4]
     # LASSO at degree 4 beats plain least squares at degree 4 for some lambda (Table III).
     assert min(r["validation"]["force_norm_rmse"] for r in lasso) < val[4]
+
+
+def test_adc_datasets_reach_the_firmware_matrix(quick_demo, tmp_path, capsys):
+    """README's firmware path: affine on the demo's ADC counts → matrix file → the board's arithmetic."""
+    out, _ = quick_demo
+    train = pd.read_parquet(out / "train.parquet")
+    train_adc = pd.read_parquet(out / "train-adc.parquet")
+    channels = [f"u{i}" for i in range(1, 7)]
+    counts = train_adc[channels].to_numpy()
+    assert counts.min() >= -32768 and counts.max() <= 32767  # signed 16-bit ADC
+    assert train_adc[FORCES].equals(train[FORCES]) and train_adc["T"].equals(train["T"])
+    # Counts are an affine image of the logged channels, so affine least squares on either predicts the same.
+    design = np.column_stack([train[channels].to_numpy(), np.ones(len(train))])
+    design_adc = np.column_stack([counts, np.ones(len(train))])
+    y = train[FORCES].to_numpy()
+    same = design @ np.linalg.lstsq(design, y, rcond=None)[0]
+    np.testing.assert_allclose(design_adc @ np.linalg.lstsq(design_adc, y, rcond=None)[0], same,
+                               rtol=0, atol=1e-7 * np.abs(y).max())
+    model_path, board = tmp_path / "affine-adc.json", tmp_path / "firmware"
+    assert main(["fit", str(out / "train-adc.parquet"), "--inputs", ",".join(channels), "-o", str(model_path)]) == 0
+    board.mkdir()
+    capsys.readouterr()
+    with warnings.catch_warnings():  # the CLI prints its warnings itself
+        warnings.simplefilter("always", FtcalWarning)
+        assert main(["convert", str(model_path), "--to", "icub-firmware", "--serial", "SN001", "-o", str(board)]) == 0
+    assert "warning: The iCub firmware calibration matrix has no offset term" in capsys.readouterr().err
+    lines = (board / "matrix_SN001.txt").read_text().split()
+    q15 = np.array([int(h, 16) - (0x10000 if int(h, 16) >= 0x8000 else 0) for h in lines[:36]]).reshape(6, 6)
+    full_scale = np.array([int(v) for v in lines[37:43]])
+    # The board: wrench_i = FS_i · Σ_j (q_ij / 32768) · raw_j / 32767, plus the tare the matrix cannot hold.
+    model = load_model(model_path)
+    board_wrench = counts @ (full_scale[:, None] * q15 / 32768 / 32767).T
+    tare = model.predict(np.zeros((1, 6)), warn_out_of_range=False)[0]
+    half_step = full_scale / 32767 / 32768 / 2
+    bound = np.abs(counts).sum(axis=1, keepdims=True) * half_step
+    assert np.all(np.abs(board_wrench + tare - model.predict(counts, warn_out_of_range=False)) <= bound * 1.001)
+
+
+def test_firmware_refusal_for_the_wrench_model_says_what_to_fit(quick_demo, tmp_path, capsys):
+    out, _ = quick_demo
+    model_path = tmp_path / "affine.json"
+    assert main(["fit", str(out / "train.parquet"), "-o", str(model_path)]) == 0
+    capsys.readouterr()
+    assert main(["convert", str(model_path), "--to", "icub-firmware", "-o", str(tmp_path / "m.txt")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "ADC-count channels" in err[0] and "train-adc.parquet" in err[0], err
+    assert not (tmp_path / "m.txt").exists()
+
+
+def test_the_paper_demo_also_records_the_arm_bag(quick_demo):
+    """README's ROS example reads ftcal-demo/arm after `make demo`: the arm scenario's ROS 2 bag."""
+    from ftcal.demo_arm import ARM_DEMO_SCENARIO as s
+    from ftcal.io.bags import BagTopics, read_bag
+
+    out, _ = quick_demo
+    stream = read_bag(out / "arm", BagTopics("/ft_sensor/wrench")).ft["/ft_sensor/wrench"]
+    # n_poses holds and n_poses - 1 moves at `rate`, both ends included
+    assert stream.n_samples == round((s.n_poses * (s.hold_s + s.move_s) - s.move_s) * s.rate) + 1
+    assert stream.frame == "ft_sensor"

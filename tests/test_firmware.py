@@ -102,3 +102,13 @@ def test_write_model_names_the_file_in_a_directory(tmp_path):
     assert written == tmp_path / "matrix_SN7.txt" and written.exists()
     with pytest.raises(FtcalError, match="give the sensor serial number"):
         write_model(affine_model(C), tmp_path, "icub-firmware")
+
+
+def test_inputs_that_are_not_adc_counts_are_refused_with_what_to_fit():
+    model = affine_model(C)
+    with pytest.raises(FtcalError, match=r"in other units \(s1 \[N\].*Fit a degree-1 model on the six raw ADC-count"):
+        firmware_matrix(model, input_units=["N"] * 6)
+    firmware_matrix(model, input_units=["counts"] * 6)  # declared counts pass
+    model.input_range_ = np.tile([-40000.0, 100.0], (6, 1))
+    with pytest.raises(FtcalError, match=r"in \[-32768, 32767\]; this model was trained on s1 \[-40000, 100\]"):
+        firmware_matrix(model)

@@ -4,10 +4,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from ftcal.alignment import align, timing
 from ftcal.errors import FtcalError, FtcalWarning
-from ftcal.io.logs import Recording, Stream, read_recording
-from ftcal.io.logs_quality import channel_issues, check_finite, smooth
-from ftcal.io.logs_sync import align, timing
+from ftcal.io.logs import read_recording
+from ftcal.io.recording import Recording, Stream
+from ftcal.signals import channel_issues, check_finite, smooth
 
 FT_COLS = tuple(f"u{i}" for i in range(1, 7))
 

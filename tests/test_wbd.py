@@ -72,3 +72,18 @@ def test_refusals():
         format_wbd(temperature_model(), "r arm")
     with pytest.raises(FtcalError, match="needs the sensor name"):
         write_model(temperature_model(), "unused.xml", "wbd")
+
+
+def test_convert_writes_the_temperature_group(tmp_path, capsys):
+    from ftcal.cli import main
+    from ftcal.io.model_json import save_model
+
+    path = tmp_path / "affine-t.json"
+    save_model(temperature_model(), path)
+    out = tmp_path / "wbd.xml"
+    assert main(["convert", str(path), "--to", "wbd", "--sensor", "r_arm_ft_sensor", "-o", str(out)]) == 0
+    g = groups(out.read_text())
+    # By hand: k = K, T_ref = (20 + 40) / 2 = 30, FT_OFFSET = −(O + 30 K); e.g. Fx: −(1 + 15) = −16.
+    np.testing.assert_allclose(g["FT_TEMPERATURE_COEFFICIENTS"], [0.5, -0.2, 1.0, 0.0, 0.01, -0.03, 30.0],
+                               rtol=1e-14)
+    np.testing.assert_allclose(g["FT_OFFSET"], [-16.0, 4.0, -27.0, -0.1, -0.5, 0.6], rtol=1e-13)

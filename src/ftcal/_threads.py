@@ -13,11 +13,13 @@ import os
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
+from functools import cache
 from typing import TypeVar
 
-from threadpoolctl import threadpool_limits
+from threadpoolctl import ThreadpoolController
 
 T = TypeVar("T")
+SMALL_CALL_ROWS = 64
 
 
 def worker_count() -> int:
@@ -28,10 +30,17 @@ def worker_count() -> int:
     return max(1, min(8, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1))
 
 
+@cache
+def _controller() -> ThreadpoolController:
+    # Scanning the loaded libraries costs milliseconds; a per-call scan made
+    # one-sample predictions a thousand times slower than the arithmetic.
+    return ThreadpoolController()
+
+
 @contextmanager
 def single_threaded_blas():
     """Limit BLAS to one thread inside the block."""
-    with threadpool_limits(limits=1, user_api="blas"):
+    with _controller().limit(limits=1, user_api="blas"):
         yield
 
 
@@ -46,6 +55,9 @@ def split_range(n: int, parts: int, align: int) -> list[tuple[int, int]]:
 def map_ranges(work: Callable[[int, int], T], n: int, align: int) -> list[T]:
     """Run ``work(start, stop)`` over ranges of 0..n in parallel threads, BLAS single-threaded."""
     ranges = split_range(n, worker_count(), align)
+    if n <= SMALL_CALL_ROWS:
+        # Products this small never start BLAS threads; limiting them costs more than the work.
+        return [work(a, b) for a, b in ranges]
     with single_threaded_blas():
         if len(ranges) <= 1:
             return [work(a, b) for a, b in ranges]

@@ -37,11 +37,29 @@ _RAW_CHUNK = 256
 
 
 def to_raw(model: CalibrationModel) -> np.ndarray:
-    """Coefficients of raw-input monomials, shape (n_features, n_outputs), in the model's column order."""
+    """Coefficients of raw-input monomials, shape (n_features, n_outputs), in the model's column order.
+
+    Entries that overflow float64 (tiny input scales at a high degree) come out as ±inf or
+    NaN, silently: writers use :func:`to_raw_finite`, which refuses them.
+    """
     model._check_fitted()
     inn, out = model.input_normalization_, model.output_normalization_
-    t = substitution_matrix(model.layout_, inn.offset, inn.scale, out.offset, out.scale)
-    return np.asarray(t @ model.coef_)
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        t = substitution_matrix(model.layout_, inn.offset, inn.scale, out.offset, out.scale)
+        return np.asarray(t @ model.coef_)
+
+
+def to_raw_finite(model: CalibrationModel, target: str) -> np.ndarray:
+    """:func:`to_raw`, or :class:`FtcalError` when a raw coefficient overflows (``target`` names the export)."""
+    raw = to_raw(model)
+    bad = ~np.isfinite(raw)
+    if bad.any():
+        row = int(np.argwhere(bad)[0][0])
+        name = model.layout_.column_names(model.input_names_, model.output_names_)[row]
+        raise FtcalError(f"{target}: the raw-input coefficient of {name!r} overflows float64 "
+                         f"({int(bad.sum())} coefficient(s) not finite; the inputs' training range is too "
+                         "narrow for this degree in raw units); keep the model in the JSON format.")
+    return raw
 
 
 def from_raw(raw_coef: np.ndarray, *, degree: int, input_names: Sequence[str],
@@ -122,9 +140,7 @@ def precision_loss(model: CalibrationModel, raw_coef: np.ndarray, *, n_points: i
     """
     model._check_fitted()
     rng = np.random.default_rng(seed)
-    inn = model.input_normalization_
-    low, high = _box(model.input_range_, inn.offset - inn.scale, inn.offset + inn.scale)
-    u = np.vstack([_corners(low, high, rng), rng.uniform(low, high, (n_points, low.size))])
+    u = sample_training_box(model, n_points, rng)
     layout = model.layout_
     if layout.is_static:
         native = model.predict(u, warn_out_of_range=False)
@@ -151,6 +167,19 @@ def precision_loss(model: CalibrationModel, raw_coef: np.ndarray, *, n_points: i
     return float(diff.max())
 
 
+def sample_training_box(model: CalibrationModel, n_points: int, rng: np.random.Generator) -> np.ndarray:
+    """Inputs spanning the training box: its corners plus ``n_points`` uniform samples.
+
+    Returns
+    -------
+    ndarray of shape (n_corners + n_points, n_inputs); where a training range is
+    unknown, the normalization's ±1 box stands in for it.
+    """
+    inn = model.input_normalization_
+    low, high = _box(model.input_range_, inn.offset - inn.scale, inn.offset + inn.scale)
+    return np.vstack([_corners(low, high, rng), rng.uniform(low, high, (n_points, low.size))])
+
+
 def _box(stored: np.ndarray, low_fallback: np.ndarray, high_fallback: np.ndarray):
     """Training box, falling back (where unknown) to the normalization's ±1 box."""
     finite = np.isfinite(stored).all(axis=1)
@@ -167,17 +196,20 @@ def _corners(low: np.ndarray, high: np.ndarray, rng: np.random.Generator) -> np.
     return np.where(pick, high, low)
 
 
-def affine_part(model: CalibrationModel, n_linear: int, target: str) -> tuple[np.ndarray, np.ndarray]:
+def affine_part(model: CalibrationModel, n_linear: int, target: str,
+                advice: str = "Export a degree-1 model without other terms, or use the JSON or paper-xml format."
+                ) -> tuple[np.ndarray, np.ndarray]:
     """Matrix (n_outputs, n_linear) and offset (n_outputs,) of a model affine in its first inputs.
 
     Raises :class:`FtcalError` naming the first other term (higher degree, lag,
     past output, or a later input such as temperature) with a nonzero raw
-    coefficient; ``target`` names the export in that message.
+    coefficient; ``target`` names the export in that message and ``advice``
+    ends it.
     """
     model._check_fitted()
     layout = model.layout_
     n_linear = min(n_linear, len(model.input_names_))
-    raw = to_raw(model)
+    raw = to_raw_finite(model, target)
     exps, lags = layout.exponent_rows()
     linear = [int(np.flatnonzero((lags == 0) & (exps.sum(axis=1) == 1) & (exps[:, i] == 1))[0])
               for i in range(n_linear)]
@@ -189,5 +221,5 @@ def affine_part(model: CalibrationModel, n_linear: int, target: str) -> tuple[np
             raise FtcalError(
                 f"{target} holds only an affine map of the inputs {kept}; this model's term "
                 f"{names[c]!r} has nonzero coefficients (largest |value| {np.max(np.abs(raw[c])):.3g}). "
-                "Export a degree-1 model without other terms, or use the JSON or paper-xml format.")
+                + advice)
     return raw[linear].T.copy(), raw[-1].copy()

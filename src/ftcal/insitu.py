@@ -27,16 +27,17 @@ from pathlib import Path
 
 import numpy as np
 
+from .alignment import Aligned, align
 from .dataset import DEFAULT_INPUTS, DEFAULT_OUTPUTS, Dataset, concatenate
 from .errors import FtcalError, FtcalWarning
-from .io.logs import read_recording, sensor_aliases
-from .io.logs_quality import channel_issues, smooth
-from .io.logs_sync import Aligned, align
+from .io.logs import read_recording
+from .io.recording import sensor_aliases
 from .robot.cache import cache_key, cached
 from .robot.expected import GRAVITY, FloatingBase, expected_wrenches
 from .robot.loadcases import LoadCase, LoadCaseConfig
 from .robot.model import RobotModel
 from .robot.payloads import Payload
+from .signals import channel_issues, smooth
 
 
 @dataclass(frozen=True)
@@ -54,8 +55,13 @@ class InsituOptions:
         channels so its first sample equals the expected wrench there
     joint_units : "rad" or "deg" (joint data in the logs)
     adc_limits : (low, high) raw values that mean the ADC saturated, or None
-    cache : reuse expected wrenches stored next to the recordings
+    cache : reuse expected wrenches from the cache (see ftcal.robot.cache)
+    cache_dir : folder of the cache, or None for the user cache folder (~/.cache/ftcal)
     workers : processes for the expected wrenches
+    payload_link : link of an unknown payload to estimate later with the calibration
+        (``ftcal fit --estimate-payload``): the dataset then also holds its regressor
+        columns ``Y_<link>_<output>_<parameter>`` (4 parameters m, mcx, mcy, mcz for static
+        data; all 10 with ``derivatives`` or an IMU), see :mod:`ftcal.unknown_load`
     """
 
     base: str | None = None
@@ -71,7 +77,9 @@ class InsituOptions:
     joint_units: str = "rad"
     adc_limits: tuple[float, float] | None = None
     cache: bool = True
+    cache_dir: str | Path | None = None
     workers: int = 2
+    payload_link: str | None = None
 
 
 def build_dataset(recordings: Sequence[str | Path], robot: RobotModel, sensor: str, *,
@@ -117,13 +125,38 @@ def recording_dataset(path: str | Path, robot: RobotModel, sensor: str, case: Lo
     names = DEFAULT_INPUTS if temp is not None else DEFAULT_INPUTS[:6]
     inputs = raw if temp is None else np.column_stack([raw, temp])
     n = inputs.shape[0]
-    ds = Dataset.from_arrays(inputs, expected, input_names=names, output_names=DEFAULT_OUTPUTS,
+    outputs, output_names = expected, DEFAULT_OUTPUTS
+    if options.payload_link is not None:
+        columns, regressor = _payload_regressor(path, robot, ft_sensor.name, data, options)
+        outputs = np.column_stack([expected, regressor.reshape(n, -1)])
+        output_names = DEFAULT_OUTPUTS + columns
+    ds = Dataset.from_arrays(inputs, outputs, input_names=names, output_names=output_names,
                              segments=np.full(n, segment), groups=np.full(n, case.name, dtype=object))
     return dataclasses.replace(ds, sources=(str(path),))
 
 
+def _payload_regressor(path: Path, robot: RobotModel, sensor: str, data: Aligned,
+                       options: InsituOptions) -> tuple[tuple[str, ...], np.ndarray]:
+    """Column names and (n_samples, 6, k) regressor of the unknown payload on ``options.payload_link``."""
+    from .payload.regressor import INERTIAL_PARAMETERS
+    from .robot.kinematics import N_STATIC_PARAMETERS, payload_regressor
+    from .unknown_load import payload_column
+
+    where = f"Recording {path} joints_state"
+    q = robot.joint_matrix(data.joint_names, data.q, where)
+    dq = None if data.dq is None else robot.joint_matrix(data.joint_names, data.dq, where)
+    ddq = None if data.ddq is None else robot.joint_matrix(data.joint_names, data.ddq, where)
+    floating = None if options.imu_frame is None else FloatingBase(options.imu_frame, data.accelerometer, data.gyro)
+    static = dq is None and ddq is None and floating is None
+    regressor = payload_regressor(robot, sensor, options.payload_link, q, dq, ddq, base=options.base,
+                                  gravity=options.gravity, floating=floating, static=static)
+    parameters = INERTIAL_PARAMETERS[:N_STATIC_PARAMETERS] if static else INERTIAL_PARAMETERS
+    columns = tuple(payload_column(options.payload_link, o, p) for o in DEFAULT_OUTPUTS for p in parameters)
+    return columns, regressor
+
+
 def _expected(path: Path, robot: RobotModel, data: Aligned, options: InsituOptions) -> np.ndarray:
-    """Expected wrenches of all sensors, (n_samples, n_sensors, 6), cached next to the recording."""
+    """Expected wrenches of all sensors, (n_samples, n_sensors, 6), cached (see ftcal.robot.cache)."""
     where = f"Recording {path} joints_state"
     q = robot.joint_matrix(data.joint_names, data.q, where)
     dq = None if data.dq is None else robot.joint_matrix(data.joint_names, data.dq, where)
@@ -143,7 +176,7 @@ def _expected(path: Path, robot: RobotModel, data: Aligned, options: InsituOptio
     if not options.cache:
         return compute()
     key = cache_key(robot, arrays, (base, tuple(options.gravity), options.imu_frame))
-    return cached(path, key, [s.name for s in robot.ft_sensors], compute)
+    return cached(key, [s.name for s in robot.ft_sensors], q.shape[0], compute, options.cache_dir)
 
 
 def write_dataset(dataset: Dataset, path: str | Path) -> None:

@@ -1,32 +1,55 @@
-"""``ftcal convert``: write a model in another format."""
+"""``ftcal convert``: write a model or payload file in another format (targets: :mod:`ftcal.export.targets`)."""
 
 from __future__ import annotations
 
+from ..export.targets import TARGETS
 
-SUFFIXES = {"json": (".json",), "paper-xml": (".xml",)}
+
+def safe_name(text: str) -> str:
+    import argparse
+
+    from .._checks import check_safe_name
+    from ..errors import FtcalError
+
+    try:
+        return check_safe_name(text, "")
+    except FtcalError:
+        raise argparse.ArgumentTypeError(f"{text!r}: use 1 to 64 letters, digits, '_', '-' or '.' (not first); "
+                                         "it becomes part of a file name") from None
 
 
 def register(sub) -> None:
-    p = sub.add_parser("convert", help="convert a model file (json, paper-xml, icub-firmware, wbd)")
-    p.add_argument("model", metavar="MODEL", help="ftcal JSON or paper XML model file")
-    p.add_argument("--to", required=True, choices=("json", "paper-xml", "icub-firmware", "wbd"))
+    listing = "; ".join(f"{name}: {spec.summary}" for name, spec in TARGETS.items())
+    p = sub.add_parser("convert", help=f"convert a model or payload file ({', '.join(TARGETS)})")
+    p.add_argument("model", metavar="FILE",
+                   help="ftcal JSON or paper XML model file, or an ftcal payload file (ros-yaml, ft-tools-ros2)")
+    # Checked by the registry, not argparse choices, so an unknown target is one error line.
+    p.add_argument("--to", required=True, metavar="TARGET", help=f"output format ({listing})")
     p.add_argument("-o", "--output", required=True, metavar="OUT",
-                   help="output file (for icub-firmware: a file or a directory for matrix_<serial>.txt)")
-    p.add_argument("--serial", help="sensor serial number for the firmware file name")
+                   help="output file; for icub-firmware a file or a directory for matrix_<serial>.txt; "
+                        "for c a directory for NAME.h and NAME.c")
+    p.add_argument("--serial", type=safe_name, help="sensor serial number for the firmware file name "
+                                                  "(letters, digits, '_', '-', '.')")
     p.add_argument("--sensor", help="sensor name in the wholeBodyDynamics configuration (wbd)")
+    p.add_argument("--name", help="C identifier prefixing the generated files and functions (c; default "
+                                  "ftcal_model)")
+    p.add_argument("--float", dest="single_precision", action="store_true",
+                   help="generate single-precision C (c; reports the measured error against double)")
+    p.add_argument("--frame", help="ros-yaml: gripper_com_frame_id, the F/T sensor frame (default: the payload "
+                                   "file's frame)")
+    p.add_argument("--com-frame", help="ros-yaml: gripper_com_child_frame_id, the name of the COM frame "
+                                       "(default gripper_com)")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
-    from ..io.model_files import read_model_file, write_model
+    from ..export.targets import convert
 
-    from ._common import require_suffix
-
-    if args.to in SUFFIXES:
-        require_suffix(args.output, SUFFIXES[args.to], "-o")
-    loaded = read_model_file(args.model)
-    written = write_model(loaded.model, args.output, args.to, sources=loaded.sources or (args.model,),
-                          input_units=loaded.input_units, output_units=loaded.output_units,
-                          serial=args.serial, sensor=args.sensor)
-    print(f"wrote {written}")
+    written = convert(args.model, args.to, args.output,
+                      {"serial": args.serial, "sensor": args.sensor, "name": args.name,
+                       "single_precision": args.single_precision, "frame": args.frame,
+                       "com_frame": args.com_frame})
+    for note in written.notes:
+        print(note)
+    print(f"wrote {', '.join(str(p) for p in written.paths)}")
     return 0

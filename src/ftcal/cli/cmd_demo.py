@@ -1,26 +1,72 @@
-"""``ftcal demo``: the paper's experiment on simulated data, end to end."""
+"""``ftcal demo``: the paper's experiment (or the arm scenario) on simulated data, end to end."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
+
+from ._common import nonnegative_int
+
+SCENARIOS = ("paper", "arm")
 
 
 def register(sub) -> None:
-    p = sub.add_parser("demo", help="simulate the paper's experiment and calibrate (no robot needed)")
-    p.add_argument("--out", default="ftcal-demo", metavar="DIR",
-                   help="folder for recordings, summary.json and report.html (default ftcal-demo/)")
-    p.add_argument("--seed", type=int, default=0, help="simulation seed (default 0)")
-    p.add_argument("--quick", action="store_true", help="a smaller experiment (a few recordings)")
+    p = sub.add_parser("demo", help="simulate the paper's experiment (or --scenario arm) and calibrate "
+                                    "(no robot needed)")
+    p.add_argument("--scenario", default="paper", metavar="NAME",
+                   help="paper: the paper's iCub experiment (default; also writes the arm scenario's ROS 2 bag "
+                        "to DIR/arm); arm: a wrist sensor with an unknown gripper, from a ROS 2 bag")
+    p.add_argument("--out", metavar="DIR",
+                   help="folder for the recordings, models, summary.json, report.html and the inputs "
+                        "README.md's examples use (default ftcal-demo/, ftcal-arm-demo/ for --scenario arm)")
+    p.add_argument("--seed", type=nonnegative_int, default=0, help="simulation seed, >= 0 (default 0)")
+    p.add_argument("--quick", action="store_true", help="a smaller experiment (a few recordings; arm: 8 poses)")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
     from ..demo import DemoConfig, format_tables, run_demo
+    from ..demo_arm import BAG_NAME, write_demo_bag
+    from ..errors import FtcalError
 
-    out = Path(args.out)
+    if args.scenario not in SCENARIOS:
+        raise FtcalError(f"--scenario {args.scenario}: unknown scenario; choose one of {', '.join(SCENARIOS)}.")
+    if args.scenario == "arm":
+        return run_arm(args)
+    out = output_folder(args.out or "ftcal-demo")
     summary = run_demo(DemoConfig(out_dir=out, seed=args.seed, quick=args.quick))
     print(format_tables(summary))
     print(f"\n{summary['n_train_samples']} training / {summary['n_validation_samples']} validation samples; "
           f"done in {summary['elapsed_s']:.0f} s")
     print(f"wrote {out / 'summary.json'} and {out / 'report.html'}")
+    print(f"wrote {write_demo_bag(out / BAG_NAME).path} (ROS 2 bag of the arm scenario, see --scenario arm)")
     return 0
+
+
+def run_arm(args) -> int:
+    import dataclasses
+
+    from ..demo_arm import ARM_DEMO_SCENARIO, ARM_QUICK, ArmDemoConfig, format_arm_tables, run_arm_demo
+
+    scenario = dataclasses.replace(ARM_DEMO_SCENARIO, seed=args.seed, **(ARM_QUICK if args.quick else {}))
+    summary = run_arm_demo(ArmDemoConfig(out_dir=output_folder(args.out or "ftcal-arm-demo"), scenario=scenario))
+    print(format_arm_tables(summary))
+    print(f"\n{summary['n_samples']} samples; done in {summary['elapsed_s']:.0f} s")
+    print("wrote " + ", ".join(summary["files"]))
+    return 0
+
+
+def output_folder(path: str) -> Path:
+    """``--out``: a writable folder, made if missing; one-line errors otherwise."""
+    from ..errors import FtcalError
+
+    out = Path(path)
+    if out.exists() and not out.is_dir():
+        raise FtcalError(f"--out {out}: exists and is not a folder; give a folder for the demo's files.")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise FtcalError(f"--out {out}: cannot create the folder ({exc.strerror or exc}).") from None
+    if not os.access(out, os.W_OK | os.X_OK):
+        raise FtcalError(f"--out {out}: the folder is not writable.")
+    return out

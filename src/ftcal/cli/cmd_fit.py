@@ -48,9 +48,9 @@ def register(sub) -> None:
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("data", nargs="+", metavar="DATA", help="CSV or Parquet files (each one segment and group)")
     add_column_options(p)
-    p.add_argument("--degree", type=degree_value, default=1,
-                   help=f"polynomial degree 1-5 (up to {MAX_DEGREE}), or 'auto' for grouped cross-validation "
-                        "(default 1)")
+    p.add_argument("--degree", type=degree_value,
+                   help=f"polynomial degree, 1 to {MAX_DEGREE} (the paper fits 1 to 5), or 'auto' for grouped "
+                        "cross-validation over 1 to 5 (default 1: affine)")
     penalty = p.add_mutually_exclusive_group()
     penalty.add_argument("--lasso", type=positive_float, metavar="LAMBDA",
                          help="LASSO: minimize 1/2|A t - y|^2 + LAMBDA |t|_1 on the paper's regressor A (raw "
@@ -81,6 +81,13 @@ def register(sub) -> None:
                    help="shrink toward this model (e.g. the workbench or last month's calibration) instead of "
                         "toward zero: the --ridge/--lasso penalty acts on theta - theta_prior (same inputs, "
                         "outputs and lags, degree at most this fit's)")
+    p.add_argument("--estimate-payload", metavar="LINK",
+                   help="estimate an unknown payload on LINK (mass, first moments; inertia with dynamic data) from "
+                        "the same data, then fit the calibration to the completed wrench; needs a dataset from "
+                        "'ftcal dataset --estimate-payload LINK'")
+    p.add_argument("--payload-mass", type=positive_float, metavar="KG",
+                   help="known mass of that payload (needed when nothing else beyond the sensor moves relative "
+                        "to LINK: the mass would trade against the force gains)")
     p.add_argument("-o", "--output", required=True, metavar="MODEL.json", help="model file to write")
     p.set_defaults(func=run)
 
@@ -101,7 +108,9 @@ def make_solver(args):
 
 def check_options(args) -> None:
     """Option combinations that cannot work, refused before any data is read."""
-    from ..errors import FtcalError
+    import warnings
+
+    from ..errors import FtcalError, FtcalWarning
 
     if args.solver == "osqp" and args.ridge:
         raise FtcalError("--solver osqp implements the paper's least-squares and LASSO programs, not --ridge.")
@@ -110,6 +119,11 @@ def check_options(args) -> None:
     if args.prior and args.degree != "auto" and not (args.lasso or args.ridge):
         raise FtcalError("--prior shrinks a penalized fit toward another model; add --ridge or --lasso "
                          "(or --degree auto).")
+    if args.degree is None:
+        if args.lasso or args.ridge:
+            warnings.warn(f"--{'lasso' if args.lasso else 'ridge'} without --degree fits degree 1 (affine); "
+                          "give --degree (the paper's LASSO models are degree 4).", FtcalWarning, stacklevel=2)
+        args.degree = 1
     if args.folds < 2:
         raise FtcalError(f"--folds must be at least 2; got {args.folds}.")
     for flag in ("na", "nb"):
@@ -118,17 +132,23 @@ def check_options(args) -> None:
 
 
 def run(args) -> int:
+    from ..fingerprint import segment_fingerprints
     from ..io.model_json import save_model
     from ..io.tables import read_dataset
     from ..model import CalibrationModel
+    from ._fit_payload import check_payload_options, read_with_payload
 
     require_suffix(args.output, (".json",), "-o")
     check_options(args)
+    check_payload_options(args)
     inputs = args.inputs or default_inputs(args.data)
     outputs = args.outputs or ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
-    data = read_dataset(args.data, inputs, outputs, segment_by=args.segment_by, group_by=args.group_by)
-    print(f"read {data.n_samples} samples from {len(args.data)} file(s): inputs {','.join(inputs)} "
-          f"-> outputs {','.join(outputs)}", file=sys.stderr)
+    if args.estimate_payload is not None:
+        data = read_with_payload(args, inputs, outputs)
+    else:
+        data = read_dataset(args.data, inputs, outputs, segment_by=args.segment_by, group_by=args.group_by)
+        print(f"read {data.n_samples} samples from {len(args.data)} file(s): inputs {','.join(inputs)} "
+              f"-> outputs {','.join(outputs)}", file=sys.stderr)
     prior = None
     if args.prior:
         from ..io.model_files import read_model
@@ -149,7 +169,8 @@ def run(args) -> int:
         model = fit_best(data, result, template=template)
     else:
         model = template.clone(degree=args.degree, solver=make_solver(args)).fit(data)
-    save_model(model, args.output, sources=[str(p) for p in args.data])
+    save_model(model, args.output, sources=[str(p) for p in args.data],
+               training_segments=segment_fingerprints(data))
     report_fit(model, args.output)
     return 0
 

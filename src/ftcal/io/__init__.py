@@ -1,1 +1,1 @@
-"""Readers and writers: tables, robot logs, model files."""
+"""Readers and writers: tables, robot logs, ROS bags, model files."""

@@ -1,135 +1,89 @@
-"""Robot recordings: raw F/T channels, temperatures and joint data, each on its own clock.
+"""Open any robot log: a suffix → reader registry.
 
-:func:`read_recording` opens
+:func:`read_recording` picks the reader by the file's suffix in
+:data:`READERS`; a reader takes the path (and its own keyword options) and
+returns a :class:`~ftcal.io.recording.Recording`. Adding a log format is one
+module plus one line here. Today:
 
-* YARP robot-logger ``.mat`` files, v7.3 (HDF5) and v5 (FORMATS.md §4), see
+* YARP robot-logger ``.mat`` files, v7.3 (HDF5) and v5 (docs/formats.md §4), see
   :mod:`ftcal.io.logs_mat`;
 * CSV/Parquet tables, one row per sample, see :mod:`ftcal.io.logs_table` for
-  the column convention.
+  the column convention;
+* ROS 1 ``.bag`` files, ROS 2 bag folders, ``.db3`` and ``.mcap`` files, see
+  :mod:`ftcal.io.bags` (their reader takes ``topics=BagTopics(...)``).
 
-A :class:`Recording` keeps every stream with its own timestamps;
-:func:`ftcal.io.logs_sync.align` puts the streams one sensor needs on one
-clock, and :mod:`ftcal.io.logs_quality` checks and smooths them.
-
-Units: time in seconds, joint positions in radians (``joint_units="deg"``
-converts degrees), velocities rad/s, accelerations rad/s², F/T channels as
-logged, temperature as logged (°C on the iCub).
+``joint_units="deg"`` converts logged joint data from degrees to radians.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import dataclasses
+import importlib
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from ..errors import FtcalError
+from .recording import Recording, Stream
+
+# suffix (lower case) → "module:function"; imported on first use so opening a .csv never loads h5py.
+READERS: dict[str, str] = {
+    ".mat": "ftcal.io.logs_mat:read_mat",
+    ".csv": "ftcal.io.logs_table:read_table_recording",
+    ".parquet": "ftcal.io.logs_table:read_table_recording",
+    ".pq": "ftcal.io.logs_table:read_table_recording",
+    ".bag": "ftcal.io.bags:read_bag",
+    ".db3": "ftcal.io.bags:read_bag",
+    ".mcap": "ftcal.io.bags:read_bag",
+    "/": "ftcal.io.bags:read_bag",  # a ROS 2 bag folder
+}
 
 
-@dataclass(frozen=True)
-class Stream:
-    """One logged signal with its own clock.
+def log_format(path: Path) -> str:
+    """The registry key of ``path``: its lower-case suffix, or ``"/"`` for a folder."""
+    return "/" if path.is_dir() else path.suffix.lower()
 
-    time : ndarray of shape (n_samples,), seconds
-    data : ndarray of shape (n_samples, n_columns)
-    columns : one name per column
-    name : where it came from, for messages (e.g. ``FTs/r_arm_ft``)
+
+def read_recording(path: str | Path, joint_units: str = "rad", **options: Any) -> Recording:
+    """Read a recording with the reader registered for its suffix.
+
+    Parameters
+    ----------
+    path : str or Path
+        The log file.
+    joint_units : {"rad", "deg"}
+        Unit of the logged joint data; degrees are converted to radians.
+    **options
+        Passed to the format's reader.
+
+    Returns
+    -------
+    Recording
+
+    Raises
+    ------
+    FtcalError
+        If the file does not exist, its format is unknown, or its reader rejects it.
     """
-
-    name: str
-    time: np.ndarray
-    data: np.ndarray
-    columns: tuple[str, ...]
-
-    def __post_init__(self) -> None:
-        if self.data.ndim != 2 or self.data.shape[1] != len(self.columns):
-            raise FtcalError(f"{self.name}: data has shape {self.data.shape}; expected "
-                             f"(n_samples, {len(self.columns)}).")
-        if self.time.shape != (self.data.shape[0],):
-            raise FtcalError(f"{self.name}: {self.time.shape[0] if self.time.ndim else 0} timestamps "
-                             f"but {self.data.shape[0]} samples (mismatched lengths).")
-
-    @property
-    def n_samples(self) -> int:
-        return int(self.time.shape[0])
-
-
-@dataclass(frozen=True)
-class Recording:
-    """All streams of one recording file.
-
-    ft, temperature : sensor name as in the file → stream (6 columns / 1 column)
-    joints : joint positions (columns = joint names), or None
-    joint_velocities, joint_accelerations : same columns as ``joints``, or None
-    accelerometers, gyros : IMU name → stream with 3 columns
-    """
-
-    path: Path
-    ft: dict[str, Stream]
-    temperature: dict[str, Stream] = field(default_factory=dict)
-    joints: Stream | None = None
-    joint_velocities: Stream | None = None
-    joint_accelerations: Stream | None = None
-    accelerometers: dict[str, Stream] = field(default_factory=dict)
-    gyros: dict[str, Stream] = field(default_factory=dict)
-
-    def ft_stream(self, *aliases: str) -> Stream:
-        """The F/T stream logged under any of ``aliases`` (``r_arm_ft`` / ``r_arm_ft_sensor``)."""
-        return _pick(self.ft, aliases, f"{self.path}: no F/T stream for sensor", "FTs")
-
-    def temperature_stream(self, *aliases: str) -> Stream:
-        return _pick(self.temperature, aliases, f"{self.path}: no temperature stream for sensor", "temperatures")
-
-    def joint_stream(self) -> Stream:
-        if self.joints is None:
-            raise FtcalError(f"{self.path}: no joint positions (joints_state.positions) in the recording.")
-        return self.joints
-
-
-def sensor_aliases(*names: str) -> tuple[str, ...]:
-    """Both naming styles of each name: with and without the ``_sensor`` suffix."""
-    out: list[str] = []
-    for name in names:
-        stem = name.removesuffix("_sensor")
-        for alias in (name, stem, stem + "_sensor"):
-            if alias not in out:
-                out.append(alias)
-    return tuple(out)
-
-
-def _pick(streams: dict[str, Stream], aliases: tuple[str, ...], message: str, group: str) -> Stream:
-    wanted = sensor_aliases(*aliases)
-    found = [streams[a] for a in wanted if a in streams]
-    if not found:
-        have = ", ".join(sorted(streams)) or "none"
-        raise FtcalError(f"{message} {aliases[0]!r} ({group} has: {have}).")
-    return found[0]
-
-
-def read_recording(path: str | Path, joint_units: str = "rad") -> Recording:
-    """Read a ``.mat`` (v5 or v7.3), ``.csv`` or ``.parquet`` recording."""
     path = Path(path)
-    if not path.is_file():
-        raise FtcalError(f"Recording {path}: no such file.")
-    suffix = path.suffix.lower()
-    if suffix == ".mat":
-        from .logs_mat import read_mat
-        recording = read_mat(path)
-    elif suffix in (".csv", ".parquet", ".pq"):
-        from .logs_table import read_table_recording
-        recording = read_table_recording(path)
-    else:
-        raise FtcalError(f"Recording {path}: unknown format {suffix!r}; use .mat, .csv or .parquet.")
-    if joint_units == "deg":
-        return _joints_in_radians(recording)
-    if joint_units != "rad":
+    if joint_units not in ("rad", "deg"):
         raise FtcalError(f"The 'joint_units' parameter must be 'rad' or 'deg'. Got {joint_units!r} instead.")
-    return recording
+    if not path.exists():
+        raise FtcalError(f"Recording {path}: no such file.")
+    key = log_format(path)
+    if key not in READERS:
+        what = "a folder" if key == "/" else f"of unknown format {key!r}"
+        known = ", ".join(k for k in sorted(READERS) if k != "/")
+        raise FtcalError(f"Recording {path}: is {what}; use {known}.")
+    module, function = READERS[key].split(":")
+    recording = getattr(importlib.import_module(module), function)(path, **options)
+    return _joints_in_radians(recording) if joint_units == "deg" else recording
 
 
 def _joints_in_radians(rec: Recording) -> Recording:
     def conv(s: Stream | None) -> Stream | None:
-        return None if s is None else Stream(s.name, s.time, np.deg2rad(s.data), s.columns)
+        return None if s is None else dataclasses.replace(s, data=np.deg2rad(s.data))
 
-    return Recording(rec.path, rec.ft, rec.temperature, conv(rec.joints), conv(rec.joint_velocities),
-                     conv(rec.joint_accelerations), rec.accelerometers, rec.gyros)
+    return dataclasses.replace(rec, joints=conv(rec.joints), joint_velocities=conv(rec.joint_velocities),
+                               joint_accelerations=conv(rec.joint_accelerations))

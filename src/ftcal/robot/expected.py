@@ -17,6 +17,10 @@ the parent side (the iCub arms and legs seen from ``root_link``), the force is
 the weight of everything beyond the sensor: ``F = M · g`` with ``g`` the
 gravity vector in sensor axes and ``M`` the mass beyond the sensor, and
 ``T = Σ m_i c_i × g`` with ``c_i`` the centres of mass relative to the sensor.
+This is iDynTree's and Gazebo's ``child_to_parent`` measure direction, the one
+of sensors declared with ``--ft-joint`` (:mod:`ftcal.robot.declare`) and the
+ROS force_torque_tools convention; a Gazebo tag saying ``parent_to_child``
+gets the opposite sign, as that simulated sensor reports.
 
 Kinematics
 ----------
@@ -39,15 +43,17 @@ URDF text and payloads.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass
 import multiprocessing
+import signal
+import threading
+from dataclasses import dataclass
 
 import numpy as np
 
 from .._checks import check_int
 from ..errors import FtcalError
 from ..progress import progress_bar
+from .declare import SensorDeclaration
 from .model import RobotModel
 from .payloads import Payload
 
@@ -89,13 +95,15 @@ class WrenchPredictor:
         model = robot.model
         self.n_dofs = model.getNrOfDOFs()
         self.n_sensors = len(robot.ft_sensors)
-        if self.n_sensors == 0:
-            raise FtcalError(f"URDF {robot.source} has no six-axis F/T sensor (<sensor type=\"force_torque\">).")
+        robot.require_ft_sensors()
         # Only the F/T sensors: iDynTree would otherwise also predict every IMU of the model.
         only_ft = idyn.SensorsList()
         for s in robot.ft_sensors:
             only_ft.addSensor(robot.sensors.getSixAxisForceTorqueSensor(s.index))
         self.base_index, self.base = robot.base_frame(base)
+        gravity = np.asarray(gravity, dtype=float)
+        if gravity.shape != (3,) or not np.isfinite(gravity).all():
+            raise FtcalError(f"gravity must be three finite numbers (m/s², base-frame axes); got {gravity.tolist()}.")
         self.estimator = idyn.ExtWrenchesAndJointTorquesEstimator()
         if not self.estimator.setModelAndSensors(model, only_ft):
             raise FtcalError(f"iDynTree could not set up the estimator for URDF {robot.source}.")
@@ -156,9 +164,9 @@ def expected_wrenches(robot: RobotModel, q: np.ndarray, *, dq: np.ndarray | None
     ``if __name__ == "__main__":`` guard); a progress bar shows the samples done.
     """
     workers = check_int(workers, "workers", "expected_wrenches", 1, 64)
-    q = _check_joints(robot, q, "joint positions")
-    dq = None if dq is None else _check_joints(robot, dq, "joint velocities", q.shape[0])
-    ddq = None if ddq is None else _check_joints(robot, ddq, "joint accelerations", q.shape[0])
+    q = check_joints(robot, q, "joint positions")
+    dq = None if dq is None else check_joints(robot, dq, "joint velocities", q.shape[0])
+    ddq = None if ddq is None else check_joints(robot, ddq, "joint accelerations", q.shape[0])
     if floating is not None and not robot.model.isFrameNameUsed(floating.frame):
         raise FtcalError(f"URDF {robot.source} has no frame named {floating.frame!r} (IMU frame).")
     n = q.shape[0]
@@ -178,17 +186,24 @@ def expected_wrenches(robot: RobotModel, q: np.ndarray, *, dq: np.ndarray | None
             return out
         # spawn, not fork: the parent may run threads (progress bar) that fork would copy mid-flight.
         context = multiprocessing.get_context("spawn")
-        init = (robot.urdf_text, robot.source, robot.payloads, predictor.base, tuple(gravity))
-        with ProcessPoolExecutor(max_workers=workers, mp_context=context,
-                                 initializer=_init_worker, initargs=init) as pool:
-            futures = [(a, b, pool.submit(_work, *job(a, b))) for a, b in bounds]
-            for a, b, future in futures:
-                out[a:b] = future.result()
+        init = (robot.urdf_text, robot.source, robot.payloads, robot.declared, predictor.base, tuple(gravity))
+        pool = _start_pool(context, workers, init)
+        try:
+            for (a, b), chunk in zip(bounds, pool.imap(_work, [job(a, b) for a, b in bounds])):
+                out[a:b] = chunk
                 advance(b - a)
+        except BaseException:
+            # Ctrl-C, a signal or a worker's error: stop the workers now instead of waiting for them.
+            pool.terminate()
+            raise
+        finally:
+            pool.close()
+            pool.join()
     return out
 
 
-def _check_joints(robot: RobotModel, values: np.ndarray, what: str, n: int | None = None) -> np.ndarray:
+def check_joints(robot: RobotModel, values: np.ndarray, what: str, n: int | None = None) -> np.ndarray:
+    """``values`` as a float array of shape (n_samples, n_dofs), finite, with ``n`` rows if given."""
     arr = np.asarray(values, dtype=np.float64)
     if arr.ndim != 2 or arr.shape[1] != len(robot.joint_names):
         raise FtcalError(f"{what} must have shape (n_samples, {len(robot.joint_names)}) for URDF "
@@ -205,12 +220,30 @@ def _check_joints(robot: RobotModel, values: np.ndarray, what: str, n: int | Non
 _PREDICTOR: WrenchPredictor | None = None
 
 
-def _init_worker(urdf_text: str, source: str, payloads: tuple[Payload, ...], base: str,
-                 gravity: tuple[float, float, float]) -> None:
+def _start_pool(context, workers: int, init: tuple):
+    """A pool of workers that ignore SIGINT from their first instruction (the parent handles Ctrl-C).
+
+    A signal disposition of "ignore" survives the exec of a spawned worker, and Python keeps it,
+    so a Ctrl-C while a worker still imports its modules prints no traceback there.
+    """
+    in_main = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if in_main else None
+    try:
+        return context.Pool(workers, initializer=_init_worker, initargs=init)
+    finally:
+        if in_main:
+            signal.signal(signal.SIGINT, previous)
+
+
+def _init_worker(urdf_text: str, source: str, payloads: tuple[Payload, ...],
+                 declared: tuple[SensorDeclaration, ...], base: str, gravity: tuple[float, float, float]) -> None:
     global _PREDICTOR
-    _PREDICTOR = WrenchPredictor(RobotModel(urdf_text, source, payloads), base, gravity)
+    # The parent handles Ctrl-C and termination (a terminal sends SIGINT to the whole process group):
+    # workers ignore it, so they print no tracebacks and the parent can stop them cleanly.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _PREDICTOR = WrenchPredictor(RobotModel(urdf_text, source, payloads, declared), base, gravity)
 
 
-def _work(q, dq, ddq, floating) -> np.ndarray:
+def _work(job: tuple) -> np.ndarray:
     assert _PREDICTOR is not None
-    return _PREDICTOR.compute(q, dq, ddq, floating)
+    return _PREDICTOR.compute(*job)

@@ -3,7 +3,9 @@
 Load a URDF from any path or an iCub by name (via the ``icub-models``
 package); attach payloads in memory; look F/T sensors up by sensor name
 (``r_arm_ft``) or joint name (``r_arm_ft_sensor``); find the links (and mass)
-on the far side of a sensor as seen from the base frame.
+on the far side of a sensor as seen from the base frame. Sensors come from
+iDynTree sensor tags, Gazebo force_torque tags, or declarations on fixed
+joints (:mod:`ftcal.robot.declare`).
 
 Joint positions handed to iDynTree follow :attr:`RobotModel.joint_names`: the
 one-degree-of-freedom joints of the URDF, in iDynTree's DOF order.
@@ -18,6 +20,7 @@ from pathlib import Path
 
 from ..errors import FtcalError
 from ._quiet import captured_stderr
+from .declare import SensorDeclaration, no_sensor_hint, prepare_urdf
 from .payloads import Payload
 
 DEFAULT_BASE = "root_link"
@@ -49,17 +52,25 @@ class RobotModel:
 
     Use :meth:`load` (path or iCub name) or :meth:`from_text`. Instances are
     immutable in spirit: :meth:`with_payloads` returns a new model.
+
+    F/T sensors come from iDynTree sensor elements, Gazebo force_torque tags
+    and ``declared`` sensors on fixed joints (:mod:`ftcal.robot.declare`).
+    ``urdf_text``, ``payloads`` and ``declared`` together describe the model:
+    worker processes rebuild it from them.
     """
 
-    def __init__(self, urdf_text: str, source: str, payloads: Sequence[Payload] = ()) -> None:
+    def __init__(self, urdf_text: str, source: str, payloads: Sequence[Payload] = (),
+                 declared: Sequence[SensorDeclaration] = ()) -> None:
         import idyntree.swig as idyn
 
         self.urdf_text = urdf_text
         self.source = source
         self.payloads = tuple(payloads)
+        self.declared = tuple(declared)
         loader = idyn.ModelLoader()
+        parsed_text = prepare_urdf(urdf_text, source, self.declared)
         with captured_stderr() as chatter:
-            ok = loader.loadModelFromString(urdf_text)
+            ok = loader.loadModelFromString(parsed_text)
         if not ok:
             detail = next((line for line in chatter if "ERROR" in line), chatter[0] if chatter else "")
             raise FtcalError(f"URDF {source} does not parse"
@@ -73,12 +84,14 @@ class RobotModel:
         self.ft_sensors = _ft_sensors(self.model, self.sensors)
 
     @classmethod
-    def from_text(cls, urdf_text: str, source: str = "<string>") -> "RobotModel":
-        return cls(urdf_text, source)
+    def from_text(cls, urdf_text: str, source: str = "<string>",
+                  declared: Sequence[SensorDeclaration] = ()) -> "RobotModel":
+        return cls(urdf_text, source, declared=declared)
 
     @classmethod
-    def load(cls, urdf: str | Path | None = None, name: str | None = None) -> "RobotModel":
-        """Load from a URDF path, or an iCub model by name (``icub-models``)."""
+    def load(cls, urdf: str | Path | None = None, name: str | None = None,
+             declared: Sequence[SensorDeclaration] = ()) -> "RobotModel":
+        """Load from a URDF path, or an iCub model by name (``icub-models``), with ``declared`` F/T sensors."""
         if (urdf is None) == (name is None):
             raise FtcalError("Give exactly one of a URDF path (--urdf) or a robot model name (--model).")
         path = Path(urdf) if urdf is not None else icub_model_path(str(name))
@@ -88,14 +101,20 @@ class RobotModel:
             raise FtcalError(f"URDF {path}: no such file.") from None
         except (OSError, UnicodeDecodeError) as exc:
             raise FtcalError(f"URDF {path}: cannot read it ({exc}).") from None
-        return cls(text, str(path))
+        return cls(text, str(path), declared=declared)
 
     def with_payloads(self, payloads: Sequence[Payload]) -> "RobotModel":
-        """A new model with ``payloads`` added to the ones already attached."""
-        return RobotModel(self.urdf_text, self.source, (*self.payloads, *payloads))
+        """A new model with ``payloads`` added to the ones already attached (declared sensors kept)."""
+        return RobotModel(self.urdf_text, self.source, (*self.payloads, *payloads), self.declared)
+
+    def require_ft_sensors(self) -> None:
+        """Raise FtcalError, naming the fixed joints to declare one on, if the model has no F/T sensor."""
+        if not self.ft_sensors:
+            raise FtcalError(f"URDF {self.source} has no six-axis F/T sensor; {no_sensor_hint(self.urdf_text)}.")
 
     def sensor(self, name: str) -> FTSensor:
         """The F/T sensor called ``name`` (sensor or joint name)."""
+        self.require_ft_sensors()
         found = [s for s in self.ft_sensors if s.matches(name)]
         if len(found) != 1:
             known = ", ".join(s.name for s in self.ft_sensors) or "none"

@@ -18,6 +18,7 @@ import numpy as np
 import scipy.linalg
 import scipy.linalg.lapack
 
+from .._threads import single_threaded_blas
 from ..errors import FtcalError
 from ..statistics import SufficientStatistics
 
@@ -193,6 +194,10 @@ class Spectrum:
         return self.jacobi[:, None] * (self.vectors @ (inverse[:, None] * z))
 
 
+# Gram matrices up to this size are factorized single-threaded (milliseconds either way).
+SMALL_GRAM = 1000
+
+
 @dataclass(frozen=True)
 class Conditioning:
     """Rank and condition of a Gram matrix, cheaply when it is well posed.
@@ -209,6 +214,14 @@ class Conditioning:
 
     @classmethod
     def of(cls, gram: np.ndarray) -> "Conditioning":
+        if gram.shape[0] > SMALL_GRAM:
+            return cls._of(gram)
+        # Small: one thread is as fast, and waking BLAS's thread pool costs ~0.3 s on a first call.
+        with single_threaded_blas():
+            return cls._of(gram)
+
+    @classmethod
+    def _of(cls, gram: np.ndarray) -> "Conditioning":
         p = gram.shape[0]
         diag = np.diag(gram).copy()
         jacobi = 1.0 / np.sqrt(np.where(diag > 0, diag, 1.0))

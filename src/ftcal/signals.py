@@ -13,9 +13,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._checks import check_int
-from ..errors import FtcalError
-from .logs import Stream
+from ._checks import check_int
+from .errors import FtcalError
+from .io.recording import Stream
 
 # A noisy analog channel does not repeat its exact extreme value this many times in a row
 # unless it is clipped.

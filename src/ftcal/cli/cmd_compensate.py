@@ -1,0 +1,51 @@
+"""``ftcal compensate``: the contact wrench, with the bias and the tool's weight (and inertia) removed."""
+
+from __future__ import annotations
+
+from ._common import column_list, require_suffix
+from .cmd_payload import add_kinematics_options, check_not_input, kinematics_source
+
+
+def register(sub) -> None:
+    p = sub.add_parser("compensate", help="subtract the bias and the payload's gravity wrench",
+                       description="Contact wrench = measured wrench (or the wrench a calibration model "
+                                   "predicts from the raw channels) minus the bias minus the payload's gravity "
+                                   "wrench (and, with --dynamic, its inertial wrench), written as Fx..Tz in the "
+                                   "sign of the readings (replacing any Fx..Tz columns of DATA); the other "
+                                   "columns are kept.")
+    p.add_argument("payload", metavar="PAYLOAD.json", help="payload file from `ftcal payload`")
+    p.add_argument("data", nargs="+", metavar="DATA", help="CSV or Parquet files")
+    p.add_argument("-o", "--output", required=True, metavar="OUT.csv|OUT.parquet",
+                   help="one table with the rows of all DATA files in order")
+    p.add_argument("--model", metavar="CAL.json",
+                   help="calibration model: the measured wrench is its prediction from its input columns")
+    p.add_argument("--wrench", type=column_list, metavar="FX,FY,FZ,TX,TY,TZ",
+                   help="measured wrench columns without --model (default: the payload file's, else u1,...,u6)")
+    add_kinematics_options(p)
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    import sys
+
+    import pandas as pd
+
+    from ..errors import FtcalError
+    from ..io.model_files import read_model
+    from ..io.payload_json import load_payload
+    from ..io.tables import write_table
+    from ..payload.tables import compensate_table
+
+    require_suffix(args.output, (".csv", ".parquet"), "-o")
+    check_not_input(args.output, [args.payload, *args.data] + ([args.model] if args.model else []))
+    payload = load_payload(args.payload)
+    if args.dynamic and payload.inertia is None:
+        raise FtcalError(f"{args.payload}: has no inertia (identified without --dynamic); "
+                         "compensate without --dynamic or re-identify with it.")
+    source = kinematics_source(args)
+    model = read_model(args.model) if args.model else None
+    parts = [compensate_table(path, payload, source, wrench=args.wrench, model=model) for path in args.data]
+    table = pd.concat(parts, ignore_index=True) if len(parts) > 1 else parts[0]
+    write_table(table, args.output)
+    print(f"wrote {len(table)} contact wrenches to {args.output}", file=sys.stderr)
+    return 0

@@ -1,0 +1,187 @@
+"""``ftcal payload``: identify the sensor bias and the tool's mass, centre of mass (and inertia)."""
+
+from __future__ import annotations
+
+import argparse
+
+from ._common import column_list, positive_float, require_suffix
+
+MAX_GROUPS_PRINTED = 8
+
+
+def add_kinematics_options(p: argparse.ArgumentParser) -> None:
+    """Gravity source (orientation or gravity columns), --g and the --dynamic motion columns."""
+    source = p.add_mutually_exclusive_group()
+    source.add_argument("--orientation", type=column_list, metavar="QX,QY,QZ,QW",
+                        help="quaternion columns, ROS order x,y,z,w: rotation from the sensor frame to a "
+                             "world frame with gravity along -z (e.g. qx,qy,qz,qw)")
+    source.add_argument("--gravity-columns", type=column_list, metavar="GX,GY,GZ",
+                        help="gravity vector in the sensor frame, m/s² (e.g. gx,gy,gz)")
+    p.add_argument("--g", type=positive_float, default=9.81, metavar="M/S2",
+                   help="gravity magnitude (default 9.81 m/s²)")
+    p.add_argument("--dynamic", action="store_true",
+                   help="use angular velocity/acceleration and linear acceleration too (10 inertial parameters)")
+    p.add_argument("--angular-velocity", type=column_list, default=("wx", "wy", "wz"), metavar="WX,WY,WZ",
+                   help="gyroscope columns in the sensor frame, rad/s (default wx,wy,wz; --dynamic)")
+    p.add_argument("--linear-acceleration", type=column_list, default=("ax", "ay", "az"), metavar="AX,AY,AZ",
+                   help="accelerometer columns at the sensor origin, sensor frame, m/s², gravity included "
+                        "(default ax,ay,az; used with --dynamic when present, else the origin is at rest)")
+    p.add_argument("--angular-acceleration", type=column_list, metavar="C1,C2,C3",
+                   help="angular acceleration columns, rad/s² (default: differentiate the angular velocity)")
+    p.add_argument("--time", default="time", metavar="COL", help="time column in s (default time)")
+
+
+def add_robot_source_options(p: argparse.ArgumentParser) -> None:
+    """--urdf/--model, --sensor, --ft-joint/--ft-frame, --base, --degrees: gravity from joint columns."""
+    robot = p.add_argument_group("gravity from a robot model and joint columns (named as the URDF's joints)")
+    which = robot.add_mutually_exclusive_group()
+    which.add_argument("--urdf", dest="robot_urdf", metavar="PATH", help="URDF of the robot (with --sensor)")
+    which.add_argument("--model", dest="robot_model", metavar="NAME",
+                       help="robot model from icub-models, e.g. iCubGenova04 (with --sensor)")
+    robot.add_argument("--sensor", metavar="NAME", help="F/T sensor of the model (sensor or joint name)")
+    robot.add_argument("--ft-joint", metavar="JOINT", help="declare the F/T sensor on this fixed joint (plain URDFs)")
+    robot.add_argument("--ft-frame", metavar="LINK", help="sensor frame of --ft-joint (default: its child link)")
+    robot.add_argument("--base", metavar="FRAME", help="fixed base frame, gravity along its -z")
+    robot.add_argument("--degrees", action="store_true", help="joint columns are in degrees")
+
+
+def kinematics_source(args):
+    """The :class:`~ftcal.payload.kinematics.KinematicsSource` the options describe."""
+    from ..errors import FtcalError
+    from ..payload.kinematics import GravityColumnsSource, MotionSource, OrientationSource
+
+    if getattr(args, "robot_urdf", None) is not None or getattr(args, "robot_model", None) is not None:
+        source = robot_source(args)
+    elif args.orientation is not None:
+        if len(args.orientation) != 4:
+            raise FtcalError(f"--orientation needs 4 columns qx,qy,qz,qw; got {','.join(args.orientation)}.")
+        source = OrientationSource(args.orientation, args.g)
+    elif args.gravity_columns is not None:
+        if len(args.gravity_columns) != 3:
+            raise FtcalError(f"--gravity-columns needs 3 columns; got {','.join(args.gravity_columns)}.")
+        source = GravityColumnsSource(args.gravity_columns, args.g)
+    else:
+        raise FtcalError("give the sensor's orientation: --orientation qx,qy,qz,qw, --gravity-columns gx,gy,gz, "
+                         "or a robot model (--urdf PATH or --model NAME) with --sensor.")
+    if not args.dynamic:
+        return source
+    for option, cols in (("--angular-velocity", args.angular_velocity),
+                         ("--linear-acceleration", args.linear_acceleration),
+                         ("--angular-acceleration", args.angular_acceleration)):
+        if cols is not None and len(cols) != 3:
+            raise FtcalError(f"{option} needs 3 columns; got {','.join(cols)}.")
+    return MotionSource(source, args.angular_velocity, args.linear_acceleration, args.angular_acceleration,
+                        args.time)
+
+
+def robot_source(args):
+    """Gravity in the sensor frame from joint columns and the robot model (--urdf/--model, --sensor)."""
+    from ..errors import FtcalError
+    from ..robot import RobotModel
+    from ..robot.kinematics import JointColumnsSource
+    from .cmd_sensors import declared_sensors
+
+    if args.orientation is not None or args.gravity_columns is not None:
+        raise FtcalError("give one gravity source: a robot model (--urdf/--model), --orientation or "
+                         "--gravity-columns.")
+    robot = RobotModel.load(urdf=args.robot_urdf, name=args.robot_model, declared=declared_sensors(args))
+    robot.require_ft_sensors()
+    if args.sensor is None and len(robot.ft_sensors) > 1:
+        raise FtcalError(f"--sensor: URDF {robot.source} has {len(robot.ft_sensors)} F/T sensors; name one of "
+                         f"{', '.join(s.name for s in robot.ft_sensors)}.")
+    sensor = robot.sensor(args.sensor) if args.sensor is not None else robot.ft_sensors[0]
+    return JointColumnsSource(robot, sensor.name, args.base, args.g, args.degrees)
+
+
+def check_not_input(output: str, inputs) -> None:
+    from pathlib import Path
+
+    from ..errors import FtcalError
+
+    target = Path(output).resolve()
+    if any(Path(p).resolve() == target for p in inputs):
+        raise FtcalError(f"-o {output}: is also an input file; write to another file.")
+
+
+def register(sub) -> None:
+    p = sub.add_parser("payload", help="identify the sensor bias and the tool's mass and centre of mass",
+                       description="Identify, by linear least squares, the F/T sensor's force and torque bias "
+                                   "and the attached tool's mass and centre of mass (sensor frame) from static "
+                                   "poses; --dynamic adds the inertia from angular velocity/acceleration and "
+                                   "linear acceleration. Sign convention: the sensor reads the wrench the tool "
+                                   "applies on it (a mass m at rest adds m·g); use --reaction for sensors that "
+                                   "report the opposite sign.")
+    p.add_argument("data", nargs="+", metavar="DATA", help="CSV or Parquet files, one row per sample")
+    p.add_argument("-o", "--output", required=True, metavar="PAYLOAD.json")
+    p.add_argument("--wrench", type=column_list, default=("u1", "u2", "u3", "u4", "u5", "u6"),
+                   metavar="FX,FY,FZ,TX,TY,TZ",
+                   help="measured wrench columns, N and N·m (default u1,...,u6)")
+    add_kinematics_options(p)
+    add_robot_source_options(p)
+    p.add_argument("--group-by", metavar="COL",
+                   help="column naming the cross-validation groups, e.g. the pose (default: one per file)")
+    p.add_argument("--reaction", action="store_true",
+                   help="the sensor reports the wrench it applies on the tool (opposite sign): negate readings")
+    p.add_argument("--frame", metavar="NAME", help="name of the sensor frame, stored in the file (e.g. ft_sensor)")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    import sys
+
+    from ..io.payload_json import save_payload
+    from ..payload.identify import check_mass_sign, identify_payload
+    from ..payload.parameters import PayloadParameters
+    from ..payload.tables import table_statistics
+
+    require_suffix(args.output, (".json",), "-o")
+    check_not_input(args.output, args.data)
+    groups = table_statistics(args.data, kinematics_source(args), wrench=args.wrench, group_by=args.group_by,
+                              reaction=args.reaction, dynamic=args.dynamic)
+    fit = identify_payload(groups)
+    check_mass_sign(fit)
+    print_fit(fit, len(groups), args)
+    payload = PayloadParameters.from_fit(fit, gravity=args.g, frame=args.frame, reaction=args.reaction,
+                                         wrench_columns=tuple(args.wrench))
+    save_payload(payload, args.output, sources=args.data)
+    print(f"wrote {args.output}", file=sys.stderr)
+    return 0
+
+
+def print_fit(fit, n_groups: int, args) -> None:
+    import numpy as np
+
+    from ..payload.identify import AXES
+
+    unit = {"mass": "kg", "com": "m", "force_bias": "N", "torque_bias": "N·m", "inertia": "kg·m²"}
+    kind = "dynamic (inertia included)" if fit.dynamic else "static"
+    print(f"payload from {fit.n_samples} samples in {n_groups} group(s), {kind} model, "
+          f"gravity {args.g:g} m/s²")
+    print(f"  {'mass':<14}{fit.mass:>14.6g} ± {fit.stderr['mass']:.2g} {unit['mass']}")
+    for key in ("com", "force_bias", "torque_bias"):
+        for axis, value, se in zip("xyz", getattr(fit, key), fit.stderr[key]):
+            print(f"  {key.replace('_', ' ') + ' ' + axis:<14}{value:>14.6g} ± {se:.2g} {unit[key]}")
+    if fit.dynamic:
+        for (i, j) in ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)):
+            name = "I" + "xyz"[i] + "xyz"[j] + " (com)"
+            print(f"  {name:<14}{fit.inertia[i, j]:>14.6g} ± {fit.stderr['inertia'][i, j]:.2g} {unit['inertia']}")
+    print("residual RMS: " + "  ".join(f"{a} {v:.4g}" for a, v in zip(AXES, fit.residual_rms)) + "  (N, N·m)")
+    if fit.cross_validation:
+        scored = [g for g in fit.cross_validation if g.rms is not None]
+        if scored:
+            pooled = np.sqrt(sum(g.n_samples * g.rms ** 2 for g in scored) / sum(g.n_samples for g in scored))
+            print("cross-validated residual RMS (each group left out of the fit in turn): "
+                  + "  ".join(f"{a} {v:.4g}" for a, v in zip(AXES, pooled)))
+        # The groups that fit worst when left out come first: they are the suspicious poses.
+        ranked = sorted(fit.cross_validation, key=lambda g: -np.inf if g.rms is None else -float(
+            np.sum((g.rms / np.maximum(fit.residual_rms, 1e-300)) ** 2)))
+        for g in ranked[:MAX_GROUPS_PRINTED]:
+            text = ("not identifiable without this group" if g.rms is None
+                    else "  ".join(f"{a} {v:.4g}" for a, v in zip(AXES, g.rms)))
+            print(f"  {g.group} ({g.n_samples} samples): {text}")
+        if len(ranked) > MAX_GROUPS_PRINTED:
+            print(f"  ... {len(ranked) - MAX_GROUPS_PRINTED} more group(s) fit better")
+    else:
+        print("cross-validation: one group only (give several files or --group-by COL)")
+    print(f"condition number of the weighted regressor: {fit.condition_number:.3g}"
+          + ("" if not fit.poorly_excited else f"; poorly excited: {', '.join(fit.poorly_excited)}"))

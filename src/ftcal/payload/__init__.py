@@ -1,0 +1,1 @@
+"""Payload and bias identification: regressor, gravity sources, fit, compensation."""

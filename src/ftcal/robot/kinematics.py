@@ -1,0 +1,297 @@
+"""Sensor-frame kinematics from a URDF and joint data (iDynTree ``KinDynComputations``).
+
+What a payload on the far side of an F/T sensor feels, per sample, in the
+sensor frame: the gravity vector, the angular velocity and acceleration, and the
+proper acceleration (what an accelerometer at the sensor origin would read,
+``a - g``). :func:`sensor_kinematics` gives them for a sensor,
+:func:`frame_kinematics` for any frame of the model, and
+:func:`payload_regressor` the matrix that maps the inertial parameters of an
+unknown payload on a link to its contribution to a sensor's expected wrench.
+
+Kinematics follow :mod:`ftcal.robot.expected`: a fixed base (``base`` frame,
+gravity given in its axes) by default; with a :class:`FloatingBase`, the IMU's
+proper acceleration, angular velocity and angular acceleration drive the
+kinematics (the IMU frame's link is the floating base), and the gravity vector
+is the static estimate ``-proper acceleration`` of the IMU, rotated into each
+frame (exact when the IMU does not accelerate linearly).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import FtcalError
+from .expected import GRAVITY, FloatingBase, check_joints
+from .model import RobotModel
+
+# Mass and first moments: the only inertial parameters a static pose sees.
+N_STATIC_PARAMETERS = 4
+
+
+@dataclass(frozen=True)
+class FrameKinematics:
+    """Per-sample kinematics of one frame, all in that frame's axes.
+
+    Attributes
+    ----------
+    gravity : ndarray of shape (n_samples, 3), m/s², the gravity vector
+    angular_velocity : ndarray of shape (n_samples, 3), rad/s
+    angular_acceleration : ndarray of shape (n_samples, 3), rad/s²
+    proper_acceleration : ndarray of shape (n_samples, 3), m/s², acceleration of
+        the frame origin minus gravity (an accelerometer's reading; ``-gravity`` at rest)
+    """
+
+    gravity: np.ndarray
+    angular_velocity: np.ndarray
+    angular_acceleration: np.ndarray
+    proper_acceleration: np.ndarray
+
+
+class _Kinematics:
+    """One KinDynComputations set up for fixed- or floating-base sample-by-sample queries."""
+
+    def __init__(self, robot: RobotModel, base: str | None, gravity: Sequence[float],
+                 floating: FloatingBase | None) -> None:
+        import idyntree.swig as idyn
+
+        self.idyn = idyn
+        model = robot.model
+        if floating is not None:
+            if not model.isFrameNameUsed(floating.frame):
+                raise FtcalError(f"URDF {robot.source} has no frame named {floating.frame!r} (IMU frame).")
+            anchor = int(model.getFrameIndex(floating.frame))
+        else:
+            anchor = robot.base_frame(base)[0]
+        self.model = model
+        self.floating = floating
+        link = model.getFrameLink(anchor)
+        self.kd = idyn.KinDynComputations()
+        self.kd.loadRobotModel(model)
+        self.kd.setFloatingBase(model.getLinkName(link))
+        self.kd.setFrameVelocityRepresentation(idyn.MIXED_REPRESENTATION)
+        # world = the anchor frame (base frame, or the IMU frame at that instant).
+        link_H_anchor = model.getFrameTransform(anchor).asHomogeneousTransform().toNumPy()
+        self.world_H_base = idyn.Transform(np.linalg.inv(link_H_anchor))
+        self.anchor_rotation = link_H_anchor[:3, :3]
+        self.anchor_origin = link_H_anchor[:3, 3]
+        self.gravity = np.asarray(gravity, dtype=float)
+        n = model.getNrOfDOFs()
+        self.zeros = np.zeros(n)
+
+    def frame_index(self, name: str, source: str) -> int:
+        if not self.model.isFrameNameUsed(name):
+            raise FtcalError(f"URDF {source} has no link or frame named {name!r}.")
+        return int(self.model.getFrameIndex(name))
+
+    def update(self, k: int, q, dq, ddq) -> None:
+        """Set the state of sample ``k``; afterwards :meth:`frame` answers for any frame."""
+        idyn = self.idyn
+        qk = q[k]
+        dqk = self.zeros if dq is None else dq[k]
+        self.ddq = idyn.VectorDynSize.FromPython(self.zeros if ddq is None else ddq[k])
+        twist = np.zeros(6)
+        base_acc = np.zeros(6)
+        gravity = self.gravity
+        self.gravity_world = self.gravity
+        if self.floating is not None:
+            fb = self.floating
+            # World axes = the IMU's axes at this instant; the IMU's link is the base.
+            omega = fb.angular_velocity[k]
+            alpha = np.zeros(3) if fb.angular_acceleration is None else fb.angular_acceleration[k]
+            r = self.anchor_rotation.T @ self.anchor_origin  # base origin -> IMU origin, world axes
+            # Proper acceleration of the base origin from the IMU's; computing with zero gravity
+            # then gives every frame its proper acceleration (a uniform field shifts all alike).
+            twist[3:] = omega
+            base_acc[:3] = fb.proper_acceleration[k] - np.cross(alpha, r) - np.cross(omega, np.cross(omega, r))
+            base_acc[3:] = alpha
+            gravity = np.zeros(3)
+            self.gravity_world = -fb.proper_acceleration[k]
+        ok = self.kd.setRobotState(self.world_H_base, idyn.VectorDynSize.FromPython(qk), idyn.Twist.FromPython(twist),
+                                   idyn.VectorDynSize.FromPython(dqk), idyn.Vector3.FromPython(gravity))
+        if not ok:
+            raise FtcalError(f"iDynTree could not set the robot state at sample {k}.")
+        self.base_acc = idyn.Vector6.FromPython(base_acc)
+
+    def frame(self, index: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """world_R_frame, world position, then ω, α and proper acceleration in world axes."""
+        h = self.kd.getWorldTransform(index).asHomogeneousTransform().toNumPy()
+        vel = self.kd.getFrameVel(index).toNumPy()
+        acc = self.kd.getFrameAcc(index, self.base_acc, self.ddq).toNumPy()
+        proper = acc[:3] - (0.0 if self.floating is not None else self.gravity)
+        return h[:3, :3], h[:3, 3], vel[3:], acc[3:], proper
+
+
+def _prepare(robot: RobotModel, q, dq, ddq, floating):
+    q = check_joints(robot, q, "joint positions")
+    dq = None if dq is None else check_joints(robot, dq, "joint velocities", q.shape[0])
+    ddq = None if ddq is None else check_joints(robot, ddq, "joint accelerations", q.shape[0])
+    return q, dq, ddq
+
+
+def _sensor_frame(robot: RobotModel, sensor: str) -> tuple[str, np.ndarray]:
+    """Name of the link the sensor's frame is fixed to, and link_H_sensor (4, 4)."""
+    import idyntree.swig as idyn
+
+    ft = robot.sensor(sensor)
+    native = robot.sensors.getSixAxisForceTorqueSensor(ft.index)
+    link = robot.model.getLinkIndex(ft.parent_link)
+    transform = idyn.Transform()
+    if not native.getLinkSensorTransform(link, transform):
+        raise FtcalError(f"iDynTree has no transform from link {ft.parent_link!r} to F/T sensor {ft.name!r}.")
+    return ft.parent_link, transform.asHomogeneousTransform().toNumPy()
+
+
+def frame_kinematics(robot: RobotModel, frame: str, q: np.ndarray, dq: np.ndarray | None = None,
+                     ddq: np.ndarray | None = None, *, base: str | None = None,
+                     gravity: Sequence[float] = GRAVITY, floating: FloatingBase | None = None,
+                     frame_H_point: np.ndarray | None = None) -> FrameKinematics:
+    """Kinematics of a model frame (link or additional frame), per sample, in its own axes.
+
+    Parameters
+    ----------
+    robot : the model
+    frame : link or frame name
+    q, dq, ddq : ndarray of shape (n_samples, n_dofs), order of ``robot.joint_names``
+        (rad, rad/s, rad/s²); ``dq``/``ddq`` None mean zero (static)
+    base : fixed base frame (default as :meth:`RobotModel.base_frame`); ignored with ``floating``
+    gravity : gravity in base-frame axes, m/s²
+    floating : IMU data for a floating base (see module docstring)
+    frame_H_point : optional (4, 4) pose of a point frame rigidly fixed to ``frame``; the
+        result is then that point frame's kinematics
+
+    Returns
+    -------
+    FrameKinematics
+
+    Raises
+    ------
+    FtcalError : unknown frame, bad joint arrays, iDynTree failure.
+    """
+    q, dq, ddq = _prepare(robot, q, dq, ddq, floating)
+    kin = _Kinematics(robot, base, gravity, floating)
+    index = kin.frame_index(frame, robot.source)
+    offset = np.eye(4) if frame_H_point is None else np.asarray(frame_H_point, dtype=float)
+    rot_fp, r_fp = offset[:3, :3], offset[:3, 3]
+    n = q.shape[0]
+    out = np.empty((4, n, 3))
+    for k in range(n):
+        kin.update(k, q, dq, ddq)
+        rot, _, omega, alpha, proper = kin.frame(index)
+        r = rot @ r_fp
+        proper = proper + np.cross(alpha, r) + np.cross(omega, np.cross(omega, r))
+        to_point = (rot @ rot_fp).T
+        out[:, k] = (to_point @ kin.gravity_world, to_point @ omega, to_point @ alpha, to_point @ proper)
+    return FrameKinematics(*out)
+
+
+def sensor_kinematics(robot: RobotModel, sensor: str, q: np.ndarray, dq: np.ndarray | None = None,
+                      ddq: np.ndarray | None = None, *, base: str | None = None,
+                      gravity: Sequence[float] = GRAVITY,
+                      floating: FloatingBase | None = None) -> FrameKinematics:
+    """Kinematics of an F/T sensor's frame (the frame its wrench is expressed in), per sample.
+
+    Parameters and returns as :func:`frame_kinematics`; ``sensor`` is a sensor or
+    joint name. ``gravity`` of the result is what the payload tools need for a
+    static pose: a tool of mass m at rest adds ``m * gravity`` to the sensor's force.
+    """
+    link, link_H_sensor = _sensor_frame(robot, sensor)
+    return frame_kinematics(robot, link, q, dq, ddq, base=base, gravity=gravity, floating=floating,
+                            frame_H_point=link_H_sensor)
+
+
+def payload_regressor(robot: RobotModel, sensor: str, link: str, q: np.ndarray, dq: np.ndarray | None = None,
+                      ddq: np.ndarray | None = None, *, base: str | None = None,
+                      gravity: Sequence[float] = GRAVITY, floating: FloatingBase | None = None,
+                      static: bool = False) -> np.ndarray:
+    """Per-sample matrix Y with ``wrench = Y @ pi`` for an unknown payload on ``link``.
+
+    ``pi`` are the payload's inertial parameters in ``link`` coordinates, in the
+    order of :data:`ftcal.payload.regressor.INERTIAL_PARAMETERS` (m kg; m·c kg m; inertia about the link
+    origin, link axes, kg m²), and ``wrench`` (Fx..Tz, N and N m) is what the
+    payload adds to ``sensor``'s expected wrench, with the convention of
+    :mod:`ftcal.robot.expected`. ``link`` must be on the far side of the sensor
+    as seen from the base.
+
+    Returns
+    -------
+    ndarray of shape (n_samples, 6, 10), or (n_samples, 6, 4) with ``static``
+    (mass and first moments only: the inertia columns vanish without motion).
+
+    Raises
+    ------
+    FtcalError : unknown sensor or link, a link on the base side of the sensor.
+    """
+    from ..payload.regressor import INERTIAL_PARAMETERS, inertial_regressor
+
+    q, dq, ddq = _prepare(robot, q, dq, ddq, floating)
+    ft = robot.sensor(sensor)
+    beyond = robot.links_beyond(ft, None if floating is not None else base)
+    if link not in beyond:
+        raise FtcalError(f"Payload link {link!r}: not on the far side of F/T sensor {ft.name!r}, so the "
+                         f"sensor does not feel it; links beyond it: {', '.join(beyond) or 'none'}.")
+    sensor_link, link_H_sensor = _sensor_frame(robot, sensor)
+    kin = _Kinematics(robot, base, gravity, floating)
+    sensor_index = kin.frame_index(sensor_link, robot.source)
+    link_index = kin.frame_index(link, robot.source)
+    n = q.shape[0]
+    sensor_R_link = np.empty((n, 3, 3))
+    lever = np.empty((n, 3))
+    motion = np.empty((3, n, 3))
+    for k in range(n):
+        kin.update(k, q, dq, ddq)
+        rot_l, p_l, omega, alpha, proper = kin.frame(link_index)
+        rot_s, p_s, *_ = kin.frame(sensor_index)
+        world_R_sensor = rot_s @ link_H_sensor[:3, :3]
+        sensor_R_link[k] = world_R_sensor.T @ rot_l
+        lever[k] = world_R_sensor.T @ (p_l - rot_s @ link_H_sensor[:3, 3] - p_s)
+        motion[:, k] = (rot_l.T @ proper, rot_l.T @ omega, rot_l.T @ alpha)
+    # Wrench the payload applies at the link origin, link axes; then rotate it into the sensor
+    # frame and take the torque about the sensor origin.
+    y_link = inertial_regressor(*motion)
+    width = N_STATIC_PARAMETERS if static else len(INERTIAL_PARAMETERS)
+    force = np.einsum("nij,njk->nik", sensor_R_link, y_link[:, :3, :width])
+    torque = np.einsum("nij,njk->nik", sensor_R_link, y_link[:, 3:, :width]) + np.cross(lever[:, :, None], force, axis=1)
+    return np.concatenate([force, torque], axis=1)
+
+
+@dataclass(frozen=True)
+class JointColumnsSource:
+    """Sensor-frame gravity from joint-position columns and a URDF: a kinematics source for ``ftcal payload``.
+
+    Implements :class:`ftcal.payload.kinematics.KinematicsSource`: called with a
+    table, it reads every column named like a movable joint of ``robot`` (rad, or
+    degrees with ``degrees``; joints without a column are 0) and returns the
+    gravity vector ``(0, 0, -g)`` of the fixed ``base`` frame expressed in the
+    frame of F/T ``sensor``, per row (static poses).
+    """
+
+    robot: RobotModel
+    sensor: str
+    base: str | None = None
+    g: float = 9.81
+    degrees: bool = False
+
+    @property
+    def columns(self) -> tuple[str, ...]:
+        return self.robot.joint_names
+
+    def __call__(self, frame, source: str):
+        from ..payload.kinematics import Kinematics
+
+        known = set(self.robot.joint_names)
+        names = [str(c) for c in frame.columns if c in known]
+        if not names:
+            raise FtcalError(f"{source}: no column is named like a joint of URDF {self.robot.source} "
+                             f"(e.g. {', '.join(self.robot.joint_names[:4])}).")
+        non_numeric = [c for c in names if not np.issubdtype(frame[c].dtype, np.number)]
+        if non_numeric:
+            raise FtcalError(f"{source}: joint column {non_numeric[0]!r} is not numeric.")
+        values = frame[names].to_numpy(np.float64)
+        if self.degrees:
+            values = np.deg2rad(values)
+        q = self.robot.joint_matrix(names, values, source)
+        kinematics = sensor_kinematics(self.robot, self.sensor, q, base=self.base, gravity=(0.0, 0.0, -self.g))
+        return Kinematics(kinematics.gravity)
