@@ -155,6 +155,131 @@ def sklearn_lasso(n: int, degree: int) -> dict:
     return {"seconds": time.perf_counter() - start}
 
 
+# -------------------------------------------------------- model selection
+def make_load_cases(n: int, n_groups: int = 60, n_channels: int = 8, seed: int = 0):
+    """A third-party-like sensor: ``n_channels`` strain channels, ``n_groups`` load cases (one file each).
+
+    Each load case holds a base wrench with small slow variations; the channels are an
+    affine map of the wrench plus quadratic cross-talk, offsets of ~1000 counts and noise,
+    so the inverse map (channels -> wrench) is mildly nonlinear.
+    Returns inputs (n, n_channels), outputs (n, 6) and group labels (n,).
+    """
+    rng = np.random.default_rng(seed)
+    full_scale = np.array([100.0, 100.0, 150.0, 8.0, 8.0, 5.0])
+    per = -(-n // n_groups)
+    base = rng.uniform(-1.0, 1.0, (n_groups, 6))
+    drift = np.cumsum(rng.normal(0.0, 0.004, (n_groups, per, 6)), axis=1)
+    x = (base[:, None, :] + drift).reshape(-1, 6)[:n]
+    mixing = rng.normal(0.0, 1.0, (n_channels, 6))
+    quadratic = rng.normal(0.0, 0.08, (n_channels, 6, 6))
+    counts = 1000.0 + 400.0 * (x @ mixing.T + np.einsum("cij,ni,nj->nc", quadratic, x, x))
+    counts += rng.normal(0.0, 0.5, counts.shape)
+    groups = np.repeat([f"case{g:02d}" for g in range(n_groups)], per)[:n]
+    return counts, x * full_scale, groups
+
+
+def select_auto(n: int, folds: int = 5) -> dict:
+    """``ftcal fit --degree auto`` (the default grid) in-process on ``n`` samples of 60 load cases, 8 inputs.
+
+    The same command line works on every ftcal version, so its time before and after a
+    change compares like with like.
+    """
+    import tempfile
+    from pathlib import Path
+
+    import pandas as pd
+
+    from ftcal.cli import main
+
+    u, y, groups = make_load_cases(n)
+    with tempfile.TemporaryDirectory() as folder:
+        table = Path(folder) / "cases.parquet"
+        frame = pd.DataFrame(u, columns=[f"s{i + 1}" for i in range(u.shape[1])])
+        frame[["Fx", "Fy", "Fz", "Tx", "Ty", "Tz"]] = y
+        frame["group"] = groups
+        frame.to_parquet(table)
+        inputs = ",".join(frame.columns[:u.shape[1]])
+        start = time.perf_counter()
+        code = main(["fit", str(table), "--inputs", inputs, "--degree", "auto", "--group-by", "group",
+                     "--folds", str(folds), "-o", str(Path(folder) / "best.json")])
+        seconds = time.perf_counter() - start
+    if code != 0:
+        raise RuntimeError(f"ftcal fit --degree auto exited with {code}")
+    return {"seconds": seconds}
+
+
+def _load_case_dataset(n: int):
+    from ftcal.dataset import Dataset
+
+    u, y, groups = make_load_cases(n)
+    return Dataset.from_arrays(u, y, input_names=[f"s{i + 1}" for i in range(u.shape[1])], groups=groups)
+
+
+def select_auto_baseline(n: int, folds: int = 5) -> dict:
+    """The strategy ``--degree auto`` used before issue 9, kept here as the baseline.
+
+    The paper's six λ for LASSO at degrees 1-5 plus least squares (35 candidates), one
+    statistics pass per fold at degree 5 (lower degrees as sub-blocks), every candidate
+    scored by predicting its validation and training samples, then the winner refitted.
+    """
+    import warnings
+
+    from ftcal import metrics
+    from ftcal.features import MonomialBasis, RegressorLayout
+    from ftcal.model import CalibrationModel, model_from_fitted
+    from ftcal.normalization import normalization_from_range
+    from ftcal.select import grouped_folds
+    from ftcal.solvers import Lasso, LeastSquares, ScaledProblem
+    from ftcal.statistics import sum_statistics
+
+    data = _load_case_dataset(n)
+    start = time.perf_counter()
+    warnings.simplefilter("ignore")
+    u, y = data.inputs, data.outputs
+    masks = grouped_folds(data.groups, folds)
+    in_norm = normalization_from_range(u.min(0), u.max(0), "center")
+    out_norm = normalization_from_range(y.min(0), y.max(0), "center")
+    layouts = {d: RegressorLayout(MonomialBasis(u.shape[1], d), y.shape[1]) for d in range(1, 6)}
+    parts = [CalibrationModel.statistics(data.subset(m), layouts[5], in_norm, out_norm) for m in masks]
+    scores: dict = {}
+    for f, mask in enumerate(masks):
+        train = sum_statistics([parts[g] for g in range(len(parts)) if g != f])
+        val, rest = data.subset(mask), data.subset(~mask)
+        for d, layout in layouts.items():
+            problem = ScaledProblem.from_statistics(train.restrict(layout.basis.index_in(layouts[5].basis)))
+            results = [("none", None, LeastSquares().fit(problem))]
+            results += [("lasso", lam, r) for lam, r in zip(LAMBDAS, Lasso(1.0).fit_path(problem, LAMBDAS))]
+            for penalty, lam, result in results:
+                model = model_from_fitted(
+                    degree=d, na=0, nb=0, normalization="center", coef=result.coef / problem.column_scale[:, None],
+                    input_normalization=in_norm, output_normalization=out_norm, input_names=data.input_names,
+                    output_names=data.output_names, input_range=np.c_[u.min(0), u.max(0)],
+                    output_range=np.c_[y.min(0), y.max(0)])
+                for part, kind in ((val, "val"), (rest, "train")):
+                    p = model.predict(part, warn_out_of_range=False)
+                    scores.setdefault((d, penalty, lam, kind), []).append(
+                        metrics.norm_rmse(part.outputs[:, :3], p[:, :3]))
+    best = min((k for k in scores if k[3] == "val"), key=lambda k: np.mean(scores[k]))
+    solver = Lasso(best[2]) if best[1] == "lasso" else LeastSquares()
+    CalibrationModel(best[0], solver=solver, normalization="center").fit(data)
+    return {"seconds": time.perf_counter() - start, "best": f"np{best[0]} {best[1]} {best[2]}"}
+
+
+def select_auto_new(n: int, folds: int = 5) -> dict:
+    """Today's ``--degree auto`` in the library (the same work as :func:`select_auto` without file I/O)."""
+    import warnings
+
+    from ftcal.select import fit_best, select_model
+
+    data = _load_case_dataset(n)
+    start = time.perf_counter()
+    warnings.simplefilter("ignore")
+    result = select_model(data, n_folds=folds)
+    fit_best(data, result)
+    return {"seconds": time.perf_counter() - start, "best": result.best.label,
+            "n_candidates": len(result.scores)}
+
+
 # -------------------------------------------------------------- prediction
 def ftcal_predict(n: int, degree: int) -> dict:
     from ftcal.dataset import Dataset
@@ -380,7 +505,7 @@ def paper_recipe_cli(n: int, degree: int) -> dict:
 CASES = {f.__name__: f for f in (ftcal_fit, ftcal_statistics, paper_recipe_fit, numpy_lstsq_fit, sklearn_fit,
                                  ftcal_cli_fit, paper_recipe_cli, ftcal_lasso, paper_lasso, sklearn_lasso,
                                  ftcal_predict, sklearn_predict, ftcal_payload, numpy_payload_lstsq, c_predict,
-                                 ftcal_predict_one)}
+                                 ftcal_predict_one, select_auto, select_auto_baseline, select_auto_new)}
 CASES.update(BAG_CASES)  # bag reading: benchmarks/bench_bags.py
 
 

@@ -142,13 +142,10 @@ def write_cell(path: Path, frame: pd.DataFrame, row: int, column: str, text: str
     return line
 
 
-def scaled_monomials(u_train, u, degree):
-    """The documented regressor: centre-normalized inputs, paper monomials, max-abs scaled columns."""
-    centre = (u_train.max(axis=0) + u_train.min(axis=0)) / 2
-    half = (u_train.max(axis=0) - u_train.min(axis=0)) / 2
-    a_train = cd.monomials((u_train - centre) / half, degree)
-    scale = np.abs(a_train).max(axis=0)
-    return a_train / scale, cd.monomials((u - centre) / half, degree) / scale
+def paper_regressor(u_train, degree):
+    """The paper's regressor, which --lasso and --ridge solve on: raw monomials, each column over its max-abs."""
+    a_train = cd.monomials(u_train, degree)
+    return a_train / np.abs(a_train).max(axis=0)
 
 
 # ------------------------------------------------------------------ help
@@ -276,7 +273,7 @@ def test_icub_firmware_matrix_decodes_to_the_true_gains(capsys, tmp_path):
 def test_lasso_and_ridge_match_sklearn_on_the_documented_regressor(capsys, work, tmp_path):
     """λ reaches the solver: ½‖Ax−b‖² + λ‖x‖₁ is sklearn Lasso(α=λ/N); ½‖Ax−b‖² + ½λ‖x‖² is Ridge(α=λ)."""
     degree, lam = 2, 0.5
-    a_train, _ = scaled_monomials(work.u_train, work.u_train, degree)
+    a_train = paper_regressor(work.u_train, degree)
     references = {
         "lasso": Lasso(alpha=lam / N_TRAIN, fit_intercept=False, tol=1e-12, max_iter=200000),
         "ridge": Ridge(alpha=lam, fit_intercept=False),
@@ -336,6 +333,10 @@ def test_arx_one_step_predictions_equal_numpy_lstsq(capsys, work, tmp_path):
     assert "ARX na=1 nb=1" in info and f"coefficients {n_coef}," in info
     text, _ = run(capsys, ["evaluate", model, work.val, "--json"])  # evaluate counts, never warns
     payload = json.loads(text)
+    # The paper's evaluation by default: one-step, without the first max(na, nb) = 1 row of the segment.
+    assert "free_run" in payload and payload["n_samples"] == N_VAL - 1
+    text, _ = run(capsys, ["evaluate", model, work.val, "--json", "--mode", "free-run", "--warmup", "keep"])
+    payload = json.loads(text)
     assert "one_step" in payload and payload["n_samples"] == N_VAL
 
 
@@ -350,9 +351,10 @@ def test_degree_auto_picks_at_least_the_true_degree(capsys, tmp_path):
     model = tmp_path / "auto.json"
     out, _ = run(capsys, ["fit", tmp_path / "three.csv", "--inputs", "u1,u2,u3", "--degree", "auto",
                           "--group-by", "case", "--lambdas", "1,10", "-o", model])
-    assert "grouped 4-fold cross-validation" in out  # 4 groups cap the default 5 folds
-    for label in ("np1", "np5", "np3 lasso λ=1", "np5 lasso λ=10"):
+    assert "force error-norm RMSE, 4 folds" in out  # 4 groups cap the default 5 folds
+    for label in ("np1", "np3", "np3 lasso λ=1", "np3 ridge λ=10"):
         assert re.search(rf"^\s*\*?{re.escape(label)}\s", out, re.M), label
+    assert re.search(r"^selected np\d.*margin over np1", out, re.M)
     doc = json.loads(model.read_text())
     assert doc["model"]["degree"] >= 3
     assert [v["name"] for v in doc["inputs"]] == ["u1", "u2", "u3"]
@@ -373,7 +375,7 @@ def test_each_file_is_one_segment_and_one_group(capsys, work, tmp_path):
     assert json.loads(by_file.read_text())["created"]["sources"] == [str(f) for f in files]
     out, _ = run(capsys, ["fit", *files, "--degree", "auto", "--lambdas", "10", "--inputs", "u1,u2", "-o",
                           tmp_path / "auto.json"])
-    assert "grouped 4-fold cross-validation" in out
+    assert "RMSE, 4 folds)" in out and "selected np" in out
     # evaluate concatenates its files.
     payload = json.loads(run(capsys, ["evaluate", work.model3, work.val, work.val, "--json"])[0])
     assert payload["n_samples"] == 2 * N_VAL and payload["n_out_of_range"] == 2 * N_OUTSIDE

@@ -79,7 +79,8 @@ def evaluate(model: CalibrationModel, validation: Dataset, *, name: str | None =
     metrics, a column of the report) instead of warned about.
     """
     validation_metrics = model.score(validation, warn_out_of_range=False)
-    prediction = model.predict(validation, warn_out_of_range=False)
+    # The prediction the metrics score: one-step for ARX models (the paper's evaluation).
+    prediction = model.predict(validation, mode="one-step", warn_out_of_range=False)
     train_metrics = None if train is None else model.score(train, warn_out_of_range=False)
     return ModelRun(name or default_name(model), model, train_metrics, validation_metrics, prediction)
 

@@ -34,26 +34,74 @@ MAX_ACTIVE_SET_STEPS = 30
 
 
 class Lasso:
-    """LASSO with exact zeros; ``fit_path`` warm-starts over several λ."""
+    """LASSO with exact zeros: x* = argmin ½‖Ax − b‖² + λ‖x‖₁; ``fit_path`` warm-starts over several λ.
+
+    Parameters
+    ----------
+    lam : float > 0
+        LASSO weight λ (on max-abs scaled columns: the paper's scale).
+    max_iter : int
+        ADMM iterations before giving up (with a warning).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from ftcal.statistics import dense_statistics
+    >>> a = np.array([[1.0, 0.0], [0.0, 1.0]])
+    >>> b = np.array([[3.0], [0.5]])
+    >>> problem = ScaledProblem.from_statistics(dense_statistics(a, b))
+    >>> Lasso(1.0).fit(problem).coef[:, 0].tolist()  # soft threshold: 3 - 1, and 0.5 -> 0
+    [2.0, 0.0]
+    """
 
     name = "lasso"
+    penalty = "lasso"
 
     def __init__(self, lam: float, max_iter: int = MAX_ITER):
         self.lam = lam
         self.max_iter = max_iter
 
     def fit(self, problem: ScaledProblem) -> SolverResult:
+        """The solution at ``lam``; ``info`` has ``"lambda"``, ``"n_nonzero"``, ``"iterations"``.
+
+        Parameters
+        ----------
+        problem : ScaledProblem
+
+        Returns
+        -------
+        SolverResult
+        """
         return self.fit_path(problem, [self.lam])[0]
 
-    def fit_path(self, problem: ScaledProblem, lams: Sequence[float]) -> list[SolverResult]:
-        """Solutions for each λ in ``lams`` (returned in the given order)."""
+    def fit_path(self, problem: ScaledProblem, lams: Sequence[float], *,
+                 eigen: tuple[np.ndarray, np.ndarray] | None = None) -> list[SolverResult]:
+        """Solutions for each λ in ``lams`` (returned in the given order), warm-started from large to small λ.
+
+        Parameters
+        ----------
+        problem : ScaledProblem
+        lams : sequence of float > 0
+        eigen : (values, vectors), optional
+            ``numpy.linalg.eigh(problem.gram)`` when the caller has it (cross-validation
+            shares it with ridge); rank and condition number then come from these values.
+
+        Returns
+        -------
+        list of SolverResult, one per λ
+        """
         lams = [check_float(lam, "lam", "Lasso", 0.0, low_inclusive=False) for lam in lams]
         with single_threaded_blas():
-            return self._fit_path(problem, lams)
+            return self._fit_path(problem, lams, eigen)
 
-    def _fit_path(self, problem: ScaledProblem, lams: list[float]) -> list[SolverResult]:
-        values, vectors = np.linalg.eigh(problem.gram)
-        equilibrated = Conditioning.of(problem.gram)
+    def _fit_path(self, problem: ScaledProblem, lams: list[float], eigen) -> list[SolverResult]:
+        if eigen is None:
+            values, vectors = np.linalg.eigh(problem.gram)
+            equilibrated = Conditioning.of(problem.gram)
+            rank, condition = equilibrated.rank, equilibrated.condition_number
+        else:
+            values, vectors = eigen
+            rank, condition = _rank_and_condition(values)
         state = _AdmmState.cold(problem, values)
         results: dict[int, SolverResult] = {}
         for index in sorted(range(len(lams)), key=lambda i: -lams[i]):
@@ -67,8 +115,16 @@ class Lasso:
                     FtcalWarning, stacklevel=2)
             info["lambda"] = lams[index]
             info["n_nonzero"] = np.count_nonzero(coef, axis=0).tolist()
-            results[index] = SolverResult(coef, equilibrated.rank, equilibrated.condition_number, info)
+            results[index] = SolverResult(coef, rank, condition, info)
         return [results[i] for i in range(len(lams))]
+
+
+def _rank_and_condition(values: np.ndarray) -> tuple[int, float]:
+    """Rank and condition number of A from the eigenvalues of AᵀA (ascending)."""
+    top = max(values[-1], 0.0)
+    keep = values > top * np.finfo(float).eps * max(values.size, 10) * 10
+    smallest = values[0]
+    return int(keep.sum()), float(np.sqrt(top / smallest)) if smallest > 0 else float("inf")
 
 
 class _AdmmState:
