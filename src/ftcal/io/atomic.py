@@ -10,8 +10,7 @@ resolving symbolic links, or the same inode: a hard link).
 from __future__ import annotations
 
 import os
-import signal
-import tempfile
+import secrets
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -81,40 +80,29 @@ def atomic_path(target: str | os.PathLike) -> Iterator[Path]:
         target.parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise FtcalError(f"{target}: cannot create the output file ({exc.strerror or exc}).") from None
-    # Signals wait while the temporary file is created and not yet owned by the clean-up below.
-    held = _hold_signals()
+    # The name is chosen before the file exists, so the clean-up below owns the file from
+    # the instant it is created: a signal arriving at any point cannot orphan it.
+    tmp_path = None
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
-    except OSError as exc:
-        _release_signals(held)
-        raise FtcalError(f"{target}: cannot create the output file ({exc.strerror or exc}).") from None
-    tmp_path = Path(tmp)
-    try:
-        _release_signals(held)
-        os.close(fd)
-        # mkstemp makes the file private (0600); outputs get the usual permissions.
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
+        try:
+            fd = None
+            while fd is None:
+                tmp_path = target.parent / f".{target.name}.{secrets.token_hex(8)}.tmp"
+                try:
+                    # Mode 0666 less the umask: outputs get the usual permissions.
+                    fd = os.open(tmp_path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+                except FileExistsError:
+                    tmp_path = None  # someone else's file: never ours to remove
+            os.close(fd)
+        except OSError as exc:
+            raise FtcalError(f"{target}: cannot create the output file ({exc.strerror or exc}).") from None
         yield tmp_path
         os.replace(tmp_path, target)
     except OSError as exc:
         raise FtcalError(f"{target}: cannot write the output file ({exc.strerror or exc}).") from None
     finally:
-        if tmp_path.exists():
+        if tmp_path is not None and tmp_path.exists():
             tmp_path.unlink()
-
-
-_HELD_SIGNALS = {getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)}
-
-
-def _hold_signals():
-    return signal.pthread_sigmask(signal.SIG_BLOCK, _HELD_SIGNALS) if hasattr(signal, "pthread_sigmask") else None
-
-
-def _release_signals(previous) -> None:
-    if previous is not None:
-        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
 def write_text_atomic(target: str | os.PathLike, text: str, newline: str | None = None) -> None:
