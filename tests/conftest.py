@@ -1,5 +1,7 @@
 """Shared fixtures for the fitting-engine tests: seeded data and independent references."""
 
+import os
+
 import numpy as np
 import pytest
 from sklearn.preprocessing import PolynomialFeatures
@@ -24,6 +26,18 @@ def sensor_like_data(rng, n, n_channels=6):
     wrench = loads * np.array([100.0, 100.0, 100.0, 10.0, 10.0, 10.0])[:n_channels]
     wrench = wrench + 5.0 * np.tanh(2.0 * loads[:, :1]) + 0.01 * (temperature[:, None] - 35.0) ** 2
     return np.c_[counts, temperature], wrench
+
+
+@pytest.fixture(autouse=True, scope="session")
+def private_cache_home(tmp_path_factory):
+    """The expected-wrench cache of every test (and of the CLI it starts) goes to a temporary folder."""
+    previous = os.environ.get("XDG_CACHE_HOME")
+    os.environ["XDG_CACHE_HOME"] = str(tmp_path_factory.mktemp("xdg-cache"))
+    yield
+    if previous is None:
+        os.environ.pop("XDG_CACHE_HOME", None)
+    else:
+        os.environ["XDG_CACHE_HOME"] = previous
 
 
 @pytest.fixture

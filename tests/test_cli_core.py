@@ -401,7 +401,7 @@ def test_evaluate_json_equals_metrics_of_predictions(capsys, work, tmp_path):
     for j, name in enumerate(cd.OUTPUTS):
         cells = next(l for l in table.splitlines() if l.split()[:1] == [name]).split()
         assert float(cells[1]) == pytest.approx(want["rmse"][j], rel=1e-4)
-        assert float(cells[2]) == pytest.approx(want["best_fit"][j], abs=1e-4)
+        assert float(cells[2]) == pytest.approx(100.0 * want["best_fit"][j], abs=1e-2)  # percent
         assert float(cells[3]) == pytest.approx(want["max_abs_error"][j], rel=1e-4)
     assert re.search(r"force-norm RMSE: (\S+)", table).group(1) == f"{want['force_norm_rmse']:.5g}"
 

@@ -144,7 +144,7 @@ def test_arx_exponent_rows_by_hand():
 
 
 def _hand_arx_rows(u, y, na, nb):
-    """Rows k = max(na, nb)..n-1 for degree 2 over two inputs, DESIGN.md order."""
+    """Rows k = max(na, nb)..n-1 for degree 2 over two inputs, the paper's column order (docs/formats.md §1)."""
     rows = []
     for k in range(max(na, nb), len(u)):
         row = [y[k - j, l] for j in range(1, na + 1) for l in range(y.shape[1])]

@@ -14,7 +14,7 @@ from ftcal.io.paper_xml import parse_paper_xml, read_paper_xml, write_paper_xml
 from ftcal.model import CalibrationModel, model_from_fitted
 from ftcal.normalization import Normalization
 
-# Like the FORMATS.md example (np=1, nu=7, ny=6: 8 rows), with uneven white space and
+# Like the docs/formats.md §1 example (np=1, nu=7, ny=6: 8 rows), with uneven white space and
 # several float spellings.
 HAND_WRITTEN = """<?xml version="1.0" encoding="utf-8"?>
 <group name="modelClassParams">

@@ -6,7 +6,6 @@ import pytest
 from ftcal.errors import FtcalError
 from ftcal.robot import FloatingBase, Payload, RobotModel, expected_wrenches
 from ftcal.robot import expected as expected_module
-from ftcal.robot.cache import cache_key, cache_path, cached
 from test_robot_model import FOREARM_MASS, TINY_URDF
 
 G = 9.81
@@ -150,32 +149,3 @@ def test_bad_joint_arrays(tiny):
         expected_wrenches(tiny, np.zeros((3, 1)), dq=np.zeros((2, 1)))
     with pytest.raises(FtcalError, match="unknown_joint"):
         tiny.joint_matrix(["shoulder", "unknown_joint"], np.zeros((1, 2)), "joints.csv")
-
-
-def test_cache_hit_and_invalidation(tiny, tmp_path):
-    recording = tmp_path / "rec.mat"
-    calls = []
-
-    def compute(robot, q):
-        def run():
-            calls.append(1)
-            return expected_wrenches(robot, q)
-        return run
-
-    q = np.linspace(-1, 1, 7)[:, None]
-    names = ["arm_ft"]
-    key = cache_key(tiny, [q], ("base",))
-    first = cached(recording, key, names, compute(tiny, q))
-    assert cache_path(recording, key).is_file() and cache_path(recording, key).parent.name == "rec.mat.ftcal-cache"
-    again = cached(recording, key, names, compute(tiny, q))
-    assert len(calls) == 1
-    np.testing.assert_array_equal(first, again)
-    loaded = tiny.with_payloads([Payload("forearm", 1.0)])
-    assert cache_key(loaded, [q], ("base",)) != key
-    assert cache_key(tiny, [q + 1e-12], ("base",)) != key
-    assert cache_key(tiny, [q], ("other",)) != key
-    assert cache_key(RobotModel.from_text(TINY_URDF.replace("1.5", "1.6"), "t"), [q], ("base",)) != key
-    # a corrupt cache file is recomputed, not trusted
-    cache_path(recording, key).write_bytes(b"garbage")
-    cached(recording, key, names, compute(tiny, q))
-    assert len(calls) == 2

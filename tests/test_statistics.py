@@ -81,7 +81,7 @@ def test_restrict_to_lower_degree_equals_lower_degree_statistics(rng, ref_featur
 
 
 def _hand_arx_regressor(u, y_past, na, nb):
-    """Degree-1 ARX rows k = max(na, nb)..n-1 of one segment, DESIGN.md order."""
+    """Degree-1 ARX rows k = max(na, nb)..n-1 of one segment, the paper's column order (docs/formats.md §1)."""
     lag = max(na, nb)
     rows = []
     for k in range(lag, len(u)):

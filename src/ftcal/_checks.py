@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numbers
+import re
 
 import numpy as np
 
@@ -63,3 +64,20 @@ def check_finite_matrix(array: object, name: str, n_columns: int | None = None,
             f"{name}: {int(bad.sum())} non-finite value(s) (NaN or inf); first in {label!r} at row {row}."
         )
     return arr
+
+
+_SAFE_NAME = re.compile(r"[A-Za-z0-9_\-][A-Za-z0-9_.\-]{0,63}")
+
+
+def check_safe_name(value: str, option: str) -> str:
+    """Return ``value`` if it can be part of a file name: 1-64 letters, digits, ``_ - .``, not starting with ``.``.
+
+    Raises
+    ------
+    FtcalError
+        Anything else (``/``, ``..``, spaces, control characters, an empty name).
+    """
+    if isinstance(value, str) and _SAFE_NAME.fullmatch(value):
+        return value
+    raise FtcalError(f"{option} {value!r}: use 1 to 64 letters, digits, '_', '-' or '.' (not first); "
+                     "it becomes part of a file name.")

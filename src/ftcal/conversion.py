@@ -75,11 +75,29 @@ def substitution_matrix(layout: RegressorLayout, in_offset: np.ndarray, in_scale
 
 
 def to_raw(model: CalibrationModel) -> np.ndarray:
-    """Coefficients of raw-input monomials, shape (n_features, n_outputs), in the model's column order."""
+    """Coefficients of raw-input monomials, shape (n_features, n_outputs), in the model's column order.
+
+    Entries that overflow float64 (tiny input scales at a high degree) come out as ±inf or
+    NaN, silently: writers use :func:`to_raw_finite`, which refuses them.
+    """
     model._check_fitted()
     inn, out = model.input_normalization_, model.output_normalization_
-    t = substitution_matrix(model.layout_, inn.offset, inn.scale, out.offset, out.scale)
-    return np.asarray(t @ model.coef_)
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        t = substitution_matrix(model.layout_, inn.offset, inn.scale, out.offset, out.scale)
+        return np.asarray(t @ model.coef_)
+
+
+def to_raw_finite(model: CalibrationModel, target: str) -> np.ndarray:
+    """:func:`to_raw`, or :class:`FtcalError` when a raw coefficient overflows (``target`` names the export)."""
+    raw = to_raw(model)
+    bad = ~np.isfinite(raw)
+    if bad.any():
+        row = int(np.argwhere(bad)[0][0])
+        name = model.layout_.column_names(model.input_names_, model.output_names_)[row]
+        raise FtcalError(f"{target}: the raw-input coefficient of {name!r} overflows float64 "
+                         f"({int(bad.sum())} coefficient(s) not finite; the inputs' training range is too "
+                         "narrow for this degree in raw units); keep the model in the JSON format.")
+    return raw
 
 
 def from_raw(raw_coef: np.ndarray, *, degree: int, input_names: Sequence[str],
@@ -215,7 +233,7 @@ def affine_part(model: CalibrationModel, n_linear: int, target: str) -> tuple[np
     model._check_fitted()
     layout = model.layout_
     n_linear = min(n_linear, len(model.input_names_))
-    raw = to_raw(model)
+    raw = to_raw_finite(model, target)
     exps, lags = layout.exponent_rows()
     linear = [int(np.flatnonzero((lags == 0) & (exps.sum(axis=1) == 1) & (exps[:, i] == 1))[0])
               for i in range(n_linear)]

@@ -15,10 +15,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._checks import check_finite_matrix
+from .columns import DEFAULT_INPUTS, DEFAULT_OUTPUTS
 from .errors import FtcalError
 
-DEFAULT_INPUTS = ("u1", "u2", "u3", "u4", "u5", "u6", "T")
-DEFAULT_OUTPUTS = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
 
 
 @dataclass(frozen=True)
@@ -87,6 +86,35 @@ class Dataset:
         seg = np.zeros(n, dtype=np.int64) if segments is None else np.asarray(segments, dtype=np.int64)
         grp = seg.copy() if groups is None else np.asarray(groups)
         return cls(u, y, names_in, names_out, seg, grp)
+
+    @classmethod
+    def from_table(cls, path: str | Sequence[str], *, inputs: Sequence[str] | None = None,
+                   outputs: Sequence[str] | None = DEFAULT_OUTPUTS, segment_by: str | None = None,
+                   group_by: str | None = None) -> "Dataset":
+        """Read CSV or Parquet file(s) (docs/formats.md), like ``ftcal fit DATA`` does.
+
+        Parameters
+        ----------
+        path : a file name, or a sequence of them (each one segment and group unless
+            ``segment_by`` / ``group_by`` name a column)
+        inputs : input columns; default ``u1..u6,T``, or ``u1..u6`` when the first file has no ``T``
+        outputs : reference output columns (default ``Fx..Tz``); None for inputs only
+        segment_by, group_by : columns whose values name segments and validation groups
+
+        Returns
+        -------
+        Dataset
+
+        Raises
+        ------
+        FtcalError
+            A missing file or column, or a cell that is not a finite number.
+        """
+        from .io.tables import default_inputs, read_dataset
+
+        paths = [path] if isinstance(path, str) or not isinstance(path, Sequence) else list(path)
+        return read_dataset(paths, inputs or default_inputs(paths), outputs,
+                            segment_by=segment_by, group_by=group_by)
 
     @property
     def n_samples(self) -> int:

@@ -70,12 +70,16 @@ def split_held_out(data: Dataset, manifest: list[dict]) -> tuple[Dataset, Datase
     interpolation, as in the paper), but each held-out (load, temperature)
     combination is one the model has not seen.
     """
+    mask = np.isin(data.segments, held_out_recordings(manifest))
+    return data.subset(~mask), data.subset(mask)
+
+
+def held_out_recordings(manifest: list[dict]) -> list[int]:
+    """Indices (in manifest order) of the recordings :func:`split_held_out` keeps for validation."""
     loads = sorted({m["load_kg"] for m in manifest})
     temps = sorted({m["temperature_start"] for m in manifest})
-    held = [i for i, m in enumerate(manifest)
+    return [i for i, m in enumerate(manifest)
             if (loads.index(m["load_kg"]) + temps.index(m["temperature_start"])) % len(temps) == 0]
-    mask = np.isin(data.segments, held)
-    return data.subset(~mask), data.subset(mask)
 
 
 def candidates(config: DemoConfig) -> list[Candidate]:
@@ -104,6 +108,7 @@ def run_demo(config: DemoConfig = DemoConfig()) -> dict:
                      "train": _public(model.training_metrics_), "validation": _public(val_metrics)})
         runs.append((candidate, model, val_metrics, prediction))
     _write_artifacts(config.out_dir, runs, train, validation)
+    write_example_inputs(config, manifest, validation)
     raw = _raw_baseline(validation)
     summary = {"models": rows, "raw_firmware_validation": raw,
                "n_train_samples": train.n_samples, "n_validation_samples": validation.n_samples,
@@ -119,13 +124,75 @@ def run_demo(config: DemoConfig = DemoConfig()) -> dict:
 def _write_artifacts(out_dir: Path, runs, train: Dataset, validation: Dataset) -> None:
     """Models as JSON and the two datasets as Parquet, to try `ftcal fit/evaluate/report` on."""
     from .insitu import write_dataset
+    from .fingerprint import segment_fingerprints
     from .io.model_json import save_model
 
+    fingerprints = segment_fingerprints(train)
     for candidate, model, _, _ in runs:
         name = f"np{candidate.degree}" + (f"-lasso{candidate.lam:g}" if candidate.lam is not None else "")
-        save_model(model, out_dir / "models" / f"{name}.json", sources=list(train.sources))
+        save_model(model, out_dir / "models" / f"{name}.json", sources=list(train.sources),
+                   training_segments=fingerprints)
     write_dataset(train, out_dir / "train.parquet")
     write_dataset(validation, out_dir / "validation.parquet")
+
+
+def write_example_inputs(config: DemoConfig, manifest: list[dict], validation: Dataset) -> None:
+    """The input files README.md's worked examples use, so each runs as written after ``make demo``.
+
+    - ``logs/train/<case>/*.mat`` and ``logs/validation/<case>/*.mat``: the recordings behind
+      ``train.parquet`` and ``validation.parquet``, in the paper's ``l<x>kg-r<y>kg`` folders
+      (hard links to ``recordings/``, so no extra disk space where links are possible);
+    - ``payloads.toml``: the support on the right forearm and where the plates of each
+      ``l<x>kg-r<y>kg`` folder go (``ftcal dataset --payload-file``, docs/formats.md);
+    - ``joints.csv``: right-arm poses of the grid trajectory, one column per URDF joint (rad);
+    - ``new_data.csv``: raw channels (u1..u6, T) of held-out samples to apply a model to.
+    """
+    import os
+    import shutil
+
+    import pandas as pd
+
+    from .io.tables import write_table
+    from .robot.model import RobotModel
+    from .sim.experiment import ExperimentConfig
+    from .sim.trajectories import ARM_JOINTS, grid_trajectory, joint_limits
+
+    out, experiment = config.out_dir, ExperimentConfig(seed=config.seed)
+    held = set(held_out_recordings(manifest))
+    for index, recording in enumerate(manifest):
+        source = Path(recording["path"])
+        target = out / "logs" / ("validation" if index in held else "train") / source.parent.name / source.name
+        target.parent.mkdir(parents=True, exist_ok=True)
+        target.unlink(missing_ok=True)
+        try:
+            os.link(source, target)
+        except OSError:
+            shutil.copyfile(source, target)
+    com = ", ".join(f"{c:g}" for c in experiment.load_com)
+    write_text_atomic(out / "payloads.toml", f"""\
+# Payloads of the demo's recordings (ftcal dataset --payload-file; docs/formats.md).
+# The support is on the right forearm in every recording:
+[[payload]]
+name = "support"
+frame = "{experiment.load_frame}"
+mass = {experiment.support_kg}
+com = [{com}]  # m, in the frame's coordinates
+
+# Folders named l<x>kg-r<y>kg: x kg of plates on the left mount, y kg on the right one.
+[convention.right]
+frame = "{experiment.load_frame}"
+com = [{com}]
+[convention.left]
+frame = "l_forearm"
+""")
+    robot = RobotModel.load(name=experiment.robot)
+    poses = grid_trajectory(joint_limits(robot.source, ARM_JOINTS), rng=np.random.default_rng(config.seed))
+    every = max(1, len(poses.time) // 200)
+    joints = pd.DataFrame(poses.positions[::every], columns=list(poses.joint_names))
+    joints.insert(0, "time", poses.time[::every])
+    write_table(joints, out / "joints.csv")
+    raw = pd.DataFrame(validation.inputs[:2000], columns=list(validation.input_names))
+    write_table(raw, out / "new_data.csv")
 
 
 def _public(summary: dict) -> dict:

@@ -54,7 +54,8 @@ class InsituOptions:
         channels so its first sample equals the expected wrench there
     joint_units : "rad" or "deg" (joint data in the logs)
     adc_limits : (low, high) raw values that mean the ADC saturated, or None
-    cache : reuse expected wrenches stored next to the recordings
+    cache : reuse expected wrenches from the cache (see ftcal.robot.cache)
+    cache_dir : folder of the cache, or None for the user cache folder (~/.cache/ftcal)
     workers : processes for the expected wrenches
     """
 
@@ -71,6 +72,7 @@ class InsituOptions:
     joint_units: str = "rad"
     adc_limits: tuple[float, float] | None = None
     cache: bool = True
+    cache_dir: str | Path | None = None
     workers: int = 2
 
 
@@ -123,7 +125,7 @@ def recording_dataset(path: str | Path, robot: RobotModel, sensor: str, case: Lo
 
 
 def _expected(path: Path, robot: RobotModel, data: Aligned, options: InsituOptions) -> np.ndarray:
-    """Expected wrenches of all sensors, (n_samples, n_sensors, 6), cached next to the recording."""
+    """Expected wrenches of all sensors, (n_samples, n_sensors, 6), cached (see ftcal.robot.cache)."""
     where = f"Recording {path} joints_state"
     q = robot.joint_matrix(data.joint_names, data.q, where)
     dq = None if data.dq is None else robot.joint_matrix(data.joint_names, data.dq, where)
@@ -143,7 +145,7 @@ def _expected(path: Path, robot: RobotModel, data: Aligned, options: InsituOptio
     if not options.cache:
         return compute()
     key = cache_key(robot, arrays, (base, tuple(options.gravity), options.imu_frame))
-    return cached(path, key, [s.name for s in robot.ft_sensors], compute)
+    return cached(key, [s.name for s in robot.ft_sensors], q.shape[0], compute, options.cache_dir)
 
 
 def write_dataset(dataset: Dataset, path: str | Path) -> None:

@@ -8,7 +8,7 @@ import math
 import sys
 from collections.abc import Sequence
 
-from ..dataset import DEFAULT_INPUTS, DEFAULT_OUTPUTS
+from ..columns import DEFAULT_INPUTS, DEFAULT_OUTPUTS
 from ..errors import FtcalError
 
 
@@ -20,6 +20,16 @@ def column_list(text: str) -> tuple[str, ...]:
     if len(set(names)) != len(names):
         raise argparse.ArgumentTypeError(f"column names repeat in {text!r}")
     return names
+
+
+def finite_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"must be a finite number, got {text!r}")
+    return value
 
 
 def positive_float(text: str) -> float:
@@ -60,17 +70,18 @@ def add_column_options(parser: argparse.ArgumentParser, outputs: bool = True) ->
 
 def default_inputs(paths: Sequence[str]) -> tuple[str, ...]:
     """u1..u6,T, or u1..u6 when the first file has no T column (temperature is optional)."""
-    from ..io.tables import read_table
+    from ..io.tables import default_inputs as from_files
 
-    if not paths:
-        return DEFAULT_INPUTS
-    columns = set(read_table(paths[0]).columns)
-    return DEFAULT_INPUTS if "T" in columns else DEFAULT_INPUTS[:-1]
+    return from_files(paths)
 
 
 def print_json(payload: dict) -> None:
-    json.dump(payload, sys.stdout, indent=2, allow_nan=False)
-    sys.stdout.write("\n")
+    """Print ``payload`` as JSON, all or nothing: a non-finite number is an error, not partial output."""
+    try:
+        text = json.dumps(payload, indent=2, allow_nan=False)
+    except ValueError:
+        raise FtcalError("the result holds a non-finite number (inf or NaN); refusing to print invalid JSON.") from None
+    sys.stdout.write(text + "\n")
 
 
 def require_suffix(path: str, suffixes: Sequence[str], option: str) -> None:

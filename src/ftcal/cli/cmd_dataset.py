@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import argparse
 
-from ._common import require_suffix
-from .cmd_sensors import add_robot_arguments
+from ._common import finite_float, positive_float, require_suffix
+from .cmd_sensors import add_cache_arguments, add_robot_arguments
 
 
 def register(subparsers) -> None:
@@ -21,13 +21,13 @@ def register(subparsers) -> None:
     parser.add_argument("--sensor", metavar="NAME", required=True, help="F/T sensor (sensor or joint name)")
     parser.add_argument("--payload-file", metavar="TOML",
                         help="payloads and load cases per recording (incl. the l<x>kg-r<y>kg folder convention)")
-    parser.add_argument("--gravity", metavar=("X", "Y", "Z"), nargs=3, type=float,
-                        default=(0.0, 0.0, -9.81), help="gravity in base-frame axes (default 0 0 -9.81)")
+    parser.add_argument("--gravity", metavar=("X", "Y", "Z"), nargs=3, type=finite_float,
+                        default=(0.0, 0.0, -9.81), help="gravity in base-frame axes, m/s² (default 0 0 -9.81)")
     parser.add_argument("--savgol-frame", type=int, default=101, metavar="N",
-                        help="Savitzky-Golay frame length, odd (default 101)")
+                        help="Savitzky-Golay frame length in samples, odd (default 101)")
     parser.add_argument("--savgol-order", type=int, default=3, metavar="K", help="Savitzky-Golay order (default 3)")
     parser.add_argument("--no-filter", action="store_true", help="do not smooth the raw channels and temperature")
-    parser.add_argument("--rate", type=float, metavar="HZ",
+    parser.add_argument("--rate", type=positive_float, metavar="HZ",
                         help="resample on a uniform clock (default: the F/T timestamps)")
     parser.add_argument("--no-temperature", action="store_true", help="inputs u1..u6 only, no T")
     parser.add_argument("--degrees", action="store_true", help="joint data in the logs are in degrees")
@@ -38,11 +38,10 @@ def register(subparsers) -> None:
     parser.add_argument("--align-first-sample", action="store_true",
                         help="the paper's dataset offset: shift each recording's raw channels so the "
                              "first sample equals the expected wrench")
-    parser.add_argument("--adc-limits", nargs=2, type=float, metavar=("LOW", "HIGH"),
+    parser.add_argument("--adc-limits", nargs=2, type=finite_float, metavar=("LOW", "HIGH"),
                         help="raw values meaning the ADC saturated (reported as warnings)")
     parser.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
-    parser.add_argument("--no-cache", action="store_true",
-                        help="do not read or write <LOG>.ftcal-cache/")
+    add_cache_arguments(parser)
     parser.add_argument("-o", "--output", metavar="DATASET", required=True, help="output .parquet or .csv")
     parser.set_defaults(func=run)
 
@@ -66,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
         imu=args.imu, imu_frame=args.imu_frame, align_first_sample=args.align_first_sample,
         joint_units="deg" if args.degrees else "rad",
         adc_limits=tuple(args.adc_limits) if args.adc_limits else None,
-        cache=not args.no_cache, workers=args.workers)
+        cache=not args.no_cache, cache_dir=args.cache_dir, workers=args.workers)
     dataset = build_dataset(args.logs, robot, args.sensor, payloads=payloads, load_cases=config, options=options)
     write_dataset(dataset, out)
     groups = sorted(set(map(str, dataset.groups)))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import warnings
 
 from ._common import print_json
@@ -21,22 +22,42 @@ def register(sub) -> None:
 
 
 def evaluate(args):
+    import numpy as np
+
     from ..errors import OutOfRangeWarning
-    from ..io.model_files import read_model
+    from ..fingerprint import warn_if_trained_on
+    from ..io.model_files import read_model_file
     from ..io.tables import read_dataset
 
-    model = read_model(args.model)
+    loaded = read_model_file(args.model)
+    model = loaded.model
     data = read_dataset(args.data, model.input_names_, model.output_names_, segment_by=args.segment_by)
-    with warnings.catch_warnings():
-        # The count is reported in the output; no separate warning line.
+    warn_if_trained_on(data, loaded.training_segments, args.model)
+    with warnings.catch_warnings(), np.errstate(over="ignore", invalid="ignore"):
+        # The count is reported in the output; no separate warning line. Overflow is refused in run().
         warnings.simplefilter("ignore", OutOfRangeWarning)
         return model, model.score(data, mode=args.mode)
+
+
+def check_finite_metrics(summary: dict, keys) -> None:
+    """Refuse to report a metric that is inf or NaN (the predictions overflowed)."""
+    from ..errors import FtcalError
+
+    for key in keys:
+        values = summary.get(key)
+        for value in values if isinstance(values, list) else [values]:
+            if isinstance(value, float) and not math.isfinite(value):
+                raise FtcalError(f"metric {key} is {value} on this data: the model's predictions overflow "
+                                 "(inputs far outside its training range?); nothing to report.")
 
 
 def run(args) -> int:
     from ..metrics import EVALUATION_KEYS as JSON_KEYS
 
     model, summary = evaluate(args)
+    check_finite_metrics(summary, JSON_KEYS)
+    if "one_step" in summary:
+        check_finite_metrics(summary["one_step"], JSON_KEYS)
     if args.json:
         payload = {k: summary[k] for k in JSON_KEYS}
         if "one_step" in summary:
@@ -44,10 +65,10 @@ def run(args) -> int:
         print_json(payload)
         return 0
     print(f"{summary['n_samples']} samples, {summary['n_out_of_range']} outside the training input range")
-    print(f"{'output':<10}{'RMSE':>12}{'BestFit':>10}{'max |err|':>12}{'resid. acf(1)':>15}")
+    print(f"{'output':<10}{'RMSE':>12}{'BestFit %':>10}{'max |err|':>12}{'resid. acf(1)':>15}")
     for name, r, b, m, a in zip(summary["outputs"], summary["rmse"], summary["best_fit"],
                                 summary["max_abs_error"], summary["residual_autocorrelation_lag1"]):
-        best = f"{b:.4f}" if b is not None else "n/a"
+        best = f"{100.0 * b:.2f}" if b is not None else "n/a"
         print(f"{name:<10}{r:>12.5g}{best:>10}{m:>12.5g}{a:>15.3f}")
     for key, label in (("force_norm_rmse", "force-norm RMSE"), ("torque_norm_rmse", "torque-norm RMSE"),
                        ("force_error_norm_rmse", "RMSE of force error norm"),

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import argparse
 
-from ._common import require_suffix
-from .cmd_sensors import add_robot_arguments, load_robot
+from ._common import finite_float, require_suffix
+from .cmd_sensors import add_cache_arguments, add_robot_arguments, load_robot
 
 WRENCH = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
 
@@ -22,12 +22,11 @@ def register(subparsers) -> None:
                              "not given are 0; an optional 'time' column is copied to the output")
     parser.add_argument("--sensor", metavar="NAME", action="append", default=[],
                         help="F/T sensor (sensor or joint name); repeatable; default all")
-    parser.add_argument("--gravity", metavar=("X", "Y", "Z"), nargs=3, type=float,
-                        default=(0.0, 0.0, -9.81), help="gravity in base-frame axes (default 0 0 -9.81)")
+    parser.add_argument("--gravity", metavar=("X", "Y", "Z"), nargs=3, type=finite_float,
+                        default=(0.0, 0.0, -9.81), help="gravity in base-frame axes, m/s² (default 0 0 -9.81)")
     parser.add_argument("--degrees", action="store_true", help="joint positions are in degrees")
     parser.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
-    parser.add_argument("--no-cache", action="store_true",
-                        help="do not read or write <FILE>.ftcal-cache/")
+    add_cache_arguments(parser)
     parser.add_argument("-o", "--output", metavar="OUT", required=True, help="output .csv or .parquet")
     parser.set_defaults(func=run)
 
@@ -38,9 +37,7 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
     import pandas as pd
 
-    from ..errors import FtcalError
-    from ..io.atomic import write_with
-    from ..io.tables import read_table
+    from ..io.tables import numeric_columns, read_table, write_table
     from ..robot.cache import cache_key, cached
     from ..robot.expected import expected_wrenches
 
@@ -52,10 +49,7 @@ def run(args: argparse.Namespace) -> int:
     _, base = robot.base_frame(args.base)
     table = read_table(Path(args.joints))
     joint_cols = [c for c in table.columns if c != "time"]
-    non_numeric = [c for c in joint_cols if not np.issubdtype(table[c].dtype, np.number)]
-    if non_numeric:
-        raise FtcalError(f"{args.joints}: column {non_numeric[0]!r} is not numeric.")
-    values = table[joint_cols].to_numpy(np.float64)
+    values = numeric_columns(table, joint_cols, Path(args.joints), "joint")
     if args.degrees:
         values = np.deg2rad(values)
     q = robot.joint_matrix(joint_cols, values, str(args.joints))
@@ -67,15 +61,12 @@ def run(args: argparse.Namespace) -> int:
         wrenches = compute()
     else:
         key = cache_key(robot, [q], (base, tuple(args.gravity), None))
-        wrenches = cached(args.joints, key, [s.name for s in robot.ft_sensors], compute)
+        wrenches = cached(key, [s.name for s in robot.ft_sensors], q.shape[0], compute, args.cache_dir)
     columns = {"time": table["time"].to_numpy()} if "time" in table.columns else {}
     for label, sensor in zip(labels, sensors):
         for axis, name in enumerate(WRENCH):
             columns[f"{label}_{name}"] = wrenches[:, sensor.index, axis]
     frame = pd.DataFrame(columns)
-    if out.suffix.lower() == ".csv":
-        write_with(out, lambda tmp: frame.to_csv(tmp, index=False))
-    else:
-        write_with(out, lambda tmp: frame.to_parquet(tmp, index=False))
+    write_table(frame, out)
     print(f"wrote {len(frame)} samples x {len(sensors)} sensor(s) to {out}")
     return 0

@@ -31,8 +31,9 @@ def register(sub) -> None:
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("data", nargs="+", metavar="DATA", help="CSV or Parquet files (each one segment and group)")
     add_column_options(p)
-    p.add_argument("--degree", type=degree_value, default=1,
-                   help="polynomial degree 1-5 (up to 10), or 'auto' for grouped cross-validation (default 1)")
+    p.add_argument("--degree", type=degree_value,
+                   help="polynomial degree, 1 to 10 (the paper fits 1 to 5), or 'auto' for grouped "
+                        "cross-validation over 1 to 5 (default 1: affine)")
     penalty = p.add_mutually_exclusive_group()
     penalty.add_argument("--lasso", type=positive_float, metavar="LAMBDA",
                          help="LASSO weight on max-abs scaled features (paper: 0.5 .. 200)")
@@ -66,12 +67,19 @@ def make_solver(args):
 
 def check_options(args) -> None:
     """Option combinations that cannot work, refused before any data is read."""
-    from ..errors import FtcalError
+    import warnings
+
+    from ..errors import FtcalError, FtcalWarning
 
     if args.solver == "osqp" and args.ridge:
         raise FtcalError("--solver osqp implements the paper's least-squares and LASSO programs, not --ridge.")
     if args.degree == "auto" and args.solver == "osqp":
         raise FtcalError("--degree auto uses the streaming solvers; drop --solver osqp.")
+    if args.degree is None:
+        if args.lasso or args.ridge:
+            warnings.warn(f"--{'lasso' if args.lasso else 'ridge'} without --degree fits degree 1 (affine); "
+                          "give --degree (the paper's LASSO models are degree 4).", FtcalWarning, stacklevel=2)
+        args.degree = 1
     if args.folds < 2:
         raise FtcalError(f"--folds must be at least 2; got {args.folds}.")
     for flag in ("na", "nb"):
@@ -80,6 +88,7 @@ def check_options(args) -> None:
 
 
 def run(args) -> int:
+    from ..fingerprint import segment_fingerprints
     from ..io.model_json import save_model
     from ..io.tables import read_dataset
     from ..model import CalibrationModel
@@ -107,7 +116,8 @@ def run(args) -> int:
     else:
         model = CalibrationModel(args.degree, solver=make_solver(args), na=args.na, nb=args.nb,
                                  normalization=args.normalization).fit(data)
-    save_model(model, args.output, sources=[str(p) for p in args.data])
+    save_model(model, args.output, sources=[str(p) for p in args.data],
+               training_segments=segment_fingerprints(data))
     report_fit(model, args.output)
     return 0
 

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import numpy as np
-
 N_LARGEST = 10
 
 
@@ -15,6 +13,8 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    import numpy as np
+
     from ..io.model_files import read_model_file
 
     loaded = read_model_file(args.model)

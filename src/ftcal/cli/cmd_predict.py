@@ -19,6 +19,7 @@ def register(sub) -> None:
 def run(args) -> int:
     import sys
 
+    import numpy as np
     import pandas as pd
 
     from ..io.model_files import read_model
@@ -28,7 +29,8 @@ def run(args) -> int:
     model = read_model(args.model)
     data = read_dataset(args.data, model.input_names_, model.output_names_ if args.mode == "one-step" else None,
                         segment_by=args.segment_by)
-    prediction = model.predict(data, mode=args.mode)
+    with np.errstate(over="ignore", invalid="ignore"):  # overflow is refused below, in one line
+        prediction = model.predict(data, mode=args.mode)
     write_table(pd.DataFrame(prediction, columns=list(model.output_names_)), args.output)
     n_out = int(model.out_of_range(data.inputs).sum())
     print(f"wrote {len(prediction)} predictions to {args.output}"

@@ -72,22 +72,21 @@ def _union(name_lists) -> tuple[str, ...]:
 
 def run(args: argparse.Namespace) -> int:
     from ..errors import FtcalError
-    from ..io.model_files import read_model
+    from ..fingerprint import warn_if_trained_on
+    from ..io.model_files import read_model_file
     from ..io.tables import read_dataset
 
     model_paths, data_paths = split_files(args.files)
     out = Path(args.output)
     if out.suffix.lower() not in REPORT_SUFFIXES:
         raise FtcalError(f"--output {out}: must end in .html.")
-    for given in [*args.files, *args.train]:
-        if Path(given).resolve() == out.resolve():
-            raise FtcalError(f"--output {out} is also an input file; choose another name.")
     train_paths = list(args.train)
     for name in train_paths:
         if Path(name).suffix.lower() not in DATA_SUFFIXES:
             raise FtcalError(f"--train {name}: data files end in {', '.join(DATA_SUFFIXES)}.")
 
-    models = [read_model(p) for p in model_paths]
+    loaded = [read_model_file(p) for p in model_paths]
+    models = [m.model for m in loaded]
     inputs = args.inputs or _union(m.input_names_ for m in models)
     outputs = args.outputs or _union(m.output_names_ for m in models)
 
@@ -95,6 +94,8 @@ def run(args: argparse.Namespace) -> int:
         return read_dataset(paths, inputs, outputs, segment_by=args.segment_by, group_by=args.group_by)
 
     validation = read(data_paths)
+    for path, model_file in zip(model_paths, loaded):
+        warn_if_trained_on(validation, model_file.training_segments, path)
     train = read(train_paths) if train_paths else None
 
     from ..report import build_report, evaluate

@@ -21,6 +21,14 @@ def add_robot_arguments(parser: argparse.ArgumentParser) -> None:
                         help="fixed base frame (default: root_link if the URDF has it, else its base link)")
 
 
+def add_cache_arguments(parser: argparse.ArgumentParser) -> None:
+    """--cache-dir DIR, --no-cache: where expected wrenches are cached (ftcal.robot.cache)."""
+    parser.add_argument("--cache-dir", metavar="DIR",
+                        help="folder of the expected-wrench cache (default $XDG_CACHE_HOME/ftcal, "
+                             "else ~/.cache/ftcal)")
+    parser.add_argument("--no-cache", action="store_true", help="neither read nor write the cache")
+
+
 def load_robot(args: argparse.Namespace):
     """The robot model of the parsed arguments, with --payload specs attached."""
     from ..robot import RobotModel, parse_payload_spec

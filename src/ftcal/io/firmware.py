@@ -1,4 +1,4 @@
-"""The iCub strain-board calibration matrix file (FORMATS.md §2), for affine models only.
+"""The iCub strain-board calibration matrix file (docs/formats.md §2), for affine models only.
 
 The board computes ``wrench_i = FS_i · Σ_j Cs_ij · raw_j / 32767`` from the six
 raw channels in signed 16-bit ADC counts, with ``Cs`` stored in Q1.15. So the
@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._checks import check_safe_name
 from ..conversion import affine_part
 from ..errors import FtcalError, FtcalWarning
 from ..model import CalibrationModel
@@ -49,7 +50,15 @@ class FirmwareMatrix:
 
 
 def firmware_filename(serial: str) -> str:
-    """``matrix_<serial>.txt``, the name the board tools expect."""
+    """``matrix_<serial>.txt``, the name the board tools expect.
+
+    Raises
+    ------
+    FtcalError
+        ``serial`` is not 1 to 64 letters, digits, ``-``, ``_`` or ``.`` (not starting with ``.``):
+        a name used in a path must not lead out of the output folder.
+    """
+    check_safe_name(serial, "--serial")
     return f"matrix_{serial}.txt"
 
 

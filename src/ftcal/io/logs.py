@@ -2,7 +2,7 @@
 
 :func:`read_recording` opens
 
-* YARP robot-logger ``.mat`` files, v7.3 (HDF5) and v5 (FORMATS.md §4), see
+* YARP robot-logger ``.mat`` files, v7.3 (HDF5) and v5 (docs/formats.md §4), see
   :mod:`ftcal.io.logs_mat`;
 * CSV/Parquet tables, one row per sample, see :mod:`ftcal.io.logs_table` for
   the column convention.

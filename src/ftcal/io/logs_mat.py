@@ -1,4 +1,4 @@
-"""YARP robot-logger ``.mat`` files (FORMATS.md §4), MATLAB v7.3 (HDF5) and v5.
+"""YARP robot-logger ``.mat`` files (docs/formats.md §4), MATLAB v7.3 (HDF5) and v5.
 
 Layout, under the struct ``robot_logger_device``::
 
@@ -30,6 +30,10 @@ GROUPS = ("FTs", "temperatures", "joints_state", "accelerometers", "gyros", "des
 JOINT_FIELDS = {"positions": "joints", "velocities": "joint_velocities", "accelerations": "joint_accelerations"}
 
 
+# The logger's structs are a few levels deep; deeper means a hostile file or a link loop.
+MAX_HDF5_DEPTH = 32
+
+
 def read_mat(path: Path) -> Recording:
     """Read a robot-logger ``.mat`` file (v7.3 or v5) into a :class:`Recording`."""
     import h5py
@@ -45,22 +49,44 @@ def _read_hdf5(path: Path) -> dict[str, Any]:
         with h5py.File(path, "r") as fh:
             if ROOT not in fh:
                 raise FtcalError(f"Recording {path}: no '{ROOT}' struct (has: {', '.join(fh.keys()) or 'nothing'}).")
-            root = fh[ROOT]
-            return {name: _hdf5_node(fh, root[name]) for name in GROUPS if name in root}
+            root = _child(fh, ROOT, path)
+            return {name: _hdf5_node(fh, _child(root, name, path), path, 1) for name in GROUPS if name in root}
     except OSError as exc:
         raise FtcalError(f"Recording {path}: cannot read the MATLAB v7.3 (HDF5) file; "
                          f"it may be truncated or corrupt ({exc}).") from None
 
 
-def _hdf5_node(fh, node) -> Any:
+def _child(group, key: str, path: Path):
+    """``group[key]``, refusing links to other files and dangling links."""
     import h5py
 
+    link = group.get(key, getlink=True)
+    where = f"{group.name.rstrip('/')}/{key}"
+    if isinstance(link, h5py.ExternalLink):
+        # A recording must not make ftcal read another file.
+        raise FtcalError(f"Recording {path}: {where} is a link to another file ({link.filename}); "
+                         "ftcal does not follow links out of a recording.")
+    try:
+        return group[key]
+    except KeyError:
+        raise FtcalError(f"Recording {path}: {where} is a link to nothing.") from None
+
+
+def _hdf5_node(fh, node, path: Path, depth: int) -> Any:
+    import h5py
+
+    if depth > MAX_HDF5_DEPTH:
+        raise FtcalError(f"Recording {path}: {node.name} is nested more than {MAX_HDF5_DEPTH} levels deep "
+                         "(a link loop?); not a robot-logger file.")
     if isinstance(node, h5py.Group):
-        return {key: _hdf5_node(fh, node[key]) for key in node.keys()}
+        return {key: _hdf5_node(fh, _child(node, key, path), path, depth + 1) for key in node.keys()}
+    if node.is_virtual or node.id.get_create_plist().get_external_count():
+        raise FtcalError(f"Recording {path}: the data of {node.name} is stored in other files; "
+                         "ftcal reads only the recording itself.")
     attr = node.attrs.get("MATLAB_class", b"")
     matlab_class = attr.decode() if isinstance(attr, bytes) else str(attr)
     if node.dtype == h5py.ref_dtype:  # cell array
-        return [_hdf5_node(fh, fh[ref]) for ref in np.asarray(node[()]).T.ravel()]
+        return [_hdf5_node(fh, fh[ref], path, depth + 1) for ref in np.asarray(node[()]).T.ravel()]
     value = np.asarray(node[()])
     if matlab_class == "char":
         return "".join(map(chr, value.T.ravel()))

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._checks import check_float
 from ..errors import FtcalError, FtcalWarning
 from .logs import Recording, Stream
 from .logs_quality import check_finite
@@ -54,6 +55,9 @@ class Aligned:
     gyro: np.ndarray | None
     trimmed: tuple[int, int]
     reports: tuple[StreamReport, ...]
+
+# A uniform clock may resample, but not invent more than this many samples per F/T sample.
+MAX_UPSAMPLING = 100
 
 
 def timing(stream: Stream) -> StreamReport:
@@ -103,9 +107,13 @@ def align(recording: Recording, sensor: tuple[str, ...], *, temperature: bool = 
         raise FtcalError(f"Recording {recording.path}: the streams do not overlap in time "
                          f"(F/T, joints{', temperature' if temperature else ''}).")
     if rate is not None:
-        if not rate > 0:
-            raise FtcalError(f"The 'rate' parameter must be > 0 Hz. Got {rate!r} instead.")
-        clock = start + np.arange(int(np.floor((end - start) * rate)) + 1) / rate
+        rate = check_float(rate, "rate", "align", 0.0, low_inclusive=False)
+        n_clock = int(np.floor((end - start) * rate)) + 1
+        if n_clock > MAX_UPSAMPLING * ft.n_samples:
+            raise FtcalError(f"Recording {recording.path}: rate {rate:g} Hz gives {n_clock} samples, more than "
+                             f"{MAX_UPSAMPLING} times the {ft.n_samples} F/T samples; choose a rate near the "
+                             f"sensor's ({1 / timing(ft).period:.4g} Hz).")
+        clock = start + np.arange(n_clock) / rate
         trimmed = (int(np.sum(ft.time < start)), int(np.sum(ft.time > end)))
     else:
         keep = (ft.time >= start) & (ft.time <= end)

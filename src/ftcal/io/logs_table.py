@@ -23,7 +23,7 @@ import numpy as np
 
 from ..errors import FtcalError
 from .logs import Recording, Stream
-from .tables import read_table
+from .tables import numeric_columns, read_table
 
 FT_COLUMN = re.compile(r"^(?P<sensor>.+)_u(?P<ch>[1-6])$")
 TEMP_COLUMN = re.compile(r"^(?P<sensor>.+)_T$")
@@ -34,9 +34,9 @@ def read_table_recording(path: Path) -> Recording:
     frame = read_table(path)
     if "time" not in frame.columns:
         raise FtcalError(f"Recording {path}: no 'time' column (seconds).")
-    non_numeric = [c for c in frame.columns if not np.issubdtype(frame[c].dtype, np.number)]
-    if non_numeric:
-        raise FtcalError(f"Recording {path}: column {non_numeric[0]!r} is not numeric.")
+    # Every column is a number per sample; NaN cells are left to the stream checks, which name the stream.
+    values = numeric_columns(frame, list(frame.columns), path, "recording", finite=False)
+    frame = type(frame)(values, columns=frame.columns)
     time = frame["time"].to_numpy(np.float64)
     ft_cols: dict[str, dict[int, str]] = {}
     temp_cols: dict[str, str] = {}

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -9,7 +10,7 @@ from .._checks import check_choice
 from ..errors import FtcalError
 from ..model import CalibrationModel
 from .firmware import firmware_filename, write_firmware_matrix
-from .model_json import ModelFile, load_model_file, save_model
+from .model_json import ModelFile, check_model_size, load_model_file, save_model
 from .paper_xml import read_paper_xml, write_paper_xml
 from .wbd import write_wbd
 
@@ -25,6 +26,7 @@ def read_model(path: str | Path) -> CalibrationModel:
 def read_model_file(path: str | Path) -> ModelFile:
     """Like :func:`read_model`, with units and sources (empty for paper XML, which has none)."""
     path = Path(path)
+    check_model_size(path)
     try:
         with open(path, "rb") as fh:
             head = fh.read(_SNIFF_BYTES)
@@ -52,6 +54,7 @@ def write_model(model: CalibrationModel, path: str | Path, fmt: str, *, sources:
     ``sensor`` name used in the wholeBodyDynamics configuration.
     """
     check_choice(fmt, "fmt", "write_model", WRITE_FORMATS)
+    folder = str(path).endswith(("/", os.sep))  # "-o firmware/": a folder, made if missing
     path = Path(path)
     if path.is_dir() and fmt != "icub-firmware":
         raise FtcalError(f"{path} is a directory; give the path of the {fmt} file to write.")
@@ -60,7 +63,7 @@ def write_model(model: CalibrationModel, path: str | Path, fmt: str, *, sources:
     elif fmt == "paper-xml":
         write_paper_xml(model, path)
     elif fmt == "icub-firmware":
-        if path.is_dir():
+        if path.is_dir() or folder:
             if serial is None:
                 raise FtcalError(f"{path} is a directory: give the sensor serial number to name "
                                  "matrix_<serial>.txt, or a file path.")

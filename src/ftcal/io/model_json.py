@@ -21,7 +21,6 @@ from functools import cache
 from importlib import metadata, resources
 from pathlib import Path
 
-import jsonschema
 import numpy as np
 
 from ..errors import FtcalError
@@ -31,9 +30,14 @@ from ..normalization import Normalization
 from .atomic import write_text_atomic
 
 FORMAT = "ftcal-model"
+PER_OUTPUT_METRICS = ("rmse", "best_fit", "max_abs_error", "residual_autocorrelation_lag1")
 FORMAT_VERSION = "1.0"
 SCHEMA_RESOURCE = "schemas/model-1.json"
 _MESSAGE_LIMIT = 160
+# The largest model (degree 10, 7 inputs, ARX lags) is a few MB; anything this big is not one.
+MAX_MODEL_BYTES = 100 * 10**6
+# Integers in a model file are counts and exponents; longer ones are hostile (and slow to parse).
+_MAX_INT_DIGITS = 18
 
 
 @dataclass(frozen=True)
@@ -46,20 +50,29 @@ class ModelFile:
     sources: tuple[str, ...]
     created_utc: str | None  # None for formats without creation metadata
     ftcal_version: str | None
+    # fingerprints of the training segments (ftcal.fingerprint); empty when the file has none
+    training_segments: tuple[dict, ...] = ()
 
 
 # ---------------------------------------------------------------- writing
 def save_model(model: CalibrationModel, path: str | Path, *, sources: Sequence[str] = (),
                input_units: Sequence[str | None] | None = None,
-               output_units: Sequence[str | None] | None = None) -> None:
-    """Write ``model`` to ``path`` as a native JSON model file (atomically)."""
+               output_units: Sequence[str | None] | None = None,
+               training_segments: Sequence[dict] | None = None) -> None:
+    """Write ``model`` to ``path`` as a native JSON model file (atomically).
+
+    ``training_segments``: :func:`ftcal.fingerprint.segment_fingerprints` of the training
+    data, so that ``ftcal evaluate`` can warn about evaluation data the model was trained on.
+    """
     write_text_atomic(path, format_document(model_document(model, sources=sources, input_units=input_units,
-                                                           output_units=output_units)))
+                                                           output_units=output_units,
+                                                           training_segments=training_segments)))
 
 
 def model_document(model: CalibrationModel, *, sources: Sequence[str] = (),
                    input_units: Sequence[str | None] | None = None,
-                   output_units: Sequence[str | None] | None = None) -> dict:
+                   output_units: Sequence[str | None] | None = None,
+                   training_segments: Sequence[dict] | None = None) -> dict:
     """The model file content as a JSON-ready dict, digest included."""
     model._check_fitted()
     layout = model.layout_
@@ -90,8 +103,12 @@ def model_document(model: CalibrationModel, *, sources: Sequence[str] = (),
             "sources": [str(s) for s in sources],
         },
     }
+    if training_segments:
+        doc["fit"]["training_segments"] = [dict(fp) for fp in training_segments]
     if any(v is None for row in doc["coefficients"] for v in row):
         raise FtcalError("The model has non-finite coefficients (NaN or inf); refusing to save it.")
+    if any(v[key] is None for v in (*doc["inputs"], *doc["outputs"]) for key in ("offset", "scale")):
+        raise FtcalError("The model has a non-finite normalization offset or scale; refusing to save it.")
     doc["sha256"] = digest(doc)
     return doc
 
@@ -157,9 +174,21 @@ def load_model(path: str | Path) -> CalibrationModel:
     return load_model_file(path).model
 
 
+def check_model_size(path: Path) -> None:
+    """Refuse a model file larger than :data:`MAX_MODEL_BYTES` before reading it."""
+    try:
+        size = path.stat().st_size
+    except OSError as exc:
+        raise FtcalError(f"Cannot read model file {path}: {exc.strerror}.") from None
+    if size > MAX_MODEL_BYTES:
+        raise FtcalError(f"{path}: {size / 1e6:.0f} MB is too large for a model file "
+                         f"(limit {MAX_MODEL_BYTES // 10**6} MB).")
+
+
 def load_model_file(path: str | Path) -> ModelFile:
     """Like :func:`load_model`, also returning units, data sources and creation metadata."""
     path = Path(path)
+    check_model_size(path)
     try:
         text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError as exc:
@@ -186,6 +215,8 @@ def check_document(doc: dict, source: str, resource: str = SCHEMA_RESOURCE, kind
         Naming ``source``, where the document breaks the schema, or that the
         content no longer matches its digest.
     """
+    import jsonschema
+
     error = jsonschema.exceptions.best_match(_validator(resource).iter_errors(doc))
     if error is not None:
         message = error.message if len(error.message) <= _MESSAGE_LIMIT else error.message[:_MESSAGE_LIMIT] + "…"
@@ -199,10 +230,32 @@ def _parse_json(text: str, source: str, fmt: str = FORMAT, kind: str = "model") 
     def reject_constant(name: str):
         raise FtcalError(f"{source}: {name} is not valid JSON ({kind} files write unknown numbers as null).")
 
+    def finite_float(text: str) -> float:
+        value = float(text)
+        if not np.isfinite(value):
+            raise FtcalError(f"{source}: the number {text[:40]} overflows float64.")
+        return value
+
+    def small_int(text: str) -> int:
+        if len(text.lstrip("-")) > _MAX_INT_DIGITS:
+            raise FtcalError(f"{source}: the integer {text[:20]}… has more than {_MAX_INT_DIGITS} digits.")
+        return int(text)
+
+    def unique_keys(pairs: list[tuple[str, object]]) -> dict:
+        # A parser keeping the first of two equal keys would see other values than the digest covers.
+        keys = [k for k, _ in pairs]
+        if len(set(keys)) != len(keys):
+            twice = next(k for k in keys if keys.count(k) > 1)
+            raise FtcalError(f"{source}: the key {twice!r} appears twice in one JSON object.")
+        return dict(pairs)
+
     try:
-        doc = json.loads(text, parse_constant=reject_constant)
+        doc = json.loads(text, parse_constant=reject_constant, parse_float=finite_float, parse_int=small_int,
+                         object_pairs_hook=unique_keys)
     except json.JSONDecodeError as exc:
         raise FtcalError(f"{source}: not valid JSON: {exc.msg} at line {exc.lineno}, column {exc.colno}.") from None
+    except RecursionError:
+        raise FtcalError(f"{source}: JSON nested too deeply to be a {kind} file.") from None
     if not isinstance(doc, dict) or doc.get("format") != fmt:
         raise FtcalError(f"{source}: not an ftcal {kind} file (expected a JSON object with "
                          f"\"format\": \"{fmt}\").")
@@ -224,9 +277,15 @@ def _check_version(doc: dict, source: str, supported: str = FORMAT_VERSION) -> N
 
 
 @cache
-def _validator(resource: str = SCHEMA_RESOURCE) -> jsonschema.protocols.Validator:
+def _validator(resource: str = SCHEMA_RESOURCE):
+    """The schema validator (jsonschema is imported only when a model file is read)."""
+    import jsonschema
+
     schema = json.loads(resources.files("ftcal").joinpath(resource).read_text(encoding="utf-8"))
-    return jsonschema.Draft202012Validator(schema)
+    # JSON integers only: jsonschema would also accept 2.0 as an "integer".
+    strict = jsonschema.Draft202012Validator.TYPE_CHECKER.redefine(
+        "integer", lambda _, value: isinstance(value, int) and not isinstance(value, bool))
+    return jsonschema.validators.extend(jsonschema.Draft202012Validator, type_checker=strict)(schema)
 
 
 def _build(doc: dict, source: str) -> ModelFile:
@@ -253,6 +312,11 @@ def _build(doc: dict, source: str) -> ModelFile:
         raise FtcalError(f"{source}: coefficients[{bad_row}] has {len(coef[bad_row])} values; the model has "
                          f"{len(outputs)} outputs.")
     fit = doc["fit"]
+    for key in PER_OUTPUT_METRICS:
+        values = fit["metrics"].get(key)
+        if values is not None and len(values) != len(outputs):
+            raise FtcalError(f"{source}: fit.metrics.{key} has {len(values)} values; the model has "
+                             f"{len(outputs)} outputs.")
     model = model_from_fitted(
         degree=spec["degree"], na=spec["na"], nb=spec["nb"], normalization=spec["normalization"],
         coef=np.array(coef, dtype=np.float64),
@@ -264,7 +328,8 @@ def _build(doc: dict, source: str) -> ModelFile:
         solver_info=fit["solver"], training_metrics=fit["metrics"])
     created = doc["created"]
     return ModelFile(model, tuple(v["unit"] for v in inputs), tuple(v["unit"] for v in outputs),
-                     tuple(created["sources"]), created["time_utc"], created["ftcal_version"])
+                     tuple(created["sources"]), created["time_utc"], created["ftcal_version"],
+                     tuple(fit.get("training_segments", ())))
 
 
 def _check_terms(terms: dict, layout: RegressorLayout, model_class: str, source: str) -> None:

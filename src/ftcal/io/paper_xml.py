@@ -1,4 +1,4 @@
-"""The paper's model XML (FORMATS.md §1): raw-input coefficients, one ``rowK`` per regressor column.
+"""The paper's model XML (docs/formats.md §1): raw-input coefficients, one ``rowK`` per regressor column.
 
 Writing converts the model to raw-input monomials (:func:`ftcal.conversion.to_raw`)
 and warns when that loses precision; every float is written with ``repr``.
@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..conversion import from_raw, precision_loss, to_raw
+from ..conversion import from_raw, precision_loss, to_raw_finite
 from ..dataset import DEFAULT_INPUTS, DEFAULT_OUTPUTS, default_names
 from ..errors import FtcalError
 from ..features import MAX_DEGREE, n_coefficients
@@ -32,7 +32,7 @@ _PARENTHESIZED = re.compile(r"\(\s*(.*?)\s*\)", re.DOTALL)
 
 def write_paper_xml(model: CalibrationModel, path: str | Path) -> float:
     """Write ``model`` as the paper's XML; returns the measured precision loss (output units)."""
-    raw = to_raw(model)
+    raw = to_raw_finite(model, f"Paper XML {path}")
     loss = precision_loss(model, raw)
     write_text_atomic(path, format_paper_xml(model, raw))
     return loss

@@ -1,4 +1,4 @@
-"""wholeBodyDynamics configuration groups (FORMATS.md §3), for affine models with optional temperature.
+"""wholeBodyDynamics configuration groups (docs/formats.md §3), for affine models with optional temperature.
 
 wholeBodyDynamics corrects each sensor's (already board-calibrated) wrench ``w`` as
 

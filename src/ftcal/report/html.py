@@ -27,8 +27,9 @@ from .runs import ModelRun, expected_outputs, temperature_column
 
 DPI = 90
 MAX_RUNS_PER_FIGURE = 6
+# text.parse_math off: names come from file names and columns, where '$' is a character, not TeX.
 STYLE = {"font.size": 9, "axes.titlesize": 10, "figure.titlesize": 12, "axes.labelsize": 9,
-         "legend.fontsize": 8, "savefig.facecolor": "white"}
+         "legend.fontsize": 8, "savefig.facecolor": "white", "text.parse_math": False}
 
 CSS = """
 body { font-family: system-ui, -apple-system, "Segoe UI", Helvetica, Arial, sans-serif; margin: 0 auto;

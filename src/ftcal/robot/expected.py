@@ -39,9 +39,10 @@ URDF text and payloads.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass
 import multiprocessing
+import signal
+import threading
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -96,6 +97,9 @@ class WrenchPredictor:
         for s in robot.ft_sensors:
             only_ft.addSensor(robot.sensors.getSixAxisForceTorqueSensor(s.index))
         self.base_index, self.base = robot.base_frame(base)
+        gravity = np.asarray(gravity, dtype=float)
+        if gravity.shape != (3,) or not np.isfinite(gravity).all():
+            raise FtcalError(f"gravity must be three finite numbers (m/s², base-frame axes); got {gravity.tolist()}.")
         self.estimator = idyn.ExtWrenchesAndJointTorquesEstimator()
         if not self.estimator.setModelAndSensors(model, only_ft):
             raise FtcalError(f"iDynTree could not set up the estimator for URDF {robot.source}.")
@@ -179,12 +183,18 @@ def expected_wrenches(robot: RobotModel, q: np.ndarray, *, dq: np.ndarray | None
         # spawn, not fork: the parent may run threads (progress bar) that fork would copy mid-flight.
         context = multiprocessing.get_context("spawn")
         init = (robot.urdf_text, robot.source, robot.payloads, predictor.base, tuple(gravity))
-        with ProcessPoolExecutor(max_workers=workers, mp_context=context,
-                                 initializer=_init_worker, initargs=init) as pool:
-            futures = [(a, b, pool.submit(_work, *job(a, b))) for a, b in bounds]
-            for a, b, future in futures:
-                out[a:b] = future.result()
+        pool = _start_pool(context, workers, init)
+        try:
+            for (a, b), chunk in zip(bounds, pool.imap(_work, [job(a, b) for a, b in bounds])):
+                out[a:b] = chunk
                 advance(b - a)
+        except BaseException:
+            # Ctrl-C, a signal or a worker's error: stop the workers now instead of waiting for them.
+            pool.terminate()
+            raise
+        finally:
+            pool.close()
+            pool.join()
     return out
 
 
@@ -205,12 +215,30 @@ def _check_joints(robot: RobotModel, values: np.ndarray, what: str, n: int | Non
 _PREDICTOR: WrenchPredictor | None = None
 
 
+def _start_pool(context, workers: int, init: tuple):
+    """A pool of workers that ignore SIGINT from their first instruction (the parent handles Ctrl-C).
+
+    A signal disposition of "ignore" survives the exec of a spawned worker, and Python keeps it,
+    so a Ctrl-C while a worker still imports its modules prints no traceback there.
+    """
+    in_main = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if in_main else None
+    try:
+        return context.Pool(workers, initializer=_init_worker, initargs=init)
+    finally:
+        if in_main:
+            signal.signal(signal.SIGINT, previous)
+
+
 def _init_worker(urdf_text: str, source: str, payloads: tuple[Payload, ...], base: str,
                  gravity: tuple[float, float, float]) -> None:
     global _PREDICTOR
+    # The parent handles Ctrl-C and termination (a terminal sends SIGINT to the whole process group):
+    # workers ignore it, so they print no tracebacks and the parent can stop them cleanly.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     _PREDICTOR = WrenchPredictor(RobotModel(urdf_text, source, payloads), base, gravity)
 
 
-def _work(q, dq, ddq, floating) -> np.ndarray:
+def _work(job: tuple) -> np.ndarray:
     assert _PREDICTOR is not None
-    return _PREDICTOR.compute(q, dq, ddq, floating)
+    return _PREDICTOR.compute(*job)

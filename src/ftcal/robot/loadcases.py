@@ -1,4 +1,4 @@
-"""Load cases: which payloads were attached during which recording.
+"""Load cases: which payloads were attached during which recording (docs/formats.md §6).
 
 A TOML file (``--payload-file``) describes them::
 
@@ -128,7 +128,10 @@ def load_case_config(path: str | Path) -> LoadCaseConfig:
         items = tuple(_payload(p, path, f"{where}.payload[{j}]") for j, p in enumerate(_list(case, "payload", path)))
         cases.append((name, tuple(files), items))
     mounts = {}
-    for side, spec in data.get("convention", {}).items():
+    convention = data.get("convention", {})
+    if not isinstance(convention, dict):
+        raise FtcalError(f"Payload file {path}: 'convention' must be a table ([convention.left], [convention.right]).")
+    for side, spec in convention.items():
         if side not in ("left", "right") or not isinstance(spec, dict):
             raise FtcalError(f"Payload file {path}: [convention.{side}] must be convention.left or convention.right.")
         probe = _payload({**spec, "mass": 1.0}, path, f"convention.{side}")
@@ -143,10 +146,25 @@ def _list(table: dict, key: str, path: Path) -> list[dict]:
     return items
 
 
+def _is(value: Any, want) -> bool:
+    """TOML type check: booleans are not numbers."""
+    def number(v: Any) -> bool:
+        return isinstance(v, (int, float)) and not isinstance(v, bool)
+    if want == "number":
+        return number(value)
+    if want == "numbers":
+        return isinstance(value, list) and all(number(v) for v in value)
+    return isinstance(value, want)
+
+
 def _payload(spec: dict[str, Any], path: Path, where: str) -> Payload:
     unknown = set(spec) - {"frame", "mass", "com", "inertia", "name"}
     if unknown:
         raise FtcalError(f"Payload file {path}: {where} has unknown key(s) {', '.join(sorted(unknown))}.")
+    for key, want in (("frame", str), ("name", str), ("mass", "number"), ("com", "numbers"), ("inertia", "numbers")):
+        if key in spec and not _is(spec[key], want):
+            kind = {"number": "a number", "numbers": "a list of numbers", str: "a string"}[want]
+            raise FtcalError(f"Payload file {path}: {where}.{key} must be {kind}; got {spec[key]!r}.")
     try:
         inertia = tuple(float(v) for v in spec.get("inertia", (0.0,) * 6))
         if len(inertia) == 3:

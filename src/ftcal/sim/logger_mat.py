@@ -1,4 +1,4 @@
-"""Write simulated recordings as YARP robot-logger ``.mat`` files (FORMATS.md §4).
+"""Write simulated recordings as YARP robot-logger ``.mat`` files (docs/formats.md §4).
 
 What is written
 ---------------

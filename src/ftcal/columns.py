@@ -1,0 +1,4 @@
+"""The default column names, in a module without imports so the command line can name them cheaply."""
+
+DEFAULT_INPUTS = ("u1", "u2", "u3", "u4", "u5", "u6", "T")  # raw channels, then temperature (°C)
+DEFAULT_OUTPUTS = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")  # N, N·m
