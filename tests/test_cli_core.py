@@ -142,13 +142,10 @@ def write_cell(path: Path, frame: pd.DataFrame, row: int, column: str, text: str
     return line
 
 
-def scaled_monomials(u_train, u, degree):
-    """The documented regressor: centre-normalized inputs, paper monomials, max-abs scaled columns."""
-    centre = (u_train.max(axis=0) + u_train.min(axis=0)) / 2
-    half = (u_train.max(axis=0) - u_train.min(axis=0)) / 2
-    a_train = cd.monomials((u_train - centre) / half, degree)
-    scale = np.abs(a_train).max(axis=0)
-    return a_train / scale, cd.monomials((u - centre) / half, degree) / scale
+def paper_regressor(u_train, degree):
+    """The paper's regressor, which --lasso and --ridge solve on: raw monomials, each column over its max-abs."""
+    a_train = cd.monomials(u_train, degree)
+    return a_train / np.abs(a_train).max(axis=0)
 
 
 # ------------------------------------------------------------------ help
@@ -276,7 +273,7 @@ def test_icub_firmware_matrix_decodes_to_the_true_gains(capsys, tmp_path):
 def test_lasso_and_ridge_match_sklearn_on_the_documented_regressor(capsys, work, tmp_path):
     """λ reaches the solver: ½‖Ax−b‖² + λ‖x‖₁ is sklearn Lasso(α=λ/N); ½‖Ax−b‖² + ½λ‖x‖² is Ridge(α=λ)."""
     degree, lam = 2, 0.5
-    a_train, _ = scaled_monomials(work.u_train, work.u_train, degree)
+    a_train = paper_regressor(work.u_train, degree)
     references = {
         "lasso": Lasso(alpha=lam / N_TRAIN, fit_intercept=False, tol=1e-12, max_iter=200000),
         "ridge": Ridge(alpha=lam, fit_intercept=False),
@@ -335,6 +332,10 @@ def test_arx_one_step_predictions_equal_numpy_lstsq(capsys, work, tmp_path):
     info, _ = run(capsys, ["info", model])
     assert "ARX na=1 nb=1" in info and f"coefficients {n_coef}," in info
     text, _ = run(capsys, ["evaluate", model, work.val, "--json"])  # evaluate counts, never warns
+    payload = json.loads(text)
+    # The paper's evaluation by default: one-step, without the first max(na, nb) = 1 row of the segment.
+    assert "free_run" in payload and payload["n_samples"] == N_VAL - 1
+    text, _ = run(capsys, ["evaluate", model, work.val, "--json", "--mode", "free-run", "--warmup", "keep"])
     payload = json.loads(text)
     assert "one_step" in payload and payload["n_samples"] == N_VAL
 

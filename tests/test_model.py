@@ -44,6 +44,21 @@ def test_maxabs_on_large_offsets_is_either_accurate_or_warns(rng, make_sensor_da
     assert warned or accurate
 
 
+def test_least_squares_is_exact_in_the_paper_basis_at_degree_5(rng, make_sensor_data, ref_features):
+    # ADC counts ~5000 scaled by max |u|: normal equations in that basis lost ~0.02 N before.
+    # Least squares is now solved in the centred basis and mapped exactly into the stored maxabs one.
+    u, y = make_sensor_data(rng, 3000, n_channels=3)
+    mean, std = u.mean(axis=0), u.std(axis=0)
+    a = ref_features((u - mean) / std, 5)
+    coef, *_ = np.linalg.lstsq(a, y, rcond=None)  # numpy: SVD of the well-conditioned dense regressor
+    model = CalibrationModel(5, normalization="maxabs").fit(Dataset.from_arrays(u, y))
+    assert model.normalization_ == "maxabs" and not model.input_normalization_.offset.any()
+    np.testing.assert_allclose(model.predict(u), a @ coef, rtol=0, atol=1e-8 * np.abs(y).max())
+    # The stored coefficients multiply raw monomials over max |u|, as the paper's would.
+    paper = ref_features(u / np.abs(u).max(axis=0), 5) @ model.coef_
+    np.testing.assert_allclose(paper, a @ coef, rtol=0, atol=1e-8 * np.abs(y).max())
+
+
 def test_bad_normalization_and_mode_raise(rng):
     u = rng.uniform(-1, 1, size=(30, 2))
     data = Dataset.from_arrays(u, u @ [[1.0], [2.0]])
@@ -179,13 +194,19 @@ def _simulate(u, y_init):
     return y
 
 
-def _hand_predict(u, y_measured, mode, initial=None):
-    """The documented ARX predictions: history before the segment start repeats sample 0."""
+def _hand_predict(u, y_measured, mode, initial=None, begin="measured"):
+    """The documented ARX predictions: history before the segment start repeats sample 0.
+
+    ``begin="zeros"`` is the paper's free-run: ŷ = 0 for k < max(na, nb) = 2, recursion from k = 2.
+    """
     def at(seq, i):
         return seq[max(i, 0)]
 
     out = np.empty((len(u), 2))
     for k in range(len(u)):
+        if mode == "free-run" and begin == "zeros" and k < 2:
+            out[k] = 0.0
+            continue
         if mode == "one-step":
             past = [at(y_measured, k - 1), at(y_measured, k - 2)]
         else:
@@ -217,12 +238,12 @@ def test_arx_fit_recovers_the_system(rng):
     np.testing.assert_allclose(coef[6:8].T / s_in, B1, atol=1e-9)
 
 
-@pytest.mark.parametrize("mode", ["one-step", "free-run"])
-def test_arx_predictions_follow_the_hand_written_recursion(rng, mode):
+@pytest.mark.parametrize("mode,start", [("one-step", "zeros"), ("free-run", "measured"), ("free-run", "zeros")])
+def test_arx_predictions_follow_the_hand_written_recursion(rng, mode, start):
     model = CalibrationModel(1, na=2, nb=1).fit(_arx_data(rng, [300]))
     fresh = _arx_data(rng, [60])
-    got = model.predict(fresh, mode=mode, warn_out_of_range=False)
-    expected = _hand_predict(fresh.inputs, fresh.outputs, mode)
+    got = model.predict(fresh, mode=mode, start=start, warn_out_of_range=False)
+    expected = _hand_predict(fresh.inputs, fresh.outputs, mode, begin=start)
     np.testing.assert_allclose(got, expected, atol=1e-8)
     if mode == "one-step":
         # With measured history available (k >= 2) one-step prediction is the system itself.
@@ -233,7 +254,7 @@ def test_arx_free_run_without_outputs_starts_at_steady_state(rng):
     model = CalibrationModel(1, na=2, nb=1).fit(_arx_data(rng, [300]))
     u = rng.uniform(-0.9, 0.9, size=(40, 2))
     steady = np.linalg.solve(np.eye(2) - A1 - A2, (B0 + B1) @ u[0] + C)
-    got = model.predict(Dataset.from_arrays(u, input_names=["u1", "u2"]))
+    got = model.predict(Dataset.from_arrays(u, input_names=["u1", "u2"]), start="measured")
     np.testing.assert_allclose(got, _hand_predict(u, None, "free-run", initial=steady), atol=1e-8)
     with pytest.raises(FtcalError, match="measured outputs"):
         model.predict(Dataset.from_arrays(u, input_names=["u1", "u2"]), mode="one-step")
@@ -248,7 +269,8 @@ def test_arx_fit_honours_segments(rng):
     for a, b in data.segment_bounds():
         np.testing.assert_allclose(one_step[a + 2:b], data.outputs[a + 2:b], atol=1e-8)
         expected = _hand_predict(data.inputs[a:b], data.outputs[a:b], "free-run")
-        np.testing.assert_allclose(model.predict(data, warn_out_of_range=False)[a:b], expected, atol=1e-8)
+        np.testing.assert_allclose(model.predict(data, start="measured", warn_out_of_range=False)[a:b], expected,
+                                   atol=1e-8)
 
 
 def test_arx_fit_across_glued_recordings_is_not_exact(rng):
@@ -284,7 +306,26 @@ def test_arx_predict_selects_measured_outputs_by_name(rng, mode):
     swapped = Dataset.from_arrays(fresh.inputs, fresh.outputs[:, ::-1], input_names=["u1", "u2"],
                                   output_names=["Fy", "Fx"])
     expected = _hand_predict(fresh.inputs, fresh.outputs, mode)
-    np.testing.assert_allclose(model.predict(swapped, mode=mode, warn_out_of_range=False), expected, atol=1e-8)
+    np.testing.assert_allclose(model.predict(swapped, mode=mode, start="measured", warn_out_of_range=False),
+                               expected, atol=1e-8)
+
+
+def test_arx_metrics_drop_the_warmup_rows_by_default(rng):
+    # The paper's code leaves the first max(na, nb) = 2 rows of each segment out of its metrics.
+    model = CalibrationModel(1, na=2, nb=1).fit(_arx_data(rng, [300]))
+    data = _arx_data(rng, [40, 30])
+    kept_rows = np.r_[np.arange(2, 40), np.arange(42, 70)]
+    y = data.outputs
+    for warmup, rows in (("drop", kept_rows), ("keep", np.arange(70))):
+        for mode in ("one-step", "free-run"):
+            summary = model.score(data, mode=mode, warmup=warmup, warn_out_of_range=False)
+            prediction = model.predict(data, mode=mode, warn_out_of_range=False)
+            expected = np.sqrt(np.mean((y[rows] - prediction[rows]) ** 2, axis=0))
+            np.testing.assert_allclose(summary["rmse"], expected, rtol=1e-12)
+            assert summary["n_samples"] == len(rows)
+    # The default is the paper's evaluation: one-step, with the free-run figures beside it.
+    default = model.score(data, warn_out_of_range=False)
+    assert "free_run" in default and default["rmse"] == model.score(data, mode="one-step")["rmse"]
 
 
 def test_input_lags_only_model_is_a_fir_filter(rng):

@@ -160,7 +160,8 @@ def test_one_png_per_applicable_figure(report):
     _, page = report
     images = figure_images(page)
     assert set(images) == {"errors-least-squares", "errors-lasso", "norms-least-squares", "norms-lasso",
-                           "wrench-space", "temperature", "validation-curve", "lasso-path", "cross-validation"}
+                           "readings", "wrench-space", "temperature", "validation-curve", "lasso-path",
+                           "cross-validation"}
     assert page.count("<img ") == len(images)
     for key, png in images.items():
         assert png.startswith(b"\x89PNG\r\n\x1a\n"), key
@@ -243,7 +244,7 @@ def test_skipped_figures_say_why(tmp_path):
     model = CalibrationModel(1).fit(data)
     out = build_report([evaluate(model, data)], data, tmp_path / "r.html")
     page = out.read_text(encoding="utf-8")
-    assert set(figure_images(page)) == {"errors-least-squares", "norms-least-squares", "wrench-space"}
+    assert set(figure_images(page)) == {"errors-least-squares", "norms-least-squares", "readings", "wrench-space"}
     skipped = re.findall(r'<p class="skipped">([^<]*)</p>', page)
     assert len(skipped) == 3
     assert any("temperature" in s for s in skipped)

@@ -22,56 +22,18 @@ from __future__ import annotations
 import itertools
 import warnings
 from collections.abc import Sequence
-from math import comb
 
 import numpy as np
-from scipy import sparse
 
 from .dataset import Dataset
 from .errors import FtcalError, PrecisionLossWarning
-from .features import RegressorLayout
+from .features import RegressorLayout, substitution_matrix
 from .model import CalibrationModel, model_from_fitted
 from .normalization import Normalization
 
 PRECISION_TOLERANCE = 1e-6
 MAX_ALL_CORNERS_INPUTS = 10
 _RAW_CHUNK = 256
-
-
-def substitution_matrix(layout: RegressorLayout, in_offset: np.ndarray, in_scale: np.ndarray,
-                        out_offset: np.ndarray, out_scale: np.ndarray) -> sparse.csr_matrix:
-    """Sparse T (n_features, n_features) with ``coef_v = T @ coef_z`` for ``z = (v − offset) / scale``.
-
-    ``coef_z`` multiplies the layout's columns evaluated at ``z`` (inputs with
-    ``in_*``, past outputs with ``out_*``); ``coef_v`` gives the same
-    polynomial in ``v``.
-    """
-    exps, lags = layout.exponent_rows()
-    n = layout.n_features
-    offset_col = n - 1
-    column_of = {(int(lag), tuple(e)): c for c, (e, lag) in enumerate(zip(exps.tolist(), lags))
-                 if lag >= 0 and c != offset_col}
-    rows, cols, values = [offset_col], [offset_col], [1.0]
-    ny = layout.n_outputs
-    for c in range(layout.n_past_outputs):
-        l = c % ny
-        rows += [c, offset_col]
-        cols += [c, c]
-        values += [1.0 / out_scale[l], -out_offset[l] / out_scale[l]]
-    for c in range(layout.n_past_outputs, offset_col):
-        e = exps[c]
-        used = np.flatnonzero(e)
-        for ks in itertools.product(*(range(e[i] + 1) for i in used)):
-            factor = 1.0
-            k = np.zeros_like(e)
-            for i, ki in zip(used, ks):
-                factor *= comb(int(e[i]), ki) * (-in_offset[i]) ** int(e[i] - ki) / in_scale[i] ** int(e[i])
-                k[i] = ki
-            rows.append(column_of[(int(lags[c]), tuple(k.tolist()))] if any(ks) else offset_col)
-            cols.append(c)
-            values.append(factor)
-    # Duplicate (row, col) pairs are summed by the COO → CSR conversion.
-    return sparse.coo_matrix((values, (rows, cols)), shape=(n, n)).tocsr()
 
 
 def to_raw(model: CalibrationModel) -> np.ndarray:

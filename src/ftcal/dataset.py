@@ -34,6 +34,13 @@ class Dataset:
     groups : ndarray of shape (n_samples,)
         Group label per sample (validation splits never cut a group).
     sources : names of the files the samples came from, one per segment id
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> data = Dataset.from_arrays(np.zeros((4, 7)), np.zeros((4, 6)), segments=[0, 0, 1, 1])
+    >>> data.input_names[-1], data.output_names[0], data.segment_bounds()
+    ('T', 'Fx', [(0, 2), (2, 4)])
     """
 
     inputs: np.ndarray
@@ -65,7 +72,29 @@ class Dataset:
                     output_names: Sequence[str] | None = None,
                     segments: np.ndarray | None = None,
                     groups: np.ndarray | None = None) -> "Dataset":
-        """Build a dataset from arrays, with default names and one segment."""
+        """Build a dataset from arrays, with default names and one segment.
+
+        Parameters
+        ----------
+        inputs : array-like of shape (n_samples, n_inputs)
+            What the sensor reads (``u1..u6`` and ``T`` by default).
+        outputs : array-like of shape (n_samples, n_outputs), optional
+            Reference wrench (``Fx..Tz`` by default, N and N·m).
+        input_names, output_names : sequence of str, optional
+        segments : array-like of int, shape (n_samples,), optional
+            Contiguous runs (ARX lags never cross them); one segment by default.
+        groups : array-like of shape (n_samples,), optional
+            Validation groups; the segments by default.
+
+        Returns
+        -------
+        Dataset
+
+        Raises
+        ------
+        FtcalError
+            On non-finite values or mismatched shapes.
+        """
         u = np.asarray(inputs, dtype=np.float64)
         if u.ndim == 1:
             u = u[:, None]
@@ -121,7 +150,12 @@ class Dataset:
         return int(self.inputs.shape[0])
 
     def segment_bounds(self) -> list[tuple[int, int]]:
-        """(start, stop) of each contiguous segment, in sample order."""
+        """(start, stop) of each contiguous segment, in sample order.
+
+        Returns
+        -------
+        list of (int, int)
+        """
         n = self.n_samples
         if n == 0:
             return []
@@ -130,7 +164,16 @@ class Dataset:
         return [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:])]
 
     def subset(self, mask: np.ndarray) -> "Dataset":
-        """Samples where ``mask`` is true (segments stay contiguous runs)."""
+        """Samples where ``mask`` is true (segments stay contiguous runs).
+
+        Parameters
+        ----------
+        mask : ndarray of bool, shape (n_samples,)
+
+        Returns
+        -------
+        Dataset
+        """
         y = None if self.outputs is None else self.outputs[mask]
         return Dataset(self.inputs[mask], y, self.input_names, self.output_names,
                        self.segments[mask], self.groups[mask], self.sources)

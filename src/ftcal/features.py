@@ -15,14 +15,14 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from functools import cached_property
+import itertools
 from itertools import combinations_with_replacement
 from math import comb
 
 import numpy as np
 
 from ._checks import check_int
-
-MAX_DEGREE = 10
+from .limits import MAX_DEGREE, MAX_LAG
 
 
 def n_monomials(n_inputs: int, degree: int) -> int:
@@ -239,8 +239,8 @@ class RegressorLayout:
     def __init__(self, basis: MonomialBasis, n_outputs: int, na: int = 0, nb: int = 0):
         self.basis = basis
         self.n_outputs = check_int(n_outputs, "n_outputs", "RegressorLayout", 1)
-        self.na = check_int(na, "na", "RegressorLayout", 0, 50)
-        self.nb = check_int(nb, "nb", "RegressorLayout", 0, 50)
+        self.na = check_int(na, "na", "RegressorLayout", 0, MAX_LAG)
+        self.nb = check_int(nb, "nb", "RegressorLayout", 0, MAX_LAG)
 
     @property
     def is_static(self) -> bool:
@@ -294,6 +294,24 @@ class RegressorLayout:
         lags[-1] = 0
         return exps, lags
 
+    def index_in(self, larger: "RegressorLayout") -> np.ndarray:
+        """Columns of ``larger`` (same inputs, outputs and lags, at least this degree) holding each of ours.
+
+        Examples
+        --------
+        >>> RegressorLayout(MonomialBasis(2, 1), 1).index_in(RegressorLayout(MonomialBasis(2, 2), 1)).tolist()
+        [0, 1, 5]
+        """
+        if (larger.n_outputs, larger.na, larger.nb) != (self.n_outputs, self.na, self.nb):
+            raise ValueError("index_in needs a layout with the same outputs and lags")
+        exps_s, lags_s = self.exponent_rows()
+        exps_l, lags_l = larger.exponent_rows()
+        index = {(int(lag), tuple(e)): c for c, (e, lag) in enumerate(zip(exps_l.tolist(), lags_l)) if lag >= 0}
+        rows = [index[(int(lag), tuple(e))] if lag >= 0 else c
+                for c, (e, lag) in enumerate(zip(exps_s.tolist(), lags_s))]
+        rows[-1] = larger.n_features - 1
+        return np.array(rows, dtype=np.intp)
+
     def evaluate_segment(self, u_norm: np.ndarray, y_past_norm: np.ndarray | None) -> np.ndarray:
         """Regressor rows k = max_lag .. n-1 of one segment, shape (n - max_lag, n_features).
 
@@ -316,3 +334,41 @@ class RegressorLayout:
             out[block] = y_past_norm[start - j:n - j].T
         out[-1] = 1.0
         return out.T
+
+
+def substitution_matrix(layout: RegressorLayout, in_offset: np.ndarray, in_scale: np.ndarray,
+                        out_offset: np.ndarray, out_scale: np.ndarray) -> "scipy.sparse.csr_matrix":
+    """Sparse T (n_features, n_features) with ``coef_v = T @ coef_z`` for ``z = (v − offset) / scale``.
+
+    ``coef_z`` multiplies the layout's columns evaluated at ``z`` (inputs with
+    ``in_*``, past outputs with ``out_*``); ``coef_v`` gives the same
+    polynomial in ``v``.
+    """
+    from scipy import sparse
+
+    exps, lags = layout.exponent_rows()
+    n = layout.n_features
+    offset_col = n - 1
+    column_of = {(int(lag), tuple(e)): c for c, (e, lag) in enumerate(zip(exps.tolist(), lags))
+                 if lag >= 0 and c != offset_col}
+    rows, cols, values = [offset_col], [offset_col], [1.0]
+    ny = layout.n_outputs
+    for c in range(layout.n_past_outputs):
+        l = c % ny
+        rows += [c, offset_col]
+        cols += [c, c]
+        values += [1.0 / out_scale[l], -out_offset[l] / out_scale[l]]
+    for c in range(layout.n_past_outputs, offset_col):
+        e = exps[c]
+        used = np.flatnonzero(e)
+        for ks in itertools.product(*(range(e[i] + 1) for i in used)):
+            factor = 1.0
+            k = np.zeros_like(e)
+            for i, ki in zip(used, ks):
+                factor *= comb(int(e[i]), ki) * (-in_offset[i]) ** int(e[i] - ki) / in_scale[i] ** int(e[i])
+                k[i] = ki
+            rows.append(column_of[(int(lags[c]), tuple(k.tolist()))] if any(ks) else offset_col)
+            cols.append(c)
+            values.append(factor)
+    # Duplicate (row, col) pairs are summed by the COO → CSR conversion.
+    return sparse.coo_matrix((values, (rows, cols)), shape=(n, n)).tocsr()

@@ -18,12 +18,43 @@ _TORQUE = re.compile(r"(^|[_\W])(T|M|tau)_?[xyz]$")
 
 
 def rmse(y_true: np.ndarray, y_pred: np.ndarray) -> np.ndarray:
-    """Root mean square error per output, shape (n_outputs,)."""
+    """Root mean square error per output.
+
+    Parameters
+    ----------
+    y_true, y_pred : ndarray of shape (n_samples, n_outputs)
+
+    Returns
+    -------
+    ndarray of shape (n_outputs,), in the outputs' units
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> rmse(np.array([[0.0], [0.0]]), np.array([[3.0], [-3.0]])).tolist()
+    [3.0]
+    """
     return np.sqrt(np.mean((y_true - y_pred) ** 2, axis=0))
 
 
 def best_fit(y_true: np.ndarray, y_pred: np.ndarray) -> np.ndarray:
-    """1 − sqrt(MSE / variance of y) per output; 1 is perfect, 0 is the mean predictor."""
+    """1 − sqrt(MSE / variance of y) per output; 1 is perfect, 0 is the mean predictor.
+
+    Parameters
+    ----------
+    y_true, y_pred : ndarray of shape (n_samples, n_outputs)
+
+    Returns
+    -------
+    ndarray of shape (n_outputs,), NaN where y_true is constant
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> y = np.array([[1.0], [-1.0]])
+    >>> best_fit(y, np.zeros((2, 1))).tolist(), best_fit(y, y).tolist()
+    ([0.0], [1.0])
+    """
     mse = np.mean((y_true - y_pred) ** 2, axis=0)
     variance = np.var(y_true, axis=0)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -31,18 +62,57 @@ def best_fit(y_true: np.ndarray, y_pred: np.ndarray) -> np.ndarray:
 
 
 def max_abs_error(y_true: np.ndarray, y_pred: np.ndarray) -> np.ndarray:
-    """Largest absolute error per output."""
+    """Largest absolute error per output.
+
+    Parameters
+    ----------
+    y_true, y_pred : ndarray of shape (n_samples, n_outputs)
+
+    Returns
+    -------
+    ndarray of shape (n_outputs,)
+    """
     return np.max(np.abs(y_true - y_pred), axis=0)
 
 
 def norm_rmse(true_vectors: np.ndarray, pred_vectors: np.ndarray) -> float:
-    """RMSE of ‖v‖ − ‖v̂‖ over samples (the paper's "RMSE of force norm")."""
+    """RMSE of ‖v‖ − ‖v̂‖ over samples (the paper's "RMSE of force norm").
+
+    Parameters
+    ----------
+    true_vectors, pred_vectors : ndarray of shape (n_samples, 3)
+
+    Returns
+    -------
+    float
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> norm_rmse(np.array([[3.0, 4.0, 0.0]]), np.array([[0.0, 0.0, 5.0]]))  # same norm, other direction
+    0.0
+    """
     diff = np.linalg.norm(true_vectors, axis=1) - np.linalg.norm(pred_vectors, axis=1)
     return float(np.sqrt(np.mean(diff ** 2)))
 
 
 def error_norm_rmse(true_vectors: np.ndarray, pred_vectors: np.ndarray) -> float:
-    """RMSE of ‖v − v̂‖ over samples (direction errors included)."""
+    """RMSE of ‖v − v̂‖ over samples (direction errors included).
+
+    Parameters
+    ----------
+    true_vectors, pred_vectors : ndarray of shape (n_samples, 3)
+
+    Returns
+    -------
+    float
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> error_norm_rmse(np.array([[3.0, 4.0, 0.0]]), np.array([[0.0, 0.0, 0.0]]))
+    5.0
+    """
     return float(np.sqrt(np.mean(np.sum((true_vectors - pred_vectors) ** 2, axis=1))))
 
 
@@ -50,6 +120,15 @@ def residual_autocorrelation(y_true: np.ndarray, y_pred: np.ndarray, max_lag: in
     """Normalized autocorrelation of residuals per output at lags 0..max_lag, shape (max_lag+1, n_outputs).
 
     Values well above 2/sqrt(N) at small lags mean unmodelled dynamics (try ARX).
+
+    Parameters
+    ----------
+    y_true, y_pred : ndarray of shape (n_samples, n_outputs)
+    max_lag : int
+
+    Returns
+    -------
+    ndarray of shape (max_lag + 1, n_outputs); row 0 is 1 (0 for a zero residual)
     """
     r = y_true - y_pred
     r = r - r.mean(axis=0)
@@ -64,6 +143,19 @@ def force_torque_columns(output_names: Sequence[str]) -> tuple[list[int] | None,
     """Indices of the three force and three torque outputs, by name (``Fx``, ``r_arm_ft_Ty``...).
 
     Six outputs with other names are taken as (Fx, Fy, Fz, Tx, Ty, Tz) in order.
+
+    Parameters
+    ----------
+    output_names : sequence of str
+
+    Returns
+    -------
+    (forces, torques) : list of 3 int, or None when not found
+
+    Examples
+    --------
+    >>> force_torque_columns(["Tx", "Ty", "Tz", "Fx", "Fy", "Fz"])
+    ([3, 4, 5], [0, 1, 2])
     """
     forces = [i for i, n in enumerate(output_names) if _FORCE.search(n)]
     torques = [i for i, n in enumerate(output_names) if _TORQUE.search(n)]
@@ -85,7 +177,18 @@ EVALUATION_KEYS = ("rmse", "best_fit", "max_abs_error", "force_norm_rmse", "torq
 
 
 def summarize(y_true: np.ndarray, y_pred: np.ndarray, output_names: Sequence[str]) -> dict:
-    """All metrics as a JSON-ready dict (the keys of ``ftcal evaluate --json``)."""
+    """All metrics as a JSON-ready dict (the keys of ``ftcal evaluate --json``).
+
+    Parameters
+    ----------
+    y_true, y_pred : ndarray of shape (n_samples, n_outputs)
+    output_names : sequence of str
+
+    Returns
+    -------
+    dict
+        :data:`EVALUATION_KEYS` except ``n_out_of_range`` (the model adds it).
+    """
     forces, torques = force_torque_columns(output_names)
     summary: dict = {
         "n_samples": int(y_true.shape[0]),

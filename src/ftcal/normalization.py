@@ -19,13 +19,23 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._checks import check_choice
-
-MODES = ("center", "maxabs")
+from .limits import NORMALIZATIONS
 
 
 @dataclass(frozen=True)
 class Normalization:
-    """Per-column offset and scale; ``apply`` maps raw values to normalized ones."""
+    """Per-column offset and scale; ``apply`` maps raw values to normalized ones.
+
+    Attributes
+    ----------
+    offset, scale : ndarray of shape (n_columns,)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> Normalization(np.array([10.0]), np.array([2.0])).apply(np.array([[12.0]])).tolist()
+    [[1.0]]
+    """
 
     offset: np.ndarray
     scale: np.ndarray
@@ -39,8 +49,27 @@ class Normalization:
 
 
 def normalization_from_range(low: np.ndarray, high: np.ndarray, mode: str = "center") -> Normalization:
-    """Normalization for columns spanning [low, high]; a constant column gets scale 1."""
-    check_choice(mode, "normalization", "CalibrationModel", MODES)
+    """Normalization for columns spanning [low, high]; a constant column gets scale 1.
+
+    Parameters
+    ----------
+    low, high : ndarray of shape (n_columns,)
+    mode : {"center", "maxabs"}
+
+    Returns
+    -------
+    Normalization
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> n = normalization_from_range(np.array([4.0]), np.array([8.0]), "center")
+    >>> n.offset.tolist(), n.scale.tolist()
+    ([6.0], [2.0])
+    >>> normalization_from_range(np.array([4.0]), np.array([8.0]), "maxabs").scale.tolist()
+    [8.0]
+    """
+    check_choice(mode, "normalization", "CalibrationModel", NORMALIZATIONS)
     low = np.asarray(low, dtype=np.float64)
     high = np.asarray(high, dtype=np.float64)
     if mode == "center":

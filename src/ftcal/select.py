@@ -22,33 +22,49 @@ from . import metrics
 from ._checks import check_int
 from .dataset import Dataset
 from .errors import FtcalError, IllPosedFitWarning
-from .features import MonomialBasis, RegressorLayout
-from .model import CalibrationModel, model_from_fitted
-from .normalization import normalization_from_range
+from .limits import PAPER_LAMBDAS
+from .model import CalibrationModel, FitFrame
 from .progress import progress_bar
-from .solvers.base import ScaledProblem
+from .solvers.base import ScaledProblem, Solver
 from .solvers.lasso import Lasso
 from .solvers.least_squares import LeastSquares, Ridge
-from .statistics import layout_statistics, sum_statistics
+from .statistics import SufficientStatistics, sum_statistics
 
 __all__ = ["Candidate", "CrossValidationResult", "PAPER_LAMBDAS", "cross_validate", "default_candidates",
            "fit_best", "fit_candidates", "grouped_folds"]
 
-PAPER_LAMBDAS = (0.5, 1.0, 10.0, 50.0, 100.0, 200.0)
 TIE_TOLERANCE = 0.01  # candidates within 1% of the best score count as tied
 
 
 @dataclass(frozen=True)
 class Candidate:
+    """One point of the selection grid.
+
+    Parameters
+    ----------
+    degree : int
+        Polynomial degree.
+    penalty : {"none", "ridge", "lasso"}
+        One of :data:`ftcal.limits.PENALTIES`.
+    lam : float or None
+        The penalty weight λ (None for least squares).
+
+    Examples
+    --------
+    >>> Candidate(3, "lasso", 50.0).label
+    'np3 lasso λ=50'
+    """
+
     degree: int
-    penalty: str  # "none", "ridge" or "lasso"
+    penalty: str
     lam: float | None
 
     @property
     def label(self) -> str:
         return f"np{self.degree}" if self.penalty == "none" else f"np{self.degree} {self.penalty} λ={self.lam:g}"
 
-    def solver(self):
+    def solver(self) -> Solver:
+        """A solver for this candidate's penalty and λ."""
         if self.penalty == "lasso":
             return Lasso(self.lam)
         if self.penalty == "ridge":
@@ -99,7 +115,28 @@ class CrossValidationResult:
 
 
 def grouped_folds(groups: np.ndarray, n_folds: int = 5, seed: int = 0) -> list[np.ndarray]:
-    """Validation masks: each fold is a set of whole groups, folds balanced by sample count."""
+    """Validation masks: each fold is a set of whole groups, folds balanced by sample count.
+
+    Parameters
+    ----------
+    groups : ndarray of shape (n_samples,)
+        Group label per sample (load case or recording).
+    n_folds : int >= 2
+        At most the number of groups.
+    seed : int
+        Order among groups of equal size.
+
+    Returns
+    -------
+    list of ndarray of bool, shape (n_samples,)
+        One validation mask per fold; every sample is in exactly one.
+
+    Examples
+    --------
+    >>> folds = grouped_folds(np.array(["a", "a", "b", "c"]), n_folds=2)
+    >>> sorted(int(m.sum()) for m in folds)
+    [2, 2]
+    """
     labels, counts = np.unique(np.asarray(groups, dtype=str), return_counts=True)
     if labels.size < 2:
         raise FtcalError("Cross-validation needs at least 2 groups (recordings or load cases); "
@@ -122,7 +159,23 @@ def grouped_folds(groups: np.ndarray, n_folds: int = 5, seed: int = 0) -> list[n
 
 def default_candidates(degrees: Sequence[int] = (1, 2, 3, 4, 5), lams: Sequence[float] = PAPER_LAMBDAS,
                        penalty: str | None = "lasso") -> list[Candidate]:
-    """Least squares at every degree, plus ``penalty`` at every (degree, λ) when given."""
+    """Least squares at every degree, plus ``penalty`` at every (degree, λ) when given.
+
+    Parameters
+    ----------
+    degrees : sequence of int
+    lams : sequence of float
+    penalty : {"ridge", "lasso"} or None
+
+    Returns
+    -------
+    list of Candidate
+
+    Examples
+    --------
+    >>> [c.label for c in default_candidates((1, 2), lams=(10.0,))]
+    ['np1', 'np2', 'np1 lasso λ=10', 'np2 lasso λ=10']
+    """
     out = [Candidate(d, "none", None) for d in degrees]
     if penalty is not None:
         out += [Candidate(d, penalty, float(lam)) for d in degrees for lam in lams]
@@ -136,11 +189,29 @@ def _score(y: np.ndarray, prediction: np.ndarray, output_names: Sequence[str]) -
     return float(np.mean(metrics.rmse(y, prediction))), "mean RMSE"
 
 
-def cross_validate(data: Dataset, candidates: Sequence[Candidate], *, n_folds: int = 5,
-                   normalization: str = "center", na: int = 0, nb: int = 0,
-                   seed: int = 0) -> CrossValidationResult:
+def cross_validate(data: Dataset, candidates: Sequence[Candidate], *, template: CalibrationModel | None = None,
+                   n_folds: int = 5, seed: int = 0) -> CrossValidationResult:
     """Score every candidate by grouped K-fold validation; pick the best.
 
+    Parameters
+    ----------
+    data : Dataset
+        With reference outputs and at least two groups.
+    candidates : sequence of Candidate
+        Degrees and penalties to try.
+    template : CalibrationModel, optional
+        Unfitted model whose other parameters (ARX orders, basis, prior) every
+        candidate shares; each candidate is ``template.clone(degree=..., solver=...)``.
+    n_folds : int
+    seed : int
+        Fold assignment seed (see :func:`grouped_folds`).
+
+    Returns
+    -------
+    CrossValidationResult
+
+    Notes
+    -----
     The score is the validation force-norm RMSE (mean RMSE over outputs when
     the outputs are not a wrench); ties within 1% go to fewer nonzero
     coefficients. Input normalization uses the ranges of all the data.
@@ -149,36 +220,19 @@ def cross_validate(data: Dataset, candidates: Sequence[Candidate], *, n_folds: i
         raise FtcalError("Cross-validation needs reference outputs in the data.")
     if not candidates:
         raise FtcalError("No candidate models to cross-validate.")
+    template = template if template is not None else CalibrationModel()
     folds = grouped_folds(data.groups, n_folds, seed)
-    u, y = data.inputs, data.outputs
-    in_norm = normalization_from_range(u.min(axis=0), u.max(axis=0), normalization)
-    out_norm = normalization_from_range(y.min(axis=0), y.max(axis=0), "center")
-    top = max(c.degree for c in candidates)
-    top_layout = RegressorLayout(MonomialBasis(u.shape[1], top), y.shape[1], na, nb)
-    by_degree = {d: RegressorLayout(MonomialBasis(u.shape[1], d), y.shape[1], na, nb)
-                 for d in sorted({c.degree for c in candidates})}
-
-    fold_stats = _fold_statistics(data, folds, top_layout, by_degree, in_norm, out_norm)
+    plan = _Plan(data, template, candidates)
+    fold_stats = [plan.statistics(data.subset(mask)) for mask in folds]
     scores = {c: CandidateScore(c) for c in candidates}
     metric = ""
-    with progress_bar("cross-validating", len(folds) * len(by_degree)) as advance:
+    with progress_bar("cross-validating", len(folds) * len(plan.groups)) as advance:
         for f, val_mask in enumerate(folds):
-            train = {d: sum_statistics([fold_stats[g][d] for g in range(len(folds)) if g != f])
-                     for d in fold_stats[0]}
+            train = {key: sum_statistics([fold_stats[g][key] for g in range(len(folds)) if g != f])
+                     for key in fold_stats[0]}
             val, fit_part = data.subset(val_mask), data.subset(~val_mask)
-            for degree, layout in by_degree.items():
-                stats = (train[degree] if degree in train
-                         else train[top].restrict(layout.basis.index_in(top_layout.basis)))
-                problem = ScaledProblem.from_statistics(stats)
-                group = [c for c in candidates if c.degree == degree]
-                for candidate, result in _solve_group(problem, group):
-                    model = model_from_fitted(
-                        degree=degree, na=na, nb=nb, normalization=normalization,
-                        coef=result.coef / problem.column_scale[:, None],
-                        input_normalization=in_norm, output_normalization=out_norm,
-                        input_names=data.input_names, output_names=data.output_names,
-                        input_range=np.c_[u.min(axis=0), u.max(axis=0)],
-                        output_range=np.c_[y.min(axis=0), y.max(axis=0)])
+            for key, group in plan.groups.items():
+                for candidate, model in plan.solve(key, group, train):
                     val_score, metric = _score(val.outputs, model.predict(val, warn_out_of_range=False),
                                                data.output_names)
                     train_score, _ = _score(fit_part.outputs, model.predict(fit_part, warn_out_of_range=False),
@@ -186,7 +240,7 @@ def cross_validate(data: Dataset, candidates: Sequence[Candidate], *, n_folds: i
                     entry = scores[candidate]
                     entry.fold_scores.append(val_score)
                     entry.fold_train_scores.append(train_score)
-                    entry.n_nonzero.append(int(np.count_nonzero(result.coef)))
+                    entry.n_nonzero.append(int(np.count_nonzero(model.coef_)))
                 advance(1)
     ordered = [scores[c] for c in candidates]
     best_value = min(s.score for s in ordered)
@@ -195,25 +249,54 @@ def cross_validate(data: Dataset, candidates: Sequence[Candidate], *, n_folds: i
     return CrossValidationResult(ordered, best, metric, len(folds))
 
 
-def _fold_statistics(data, folds, top_layout, by_degree, in_norm, out_norm) -> list[dict]:
-    """Per fold: {degree: statistics} (static models keep only the top degree)."""
-    static = top_layout.is_static
-    layouts = {top_layout.basis.degree: top_layout} if static else by_degree
-    u_norm = in_norm.apply(data.inputs)
-    y_norm = out_norm.apply(data.outputs)
-    out = []
-    with progress_bar("accumulating statistics", data.n_samples * len(layouts)) as advance:
-        for mask in folds:
-            part = data.subset(mask)
-            idx = np.flatnonzero(mask)
-            per_degree = {}
-            for degree, layout in layouts.items():
-                pieces = [layout_statistics(layout, u_norm[idx[a:b]], data.outputs[idx[a:b]],
-                                            y_norm[idx[a:b]], advance=advance)
-                          for a, b in part.segment_bounds()]
-                per_degree[degree] = sum_statistics(pieces)
-            out.append(per_degree)
-    return out
+class _Plan:
+    """Candidates grouped by (degree, solve basis): one set of statistics per basis, at the top degree.
+
+    A lower degree's statistics are a sub-block of the top degree's; LASSO
+    candidates of one group run as one warm-started λ path.
+    """
+
+    def __init__(self, data: Dataset, template: CalibrationModel, candidates: Sequence[Candidate]):
+        self.models = {c: template.clone(degree=c.degree, solver=c.solver()) for c in candidates}
+        with warnings.catch_warnings():
+            # Ill-posedness is judged per fold by the validation score.
+            warnings.simplefilter("ignore", IllPosedFitWarning)
+            self.frames: dict[Candidate, FitFrame] = {c: m.frame(data) for c, m in self.models.items()}
+        self.groups: dict[tuple[int, str], list[Candidate]] = {}
+        for c in candidates:
+            self.groups.setdefault((c.degree, self._basis_key(c)), []).append(c)
+        top = {}
+        for c in candidates:
+            key = self._basis_key(c)
+            if key not in top or c.degree > top[key].degree:
+                top[key] = c
+        self.top = {key: self.frames[c] for key, c in top.items()}
+
+    def _basis_key(self, c: Candidate) -> str:
+        frame = self.frames[c]
+        return frame.normalization if frame.solves_in_stored_basis else "solve:" + frame.normalization
+
+    def statistics(self, part: Dataset) -> dict[str, SufficientStatistics]:
+        """Statistics of ``part`` at the top degree of each solve basis."""
+        return {key: CalibrationModel.statistics(part, frame.layout, frame.solve_input_normalization,
+                                                 frame.solve_output_normalization)
+                for key, frame in self.top.items()}
+
+    def solve(self, key: tuple[int, str], group: list[Candidate], stats: dict[str, SufficientStatistics]):
+        """Yield (candidate, fitted model) for one group from the summed ``stats``."""
+        degree, basis = key
+        top = self.top[basis]
+        frame = self.frames[group[0]]
+        columns = _columns_in(frame, top)
+        problem = ScaledProblem.from_statistics(stats[basis].restrict(columns))
+        for candidate, result in _solve_group(problem, group):
+            model = self.models[candidate].clone()
+            yield candidate, model.adopt(self.frames[candidate], problem, result)
+
+
+def _columns_in(frame: FitFrame, top: FitFrame) -> np.ndarray:
+    """Columns of ``top``'s regressor that make ``frame``'s (a lower degree, same lags)."""
+    return frame.layout.index_in(top.layout)
 
 
 def _solve_group(problem: ScaledProblem, candidates: list[Candidate]):
@@ -231,47 +314,50 @@ def _solve_group(problem: ScaledProblem, candidates: list[Candidate]):
                 yield c, c.solver().fit(problem)
 
 
-def fit_best(data: Dataset, result: CrossValidationResult, *, normalization: str = "center",
-             na: int = 0, nb: int = 0) -> CalibrationModel:
-    """Refit the winning candidate on all the data."""
-    best = result.best
-    return CalibrationModel(best.degree, solver=best.solver(), na=na, nb=nb,
-                            normalization=normalization).fit(data)
+def fit_best(data: Dataset, result: CrossValidationResult, *,
+             template: CalibrationModel | None = None) -> CalibrationModel:
+    """Refit the winning candidate of ``result`` on all of ``data``.
+
+    Parameters
+    ----------
+    data : Dataset
+    result : CrossValidationResult
+    template : CalibrationModel, optional
+        The template ``result`` was computed with.
+
+    Returns
+    -------
+    CalibrationModel
+    """
+    template = template if template is not None else CalibrationModel()
+    return template.clone(degree=result.best.degree, solver=result.best.solver()).fit(data)
 
 
-
-
-def fit_candidates(data: Dataset, candidates: Sequence[Candidate], *, normalization: str = "center",
+def fit_candidates(data: Dataset, candidates: Sequence[Candidate], *, template: CalibrationModel | None = None,
                    advance=None) -> dict[Candidate, CalibrationModel]:
-    """Fit every static candidate on all of ``data`` from one pass of statistics.
+    """Fit every candidate on all of ``data`` from one pass of statistics per basis.
 
-    The statistics are accumulated once at the highest degree; each degree's
-    problem is a sub-block, and LASSO candidates of one degree run as one
-    warm-started λ path. Equivalent to fitting each candidate separately.
+    Equivalent to fitting each candidate separately (``template.clone(...).fit(data)``).
+
+    Parameters
+    ----------
+    data : Dataset
+    candidates : sequence of Candidate
+    template : CalibrationModel, optional
+    advance : callable, optional
+        Called with 1 after each candidate (progress).
+
+    Returns
+    -------
+    dict of Candidate to fitted CalibrationModel
     """
     if data.outputs is None:
         raise FtcalError("Fitting needs reference outputs in the data.")
-    u, y = data.inputs, data.outputs
-    in_norm = normalization_from_range(u.min(axis=0), u.max(axis=0), normalization)
-    out_norm = normalization_from_range(y.min(axis=0), y.max(axis=0), "center")
-    top = RegressorLayout(MonomialBasis(u.shape[1], max(c.degree for c in candidates)), y.shape[1])
-    stats = CalibrationModel.statistics(data, top, in_norm, out_norm)
+    plan = _Plan(data, template if template is not None else CalibrationModel(), candidates)
+    stats = plan.statistics(data)
     models = {}
-    for degree in sorted({c.degree for c in candidates}):
-        layout = RegressorLayout(MonomialBasis(u.shape[1], degree), y.shape[1])
-        problem = ScaledProblem.from_statistics(stats.restrict(layout.basis.index_in(top.basis)))
-        group = [c for c in candidates if c.degree == degree]
-        for candidate, result in _solve_group(problem, group):
-            model = model_from_fitted(
-                degree=degree, na=0, nb=0, normalization=normalization,
-                coef=result.coef / problem.column_scale[:, None],
-                input_normalization=in_norm, output_normalization=out_norm,
-                input_names=data.input_names, output_names=data.output_names,
-                input_range=np.c_[u.min(axis=0), u.max(axis=0)], output_range=np.c_[y.min(axis=0), y.max(axis=0)],
-                n_samples_fit=data.n_samples, rank=result.rank, condition_number=result.condition_number,
-                solver_info={"name": candidate.solver().name, "lambda": candidate.lam,
-                             **{k: v for k, v in result.info.items() if k != "lambda"}},
-                solver=candidate.solver())
+    for key, group in sorted(plan.groups.items()):
+        for candidate, model in plan.solve(key, group, stats):
             model.training_metrics_ = model.score(data, warn_out_of_range=False)
             models[candidate] = model
             if advance is not None:

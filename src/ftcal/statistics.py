@@ -41,6 +41,14 @@ class SufficientStatistics:
     target_sum : ndarray of shape (ny,) column sums of B
     column_maxabs : ndarray of shape (p,) max |A_ij| per column
     n_samples : int                     rows of A
+
+    Statistics of disjoint row blocks add up:
+
+    >>> import numpy as np
+    >>> a, y = np.arange(12.0).reshape(6, 2), np.ones((6, 1))
+    >>> total = dense_statistics(a[:2], y[:2]) + dense_statistics(a[2:], y[2:])
+    >>> np.array_equal(total.gram, a.T @ a), total.n_samples
+    (True, 6)
     """
 
     gram: np.ndarray
@@ -73,6 +81,16 @@ class SufficientStatistics:
 
 
 def sum_statistics(parts: Iterable[SufficientStatistics]) -> SufficientStatistics:
+    """The statistics of all ``parts`` together (at least one).
+
+    Parameters
+    ----------
+    parts : iterable of SufficientStatistics, same layout
+
+    Returns
+    -------
+    SufficientStatistics
+    """
     parts = list(parts)
     total = parts[0]
     for part in parts[1:]:
@@ -182,6 +200,27 @@ def static_statistics(basis: MonomialBasis, u_norm: np.ndarray, y: np.ndarray,
 
     Sample ranges are processed by parallel worker threads and their
     statistics summed.
+
+    Parameters
+    ----------
+    basis : MonomialBasis
+    u_norm : ndarray of shape (n_samples, n_inputs), normalized inputs
+    y : ndarray of shape (n_samples, n_outputs), targets
+    chunk : int, samples per chunk
+    advance : callable, optional, called with each chunk's sample count
+
+    Returns
+    -------
+    SufficientStatistics
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> u = np.random.default_rng(0).uniform(-1, 1, (50, 2))
+    >>> stats = static_statistics(MonomialBasis(2, 3), u, u[:, :1])
+    >>> a = MonomialBasis(2, 3).evaluate(u)
+    >>> bool(np.allclose(stats.gram, a.T @ a))
+    True
     """
 
     def work(begin: int, end: int) -> tuple[np.ndarray, SufficientStatistics]:
@@ -213,7 +252,17 @@ def static_statistics(basis: MonomialBasis, u_norm: np.ndarray, y: np.ndarray,
 
 
 def dense_statistics(a: np.ndarray, y: np.ndarray) -> SufficientStatistics:
-    """Statistics of an explicit regressor block ``a`` (m, p) and targets ``y`` (m, ny)."""
+    """Statistics of an explicit regressor block.
+
+    Parameters
+    ----------
+    a : ndarray of shape (m, p)
+    y : ndarray of shape (m, n_outputs)
+
+    Returns
+    -------
+    SufficientStatistics
+    """
     return SufficientStatistics(a.T @ a, a.T @ y, np.einsum("ij,ij->j", y, y), y.sum(axis=0),
                                 np.abs(a).max(axis=0) if len(a) else np.zeros(a.shape[1]),
                                 a.shape[0])
@@ -226,6 +275,21 @@ def layout_statistics(layout: RegressorLayout, u_norm: np.ndarray, y: np.ndarray
 
     Static layouts take the moment path; ARX layouts build regressor rows chunk
     by chunk (each chunk carries ``max_lag`` samples of history).
+
+    Parameters
+    ----------
+    layout : RegressorLayout
+    u_norm : ndarray of shape (n, n_inputs), normalized inputs of one segment
+    y : ndarray of shape (n, n_outputs), targets
+    y_past_norm : ndarray of shape (n, n_outputs) or None
+        Normalized outputs entering the past-output columns (ARX).
+    chunk : int
+    advance : callable, optional
+
+    Returns
+    -------
+    SufficientStatistics
+        Of rows k = max_lag .. n − 1.
     """
     if layout.is_static:
         return static_statistics(layout.basis, u_norm, y, advance=advance)

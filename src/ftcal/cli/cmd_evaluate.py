@@ -5,8 +5,8 @@ from __future__ import annotations
 import math
 import warnings
 
+from ..limits import ARX_WARMUP, FREE_RUN_STARTS, PREDICTION_MODES
 from ._common import print_json
-
 
 
 def register(sub) -> None:
@@ -14,8 +14,15 @@ def register(sub) -> None:
     p.add_argument("model", metavar="MODEL", help="model file (ftcal JSON or paper XML)")
     p.add_argument("data", nargs="+", metavar="DATA", help="CSV or Parquet files with the model's columns")
     p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.add_argument("--mode", choices=("free-run", "one-step"), default="free-run",
-                   help="ARX prediction mode (default free-run); both are reported for ARX models")
+    p.add_argument("--mode", choices=PREDICTION_MODES, default="one-step",
+                   help="ARX prediction mode: one-step (default, the paper's evaluation: measured past outputs) "
+                        "or free-run (fed-back predictions, as on the robot); both are reported for ARX models")
+    p.add_argument("--start", choices=FREE_RUN_STARTS, default="zeros",
+                   help="ARX free-run history at each segment start: zeros (default, the paper's code: the "
+                        "first max(na,nb) rows predict 0) or measured (ftcal's: the first measured output)")
+    p.add_argument("--warmup", choices=ARX_WARMUP, default="drop",
+                   help="ARX metrics: drop (default, as the paper's code) or keep the first max(na,nb) rows "
+                        "of each segment")
     p.add_argument("--segment-by", metavar="COL", help="column separating segments (ARX)")
     p.add_argument("--group-by", metavar="COL", help="accepted for symmetry with fit; unused")
     p.set_defaults(func=run)
@@ -36,7 +43,7 @@ def evaluate(args):
     with warnings.catch_warnings(), np.errstate(over="ignore", invalid="ignore"):
         # The count is reported in the output; no separate warning line. Overflow is refused in run().
         warnings.simplefilter("ignore", OutOfRangeWarning)
-        return model, model.score(data, mode=args.mode)
+        return model, model.score(data, mode=args.mode, start=args.start, warmup=args.warmup)
 
 
 def check_finite_metrics(summary: dict, keys) -> None:
@@ -60,8 +67,9 @@ def run(args) -> int:
         check_finite_metrics(summary["one_step"], JSON_KEYS)
     if args.json:
         payload = {k: summary[k] for k in JSON_KEYS}
-        if "one_step" in summary:
-            payload["one_step"] = {k: summary["one_step"][k] for k in JSON_KEYS if k in summary["one_step"]}
+        for other in ("one_step", "free_run"):
+            if other in summary:
+                payload[other] = {k: summary[other][k] for k in JSON_KEYS if k in summary[other]}
         print_json(payload)
         return 0
     print(f"{summary['n_samples']} samples, {summary['n_out_of_range']} outside the training input range")
@@ -75,6 +83,7 @@ def run(args) -> int:
                        ("torque_error_norm_rmse", "RMSE of torque error norm")):
         if summary[key] is not None:
             print(f"{label}: {summary[key]:.5g}")
-    if "one_step" in summary:
-        print(f"one-step-ahead force-norm RMSE: {summary['one_step']['force_norm_rmse']}")
+    for other, label in (("one_step", "one-step-ahead"), ("free_run", "free-run")):
+        if other in summary and summary[other]["force_norm_rmse"] is not None:
+            print(f"{label} force-norm RMSE: {summary[other]['force_norm_rmse']:.5g}")
     return 0

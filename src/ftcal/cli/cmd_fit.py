@@ -5,11 +5,12 @@ from __future__ import annotations
 import argparse
 import sys
 
+from ..limits import MAX_DEGREE, MAX_LAG, NORMALIZATIONS, SOLVERS
 from ._common import add_column_options, default_inputs, float_list, nonnegative_int, positive_float, require_suffix
 
 EPILOG = """examples:
   ftcal fit train/*.csv -o model.json                      affine model, u1..u6,T -> Fx..Tz
-  ftcal fit data.parquet --degree 4 --lasso 50 -o m4.json  LASSO, the paper's lambda scale
+  ftcal fit data.parquet --degree 4 --lasso 50 -o m4.json  LASSO: the paper's problem and lambda scale
   ftcal fit logs/*.parquet --degree auto --group-by group -o best.json
 """
 
@@ -20,9 +21,9 @@ def degree_value(text: str) -> int | str:
     try:
         value = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected 1..10 or 'auto', got {text!r}") from None
-    if not 1 <= value <= 10:
-        raise argparse.ArgumentTypeError(f"must be in 1..10 or 'auto', got {text!r}")
+        raise argparse.ArgumentTypeError(f"expected 1..{MAX_DEGREE} or 'auto', got {text!r}") from None
+    if not 1 <= value <= MAX_DEGREE:
+        raise argparse.ArgumentTypeError(f"must be in 1..{MAX_DEGREE} or 'auto', got {text!r}")
     return value
 
 
@@ -32,18 +33,27 @@ def register(sub) -> None:
     p.add_argument("data", nargs="+", metavar="DATA", help="CSV or Parquet files (each one segment and group)")
     add_column_options(p)
     p.add_argument("--degree", type=degree_value,
-                   help="polynomial degree, 1 to 10 (the paper fits 1 to 5), or 'auto' for grouped "
-                        "cross-validation over 1 to 5 (default 1: affine)")
+                   help=f"polynomial degree 1-5 (up to {MAX_DEGREE}), or 'auto' for grouped cross-validation "
+                        "(default 1: affine)")
     penalty = p.add_mutually_exclusive_group()
     penalty.add_argument("--lasso", type=positive_float, metavar="LAMBDA",
-                         help="LASSO weight on max-abs scaled features (paper: 0.5 .. 200)")
-    penalty.add_argument("--ridge", type=positive_float, metavar="LAMBDA", help="ridge weight on scaled features")
-    p.add_argument("--na", type=nonnegative_int, default=0, help="ARX: number of past outputs (default 0)")
-    p.add_argument("--nb", type=nonnegative_int, default=0, help="ARX: input lags (default 0)")
-    p.add_argument("--solver", choices=("lstsq", "osqp"), default="lstsq",
+                         help="LASSO: minimize 1/2|A t - y|^2 + LAMBDA |t|_1 on the paper's regressor A (raw "
+                              "monomials, each column divided by its max |value|, offset column 1); the paper "
+                              "uses 0.5 .. 200")
+    penalty.add_argument("--ridge", type=positive_float, metavar="LAMBDA",
+                         help="ridge: minimize 1/2|A t - y|^2 + 1/2 LAMBDA |t|^2 on the same regressor (sklearn "
+                              "Ridge alpha; a QP written 1/2|A t - y|^2 + L |t|^2, as in the paper's MATLAB, "
+                              "has LAMBDA = 2 L)")
+    p.add_argument("--na", type=nonnegative_int, default=0, help=f"ARX: number of past outputs, 0-{MAX_LAG} (default 0)")
+    p.add_argument("--nb", type=nonnegative_int, default=0, help=f"ARX: input lags, 0-{MAX_LAG} (default 0)")
+    p.add_argument("--solver", choices=SOLVERS, default="lstsq",
                    help="lstsq: streaming exact solver (default); osqp: the paper's QP, for comparison")
-    p.add_argument("--normalization", choices=("center", "maxabs"), default="center",
-                   help="input normalization: center (default, better conditioned) or maxabs (the paper's)")
+    p.add_argument("--normalization", choices=NORMALIZATIONS, default=None,
+                   help="basis of the coefficients: maxabs (the paper's: inputs over max |u|; default with "
+                        "--lasso/--ridge, whose LAMBDA is defined on its columns) or center (inputs mapped to "
+                        "[-1, 1]; default for least squares). Least squares is exact whatever this says: it is "
+                        "solved in the centred basis and mapped. 'center' with --lasso is the centred LASSO, "
+                        "a different problem")
     p.add_argument("--folds", type=int, default=5, help="cross-validation folds for --degree auto (default 5)")
     p.add_argument("--lambdas", type=float_list, metavar="L1,L2,...",
                    help="lambda grid for --degree auto (default the paper's 0.5,1,10,50,100,200)")
@@ -83,8 +93,8 @@ def check_options(args) -> None:
     if args.folds < 2:
         raise FtcalError(f"--folds must be at least 2; got {args.folds}.")
     for flag in ("na", "nb"):
-        if getattr(args, flag) > 50:
-            raise FtcalError(f"--{flag} must be at most 50; got {getattr(args, flag)}.")
+        if getattr(args, flag) > MAX_LAG:
+            raise FtcalError(f"--{flag} must be at most {MAX_LAG}; got {getattr(args, flag)}.")
 
 
 def run(args) -> int:
@@ -108,10 +118,10 @@ def run(args) -> int:
             candidates = [Candidate(d, kind, args.lasso or args.ridge) for d in range(1, 6)]
         else:
             candidates = default_candidates(lams=args.lambdas or PAPER_LAMBDAS)
-        result = cross_validate(data, candidates, n_folds=args.folds, normalization=args.normalization,
-                                na=args.na, nb=args.nb)
+        template = CalibrationModel(na=args.na, nb=args.nb, normalization=args.normalization)
+        result = cross_validate(data, candidates, template=template, n_folds=args.folds)
         print(result.table())
-        model = fit_best(data, result, normalization=args.normalization, na=args.na, nb=args.nb)
+        model = fit_best(data, result, template=template)
         print(f"selected {result.best.label} by grouped {result.n_folds}-fold cross-validation")
     else:
         model = CalibrationModel(args.degree, solver=make_solver(args), na=args.na, nb=args.nb,

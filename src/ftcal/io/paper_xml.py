@@ -20,12 +20,13 @@ from ..conversion import from_raw, precision_loss, to_raw_finite
 from ..dataset import DEFAULT_INPUTS, DEFAULT_OUTPUTS, default_names
 from ..errors import FtcalError
 from ..features import MAX_DEGREE, n_coefficients
+from ..limits import MAX_LAG
 from ..model import CalibrationModel
 from .atomic import write_text_atomic
 
 GROUP_NAME = "modelClassParams"
 # (name, lowest, highest) of the integer parameters every file must have.
-INT_PARAMS = (("np", 1, MAX_DEGREE), ("ny", 1, None), ("nu", 1, None), ("na", 0, 50), ("nb", 0, 50))
+INT_PARAMS = (("np", 1, MAX_DEGREE), ("ny", 1, None), ("nu", 1, None), ("na", 0, MAX_LAG), ("nb", 0, MAX_LAG))
 _ROW = re.compile(r"row(\d+)")
 _PARENTHESIZED = re.compile(r"\(\s*(.*?)\s*\)", re.DOTALL)
 

@@ -202,8 +202,57 @@ def _scatter3d(ax, points: np.ndarray, names: Sequence[str], unit: str, **style)
     return artist
 
 
+def reading_columns(data: Dataset) -> list[int] | None:
+    """Indices of the six measured F/T channels (the inputs other than temperature), or None."""
+    from .runs import temperature_column
+
+    t = temperature_column(data.input_names)
+    channels = [i for i in range(len(data.input_names)) if i != t]
+    return channels[:6] if len(channels) >= 6 else None
+
+
+def readings_space(data: Dataset, *, title: str = "") -> Figure:
+    """The sensor's measured readings in 3D (channels 1–3 and 4–6), coloured by group: the paper's full-trajectory force and torque figures (Figs 6–8 with the temperature one).
+
+    Parameters
+    ----------
+    data : Dataset
+        Its first six non-temperature inputs are the F/T readings (see :func:`reading_columns`).
+    title : str
+
+    Returns
+    -------
+    Figure
+    """
+    channels = reading_columns(data)
+    panels = [channels[:3], channels[3:]]
+    fig = new_figure(13.6, 5.6)
+    idx = spread_indices(data.n_samples)
+    groups = np.asarray(data.groups, dtype=str)[idx]
+    labels = sorted(set(groups), key=natural_key)
+    palette = _group_colors(labels)
+    for p, cols in enumerate(panels):
+        ax = fig.add_subplot(1, 2, p + 1, projection="3d")
+        points = data.inputs[np.ix_(idx, cols)]
+        names = [data.input_names[c] for c in cols]
+        for label in labels:
+            mask = groups == label
+            _scatter3d(ax, points[mask], names, "reading", color=palette[label], label=label, alpha=0.7)
+        ax.set_title(f"measured {'force' if p == 0 else 'torque'} channels {', '.join(names)}")
+    if len(labels) <= 20:
+        handles, names = fig.axes[0].get_legend_handles_labels()
+        fig.legend(handles, names, loc="outside right center", markerscale=4, title="group",
+                   fontsize="small")
+    fig.suptitle(title or "Measured F/T readings by group")
+    return fig
+
+
 def wrench_space(data: Dataset, *, title: str = "") -> Figure:
-    """Expected forces and torques in 3D, coloured by group (load case): the paper's Figs 4–7."""
+    """Expected forces and torques in 3D, coloured by group (load case): the coverage of the wrench space.
+
+    The paper's Figs 6–8 show the measured readings instead, see
+    :func:`readings_space` and :func:`temperature_effect`.
+    """
     forces, torques = force_torque_columns(data.output_names)
     panels = [(c, u) for c, u in ((forces, "N"), (torques, "Nm")) if c is not None]
     fig = new_figure(6.0 * len(panels) + 1.6, 5.6)
@@ -230,21 +279,35 @@ def wrench_space(data: Dataset, *, title: str = "") -> Figure:
 def temperature_effect(data: Dataset, runs: Sequence[ModelRun], validation: Dataset, *,
                        data_temperature: int, validation_temperature: int, title: str = "",
                        colors: Mapping[str, str] | None = None) -> Figure:
-    """Left: expected forces coloured by sensor temperature (Fig. 8); right: each model's
-    mean force-norm error on the validation data, binned by temperature.
+    """Left: the measured force readings coloured by sensor temperature, their drift (the paper's
+    temperature figure); right: each model's mean force-norm error on the validation data, binned by
+    temperature.
 
-    data_temperature, validation_temperature : index of the temperature input in each dataset
+    Parameters
+    ----------
+    data : Dataset
+        Whose first three non-temperature inputs are the force readings.
+    runs : sequence of ModelRun
+    validation : Dataset
+    data_temperature, validation_temperature : int
+        Index of the temperature input in each dataset.
+    title : str
+    colors : mapping of run name to colour, optional
+
+    Returns
+    -------
+    Figure
     """
     colors = _colors(runs, colors)
-    forces, _ = force_torque_columns(data.output_names)
+    channels = reading_columns(data)[:3]
     fig = new_figure(13.0, 5.4)
     ax3d = fig.add_subplot(1, 2, 1, projection="3d")
     idx = spread_indices(data.n_samples)
     temperature = data.inputs[idx, data_temperature]
-    artist = _scatter3d(ax3d, data.outputs[np.ix_(idx, forces)], [data.output_names[c] for c in forces],
-                        "N", c=temperature, cmap="plasma")
+    artist = _scatter3d(ax3d, data.inputs[np.ix_(idx, channels)], [data.input_names[c] for c in channels],
+                        "reading", c=temperature, cmap="plasma")
     fig.colorbar(artist, ax=ax3d, shrink=0.7, label=f"{data.input_names[data_temperature]} [°C]")
-    ax3d.set_title("expected forces coloured by temperature")
+    ax3d.set_title("measured force readings coloured by temperature")
 
     ax = fig.add_subplot(1, 2, 2)
     t_val = validation.inputs[:, validation_temperature]

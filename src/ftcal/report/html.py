@@ -174,12 +174,19 @@ def _sections(runs: list[ModelRun], validation: Dataset, train: Dataset | None,
     coverage = train if train is not None and train.outputs is not None else validation
     coverage_label = "training" if coverage is train else "validation"
     parts = [tables.ranges_table(datasets), tables.groups_table(datasets)]
+    if figures.reading_columns(coverage) is None:
+        parts.append(_skipped("Skipped the readings plot: the data has fewer than six F/T channel inputs."))
+    else:
+        parts.append(figure(
+            "readings", f"Measured F/T readings of the {coverage_label} data in 3D (force channels left, "
+                        "torque channels right), one colour per group (load case). (The paper's full-trajectory force and torque figures.)",
+            lambda: figures.readings_space(coverage, title=f"Measured readings of the {coverage_label} data")))
     if forces_val is None and torques_val is None:
         parts.append(_skipped("Skipped the 3D plot: the outputs are not named as forces and torques."))
     else:
         parts.append(figure(
             "wrench-space", f"Expected forces and torques of the {coverage_label} data in 3D, one colour per "
-                            "group (load case). (Paper Figs 4, 5, 6 and 7.)",
+                            "group (load case): how much of the wrench space the data covers.",
             lambda: figures.wrench_space(coverage, title=f"Expected wrench of the {coverage_label} data by group")))
     sections.append(_Section("data", "Data coverage", parts))
 
@@ -188,14 +195,15 @@ def _sections(runs: list[ModelRun], validation: Dataset, train: Dataset | None,
     t_val = temperature_column(validation.input_names)
     if t_cov is None or t_val is None:
         parts.append(_skipped("Skipped: the data has no temperature input (named T, temp or temperature)."))
-    elif forces_val is None or force_torque_columns(coverage.output_names)[0] is None:
-        parts.append(_skipped("Skipped: the outputs have no force components (Fx, Fy, Fz)."))
+    elif forces_val is None or figures.reading_columns(coverage) is None:
+        parts.append(_skipped("Skipped: the outputs have no force components (Fx, Fy, Fz) or the data has "
+                              "fewer than six F/T channel inputs."))
     else:
         parts.append(figure(
-            "temperature", f"Left: expected forces of the {coverage_label} data coloured by the sensor "
-                           "temperature (paper Fig. 8). Right: mean difference between predicted and expected "
-                           "force norm on the validation data, in temperature bins; a flat line at zero "
-                           "means the model compensates the temperature.",
+            "temperature", f"Left: measured force readings of the {coverage_label} data coloured by the sensor "
+                           "temperature: their temperature drift (the paper's temperature-effect figure). Right: mean difference between predicted "
+                           "and expected force norm on the validation data, in temperature bins; a flat line at "
+                           "zero means the model compensates the temperature.",
             lambda: figures.temperature_effect(coverage, runs, validation, data_temperature=t_cov,
                                                validation_temperature=t_val, colors=colors)))
     sections.append(_Section("temperature", "Temperature effect", parts))

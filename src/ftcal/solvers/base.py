@@ -1,26 +1,42 @@
-"""What every solver returns, and the column scaling they share.
+"""The solver contract, what every solver returns, and the column scaling they share.
 
-Solvers work on :class:`~ftcal.statistics.SufficientStatistics` whose columns
-are scaled by their max |value| (the paper's feature normalization), so that a
-LASSO or ridge weight means the same whatever the raw units are. The
-coefficients they return multiply those *scaled* columns; the model folds the
-scale back in.
+Solvers work on a :class:`ScaledProblem`: the normal equations of the regressor
+whose columns are scaled by their max |value| (the paper's feature
+normalization), so that a LASSO or ridge weight means the same whatever the raw
+units are. The coefficients they return multiply those *scaled* columns; the
+model folds the scale back in. A solver that needs the samples themselves (the
+paper's OSQP programs) asks the problem for its dense regressor.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 import scipy.linalg
 import scipy.linalg.lapack
 
+from ..errors import FtcalError
 from ..statistics import SufficientStatistics
 
 
 @dataclass
 class SolverResult:
-    """Coefficients (p, ny) for the max-abs scaled columns, and diagnostics."""
+    """Coefficients for the max-abs scaled columns, and diagnostics.
+
+    Attributes
+    ----------
+    coef : ndarray of shape (n_features, n_outputs)
+    rank : int
+        Numerical rank of the scaled regressor.
+    condition_number : float
+        Of the equilibrated regressor (NaN when the solver does not compute it).
+    info : dict
+        Solver details for the model file: ``"lambda"`` for penalized solvers,
+        iteration counts, nonzero counts.
+    """
 
     coef: np.ndarray
     rank: int
@@ -30,24 +46,106 @@ class SolverResult:
 
 @dataclass(frozen=True)
 class ScaledProblem:
-    """The normal equations of the column-scaled problem: G x = c."""
+    """The normal equations G x = c of the column-scaled problem.
+
+    Attributes
+    ----------
+    gram : ndarray of shape (p, p)
+        AᵀA of the scaled regressor A (each column divided by ``column_scale``).
+    cross : ndarray of shape (p, n_outputs)
+        AᵀB.
+    target_sq : ndarray of shape (n_outputs,)
+        Column sums of B².
+    column_scale : ndarray of shape (p,)
+        The max |A_ij| each raw column was divided by (1 for all-zero columns).
+    n_samples : int
+        Rows of A.
+    dense : callable, optional
+        Returns the unscaled regressor rows (n_samples, p) and targets
+        (n_samples, n_outputs), for solvers that need the samples themselves.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from ftcal.statistics import dense_statistics
+    >>> a = np.array([[1.0, 1.0], [2.0, 1.0], [4.0, 1.0]])
+    >>> problem = ScaledProblem.from_statistics(dense_statistics(a, np.ones((3, 1))))
+    >>> problem.column_scale.tolist()
+    [4.0, 1.0]
+    """
 
     gram: np.ndarray
     cross: np.ndarray
     target_sq: np.ndarray
-    column_scale: np.ndarray  # the max |A_ij| each column was divided by
+    column_scale: np.ndarray
     n_samples: int
+    dense: Callable[[], tuple[np.ndarray, np.ndarray]] | None = None
 
     @classmethod
-    def from_statistics(cls, stats: SufficientStatistics) -> "ScaledProblem":
+    def from_statistics(cls, stats: SufficientStatistics,
+                        dense: Callable[[], tuple[np.ndarray, np.ndarray]] | None = None) -> "ScaledProblem":
+        """The scaled problem of ``stats``; ``dense`` optionally gives the samples (see the class)."""
         scale = np.where(stats.column_maxabs > 0, stats.column_maxabs, 1.0)
         inv = 1.0 / scale
         return cls(stats.gram * inv[:, None] * inv[None, :], stats.cross * inv[:, None],
-                   stats.target_sq, scale, stats.n_samples)
+                   stats.target_sq, scale, stats.n_samples, dense)
 
     @property
     def n_features(self) -> int:
         return self.gram.shape[0]
+
+    def scaled_regressor(self) -> tuple[np.ndarray, np.ndarray]:
+        """The dense scaled regressor (n_samples, p) and targets (n_samples, n_outputs).
+
+        Raises
+        ------
+        FtcalError
+            When the problem was built from statistics alone.
+        """
+        if self.dense is None:
+            raise FtcalError("This solver needs the samples, but the problem was built from "
+                             "statistics alone; use a streaming solver (lstsq, ridge, lasso).")
+        a, targets = self.dense()
+        return a / self.column_scale, targets
+
+    def shifted(self, prior: np.ndarray) -> "ScaledProblem":
+        """The problem in δ = x − ``prior`` (p, n_outputs): c becomes c − G·prior.
+
+        A penalty on δ shrinks toward ``prior`` instead of toward zero.
+        """
+        residual_sq = self.target_sq - 2 * np.einsum("ij,ij->j", prior, self.cross) \
+            + np.einsum("ij,ij->j", prior, self.gram @ prior)
+        dense = None
+        if self.dense is not None:
+            source, scale = self.dense, self.column_scale
+
+            def dense():
+                a, targets = source()
+                return a, targets - (a / scale) @ prior
+        return ScaledProblem(self.gram, self.cross - self.gram @ prior, residual_sq, self.column_scale,
+                             self.n_samples, dense)
+
+
+@runtime_checkable
+class Solver(Protocol):
+    """What the model asks of a solver: one name, one penalty kind, one method.
+
+    Attributes
+    ----------
+    name : str
+        Recorded in model files (``"lstsq"``, ``"ridge"``, ``"lasso"``, ``"osqp"``...).
+    penalty : str
+        One of :data:`ftcal.limits.PENALTIES`. Least squares does not depend on
+        the basis, so the model solves ``"none"`` problems in its best-conditioned
+        basis; a penalty is defined on the columns of the model's own basis.
+    """
+
+    name: str
+    penalty: str
+
+    def fit(self, problem: ScaledProblem) -> SolverResult:
+        """Coefficients for ``problem``'s scaled columns; penalized solvers put their λ in ``info["lambda"]``."""
+        ...
 
 
 @dataclass(frozen=True)

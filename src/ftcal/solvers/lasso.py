@@ -34,19 +34,58 @@ MAX_ACTIVE_SET_STEPS = 30
 
 
 class Lasso:
-    """LASSO with exact zeros; ``fit_path`` warm-starts over several λ."""
+    """LASSO with exact zeros: x* = argmin ½‖Ax − b‖² + λ‖x‖₁; ``fit_path`` warm-starts over several λ.
+
+    Parameters
+    ----------
+    lam : float > 0
+        LASSO weight λ (on max-abs scaled columns: the paper's scale).
+    max_iter : int
+        ADMM iterations before giving up (with a warning).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from ftcal.statistics import dense_statistics
+    >>> a = np.array([[1.0, 0.0], [0.0, 1.0]])
+    >>> b = np.array([[3.0], [0.5]])
+    >>> problem = ScaledProblem.from_statistics(dense_statistics(a, b))
+    >>> Lasso(1.0).fit(problem).coef[:, 0].tolist()  # soft threshold: 3 - 1, and 0.5 -> 0
+    [2.0, 0.0]
+    """
 
     name = "lasso"
+    penalty = "lasso"
 
     def __init__(self, lam: float, max_iter: int = MAX_ITER):
         self.lam = lam
         self.max_iter = max_iter
 
     def fit(self, problem: ScaledProblem) -> SolverResult:
+        """The solution at ``lam``; ``info`` has ``"lambda"``, ``"n_nonzero"``, ``"iterations"``.
+
+        Parameters
+        ----------
+        problem : ScaledProblem
+
+        Returns
+        -------
+        SolverResult
+        """
         return self.fit_path(problem, [self.lam])[0]
 
     def fit_path(self, problem: ScaledProblem, lams: Sequence[float]) -> list[SolverResult]:
-        """Solutions for each λ in ``lams`` (returned in the given order)."""
+        """Solutions for each λ in ``lams`` (returned in the given order), warm-started from large to small λ.
+
+        Parameters
+        ----------
+        problem : ScaledProblem
+        lams : sequence of float > 0
+
+        Returns
+        -------
+        list of SolverResult, one per λ
+        """
         lams = [check_float(lam, "lam", "Lasso", 0.0, low_inclusive=False) for lam in lams]
         with single_threaded_blas():
             return self._fit_path(problem, lams)

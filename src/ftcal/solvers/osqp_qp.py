@@ -18,7 +18,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import FtcalError
-from .base import SolverResult
+from .base import ScaledProblem, SolverResult
 
 DEFAULT_EPS = 1e-4
 
@@ -41,11 +41,15 @@ class OsqpLeastSquares:
     """The paper's least-squares QP, per output, on the dense scaled regressor."""
 
     name = "osqp"
-    lam = 0.0
+    penalty = "none"
 
     def __init__(self, eps: float = DEFAULT_EPS, max_iter: int = 100000):
         self.eps = eps
         self.max_iter = max_iter
+
+    def fit(self, problem: ScaledProblem) -> SolverResult:
+        """Solve on ``problem``'s dense scaled regressor (see :meth:`fit_dense`)."""
+        return self.fit_dense(*problem.scaled_regressor())
 
     def fit_dense(self, a_scaled: np.ndarray, targets: np.ndarray) -> SolverResult:
         """``a_scaled`` (n, p) max-abs scaled regressor, ``targets`` (n, ny)."""
@@ -66,13 +70,19 @@ class OsqpLasso:
     """The paper's LASSO QP with one residual variable per sample."""
 
     name = "osqp-lasso"
+    penalty = "lasso"
 
     def __init__(self, lam: float, eps: float = DEFAULT_EPS, max_iter: int = 100000):
         self.lam = lam
         self.eps = eps
         self.max_iter = max_iter
 
+    def fit(self, problem: ScaledProblem) -> SolverResult:
+        """Solve on ``problem``'s dense scaled regressor (see :meth:`fit_dense`)."""
+        return self.fit_dense(*problem.scaled_regressor())
+
     def fit_dense(self, a_scaled: np.ndarray, targets: np.ndarray) -> SolverResult:
+        """``a_scaled`` (n, p) max-abs scaled regressor, ``targets`` (n, ny)."""
         n, p = a_scaled.shape
         eye_p, eye_n = sp.identity(p, format="csc"), sp.identity(n, format="csc")
         # Variables v = [x (p), t (p), r (n)].
