@@ -2,7 +2,9 @@
 
 Commands that work file by file (statistics for ``fit``, metrics for
 ``evaluate``, predictions, expected wrenches) describe each file's work as one
-task ``function(path, *args)`` and hand the list to an executor:
+task and hand the list to an executor. A task is a path, run as
+``function(path, *args)``, or a tuple ``(path, *more)`` run as
+``function(path, *more, *args)``: ``args`` are shared by all tasks.
 
 - :class:`LocalExecutor` runs them here, one after another (Dask is never
   imported);
@@ -23,12 +25,13 @@ import socket
 import uuid
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
-from typing import Any, TypeVar
+from typing import Any, TypeVar, Union
 
 from .errors import FtcalError
 from .progress import progress_bar
 
 T = TypeVar("T")
+Task = Union[str, os.PathLike, tuple]
 
 CONNECT_TIMEOUT_S = 10.0  # to reach a scheduler; a wrong address fails in this time
 NO_WORKERS_TIMEOUT_S = 60.0  # a cluster without any worker this long is an error, not a wait
@@ -62,31 +65,32 @@ def tree_reduce(parts: Sequence[T], combine: Callable[[T, T], T]) -> T:
 class LocalExecutor:
     """Run tasks in this process, one after another, with a progress bar over tasks."""
 
-    def map(self, function: Callable[..., T], paths: Sequence[str], *args: Any,
+    def map(self, function: Callable[..., T], tasks: Sequence[Task], *args: Any,
             description: str = "tasks") -> list[T]:
-        """``[function(path, *args) for path in paths]``.
+        """``[function(*task, *args) for task in tasks]``.
 
         Parameters
         ----------
-        function : callable(path, *args) -> result
-        paths : the files (or recordings), one task each
+        function : callable(path, ..., *args) -> result
+        tasks : a path, or a tuple (path, per-task arguments...), per task
+        args : arguments shared by all tasks
         description : label of the progress bar
 
         Returns
         -------
-        list of results, in the order of ``paths``.
+        list of results, in the order of ``tasks``.
         """
         results = []
-        with progress_bar(description, len(paths)) as advance:
-            for path in paths:
-                results.append(function(path, *args))
+        with progress_bar(description, len(tasks)) as advance:
+            for task in tasks:
+                results.append(function(*_task_arguments(task), *args))
                 advance(1)
         return results
 
-    def map_reduce(self, function: Callable[..., T], paths: Sequence[str], *args: Any,
+    def map_reduce(self, function: Callable[..., T], tasks: Sequence[Task], *args: Any,
                    combine: Callable[[T, T], T], description: str = "tasks") -> T:
         """:func:`tree_reduce` of :meth:`map`."""
-        return tree_reduce(self.map(function, paths, *args, description=description), combine)
+        return tree_reduce(self.map(function, tasks, *args, description=description), combine)
 
 
 class DaskExecutor:
@@ -100,16 +104,17 @@ class DaskExecutor:
     def __init__(self, client):
         self.client = client
 
-    def _submit(self, function, paths, args):
+    def _submit(self, function, tasks, args):
         # pure=False: two runs of one file are two tasks (no stale cached results between commands)
-        return [self.client.submit(_run_on_worker, function, path, args, pure=False,
-                                   key=f"ftcal-{os.path.basename(str(path))}-{uuid.uuid4().hex}")
-                for path in paths]
+        return [self.client.submit(_run_on_worker, function, _task_arguments(task), args, pure=False,
+                                   key=f"ftcal-{os.path.basename(os.fspath(_task_arguments(task)[0]))}-"
+                                       f"{uuid.uuid4().hex}")
+                for task in tasks]
 
-    def map(self, function: Callable[..., T], paths: Sequence[str], *args: Any,
+    def map(self, function: Callable[..., T], tasks: Sequence[Task], *args: Any,
             description: str = "tasks") -> list[T]:
-        """Like :meth:`LocalExecutor.map`, one Dask task per path."""
-        futures = self._submit(function, paths, args)
+        """Like :meth:`LocalExecutor.map`, one Dask task per entry of ``tasks``."""
+        futures = self._submit(function, tasks, args)
         try:
             self._wait(futures, description)
             return self.client.gather(futures)
@@ -117,17 +122,17 @@ class DaskExecutor:
             self.client.cancel(futures)
             raise _explain(exc) from None
 
-    def map_reduce(self, function: Callable[..., T], paths: Sequence[str], *args: Any,
+    def map_reduce(self, function: Callable[..., T], tasks: Sequence[Task], *args: Any,
                    combine: Callable[[T, T], T], description: str = "tasks") -> T:
         """:func:`tree_reduce` on the workers; only the total travels back."""
-        futures = self._submit(function, paths, args)
+        futures = self._submit(function, tasks, args)
         level = list(futures)
         try:
             while len(level) > 1:
                 level = [self.client.submit(combine, level[i], level[i + 1], pure=False)
                          if i + 1 < len(level) else level[i] for i in range(0, len(level), 2)]
                 futures.extend(level)
-            self._wait(futures[:len(paths)], description)
+            self._wait(futures[:len(tasks)], description)
             return level[0].result()
         except Exception as exc:
             self.client.cancel(futures)
@@ -169,14 +174,18 @@ def _wait_quietly(pending) -> set:
         return set()
 
 
-def _run_on_worker(function, path, args):
-    """A task as a worker runs it: first check this worker can see the file(s)."""
-    for one in (path if isinstance(path, (tuple, list)) else (path,)):
-        if not os.access(one, os.R_OK):
-            raise FtcalError(f"{one}: the Dask worker on {socket.gethostname()} cannot read this file; with "
-                             "--scheduler the paths must be visible to every worker at the same place "
-                             "(a shared file system).")
-    return function(path, *args)
+def _task_arguments(task: Task) -> tuple:
+    return task if isinstance(task, tuple) else (task,)
+
+
+def _run_on_worker(function, task: tuple, args: tuple):
+    """A task as a worker runs it: first check this worker can see the task's file."""
+    path = task[0]
+    if not os.access(path, os.R_OK):
+        raise FtcalError(f"{os.fspath(path)}: the Dask worker on {socket.gethostname()} cannot read this file; "
+                         "with --scheduler the paths must be visible to every worker at the same place "
+                         "(a shared file system).")
+    return function(*task, *args)
 
 
 def _explain(exc: BaseException) -> BaseException:

@@ -6,7 +6,7 @@ import math
 import warnings
 
 from ..limits import ARX_WARMUP, FREE_RUN_STARTS, PREDICTION_MODES
-from ._common import print_json
+from ._common import add_scheduler_option, print_json
 
 
 def register(sub) -> None:
@@ -25,25 +25,44 @@ def register(sub) -> None:
                         "of each segment")
     p.add_argument("--segment-by", metavar="COL", help="column separating segments (ARX)")
     p.add_argument("--group-by", metavar="COL", help="accepted for symmetry with fit; unused")
+    add_scheduler_option(p)
     p.set_defaults(func=run)
 
 
 def evaluate(args):
     import numpy as np
 
-    from ..errors import OutOfRangeWarning
+    from ..errors import FtcalError, OutOfRangeWarning
     from ..fingerprint import warn_if_trained_on
     from ..io.model_files import read_model_file
     from ..io.tables import read_dataset
 
     loaded = read_model_file(args.model)
     model = loaded.model
+    if model.layout_.is_static:
+        return model, evaluate_streaming(args, model, loaded.training_segments)
+    if args.scheduler:
+        raise FtcalError("--scheduler: ARX models (na or nb > 0) are evaluated in this process, a whole file at "
+                         "a time; drop --scheduler.")
     data = read_dataset(args.data, model.input_names_, model.output_names_, segment_by=args.segment_by)
     warn_if_trained_on(data, loaded.training_segments, args.model)
     with warnings.catch_warnings(), np.errstate(over="ignore", invalid="ignore"):
         # The count is reported in the output; no separate warning line. Overflow is refused in run().
         warnings.simplefilter("ignore", OutOfRangeWarning)
         return model, model.score(data, mode=args.mode, start=args.start, warmup=args.warmup)
+
+
+def evaluate_streaming(args, model, training_segments) -> dict:
+    """Metrics of a static model, one task per file reading it chunk by chunk (``--scheduler``: on Dask)."""
+    from ..executors import open_executor
+    from ..fingerprint import warn_training_segments
+    from ..streaming import add_error_sums, file_error_sums
+
+    with open_executor(args.scheduler) as executor:
+        sums = executor.map_reduce(file_error_sums, args.data, model, list(training_segments),
+                                   combine=add_error_sums, description="evaluate")
+    warn_training_segments(sorted(sums.training_segments), training_segments, args.model)
+    return sums.summary(model.output_names_)
 
 
 def check_finite_metrics(summary: dict, keys) -> None:

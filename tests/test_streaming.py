@@ -1,0 +1,170 @@
+"""Chunked table reads, streamed metrics and predictions, and the Dask executor (a real LocalCluster).
+
+References: pandas/pyarrow whole-table reads, ftcal.metrics on whole arrays (numpy),
+hand-computed row numbers and reduction orders, and the single-process run for Dask.
+"""
+
+import json
+import os
+import socket
+import subprocess
+import sys
+
+import numpy as np
+import pandas as pd
+import pytest
+from conftest import sensor_like_data
+
+from ftcal import metrics
+from ftcal.dataset import DEFAULT_OUTPUTS, Dataset
+from ftcal.errors import FtcalError
+from ftcal.executors import LocalExecutor, open_executor, parse_scheduler, tree_reduce
+from ftcal.io.model_json import save_model
+from ftcal.io.table_chunks import iter_table_chunks
+from ftcal.model import CalibrationModel
+from ftcal.streaming import ErrorSums, add_error_sums, file_error_sums
+
+INPUTS = ("u1", "u2", "u3", "u4", "u5", "u6", "T")
+FTCAL = os.path.join(os.path.dirname(sys.executable), "ftcal")
+
+
+def write_files(folder, rng, sizes, suffix=".parquet"):
+    """Tables of sensor-like samples; Parquet files get row groups of 1000 rows."""
+    paths = []
+    for index, n in enumerate(sizes):
+        u, y = sensor_like_data(rng, n)
+        frame = pd.DataFrame(np.c_[u, y], columns=[*INPUTS, *DEFAULT_OUTPUTS])
+        path = folder / f"part{index}{suffix}"
+        if suffix == ".csv":
+            frame.to_csv(path, index=False, float_format="%.17g")
+        else:
+            frame.to_parquet(path, row_group_size=1000)
+        paths.append(str(path))
+    return paths
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("streaming")
+    rng = np.random.default_rng(7)
+    paths = write_files(folder, rng, [2500, 1200, 3100])
+    u, y = sensor_like_data(rng, 4000)
+    model = CalibrationModel(2).fit(Dataset.from_arrays(u, y, input_names=INPUTS, output_names=DEFAULT_OUTPUTS))
+    model_path = folder / "model.json"
+    save_model(model, model_path)
+    return paths, model, str(model_path)
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    with open_executor("local:2") as executor:
+        yield executor
+
+
+def whole(paths):
+    return pd.concat([pd.read_parquet(p) if p.endswith(".parquet") else pd.read_csv(p) for p in paths],
+                     ignore_index=True)
+
+
+@pytest.mark.parametrize("suffix", [".parquet", ".csv"])
+def test_chunks_equal_the_whole_table(tmp_path, suffix):
+    (path,) = write_files(tmp_path, np.random.default_rng(1), [2600], suffix)
+    chunks = list(iter_table_chunks(path, ["T", "u1"], ["Fz"], labels=["u2"], chunk_rows=700))
+    frame = pd.read_parquet(path) if suffix == ".parquet" else pd.read_csv(path)
+    assert np.array_equal(np.vstack([c.inputs for c in chunks]), frame[["T", "u1"]].to_numpy())
+    assert np.array_equal(np.vstack([c.outputs for c in chunks]), frame[["Fz"]].to_numpy())
+    assert np.array_equal(np.concatenate([c.labels["u2"] for c in chunks]).astype(float), frame["u2"].to_numpy())
+    assert [c.first_row for c in chunks] == list(np.cumsum([0] + [c.n_rows for c in chunks[:-1]]))
+    if suffix == ".parquet":  # batches of 700 rows, across row groups of 1000
+        assert [c.n_rows for c in chunks] == [700, 700, 700, 500]
+
+
+def test_chunk_errors_name_the_file_row_and_column(tmp_path):
+    frame = pd.DataFrame({"a": np.arange(3000.0), "b": np.ones(3000)})
+    frame.loc[2345, "b"] = np.nan
+    frame.to_parquet(tmp_path / "nan.parquet", row_group_size=1000)
+    with pytest.raises(FtcalError, match=r"nan.parquet: column 'b' has 1 empty.*first at row 2345\."):
+        list(iter_table_chunks(tmp_path / "nan.parquet", ["a", "b"], chunk_rows=500))
+    frame.to_csv(tmp_path / "nan.csv", index=False)
+    with pytest.raises(FtcalError, match=r"first at line 2347\."):  # header is line 1, row 0 is line 2
+        list(iter_table_chunks(tmp_path / "nan.csv", ["a", "b"]))
+    text = frame.fillna(1.0).astype({"b": object})
+    text.loc[2900, "b"] = "true"
+    text.to_csv(tmp_path / "word.csv", index=False)
+    with pytest.raises(FtcalError, match=r"word.csv: .*column 'b'.*'true'"):
+        list(iter_table_chunks(tmp_path / "word.csv", ["a", "b"]))
+    with pytest.raises(FtcalError, match=r"missing output column\(s\) 'Fx'; the file has a, b"):
+        list(iter_table_chunks(tmp_path / "word.csv", ["a"], ["Fx"]))
+
+
+def test_error_sums_of_any_split_equal_the_metrics_of_the_whole():
+    rng = np.random.default_rng(3)
+    y = rng.normal(size=(500, 6)) * [100, 100, 100, 10, 10, 10] + 40.0
+    prediction = y + rng.normal(size=y.shape).cumsum(axis=0) * 0.1  # correlated residuals
+    cuts = [0, 1, 2, 90, 333, 500]  # includes blocks of one row
+    parts = [ErrorSums.of(y[a:b], prediction[a:b], DEFAULT_OUTPUTS, 0) for a, b in zip(cuts[:-1], cuts[1:])]
+    got = tree_reduce(parts, add_error_sums).summary(DEFAULT_OUTPUTS)
+    expected = metrics.summarize(y, prediction, DEFAULT_OUTPUTS)
+    for key in expected:
+        if key == "outputs":
+            assert got[key] == expected[key]
+        else:
+            assert np.allclose(got[key], expected[key], rtol=1e-10, atol=0), key
+
+
+def test_tree_reduce_pairs_neighbours_in_order():
+    assert tree_reduce(list("abcde"), lambda a, b: f"({a}{b})") == "(((ab)(cd))e)"
+    assert LocalExecutor().map_reduce(str.upper, ["x", "y", "z"], combine=str.__add__) == "XYZ"
+
+
+def test_dask_results_are_identical_to_the_local_run(files, cluster):
+    paths, model, _ = files
+    local = LocalExecutor().map_reduce(file_error_sums, paths, model, combine=add_error_sums)
+    remote = cluster.map_reduce(file_error_sums, paths, model, combine=add_error_sums)
+    assert json.dumps(remote.summary(model.output_names_)) == json.dumps(local.summary(model.output_names_))
+    data = whole(paths)
+    reference = model.score(Dataset.from_arrays(data[list(INPUTS)].to_numpy(), data[list(DEFAULT_OUTPUTS)].to_numpy(),
+                                                input_names=INPUTS, output_names=DEFAULT_OUTPUTS),
+                            warn_out_of_range=False)
+    assert np.allclose(remote.summary(model.output_names_)["rmse"], reference["rmse"], rtol=1e-12, atol=0)
+
+
+def test_dask_errors_are_one_clear_line(files, cluster, tmp_path):
+    paths, model, _ = files
+    with pytest.raises(FtcalError, match=r"missing\.parquet: the Dask worker on .* cannot read this file; with "
+                                         r"--scheduler the paths must be visible to every worker"):
+        cluster.map(file_error_sums, [paths[0], str(tmp_path / "missing.parquet")], model)
+    with pytest.raises(FtcalError, match=r"a Dask worker died while running"):
+        cluster.map(lambda path: os._exit(1), [paths[0]])  # the worker process exits: retried once, then an error
+    assert cluster.map(len, paths) == [len(p) for p in paths]  # the cluster still works
+
+
+def test_unreachable_scheduler_and_bad_addresses():
+    with socket.socket() as probe:  # a loopback port that nothing listens on
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    with pytest.raises(FtcalError, match=rf"--scheduler tcp://127.0.0.1:{port}: cannot reach the Dask scheduler "
+                                         r"within 1 s"):
+        with open_executor(f"tcp://127.0.0.1:{port}", connect_timeout=1):
+            pass
+    for text in ("local:0", "local:x", "127.0.0.1:8786"):
+        with pytest.raises(FtcalError, match="--scheduler"):
+            parse_scheduler(text)
+
+
+def test_cli_predict_on_a_local_cluster_matches_the_process(files, tmp_path):
+    paths, model, model_path = files
+    env = dict(os.environ, FTCAL_PROGRESS="0")
+    for name, extra in (("here.csv", []), ("dask.csv", ["--scheduler", "local:2"])):
+        done = subprocess.run([FTCAL, "predict", model_path, *paths, "-o", str(tmp_path / name), *extra],
+                              capture_output=True, text=True, env=env, timeout=300)
+        assert done.returncode == 0, done.stderr
+    here, dask = pd.read_csv(tmp_path / "here.csv"), pd.read_csv(tmp_path / "dask.csv")
+    assert list(dask.columns) == list(DEFAULT_OUTPUTS) and np.array_equal(here.to_numpy(), dask.to_numpy())
+    inputs = whole(paths)[list(INPUTS)].to_numpy()
+    assert np.allclose(dask.to_numpy(), model.predict(inputs, warn_out_of_range=False), rtol=1e-12, atol=1e-12)
+    assert sorted(os.listdir(tmp_path)) == ["dask.csv", "here.csv"]  # no part folder left behind
+    missing = subprocess.run([FTCAL, "predict", model_path, paths[0], str(tmp_path / "gone.parquet"), "-o",
+                              str(tmp_path / "never.parquet")], capture_output=True, text=True, env=env, timeout=300)
+    assert missing.returncode == 2 and missing.stderr.count("\n") == 1 and "gone.parquet: no such file" in missing.stderr
+    assert not (tmp_path / "never.parquet").exists() and sorted(os.listdir(tmp_path)) == ["dask.csv", "here.csv"]
