@@ -19,11 +19,12 @@ def register(sub) -> None:
 
 def run(args) -> int:
     import sys
+    import warnings
 
     import numpy as np
     import pandas as pd
 
-    from ..errors import FtcalError
+    from ..errors import FtcalError, OutOfRangeWarning
     from ..io.model_files import read_model
     from ..io.tables import read_dataset, write_table
 
@@ -31,6 +32,9 @@ def run(args) -> int:
     model = read_model(args.model)
     if model.layout_.is_static:
         n_rows, n_out = predict_streaming(args, model)
+        if n_out:  # as CalibrationModel.predict warns on data read whole
+            warnings.warn(f"{n_out} of {n_rows} samples have inputs outside the training range; predictions there "
+                          "are extrapolations.", OutOfRangeWarning, stacklevel=2)
         print(f"wrote {n_rows} predictions to {args.output}"
               + (f" ({n_out} samples outside the training range)" if n_out else ""), file=sys.stderr)
         return 0
