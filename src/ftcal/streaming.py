@@ -111,7 +111,7 @@ class ErrorSums:
     def summary(self, output_names: Sequence[str]) -> dict:
         """The metrics of :func:`ftcal.metrics.summarize`, plus ``n_out_of_range``."""
         n = self.n
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with np.errstate(all="ignore"):  # undefined metrics become NaN (None in JSON) or are refused
             best = np.where(self.y_m2 > 0, 1.0 - np.sqrt(self.sse / self.y_m2), np.nan)
             # lag-1 autocorrelation of the centred residual, from raw sums
             m = self.r_sum / n
@@ -149,11 +149,12 @@ def file_error_sums(path: str, model, fingerprints: Sequence[dict] = ()) -> Erro
     total = None
     finder = SegmentFinder(fingerprints)
     for chunk in iter_table_chunks(path, model.input_names_, model.output_names_):
+        # Overflowing predictions give inf/NaN metrics, which the command refuses in one line.
         with warnings.catch_warnings(), np.errstate(over="ignore", invalid="ignore"):
             warnings.simplefilter("ignore", OutOfRangeWarning)  # counted instead
             prediction = model.predict(chunk.inputs, warn_out_of_range=False)
-        part = ErrorSums.of(chunk.outputs, prediction, model.output_names_,
-                            int(model.out_of_range(chunk.inputs).sum()))
+            part = ErrorSums.of(chunk.outputs, prediction, model.output_names_,
+                                int(model.out_of_range(chunk.inputs).sum()))
         finder.feed(np.concatenate([chunk.inputs, chunk.outputs], axis=1))
         total = part if total is None else total + part
     total.training_segments = frozenset(finder.found)
@@ -219,12 +220,13 @@ def predict_part(path: str, part: str, model) -> tuple[int, int]:
     writer = None
     try:
         for chunk in iter_table_chunks(path, model.input_names_):
-            prediction = model.predict(chunk.inputs, warn_out_of_range=False)
+            with np.errstate(over="ignore", invalid="ignore"):  # overflow is refused just below, in one line
+                prediction = model.predict(chunk.inputs, warn_out_of_range=False)
             bad = ~np.isfinite(prediction).all(axis=1)
             if bad.any():
-                raise FtcalError(f"{path}: the prediction at row {chunk.first_row + int(np.flatnonzero(bad)[0])} "
-                                 f"is not finite (inf or NaN) for {int(bad.sum())} row(s) of this chunk; nothing "
-                                 "written. Inputs far outside the training range can overflow a high-degree model.")
+                raise FtcalError(f"{path}: the prediction of row {chunk.first_row + int(np.flatnonzero(bad)[0])} "
+                                 "holds non-finite value(s) (inf or NaN); nothing written. Inputs far outside the "
+                                 "training range can overflow a high-degree model.")
             batch = pa.RecordBatch.from_arrays([pa.array(prediction[:, j]) for j in range(len(names))], names=names)
             writer = writer or _part_writer(part, batch.schema)
             writer.write(batch)
