@@ -247,8 +247,12 @@ def open_executor(scheduler: str | None, *,
     scheduler = parse_scheduler(scheduler)
     import logging
 
-    import dask
-    from distributed import Client, LocalCluster
+    try:
+        import dask
+        from distributed import Client, LocalCluster
+    except ImportError:
+        raise FtcalError(f"--scheduler {scheduler}: needs Dask distributed; install it with "
+                         "pip install 'ftcal[dask]'.") from None
 
     with dask.config.set({"distributed.comm.timeouts.connect": f"{connect_timeout}s",
                           "distributed.scheduler.allowed-failures": TASK_RETRIES}):
