@@ -194,7 +194,6 @@ def scale_section(sizes: dict) -> list[str]:
     result = json.loads(done.stdout.strip().splitlines()[-1])
     stats, memory = result["statistics"], result["memory"]
     base = stats[0]["samples_per_s"]
-    one_worker = stats[1]["samples_per_s"]
     message_mb = result["message_bytes"] / 1e6
     streaming_peak = max(r["peak_rss_mb"] for r in memory[:2])
     HEADLINE["scale"] = (f"{n_files} Parquet files of {rows:,} rows, degree {degree}: streaming predict/evaluate peak "
@@ -212,14 +211,16 @@ def scale_section(sizes: dict) -> list[str]:
     out += [f"| {row['method']} | {row['peak_rss_mb']:,.0f} MB |" for row in memory]
     hop_s = message_mb * 8 / 1000  # one message over 1 Gbit/s
     bytes_per_sample = 8 * 13  # u1..u6, T, Fx..Tz as float64
-    out += ["", "Projection for 16 workers (one core each), from the figures above: the statistics pass is "
-            f"N / (16 × {one_worker:,.0f}) s (the local:1 rate; per-file work is independent), about "
-            f"{16 * one_worker:,.0f} samples/s; the tree reduction adds log2(files) levels of one "
-            f"{message_mb:.2f} MB message (~{hop_s * 1000:.0f} ms each at 1 Gbit/s) plus a p × p addition; "
-            "the solve on the client is O(p³) once, independent of N. What limits it first is file reading: "
-            f"{bytes_per_sample} bytes per sample from a shared file "
-            f"system means {16 * one_worker * bytes_per_sample / 1e6:,.0f} MB/s in aggregate, more than a 1 Gbit/s NFS "
-            "server gives (~110 MB/s); on such storage, copy the files to the workers' local disks.", ""]
+    per_core = base / result["cores"]  # the single process keeps all its cores busy (ftcal's worker threads)
+    out += ["", f"Projection for 16 single-core workers, from the figures above: the single process ran on "
+            f"{result['cores']} core(s), so one core does ~{per_core:,.0f} samples/s and the statistics pass "
+            f"takes N / (16 × {per_core:,.0f}) s (~{16 * per_core:,.0f} samples/s: files are independent tasks; "
+            "Dask adds a few ms per task); the tree reduction adds log2(files) levels of one "
+            f"{message_mb:.2f} MB message (~{hop_s * 1000:.0f} ms each at 1 Gbit/s) and a p × p addition; the "
+            "solve on the client is O(p³) once, independent of N. File reading limits first: "
+            f"{bytes_per_sample} bytes per sample from a shared file system is "
+            f"{16 * per_core * bytes_per_sample / 1e6:,.0f} MB/s in aggregate, about what a 1 Gbit/s NFS "
+            "server gives (~110 MB/s); past that, put the files on the workers' local disks.", ""]
     return out
 
 

@@ -130,7 +130,9 @@ def main(n_files: int = 10, rows_per_file: int = 300_000, degree: int = 4) -> di
         paths = write_files(folder, n_files, rows_per_file)
         stats, message = statistics_rows(paths, rows_per_file, degree)
         memory = memory_rows(paths, folder, degree)
-    result = {"n_files": n_files, "rows_per_file": rows_per_file, "degree": degree,
+    from ftcal._threads import worker_count
+
+    result = {"n_files": n_files, "rows_per_file": rows_per_file, "degree": degree, "cores": worker_count(),
               "table_mb": n_files * rows_per_file * (len(INPUTS) + len(OUTPUTS)) * 8 / 1e6,
               "statistics": stats, "message_bytes": message, "memory": memory}
     for row in stats:
