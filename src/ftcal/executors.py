@@ -133,6 +133,8 @@ class DaskExecutor:
                          if i + 1 < len(level) else level[i] for i in range(0, len(level), 2)]
                 futures.extend(level)
             self._wait(futures[:len(tasks)], description)
+            if len(futures) > len(tasks):  # the sums are watched too: no hang if workers die
+                self._wait(futures[len(tasks):], f"{description}: tree sum")
             return level[0].result()
         except Exception as exc:
             self.client.cancel(futures)
