@@ -77,7 +77,7 @@ def test_expected_errors(capfd, tmp_path, urdf):
     fails(capfd, ["expected", "--urdf", urdf, "--joints", str(joints), "-o", str(out)], "'wrist' not in URDF")
     pd.DataFrame({"shoulder": [0.0, np.nan]}).to_csv(joints, index=False)
     fails(capfd, ["expected", "--urdf", urdf, "--joints", str(joints), "-o", str(out)],
-          "non-finite value for joint 'shoulder' at sample 1")
+          "column 'shoulder' has 1 empty, NaN or infinite cell(s), first at line 3")
     pd.DataFrame({"shoulder": [0.0]}).to_csv(joints, index=False)
     fails(capfd, ["expected", "--urdf", urdf, "--joints", str(joints), "--sensor", "l_arm_ft", "-o", str(out)],
           "no F/T sensor matching 'l_arm_ft'")
