@@ -168,3 +168,27 @@ def test_cli_predict_on_a_local_cluster_matches_the_process(files, tmp_path):
                               str(tmp_path / "never.parquet")], capture_output=True, text=True, env=env, timeout=300)
     assert missing.returncode == 2 and missing.stderr.count("\n") == 1 and "gone.parquet: no such file" in missing.stderr
     assert not (tmp_path / "never.parquet").exists() and sorted(os.listdir(tmp_path)) == ["dask.csv", "here.csv"]
+
+
+def test_an_existing_cluster_whose_workers_run_another_ftcal_is_refused(tmp_path):
+    from distributed import Client, LocalCluster
+
+    # A worker whose Python finds this ftcal 99.0 before the installed one, as after a partial upgrade.
+    site = tmp_path / "site"
+    (site / "ftcal-99.0.dist-info").mkdir(parents=True)
+    (site / "ftcal-99.0.dist-info" / "METADATA").write_text("Metadata-Version: 2.1\nName: ftcal\nVersion: 99.0\n")
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(site), os.environ.get("PYTHONPATH", "")]))
+    with LocalCluster(n_workers=0, processes=True, dashboard_address=":0") as cluster:
+        worker = subprocess.Popen([os.path.join(os.path.dirname(sys.executable), "dask"), "worker",
+                                   cluster.scheduler_address, "--nthreads", "1", "--no-nanny",
+                                   "--no-dashboard"], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        try:
+            with Client(cluster.scheduler_address, timeout=30) as client:
+                client.wait_for_workers(1, timeout=60)
+            with pytest.raises(FtcalError, match=rf"--scheduler {cluster.scheduler_address}: worker tcp://\S+ runs "
+                                                 r"ftcal 99.0 but this client runs \S+; install the same versions"):
+                with open_executor(cluster.scheduler_address):
+                    pass
+        finally:
+            worker.terminate()
+            worker.wait(timeout=60)
