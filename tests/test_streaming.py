@@ -192,3 +192,23 @@ def test_an_existing_cluster_whose_workers_run_another_ftcal_is_refused(tmp_path
         finally:
             worker.terminate()
             worker.wait(timeout=60)
+
+
+def test_cli_predict_arx_one_task_per_file_matches_the_whole_data(files, tmp_path):
+    from ftcal.io.tables import read_dataset
+    from ftcal.solvers.least_squares import Ridge
+
+    paths, _, _ = files
+    data = read_dataset(paths, INPUTS, DEFAULT_OUTPUTS)
+    # ridge: past outputs are nearly affine in past inputs on this data
+    model = CalibrationModel(1, na=1, nb=1, solver=Ridge(1.0)).fit(data)
+    save_model(model, tmp_path / "arx.json")
+    env = dict(os.environ, FTCAL_PROGRESS="0")
+    for name, extra in (("here.parquet", []), ("dask.parquet", ["--scheduler", "local:2"])):
+        done = subprocess.run([FTCAL, "predict", str(tmp_path / "arx.json"), *paths, "--mode", "one-step", "-o",
+                               str(tmp_path / name), *extra], capture_output=True, text=True, env=env, timeout=300)
+        assert done.returncode == 0, done.stderr
+    here, dask = pd.read_parquet(tmp_path / "here.parquet"), pd.read_parquet(tmp_path / "dask.parquet")
+    assert np.array_equal(here.to_numpy(), dask.to_numpy())
+    # each file is one segment: the same rows as predicting the concatenated data
+    assert np.array_equal(dask.to_numpy(), model.predict(data, mode="one-step", warn_out_of_range=False))

@@ -201,8 +201,18 @@ class SegmentFinder:
                 self.found.add(index)
 
 
-def predict_part(path: str, part: str, model) -> tuple[int, int]:
-    """Predict one file chunk by chunk into the part file ``part`` (CSV or Parquet by suffix).
+def predict_part(path: str, part: str, model, mode: str = "free-run", segment_by: str | None = None) -> tuple[int, int]:
+    """Predict one file into the part file ``part`` (CSV or Parquet by suffix).
+
+    Static models read the file chunk by chunk; ARX models (whose rows depend
+    on the previous ones) read it whole, as one or more segments.
+
+    Parameters
+    ----------
+    path : CSV or Parquet file with the model's inputs (and outputs for one-step ARX)
+    part : the part file to write
+    model : fitted CalibrationModel
+    mode, segment_by : ARX prediction mode and segment column (see ``ftcal predict``)
 
     Returns
     -------
@@ -213,29 +223,41 @@ def predict_part(path: str, part: str, model) -> tuple[int, int]:
     FtcalError
         A prediction overflows (inf or NaN): names the input file and row.
     """
-    import pyarrow as pa
-
     names = list(model.output_names_)
     n_rows = n_out = 0
     writer = None
     try:
-        for chunk in iter_table_chunks(path, model.input_names_):
-            with np.errstate(over="ignore", invalid="ignore"):  # overflow is refused just below, in one line
-                prediction = model.predict(chunk.inputs, warn_out_of_range=False)
+        for first_row, inputs, prediction in _predictions(path, model, mode, segment_by):
             bad = ~np.isfinite(prediction).all(axis=1)
             if bad.any():
-                raise FtcalError(f"{path}: the prediction of row {chunk.first_row + int(np.flatnonzero(bad)[0])} "
+                raise FtcalError(f"{path}: the prediction of row {first_row + int(np.flatnonzero(bad)[0])} "
                                  "holds non-finite value(s) (inf or NaN); nothing written. Inputs far outside the "
                                  "training range can overflow a high-degree model.")
+            import pyarrow as pa
+
             batch = pa.RecordBatch.from_arrays([pa.array(prediction[:, j]) for j in range(len(names))], names=names)
             writer = writer or _part_writer(part, batch.schema)
             writer.write(batch)
-            n_rows += chunk.n_rows
-            n_out += int(model.out_of_range(chunk.inputs).sum())
+            n_rows += len(prediction)
+            n_out += int(model.out_of_range(inputs).sum())
     finally:
         if writer is not None:
             writer.close()
     return n_rows, n_out
+
+
+def _predictions(path: str, model, mode: str, segment_by: str | None):
+    """(first row, inputs, predictions) per chunk of a static model, or once for the whole file (ARX)."""
+    with np.errstate(over="ignore", invalid="ignore"):  # overflow is refused by the caller, in one line
+        if model.layout_.is_static:
+            for chunk in iter_table_chunks(path, model.input_names_):
+                yield chunk.first_row, chunk.inputs, model.predict(chunk.inputs, warn_out_of_range=False)
+            return
+        from .io.tables import read_dataset
+
+        data = read_dataset([path], model.input_names_, model.output_names_ if mode == "one-step" else None,
+                            segment_by=segment_by)
+        yield 0, data.inputs, model.predict(data, mode=mode, warn_out_of_range=False)
 
 
 def _part_writer(part: str, schema):

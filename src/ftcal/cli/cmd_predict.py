@@ -21,39 +21,22 @@ def run(args) -> int:
     import sys
     import warnings
 
-    import numpy as np
-    import pandas as pd
-
-    from ..errors import FtcalError, OutOfRangeWarning
+    from ..errors import OutOfRangeWarning
     from ..io.model_files import read_model
-    from ..io.tables import read_dataset, write_table
 
     require_suffix(args.output, (".csv", ".parquet"), "-o")
     model = read_model(args.model)
-    if model.layout_.is_static:
-        n_rows, n_out = predict_streaming(args, model)
-        if n_out:  # as CalibrationModel.predict warns on data read whole
-            warnings.warn(f"{n_out} of {n_rows} samples have inputs outside the training range; predictions there "
-                          "are extrapolations.", OutOfRangeWarning, stacklevel=2)
-        print(f"wrote {n_rows} predictions to {args.output}"
-              + (f" ({n_out} samples outside the training range)" if n_out else ""), file=sys.stderr)
-        return 0
-    if args.scheduler:
-        raise FtcalError("--scheduler: ARX models (na or nb > 0) predict in this process, a whole file at a time; "
-                         "drop --scheduler.")
-    data = read_dataset(args.data, model.input_names_, model.output_names_ if args.mode == "one-step" else None,
-                        segment_by=args.segment_by)
-    with np.errstate(over="ignore", invalid="ignore"):  # overflow is refused below, in one line
-        prediction = model.predict(data, mode=args.mode)
-    write_table(pd.DataFrame(prediction, columns=list(model.output_names_)), args.output)
-    n_out = int(model.out_of_range(data.inputs).sum())
-    print(f"wrote {len(prediction)} predictions to {args.output}"
+    n_rows, n_out = predict_streaming(args, model)
+    if n_out:  # as CalibrationModel.predict warns on data read whole
+        warnings.warn(f"{n_out} of {n_rows} samples have inputs outside the training range; predictions there "
+                      "are extrapolations.", OutOfRangeWarning, stacklevel=2)
+    print(f"wrote {n_rows} predictions to {args.output}"
           + (f" ({n_out} samples outside the training range)" if n_out else ""), file=sys.stderr)
     return 0
 
 
 def predict_streaming(args, model) -> tuple[int, int]:
-    """Predict a static model file by file, chunk by chunk (``--scheduler``: one Dask task per file).
+    """Predict file by file (``--scheduler``: one Dask task per file); static models chunk by chunk.
 
     Each task writes a part file in a temporary folder beside the output (on
     Dask, the workers must see that folder too); the parts are then joined in
@@ -84,7 +67,7 @@ def predict_streaming(args, model) -> tuple[int, int]:
         tasks = [(path, os.path.join(folder, f"part-{index:05d}{output.suffix.lower()}"))
                  for index, path in enumerate(args.data)]
         with open_executor(args.scheduler) as executor:
-            counts = executor.map(predict_part, tasks, model, description="predict")
+            counts = executor.map(predict_part, tasks, model, args.mode, args.segment_by, description="predict")
         join_parts([part for _, part in tasks], output)
     finally:
         shutil.rmtree(folder, ignore_errors=True)
