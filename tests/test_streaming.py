@@ -212,3 +212,24 @@ def test_cli_predict_arx_one_task_per_file_matches_the_whole_data(files, tmp_pat
     assert np.array_equal(here.to_numpy(), dask.to_numpy())
     # each file is one segment: the same rows as predicting the concatenated data
     assert np.array_equal(dask.to_numpy(), model.predict(data, mode="one-step", warn_out_of_range=False))
+
+
+def test_cli_evaluate_arx_on_a_local_cluster_matches_the_whole_data(files, tmp_path):
+    from ftcal.io.tables import read_dataset
+    from ftcal.solvers.least_squares import Ridge
+
+    paths, _, _ = files
+    model = CalibrationModel(1, na=2, nb=1, solver=Ridge(1.0)).fit(read_dataset(paths[:1], INPUTS, DEFAULT_OUTPUTS))
+    save_model(model, tmp_path / "arx.json")
+    env = dict(os.environ, FTCAL_PROGRESS="0")
+    results = []
+    for extra in ([], ["--scheduler", "local:2"]):
+        done = subprocess.run([FTCAL, "evaluate", str(tmp_path / "arx.json"), *paths[1:], "--mode", "free-run",
+                               "--json", *extra], capture_output=True, text=True, env=env, timeout=300)
+        assert done.returncode == 0, done.stderr
+        results.append(json.loads(done.stdout))
+    here, dask = results  # here: the whole-data path (CalibrationModel.score on the files read together)
+    assert dask["n_samples"] == here["n_samples"] == 1200 + 3100 - 2 * 2  # warm-up rows dropped per file
+    for key in ("rmse", "best_fit", "max_abs_error", "residual_autocorrelation_lag1", "force_norm_rmse"):
+        assert np.allclose(dask[key], here[key], rtol=1e-10, atol=0), key
+    assert np.allclose(dask["one_step"]["rmse"], here["one_step"]["rmse"], rtol=1e-10, atol=0)

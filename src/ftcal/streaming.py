@@ -131,14 +131,27 @@ class ErrorSums:
                 "n_out_of_range": self.n_out_of_range}
 
 
-def add_error_sums(a: ErrorSums, b: ErrorSums) -> ErrorSums:
-    """``a + b`` as a plain function (a task for the tree reduction)."""
+def add_error_sums(a, b):
+    """``a + b`` as a plain function (a task for the tree reduction).
+
+    Also adds the (mode, other mode) pairs of ARX models, and skips None (a
+    file whose segments are all shorter than the ARX warm-up).
+    """
+    if a is None or b is None:
+        return b if a is None else a
+    if isinstance(a, tuple):
+        return tuple(x + y for x, y in zip(a, b))
     return a + b
 
 
-def file_error_sums(path: str, model, fingerprints: Sequence[dict] = ()) -> ErrorSums:
-    """:class:`ErrorSums` of a static ``model`` on one file with reference outputs, chunk by chunk.
+def file_error_sums(path: str, model, fingerprints: Sequence[dict] = (), mode: str = "one-step",
+                    start: str = "zeros", warmup: str = "drop", segment_by: str | None = None):
+    """:class:`ErrorSums` of ``model`` on one file with reference outputs.
 
+    Static models read the file chunk by chunk. ARX models read it whole and
+    give a pair: the sums for ``mode`` and for the other prediction mode,
+    without the first max(na, nb) rows of each segment when ``warmup`` is
+    ``"drop"`` (as :meth:`CalibrationModel.score`); None when no row is left.
     ``fingerprints`` (the model file's training segments) found whole inside
     this file are reported in ``training_segments``.
     """
@@ -146,6 +159,8 @@ def file_error_sums(path: str, model, fingerprints: Sequence[dict] = ()) -> Erro
 
     from .errors import OutOfRangeWarning
 
+    if not model.layout_.is_static:
+        return _arx_error_sums(path, model, fingerprints, mode, start, warmup, segment_by)
     total = None
     finder = SegmentFinder(fingerprints)
     for chunk in iter_table_chunks(path, model.input_names_, model.output_names_):
@@ -159,6 +174,29 @@ def file_error_sums(path: str, model, fingerprints: Sequence[dict] = ()) -> Erro
         total = part if total is None else total + part
     total.training_segments = frozenset(finder.found)
     return total
+
+
+def _arx_error_sums(path: str, model, fingerprints: Sequence[dict], mode: str, start: str, warmup: str,
+                    segment_by: str | None) -> tuple[ErrorSums, ErrorSums] | None:
+    from .io.tables import read_dataset
+
+    data = read_dataset([path], model.input_names_, model.output_names_, segment_by=segment_by)
+    rows = np.ones(data.n_samples, dtype=bool)
+    if warmup == "drop":
+        for a, b in data.segment_bounds():
+            rows[a:a + model.layout_.max_lag] = False
+    if not rows.any():
+        return None
+    finder = SegmentFinder(fingerprints)
+    finder.feed(np.concatenate([data.inputs, data.outputs], axis=1))
+    n_out = int(model.out_of_range(data.inputs).sum())
+    pair = []
+    for which in (mode, "free-run" if mode == "one-step" else "one-step"):
+        with np.errstate(over="ignore", invalid="ignore"):
+            prediction = model.predict(data, mode=which, start=start, warn_out_of_range=False)
+            pair.append(ErrorSums.of(data.outputs[rows], prediction[rows], model.output_names_, n_out))
+    pair[0].training_segments = frozenset(finder.found)
+    return pair[0], pair[1]
 
 
 class SegmentFinder:

@@ -32,18 +32,15 @@ def register(sub) -> None:
 def evaluate(args):
     import numpy as np
 
-    from ..errors import FtcalError, OutOfRangeWarning
+    from ..errors import OutOfRangeWarning
     from ..fingerprint import warn_if_trained_on
     from ..io.model_files import read_model_file
     from ..io.tables import read_dataset
 
     loaded = read_model_file(args.model)
     model = loaded.model
-    if model.layout_.is_static:
+    if model.layout_.is_static or args.scheduler:
         return model, evaluate_streaming(args, model, loaded.training_segments)
-    if args.scheduler:
-        raise FtcalError("--scheduler: ARX models (na or nb > 0) are evaluated in this process, a whole file at "
-                         "a time; drop --scheduler.")
     data = read_dataset(args.data, model.input_names_, model.output_names_, segment_by=args.segment_by)
     warn_if_trained_on(data, loaded.training_segments, args.model)
     with warnings.catch_warnings(), np.errstate(over="ignore", invalid="ignore"):
@@ -53,16 +50,31 @@ def evaluate(args):
 
 
 def evaluate_streaming(args, model, training_segments) -> dict:
-    """Metrics of a static model, one task per file reading it chunk by chunk (``--scheduler``: on Dask)."""
+    """Metrics from one task per file (``--scheduler``: on Dask); static models read chunk by chunk.
+
+    ARX models in this process keep the whole-data path (:meth:`CalibrationModel.score`),
+    which gives the same metrics.
+    """
+    from ..errors import FtcalError
     from ..executors import open_executor
     from ..fingerprint import warn_training_segments
     from ..streaming import add_error_sums, file_error_sums
 
     with open_executor(args.scheduler) as executor:
-        sums = executor.map_reduce(file_error_sums, args.data, model, list(training_segments),
-                                   combine=add_error_sums, description="evaluate")
-    warn_training_segments(sorted(sums.training_segments), training_segments, args.model)
-    return sums.summary(model.output_names_)
+        sums = executor.map_reduce(file_error_sums, args.data, model, list(training_segments), args.mode,
+                                   args.start, args.warmup, args.segment_by, combine=add_error_sums,
+                                   description="evaluate")
+    if sums is None:
+        raise FtcalError(f"Nothing to evaluate: every segment is shorter than the ARX warm-up "
+                         f"max(na, nb) = {model.layout_.max_lag} rows.")
+    main, other = sums if isinstance(sums, tuple) else (sums, None)
+    warn_training_segments(sorted(main.training_segments), training_segments, args.model)
+    summary = main.summary(model.output_names_)
+    if other is not None:
+        second = other.summary(model.output_names_)
+        del second["n_out_of_range"]
+        summary["free_run" if args.mode == "one-step" else "one_step"] = second
+    return summary
 
 
 def check_finite_metrics(summary: dict, keys) -> None:
