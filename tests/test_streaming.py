@@ -233,3 +233,24 @@ def test_cli_evaluate_arx_on_a_local_cluster_matches_the_whole_data(files, tmp_p
     for key in ("rmse", "best_fit", "max_abs_error", "residual_autocorrelation_lag1", "force_norm_rmse"):
         assert np.allclose(dask[key], here[key], rtol=1e-10, atol=0), key
     assert np.allclose(dask["one_step"]["rmse"], here["one_step"]["rmse"], rtol=1e-10, atol=0)
+
+
+def test_file_statistics_tree_summed_on_dask_equal_the_dense_regressor(files, cluster):
+    from conftest import reference_features
+
+    from ftcal.features import MonomialBasis
+    from ftcal.normalization import normalization_from_range
+    from ftcal.streaming import add_statistics, file_statistics
+
+    paths, _, _ = files
+    data = whole(paths)
+    u, y = data[list(INPUTS)].to_numpy(), data[list(DEFAULT_OUTPUTS)].to_numpy()
+    norm = normalization_from_range(u.min(axis=0), u.max(axis=0))
+    basis = MonomialBasis(len(INPUTS), 2)
+    local = LocalExecutor().map_reduce(file_statistics, paths, basis, norm, INPUTS, DEFAULT_OUTPUTS,
+                                       combine=add_statistics)
+    remote = cluster.map_reduce(file_statistics, paths, basis, norm, INPUTS, DEFAULT_OUTPUTS, combine=add_statistics)
+    assert np.array_equal(remote.gram, local.gram) and np.array_equal(remote.cross, local.cross)
+    a = reference_features(norm.apply(u), 2)  # scikit-learn's monomials, offset last
+    assert np.allclose(remote.gram, a.T @ a, rtol=1e-12, atol=1e-9) and np.allclose(remote.cross, a.T @ y, rtol=1e-12)
+    assert remote.n_samples == len(u) == 2500 + 1200 + 3100
