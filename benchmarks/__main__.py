@@ -243,21 +243,66 @@ def bag_section(sizes: dict) -> list[str]:
     return rows
 
 
+def scale_section(sizes: dict) -> list[str]:
+    # In its own process: it starts Dask clusters and fresh processes for the memory figures.
+    n_files, rows, degree = sizes["scale"]
+    code = ("import contextlib, json, sys\nfrom benchmarks import bench_scale\n"
+            "with contextlib.redirect_stdout(sys.stderr):\n"
+            f"    result = bench_scale.main({n_files}, {rows}, {degree})\nprint(json.dumps(result))")
+    done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True,
+                          env=dict(os.environ, FTCAL_PROGRESS="0"))
+    if done.returncode != 0:
+        raise RuntimeError(f"scale-out benchmark failed:\n{done.stderr[-2000:]}")
+    result = json.loads(done.stdout.strip().splitlines()[-1])
+    stats, memory = result["statistics"], result["memory"]
+    base = stats[0]["samples_per_s"]
+    message_mb = result["message_bytes"] / 1e6
+    streaming_peak = max(r["peak_rss_mb"] for r in memory[:2])
+    HEADLINE["scale"] = (f"{n_files} Parquet files of {rows:,} rows, degree {degree}: streaming predict/evaluate peak "
+                         f"{streaming_peak:,.0f} MB for a {result['table_mb']:,.0f} MB table; statistics on Dask "
+                         f"local:2 at {stats[2]['samples_per_s'] / base:.2f}× the single process")
+    out = [f"## Scale-out: {n_files} Parquet files × {rows:,} rows, degree {degree} statistics "
+           "(one task per file, tree-summed)", "",
+           "| where | time | samples/s | vs this process |", "|---|---:|---:|---:|"]
+    for row in stats:
+        out.append(f"| {row['method']} | {fmt_s(row['seconds'])} | {row['samples_per_s']:,.0f} | "
+                   f"{row['samples_per_s'] / base:.2f}× |")
+    out += ["", f"One statistics message (pickled `SufficientStatistics`): {result['message_bytes']:,} bytes.", "",
+            f"| peak memory, fresh process ({result['table_mb']:,.0f} MB of float64 columns) | peak RSS |",
+            "|---|---:|"]
+    out += [f"| {row['method']} | {row['peak_rss_mb']:,.0f} MB |" for row in memory]
+    hop_s = message_mb * 8 / 1000  # one message over 1 Gbit/s
+    bytes_per_sample = 8 * 13  # u1..u6, T, Fx..Tz as float64
+    per_core = base / result["cores"]  # the single process keeps all its cores busy (ftcal's worker threads)
+    out += ["", f"Projection for 16 single-core workers, from the figures above: the single process ran on "
+            f"{result['cores']} core(s), so one core does ~{per_core:,.0f} samples/s and the statistics pass "
+            f"takes N / (16 × {per_core:,.0f}) s (~{16 * per_core:,.0f} samples/s: files are independent tasks; "
+            "Dask adds a few ms per task); the tree reduction adds log2(files) levels of one "
+            f"{message_mb:.2f} MB message (~{hop_s * 1000:.0f} ms each at 1 Gbit/s) and a p × p addition; the "
+            "solve on the client is O(p³) once, independent of N. File reading limits first: "
+            f"{bytes_per_sample} bytes per sample from a shared file system is "
+            f"{16 * per_core * bytes_per_sample / 1e6:,.0f} MB/s in aggregate, about what a 1 Gbit/s NFS "
+            "server gives (~110 MB/s); past that, put the files on the workers' local disks.", ""]
+    return out
+
+
 # One line per section; HEADLINE keys name the targets summary's rows.
 SECTIONS = (fit_section, cli_section, lasso_section, predict_section, selection_section, c_section, scaling_section,
-            expected_section, payload_section, bag_section)
+            expected_section, payload_section, bag_section, scale_section)
 LABELS = {"fit": "Fit", "cli": "Whole-process fit", "lasso": "LASSO", "predict": "Prediction", "select": "Model selection",
           "c": "Generated C", "expected": "Expected wrenches", "payload": "Payload identification",
-          "bags": "Bag reading"}
+          "bags": "Bag reading", "scale": "Streaming and Dask"}
 
 FULL = {"fit_big": 1_000_000, "fit_mid": 100_000, "scaling_n": (10_000, 100_000, 1_000_000), "dense_max_n": 100_000,
         "degree_n": 100_000, "lasso_n": 200_000, "paper_lasso_n": 10_000, "predict_n": 2_000_000,
         "expected_n": 100_000, "expected_baseline_n": 10_000, "c_evals": 2_000_000, "python_calls": 2_000,
-        "payload_n": 1_000_000, "bag_n": 500_000, "cli_n": 200_000, "select_n": 74_000}
+        "payload_n": 1_000_000, "bag_n": 500_000, "cli_n": 200_000, "select_n": 74_000,
+        "scale": (10, 1_000_000, 4)}
 QUICK = {"fit_big": 20_000, "fit_mid": 5_000, "scaling_n": (2_000, 10_000), "dense_max_n": 10_000,
          "degree_n": 5_000, "lasso_n": 5_000, "paper_lasso_n": 1_000, "predict_n": 100_000,
          "expected_n": 2_000, "expected_baseline_n": 500, "c_evals": 100_000, "python_calls": 200,
-         "payload_n": 20_000, "bag_n": 20_000, "cli_n": 5_000, "select_n": 6_000}
+         "payload_n": 20_000, "bag_n": 20_000, "cli_n": 5_000, "select_n": 6_000,
+         "scale": (4, 50_000, 4)}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -67,9 +67,14 @@ def find_training_segments(data: Dataset, fingerprints: list[dict]) -> list[int]
 def warn_if_trained_on(data: Dataset, fingerprints: list[dict] | tuple[dict, ...], model_name: str) -> int:
     """Warn when ``data`` contains training segments of the model; returns how many it contains."""
     found = find_training_segments(data, list(fingerprints))
+    warn_training_segments(found, fingerprints, model_name)
+    return len(found)
+
+
+def warn_training_segments(found: list[int], fingerprints: list[dict] | tuple[dict, ...], model_name: str) -> None:
+    """The warning of :func:`warn_if_trained_on`, for the indices ``found`` of ``fingerprints``."""
     if found:
         rows = sum(int(fingerprints[i]["rows"]) for i in found)
         warnings.warn(f"the evaluation data contains {len(found)} of the {len(fingerprints)} training segments of "
                       f"{model_name} ({rows} samples): these metrics are not held-out; evaluate on recordings "
-                      "the model was not fitted on.", FtcalWarning, stacklevel=2)
-    return len(found)
+                      "the model was not fitted on.", FtcalWarning, stacklevel=3)

@@ -75,6 +75,13 @@ def default_inputs(paths: Sequence[str]) -> tuple[str, ...]:
     return from_files(paths)
 
 
+def add_scheduler_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--scheduler", metavar="ADDRESS",
+                        help="run one task per file on a Dask cluster: tcp://host:8786 (an existing scheduler; "
+                             "the files must be visible to every worker at the same path) or local:N (N worker "
+                             "processes on this machine); default: this process, without Dask")
+
+
 def print_json(payload: dict) -> None:
     """Print ``payload`` as JSON, all or nothing: a non-finite number is an error, not partial output."""
     try:

@@ -6,7 +6,7 @@ import math
 import warnings
 
 from ..limits import ARX_WARMUP, FREE_RUN_STARTS, PREDICTION_MODES
-from ._common import print_json
+from ._common import add_scheduler_option, print_json
 
 
 def register(sub) -> None:
@@ -25,6 +25,7 @@ def register(sub) -> None:
                         "of each segment")
     p.add_argument("--segment-by", metavar="COL", help="column separating segments (ARX)")
     p.add_argument("--group-by", metavar="COL", help="accepted for symmetry with fit; unused")
+    add_scheduler_option(p)
     p.set_defaults(func=run)
 
 
@@ -38,12 +39,42 @@ def evaluate(args):
 
     loaded = read_model_file(args.model)
     model = loaded.model
+    if model.layout_.is_static or args.scheduler:
+        return model, evaluate_streaming(args, model, loaded.training_segments)
     data = read_dataset(args.data, model.input_names_, model.output_names_, segment_by=args.segment_by)
     warn_if_trained_on(data, loaded.training_segments, args.model)
     with warnings.catch_warnings(), np.errstate(over="ignore", invalid="ignore"):
         # The count is reported in the output; no separate warning line. Overflow is refused in run().
         warnings.simplefilter("ignore", OutOfRangeWarning)
         return model, model.score(data, mode=args.mode, start=args.start, warmup=args.warmup)
+
+
+def evaluate_streaming(args, model, training_segments) -> dict:
+    """Metrics from one task per file (``--scheduler``: on Dask); static models read chunk by chunk.
+
+    ARX models in this process keep the whole-data path (:meth:`CalibrationModel.score`),
+    which gives the same metrics.
+    """
+    from ..errors import FtcalError
+    from ..executors import open_executor
+    from ..fingerprint import warn_training_segments
+    from ..streaming import add_error_sums, file_error_sums
+
+    with open_executor(args.scheduler) as executor:
+        sums = executor.map_reduce(file_error_sums, args.data, model, list(training_segments), args.mode,
+                                   args.start, args.warmup, args.segment_by, combine=add_error_sums,
+                                   description="evaluate")
+    if sums is None:
+        raise FtcalError(f"Nothing to evaluate: every segment is shorter than the ARX warm-up "
+                         f"max(na, nb) = {model.layout_.max_lag} rows.")
+    main, other = sums if isinstance(sums, tuple) else (sums, None)
+    warn_training_segments(sorted(main.training_segments), training_segments, args.model)
+    summary = main.summary(model.output_names_)
+    if other is not None:
+        second = other.summary(model.output_names_)
+        del second["n_out_of_range"]
+        summary["free_run" if args.mode == "one-step" else "one_step"] = second
+    return summary
 
 
 def check_finite_metrics(summary: dict, keys) -> None:

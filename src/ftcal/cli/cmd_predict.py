@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ._common import require_suffix
+from ._common import add_scheduler_option, require_suffix
 
 
 def register(sub) -> None:
@@ -13,26 +13,62 @@ def register(sub) -> None:
     p.add_argument("--mode", choices=("free-run", "one-step"), default="free-run",
                    help="ARX prediction mode; one-step needs the measured outputs in DATA")
     p.add_argument("--segment-by", metavar="COL", help="column separating segments (ARX)")
+    add_scheduler_option(p)
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
     import sys
+    import warnings
 
-    import numpy as np
-    import pandas as pd
-
+    from ..errors import OutOfRangeWarning
     from ..io.model_files import read_model
-    from ..io.tables import read_dataset, write_table
 
     require_suffix(args.output, (".csv", ".parquet"), "-o")
     model = read_model(args.model)
-    data = read_dataset(args.data, model.input_names_, model.output_names_ if args.mode == "one-step" else None,
-                        segment_by=args.segment_by)
-    with np.errstate(over="ignore", invalid="ignore"):  # overflow is refused below, in one line
-        prediction = model.predict(data, mode=args.mode)
-    write_table(pd.DataFrame(prediction, columns=list(model.output_names_)), args.output)
-    n_out = int(model.out_of_range(data.inputs).sum())
-    print(f"wrote {len(prediction)} predictions to {args.output}"
+    n_rows, n_out = predict_streaming(args, model)
+    if n_out:  # as CalibrationModel.predict warns on data read whole
+        warnings.warn(f"{n_out} of {n_rows} samples have inputs outside the training range; predictions there "
+                      "are extrapolations.", OutOfRangeWarning, stacklevel=2)
+    print(f"wrote {n_rows} predictions to {args.output}"
           + (f" ({n_out} samples outside the training range)" if n_out else ""), file=sys.stderr)
     return 0
+
+
+def predict_streaming(args, model) -> tuple[int, int]:
+    """Predict file by file (``--scheduler``: one Dask task per file); static models chunk by chunk.
+
+    Each task writes a part file in a temporary folder beside the output (on
+    Dask, the workers must see that folder too); the parts are then joined in
+    input order into the output, which appears only when everything worked.
+
+    Returns
+    -------
+    (n_rows, n_out_of_range) : ints
+    """
+    import os
+    import shutil
+    import tempfile
+    from pathlib import Path
+
+    from ..errors import FtcalError
+    from ..executors import open_executor
+    from ..io.atomic import check_not_an_input
+    from ..streaming import join_parts, predict_part
+
+    output = Path(args.output)
+    check_not_an_input(output, "-o")
+    try:
+        output.parent.mkdir(parents=True, exist_ok=True)
+        folder = tempfile.mkdtemp(prefix=f".{output.name}.parts-", dir=output.parent)
+    except OSError as exc:
+        raise FtcalError(f"{output}: cannot create the output file ({exc.strerror or exc}).") from None
+    try:
+        tasks = [(path, os.path.join(folder, f"part-{index:05d}{output.suffix.lower()}"))
+                 for index, path in enumerate(args.data)]
+        with open_executor(args.scheduler) as executor:
+            counts = executor.map(predict_part, tasks, model, args.mode, args.segment_by, description="predict")
+        join_parts([part for _, part in tasks], output)
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+    return sum(n for n, _ in counts), sum(k for _, k in counts)

@@ -71,18 +71,19 @@ _PLAIN_NUMBERS = {"double": "<f8", "float": "<f4", "int64": "<i8", "int32": "<i4
                   "uint64": "<u8", "uint32": "<u4", "uint16": "<u2", "uint8": "u1"}
 
 
-def _arrow_numbers(table, columns: Sequence[str], path: Path, role: str) -> np.ndarray:
+def _arrow_numbers(table, columns: Sequence[str], path: Path, role: str, *, first_row: int = 0) -> np.ndarray:
     """:func:`numeric_columns` of an arrow table: float or integer columns without missing cells
-    convert directly; anything else goes through pandas for the exact message."""
+    convert directly; anything else goes through pandas for the exact message. ``first_row``: the
+    file row of the table's first row (a chunk of a file), for the message."""
     names = set(table.column_names)
     if not all(c in names for c in columns):
-        return numeric_columns(table.to_pandas(), columns, path, role)
+        return numeric_columns(table.to_pandas(), columns, path, role, first_row=first_row)
     out = np.empty((table.num_rows, len(columns)))
     for j, name in enumerate(columns):
         column = table.column(name)
         dtype = _PLAIN_NUMBERS.get(str(column.type))
         if dtype is None or column.null_count:
-            return numeric_columns(table.to_pandas(), columns, path, role)
+            return numeric_columns(table.to_pandas(), columns, path, role, first_row=first_row)
         row = 0
         for chunk in column.chunks:
             # The values buffer itself: pyarrow's to_numpy would import pandas (half a second).
@@ -91,7 +92,7 @@ def _arrow_numbers(table, columns: Sequence[str], path: Path, role: str) -> np.n
                                                 offset=chunk.offset * np.dtype(dtype).itemsize)
             row += n
     if not np.isfinite(out).all():
-        return numeric_columns(table.to_pandas(), columns, path, role)
+        return numeric_columns(table.to_pandas(), columns, path, role, first_row=first_row)
     return out
 
 
@@ -123,10 +124,12 @@ def table_columns(path: str | os.PathLike) -> tuple[str, ...]:
     return tuple(read_arrow(path).column_names)
 
 
-def numeric_columns(frame, columns: Sequence[str], path: Path, role: str, *, finite: bool = True) -> np.ndarray:
+def numeric_columns(frame, columns: Sequence[str], path: Path, role: str, *, finite: bool = True,
+                    first_row: int = 0) -> np.ndarray:
     """The named columns as a float64 array, naming the first missing, non-numeric or (``finite``) non-finite cell.
 
-    Booleans, dates and times are refused although they would convert to numbers.
+    Booleans, dates and times are refused although they would convert to numbers. Rows are
+    named counting from ``first_row`` (the file row of the frame's first row).
     """
     missing = [c for c in columns if c not in frame.columns]
     if missing:
@@ -147,13 +150,13 @@ def numeric_columns(frame, columns: Sequence[str], path: Path, role: str, *, fin
 
             coerced = pd.to_numeric(column, errors="coerce")
             row = int(np.flatnonzero(coerced.isna() & column.notna())[0])
-            where = f"line {row + 2}" if path.suffix.lower() == ".csv" else f"row {row}"
+            where = f"line {first_row + row + 2}" if path.suffix.lower() == ".csv" else f"row {first_row + row}"
             raise FtcalError(f"{path}: column {name!r} {where} holds {column.iloc[row]!r}, "
                              "not a number.") from None
         bad = ~np.isfinite(values) if finite else np.zeros(0, dtype=bool)
         if bad.any():
             row = int(np.flatnonzero(bad)[0])
-            where = f"line {row + 2}" if path.suffix.lower() == ".csv" else f"row {row}"
+            where = f"line {first_row + row + 2}" if path.suffix.lower() == ".csv" else f"row {first_row + row}"
             raise FtcalError(f"{path}: column {name!r} has {int(bad.sum())} empty, NaN or infinite "
                              f"cell(s), first at {where}.")
         out[:, j] = values

@@ -1,0 +1,337 @@
+"""Per-file tasks that stream a table chunk by chunk, for :mod:`ftcal.executors`.
+
+Each task reads one file itself (so it can run on a Dask worker) and keeps one
+chunk in memory: :func:`file_statistics` (sufficient statistics of a static
+model), :func:`file_error_sums` (additive :class:`ErrorSums` for ``evaluate``)
+and :func:`predict_part` (``predict`` into a part file). Static models only:
+ARX models carry history across rows and are read a whole file at a time.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from . import metrics
+from .errors import FtcalError
+from .features import MonomialBasis
+from .io.table_chunks import iter_table_chunks
+from .normalization import Normalization
+from .statistics import SufficientStatistics, static_statistics
+
+
+def file_statistics(path: str, basis: MonomialBasis, normalization: Normalization, inputs: Sequence[str],
+                    outputs: Sequence[str]) -> SufficientStatistics:
+    """Sufficient statistics of a static model over one file, chunk by chunk.
+
+    Parameters
+    ----------
+    path : CSV or Parquet file
+    basis : the model's monomial basis (n_inputs = len(inputs))
+    normalization : maps raw inputs to the basis's normalized inputs
+    inputs, outputs : column names
+
+    Returns
+    -------
+    SufficientStatistics with p = basis.n_terms features and len(outputs) targets.
+    """
+    total = None
+    for chunk in iter_table_chunks(path, inputs, outputs):
+        part = static_statistics(basis, normalization.apply(chunk.inputs), chunk.outputs)
+        total = part if total is None else total + part
+    return total
+
+
+def add_statistics(a: SufficientStatistics, b: SufficientStatistics) -> SufficientStatistics:
+    """``a + b`` as a plain function (a task for the tree reduction)."""
+    return a + b
+
+
+@dataclass
+class ErrorSums:
+    """Additive sums from which every ``evaluate`` metric follows, for consecutive rows.
+
+    Combining two (``a + b``, ``b``'s rows after ``a``'s) gives the sums of
+    their concatenation, so files and chunks are summed in any tree that keeps
+    their order. Shapes: (ny,) per output; norms are scalars.
+    """
+
+    n: int
+    y_mean: np.ndarray
+    y_m2: np.ndarray  # Σ (y - mean)², merged with Chan's formula
+    sse: np.ndarray  # Σ r², r = y - ŷ
+    r_sum: np.ndarray
+    r_lag: np.ndarray  # Σ r_t r_(t+1)
+    r_first: np.ndarray
+    r_last: np.ndarray
+    max_abs: np.ndarray
+    norm_sq: np.ndarray  # Σ (‖v‖ - ‖v̂‖)² for forces, torques (NaN when absent)
+    error_norm_sq: np.ndarray  # Σ ‖v - v̂‖²
+    n_out_of_range: int
+    training_segments: frozenset = frozenset()  # indices of the model's training fingerprints found
+
+    @classmethod
+    def of(cls, y: np.ndarray, prediction: np.ndarray, output_names: Sequence[str],
+           n_out_of_range: int) -> "ErrorSums":
+        """Sums of one block of rows.
+
+        Parameters
+        ----------
+        y, prediction : ndarray of shape (m, ny), m >= 1
+        output_names : names, to find the force and torque triples
+        n_out_of_range : rows of the block with inputs outside the training range
+        """
+        r = y - prediction
+        norm_sq, error_norm_sq = np.full(2, np.nan), np.full(2, np.nan)
+        for k, columns in enumerate(metrics.force_torque_columns(output_names)):
+            if columns is not None:
+                norms = np.linalg.norm(y[:, columns], axis=1) - np.linalg.norm(prediction[:, columns], axis=1)
+                norm_sq[k] = norms @ norms
+                error_norm_sq[k] = np.sum(r[:, columns] ** 2)
+        mean = y.mean(axis=0)
+        return cls(len(y), mean, np.sum((y - mean) ** 2, axis=0), np.einsum("ij,ij->j", r, r), r.sum(axis=0),
+                   np.einsum("ij,ij->j", r[1:], r[:-1]), r[0].copy(), r[-1].copy(), np.abs(r).max(axis=0),
+                   norm_sq, error_norm_sq, n_out_of_range)
+
+    def __add__(self, other: "ErrorSums") -> "ErrorSums":
+        n = self.n + other.n
+        delta = other.y_mean - self.y_mean
+        return ErrorSums(n, self.y_mean + delta * (other.n / n),
+                         self.y_m2 + other.y_m2 + delta ** 2 * (self.n * other.n / n),
+                         self.sse + other.sse, self.r_sum + other.r_sum,
+                         self.r_lag + other.r_lag + self.r_last * other.r_first, self.r_first, other.r_last,
+                         np.maximum(self.max_abs, other.max_abs), self.norm_sq + other.norm_sq,
+                         self.error_norm_sq + other.error_norm_sq, self.n_out_of_range + other.n_out_of_range,
+                         self.training_segments | other.training_segments)
+
+    def summary(self, output_names: Sequence[str]) -> dict:
+        """The metrics of :func:`ftcal.metrics.summarize`, plus ``n_out_of_range``."""
+        n = self.n
+        with np.errstate(all="ignore"):  # undefined metrics become NaN (None in JSON) or are refused
+            best = np.where(self.y_m2 > 0, 1.0 - np.sqrt(self.sse / self.y_m2), np.nan)
+            # lag-1 autocorrelation of the centred residual, from raw sums
+            m = self.r_sum / n
+            num = self.r_lag - m * (2 * self.r_sum - self.r_first - self.r_last) + (n - 1) * m * m
+            den = self.sse - n * m * m
+            acf = np.where(den > 0, num / den, 0.0) if n > 1 else np.zeros_like(den)
+
+        def root_mean(value: float):
+            return None if np.isnan(value) else float(np.sqrt(value / n))
+
+        return {"n_samples": n, "outputs": list(output_names), "rmse": np.sqrt(self.sse / n).tolist(),
+                "best_fit": [float(v) if np.isfinite(v) else None for v in best],
+                "max_abs_error": self.max_abs.tolist(), "residual_autocorrelation_lag1": acf.tolist(),
+                "force_norm_rmse": root_mean(self.norm_sq[0]), "torque_norm_rmse": root_mean(self.norm_sq[1]),
+                "force_error_norm_rmse": root_mean(self.error_norm_sq[0]),
+                "torque_error_norm_rmse": root_mean(self.error_norm_sq[1]),
+                "n_out_of_range": self.n_out_of_range}
+
+
+def add_error_sums(a, b):
+    """``a + b`` as a plain function (a task for the tree reduction).
+
+    Also adds the (mode, other mode) pairs of ARX models, and skips None (a
+    file whose segments are all shorter than the ARX warm-up).
+    """
+    if a is None or b is None:
+        return b if a is None else a
+    if isinstance(a, tuple):
+        return tuple(x + y for x, y in zip(a, b))
+    return a + b
+
+
+def file_error_sums(path: str, model, fingerprints: Sequence[dict] = (), mode: str = "one-step",
+                    start: str = "zeros", warmup: str = "drop", segment_by: str | None = None):
+    """:class:`ErrorSums` of ``model`` on one file with reference outputs.
+
+    Static models read the file chunk by chunk. ARX models read it whole and
+    give a pair: the sums for ``mode`` and for the other prediction mode,
+    without the first max(na, nb) rows of each segment when ``warmup`` is
+    ``"drop"`` (as :meth:`CalibrationModel.score`); None when no row is left.
+    ``fingerprints`` (the model file's training segments) found whole inside
+    this file are reported in ``training_segments``.
+    """
+    import warnings
+
+    from .errors import OutOfRangeWarning
+
+    if not model.layout_.is_static:
+        return _arx_error_sums(path, model, fingerprints, mode, start, warmup, segment_by)
+    total = None
+    finder = SegmentFinder(fingerprints)
+    for chunk in iter_table_chunks(path, model.input_names_, model.output_names_):
+        # Overflowing predictions give inf/NaN metrics, which the command refuses in one line.
+        with warnings.catch_warnings(), np.errstate(over="ignore", invalid="ignore"):
+            warnings.simplefilter("ignore", OutOfRangeWarning)  # counted instead
+            prediction = model.predict(chunk.inputs, warn_out_of_range=False)
+            part = ErrorSums.of(chunk.outputs, prediction, model.output_names_,
+                                int(model.out_of_range(chunk.inputs).sum()))
+        finder.feed(np.concatenate([chunk.inputs, chunk.outputs], axis=1))
+        total = part if total is None else total + part
+    total.training_segments = frozenset(finder.found)
+    return total
+
+
+def _arx_error_sums(path: str, model, fingerprints: Sequence[dict], mode: str, start: str, warmup: str,
+                    segment_by: str | None) -> tuple[ErrorSums, ErrorSums] | None:
+    from .io.tables import read_dataset
+
+    data = read_dataset([path], model.input_names_, model.output_names_, segment_by=segment_by)
+    rows = np.ones(data.n_samples, dtype=bool)
+    if warmup == "drop":
+        for a, b in data.segment_bounds():
+            rows[a:a + model.layout_.max_lag] = False
+    if not rows.any():
+        return None
+    finder = SegmentFinder(fingerprints)
+    finder.feed(np.concatenate([data.inputs, data.outputs], axis=1))
+    n_out = int(model.out_of_range(data.inputs).sum())
+    pair = []
+    for which in (mode, "free-run" if mode == "one-step" else "one-step"):
+        with np.errstate(over="ignore", invalid="ignore"):
+            prediction = model.predict(data, mode=which, start=start, warn_out_of_range=False)
+            pair.append(ErrorSums.of(data.outputs[rows], prediction[rows], model.output_names_, n_out))
+    pair[0].training_segments = frozenset(finder.found)
+    return pair[0], pair[1]
+
+
+class SegmentFinder:
+    """:func:`ftcal.fingerprint.find_training_segments` over rows that arrive chunk by chunk.
+
+    Every row whose hash matches a fingerprint's first row starts a sha256 of
+    the following ``rows`` rows, carried across chunks.
+    """
+
+    def __init__(self, fingerprints: Sequence[dict]):
+        self.fingerprints = list(fingerprints)
+        self.heads = np.array([int(fp["first_row"], 16) for fp in self.fingerprints], dtype=np.uint64)
+        self.found: set[int] = set()
+        self._open: list[tuple[int, int, object]] = []  # (fingerprint, rows still to hash, sha256) across chunks
+
+    def feed(self, values: np.ndarray) -> None:
+        """Add the next rows, shape (m, n_inputs + n_outputs), inputs then outputs."""
+        import hashlib
+
+        from .fingerprint import _MAX_CANDIDATES, row_hashes
+
+        if not self.fingerprints:
+            return
+        values = np.ascontiguousarray(values, dtype="<f8")
+        hashes = row_hashes(values)
+        # (fingerprint, first row in this chunk, rows still to hash, sha256): carried ones continue at row 0
+        pending = [(index, 0, left, digest) for index, left, digest in self._open]
+        for start in np.flatnonzero(np.isin(hashes, self.heads))[:_MAX_CANDIDATES]:
+            for index in np.flatnonzero(self.heads == hashes[start]):
+                if int(index) not in self.found:
+                    pending.append((int(index), int(start), int(self.fingerprints[index]["rows"]),
+                                    hashlib.sha256()))
+        self._open = []
+        for index, begin, left, digest in pending:
+            take = min(left, len(values) - begin)
+            digest.update(values[begin:begin + take].tobytes())
+            if left > take:
+                self._open.append((index, left - take, digest))
+            elif digest.hexdigest() == self.fingerprints[index]["sha256"]:
+                self.found.add(index)
+
+
+def predict_part(path: str, part: str, model, mode: str = "free-run", segment_by: str | None = None) -> tuple[int, int]:
+    """Predict one file into the part file ``part`` (CSV or Parquet by suffix).
+
+    Static models read the file chunk by chunk; ARX models (whose rows depend
+    on the previous ones) read it whole, as one or more segments.
+
+    Parameters
+    ----------
+    path : CSV or Parquet file with the model's inputs (and outputs for one-step ARX)
+    part : the part file to write
+    model : fitted CalibrationModel
+    mode, segment_by : ARX prediction mode and segment column (see ``ftcal predict``)
+
+    Returns
+    -------
+    (n_rows, n_out_of_range) : ints
+
+    Raises
+    ------
+    FtcalError
+        A prediction overflows (inf or NaN): names the input file and row.
+    """
+    names = list(model.output_names_)
+    n_rows = n_out = 0
+    writer = None
+    try:
+        for first_row, inputs, prediction in _predictions(path, model, mode, segment_by):
+            bad = ~np.isfinite(prediction).all(axis=1)
+            if bad.any():
+                raise FtcalError(f"{path}: the prediction of row {first_row + int(np.flatnonzero(bad)[0])} "
+                                 "holds non-finite value(s) (inf or NaN); nothing written. Inputs far outside the "
+                                 "training range can overflow a high-degree model.")
+            import pyarrow as pa
+
+            batch = pa.RecordBatch.from_arrays([pa.array(prediction[:, j]) for j in range(len(names))], names=names)
+            writer = writer or _part_writer(part, batch.schema)
+            writer.write(batch)
+            n_rows += len(prediction)
+            n_out += int(model.out_of_range(inputs).sum())
+    finally:
+        if writer is not None:
+            writer.close()
+    return n_rows, n_out
+
+
+def _predictions(path: str, model, mode: str, segment_by: str | None):
+    """(first row, inputs, predictions) per chunk of a static model, or once for the whole file (ARX)."""
+    with np.errstate(over="ignore", invalid="ignore"):  # overflow is refused by the caller, in one line
+        if model.layout_.is_static:
+            for chunk in iter_table_chunks(path, model.input_names_):
+                yield chunk.first_row, chunk.inputs, model.predict(chunk.inputs, warn_out_of_range=False)
+            return
+        from .io.tables import read_dataset
+
+        data = read_dataset([path], model.input_names_, model.output_names_ if mode == "one-step" else None,
+                            segment_by=segment_by)
+        yield 0, data.inputs, model.predict(data, mode=mode, warn_out_of_range=False)
+
+
+def _part_writer(part: str, schema):
+    if part.endswith(".csv"):
+        import pyarrow.csv as pv
+
+        return pv.CSVWriter(part, schema)
+    import pyarrow.parquet as pq
+
+    return pq.ParquetWriter(part, schema)
+
+
+def join_parts(parts: Sequence[str], target: Path) -> None:
+    """Concatenate part files, in order, into ``target`` (same format), one chunk in memory at a time."""
+    from .io.atomic import atomic_path
+
+    with atomic_path(target) as tmp:
+        if target.suffix.lower() == ".csv":
+            with open(tmp, "wb") as out:
+                for index, part in enumerate(parts):
+                    with open(part, "rb") as source:
+                        header = source.readline()
+                        if index == 0:
+                            out.write(header)
+                        while block := source.read(1 << 20):
+                            out.write(block)
+            return
+        import pyarrow.parquet as pq
+
+        writer = None
+        try:
+            for part in parts:
+                with pq.ParquetFile(part) as parquet:
+                    for batch in parquet.iter_batches():
+                        writer = writer or pq.ParquetWriter(os.fspath(tmp), batch.schema)
+                        writer.write_batch(batch)
+        finally:
+            if writer is not None:
+                writer.close()
