@@ -262,7 +262,8 @@ def select_auto_baseline(n: int, folds: int = 5) -> dict:
     best = min((k for k in scores if k[3] == "val"), key=lambda k: np.mean(scores[k]))
     solver = Lasso(best[2]) if best[1] == "lasso" else LeastSquares()
     CalibrationModel(best[0], solver=solver, normalization="center").fit(data)
-    return {"seconds": time.perf_counter() - start, "best": f"np{best[0]} {best[1]} {best[2]}"}
+    label = f"np{best[0]} lasso λ={best[2]:g}" if best[1] == "lasso" else f"np{best[0]} least squares"
+    return {"seconds": time.perf_counter() - start, "best": label}
 
 
 def select_auto_new(n: int, folds: int = 5) -> dict:
