@@ -18,7 +18,7 @@ import numpy as np
 
 from . import metrics
 from .errors import FtcalError
-from .features import MonomialBasis
+from .features import MonomialBasis, RegressorLayout
 from .io.table_chunks import iter_table_chunks
 from .normalization import Normalization
 from .statistics import SufficientStatistics, static_statistics
@@ -46,8 +46,111 @@ def file_statistics(path: str, basis: MonomialBasis, normalization: Normalizatio
     return total
 
 
+@dataclass
+class FileSummary:
+    """What the first pass of a streamed fit learns from consecutive files: ranges, sizes, fingerprints.
+
+    Attributes
+    ----------
+    input_range, output_range : ndarray of shape (n_inputs, 2), (n_outputs, 2), min and max per column
+    segment_lengths : list of int, samples per segment, in file order
+    fingerprints : list of dict, :func:`ftcal.fingerprint.segment_fingerprints` of those segments
+    """
+
+    input_range: np.ndarray
+    output_range: np.ndarray
+    segment_lengths: list
+    fingerprints: list
+
+    def __add__(self, other: "FileSummary") -> "FileSummary":
+        def widen(a, b):
+            return np.c_[np.minimum(a[:, 0], b[:, 0]), np.maximum(a[:, 1], b[:, 1])]
+
+        return FileSummary(widen(self.input_range, other.input_range), widen(self.output_range, other.output_range),
+                           self.segment_lengths + other.segment_lengths, self.fingerprints + other.fingerprints)
+
+
+def file_summary(path: str, inputs: Sequence[str], outputs: Sequence[str], segment_by: str | None = None,
+                 group_by: str | None = None) -> FileSummary:
+    """The :class:`FileSummary` of one file, chunk by chunk (a new segment wherever ``segment_by`` changes).
+
+    Parameters
+    ----------
+    path : CSV or Parquet file
+    inputs, outputs : column names
+    segment_by : label column separating segments, or None (the file is one segment)
+    group_by : group label column, checked (present, no empty cell) as a whole-table read does
+
+    Returns
+    -------
+    FileSummary, whose fingerprints equal those of the file read whole.
+    """
+    import hashlib
+
+    from .fingerprint import row_hashes
+
+    ranges = None
+    lengths, fingerprints = [], []
+    digest, last_label = None, None
+    labels = {column: role for column, role in ((group_by, "group"), (segment_by, "segment")) if column}
+    for chunk in iter_table_chunks(path, inputs, outputs, labels=labels):
+        values = np.ascontiguousarray(np.concatenate([chunk.inputs, chunk.outputs], axis=1), dtype="<f8")
+        low, high = values.min(axis=0), values.max(axis=0)
+        ranges = np.c_[low, high] if ranges is None else np.c_[np.minimum(ranges[:, 0], low),
+                                                               np.maximum(ranges[:, 1], high)]
+        if segment_by:
+            label = chunk.labels[segment_by]
+            starts = np.flatnonzero(np.r_[digest is None or label[0] != last_label, label[1:] != label[:-1]])
+            last_label = label[-1]
+        else:
+            starts = np.array([0] if digest is None else [], dtype=np.intp)
+        bounds = [*starts.tolist(), len(values)]
+        if bounds[0] > 0:  # the segment open from the previous chunk continues
+            digest.update(values[:bounds[0]].tobytes())
+            lengths[-1] += bounds[0]
+        for begin, end in zip(bounds[:-1], bounds[1:]):
+            if digest is not None:
+                fingerprints[-1]["sha256"] = digest.hexdigest()
+            digest = hashlib.sha256(values[begin:end].tobytes())
+            lengths.append(end - begin)
+            fingerprints.append({"rows": 0, "first_row": f"{int(row_hashes(values[begin:begin + 1])[0]):016x}",
+                                 "sha256": ""})
+    fingerprints[-1]["sha256"] = digest.hexdigest()
+    for fingerprint, rows in zip(fingerprints, lengths):
+        fingerprint["rows"] = rows
+    n_in = len(inputs)
+    return FileSummary(ranges[:n_in], ranges[n_in:], lengths, fingerprints)
+
+
+def file_layout_statistics(path: str, layout: RegressorLayout, in_norm: Normalization, out_norm: Normalization,
+                           inputs: Sequence[str], outputs: Sequence[str],
+                           segment_by: str | None = None) -> list[SufficientStatistics]:
+    """Sufficient statistics of one file for any layout, in the basis ``in_norm``/``out_norm``.
+
+    Static layouts stream the file chunk by chunk (:func:`file_statistics`) and
+    give one entry. ARX layouts read it whole and give one entry per segment
+    (lags stay inside a segment), so that the caller, summing the entries of
+    all files left to right, adds them in exactly the order of the in-memory fit:
+    ARX normal equations are often ill-conditioned enough (κ² ~ 1e7) that
+    another summation order shows in the 10th digit of the coefficients.
+
+    Returns
+    -------
+    list of SufficientStatistics, in row order; lists of files concatenate with ``+``.
+    """
+    if layout.is_static:
+        return [file_statistics(path, layout.basis, in_norm, inputs, outputs)]
+    from .io.tables import read_dataset
+    from .statistics import layout_statistics
+
+    data = read_dataset([path], inputs, outputs, segment_by=segment_by)
+    u_norm, y_norm = in_norm.apply(data.inputs), out_norm.apply(data.outputs)
+    return [layout_statistics(layout, u_norm[a:b], data.outputs[a:b], y_norm[a:b])
+            for a, b in data.segment_bounds()]
+
+
 def add_statistics(a: SufficientStatistics, b: SufficientStatistics) -> SufficientStatistics:
-    """``a + b`` as a plain function (a task for the tree reduction)."""
+    """``a + b`` as a plain function (a task for the tree reduction; also for lists and :class:`FileSummary`)."""
     return a + b
 
 
