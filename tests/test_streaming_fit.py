@@ -146,3 +146,51 @@ def test_scheduler_refuses_what_does_not_stream_yet(files, tmp_path):
     assert result.returncode == 2 and "--scheduler" in result.stderr
     assert len(result.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "m.json").exists()
+
+
+def grouped_files(folder):
+    """Four files whose rows carry a ``load`` label (a new load case every 500 rows), noisy outputs."""
+    rng = np.random.default_rng(11)
+    paths = []
+    for index, n in enumerate([2500, 1200, 3100, 1800]):
+        u, y = sensor_like_data(rng, n)
+        frame = pd.DataFrame(np.c_[u, y + rng.normal(0.0, 0.3, y.shape)], columns=[*INPUTS, *DEFAULT_OUTPUTS])
+        frame["load"] = [f"L{index}-{i // 500}" for i in range(n)]
+        frame.to_parquet(folder / f"g{index}.parquet", row_group_size=1000)
+        paths.append(str(folder / f"g{index}.parquet"))
+    return paths
+
+
+def test_streamed_cross_validation_scores_equal_the_in_memory_ones(tmp_path):
+    from ftcal.executors import LocalExecutor, tree_reduce
+    from ftcal.select import select_model
+    from ftcal.streaming import StreamedStatistics, add_statistics
+
+    paths = grouped_files(tmp_path)
+    summary = tree_reduce([file_summary(p, INPUTS, DEFAULT_OUTPUTS, None, "load") for p in paths], add_statistics)
+    data = read_dataset(paths, INPUTS, DEFAULT_OUTPUTS, group_by="load")
+    # group sizes: 500 rows per load case, the last of each file shorter (hand count)
+    assert summary.group_sizes["L0-4"] == 500 and summary.group_sizes["L1-2"] == 200
+    assert sum(summary.group_sizes.values()) == 2500 + 1200 + 3100 + 1800
+    streamed = select_model(StreamedStatistics(LocalExecutor(), paths, INPUTS, DEFAULT_OUTPUTS, summary, "load"),
+                            degrees=(1, 2, 3), lambdas=(0.5, 10.0))
+    memory = select_model(data, degrees=(1, 2, 3), lambdas=(0.5, 10.0))
+    assert streamed.best == memory.best
+    assert [s.candidate for s in streamed.scores] == [s.candidate for s in memory.scores]
+    for a, b in zip(streamed.scores, memory.scores):
+        assert np.allclose(a.fold_scores, b.fold_scores, rtol=1e-9), a.candidate
+
+
+def test_degree_auto_streams_and_refits_the_winner(tmp_path):
+    paths = grouped_files(tmp_path)
+    out = tmp_path / "auto.json"
+    result = fit_cli(paths, out, "--degree", "auto", "--group-by", "load", "--lambdas", "0.5,10",
+                     "--penalties", "ridge")
+    assert result.returncode == 0, result.stderr
+    from ftcal.select import best_model, select_model
+
+    data = read_dataset(paths, INPUTS, DEFAULT_OUTPUTS, group_by="load")
+    winner = best_model(select_model(data, penalties=("ridge",), lambdas=(0.5, 10.0))).fit(data)
+    model = read_model_file(out).model
+    assert model.layout_.basis.degree == winner.layout_.basis.degree
+    assert relative(model.coef_, winner.coef_) < 1e-12

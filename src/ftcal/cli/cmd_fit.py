@@ -13,6 +13,11 @@ EPILOG = """examples:
   ftcal fit data.parquet --degree 4 --lasso 50 -o m4.json  LASSO: the paper's problem and lambda scale
   ftcal fit logs/*.parquet --degree auto --group-by group -o best.json
   ftcal fit new/*.csv --degree 2 --ridge 10 --prior last_month.json -o m.json   shrink toward a calibration
+  ftcal fit logs/*.parquet --degree 4 --scheduler tcp://host:8786 -o m4.json    one Dask task per file
+
+Fixed-degree fits (not --solver osqp or --estimate-payload) stream the files: a first pass for the
+column ranges (the normalization), a second for the sufficient statistics (summed, then solved
+here), a third for the training metrics; memory stays at one chunk (one file for ARX) plus p x p.
 """
 
 
@@ -131,13 +136,29 @@ def check_options(args) -> None:
         if getattr(args, flag) > MAX_LAG:
             raise FtcalError(f"--{flag} must be at most {MAX_LAG}; got {getattr(args, flag)}.")
     if args.scheduler and not streams(args):
-        raise FtcalError("--scheduler runs fixed-degree fits with the streaming solvers; it does not yet run "
-                         "--degree auto, --estimate-payload or --solver osqp (drop --scheduler for those).")
+        raise FtcalError("--scheduler runs fits with the streaming solvers; it does not yet run ARX --degree auto, "
+                         "--estimate-payload or --solver osqp (drop --scheduler for those).")
 
 
 def streams(args) -> bool:
-    """Whether this fit streams its files (two passes, one task per file) instead of reading them whole."""
-    return args.degree != "auto" and args.estimate_payload is None and args.solver != "osqp"
+    """Whether this fit streams its files (one task per file, chunk by chunk) instead of reading them whole."""
+    arx_selection = args.degree == "auto" and (args.na or args.nb)
+    return args.estimate_payload is None and args.solver != "osqp" and not arx_selection
+
+
+def cross_validation(args, data, template):
+    """The ``--degree auto`` search over ``data`` (a Dataset or streamed statistics), its table printed."""
+    from ..select import Candidate, cross_validate, select_model
+
+    if args.lasso or args.ridge:
+        kind = "lasso" if args.lasso else "ridge"
+        candidates = [Candidate(d, kind, args.lasso or args.ridge) for d in range(1, 6)]
+        result = cross_validate(data, candidates, template=template, n_folds=args.folds)
+    else:
+        result = select_model(data, template=template, penalties=args.penalties, lambdas=args.lambdas,
+                              n_folds=args.folds)
+    print(result.table())
+    return result
 
 
 def run(args) -> int:
@@ -159,8 +180,7 @@ def run(args) -> int:
         prior = read_model(args.prior)
     template = CalibrationModel(na=args.na, nb=args.nb, normalization=args.normalization, prior=prior)
     if streams(args):
-        model, fingerprints = fit_streaming(args, template.clone(degree=args.degree, solver=make_solver(args)),
-                                            inputs, outputs)
+        model, fingerprints = fit_streaming(args, template, inputs, outputs)
         save_model(model, args.output, sources=[str(p) for p in args.data], training_segments=fingerprints)
         report_fit(model, args.output)
         return 0
@@ -171,17 +191,9 @@ def run(args) -> int:
         print(f"read {data.n_samples} samples from {len(args.data)} file(s): inputs {','.join(inputs)} "
               f"-> outputs {','.join(outputs)}", file=sys.stderr)
     if args.degree == "auto":
-        from ..select import Candidate, cross_validate, fit_best, select_model
+        from ..select import fit_best
 
-        if args.lasso or args.ridge:
-            kind = "lasso" if args.lasso else "ridge"
-            candidates = [Candidate(d, kind, args.lasso or args.ridge) for d in range(1, 6)]
-            result = cross_validate(data, candidates, template=template, n_folds=args.folds)
-        else:
-            result = select_model(data, template=template, penalties=args.penalties, lambdas=args.lambdas,
-                                  n_folds=args.folds)
-        print(result.table())
-        model = fit_best(data, result, template=template)
+        model = fit_best(data, cross_validation(args, data, template), template=template)
     else:
         model = template.clone(degree=args.degree, solver=make_solver(args)).fit(data)
     save_model(model, args.output, sources=[str(p) for p in args.data],
@@ -190,8 +202,8 @@ def run(args) -> int:
     return 0
 
 
-def fit_streaming(args, model, inputs, outputs):
-    """Fit ``model`` with one task per file, in three passes that each hold one chunk (or one ARX file).
+def fit_streaming(args, template, inputs, outputs):
+    """Fit with one task per file, in passes that each hold one chunk (or one ARX file).
 
     Pass 1 gives the ranges, segment lengths and fingerprints; the normalization
     follows from the ranges, so pass 2 accumulates the statistics directly in the
@@ -199,6 +211,8 @@ def fit_streaming(args, model, inputs, outputs):
     exact algebra but not exact arithmetic: degree-8 moments of raw ADC counts
     lose every digit to cancellation). The client solves; pass 3 gives the
     training metrics from additive error sums, as ``ftcal evaluate`` does.
+    ``--degree auto`` adds one pass per (degree, basis) the search tries,
+    giving per-group statistics whose sums are the folds'.
 
     Returns
     -------
@@ -206,13 +220,21 @@ def fit_streaming(args, model, inputs, outputs):
     """
     from ..executors import open_executor
     from ..statistics import sum_statistics
-    from ..streaming import add_error_sums, add_statistics, file_error_sums, file_layout_statistics, file_summary
+    from ..streaming import (StreamedStatistics, add_error_sums, add_statistics, file_error_sums,
+                             file_layout_statistics, file_summary)
 
     with open_executor(args.scheduler) as executor:
         summary = executor.map_reduce(file_summary, args.data, inputs, outputs, args.segment_by,
                                       args.group_by, combine=add_statistics, description="ranges")
         print(f"read {sum(summary.segment_lengths)} samples from {len(args.data)} file(s): inputs "
               f"{','.join(inputs)} -> outputs {','.join(outputs)}", file=sys.stderr)
+        if args.degree == "auto":
+            from ..select import best_model
+
+            source = StreamedStatistics(executor, args.data, inputs, outputs, summary, args.group_by)
+            model = best_model(cross_validation(args, source, template), template)
+        else:
+            model = template.clone(degree=args.degree, solver=make_solver(args))
         frame = model.frame_from_ranges(summary.input_range, summary.output_range, inputs, outputs,
                                         summary.segment_lengths)
         parts = executor.map_reduce(file_layout_statistics, args.data, frame.layout,
