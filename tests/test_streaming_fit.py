@@ -194,3 +194,13 @@ def test_degree_auto_streams_and_refits_the_winner(tmp_path):
     model = read_model_file(out).model
     assert model.layout_.basis.degree == winner.layout_.basis.degree
     assert relative(model.coef_, winner.coef_) < 1e-12
+
+
+def test_degree_auto_on_a_local_cluster_equals_the_local_run(tmp_path):
+    paths = grouped_files(tmp_path)
+    options = ("--degree", "auto", "--group-by", "load", "--lambdas", "10", "--penalties", "ridge")
+    assert fit_cli(paths, tmp_path / "here.json", *options).returncode == 0
+    result = fit_cli(paths, tmp_path / "there.json", *options, "--scheduler", "local:2")
+    assert result.returncode == 0, result.stderr
+    here, there = read_model_file(tmp_path / "here.json").model, read_model_file(tmp_path / "there.json").model
+    assert np.array_equal(there.coef_, here.coef_)
