@@ -102,6 +102,8 @@ def file_summary(path: str, inputs: Sequence[str], outputs: Sequence[str], segme
     digest, last_label = None, None
     labels = {column: role for column, role in ((group_by, "group"), (segment_by, "segment")) if column}
     for chunk in iter_table_chunks(path, inputs, outputs, labels=labels):
+        if chunk.n_rows == 0:  # an empty Parquet row group
+            continue
         values = np.ascontiguousarray(np.concatenate([chunk.inputs, chunk.outputs], axis=1), dtype="<f8")
         for label, n in _group_counts(path, chunk, group_by).items():
             sizes[label] = sizes.get(label, 0) + n
