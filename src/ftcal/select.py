@@ -44,8 +44,8 @@ from .solvers.least_squares import LeastSquares, Ridge
 from .statistics import SufficientStatistics, sum_statistics
 
 __all__ = ["Candidate", "CrossValidationResult", "DatasetStatistics", "GroupedStatistics", "PAPER_LAMBDAS",
-           "best_model", "cross_validate", "default_candidates", "fit_best", "fit_candidates", "fold_of_groups", "grouped_folds",
-           "select_model"]
+           "best_model", "cross_validate", "default_candidates", "fit_best", "fit_candidates", "fold_of_groups",
+           "grouped_folds", "select_model"]
 
 TIE_TOLERANCE = 0.01  # candidates within 1% of the best score count as tied
 DEFAULT_DEGREES = (1, 2, 3, 4, 5)
@@ -292,7 +292,8 @@ def default_candidates(degrees: Sequence[int] = (1, 2, 3, 4, 5), lams: Sequence[
     return out
 
 
-def cross_validate(data: "Dataset | GroupedStatistics", candidates: Sequence[Candidate], *, template: CalibrationModel | None = None,
+def cross_validate(data: "Dataset | GroupedStatistics", candidates: Sequence[Candidate], *,
+                   template: CalibrationModel | None = None,
                    n_folds: int = 5, seed: int = 0) -> CrossValidationResult:
     """Score every candidate by grouped K-fold validation; pick the best.
 

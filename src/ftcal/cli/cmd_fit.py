@@ -6,7 +6,8 @@ import argparse
 import sys
 
 from ..limits import MAX_DEGREE, MAX_LAG, NORMALIZATIONS, SOLVERS
-from ._common import add_column_options, add_scheduler_option, default_inputs, float_list, nonnegative_int, positive_float, require_suffix
+from ._common import (add_column_options, add_scheduler_option, default_inputs, float_list, nonnegative_int,
+                      positive_float, require_suffix)
 
 EPILOG = """examples:
   ftcal fit train/*.csv -o model.json                      affine model, u1..u6,T -> Fx..Tz
@@ -15,9 +16,10 @@ EPILOG = """examples:
   ftcal fit new/*.csv --degree 2 --ridge 10 --prior last_month.json -o m.json   shrink toward a calibration
   ftcal fit logs/*.parquet --degree 4 --scheduler tcp://host:8786 -o m4.json    one Dask task per file
 
-Fixed-degree fits (not --solver osqp or --estimate-payload) stream the files: a first pass for the
-column ranges (the normalization), a second for the sufficient statistics (summed, then solved
-here), a third for the training metrics; memory stays at one chunk (one file for ARX) plus p x p.
+Fits stream the files (except --solver osqp, --estimate-payload and ARX --degree auto, which read
+them whole): a pass for the column ranges (the normalization), one for the sufficient statistics
+(summed, then solved here; --degree auto: per group, a pass per degree and basis tried, folds are
+sums of groups), one for the training metrics; memory: one chunk (one file for ARX) plus p x p.
 """
 
 
