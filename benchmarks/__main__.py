@@ -271,6 +271,12 @@ def scale_section(sizes: dict) -> list[str]:
             f"| peak memory, fresh process ({result['table_mb']:,.0f} MB of float64 columns) | peak RSS |",
             "|---|---:|"]
     out += [f"| {row['method']} | {row['peak_rss_mb']:,.0f} MB |" for row in memory]
+    fit = result["fit"]
+    out += ["", "| fit, fresh process | peak RSS | time | per sample | vs in memory |", "|---|---:|---:|---:|---:|"]
+    out += [f"| {row['method']} | {row['peak_rss_mb']:,.0f} MB | {fmt_s(row['seconds'])} | "
+            f"{row['us_per_sample']:.3f} µs | {row['seconds'] / fit[1]['seconds']:.2f}× |" for row in fit]
+    out += ["", f"Streamed and in-memory coefficients differ by {fit[0]['max_relative_coef_difference']:.1e} "
+            "(relative to the largest).", ""]
     hop_s = message_mb * 8 / 1000  # one message over 1 Gbit/s
     bytes_per_sample = 8 * 13  # u1..u6, T, Fx..Tz as float64
     per_core = base / result["cores"]  # the single process keeps all its cores busy (ftcal's worker threads)

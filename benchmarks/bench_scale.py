@@ -11,7 +11,11 @@ Measured in one run on Parquet files written before the clocks start:
   sends it);
 * peak resident memory of ``ftcal predict`` and ``ftcal evaluate`` streaming the
   files, each in a fresh process, against reading the same files whole and
-  predicting in memory (the path before streaming).
+  predicting in memory (the path before streaming);
+* ``ftcal fit`` streaming the files (ranges pass, statistics pass, training-metrics
+  pass) against reading them whole and fitting in memory, each in a fresh
+  process: peak resident memory and wall time per sample (process start included
+  in both), with the coefficients of the two compared.
 
 Run: ``python -m benchmarks.bench_scale [n_files rows_per_file degree]``.
 """
@@ -124,23 +128,54 @@ def memory_rows(paths: list[str], folder: Path, degree: int) -> list[dict]:
     return rows
 
 
+def fit_rows(paths: list[str], folder: Path, rows_per_file: int, degree: int) -> list[dict]:
+    """Streamed ``ftcal fit`` against whole tables + in-memory fit: peak RSS, time per sample, fresh processes."""
+    from ftcal.io.model_files import read_model
+
+    files = json.dumps(paths)
+    streamed, whole = folder / "fit-streamed.json", folder / "fit-whole.json"
+    samples = len(paths) * rows_per_file
+    rows = []
+    for label, code in (
+            ("ftcal fit (streaming)",
+             "from ftcal.cli import main\n"
+             f"assert main(['fit', *{files}, '--degree', '{degree}', '-o', {str(streamed)!r}]) == 0"),
+            ("whole tables read, then fit in memory (before streaming)",
+             "from ftcal.io.model_json import save_model\nfrom ftcal.io.tables import read_dataset\n"
+             "from ftcal.model import CalibrationModel\n"
+             f"d = read_dataset({files}, {INPUTS!r}, {OUTPUTS!r})\n"
+             f"save_model(CalibrationModel({degree}).fit(d), {str(whole)!r})")):
+        start = time.perf_counter()
+        peak = peak_rss_of(code)
+        seconds = time.perf_counter() - start
+        rows.append({"method": label, "peak_rss_mb": peak, "seconds": seconds,
+                     "us_per_sample": 1e6 * seconds / samples})
+    a, b = read_model(streamed).coef_, read_model(whole).coef_
+    rows[0]["max_relative_coef_difference"] = float(np.max(np.abs(a - b)) / np.max(np.abs(b)))
+    return rows
+
+
 def main(n_files: int = 10, rows_per_file: int = 300_000, degree: int = 4) -> dict:
     with tempfile.TemporaryDirectory(prefix="ftcal-bench-scale-") as tmp:
         folder = Path(tmp)
         paths = write_files(folder, n_files, rows_per_file)
         stats, message = statistics_rows(paths, rows_per_file, degree)
         memory = memory_rows(paths, folder, degree)
+        fit = fit_rows(paths, folder, rows_per_file, degree)
     from ftcal._threads import worker_count
 
     result = {"n_files": n_files, "rows_per_file": rows_per_file, "degree": degree, "cores": worker_count(),
               "table_mb": n_files * rows_per_file * (len(INPUTS) + len(OUTPUTS)) * 8 / 1e6,
-              "statistics": stats, "message_bytes": message, "memory": memory}
+              "statistics": stats, "message_bytes": message, "memory": memory, "fit": fit}
     for row in stats:
         print(f"  {row['method']:<46} {row['seconds']:8.2f} s {row['samples_per_s']:>12,.0f} samples/s",
               file=sys.stderr)
     print(f"  one statistics message: {message:,} bytes", file=sys.stderr)
     for row in memory:
         print(f"  {row['method']:<52} {row['peak_rss_mb']:8.0f} MB", file=sys.stderr)
+    for row in fit:
+        print(f"  {row['method']:<58} {row['peak_rss_mb']:8.0f} MB {row['us_per_sample']:8.3f} us/sample",
+              file=sys.stderr)
     return result
 
 

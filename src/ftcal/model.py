@@ -15,7 +15,7 @@ basis: ridge and LASSO are solved in the stored basis, by default the paper's
 from __future__ import annotations
 
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -174,7 +174,6 @@ class CalibrationModel:
             On invalid parameters, data without outputs, or no regressor rows.
         """
         data = _as_dataset(data, outputs)
-        solver = self._solver()
         frame = self.frame(data)
         stats = self.statistics(data, frame.layout, frame.solve_input_normalization,
                                 frame.solve_output_normalization)
@@ -182,14 +181,36 @@ class CalibrationModel:
         def dense():
             return self._dense_regressor(data, frame)
 
+        self.fit_statistics(frame, stats, dense)
+        self.training_metrics_ = self.score(data, warn_out_of_range=False)
+        return self
+
+    def fit_statistics(self, frame: FitFrame, stats: SufficientStatistics,
+                       dense: Callable[[], tuple[np.ndarray, np.ndarray]] | None = None) -> "CalibrationModel":
+        """Solve from summed statistics (streamed or distributed fits): everything :meth:`fit` does but score.
+
+        Parameters
+        ----------
+        frame : FitFrame
+            From :meth:`frame` or :meth:`frame_from_ranges`.
+        stats : SufficientStatistics
+            Of ``frame.layout`` in ``frame``'s solve basis, over all regressor rows.
+        dense : callable, optional
+            Gives the dense regressor, for solvers that need it (OSQP); without
+            it such solvers raise FtcalError.
+
+        Returns
+        -------
+        CalibrationModel
+            ``self``, fitted, with empty ``training_metrics_`` (the caller scores).
+        """
         problem = ScaledProblem.from_statistics(stats, dense)
         prior = self._prior_coef(frame, problem)
-        result = solver.fit(problem if prior is None else problem.shifted(prior))
+        result = self._solver().fit(problem if prior is None else problem.shifted(prior))
         if prior is not None:
             result.coef = result.coef + prior
         self.adopt(frame, problem, result)
         self._warn_if_rank_deficient(frame.layout)
-        self.training_metrics_ = self.score(data, warn_out_of_range=False)
         return self
 
     def _solver(self) -> Solver:
@@ -215,7 +236,34 @@ class CalibrationModel:
         if data.outputs is None:
             raise FtcalError("Fitting needs reference outputs (the expected wrench); the data has none.")
         u, y = data.inputs, data.outputs
-        basis = self._basis(u.shape[1])
+        return self.frame_from_ranges(np.c_[u.min(axis=0), u.max(axis=0)], np.c_[y.min(axis=0), y.max(axis=0)],
+                                      data.input_names, data.output_names,
+                                      [b - a for a, b in data.segment_bounds()])
+
+    def frame_from_ranges(self, input_range: np.ndarray, output_range: np.ndarray, input_names: Sequence[str],
+                          output_names: Sequence[str], segment_lengths: Sequence[int]) -> FitFrame:
+        """:meth:`frame` from the data's ranges and segment lengths alone (streamed fits).
+
+        Parameters
+        ----------
+        input_range, output_range : ndarray of shape (n_inputs, 2), (n_outputs, 2)
+            Min and max of each column over all the training samples.
+        input_names, output_names : sequence of str
+        segment_lengths : sequence of int
+            Samples per segment (ARX lags stay inside a segment).
+
+        Returns
+        -------
+        FitFrame
+
+        Raises
+        ------
+        FtcalError
+            On invalid parameters, or no regressor rows.
+        """
+        input_range = np.asarray(input_range, dtype=np.float64)
+        output_range = np.asarray(output_range, dtype=np.float64)
+        basis = self._basis(input_range.shape[0])
         na = check_int(self.na, "na", "CalibrationModel", 0, MAX_LAG)
         nb = check_int(self.nb, "nb", "CalibrationModel", 0, MAX_LAG)
         penalized = self._solver().penalty != "none"
@@ -223,22 +271,22 @@ class CalibrationModel:
         if mode is None:
             mode = "maxabs" if penalized else "center"
         mode = check_choice(mode, "normalization", "CalibrationModel", NORMALIZATIONS)
-        layout = RegressorLayout(basis, y.shape[1], na, nb)
+        layout = RegressorLayout(basis, output_range.shape[0], na, nb)
+        (u_min, u_max), (y_min, y_max) = input_range.T, output_range.T
         # Past outputs follow the input basis: the paper's are raw values scaled by max-abs.
-        in_norm = normalization_from_range(u.min(axis=0), u.max(axis=0), mode)
-        out_norm = normalization_from_range(y.min(axis=0), y.max(axis=0), mode)
+        in_norm = normalization_from_range(u_min, u_max, mode)
+        out_norm = normalization_from_range(y_min, y_max, mode)
         solve_in, solve_out = in_norm, out_norm
         if not penalized and mode != SOLVE_BASIS:
-            solve_in = normalization_from_range(u.min(axis=0), u.max(axis=0), SOLVE_BASIS)
-            solve_out = normalization_from_range(y.min(axis=0), y.max(axis=0), SOLVE_BASIS)
-        n_rows = sum(max(b - a - layout.max_lag, 0) for a, b in data.segment_bounds())
-        _warn_if_ill_posed(data, layout, n_rows)
+            solve_in = normalization_from_range(u_min, u_max, SOLVE_BASIS)
+            solve_out = normalization_from_range(y_min, y_max, SOLVE_BASIS)
+        n_rows = sum(max(n - layout.max_lag, 0) for n in segment_lengths)
+        _warn_if_ill_posed(input_names, u_max - u_min, layout, n_rows)
         if n_rows == 0:
             raise FtcalError(f"No regressor rows: every segment is shorter than the ARX lag "
                              f"max(na, nb) = {layout.max_lag}.")
-        return FitFrame(layout, mode, in_norm, out_norm, solve_in, solve_out, tuple(data.input_names),
-                        tuple(data.output_names), np.c_[u.min(axis=0), u.max(axis=0)],
-                        np.c_[y.min(axis=0), y.max(axis=0)], int(n_rows))
+        return FitFrame(layout, mode, in_norm, out_norm, solve_in, solve_out, tuple(input_names),
+                        tuple(output_names), input_range.copy(), output_range.copy(), int(n_rows))
 
     def _basis(self, n_inputs: int) -> MonomialBasis:
         if self.basis is None:
@@ -626,20 +674,20 @@ def _outputs_in_order(data: Dataset, names: Sequence[str]) -> np.ndarray:
     return data.outputs[:, [index[n] for n in names]]
 
 
-def _warn_if_ill_posed(data: Dataset, layout: RegressorLayout, n_rows: int) -> None:
+def _warn_if_ill_posed(input_names: Sequence[str], span: np.ndarray, layout: RegressorLayout,
+                       n_rows: int) -> None:
     p = layout.n_features
     if n_rows < p:
         warnings.warn(
             f"The fit is under-determined: {n_rows} samples for {p} coefficients per output. "
             "Lower the degree, add recordings, or use --lasso/--ridge.",
-            IllPosedFitWarning, stacklevel=4)
-    span = data.inputs.max(axis=0) - data.inputs.min(axis=0)
-    for name, width in zip(data.input_names, span):
+            IllPosedFitWarning, stacklevel=5)
+    for name, width in zip(input_names, span):
         if width == 0:
             warnings.warn(
                 f"Input {name!r} is constant in the training data, so its terms duplicate the "
                 "offset; drop it with --inputs or record data where it varies.",
-                IllPosedFitWarning, stacklevel=4)
+                IllPosedFitWarning, stacklevel=5)
 
 
 def change_basis(layout: RegressorLayout, coef: np.ndarray, from_inputs: Normalization,

@@ -26,6 +26,7 @@ import warnings
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import numpy as np
 
@@ -42,8 +43,9 @@ from .solvers.lasso import Lasso
 from .solvers.least_squares import LeastSquares, Ridge
 from .statistics import SufficientStatistics, sum_statistics
 
-__all__ = ["Candidate", "CrossValidationResult", "PAPER_LAMBDAS", "cross_validate", "default_candidates",
-           "fit_best", "fit_candidates", "grouped_folds", "select_model"]
+__all__ = ["Candidate", "CrossValidationResult", "DatasetStatistics", "GroupedStatistics", "PAPER_LAMBDAS",
+           "best_model", "cross_validate", "default_candidates", "fit_best", "fit_candidates", "fold_of_groups",
+           "grouped_folds", "select_model"]
 
 TIE_TOLERANCE = 0.01  # candidates within 1% of the best score count as tied
 DEFAULT_DEGREES = (1, 2, 3, 4, 5)
@@ -229,6 +231,25 @@ def grouped_folds(groups: np.ndarray, n_folds: int = 5, seed: int = 0) -> list[n
     [2, 2]
     """
     labels, counts = np.unique(np.asarray(groups, dtype=str), return_counts=True)
+    group_fold = fold_of_groups(dict(zip(labels, counts)), n_folds, seed)
+    sample_fold = np.array([group_fold[g] for g in np.asarray(groups, dtype=str)])
+    return [sample_fold == f for f in range(max(group_fold.values()) + 1)]
+
+
+def fold_of_groups(sizes: dict[str, int], n_folds: int = 5, seed: int = 0) -> dict[str, int]:
+    """The fold of each group, from the groups' sample counts alone (see :func:`grouped_folds`).
+
+    Parameters
+    ----------
+    sizes : dict of group label (str) -> number of samples
+    n_folds, seed : int
+
+    Returns
+    -------
+    dict of group label -> fold index in 0 .. min(n_folds, number of groups) - 1
+    """
+    labels = np.array(sorted(sizes), dtype=str)
+    counts = np.array([sizes[g] for g in labels])
     if labels.size < 2:
         raise FtcalError("Cross-validation needs at least 2 groups (recordings or load cases); "
                          "the data has 1. Pass more files or name a group column with --group-by.")
@@ -243,9 +264,7 @@ def grouped_folds(groups: np.ndarray, n_folds: int = 5, seed: int = 0) -> list[n
         f = int(np.argmin(load))
         fold_of[g] = f
         load[f] += counts[g]
-    group_fold = dict(zip(labels, fold_of))
-    sample_fold = np.array([group_fold[g] for g in np.asarray(groups, dtype=str)])
-    return [sample_fold == f for f in range(n_folds)]
+    return {str(g): int(f) for g, f in zip(labels, fold_of)}
 
 
 def default_candidates(degrees: Sequence[int] = (1, 2, 3, 4, 5), lams: Sequence[float] = PAPER_LAMBDAS,
@@ -273,13 +292,14 @@ def default_candidates(degrees: Sequence[int] = (1, 2, 3, 4, 5), lams: Sequence[
     return out
 
 
-def cross_validate(data: Dataset, candidates: Sequence[Candidate], *, template: CalibrationModel | None = None,
+def cross_validate(data: "Dataset | GroupedStatistics", candidates: Sequence[Candidate], *,
+                   template: CalibrationModel | None = None,
                    n_folds: int = 5, seed: int = 0) -> CrossValidationResult:
     """Score every candidate by grouped K-fold validation; pick the best.
 
     Parameters
     ----------
-    data : Dataset
+    data : Dataset or GroupedStatistics (e.g. streamed files)
         With reference outputs and at least two groups.
     candidates : sequence of Candidate
         Degrees and penalties to try.
@@ -308,7 +328,7 @@ def cross_validate(data: Dataset, candidates: Sequence[Candidate], *, template: 
     return search.result([search.scores[c] for c in candidates])
 
 
-def select_model(data: Dataset, *, template: CalibrationModel | None = None,
+def select_model(data: "Dataset | GroupedStatistics", *, template: CalibrationModel | None = None,
                  degrees: Sequence[int] = DEFAULT_DEGREES, penalties: Sequence[str] = DEFAULT_PENALTIES,
                  lambdas: Sequence[float] | None = None, n_folds: int = 5, seed: int = 0,
                  stop_early: bool = True) -> CrossValidationResult:
@@ -316,7 +336,7 @@ def select_model(data: Dataset, *, template: CalibrationModel | None = None,
 
     Parameters
     ----------
-    data : Dataset
+    data : Dataset or GroupedStatistics (e.g. streamed files)
     template : CalibrationModel, optional
         Shared parameters (ARX orders, basis, prior), as in :func:`cross_validate`.
     degrees : sequence of int
@@ -370,15 +390,61 @@ def select_model(data: Dataset, *, template: CalibrationModel | None = None,
     return result
 
 
+class GroupedStatistics(Protocol):
+    """What cross-validation needs of the data; :class:`DatasetStatistics` for a :class:`Dataset` in memory,
+    :class:`ftcal.streaming.StreamedStatistics` for files streamed by per-file tasks."""
+
+    output_names: tuple[str, ...]
+
+    def group_sizes(self) -> dict[str, int]:
+        """Samples per group label (as str)."""
+
+    def frame(self, model: CalibrationModel) -> FitFrame:
+        """``model``'s fit frame over all the data."""
+
+    def fold_statistics(self, frame: FitFrame, fold_of: dict[str, int], n_folds: int) -> list[SufficientStatistics]:
+        """Statistics of each fold (the sum of its groups'), for ``frame``'s layout in its solve basis."""
+
+
+class DatasetStatistics:
+    """:class:`GroupedStatistics` of a :class:`Dataset` in memory."""
+
+    def __init__(self, data: Dataset):
+        self.data = data
+        self.output_names = tuple(data.output_names)
+
+    def group_sizes(self) -> dict[str, int]:
+        labels, counts = np.unique(np.asarray(self.data.groups, dtype=str), return_counts=True)
+        return dict(zip(labels.tolist(), counts.tolist()))
+
+    def frame(self, model: CalibrationModel) -> FitFrame:
+        return model.frame(self.data)
+
+    def fold_statistics(self, frame: FitFrame, fold_of: dict[str, int], n_folds: int) -> list[SufficientStatistics]:
+        sample_fold = np.array([fold_of[g] for g in np.asarray(self.data.groups, dtype=str)])
+        parts = []
+        with progress_bar(f"statistics, degree {frame.layout.basis.degree}", n_folds) as advance:
+            for f in range(n_folds):
+                parts.append(CalibrationModel.statistics(
+                    self.data.subset(sample_fold == f), frame.layout, frame.solve_input_normalization,
+                    frame.solve_output_normalization))
+                advance(1)
+        return parts
+
+
 class _Search:
     """Fold statistics per (degree, basis), computed once, and the scores of every candidate tried."""
 
-    def __init__(self, data: Dataset, template: CalibrationModel | None, n_folds: int, seed: int):
-        if data.outputs is None:
-            raise FtcalError("Cross-validation needs reference outputs in the data.")
+    def __init__(self, data: "Dataset | GroupedStatistics", template: CalibrationModel | None, n_folds: int,
+                 seed: int):
+        if isinstance(data, Dataset):
+            if data.outputs is None:
+                raise FtcalError("Cross-validation needs reference outputs in the data.")
+            data = DatasetStatistics(data)
         self.data = data
         self.template = template if template is not None else CalibrationModel()
-        self.folds = grouped_folds(data.groups, n_folds, seed)
+        self.fold_of = fold_of_groups(data.group_sizes(), n_folds, seed)
+        self.n_folds = max(self.fold_of.values()) + 1
         forces, _ = metrics.force_torque_columns(data.output_names)
         self.forces = forces
         self.metric = "force error-norm RMSE" if forces is not None else "mean RMSE"
@@ -397,7 +463,7 @@ class _Search:
         with warnings.catch_warnings():
             # Ill-posedness is judged by the validation score.
             warnings.simplefilter("ignore", IllPosedFitWarning)
-            frame = model.frame(self.data)
+            frame = self.data.frame(model)
         basis = frame.normalization if frame.solves_in_stored_basis else f"solve-{frame.normalization}"
         key = (candidate.degree, basis)
         self._frames.setdefault(key, frame)
@@ -406,15 +472,7 @@ class _Search:
     def fold_statistics(self, key: tuple[int, str]) -> list[SufficientStatistics]:
         """Statistics of each validation fold (its groups' together), in the basis the key solves in."""
         if key not in self._stats:
-            frame = self._frames[key]
-            with progress_bar(f"statistics, degree {key[0]}", len(self.folds)) as advance:
-                parts = []
-                for mask in self.folds:
-                    parts.append(CalibrationModel.statistics(
-                        self.data.subset(mask), frame.layout, frame.solve_input_normalization,
-                        frame.solve_output_normalization))
-                    advance(1)
-            self._stats[key] = parts
+            self._stats[key] = self.data.fold_statistics(self._frames[key], self.fold_of, self.n_folds)
         return self._stats[key]
 
     # -------------------------------------------------------------- λ grids
@@ -465,8 +523,8 @@ class _Search:
                 # Fold fits of high degrees on few groups are often ill-posed; the score says how much that matters.
                 warnings.simplefilter("ignore", IllPosedFitWarning)
                 # Folds run in parallel threads (numpy releases the GIL in its kernels).
-                with ThreadPoolExecutor(min(worker_count(), len(self.folds))) as pool:
-                    rows = list(pool.map(lambda f: self._fold(key, group, parts, f), range(len(self.folds))))
+                with ThreadPoolExecutor(min(worker_count(), self.n_folds)) as pool:
+                    rows = list(pool.map(lambda f: self._fold(key, group, parts, f), range(self.n_folds)))
             for fold_rows in rows:
                 for candidate, val_score, train_score, nonzero in fold_rows:
                     entry = self.scores.setdefault(candidate, CandidateScore(candidate))
@@ -536,7 +594,7 @@ class _Search:
             return s.score <= best.score * (1 + TIE_TOLERANCE) or difference.mean() <= noise
 
         winner = min((s for s in ordered if tied(s)), key=lambda s: (s.nonzero, s.score)).candidate
-        return CrossValidationResult(ordered, winner, self.metric, len(self.folds), skipped)
+        return CrossValidationResult(ordered, winner, self.metric, self.n_folds, skipped)
 
 
 def lasso_lambda_max(problem: ScaledProblem) -> float:
@@ -593,11 +651,27 @@ def fit_best(data: Dataset, result: CrossValidationResult, *,
     -------
     CalibrationModel
     """
+    return best_model(result, template).fit(data)
+
+
+def best_model(result: CrossValidationResult, template: CalibrationModel | None = None) -> CalibrationModel:
+    """The winning candidate of ``result`` as an unfitted model (``template``'s other parameters).
+
+    Parameters
+    ----------
+    result : CrossValidationResult
+    template : CalibrationModel, optional
+        The template ``result`` was computed with.
+
+    Returns
+    -------
+    CalibrationModel
+    """
     template = template if template is not None else CalibrationModel()
     best = result.best
     # Least squares does not shrink, so a prior has nothing to act on.
     changes = {"prior": None} if best.penalty == "none" else {}
-    return template.clone(degree=best.degree, solver=best.solver(), **changes).fit(data)
+    return template.clone(degree=best.degree, solver=best.solver(), **changes)
 
 
 def fit_candidates(data: Dataset, candidates: Sequence[Candidate], *, template: CalibrationModel | None = None,

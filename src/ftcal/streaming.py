@@ -1,10 +1,12 @@
 """Per-file tasks that stream a table chunk by chunk, for :mod:`ftcal.executors`.
 
 Each task reads one file itself (so it can run on a Dask worker) and keeps one
-chunk in memory: :func:`file_statistics` (sufficient statistics of a static
-model), :func:`file_error_sums` (additive :class:`ErrorSums` for ``evaluate``)
-and :func:`predict_part` (``predict`` into a part file). Static models only:
-ARX models carry history across rows and are read a whole file at a time.
+chunk in memory: :func:`file_summary` (ranges, segment lengths and fingerprints,
+the first pass of ``fit``), :func:`file_statistics` and :func:`file_layout_statistics`
+(sufficient statistics, its second pass), :func:`file_error_sums` (additive
+:class:`ErrorSums` for ``evaluate`` and ``fit``'s training metrics) and
+:func:`predict_part` (``predict`` into a part file). ARX models carry history
+across rows and are read a whole file at a time.
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ import numpy as np
 
 from . import metrics
 from .errors import FtcalError
-from .features import MonomialBasis
+from .features import MonomialBasis, RegressorLayout
 from .io.table_chunks import iter_table_chunks
 from .normalization import Normalization
 from .statistics import SufficientStatistics, static_statistics
@@ -46,8 +48,210 @@ def file_statistics(path: str, basis: MonomialBasis, normalization: Normalizatio
     return total
 
 
+@dataclass
+class FileSummary:
+    """What the first pass of a streamed fit learns from consecutive files: ranges, sizes, fingerprints.
+
+    Attributes
+    ----------
+    input_range, output_range : ndarray of shape (n_inputs, 2), (n_outputs, 2), min and max per column
+    segment_lengths : list of int, samples per segment, in file order
+    fingerprints : list of dict, :func:`ftcal.fingerprint.segment_fingerprints` of those segments
+    group_sizes : dict of group label (str) -> samples (a file without group column is one group, its path)
+    """
+
+    input_range: np.ndarray
+    output_range: np.ndarray
+    segment_lengths: list
+    fingerprints: list
+    group_sizes: dict
+
+    def __add__(self, other: "FileSummary") -> "FileSummary":
+        def widen(a, b):
+            return np.c_[np.minimum(a[:, 0], b[:, 0]), np.maximum(a[:, 1], b[:, 1])]
+
+        sizes = dict(self.group_sizes)
+        for label, n in other.group_sizes.items():
+            sizes[label] = sizes.get(label, 0) + n
+        return FileSummary(widen(self.input_range, other.input_range), widen(self.output_range, other.output_range),
+                           self.segment_lengths + other.segment_lengths, self.fingerprints + other.fingerprints,
+                           sizes)
+
+
+def file_summary(path: str, inputs: Sequence[str], outputs: Sequence[str], segment_by: str | None = None,
+                 group_by: str | None = None) -> FileSummary:
+    """The :class:`FileSummary` of one file, chunk by chunk (a new segment wherever ``segment_by`` changes).
+
+    Parameters
+    ----------
+    path : CSV or Parquet file
+    inputs, outputs : column names
+    segment_by : label column separating segments, or None (the file is one segment)
+    group_by : group label column, checked (present, no empty cell) as a whole-table read does
+
+    Returns
+    -------
+    FileSummary, whose fingerprints equal those of the file read whole.
+    """
+    import hashlib
+
+    from .fingerprint import row_hashes
+
+    ranges = None
+    lengths, fingerprints, sizes = [], [], {}
+    digest, last_label = None, None
+    labels = {column: role for column, role in ((group_by, "group"), (segment_by, "segment")) if column}
+    for chunk in iter_table_chunks(path, inputs, outputs, labels=labels):
+        if chunk.n_rows == 0:  # an empty Parquet row group
+            continue
+        values = np.ascontiguousarray(np.concatenate([chunk.inputs, chunk.outputs], axis=1), dtype="<f8")
+        for label, n in _group_counts(path, chunk, group_by).items():
+            sizes[label] = sizes.get(label, 0) + n
+        low, high = values.min(axis=0), values.max(axis=0)
+        ranges = np.c_[low, high] if ranges is None else np.c_[np.minimum(ranges[:, 0], low),
+                                                               np.maximum(ranges[:, 1], high)]
+        if segment_by:
+            label = chunk.labels[segment_by]
+            starts = np.flatnonzero(np.r_[digest is None or label[0] != last_label, label[1:] != label[:-1]])
+            last_label = label[-1]
+        else:
+            starts = np.array([0] if digest is None else [], dtype=np.intp)
+        bounds = [*starts.tolist(), len(values)]
+        if bounds[0] > 0:  # the segment open from the previous chunk continues
+            digest.update(values[:bounds[0]].tobytes())
+            lengths[-1] += bounds[0]
+        for begin, end in zip(bounds[:-1], bounds[1:]):
+            if digest is not None:
+                fingerprints[-1]["sha256"] = digest.hexdigest()
+            digest = hashlib.sha256(values[begin:end].tobytes())
+            lengths.append(end - begin)
+            fingerprints.append({"rows": 0, "first_row": f"{int(row_hashes(values[begin:begin + 1])[0]):016x}",
+                                 "sha256": ""})
+    fingerprints[-1]["sha256"] = digest.hexdigest()
+    for fingerprint, rows in zip(fingerprints, lengths):
+        fingerprint["rows"] = rows
+    n_in = len(inputs)
+    return FileSummary(ranges[:n_in], ranges[n_in:], lengths, fingerprints, sizes)
+
+
+def _group_counts(path: str, chunk, group_by: str | None) -> dict[str, int]:
+    """Rows of ``chunk`` per group label, labelled as :func:`ftcal.io.tables.read_dataset` does (str)."""
+    if group_by is None:
+        return {str(Path(path)): chunk.n_rows}
+    labels, counts = np.unique(chunk.labels[group_by].astype(str), return_counts=True)
+    return dict(zip(labels.tolist(), counts.tolist()))
+
+
+def file_group_statistics(path: str, basis: MonomialBasis, normalization: Normalization, inputs: Sequence[str],
+                          outputs: Sequence[str], group_by: str | None = None) -> dict[str, SufficientStatistics]:
+    """Sufficient statistics of a static model over one file, per group label, chunk by chunk.
+
+    Parameters
+    ----------
+    path : CSV or Parquet file
+    basis, normalization, inputs, outputs : as :func:`file_statistics`
+    group_by : group label column, or None (the whole file is the group named by its path)
+
+    Returns
+    -------
+    dict of group label (str) -> SufficientStatistics; cross-validation folds are sums of these.
+    """
+    totals: dict[str, SufficientStatistics] = {}
+    for chunk in iter_table_chunks(path, inputs, outputs, labels={group_by: "group"} if group_by else ()):
+        u_norm = normalization.apply(chunk.inputs)
+        if group_by is None:
+            rows = {str(Path(path)): slice(None)}
+        else:
+            labels = chunk.labels[group_by].astype(str)
+            rows = {label: labels == label for label in np.unique(labels).tolist()}
+        for label, selection in rows.items():
+            part = static_statistics(basis, u_norm[selection], chunk.outputs[selection])
+            totals[label] = part if label not in totals else totals[label] + part
+    return totals
+
+
+def add_group_statistics(a: dict[str, SufficientStatistics],
+                         b: dict[str, SufficientStatistics]) -> dict[str, SufficientStatistics]:
+    """Per-group statistics of two sets of files together (a task for the tree reduction)."""
+    total = dict(a)
+    for label, stats in b.items():
+        total[label] = stats if label not in total else total[label] + stats
+    return total
+
+
+class StreamedStatistics:
+    """:class:`ftcal.select.GroupedStatistics` of files streamed by per-file tasks (static models).
+
+    Each (degree, basis) the search asks for is one statistics pass over the
+    files, per group; a fold's statistics are the sum of its groups'.
+
+    Parameters
+    ----------
+    executor : LocalExecutor or DaskExecutor
+    paths : the files
+    inputs, outputs : column names
+    summary : FileSummary of all the files (the first pass)
+    group_by : group label column, or None (one group per file)
+    """
+
+    def __init__(self, executor, paths: Sequence[str], inputs: Sequence[str], outputs: Sequence[str],
+                 summary: FileSummary, group_by: str | None):
+        self.executor = executor
+        self.paths = list(paths)
+        self.inputs, self.output_names = tuple(inputs), tuple(outputs)
+        self.summary = summary
+        self.group_by = group_by
+
+    def group_sizes(self) -> dict[str, int]:
+        return dict(self.summary.group_sizes)
+
+    def frame(self, model):
+        return model.frame_from_ranges(self.summary.input_range, self.summary.output_range, self.inputs,
+                                       self.output_names, self.summary.segment_lengths)
+
+    def fold_statistics(self, frame, fold_of: dict[str, int], n_folds: int) -> list[SufficientStatistics]:
+        if not frame.layout.is_static:
+            raise FtcalError("Streamed cross-validation covers static models; ARX models are read whole.")
+        groups = self.executor.map_reduce(file_group_statistics, self.paths, frame.layout.basis,
+                                          frame.solve_input_normalization, self.inputs, self.output_names,
+                                          self.group_by, combine=add_group_statistics,
+                                          description=f"statistics, degree {frame.layout.basis.degree}")
+        parts: list[SufficientStatistics | None] = [None] * n_folds
+        for label in sorted(groups):
+            f = fold_of[label]
+            parts[f] = groups[label] if parts[f] is None else parts[f] + groups[label]
+        return parts
+
+
+def file_layout_statistics(path: str, layout: RegressorLayout, in_norm: Normalization, out_norm: Normalization,
+                           inputs: Sequence[str], outputs: Sequence[str],
+                           segment_by: str | None = None) -> list[SufficientStatistics]:
+    """Sufficient statistics of one file for any layout, in the basis ``in_norm``/``out_norm``.
+
+    Static layouts stream the file chunk by chunk (:func:`file_statistics`) and
+    give one entry. ARX layouts read it whole and give one entry per segment
+    (lags stay inside a segment), so that the caller, summing the entries of
+    all files left to right, adds them in exactly the order of the in-memory fit:
+    ARX normal equations are often ill-conditioned enough (κ² ~ 1e7) that
+    another summation order shows in the 10th digit of the coefficients.
+
+    Returns
+    -------
+    list of SufficientStatistics, in row order; lists of files concatenate with ``+``.
+    """
+    if layout.is_static:
+        return [file_statistics(path, layout.basis, in_norm, inputs, outputs)]
+    from .io.tables import read_dataset
+    from .statistics import layout_statistics
+
+    data = read_dataset([path], inputs, outputs, segment_by=segment_by)
+    u_norm, y_norm = in_norm.apply(data.inputs), out_norm.apply(data.outputs)
+    return [layout_statistics(layout, u_norm[a:b], data.outputs[a:b], y_norm[a:b])
+            for a, b in data.segment_bounds()]
+
+
 def add_statistics(a: SufficientStatistics, b: SufficientStatistics) -> SufficientStatistics:
-    """``a + b`` as a plain function (a task for the tree reduction)."""
+    """``a + b`` as a plain function (a task for the tree reduction; also for lists and :class:`FileSummary`)."""
     return a + b
 
 

@@ -6,13 +6,20 @@ import argparse
 import sys
 
 from ..limits import MAX_DEGREE, MAX_LAG, NORMALIZATIONS, SOLVERS
-from ._common import add_column_options, default_inputs, float_list, nonnegative_int, positive_float, require_suffix
+from ._common import (add_column_options, add_scheduler_option, default_inputs, float_list, nonnegative_int,
+                      positive_float, require_suffix)
 
 EPILOG = """examples:
   ftcal fit train/*.csv -o model.json                      affine model, u1..u6,T -> Fx..Tz
   ftcal fit data.parquet --degree 4 --lasso 50 -o m4.json  LASSO: the paper's problem and lambda scale
   ftcal fit logs/*.parquet --degree auto --group-by group -o best.json
   ftcal fit new/*.csv --degree 2 --ridge 10 --prior last_month.json -o m.json   shrink toward a calibration
+  ftcal fit logs/*.parquet --degree 4 --scheduler tcp://host:8786 -o m4.json    one Dask task per file
+
+Fits stream the files (except --solver osqp, --estimate-payload and ARX --degree auto, which read
+them whole): a pass for the column ranges (the normalization), one for the sufficient statistics
+(summed, then solved here; --degree auto: per group, a pass per degree and basis tried, folds are
+sums of groups), one for the training metrics; memory: one chunk (one file for ARX) plus p x p.
 """
 
 
@@ -88,6 +95,7 @@ def register(sub) -> None:
     p.add_argument("--payload-mass", type=positive_float, metavar="KG",
                    help="known mass of that payload (needed when nothing else beyond the sensor moves relative "
                         "to LINK: the mass would trade against the force gains)")
+    add_scheduler_option(p)
     p.add_argument("-o", "--output", required=True, metavar="MODEL.json", help="model file to write")
     p.set_defaults(func=run)
 
@@ -129,6 +137,30 @@ def check_options(args) -> None:
     for flag in ("na", "nb"):
         if getattr(args, flag) > MAX_LAG:
             raise FtcalError(f"--{flag} must be at most {MAX_LAG}; got {getattr(args, flag)}.")
+    if args.scheduler and not streams(args):
+        raise FtcalError("--scheduler runs fits with the streaming solvers; it does not yet run ARX --degree auto, "
+                         "--estimate-payload or --solver osqp (drop --scheduler for those).")
+
+
+def streams(args) -> bool:
+    """Whether this fit streams its files (one task per file, chunk by chunk) instead of reading them whole."""
+    arx_selection = args.degree == "auto" and (args.na or args.nb)
+    return args.estimate_payload is None and args.solver != "osqp" and not arx_selection
+
+
+def cross_validation(args, data, template):
+    """The ``--degree auto`` search over ``data`` (a Dataset or streamed statistics), its table printed."""
+    from ..select import Candidate, cross_validate, select_model
+
+    if args.lasso or args.ridge:
+        kind = "lasso" if args.lasso else "ridge"
+        candidates = [Candidate(d, kind, args.lasso or args.ridge) for d in range(1, 6)]
+        result = cross_validate(data, candidates, template=template, n_folds=args.folds)
+    else:
+        result = select_model(data, template=template, penalties=args.penalties, lambdas=args.lambdas,
+                              n_folds=args.folds)
+    print(result.table())
+    return result
 
 
 def run(args) -> int:
@@ -143,36 +175,82 @@ def run(args) -> int:
     check_payload_options(args)
     inputs = args.inputs or default_inputs(args.data)
     outputs = args.outputs or ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
-    if args.estimate_payload is not None:
-        data = read_with_payload(args, inputs, outputs)
-    else:
-        data = read_dataset(args.data, inputs, outputs, segment_by=args.segment_by, group_by=args.group_by)
-        print(f"read {data.n_samples} samples from {len(args.data)} file(s): inputs {','.join(inputs)} "
-              f"-> outputs {','.join(outputs)}", file=sys.stderr)
     prior = None
     if args.prior:
         from ..io.model_files import read_model
 
         prior = read_model(args.prior)
     template = CalibrationModel(na=args.na, nb=args.nb, normalization=args.normalization, prior=prior)
+    if streams(args):
+        model, fingerprints = fit_streaming(args, template, inputs, outputs)
+        save_model(model, args.output, sources=[str(p) for p in args.data], training_segments=fingerprints)
+        report_fit(model, args.output)
+        return 0
+    if args.estimate_payload is not None:
+        data = read_with_payload(args, inputs, outputs)
+    else:
+        data = read_dataset(args.data, inputs, outputs, segment_by=args.segment_by, group_by=args.group_by)
+        print(f"read {data.n_samples} samples from {len(args.data)} file(s): inputs {','.join(inputs)} "
+              f"-> outputs {','.join(outputs)}", file=sys.stderr)
     if args.degree == "auto":
-        from ..select import Candidate, cross_validate, fit_best, select_model
+        from ..select import fit_best
 
-        if args.lasso or args.ridge:
-            kind = "lasso" if args.lasso else "ridge"
-            candidates = [Candidate(d, kind, args.lasso or args.ridge) for d in range(1, 6)]
-            result = cross_validate(data, candidates, template=template, n_folds=args.folds)
-        else:
-            result = select_model(data, template=template, penalties=args.penalties, lambdas=args.lambdas,
-                                  n_folds=args.folds)
-        print(result.table())
-        model = fit_best(data, result, template=template)
+        model = fit_best(data, cross_validation(args, data, template), template=template)
     else:
         model = template.clone(degree=args.degree, solver=make_solver(args)).fit(data)
     save_model(model, args.output, sources=[str(p) for p in args.data],
                training_segments=segment_fingerprints(data))
     report_fit(model, args.output)
     return 0
+
+
+def fit_streaming(args, template, inputs, outputs):
+    """Fit with one task per file, in passes that each hold one chunk (or one ARX file).
+
+    Pass 1 gives the ranges, segment lengths and fingerprints; the normalization
+    follows from the ranges, so pass 2 accumulates the statistics directly in the
+    solve basis (accumulating raw moments and changing basis afterwards would be
+    exact algebra but not exact arithmetic: degree-8 moments of raw ADC counts
+    lose every digit to cancellation). The client solves; pass 3 gives the
+    training metrics from additive error sums, as ``ftcal evaluate`` does.
+    ``--degree auto`` adds one pass per (degree, basis) the search tries,
+    giving per-group statistics whose sums are the folds'.
+
+    Returns
+    -------
+    (CalibrationModel, list of fingerprint dicts)
+    """
+    from ..executors import open_executor
+    from ..statistics import sum_statistics
+    from ..streaming import (StreamedStatistics, add_error_sums, add_statistics, file_error_sums,
+                             file_layout_statistics, file_summary)
+
+    with open_executor(args.scheduler) as executor:
+        summary = executor.map_reduce(file_summary, args.data, inputs, outputs, args.segment_by,
+                                      args.group_by, combine=add_statistics, description="ranges")
+        print(f"read {sum(summary.segment_lengths)} samples from {len(args.data)} file(s): inputs "
+              f"{','.join(inputs)} -> outputs {','.join(outputs)}", file=sys.stderr)
+        if args.degree == "auto":
+            from ..select import best_model
+
+            source = StreamedStatistics(executor, args.data, inputs, outputs, summary, args.group_by)
+            model = best_model(cross_validation(args, source, template), template)
+        else:
+            model = template.clone(degree=args.degree, solver=make_solver(args))
+        frame = model.frame_from_ranges(summary.input_range, summary.output_range, inputs, outputs,
+                                        summary.segment_lengths)
+        parts = executor.map_reduce(file_layout_statistics, args.data, frame.layout,
+                                    frame.solve_input_normalization, frame.solve_output_normalization, inputs,
+                                    outputs, args.segment_by, combine=add_statistics, description="statistics")
+        model.fit_statistics(frame, sum_statistics(parts))
+        sums = executor.map_reduce(file_error_sums, args.data, model, [], "one-step", "zeros", "drop",
+                                   args.segment_by, combine=add_error_sums, description="training metrics")
+    main, other = sums if isinstance(sums, tuple) else (sums, None)
+    model.training_metrics_ = main.summary(outputs)
+    if other is not None:
+        model.training_metrics_["free_run"] = other.summary(outputs)
+        del model.training_metrics_["free_run"]["n_out_of_range"]
+    return model, summary.fingerprints
 
 
 def report_fit(model, path: str) -> None:

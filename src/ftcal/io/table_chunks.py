@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import os
 import re
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -54,7 +54,7 @@ def table_has_columns(path: str | os.PathLike, columns: Sequence[str]) -> bool:
 
 
 def iter_table_chunks(path: str | os.PathLike, inputs: Sequence[str], outputs: Sequence[str] | None = None, *,
-                      labels: Sequence[str] = (), require_outputs: bool = True,
+                      labels: Sequence[str] | Mapping[str, str] = (), require_outputs: bool = True,
                       chunk_rows: int = CHUNK_ROWS) -> Iterator[TableChunk]:
     """Yield the named columns of a CSV or Parquet file, chunk by chunk.
 
@@ -63,7 +63,8 @@ def iter_table_chunks(path: str | os.PathLike, inputs: Sequence[str], outputs: S
     path : CSV (``.csv``) or Parquet (``.parquet``, ``.pq``) file
     inputs : input column names, read as float64
     outputs : output column names, read as float64; None for none
-    labels : columns yielded as they are (segment or group labels)
+    labels : columns yielded as they are; a mapping gives each one's role in messages
+        (``{"load": "group"}``: "no group column 'load'"), a sequence the role "label"
     require_outputs : when False and the file lacks an output column, chunks have ``outputs=None``
     chunk_rows : rows per Parquet chunk (CSV chunks are blocks of about that size)
 
@@ -91,20 +92,22 @@ def iter_table_chunks(path: str | os.PathLike, inputs: Sequence[str], outputs: S
         if missing:
             raise FtcalError(f"{path}: missing {role} column(s) {', '.join(map(repr, missing))}; "
                              f"the file has {', '.join(names)}.")
-    for column in labels:
+    labels = dict(labels) if isinstance(labels, Mapping) else dict.fromkeys(labels, "label")
+    for column, role in labels.items():
         if column not in names:
-            raise FtcalError(f"{path}: no column {column!r}; the file has {', '.join(names)}.")
+            raise FtcalError(f"{path}: no {role} column {column!r}; the file has {', '.join(names)}.")
     numbers = list(dict.fromkeys((*inputs, *outputs)))
     needed = list(dict.fromkeys((*numbers, *labels)))
     first_row = 0
-    for batch in _batches(path, needed, numbers, chunk_rows, names):
+    roles = {**{c: "output" for c in outputs}, **{c: "input" for c in inputs}}
+    for batch in _batches(path, needed, roles, chunk_rows, names):
         table = _as_table(batch)
         chunk = TableChunk(first_row, _arrow_numbers(table, inputs, path, "input", first_row=first_row),
                            _arrow_numbers(table, outputs, path, "output", first_row=first_row) if outputs else None)
-        for column in labels:
+        for column, role in labels.items():
             values = table.column(column)
             if values.null_count:
-                raise FtcalError(f"{path}: label column {column!r} has empty cells.")
+                raise FtcalError(f"{path}: {role} column {column!r} has empty cells.")
             chunk.labels[column] = np.asarray(values.to_pylist(), dtype=object)
         first_row += table.num_rows
         yield chunk
@@ -112,8 +115,11 @@ def iter_table_chunks(path: str | os.PathLike, inputs: Sequence[str], outputs: S
         raise FtcalError(f"{path}: the table has no rows.")
 
 
-def _batches(path: Path, columns: list[str], numbers: list[str], chunk_rows: int, names: Sequence[str]):
-    """Record batches of ``columns``; pyarrow's own errors as one FtcalError line (``names``: the header)."""
+def _batches(path: Path, columns: list[str], roles: dict[str, str], chunk_rows: int, names: Sequence[str]):
+    """Record batches of ``columns``; pyarrow's own errors as one FtcalError line.
+
+    ``roles``: input or output, per numeric column; ``names``: the header.
+    """
     suffix = path.suffix.lower()
     try:
         if suffix == ".csv":
@@ -123,7 +129,7 @@ def _batches(path: Path, columns: list[str], numbers: list[str], chunk_rows: int
             reader = pv.open_csv(path, read_options=pv.ReadOptions(block_size=CSV_BLOCK_BYTES),
                                  convert_options=pv.ConvertOptions(
                                      include_columns=columns, strings_can_be_null=True,
-                                     column_types={c: pa.float64() for c in numbers}))
+                                     column_types={c: pa.float64() for c in roles}))
             with reader:
                 yield from reader
         else:
@@ -137,9 +143,56 @@ def _batches(path: Path, columns: list[str], numbers: list[str], chunk_rows: int
         detail = str(exc).splitlines()[0] if str(exc) else "no detail"
         column = re.search(r"CSV column #(\d+)", detail)
         if column is not None and int(column.group(1)) < len(names):
-            detail = f"column {names[int(column.group(1))]!r}: {detail}"
+            name = names[int(column.group(1))]
+            if name in roles:
+                _raise_at_bad_cell(path, name, roles[name])
+            detail = f"column {name!r}: {detail}"
         raise FtcalError(f"{path}: cannot be read as {suffix[1:].upper()} ({type(exc).__name__}: {detail}).") \
             from None
+
+
+def _raise_at_bad_cell(path: Path, name: str, role: str) -> None:
+    """Raise the whole-table reader's error (line and value) for the first non-number in CSV column ``name``.
+
+    Only runs once pyarrow has refused the column, and reads it again as text,
+    block by block. Returns without raising when no cell is refused (pyarrow
+    and pandas disagree on that text): the caller then reports pyarrow's error.
+    """
+    import pandas as pd
+    import pyarrow as pa
+    import pyarrow.csv as pv
+
+    first_row = 0
+    reader = pv.open_csv(path, read_options=pv.ReadOptions(block_size=CSV_BLOCK_BYTES),
+                         convert_options=pv.ConvertOptions(include_columns=[name],
+                                                           column_types={name: pa.string()}))
+    with reader:
+        for batch in reader:
+            text = batch.column(0).to_pandas()
+            bad = np.flatnonzero(pd.to_numeric(text, errors="coerce").isna() & text.notna()
+                                 & (text.str.strip() != ""))
+            if len(bad):
+                row = int(bad[0])
+                kind = _kind_of_text(text.iloc[row])
+                if kind is not None:  # as the whole-table reader, which sees pyarrow's inferred type
+                    raise FtcalError(f"{path}: {role} column {name!r} holds {kind} values such as "
+                                     f"{text.iloc[row]!r}, not numbers.")
+                raise FtcalError(f"{path}: column {name!r} line {first_row + row + 2} holds {text.iloc[row]!r}, "
+                                 "not a number.")
+            first_row += batch.num_rows
+
+
+def _kind_of_text(text: str) -> str | None:
+    """``"bool"`` or ``"date"`` for CSV text that pyarrow reads as such, else None."""
+    import datetime
+
+    if text.strip().lower() in ("true", "false"):
+        return "bool"
+    try:
+        datetime.datetime.fromisoformat(text.strip())
+    except ValueError:
+        return None
+    return "date"
 
 
 def _as_table(batch):

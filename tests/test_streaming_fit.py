@@ -1,0 +1,206 @@
+"""Streamed ``ftcal fit`` (ranges pass, statistics pass, metrics pass; one task per file).
+
+References: the in-memory fit of the same files read whole (the acceptance criterion:
+coefficients to 1e-12 relative), numpy's lstsq on scikit-learn's PolynomialFeatures
+regressor, ftcal.fingerprint and ftcal.metrics over the whole arrays (numpy), and a
+real distributed.LocalCluster of worker processes.
+"""
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pandas as pd
+import pytest
+from conftest import sensor_like_data
+
+from ftcal.dataset import DEFAULT_OUTPUTS
+from ftcal.fingerprint import segment_fingerprints
+from ftcal.io.model_files import read_model_file
+from ftcal.io.table_chunks import CHUNK_ROWS
+from ftcal.io.tables import read_dataset
+from ftcal.model import CalibrationModel
+from ftcal.solvers.least_squares import Ridge
+from ftcal.streaming import file_summary
+
+INPUTS = ("u1", "u2", "u3", "u4", "u5", "u6", "T")
+FTCAL = os.path.join(os.path.dirname(sys.executable), "ftcal")
+
+
+def write_files(folder, sizes, suffixes=None, seed=5):
+    """Sensor-like tables with a ``seg`` label column (a new label every 700 rows).
+
+    Reference noise on the outputs keeps past outputs independent columns (ARX).
+    """
+    rng = np.random.default_rng(seed)
+    paths = []
+    for index, n in enumerate(sizes):
+        u, y = sensor_like_data(rng, n)
+        y = y + rng.normal(0.0, 0.05, y.shape)
+        frame = pd.DataFrame(np.c_[u, y], columns=[*INPUTS, *DEFAULT_OUTPUTS])
+        frame["seg"] = [f"s{i // 700}" for i in range(n)]
+        suffix = (suffixes or [".parquet"] * len(sizes))[index]
+        path = folder / f"part{index}{suffix}"
+        if suffix == ".csv":
+            frame.to_csv(path, index=False, float_format="%.17g")
+        else:
+            frame.to_parquet(path, row_group_size=1000)
+        paths.append(str(path))
+    return paths
+
+
+def fit_cli(paths, out, *extra):
+    return subprocess.run([FTCAL, "fit", *paths, *extra, "-o", str(out)], capture_output=True, text=True)
+
+
+def relative(a, b):
+    return float(np.max(np.abs(a - b)) / np.max(np.abs(b)))
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    return write_files(tmp_path_factory.mktemp("streamfit"), [2500, 1200, 3100], [".parquet", ".csv", ".parquet"])
+
+
+@pytest.mark.parametrize("options, reference", [
+    (("--degree", "3"), {"degree": 3}),
+    (("--degree", "2", "--ridge", "10"), {"degree": 2, "solver": Ridge(10.0)}),
+    (("--degree", "1", "--na", "2", "--nb", "1", "--segment-by", "seg"), {"degree": 1, "na": 2, "nb": 1}),
+])
+def test_streamed_fit_equals_the_in_memory_fit(files, tmp_path, options, reference):
+    result = fit_cli(files, tmp_path / "m.json", *options)
+    assert result.returncode == 0, result.stderr
+    loaded = read_model_file(tmp_path / "m.json")
+    segment_by = "seg" if "--segment-by" in options else None
+    data = read_dataset(files, INPUTS, DEFAULT_OUTPUTS, segment_by=segment_by)
+    whole = CalibrationModel(**reference).fit(data)
+    assert relative(loaded.model.coef_, whole.coef_) < 1e-12
+    assert np.array_equal(loaded.model.input_range_, whole.input_range_)
+    assert loaded.model.n_samples_fit_ == whole.n_samples_fit_
+    assert list(loaded.training_segments) == segment_fingerprints(data)
+    streamed, memory = loaded.model.training_metrics_, whole.training_metrics_
+    assert streamed["n_samples"] == memory["n_samples"]
+    for key in ("rmse", "best_fit", "max_abs_error", "residual_autocorrelation_lag1"):
+        assert np.allclose(streamed[key], memory[key], rtol=1e-9, atol=1e-12), key
+    assert streamed["force_norm_rmse"] == pytest.approx(memory["force_norm_rmse"], rel=1e-9)
+    if "--na" in options:
+        assert streamed["free_run"]["force_norm_rmse"] == pytest.approx(memory["free_run"]["force_norm_rmse"],
+                                                                         rel=1e-9)
+
+
+def test_streamed_least_squares_matches_numpy_on_the_dense_regressor(files, tmp_path):
+    from sklearn.preprocessing import PolynomialFeatures
+
+    assert fit_cli(files, tmp_path / "m.json", "--degree", "2").returncode == 0
+    model = read_model_file(tmp_path / "m.json").model
+    data = read_dataset(files, INPUTS, DEFAULT_OUTPUTS)
+    # Least squares does not depend on the basis: fit numpy's on inputs centred by hand.
+    centred = (data.inputs - data.inputs.mean(axis=0)) / data.inputs.std(axis=0)
+    a = PolynomialFeatures(2).fit_transform(centred)
+    coef, *_ = np.linalg.lstsq(a, data.outputs, rcond=None)
+    assert np.allclose(model.predict(data.inputs), a @ coef, rtol=0, atol=1e-8)
+
+
+def test_fingerprints_follow_segments_across_chunks(tmp_path):
+    n = 2 * CHUNK_ROWS + 5000
+    u, y = sensor_like_data(np.random.default_rng(2), n)
+    frame = pd.DataFrame(np.c_[u, y], columns=[*INPUTS, *DEFAULT_OUTPUTS])
+    # Label changes inside a chunk, exactly at a chunk start, and none at the other chunk start.
+    frame["seg"] = np.searchsorted([50_000, CHUNK_ROWS, 100_000], np.arange(n), side="right")
+    path = tmp_path / "long.parquet"
+    frame.to_parquet(path, row_group_size=10_000)
+    summary = file_summary(str(path), INPUTS, DEFAULT_OUTPUTS, "seg")
+    data = read_dataset([path], INPUTS, DEFAULT_OUTPUTS, segment_by="seg")
+    assert summary.fingerprints == segment_fingerprints(data)
+    assert summary.segment_lengths == [50_000, CHUNK_ROWS - 50_000, 100_000 - CHUNK_ROWS, n - 100_000]
+    assert np.array_equal(summary.input_range, np.c_[u.min(axis=0), u.max(axis=0)])
+    assert np.array_equal(summary.output_range, np.c_[y.min(axis=0), y.max(axis=0)])
+
+
+def test_fit_on_a_local_cluster_equals_the_local_run(files, tmp_path):
+    assert fit_cli(files, tmp_path / "here.json", "--degree", "3").returncode == 0
+    result = fit_cli(files, tmp_path / "there.json", "--degree", "3", "--scheduler", "local:2")
+    assert result.returncode == 0, result.stderr
+    here = read_model_file(tmp_path / "here.json")
+    there = read_model_file(tmp_path / "there.json")
+    # The tree sum pairs files in the same order on the cluster, so the statistics are the same bits.
+    assert np.array_equal(there.model.coef_, here.model.coef_)
+    assert there.training_segments == here.training_segments
+
+
+def test_bad_file_in_a_streamed_fit_is_one_line_and_writes_nothing(files, tmp_path):
+    bad = tmp_path / "bad.csv"
+    frame = pd.read_parquet(files[0]).drop(columns=["Tz"])
+    frame.to_csv(bad, index=False)
+    out = tmp_path / "m.json"
+    result = fit_cli([files[0], str(bad)], out, "--degree", "2")
+    assert result.returncode == 2
+    assert len(result.stderr.strip().splitlines()) == 1
+    assert "bad.csv" in result.stderr and "'Tz'" in result.stderr
+    assert not out.exists()
+
+
+def test_scheduler_refuses_what_does_not_stream_yet(files, tmp_path):
+    result = fit_cli(files, tmp_path / "m.json", "--degree", "2", "--solver", "osqp", "--scheduler", "local:1")
+    assert result.returncode == 2 and "--scheduler" in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "m.json").exists()
+
+
+def grouped_files(folder):
+    """Four files whose rows carry a ``load`` label (a new load case every 500 rows), noisy outputs."""
+    rng = np.random.default_rng(11)
+    paths = []
+    for index, n in enumerate([2500, 1200, 3100, 1800]):
+        u, y = sensor_like_data(rng, n)
+        frame = pd.DataFrame(np.c_[u, y + rng.normal(0.0, 0.3, y.shape)], columns=[*INPUTS, *DEFAULT_OUTPUTS])
+        frame["load"] = [f"L{index}-{i // 500}" for i in range(n)]
+        frame.to_parquet(folder / f"g{index}.parquet", row_group_size=1000)
+        paths.append(str(folder / f"g{index}.parquet"))
+    return paths
+
+
+def test_streamed_cross_validation_scores_equal_the_in_memory_ones(tmp_path):
+    from ftcal.executors import LocalExecutor, tree_reduce
+    from ftcal.select import select_model
+    from ftcal.streaming import StreamedStatistics, add_statistics
+
+    paths = grouped_files(tmp_path)
+    summary = tree_reduce([file_summary(p, INPUTS, DEFAULT_OUTPUTS, None, "load") for p in paths], add_statistics)
+    data = read_dataset(paths, INPUTS, DEFAULT_OUTPUTS, group_by="load")
+    # group sizes: 500 rows per load case, the last of each file shorter (hand count)
+    assert summary.group_sizes["L0-4"] == 500 and summary.group_sizes["L1-2"] == 200
+    assert sum(summary.group_sizes.values()) == 2500 + 1200 + 3100 + 1800
+    streamed = select_model(StreamedStatistics(LocalExecutor(), paths, INPUTS, DEFAULT_OUTPUTS, summary, "load"),
+                            degrees=(1, 2, 3), lambdas=(0.5, 10.0))
+    memory = select_model(data, degrees=(1, 2, 3), lambdas=(0.5, 10.0))
+    assert streamed.best == memory.best
+    assert [s.candidate for s in streamed.scores] == [s.candidate for s in memory.scores]
+    for a, b in zip(streamed.scores, memory.scores):
+        assert np.allclose(a.fold_scores, b.fold_scores, rtol=1e-9), a.candidate
+
+
+def test_degree_auto_streams_and_refits_the_winner(tmp_path):
+    paths = grouped_files(tmp_path)
+    out = tmp_path / "auto.json"
+    result = fit_cli(paths, out, "--degree", "auto", "--group-by", "load", "--lambdas", "0.5,10",
+                     "--penalties", "ridge")
+    assert result.returncode == 0, result.stderr
+    from ftcal.select import best_model, select_model
+
+    data = read_dataset(paths, INPUTS, DEFAULT_OUTPUTS, group_by="load")
+    winner = best_model(select_model(data, penalties=("ridge",), lambdas=(0.5, 10.0))).fit(data)
+    model = read_model_file(out).model
+    assert model.layout_.basis.degree == winner.layout_.basis.degree
+    assert relative(model.coef_, winner.coef_) < 1e-12
+
+
+def test_degree_auto_on_a_local_cluster_equals_the_local_run(tmp_path):
+    paths = grouped_files(tmp_path)
+    options = ("--degree", "auto", "--group-by", "load", "--lambdas", "10", "--penalties", "ridge")
+    assert fit_cli(paths, tmp_path / "here.json", *options).returncode == 0
+    result = fit_cli(paths, tmp_path / "there.json", *options, "--scheduler", "local:2")
+    assert result.returncode == 0, result.stderr
+    here, there = read_model_file(tmp_path / "here.json").model, read_model_file(tmp_path / "there.json").model
+    assert np.array_equal(there.coef_, here.coef_)
