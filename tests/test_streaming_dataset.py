@@ -71,3 +71,24 @@ def test_cli_bad_scheduler_is_one_line_and_writes_nothing(recordings):
     assert done.returncode == 2, done.stderr
     assert len(done.stderr.strip().splitlines()) == 1 and "--scheduler local:0" in done.stderr
     assert not out.exists()
+
+
+def test_cli_expected_on_a_cluster_matches_the_hand_computed_wrench(recordings):
+    import pandas as pd
+    from test_robot_expected import FOREARM, static_wrench
+
+    folder = recordings[0]
+    urdf = folder / "tiny.urdf"
+    urdf.write_text(TINY_URDF)
+    angles = np.linspace(-1.0, 1.0, 7)
+    joints = folder / "joints.csv"
+    pd.DataFrame({"time": np.arange(7) * 0.1, "shoulder": angles}).to_csv(joints, index=False)
+    out = folder / "expected.csv"
+    ftcal = str(Path(sys.executable).with_name("ftcal"))
+    done = subprocess.run([ftcal, "expected", "--urdf", str(urdf), "--joints", str(joints), "--sensor", "arm_ft",
+                           "--scheduler", "local:1", "--no-cache", "-o", str(out)], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    table = pd.read_csv(out)
+    wrench = table[[f"arm_ft_{n}" for n in ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")]].to_numpy()
+    np.testing.assert_allclose(wrench, [static_wrench([FOREARM], a) for a in angles], atol=1e-9)
+    np.testing.assert_array_equal(table["time"], np.arange(7) * 0.1)
