@@ -20,6 +20,7 @@ with the recording's load case attached (:mod:`ftcal.robot`) and returns a
 from __future__ import annotations
 
 import dataclasses
+import functools
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -84,8 +85,31 @@ class InsituOptions:
 
 def build_dataset(recordings: Sequence[str | Path], robot: RobotModel, sensor: str, *,
                   payloads: Sequence[Payload] = (), load_cases: LoadCaseConfig | None = None,
-                  options: InsituOptions = InsituOptions()) -> Dataset:
-    """One dataset for F/T ``sensor`` from all ``recordings`` (one segment each)."""
+                  options: InsituOptions = InsituOptions(), executor=None) -> Dataset:
+    """One dataset for F/T ``sensor`` from all ``recordings`` (one segment each).
+
+    Parameters
+    ----------
+    recordings : paths of the recordings, one segment each, in this order
+    robot : the robot without the recordings' payloads
+    sensor : F/T sensor (sensor or joint name)
+    payloads : payloads attached in every recording
+    load_cases : payloads and load-case names per recording
+    options : how recordings become a dataset
+    executor : None to work here, or an executor of :mod:`ftcal.executors`
+        (e.g. a Dask cluster): one task per recording; the workers rebuild the
+        robot from its URDF text and compute expected wrenches in one process
+        each; their warnings are re-emitted here, recording by recording.
+
+    Returns
+    -------
+    Dataset with inputs u1..u6 (and T), outputs Fx..Tz, one segment per recording.
+
+    Raises
+    ------
+    FtcalError
+        No recordings, an unknown sensor or base, or a recording that cannot be used.
+    """
     if not recordings:
         raise FtcalError("No recordings given.")
     if (options.imu is None) != (options.imu_frame is None):
@@ -95,12 +119,43 @@ def build_dataset(recordings: Sequence[str | Path], robot: RobotModel, sensor: s
     config = load_cases or LoadCaseConfig()
     models: dict[tuple[Payload, ...], RobotModel] = {}
     parts = []
+    tasks = []
     for segment, path in enumerate(recordings):
         case = config.resolve(path, tuple(payloads))
+        if executor is not None:
+            description = (robot.urdf_text, robot.source, (*robot.payloads, *case.payloads), robot.declared)
+            tasks.append((path, description, ft_sensor.name, case, segment))
+            continue
         if case.payloads not in models:
             models[case.payloads] = robot.with_payloads(case.payloads)
         parts.append(recording_dataset(path, models[case.payloads], ft_sensor.name, case, segment, options))
+    if executor is not None:
+        # One process per task on the workers: a Dask worker must not start its own process pool.
+        results = executor.map(_recording_task, tasks, dataclasses.replace(options, workers=1),
+                               description="recordings")
+        for part, caught in results:
+            for message, category in caught:
+                warnings.warn(message, category, stacklevel=2)
+            parts.append(part)
     return concatenate(parts)
+
+
+def _recording_task(path: str | Path, description: tuple, sensor: str, case: LoadCase, segment: int,
+                    options: InsituOptions) -> tuple[Dataset, list[tuple[str, type]]]:
+    """:func:`recording_dataset` as a worker runs it: the dataset and its FtcalWarnings (text, class), in order.
+
+    Other warnings (e.g. deprecation notes of the worker's first iDynTree import) stay on the worker.
+    """
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        part = recording_dataset(path, _robot_model(*description), sensor, case, segment, options)
+    return part, [(str(w.message), w.category) for w in caught if issubclass(w.category, FtcalWarning)]
+
+
+@functools.lru_cache(maxsize=8)
+def _robot_model(urdf_text: str, source: str, payloads: tuple[Payload, ...], declared: tuple) -> RobotModel:
+    """A RobotModel rebuilt from its picklable description, once per worker process and description."""
+    return RobotModel(urdf_text, source, payloads, declared)
 
 
 def recording_dataset(path: str | Path, robot: RobotModel, sensor: str, case: LoadCase, segment: int,

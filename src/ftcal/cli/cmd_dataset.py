@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from ._common import finite_float, positive_float, require_suffix
+from ._common import add_scheduler_option, finite_float, positive_float, require_suffix
 from .cmd_sensors import add_cache_arguments, add_robot_arguments, load_robot
 
 
@@ -66,6 +66,7 @@ def register(subparsers) -> None:
                         help="also write the regressor columns Y_<LINK>_<axis>_<parameter> of an unknown payload "
                              "on LINK, for 'ftcal fit --estimate-payload LINK'")
     parser.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
+    add_scheduler_option(parser)
     add_cache_arguments(parser)
     parser.add_argument("-o", "--output", metavar="DATASET", required=True, help="output .parquet or .csv")
     parser.set_defaults(func=run)
@@ -119,8 +120,15 @@ def run(args: argparse.Namespace) -> int:
         cache=not args.no_cache, cache_dir=args.cache_dir, workers=args.workers,
         payload_link=args.estimate_payload)
     if all(is_bag):
+        if args.scheduler:
+            raise FtcalError("--scheduler runs .mat/.csv/.parquet logs; ROS bags are read in this process "
+                             "(drop --scheduler).")
         return _run_bags(args, out, robot, payloads, config, options)
-    dataset = build_dataset(args.logs, robot, args.sensor, payloads=payloads, load_cases=config, options=options)
+    from ..executors import open_executor
+
+    with open_executor(args.scheduler) as executor:
+        dataset = build_dataset(args.logs, robot, args.sensor, payloads=payloads, load_cases=config,
+                                options=options, executor=executor if args.scheduler else None)
     write_dataset(dataset, out)
     groups = sorted(set(map(str, dataset.groups)))
     print(f"wrote {dataset.n_samples} samples from {len(args.logs)} recording(s), "

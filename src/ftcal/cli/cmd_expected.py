@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from ._common import finite_float, require_suffix
+from ._common import add_scheduler_option, finite_float, require_suffix
 from .cmd_sensors import add_cache_arguments, add_robot_arguments, load_robot
 
 WRENCH = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
@@ -26,20 +26,20 @@ def register(subparsers) -> None:
                         default=(0.0, 0.0, -9.81), help="gravity in base-frame axes, m/s² (default 0 0 -9.81)")
     parser.add_argument("--degrees", action="store_true", help="joint positions are in degrees")
     parser.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
+    add_scheduler_option(parser)
     add_cache_arguments(parser)
     parser.add_argument("-o", "--output", metavar="OUT", required=True, help="output .csv or .parquet")
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    """With --scheduler the joints file is one task (a worker reads it and computes in one process)."""
     from pathlib import Path
 
-    import numpy as np
     import pandas as pd
 
-    from ..io.tables import numeric_columns, read_table, write_table
-    from ..robot.cache import cache_key, cached
-    from ..robot.expected import expected_wrenches
+    from ..executors import open_executor
+    from ..io.tables import write_table
 
     require_suffix(args.output, (".csv", ".parquet", ".pq"), "-o")
     out = Path(args.output)
@@ -47,22 +47,15 @@ def run(args: argparse.Namespace) -> int:
     sensors = [robot.sensor(name) for name in args.sensor] or list(robot.ft_sensors)
     labels = args.sensor or [s.name for s in sensors]
     _, base = robot.base_frame(args.base)
-    table = read_table(Path(args.joints))
-    joint_cols = [c for c in table.columns if c != "time"]
-    values = numeric_columns(table, joint_cols, Path(args.joints), "joint")
-    if args.degrees:
-        values = np.deg2rad(values)
-    q = robot.joint_matrix(joint_cols, values, str(args.joints))
-
-    def compute() -> np.ndarray:
-        return expected_wrenches(robot, q, base=base, gravity=args.gravity, workers=args.workers)
-
-    if args.no_cache:
-        wrenches = compute()
+    settings = (base, tuple(args.gravity), args.degrees, not args.no_cache, args.cache_dir)
+    if args.scheduler:
+        description = (robot.urdf_text, robot.source, robot.payloads, robot.declared)
+        with open_executor(args.scheduler) as executor:
+            [(time, wrenches)] = executor.map(_remote_wrenches, [(args.joints, description)], 1, *settings,
+                                              description="joints files")
     else:
-        key = cache_key(robot, [q], (base, tuple(args.gravity), None))
-        wrenches = cached(key, [s.name for s in robot.ft_sensors], q.shape[0], compute, args.cache_dir)
-    columns = {"time": table["time"].to_numpy()} if "time" in table.columns else {}
+        time, wrenches = joints_file_wrenches(args.joints, robot, args.workers, *settings)
+    columns = {"time": time} if time is not None else {}
     for label, sensor in zip(labels, sensors):
         for axis, name in enumerate(WRENCH):
             columns[f"{label}_{name}"] = wrenches[:, sensor.index, axis]
@@ -70,3 +63,38 @@ def run(args: argparse.Namespace) -> int:
     write_table(frame, out)
     print(f"wrote {len(frame)} samples x {len(sensors)} sensor(s) to {out}")
     return 0
+
+
+def joints_file_wrenches(joints, robot, workers, base, gravity, degrees, cache, cache_dir):
+    """The ``time`` column (or None) and the (n_samples, n_sensors, 6) expected wrenches of a joints file."""
+    from pathlib import Path
+
+    import numpy as np
+
+    from ..io.tables import numeric_columns, read_table
+    from ..robot.cache import cache_key, cached
+    from ..robot.expected import expected_wrenches
+
+    table = read_table(Path(joints))
+    joint_cols = [c for c in table.columns if c != "time"]
+    values = numeric_columns(table, joint_cols, Path(joints), "joint")
+    if degrees:
+        values = np.deg2rad(values)
+    q = robot.joint_matrix(joint_cols, values, str(joints))
+
+    def compute() -> np.ndarray:
+        return expected_wrenches(robot, q, base=base, gravity=gravity, workers=workers)
+
+    if not cache:
+        wrenches = compute()
+    else:
+        key = cache_key(robot, [q], (base, tuple(gravity), None))
+        wrenches = cached(key, [s.name for s in robot.ft_sensors], q.shape[0], compute, cache_dir)
+    return (table["time"].to_numpy() if "time" in table.columns else None), wrenches
+
+
+def _remote_wrenches(joints, description, workers, *settings):
+    """:func:`joints_file_wrenches` on a Dask worker: the robot rebuilt from its picklable description."""
+    from ..insitu import _robot_model
+
+    return joints_file_wrenches(joints, _robot_model(*description), workers, *settings)
