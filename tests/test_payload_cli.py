@@ -278,3 +278,13 @@ def test_convert_payload_to_ros_files(capsys, data):
     fails(capsys, ["convert", payload, "--to", "onnx", "-o", root / "p.onnx"], "ftcal-payload file", root / "p.onnx")
     fails(capsys, ["convert", payload, "--to", "ros-yaml", "-o", root / "p.txt"], "must end in .yaml",
           root / "p.txt")
+
+
+def test_oversized_payload_file_is_refused_before_reading(capsys, data, tmp_path):
+    from ftcal.io.model_json import MAX_MODEL_BYTES
+
+    huge = tmp_path / "huge.json"
+    with open(huge, "wb") as fh:
+        fh.truncate(MAX_MODEL_BYTES + 1)  # sparse: no 100 MB written
+    fails(capsys, ["compensate", huge, data[1], "--orientation", "qx,qy,qz,qw", "-o", tmp_path / "c.parquet"],
+          "too large for a payload file", tmp_path / "c.parquet")

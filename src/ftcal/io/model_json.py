@@ -174,28 +174,32 @@ def load_model(path: str | Path) -> CalibrationModel:
     return load_model_file(path).model
 
 
-def check_model_size(path: Path) -> None:
-    """Refuse a model file larger than :data:`MAX_MODEL_BYTES` before reading it."""
+def check_model_size(path: Path, kind: str = "model") -> None:
+    """Refuse a ``kind`` file larger than :data:`MAX_MODEL_BYTES` before reading it."""
     try:
         size = path.stat().st_size
     except OSError as exc:
-        raise FtcalError(f"Cannot read model file {path}: {exc.strerror}.") from None
+        raise FtcalError(f"Cannot read {kind} file {path}: {exc.strerror}.") from None
     if size > MAX_MODEL_BYTES:
-        raise FtcalError(f"{path}: {size / 1e6:.0f} MB is too large for a model file "
+        raise FtcalError(f"{path}: {size / 1e6:.0f} MB is too large for a {kind} file "
                          f"(limit {MAX_MODEL_BYTES // 10**6} MB).")
+
+
+def read_document_text(path: Path, kind: str = "model") -> str:
+    """The UTF-8 text of an ftcal JSON document, size-checked first; one-line errors naming ``kind``."""
+    check_model_size(path, kind)
+    try:
+        return path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise FtcalError(f"{path}: not a JSON {kind} file (not UTF-8 text at byte {exc.start}).") from None
+    except OSError as exc:
+        raise FtcalError(f"Cannot read {kind} file {path}: {exc.strerror}.") from None
 
 
 def load_model_file(path: str | Path) -> ModelFile:
     """Like :func:`load_model`, also returning units, data sources and creation metadata."""
     path = Path(path)
-    check_model_size(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        raise FtcalError(f"{path}: not a JSON model file (not UTF-8 text at byte {exc.start}).") from None
-    except OSError as exc:
-        raise FtcalError(f"Cannot read model file {path}: {exc.strerror}.") from None
-    return parse_model(text, str(path))
+    return parse_model(read_document_text(path), str(path))
 
 
 def parse_model(text: str, source: str = "<model>") -> ModelFile:

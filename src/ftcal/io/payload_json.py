@@ -16,8 +16,8 @@ import numpy as np
 from ..errors import FtcalError
 from ..payload.parameters import PayloadParameters
 from .atomic import write_text_atomic
-from .model_json import _check_version, ftcal_version, _jsonable, _parse_json, check_document, digest, \
-    format_document
+from .model_json import _check_version, _jsonable, _parse_json, check_document, digest, ftcal_version, \
+    format_document, read_document_text
 
 FORMAT = "ftcal-payload"
 FORMAT_VERSION = "1.0"
@@ -82,13 +82,7 @@ def load_payload(path: str | Path) -> PayloadParameters:
         or a digest that does not match (the file was edited).
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        raise FtcalError(f"{path}: not a payload file (not UTF-8 text at byte {exc.start}).") from None
-    except OSError as exc:
-        raise FtcalError(f"Cannot read payload file {path}: {exc.strerror}.") from None
-    return parse_payload(text, str(path))
+    return parse_payload(read_document_text(path, "payload"), str(path))
 
 
 def parse_payload(text: str, source: str = "<payload>") -> PayloadParameters:
