@@ -40,6 +40,15 @@ def private_cache_home(tmp_path_factory):
         os.environ["XDG_CACHE_HOME"] = previous
 
 
+def write_frame(frame, path):
+    """CSV (full precision) or Parquet with 1000-row groups, by ``path``'s suffix: many chunks per file."""
+    if str(path).endswith(".csv"):
+        frame.to_csv(path, index=False, float_format="%.17g")
+    else:
+        frame.to_parquet(path, row_group_size=1000)
+    return str(path)
+
+
 @pytest.fixture
 def rng():
     return np.random.default_rng(20240611)

@@ -13,7 +13,7 @@ import sys
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import sensor_like_data
+from conftest import sensor_like_data, write_frame
 
 from ftcal import metrics
 from ftcal.dataset import DEFAULT_OUTPUTS, Dataset
@@ -35,11 +35,7 @@ def write_files(folder, rng, sizes, suffix=".parquet"):
         u, y = sensor_like_data(rng, n)
         frame = pd.DataFrame(np.c_[u, y], columns=[*INPUTS, *DEFAULT_OUTPUTS])
         path = folder / f"part{index}{suffix}"
-        if suffix == ".csv":
-            frame.to_csv(path, index=False, float_format="%.17g")
-        else:
-            frame.to_parquet(path, row_group_size=1000)
-        paths.append(str(path))
+        paths.append(write_frame(frame, path))
     return paths
 
 

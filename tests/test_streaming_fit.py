@@ -13,7 +13,7 @@ import sys
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import sensor_like_data
+from conftest import sensor_like_data, write_frame
 
 from ftcal.dataset import DEFAULT_OUTPUTS
 from ftcal.fingerprint import segment_fingerprints
@@ -42,11 +42,7 @@ def write_files(folder, sizes, suffixes=None, seed=5):
         frame["seg"] = [f"s{i // 700}" for i in range(n)]
         suffix = (suffixes or [".parquet"] * len(sizes))[index]
         path = folder / f"part{index}{suffix}"
-        if suffix == ".csv":
-            frame.to_csv(path, index=False, float_format="%.17g")
-        else:
-            frame.to_parquet(path, row_group_size=1000)
-        paths.append(str(path))
+        paths.append(write_frame(frame, path))
     return paths
 
 
