@@ -24,7 +24,10 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(PY) -m pytest -q
 
+# Bytecode first, as a wheel install has it: with PYTHONDONTWRITEBYTECODE set, an editable
+# install would recompile every module in every timed process.
 bench: $(STAMP)
+	$(PY) -m compileall -q src benchmarks
 	$(PY) -m benchmarks
 
 clean:

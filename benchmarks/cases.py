@@ -10,6 +10,7 @@ clock starts.
 from __future__ import annotations
 
 import json
+import os
 import resource
 import sys
 import time
@@ -471,40 +472,52 @@ def _csv(folder: str, n: int) -> str:
     return path
 
 
-def _timed_process(argv: list[str]) -> dict:
+def _timed_process(argv: list[str]) -> tuple[float, float]:
+    """Wall time (s) and peak RSS (MB) of one child process, from its own rusage (os.wait4)."""
     import subprocess
 
     start = time.perf_counter()
-    done = subprocess.run(argv, capture_output=True, text=True)
+    child = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    stderr = child.stderr.read()
+    _, status, usage = os.wait4(child.pid, 0)
     seconds = time.perf_counter() - start
-    if done.returncode != 0:
-        raise RuntimeError(done.stderr[-2000:])
-    # The child's own peak memory (this process only waits).
-    return {"seconds": seconds, "child_peak_rss_mb": resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0}
+    child.returncode = os.waitstatus_to_exitcode(status)
+    if child.returncode != 0:
+        raise RuntimeError(stderr[-2000:])
+    return seconds, usage.ru_maxrss / 1024.0
 
 
-def ftcal_cli_fit(n: int, degree: int) -> dict:
-    """`ftcal fit data.csv --degree D` as a user runs it: start-up, imports, CSV reading, fit, model file."""
+def cli_fit_pair(n: int, degree: int, repeats: int = 5) -> dict:
+    """`ftcal fit data.csv --degree D` and the paper's recipe as a script, on the same CSV, alternately.
+
+    Each runs ``repeats`` times, interleaved so that a change of machine load
+    hits both; the medians are reported (with min and max), and each child's
+    own peak RSS.
+    """
+    import statistics
     import tempfile
     from pathlib import Path
 
     with tempfile.TemporaryDirectory() as folder:
         data = _csv(folder, n)
         ftcal = str(Path(sys.executable).with_name("ftcal"))
-        return _timed_process([ftcal, "fit", data, "--degree", str(degree), "-o", f"{folder}/m.json"])
-
-
-def paper_recipe_cli(n: int, degree: int) -> dict:
-    """The paper's recipe as a script from the same CSV: pandas, dense max-abs regressor, OSQP per output."""
-    import tempfile
-
-    with tempfile.TemporaryDirectory() as folder:
-        data = _csv(folder, n)
-        return _timed_process([sys.executable, "-c", PAPER_RECIPE_SCRIPT, data, str(degree)])
+        commands = {"ftcal": [ftcal, "fit", data, "--degree", str(degree), "-o", f"{folder}/m.json"],
+                    "paper": [sys.executable, "-c", PAPER_RECIPE_SCRIPT, data, str(degree)]}
+        runs = {name: [] for name in commands}
+        for _ in range(repeats):
+            for name, argv in commands.items():
+                runs[name].append(_timed_process(argv))
+    result = {}
+    for name, pairs in runs.items():
+        times = [t for t, _ in pairs]
+        result[name] = {"seconds": statistics.median(times), "min_seconds": min(times), "max_seconds": max(times),
+                        "child_peak_rss_mb": max(m for _, m in pairs), "repeats": repeats}
+    result["seconds"] = result["ftcal"]["seconds"]
+    return result
 
 
 CASES = {f.__name__: f for f in (ftcal_fit, ftcal_statistics, paper_recipe_fit, numpy_lstsq_fit, sklearn_fit,
-                                 ftcal_cli_fit, paper_recipe_cli, ftcal_lasso, paper_lasso, sklearn_lasso,
+                                 cli_fit_pair, ftcal_lasso, paper_lasso, sklearn_lasso,
                                  ftcal_predict, sklearn_predict, ftcal_payload, numpy_payload_lstsq, c_predict,
                                  ftcal_predict_one, select_auto, select_auto_baseline, select_auto_new)}
 CASES.update(BAG_CASES)  # bag reading: benchmarks/bench_bags.py

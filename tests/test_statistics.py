@@ -119,3 +119,27 @@ def test_arx_lags_never_cross_segment_boundaries(rng):
     a = np.vstack([_hand_arx_regressor(u[:7], y[:7], 1, 2), _hand_arx_regressor(u[7:], y[7:], 1, 2)])
     assert a.shape == (5 + 4, 8)
     _assert_stats_equal(stats, a, np.vstack([y[2:7], y[9:]]))
+
+
+def test_nested_parallel_work_runs_inline_and_a_forked_child_has_its_own_pool():
+    """Work submitted from a pool thread runs in that thread (a full pool cannot deadlock); a
+    forked child (multiprocessing's fork start method) gets a new pool instead of dead threads."""
+    import multiprocessing
+    import threading
+
+    from ftcal._threads import map_ranges
+
+    def outer(begin, end):
+        return (threading.current_thread().name,
+                map_ranges(lambda a, b: threading.current_thread().name, 10_000, 1000))
+
+    for outer_thread, inner_threads in map_ranges(outer, 10_000, 1000):
+        assert set(inner_threads) == {outer_thread}
+    with multiprocessing.get_context("fork").Pool(1) as pool:
+        assert pool.apply(_sum_in_threads) == sum(range(10_000))
+
+
+def _sum_in_threads():
+    from ftcal._threads import map_ranges
+
+    return sum(map_ranges(lambda a, b: sum(range(a, b)), 10_000, 1000))

@@ -71,11 +71,21 @@ def test_chunks_equal_the_whole_table(tmp_path, suffix):
     assert np.array_equal(np.vstack([c.outputs for c in chunks]), frame[["Fz"]].to_numpy())
     assert np.array_equal(np.concatenate([c.labels["u2"] for c in chunks]).astype(float), frame["u2"].to_numpy())
     assert [c.first_row for c in chunks] == list(np.cumsum([0] + [c.n_rows for c in chunks[:-1]]))
-    if suffix == ".parquet":  # batches of 700 rows, across row groups of 1000
-        assert [c.n_rows for c in chunks] == [700, 700, 700, 500]
+    # Batches of 700 rows: across Parquet row groups of 1000, and from a small CSV file read whole.
+    assert [c.n_rows for c in chunks] == [700, 700, 700, 500]
 
 
-def test_chunk_errors_name_the_file_row_and_column(tmp_path):
+@pytest.fixture(params=["whole", "blocks"])
+def csv_reader(request, monkeypatch):
+    """Both CSV readers: small files parsed whole, larger ones block by block (forced here)."""
+    from ftcal.io import table_chunks
+
+    if request.param == "blocks":
+        monkeypatch.setattr(table_chunks, "CSV_READ_WHOLE_BYTES", 0)
+    return request.param
+
+
+def test_chunk_errors_name_the_file_row_and_column(tmp_path, csv_reader):
     frame = pd.DataFrame({"a": np.arange(3000.0), "b": np.ones(3000)})
     frame.loc[2345, "b"] = np.nan
     frame.to_parquet(tmp_path / "nan.parquet", row_group_size=1000)
@@ -250,3 +260,81 @@ def test_file_statistics_tree_summed_on_dask_equal_the_dense_regressor(files, cl
     a = reference_features(norm.apply(u), 2)  # scikit-learn's monomials, offset last
     assert np.allclose(remote.gram, a.T @ a, rtol=1e-12, atol=1e-9) and np.allclose(remote.cross, a.T @ y, rtol=1e-12)
     assert remote.n_samples == len(u) == 2500 + 1200 + 3100
+
+
+def _counting_reads(monkeypatch):
+    """Patch the file reader behind iter_table_chunks; returns the list of files it actually reads."""
+    from ftcal.io import table_chunks
+
+    reads, original = [], table_chunks._read_table_chunks
+
+    def counting(path, *rest):
+        reads.append(str(path))
+        yield from original(path, *rest)
+
+    monkeypatch.setattr(table_chunks, "_read_table_chunks", counting)
+    return reads
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".parquet"])
+def test_kept_files_are_read_once_and_served_from_memory(tmp_path, monkeypatch, suffix):
+    from ftcal.io.table_chunks import keep_in_memory
+
+    (path,) = write_files(tmp_path, np.random.default_rng(4), [2600], suffix)
+    frame = whole([path])
+    reads = _counting_reads(monkeypatch)
+    with keep_in_memory():
+        first = list(iter_table_chunks(path, INPUTS, DEFAULT_OUTPUTS, labels={"u2": "group"}, chunk_rows=700))
+        again = list(iter_table_chunks(path, INPUTS, DEFAULT_OUTPUTS, chunk_rows=700))
+        inputs_only = list(iter_table_chunks(path, INPUTS, chunk_rows=700))
+        assert len(reads) == 1
+        other = list(iter_table_chunks(path, ["T"], ["Fz"], chunk_rows=700))  # other columns: the file again
+        assert len(reads) == 2
+    list(iter_table_chunks(path, INPUTS, DEFAULT_OUTPUTS))  # outside the block nothing is kept
+    assert len(reads) == 3
+    for chunks in (first, again, inputs_only):
+        assert np.array_equal(np.vstack([c.inputs for c in chunks]), frame[list(INPUTS)].to_numpy())
+    assert np.array_equal(np.vstack([c.outputs for c in again]), frame[list(DEFAULT_OUTPUTS)].to_numpy())
+    assert all(c.outputs is None and not c.labels for c in inputs_only)
+    assert all(set(c.labels) == set() for c in again)
+    assert [c.first_row for c in again] == [c.first_row for c in first]
+    assert np.array_equal(np.vstack([c.outputs for c in other]), frame[["Fz"]].to_numpy())
+
+
+def test_a_kept_file_that_changes_or_is_too_large_is_read_again(tmp_path, monkeypatch):
+    from ftcal.io import table_chunks
+    from ftcal.io.table_chunks import keep_in_memory
+
+    (path,) = write_files(tmp_path, np.random.default_rng(5), [1500], ".csv")
+    reads = _counting_reads(monkeypatch)
+    with keep_in_memory():
+        list(iter_table_chunks(path, INPUTS, DEFAULT_OUTPUTS))
+        frame = whole([path])
+        frame["u1"] += 1.0
+        frame.to_csv(path, index=False, float_format="%.17g")  # another size, another mtime
+        changed = list(iter_table_chunks(path, INPUTS, DEFAULT_OUTPUTS))
+    assert len(reads) == 2
+    assert np.array_equal(np.vstack([c.inputs for c in changed]), frame[list(INPUTS)].to_numpy())
+    # 1500 rows of 13 float64 columns are 156,000 bytes: over a 100,000-byte budget, streamed every time.
+    monkeypatch.setattr(table_chunks, "KEEP_IN_MEMORY_BYTES", 100_000)
+    with keep_in_memory():
+        for _ in range(2):
+            assert sum(c.n_rows for c in iter_table_chunks(path, INPUTS, DEFAULT_OUTPUTS, chunk_rows=500)) == 1500
+    assert len(reads) == 4
+
+
+def test_streamed_fit_without_keeping_files_equals_the_kept_fit(files, tmp_path, monkeypatch):
+    """The fit's passes read every file each time when it is too large to keep: same model (1e-12)."""
+    from ftcal.cli import main
+    from ftcal.io import table_chunks
+    from ftcal.io.model_files import read_model_file
+
+    paths, _, _ = files
+    assert main(["fit", *paths, "--degree", "3", "-o", str(tmp_path / "kept.json")]) == 0
+    reads = _counting_reads(monkeypatch)
+    monkeypatch.setattr(table_chunks, "KEEP_IN_MEMORY_BYTES", 0)
+    assert main(["fit", *paths, "--degree", "3", "-o", str(tmp_path / "streamed.json")]) == 0
+    assert len(reads) == 3 * len(paths)  # ranges, statistics, training metrics
+    kept, streamed = (read_model_file(tmp_path / name).model for name in ("kept.json", "streamed.json"))
+    assert np.max(np.abs(kept.coef_ - streamed.coef_)) <= 1e-12 * np.max(np.abs(streamed.coef_))
+    assert kept.training_metrics_["rmse"] == pytest.approx(streamed.training_metrics_["rmse"], rel=1e-12)

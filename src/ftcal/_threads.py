@@ -10,6 +10,7 @@ worker thread (numpy releases the GIL inside its kernels).
 from __future__ import annotations
 
 import os
+import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
@@ -52,14 +53,33 @@ def split_range(n: int, parts: int, align: int) -> list[tuple[int, int]]:
     return [(a, b) for a, b in zip(edges[:-1], edges[1:]) if b > a]
 
 
+# Set in the pool's threads: work they submit runs inline, so nested calls cannot wait on a full pool.
+_POOL_THREAD = threading.local()
+
+
+def _mark_pool_thread() -> None:
+    _POOL_THREAD.active = True
+
+
+@cache
+def _pool(workers: int) -> ThreadPoolExecutor:
+    # One pool per process: its threads keep their per-thread workspaces (MomentGram's) from
+    # call to call, which a file streamed in many chunks would otherwise allocate per chunk.
+    return ThreadPoolExecutor(workers, thread_name_prefix="ftcal", initializer=_mark_pool_thread)
+
+
+# A forked child has none of the parent's threads: it starts its own pool.
+os.register_at_fork(after_in_child=_pool.cache_clear)
+
+
 def map_ranges(work: Callable[[int, int], T], n: int, align: int) -> list[T]:
     """Run ``work(start, stop)`` over ranges of 0..n in parallel threads, BLAS single-threaded."""
-    ranges = split_range(n, worker_count(), align)
+    workers = worker_count()
+    ranges = split_range(n, workers, align)
     if n <= SMALL_CALL_ROWS:
         # Products this small never start BLAS threads; limiting them costs more than the work.
         return [work(a, b) for a, b in ranges]
     with single_threaded_blas():
-        if len(ranges) <= 1:
+        if len(ranges) <= 1 or getattr(_POOL_THREAD, "active", False):
             return [work(a, b) for a, b in ranges]
-        with ThreadPoolExecutor(len(ranges)) as pool:
-            return list(pool.map(lambda ab: work(*ab), ranges))
+        return list(_pool(workers).map(lambda ab: work(*ab), ranges))

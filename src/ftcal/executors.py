@@ -21,7 +21,6 @@ a cluster run sums in exactly the order of a local run.
 from __future__ import annotations
 
 import os
-import socket
 import uuid
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
@@ -184,6 +183,8 @@ def _run_on_worker(function, task: tuple, args: tuple):
     """A task as a worker runs it: first check this worker can see the task's file."""
     path = task[0]
     if not os.access(path, os.R_OK):
+        import socket
+
         raise FtcalError(f"{os.fspath(path)}: the Dask worker on {socket.gethostname()} cannot read this file; "
                          "with --scheduler the paths must be visible to every worker at the same place "
                          "(a shared file system).")

@@ -17,8 +17,9 @@ them exactly once. ARX models (lagged columns) use plain chunked AᵀA.
 from __future__ import annotations
 
 from collections.abc import Iterable
+import threading
 from dataclasses import dataclass, replace
-from functools import cached_property
+from functools import cache, cached_property
 from itertools import combinations_with_replacement
 
 import numpy as np
@@ -98,8 +99,18 @@ def sum_statistics(parts: Iterable[SufficientStatistics]) -> SufficientStatistic
     return total
 
 
+@cache
+def moment_gram(n_inputs: int, degree: int) -> "MomentGram":
+    """The :class:`MomentGram` of ``MonomialBasis(n_inputs, degree)``, built once per process.
+
+    Its index tables cost milliseconds, which a file streamed in many chunks
+    would otherwise pay per chunk; its workspace is per thread.
+    """
+    return MomentGram(MonomialBasis(n_inputs, degree))
+
+
 class MomentGram:
-    """AᵀA of a static monomial basis from its moments, chunk by chunk."""
+    """AᵀA of a static monomial basis from its moments, chunk by chunk (see :func:`moment_gram`)."""
 
     def __init__(self, basis: MonomialBasis):
         self.basis = basis
@@ -118,7 +129,7 @@ class MomentGram:
             self._blocks.append((rows, cols, offset))
             offset += size
         self.n_moments = offset
-        self._workspace: tuple[np.ndarray, np.ndarray] | None = None
+        self._local = threading.local()  # each thread's (left, right) workspace
 
     @cached_property
     def gram_index(self) -> np.ndarray:
@@ -140,10 +151,12 @@ class MomentGram:
     def accumulate(self, u_t: np.ndarray, moments: np.ndarray) -> None:
         """Add the moments of the normalized chunk ``u_t`` (nu, m) into ``moments``."""
         m = u_t.shape[1]
-        if self._workspace is None or self._workspace[0].shape[1] < m:
-            self._workspace = (np.empty((self._left.n_terms, m)), np.empty((self._right.n_terms, m)))
-        left = self._left.evaluate(u_t[:self.n_left], self._workspace[0][:, :m])
-        right = self._right.evaluate(u_t[self.n_left:], self._workspace[1][:, :m])
+        workspace = getattr(self._local, "workspace", None)
+        if workspace is None or workspace[0].shape[1] < m:
+            workspace = self._local.workspace = (np.empty((self._left.n_terms, m)),
+                                                 np.empty((self._right.n_terms, m)))
+        left = self._left.evaluate(u_t[:self.n_left], workspace[0][:, :m])
+        right = self._right.evaluate(u_t[self.n_left:], workspace[1][:, :m])
         for rows, cols, start in self._blocks:
             size = (rows.stop - rows.start) * cols
             block = moments[start:start + size].reshape(rows.stop - rows.start, cols)
@@ -194,6 +207,65 @@ class _GradedMonomials:
         return self._evaluator.evaluate_transposed(u_t, out)
 
 
+class StaticAccumulator:
+    """Sufficient statistics of a static polynomial model, added chunk by chunk.
+
+    Chunks add their moments, cross products and column maxima; the Gram is
+    assembled from the moments once, in :meth:`statistics`. Sample ranges of a
+    chunk are processed by parallel worker threads.
+
+    Parameters
+    ----------
+    basis : MonomialBasis
+    n_outputs : int, targets per sample
+    """
+
+    def __init__(self, basis: MonomialBasis, n_outputs: int):
+        self.basis = basis
+        self._engine = moment_gram(basis.n_inputs, basis.degree)
+        self._moments = self._engine.new_moments()
+        self._stats = SufficientStatistics.zeros(basis.n_terms, n_outputs)
+
+    def add(self, u_norm: np.ndarray, y: np.ndarray, chunk: int = CHUNK_SAMPLES, advance=None) -> None:
+        """Add normalized inputs (m, n_inputs) and their targets (m, n_outputs).
+
+        ``chunk``: samples per cache-sized step; ``advance``: called with each step's sample count.
+        """
+        basis, engine = self.basis, self._engine
+
+        def work(begin: int, end: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            moments = engine.new_moments()
+            cross, maxabs = np.zeros((basis.n_terms, y.shape[1])), np.zeros(basis.n_terms)
+            features = np.empty((basis.n_terms, chunk))
+            for start in range(begin, end, chunk):
+                stop = min(start + chunk, end)
+                u_t = np.ascontiguousarray(u_norm[start:stop].T)
+                a_t = basis.evaluate_transposed(u_t, features[:, :stop - start])
+                engine.accumulate(u_t, moments)
+                cross += a_t @ y[start:stop]
+                # max and -min instead of abs(): no chunk-sized temporary.
+                np.maximum(maxabs, a_t.max(axis=1), out=maxabs)
+                np.maximum(maxabs, -a_t.min(axis=1), out=maxabs)
+                if advance is not None:
+                    advance(stop - start)
+            return moments, cross, maxabs
+
+        stats = self._stats
+        for moments, cross, maxabs in map_ranges(work, u_norm.shape[0], chunk):
+            self._moments += moments
+            stats.cross += cross
+            np.maximum(stats.column_maxabs, maxabs, out=stats.column_maxabs)
+        stats.target_sq += np.einsum("ij,ij->j", y, y)
+        stats.target_sum += y.sum(axis=0)
+        stats.n_samples += u_norm.shape[0]
+
+    def statistics(self) -> SufficientStatistics:
+        """The statistics of every sample added so far."""
+        return replace(self._stats, gram=self._engine.gram(self._moments), cross=self._stats.cross.copy(),
+                       target_sq=self._stats.target_sq.copy(), target_sum=self._stats.target_sum.copy(),
+                       column_maxabs=self._stats.column_maxabs.copy())
+
+
 def static_statistics(basis: MonomialBasis, u_norm: np.ndarray, y: np.ndarray,
                       chunk: int = CHUNK_SAMPLES, advance=None) -> SufficientStatistics:
     """Statistics of a static polynomial model over normalized inputs (N, nu) and targets (N, ny).
@@ -222,33 +294,9 @@ def static_statistics(basis: MonomialBasis, u_norm: np.ndarray, y: np.ndarray,
     >>> bool(np.allclose(stats.gram, a.T @ a))
     True
     """
-
-    def work(begin: int, end: int) -> tuple[np.ndarray, SufficientStatistics]:
-        engine = MomentGram(basis)
-        moments = engine.new_moments()
-        stats = SufficientStatistics.zeros(basis.n_terms, y.shape[1])
-        features = np.empty((basis.n_terms, chunk))
-        for start in range(begin, end, chunk):
-            stop = min(start + chunk, end)
-            u_t = np.ascontiguousarray(u_norm[start:stop].T)
-            a_t = basis.evaluate_transposed(u_t, features[:, :stop - start])
-            engine.accumulate(u_t, moments)
-            stats.cross += a_t @ y[start:stop]
-            # max and -min instead of abs(): no chunk-sized temporary.
-            np.maximum(stats.column_maxabs, a_t.max(axis=1), out=stats.column_maxabs)
-            np.maximum(stats.column_maxabs, -a_t.min(axis=1), out=stats.column_maxabs)
-            if advance is not None:
-                advance(stop - start)
-        return moments, stats
-
-    parts = map_ranges(work, u_norm.shape[0], chunk)
-    total = sum_statistics([stats for _, stats in parts]) if parts else SufficientStatistics.zeros(basis.n_terms, y.shape[1])
-    moments = sum(m for m, _ in parts) if parts else np.zeros(MomentGram(basis).n_moments)
-    total.gram = MomentGram(basis).gram(moments)
-    total.target_sq = np.einsum("ij,ij->j", y, y)
-    total.target_sum = y.sum(axis=0)
-    total.n_samples = u_norm.shape[0]
-    return total
+    accumulator = StaticAccumulator(basis, y.shape[1])
+    accumulator.add(u_norm, y, chunk, advance)
+    return accumulator.statistics()
 
 
 def dense_statistics(a: np.ndarray, y: np.ndarray) -> SufficientStatistics:

@@ -11,6 +11,7 @@ across rows and are read a whole file at a time.
 
 from __future__ import annotations
 
+import functools
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -19,11 +20,12 @@ from pathlib import Path
 import numpy as np
 
 from . import metrics
+from ._threads import map_ranges
 from .errors import FtcalError
 from .features import MonomialBasis, RegressorLayout
 from .io.table_chunks import iter_table_chunks
 from .normalization import Normalization
-from .statistics import SufficientStatistics, static_statistics
+from .statistics import CHUNK_SAMPLES, StaticAccumulator, SufficientStatistics
 
 
 def file_statistics(path: str, basis: MonomialBasis, normalization: Normalization, inputs: Sequence[str],
@@ -41,11 +43,10 @@ def file_statistics(path: str, basis: MonomialBasis, normalization: Normalizatio
     -------
     SufficientStatistics with p = basis.n_terms features and len(outputs) targets.
     """
-    total = None
+    total = StaticAccumulator(basis, len(outputs))
     for chunk in iter_table_chunks(path, inputs, outputs):
-        part = static_statistics(basis, normalization.apply(chunk.inputs), chunk.outputs)
-        total = part if total is None else total + part
-    return total
+        total.add(normalization.apply(chunk.inputs), chunk.outputs)
+    return total.statistics()
 
 
 @dataclass
@@ -156,7 +157,7 @@ def file_group_statistics(path: str, basis: MonomialBasis, normalization: Normal
     -------
     dict of group label (str) -> SufficientStatistics; cross-validation folds are sums of these.
     """
-    totals: dict[str, SufficientStatistics] = {}
+    totals: dict[str, StaticAccumulator] = {}
     for chunk in iter_table_chunks(path, inputs, outputs, labels={group_by: "group"} if group_by else ()):
         u_norm = normalization.apply(chunk.inputs)
         if group_by is None:
@@ -165,9 +166,10 @@ def file_group_statistics(path: str, basis: MonomialBasis, normalization: Normal
             labels = chunk.labels[group_by].astype(str)
             rows = {label: labels == label for label in np.unique(labels).tolist()}
         for label, selection in rows.items():
-            part = static_statistics(basis, u_norm[selection], chunk.outputs[selection])
-            totals[label] = part if label not in totals else totals[label] + part
-    return totals
+            if label not in totals:
+                totals[label] = StaticAccumulator(basis, len(outputs))
+            totals[label].add(u_norm[selection], chunk.outputs[selection])
+    return {label: total.statistics() for label, total in totals.items()}
 
 
 def add_group_statistics(a: dict[str, SufficientStatistics],
@@ -368,13 +370,18 @@ def file_error_sums(path: str, model, fingerprints: Sequence[dict] = (), mode: s
     total = None
     finder = SegmentFinder(fingerprints)
     for chunk in iter_table_chunks(path, model.input_names_, model.output_names_):
-        # Overflowing predictions give inf/NaN metrics, which the command refuses in one line.
-        with warnings.catch_warnings(), np.errstate(over="ignore", invalid="ignore"):
-            warnings.simplefilter("ignore", OutOfRangeWarning)  # counted instead
-            prediction = model.predict(chunk.inputs, warn_out_of_range=False)
-            part = ErrorSums.of(chunk.outputs, prediction, model.output_names_,
-                                int(model.out_of_range(chunk.inputs).sum()))
-        finder.feed(np.concatenate([chunk.inputs, chunk.outputs], axis=1))
+        def rows_sums(begin: int, end: int) -> ErrorSums:
+            inputs, outputs = chunk.inputs[begin:end], chunk.outputs[begin:end]
+            # Overflowing predictions give inf/NaN metrics, which the command refuses in one line.
+            with warnings.catch_warnings(), np.errstate(over="ignore", invalid="ignore"):
+                warnings.simplefilter("ignore", OutOfRangeWarning)  # counted instead
+                prediction = model.predict(inputs, warn_out_of_range=False)
+                return ErrorSums.of(outputs, prediction, model.output_names_, int(model.out_of_range(inputs).sum()))
+
+        # Row ranges in parallel threads; their sums combine in row order.
+        part = functools.reduce(add_error_sums, map_ranges(rows_sums, chunk.n_rows, CHUNK_SAMPLES))
+        if fingerprints:
+            finder.feed(np.concatenate([chunk.inputs, chunk.outputs], axis=1))
         total = part if total is None else total + part
     total.training_segments = frozenset(finder.found)
     return total

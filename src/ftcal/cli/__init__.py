@@ -102,8 +102,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     if args.version:
-        from importlib.metadata import version
-        print(version("ftcal"))
+        from .. import __version__
+        print(__version__)
         return 0
     if not getattr(args, "func", None):
         parser.print_help()

@@ -214,7 +214,8 @@ def fit_streaming(args, template, inputs, outputs):
     lose every digit to cancellation). The client solves; pass 3 gives the
     training metrics from additive error sums, as ``ftcal evaluate`` does.
     ``--degree auto`` adds one pass per (degree, basis) the search tries,
-    giving per-group statistics whose sums are the folds'.
+    giving per-group statistics whose sums are the folds'. Run here, the passes
+    parse each small file once (:func:`ftcal.io.table_chunks.keep_in_memory`).
 
     Returns
     -------
@@ -225,7 +226,9 @@ def fit_streaming(args, template, inputs, outputs):
     from ..streaming import (StreamedStatistics, add_error_sums, add_statistics, file_error_sums,
                              file_layout_statistics, file_summary)
 
-    with open_executor(args.scheduler) as executor:
+    from ..io.table_chunks import keep_in_memory
+
+    with open_executor(args.scheduler) as executor, keep_in_memory():
         summary = executor.map_reduce(file_summary, args.data, inputs, outputs, args.segment_by,
                                       args.group_by, combine=add_statistics, description="ranges")
         print(f"read {sum(summary.segment_lengths)} samples from {len(args.data)} file(s): inputs "

@@ -10,7 +10,6 @@ resolving symbolic links, or the same inode: a hard link).
 from __future__ import annotations
 
 import os
-import secrets
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -87,7 +86,7 @@ def atomic_path(target: str | os.PathLike) -> Iterator[Path]:
         try:
             fd = None
             while fd is None:
-                tmp_path = target.parent / f".{target.name}.{secrets.token_hex(8)}.tmp"
+                tmp_path = target.parent / f".{target.name}.{os.urandom(8).hex()}.tmp"
                 try:
                     # Mode 0666 less the umask: outputs get the usual permissions.
                     fd = os.open(tmp_path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)

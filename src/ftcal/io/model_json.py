@@ -18,7 +18,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from functools import cache
-from importlib import metadata, resources
+from importlib import resources
 from pathlib import Path
 
 import numpy as np
@@ -140,10 +140,10 @@ def _jsonable(value):
 
 
 def ftcal_version() -> str:
-    try:
-        return metadata.version("ftcal")
-    except metadata.PackageNotFoundError:  # running from a source tree that is not installed
-        return "unknown"
+    """The running ftcal's version (recorded in the files ftcal writes)."""
+    from .. import __version__
+
+    return __version__
 
 
 def digest(doc: dict) -> str:

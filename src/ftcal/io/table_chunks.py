@@ -13,6 +13,7 @@ from __future__ import annotations
 import os
 import re
 from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -23,6 +24,8 @@ from .tables import _arrow_numbers, table_columns
 
 CHUNK_ROWS = 1 << 16  # rows per chunk: ~4 MB of float64 inputs and outputs
 CSV_BLOCK_BYTES = 1 << 22  # CSV bytes parsed per block (~CHUNK_ROWS rows of 13 numbers)
+CSV_READ_WHOLE_BYTES = 1 << 27  # smaller CSV files are parsed whole, in parallel, then served in chunks
+KEEP_IN_MEMORY_BYTES = 1 << 26  # files whose chunks total at most this stay in memory (see keep_in_memory)
 
 
 @dataclass
@@ -53,6 +56,55 @@ def table_has_columns(path: str | os.PathLike, columns: Sequence[str]) -> bool:
     return all(c in names for c in columns)
 
 
+@dataclass
+class _KeptFile:
+    """A file's chunks as one pass read them, and what that pass asked for."""
+
+    identity: tuple[int, int]  # size and modification time when read
+    inputs: tuple[str, ...]
+    outputs: tuple[str, ...] | None  # None: the chunks have no outputs
+    labels: tuple[str, ...]
+    chunks: list[TableChunk]
+
+    def serves(self, identity, inputs, outputs, labels) -> bool:
+        """Whether these chunks answer a request for those columns of the unchanged file."""
+        same_outputs = self.outputs == tuple(outputs or ()) or (not outputs and self.outputs is not None)
+        return (identity == self.identity and self.inputs == tuple(inputs) and same_outputs
+                and set(labels) <= set(self.labels))
+
+
+# While keep_in_memory() is active: resolved path -> the file's kept chunks, or None for a file
+# too large to keep. None outside the block.
+_KEPT: dict[Path, _KeptFile | None] | None = None
+
+
+@contextmanager
+def keep_in_memory():
+    """Inside the block, a file's chunks are read once and served from memory on later passes.
+
+    For commands that pass over the same small files several times in this
+    process (``fit``: ranges, statistics, training metrics): parsing a CSV
+    costs more than most passes. A file stays on the streaming path (read on
+    every pass, one chunk in memory) once its chunks exceed
+    ``KEEP_IN_MEMORY_BYTES``, or when a later pass asks for other columns.
+    A file that changes between passes (size or modification time) is read again.
+    """
+    global _KEPT
+    outer, _KEPT = _KEPT, {}
+    try:
+        yield
+    finally:
+        _KEPT = outer
+
+
+def _identity(path: Path) -> tuple[int, int] | None:
+    try:
+        stat = path.stat()
+    except OSError:
+        return None  # the reader reports it
+    return stat.st_size, stat.st_mtime_ns
+
+
 def iter_table_chunks(path: str | os.PathLike, inputs: Sequence[str], outputs: Sequence[str] | None = None, *,
                       labels: Sequence[str] | Mapping[str, str] = (), require_outputs: bool = True,
                       chunk_rows: int = CHUNK_ROWS) -> Iterator[TableChunk]:
@@ -66,7 +118,7 @@ def iter_table_chunks(path: str | os.PathLike, inputs: Sequence[str], outputs: S
     labels : columns yielded as they are; a mapping gives each one's role in messages
         (``{"load": "group"}``: "no group column 'load'"), a sequence the role "label"
     require_outputs : when False and the file lacks an output column, chunks have ``outputs=None``
-    chunk_rows : rows per Parquet chunk (CSV chunks are blocks of about that size)
+    chunk_rows : rows per chunk (Parquet files, and CSV files read whole; larger CSV files come in ~4 MB blocks)
 
     Yields
     ------
@@ -78,7 +130,39 @@ def iter_table_chunks(path: str | os.PathLike, inputs: Sequence[str], outputs: S
         No such file, not a table, a repeated or missing column, a cell that is
         not a finite number (naming column and row), an empty label cell, or no rows.
     """
-    path = Path(path)
+    chunks = _read_table_chunks(Path(path), inputs, outputs, labels, require_outputs, chunk_rows)
+    if _KEPT is None:
+        yield from chunks
+        return
+    key, label_names = Path(path).resolve(), tuple(labels)
+    identity, kept = _identity(key), _KEPT.get(key, ())
+    if kept and kept.serves(identity, inputs, outputs, label_names):
+        for chunk in kept.chunks:
+            yield TableChunk(chunk.first_row, chunk.inputs, chunk.outputs if outputs else None,
+                             {name: chunk.labels[name] for name in label_names})
+        return
+    keep, size = kept == (), 0  # keep the chunks of a file's first read only
+    read = []
+    for chunk in chunks:
+        if keep:
+            size += chunk.inputs.nbytes + sum(v.nbytes for v in (chunk.outputs, *chunk.labels.values())
+                                              if v is not None)
+            if size <= KEEP_IN_MEMORY_BYTES:
+                read.append(chunk)
+            else:
+                keep, read = False, []
+                _KEPT[key] = None
+        yield chunk
+    if keep:
+        _KEPT[key] = _KeptFile(identity, tuple(inputs), None if read[0].outputs is None else tuple(outputs),
+                               label_names, read)
+
+
+
+def _read_table_chunks(path: Path, inputs: Sequence[str], outputs: Sequence[str] | None,
+                       labels: Sequence[str] | Mapping[str, str], require_outputs: bool,
+                       chunk_rows: int) -> Iterator[TableChunk]:
+    """:func:`iter_table_chunks` from the file itself."""
     names = table_columns(path)  # checks existence and type, reads the header only
     twice = next((n for n in names if names.count(n) > 1), None)
     if twice is not None:
@@ -126,11 +210,15 @@ def _batches(path: Path, columns: list[str], roles: dict[str, str], chunk_rows: 
             import pyarrow as pa
             import pyarrow.csv as pv
 
-            reader = pv.open_csv(path, read_options=pv.ReadOptions(block_size=CSV_BLOCK_BYTES),
-                                 convert_options=pv.ConvertOptions(
-                                     include_columns=columns, strings_can_be_null=True,
-                                     column_types={c: pa.float64() for c in roles}))
-            with reader:
+            options = dict(read_options=pv.ReadOptions(block_size=CSV_BLOCK_BYTES),
+                           convert_options=pv.ConvertOptions(include_columns=columns, strings_can_be_null=True,
+                                                             column_types={c: pa.float64() for c in roles}))
+            if path.stat().st_size <= CSV_READ_WHOLE_BYTES:
+                # Parsed in parallel blocks (faster than the streaming reader, which parses one at a
+                # time), then served in chunks of chunk_rows: a 4 MB block holds only ~17k rows.
+                yield from pv.read_csv(path, **options).combine_chunks().to_batches(max_chunksize=chunk_rows)
+                return
+            with pv.open_csv(path, **options) as reader:
                 yield from reader
         else:
             import pyarrow.parquet as pq

@@ -22,6 +22,7 @@ from ..errors import FtcalError
 from ..metrics import force_torque_columns
 from ..select import CrossValidationResult
 from ..io.atomic import write_text_atomic
+from ..io.model_json import ftcal_version
 from . import figures, tables
 from .runs import ModelRun, expected_outputs, temperature_column
 
@@ -113,15 +114,6 @@ def _dataset_line(label: str, data: Dataset) -> str:
     return (f"{label}: {data.n_samples} samples, {len(data.segment_bounds())} segment(s), "
             f"{len(groups)} group(s); inputs {', '.join(data.input_names)}; "
             f"outputs {', '.join(data.output_names)}.")
-
-
-def _version() -> str:
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        return version("ftcal")
-    except PackageNotFoundError:
-        return "unknown"
 
 
 def _sections(runs: list[ModelRun], validation: Dataset, train: Dataset | None,
@@ -273,7 +265,7 @@ def build_report(runs: Sequence[ModelRun], validation: Dataset, out_path: str | 
         sections.append(_Section("notes", "Notes", ['<ul class="notes">' + "".join(
             f"<li>{html.escape(str(n))}</li>" for n in notes) + "</ul>"]))
     created = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
-    meta = [f"Made by ftcal {_version()} on {created}."]
+    meta = [f"Made by ftcal {ftcal_version()} on {created}."]
     if train is not None:
         meta.append(_dataset_line("Training data", train))
     meta.append(_dataset_line("Validation data", validation))

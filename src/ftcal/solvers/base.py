@@ -15,8 +15,6 @@ from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
 
 import numpy as np
-import scipy.linalg
-import scipy.linalg.lapack
 
 from .._threads import single_threaded_blas
 from ..errors import FtcalError
@@ -196,15 +194,19 @@ class Spectrum:
 
 # Gram matrices up to this size are factorized single-threaded (milliseconds either way).
 SMALL_GRAM = 1000
+# Up to this size the whole spectrum (numpy's eigh, under 30 ms) is cheaper than importing
+# SciPy for a Cholesky factorization (~0.15 s), and it gives the exact condition number.
+SPECTRUM_MAX = 500
 
 
 @dataclass(frozen=True)
 class Conditioning:
     """Rank and condition of a Gram matrix, cheaply when it is well posed.
 
-    A Cholesky factorization of the equilibrated Gram plus LAPACK's condition
-    estimate costs a few percent of an eigen-decomposition; only when that
-    shows (near) rank deficiency is the full :class:`Spectrum` computed.
+    Small Grams (p <= ``SPECTRUM_MAX``) are eigen-decomposed outright. For larger
+    ones a Cholesky factorization of the equilibrated Gram plus LAPACK's
+    condition estimate costs a few percent of an eigen-decomposition; only when
+    that shows (near) rank deficiency is the full :class:`Spectrum` computed.
     """
 
     rank: int
@@ -223,16 +225,19 @@ class Conditioning:
     @classmethod
     def _of(cls, gram: np.ndarray) -> "Conditioning":
         p = gram.shape[0]
-        diag = np.diag(gram).copy()
-        jacobi = 1.0 / np.sqrt(np.where(diag > 0, diag, 1.0))
-        equilibrated = gram * jacobi[:, None] * jacobi[None, :]
-        factor, info = scipy.linalg.lapack.dpotrf(equilibrated, lower=1, clean=1)
-        if info == 0:
-            anorm = np.abs(equilibrated).sum(axis=0).max()
-            rcond, info = scipy.linalg.lapack.dpocon(factor, anorm, uplo="L")
-            # Same threshold as Spectrum.rank_threshold, on the reciprocal condition.
-            if info == 0 and rcond > np.finfo(float).eps * max(p, 10) * 10:
-                return cls(p, float(np.sqrt(1.0 / rcond)), (factor, jacobi), None)
+        if p > SPECTRUM_MAX:
+            import scipy.linalg.lapack
+
+            diag = np.diag(gram).copy()
+            jacobi = 1.0 / np.sqrt(np.where(diag > 0, diag, 1.0))
+            equilibrated = gram * jacobi[:, None] * jacobi[None, :]
+            factor, info = scipy.linalg.lapack.dpotrf(equilibrated, lower=1, clean=1)
+            if info == 0:
+                anorm = np.abs(equilibrated).sum(axis=0).max()
+                rcond, info = scipy.linalg.lapack.dpocon(factor, anorm, uplo="L")
+                # Same threshold as Spectrum.rank_threshold, on the reciprocal condition.
+                if info == 0 and rcond > np.finfo(float).eps * max(p, 10) * 10:
+                    return cls(p, float(np.sqrt(1.0 / rcond)), (factor, jacobi), None)
         spectrum = Spectrum.of(gram)
         return cls(spectrum.rank, spectrum.condition_number, None, spectrum)
 
@@ -240,6 +245,8 @@ class Conditioning:
         """(Minimum-norm) solution of G x = rhs."""
         if self.cholesky is None:
             return self.spectrum.solve(rhs)
+        import scipy.linalg
+
         factor, jacobi = self.cholesky
         z = scipy.linalg.cho_solve((factor, True), rhs * jacobi[:, None], check_finite=False)
         return z * jacobi[:, None]

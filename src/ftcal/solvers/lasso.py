@@ -18,7 +18,6 @@ import warnings
 from collections.abc import Sequence
 
 import numpy as np
-import scipy.linalg
 
 from .._checks import check_float
 from .._threads import single_threaded_blas
@@ -248,6 +247,8 @@ def _reduced_solve(gram, c, support, signs, lam):
     block = gram[np.ix_(support, support)]
     rhs = c[support] - lam * signs
     try:
+        import scipy.linalg
+
         factor = scipy.linalg.cho_factor(block, check_finite=False)
         return scipy.linalg.cho_solve(factor, rhs, check_finite=False)
     except np.linalg.LinAlgError:

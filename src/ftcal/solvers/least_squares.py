@@ -5,7 +5,6 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-import scipy.linalg
 
 from .._checks import check_float
 from .base import Conditioning, ScaledProblem, SolverResult
@@ -90,6 +89,8 @@ class Ridge:
         lam = check_float(self.lam, "lam", "Ridge", 0.0, low_inclusive=False)
         conditioning = Conditioning.of(problem.gram)
         system = problem.gram + lam * np.eye(problem.n_features)
+        import scipy.linalg
+
         factor = scipy.linalg.cho_factor(system, lower=True, check_finite=False)
         coef = scipy.linalg.cho_solve(factor, problem.cross, check_finite=False)
         return SolverResult(coef, conditioning.rank, conditioning.condition_number, {"lambda": lam})

@@ -15,7 +15,6 @@ solves the same problem in p variables. OSQP stops at a tolerance
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
 
 from ..errors import FtcalError
 from .base import ScaledProblem, SolverResult
@@ -25,6 +24,7 @@ DEFAULT_EPS = 1e-4
 
 def _solve_qp(P, q, A, lower, upper, eps: float, max_iter: int):
     import osqp
+    import scipy.sparse as sp
 
     problem = osqp.OSQP()
     problem.setup(P=sp.csc_matrix(P), q=q, A=sp.csc_matrix(A), l=lower, u=upper,
@@ -53,6 +53,8 @@ class OsqpLeastSquares:
 
     def fit_dense(self, a_scaled: np.ndarray, targets: np.ndarray) -> SolverResult:
         """``a_scaled`` (n, p) max-abs scaled regressor, ``targets`` (n, ny)."""
+        import scipy.sparse as sp  # imported here: the least-squares path never needs it
+
         p = a_scaled.shape[1]
         hessian = sp.triu(sp.csc_matrix(a_scaled.T @ a_scaled), format="csc")
         no_constraints = sp.csc_matrix((0, p))
@@ -83,6 +85,8 @@ class OsqpLasso:
 
     def fit_dense(self, a_scaled: np.ndarray, targets: np.ndarray) -> SolverResult:
         """``a_scaled`` (n, p) max-abs scaled regressor, ``targets`` (n, ny)."""
+        import scipy.sparse as sp  # imported here: the least-squares path never needs it
+
         n, p = a_scaled.shape
         eye_p, eye_n = sp.identity(p, format="csc"), sp.identity(n, format="csc")
         # Variables v = [x (p), t (p), r (n)].
