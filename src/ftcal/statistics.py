@@ -135,11 +135,14 @@ class MomentGram:
     def gram_index(self) -> np.ndarray:
         """Position in the moment vector of each Gram entry, shape (p, p)."""
         exps = self.basis.exponents
-        total = exps[:, None, :] + exps[None, :, :]
-        left, right = total[..., :self.n_left], total[..., self.n_left:]
-        d = left.sum(axis=-1)
-        row = self._left.position(left)
-        col = self._right.position(right)
+        left, right = exps[:, :self.n_left], exps[:, self.n_left:]
+        # Table codes are linear in the exponents (no carry below base top + 1), so the code of
+        # each entry's moment, e_i + e_j, is the sum of the two terms' codes.
+        left_code, right_code = self._left.code(left), self._right.code(right)
+        row = self._left.at_code(left_code[:, None] + left_code[None, :])
+        col = self._right.at_code(right_code[:, None] + right_code[None, :])
+        degree = left.sum(axis=1)
+        d = degree[:, None] + degree[None, :]
         starts = np.array([start for rows, _, start in self._blocks])
         widths = np.array([cols for _, cols, _ in self._blocks])
         firsts = np.array([rows.start for rows, _, _ in self._blocks])
@@ -194,11 +197,15 @@ class _GradedMonomials:
         """How many monomials have degree <= d (they come first)."""
         return int(self._first[d + 1])
 
-    def position(self, exponents: np.ndarray) -> np.ndarray:
-        """Row of each exponent vector (last axis) among these monomials."""
+    def code(self, exponents: np.ndarray) -> np.ndarray:
+        """Table code of each exponent vector (last axis); codes of sums are sums of codes."""
         if self.n_vars == 0:
             return np.zeros(exponents.shape[:-1], dtype=np.intp)
-        return self._table[exponents @ self._radix]
+        return exponents @ self._radix
+
+    def at_code(self, codes: np.ndarray) -> np.ndarray:
+        """Row among these monomials of each table code."""
+        return self._table[codes]
 
     def evaluate(self, u_t: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         if out is None:

@@ -119,12 +119,12 @@ def file_summary(path: str, inputs: Sequence[str], outputs: Sequence[str], segme
             starts = np.array([0] if digest is None else [], dtype=np.intp)
         bounds = [*starts.tolist(), len(values)]
         if bounds[0] > 0:  # the segment open from the previous chunk continues
-            digest.update(values[:bounds[0]].tobytes())
+            digest.update(values[:bounds[0]])  # contiguous rows: hashed in place, no copy
             lengths[-1] += bounds[0]
         for begin, end in zip(bounds[:-1], bounds[1:]):
             if digest is not None:
                 fingerprints[-1]["sha256"] = digest.hexdigest()
-            digest = hashlib.sha256(values[begin:end].tobytes())
+            digest = hashlib.sha256(values[begin:end])
             lengths.append(end - begin)
             fingerprints.append({"rows": 0, "first_row": f"{int(row_hashes(values[begin:begin + 1])[0]):016x}",
                                  "sha256": ""})

@@ -200,7 +200,7 @@ def _read_table_chunks(path: Path, inputs: Sequence[str], outputs: Sequence[str]
 
 
 def _batches(path: Path, columns: list[str], roles: dict[str, str], chunk_rows: int, names: Sequence[str]):
-    """Record batches of ``columns``; pyarrow's own errors as one FtcalError line.
+    """Record batches (or slices of a CSV table read whole) of ``columns``; pyarrow's own errors as one FtcalError line.
 
     ``roles``: input or output, per numeric column; ``names``: the header.
     """
@@ -216,7 +216,9 @@ def _batches(path: Path, columns: list[str], roles: dict[str, str], chunk_rows: 
             if path.stat().st_size <= CSV_READ_WHOLE_BYTES:
                 # Parsed in parallel blocks (faster than the streaming reader, which parses one at a
                 # time), then served in chunks of chunk_rows: a 4 MB block holds only ~17k rows.
-                yield from pv.read_csv(path, **options).combine_chunks().to_batches(max_chunksize=chunk_rows)
+                table = pv.read_csv(path, **options)
+                for start in range(0, table.num_rows, chunk_rows):
+                    yield table.slice(start, chunk_rows)  # no copy: the rows stay in their parsed blocks
                 return
             with pv.open_csv(path, **options) as reader:
                 yield from reader
@@ -284,6 +286,7 @@ def _kind_of_text(text: str) -> str | None:
 
 
 def _as_table(batch):
+    """A record batch, or a table slice as it is, as a table."""
     import pyarrow as pa
 
-    return pa.Table.from_batches([batch])
+    return batch if isinstance(batch, pa.Table) else pa.Table.from_batches([batch])
