@@ -61,6 +61,26 @@ def test_spectrum_rank_and_condition_match_numpy(rng):
     assert spectrum.condition_number > 1e7
 
 
+@pytest.mark.parametrize("p", [40, 520])  # under and over SPECTRUM_MAX: eigen-decomposition, then Cholesky
+def test_conditioning_solves_and_measures_like_numpy_on_both_sides_of_its_size_switch(rng, p):
+    from ftcal.solvers.base import SPECTRUM_MAX, Conditioning
+
+    assert (p > SPECTRUM_MAX) == (p == 520)
+    a = rng.standard_normal((3 * p, p)) * np.geomspace(0.1, 10, p)
+    b = rng.standard_normal((3 * p, 2))
+    conditioning = Conditioning.of(a.T @ a)
+    assert (conditioning.cholesky is not None) == (p > SPECTRUM_MAX)
+    np.testing.assert_allclose(conditioning.solve(a.T @ b), np.linalg.lstsq(a, b, rcond=None)[0], rtol=1e-9)
+    assert conditioning.rank == p
+    exact = np.linalg.cond(a / np.linalg.norm(a, axis=0))
+    if p > SPECTRUM_MAX:
+        # sqrt of LAPACK's estimate of κ1(G): κ1 >= κ2 for a symmetric G, norms within sqrt(p) of each
+        # other, and the estimate falls short of κ1 by a small factor at most.
+        assert exact / 2 <= conditioning.condition_number <= exact * np.sqrt(p)
+    else:
+        assert conditioning.condition_number == pytest.approx(exact, rel=1e-8)
+
+
 # ------------------------------------------------------------------------- ridge
 @pytest.mark.parametrize("lam", [1e-3, 0.5, 10.0, 500.0])
 def test_ridge_equals_sklearn_on_scaled_regressor(rng, lam):
