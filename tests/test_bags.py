@@ -255,6 +255,7 @@ def test_dataset_from_bag_columns(tmp_path, capfd):
                  "--imu-topic", "/imu", "--tf", "base", "--no-filter", "-o", str(out)]) == 0  # frame: header.frame_id
     printed = capfd.readouterr().out
     assert "/ft 300 messages (header stamps, frame ft_sensor)" in printed
+    assert printed.count(":/imu: ") == 1  # one line per topic, though the IMU gives several streams
     frame = pd.read_csv(out)
     assert list(frame.columns) == ["time", "u1", "u2", "u3", "u4", "u5", "u6", "T", "qx", "qy", "qz", "qw",
                                    "wx", "wy", "wz", "ax", "ay", "az", "segment", "group"]

@@ -189,7 +189,8 @@ def bag_columns(path: Path, topics: BagTopics, segment: int, group: str, robot=N
              + (f", frame {ft.frame}" if ft.frame else "") + f"), {n} samples kept"
              + (f" ({trimmed[0]} cut at the start, {trimmed[1]} at the end to overlap the other topics)"
                 if any(trimmed) else "")]
-    for stream in {id(s): s for key, s in streams.items() if key != "ft"}.values():
+    # One line per topic: an IMU gives its gyro, accelerometer (and orientation) as separate streams.
+    for stream in {s.name: s for key, s in streams.items() if key != "ft"}.values():
         notes.append(f"  {stream.name}: {stream.n_samples} samples ({stream.clock})")
     return BagTable(columns, tuple(notes))
 
