@@ -340,6 +340,35 @@ def test_arx_one_step_predictions_equal_numpy_lstsq(capsys, work, tmp_path):
     assert "one_step" in payload and payload["n_samples"] == N_VAL
 
 
+def test_predict_free_run_start_measured_follows_the_hand_recursion(capsys, work, tmp_path):
+    """--start measured: history = the first measured output (file with outputs) or the steady state of the
+    first input (file without); na=1 nb=1 recursion by hand from numpy's lstsq coefficients."""
+    model = tmp_path / "arx.json"
+    run(capsys, ["fit", work.train, "--na", 1, "--nb", 1, "--segment-by", "rec", "-o", model])
+    rec = work.train_frame["rec"].to_numpy()
+    k = np.flatnonzero(np.r_[False, rec[1:] == rec[:-1]])
+    u, y = work.u_train, work.y_train
+    regressor = np.c_[y[k - 1], u[k], u[k - 1], np.ones(len(k))]
+    theta, *_ = np.linalg.lstsq(regressor, y[k], rcond=None)  # rows: y(k-1) (6), u(k) (7), u(k-1) (7), 1
+    first = work.train_frame[rec == rec[0]]
+    with_outputs, inputs_only = tmp_path / "seg.csv", tmp_path / "seg_u.csv"
+    first.to_csv(with_outputs, index=False)
+    first[list(cd.INPUTS)].to_csv(inputs_only, index=False)
+    u0, n = u[:len(first)], len(first)
+    a_y, a_u, a_v, c = theta[:6], theta[6:13], theta[13:20], theta[20]
+    steady = np.linalg.solve(np.eye(6) - a_y.T, u0[0] @ (a_u + a_v) + c)
+    for source, history in ((with_outputs, y[0]), (inputs_only, steady)):
+        expected, previous = np.empty((n, 6)), history
+        for t in range(n):
+            previous = previous @ a_y + u0[t] @ a_u + u0[max(t - 1, 0)] @ a_v + c
+            expected[t] = previous
+        out = tmp_path / "pred.csv"
+        run(capsys, ["predict", model, source, "--start", "measured", "-o", out])
+        np.testing.assert_allclose(pd.read_csv(out).to_numpy(), expected, rtol=1e-7, atol=1e-7)
+    run(capsys, ["predict", model, inputs_only, "-o", tmp_path / "zeros.csv"])  # default: the paper's zeros
+    assert np.all(pd.read_csv(tmp_path / "zeros.csv").to_numpy()[0] == 0.0)
+
+
 def test_degree_auto_picks_at_least_the_true_degree(capsys, tmp_path):
     """Grouped CV over degree and a short λ grid; degrees below 3 cannot fit the cubic truth."""
     rng = np.random.default_rng(8)

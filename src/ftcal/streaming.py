@@ -23,7 +23,7 @@ from . import metrics
 from ._threads import map_ranges
 from .errors import FtcalError
 from .features import MonomialBasis, RegressorLayout
-from .io.table_chunks import iter_table_chunks
+from .io.table_chunks import iter_table_chunks, table_has_columns
 from .normalization import Normalization
 from .statistics import CHUNK_SAMPLES, StaticAccumulator, SufficientStatistics
 
@@ -450,7 +450,8 @@ class SegmentFinder:
                 self.found.add(index)
 
 
-def predict_part(path: str, part: str, model, mode: str = "free-run", segment_by: str | None = None) -> tuple[int, int]:
+def predict_part(path: str, part: str, model, mode: str = "free-run", segment_by: str | None = None,
+                 start: str = "zeros") -> tuple[int, int]:
     """Predict one file into the part file ``part`` (CSV or Parquet by suffix).
 
     Static models read the file chunk by chunk; ARX models (whose rows depend
@@ -461,7 +462,7 @@ def predict_part(path: str, part: str, model, mode: str = "free-run", segment_by
     path : CSV or Parquet file with the model's inputs (and outputs for one-step ARX)
     part : the part file to write
     model : fitted CalibrationModel
-    mode, segment_by : ARX prediction mode and segment column (see ``ftcal predict``)
+    mode, segment_by, start : ARX prediction mode, segment column and free-run start (see ``ftcal predict``)
 
     Returns
     -------
@@ -476,7 +477,7 @@ def predict_part(path: str, part: str, model, mode: str = "free-run", segment_by
     n_rows = n_out = 0
     writer = None
     try:
-        for first_row, inputs, prediction in _predictions(path, model, mode, segment_by):
+        for first_row, inputs, prediction in _predictions(path, model, mode, segment_by, start):
             bad = ~np.isfinite(prediction).all(axis=1)
             if bad.any():
                 raise FtcalError(f"{path}: the prediction of row {first_row + int(np.flatnonzero(bad)[0])} "
@@ -495,7 +496,7 @@ def predict_part(path: str, part: str, model, mode: str = "free-run", segment_by
     return n_rows, n_out
 
 
-def _predictions(path: str, model, mode: str, segment_by: str | None):
+def _predictions(path: str, model, mode: str, segment_by: str | None, start: str):
     """(first row, inputs, predictions) per chunk of a static model, or once for the whole file (ARX)."""
     with np.errstate(over="ignore", invalid="ignore"):  # overflow is refused by the caller, in one line
         if model.layout_.is_static:
@@ -504,9 +505,11 @@ def _predictions(path: str, model, mode: str, segment_by: str | None):
             return
         from .io.tables import read_dataset
 
-        data = read_dataset([path], model.input_names_, model.output_names_ if mode == "one-step" else None,
+        # Measured outputs: one-step needs them; a "measured" free-run start uses them when the file has them.
+        wants_outputs = mode == "one-step" or (start == "measured" and table_has_columns(path, model.output_names_))
+        data = read_dataset([path], model.input_names_, model.output_names_ if wants_outputs else None,
                             segment_by=segment_by)
-        yield 0, data.inputs, model.predict(data, mode=mode, warn_out_of_range=False)
+        yield 0, data.inputs, model.predict(data, mode=mode, start=start, warn_out_of_range=False)
 
 
 def _part_writer(part: str, schema):

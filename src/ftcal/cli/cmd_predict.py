@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from ..limits import FREE_RUN_STARTS, PREDICTION_MODES
 from ._common import add_scheduler_option, require_suffix
 
 
@@ -10,8 +11,14 @@ def register(sub) -> None:
     p.add_argument("model", metavar="MODEL", help="model file (ftcal JSON or paper XML)")
     p.add_argument("data", nargs="+", metavar="DATA", help="CSV or Parquet files with the model's input columns")
     p.add_argument("-o", "--output", required=True, metavar="OUT.csv|OUT.parquet")
-    p.add_argument("--mode", choices=("free-run", "one-step"), default="free-run",
-                   help="ARX prediction mode; one-step needs the measured outputs in DATA")
+    p.add_argument("--mode", choices=PREDICTION_MODES, default="free-run",
+                   help="ARX prediction mode: free-run (default: fed-back predictions, as on the robot) or "
+                        "one-step (measured past outputs, which DATA must hold)")
+    p.add_argument("--start", choices=FREE_RUN_STARTS, default="zeros",
+                   help="ARX free-run history at each segment start: zeros (default, the paper's code: the "
+                        "first max(na,nb) rows predict 0) or measured (the first measured output when DATA "
+                        "holds the output columns, else the steady state of the first input, as the "
+                        "generated C code's NAME_init(s, u0, NULL))")
     p.add_argument("--segment-by", metavar="COL", help="column separating segments (ARX)")
     add_scheduler_option(p)
     p.set_defaults(func=run)
@@ -67,7 +74,8 @@ def predict_streaming(args, model) -> tuple[int, int]:
         tasks = [(path, os.path.join(folder, f"part-{index:05d}{output.suffix.lower()}"))
                  for index, path in enumerate(args.data)]
         with open_executor(args.scheduler) as executor:
-            counts = executor.map(predict_part, tasks, model, args.mode, args.segment_by, description="predict")
+            counts = executor.map(predict_part, tasks, model, args.mode, args.segment_by, args.start,
+                                  description="predict")
         join_parts([part for _, part in tasks], output)
     finally:
         shutil.rmtree(folder, ignore_errors=True)
