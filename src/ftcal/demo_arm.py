@@ -239,7 +239,7 @@ def _write_report(path: Path, summary: dict, t: np.ndarray, measured: np.ndarray
 
     from matplotlib import rc_context
 
-    from .report.html import CSS, STYLE, _figure_html
+    from .report.html import CSS, STYLE, figure_html
     from .report.tables import html_table
 
     parameters = html_table(
@@ -255,7 +255,7 @@ def _write_report(path: Path, summary: dict, t: np.ndarray, measured: np.ndarray
           f"{noise['force'] if a.startswith('F') else noise['torque']:.4g}"] for a in AXES],
         caption="Residual RMS per axis (N, N·m). Nothing touches the gripper, so the true contact wrench is zero.")
     with rc_context(STYLE):
-        figure = _figure_html(_wrench_figure(t, measured, compensated), "wrench",
+        figure = figure_html(_wrench_figure(t, measured, compensated), "wrench",
                               "Each axis' reading and the contact wrench after compensation, over the recording.")
     files = "".join(f"<li><code>{html.escape(f)}</code></li>" for f in summary["files"])
     title = "ftcal demo: wrist sensor and unknown gripper, from a ROS 2 bag"

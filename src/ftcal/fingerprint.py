@@ -18,7 +18,7 @@ from .dataset import Dataset
 from .errors import FtcalWarning
 
 # Checking more candidate positions than this per segment only costs time on degenerate data.
-_MAX_CANDIDATES = 1000
+MAX_CANDIDATES = 1000
 _MIX = np.uint64(0x9E3779B97F4A7C15)
 
 
@@ -58,7 +58,7 @@ def find_training_segments(data: Dataset, fingerprints: list[dict]) -> list[int]
     found = []
     for index, fp in enumerate(fingerprints):
         head, rows = np.uint64(int(fp["first_row"], 16)), int(fp["rows"])
-        starts = np.flatnonzero(hashes == head)[:_MAX_CANDIDATES]
+        starts = np.flatnonzero(hashes == head)[:MAX_CANDIDATES]
         if any(p + rows <= len(values) and _digest(values[p:p + rows]) == fp["sha256"] for p in starts):
             found.append(index)
     return found

@@ -148,13 +148,23 @@ def _recording_task(path: str | Path, description: tuple, sensor: str, case: Loa
     """
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        part = recording_dataset(path, _robot_model(*description), sensor, case, segment, options)
+        part = recording_dataset(path, robot_from_description(*description), sensor, case, segment, options)
     return part, [(str(w.message), w.category) for w in caught if issubclass(w.category, FtcalWarning)]
 
 
 @functools.lru_cache(maxsize=8)
-def _robot_model(urdf_text: str, source: str, payloads: tuple[Payload, ...], declared: tuple) -> RobotModel:
-    """A RobotModel rebuilt from its picklable description, once per worker process and description."""
+def robot_from_description(urdf_text: str, source: str, payloads: tuple[Payload, ...],
+                           declared: tuple) -> RobotModel:
+    """A RobotModel rebuilt from its picklable description, once per worker process and description.
+
+    Parameters
+    ----------
+    urdf_text, source, payloads, declared : a RobotModel's URDF text, source, payloads and declared sensors
+
+    Returns
+    -------
+    RobotModel
+    """
     return RobotModel(urdf_text, source, payloads, declared)
 
 

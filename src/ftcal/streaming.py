@@ -427,7 +427,7 @@ class SegmentFinder:
         """Add the next rows, shape (m, n_inputs + n_outputs), inputs then outputs."""
         import hashlib
 
-        from .fingerprint import _MAX_CANDIDATES, row_hashes
+        from .fingerprint import MAX_CANDIDATES, row_hashes
 
         if not self.fingerprints:
             return
@@ -435,7 +435,7 @@ class SegmentFinder:
         hashes = row_hashes(values)
         # (fingerprint, first row in this chunk, rows still to hash, sha256): carried ones continue at row 0
         pending = [(index, 0, left, digest) for index, left, digest in self._open]
-        for start in np.flatnonzero(np.isin(hashes, self.heads))[:_MAX_CANDIDATES]:
+        for start in np.flatnonzero(np.isin(hashes, self.heads))[:MAX_CANDIDATES]:
             for index in np.flatnonzero(self.heads == hashes[start]):
                 if int(index) not in self.found:
                     pending.append((int(index), int(start), int(self.fingerprints[index]["rows"]),

@@ -95,6 +95,6 @@ def joints_file_wrenches(joints, robot, workers, base, gravity, degrees, cache, 
 
 def _remote_wrenches(joints, description, workers, *settings):
     """:func:`joints_file_wrenches` on a Dask worker: the robot rebuilt from its picklable description."""
-    from ..insitu import _robot_model
+    from ..insitu import robot_from_description
 
-    return joints_file_wrenches(joints, _robot_model(*description), workers, *settings)
+    return joints_file_wrenches(joints, robot_from_description(*description), workers, *settings)

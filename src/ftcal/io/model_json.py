@@ -77,7 +77,7 @@ def model_document(model: CalibrationModel, *, sources: Sequence[str] = (),
     model._check_fitted()
     layout = model.layout_
     exponents, lags = layout.exponent_rows()
-    info = _jsonable(model.solver_info_)
+    info = jsonable(model.solver_info_)
     doc = {
         "format": FORMAT,
         "format_version": FORMAT_VERSION,
@@ -89,13 +89,13 @@ def model_document(model: CalibrationModel, *, sources: Sequence[str] = (),
                               model.output_range_, "output_units"),
         "terms": {"exponents": exponents.tolist(), "lags": lags.tolist(),
                   "names": layout.column_names(model.input_names_, model.output_names_)},
-        "coefficients": _jsonable(model.coef_),
+        "coefficients": jsonable(model.coef_),
         "fit": {
             "solver": {**info, "name": info.get("name"), "lambda": info.get("lambda")},
             "n_samples": model.n_samples_fit_,
             "rank": model.rank_,
-            "condition_number": _jsonable(model.condition_number_),
-            "metrics": _jsonable(model.training_metrics_),
+            "condition_number": jsonable(model.condition_number_),
+            "metrics": jsonable(model.training_metrics_),
         },
         "created": {
             "ftcal_version": ftcal_version(),
@@ -118,16 +118,25 @@ def _variables(names: Sequence[str], units: Sequence[str | None] | None, norm: N
     if units is not None and len(units) != len(names):
         raise FtcalError(f"{what} has {len(units)} entries; the model has {len(names)} ({', '.join(names)}).")
     units = list(units) if units is not None else [None] * len(names)
-    return [{"name": n, "unit": u, "offset": float(o), "scale": float(s), "range": _jsonable(r)}
+    return [{"name": n, "unit": u, "offset": float(o), "scale": float(s), "range": jsonable(r)}
             for n, u, o, s, r in zip(names, units, norm.offset, norm.scale, ranges)]
 
 
-def _jsonable(value):
-    """Plain JSON values: numpy scalars and arrays converted, non-finite floats as None."""
+def jsonable(value):
+    """Plain JSON values: numpy scalars and arrays converted, non-finite floats as None.
+
+    Parameters
+    ----------
+    value : dict, list, tuple, ndarray, numpy or Python scalar, str or None (nested freely)
+
+    Returns
+    -------
+    The same structure with only dict, list, str, int, float, bool and None.
+    """
     if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
+        return {str(k): jsonable(v) for k, v in value.items()}
     if isinstance(value, (list, tuple, np.ndarray)):
-        return [_jsonable(v) for v in value]
+        return [jsonable(v) for v in value]
     if isinstance(value, (bool, np.bool_)):
         return bool(value)
     if isinstance(value, (int, np.integer)):
@@ -204,8 +213,8 @@ def load_model_file(path: str | Path) -> ModelFile:
 
 def parse_model(text: str, source: str = "<model>") -> ModelFile:
     """Parse and validate model-file ``text``; ``source`` names it in error messages."""
-    doc = _parse_json(text, source)
-    _check_version(doc, source)
+    doc = parse_json(text, source)
+    check_version(doc, source)
     check_document(doc, source)
     return _build(doc, source)
 
@@ -230,7 +239,27 @@ def check_document(doc: dict, source: str, resource: str = SCHEMA_RESOURCE, kind
                          f"after it was written. Re-export it from the original {kind}.")
 
 
-def _parse_json(text: str, source: str, fmt: str = FORMAT, kind: str = "model") -> dict:
+def parse_json(text: str, source: str, fmt: str = FORMAT, kind: str = "model") -> dict:
+    """Parse an ftcal JSON file strictly: finite floats, bounded integers, no repeated keys.
+
+    Parameters
+    ----------
+    text : the file's text
+    source : the file's name, for messages
+    fmt : the ``format`` field the document must have
+    kind : what the file is (``"model"``, ``"payload"``), for messages
+
+    Returns
+    -------
+    dict, the document
+
+    Raises
+    ------
+    FtcalError
+        Invalid JSON, NaN/Infinity, an overflowing number, an integer of more than 18
+        digits, a key repeated in one object, too deep nesting, or another ``format``.
+    """
+
     def reject_constant(name: str):
         raise FtcalError(f"{source}: {name} is not valid JSON ({kind} files write unknown numbers as null).")
 
@@ -266,7 +295,19 @@ def _parse_json(text: str, source: str, fmt: str = FORMAT, kind: str = "model") 
     return doc
 
 
-def _check_version(doc: dict, source: str, supported: str = FORMAT_VERSION) -> None:
+def check_version(doc: dict, source: str, supported: str = FORMAT_VERSION) -> None:
+    """Refuse a document whose ``format_version`` is not ``supported``, saying whether it is newer.
+
+    Parameters
+    ----------
+    doc : the parsed document
+    source : the file's name, for messages
+    supported : the version this ftcal reads
+
+    Raises
+    ------
+    FtcalError
+    """
     version = doc.get("format_version")
     if version == supported:
         return

@@ -16,7 +16,7 @@ import numpy as np
 from ..errors import FtcalError
 from ..payload.parameters import PayloadParameters
 from .atomic import write_text_atomic
-from .model_json import _check_version, _jsonable, _parse_json, check_document, digest, ftcal_version, \
+from .model_json import check_version, jsonable, parse_json, check_document, digest, ftcal_version, \
     format_document, read_document_text
 
 FORMAT = "ftcal-payload"
@@ -32,25 +32,25 @@ def payload_document(payload: PayloadParameters, *, sources: Sequence[str] = ())
     FtcalError
         When a value is not finite (nothing would be worth writing).
     """
-    stderr = {k: _jsonable(v) for k, v in payload.stderr.items()}
+    stderr = {k: jsonable(v) for k, v in payload.stderr.items()}
     doc = {
         "format": FORMAT,
         "format_version": FORMAT_VERSION,
-        "mass": _jsonable(payload.mass),
-        "com": _jsonable(np.asarray(payload.com)),
-        "force_bias": _jsonable(np.asarray(payload.force_bias)),
-        "torque_bias": _jsonable(np.asarray(payload.torque_bias)),
-        "gravity": _jsonable(payload.gravity),
+        "mass": jsonable(payload.mass),
+        "com": jsonable(np.asarray(payload.com)),
+        "force_bias": jsonable(np.asarray(payload.force_bias)),
+        "torque_bias": jsonable(np.asarray(payload.torque_bias)),
+        "gravity": jsonable(payload.gravity),
         "frame": payload.frame,
         "reaction": bool(payload.reaction),
         "stderr": stderr,
-        "fit": _jsonable(payload.fit),
+        "fit": jsonable(payload.fit),
         "created": {"ftcal_version": ftcal_version(),
                     "time_utc": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
                     "sources": [str(s) for s in sources]},
     }
     if payload.inertia is not None:
-        doc["inertia"] = _jsonable(np.asarray(payload.inertia))
+        doc["inertia"] = jsonable(np.asarray(payload.inertia))
     if None in _leaves([doc[k] for k in ("mass", "com", "force_bias", "torque_bias", "gravity", "stderr")]
                        + [doc.get("inertia", [])]):
         raise FtcalError("The payload has non-finite values (NaN or inf); refusing to save it.")
@@ -59,7 +59,7 @@ def payload_document(payload: PayloadParameters, *, sources: Sequence[str] = ())
 
 
 def _leaves(value) -> list:
-    """Every scalar in nested lists and dict values (non-finite floats are None after _jsonable)."""
+    """Every scalar in nested lists and dict values (non-finite floats are None after jsonable)."""
     if isinstance(value, dict):
         return _leaves(list(value.values()))
     if isinstance(value, list):
@@ -87,8 +87,8 @@ def load_payload(path: str | Path) -> PayloadParameters:
 
 def parse_payload(text: str, source: str = "<payload>") -> PayloadParameters:
     """Parse and validate payload-file ``text``; ``source`` names it in error messages."""
-    doc = _parse_json(text, source, FORMAT, "payload")
-    _check_version(doc, source, FORMAT_VERSION)
+    doc = parse_json(text, source, FORMAT, "payload")
+    check_version(doc, source, FORMAT_VERSION)
     check_document(doc, source, SCHEMA_RESOURCE, "payload")
     stderr = {k: np.asarray(v, dtype=float) if isinstance(v, list) else float(v) for k, v in doc["stderr"].items()}
     if doc["mass"] <= 0:

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FtcalError
-from .tables import _arrow_numbers, table_columns
+from .tables import arrow_numbers, table_columns
 
 CHUNK_ROWS = 1 << 16  # rows per chunk: ~4 MB of float64 inputs and outputs
 CSV_BLOCK_BYTES = 1 << 22  # CSV bytes parsed per block (~CHUNK_ROWS rows of 13 numbers)
@@ -186,8 +186,8 @@ def _read_table_chunks(path: Path, inputs: Sequence[str], outputs: Sequence[str]
     roles = {**{c: "output" for c in outputs}, **{c: "input" for c in inputs}}
     for batch in _batches(path, needed, roles, chunk_rows, names):
         table = _as_table(batch)
-        chunk = TableChunk(first_row, _arrow_numbers(table, inputs, path, "input", first_row=first_row),
-                           _arrow_numbers(table, outputs, path, "output", first_row=first_row) if outputs else None)
+        chunk = TableChunk(first_row, arrow_numbers(table, inputs, path, "input", first_row=first_row),
+                           arrow_numbers(table, outputs, path, "output", first_row=first_row) if outputs else None)
         for column, role in labels.items():
             values = table.column(column)
             if values.null_count:

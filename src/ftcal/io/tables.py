@@ -71,10 +71,29 @@ _PLAIN_NUMBERS = {"double": "<f8", "float": "<f4", "int64": "<i8", "int32": "<i4
                   "uint64": "<u8", "uint32": "<u4", "uint16": "<u2", "uint8": "u1"}
 
 
-def _arrow_numbers(table, columns: Sequence[str], path: Path, role: str, *, first_row: int = 0) -> np.ndarray:
-    """:func:`numeric_columns` of an arrow table: float or integer columns without missing cells
-    convert directly; anything else goes through pandas for the exact message. ``first_row``: the
-    file row of the table's first row (a chunk of a file), for the message."""
+def arrow_numbers(table, columns: Sequence[str], path: Path, role: str, *, first_row: int = 0) -> np.ndarray:
+    """:func:`numeric_columns` of an arrow table.
+
+    Float or integer columns without missing cells convert directly; anything
+    else goes through pandas for the exact message.
+
+    Parameters
+    ----------
+    table : pyarrow Table
+    columns : the column names, in the order of the result's columns
+    path : the table's file, for messages
+    role : ``"input"`` or ``"output"``, for messages
+    first_row : the file row of the table's first row (a chunk of a file), for messages
+
+    Returns
+    -------
+    ndarray of shape (n_rows, len(columns)), float64
+
+    Raises
+    ------
+    FtcalError
+        A missing column, or a cell that is not a finite number.
+    """
     names = set(table.column_names)
     if not all(c in names for c in columns):
         return numeric_columns(table.to_pandas(), columns, path, role, first_row=first_row)
@@ -196,11 +215,11 @@ def read_dataset(paths: Sequence[str | os.PathLike], inputs: Sequence[str], outp
     for index, raw_path in enumerate(paths):
         path = Path(raw_path)
         table = read_arrow(path)
-        u = _arrow_numbers(table, inputs, path, "input")
+        u = arrow_numbers(table, inputs, path, "input")
         y = None
         if outputs:
             if require_outputs or all(c in table.column_names for c in outputs):
-                y = _arrow_numbers(table, outputs, path, "output")
+                y = arrow_numbers(table, outputs, path, "output")
         seg_labels = _labels(table, segment_by, path, "segment")
         grp_labels = _labels(table, group_by, path, "group")
         segments = _segment_ids(seg_labels, table.num_rows)

@@ -61,7 +61,19 @@ class _Section:
     parts: list[str]
 
 
-def _figure_html(fig, key: str, caption: str) -> str:
+def figure_html(fig, key: str, caption: str) -> str:
+    """A matplotlib figure as an HTML ``<figure>`` with an embedded PNG.
+
+    Parameters
+    ----------
+    fig : matplotlib Figure
+    key : the figure's id in the page
+    caption : its caption (plain text, escaped)
+
+    Returns
+    -------
+    str, the HTML
+    """
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", dpi=DPI)
     data = base64.b64encode(buffer.getvalue()).decode("ascii")
@@ -124,7 +136,7 @@ def _sections(runs: list[ModelRun], validation: Dataset, train: Dataset | None,
     sections: list[_Section] = []
 
     def figure(key: str, caption: str, make: Callable) -> str:
-        return _figure_html(make(), key, caption)
+        return figure_html(make(), key, caption)
 
     parts = [tables.runs_table(runs)]
     sections.append(_Section("models", "Models", parts))
