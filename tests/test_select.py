@@ -278,6 +278,18 @@ def test_cli_selection_options_and_prior(tmp_path, capsys, rng):
                  "-o", str(tmp_path / "shrunk.json")]) == 0
     prior, shrunk = load_model(tmp_path / "prior.json"), load_model(tmp_path / "shrunk.json")
     np.testing.assert_allclose(shrunk.predict(data.inputs), prior.predict(data.inputs), rtol=0, atol=1e-4)
+    # The model file names its prior, with the digest of the prior file's bytes (hashlib).
+    import hashlib
+
+    from ftcal.io.model_files import read_model_file
+
+    recorded = read_model_file(tmp_path / "shrunk.json").prior
+    assert recorded == {"source": str(tmp_path / "prior.json"),
+                        "file_sha256": hashlib.sha256((tmp_path / "prior.json").read_bytes()).hexdigest()}
+    assert read_model_file(tmp_path / "prior.json").prior is None
+    capsys.readouterr()
+    assert main(["info", str(tmp_path / "shrunk.json")]) == 0
+    assert f"shrunk toward the prior {tmp_path / 'prior.json'}" in capsys.readouterr().out
     capsys.readouterr()
     assert main([*common, "--prior", str(tmp_path / "prior.json"), "-o", str(tmp_path / "x.json")]) == 2
     assert "--prior" in capsys.readouterr().err

@@ -183,7 +183,8 @@ def run(args) -> int:
     template = CalibrationModel(na=args.na, nb=args.nb, normalization=args.normalization, prior=prior)
     if streams(args):
         model, fingerprints = fit_streaming(args, template, inputs, outputs)
-        save_model(model, args.output, sources=[str(p) for p in args.data], training_segments=fingerprints)
+        save_model(model, args.output, sources=[str(p) for p in args.data], training_segments=fingerprints,
+                   prior=args.prior)
         report_fit(model, args.output)
         return 0
     if args.estimate_payload is not None:
@@ -199,7 +200,7 @@ def run(args) -> int:
     else:
         model = template.clone(degree=args.degree, solver=make_solver(args)).fit(data)
     save_model(model, args.output, sources=[str(p) for p in args.data],
-               training_segments=segment_fingerprints(data))
+               training_segments=segment_fingerprints(data), prior=args.prior)
     report_fit(model, args.output)
     return 0
 

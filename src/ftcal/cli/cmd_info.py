@@ -33,6 +33,8 @@ def run(args) -> int:
     if loaded.created_utc:
         print(f"created {loaded.created_utc} by ftcal {loaded.ftcal_version}; "
               f"trained on {model.n_samples_fit_} samples from {len(loaded.sources)} file(s)")
+    if loaded.prior:
+        print(f"shrunk toward the prior {loaded.prior['source']} (sha256 {loaded.prior['file_sha256'][:12]}…)")
     print("training ranges:")
     for name, unit, (low, high) in zip(model.input_names_, loaded.input_units, model.input_range_):
         print(f"  {name:<8} {low:>14.6g} .. {high:<14.6g} {unit or ''}")

@@ -52,28 +52,30 @@ class ModelFile:
     ftcal_version: str | None
     # fingerprints of the training segments (ftcal.fingerprint); empty when the file has none
     training_segments: tuple[dict, ...] = ()
+    prior: dict | None = None  # {"source", "file_sha256"} of a --prior fit's prior model file
 
 
 # ---------------------------------------------------------------- writing
 def save_model(model: CalibrationModel, path: str | Path, *, sources: Sequence[str] = (),
                input_units: Sequence[str | None] | None = None,
                output_units: Sequence[str | None] | None = None,
-               training_segments: Sequence[dict] | None = None) -> None:
+               training_segments: Sequence[dict] | None = None, prior: str | Path | None = None) -> None:
     """Write ``model`` to ``path`` as a native JSON model file (atomically).
 
     ``training_segments``: :func:`ftcal.fingerprint.segment_fingerprints` of the training
     data, so that ``ftcal evaluate`` can warn about evaluation data the model was trained on.
+    ``prior``: the model file the fit was shrunk toward (``--prior``), recorded with its digest.
     """
     write_text_atomic(path, format_document(model_document(model, sources=sources, input_units=input_units,
                                                            output_units=output_units,
-                                                           training_segments=training_segments)))
+                                                           training_segments=training_segments, prior=prior)))
 
 
 def model_document(model: CalibrationModel, *, sources: Sequence[str] = (),
                    input_units: Sequence[str | None] | None = None,
                    output_units: Sequence[str | None] | None = None,
-                   training_segments: Sequence[dict] | None = None) -> dict:
-    """The model file content as a JSON-ready dict, digest included."""
+                   training_segments: Sequence[dict] | None = None, prior: str | Path | None = None) -> dict:
+    """The model file content as a JSON-ready dict, digest included (see :func:`save_model`)."""
     model._check_fitted()
     layout = model.layout_
     exponents, lags = layout.exponent_rows()
@@ -105,6 +107,9 @@ def model_document(model: CalibrationModel, *, sources: Sequence[str] = (),
     }
     if training_segments:
         doc["fit"]["training_segments"] = [dict(fp) for fp in training_segments]
+    if prior is not None:
+        digest_of_file = hashlib.sha256(Path(prior).read_bytes()).hexdigest()
+        doc["fit"]["prior"] = {"source": str(prior), "file_sha256": digest_of_file}
     if any(v is None for row in doc["coefficients"] for v in row):
         raise FtcalError("The model has non-finite coefficients (NaN or inf); refusing to save it.")
     if any(v[key] is None for v in (*doc["inputs"], *doc["outputs"]) for key in ("offset", "scale")):
@@ -374,7 +379,7 @@ def _build(doc: dict, source: str) -> ModelFile:
     created = doc["created"]
     return ModelFile(model, tuple(v["unit"] for v in inputs), tuple(v["unit"] for v in outputs),
                      tuple(created["sources"]), created["time_utc"], created["ftcal_version"],
-                     tuple(fit.get("training_segments", ())))
+                     tuple(fit.get("training_segments", ())), fit.get("prior"))
 
 
 def _check_terms(terms: dict, layout: RegressorLayout, model_class: str, source: str) -> None:
