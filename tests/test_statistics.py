@@ -143,3 +143,21 @@ def _sum_in_threads():
     from ftcal._threads import map_ranges
 
     return sum(map_ranges(lambda a, b: sum(range(a, b)), 10_000, 1000))
+
+
+def test_parallel_work_runs_in_the_callers_numpy_error_state():
+    """np.errstate is per context: the pool threads must see the caller's, not numpy's default."""
+    import warnings
+
+    from ftcal._threads import map_ranges
+
+    def overflow(begin, end):
+        return np.full(end - begin, 1e300) * 1e300
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        with np.errstate(over="ignore"):
+            assert np.isinf(np.concatenate(map_ranges(overflow, 10_000, 1000))).all()
+        assert not caught
+        with np.errstate(over="raise"), pytest.raises(FloatingPointError):
+            map_ranges(overflow, 10_000, 1000)

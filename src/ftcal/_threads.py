@@ -9,6 +9,7 @@ worker thread (numpy releases the GIL inside its kernels).
 
 from __future__ import annotations
 
+import contextvars
 import os
 import threading
 from collections.abc import Callable
@@ -82,4 +83,7 @@ def map_ranges(work: Callable[[int, int], T], n: int, align: int) -> list[T]:
     with single_threaded_blas():
         if len(ranges) <= 1 or getattr(_POOL_THREAD, "active", False):
             return [work(a, b) for a, b in ranges]
-        return list(_pool(workers).map(lambda ab: work(*ab), ranges))
+        # Each task runs in a copy of the caller's context: np.errstate lives there, and pool
+        # threads would otherwise warn about what the caller silenced.
+        contexts = [contextvars.copy_context() for _ in ranges]
+        return list(_pool(workers).map(lambda context, ab: context.run(work, *ab), contexts, ranges))

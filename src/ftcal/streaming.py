@@ -372,14 +372,14 @@ def file_error_sums(path: str, model, fingerprints: Sequence[dict] = (), mode: s
     for chunk in iter_table_chunks(path, model.input_names_, model.output_names_):
         def rows_sums(begin: int, end: int) -> ErrorSums:
             inputs, outputs = chunk.inputs[begin:end], chunk.outputs[begin:end]
-            # Overflowing predictions give inf/NaN metrics, which the command refuses in one line.
-            with warnings.catch_warnings(), np.errstate(over="ignore", invalid="ignore"):
-                warnings.simplefilter("ignore", OutOfRangeWarning)  # counted instead
-                prediction = model.predict(inputs, warn_out_of_range=False)
-                return ErrorSums.of(outputs, prediction, model.output_names_, int(model.out_of_range(inputs).sum()))
+            prediction = model.predict(inputs, warn_out_of_range=False)
+            return ErrorSums.of(outputs, prediction, model.output_names_, int(model.out_of_range(inputs).sum()))
 
-        # Row ranges in parallel threads; their sums combine in row order.
-        part = functools.reduce(add_error_sums, map_ranges(rows_sums, chunk.n_rows, CHUNK_SAMPLES))
+        # Overflowing predictions give inf/NaN metrics, which the command refuses in one line.
+        with warnings.catch_warnings(), np.errstate(over="ignore", invalid="ignore"):
+            warnings.simplefilter("ignore", OutOfRangeWarning)  # counted instead
+            # Row ranges in parallel threads; their sums combine in row order.
+            part = functools.reduce(add_error_sums, map_ranges(rows_sums, chunk.n_rows, CHUNK_SAMPLES))
         if fingerprints:
             finder.feed(np.concatenate([chunk.inputs, chunk.outputs], axis=1))
         total = part if total is None else total + part

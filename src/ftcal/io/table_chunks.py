@@ -158,7 +158,6 @@ def iter_table_chunks(path: str | os.PathLike, inputs: Sequence[str], outputs: S
                                label_names, read)
 
 
-
 def _read_table_chunks(path: Path, inputs: Sequence[str], outputs: Sequence[str] | None,
                        labels: Sequence[str] | Mapping[str, str], require_outputs: bool,
                        chunk_rows: int) -> Iterator[TableChunk]:
@@ -200,9 +199,9 @@ def _read_table_chunks(path: Path, inputs: Sequence[str], outputs: Sequence[str]
 
 
 def _batches(path: Path, columns: list[str], roles: dict[str, str], chunk_rows: int, names: Sequence[str]):
-    """Record batches (or slices of a CSV table read whole) of ``columns``; pyarrow's own errors as one FtcalError line.
+    """Record batches (or slices of a small CSV file read whole) of ``columns``.
 
-    ``roles``: input or output, per numeric column; ``names``: the header.
+    pyarrow's own errors become one FtcalError line. ``roles``: input or output, per numeric column; ``names``: the header.
     """
     suffix = path.suffix.lower()
     try:
