@@ -314,6 +314,31 @@ def test_dataset_from_bag_with_urdf_expected_wrench(tmp_path, capfd):
     assert model.is_file()
 
 
+def test_dataset_from_bags_on_a_local_cluster_equals_the_local_run(tmp_path):
+    """--scheduler local:2: one task per bag on real Dask worker processes, which rebuild the robot
+    from its URDF text; same table as in this process, and the workers' warnings come back."""
+    import subprocess
+    import sys
+
+    for kind in ("mcap", "ros1"):
+        (tmp_path / kind).mkdir()
+    bags = [str(arm_bag(kind, tmp_path / kind, n=120, temperature=False, imu=False, tf=False, joints=True))
+            for kind in ("mcap", "ros1")]
+    urdf = tmp_path / "tiny.urdf"
+    urdf.write_text(TINY_URDF)
+    ftcal = str(Path(sys.executable).with_name("ftcal"))
+    common = [ftcal, "dataset", *bags, "--wrench-topic", "/ft", "--joints-topic", "/joint_states",
+              "--urdf", str(urdf), "--sensor", "arm_ft", "--no-filter", "--workers", "1"]
+    here = subprocess.run([*common, "-o", str(tmp_path / "here.csv")], capture_output=True, text=True)
+    there = subprocess.run([*common, "--scheduler", "local:2", "-o", str(tmp_path / "there.csv")],
+                           capture_output=True, text=True)
+    assert here.returncode == 0 and there.returncode == 0, there.stderr
+    assert there.stderr.count("gripper_finger are not in the URDF") == 2  # one per bag, from the workers
+    pd.testing.assert_frame_equal(pd.read_csv(tmp_path / "there.csv"), pd.read_csv(tmp_path / "here.csv"))
+    frame = pd.read_csv(tmp_path / "there.csv")
+    assert sorted(frame["segment"].unique()) == [0, 1] and len(frame) == 240
+
+
 def fails(capfd, argv, message, out):
     """Exit 2, exactly one stderr line naming the problem, nothing written."""
     assert main(argv) == 2

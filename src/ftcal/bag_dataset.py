@@ -21,10 +21,9 @@ for ``.mat`` logs) and returns named columns (project-wide names):
 
 from __future__ import annotations
 
-import dataclasses
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -58,7 +57,7 @@ class BagTable:
 
 def build_bag_table(bags: Sequence[str | Path], topics: BagTopics, *, robot=None, sensor: str | None = None,
                     payloads: Sequence[Payload] = (), load_cases: LoadCaseConfig | None = None,
-                    options: InsituOptions = InsituOptions()) -> BagTable:
+                    options: InsituOptions = InsituOptions(), executor=None) -> BagTable:
     """One table from all ``bags`` (one segment each).
 
     Parameters
@@ -74,6 +73,8 @@ def build_bag_table(bags: Sequence[str | Path], topics: BagTopics, *, robot=None
     payloads, load_cases : as for :func:`ftcal.insitu.build_dataset`
     options : InsituOptions
         ``savgol_frame``/``savgol_order``, ``rate``, ``adc_limits``, ``base``, ``gravity``, ``workers``.
+    executor : None to work here, or an executor of :mod:`ftcal.executors` (e.g. a Dask
+        cluster): one task per bag, as :func:`ftcal.insitu.build_dataset` does for logs.
 
     Returns
     -------
@@ -102,21 +103,50 @@ def build_bag_table(bags: Sequence[str | Path], topics: BagTopics, *, robot=None
     elif topics.joints is not None:
         raise FtcalError("--joints-topic needs --urdf/--model and --sensor (joints give the expected wrench).")
     config = load_cases or LoadCaseConfig()
-    parts = []
-    models: dict = {}
-    for segment, path in enumerate(bags):
-        case = config.resolve(path, tuple(payloads))  # group: the load case, else the bag's stem
-        model = None
-        if robot is not None:
-            if case.payloads not in models:
-                models[case.payloads] = robot.with_payloads(case.payloads)
-            model = models[case.payloads]
-        parts.append(bag_columns(Path(path), topics, segment, case.name, model, sensor, options))
-        if list(parts[-1].columns) != list(parts[0].columns):
-            raise FtcalError(f"Bag {path}: gives columns {','.join(parts[-1].columns)} but {bags[0]} gives "
+    cases = [config.resolve(path, tuple(payloads)) for path in bags]  # group: the load case, else the bag's stem
+    if executor is None:
+        models: dict = {}
+        parts = []
+        for segment, (path, case) in enumerate(zip(bags, cases)):
+            model = None
+            if robot is not None:
+                if case.payloads not in models:
+                    models[case.payloads] = robot.with_payloads(case.payloads)
+                model = models[case.payloads]
+            parts.append(bag_columns(Path(path), topics, segment, case.name, model, sensor, options))
+    else:
+        tasks = [(str(path), None if robot is None else
+                  (robot.urdf_text, robot.source, (*robot.payloads, *case.payloads), robot.declared),
+                  segment, case.name) for segment, (path, case) in enumerate(zip(bags, cases))]
+        # One process per task on the workers: a Dask worker must not start its own process pool.
+        results = executor.map(_bag_task, tasks, topics, sensor, replace(options, workers=1),
+                               description="bags")
+        parts = []
+        for part, caught in results:
+            for message, category in caught:
+                warnings.warn(message, category, stacklevel=2)
+            parts.append(part)
+    for path, part in zip(bags, parts):
+        if list(part.columns) != list(parts[0].columns):
+            raise FtcalError(f"Bag {path}: gives columns {','.join(part.columns)} but {bags[0]} gives "
                              f"{','.join(parts[0].columns)} (an IMU without orientation in one of them?).")
     columns = {name: np.concatenate([p.columns[name] for p in parts]) for name in parts[0].columns}
     return BagTable(columns, tuple(line for p in parts for line in p.notes))
+
+
+def _bag_task(path: str, description: tuple | None, segment: int, group: str, topics: BagTopics,
+              sensor: str | None, options: InsituOptions) -> tuple[BagTable, list[tuple[str, type]]]:
+    """:func:`bag_columns` as a worker runs it: the table and its FtcalWarnings (text, class), in order.
+
+    ``description``: the robot's (:func:`ftcal.insitu.robot_from_description`), or None without a robot.
+    """
+    from .insitu import robot_from_description
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        robot = None if description is None else robot_from_description(*description)
+        table = bag_columns(Path(path), topics, segment, group, robot, sensor, options)
+    return table, [(str(w.message), w.category) for w in caught if issubclass(w.category, FtcalWarning)]
 
 
 def bag_columns(path: Path, topics: BagTopics, segment: int, group: str, robot=None, sensor: str | None = None,
@@ -211,7 +241,7 @@ def _urdf_joints(path: Path, joints: Stream, robot) -> Stream:
     if missing:
         warnings.warn(f"Bag {path}: {joints.name} lacks URDF joint(s) {', '.join(missing[:5])}; they are held "
                       f"at 0 rad.", FtcalWarning, stacklevel=3)
-    return dataclasses.replace(joints, data=joints.data[:, keep], columns=tuple(joints.columns[c] for c in keep))
+    return replace(joints, data=joints.data[:, keep], columns=tuple(joints.columns[c] for c in keep))
 
 
 def _expected(path: Path, robot, sensor: str, joint_names: tuple[str, ...], q: np.ndarray,

@@ -119,16 +119,14 @@ def run(args: argparse.Namespace) -> int:
         adc_limits=tuple(args.adc_limits) if args.adc_limits else None,
         cache=not args.no_cache, cache_dir=args.cache_dir, workers=args.workers,
         payload_link=args.estimate_payload)
-    if all(is_bag):
-        if args.scheduler:
-            raise FtcalError("--scheduler runs .mat/.csv/.parquet logs; ROS bags are read in this process "
-                             "(drop --scheduler).")
-        return _run_bags(args, out, robot, payloads, config, options)
     from ..executors import open_executor
 
     with open_executor(args.scheduler) as executor:
+        executor = executor if args.scheduler else None  # without --scheduler: here, sharing one robot model
+        if all(is_bag):
+            return _run_bags(args, out, robot, payloads, config, options, executor)
         dataset = build_dataset(args.logs, robot, args.sensor, payloads=payloads, load_cases=config,
-                                options=options, executor=executor if args.scheduler else None)
+                                options=options, executor=executor)
     write_dataset(dataset, out)
     groups = sorted(set(map(str, dataset.groups)))
     print(f"wrote {dataset.n_samples} samples from {len(args.logs)} recording(s), "
@@ -136,7 +134,7 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _run_bags(args, out, robot, payloads, config, options) -> int:
+def _run_bags(args, out, robot, payloads, config, options, executor) -> int:
     from ..bag_dataset import build_bag_table, write_bag_table
     from ..errors import FtcalError
     from ..io.bags import BagTopics
@@ -147,7 +145,7 @@ def _run_bags(args, out, robot, payloads, config, options) -> int:
     topics = BagTopics(args.wrench_topic, args.joints_topic, args.temperature_topic, args.imu_topic, args.tf,
                        receive_time=args.receive_time)
     table = build_bag_table(args.logs, topics, robot=robot, sensor=args.sensor, payloads=payloads,
-                            load_cases=config, options=options)
+                            load_cases=config, options=options, executor=executor)
     write_bag_table(table, out)
     for line in table.notes:
         print(line)
