@@ -25,7 +25,7 @@ from .errors import FtcalError
 from .features import MonomialBasis, RegressorLayout
 from .io.table_chunks import iter_table_chunks, table_has_columns
 from .normalization import Normalization
-from .statistics import CHUNK_SAMPLES, StaticAccumulator, SufficientStatistics
+from .statistics import CHUNK_SAMPLES, StaticAccumulator, SufficientStatistics, sum_statistics
 
 
 def file_statistics(path: str, basis: MonomialBasis, normalization: Normalization, inputs: Sequence[str],
@@ -194,15 +194,17 @@ class StreamedStatistics:
     inputs, outputs : column names
     summary : FileSummary of all the files (the first pass)
     group_by : group label column, or None (one group per file)
+    segment_by : segment label column, or None (one segment per file); ARX lags stay inside segments
     """
 
     def __init__(self, executor, paths: Sequence[str], inputs: Sequence[str], outputs: Sequence[str],
-                 summary: FileSummary, group_by: str | None):
+                 summary: FileSummary, group_by: str | None, segment_by: str | None = None):
         self.executor = executor
         self.paths = list(paths)
         self.inputs, self.output_names = tuple(inputs), tuple(outputs)
         self.summary = summary
         self.group_by = group_by
+        self.segment_by = segment_by
 
     def group_sizes(self) -> dict[str, int]:
         return dict(self.summary.group_sizes)
@@ -213,7 +215,12 @@ class StreamedStatistics:
 
     def fold_statistics(self, frame, fold_of: dict[str, int], n_folds: int) -> list[SufficientStatistics]:
         if not frame.layout.is_static:
-            raise FtcalError("Streamed cross-validation covers static models; ARX models are read whole.")
+            folds = self.executor.map_reduce(file_fold_statistics, self.paths, frame.layout,
+                                             frame.solve_input_normalization, frame.solve_output_normalization,
+                                             self.inputs, self.output_names, fold_of, n_folds, self.segment_by,
+                                             self.group_by, combine=add_fold_parts,
+                                             description=f"statistics, degree {frame.layout.basis.degree}")
+            return [sum_statistics(parts) for parts in folds]
         groups = self.executor.map_reduce(file_group_statistics, self.paths, frame.layout.basis,
                                           frame.solve_input_normalization, self.inputs, self.output_names,
                                           self.group_by, combine=add_group_statistics,
@@ -244,12 +251,49 @@ def file_layout_statistics(path: str, layout: RegressorLayout, in_norm: Normaliz
     if layout.is_static:
         return [file_statistics(path, layout.basis, in_norm, inputs, outputs)]
     from .io.tables import read_dataset
+
+    return segment_statistics(read_dataset([path], inputs, outputs, segment_by=segment_by), layout, in_norm,
+                              out_norm)
+
+
+def segment_statistics(data, layout: RegressorLayout, in_norm: Normalization,
+                       out_norm: Normalization) -> list[SufficientStatistics]:
+    """Statistics of an ARX layout per segment of ``data`` (a Dataset), in row order; lags stay inside segments.
+
+    Summed left to right they equal :meth:`ftcal.model.CalibrationModel.statistics` bit for bit.
+    """
     from .statistics import layout_statistics
 
-    data = read_dataset([path], inputs, outputs, segment_by=segment_by)
     u_norm, y_norm = in_norm.apply(data.inputs), out_norm.apply(data.outputs)
     return [layout_statistics(layout, u_norm[a:b], data.outputs[a:b], y_norm[a:b])
             for a, b in data.segment_bounds()]
+
+
+def file_fold_statistics(path: str, layout: RegressorLayout, in_norm: Normalization, out_norm: Normalization,
+                         inputs: Sequence[str], outputs: Sequence[str], fold_of: dict[str, int], n_folds: int,
+                         segment_by: str | None = None, group_by: str | None = None) -> list[list]:
+    """Per cross-validation fold, the per-segment statistics of an ARX layout over one file (read whole).
+
+    A fold's rows are those of its groups (``fold_of``: group label -> fold), taken
+    as :meth:`ftcal.dataset.Dataset.subset` takes them in memory, so that the lists
+    of all files concatenated (:func:`add_fold_parts`) and summed give the in-memory
+    fold statistics in the same order.
+
+    Returns
+    -------
+    list of ``n_folds`` lists of SufficientStatistics (empty for a fold without rows here)
+    """
+    from .io.tables import read_dataset
+
+    data = read_dataset([path], inputs, outputs, segment_by=segment_by, group_by=group_by)
+    sample_fold = np.array([fold_of[g] for g in np.asarray(data.groups, dtype=str)])
+    return [segment_statistics(data.subset(sample_fold == f), layout, in_norm, out_norm)
+            if np.any(sample_fold == f) else [] for f in range(n_folds)]
+
+
+def add_fold_parts(a: list[list], b: list[list]) -> list[list]:
+    """Per-fold lists of two sets of files, ``b``'s after ``a``'s (a task for the tree reduction)."""
+    return [x + y for x, y in zip(a, b)]
 
 
 def add_statistics(a: SufficientStatistics, b: SufficientStatistics) -> SufficientStatistics:

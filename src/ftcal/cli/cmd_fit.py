@@ -16,10 +16,11 @@ EPILOG = """examples:
   ftcal fit new/*.csv --degree 2 --ridge 10 --prior last_month.json -o m.json   shrink toward a calibration
   ftcal fit logs/*.parquet --degree 4 --scheduler tcp://host:8786 -o m4.json    one Dask task per file
 
-Fits stream the files (except --solver osqp, --estimate-payload and ARX --degree auto, which read
+Fits stream the files (except --solver osqp and --estimate-payload, which read
 them whole): a pass for the column ranges (the normalization), one for the sufficient statistics
-(summed, then solved here; --degree auto: per group, a pass per degree and basis tried, folds are
-sums of groups), one for the training metrics; memory: one chunk (one file for ARX) plus p x p.
+(summed, then solved here; --degree auto: a pass per degree and basis tried, per group, folds are
+sums of groups; ARX: per fold, lags inside segments), one for the training metrics; memory: one
+chunk (one file for ARX) plus p x p.
 """
 
 
@@ -138,14 +139,13 @@ def check_options(args) -> None:
         if getattr(args, flag) > MAX_LAG:
             raise FtcalError(f"--{flag} must be at most {MAX_LAG}; got {getattr(args, flag)}.")
     if args.scheduler and not streams(args):
-        raise FtcalError("--scheduler runs fits with the streaming solvers; it does not yet run ARX --degree auto, "
-                         "--estimate-payload or --solver osqp (drop --scheduler for those).")
+        raise FtcalError("--scheduler runs fits with the streaming solvers; it does not run --estimate-payload "
+                         "or --solver osqp (drop --scheduler for those).")
 
 
 def streams(args) -> bool:
     """Whether this fit streams its files (one task per file, chunk by chunk) instead of reading them whole."""
-    arx_selection = args.degree == "auto" and (args.na or args.nb)
-    return args.estimate_payload is None and args.solver != "osqp" and not arx_selection
+    return args.estimate_payload is None and args.solver != "osqp"
 
 
 def cross_validation(args, data, template):
@@ -237,7 +237,8 @@ def fit_streaming(args, template, inputs, outputs):
         if args.degree == "auto":
             from ..select import best_model
 
-            source = StreamedStatistics(executor, args.data, inputs, outputs, summary, args.group_by)
+            source = StreamedStatistics(executor, args.data, inputs, outputs, summary, args.group_by,
+                                        args.segment_by)
             model = best_model(cross_validation(args, source, template), template)
         else:
             model = template.clone(degree=args.degree, solver=make_solver(args))
