@@ -12,7 +12,8 @@ $(PY):
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 
-$(STAMP): $(PY) pyproject.toml
+# setup.py builds the compiled statistics kernel (src/ftcal/_moments.c) when a C compiler is there.
+$(STAMP): $(PY) pyproject.toml setup.py src/ftcal/_moments.c
 	$(PY) -m pip install --quiet -e ".[test]"
 	@touch $(STAMP)
 
@@ -31,4 +32,4 @@ bench: $(STAMP)
 	$(PY) -m benchmarks
 
 clean:
-	rm -rf $(VENV) ftcal-demo .pytest_cache
+	rm -rf $(VENV) ftcal-demo .pytest_cache build src/ftcal/*.so

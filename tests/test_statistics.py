@@ -1,5 +1,10 @@
 """Sufficient statistics against AᵀA, AᵀB built explicitly with numpy."""
 
+import shutil
+import sysconfig
+from contextlib import nullcontext
+from pathlib import Path
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -9,9 +14,20 @@ from ftcal.dataset import Dataset
 from ftcal.features import MonomialBasis, RegressorLayout
 from ftcal.model import CalibrationModel
 from ftcal.normalization import Normalization
+from ftcal import statistics
 from ftcal.statistics import (
-    SufficientStatistics, dense_statistics, layout_statistics, static_statistics, sum_statistics,
+    SufficientStatistics, dense_statistics, layout_statistics, moment_plan, static_statistics, sum_statistics,
+    use_numpy_kernel,
 )
+
+
+@pytest.fixture(params=["compiled", "numpy"])
+def kernel(request):
+    """Run the test with each statistics kernel (the compiled one where it was built)."""
+    if request.param == "compiled" and not statistics.compiled_kernel_available():
+        pytest.skip("the compiled statistics kernel was not built (no C compiler at install)")
+    with use_numpy_kernel() if request.param == "numpy" else nullcontext():
+        yield request.param
 
 
 def _assert_stats_equal(stats, a, y):
@@ -26,7 +42,7 @@ def _assert_stats_equal(stats, a, y):
 
 
 @pytest.mark.parametrize("nu, degree", [(1, 1), (1, 5), (2, 3), (3, 4), (4, 5), (7, 3), (8, 2), (8, 3)])
-def test_moment_gram_equals_explicit_gram(rng, ref_features, nu, degree):
+def test_moment_gram_equals_explicit_gram(rng, ref_features, kernel, nu, degree):
     u = rng.uniform(-1, 1, size=(700, nu))
     y = rng.normal(size=(700, 3))
     # chunk=128 leaves a partial last chunk (700 = 5·128 + 60)
@@ -34,7 +50,7 @@ def test_moment_gram_equals_explicit_gram(rng, ref_features, nu, degree):
     _assert_stats_equal(stats, ref_features(u, degree), y)
 
 
-def test_moment_gram_on_a_single_sample_and_default_chunk(rng, ref_features):
+def test_moment_gram_on_a_single_sample_and_default_chunk(rng, ref_features, kernel):
     basis = MonomialBasis(3, 3)
     u1 = rng.uniform(-1, 1, size=(1, 3))
     _assert_stats_equal(static_statistics(basis, u1, np.ones((1, 1))), ref_features(u1, 3), np.ones((1, 1)))
@@ -45,7 +61,7 @@ def test_moment_gram_on_a_single_sample_and_default_chunk(rng, ref_features):
 
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(nu=st.integers(1, 8), degree=st.integers(1, 4), n=st.integers(1, 60), seed=st.integers(0, 2**31))
-def test_moment_gram_property(ref_features, nu, degree, n, seed):
+def test_moment_gram_property(ref_features, kernel, nu, degree, n, seed):
     r = np.random.default_rng(seed)
     u = r.uniform(-1.5, 1.5, size=(n, nu))
     y = r.normal(size=(n, 1))
@@ -53,7 +69,7 @@ def test_moment_gram_property(ref_features, nu, degree, n, seed):
     _assert_stats_equal(stats, ref_features(u, degree), y)
 
 
-def test_statistics_add_up_across_chunks(rng, ref_features):
+def test_statistics_add_up_across_chunks(rng, ref_features, kernel):
     u = rng.uniform(-1, 1, size=(900, 4))
     y = rng.normal(size=(900, 2))
     basis = MonomialBasis(4, 3)
@@ -61,6 +77,61 @@ def test_statistics_add_up_across_chunks(rng, ref_features):
     total = sum_statistics(parts)
     _assert_stats_equal(total, ref_features(u, 3), y)
     assert isinstance(parts[0] + parts[1], SufficientStatistics)
+
+
+@pytest.mark.parametrize("nu, degree, n", [(7, 4, 5003), (7, 5, 700), (2, 10, 300), (6, 1, 999)])
+def test_both_kernels_give_the_same_statistics(rng, nu, degree, n):
+    if not statistics.compiled_kernel_available():
+        pytest.skip("the compiled statistics kernel was not built (no C compiler at install)")
+    # Tiles of the compiled kernel and chunks of numpy's differ, and n is no multiple of either.
+    u, y = rng.uniform(-1, 1, size=(n, nu)), rng.normal(size=(n, 6))
+    basis = MonomialBasis(nu, degree)
+    compiled = static_statistics(basis, u, y)
+    with use_numpy_kernel():
+        reference = static_statistics(basis, u, y)
+    for name in ("gram", "cross", "target_sq", "target_sum"):
+        expected = getattr(reference, name)
+        np.testing.assert_allclose(getattr(compiled, name), expected, rtol=1e-12,
+                                   atol=1e-12 * np.abs(expected).max(), err_msg=name)
+    np.testing.assert_array_equal(compiled.column_maxabs, reference.column_maxabs)
+    assert compiled.n_samples == reference.n_samples == n
+
+
+def test_the_compiled_kernel_is_built_wherever_a_c_compiler_is():
+    headers = Path(sysconfig.get_paths()["include"], "Python.h").exists()
+    if shutil.which("cc") is None or not headers:
+        pytest.skip("no C compiler or no Python headers: the numpy kernel is the expected one here")
+    assert statistics.compiled_kernel_available(), (
+        "a C compiler is on PATH but ftcal._moments was not built; reinstall (pip install -e .) and read "
+        "the build log")
+
+
+def test_the_compiled_kernel_refuses_tables_outside_its_buffers(rng):
+    if not statistics.compiled_kernel_available():
+        pytest.skip("the compiled statistics kernel was not built (no C compiler at install)")
+    from ftcal import _moments
+
+    plan = moment_plan(3, 2)
+    p = plan.basis.n_terms
+    u, y = rng.uniform(-1, 1, size=(10, 3)), rng.normal(size=(10, 2))
+
+    def run(steps=plan.steps, blocks=plan.blocks, columns=plan.columns, moments=None, u=u, cross=None):
+        moments = plan.new_moments() if moments is None else moments
+        cross = np.zeros((p, 2)) if cross is None else cross
+        _moments.accumulate(u, y, p, steps, blocks, columns, moments, cross, np.zeros(p))
+
+    run()  # the plan itself is accepted
+    bad_step = plan.steps.copy()
+    bad_step[0, 1] = p  # a source row past the terms
+    bad_block = plan.blocks.copy()
+    bad_block[-1, 3] = plan.n_moments  # moments written past the end
+    bad_column = plan.columns.copy()
+    bad_column[0] = -1
+    for kwargs, message in [(dict(steps=bad_step), "step"), (dict(blocks=bad_block), "block"),
+                            (dict(columns=bad_column), "column"), (dict(moments=np.zeros(3)), "moments"),
+                            (dict(u=u.astype(np.float32)), "u"), (dict(cross=np.zeros((p, 1))), "cross")]:
+        with pytest.raises(ValueError, match=message):
+            run(**kwargs)
 
 
 def test_dense_statistics_add_up_across_splits(rng):

@@ -64,7 +64,7 @@ def _mark_pool_thread() -> None:
 
 @cache
 def _pool(workers: int) -> ThreadPoolExecutor:
-    # One pool per process: its threads keep their per-thread workspaces (MomentGram's) from
+    # One pool per process: its threads keep their per-thread workspaces (MomentPlan's) from
     # call to call, which a file streamed in many chunks would otherwise allocate per chunk.
     return ThreadPoolExecutor(workers, thread_name_prefix="ftcal", initializer=_mark_pool_thread)
 

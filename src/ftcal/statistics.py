@@ -7,27 +7,28 @@ and statistics from several files, segments or validation groups just add up.
 For static polynomial models AᵀA is not computed as a matrix product at all.
 Each entry is a sum of a product of two monomials, i.e. a *moment*
 Σ_n u_n^(e_i + e_j) of degree <= 2·degree. There are far fewer moments than
-Gram entries (19,448 against 313,236 for degree 5 over 7 inputs), and they are
-computed with small matrix products: split the inputs into a left and a right
-group; every moment is (left monomial of degree d) × (right monomial of degree
-<= 2·degree - d), so for each d one product L_dᵀ R_{<=2·degree-d} gives all of
-them exactly once. ARX models (lagged columns) use plain chunked AᵀA.
+Gram entries (19,448 against 313,236 for degree 5 over 7 inputs), and each is
+the product of two basis terms in exactly one way that :class:`MomentPlan`
+groups into a few small matrix products. A compiled kernel (``_moments.c``,
+built at install where a C compiler is available) computes them tile by tile
+in cache; without it numpy computes the same sums chunk by chunk, about three
+times slower. ARX models (lagged columns) use plain chunked AᵀA.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable
 import threading
+from collections.abc import Iterable
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from functools import cache, cached_property
-from itertools import combinations_with_replacement
 
 import numpy as np
 
 from ._threads import map_ranges
-from .features import MonomialBasis, MonomialEvaluator, RegressorLayout
+from .features import MonomialBasis, RegressorLayout
 
-CHUNK_SAMPLES = 1024  # terms × samples chunks of this width stay in cache
+CHUNK_SAMPLES = 1024  # numpy kernel: terms × samples chunks of this width; more calls cost more than cache misses
 
 
 @dataclass
@@ -99,119 +100,122 @@ def sum_statistics(parts: Iterable[SufficientStatistics]) -> SufficientStatistic
     return total
 
 
-@cache
-def moment_gram(n_inputs: int, degree: int) -> "MomentGram":
-    """The :class:`MomentGram` of ``MonomialBasis(n_inputs, degree)``, built once per process.
+try:  # the C kernel, built at install where a C compiler is available (see setup.py)
+    from . import _moments as _compiled
+except ImportError:  # pragma: no cover - depends on the machine that installed ftcal
+    _compiled = None
 
-    Its index tables cost milliseconds, which a file streamed in many chunks
-    would otherwise pay per chunk; its workspace is per thread.
+_numpy_only = False  # set by use_numpy_kernel()
+
+
+def compiled_kernel_available() -> bool:
+    """Whether the compiled statistics kernel was built at install (otherwise numpy computes the same sums)."""
+    return _compiled is not None
+
+
+@contextmanager
+def use_numpy_kernel():
+    """Compute static statistics with the numpy kernel inside the block, even where the compiled one exists.
+
+    For comparisons: both kernels give the same statistics up to rounding.
     """
-    return MomentGram(MonomialBasis(n_inputs, degree))
+    global _numpy_only
+    previous, _numpy_only = _numpy_only, True
+    try:
+        yield
+    finally:
+        _numpy_only = previous
 
 
-class MomentGram:
-    """AᵀA of a static monomial basis from its moments, chunk by chunk (see :func:`moment_gram`)."""
+@cache
+def moment_plan(n_inputs: int, degree: int) -> "MomentPlan":
+    """The :class:`MomentPlan` of ``MonomialBasis(n_inputs, degree)``, built once per process.
+
+    Its tables cost milliseconds, which a file streamed in many chunks would
+    otherwise pay per chunk.
+    """
+    return MomentPlan(MonomialBasis(n_inputs, degree))
+
+
+class MomentPlan:
+    """Which products of basis terms give every moment of a static monomial basis of degree q.
+
+    Moments of degree <= q are the column sums of the terms. A moment of degree
+    q + 1 .. 2q, its factors sorted x_i1 <= ... <= x_iD, is (its last q factors:
+    a degree-q term whose first factor is some input k) times (the others: a
+    term over inputs <= k), in exactly one way. So for each k one product
+    L_k R_kᵀ gives those moments: L_k are the degree-q terms starting with k,
+    consecutive rows of the basis, and R_k the first ``count_k`` of
+    :attr:`columns`, the non-constant terms ordered by their last factor. Both
+    kernels (compiled and numpy) use these tables and this moment layout.
+
+    Attributes
+    ----------
+    steps : ndarray of int64, shape (n_steps, 4)
+        The basis evaluation: row ``destination + r`` = row ``source + r`` times input ``i``.
+    blocks : ndarray of int64, shape (n_blocks, 4)
+        Per k: first row of L_k, its rows, count_k, offset of its moments (row-major).
+    columns : ndarray of int64
+        Basis rows of the block columns, in order.
+    n_moments : int
+        Column sums (one per term, the offset's counts samples) then the blocks.
+    """
 
     def __init__(self, basis: MonomialBasis):
         self.basis = basis
-        nu, top = basis.n_inputs, 2 * basis.degree
-        self.n_left = (nu + 1) // 2
-        n_right = nu - self.n_left
-        self._left = _GradedMonomials(self.n_left, top)
-        self._right = _GradedMonomials(n_right, top)
-        # Block d: left monomials of degree d times right monomials of degree <= top - d.
-        self._blocks = []
-        offset = 0
-        for d in range(top + 1):
-            rows = self._left.degree_slice(d)
-            cols = self._right.up_to(top - d)
-            size = (rows.stop - rows.start) * cols
-            self._blocks.append((rows, cols, offset))
-            offset += size
+        combos, q = basis.combinations, basis.degree
+        evaluator = basis._evaluator
+        self.steps = np.array([(i, src.start, dst.start, src.stop - src.start) for i, src, dst in evaluator._steps],
+                              dtype=np.int64).reshape(-1, 4)
+        terms = np.array([row for row, combo in enumerate(combos) if combo])
+        last = np.array([combos[row][-1] for row in terms])
+        order = np.argsort(last, kind="stable")
+        self.columns = terms[order].astype(np.int64)
+        count = np.searchsorted(last[order], np.arange(basis.n_inputs), side="right")
+        blocks, offset = [], basis.n_terms
+        for k in range(basis.n_inputs):
+            rows = [row for row, combo in enumerate(combos) if len(combo) == q and combo[0] == k]
+            blocks.append((rows[0], len(rows), count[k], offset))
+            offset += len(rows) * count[k]
+        self.blocks = np.array(blocks, dtype=np.int64)
         self.n_moments = offset
-        self._local = threading.local()  # each thread's (left, right) workspace
+        self._local = threading.local()  # each thread's numpy workspace
 
     @cached_property
     def gram_index(self) -> np.ndarray:
         """Position in the moment vector of each Gram entry, shape (p, p)."""
         exps = self.basis.exponents
-        left, right = exps[:, :self.n_left], exps[:, self.n_left:]
-        # Table codes are linear in the exponents (no carry below base top + 1), so the code of
-        # each entry's moment, e_i + e_j, is the sum of the two terms' codes.
-        left_code, right_code = self._left.code(left), self._right.code(right)
-        row = self._left.at_code(left_code[:, None] + left_code[None, :])
-        col = self._right.at_code(right_code[:, None] + right_code[None, :])
-        degree = left.sum(axis=1)
-        d = degree[:, None] + degree[None, :]
-        starts = np.array([start for rows, _, start in self._blocks])
-        widths = np.array([cols for _, cols, _ in self._blocks])
-        firsts = np.array([rows.start for rows, _, _ in self._blocks])
-        return starts[d] + (row - firsts[d]) * widths[d] + col
+        radix = (2 * self.basis.degree + 1) ** np.arange(self.basis.n_inputs)  # no carry: exponents <= 2q
+        code = exps @ radix
+        parts = [code] + [(code[first:first + rows, None] + code[self.columns[:cols]][None, :]).ravel()
+                          for first, rows, cols, _ in self.blocks]
+        moment_codes = np.concatenate(parts)
+        order = np.argsort(moment_codes)
+        return order[np.searchsorted(moment_codes[order], code[:, None] + code[None, :])]
 
     def new_moments(self) -> np.ndarray:
         return np.zeros(self.n_moments)
 
-    def accumulate(self, u_t: np.ndarray, moments: np.ndarray) -> None:
-        """Add the moments of the normalized chunk ``u_t`` (nu, m) into ``moments``."""
-        m = u_t.shape[1]
-        workspace = getattr(self._local, "workspace", None)
-        if workspace is None or workspace[0].shape[1] < m:
-            workspace = self._local.workspace = (np.empty((self._left.n_terms, m)),
-                                                 np.empty((self._right.n_terms, m)))
-        left = self._left.evaluate(u_t[:self.n_left], workspace[0][:, :m])
-        right = self._right.evaluate(u_t[self.n_left:], workspace[1][:, :m])
-        for rows, cols, start in self._blocks:
-            size = (rows.stop - rows.start) * cols
-            block = moments[start:start + size].reshape(rows.stop - rows.start, cols)
-            block += left[rows] @ right[:cols].T
-
     def gram(self, moments: np.ndarray) -> np.ndarray:
         return moments[self.gram_index]
 
+    def accumulate_compiled(self, u_norm: np.ndarray, y: np.ndarray, moments: np.ndarray, cross: np.ndarray,
+                            maxabs: np.ndarray) -> None:
+        """Add the statistics of samples ``u_norm`` (m, n_inputs), ``y`` (m, n_outputs), without the GIL."""
+        _compiled.accumulate(np.ascontiguousarray(u_norm, dtype=np.float64), np.ascontiguousarray(y, dtype=np.float64),
+                             self.basis.n_terms, self.steps, self.blocks, self.columns, moments, cross, maxabs)
 
-class _GradedMonomials:
-    """All monomials of degree 0..top in a few variables, ordered by degree (1 first)."""
-
-    def __init__(self, n_vars: int, top: int):
-        self.n_vars = n_vars
-        self.top = top
-        combos = [()] + [c for p in range(1, top + 1 if n_vars else 1)
-                         for c in combinations_with_replacement(range(n_vars), p)]
-        self._evaluator = MonomialEvaluator(n_vars, top, first_row=1)
-        degrees = np.array([len(c) for c in combos])
-        self._first = np.searchsorted(degrees, np.arange(top + 2))
-        self.n_terms = len(combos)
-        # Dense lookup from exponent vectors (mixed radix, base top+1) to rows.
-        exps = np.zeros((len(combos), max(n_vars, 1)), dtype=np.intp)
-        for i, c in enumerate(combos):
-            for j in c:
-                exps[i, j] += 1
-        self._radix = (top + 1) ** np.arange(max(n_vars, 1), dtype=np.intp)
-        self._table = np.full((top + 1) ** max(n_vars, 1), -1, dtype=np.intp)
-        self._table[exps @ self._radix] = np.arange(len(combos))
-
-    def degree_slice(self, d: int) -> slice:
-        return slice(int(self._first[d]), int(self._first[d + 1]))
-
-    def up_to(self, d: int) -> int:
-        """How many monomials have degree <= d (they come first)."""
-        return int(self._first[d + 1])
-
-    def code(self, exponents: np.ndarray) -> np.ndarray:
-        """Table code of each exponent vector (last axis); codes of sums are sums of codes."""
-        if self.n_vars == 0:
-            return np.zeros(exponents.shape[:-1], dtype=np.intp)
-        return exponents @ self._radix
-
-    def at_code(self, codes: np.ndarray) -> np.ndarray:
-        """Row among these monomials of each table code."""
-        return self._table[codes]
-
-    def evaluate(self, u_t: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-        if out is None:
-            out = np.empty((self.n_terms, u_t.shape[1]))
-        out[0] = 1.0
-        return self._evaluator.evaluate_transposed(u_t, out)
+    def accumulate_numpy(self, a_t: np.ndarray, moments: np.ndarray) -> None:
+        """Add the moments of the basis terms ``a_t`` (n_terms, m) of a chunk into ``moments``."""
+        m = a_t.shape[1]
+        workspace = getattr(self._local, "workspace", None)
+        if workspace is None or workspace.shape[1] < m:
+            workspace = self._local.workspace = np.empty((len(self.columns), m))
+        right = np.take(a_t, self.columns, axis=0, out=workspace[:, :m])
+        moments[:self.basis.n_terms] += a_t.sum(axis=1)
+        for first, rows, cols, offset in self.blocks.tolist():
+            block = moments[offset:offset + rows * cols].reshape(rows, cols)
+            block += a_t[first:first + rows] @ right[:cols].T
 
 
 class StaticAccumulator:
@@ -229,8 +233,8 @@ class StaticAccumulator:
 
     def __init__(self, basis: MonomialBasis, n_outputs: int):
         self.basis = basis
-        self._engine = moment_gram(basis.n_inputs, basis.degree)
-        self._moments = self._engine.new_moments()
+        self._plan = moment_plan(basis.n_inputs, basis.degree)
+        self._moments = self._plan.new_moments()
         self._stats = SufficientStatistics.zeros(basis.n_terms, n_outputs)
 
     def add(self, u_norm: np.ndarray, y: np.ndarray, chunk: int = CHUNK_SAMPLES, advance=None) -> None:
@@ -238,17 +242,24 @@ class StaticAccumulator:
 
         ``chunk``: samples per cache-sized step; ``advance``: called with each step's sample count.
         """
-        basis, engine = self.basis, self._engine
+        basis, plan = self.basis, self._plan
+
+        def compiled(begin: int, end: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            moments, cross, maxabs = plan.new_moments(), np.zeros((basis.n_terms, y.shape[1])), np.zeros(basis.n_terms)
+            plan.accumulate_compiled(u_norm[begin:end], y[begin:end], moments, cross, maxabs)
+            if advance is not None:
+                advance(end - begin)
+            return moments, cross, maxabs
 
         def work(begin: int, end: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-            moments = engine.new_moments()
+            moments = plan.new_moments()
             cross, maxabs = np.zeros((basis.n_terms, y.shape[1])), np.zeros(basis.n_terms)
             features = np.empty((basis.n_terms, chunk))
             for start in range(begin, end, chunk):
                 stop = min(start + chunk, end)
                 u_t = np.ascontiguousarray(u_norm[start:stop].T)
                 a_t = basis.evaluate_transposed(u_t, features[:, :stop - start])
-                engine.accumulate(u_t, moments)
+                plan.accumulate_numpy(a_t, moments)
                 cross += a_t @ y[start:stop]
                 # max and -min instead of abs(): no chunk-sized temporary.
                 np.maximum(maxabs, a_t.max(axis=1), out=maxabs)
@@ -258,7 +269,8 @@ class StaticAccumulator:
             return moments, cross, maxabs
 
         stats = self._stats
-        for moments, cross, maxabs in map_ranges(work, u_norm.shape[0], chunk):
+        kernel = compiled if _compiled is not None and not _numpy_only else work
+        for moments, cross, maxabs in map_ranges(kernel, u_norm.shape[0], chunk):
             self._moments += moments
             stats.cross += cross
             np.maximum(stats.column_maxabs, maxabs, out=stats.column_maxabs)
@@ -268,7 +280,7 @@ class StaticAccumulator:
 
     def statistics(self) -> SufficientStatistics:
         """The statistics of every sample added so far."""
-        return replace(self._stats, gram=self._engine.gram(self._moments), cross=self._stats.cross.copy(),
+        return replace(self._stats, gram=self._plan.gram(self._moments), cross=self._stats.cross.copy(),
                        target_sq=self._stats.target_sq.copy(), target_sum=self._stats.target_sum.copy(),
                        column_maxabs=self._stats.column_maxabs.copy())
 
