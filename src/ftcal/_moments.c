@@ -105,6 +105,19 @@ static inline __attribute__((always_inline)) void block_products(
     }
 }
 
+/* rows (n_columns, width) = the transpose of `count` rows of the row-major table (.., n_columns), zero-padded. */
+static inline __attribute__((always_inline)) void transpose_padded(
+    const double *table, Py_ssize_t n_columns, Py_ssize_t count, Py_ssize_t width, double *rows)
+{
+    for (Py_ssize_t j = 0; j < n_columns; j++) {
+        double *row = rows + j * width;
+        for (Py_ssize_t t = 0; t < count; t++)
+            row[t] = table[t * n_columns + j];
+        for (Py_ssize_t t = count; t < width; t++)
+            row[t] = 0.0;
+    }
+}
+
 /* All statistics of samples [start, start + count): terms and targets of the tile are in buf, ybuf. */
 static inline __attribute__((always_inline)) void tile_statistics(
     const Problem *pb, Py_ssize_t start, Py_ssize_t count, Py_ssize_t width, double *buf, double *ybuf,
@@ -112,20 +125,8 @@ static inline __attribute__((always_inline)) void tile_statistics(
 {
     const Py_ssize_t nu = pb->n_inputs, ny = pb->n_outputs, p = pb->n_terms;
     /* Degree-1 rows are the inputs; padding samples are zeros, so they add nothing below. */
-    for (Py_ssize_t j = 0; j < nu; j++) {
-        double *row = buf + j * width;
-        for (Py_ssize_t t = 0; t < count; t++)
-            row[t] = pb->u[(start + t) * nu + j];
-        for (Py_ssize_t t = count; t < width; t++)
-            row[t] = 0.0;
-    }
-    for (Py_ssize_t k = 0; k < ny; k++) {
-        double *row = ybuf + k * width;
-        for (Py_ssize_t t = 0; t < count; t++)
-            row[t] = pb->y[(start + t) * ny + k];
-        for (Py_ssize_t t = count; t < width; t++)
-            row[t] = 0.0;
-    }
+    transpose_padded(pb->u + start * nu, nu, count, width, buf);
+    transpose_padded(pb->y + start * ny, ny, count, width, ybuf);
     for (Py_ssize_t s = 0; s < pb->n_steps; s++) {
         const int64_t *step = pb->steps + 4 * s;
         const double *x = buf + step[0] * width;
