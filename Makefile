@@ -12,8 +12,8 @@ $(PY):
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 
-# setup.py builds the compiled statistics kernel (src/ftcal/_moments.c) when a C compiler is there.
-$(STAMP): $(PY) pyproject.toml setup.py src/ftcal/_moments.c
+# setup.py builds the compiled statistics kernel (src/ftcal/_polynomial.c) when a C compiler is there.
+$(STAMP): $(PY) pyproject.toml setup.py src/ftcal/_polynomial.c
 	$(PY) -m pip install --quiet -e ".[test]"
 	@touch $(STAMP)
 

@@ -1,10 +1,10 @@
-"""Build script for the one compiled part of ftcal: the statistics kernel.
+"""Build script for the one compiled part of ftcal: the kernels of static polynomial models.
 
 Everything else is declared in pyproject.toml. The extension is optional: on a
-machine without a C compiler the build skips it and ftcal uses its numpy path
-(same results, about three times slower statistics).
+machine without a C compiler the build skips it and ftcal uses its numpy paths
+(same results; statistics about three times slower). See src/ftcal/kernels.py.
 """
 
 from setuptools import Extension, setup
 
-setup(ext_modules=[Extension("ftcal._moments", ["src/ftcal/_moments.c"], optional=True)])
+setup(ext_modules=[Extension("ftcal._polynomial", ["src/ftcal/_polynomial.c"], optional=True)])

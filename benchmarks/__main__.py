@@ -48,11 +48,11 @@ def machine() -> str:
                 break
     except OSError:
         pass
-    from ftcal.statistics import compiled_kernel_available
+    from ftcal.kernels import compiled_kernel_available
 
     kernel = "compiled" if compiled_kernel_available() else "numpy (no C compiler at install)"
     return (f"{os.cpu_count()} cores ({cpu}), Python {platform.python_version()}, numpy {np.__version__}, "
-            f"statistics kernel {kernel}, {time.strftime('%Y-%m-%d')}")
+            f"kernels {kernel}, {time.strftime('%Y-%m-%d')}")
 
 
 def fit_section(sizes: dict) -> list[str]:
@@ -72,7 +72,7 @@ def fit_section(sizes: dict) -> list[str]:
         ("ftcal (streaming moments, exact LSQ)", n_big, ours_big, ours_big),
         ("paper recipe (dense max-abs regressor + OSQP per output, eps 1e-4)", n_big, paper_big, ours_big),
         ("ftcal", n_mid, ours, ours),
-        ("ftcal, numpy statistics kernel (an install without a C compiler)", n_mid, ours_numpy, ours),
+        ("ftcal, numpy kernels (an install without a C compiler)", n_mid, ours_numpy, ours),
         ("paper recipe", n_mid, paper, ours),
         ("numpy.linalg.lstsq on the dense regressor", n_mid, lstsq, ours),
         ("scikit-learn PolynomialFeatures + MaxAbsScaler + LinearRegression", n_mid, sk, ours),

@@ -53,12 +53,12 @@ def peak_mb() -> float:
 
 # ----------------------------------------------------------------- fitting
 def ftcal_fit(n: int, degree: int, kernel: str = "compiled") -> dict:
-    """``CalibrationModel(degree).fit``; ``kernel="numpy"``: statistics without the compiled kernel."""
+    """``CalibrationModel(degree).fit``; ``kernel="numpy"``: without the compiled kernels."""
     from contextlib import nullcontext
 
     from ftcal.dataset import Dataset
     from ftcal.model import CalibrationModel
-    from ftcal.statistics import use_numpy_kernel
+    from ftcal.kernels import use_numpy_kernel
 
     u, y = make_data(n)
     data = Dataset.from_arrays(u, y)

@@ -26,6 +26,7 @@ from ._checks import check_choice, check_finite_matrix, check_int
 from .dataset import Dataset
 from .errors import FtcalError, IllPosedFitWarning, NotFittedError, OutOfRangeWarning
 from .features import FeatureCombination, MonomialBasis, RegressorLayout, substitution_matrix
+from .kernels import compiled, step_table
 from .limits import ARX_WARMUP, FREE_RUN_STARTS, MAX_DEGREE, MAX_LAG, NORMALIZATIONS, PREDICTION_MODES
 from .normalization import Normalization, normalization_from_range
 from .progress import progress_bar
@@ -527,6 +528,13 @@ class CalibrationModel:
         out = np.empty((u.shape[0], coef_t.shape[0]))
         offset = self.input_normalization_.offset[:, None]
         inv_scale = (1.0 / self.input_normalization_.scale)[:, None]
+        kernels = compiled()
+        if kernels is not None:
+            u = np.ascontiguousarray(u, dtype=np.float64)
+            steps, offset, inv_scale = step_table(basis.n_inputs, basis.degree), offset[:, 0], inv_scale[:, 0]
+            map_ranges(lambda begin, end: kernels.predict(u[begin:end], offset, inv_scale, coef_t, steps,
+                                                          out[begin:end]), u.shape[0], PREDICT_CHUNK)
+            return out
 
         def work(begin: int, end: int) -> None:
             combine = FeatureCombination(basis, coef_t, PREDICT_CHUNK)

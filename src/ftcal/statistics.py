@@ -9,17 +9,15 @@ Each entry is a sum of a product of two monomials, i.e. a *moment*
 Σ_n u_n^(e_i + e_j) of degree <= 2·degree. There are far fewer moments than
 Gram entries (19,448 against 313,236 for degree 5 over 7 inputs), and each is
 the product of two basis terms in exactly one way that :class:`MomentPlan`
-groups into a few small matrix products. A compiled kernel (``_moments.c``,
-built at install where a C compiler is available) computes them tile by tile
-in cache; without it numpy computes the same sums chunk by chunk, about three
-times slower. ARX models (lagged columns) use plain chunked AᵀA.
+groups into a few small matrix products. The compiled kernel (see
+:mod:`ftcal.kernels`) computes them tile by tile in cache; without it numpy
+computes the same sums chunk by chunk, about three times slower. ARX models (lagged columns) use plain chunked AᵀA.
 """
 
 from __future__ import annotations
 
 import threading
 from collections.abc import Iterable
-from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from functools import cache, cached_property
 
@@ -27,6 +25,7 @@ import numpy as np
 
 from ._threads import map_ranges
 from .features import MonomialBasis, RegressorLayout
+from .kernels import compiled, step_table
 
 CHUNK_SAMPLES = 1024  # numpy kernel: terms × samples chunks of this width; more calls cost more than cache misses
 
@@ -100,33 +99,6 @@ def sum_statistics(parts: Iterable[SufficientStatistics]) -> SufficientStatistic
     return total
 
 
-try:  # the C kernel, built at install where a C compiler is available (see setup.py)
-    from . import _moments as _compiled
-except ImportError:  # pragma: no cover - depends on the machine that installed ftcal
-    _compiled = None
-
-_numpy_only = False  # set by use_numpy_kernel()
-
-
-def compiled_kernel_available() -> bool:
-    """Whether the compiled statistics kernel was built at install (otherwise numpy computes the same sums)."""
-    return _compiled is not None
-
-
-@contextmanager
-def use_numpy_kernel():
-    """Compute static statistics with the numpy kernel inside the block, even where the compiled one exists.
-
-    For comparisons: both kernels give the same statistics up to rounding.
-    """
-    global _numpy_only
-    previous, _numpy_only = _numpy_only, True
-    try:
-        yield
-    finally:
-        _numpy_only = previous
-
-
 @cache
 def moment_plan(n_inputs: int, degree: int) -> "MomentPlan":
     """The :class:`MomentPlan` of ``MonomialBasis(n_inputs, degree)``, built once per process.
@@ -164,9 +136,7 @@ class MomentPlan:
     def __init__(self, basis: MonomialBasis):
         self.basis = basis
         combos, q = basis.combinations, basis.degree
-        evaluator = basis._evaluator
-        self.steps = np.array([(i, src.start, dst.start, src.stop - src.start) for i, src, dst in evaluator._steps],
-                              dtype=np.int64).reshape(-1, 4)
+        self.steps = step_table(basis.n_inputs, basis.degree)
         terms = np.array([row for row, combo in enumerate(combos) if combo])
         last = np.array([combos[row][-1] for row in terms])
         order = np.argsort(last, kind="stable")
@@ -199,10 +169,10 @@ class MomentPlan:
     def gram(self, moments: np.ndarray) -> np.ndarray:
         return moments[self.gram_index]
 
-    def accumulate_compiled(self, u_norm: np.ndarray, y: np.ndarray, moments: np.ndarray, cross: np.ndarray,
-                            maxabs: np.ndarray) -> None:
-        """Add the statistics of samples ``u_norm`` (m, n_inputs), ``y`` (m, n_outputs), without the GIL."""
-        _compiled.accumulate(np.ascontiguousarray(u_norm, dtype=np.float64), np.ascontiguousarray(y, dtype=np.float64),
+    def accumulate_compiled(self, kernels, u_norm: np.ndarray, y: np.ndarray, moments: np.ndarray,
+                            cross: np.ndarray, maxabs: np.ndarray) -> None:
+        """Add the statistics of samples ``u_norm`` (m, n_inputs), ``y`` (m, n_outputs) with ``kernels``."""
+        kernels.accumulate(np.ascontiguousarray(u_norm, dtype=np.float64), np.ascontiguousarray(y, dtype=np.float64),
                              self.basis.n_terms, self.steps, self.blocks, self.columns, moments, cross, maxabs)
 
     def accumulate_numpy(self, a_t: np.ndarray, moments: np.ndarray) -> None:
@@ -242,11 +212,11 @@ class StaticAccumulator:
 
         ``chunk``: samples per cache-sized step; ``advance``: called with each step's sample count.
         """
-        basis, plan = self.basis, self._plan
+        basis, plan, kernels = self.basis, self._plan, compiled()
 
-        def compiled(begin: int, end: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        def compiled_work(begin: int, end: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             moments, cross, maxabs = plan.new_moments(), np.zeros((basis.n_terms, y.shape[1])), np.zeros(basis.n_terms)
-            plan.accumulate_compiled(u_norm[begin:end], y[begin:end], moments, cross, maxabs)
+            plan.accumulate_compiled(kernels, u_norm[begin:end], y[begin:end], moments, cross, maxabs)
             if advance is not None:
                 advance(end - begin)
             return moments, cross, maxabs
@@ -269,7 +239,7 @@ class StaticAccumulator:
             return moments, cross, maxabs
 
         stats = self._stats
-        kernel = compiled if _compiled is not None and not _numpy_only else work
+        kernel = compiled_work if kernels is not None else work
         for moments, cross, maxabs in map_ranges(kernel, u_norm.shape[0], chunk):
             self._moments += moments
             stats.cross += cross
