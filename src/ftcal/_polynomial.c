@@ -30,6 +30,7 @@ typedef int64_t m4 __attribute__((vector_size(32)));  /* lane masks and bit patt
 /* The buffer of one tile holds about this many doubles (512 KiB: half an L2). */
 #define TILE_DOUBLES 65536
 #define MAX_TILE 256
+#define PREDICT_TILE 64 /* prediction reads each term row once per 8 samples: a smaller tile */
 
 /* The statistics of a block of samples (accumulate). */
 typedef struct {
@@ -351,11 +352,14 @@ static int check_steps(const int64_t *steps, Py_ssize_t n_steps, Py_ssize_t n_in
     return 0;
 }
 
-/* Samples per tile: the terms of a tile fill about TILE_DOUBLES doubles; a multiple of 8. */
-static Py_ssize_t tile_width(Py_ssize_t n_terms)
+/* Samples per tile, a multiple of 8: the terms of a tile fill about TILE_DOUBLES doubles, at most
+   `limit` samples, and no more than m needs (a one-sample call allocates a small buffer). */
+static Py_ssize_t tile_width(Py_ssize_t n_terms, Py_ssize_t m, Py_ssize_t limit)
 {
-    Py_ssize_t width = (TILE_DOUBLES / n_terms) / 8 * 8;
-    return width < 8 ? 8 : width > MAX_TILE ? MAX_TILE : width;
+    Py_ssize_t width = (TILE_DOUBLES / n_terms) / 8 * 8, needed = (m + 7) / 8 * 8;
+    width = width > limit ? limit : width;
+    width = width > needed ? needed : width;
+    return width < 8 ? 8 : width;
 }
 
 PyDoc_STRVAR(accumulate_doc,
@@ -430,7 +434,7 @@ static PyObject *accumulate(PyObject *self, PyObject *args)
             goto fail;
         }
     }
-    Py_ssize_t width = tile_width(n_terms);
+    Py_ssize_t width = tile_width(n_terms, pb.m, MAX_TILE);
     double *buf = aligned_alloc(64, sizeof(double) * (size_t)(n_terms + pb.n_outputs) * width);
     const double **ptrs = malloc(sizeof(double *) * (size_t)(pb.n_columns + pb.n_outputs + 1));
     if (buf == NULL || ptrs == NULL) {
@@ -512,7 +516,7 @@ static PyObject *predict(PyObject *self, PyObject *args)
     pr.out = views[5].buf;
     if (check_steps(pr.steps, pr.n_steps, pr.n_inputs, pr.n_terms) < 0)
         goto fail;
-    Py_ssize_t width = tile_width(pr.n_terms) < 64 ? tile_width(pr.n_terms) : 64;
+    Py_ssize_t width = tile_width(pr.n_terms, pr.m, PREDICT_TILE);
     double *buf = aligned_alloc(64, sizeof(double) * (size_t)pr.n_terms * width);
     if (buf == NULL) {
         PyErr_NoMemory();
