@@ -220,3 +220,10 @@ def test_parallel_work_runs_in_the_callers_numpy_error_state():
         assert not caught
         with np.errstate(over="raise"), pytest.raises(FloatingPointError):
             map_ranges(overflow, 10_000, 1000)
+
+
+@pytest.mark.parametrize("nu, degree", [(40, 1), (27, 2)])
+def test_moment_layout_of_more_inputs_than_one_int64_code_holds(rng, ref_features, kernel, nu, degree):
+    assert float(2 * degree + 1) ** nu >= 2.0 ** 62  # the exponent-ranking path
+    u, y = rng.uniform(-1, 1, size=(60, nu)), rng.normal(size=(60, 2))
+    _assert_stats_equal(static_statistics(MonomialBasis(nu, degree), u, y), ref_features(u, degree), y)

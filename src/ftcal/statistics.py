@@ -11,7 +11,8 @@ Gram entries (19,448 against 313,236 for degree 5 over 7 inputs), and each is
 the product of two basis terms in exactly one way that :class:`MomentPlan`
 groups into a few small matrix products. The compiled kernel (see
 :mod:`ftcal.kernels`) computes them tile by tile in cache; without it numpy
-computes the same sums chunk by chunk, about three times slower. ARX models (lagged columns) use plain chunked AᵀA.
+computes the same sums chunk by chunk, about three times slower. ARX models (lagged
+columns) use plain chunked AᵀA.
 """
 
 from __future__ import annotations
@@ -155,13 +156,22 @@ class MomentPlan:
     def gram_index(self) -> np.ndarray:
         """Position in the moment vector of each Gram entry, shape (p, p)."""
         exps = self.basis.exponents
-        radix = (2 * self.basis.degree + 1) ** np.arange(self.basis.n_inputs)  # no carry: exponents <= 2q
-        code = exps @ radix
-        parts = [code] + [(code[first:first + rows, None] + code[self.columns[:cols]][None, :]).ravel()
-                          for first, rows, cols, _ in self.blocks]
-        moment_codes = np.concatenate(parts)
+        p, base = len(exps), 2 * self.basis.degree + 1  # exponents of moments are <= 2q: no carry
+        pairs = [(np.arange(p), None)] + [(np.repeat(np.arange(first, first + rows), cols),
+                                          np.tile(self.columns[:cols], rows)) for first, rows, cols, _ in self.blocks]
+        if float(base) ** self.basis.n_inputs < 2.0 ** 62:
+            # Codes are linear in the exponents, so a moment's code is the sum of its two terms' codes.
+            code = exps @ base ** np.arange(self.basis.n_inputs)
+            moment_codes = np.concatenate([code[i] if j is None else code[i] + code[j] for i, j in pairs])
+            entry_codes = code[:, None] + code[None, :]
+        else:  # too many inputs for one int64 code: rank the exponent vectors themselves
+            vectors = [exps[i] if j is None else exps[i] + exps[j] for i, j in pairs]
+            entries = (exps[:, None, :] + exps[None, :, :]).reshape(p * p, -1)
+            _, ranks = np.unique(np.concatenate(vectors + [entries]), axis=0, return_inverse=True)
+            ranks = ranks.ravel()
+            moment_codes, entry_codes = ranks[:self.n_moments], ranks[self.n_moments:].reshape(p, p)
         order = np.argsort(moment_codes)
-        return order[np.searchsorted(moment_codes[order], code[:, None] + code[None, :])]
+        return order[np.searchsorted(moment_codes[order], entry_codes)]
 
     def new_moments(self) -> np.ndarray:
         return np.zeros(self.n_moments)
