@@ -39,7 +39,7 @@ def _assert_stats_equal(stats, a, y):
 
 
 @pytest.mark.parametrize("nu, degree", [(1, 1), (1, 5), (2, 3), (3, 4), (4, 5), (7, 3), (8, 2), (8, 3)])
-def test_moment_gram_equals_explicit_gram(rng, ref_features, kernel, nu, degree):
+def test_moment_statistics_equal_explicit_products(rng, ref_features, kernel, nu, degree):
     u = rng.uniform(-1, 1, size=(700, nu))
     y = rng.normal(size=(700, 3))
     # chunk=128 leaves a partial last chunk (700 = 5·128 + 60)
@@ -47,7 +47,7 @@ def test_moment_gram_equals_explicit_gram(rng, ref_features, kernel, nu, degree)
     _assert_stats_equal(stats, ref_features(u, degree), y)
 
 
-def test_moment_gram_on_a_single_sample_and_default_chunk(rng, ref_features, kernel):
+def test_moment_statistics_of_a_single_sample_and_default_chunk(rng, ref_features, kernel):
     basis = MonomialBasis(3, 3)
     u1 = rng.uniform(-1, 1, size=(1, 3))
     _assert_stats_equal(static_statistics(basis, u1, np.ones((1, 1))), ref_features(u1, 3), np.ones((1, 1)))
@@ -58,7 +58,7 @@ def test_moment_gram_on_a_single_sample_and_default_chunk(rng, ref_features, ker
 
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(nu=st.integers(1, 8), degree=st.integers(1, 4), n=st.integers(1, 60), seed=st.integers(0, 2**31))
-def test_moment_gram_property(ref_features, kernel, nu, degree, n, seed):
+def test_moment_statistics_property(ref_features, kernel, nu, degree, n, seed):
     r = np.random.default_rng(seed)
     u = r.uniform(-1.5, 1.5, size=(n, nu))
     y = r.normal(size=(n, 1))
