@@ -526,15 +526,14 @@ class CalibrationModel:
         basis = self.layout_.basis
         coef_t = np.ascontiguousarray(self.coef_.T)
         out = np.empty((u.shape[0], coef_t.shape[0]))
-        offset = self.input_normalization_.offset[:, None]
-        inv_scale = (1.0 / self.input_normalization_.scale)[:, None]
+        offset, inv_scale = self.input_normalization_.offset, 1.0 / self.input_normalization_.scale
         kernels = compiled()
         if kernels is not None:
-            u = np.ascontiguousarray(u, dtype=np.float64)
-            steps, offset, inv_scale = step_table(basis.n_inputs, basis.degree), offset[:, 0], inv_scale[:, 0]
+            u, steps = np.ascontiguousarray(u, dtype=np.float64), step_table(basis.n_inputs, basis.degree)
             map_ranges(lambda begin, end: kernels.predict(u[begin:end], offset, inv_scale, coef_t, steps,
                                                           out[begin:end]), u.shape[0], PREDICT_CHUNK)
             return out
+        offset, inv_scale = offset[:, None], inv_scale[:, None]  # per input, across a chunk's samples
 
         def work(begin: int, end: int) -> None:
             combine = FeatureCombination(basis, coef_t, PREDICT_CHUNK)
