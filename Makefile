@@ -12,8 +12,8 @@ $(PY):
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 
-# setup.py builds the compiled statistics kernel (src/ftcal/_polynomial.c) when a C compiler is there.
-$(STAMP): $(PY) pyproject.toml setup.py src/ftcal/_polynomial.c
+# setup.py builds the compiled statistics kernel (src/ftcal/core/_polynomial.c) when a C compiler is there.
+$(STAMP): $(PY) pyproject.toml setup.py src/ftcal/core/_polynomial.c
 	$(PY) -m pip install --quiet -e ".[test]"
 	@touch $(STAMP)
 
@@ -32,4 +32,4 @@ bench: $(STAMP)
 	$(PY) -m benchmarks
 
 clean:
-	rm -rf $(VENV) ftcal-demo .pytest_cache build src/ftcal/*.so
+	rm -rf $(VENV) ftcal-demo .pytest_cache build src/ftcal/core/*.so

@@ -48,7 +48,7 @@ def machine() -> str:
                 break
     except OSError:
         pass
-    from ftcal.kernels import compiled_kernel_available
+    from ftcal.core.kernels import compiled_kernel_available
 
     kernel = "compiled" if compiled_kernel_available() else "numpy (no C compiler at install)"
     return (f"{os.cpu_count()} cores ({cpu}), Python {platform.python_version()}, numpy {np.__version__}, "
@@ -121,7 +121,7 @@ def scaling_section(sizes: dict) -> list[str]:
     n = sizes["degree_n"]
     out += ["", f"## Fit time against degree (N = {n:,})", "",
             "| degree | coefficients | ftcal | numpy lstsq | lstsq / ftcal |", "|---:|---:|---:|---:|---:|"]
-    from ftcal.features import n_coefficients
+    from ftcal.core.features import n_coefficients
 
     for degree in range(1, 6):
         ours = run_case("ftcal_fit", n=n, degree=degree)

@@ -61,7 +61,7 @@ def bag_prepare(kind: str, n: int) -> dict:
 
 
 def ftcal_bag_read(kind: str, n: int) -> dict:
-    from ftcal.io.bags import BagTopics, read_bag
+    from ftcal.data.bags import BagTopics, read_bag
 
     path = bag_path(kind, n)
     start = time.perf_counter()

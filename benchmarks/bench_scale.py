@@ -4,7 +4,7 @@ Measured in one run on Parquet files written before the clocks start:
 
 * statistics of a degree-``degree`` static model over all files (one task per file,
   each reading its file chunk by chunk, tree-summed): in this process
-  (:class:`ftcal.executors.LocalExecutor`), and on ``local:1`` and ``local:2``
+  (:class:`ftcal.runtime.executors.LocalExecutor`), and on ``local:1`` and ``local:2``
   Dask clusters (started before the clock; the time includes shipping the
   per-file statistics and the tree reduction);
 * the size of one statistics message (``SufficientStatistics`` pickled as Dask
@@ -53,10 +53,10 @@ def write_files(folder: Path, n_files: int, rows: int) -> list[str]:
 
 
 def statistics_rows(paths: list[str], rows: int, degree: int) -> tuple[list[dict], int]:
-    from ftcal.executors import LocalExecutor, open_executor
-    from ftcal.features import MonomialBasis
-    from ftcal.normalization import normalization_from_range
-    from ftcal.streaming import add_statistics, file_statistics
+    from ftcal.core.features import MonomialBasis
+    from ftcal.core.normalization import normalization_from_range
+    from ftcal.data.streaming import add_statistics, file_statistics
+    from ftcal.runtime.executors import LocalExecutor, open_executor
 
     basis = MonomialBasis(len(INPUTS), degree)
     # the generator's input ranges (benchmarks.cases.make_data)
@@ -100,9 +100,9 @@ def peak_rss_of(code: str) -> float:
 
 def memory_rows(paths: list[str], folder: Path, degree: int) -> list[dict]:
     from benchmarks.cases import make_data
-    from ftcal.dataset import Dataset
-    from ftcal.io.model_json import save_model
-    from ftcal.model import CalibrationModel
+    from ftcal.core.dataset import Dataset
+    from ftcal.core.model import CalibrationModel
+    from ftcal.files.model_json import save_model
 
     u, y = make_data(20_000, seed=99)
     model = CalibrationModel(degree).fit(Dataset.from_arrays(u, y, input_names=INPUTS, output_names=OUTPUTS))
@@ -117,11 +117,11 @@ def memory_rows(paths: list[str], folder: Path, degree: int) -> list[dict]:
             ("ftcal evaluate (streaming)",
              f"{cli}assert main(['evaluate', {str(model_path)!r}, *{files}, '--json']) == 0"),
             ("whole tables read, then predict (before streaming)",
-             "from ftcal.io.model_files import read_model\nfrom ftcal.io.tables import read_dataset\n"
+             "from ftcal.files.model_files import read_model\nfrom ftcal.data.tables import read_dataset\n"
              f"m = read_model({str(model_path)!r})\nd = read_dataset({files}, m.input_names_, None)\n"
              "m.predict(d, warn_out_of_range=False)"),
             ("Python + ftcal + pyarrow imported, nothing read",
-             "import ftcal.streaming, pyarrow.parquet, pandas")):
+             "import ftcal.data.streaming, pyarrow.parquet, pandas")):
         start = time.perf_counter()
         peak = peak_rss_of(code)
         rows.append({"method": label, "peak_rss_mb": peak, "seconds": time.perf_counter() - start})
@@ -130,7 +130,7 @@ def memory_rows(paths: list[str], folder: Path, degree: int) -> list[dict]:
 
 def fit_rows(paths: list[str], folder: Path, rows_per_file: int, degree: int) -> list[dict]:
     """Streamed ``ftcal fit`` against whole tables + in-memory fit: peak RSS, time per sample, fresh processes."""
-    from ftcal.io.model_files import read_model
+    from ftcal.files.model_files import read_model
 
     files = json.dumps(paths)
     streamed, whole = folder / "fit-streamed.json", folder / "fit-whole.json"
@@ -141,8 +141,8 @@ def fit_rows(paths: list[str], folder: Path, rows_per_file: int, degree: int) ->
              "from ftcal.cli import main\n"
              f"assert main(['fit', *{files}, '--degree', '{degree}', '-o', {str(streamed)!r}]) == 0"),
             ("whole tables read, then fit in memory (before streaming)",
-             "from ftcal.io.model_json import save_model\nfrom ftcal.io.tables import read_dataset\n"
-             "from ftcal.model import CalibrationModel\n"
+             "from ftcal.files.model_json import save_model\nfrom ftcal.data.tables import read_dataset\n"
+             "from ftcal.core.model import CalibrationModel\n"
              f"d = read_dataset({files}, {INPUTS!r}, {OUTPUTS!r})\n"
              f"save_model(CalibrationModel({degree}).fit(d), {str(whole)!r})")):
         start = time.perf_counter()
@@ -162,7 +162,7 @@ def main(n_files: int = 10, rows_per_file: int = 300_000, degree: int = 4) -> di
         stats, message = statistics_rows(paths, rows_per_file, degree)
         memory = memory_rows(paths, folder, degree)
         fit = fit_rows(paths, folder, rows_per_file, degree)
-    from ftcal._threads import worker_count
+    from ftcal.runtime.threads import worker_count
 
     result = {"n_files": n_files, "rows_per_file": rows_per_file, "degree": degree, "cores": worker_count(),
               "table_mb": n_files * rows_per_file * (len(INPUTS) + len(OUTPUTS)) * 8 / 1e6,

@@ -56,9 +56,9 @@ def ftcal_fit(n: int, degree: int, kernel: str = "compiled") -> dict:
     """``CalibrationModel(degree).fit``; ``kernel="numpy"``: without the compiled kernels."""
     from contextlib import nullcontext
 
-    from ftcal.dataset import Dataset
-    from ftcal.model import CalibrationModel
-    from ftcal.kernels import use_numpy_kernel
+    from ftcal.core.dataset import Dataset
+    from ftcal.core.kernels import use_numpy_kernel
+    from ftcal.core.model import CalibrationModel
 
     u, y = make_data(n)
     data = Dataset.from_arrays(u, y)
@@ -71,9 +71,9 @@ def ftcal_fit(n: int, degree: int, kernel: str = "compiled") -> dict:
 
 def ftcal_statistics(n: int, degree: int) -> dict:
     """Only the streaming pass (the part that scales with N)."""
-    from ftcal.features import MonomialBasis
-    from ftcal.normalization import normalization_from_range
-    from ftcal.statistics import static_statistics
+    from ftcal.core.features import MonomialBasis
+    from ftcal.core.normalization import normalization_from_range
+    from ftcal.core.statistics import static_statistics
 
     u, y = make_data(n)
     norm = normalization_from_range(u.min(0), u.max(0))
@@ -85,7 +85,7 @@ def ftcal_statistics(n: int, degree: int) -> dict:
 
 def paper_recipe_fit(n: int, degree: int, eps: float = 1e-4) -> dict:
     """Dense max-abs scaled regressor, then OSQP per output (the paper's least-squares QP)."""
-    from ftcal.solvers.osqp_qp import OsqpLeastSquares
+    from ftcal.core.solvers.osqp_qp import OsqpLeastSquares
 
     u, y = make_data(n)
     start = time.perf_counter()
@@ -97,7 +97,7 @@ def paper_recipe_fit(n: int, degree: int, eps: float = 1e-4) -> dict:
 
 
 def numpy_lstsq_fit(n: int, degree: int) -> dict:
-    from ftcal.features import MonomialBasis
+    from ftcal.core.features import MonomialBasis
 
     u, y = make_data(n)
     start = time.perf_counter()
@@ -124,8 +124,8 @@ LAMBDAS = (0.5, 1.0, 10.0, 50.0, 100.0, 200.0)
 
 def ftcal_lasso(n: int, degree: int) -> dict:
     """Statistics pass + warm-started path over the six λ, all six outputs."""
-    from ftcal.dataset import Dataset
-    from ftcal.select import Candidate, fit_candidates
+    from ftcal.core.dataset import Dataset
+    from ftcal.core.select import Candidate, fit_candidates
 
     u, y = make_data(n)
     data = Dataset.from_arrays(u, y)
@@ -137,7 +137,7 @@ def ftcal_lasso(n: int, degree: int) -> dict:
 
 def paper_lasso(n: int, degree: int, outputs: int = 1, lam: float = 50.0) -> dict:
     """The paper's OSQP LASSO (one residual variable per sample), ``outputs`` outputs, one λ."""
-    from ftcal.solvers.osqp_qp import OsqpLasso
+    from ftcal.core.solvers.osqp_qp import OsqpLasso
 
     u, y = make_data(n)
     start = time.perf_counter()
@@ -215,7 +215,7 @@ def select_auto(n: int, folds: int = 5) -> dict:
 
 
 def _load_case_dataset(n: int):
-    from ftcal.dataset import Dataset
+    from ftcal.core.dataset import Dataset
 
     u, y, groups = make_load_cases(n)
     return Dataset.from_arrays(u, y, input_names=[f"s{i + 1}" for i in range(u.shape[1])], groups=groups)
@@ -230,13 +230,13 @@ def select_auto_baseline(n: int, folds: int = 5) -> dict:
     """
     import warnings
 
-    from ftcal import metrics
-    from ftcal.features import MonomialBasis, RegressorLayout
-    from ftcal.model import CalibrationModel, model_from_fitted
-    from ftcal.normalization import normalization_from_range
-    from ftcal.select import grouped_folds
-    from ftcal.solvers import Lasso, LeastSquares, ScaledProblem
-    from ftcal.statistics import sum_statistics
+    from ftcal.core import metrics
+    from ftcal.core.features import MonomialBasis, RegressorLayout
+    from ftcal.core.model import CalibrationModel, model_from_fitted
+    from ftcal.core.normalization import normalization_from_range
+    from ftcal.core.select import grouped_folds
+    from ftcal.core.solvers import Lasso, LeastSquares, ScaledProblem
+    from ftcal.core.statistics import sum_statistics
 
     data = _load_case_dataset(n)
     start = time.perf_counter()
@@ -276,7 +276,7 @@ def select_auto_new(n: int, folds: int = 5) -> dict:
     """Today's ``--degree auto`` in the library (the same work as :func:`select_auto` without file I/O)."""
     import warnings
 
-    from ftcal.select import fit_best, select_model
+    from ftcal.core.select import fit_best, select_model
 
     data = _load_case_dataset(n)
     start = time.perf_counter()
@@ -289,8 +289,8 @@ def select_auto_new(n: int, folds: int = 5) -> dict:
 
 # -------------------------------------------------------------- prediction
 def ftcal_predict(n: int, degree: int) -> dict:
-    from ftcal.dataset import Dataset
-    from ftcal.model import CalibrationModel
+    from ftcal.core.dataset import Dataset
+    from ftcal.core.model import CalibrationModel
 
     u, y = make_data(20_000)
     model = CalibrationModel(degree).fit(Dataset.from_arrays(u, y))
@@ -395,9 +395,9 @@ def c_predict(n: int, degree: int) -> dict:
     import tempfile
     from pathlib import Path
 
-    from ftcal.dataset import Dataset
-    from ftcal.export.c_code import generate_c
-    from ftcal.model import CalibrationModel
+    from ftcal.core.dataset import Dataset
+    from ftcal.core.model import CalibrationModel
+    from ftcal.files.c_code import generate_c
 
     cc = shutil.which("cc")
     if cc is None:
@@ -427,8 +427,8 @@ def ftcal_predict_one(n: int, degree: int) -> dict:
     """Python ``predict`` one sample per call (as a Python control loop would), and in one batch, one thread."""
     import os
 
-    from ftcal.dataset import Dataset
-    from ftcal.model import CalibrationModel
+    from ftcal.core.dataset import Dataset
+    from ftcal.core.model import CalibrationModel
 
     u, y = make_data(20_000)
     model = CalibrationModel(degree).fit(Dataset.from_arrays(u, y))
@@ -458,7 +458,7 @@ import sys
 import numpy as np
 import pandas as pd
 from benchmarks.cases import CSV_INPUTS, CSV_OUTPUTS, paper_features
-from ftcal.solvers.osqp_qp import OsqpLeastSquares
+from ftcal.core.solvers.osqp_qp import OsqpLeastSquares
 
 frame = pd.read_csv(sys.argv[1])
 a = paper_features(frame[list(CSV_INPUTS)].to_numpy(), int(sys.argv[2]))

@@ -6,17 +6,17 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from bag_data import KINDS, Bag
 from rosbags.highlevel import AnyReader
 from scipy.spatial.transform import Rotation
-
-from bag_data import KINDS, Bag
-from ftcal.cli import main
-from ftcal.errors import FtcalError, FtcalWarning
-from ftcal.io import bags
-from ftcal.io.bags import BagTopics, read_bag
-from ftcal.io.logs import read_recording
 from test_robot_expected import FOREARM, static_wrench
 from test_robot_model import TINY_URDF
+
+from ftcal.cli import main
+from ftcal.data import bags
+from ftcal.data.bags import BagTopics, read_bag
+from ftcal.data.logs import read_recording
+from ftcal.runtime.errors import FtcalError, FtcalWarning
 
 T0 = 1_700_000_000 * 10**9  # a realistic epoch stamp, ns
 MS = 10**6

@@ -5,12 +5,12 @@ import warnings
 
 import numpy as np
 import pytest
-
-from ftcal.errors import FtcalWarning
-from ftcal.robot import Payload, RobotModel, expected_wrenches
-from ftcal.robot.cache import cache_key, cache_path, cached, content_digest, default_cache_dir
 from test_robot_expected import FOREARM, static_wrench
 from test_robot_model import TINY_URDF
+
+from ftcal.robot import Payload, RobotModel, expected_wrenches
+from ftcal.robot.cache import cache_key, cache_path, cached, content_digest, default_cache_dir
+from ftcal.runtime.errors import FtcalWarning
 
 THETA = np.linspace(-1, 1, 7)
 NAMES = ["arm_ft"]

@@ -18,15 +18,15 @@ import sys
 import warnings
 from pathlib import Path
 
+import cli_data as cd
 import numpy as np
 import pandas as pd
 import pytest
 from sklearn.linear_model import Lasso, Ridge
 
-import cli_data as cd
 from ftcal.cli import main
-from ftcal.errors import FtcalWarning
-from ftcal.io.model_json import load_model
+from ftcal.files.model_json import load_model
+from ftcal.runtime.errors import FtcalWarning
 
 FTCAL = Path(sys.executable).with_name("ftcal")
 N_TRAIN, N_VAL, N_OUTSIDE = 600, 200, 3

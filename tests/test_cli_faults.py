@@ -15,19 +15,19 @@ import time
 import warnings
 from pathlib import Path
 
+import cli_data as cd
 import h5py
 import numpy as np
 import pandas as pd
 import pytest
-
-import cli_data as cd
-from ftcal.cli import main
-from ftcal.errors import FtcalError, FtcalWarning
-from ftcal.io.atomic import protected_inputs, write_text_atomic
-from ftcal.io.model_json import digest
 from test_insitu import make_recording
 from test_logs_mat import write_v73
 from test_robot_model import TINY_URDF
+
+from ftcal.cli import main
+from ftcal.files.model_json import digest
+from ftcal.runtime.atomic import protected_inputs, write_text_atomic
+from ftcal.runtime.errors import FtcalError, FtcalWarning
 
 FTCAL = str(Path(sys.executable).with_name("ftcal"))
 

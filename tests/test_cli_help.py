@@ -7,15 +7,15 @@ import sys
 import warnings
 from pathlib import Path
 
+import cli_data as cd
 import numpy as np
 import pandas as pd
 import pytest
 
-import cli_data as cd
-from ftcal import Dataset
+from ftcal import Dataset, load_dataset
 from ftcal.cli import main
-from ftcal.errors import FtcalWarning
-from ftcal.fingerprint import find_training_segments, segment_fingerprints
+from ftcal.core.fingerprint import find_training_segments, segment_fingerprints
+from ftcal.runtime.errors import FtcalWarning
 
 FTCAL = str(Path(sys.executable).with_name("ftcal"))
 
@@ -69,11 +69,11 @@ assert not heavy, heavy
     assert done.returncode == 0, done.stderr
 
 
-def test_dataset_from_table_reads_like_pandas(tmp_path):
+def test_load_dataset_reads_like_pandas(tmp_path):
     frame = cd.training_frame(np.random.default_rng(5), 200)
     path = tmp_path / "t.csv"
     frame.to_csv(path, index=False)
-    data = Dataset.from_table(str(path), segment_by="rec", group_by="load")
+    data = load_dataset(str(path), segment_by="rec", group_by="load")
     by_pandas = pd.read_csv(path)
     np.testing.assert_array_equal(data.inputs, by_pandas[list(cd.INPUTS)].to_numpy())
     np.testing.assert_array_equal(data.outputs, by_pandas[list(cd.OUTPUTS)].to_numpy())
@@ -81,7 +81,7 @@ def test_dataset_from_table_reads_like_pandas(tmp_path):
     assert len(data.segment_bounds()) == by_pandas["rec"].nunique()
     no_t = tmp_path / "no_t.csv"
     frame.drop(columns="T").to_csv(no_t, index=False)
-    assert Dataset.from_table([str(no_t)]).input_names == cd.INPUTS[:6]
+    assert load_dataset([str(no_t)]).input_names == cd.INPUTS[:6]
 
 
 def test_fingerprints_follow_the_documented_format():

@@ -7,8 +7,8 @@ import pandas as pd
 import pytest
 
 from ftcal.cli import main
-from ftcal.io.model_json import save_model
-from ftcal.model import CalibrationModel
+from ftcal.core.model import CalibrationModel
+from ftcal.files.model_json import save_model
 from ftcal.sim.synthetic import synthetic_recordings
 
 

@@ -4,12 +4,12 @@ import h5py
 import numpy as np
 import pandas as pd
 import pytest
-
-from ftcal.cli import main
 from test_insitu import expected_at, make_recording
 from test_logs_mat import logger_tree, write_v5, write_v73
 from test_robot_expected import FOREARM, static_wrench
 from test_robot_model import TINY_URDF
+
+from ftcal.cli import main
 
 WRENCH = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
 

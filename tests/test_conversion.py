@@ -7,12 +7,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ftcal.conversion import affine_part, from_raw, precision_loss, to_raw
-from ftcal.dataset import Dataset
-from ftcal.errors import FtcalError, PrecisionLossWarning
-from ftcal.features import MonomialBasis, RegressorLayout
-from ftcal.model import model_from_fitted
-from ftcal.normalization import Normalization
+from ftcal.core.conversion import affine_part, from_raw, precision_loss, to_raw
+from ftcal.core.dataset import Dataset
+from ftcal.core.features import MonomialBasis, RegressorLayout
+from ftcal.core.model import model_from_fitted
+from ftcal.core.normalization import Normalization
+from ftcal.runtime.errors import FtcalError, PrecisionLossWarning
 
 
 def make_model(coef, degree, in_offset, in_scale, *, na=0, nb=0, out_offset=None, out_scale=None,

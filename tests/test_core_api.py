@@ -10,13 +10,22 @@ from importlib import resources
 import numpy as np
 import pytest
 
-from ftcal import limits
-from ftcal.dataset import Dataset
-from ftcal.errors import FtcalError
-from ftcal.features import MonomialBasis
-from ftcal.model import CalibrationModel
-from ftcal.select import Candidate, cross_validate, fit_best, grouped_folds
-from ftcal.solvers import Lasso, LeastSquares, OsqpLasso, OsqpLeastSquares, Ridge, ScaledProblem, Solver, SolverResult
+from ftcal.core import limits
+from ftcal.core.dataset import Dataset
+from ftcal.core.features import MonomialBasis
+from ftcal.core.model import CalibrationModel
+from ftcal.core.select import Candidate, cross_validate, fit_best, grouped_folds
+from ftcal.core.solvers import (
+    Lasso,
+    LeastSquares,
+    OsqpLasso,
+    OsqpLeastSquares,
+    Ridge,
+    ScaledProblem,
+    Solver,
+    SolverResult,
+)
+from ftcal.runtime.errors import FtcalError
 
 
 class NumpyLstsq:
@@ -116,14 +125,14 @@ def test_limits_module_imports_nothing_heavy():
     import subprocess
     import sys
 
-    code = "import sys, ftcal.limits; print('numpy' in sys.modules)"
+    code = "import sys, ftcal.core.limits; print('numpy' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
 
 
-DOCTEST_MODULES = ["ftcal.features", "ftcal.statistics", "ftcal.solvers.base", "ftcal.solvers.least_squares",
-                   "ftcal.solvers.lasso", "ftcal.model", "ftcal.metrics", "ftcal.select", "ftcal.dataset",
-                   "ftcal.normalization"]
+DOCTEST_MODULES = ["ftcal.core.features", "ftcal.core.statistics", "ftcal.core.solvers.base", "ftcal.core.solvers.least_squares",
+                   "ftcal.core.solvers.lasso", "ftcal.core.model", "ftcal.core.metrics", "ftcal.core.select", "ftcal.core.dataset",
+                   "ftcal.core.normalization"]
 
 
 @pytest.mark.parametrize("name", DOCTEST_MODULES)

@@ -11,8 +11,8 @@ import pandas as pd
 import pytest
 
 from ftcal.cli import main
-from ftcal.errors import FtcalWarning
-from ftcal.io.model_json import load_model
+from ftcal.files.model_json import load_model
+from ftcal.runtime.errors import FtcalWarning
 
 FORCES = ["Fx", "Fy", "Fz"]
 
@@ -140,8 +140,8 @@ def test_firmware_refusal_for_the_wrench_model_says_what_to_fit(quick_demo, tmp_
 
 def test_the_paper_demo_also_records_the_arm_bag(quick_demo):
     """README's ROS example reads ftcal-demo/arm after `make demo`: the arm scenario's ROS 2 bag."""
-    from ftcal.demo_arm import ARM_DEMO_SCENARIO as s
-    from ftcal.io.bags import BagTopics, read_bag
+    from ftcal.data.bags import BagTopics, read_bag
+    from ftcal.sim.demo_arm import ARM_DEMO_SCENARIO as s
 
     out, _ = quick_demo
     stream = read_bag(out / "arm", BagTopics("/ft_sensor/wrench")).ft["/ft_sensor/wrench"]

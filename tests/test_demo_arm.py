@@ -13,11 +13,11 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from ftcal.cli import main
-from ftcal.demo_arm import ArmDemoConfig, run_arm_demo, write_demo_bag
-from ftcal.errors import FtcalError
-from ftcal.io.bags import BagTopics, read_bag
-from ftcal.io.payload_json import load_payload
+from ftcal.data.bags import BagTopics, read_bag
+from ftcal.files.payload_json import load_payload
+from ftcal.runtime.errors import FtcalError
 from ftcal.sim.arm_bag import WRENCH_TOPIC, ArmScenario
+from ftcal.sim.demo_arm import ArmDemoConfig, run_arm_demo, write_demo_bag
 
 SMALL = ArmScenario(n_poses=8, hold_s=1.0, move_s=1.0, rate=200.0, tf_rate=50.0, imu_rate=100.0,
                     force_bias_tc=(0.0, 0.0, 0.0), seed=5)

@@ -12,12 +12,12 @@ import numpy as np
 import pytest
 
 from ftcal.cli import main
-from ftcal.dataset import Dataset
-from ftcal.errors import FtcalError
-from ftcal.export.c_code import evaluate_like_c, generate_c
-from ftcal.io.model_json import save_model
-from ftcal.model import CalibrationModel
-from ftcal.solvers import Lasso
+from ftcal.core.dataset import Dataset
+from ftcal.core.model import CalibrationModel
+from ftcal.core.solvers import Lasso
+from ftcal.files.c_code import evaluate_like_c, generate_c
+from ftcal.files.model_json import save_model
+from ftcal.runtime.errors import FtcalError
 
 CC = shutil.which("cc")
 needs_cc = pytest.mark.skipif(CC is None, reason="no system C compiler `cc` on PATH to compile the generated code")

@@ -8,16 +8,15 @@ import numpy as np
 import onnx
 import onnxruntime as ort
 import pytest
+from test_export_c import assert_relative, sensor_data
 
 from ftcal.cli import main
-from ftcal.dataset import Dataset
-from ftcal.errors import FtcalError
-from ftcal.export.onnx_graph import OPSET, build_onnx
-from ftcal.io.model_json import save_model
-from ftcal.model import CalibrationModel
-from ftcal.solvers import Lasso
-
-from test_export_c import assert_relative, sensor_data
+from ftcal.core.dataset import Dataset
+from ftcal.core.model import CalibrationModel
+from ftcal.core.solvers import Lasso
+from ftcal.files.model_json import save_model
+from ftcal.files.onnx_graph import OPSET, build_onnx
+from ftcal.runtime.errors import FtcalError
 
 
 def run_onnx(proto, u):

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from ftcal.cli import main
-from ftcal.errors import FtcalError
-from ftcal.export import targets
-from ftcal.io.model_json import save_model
-from ftcal.model import CalibrationModel
+from ftcal.core.model import CalibrationModel
+from ftcal.files import targets
+from ftcal.files.model_json import save_model
+from ftcal.runtime.errors import FtcalError
 
 
 @pytest.mark.parametrize("name", list(targets.TARGETS))

@@ -8,8 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from sklearn.preprocessing import PolynomialFeatures
 
-from ftcal.errors import FtcalError
-from ftcal.features import MonomialBasis, RegressorLayout, n_coefficients, n_monomials
+from ftcal.core.features import MonomialBasis, RegressorLayout, n_coefficients, n_monomials
+from ftcal.runtime.errors import FtcalError
 
 
 # --------------------------------------------------------------------------- counts

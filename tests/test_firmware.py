@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ftcal.conversion import from_raw
-from ftcal.errors import FtcalError, FtcalWarning
-from ftcal.io.firmware import firmware_filename, firmware_matrix, write_firmware_matrix
-from ftcal.io.model_files import write_model
+from ftcal.core.conversion import from_raw
+from ftcal.files.firmware import firmware_filename, firmware_matrix, write_firmware_matrix
+from ftcal.files.model_files import write_model
+from ftcal.runtime.errors import FtcalError, FtcalWarning
 
 CHANNELS = ["s1", "s2", "s3", "s4", "s5", "s6"]
 OUTPUTS = ["Fx", "Fy", "Fz", "Tx", "Ty", "Tz"]

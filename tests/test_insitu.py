@@ -3,14 +3,14 @@
 import numpy as np
 import pandas as pd
 import pytest
-
-from ftcal.dataset import DEFAULT_INPUTS, DEFAULT_OUTPUTS
-from ftcal.errors import FtcalError, FtcalWarning
-from ftcal.insitu import InsituOptions, build_dataset, write_dataset
-from ftcal.robot import RobotModel, load_case_config
 from test_logs_mat import logger_tree, write_v5, write_v73
 from test_robot_expected import FOREARM, static_wrench
 from test_robot_model import TINY_URDF
+
+from ftcal.core.dataset import DEFAULT_INPUTS, DEFAULT_OUTPUTS
+from ftcal.insitu.recordings import InsituOptions, build_dataset, write_dataset
+from ftcal.robot import RobotModel, load_case_config
+from ftcal.runtime.errors import FtcalError, FtcalWarning
 
 RATE = 0.5  # rad/s: the shoulder angle is linear in time, so interpolating it is exact
 

@@ -7,11 +7,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ftcal import kernels
-from ftcal.dataset import Dataset
-from ftcal.features import MonomialBasis
-from ftcal.kernels import step_table, use_numpy_kernel
-from ftcal.model import CalibrationModel
+from ftcal.core import kernels
+from ftcal.core.dataset import Dataset
+from ftcal.core.features import MonomialBasis
+from ftcal.core.kernels import step_table, use_numpy_kernel
+from ftcal.core.model import CalibrationModel
 
 needs_compiled = pytest.mark.skipif(not kernels.compiled_kernel_available(),
                                     reason="the compiled kernels were not built (no C compiler at install)")
@@ -22,7 +22,7 @@ def test_the_compiled_kernels_are_built_wherever_a_c_compiler_is():
     if shutil.which("cc") is None or not headers:
         pytest.skip("no C compiler or no Python headers: the numpy paths are the expected ones here")
     assert kernels.compiled_kernel_available(), (
-        "a C compiler is on PATH but ftcal._polynomial was not built; reinstall (pip install -e .) and read "
+        "a C compiler is on PATH but ftcal.core._polynomial was not built; reinstall (pip install -e .) and read "
         "the build log")
 
 

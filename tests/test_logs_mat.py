@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 import scipy.io
 
-from ftcal.errors import FtcalError
-from ftcal.io.logs import read_recording
+from ftcal.data.logs import read_recording
+from ftcal.runtime.errors import FtcalError
 
 JOINTS = ["shoulder", "elbow"]
 

@@ -4,11 +4,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from ftcal.alignment import align, timing
-from ftcal.errors import FtcalError, FtcalWarning
-from ftcal.io.logs import read_recording
-from ftcal.io.recording import Recording, Stream
-from ftcal.signals import channel_issues, check_finite, smooth
+from ftcal.data.alignment import align, timing
+from ftcal.data.logs import read_recording
+from ftcal.data.recording import Recording, Stream
+from ftcal.data.signals import channel_issues, check_finite, smooth
+from ftcal.runtime.errors import FtcalError, FtcalWarning
 
 FT_COLS = tuple(f"u{i}" for i in range(1, 7))
 

@@ -6,7 +6,7 @@ from math import sqrt
 import numpy as np
 import pytest
 
-from ftcal import metrics
+from ftcal.core import metrics
 
 Y = np.array([[1.0, 2.0], [3.0, 4.0], [5.0, 6.0]])
 P = np.array([[1.0, 1.0], [4.0, 4.0], [5.0, 9.0]])

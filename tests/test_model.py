@@ -5,9 +5,9 @@ import warnings
 import numpy as np
 import pytest
 
-from ftcal.dataset import Dataset, concatenate
-from ftcal.errors import FtcalError, IllPosedFitWarning, NotFittedError, OutOfRangeWarning
-from ftcal.model import CalibrationModel, model_from_fitted
+from ftcal.core.dataset import Dataset, concatenate
+from ftcal.core.model import CalibrationModel, model_from_fitted
+from ftcal.runtime.errors import FtcalError, IllPosedFitWarning, NotFittedError, OutOfRangeWarning
 
 
 def _signed(make_sensor_data, rng, n, n_channels=3):
@@ -358,7 +358,7 @@ def test_arx_one_step_is_exact_across_prediction_chunks():
     # A noise-free linear ARX system, longer than a prediction chunk: every one-step
     # prediction after the first sample must equal the system's output, so the lag
     # history has to be carried correctly across chunk boundaries.
-    from ftcal import model as model_module
+    from ftcal.core import model as model_module
 
     rng = np.random.default_rng(11)
     n = 3 * model_module.PREDICT_CHUNK + 123

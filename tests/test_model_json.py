@@ -10,15 +10,22 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ftcal.dataset import Dataset
-from ftcal.errors import FtcalError
-from ftcal.features import MonomialBasis, RegressorLayout
-from ftcal.io.model_files import read_model, read_model_file, write_model
-from ftcal.io.model_json import (digest, format_document, load_model, load_model_file, model_document,
-                                 parse_model, save_model)
-from ftcal.model import CalibrationModel, model_from_fitted
-from ftcal.normalization import Normalization
-from ftcal.solvers.lasso import Lasso
+from ftcal.core.dataset import Dataset
+from ftcal.core.features import MonomialBasis, RegressorLayout
+from ftcal.core.model import CalibrationModel, model_from_fitted
+from ftcal.core.normalization import Normalization
+from ftcal.core.solvers.lasso import Lasso
+from ftcal.files.model_files import read_model, read_model_file, write_model
+from ftcal.files.model_json import (
+    digest,
+    format_document,
+    load_model,
+    load_model_file,
+    model_document,
+    parse_model,
+    save_model,
+)
+from ftcal.runtime.errors import FtcalError
 
 
 def fitted(degree=2, na=0, nb=0, solver=None, seed=0):

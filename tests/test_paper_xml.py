@@ -7,12 +7,12 @@ import re
 import numpy as np
 import pytest
 
-from ftcal.conversion import from_raw, to_raw
-from ftcal.dataset import Dataset
-from ftcal.errors import FtcalError, PrecisionLossWarning
-from ftcal.io.paper_xml import parse_paper_xml, read_paper_xml, write_paper_xml
-from ftcal.model import CalibrationModel, model_from_fitted
-from ftcal.normalization import Normalization
+from ftcal.core.conversion import from_raw, to_raw
+from ftcal.core.dataset import Dataset
+from ftcal.core.model import CalibrationModel, model_from_fitted
+from ftcal.core.normalization import Normalization
+from ftcal.files.paper_xml import parse_paper_xml, read_paper_xml, write_paper_xml
+from ftcal.runtime.errors import FtcalError, PrecisionLossWarning
 
 # Like the docs/formats.md §1 example (np=1, nu=7, ny=6: 8 rows), with uneven white space and
 # several float spellings.

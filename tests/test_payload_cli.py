@@ -12,7 +12,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from ftcal.cli import main
-from ftcal.errors import FtcalWarning
+from ftcal.runtime.errors import FtcalWarning
 
 FTCAL = str(Path(sys.executable).with_name("ftcal"))
 G = 9.81
@@ -107,9 +107,9 @@ def test_compensate_removes_payload_to_noise(capsys, data):
 
 
 def test_compensate_through_a_calibration_model(capsys, tmp_path):
-    from ftcal.dataset import Dataset
-    from ftcal.io.model_json import save_model
-    from ftcal.model import CalibrationModel
+    from ftcal.core.dataset import Dataset
+    from ftcal.core.model import CalibrationModel
+    from ftcal.files.model_json import save_model
 
     # Raw channels r = M⁻¹ (w − o): an affine calibration model maps them back to the wrench.
     frame = poses_frame(seed=3)
@@ -148,9 +148,9 @@ def test_negative_mass_offers_reaction(capsys, tmp_path):
 
 
 def test_reader_rejects_tampered_and_invalid_files(capsys, data, tmp_path):
-    from ftcal.errors import FtcalError
-    from ftcal.io.model_json import digest
-    from ftcal.io.payload_json import load_payload
+    from ftcal.files.model_json import digest
+    from ftcal.files.payload_json import load_payload
+    from ftcal.runtime.errors import FtcalError
 
     root, path = data
     good = tmp_path / "p.json"
@@ -281,7 +281,7 @@ def test_convert_payload_to_ros_files(capsys, data):
 
 
 def test_oversized_payload_file_is_refused_before_reading(capsys, data, tmp_path):
-    from ftcal.io.model_json import MAX_MODEL_BYTES
+    from ftcal.files.model_json import MAX_MODEL_BYTES
 
     huge = tmp_path / "huge.json"
     with open(huge, "wb") as fh:

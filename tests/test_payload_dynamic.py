@@ -3,15 +3,15 @@
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
+from test_payload_regressor import COM, IXX, IXY, IXZ, IYY, IYZ, IZZ, MASS, ONE_LINK_URDF, RPY, idyntree_measurements
 
-from ftcal.errors import FtcalError
 from ftcal.payload.accumulate import payload_statistics
 from ftcal.payload.compensate import contact_wrench, payload_wrench
 from ftcal.payload.identify import identify_payload
 from ftcal.payload.kinematics import Kinematics
 from ftcal.payload.parameters import PayloadParameters
 from ftcal.payload.regressor import inertia_matrix
-from test_payload_regressor import COM, IXX, IXY, IXZ, IYY, IYZ, IZZ, MASS, ONE_LINK_URDF, RPY, idyntree_measurements
+from ftcal.runtime.errors import FtcalError
 
 BIAS = np.array([1.5, -0.7, 2.0, 0.05, 0.02, -0.03])
 NOISE = np.array([0.05, 0.05, 0.05, 0.002, 0.002, 0.002])

@@ -13,9 +13,9 @@ Field names, from the packages' own repositories:
 import numpy as np
 import pytest
 
-from ftcal.errors import FtcalError
-from ftcal.export.ros_yaml import write_ft_tools_ros2, write_ros_yaml
+from ftcal.files.ros_yaml import write_ft_tools_ros2, write_ros_yaml
 from ftcal.payload.parameters import PayloadParameters
+from ftcal.runtime.errors import FtcalError
 
 yaml = pytest.importorskip("yaml")
 

@@ -6,13 +6,17 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from ftcal.errors import FtcalError, IllPosedFitWarning
 from ftcal.payload.accumulate import payload_statistics
 from ftcal.payload.identify import identify_payload
 from ftcal.payload.kinematics import (
-    GravityColumnsSource, Kinematics, MotionSource, OrientationSource, angular_acceleration_from,
+    GravityColumnsSource,
+    Kinematics,
+    MotionSource,
+    OrientationSource,
+    angular_acceleration_from,
     gravity_from_quaternions,
 )
+from ftcal.runtime.errors import FtcalError, IllPosedFitWarning
 
 G = 9.81
 MASS = 1.3

@@ -5,8 +5,14 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from ftcal.payload.regressor import (
-    DYNAMIC_PARAMETERS, STATIC_PARAMETERS, dynamic_regressor, inertia_about_com, inertia_matrix,
-    inertial_regressor, skew, static_regressor,
+    DYNAMIC_PARAMETERS,
+    STATIC_PARAMETERS,
+    dynamic_regressor,
+    inertia_about_com,
+    inertia_matrix,
+    inertial_regressor,
+    skew,
+    static_regressor,
 )
 
 G = 9.81

@@ -14,15 +14,15 @@ import matplotlib.image as mpimg
 import numpy as np
 import pytest
 
-from ftcal.dataset import Dataset
-from ftcal.errors import FtcalError
-from ftcal.model import CalibrationModel
+from ftcal.core.dataset import Dataset
+from ftcal.core.model import CalibrationModel
+from ftcal.core.select import Candidate, cross_validate
+from ftcal.core.solvers.lasso import Lasso
 from ftcal.report import ModelRun, build_report, evaluate
 from ftcal.report.figures import MAX_LINE_POINTS, envelope_indices
 from ftcal.report.runs import natural_key
-from ftcal.select import Candidate, cross_validate
+from ftcal.runtime.errors import FtcalError
 from ftcal.sim.synthetic import synthetic_recordings
-from ftcal.solvers.lasso import Lasso
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 FORCES, TORQUES = [0, 1, 2], [3, 4, 5]

@@ -16,9 +16,9 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import ftcal.robot.expected as expected_module
-from ftcal.errors import FtcalError
 from ftcal.robot import Payload, RobotModel, SensorDeclaration
 from ftcal.robot.expected import FloatingBase, expected_wrenches
+from ftcal.runtime.errors import FtcalError
 
 ROBOTS = Path(sys.prefix) / "lib" / f"python{sys.version_info.major}.{sys.version_info.minor}" / \
     "site-packages" / "cmeel.prefix" / "share" / "example-robot-data" / "robots"

@@ -2,11 +2,11 @@
 
 import numpy as np
 import pytest
+from test_robot_model import FOREARM_MASS, TINY_URDF
 
-from ftcal.errors import FtcalError
 from ftcal.robot import FloatingBase, Payload, RobotModel, expected_wrenches
 from ftcal.robot import expected as expected_module
-from test_robot_model import FOREARM_MASS, TINY_URDF
+from ftcal.runtime.errors import FtcalError
 
 G = 9.81
 

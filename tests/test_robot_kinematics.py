@@ -8,12 +8,12 @@ without an attached payload) for the payload regressor, fixed and floating base.
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
+from test_robot_declare import G_BASE, UR5, ur5_chain_rotation
 
-from ftcal.errors import FtcalError
 from ftcal.robot import Payload, RobotModel, SensorDeclaration
 from ftcal.robot.expected import FloatingBase, expected_wrenches
 from ftcal.robot.kinematics import frame_kinematics, payload_regressor, sensor_kinematics
-from test_robot_declare import G_BASE, UR5, ur5_chain_rotation
+from ftcal.runtime.errors import FtcalError
 
 pytestmark = pytest.mark.skipif(not UR5.is_file(), reason="example-robot-data is not installed")
 

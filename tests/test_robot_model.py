@@ -4,9 +4,9 @@ import xml.etree.ElementTree as ET
 
 import pytest
 
-from ftcal.errors import FtcalError
 from ftcal.robot import LoadCaseConfig, Payload, RobotModel, load_case_config, parse_payload_spec
 from ftcal.robot.model import icub_model_path
+from ftcal.runtime.errors import FtcalError
 
 # base --shoulder (revolute about x, 0.3 m up)--> upper --arm_ft_sensor (fixed, 0.1 m down)--> forearm
 # forearm: 1.5 kg, COM 0.2 m along x of the sensor frame; "tool" is a massless frame on the forearm,

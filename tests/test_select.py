@@ -8,12 +8,20 @@ from itertools import combinations_with_replacement
 import numpy as np
 import pytest
 
-from ftcal.dataset import Dataset
-from ftcal.errors import FtcalError
-from ftcal.model import CalibrationModel
-from ftcal.select import (PAPER_LAMBDAS, Candidate, cross_validate, default_candidates, fit_best, fit_candidates,
-                          grouped_folds, select_model)
-from ftcal.solvers import Lasso, Ridge
+from ftcal.core.dataset import Dataset
+from ftcal.core.model import CalibrationModel
+from ftcal.core.select import (
+    PAPER_LAMBDAS,
+    Candidate,
+    cross_validate,
+    default_candidates,
+    fit_best,
+    fit_candidates,
+    grouped_folds,
+    select_model,
+)
+from ftcal.core.solvers import Lasso, Ridge
+from ftcal.runtime.errors import FtcalError
 
 OUTPUTS = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
 
@@ -128,9 +136,9 @@ def held_out_error(model, data):
 def test_lambda_max_is_where_lasso_zeroes_every_non_offset_coefficient(rng):
     from sklearn.linear_model import Lasso as SklearnLasso
 
-    from ftcal.select import lasso_lambda_max
-    from ftcal.solvers.base import ScaledProblem
-    from ftcal.statistics import dense_statistics
+    from ftcal.core.select import lasso_lambda_max
+    from ftcal.core.solvers.base import ScaledProblem
+    from ftcal.core.statistics import dense_statistics
 
     a = np.c_[rng.uniform(-1, 3, (200, 4)), np.ones(200)]
     b = a[:, :2] @ [[1.0], [-2.0]] + 5.0 + 0.1 * rng.standard_normal((200, 1))
@@ -177,8 +185,8 @@ def test_auto_selection_never_loses_to_affine_by_more_than_the_fold_noise(rng):
 
 
 def test_lasso_grid_spans_three_decades_below_lambda_max(rng):
-    from ftcal.select import lasso_lambda_max
-    from ftcal.solvers.base import ScaledProblem
+    from ftcal.core.select import lasso_lambda_max
+    from ftcal.core.solvers.base import ScaledProblem
 
     data = load_case_sensor(rng, 10, 50, nonlinear=True)
     with warnings.catch_warnings():
@@ -193,7 +201,7 @@ def test_lasso_grid_spans_three_decades_below_lambda_max(rng):
 
 def test_ridge_grid_grows_past_its_heavy_edge_when_the_best_sits_there(rng):
     # Zero-mean noise for outputs: the heaviest penalty (predict ~0) is best, so the grid grows upwards.
-    from ftcal.solvers.base import ScaledProblem
+    from ftcal.core.solvers.base import ScaledProblem
 
     data = load_case_sensor(rng, 8, 40, nonlinear=False)
     data = Dataset.from_arrays(data.inputs, rng.standard_normal(data.outputs.shape), input_names=data.input_names,
@@ -257,7 +265,7 @@ def test_cli_selection_options_and_prior(tmp_path, capsys, rng):
     import pandas as pd
 
     from ftcal.cli import main
-    from ftcal.io.model_json import load_model
+    from ftcal.files.model_json import load_model
 
     data = load_case_sensor(rng, 6, 40, nonlinear=True)
     table = pd.DataFrame(data.inputs, columns=data.input_names)
@@ -281,7 +289,7 @@ def test_cli_selection_options_and_prior(tmp_path, capsys, rng):
     # The model file names its prior, with the digest of the prior file's bytes (hashlib).
     import hashlib
 
-    from ftcal.io.model_files import read_model_file
+    from ftcal.files.model_files import read_model_file
 
     recorded = read_model_file(tmp_path / "shrunk.json").prior
     assert recorded == {"source": str(tmp_path / "prior.json"),

@@ -6,8 +6,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from ftcal.cli import main
-from ftcal.errors import FtcalError
-from ftcal.io.bags import BagTopics, read_bag
+from ftcal.data.bags import BagTopics, read_bag
+from ftcal.runtime.errors import FtcalError
 from ftcal.sim.arm_bag import WRENCH_TOPIC, ArmScenario, write_arm_bag
 
 

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 import scipy.io
 
-from ftcal.errors import FtcalError
+from ftcal.runtime.errors import FtcalError
 from ftcal.sim.logger_mat import RobotLog, Stream, write_robot_log
 
 N_FT, N_Q = 7, 5

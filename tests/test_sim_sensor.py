@@ -5,7 +5,7 @@ import itertools
 import numpy as np
 import pytest
 
-from ftcal.errors import FtcalError
+from ftcal.runtime.errors import FtcalError
 from ftcal.sim.sensor import SensorParams, StrainGaugeSensor, temperature_drift
 
 STEP = 2.0 / 2**16  # ADC spans [-1, 1) full scale with 16 bits

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from ftcal.dataset import DEFAULT_INPUTS, DEFAULT_OUTPUTS
-from ftcal.errors import FtcalError
+from ftcal.core.dataset import DEFAULT_INPUTS, DEFAULT_OUTPUTS
+from ftcal.runtime.errors import FtcalError
 from ftcal.sim.synthetic import ARM_MASS, GRAVITY, smooth_path, synthetic_recordings
 
 LOADS = (0, 1, 2, 5, 7, 9, 10)

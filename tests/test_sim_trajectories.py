@@ -6,9 +6,8 @@ import icub_models
 import numpy as np
 import pytest
 
-from ftcal.errors import FtcalError
-from ftcal.sim.trajectories import (ARM_JOINTS, grid_trajectory, joint_limits,
-                                    weight_lifting_trajectory)
+from ftcal.runtime.errors import FtcalError
+from ftcal.sim.trajectories import ARM_JOINTS, grid_trajectory, joint_limits, weight_lifting_trajectory
 
 URDF = icub_models.get_model_file("iCubGenova11")
 

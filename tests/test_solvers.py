@@ -7,14 +7,14 @@ import pytest
 from sklearn.linear_model import Lasso as SklearnLasso
 from sklearn.linear_model import Ridge as SklearnRidge
 
-from ftcal.dataset import Dataset
-from ftcal.errors import FtcalError, IllPosedFitWarning
-from ftcal.model import CalibrationModel
-from ftcal.solvers.base import ScaledProblem, Spectrum
-from ftcal.solvers.lasso import Lasso
-from ftcal.solvers.least_squares import LeastSquares, Ridge
-from ftcal.solvers.osqp_qp import OsqpLasso, OsqpLeastSquares
-from ftcal.statistics import dense_statistics
+from ftcal.core.dataset import Dataset
+from ftcal.core.model import CalibrationModel
+from ftcal.core.solvers.base import ScaledProblem, Spectrum
+from ftcal.core.solvers.lasso import Lasso
+from ftcal.core.solvers.least_squares import LeastSquares, Ridge
+from ftcal.core.solvers.osqp_qp import OsqpLasso, OsqpLeastSquares
+from ftcal.core.statistics import dense_statistics
+from ftcal.runtime.errors import FtcalError, IllPosedFitWarning
 
 
 def _problem(rng, n=200, p=12, ny=2, noise=0.3):
@@ -63,7 +63,7 @@ def test_spectrum_rank_and_condition_match_numpy(rng):
 
 @pytest.mark.parametrize("p", [40, 520])  # under and over SPECTRUM_MAX: eigen-decomposition, then Cholesky
 def test_conditioning_solves_and_measures_like_numpy_on_both_sides_of_its_size_switch(rng, p):
-    from ftcal.solvers.base import SPECTRUM_MAX, Conditioning
+    from ftcal.core.solvers.base import SPECTRUM_MAX, Conditioning
 
     assert (p > SPECTRUM_MAX) == (p == 520)
     a = rng.standard_normal((3 * p, p)) * np.geomspace(0.1, 10, p)
@@ -375,7 +375,7 @@ def test_model_osqp_least_squares_close_to_lstsq(rng, ref_features, make_sensor_
 def test_lasso_polish_repairs_a_nearly_right_support(rng):
     # Start the active-set polish from sklearn's solution with one active coefficient
     # dropped and one inactive one added: it must still land on sklearn's optimum.
-    from ftcal.solvers.lasso import _polish
+    from ftcal.core.solvers.lasso import _polish
 
     a, b = _problem(rng, n=300, p=12, ny=1)
     a_s = _scaled(a)

@@ -7,15 +7,20 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from ftcal.dataset import Dataset
-from ftcal.features import MonomialBasis, RegressorLayout
-from ftcal.model import CalibrationModel
-from ftcal.normalization import Normalization
-from ftcal import kernels
-from ftcal.statistics import (
-    SufficientStatistics, dense_statistics, layout_statistics, moment_plan, static_statistics, sum_statistics,
+from ftcal.core import kernels
+from ftcal.core.dataset import Dataset
+from ftcal.core.features import MonomialBasis, RegressorLayout
+from ftcal.core.kernels import use_numpy_kernel
+from ftcal.core.model import CalibrationModel
+from ftcal.core.normalization import Normalization
+from ftcal.core.statistics import (
+    SufficientStatistics,
+    dense_statistics,
+    layout_statistics,
+    moment_plan,
+    static_statistics,
+    sum_statistics,
 )
-from ftcal.kernels import use_numpy_kernel
 
 
 @pytest.fixture(params=["compiled", "numpy"])
@@ -97,7 +102,7 @@ def test_both_kernels_give_the_same_statistics(rng, nu, degree, n):
 def test_the_compiled_kernel_refuses_tables_outside_its_buffers(rng):
     if not kernels.compiled_kernel_available():
         pytest.skip("the compiled statistics kernel was not built (no C compiler at install)")
-    from ftcal import _polynomial
+    from ftcal.core import _polynomial
 
     plan = moment_plan(3, 2)
     p = plan.basis.n_terms
@@ -186,7 +191,7 @@ def test_nested_parallel_work_runs_inline_and_a_forked_child_has_its_own_pool():
     import multiprocessing
     import threading
 
-    from ftcal._threads import map_ranges
+    from ftcal.runtime.threads import map_ranges
 
     def outer(begin, end):
         return (threading.current_thread().name,
@@ -199,7 +204,7 @@ def test_nested_parallel_work_runs_inline_and_a_forked_child_has_its_own_pool():
 
 
 def _sum_in_threads():
-    from ftcal._threads import map_ranges
+    from ftcal.runtime.threads import map_ranges
 
     return sum(map_ranges(lambda a, b: sum(range(a, b)), 10_000, 1000))
 
@@ -208,7 +213,7 @@ def test_parallel_work_runs_in_the_callers_numpy_error_state():
     """np.errstate is per context: the pool threads must see the caller's, not numpy's default."""
     import warnings
 
-    from ftcal._threads import map_ranges
+    from ftcal.runtime.threads import map_ranges
 
     def overflow(begin, end):
         return np.full(end - begin, 1e300) * 1e300

@@ -1,6 +1,6 @@
 """Chunked table reads, streamed metrics and predictions, and the Dask executor (a real LocalCluster).
 
-References: pandas/pyarrow whole-table reads, ftcal.metrics on whole arrays (numpy),
+References: pandas/pyarrow whole-table reads, ftcal.core.metrics on whole arrays (numpy),
 hand-computed row numbers and reduction orders, and the single-process run for Dask.
 """
 
@@ -15,14 +15,14 @@ import pandas as pd
 import pytest
 from conftest import sensor_like_data, write_frame
 
-from ftcal import metrics
-from ftcal.dataset import DEFAULT_OUTPUTS, Dataset
-from ftcal.errors import FtcalError
-from ftcal.executors import LocalExecutor, open_executor, parse_scheduler, tree_reduce
-from ftcal.io.model_json import save_model
-from ftcal.io.table_chunks import iter_table_chunks
-from ftcal.model import CalibrationModel
-from ftcal.streaming import ErrorSums, add_error_sums, file_error_sums
+from ftcal.core import metrics
+from ftcal.core.dataset import DEFAULT_OUTPUTS, Dataset
+from ftcal.core.model import CalibrationModel
+from ftcal.data.streaming import ErrorSums, add_error_sums, file_error_sums
+from ftcal.data.table_chunks import iter_table_chunks
+from ftcal.files.model_json import save_model
+from ftcal.runtime.errors import FtcalError
+from ftcal.runtime.executors import LocalExecutor, open_executor, parse_scheduler, tree_reduce
 
 INPUTS = ("u1", "u2", "u3", "u4", "u5", "u6", "T")
 FTCAL = os.path.join(os.path.dirname(sys.executable), "ftcal")
@@ -78,7 +78,7 @@ def test_chunks_equal_the_whole_table(tmp_path, suffix):
 @pytest.fixture(params=["whole", "blocks"])
 def csv_reader(request, monkeypatch):
     """Both CSV readers: small files parsed whole, larger ones block by block (forced here)."""
-    from ftcal.io import table_chunks
+    from ftcal.data import table_chunks
 
     if request.param == "blocks":
         monkeypatch.setattr(table_chunks, "CSV_READ_WHOLE_BYTES", 0)
@@ -201,8 +201,8 @@ def test_an_existing_cluster_whose_workers_run_another_ftcal_is_refused(tmp_path
 
 
 def test_cli_predict_arx_one_task_per_file_matches_the_whole_data(files, tmp_path):
-    from ftcal.io.tables import read_dataset
-    from ftcal.solvers.least_squares import Ridge
+    from ftcal.core.solvers.least_squares import Ridge
+    from ftcal.data.tables import read_dataset
 
     paths, _, _ = files
     data = read_dataset(paths, INPUTS, DEFAULT_OUTPUTS)
@@ -221,8 +221,8 @@ def test_cli_predict_arx_one_task_per_file_matches_the_whole_data(files, tmp_pat
 
 
 def test_cli_evaluate_arx_on_a_local_cluster_matches_the_whole_data(files, tmp_path):
-    from ftcal.io.tables import read_dataset
-    from ftcal.solvers.least_squares import Ridge
+    from ftcal.core.solvers.least_squares import Ridge
+    from ftcal.data.tables import read_dataset
 
     paths, _, _ = files
     model = CalibrationModel(1, na=2, nb=1, solver=Ridge(1.0)).fit(read_dataset(paths[:1], INPUTS, DEFAULT_OUTPUTS))
@@ -244,9 +244,9 @@ def test_cli_evaluate_arx_on_a_local_cluster_matches_the_whole_data(files, tmp_p
 def test_file_statistics_tree_summed_on_dask_equal_the_dense_regressor(files, cluster):
     from conftest import reference_features
 
-    from ftcal.features import MonomialBasis
-    from ftcal.normalization import normalization_from_range
-    from ftcal.streaming import add_statistics, file_statistics
+    from ftcal.core.features import MonomialBasis
+    from ftcal.core.normalization import normalization_from_range
+    from ftcal.data.streaming import add_statistics, file_statistics
 
     paths, _, _ = files
     data = whole(paths)
@@ -264,7 +264,7 @@ def test_file_statistics_tree_summed_on_dask_equal_the_dense_regressor(files, cl
 
 def _counting_reads(monkeypatch):
     """Patch the file reader behind iter_table_chunks; returns the list of files it actually reads."""
-    from ftcal.io import table_chunks
+    from ftcal.data import table_chunks
 
     reads, original = [], table_chunks._read_table_chunks
 
@@ -278,7 +278,7 @@ def _counting_reads(monkeypatch):
 
 @pytest.mark.parametrize("suffix", [".csv", ".parquet"])
 def test_kept_files_are_read_once_and_served_from_memory(tmp_path, monkeypatch, suffix):
-    from ftcal.io.table_chunks import keep_in_memory
+    from ftcal.data.table_chunks import keep_in_memory
 
     (path,) = write_files(tmp_path, np.random.default_rng(4), [2600], suffix)
     frame = whole([path])
@@ -302,8 +302,8 @@ def test_kept_files_are_read_once_and_served_from_memory(tmp_path, monkeypatch, 
 
 
 def test_a_kept_file_that_changes_or_is_too_large_is_read_again(tmp_path, monkeypatch):
-    from ftcal.io import table_chunks
-    from ftcal.io.table_chunks import keep_in_memory
+    from ftcal.data import table_chunks
+    from ftcal.data.table_chunks import keep_in_memory
 
     (path,) = write_files(tmp_path, np.random.default_rng(5), [1500], ".csv")
     reads = _counting_reads(monkeypatch)
@@ -326,8 +326,8 @@ def test_a_kept_file_that_changes_or_is_too_large_is_read_again(tmp_path, monkey
 def test_streamed_fit_without_keeping_files_equals_the_kept_fit(files, tmp_path, monkeypatch):
     """The fit's passes read every file each time when it is too large to keep: same model (1e-12)."""
     from ftcal.cli import main
-    from ftcal.io import table_chunks
-    from ftcal.io.model_files import read_model_file
+    from ftcal.data import table_chunks
+    from ftcal.files.model_files import read_model_file
 
     paths, _, _ = files
     assert main(["fit", *paths, "--degree", "3", "-o", str(tmp_path / "kept.json")]) == 0

@@ -7,14 +7,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from ftcal.errors import FtcalWarning
-from ftcal.executors import open_executor
-from ftcal.insitu import InsituOptions, build_dataset
-from ftcal.robot import RobotModel, load_case_config
 from test_insitu import expected_at, make_recording
 from test_logs_mat import write_v5, write_v73
 from test_robot_model import TINY_URDF
+
+from ftcal.insitu.recordings import InsituOptions, build_dataset
+from ftcal.robot import RobotModel, load_case_config
+from ftcal.runtime.errors import FtcalWarning
+from ftcal.runtime.executors import open_executor
 
 PAYLOAD = (2.0, np.array([0.1, 0.0, 0.0]))
 # raw = 100 + 3·wrench: a HIGH limit of 100 reads every channel with a positive wrench as saturated

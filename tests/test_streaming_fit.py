@@ -2,7 +2,7 @@
 
 References: the in-memory fit of the same files read whole (the acceptance criterion:
 coefficients to 1e-12 relative), numpy's lstsq on scikit-learn's PolynomialFeatures
-regressor, ftcal.fingerprint and ftcal.metrics over the whole arrays (numpy), and a
+regressor, ftcal.core.fingerprint and ftcal.core.metrics over the whole arrays (numpy), and a
 real distributed.LocalCluster of worker processes.
 """
 
@@ -15,14 +15,14 @@ import pandas as pd
 import pytest
 from conftest import sensor_like_data, write_frame
 
-from ftcal.dataset import DEFAULT_OUTPUTS
-from ftcal.fingerprint import segment_fingerprints
-from ftcal.io.model_files import read_model_file
-from ftcal.io.table_chunks import CHUNK_ROWS
-from ftcal.io.tables import read_dataset
-from ftcal.model import CalibrationModel
-from ftcal.solvers.least_squares import Ridge
-from ftcal.streaming import file_summary
+from ftcal.core.dataset import DEFAULT_OUTPUTS
+from ftcal.core.fingerprint import segment_fingerprints
+from ftcal.core.model import CalibrationModel
+from ftcal.core.solvers.least_squares import Ridge
+from ftcal.data.streaming import file_summary
+from ftcal.data.table_chunks import CHUNK_ROWS
+from ftcal.data.tables import read_dataset
+from ftcal.files.model_files import read_model_file
 
 INPUTS = ("u1", "u2", "u3", "u4", "u5", "u6", "T")
 FTCAL = os.path.join(os.path.dirname(sys.executable), "ftcal")
@@ -158,9 +158,9 @@ def grouped_files(folder):
 
 
 def test_streamed_cross_validation_scores_equal_the_in_memory_ones(tmp_path):
-    from ftcal.executors import LocalExecutor, tree_reduce
-    from ftcal.select import select_model
-    from ftcal.streaming import StreamedStatistics, add_statistics
+    from ftcal.core.select import select_model
+    from ftcal.data.streaming import StreamedStatistics, add_statistics
+    from ftcal.runtime.executors import LocalExecutor, tree_reduce
 
     paths = grouped_files(tmp_path)
     summary = tree_reduce([file_summary(p, INPUTS, DEFAULT_OUTPUTS, None, "load") for p in paths], add_statistics)
@@ -180,9 +180,9 @@ def test_streamed_cross_validation_scores_equal_the_in_memory_ones(tmp_path):
 def test_streamed_arx_cross_validation_equals_the_in_memory_one(tmp_path):
     """ARX folds: each file read whole, fold rows taken as Dataset.subset takes them, per-segment statistics
     concatenated in file order: the same sums, in the same order, as the in-memory search."""
-    from ftcal.executors import LocalExecutor, tree_reduce
-    from ftcal.select import select_model
-    from ftcal.streaming import StreamedStatistics, add_statistics
+    from ftcal.core.select import select_model
+    from ftcal.data.streaming import StreamedStatistics, add_statistics
+    from ftcal.runtime.executors import LocalExecutor, tree_reduce
 
     paths = grouped_files(tmp_path)
     summary = tree_reduce([file_summary(p, INPUTS, DEFAULT_OUTPUTS, None, "load") for p in paths], add_statistics)
@@ -203,7 +203,7 @@ def test_arx_degree_auto_streams_and_refits_the_winner(tmp_path):
     result = fit_cli(paths, out, "--degree", "auto", "--na", "1", "--nb", "1", "--group-by", "load",
                      "--lambdas", "10", "--penalties", "ridge")
     assert result.returncode == 0, result.stderr
-    from ftcal.select import best_model, select_model
+    from ftcal.core.select import best_model, select_model
 
     data = read_dataset(paths, INPUTS, DEFAULT_OUTPUTS, group_by="load")
     template = CalibrationModel(na=1, nb=1)
@@ -229,7 +229,7 @@ def test_degree_auto_streams_and_refits_the_winner(tmp_path):
     result = fit_cli(paths, out, "--degree", "auto", "--group-by", "load", "--lambdas", "0.5,10",
                      "--penalties", "ridge")
     assert result.returncode == 0, result.stderr
-    from ftcal.select import best_model, select_model
+    from ftcal.core.select import best_model, select_model
 
     data = read_dataset(paths, INPUTS, DEFAULT_OUTPUTS, group_by="load")
     winner = best_model(select_model(data, penalties=("ridge",), lambdas=(0.5, 10.0))).fit(data)

@@ -14,21 +14,21 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-
-from ftcal.dataset import DEFAULT_OUTPUTS, Dataset
-from ftcal.errors import FtcalError
-from ftcal.insitu import InsituOptions, build_dataset
-from ftcal.model import CalibrationModel
-from ftcal.robot import Payload, RobotModel, SensorDeclaration
-from ftcal.robot.expected import expected_wrenches
-from ftcal.robot.kinematics import payload_regressor
-from ftcal.sim.sensor import SensorParams, StrainGaugeSensor
-from ftcal.sim.trajectories import ARM_JOINTS
-from ftcal.unknown_load import estimate_payload, fit_with_payload, payload_column
 from test_insitu import make_recording
 from test_logs_mat import write_v73
 from test_robot_expected import gravity_in_sensor
 from test_robot_model import TINY_URDF
+
+from ftcal.core.dataset import DEFAULT_OUTPUTS, Dataset
+from ftcal.core.model import CalibrationModel
+from ftcal.insitu.recordings import InsituOptions, build_dataset
+from ftcal.payload.unknown_load import estimate_payload, fit_with_payload, payload_column
+from ftcal.robot import Payload, RobotModel, SensorDeclaration
+from ftcal.robot.expected import expected_wrenches
+from ftcal.robot.kinematics import payload_regressor
+from ftcal.runtime.errors import FtcalError
+from ftcal.sim.sensor import SensorParams, StrainGaugeSensor
+from ftcal.sim.trajectories import ARM_JOINTS
 
 PLATE = Payload("r_forearm", 2.0, (-0.06, 0.01, 0.03))
 LINEAR_SENSOR = SensorParams(stiffening=0.0, creep=0.0, sensitivity_tc=0.0, sensitivity_tc_spread=0.0,
@@ -177,7 +177,7 @@ def test_cli_fit_estimate_payload(tmp_path, icub_plate):
     mass_line = next(line for line in done.stdout.splitlines() if line.strip().startswith("m "))
     value, err = float(mass_line.split()[1]), float(mass_line.split()[3])
     assert abs(value - PLATE.mass) < 3 * err
-    from ftcal.io.model_json import load_model
+    from ftcal.files.model_json import load_model
 
     assert load_model(out).predict(data).shape == (len(y), 6)
 

@@ -7,10 +7,10 @@ import re
 import numpy as np
 import pytest
 
-from ftcal.conversion import from_raw
-from ftcal.errors import FtcalError
-from ftcal.io.model_files import write_model
-from ftcal.io.wbd import format_wbd
+from ftcal.core.conversion import from_raw
+from ftcal.files.model_files import write_model
+from ftcal.files.wbd import format_wbd
+from ftcal.runtime.errors import FtcalError
 
 CHANNELS = ["Fx_in", "Fy_in", "Fz_in", "Tx_in", "Ty_in", "Tz_in"]
 OUTPUTS = ["Fx", "Fy", "Fz", "Tx", "Ty", "Tz"]
@@ -76,7 +76,7 @@ def test_refusals():
 
 def test_convert_writes_the_temperature_group(tmp_path, capsys):
     from ftcal.cli import main
-    from ftcal.io.model_json import save_model
+    from ftcal.files.model_json import save_model
 
     path = tmp_path / "affine-t.json"
     save_model(temperature_model(), path)

@@ -96,8 +96,8 @@ def input_files(args: argparse.Namespace) -> list[str]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from ..errors import FtcalError, FtcalWarning
-    from ..io.atomic import check_not_an_input, protected_inputs
+    from ..runtime.atomic import check_not_an_input, protected_inputs
+    from ..runtime.errors import FtcalError, FtcalWarning
 
     parser = build_parser()
     args = parser.parse_args(argv)

@@ -8,8 +8,8 @@ import math
 import sys
 from collections.abc import Sequence
 
-from ..columns import DEFAULT_INPUTS, DEFAULT_OUTPUTS
-from ..errors import FtcalError
+from ..core.columns import DEFAULT_INPUTS, DEFAULT_OUTPUTS
+from ..runtime.errors import FtcalError
 
 
 def column_list(text: str) -> tuple[str, ...]:
@@ -70,7 +70,7 @@ def add_column_options(parser: argparse.ArgumentParser, outputs: bool = True) ->
 
 def default_inputs(paths: Sequence[str]) -> tuple[str, ...]:
     """u1..u6,T, or u1..u6 when the first file has no T column (temperature is optional)."""
-    from ..io.tables import default_inputs as from_files
+    from ..data.tables import default_inputs as from_files
 
     return from_files(paths)
 

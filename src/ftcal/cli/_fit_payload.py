@@ -7,7 +7,7 @@ import sys
 
 def check_payload_options(args) -> None:
     """Refuse option combinations before any data is read."""
-    from ..errors import FtcalError
+    from ..runtime.errors import FtcalError
 
     if args.payload_mass is not None and args.estimate_payload is None:
         raise FtcalError("--payload-mass goes with --estimate-payload LINK.")
@@ -21,10 +21,10 @@ def read_with_payload(args, inputs, outputs):
     """
     from dataclasses import replace
 
-    from ..errors import FtcalError
-    from ..io.tables import read_dataset, read_table
+    from ..data.tables import read_dataset, read_table
     from ..payload.regressor import INERTIAL_PARAMETERS
-    from ..unknown_load import estimate_payload, payload_column
+    from ..payload.unknown_load import estimate_payload, payload_column
+    from ..runtime.errors import FtcalError
 
     link = args.estimate_payload
     header = set(read_table(args.data[0]).columns)

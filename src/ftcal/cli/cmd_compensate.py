@@ -30,11 +30,11 @@ def run(args) -> int:
 
     import pandas as pd
 
-    from ..errors import FtcalError
-    from ..io.model_files import read_model
-    from ..io.payload_json import load_payload
-    from ..io.tables import write_table
+    from ..data.tables import write_table
+    from ..files.model_files import read_model
+    from ..files.payload_json import load_payload
     from ..payload.tables import compensate_table
+    from ..runtime.errors import FtcalError
 
     require_suffix(args.output, (".csv", ".parquet"), "-o")
     check_not_input(args.output, [args.payload, *args.data] + ([args.model] if args.model else []))

@@ -1,15 +1,15 @@
-"""``ftcal convert``: write a model or payload file in another format (targets: :mod:`ftcal.export.targets`)."""
+"""``ftcal convert``: write a model or payload file in another format (targets: :mod:`ftcal.files.targets`)."""
 
 from __future__ import annotations
 
-from ..export.targets import TARGETS
+from ..files.targets import TARGETS
 
 
 def safe_name(text: str) -> str:
     import argparse
 
-    from .._checks import check_safe_name
-    from ..errors import FtcalError
+    from ..runtime.checks import check_safe_name
+    from ..runtime.errors import FtcalError
 
     try:
         return check_safe_name(text, "")
@@ -43,7 +43,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from ..export.targets import convert
+    from ..files.targets import convert
 
     written = convert(args.model, args.to, args.output,
                       {"serial": args.serial, "sensor": args.sensor, "name": args.name,

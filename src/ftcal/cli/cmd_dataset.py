@@ -85,14 +85,14 @@ BAG_OPTIONS = ("wrench_topic", "joints_topic", "temperature_topic", "imu_topic",
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from ..errors import FtcalError
-    from ..insitu import InsituOptions, build_dataset, write_dataset
-    from ..io.logs import READERS, log_format
+    from ..data.logs import READERS, log_format
+    from ..insitu.recordings import InsituOptions, build_dataset, write_dataset
     from ..robot import load_case_config, parse_payload_spec
+    from ..runtime.errors import FtcalError
 
     require_suffix(args.output, (".csv", ".parquet", ".pq"), "-o")
     out = Path(args.output)
-    is_bag = [READERS.get(log_format(Path(p)), "").startswith("ftcal.io.bags:") for p in args.logs]
+    is_bag = [READERS.get(log_format(Path(p)), "").startswith("ftcal.data.bags:") for p in args.logs]
     if any(is_bag) and not all(is_bag):
         raise FtcalError(f"LOG {args.logs[is_bag.index(False)]}: mix of ROS bags and other logs; "
                          "build one dataset per kind.")
@@ -119,7 +119,7 @@ def run(args: argparse.Namespace) -> int:
         adc_limits=tuple(args.adc_limits) if args.adc_limits else None,
         cache=not args.no_cache, cache_dir=args.cache_dir, workers=args.workers,
         payload_link=args.estimate_payload)
-    from ..executors import open_executor
+    from ..runtime.executors import open_executor
 
     with open_executor(args.scheduler) as executor:
         executor = executor if args.scheduler else None  # without --scheduler: here, sharing one robot model
@@ -135,9 +135,9 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run_bags(args, out, robot, payloads, config, options, executor) -> int:
-    from ..bag_dataset import build_bag_table, write_bag_table
-    from ..errors import FtcalError
-    from ..io.bags import BagTopics
+    from ..data.bags import BagTopics
+    from ..insitu.bags import build_bag_table, write_bag_table
+    from ..runtime.errors import FtcalError
 
     if args.wrench_topic is None:
         raise FtcalError(f"Bag {args.logs[0]}: --wrench-topic is required (list the topics with "

@@ -25,9 +25,9 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from ..demo import DemoConfig, format_tables, run_demo
-    from ..demo_arm import BAG_NAME, write_demo_bag
-    from ..errors import FtcalError
+    from ..runtime.errors import FtcalError
+    from ..sim.demo import DemoConfig, format_tables, run_demo
+    from ..sim.demo_arm import BAG_NAME, write_demo_bag
 
     if args.scenario not in SCENARIOS:
         raise FtcalError(f"--scenario {args.scenario}: unknown scenario; choose one of {', '.join(SCENARIOS)}.")
@@ -46,7 +46,7 @@ def run(args) -> int:
 def run_arm(args) -> int:
     import dataclasses
 
-    from ..demo_arm import ARM_DEMO_SCENARIO, ARM_QUICK, ArmDemoConfig, format_arm_tables, run_arm_demo
+    from ..sim.demo_arm import ARM_DEMO_SCENARIO, ARM_QUICK, ArmDemoConfig, format_arm_tables, run_arm_demo
 
     scenario = dataclasses.replace(ARM_DEMO_SCENARIO, seed=args.seed, **(ARM_QUICK if args.quick else {}))
     summary = run_arm_demo(ArmDemoConfig(out_dir=output_folder(args.out or "ftcal-arm-demo"), scenario=scenario))
@@ -58,7 +58,7 @@ def run_arm(args) -> int:
 
 def output_folder(path: str) -> Path:
     """``--out``: a writable folder, made if missing; one-line errors otherwise."""
-    from ..errors import FtcalError
+    from ..runtime.errors import FtcalError
 
     out = Path(path)
     if out.exists() and not out.is_dir():

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 import warnings
 
-from ..limits import ARX_WARMUP, FREE_RUN_STARTS, PREDICTION_MODES
+from ..core.limits import ARX_WARMUP, FREE_RUN_STARTS, PREDICTION_MODES
 from ._common import add_scheduler_option, print_json
 
 
@@ -32,10 +32,10 @@ def register(sub) -> None:
 def evaluate(args):
     import numpy as np
 
-    from ..errors import OutOfRangeWarning
-    from ..fingerprint import warn_if_trained_on
-    from ..io.model_files import read_model_file
-    from ..io.tables import read_dataset
+    from ..core.fingerprint import warn_if_trained_on
+    from ..data.tables import read_dataset
+    from ..files.model_files import read_model_file
+    from ..runtime.errors import OutOfRangeWarning
 
     loaded = read_model_file(args.model)
     model = loaded.model
@@ -55,10 +55,10 @@ def evaluate_streaming(args, model, training_segments) -> dict:
     ARX models in this process keep the whole-data path (:meth:`CalibrationModel.score`),
     which gives the same metrics.
     """
-    from ..errors import FtcalError
-    from ..executors import open_executor
-    from ..fingerprint import warn_training_segments
-    from ..streaming import add_error_sums, file_error_sums
+    from ..core.fingerprint import warn_training_segments
+    from ..data.streaming import add_error_sums, file_error_sums
+    from ..runtime.errors import FtcalError
+    from ..runtime.executors import open_executor
 
     with open_executor(args.scheduler) as executor:
         sums = executor.map_reduce(file_error_sums, args.data, model, list(training_segments), args.mode,
@@ -79,7 +79,7 @@ def evaluate_streaming(args, model, training_segments) -> dict:
 
 def check_finite_metrics(summary: dict, keys) -> None:
     """Refuse to report a metric that is inf or NaN (the predictions overflowed)."""
-    from ..errors import FtcalError
+    from ..runtime.errors import FtcalError
 
     for key in keys:
         values = summary.get(key)
@@ -90,7 +90,7 @@ def check_finite_metrics(summary: dict, keys) -> None:
 
 
 def run(args) -> int:
-    from ..metrics import EVALUATION_KEYS as JSON_KEYS
+    from ..core.metrics import EVALUATION_KEYS as JSON_KEYS
 
     model, summary = evaluate(args)
     check_finite_metrics(summary, JSON_KEYS)

@@ -38,8 +38,8 @@ def run(args: argparse.Namespace) -> int:
 
     import pandas as pd
 
-    from ..executors import open_executor
-    from ..io.tables import write_table
+    from ..data.tables import write_table
+    from ..runtime.executors import open_executor
 
     require_suffix(args.output, (".csv", ".parquet", ".pq"), "-o")
     out = Path(args.output)
@@ -71,7 +71,7 @@ def joints_file_wrenches(joints, robot, workers, base, gravity, degrees, cache, 
 
     import numpy as np
 
-    from ..io.tables import numeric_columns, read_table
+    from ..data.tables import numeric_columns, read_table
     from ..robot.cache import cache_key, cached
     from ..robot.expected import expected_wrenches
 
@@ -95,6 +95,6 @@ def joints_file_wrenches(joints, robot, workers, base, gravity, degrees, cache, 
 
 def _remote_wrenches(joints, description, workers, *settings):
     """:func:`joints_file_wrenches` on a Dask worker: the robot rebuilt from its picklable description."""
-    from ..insitu import robot_from_description
+    from ..insitu.recordings import robot_from_description
 
     return joints_file_wrenches(joints, robot_from_description(*description), workers, *settings)

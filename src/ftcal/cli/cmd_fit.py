@@ -5,9 +5,16 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ..limits import MAX_DEGREE, MAX_LAG, NORMALIZATIONS, SOLVERS
-from ._common import (add_column_options, add_scheduler_option, default_inputs, float_list, nonnegative_int,
-                      positive_float, require_suffix)
+from ..core.limits import MAX_DEGREE, MAX_LAG, NORMALIZATIONS, SOLVERS
+from ._common import (
+    add_column_options,
+    add_scheduler_option,
+    default_inputs,
+    float_list,
+    nonnegative_int,
+    positive_float,
+    require_suffix,
+)
 
 EPILOG = """examples:
   ftcal fit train/*.csv -o model.json                      affine model, u1..u6,T -> Fx..Tz
@@ -26,7 +33,7 @@ chunk (one file for ARX) plus p x p.
 
 def lambda_grid(text: str) -> tuple[float, ...]:
     """``paper`` (the paper's six values) or a comma-separated list of positive numbers."""
-    from ..limits import PAPER_LAMBDAS
+    from ..core.limits import PAPER_LAMBDAS
 
     return PAPER_LAMBDAS if text == "paper" else float_list(text)
 
@@ -102,9 +109,9 @@ def register(sub) -> None:
 
 
 def make_solver(args):
-    from ..solvers.lasso import Lasso
-    from ..solvers.least_squares import LeastSquares, Ridge
-    from ..solvers.osqp_qp import OsqpLasso, OsqpLeastSquares
+    from ..core.solvers.lasso import Lasso
+    from ..core.solvers.least_squares import LeastSquares, Ridge
+    from ..core.solvers.osqp_qp import OsqpLasso, OsqpLeastSquares
 
     if args.solver == "osqp":
         return OsqpLasso(args.lasso) if args.lasso else OsqpLeastSquares()
@@ -119,7 +126,7 @@ def check_options(args) -> None:
     """Option combinations that cannot work, refused before any data is read."""
     import warnings
 
-    from ..errors import FtcalError, FtcalWarning
+    from ..runtime.errors import FtcalError, FtcalWarning
 
     if args.solver == "osqp" and args.ridge:
         raise FtcalError("--solver osqp implements the paper's least-squares and LASSO programs, not --ridge.")
@@ -150,7 +157,7 @@ def streams(args) -> bool:
 
 def cross_validation(args, data, template):
     """The ``--degree auto`` search over ``data`` (a Dataset or streamed statistics), its table printed."""
-    from ..select import Candidate, cross_validate, select_model
+    from ..core.select import Candidate, cross_validate, select_model
 
     if args.lasso or args.ridge:
         kind = "lasso" if args.lasso else "ridge"
@@ -164,10 +171,10 @@ def cross_validation(args, data, template):
 
 
 def run(args) -> int:
-    from ..fingerprint import segment_fingerprints
-    from ..io.model_json import save_model
-    from ..io.tables import read_dataset
-    from ..model import CalibrationModel
+    from ..core.fingerprint import segment_fingerprints
+    from ..core.model import CalibrationModel
+    from ..data.tables import read_dataset
+    from ..files.model_json import save_model
     from ._fit_payload import check_payload_options, read_with_payload
 
     require_suffix(args.output, (".json",), "-o")
@@ -177,7 +184,7 @@ def run(args) -> int:
     outputs = args.outputs or ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
     prior = None
     if args.prior:
-        from ..io.model_files import read_model
+        from ..files.model_files import read_model
 
         prior = read_model(args.prior)
     template = CalibrationModel(na=args.na, nb=args.nb, normalization=args.normalization, prior=prior)
@@ -194,7 +201,7 @@ def run(args) -> int:
         print(f"read {data.n_samples} samples from {len(args.data)} file(s): inputs {','.join(inputs)} "
               f"-> outputs {','.join(outputs)}", file=sys.stderr)
     if args.degree == "auto":
-        from ..select import fit_best
+        from ..core.select import fit_best
 
         model = fit_best(data, cross_validation(args, data, template), template=template)
     else:
@@ -216,18 +223,23 @@ def fit_streaming(args, template, inputs, outputs):
     training metrics from additive error sums, as ``ftcal evaluate`` does.
     ``--degree auto`` adds one pass per (degree, basis) the search tries,
     giving per-group statistics whose sums are the folds'. Run here, the passes
-    parse each small file once (:func:`ftcal.io.table_chunks.keep_in_memory`).
+    parse each small file once (:func:`ftcal.data.table_chunks.keep_in_memory`).
 
     Returns
     -------
     (CalibrationModel, list of fingerprint dicts)
     """
-    from ..executors import open_executor
-    from ..statistics import sum_statistics
-    from ..streaming import (StreamedStatistics, add_error_sums, add_statistics, file_error_sums,
-                             file_layout_statistics, file_summary)
-
-    from ..io.table_chunks import keep_in_memory
+    from ..core.statistics import sum_statistics
+    from ..data.streaming import (
+        StreamedStatistics,
+        add_error_sums,
+        add_statistics,
+        file_error_sums,
+        file_layout_statistics,
+        file_summary,
+    )
+    from ..data.table_chunks import keep_in_memory
+    from ..runtime.executors import open_executor
 
     with open_executor(args.scheduler) as executor, keep_in_memory():
         summary = executor.map_reduce(file_summary, args.data, inputs, outputs, args.segment_by,
@@ -235,7 +247,7 @@ def fit_streaming(args, template, inputs, outputs):
         print(f"read {sum(summary.segment_lengths)} samples from {len(args.data)} file(s): inputs "
               f"{','.join(inputs)} -> outputs {','.join(outputs)}", file=sys.stderr)
         if args.degree == "auto":
-            from ..select import best_model
+            from ..core.select import best_model
 
             source = StreamedStatistics(executor, args.data, inputs, outputs, summary, args.group_by,
                                         args.segment_by)
@@ -267,7 +279,7 @@ def report_fit(model, path: str) -> None:
     print(f"coefficients: {info['n_coefficients']} ({info['n_nonzero']} nonzero); samples: {model.n_samples_fit_}; "
           f"condition number: {model.condition_number_:.3g}")
     if lam:
-        from ..conversion import to_raw
+        from ..core.conversion import to_raw
 
         raw_count = int((abs(to_raw(model)) > 1e-9).sum())
         print(f"raw-input coefficients with |value| > 1e-9 (the paper's count): {raw_count}")

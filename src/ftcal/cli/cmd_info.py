@@ -15,7 +15,7 @@ def register(sub) -> None:
 def run(args) -> int:
     import numpy as np
 
-    from ..io.model_files import read_model_file
+    from ..files.model_files import read_model_file
 
     loaded = read_model_file(args.model)
     model = loaded.model
@@ -26,7 +26,7 @@ def run(args) -> int:
           f"{info['n_outputs']} outputs")
     print(f"coefficients {info['n_coefficients']}, nonzero {info['n_nonzero']}; solver "
           f"{model.solver_info_.get('name') or 'unknown'}" + (f", lambda {lam:g}" if lam else ""))
-    from ..conversion import to_raw
+    from ..core.conversion import to_raw
 
     raw_nonzero = int(np.sum(np.abs(to_raw(model)) > 1e-9))
     print(f"raw-input coefficients with |value| > 1e-9 (the paper's count): {raw_nonzero}")

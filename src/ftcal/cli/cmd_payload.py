@@ -47,8 +47,8 @@ def add_robot_source_options(p: argparse.ArgumentParser) -> None:
 
 def kinematics_source(args):
     """The :class:`~ftcal.payload.kinematics.KinematicsSource` the options describe."""
-    from ..errors import FtcalError
     from ..payload.kinematics import GravityColumnsSource, MotionSource, OrientationSource
+    from ..runtime.errors import FtcalError
 
     if getattr(args, "robot_urdf", None) is not None or getattr(args, "robot_model", None) is not None:
         source = robot_source(args)
@@ -76,9 +76,9 @@ def kinematics_source(args):
 
 def robot_source(args):
     """Gravity in the sensor frame from joint columns and the robot model (--urdf/--model, --sensor)."""
-    from ..errors import FtcalError
     from ..robot import RobotModel
     from ..robot.kinematics import JointColumnsSource
+    from ..runtime.errors import FtcalError
     from .cmd_sensors import declared_sensors
 
     if args.orientation is not None or args.gravity_columns is not None:
@@ -96,7 +96,7 @@ def robot_source(args):
 def check_not_input(output: str, inputs) -> None:
     from pathlib import Path
 
-    from ..errors import FtcalError
+    from ..runtime.errors import FtcalError
 
     target = Path(output).resolve()
     if any(Path(p).resolve() == target for p in inputs):
@@ -129,7 +129,7 @@ def register(sub) -> None:
 def run(args) -> int:
     import sys
 
-    from ..io.payload_json import save_payload
+    from ..files.payload_json import save_payload
     from ..payload.identify import check_mass_sign, identify_payload
     from ..payload.parameters import PayloadParameters
     from ..payload.tables import table_statistics

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ..limits import FREE_RUN_STARTS, PREDICTION_MODES
+from ..core.limits import FREE_RUN_STARTS, PREDICTION_MODES
 from ._common import add_scheduler_option, require_suffix
 
 
@@ -28,8 +28,8 @@ def run(args) -> int:
     import sys
     import warnings
 
-    from ..errors import OutOfRangeWarning
-    from ..io.model_files import read_model
+    from ..files.model_files import read_model
+    from ..runtime.errors import OutOfRangeWarning
 
     require_suffix(args.output, (".csv", ".parquet"), "-o")
     model = read_model(args.model)
@@ -58,10 +58,10 @@ def predict_streaming(args, model) -> tuple[int, int]:
     import tempfile
     from pathlib import Path
 
-    from ..errors import FtcalError
-    from ..executors import open_executor
-    from ..io.atomic import check_not_an_input
-    from ..streaming import join_parts, predict_part
+    from ..data.streaming import join_parts, predict_part
+    from ..runtime.atomic import check_not_an_input
+    from ..runtime.errors import FtcalError
+    from ..runtime.executors import open_executor
 
     output = Path(args.output)
     check_not_an_input(output, "-o")

@@ -38,7 +38,7 @@ def register(sub) -> None:
 
 def split_files(files: list[str]) -> tuple[list[str], list[str]]:
     """(model files, data files) by extension; anything else is an error."""
-    from ..errors import FtcalError
+    from ..runtime.errors import FtcalError
 
     models, data = [], []
     for name in files:
@@ -71,10 +71,10 @@ def _union(name_lists) -> tuple[str, ...]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..errors import FtcalError
-    from ..fingerprint import warn_if_trained_on
-    from ..io.model_files import read_model_file
-    from ..io.tables import read_dataset
+    from ..core.fingerprint import warn_if_trained_on
+    from ..data.tables import read_dataset
+    from ..files.model_files import read_model_file
+    from ..runtime.errors import FtcalError
 
     model_paths, data_paths = split_files(args.files)
     out = Path(args.output)

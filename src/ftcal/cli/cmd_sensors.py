@@ -38,8 +38,8 @@ def add_cache_arguments(parser: argparse.ArgumentParser) -> None:
 
 def declared_sensors(args: argparse.Namespace) -> tuple:
     """The sensor declared by --ft-joint/--ft-frame, as a tuple of SensorDeclaration (empty if none)."""
-    from ..errors import FtcalError
     from ..robot import SensorDeclaration
+    from ..runtime.errors import FtcalError
 
     if args.ft_joint is None:
         if args.ft_frame is not None:

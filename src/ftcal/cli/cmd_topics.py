@@ -16,7 +16,7 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..io.bags import list_topics
+    from ..data.bags import list_topics
 
     summaries = list_topics(args.bag)
     rows = [("topic", "type", "count", "rate [Hz]")]

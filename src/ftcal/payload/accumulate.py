@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._threads import map_ranges
-from ..statistics import SufficientStatistics, dense_statistics, sum_statistics
+from ..core.statistics import SufficientStatistics, dense_statistics, sum_statistics
+from ..runtime.threads import map_ranges
 from .kinematics import Kinematics
 from .regressor import dynamic_regressor, static_regressor
 
@@ -23,7 +23,7 @@ CHUNK_SAMPLES = 16_384  # a (chunk, 6, 16) regressor block stays a few MB
 
 @dataclass
 class AxisStatistics:
-    """One :class:`~ftcal.statistics.SufficientStatistics` (p columns, 1 target) per wrench axis."""
+    """One :class:`~ftcal.core.statistics.SufficientStatistics` (p columns, 1 target) per wrench axis."""
 
     axes: tuple[SufficientStatistics, ...]
 

@@ -18,14 +18,14 @@ deficient rank is an error.
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-import warnings
 
 import numpy as np
 
-from ..errors import FtcalError, IllPosedFitWarning
-from ..solvers.base import Conditioning, Spectrum
+from ..core.solvers.base import Conditioning, Spectrum
+from ..runtime.errors import FtcalError, IllPosedFitWarning
 from .accumulate import AxisStatistics
 from .regressor import DYNAMIC_PARAMETERS, STATIC_PARAMETERS, inertia_about_com, inertia_matrix
 

@@ -28,7 +28,7 @@ from typing import Protocol
 
 import numpy as np
 
-from ..errors import FtcalError
+from ..runtime.errors import FtcalError
 
 STANDARD_GRAVITY = 9.81  # m/s², the default of --g
 QUATERNION_COLUMNS = ("qx", "qy", "qz", "qw")
@@ -97,8 +97,9 @@ class KinematicsSource(Protocol):
 
 
 def _columns(frame, names: Sequence[str], source: str, role: str) -> np.ndarray:
-    from ..io.tables import numeric_columns
     from pathlib import Path
+
+    from ..data.tables import numeric_columns
 
     return numeric_columns(frame, names, Path(source), role)
 

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import FtcalError
+from ..runtime.errors import FtcalError
 from .accumulate import AxisStatistics, payload_statistics
 from .compensate import contact_wrench
 from .kinematics import KinematicsSource
@@ -48,7 +48,7 @@ def table_statistics(paths: Sequence[str | os.PathLike], source: KinematicsSourc
     FtcalError
         Missing, non-numeric or non-finite columns, bad kinematics (naming file, column, row).
     """
-    from ..io.tables import numeric_columns, read_table
+    from ..data.tables import numeric_columns, read_table
 
     if not paths:
         raise FtcalError("No data files given.")
@@ -93,7 +93,7 @@ def compensate_table(path: str | os.PathLike, payload: PayloadParameters, source
     -------
     pandas.DataFrame
     """
-    from ..io.tables import numeric_columns, read_table
+    from ..data.tables import numeric_columns, read_table
 
     frame = read_table(path)
     if model is not None:

@@ -14,9 +14,9 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from ..dataset import Dataset
-from ..metrics import force_torque_columns
-from ..select import CrossValidationResult
+from ..core.dataset import Dataset
+from ..core.metrics import force_torque_columns
+from ..core.select import CrossValidationResult
 from .runs import ModelRun, expected_outputs, natural_key, output_units
 
 MAX_LINE_POINTS = 5000  # per plotted series

@@ -17,12 +17,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..dataset import Dataset
-from ..errors import FtcalError
-from ..metrics import force_torque_columns
-from ..select import CrossValidationResult
-from ..io.atomic import write_text_atomic
-from ..io.model_json import ftcal_version
+from ..core.dataset import Dataset
+from ..core.metrics import force_torque_columns
+from ..core.select import CrossValidationResult
+from ..files.model_json import ftcal_version
+from ..runtime.atomic import write_text_atomic
+from ..runtime.errors import FtcalError
 from . import figures, tables
 from .runs import ModelRun, expected_outputs, temperature_column
 

@@ -12,10 +12,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..dataset import Dataset
-from ..errors import FtcalError
-from ..metrics import force_torque_columns
-from ..model import CalibrationModel
+from ..core.dataset import Dataset
+from ..core.metrics import force_torque_columns
+from ..core.model import CalibrationModel
+from ..runtime.errors import FtcalError
 
 LASSO_SOLVERS = ("lasso", "osqp-lasso")
 RIDGE_SOLVERS = ("ridge",)
@@ -29,7 +29,7 @@ class ModelRun:
     Attributes
     ----------
     name : label in tables and legends, e.g. ``"np4"`` or ``"np4 λ=50"``
-    model : the fitted :class:`~ftcal.model.CalibrationModel`
+    model : the fitted :class:`~ftcal.core.model.CalibrationModel`
     train_metrics : ``model.score(train)`` style dict, or None
     validation_metrics : ``model.score(validation)`` style dict
     validation_prediction : ndarray of shape (n_validation, n_outputs), columns in

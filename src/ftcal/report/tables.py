@@ -12,9 +12,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..conversion import to_raw
-from ..dataset import Dataset
-from ..select import CrossValidationResult
+from ..core.conversion import to_raw
+from ..core.dataset import Dataset
+from ..core.select import CrossValidationResult
 from .runs import ModelRun, natural_key, output_units, temperature_column
 
 MISSING = "–"

@@ -6,6 +6,9 @@ payloads and lists the six-axis F/T sensors (also declared on plain URDFs,
 sensor should measure for given joint data; :mod:`ftcal.robot.kinematics` gives
 sensor-frame gravity and motion and the regressor of an unknown payload. The output
 convention (frame, sign) is documented in :mod:`ftcal.robot.expected`.
+
+May import :mod:`ftcal.payload` (its regressor, for the joint-data route to payload
+identification), :mod:`ftcal.core` and :mod:`ftcal.runtime`.
 """
 
 from .declare import SensorDeclaration

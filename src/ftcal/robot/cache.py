@@ -23,8 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import FtcalError, FtcalWarning
-from ..io.atomic import write_with
+from ..runtime.atomic import write_with
+from ..runtime.errors import FtcalError, FtcalWarning
 from .model import RobotModel
 
 FORMAT = b"ftcal-expected-cache-v1"

@@ -34,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import FtcalError
+from ..runtime.errors import FtcalError
 
 # A massless child link would become a frame (and its joint disappear); this mass keeps it a
 # link. Its weight, 1e-11 N, is far below any F/T sensor's resolution.

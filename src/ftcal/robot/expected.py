@@ -42,17 +42,17 @@ URDF text and payloads.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 import multiprocessing
 import signal
 import threading
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from .._checks import check_int
-from ..errors import FtcalError
-from ..progress import progress_bar
+from ..runtime.checks import check_int
+from ..runtime.errors import FtcalError
+from ..runtime.progress import progress_bar
 from .declare import SensorDeclaration
 from .model import RobotModel
 from .payloads import Payload

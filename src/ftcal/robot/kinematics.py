@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import FtcalError
+from ..runtime.errors import FtcalError
 from .expected import GRAVITY, FloatingBase, check_joints
 from .model import RobotModel
 

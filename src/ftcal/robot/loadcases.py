@@ -38,7 +38,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..errors import FtcalError
+from ..runtime.errors import FtcalError
 from .payloads import Payload
 
 CONVENTION = re.compile(r"^l(?P<left>\d+(?:\.\d+)?)kg-r(?P<right>\d+(?:\.\d+)?)kg$")

@@ -18,7 +18,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import FtcalError
+from ..runtime.errors import FtcalError
 from ._quiet import captured_stderr
 from .declare import SensorDeclaration, no_sensor_hint, prepare_urdf
 from .payloads import Payload

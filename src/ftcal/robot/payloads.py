@@ -20,7 +20,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from ..errors import FtcalError
+from ..runtime.errors import FtcalError
 
 Vector3 = tuple[float, float, float]
 Inertia6 = tuple[float, float, float, float, float, float]

@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import FtcalError
+from ..runtime.errors import FtcalError
 
 WRENCH_TOPIC = "/ft_sensor/wrench"
 IMU_TOPIC = "/imu"

@@ -27,14 +27,20 @@ from pathlib import Path
 
 import numpy as np
 
-from .._checks import check_choice, check_float
-from ..errors import FtcalError
-from ..io.atomic import write_text_atomic
-from ..progress import track
+from ..runtime.atomic import write_text_atomic
+from ..runtime.checks import check_choice, check_float
+from ..runtime.errors import FtcalError
+from ..runtime.progress import track
 from .logger_mat import RobotLog, Stream, write_robot_log
 from .sensor import StrainGaugeSensor, temperature_drift
-from .trajectories import (ARM_JOINTS, JointTrajectory, grid_trajectory, joint_limits,
-                           load_idyntree, weight_lifting_trajectory)
+from .trajectories import (
+    ARM_JOINTS,
+    JointTrajectory,
+    grid_trajectory,
+    joint_limits,
+    load_idyntree,
+    weight_lifting_trajectory,
+)
 
 PAPER_LOADS = (0.0, 1.0, 2.0, 5.0, 7.0, 9.0, 10.0)
 TRAJECTORIES = ("grid", "lifting")

@@ -44,9 +44,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .._checks import check_choice
-from ..errors import FtcalError
-from ..io.atomic import write_with
+from ..runtime.atomic import write_with
+from ..runtime.checks import check_choice
+from ..runtime.errors import FtcalError
 
 ROOT = "robot_logger_device"
 LAYOUTS = ("channels_first", "samples_first")

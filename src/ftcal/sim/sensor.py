@@ -31,8 +31,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import lfilter
 
-from .._checks import check_float, check_int
-from ..errors import FtcalError
+from ..runtime.checks import check_float, check_int
+from ..runtime.errors import FtcalError
 
 ADC_BITS = 16
 

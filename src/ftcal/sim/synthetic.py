@@ -19,9 +19,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .._checks import check_float, check_int
-from ..dataset import DEFAULT_INPUTS, DEFAULT_OUTPUTS, Dataset, concatenate
-from ..errors import FtcalError
+from ..core.dataset import DEFAULT_INPUTS, DEFAULT_OUTPUTS, Dataset, concatenate
+from ..runtime.checks import check_float, check_int
+from ..runtime.errors import FtcalError
 from .sensor import StrainGaugeSensor, temperature_drift
 
 GRAVITY = 9.81

@@ -21,8 +21,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .._checks import check_float, check_int
-from ..errors import FtcalError
+from ..runtime.checks import check_float, check_int
+from ..runtime.errors import FtcalError
 from .synthetic import SAMPLE_RATE, smooth_path
 
 ARM_JOINTS = ("r_shoulder_pitch", "r_shoulder_roll", "r_shoulder_yaw", "r_elbow",

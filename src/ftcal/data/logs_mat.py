@@ -1,0 +1,171 @@
+"""YARP robot-logger ``.mat`` files (docs/formats.md §4), MATLAB v7.3 (HDF5) and v5.
+
+Layout, under the struct ``robot_logger_device``::
+
+    FTs.<sensor>.data / .timestamps             samples × 6, or 6 × 1 × samples
+    temperatures.<sensor>.data / .timestamps    samples × 1, or 1 × 1 × samples
+    joints_state.positions.data / .timestamps   samples × joints, or joints × 1 × samples
+    joints_state.velocities / .accelerations    (optional) same shapes
+    description_list                            cell array of joint names, data order
+    accelerometers.<imu>.data, gyros.<imu>.data (optional) samples × 3 or 3 × 1 × samples
+
+v7.3 files are HDF5 with a 512-byte MATLAB header; MATLAB writes arrays
+column-major, so HDF5 sees every array with its axes reversed and we reverse
+them back. Cell arrays of strings are HDF5 object references to ``uint16``
+character arrays.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..runtime.errors import FtcalError
+from .recording import Recording, Stream
+
+ROOT = "robot_logger_device"
+GROUPS = ("FTs", "temperatures", "joints_state", "accelerometers", "gyros", "description_list")
+JOINT_FIELDS = {"positions": "joints", "velocities": "joint_velocities", "accelerations": "joint_accelerations"}
+
+
+# The logger's structs are a few levels deep; deeper means a hostile file or a link loop.
+MAX_HDF5_DEPTH = 32
+
+
+def read_mat(path: Path) -> Recording:
+    """Read a robot-logger ``.mat`` file (v7.3 or v5) into a :class:`Recording`."""
+    import h5py
+
+    tree = _read_hdf5(path) if h5py.is_hdf5(path) else _read_v5(path)
+    return _recording(path, tree)
+
+
+def _read_hdf5(path: Path) -> dict[str, Any]:
+    import h5py
+
+    try:
+        with h5py.File(path, "r") as fh:
+            if ROOT not in fh:
+                raise FtcalError(f"Recording {path}: no '{ROOT}' struct (has: {', '.join(fh.keys()) or 'nothing'}).")
+            root = _child(fh, ROOT, path)
+            return {name: _hdf5_node(fh, _child(root, name, path), path, 1) for name in GROUPS if name in root}
+    except OSError as exc:
+        raise FtcalError(f"Recording {path}: cannot read the MATLAB v7.3 (HDF5) file; "
+                         f"it may be truncated or corrupt ({exc}).") from None
+
+
+def _child(group, key: str, path: Path):
+    """``group[key]``, refusing links to other files and dangling links."""
+    import h5py
+
+    link = group.get(key, getlink=True)
+    where = f"{group.name.rstrip('/')}/{key}"
+    if isinstance(link, h5py.ExternalLink):
+        # A recording must not make ftcal read another file.
+        raise FtcalError(f"Recording {path}: {where} is a link to another file ({link.filename}); "
+                         "ftcal does not follow links out of a recording.")
+    try:
+        return group[key]
+    except KeyError:
+        raise FtcalError(f"Recording {path}: {where} is a link to nothing.") from None
+
+
+def _hdf5_node(fh, node, path: Path, depth: int) -> Any:
+    import h5py
+
+    if depth > MAX_HDF5_DEPTH:
+        raise FtcalError(f"Recording {path}: {node.name} is nested more than {MAX_HDF5_DEPTH} levels deep "
+                         "(a link loop?); not a robot-logger file.")
+    if isinstance(node, h5py.Group):
+        return {key: _hdf5_node(fh, _child(node, key, path), path, depth + 1) for key in node.keys()}
+    if node.is_virtual or node.id.get_create_plist().get_external_count():
+        raise FtcalError(f"Recording {path}: the data of {node.name} is stored in other files; "
+                         "ftcal reads only the recording itself.")
+    attr = node.attrs.get("MATLAB_class", b"")
+    matlab_class = attr.decode() if isinstance(attr, bytes) else str(attr)
+    if node.dtype == h5py.ref_dtype:  # cell array
+        return [_hdf5_node(fh, fh[ref], path, depth + 1) for ref in np.asarray(node[()]).T.ravel()]
+    value = np.asarray(node[()])
+    if matlab_class == "char":
+        return "".join(map(chr, value.T.ravel()))
+    return value.T  # back to MATLAB axis order
+
+
+def _read_v5(path: Path) -> dict[str, Any]:
+    import scipy.io
+
+    try:
+        data = scipy.io.loadmat(path, simplify_cells=True, variable_names=[ROOT])
+    except Exception as exc:  # scipy raises many types (ValueError, OSError, MatReadError, ...) on bad files
+        raise FtcalError(f"Recording {path}: cannot read the MATLAB file; it may be truncated, corrupt "
+                         f"or not a MAT-file ({type(exc).__name__}: {exc}).") from None
+    if ROOT not in data or not isinstance(data[ROOT], dict):
+        raise FtcalError(f"Recording {path}: no '{ROOT}' struct.")
+    return {name: data[ROOT][name] for name in GROUPS if name in data[ROOT]}
+
+
+def _recording(path: Path, tree: dict[str, Any]) -> Recording:
+    ft = {name: _stream(path, f"FTs.{name}", node, 6, tuple(f"u{i}" for i in range(1, 7)))
+          for name, node in _struct(path, tree, "FTs").items()}
+    if not ft:
+        raise FtcalError(f"Recording {path}: no F/T streams (robot_logger_device.FTs is missing or empty).")
+    temps = {name: _stream(path, f"temperatures.{name}", node, 1, ("T",))
+             for name, node in _struct(path, tree, "temperatures").items()}
+    joints: dict[str, Stream | None] = dict.fromkeys(JOINT_FIELDS.values())
+    state = _struct(path, tree, "joints_state")
+    if state:
+        names = _joint_names(path, tree)
+        for field_name, attr in JOINT_FIELDS.items():
+            if field_name in state:
+                joints[attr] = _stream(path, f"joints_state.{field_name}", state[field_name], len(names), names)
+    imu = {group: {name: _stream(path, f"{group}.{name}", node, 3, ("x", "y", "z"))
+                   for name, node in _struct(path, tree, group).items()}
+           for group in ("accelerometers", "gyros")}
+    return Recording(path, ft, temps, joints["joints"], joints["joint_velocities"],
+                     joints["joint_accelerations"], imu["accelerometers"], imu["gyros"])
+
+
+def _struct(path: Path, tree: dict[str, Any], name: str) -> dict[str, Any]:
+    node = tree.get(name, {})
+    if not isinstance(node, dict):
+        raise FtcalError(f"Recording {path}: robot_logger_device.{name} is not a struct.")
+    return node
+
+
+def _joint_names(path: Path, tree: dict[str, Any]) -> tuple[str, ...]:
+    names = tree.get("description_list")
+    if names is None:
+        raise FtcalError(f"Recording {path}: joints_state is present but description_list (the joint names) is missing.")
+    if isinstance(names, str):
+        names = [names]
+    names = [str(n).strip() for n in np.asarray(names, dtype=object).ravel()]
+    if not names or not all(names):
+        raise FtcalError(f"Recording {path}: description_list must hold the joint names as strings.")
+    return tuple(names)
+
+
+def _stream(path: Path, where: str, node: Any, k: int, columns: tuple[str, ...]) -> Stream:
+    if not isinstance(node, dict) or "data" not in node or "timestamps" not in node:
+        raise FtcalError(f"Recording {path}: {where} must have 'data' and 'timestamps'.")
+    try:
+        time = np.asarray(node["timestamps"], dtype=np.float64).ravel()
+        data = np.asarray(node["data"], dtype=np.float64)
+    except (TypeError, ValueError):
+        raise FtcalError(f"Recording {path}: {where} data and timestamps must be numeric arrays.") from None
+    return Stream(f"{path.name}:{where}", time, _samples_by_channels(path, where, data, time.size, k), columns)
+
+
+def _samples_by_channels(path: Path, where: str, data: np.ndarray, n: int, k: int) -> np.ndarray:
+    """Bring samples × k, k × 1 × samples (or squeezed forms) to shape (n, k)."""
+    squeezed = data.reshape([d for d in data.shape if d != 1]) if data.size > 1 else data.reshape(-1)
+    if squeezed.ndim == 1 and k == 1 and squeezed.size == n:
+        return squeezed.reshape(n, 1)
+    if squeezed.ndim == 2:
+        if squeezed.shape == (n, k):
+            return squeezed
+        if squeezed.shape == (k, n):
+            return squeezed.T.copy()
+    raise FtcalError(f"Recording {path}: {where}.data has shape {data.shape}; expected samples × {k} or "
+                     f"{k} × 1 × samples with {n} samples to match its timestamps (mismatched lengths?).")

@@ -1,0 +1,595 @@
+"""Per-file tasks that stream a table chunk by chunk, for :mod:`ftcal.runtime.executors`.
+
+Each task reads one file itself (so it can run on a Dask worker) and keeps one
+chunk in memory: :func:`file_summary` (ranges, segment lengths and fingerprints,
+the first pass of ``fit``), :func:`file_statistics` and :func:`file_layout_statistics`
+(sufficient statistics, its second pass), :func:`file_error_sums` (additive
+:class:`ErrorSums` for ``evaluate`` and ``fit``'s training metrics) and
+:func:`predict_part` (``predict`` into a part file). ARX models carry history
+across rows and are read a whole file at a time.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..core import metrics
+from ..core.features import MonomialBasis, RegressorLayout
+from ..core.normalization import Normalization
+from ..core.statistics import CHUNK_SAMPLES, StaticAccumulator, SufficientStatistics, sum_statistics
+from ..runtime.errors import FtcalError
+from ..runtime.threads import map_ranges
+from .table_chunks import iter_table_chunks, table_has_columns
+
+
+def file_statistics(path: str, basis: MonomialBasis, normalization: Normalization, inputs: Sequence[str],
+                    outputs: Sequence[str]) -> SufficientStatistics:
+    """Sufficient statistics of a static model over one file, chunk by chunk.
+
+    Parameters
+    ----------
+    path : CSV or Parquet file
+    basis : the model's monomial basis (n_inputs = len(inputs))
+    normalization : maps raw inputs to the basis's normalized inputs
+    inputs, outputs : column names
+
+    Returns
+    -------
+    SufficientStatistics with p = basis.n_terms features and len(outputs) targets.
+    """
+    total = StaticAccumulator(basis, len(outputs))
+    for chunk in iter_table_chunks(path, inputs, outputs):
+        total.add(normalization.apply(chunk.inputs), chunk.outputs)
+    return total.statistics()
+
+
+@dataclass
+class FileSummary:
+    """What the first pass of a streamed fit learns from consecutive files: ranges, sizes, fingerprints.
+
+    Attributes
+    ----------
+    input_range, output_range : ndarray of shape (n_inputs, 2), (n_outputs, 2), min and max per column
+    segment_lengths : list of int, samples per segment, in file order
+    fingerprints : list of dict, :func:`ftcal.core.fingerprint.segment_fingerprints` of those segments
+    group_sizes : dict of group label (str) -> samples (a file without group column is one group, its path)
+    """
+
+    input_range: np.ndarray
+    output_range: np.ndarray
+    segment_lengths: list
+    fingerprints: list
+    group_sizes: dict
+
+    def __add__(self, other: "FileSummary") -> "FileSummary":
+        def widen(a, b):
+            return np.c_[np.minimum(a[:, 0], b[:, 0]), np.maximum(a[:, 1], b[:, 1])]
+
+        sizes = dict(self.group_sizes)
+        for label, n in other.group_sizes.items():
+            sizes[label] = sizes.get(label, 0) + n
+        return FileSummary(widen(self.input_range, other.input_range), widen(self.output_range, other.output_range),
+                           self.segment_lengths + other.segment_lengths, self.fingerprints + other.fingerprints,
+                           sizes)
+
+
+def file_summary(path: str, inputs: Sequence[str], outputs: Sequence[str], segment_by: str | None = None,
+                 group_by: str | None = None) -> FileSummary:
+    """The :class:`FileSummary` of one file, chunk by chunk (a new segment wherever ``segment_by`` changes).
+
+    Parameters
+    ----------
+    path : CSV or Parquet file
+    inputs, outputs : column names
+    segment_by : label column separating segments, or None (the file is one segment)
+    group_by : group label column, checked (present, no empty cell) as a whole-table read does
+
+    Returns
+    -------
+    FileSummary, whose fingerprints equal those of the file read whole.
+    """
+    import hashlib
+
+    from ..core.fingerprint import row_hashes
+
+    ranges = None
+    lengths, fingerprints, sizes = [], [], {}
+    digest, last_label = None, None
+    labels = {column: role for column, role in ((group_by, "group"), (segment_by, "segment")) if column}
+    for chunk in iter_table_chunks(path, inputs, outputs, labels=labels):
+        if chunk.n_rows == 0:  # an empty Parquet row group
+            continue
+        values = np.ascontiguousarray(np.concatenate([chunk.inputs, chunk.outputs], axis=1), dtype="<f8")
+        for label, n in _group_counts(path, chunk, group_by).items():
+            sizes[label] = sizes.get(label, 0) + n
+        low, high = values.min(axis=0), values.max(axis=0)
+        ranges = np.c_[low, high] if ranges is None else np.c_[np.minimum(ranges[:, 0], low),
+                                                               np.maximum(ranges[:, 1], high)]
+        if segment_by:
+            label = chunk.labels[segment_by]
+            starts = np.flatnonzero(np.r_[digest is None or label[0] != last_label, label[1:] != label[:-1]])
+            last_label = label[-1]
+        else:
+            starts = np.array([0] if digest is None else [], dtype=np.intp)
+        bounds = [*starts.tolist(), len(values)]
+        if bounds[0] > 0:  # the segment open from the previous chunk continues
+            digest.update(values[:bounds[0]])  # contiguous rows: hashed in place, no copy
+            lengths[-1] += bounds[0]
+        for begin, end in zip(bounds[:-1], bounds[1:]):
+            if digest is not None:
+                fingerprints[-1]["sha256"] = digest.hexdigest()
+            digest = hashlib.sha256(values[begin:end])
+            lengths.append(end - begin)
+            fingerprints.append({"rows": 0, "first_row": f"{int(row_hashes(values[begin:begin + 1])[0]):016x}",
+                                 "sha256": ""})
+    fingerprints[-1]["sha256"] = digest.hexdigest()
+    for fingerprint, rows in zip(fingerprints, lengths):
+        fingerprint["rows"] = rows
+    n_in = len(inputs)
+    return FileSummary(ranges[:n_in], ranges[n_in:], lengths, fingerprints, sizes)
+
+
+def _group_counts(path: str, chunk, group_by: str | None) -> dict[str, int]:
+    """Rows of ``chunk`` per group label, labelled as :func:`ftcal.data.tables.read_dataset` does (str)."""
+    if group_by is None:
+        return {str(Path(path)): chunk.n_rows}
+    labels, counts = np.unique(chunk.labels[group_by].astype(str), return_counts=True)
+    return dict(zip(labels.tolist(), counts.tolist()))
+
+
+def file_group_statistics(path: str, basis: MonomialBasis, normalization: Normalization, inputs: Sequence[str],
+                          outputs: Sequence[str], group_by: str | None = None) -> dict[str, SufficientStatistics]:
+    """Sufficient statistics of a static model over one file, per group label, chunk by chunk.
+
+    Parameters
+    ----------
+    path : CSV or Parquet file
+    basis, normalization, inputs, outputs : as :func:`file_statistics`
+    group_by : group label column, or None (the whole file is the group named by its path)
+
+    Returns
+    -------
+    dict of group label (str) -> SufficientStatistics; cross-validation folds are sums of these.
+    """
+    totals: dict[str, StaticAccumulator] = {}
+    for chunk in iter_table_chunks(path, inputs, outputs, labels={group_by: "group"} if group_by else ()):
+        u_norm = normalization.apply(chunk.inputs)
+        if group_by is None:
+            rows = {str(Path(path)): slice(None)}
+        else:
+            labels = chunk.labels[group_by].astype(str)
+            rows = {label: labels == label for label in np.unique(labels).tolist()}
+        for label, selection in rows.items():
+            if label not in totals:
+                totals[label] = StaticAccumulator(basis, len(outputs))
+            totals[label].add(u_norm[selection], chunk.outputs[selection])
+    return {label: total.statistics() for label, total in totals.items()}
+
+
+def add_group_statistics(a: dict[str, SufficientStatistics],
+                         b: dict[str, SufficientStatistics]) -> dict[str, SufficientStatistics]:
+    """Per-group statistics of two sets of files together (a task for the tree reduction)."""
+    total = dict(a)
+    for label, stats in b.items():
+        total[label] = stats if label not in total else total[label] + stats
+    return total
+
+
+class StreamedStatistics:
+    """:class:`ftcal.core.select.GroupedStatistics` of files streamed by per-file tasks (static models).
+
+    Each (degree, basis) the search asks for is one statistics pass over the
+    files, per group; a fold's statistics are the sum of its groups'.
+
+    Parameters
+    ----------
+    executor : LocalExecutor or DaskExecutor
+    paths : the files
+    inputs, outputs : column names
+    summary : FileSummary of all the files (the first pass)
+    group_by : group label column, or None (one group per file)
+    segment_by : segment label column, or None (one segment per file); ARX lags stay inside segments
+    """
+
+    def __init__(self, executor, paths: Sequence[str], inputs: Sequence[str], outputs: Sequence[str],
+                 summary: FileSummary, group_by: str | None, segment_by: str | None = None):
+        self.executor = executor
+        self.paths = list(paths)
+        self.inputs, self.output_names = tuple(inputs), tuple(outputs)
+        self.summary = summary
+        self.group_by = group_by
+        self.segment_by = segment_by
+
+    def group_sizes(self) -> dict[str, int]:
+        return dict(self.summary.group_sizes)
+
+    def frame(self, model):
+        return model.frame_from_ranges(self.summary.input_range, self.summary.output_range, self.inputs,
+                                       self.output_names, self.summary.segment_lengths)
+
+    def fold_statistics(self, frame, fold_of: dict[str, int], n_folds: int) -> list[SufficientStatistics]:
+        if not frame.layout.is_static:
+            folds = self.executor.map_reduce(file_fold_statistics, self.paths, frame.layout,
+                                             frame.solve_input_normalization, frame.solve_output_normalization,
+                                             self.inputs, self.output_names, fold_of, n_folds, self.segment_by,
+                                             self.group_by, combine=add_fold_parts,
+                                             description=f"statistics, degree {frame.layout.basis.degree}")
+            return [sum_statistics(parts) for parts in folds]
+        groups = self.executor.map_reduce(file_group_statistics, self.paths, frame.layout.basis,
+                                          frame.solve_input_normalization, self.inputs, self.output_names,
+                                          self.group_by, combine=add_group_statistics,
+                                          description=f"statistics, degree {frame.layout.basis.degree}")
+        parts: list[SufficientStatistics | None] = [None] * n_folds
+        for label in sorted(groups):
+            f = fold_of[label]
+            parts[f] = groups[label] if parts[f] is None else parts[f] + groups[label]
+        return parts
+
+
+def file_layout_statistics(path: str, layout: RegressorLayout, in_norm: Normalization, out_norm: Normalization,
+                           inputs: Sequence[str], outputs: Sequence[str],
+                           segment_by: str | None = None) -> list[SufficientStatistics]:
+    """Sufficient statistics of one file for any layout, in the basis ``in_norm``/``out_norm``.
+
+    Static layouts stream the file chunk by chunk (:func:`file_statistics`) and
+    give one entry. ARX layouts read it whole and give one entry per segment
+    (lags stay inside a segment), so that the caller, summing the entries of
+    all files left to right, adds them in exactly the order of the in-memory fit:
+    ARX normal equations are often ill-conditioned enough (κ² ~ 1e7) that
+    another summation order shows in the 10th digit of the coefficients.
+
+    Returns
+    -------
+    list of SufficientStatistics, in row order; lists of files concatenate with ``+``.
+    """
+    if layout.is_static:
+        return [file_statistics(path, layout.basis, in_norm, inputs, outputs)]
+    from .tables import read_dataset
+
+    return segment_statistics(read_dataset([path], inputs, outputs, segment_by=segment_by), layout, in_norm,
+                              out_norm)
+
+
+def segment_statistics(data, layout: RegressorLayout, in_norm: Normalization,
+                       out_norm: Normalization) -> list[SufficientStatistics]:
+    """Statistics of an ARX layout per segment of ``data`` (a Dataset), in row order; lags stay inside segments.
+
+    Summed left to right they equal :meth:`ftcal.core.model.CalibrationModel.statistics` bit for bit.
+    """
+    from ..core.statistics import layout_statistics
+
+    u_norm, y_norm = in_norm.apply(data.inputs), out_norm.apply(data.outputs)
+    return [layout_statistics(layout, u_norm[a:b], data.outputs[a:b], y_norm[a:b])
+            for a, b in data.segment_bounds()]
+
+
+def file_fold_statistics(path: str, layout: RegressorLayout, in_norm: Normalization, out_norm: Normalization,
+                         inputs: Sequence[str], outputs: Sequence[str], fold_of: dict[str, int], n_folds: int,
+                         segment_by: str | None = None, group_by: str | None = None) -> list[list]:
+    """Per cross-validation fold, the per-segment statistics of an ARX layout over one file (read whole).
+
+    A fold's rows are those of its groups (``fold_of``: group label -> fold), taken
+    as :meth:`ftcal.core.dataset.Dataset.subset` takes them in memory, so that the lists
+    of all files concatenated (:func:`add_fold_parts`) and summed give the in-memory
+    fold statistics in the same order.
+
+    Returns
+    -------
+    list of ``n_folds`` lists of SufficientStatistics (empty for a fold without rows here)
+    """
+    from .tables import read_dataset
+
+    data = read_dataset([path], inputs, outputs, segment_by=segment_by, group_by=group_by)
+    sample_fold = np.array([fold_of[g] for g in np.asarray(data.groups, dtype=str)])
+    return [segment_statistics(data.subset(sample_fold == f), layout, in_norm, out_norm)
+            if np.any(sample_fold == f) else [] for f in range(n_folds)]
+
+
+def add_fold_parts(a: list[list], b: list[list]) -> list[list]:
+    """Per-fold lists of two sets of files, ``b``'s after ``a``'s (a task for the tree reduction)."""
+    return [x + y for x, y in zip(a, b)]
+
+
+def add_statistics(a: SufficientStatistics, b: SufficientStatistics) -> SufficientStatistics:
+    """``a + b`` as a plain function (a task for the tree reduction; also for lists and :class:`FileSummary`)."""
+    return a + b
+
+
+@dataclass
+class ErrorSums:
+    """Additive sums from which every ``evaluate`` metric follows, for consecutive rows.
+
+    Combining two (``a + b``, ``b``'s rows after ``a``'s) gives the sums of
+    their concatenation, so files and chunks are summed in any tree that keeps
+    their order. Shapes: (ny,) per output; norms are scalars.
+    """
+
+    n: int
+    y_mean: np.ndarray
+    y_m2: np.ndarray  # Σ (y - mean)², merged with Chan's formula
+    sse: np.ndarray  # Σ r², r = y - ŷ
+    r_sum: np.ndarray
+    r_lag: np.ndarray  # Σ r_t r_(t+1)
+    r_first: np.ndarray
+    r_last: np.ndarray
+    max_abs: np.ndarray
+    norm_sq: np.ndarray  # Σ (‖v‖ - ‖v̂‖)² for forces, torques (NaN when absent)
+    error_norm_sq: np.ndarray  # Σ ‖v - v̂‖²
+    n_out_of_range: int
+    training_segments: frozenset = frozenset()  # indices of the model's training fingerprints found
+
+    @classmethod
+    def of(cls, y: np.ndarray, prediction: np.ndarray, output_names: Sequence[str],
+           n_out_of_range: int) -> "ErrorSums":
+        """Sums of one block of rows.
+
+        Parameters
+        ----------
+        y, prediction : ndarray of shape (m, ny), m >= 1
+        output_names : names, to find the force and torque triples
+        n_out_of_range : rows of the block with inputs outside the training range
+        """
+        r = y - prediction
+        norm_sq, error_norm_sq = np.full(2, np.nan), np.full(2, np.nan)
+        for k, columns in enumerate(metrics.force_torque_columns(output_names)):
+            if columns is not None:
+                norms = np.linalg.norm(y[:, columns], axis=1) - np.linalg.norm(prediction[:, columns], axis=1)
+                norm_sq[k] = norms @ norms
+                error_norm_sq[k] = np.sum(r[:, columns] ** 2)
+        mean = y.mean(axis=0)
+        return cls(len(y), mean, np.sum((y - mean) ** 2, axis=0), np.einsum("ij,ij->j", r, r), r.sum(axis=0),
+                   np.einsum("ij,ij->j", r[1:], r[:-1]), r[0].copy(), r[-1].copy(), np.abs(r).max(axis=0),
+                   norm_sq, error_norm_sq, n_out_of_range)
+
+    def __add__(self, other: "ErrorSums") -> "ErrorSums":
+        n = self.n + other.n
+        delta = other.y_mean - self.y_mean
+        return ErrorSums(n, self.y_mean + delta * (other.n / n),
+                         self.y_m2 + other.y_m2 + delta ** 2 * (self.n * other.n / n),
+                         self.sse + other.sse, self.r_sum + other.r_sum,
+                         self.r_lag + other.r_lag + self.r_last * other.r_first, self.r_first, other.r_last,
+                         np.maximum(self.max_abs, other.max_abs), self.norm_sq + other.norm_sq,
+                         self.error_norm_sq + other.error_norm_sq, self.n_out_of_range + other.n_out_of_range,
+                         self.training_segments | other.training_segments)
+
+    def summary(self, output_names: Sequence[str]) -> dict:
+        """The metrics of :func:`ftcal.core.metrics.summarize`, plus ``n_out_of_range``."""
+        n = self.n
+        with np.errstate(all="ignore"):  # undefined metrics become NaN (None in JSON) or are refused
+            best = np.where(self.y_m2 > 0, 1.0 - np.sqrt(self.sse / self.y_m2), np.nan)
+            # lag-1 autocorrelation of the centred residual, from raw sums
+            m = self.r_sum / n
+            num = self.r_lag - m * (2 * self.r_sum - self.r_first - self.r_last) + (n - 1) * m * m
+            den = self.sse - n * m * m
+            acf = np.where(den > 0, num / den, 0.0) if n > 1 else np.zeros_like(den)
+
+        def root_mean(value: float):
+            return None if np.isnan(value) else float(np.sqrt(value / n))
+
+        return {"n_samples": n, "outputs": list(output_names), "rmse": np.sqrt(self.sse / n).tolist(),
+                "best_fit": [float(v) if np.isfinite(v) else None for v in best],
+                "max_abs_error": self.max_abs.tolist(), "residual_autocorrelation_lag1": acf.tolist(),
+                "force_norm_rmse": root_mean(self.norm_sq[0]), "torque_norm_rmse": root_mean(self.norm_sq[1]),
+                "force_error_norm_rmse": root_mean(self.error_norm_sq[0]),
+                "torque_error_norm_rmse": root_mean(self.error_norm_sq[1]),
+                "n_out_of_range": self.n_out_of_range}
+
+
+def add_error_sums(a, b):
+    """``a + b`` as a plain function (a task for the tree reduction).
+
+    Also adds the (mode, other mode) pairs of ARX models, and skips None (a
+    file whose segments are all shorter than the ARX warm-up).
+    """
+    if a is None or b is None:
+        return b if a is None else a
+    if isinstance(a, tuple):
+        return tuple(x + y for x, y in zip(a, b))
+    return a + b
+
+
+def file_error_sums(path: str, model, fingerprints: Sequence[dict] = (), mode: str = "one-step",
+                    start: str = "zeros", warmup: str = "drop", segment_by: str | None = None):
+    """:class:`ErrorSums` of ``model`` on one file with reference outputs.
+
+    Static models read the file chunk by chunk. ARX models read it whole and
+    give a pair: the sums for ``mode`` and for the other prediction mode,
+    without the first max(na, nb) rows of each segment when ``warmup`` is
+    ``"drop"`` (as :meth:`CalibrationModel.score`); None when no row is left.
+    ``fingerprints`` (the model file's training segments) found whole inside
+    this file are reported in ``training_segments``.
+    """
+    import warnings
+
+    from ..runtime.errors import OutOfRangeWarning
+
+    if not model.layout_.is_static:
+        return _arx_error_sums(path, model, fingerprints, mode, start, warmup, segment_by)
+    total = None
+    finder = SegmentFinder(fingerprints)
+    for chunk in iter_table_chunks(path, model.input_names_, model.output_names_):
+        def rows_sums(begin: int, end: int) -> ErrorSums:
+            inputs, outputs = chunk.inputs[begin:end], chunk.outputs[begin:end]
+            prediction = model.predict(inputs, warn_out_of_range=False)
+            return ErrorSums.of(outputs, prediction, model.output_names_, int(model.out_of_range(inputs).sum()))
+
+        # Overflowing predictions give inf/NaN metrics, which the command refuses in one line.
+        with warnings.catch_warnings(), np.errstate(over="ignore", invalid="ignore"):
+            warnings.simplefilter("ignore", OutOfRangeWarning)  # counted instead
+            # Row ranges in parallel threads; their sums combine in row order.
+            part = functools.reduce(add_error_sums, map_ranges(rows_sums, chunk.n_rows, CHUNK_SAMPLES))
+        if fingerprints:
+            finder.feed(np.concatenate([chunk.inputs, chunk.outputs], axis=1))
+        total = part if total is None else total + part
+    total.training_segments = frozenset(finder.found)
+    return total
+
+
+def _arx_error_sums(path: str, model, fingerprints: Sequence[dict], mode: str, start: str, warmup: str,
+                    segment_by: str | None) -> tuple[ErrorSums, ErrorSums] | None:
+    from .tables import read_dataset
+
+    data = read_dataset([path], model.input_names_, model.output_names_, segment_by=segment_by)
+    rows = np.ones(data.n_samples, dtype=bool)
+    if warmup == "drop":
+        for a, b in data.segment_bounds():
+            rows[a:a + model.layout_.max_lag] = False
+    if not rows.any():
+        return None
+    finder = SegmentFinder(fingerprints)
+    finder.feed(np.concatenate([data.inputs, data.outputs], axis=1))
+    n_out = int(model.out_of_range(data.inputs).sum())
+    pair = []
+    for which in (mode, "free-run" if mode == "one-step" else "one-step"):
+        with np.errstate(over="ignore", invalid="ignore"):
+            prediction = model.predict(data, mode=which, start=start, warn_out_of_range=False)
+            pair.append(ErrorSums.of(data.outputs[rows], prediction[rows], model.output_names_, n_out))
+    pair[0].training_segments = frozenset(finder.found)
+    return pair[0], pair[1]
+
+
+class SegmentFinder:
+    """:func:`ftcal.core.fingerprint.find_training_segments` over rows that arrive chunk by chunk.
+
+    Every row whose hash matches a fingerprint's first row starts a sha256 of
+    the following ``rows`` rows, carried across chunks.
+    """
+
+    def __init__(self, fingerprints: Sequence[dict]):
+        self.fingerprints = list(fingerprints)
+        self.heads = np.array([int(fp["first_row"], 16) for fp in self.fingerprints], dtype=np.uint64)
+        self.found: set[int] = set()
+        self._open: list[tuple[int, int, object]] = []  # (fingerprint, rows still to hash, sha256) across chunks
+
+    def feed(self, values: np.ndarray) -> None:
+        """Add the next rows, shape (m, n_inputs + n_outputs), inputs then outputs."""
+        import hashlib
+
+        from ..core.fingerprint import MAX_CANDIDATES, row_hashes
+
+        if not self.fingerprints:
+            return
+        values = np.ascontiguousarray(values, dtype="<f8")
+        hashes = row_hashes(values)
+        # (fingerprint, first row in this chunk, rows still to hash, sha256): carried ones continue at row 0
+        pending = [(index, 0, left, digest) for index, left, digest in self._open]
+        for start in np.flatnonzero(np.isin(hashes, self.heads))[:MAX_CANDIDATES]:
+            for index in np.flatnonzero(self.heads == hashes[start]):
+                if int(index) not in self.found:
+                    pending.append((int(index), int(start), int(self.fingerprints[index]["rows"]),
+                                    hashlib.sha256()))
+        self._open = []
+        for index, begin, left, digest in pending:
+            take = min(left, len(values) - begin)
+            digest.update(values[begin:begin + take].tobytes())
+            if left > take:
+                self._open.append((index, left - take, digest))
+            elif digest.hexdigest() == self.fingerprints[index]["sha256"]:
+                self.found.add(index)
+
+
+def predict_part(path: str, part: str, model, mode: str = "free-run", segment_by: str | None = None,
+                 start: str = "zeros") -> tuple[int, int]:
+    """Predict one file into the part file ``part`` (CSV or Parquet by suffix).
+
+    Static models read the file chunk by chunk; ARX models (whose rows depend
+    on the previous ones) read it whole, as one or more segments.
+
+    Parameters
+    ----------
+    path : CSV or Parquet file with the model's inputs (and outputs for one-step ARX)
+    part : the part file to write
+    model : fitted CalibrationModel
+    mode, segment_by, start : ARX prediction mode, segment column and free-run start (see ``ftcal predict``)
+
+    Returns
+    -------
+    (n_rows, n_out_of_range) : ints
+
+    Raises
+    ------
+    FtcalError
+        A prediction overflows (inf or NaN): names the input file and row.
+    """
+    names = list(model.output_names_)
+    n_rows = n_out = 0
+    writer = None
+    try:
+        for first_row, inputs, prediction in _predictions(path, model, mode, segment_by, start):
+            bad = ~np.isfinite(prediction).all(axis=1)
+            if bad.any():
+                raise FtcalError(f"{path}: the prediction of row {first_row + int(np.flatnonzero(bad)[0])} "
+                                 "holds non-finite value(s) (inf or NaN); nothing written. Inputs far outside the "
+                                 "training range can overflow a high-degree model.")
+            import pyarrow as pa
+
+            batch = pa.RecordBatch.from_arrays([pa.array(prediction[:, j]) for j in range(len(names))], names=names)
+            writer = writer or _part_writer(part, batch.schema)
+            writer.write(batch)
+            n_rows += len(prediction)
+            n_out += int(model.out_of_range(inputs).sum())
+    finally:
+        if writer is not None:
+            writer.close()
+    return n_rows, n_out
+
+
+def _predictions(path: str, model, mode: str, segment_by: str | None, start: str):
+    """(first row, inputs, predictions) per chunk of a static model, or once for the whole file (ARX)."""
+    with np.errstate(over="ignore", invalid="ignore"):  # overflow is refused by the caller, in one line
+        if model.layout_.is_static:
+            for chunk in iter_table_chunks(path, model.input_names_):
+                yield chunk.first_row, chunk.inputs, model.predict(chunk.inputs, warn_out_of_range=False)
+            return
+        from .tables import read_dataset
+
+        # Measured outputs: one-step needs them; a "measured" free-run start uses them when the file has them.
+        wants_outputs = mode == "one-step" or (start == "measured" and table_has_columns(path, model.output_names_))
+        data = read_dataset([path], model.input_names_, model.output_names_ if wants_outputs else None,
+                            segment_by=segment_by)
+        yield 0, data.inputs, model.predict(data, mode=mode, start=start, warn_out_of_range=False)
+
+
+def _part_writer(part: str, schema):
+    if part.endswith(".csv"):
+        import pyarrow.csv as pv
+
+        return pv.CSVWriter(part, schema)
+    import pyarrow.parquet as pq
+
+    return pq.ParquetWriter(part, schema)
+
+
+def join_parts(parts: Sequence[str], target: Path) -> None:
+    """Concatenate part files, in order, into ``target`` (same format), one chunk in memory at a time."""
+    from ..runtime.atomic import atomic_path
+
+    with atomic_path(target) as tmp:
+        if target.suffix.lower() == ".csv":
+            with open(tmp, "wb") as out:
+                for index, part in enumerate(parts):
+                    with open(part, "rb") as source:
+                        header = source.readline()
+                        if index == 0:
+                            out.write(header)
+                        while block := source.read(1 << 20):
+                            out.write(block)
+            return
+        import pyarrow.parquet as pq
+
+        writer = None
+        try:
+            for part in parts:
+                with pq.ParquetFile(part) as parquet:
+                    for batch in parquet.iter_batches():
+                        writer = writer or pq.ParquetWriter(os.fspath(tmp), batch.schema)
+                        writer.write_batch(batch)
+        finally:
+            if writer is not None:
+                writer.close()

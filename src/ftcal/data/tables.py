@@ -1,0 +1,293 @@
+"""CSV and Parquet tables: one row per sample, named columns (docs/formats.md §5).
+
+Each file is one segment and one group unless ``segment_by`` / ``group_by``
+name a column; then every distinct value of that column (within a file) is a
+segment or group of its own.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from ..core.dataset import DEFAULT_INPUTS, DEFAULT_OUTPUTS, Dataset, concatenate
+from ..runtime.atomic import atomic_path
+from ..runtime.errors import FtcalError
+
+TABLE_SUFFIXES = (".csv", ".parquet", ".pq")
+
+
+def read_table(path: str | os.PathLike):
+    """Read a CSV or Parquet file into a pandas DataFrame, with clear errors."""
+    return read_arrow(path).to_pandas()
+
+
+def read_arrow(path: str | os.PathLike):
+    """Read a CSV or Parquet file into a pyarrow Table (no pandas), with clear errors.
+
+    Raises
+    ------
+    FtcalError
+        No such file, not a table, a repeated column name, or no rows.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise FtcalError(f"{path}: no such file.")
+    if path.is_dir():
+        raise FtcalError(f"{path}: is a directory, not a CSV or Parquet file.")
+    suffix = path.suffix.lower()
+    try:
+        if suffix in (".parquet", ".pq"):
+            import pyarrow.parquet as pq
+
+            table = pq.read_table(path)
+        elif suffix == ".csv":
+            import pyarrow.csv as pv
+
+            # multi-threaded, and keeps repeated column names (so they can be refused); empty cells are missing
+            table = pv.read_csv(path, convert_options=pv.ConvertOptions(strings_can_be_null=True))
+        else:
+            raise FtcalError(f"{path}: unknown table type {suffix!r}; use .csv or .parquet.")
+    except FtcalError:
+        raise
+    except Exception as exc:  # pyarrow raises many types for corrupt files
+        raise FtcalError(f"{path}: cannot be read as {suffix[1:].upper()} ({type(exc).__name__}: "
+                         f"{str(exc).splitlines()[0] if str(exc) else 'no detail'}).") from None
+    names = table.column_names
+    twice = next((n for n in names if names.count(n) > 1), None)
+    if twice is not None:
+        raise FtcalError(f"{path}: the column name {twice!r} appears {names.count(twice)} times; "
+                         "column names must be unique.")
+    if table.num_rows == 0:
+        raise FtcalError(f"{path}: the table has no rows.")
+    return table
+
+
+# Arrow types whose values buffer is a plain little-endian numpy array.
+_PLAIN_NUMBERS = {"double": "<f8", "float": "<f4", "int64": "<i8", "int32": "<i4", "int16": "<i2", "int8": "i1",
+                  "uint64": "<u8", "uint32": "<u4", "uint16": "<u2", "uint8": "u1"}
+
+
+def arrow_numbers(table, columns: Sequence[str], path: Path, role: str, *, first_row: int = 0) -> np.ndarray:
+    """:func:`numeric_columns` of an arrow table.
+
+    Float or integer columns without missing cells convert directly; anything
+    else goes through pandas for the exact message.
+
+    Parameters
+    ----------
+    table : pyarrow Table
+    columns : the column names, in the order of the result's columns
+    path : the table's file, for messages
+    role : ``"input"`` or ``"output"``, for messages
+    first_row : the file row of the table's first row (a chunk of a file), for messages
+
+    Returns
+    -------
+    ndarray of shape (n_rows, len(columns)), float64
+
+    Raises
+    ------
+    FtcalError
+        A missing column, or a cell that is not a finite number.
+    """
+    names = set(table.column_names)
+    if not all(c in names for c in columns):
+        return numeric_columns(table.to_pandas(), columns, path, role, first_row=first_row)
+    out = np.empty((table.num_rows, len(columns)))
+    for j, name in enumerate(columns):
+        column = table.column(name)
+        dtype = _PLAIN_NUMBERS.get(str(column.type))
+        if dtype is None or column.null_count:
+            return numeric_columns(table.to_pandas(), columns, path, role, first_row=first_row)
+        row = 0
+        for chunk in column.chunks:
+            # The values buffer itself: pyarrow's to_numpy would import pandas (half a second).
+            n = len(chunk)
+            out[row:row + n, j] = np.frombuffer(chunk.buffers()[1], dtype=dtype, count=n,
+                                                offset=chunk.offset * np.dtype(dtype).itemsize)
+            row += n
+    if not np.isfinite(out).all():
+        return numeric_columns(table.to_pandas(), columns, path, role, first_row=first_row)
+    return out
+
+
+def default_inputs(paths: Sequence[str | os.PathLike]) -> tuple[str, ...]:
+    """u1..u6,T, or u1..u6 when the first file has no T column (temperature is optional)."""
+    if not paths:
+        return DEFAULT_INPUTS
+    return DEFAULT_INPUTS if "T" in table_columns(paths[0]) else DEFAULT_INPUTS[:-1]
+
+
+def table_columns(path: str | os.PathLike) -> tuple[str, ...]:
+    """The column names of a CSV or Parquet file, read from its header only."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if path.is_file() and suffix in (".parquet", ".pq", ".csv"):
+        try:
+            if suffix == ".csv":
+                import csv
+
+                with open(path, newline="", encoding="utf-8-sig") as fh:  # the header line only
+                    header = next(csv.reader(fh), None)
+                if header:
+                    return tuple(header)
+            import pyarrow.parquet as pq
+
+            return tuple(pq.read_schema(path).names)
+        except Exception:  # noqa: BLE001 - a corrupt file: read_arrow names the problem
+            pass
+    return tuple(read_arrow(path).column_names)
+
+
+def numeric_columns(frame, columns: Sequence[str], path: Path, role: str, *, finite: bool = True,
+                    first_row: int = 0) -> np.ndarray:
+    """The named columns as a float64 array, naming the first missing, non-numeric or (``finite``) non-finite cell.
+
+    Booleans, dates and times are refused although they would convert to numbers. Rows are
+    named counting from ``first_row`` (the file row of the frame's first row).
+    """
+    missing = [c for c in columns if c not in frame.columns]
+    if missing:
+        raise FtcalError(f"{path}: missing {role} column(s) {', '.join(map(repr, missing))}; "
+                         f"the file has {', '.join(map(str, frame.columns))}.")
+    out = np.empty((frame.shape[0], len(columns)))
+    for j, name in enumerate(columns):
+        column = frame[name]
+        kind = column.dtype.kind
+        if kind in "bMm" or (kind == "O" and column.map(_not_a_number).any()):
+            first = column.iloc[int(np.argmax(column.map(_not_a_number)))] if kind == "O" else column.iloc[0]
+            raise FtcalError(f"{path}: {role} column {name!r} holds {type(first).__name__} values such as "
+                             f"{first!r}, not numbers.")
+        try:
+            values = column.to_numpy(dtype=np.float64)
+        except (TypeError, ValueError):
+            import pandas as pd
+
+            coerced = pd.to_numeric(column, errors="coerce")
+            row = int(np.flatnonzero(coerced.isna() & column.notna())[0])
+            where = f"line {first_row + row + 2}" if path.suffix.lower() == ".csv" else f"row {first_row + row}"
+            raise FtcalError(f"{path}: column {name!r} {where} holds {column.iloc[row]!r}, "
+                             "not a number.") from None
+        bad = ~np.isfinite(values) if finite else np.zeros(0, dtype=bool)
+        if bad.any():
+            row = int(np.flatnonzero(bad)[0])
+            where = f"line {first_row + row + 2}" if path.suffix.lower() == ".csv" else f"row {first_row + row}"
+            raise FtcalError(f"{path}: column {name!r} has {int(bad.sum())} empty, NaN or infinite "
+                             f"cell(s), first at {where}.")
+        out[:, j] = values
+    return out
+
+
+def _not_a_number(value) -> bool:
+    """Cells a numeric column must not hold although they convert to float: booleans, dates, times."""
+    import datetime
+
+    return isinstance(value, (bool, np.bool_, datetime.date, datetime.time, datetime.timedelta))
+
+
+def _labels(table, column: str | None, path: Path, role: str) -> np.ndarray | None:
+    if column is None:
+        return None
+    if column not in table.column_names:
+        raise FtcalError(f"{path}: no {role} column {column!r}; the file has "
+                         f"{', '.join(map(str, table.column_names))}.")
+    values = table.column(column)
+    if values.null_count:
+        raise FtcalError(f"{path}: {role} column {column!r} has empty cells.")
+    return np.asarray(values.to_pylist(), dtype=object)
+
+
+def read_dataset(paths: Sequence[str | os.PathLike], inputs: Sequence[str], outputs: Sequence[str] | None,
+                 *, segment_by: str | None = None, group_by: str | None = None,
+                 require_outputs: bool = True) -> Dataset:
+    """Read tables into one :class:`Dataset`.
+
+    ``outputs=None`` or ``require_outputs=False`` with absent output columns
+    gives a dataset without outputs (for prediction).
+    """
+    if not paths:
+        raise FtcalError("No data files given.")
+    parts = []
+    for index, raw_path in enumerate(paths):
+        path = Path(raw_path)
+        table = read_arrow(path)
+        u = arrow_numbers(table, inputs, path, "input")
+        y = None
+        if outputs:
+            if require_outputs or all(c in table.column_names for c in outputs):
+                y = arrow_numbers(table, outputs, path, "output")
+        seg_labels = _labels(table, segment_by, path, "segment")
+        grp_labels = _labels(table, group_by, path, "group")
+        segments = _segment_ids(seg_labels, table.num_rows)
+        groups = (np.full(table.num_rows, str(path), dtype=object) if grp_labels is None
+                  else np.asarray(grp_labels, dtype=object))
+        part = Dataset(u, y, tuple(inputs), tuple(outputs) if y is not None else (), segments, groups,
+                       (str(path),))
+        parts.append(part)
+    if any(p.outputs is None for p in parts) and not all(p.outputs is None for p in parts):
+        raise FtcalError("Some data files have the output columns and some do not.")
+    return parts[0] if len(parts) == 1 else concatenate(parts)  # one file: already numbered from 0
+
+
+def load_dataset(path: str | os.PathLike | Sequence[str | os.PathLike], *, inputs: Sequence[str] | None = None,
+                 outputs: Sequence[str] | None = DEFAULT_OUTPUTS, segment_by: str | None = None,
+                 group_by: str | None = None) -> Dataset:
+    """Read CSV or Parquet file(s) (docs/formats.md) into a :class:`Dataset`, as ``ftcal fit DATA`` does.
+
+    Parameters
+    ----------
+    path : a file name, or a sequence of them (each one segment and group unless
+        ``segment_by`` / ``group_by`` name a column)
+    inputs : input columns; default ``u1..u6,T``, or ``u1..u6`` when the first file has no ``T``
+    outputs : reference output columns (default ``Fx..Tz``); None for inputs only
+    segment_by, group_by : columns whose values name segments and validation groups
+
+    Returns
+    -------
+    Dataset
+
+    Raises
+    ------
+    FtcalError
+        A missing file or column, or a cell that is not a finite number.
+    """
+    paths = [path] if isinstance(path, (str, os.PathLike)) or not isinstance(path, Sequence) else list(path)
+    return read_dataset(paths, inputs or default_inputs(paths), outputs, segment_by=segment_by, group_by=group_by)
+
+
+def _segment_ids(labels: np.ndarray | None, n: int) -> np.ndarray:
+    """Segment id per row: a new segment wherever the label changes."""
+    if labels is None:
+        return np.zeros(n, dtype=np.int64)
+    change = np.r_[True, labels[1:] != labels[:-1]]
+    return np.cumsum(change) - 1
+
+
+def check_finite_output(frame, path: Path) -> None:
+    """Refuse to write a table with an infinite or NaN number (naming the column and count)."""
+    for name in frame.columns:
+        values = frame[name].to_numpy()
+        if values.dtype.kind == "f":
+            bad = ~np.isfinite(values)
+            if bad.any():
+                raise FtcalError(f"{path}: column {name!r} would hold {int(bad.sum())} non-finite value(s) "
+                                 f"(inf or NaN), first at row {int(np.flatnonzero(bad)[0])}; nothing written. "
+                                 "Inputs far outside the training range can overflow a high-degree model.")
+
+
+def write_table(frame, path: str | os.PathLike) -> None:
+    """Write a DataFrame as CSV or Parquet (by suffix), atomically."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in TABLE_SUFFIXES:
+        raise FtcalError(f"{path}: output must end in .csv or .parquet.")
+    check_finite_output(frame, path)
+    with atomic_path(path) as tmp:
+        if suffix == ".csv":
+            frame.to_csv(tmp, index=False, float_format="%.17g")
+        else:
+            frame.to_parquet(tmp, index=False)

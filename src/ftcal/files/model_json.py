@@ -1,0 +1,408 @@
+"""The native model file: JSON validated by ``schemas/model-1.json``, with a sha256 digest.
+
+The file keeps the normalized-basis coefficients the model was fitted with,
+every float written by ``repr`` (which round-trips exactly), so a loaded model
+predicts bit-identically to the saved one. Non-finite numbers (NaN metrics, an
+unknown condition number, unknown training ranges) are written as ``null``.
+
+The digest is the sha256 of the canonical JSON (sorted keys, no spaces, UTF-8)
+of every field except ``sha256``; it is computed from parsed values, so the
+file's layout and number spelling do not matter, only its content.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from collections.abc import Sequence
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from functools import cache
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from ..core.features import MonomialBasis, RegressorLayout, n_coefficients
+from ..core.model import CalibrationModel, model_from_fitted
+from ..core.normalization import Normalization
+from ..runtime.atomic import write_text_atomic
+from ..runtime.errors import FtcalError
+
+FORMAT = "ftcal-model"
+PER_OUTPUT_METRICS = ("rmse", "best_fit", "max_abs_error", "residual_autocorrelation_lag1")
+FORMAT_VERSION = "1.0"
+SCHEMA_RESOURCE = "schemas/model-1.json"
+_MESSAGE_LIMIT = 160
+# The largest model (degree 10, 7 inputs, ARX lags) is a few MB; anything this big is not one.
+MAX_MODEL_BYTES = 100 * 10**6
+# Integers in a model file are counts and exponents; longer ones are hostile (and slow to parse).
+_MAX_INT_DIGITS = 18
+
+
+@dataclass(frozen=True)
+class ModelFile:
+    """A loaded model file: the model plus what the model object does not carry."""
+
+    model: CalibrationModel
+    input_units: tuple[str | None, ...]
+    output_units: tuple[str | None, ...]
+    sources: tuple[str, ...]
+    created_utc: str | None  # None for formats without creation metadata
+    ftcal_version: str | None
+    # fingerprints of the training segments (ftcal.core.fingerprint); empty when the file has none
+    training_segments: tuple[dict, ...] = ()
+    prior: dict | None = None  # {"source", "file_sha256"} of a --prior fit's prior model file
+
+
+# ---------------------------------------------------------------- writing
+def save_model(model: CalibrationModel, path: str | Path, *, sources: Sequence[str] = (),
+               input_units: Sequence[str | None] | None = None,
+               output_units: Sequence[str | None] | None = None,
+               training_segments: Sequence[dict] | None = None, prior: str | Path | None = None) -> None:
+    """Write ``model`` to ``path`` as a native JSON model file (atomically).
+
+    ``training_segments``: :func:`ftcal.core.fingerprint.segment_fingerprints` of the training
+    data, so that ``ftcal evaluate`` can warn about evaluation data the model was trained on.
+    ``prior``: the model file the fit was shrunk toward (``--prior``), recorded with its digest.
+    """
+    write_text_atomic(path, format_document(model_document(model, sources=sources, input_units=input_units,
+                                                           output_units=output_units,
+                                                           training_segments=training_segments, prior=prior)))
+
+
+def model_document(model: CalibrationModel, *, sources: Sequence[str] = (),
+                   input_units: Sequence[str | None] | None = None,
+                   output_units: Sequence[str | None] | None = None,
+                   training_segments: Sequence[dict] | None = None, prior: str | Path | None = None) -> dict:
+    """The model file content as a JSON-ready dict, digest included (see :func:`save_model`)."""
+    model._check_fitted()
+    layout = model.layout_
+    exponents, lags = layout.exponent_rows()
+    info = jsonable(model.solver_info_)
+    doc = {
+        "format": FORMAT,
+        "format_version": FORMAT_VERSION,
+        "model": {"degree": layout.basis.degree, "na": layout.na, "nb": layout.nb,
+                  "normalization": model.normalization_},
+        "inputs": _variables(model.input_names_, input_units, model.input_normalization_,
+                             model.input_range_, "input_units"),
+        "outputs": _variables(model.output_names_, output_units, model.output_normalization_,
+                              model.output_range_, "output_units"),
+        "terms": {"exponents": exponents.tolist(), "lags": lags.tolist(),
+                  "names": layout.column_names(model.input_names_, model.output_names_)},
+        "coefficients": jsonable(model.coef_),
+        "fit": {
+            "solver": {**info, "name": info.get("name"), "lambda": info.get("lambda")},
+            "n_samples": model.n_samples_fit_,
+            "rank": model.rank_,
+            "condition_number": jsonable(model.condition_number_),
+            "metrics": jsonable(model.training_metrics_),
+        },
+        "created": {
+            "ftcal_version": ftcal_version(),
+            "time_utc": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+            "sources": [str(s) for s in sources],
+        },
+    }
+    if training_segments:
+        doc["fit"]["training_segments"] = [dict(fp) for fp in training_segments]
+    if prior is not None:
+        digest_of_file = hashlib.sha256(Path(prior).read_bytes()).hexdigest()
+        doc["fit"]["prior"] = {"source": str(prior), "file_sha256": digest_of_file}
+    if any(v is None for row in doc["coefficients"] for v in row):
+        raise FtcalError("The model has non-finite coefficients (NaN or inf); refusing to save it.")
+    if any(v[key] is None for v in (*doc["inputs"], *doc["outputs"]) for key in ("offset", "scale")):
+        raise FtcalError("The model has a non-finite normalization offset or scale; refusing to save it.")
+    doc["sha256"] = digest(doc)
+    return doc
+
+
+def _variables(names: Sequence[str], units: Sequence[str | None] | None, norm: Normalization,
+               ranges: np.ndarray, what: str) -> list[dict]:
+    if units is not None and len(units) != len(names):
+        raise FtcalError(f"{what} has {len(units)} entries; the model has {len(names)} ({', '.join(names)}).")
+    units = list(units) if units is not None else [None] * len(names)
+    return [{"name": n, "unit": u, "offset": float(o), "scale": float(s), "range": jsonable(r)}
+            for n, u, o, s, r in zip(names, units, norm.offset, norm.scale, ranges)]
+
+
+def jsonable(value):
+    """Plain JSON values: numpy scalars and arrays converted, non-finite floats as None.
+
+    Parameters
+    ----------
+    value : dict, list, tuple, ndarray, numpy or Python scalar, str or None (nested freely)
+
+    Returns
+    -------
+    The same structure with only dict, list, str, int, float, bool and None.
+    """
+    if isinstance(value, dict):
+        return {str(k): jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return [jsonable(v) for v in value]
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        return float(value) if np.isfinite(value) else None
+    if value is None or isinstance(value, str):
+        return value
+    return str(value)
+
+
+def ftcal_version() -> str:
+    """The running ftcal's version (recorded in the files ftcal writes)."""
+    from .. import __version__
+
+    return __version__
+
+
+def digest(doc: dict) -> str:
+    """sha256 hex digest of the canonical JSON of ``doc`` without its ``sha256`` field."""
+    content = {k: v for k, v in doc.items() if k != "sha256"}
+    canonical = json.dumps(content, sort_keys=True, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
+    return hashlib.sha256(canonical.encode("utf-8")).hexdigest()
+
+
+def format_document(doc: dict) -> str:
+    """Indented JSON with each flat list (a coefficient row, an exponent row) on one line."""
+    return _format(doc, 0) + "\n"
+
+
+def _format(value, depth: int) -> str:
+    pad, close = "  " * (depth + 1), "  " * depth
+    if isinstance(value, dict) and value:
+        items = [f"{pad}{json.dumps(k, ensure_ascii=False)}: {_format(v, depth + 1)}" for k, v in value.items()]
+        return "{\n" + ",\n".join(items) + "\n" + close + "}"
+    if isinstance(value, list) and any(isinstance(v, (dict, list)) for v in value):
+        return "[\n" + ",\n".join(pad + _format(v, depth + 1) for v in value) + "\n" + close + "]"
+    return json.dumps(value, ensure_ascii=False, allow_nan=False)
+
+
+# ---------------------------------------------------------------- reading
+def load_model(path: str | Path) -> CalibrationModel:
+    """Read a native JSON model file; raises :class:`FtcalError` saying what is wrong and where."""
+    return load_model_file(path).model
+
+
+def check_model_size(path: Path, kind: str = "model") -> None:
+    """Refuse a ``kind`` file larger than :data:`MAX_MODEL_BYTES` before reading it."""
+    try:
+        size = path.stat().st_size
+    except OSError as exc:
+        raise FtcalError(f"Cannot read {kind} file {path}: {exc.strerror}.") from None
+    if size > MAX_MODEL_BYTES:
+        raise FtcalError(f"{path}: {size / 1e6:.0f} MB is too large for a {kind} file "
+                         f"(limit {MAX_MODEL_BYTES // 10**6} MB).")
+
+
+def read_document_text(path: Path, kind: str = "model") -> str:
+    """The UTF-8 text of an ftcal JSON document, size-checked first; one-line errors naming ``kind``."""
+    check_model_size(path, kind)
+    try:
+        return path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise FtcalError(f"{path}: not a JSON {kind} file (not UTF-8 text at byte {exc.start}).") from None
+    except OSError as exc:
+        raise FtcalError(f"Cannot read {kind} file {path}: {exc.strerror}.") from None
+
+
+def load_model_file(path: str | Path) -> ModelFile:
+    """Like :func:`load_model`, also returning units, data sources and creation metadata."""
+    path = Path(path)
+    return parse_model(read_document_text(path), str(path))
+
+
+def parse_model(text: str, source: str = "<model>") -> ModelFile:
+    """Parse and validate model-file ``text``; ``source`` names it in error messages."""
+    doc = parse_json(text, source)
+    check_version(doc, source)
+    check_document(doc, source)
+    return _build(doc, source)
+
+
+def check_document(doc: dict, source: str, resource: str = SCHEMA_RESOURCE, kind: str = "model") -> None:
+    """Validate ``doc`` against the packaged schema ``resource``, then its sha256 digest.
+
+    Raises
+    ------
+    FtcalError
+        Naming ``source``, where the document breaks the schema, or that the
+        content no longer matches its digest.
+    """
+    import jsonschema
+
+    error = jsonschema.exceptions.best_match(_validator(resource).iter_errors(doc))
+    if error is not None:
+        message = error.message if len(error.message) <= _MESSAGE_LIMIT else error.message[:_MESSAGE_LIMIT] + "…"
+        raise FtcalError(f"{source}: invalid {kind} file at {error.json_path}: {message}.")
+    if digest(doc) != doc["sha256"]:
+        raise FtcalError(f"{source}: the sha256 digest does not match the content: the file was modified "
+                         f"after it was written. Re-export it from the original {kind}.")
+
+
+def parse_json(text: str, source: str, fmt: str = FORMAT, kind: str = "model") -> dict:
+    """Parse an ftcal JSON file strictly: finite floats, bounded integers, no repeated keys.
+
+    Parameters
+    ----------
+    text : the file's text
+    source : the file's name, for messages
+    fmt : the ``format`` field the document must have
+    kind : what the file is (``"model"``, ``"payload"``), for messages
+
+    Returns
+    -------
+    dict, the document
+
+    Raises
+    ------
+    FtcalError
+        Invalid JSON, NaN/Infinity, an overflowing number, an integer of more than 18
+        digits, a key repeated in one object, too deep nesting, or another ``format``.
+    """
+
+    def reject_constant(name: str):
+        raise FtcalError(f"{source}: {name} is not valid JSON ({kind} files write unknown numbers as null).")
+
+    def finite_float(text: str) -> float:
+        value = float(text)
+        if not np.isfinite(value):
+            raise FtcalError(f"{source}: the number {text[:40]} overflows float64.")
+        return value
+
+    def small_int(text: str) -> int:
+        if len(text.lstrip("-")) > _MAX_INT_DIGITS:
+            raise FtcalError(f"{source}: the integer {text[:20]}… has more than {_MAX_INT_DIGITS} digits.")
+        return int(text)
+
+    def unique_keys(pairs: list[tuple[str, object]]) -> dict:
+        # A parser keeping the first of two equal keys would see other values than the digest covers.
+        keys = [k for k, _ in pairs]
+        if len(set(keys)) != len(keys):
+            twice = next(k for k in keys if keys.count(k) > 1)
+            raise FtcalError(f"{source}: the key {twice!r} appears twice in one JSON object.")
+        return dict(pairs)
+
+    try:
+        doc = json.loads(text, parse_constant=reject_constant, parse_float=finite_float, parse_int=small_int,
+                         object_pairs_hook=unique_keys)
+    except json.JSONDecodeError as exc:
+        raise FtcalError(f"{source}: not valid JSON: {exc.msg} at line {exc.lineno}, column {exc.colno}.") from None
+    except RecursionError:
+        raise FtcalError(f"{source}: JSON nested too deeply to be a {kind} file.") from None
+    if not isinstance(doc, dict) or doc.get("format") != fmt:
+        raise FtcalError(f"{source}: not an ftcal {kind} file (expected a JSON object with "
+                         f"\"format\": \"{fmt}\").")
+    return doc
+
+
+def check_version(doc: dict, source: str, supported: str = FORMAT_VERSION) -> None:
+    """Refuse a document whose ``format_version`` is not ``supported``, saying whether it is newer.
+
+    Parameters
+    ----------
+    doc : the parsed document
+    source : the file's name, for messages
+    supported : the version this ftcal reads
+
+    Raises
+    ------
+    FtcalError
+    """
+    version = doc.get("format_version")
+    if version == supported:
+        return
+    try:
+        newer = tuple(map(int, str(version).split("."))) > tuple(map(int, supported.split(".")))
+    except ValueError:
+        newer = False
+    if newer:
+        raise FtcalError(f"{source}: format_version {version} is newer than this ftcal ({ftcal_version()}) "
+                         f"reads (up to {supported}); upgrade ftcal to load it.")
+    raise FtcalError(f"{source}: unknown format_version {version!r}; this ftcal reads {supported}.")
+
+
+@cache
+def _validator(resource: str = SCHEMA_RESOURCE):
+    """The schema validator (jsonschema is imported only when a model file is read)."""
+    import jsonschema
+
+    schema = json.loads(resources.files("ftcal").joinpath(resource).read_text(encoding="utf-8"))
+    # JSON integers only: jsonschema would also accept 2.0 as an "integer".
+    strict = jsonschema.Draft202012Validator.TYPE_CHECKER.redefine(
+        "integer", lambda _, value: isinstance(value, int) and not isinstance(value, bool))
+    return jsonschema.validators.extend(jsonschema.Draft202012Validator, type_checker=strict)(schema)
+
+
+def _build(doc: dict, source: str) -> ModelFile:
+    """The model from a schema-valid document, after checks the schema cannot express."""
+    spec, inputs, outputs = doc["model"], doc["inputs"], doc["outputs"]
+    for what, variables in (("inputs", inputs), ("outputs", outputs)):
+        names = [v["name"] for v in variables]
+        if len(set(names)) != len(names):
+            raise FtcalError(f"{source}: {what} names repeat ({', '.join(names)}); each must be unique.")
+    nu, ny = len(inputs), len(outputs)
+    model_class = (f"degree {spec['degree']}, na={spec['na']}, nb={spec['nb']} with {nu} inputs "
+                   f"and {ny} outputs")
+    # Count by formula before building the basis, which enumerates every term.
+    n_terms = n_coefficients(nu, spec["degree"], ny, spec["na"], spec["nb"]) // ny
+    coef = doc["coefficients"]
+    for field, entries in (("terms.exponents", doc["terms"]["exponents"]), ("terms.lags", doc["terms"]["lags"]),
+                           ("terms.names", doc["terms"]["names"]), ("coefficients", coef)):
+        if len(entries) != n_terms:
+            raise FtcalError(f"{source}: {field} has {len(entries)} entries; {model_class} has {n_terms} terms.")
+    layout = RegressorLayout(MonomialBasis(nu, spec["degree"]), ny, spec["na"], spec["nb"])
+    _check_terms(doc["terms"], layout, model_class, source)
+    bad_row = next((i for i, row in enumerate(coef) if len(row) != len(outputs)), None)
+    if bad_row is not None:
+        raise FtcalError(f"{source}: coefficients[{bad_row}] has {len(coef[bad_row])} values; the model has "
+                         f"{len(outputs)} outputs.")
+    fit = doc["fit"]
+    for key in PER_OUTPUT_METRICS:
+        values = fit["metrics"].get(key)
+        if values is not None and len(values) != len(outputs):
+            raise FtcalError(f"{source}: fit.metrics.{key} has {len(values)} values; the model has "
+                             f"{len(outputs)} outputs.")
+    model = model_from_fitted(
+        degree=spec["degree"], na=spec["na"], nb=spec["nb"], normalization=spec["normalization"],
+        coef=np.array(coef, dtype=np.float64),
+        input_normalization=_normalization(inputs), output_normalization=_normalization(outputs),
+        input_names=[v["name"] for v in inputs], output_names=[v["name"] for v in outputs],
+        input_range=_ranges(inputs), output_range=_ranges(outputs),
+        n_samples_fit=fit["n_samples"], rank=fit["rank"],
+        condition_number=_number(fit["condition_number"]),
+        solver_info=fit["solver"], training_metrics=fit["metrics"])
+    created = doc["created"]
+    return ModelFile(model, tuple(v["unit"] for v in inputs), tuple(v["unit"] for v in outputs),
+                     tuple(created["sources"]), created["time_utc"], created["ftcal_version"],
+                     tuple(fit.get("training_segments", ())), fit.get("prior"))
+
+
+def _check_terms(terms: dict, layout: RegressorLayout, model_class: str, source: str) -> None:
+    expected_exps, expected_lags = layout.exponent_rows()
+    for row, (got, want) in enumerate(zip(terms["exponents"], expected_exps.tolist())):
+        if got != want:
+            raise FtcalError(f"{source}: terms.exponents[{row}] is {got}; {model_class} has {want} there "
+                             "(the paper's column order).")
+    for row, (got, want) in enumerate(zip(terms["lags"], expected_lags.tolist())):
+        if got != want:
+            raise FtcalError(f"{source}: terms.lags[{row}] is {got}; {model_class} has {want} there.")
+
+
+def _normalization(variables: list[dict]) -> Normalization:
+    return Normalization(np.array([v["offset"] for v in variables], dtype=np.float64),
+                         np.array([v["scale"] for v in variables], dtype=np.float64))
+
+
+def _ranges(variables: list[dict]) -> np.ndarray:
+    # null means unknown: an unbounded range, so predictions never warn.
+    return np.array([[-np.inf if lo is None else lo, np.inf if hi is None else hi]
+                     for lo, hi in (v["range"] for v in variables)], dtype=np.float64)
+
+
+def _number(value: float | None) -> float:
+    return float("nan") if value is None else float(value)

@@ -1,0 +1,24 @@
+"""Writers for payload files (``format: "ftcal-payload"``), in the registry's writer contract.
+
+Each adapter hands a loaded payload to :mod:`ftcal.files.ros_yaml` with the
+options its format uses.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..payload.parameters import PayloadParameters
+from .ros_yaml import DEFAULT_COM_FRAME, write_ft_tools_ros2, write_ros_yaml
+from .targets import ConvertOptions, Written
+
+
+def write_force_torque_tools(source: PayloadParameters, output: Path, options: ConvertOptions) -> Written:
+    """force_torque_tools ``ft_calib`` YAML (``--frame`` names the COM frame's parent when the file has none)."""
+    return Written((write_ros_yaml(source, output, frame=options.get("frame"),
+                                   com_frame=options.get("com_frame", DEFAULT_COM_FRAME)),))
+
+
+def write_ft_tools_ros2_yaml(source: PayloadParameters, output: Path, options: ConvertOptions) -> Written:
+    """ft_tools_ros2 ``calibration.yaml``."""
+    return Written((write_ft_tools_ros2(source, output),))

@@ -1,0 +1,109 @@
+"""The payload file (``ftcal payload -o payload.json``): JSON validated by ``schemas/payload-1.json``.
+
+Same machinery as the model file (:mod:`ftcal.files.model_json`): floats written
+by ``repr``, a sha256 digest of the canonical JSON, schema and version checks
+with one-line errors.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from datetime import datetime, timezone
+from pathlib import Path
+
+import numpy as np
+
+from ..payload.parameters import PayloadParameters
+from ..runtime.atomic import write_text_atomic
+from ..runtime.errors import FtcalError
+from .model_json import (
+    check_document,
+    check_version,
+    digest,
+    format_document,
+    ftcal_version,
+    jsonable,
+    parse_json,
+    read_document_text,
+)
+
+FORMAT = "ftcal-payload"
+FORMAT_VERSION = "1.0"
+SCHEMA_RESOURCE = "schemas/payload-1.json"
+
+
+def payload_document(payload: PayloadParameters, *, sources: Sequence[str] = ()) -> dict:
+    """The payload file content as a JSON-ready dict, digest included.
+
+    Raises
+    ------
+    FtcalError
+        When a value is not finite (nothing would be worth writing).
+    """
+    stderr = {k: jsonable(v) for k, v in payload.stderr.items()}
+    doc = {
+        "format": FORMAT,
+        "format_version": FORMAT_VERSION,
+        "mass": jsonable(payload.mass),
+        "com": jsonable(np.asarray(payload.com)),
+        "force_bias": jsonable(np.asarray(payload.force_bias)),
+        "torque_bias": jsonable(np.asarray(payload.torque_bias)),
+        "gravity": jsonable(payload.gravity),
+        "frame": payload.frame,
+        "reaction": bool(payload.reaction),
+        "stderr": stderr,
+        "fit": jsonable(payload.fit),
+        "created": {"ftcal_version": ftcal_version(),
+                    "time_utc": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+                    "sources": [str(s) for s in sources]},
+    }
+    if payload.inertia is not None:
+        doc["inertia"] = jsonable(np.asarray(payload.inertia))
+    if None in _leaves([doc[k] for k in ("mass", "com", "force_bias", "torque_bias", "gravity", "stderr")]
+                       + [doc.get("inertia", [])]):
+        raise FtcalError("The payload has non-finite values (NaN or inf); refusing to save it.")
+    doc["sha256"] = digest(doc)
+    return doc
+
+
+def _leaves(value) -> list:
+    """Every scalar in nested lists and dict values (non-finite floats are None after jsonable)."""
+    if isinstance(value, dict):
+        return _leaves(list(value.values()))
+    if isinstance(value, list):
+        return [x for v in value for x in _leaves(v)]
+    return [value]
+
+
+def save_payload(payload: PayloadParameters, path: str | Path, *, sources: Sequence[str] = ()) -> None:
+    """Write ``payload`` to ``path`` as a payload file, atomically."""
+    write_text_atomic(path, format_document(payload_document(payload, sources=sources)))
+
+
+def load_payload(path: str | Path) -> PayloadParameters:
+    """Read and check a payload file.
+
+    Raises
+    ------
+    FtcalError
+        Unreadable, not JSON, another format or version, schema violation,
+        or a digest that does not match (the file was edited).
+    """
+    path = Path(path)
+    return parse_payload(read_document_text(path, "payload"), str(path))
+
+
+def parse_payload(text: str, source: str = "<payload>") -> PayloadParameters:
+    """Parse and validate payload-file ``text``; ``source`` names it in error messages."""
+    doc = parse_json(text, source, FORMAT, "payload")
+    check_version(doc, source, FORMAT_VERSION)
+    check_document(doc, source, SCHEMA_RESOURCE, "payload")
+    stderr = {k: np.asarray(v, dtype=float) if isinstance(v, list) else float(v) for k, v in doc["stderr"].items()}
+    if doc["mass"] <= 0:
+        raise FtcalError(f"{source}: mass is {doc['mass']} kg; a payload file needs a positive mass.")
+    inertia = np.asarray(doc["inertia"], dtype=float) if "inertia" in doc else None
+    fit = dict(doc["fit"])
+    fit["residual_rms"] = np.asarray(fit["residual_rms"], dtype=float)
+    return PayloadParameters(float(doc["mass"]), np.asarray(doc["com"], dtype=float),
+                             np.asarray(doc["force_bias"], dtype=float), np.asarray(doc["torque_bias"], dtype=float),
+                             float(doc["gravity"]), doc["frame"], doc["reaction"], inertia, stderr, fit)

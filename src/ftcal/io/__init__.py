@@ -1,1 +1,0 @@
-"""Readers and writers: tables, robot logs, ROS bags, model files."""

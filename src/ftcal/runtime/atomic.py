@@ -1,0 +1,117 @@
+"""Write files atomically: to a temporary file beside the target, then rename.
+
+A failed or interrupted command never leaves a half-written output behind, and
+never writes onto one of its inputs: :func:`protected_inputs` names the input
+files of a command (the CLI does it for every command), and every write here
+refuses a target that is the same file as one of them (same path after
+resolving symbolic links, or the same inode: a hard link).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+from .errors import FtcalError
+
+# (st_dev, st_ino) of each protected input file -> the name it was given by
+_PROTECTED: dict[tuple[int, int], str] = {}
+
+
+@contextmanager
+def protected_inputs(paths: Iterable[str | os.PathLike]) -> Iterator[None]:
+    """Inside the block, no atomic write may replace any of the existing files ``paths``."""
+    added = {}
+    for path in paths:
+        try:
+            info = os.stat(path)
+        except (OSError, ValueError):
+            continue  # not a file (yet): nothing to protect
+        identity = (info.st_dev, info.st_ino)
+        if os.path.isfile(path) and identity not in _PROTECTED:
+            added[identity] = os.fspath(path)
+    _PROTECTED.update(added)
+    try:
+        yield
+    finally:
+        for identity in added:
+            _PROTECTED.pop(identity, None)
+
+
+def check_not_an_input(target: str | os.PathLike, option: str = "output") -> None:
+    """Raise :class:`FtcalError` if ``target`` is the same file as a protected input.
+
+    Parameters
+    ----------
+    target : the output path (it may not exist yet)
+    option : how the user gave it, for the message (e.g. ``-o``)
+
+    Raises
+    ------
+    FtcalError
+        ``target`` resolves to, or is a hard link of, a file in :func:`protected_inputs`.
+    """
+    try:
+        info = os.stat(target)
+    except (OSError, ValueError):
+        return  # nothing there to overwrite
+    given = _PROTECTED.get((info.st_dev, info.st_ino))
+    if given is not None:
+        same = "" if os.fspath(target) == given else f" (the same file as {given})"
+        raise FtcalError(f"{option} {os.fspath(target)}: is also an input of this command{same}; "
+                         "choose another output name.")
+
+
+@contextmanager
+def atomic_path(target: str | os.PathLike) -> Iterator[Path]:
+    """Yield a temporary path; on success it is renamed onto ``target``.
+
+    Problems with the destination (a directory in the way, a parent that is a
+    file, no permission, a full disk) become one-line :class:`FtcalError`s.
+    """
+    target = Path(target)
+    if target.is_dir():
+        raise FtcalError(f"{target}: is a directory; give a file name to write.")
+    check_not_an_input(target)
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise FtcalError(f"{target}: cannot create the output file ({exc.strerror or exc}).") from None
+    # The name is chosen before the file exists, so the clean-up below owns the file from
+    # the instant it is created: a signal arriving at any point cannot orphan it.
+    tmp_path = None
+    try:
+        try:
+            fd = None
+            while fd is None:
+                tmp_path = target.parent / f".{target.name}.{os.urandom(8).hex()}.tmp"
+                try:
+                    # Mode 0666 less the umask: outputs get the usual permissions.
+                    fd = os.open(tmp_path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+                except FileExistsError:
+                    tmp_path = None  # someone else's file: never ours to remove
+            os.close(fd)
+        except OSError as exc:
+            raise FtcalError(f"{target}: cannot create the output file ({exc.strerror or exc}).") from None
+        yield tmp_path
+        os.replace(tmp_path, target)
+    except OSError as exc:
+        raise FtcalError(f"{target}: cannot write the output file ({exc.strerror or exc}).") from None
+    finally:
+        if tmp_path is not None and tmp_path.exists():
+            tmp_path.unlink()
+
+
+def write_text_atomic(target: str | os.PathLike, text: str, newline: str | None = None) -> None:
+    """Write ``text`` to ``target`` atomically (UTF-8)."""
+    with atomic_path(target) as tmp:
+        with open(tmp, "w", encoding="utf-8", newline=newline) as fh:
+            fh.write(text)
+
+
+def write_with(target: str | os.PathLike, writer: Callable[[Path], None]) -> None:
+    """Call ``writer(tmp_path)`` and move the result onto ``target``."""
+    with atomic_path(target) as tmp:
+        writer(tmp)
