@@ -89,6 +89,8 @@ class ConventionReport:
     mass : float, kg, the best-fit mass with that map
     mass_stderr : float, kg
     residual : (force RMS N, torque RMS N·m) of the declared fit over the holds
+    hold_residual, fixed_residual : ndarray of shape (n_holds, 6)
+        Payload-fit residual of each hold as declared, and with every fix applied
     notes : caveats (what could not be tested and why)
     """
 
@@ -98,6 +100,8 @@ class ConventionReport:
     mass: float
     mass_stderr: float
     residual: tuple[float, float]
+    hold_residual: np.ndarray
+    fixed_residual: np.ndarray
     notes: list[str] = field(default_factory=list)
 
 
@@ -245,7 +249,8 @@ def check_conventions(holds: Holds, *, wrench_columns=AXES, max_com_distance: fl
         notes.append("the holds' gravity directions lie in one plane: a mirror (sign, left-handed axis) "
                      "looks like a 180° rotation about its normal; add a hold tilted out of that plane")
     force_noise2 = float(np.mean(holds.noise[:, :3] ** 2))
-    declared = residual_rms(static_fit(holds.wrench, holds.gravity)[1])
+    declared_residual = static_fit(holds.wrench, holds.gravity)[1]
+    declared = residual_rms(declared_residual)
     findings: list[Finding] = []
     data = holds
 
@@ -280,7 +285,8 @@ def check_conventions(holds: Holds, *, wrench_columns=AXES, max_com_distance: fl
         if light < FINDING_CONFIDENCE:
             notes.append(f"the force hardly changes with the orientation (mass {raw.mass:.3g} ± {mass_se:.2g} kg): "
                          "too noisy to tell a light tool from a compensated stream; hold the poses longer")
-            return ConventionReport(holds, findings, raw.A, raw.mass, mass_se, declared, notes)
+            return ConventionReport(holds, findings, raw.A, raw.mass, mass_se, declared, declared_residual,
+                                    declared_residual, notes)
         tared = bool(np.all(np.abs(data.wrench.mean(axis=0)) <= ZERO_STDERR * np.sqrt(
             np.mean(data.noise ** 2, axis=0) + np.var(data.wrench, axis=0))))
         what = ("already tared and gravity-compensated (a contact-wrench stream: about zero in every hold)"
@@ -292,7 +298,8 @@ def check_conventions(holds: Holds, *, wrench_columns=AXES, max_com_distance: fl
             "record the raw wrench (turn off the driver's zeroing / gravity compensation, e.g. the raw topic) "
             "with the tool attached; ftcal payload cannot identify a tool from this stream",
             light, declared, declared))
-        return ConventionReport(holds, findings, raw.A, raw.mass, mass_se, declared, notes)
+        return ConventionReport(holds, findings, raw.A, raw.mass, mass_se, declared, declared_residual,
+                                declared_residual, notes)
     sign, a_fix, map_finding = _map_finding(data, raw, sigma2(raw), wrench_columns, declared)
     if map_finding is not None:
         findings.append(map_finding)
@@ -301,7 +308,8 @@ def check_conventions(holds: Holds, *, wrench_columns=AXES, max_com_distance: fl
     after = residual_rms(residual)
     findings += _zeroed(fixed, theta, after)
     findings += _lever(fixed, theta, residual, max_com_distance, after)
-    return ConventionReport(holds, findings, raw.A, raw.mass, mass_se, declared, notes)
+    return ConventionReport(holds, findings, raw.A, raw.mass, mass_se, declared, declared_residual, residual,
+                            notes)
 
 
 def _chi2_quantile(dof: int) -> float:
@@ -423,3 +431,32 @@ def _lever(holds: Holds, theta: np.ndarray, residual: np.ndarray, max_com_distan
         "report torques about the sensor origin (T_origin = T_point + p × F, p the point in the sensor frame; "
         "e.g. zero the driver's TCP offset); if the tool really is that long, raise --max-com-distance",
         confidence, after, after)]
+
+
+# A payload fit whose force residual reaches this fraction of the tool's weight is suspect.
+WEIGHT_FRACTION_WARNING = 0.1
+
+
+def payload_warning(holds: Holds, mass: float, force_rms: float, g: float, *, wrench_columns=AXES) -> str | None:
+    """One line for ``ftcal payload`` when its fit looks like a convention error, else None.
+
+    Parameters
+    ----------
+    holds : the static holds of its data
+    mass : kg, and ``force_rms`` N: what ``ftcal payload`` identified
+    g : m/s²
+    wrench_columns : the --wrench columns (to spell a fix)
+    """
+    try:
+        report = check_conventions(holds, wrench_columns=wrench_columns)
+    except FtcalError:
+        return None  # too few holds to judge: ftcal payload's own checks apply
+    weight = abs(mass) * g
+    if report.findings:
+        f = report.findings[0]
+        return (f"the data look {f.kind}-wrong: {f.message}; fix: {f.fix} (hold residual {f.before[0]:.3g} N → "
+                f"{f.after[0]:.3g} N; run ftcal check for all findings)")
+    if weight > 0 and force_rms >= WEIGHT_FRACTION_WARNING * weight:
+        return (f"the force residual ({force_rms:.3g} N RMS) is of the order of the tool's weight ({weight:.3g} N): "
+                "check the sign, frame and zeroing with ftcal check")
+    return None

@@ -142,3 +142,59 @@ def _mean_rotation(rotations: np.ndarray) -> np.ndarray:
     u, _, vt = np.linalg.svd(rotations.mean(axis=0))
     d = np.sign(np.linalg.det(u @ vt))
     return u @ np.diag([1.0, 1.0, d]) @ vt
+
+
+def concatenate_holds(parts: list[Holds]) -> Holds:
+    """The holds of several recordings as one set (row ranges stay per file)."""
+    if len(parts) == 1:
+        return parts[0]
+    rotation = None if any(p.rotation is None for p in parts) else np.concatenate([p.rotation for p in parts])
+    return Holds(*(np.concatenate([getattr(p, k) for p in parts]) for k in ("wrench", "gravity")), rotation,
+                 *(np.concatenate([getattr(p, k) for p in parts]) for k in ("start", "stop", "noise")))
+
+
+def read_holds(paths, source, *, wrench=("u1", "u2", "u3", "u4", "u5", "u6"), group_by: str | None = None,
+               reaction: bool = False) -> Holds:
+    """Static holds of CSV/Parquet recordings.
+
+    Parameters
+    ----------
+    paths : table files
+    source : KinematicsSource giving gravity in the declared sensor frame; with quaternion
+        columns (``OrientationSource``) the full rotations are kept too (base-frame test)
+    wrench : six wrench columns
+    group_by : column naming the holds (each label's longest still stretch is its hold)
+    reaction : negate the readings (the user declares the reaction sign)
+
+    Returns
+    -------
+    Holds
+    """
+    from pathlib import Path
+
+    from ..data.tables import numeric_columns, read_table
+    from ..payload.kinematics import MotionSource, OrientationSource
+
+    if len(wrench) != 6:
+        raise FtcalError(f"--wrench needs 6 columns Fx,Fy,Fz,Tx,Ty,Tz; got {','.join(wrench)}.")
+    if isinstance(source, MotionSource):
+        source = source.gravity  # holds are static: gravity is all that matters
+    parts = []
+    for path in paths:
+        frame = read_table(path)
+        measured = (-1.0 if reaction else 1.0) * numeric_columns(frame, wrench, Path(path), "wrench")
+        gravity = source(frame, str(path)).gravity
+        rotation = None
+        if isinstance(source, OrientationSource):
+            from scipy.spatial.transform import Rotation
+
+            q = numeric_columns(frame, source.columns, Path(path), "orientation")
+            rotation = Rotation.from_quat(q).as_matrix()  # x, y, z, w (ROS order)
+        labels = None
+        if group_by is not None:
+            if group_by not in frame.columns:
+                raise FtcalError(f"{path}: no hold column {group_by!r} (--group-by); the file has "
+                                 f"{', '.join(map(str, frame.columns))}.")
+            labels = frame[group_by].astype(str).to_numpy(dtype=object)
+        parts.append(find_holds(measured, gravity, rotation, labels=labels, source=str(path)))
+    return concatenate_holds(parts)
