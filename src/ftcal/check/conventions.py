@@ -32,7 +32,7 @@ import numpy as np
 
 from ..core.limits import FINDING_CONFIDENCE, MAX_COM_DISTANCE, MIN_HOLDS, MIN_ROTATION_DEG, MIN_TOOL_MASS
 from ..payload.regressor import static_regressor
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, FtcalWarning
 from .holds import Holds
 
 AXES = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
@@ -437,25 +437,35 @@ def _lever(holds: Holds, theta: np.ndarray, residual: np.ndarray, max_com_distan
 WEIGHT_FRACTION_WARNING = 0.1
 
 
-def payload_warning(holds: Holds, mass: float, force_rms: float, g: float, *, wrench_columns=AXES) -> str | None:
-    """One line for ``ftcal payload`` when its fit looks like a convention error, else None.
+class ConventionWarning(FtcalWarning):
+    """``ftcal payload``'s fit looks like a sign, frame or zeroing mistake."""
+
+
+def payload_warning(paths, source, fit, g: float, *, wrench=AXES, reaction: bool = False) -> str | None:
+    """One line for ``ftcal payload`` when its data look like a convention error, else None.
 
     Parameters
     ----------
-    holds : the static holds of its data
-    mass : kg, and ``force_rms`` N: what ``ftcal payload`` identified
+    paths : its tables
+    source : its KinematicsSource
+    fit : its PayloadFit (mass, residual RMS)
     g : m/s²
-    wrench_columns : the --wrench columns (to spell a fix)
+    wrench : its --wrench columns (to spell a fix)
+    reaction : its --reaction
     """
+    from .holds import read_holds
+
     try:
-        report = check_conventions(holds, wrench_columns=wrench_columns)
+        report = check_conventions(read_holds(paths, source, wrench=wrench, reaction=reaction),
+                                   wrench_columns=tuple(wrench))
     except FtcalError:
-        return None  # too few holds to judge: ftcal payload's own checks apply
-    weight = abs(mass) * g
+        return None  # no usable static holds (e.g. continuous motion): the fit's own checks apply
     if report.findings:
         f = report.findings[0]
         return (f"the data look {f.kind}-wrong: {f.message}; fix: {f.fix} (hold residual {f.before[0]:.3g} N → "
-                f"{f.after[0]:.3g} N; run ftcal check for all findings)")
+                f"{f.after[0]:.3g} N; ftcal check lists every finding)")
+    weight = abs(fit.mass) * g
+    force_rms = float(np.sqrt(np.mean(np.asarray(fit.residual_rms)[:3] ** 2)))
     if weight > 0 and force_rms >= WEIGHT_FRACTION_WARNING * weight:
         return (f"the force residual ({force_rms:.3g} N RMS) is of the order of the tool's weight ({weight:.3g} N): "
                 "check the sign, frame and zeroing with ftcal check")
