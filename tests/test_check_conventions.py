@@ -235,6 +235,8 @@ def test_payload_warns_on_base_frame_data_and_not_on_good_data(capsys, tmp_path)
     capsys.readouterr()
     based = np.c_[np.einsum("nij,nj->ni", rotation, wrench[:, :3]), np.einsum("nij,nj->ni", rotation, wrench[:, 3:])]
     path = write(tmp_path, based, rotation, "based.csv")
-    main(["payload", str(path), *args, "-o", str(tmp_path / "q.json")])  # may also refuse a negative mass
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", FtcalWarning)
+        main(["payload", str(path), *args, "-o", str(tmp_path / "q.json")])  # may also refuse a negative mass
     err = capsys.readouterr().err
     assert "warning: the data look base-frame-wrong" in err
