@@ -460,8 +460,10 @@ def payload_warning(paths, source, fit, g: float, *, wrench=AXES, reaction: bool
                                    wrench_columns=tuple(wrench))
     except FtcalError:
         return None  # no usable static holds (e.g. continuous motion): the fit's own checks apply
-    if report.findings:
-        f = report.findings[0]
+    # A negative mass alone is ftcal payload's own error (it offers --reaction).
+    findings = [f for f in report.findings if not (f.kind == "sign" and fit.mass < 0)]
+    if findings:
+        f = findings[0]
         return (f"the data look {f.kind}-wrong: {f.message}; fix: {f.fix} (hold residual {f.before[0]:.3g} N → "
                 f"{f.after[0]:.3g} N; ftcal check lists every finding)")
     weight = abs(fit.mass) * g
