@@ -156,6 +156,7 @@ def test_payload_reference_passes_the_right_tool_and_fails_a_wrong_one(capsys, t
         assert code == code_expected, out + err
 
 
+@pytest.mark.slow
 def test_html_page_and_history_from_the_command_line(capsys, tmp_path, model_path):
     path = tmp_path / "good.csv"
     recording(np.random.default_rng(8)).to_csv(path, index=False)
