@@ -207,6 +207,7 @@ class History:
         self._connection = self._connect()
 
     def _refuse(self, why: str) -> FtcalError:
+        why = (why.splitlines() or ["unreadable"])[0]  # SQLite's reports can run over several lines
         return FtcalError(f"{self.path}: not an intact ftcal history database ({why}); move it aside to start "
                           "a new history.")
 
@@ -239,7 +240,7 @@ class History:
                                  f"reads version {FORMAT_VERSION}.")
             return conn
         except sqlite3.DatabaseError as exc:
-            raise self._refuse(str(exc).splitlines()[0] if str(exc) else type(exc).__name__) from None
+            raise self._refuse(str(exc) or type(exc).__name__) from None
 
     def close(self) -> None:
         self._connection.close()
