@@ -36,8 +36,6 @@ from ..runtime.errors import FtcalError, FtcalWarning
 from .holds import Holds
 
 AXES = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
-# A fitted map within this angle of a signed permutation is that permutation (90° errors).
-SNAP_DEG = 5.0
 # Centred gravity directions thinner than this (smallest / largest singular value) lie in a plane:
 # a mirror along its normal is then invisible.
 PLANAR_RATIO = 0.05
@@ -182,7 +180,8 @@ def rpy_of(r: np.ndarray) -> tuple[float, float, float]:
         yaw = math.atan2(r[1, 0], r[0, 0])
     else:  # gimbal lock: put it all in yaw
         roll, yaw = 0.0, math.atan2(-r[0, 1], r[1, 1])
-    return tuple(0.0 if abs(v) < 1e-12 else v for v in (roll, pitch, yaw))
+    # −π and π are the same angle: print π.
+    return tuple(0.0 if abs(v) < 1e-12 else math.pi if abs(v + math.pi) < 1e-9 else v for v in (roll, pitch, yaw))
 
 
 def rotation_from_rpy(rpy) -> np.ndarray:
@@ -336,8 +335,8 @@ def _map_finding(holds: Holds, fit: _Procrustes, sigma2: float, columns,
     a = fit.A
     sign = float(np.sign(np.linalg.det(a)))
     snapped = _nearest_signed_permutation(a)
-    if rotation_angle((sign * snapped).T @ (sign * a)) < min(SNAP_DEG, MIN_ROTATION_DEG):
-        a = snapped  # an exact 90°/180°/mirror: keep exact numbers in the fix
+    if rotation_angle((sign * snapped).T @ (sign * a)) < MIN_ROTATION_DEG:
+        a = snapped  # within mounting tolerance of a 90°/180°/mirror error: give the exact numbers
     proper = sign * a
     angle = rotation_angle(proper)
     _, rss_declared = _fit_with(force, holds.gravity, np.eye(3))
