@@ -240,3 +240,31 @@ def test_payload_warns_on_base_frame_data_and_not_on_good_data(capsys, tmp_path)
         main(["payload", str(path), *args, "-o", str(tmp_path / "q.json")])  # may also refuse a negative mass
     err = capsys.readouterr().err
     assert "warning: the data look base-frame-wrong" in err
+
+
+@pytest.mark.slow
+def test_joints_and_urdf_route_finds_a_sensor_turned_on_the_flange(capsys, tmp_path):
+    """UR5 joints + --urdf/--ft-joint; gravity composed by hand from the URDF (tests/test_robot_declare.py)."""
+    from test_robot_declare import UR5, ur5_chain_rotation
+
+    if not UR5.is_file():
+        pytest.skip("example-robot-data is not installed")
+    rng = np.random.default_rng(17)
+    names = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint",
+             "wrist_3_joint"]
+    q = rng.uniform(-2.5, 2.5, (7, 6))
+    g = np.array([ur5_chain_rotation(qk, "ee_link")[0].T @ [0.0, 0.0, -G] for qk in q])
+    clean = np.c_[MASS * g + BIAS[:3], np.cross(COM, MASS * g) + BIAS[3:]]
+    turn = Rotation.from_euler("z", 90, degrees=True).as_matrix()  # mounted a quarter turn off the URDF
+    rows = np.repeat(np.arange(len(q)), 40)
+    wrench = both(turn.T, clean[rows]) + rng.normal(size=(len(rows), 6)) * NOISE
+    frame = pd.DataFrame(np.c_[q[rows], wrench], columns=names + ["Fx", "Fy", "Fz", "Tx", "Ty", "Tz"])
+    frame["pose"] = rows
+    path = tmp_path / "joints.csv"
+    frame.to_csv(path, index=False)
+    args = ["check", str(path), "--wrench", "Fx,Fy,Fz,Tx,Ty,Tz", "--urdf", str(UR5), "--ft-joint", "ee_fixed_joint",
+            "--base", "base_link", "--group-by", "pose"]
+    assert main(args) == 1
+    out = capsys.readouterr().out
+    assert "rotation" in out and 'rpy="0 0 1.5708"' in out and "--ft-frame" in out
+    assert "base-frame readings not tested" in out
