@@ -128,7 +128,9 @@ def register(sub) -> None:
 
 def run(args) -> int:
     import sys
+    import warnings
 
+    from ..check.conventions import ConventionWarning, payload_warning
     from ..files.payload_json import save_payload
     from ..payload.identify import check_mass_sign, identify_payload
     from ..payload.parameters import PayloadParameters
@@ -139,6 +141,10 @@ def run(args) -> int:
     groups = table_statistics(args.data, kinematics_source(args), wrench=args.wrench, group_by=args.group_by,
                               reaction=args.reaction, dynamic=args.dynamic)
     fit = identify_payload(groups)
+    message = payload_warning(args.data, kinematics_source(args), fit, args.g, wrench=args.wrench,
+                              reaction=args.reaction)
+    if message:  # the fit looks like a sign/frame/zeroing mistake: ftcal check's tests on the static holds
+        warnings.warn(message, ConventionWarning, stacklevel=1)
     check_mass_sign(fit)
     print_fit(fit, len(groups), args)
     payload = PayloadParameters.from_fit(fit, gravity=args.g, frame=args.frame, reaction=args.reaction,

@@ -34,3 +34,33 @@ ARX_WARMUP = ("drop", "keep")
 
 PAPER_LAMBDAS = (0.5, 1.0, 10.0, 50.0, 100.0, 200.0)
 """The LASSO weights of the paper's Table III."""
+
+# ``ftcal check``: conventions and acceptance (read by ftcal.check and the CLI's help).
+
+HOLD_ANGLE_DEG = 0.5
+"""A static hold ends when the gravity direction moves more than this from the hold's first sample."""
+
+HOLD_MIN_SAMPLES = 20
+"""Shortest static hold kept (samples)."""
+
+MIN_HOLDS = 3
+"""Fewest static holds at different orientations ``ftcal check`` needs."""
+
+MIN_ROTATION_DEG = 1.0
+"""Smallest frame rotation reported: below it a mounting error is within machining tolerance."""
+
+FINDING_CONFIDENCE = 0.999
+"""A convention finding needs this confidence (1 − p-value of its likelihood-ratio test)."""
+
+MAX_COM_DISTANCE = 0.3
+"""m. A tool's centre of mass farther than this from the sensor origin is implausible (torques
+about another point); ``--max-com-distance`` changes it."""
+
+MAX_FORCE_ERROR = 1.0
+"""N, default acceptance threshold on each force axis' RMS error (and on any pose's)."""
+
+MAX_TORQUE_ERROR = 0.1
+"""N·m, default acceptance threshold on each torque axis' RMS error (and on any pose's)."""
+
+MIN_TOOL_MASS = 0.05
+"""kg. ``ftcal check`` calls a stream gravity-compensated when the tool it sees is confidently lighter."""
