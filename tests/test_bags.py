@@ -258,7 +258,9 @@ def test_dataset_from_bag_columns(tmp_path, capfd):
     assert printed.count(":/imu: ") == 1  # one line per topic, though the IMU gives several streams
     frame = pd.read_csv(out)
     assert list(frame.columns) == ["time", "u1", "u2", "u3", "u4", "u5", "u6", "T", "qx", "qy", "qz", "qw",
-                                   "wx", "wy", "wz", "ax", "ay", "az", "segment", "group"]
+                                   "wx", "wy", "wz", "ax", "ay", "az", "static", "hold", "segment", "group"]
+    # /tf_static holds the sensor still: the whole recording is one hold
+    assert frame["static"].eq(1).all() and frame["hold"].eq(0).all()
     t = frame["time"].to_numpy() - secs(T0)
     # temperature and IMU at 33 Hz cover 0 .. 3.00 s, so no F/T sample is trimmed; epoch seconds in float64
     # resolve 2.4e-7 s, hence the tolerances
@@ -410,7 +412,7 @@ def test_bad_bags(tmp_path, capfd):
     fails(capfd, ["dataset", str(path), "--wrench-topic", "/ft", "--joints-topic", "/joint_states",
                   "--sensor", "arm_ft", "--urdf", str(tmp_path / "none.urdf"), "-o", str(out)], "none.urdf", out)
     fails(capfd, [*run, "--wrench-topic", "/ft", "--joints-topic", "/imu"],
-          "--joints-topic needs --urdf/--model and --sensor", out)
+          "topic '/imu' has type sensor_msgs/msg/Imu; --joints-topic needs sensor_msgs/msg/JointState", out)
     mat = tmp_path / "log.csv"
     mat.write_text("time\n0\n")
     fails(capfd, ["dataset", str(mat), "--wrench-topic", "/ft", "-o", str(out)],
