@@ -189,3 +189,55 @@ def test_payload_without_static_holds_or_time(capsys, tmp_path):
     frame.to_csv(tmp_path / "untimed.csv", index=False)
     assert main(["payload", str(tmp_path / "untimed.csv"), "--orientation", "qx,qy,qz,qw", "-o", str(out)]) == 0
     assert "no time column 'time': all 400 samples used as static" in capsys.readouterr().out
+
+
+# ------------------------------------------------------------------------------ the /joint_states route
+
+
+def test_bag_with_only_ft_and_joint_states_to_payload(tmp_path, capsys):
+    """A UR5 holding 10 poses, moving between them: /ft and /joint_states only, no /tf. dataset keeps
+    the joint columns; payload --urdf finds the holds from the joints and recovers the tool."""
+    from test_robot_declare import G_BASE, UR5, ur5_chain_rotation
+
+    if not UR5.is_file():
+        pytest.skip("example-robot-data is not installed")
+    rng = np.random.default_rng(11)
+    names = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint",
+             "wrist_3_joint"]
+    mass, com = 1.6, np.array([0.015, -0.01, 0.09])
+    bias = np.array([3.0, -2.0, 5.0, 0.2, -0.1, 0.05])
+    noise = np.array([0.05, 0.05, 0.05, 0.002, 0.002, 0.002])
+    t, k, blend, still = hold_and_move(10, 0.6, 0.6, 50.0)
+    targets = rng.uniform(-2.5, 2.5, (10, 6))
+    q = targets[k] + blend[:, None] * (targets[np.minimum(k + 1, 9)] - targets[k])
+    bump = np.where(still, 0.0, np.sin(np.pi * blend))  # the tool's inertial force while moving: up to 2 m/s²
+    bag = Bag("mcap")
+    for j in range(t.size):
+        g_sensor = ur5_chain_rotation(q[j], "ee_link")[0].T @ G_BASE
+        force = mass * (g_sensor - [2.0 * bump[j], 0.0, 0.0])
+        wrench = np.r_[force, np.cross(com, force)] + bias + rng.normal(0.0, 1.0, 6) * noise
+        stamp = T0 + int(round(t[j] * 1e9))
+        bag.wrench("/ft", stamp, wrench)
+        bag.joints("/joint_states", stamp, [*names, "gripper_finger"], [*q[j], np.nan])
+    path = bag.write(tmp_path / "ur5")
+    table = tmp_path / "ur5.csv"
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", FtcalWarning)
+        assert main(["dataset", str(path), "--wrench-topic", "/ft", "--joints-topic", "/joint_states",
+                     "--no-filter", "-o", str(table)]) == 0
+    assert "gripper_finger have non-finite positions; left out of the table" in capsys.readouterr().err
+    frame = pd.read_csv(table)
+    np.testing.assert_allclose(frame[names].to_numpy(), q, atol=1e-9)
+    assert frame["hold"].max() == 9 and np.mean((frame["static"] == 1) == still) > 0.95
+    out = tmp_path / "tool.json"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", FtcalWarning)
+        assert main(["payload", str(table), "--urdf", str(UR5), "--ft-joint", "ee_fixed_joint", "--base",
+                     "base_link", "--group-by", "hold", "-o", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "samples moving (from the joints)" in printed and "in 10 group(s)" in printed
+    doc = json.loads(out.read_text())
+    assert abs(doc["mass"] - mass) < 4 * doc["stderr"]["mass"]
+    assert np.all(np.abs(np.array(doc["com"]) - com) < 4 * np.array(doc["stderr"]["com"]))
+    np.testing.assert_allclose(np.r_[doc["force_bias"], doc["torque_bias"]], bias,
+                               atol=4 * max(np.max(doc["stderr"]["force_bias"]), np.max(doc["stderr"]["torque_bias"])))
