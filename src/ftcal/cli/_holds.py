@@ -1,4 +1,4 @@
-"""``ftcal payload``'s static samples: drop the moving ones before a static identification."""
+"""``ftcal payload``'s data checks: drop the moving samples before a static identification; the excitation."""
 
 from __future__ import annotations
 
@@ -49,3 +49,16 @@ class StaticRows:
         self.notes.append(f"{path}: {holds.describe(time)}; "
                           + ("excluded" if holds.n_moving else "all used") + " (--keep-moving keeps them)")
         return holds.static
+
+
+def payload_excitation(groups) -> str:
+    """One line: the relative singular values of the payload regressor, and how many directions they determine."""
+    from ..core.excitation import regressor_excitation
+
+    total = None
+    for stats in groups.values():
+        total = stats if total is None else total + stats
+    singular, n_determined = regressor_excitation(total.gram())
+    return (f"excitation: the poses determine {n_determined} of {len(singular)} parameter directions (relative "
+            f"singular values of the payload regressor, columns scaled to unit norm: "
+            f"{', '.join(f'{v:.2g}' for v in singular)})")

@@ -137,7 +137,7 @@ def run(args) -> int:
     from ..payload.identify import check_mass_sign, identify_payload
     from ..payload.parameters import PayloadParameters
     from ..payload.tables import table_statistics
-    from ._holds import StaticRows
+    from ._holds import StaticRows, payload_excitation
 
     require_suffix(args.output, (".json",), "-o")
     check_not_input(args.output, args.data)
@@ -150,6 +150,7 @@ def run(args) -> int:
     fit = identify_payload(groups)
     check_mass_sign(fit)
     print_fit(fit, len(groups), args)
+    print(payload_excitation(groups))
     payload = PayloadParameters.from_fit(fit, gravity=args.g, frame=args.frame, reaction=args.reaction,
                                          wrench_columns=tuple(args.wrench))
     save_payload(payload, args.output, sources=args.data)

@@ -220,6 +220,30 @@ def _describe(direction: np.ndarray, names: Sequence[str]) -> tuple[str, str]:
     return text, hint
 
 
+def regressor_excitation(gram: np.ndarray) -> tuple[np.ndarray, int]:
+    """Relative singular values of a regressor from its Gram matrix AᵀA, columns scaled to unit norm.
+
+    Scaling the columns makes parameters of different units (kg, kg·m, N, N·m)
+    comparable: the values then say how far the data separate the parameters,
+    not how large their units are.
+
+    Parameters
+    ----------
+    gram : ndarray of shape (p, p)
+
+    Returns
+    -------
+    (ndarray of shape (p,), descending, relative to the largest; int, how many are at or above
+    :data:`UNEXCITED`)
+    """
+    diagonal = np.sqrt(np.maximum(np.diag(gram), 0.0))
+    unit = np.where(diagonal > 0, diagonal, 1.0)
+    scaled = gram / unit[:, None] / unit[None, :]
+    values = np.clip(np.linalg.eigvalsh(0.5 * (scaled + scaled.T))[::-1], 0.0, None)
+    singular = np.sqrt(values / values[0]) if values[0] > 0 else np.zeros_like(values)
+    return singular, int(np.sum(singular >= UNEXCITED))
+
+
 def span_distance(spread: Spread, inputs: np.ndarray) -> np.ndarray:
     """Squared Mahalanobis distance of each row of ``inputs`` from the training inputs' mean.
 
