@@ -258,7 +258,9 @@ def test_dataset_from_bag_columns(tmp_path, capfd):
     assert printed.count(":/imu: ") == 1  # one line per topic, though the IMU gives several streams
     frame = pd.read_csv(out)
     assert list(frame.columns) == ["time", "u1", "u2", "u3", "u4", "u5", "u6", "T", "qx", "qy", "qz", "qw",
-                                   "wx", "wy", "wz", "ax", "ay", "az", "segment", "group"]
+                                   "wx", "wy", "wz", "ax", "ay", "az", "static", "hold", "segment", "group"]
+    # /tf_static holds the sensor still: the whole recording is one hold
+    assert frame["static"].eq(1).all() and frame["hold"].eq(0).all()
     t = frame["time"].to_numpy() - secs(T0)
     # temperature and IMU at 33 Hz cover 0 .. 3.00 s, so no F/T sample is trimmed; epoch seconds in float64
     # resolve 2.4e-7 s, hence the tolerances
@@ -309,6 +311,8 @@ def test_dataset_from_bag_with_urdf_expected_wrench(tmp_path, capfd):
     reference = np.array([static_wrench([FOREARM], 0.5 * tk) for tk in t])
     np.testing.assert_allclose(frame[["Fx", "Fy", "Fz", "Tx", "Ty", "Tz"]].to_numpy(), reference, atol=1e-5)
     assert "T" not in frame.columns  # no temperature topic asked for: the fit uses u1..u6 alone
+    np.testing.assert_allclose(frame["shoulder"], 0.5 * t, atol=1e-6)  # the URDF's joint kept, named as it
+    assert "gripper_finger" not in frame.columns
     model = tmp_path / "model.json"
     assert main(["fit", str(out), "--segment-by", "segment", "--group-by", "group", "-o", str(model)]) == 0
     assert model.is_file()
@@ -358,14 +362,16 @@ def test_bad_bags(tmp_path, capfd):
           "needs geometry_msgs/msg/WrenchStamped or geometry_msgs/msg/Wrench", out)
     fails(capfd, [*run, "--wrench-topic", "/ft", "--temperature-topic", "/imu"], "topic '/imu' has type", out)
     fails(capfd, [*run, "--wrench-topic", "/ft", "--tf", "world"],
-          "no tf chain from 'world' to 'ft_sensor' (frames known: base, ft_sensor)", out)
+          "no tf chain from 'world' to 'ft_sensor' (frames known: base, ft_sensor); without one, record the "
+          "joints: --joints-topic with --urdf", out)
     fails(capfd, [*run], "--wrench-topic is required", out)
     bag = Bag("mcap")  # a driver whose header stamps repeat: refused, and --receive-time reads it
     for k in range(20):
         bag.wrench("/ft", T0 + k * MS, np.ones(6) + np.sin(k + np.arange(6)), stamp_ns=T0 + (k // 2) * MS)
     repeats = bag.write(tmp_path / "repeats")
     fails(capfd, ["dataset", str(repeats), "--wrench-topic", "/ft", "--no-filter", "-o", str(out)],
-          "repeats:/ft: timestamps do not increase at sample 1", out)
+          "repeats:/ft: timestamps do not increase at sample 1 (t=1700000000.000000 then 1700000000.000000); "
+          "time the messages by the bag's receive time with --receive-time, or sort the bag by stamp", out)
     assert main(["dataset", str(repeats), "--wrench-topic", "/ft", "--no-filter", "--receive-time",
                  "-o", str(out)]) == 0
     assert "(receive time, frame ft_sensor)" in capfd.readouterr().out
@@ -410,7 +416,7 @@ def test_bad_bags(tmp_path, capfd):
     fails(capfd, ["dataset", str(path), "--wrench-topic", "/ft", "--joints-topic", "/joint_states",
                   "--sensor", "arm_ft", "--urdf", str(tmp_path / "none.urdf"), "-o", str(out)], "none.urdf", out)
     fails(capfd, [*run, "--wrench-topic", "/ft", "--joints-topic", "/imu"],
-          "--joints-topic needs --urdf/--model and --sensor", out)
+          "topic '/imu' has type sensor_msgs/msg/Imu; --joints-topic needs sensor_msgs/msg/JointState", out)
     mat = tmp_path / "log.csv"
     mat.write_text("time\n0\n")
     fails(capfd, ["dataset", str(mat), "--wrench-topic", "/ft", "-o", str(out)],
@@ -427,7 +433,7 @@ def test_bad_bags(tmp_path, capfd):
             bag.imu("/imu", T0 + k * MS, q, (0, 0, 0), (0, 0, 9.81))
         imu_bags.append(str(bag.write(tmp_path / f"imu{j}")))
     fails(capfd, ["dataset", *imu_bags, "--wrench-topic", "/ft", "--imu-topic", "/imu", "--no-filter", "-o", str(out)],
-          "imu1: gives columns time,u1,u2,u3,u4,u5,u6,wx,wy,wz,ax,ay,az,segment,group but", out)
+          "imu1: gives columns time,u1,u2,u3,u4,u5,u6,wx,wy,wz,ax,ay,az,static,hold,segment,group but", out)
     for kind in ("ros1", "mcap-file"):
         bag = Bag(kind)
         for k in range(2000):

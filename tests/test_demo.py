@@ -148,3 +148,28 @@ def test_the_paper_demo_also_records_the_arm_bag(quick_demo):
     # n_poses holds and n_poses - 1 moves at `rate`, both ends included
     assert stream.n_samples == round((s.n_poses * (s.hold_s + s.move_s) - s.move_s) * s.rate) + 1
     assert stream.frame == "ft_sensor"
+
+
+def test_the_demo_data_are_well_excited(quick_demo, capsys):
+    """Several load cases over many poses: every wrench direction excited, no warning from fit, the
+    validation recordings inside the training inputs' span, and the arm's payload determines all ten
+    parameter directions from its static holds."""
+    out, _ = quick_demo
+    capsys.readouterr()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", FtcalWarning)
+        assert main(["fit", str(out / "train.parquet"), "--segment-by", "segment", "--group-by", "group",
+                     "-o", str(out / "excited.json")]) == 0
+        assert "excitation: reference wrenches span 6 of 6 directions" in capsys.readouterr().out
+        assert main(["evaluate", str(out / "excited.json"), str(out / "validation.parquet"), "--json"]) == 0
+        # the samples out of range are those outside the training box: none is added by the span check
+        inputs = ["u1", "u2", "u3", "u4", "u5", "u6", "T"]
+        train, validation = (pd.read_parquet(out / name)[inputs] for name in ("train.parquet", "validation.parquet"))
+        outside = ((validation < train.min()) | (validation > train.max())).any(axis=1).sum()
+        assert json.loads(capsys.readouterr().out)["n_out_of_range"] == outside
+        assert main(["dataset", str(out / "arm"), "--wrench-topic", "/ft_sensor/wrench", "--tf", "base_link",
+                     "--no-filter", "-o", str(out / "arm-static.parquet")]) == 0
+        assert main(["payload", str(out / "arm-static.parquet"), "--orientation", "qx,qy,qz,qw",
+                     "-o", str(out / "arm-static.json")]) == 0
+    printed = capsys.readouterr().out
+    assert "excluded" in printed and "the poses determine 10 of 10 parameter directions" in printed

@@ -19,8 +19,11 @@ def register(subparsers) -> None:
                     "take --wrench-topic and optional --joints-topic, --temperature-topic, --imu-topic, "
                     "--tf BASE[:SENSOR_FRAME]; they need no URDF: the table then holds the measured wrench "
                     "u1..u6, time, and the orientation qx,qy,qz,qw (sensor to a gravity-aligned BASE, "
-                    "gravity -z) and IMU columns wx..wz, ax..az when asked for, ready for 'ftcal payload'; "
-                    "with --urdf/--model, --sensor and --joints-topic it adds the expected wrench Fx..Tz.")
+                    "gravity -z), IMU columns wx..wz, ax..az and the joint positions (named as the joints) when "
+                    "asked for, and static (1 still, 0 moving) and hold (the still pose's number, -1 moving; "
+                    "'--group-by hold' gives one cross-validation group per pose), ready for 'ftcal payload' "
+                    "(--orientation, or --urdf with the joint columns); with --urdf/--model, --sensor and "
+                    "--joints-topic it adds the expected wrench Fx..Tz.")
     parser.add_argument("logs", metavar="LOG", nargs="+",
                         help="recordings: .mat (v5/v7.3), .csv, .parquet, or ROS bags")
     add_robot_arguments(parser, required=False)
@@ -28,7 +31,9 @@ def register(subparsers) -> None:
     bags = parser.add_argument_group("ROS bags")
     bags.add_argument("--wrench-topic", metavar="TOPIC",
                       help="geometry_msgs/WrenchStamped or Wrench topic of the F/T sensor (its clock is the table's)")
-    bags.add_argument("--joints-topic", metavar="TOPIC", help="sensor_msgs/JointState topic (joints by name, rad)")
+    bags.add_argument("--joints-topic", metavar="TOPIC",
+                      help="sensor_msgs/JointState topic (joints by name, rad) -> one column per joint, for "
+                           "'ftcal payload --urdf' (and the expected wrench with --urdf/--model)")
     bags.add_argument("--temperature-topic", metavar="TOPIC",
                       help="sensor_msgs/Temperature or std_msgs/Float64 topic (degC) -> column T")
     bags.add_argument("--imu-topic", metavar="TOPIC",

@@ -171,6 +171,7 @@ def cross_validation(args, data, template):
 
 
 def run(args) -> int:
+    from ..core.excitation import Spread
     from ..core.fingerprint import segment_fingerprints
     from ..core.model import CalibrationModel
     from ..data.tables import read_dataset
@@ -200,12 +201,15 @@ def run(args) -> int:
         data = read_dataset(args.data, inputs, outputs, segment_by=args.segment_by, group_by=args.group_by)
         print(f"read {data.n_samples} samples from {len(args.data)} file(s): inputs {','.join(inputs)} "
               f"-> outputs {','.join(outputs)}", file=sys.stderr)
+    report_excitation(Spread.of(data.outputs), data.output_names)
     if args.degree == "auto":
         from ..core.select import fit_best
 
         model = fit_best(data, cross_validation(args, data, template), template=template)
     else:
         model = template.clone(degree=args.degree, solver=make_solver(args)).fit(data)
+    if model.input_spread_ is None:
+        model.input_spread_ = Spread.of(data.inputs)
     save_model(model, args.output, sources=[str(p) for p in args.data],
                training_segments=segment_fingerprints(data), prior=args.prior)
     report_fit(model, args.output)
@@ -246,6 +250,8 @@ def fit_streaming(args, template, inputs, outputs):
                                       args.group_by, combine=add_statistics, description="ranges")
         print(f"read {sum(summary.segment_lengths)} samples from {len(args.data)} file(s): inputs "
               f"{','.join(inputs)} -> outputs {','.join(outputs)}", file=sys.stderr)
+        n_in = len(inputs)
+        report_excitation(summary.spread.take(slice(n_in, None)), outputs)
         if args.degree == "auto":
             from ..core.select import best_model
 
@@ -260,6 +266,7 @@ def fit_streaming(args, template, inputs, outputs):
                                     frame.solve_input_normalization, frame.solve_output_normalization, inputs,
                                     outputs, args.segment_by, combine=add_statistics, description="statistics")
         model.fit_statistics(frame, sum_statistics(parts))
+        model.input_spread_ = summary.spread.take(slice(0, n_in))
         sums = executor.map_reduce(file_error_sums, args.data, model, [], "one-step", "zeros", "drop",
                                    args.segment_by, combine=add_error_sums, description="training metrics")
     main, other = sums if isinstance(sums, tuple) else (sums, None)
@@ -268,6 +275,23 @@ def fit_streaming(args, template, inputs, outputs):
         model.training_metrics_["free_run"] = other.summary(outputs)
         del model.training_metrics_["free_run"]["n_out_of_range"]
     return model, summary.fingerprints
+
+
+def report_excitation(spread, outputs) -> None:
+    """Print how far the reference wrenches excite each direction; warn, with the fix, when some are not.
+
+    Raises FtcalError (through :func:`ftcal.core.excitation.output_excitation`) when no output varies.
+    """
+    import warnings
+
+    from ..core.excitation import output_excitation
+    from ..runtime.errors import IllPosedFitWarning
+
+    excitation = output_excitation(spread, tuple(outputs))
+    print(excitation.summary())
+    message = excitation.warning()
+    if message is not None:
+        warnings.warn(message, IllPosedFitWarning, stacklevel=2)
 
 
 def report_fit(model, path: str) -> None:

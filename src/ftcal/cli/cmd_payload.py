@@ -28,7 +28,8 @@ def add_kinematics_options(p: argparse.ArgumentParser) -> None:
                         "(default ax,ay,az; used with --dynamic when present, else the origin is at rest)")
     p.add_argument("--angular-acceleration", type=column_list, metavar="C1,C2,C3",
                    help="angular acceleration columns, rad/s² (default: differentiate the angular velocity)")
-    p.add_argument("--time", default="time", metavar="COL", help="time column in s (default time)")
+    p.add_argument("--time", default="time", metavar="COL",
+                   help="time column in s (default time): finds the static holds; --dynamic differentiates over it")
 
 
 def add_robot_source_options(p: argparse.ArgumentParser) -> None:
@@ -120,6 +121,9 @@ def register(sub) -> None:
     add_robot_source_options(p)
     p.add_argument("--group-by", metavar="COL",
                    help="column naming the cross-validation groups, e.g. the pose (default: one per file)")
+    p.add_argument("--keep-moving", action="store_true",
+                   help="static model: use every sample (default: only the static holds, found from the orientation, "
+                        "joints or gravity over --time; the moving samples are counted and excluded)")
     p.add_argument("--reaction", action="store_true",
                    help="the sensor reports the wrench it applies on the tool (opposite sign): negate readings")
     p.add_argument("--frame", metavar="NAME", help="name of the sensor frame, stored in the file (e.g. ft_sensor)")
@@ -135,11 +139,16 @@ def run(args) -> int:
     from ..payload.identify import check_mass_sign, identify_payload
     from ..payload.parameters import PayloadParameters
     from ..payload.tables import table_statistics
+    from ._holds import StaticRows, payload_excitation
 
     require_suffix(args.output, (".json",), "-o")
     check_not_input(args.output, args.data)
-    groups = table_statistics(args.data, kinematics_source(args), wrench=args.wrench, group_by=args.group_by,
-                              reaction=args.reaction, dynamic=args.dynamic)
+    source = kinematics_source(args)
+    static = None if args.dynamic or args.keep_moving else StaticRows(args, source)
+    groups = table_statistics(args.data, source, wrench=args.wrench, group_by=args.group_by,
+                              reaction=args.reaction, dynamic=args.dynamic, select=static)
+    for line in () if static is None else static.notes:
+        print(f"static samples: {line}")
     fit = identify_payload(groups)
     message = payload_warning(args.data, kinematics_source(args), fit, args.g, wrench=args.wrench,
                               reaction=args.reaction)
@@ -147,6 +156,7 @@ def run(args) -> int:
         warnings.warn(message, ConventionWarning, stacklevel=1)
     check_mass_sign(fit)
     print_fit(fit, len(groups), args)
+    print(payload_excitation(groups))
     payload = PayloadParameters.from_fit(fit, gravity=args.g, frame=args.frame, reaction=args.reaction,
                                          wrench_columns=tuple(args.wrench))
     save_payload(payload, args.output, sources=args.data)

@@ -26,6 +26,7 @@ from ..runtime.progress import progress_bar
 from ..runtime.threads import map_ranges, single_threaded_blas
 from . import metrics
 from .dataset import Dataset
+from .excitation import Spread, span_distance, span_limit
 from .features import FeatureCombination, MonomialBasis, RegressorLayout, substitution_matrix
 from .kernels import compiled, step_table
 from .limits import ARX_WARMUP, FREE_RUN_STARTS, MAX_DEGREE, MAX_LAG, NORMALIZATIONS, PREDICTION_MODES
@@ -111,6 +112,8 @@ class CalibrationModel:
     input_normalization_, output_normalization_ : Normalization
     input_names_, output_names_ : tuple of str
     input_range_, output_range_ : ndarray of shape (n, 2), training min and max
+    input_spread_ : Spread or None, mean and covariance of the training inputs (None: files
+        written before ftcal recorded it; then only the range is checked)
     n_samples_fit_ : int, regressor rows used by the fit
     rank_, condition_number_ : of the scaled regressor, in the basis solved in
     solver_info_ : dict, ``name`` and ``lambda`` (None when unpenalized) plus solver details
@@ -183,6 +186,7 @@ class CalibrationModel:
             return self._dense_regressor(data, frame)
 
         self.fit_statistics(frame, stats, dense)
+        self.input_spread_ = Spread.of(data.inputs)
         self.training_metrics_ = self.score(data, warn_out_of_range=False)
         return self
 
@@ -339,7 +343,7 @@ class CalibrationModel:
                     input_normalization: Normalization, output_normalization: Normalization,
                     input_names: Sequence[str], output_names: Sequence[str], input_range: np.ndarray,
                     output_range: np.ndarray, n_samples_fit: int, rank: int, condition_number: float,
-                    solver_info: dict, training_metrics: dict) -> None:
+                    solver_info: dict, training_metrics: dict, input_spread: Spread | None = None) -> None:
         """The one place the fitted state is written."""
         coef = np.asarray(coef, dtype=np.float64)
         if coef.shape != (layout.n_features, len(output_names)):
@@ -361,6 +365,7 @@ class CalibrationModel:
         self.condition_number_ = float(condition_number)
         self.solver_info_ = dict(solver_info)
         self.training_metrics_ = dict(training_metrics)
+        self.input_spread_ = input_spread
 
     def _prior_coef(self, frame: FitFrame, problem: ScaledProblem) -> np.ndarray | None:
         """The prior's coefficients for ``problem``'s scaled columns, or None without a prior."""
@@ -459,11 +464,30 @@ class CalibrationModel:
         return int(self.coef_.size)
 
     def out_of_range(self, inputs: np.ndarray) -> np.ndarray:
-        """Boolean mask of samples with any input outside the training range."""
+        """Boolean mask of samples outside the training data: any input outside its range, or outside the span.
+
+        See :meth:`out_of_span`.
+        """
         self._check_fitted()
         low, high = self.input_range_[:, 0], self.input_range_[:, 1]
         slack = RANGE_TOLERANCE * np.maximum(high - low, 1.0)
-        return np.any((inputs < low - slack) | (inputs > high + slack), axis=1)
+        return np.any((inputs < low - slack) | (inputs > high + slack), axis=1) | self.out_of_span(inputs)
+
+    def out_of_span(self, inputs: np.ndarray) -> np.ndarray:
+        """Boolean mask of samples outside the span of the training inputs, even inside their range.
+
+        Their squared Mahalanobis distance from the training inputs
+        (:func:`ftcal.core.excitation.span_distance`) exceeds
+        :func:`ftcal.core.excitation.span_limit`: a combination of inputs the
+        training data never had, such as a push along a direction that one rigid
+        tool turned through poses never applies. All False without
+        ``input_spread_`` (model files from before ftcal recorded it).
+        """
+        self._check_fitted()
+        inputs = np.asarray(inputs, dtype=np.float64)
+        if self.input_spread_ is None:
+            return np.zeros(inputs.shape[0], dtype=bool)
+        return span_distance(self.input_spread_, inputs) > span_limit(inputs.shape[1])
 
     def predict(self, data: Dataset | np.ndarray, *, mode: str = "free-run", start: str = "zeros",
                 warn_out_of_range: bool = True) -> np.ndarray:
@@ -507,9 +531,8 @@ class CalibrationModel:
         if warn_out_of_range:
             n_out = int(self.out_of_range(u).sum())
             if n_out:
-                warnings.warn(
-                    f"{n_out} of {len(u)} samples have inputs outside the training range; "
-                    "predictions there are extrapolations.", OutOfRangeWarning, stacklevel=2)
+                warnings.warn(f"{out_of_range_text(n_out, len(u), int(self.out_of_span(u).sum()))}; "
+                              "predictions there are extrapolations.", OutOfRangeWarning, stacklevel=2)
         if self.layout_.is_static:
             return self._predict_static(u)
         u_norm = self.input_normalization_.apply(u)
@@ -662,6 +685,15 @@ class CalibrationModel:
         }
 
 
+def out_of_range_text(n_out: int, n_samples: int, n_span: int) -> str:
+    """``"N of M samples have inputs outside the training range"``, and how many lie outside its span."""
+    text = f"{n_out} of {n_samples} samples have inputs outside the training range"
+    if n_span:
+        text += (f" ({n_span} of them outside the span of the training inputs: combinations of inputs the "
+                 "training data never had, e.g. a load direction its loads and poses lacked)")
+    return text
+
+
 def _as_dataset(data, outputs=None, input_names: Sequence[str] | None = None) -> Dataset:
     if isinstance(data, Dataset):
         return data
@@ -736,7 +768,7 @@ def model_from_fitted(*, degree: int, na: int, nb: int, normalization: str, coef
                       input_range: np.ndarray, output_range: np.ndarray, n_samples_fit: int = 0,
                       rank: int | None = None, condition_number: float = float("nan"),
                       solver_info: dict | None = None, training_metrics: dict | None = None,
-                      solver: Solver | None = None) -> CalibrationModel:
+                      solver: Solver | None = None, input_spread: Spread | None = None) -> CalibrationModel:
     """Rebuild a fitted model from stored parts (model files use this).
 
     Parameters
@@ -750,6 +782,8 @@ def model_from_fitted(*, degree: int, na: int, nb: int, normalization: str, coef
     input_range, output_range : ndarray of shape (n, 2)
     n_samples_fit, rank, condition_number, solver_info, training_metrics, solver
         Fit diagnostics, as a fitted model carries them.
+    input_spread : Spread or None
+        Mean and covariance of the training inputs (the span check of :meth:`CalibrationModel.out_of_range`).
 
     Returns
     -------
@@ -767,5 +801,5 @@ def model_from_fitted(*, degree: int, na: int, nb: int, normalization: str, coef
         output_normalization=output_normalization, input_names=input_names, output_names=output_names,
         input_range=input_range, output_range=output_range, n_samples_fit=n_samples_fit,
         rank=layout.n_features if rank is None else rank, condition_number=condition_number,
-        solver_info=solver_info or {}, training_metrics=training_metrics or {})
+        solver_info=solver_info or {}, training_metrics=training_metrics or {}, input_spread=input_spread)
     return model

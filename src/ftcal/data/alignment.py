@@ -70,8 +70,11 @@ def timing(stream: Stream) -> StreamReport:
     dt = np.diff(stream.time)
     if np.any(dt <= 0):
         k = int(np.argmax(dt <= 0))
+        # Header stamps that repeat or go back are a driver's; the bag's receive time still increases.
+        fix = ("time the messages by the bag's receive time with --receive-time, or sort the bag by stamp"
+               if stream.clock == "header stamps" else "sort the samples by time")
         raise FtcalError(f"{stream.name}: timestamps do not increase at sample {k + 1} "
-                         f"(t={stream.time[k]:.6f} then {stream.time[k + 1]:.6f}).")
+                         f"(t={stream.time[k]:.6f} then {stream.time[k + 1]:.6f}); {fix}.")
     period = float(np.median(dt))
     gaps = dt > 1.5 * period
     dropped = int(np.sum(np.round(dt[gaps] / period) - 1))

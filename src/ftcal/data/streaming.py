@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core import metrics
+from ..core.excitation import Spread
 from ..core.features import MonomialBasis, RegressorLayout
 from ..core.normalization import Normalization
 from ..core.statistics import CHUNK_SAMPLES, StaticAccumulator, SufficientStatistics, sum_statistics
@@ -59,6 +60,7 @@ class FileSummary:
     segment_lengths : list of int, samples per segment, in file order
     fingerprints : list of dict, :func:`ftcal.core.fingerprint.segment_fingerprints` of those segments
     group_sizes : dict of group label (str) -> samples (a file without group column is one group, its path)
+    spread : Spread of the inputs then the outputs (mean, covariance: the excitation and span checks)
     """
 
     input_range: np.ndarray
@@ -66,6 +68,7 @@ class FileSummary:
     segment_lengths: list
     fingerprints: list
     group_sizes: dict
+    spread: Spread | None = None
 
     def __add__(self, other: "FileSummary") -> "FileSummary":
         def widen(a, b):
@@ -76,7 +79,7 @@ class FileSummary:
             sizes[label] = sizes.get(label, 0) + n
         return FileSummary(widen(self.input_range, other.input_range), widen(self.output_range, other.output_range),
                            self.segment_lengths + other.segment_lengths, self.fingerprints + other.fingerprints,
-                           sizes)
+                           sizes, None if self.spread is None or other.spread is None else self.spread + other.spread)
 
 
 def file_summary(path: str, inputs: Sequence[str], outputs: Sequence[str], segment_by: str | None = None,
@@ -99,6 +102,7 @@ def file_summary(path: str, inputs: Sequence[str], outputs: Sequence[str], segme
     from ..core.fingerprint import row_hashes
 
     ranges = None
+    spread = Spread.of(np.zeros((0, len(inputs) + len(outputs))))
     lengths, fingerprints, sizes = [], [], {}
     digest, last_label = None, None
     labels = {column: role for column, role in ((group_by, "group"), (segment_by, "segment")) if column}
@@ -108,6 +112,7 @@ def file_summary(path: str, inputs: Sequence[str], outputs: Sequence[str], segme
         values = np.ascontiguousarray(np.concatenate([chunk.inputs, chunk.outputs], axis=1), dtype="<f8")
         for label, n in _group_counts(path, chunk, group_by).items():
             sizes[label] = sizes.get(label, 0) + n
+        spread = spread + Spread.of(values)
         low, high = values.min(axis=0), values.max(axis=0)
         ranges = np.c_[low, high] if ranges is None else np.c_[np.minimum(ranges[:, 0], low),
                                                                np.maximum(ranges[:, 1], high)]
@@ -132,7 +137,7 @@ def file_summary(path: str, inputs: Sequence[str], outputs: Sequence[str], segme
     for fingerprint, rows in zip(fingerprints, lengths):
         fingerprint["rows"] = rows
     n_in = len(inputs)
-    return FileSummary(ranges[:n_in], ranges[n_in:], lengths, fingerprints, sizes)
+    return FileSummary(ranges[:n_in], ranges[n_in:], lengths, fingerprints, sizes, spread)
 
 
 def _group_counts(path: str, chunk, group_by: str | None) -> dict[str, int]:

@@ -71,7 +71,9 @@ class TransformTree:
                     queue.append(there)
         if base not in neighbours or frame not in previous:
             known = ", ".join(self.frames()) or "none"
-            raise FtcalError(f"{self.where}: no tf chain from {base!r} to {frame!r} (frames known: {known}).")
+            raise FtcalError(f"{self.where}: no tf chain from {base!r} to {frame!r} (frames known: {known}); "
+                             "without one, record the joints: --joints-topic with --urdf gives the orientation "
+                             "from the robot model.")
         edges = []
         while (step := previous[frame]) is not None:
             frame, edge = step

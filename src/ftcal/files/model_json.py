@@ -107,6 +107,8 @@ def model_document(model: CalibrationModel, *, sources: Sequence[str] = (),
     }
     if training_segments:
         doc["fit"]["training_segments"] = [dict(fp) for fp in training_segments]
+    if getattr(model, "input_spread_", None) is not None:
+        doc["fit"]["input_spread"] = jsonable(model.input_spread_.to_json())
     if prior is not None:
         digest_of_file = hashlib.sha256(Path(prior).read_bytes()).hexdigest()
         doc["fit"]["prior"] = {"source": str(prior), "file_sha256": digest_of_file}
@@ -375,7 +377,7 @@ def _build(doc: dict, source: str) -> ModelFile:
         input_range=_ranges(inputs), output_range=_ranges(outputs),
         n_samples_fit=fit["n_samples"], rank=fit["rank"],
         condition_number=_number(fit["condition_number"]),
-        solver_info=fit["solver"], training_metrics=fit["metrics"])
+        solver_info=fit["solver"], training_metrics=fit["metrics"], input_spread=_spread(fit, nu, source))
     created = doc["created"]
     return ModelFile(model, tuple(v["unit"] for v in inputs), tuple(v["unit"] for v in outputs),
                      tuple(created["sources"]), created["time_utc"], created["ftcal_version"],
@@ -391,6 +393,22 @@ def _check_terms(terms: dict, layout: RegressorLayout, model_class: str, source:
     for row, (got, want) in enumerate(zip(terms["lags"], expected_lags.tolist())):
         if got != want:
             raise FtcalError(f"{source}: terms.lags[{row}] is {got}; {model_class} has {want} there.")
+
+
+def _spread(fit: dict, n_inputs: int, source: str):
+    """The training inputs' mean and covariance (optional: files from before ftcal recorded them)."""
+    from ..core.excitation import Spread
+
+    doc = fit.get("input_spread")
+    if doc is None:
+        return None
+    mean, cov = doc["mean"], doc["covariance"]
+    if len(mean) != n_inputs or len(cov) != n_inputs or any(len(row) != n_inputs for row in cov):
+        raise FtcalError(f"{source}: fit.input_spread has {len(mean)} means and a {len(cov)}-row covariance; "
+                         f"the model has {n_inputs} inputs.")
+    if any(v is None for v in (*mean, *(x for row in cov for x in row))):
+        raise FtcalError(f"{source}: fit.input_spread holds non-finite values.")
+    return Spread.from_json(doc)
 
 
 def _normalization(variables: list[dict]) -> Normalization:

@@ -14,7 +14,13 @@ for ``.mat`` logs) and returns named columns (project-wide names):
 ``qx,qy,qz,qw``    orientation of the sensor in a gravity-aligned world (from ``--tf BASE:SENSOR``,
                    BASE assumed gravity-aligned with gravity along −z, else from the IMU)
 ``wx..wz, ax..az`` IMU angular velocity (rad/s) and linear acceleration (m/s², with gravity)
+joint names        positions, rad, from the joints topic (with a URDF: its joints only; without:
+                   every joint whose positions are all finite), for ``ftcal payload --urdf``
 ``Fx..Tz``         expected wrench from the robot model (only with a URDF and a joints topic)
+``static``         1 on the still samples (:func:`ftcal.data.holds.find_holds`: from the orientation,
+                   else the joints, else the wrench's variation), 0 while moving
+``hold``           the still pose's number, counted over all bags (one cross-validation group per
+                   pose with ``--group-by hold``), -1 while moving
 ``segment``        one per bag; ``group``: the bag's load case, else its stem
 =================  =============================================================
 """
@@ -67,7 +73,8 @@ def build_bag_table(bags: Sequence[str | Path], topics: BagTopics, *, robot=None
     topics : BagTopics
         Topics to read (the same in every bag).
     robot : RobotModel or None
-        With ``sensor`` and ``topics.joints``: add the expected wrench ``Fx..Tz``.
+        With ``sensor`` and ``topics.joints``: add the expected wrench ``Fx..Tz``. The joint
+        columns are kept with or without it.
     sensor : str or None
         F/T sensor of ``robot``.
     payloads, load_cases : as for :func:`ftcal.insitu.recordings.build_dataset`
@@ -100,8 +107,6 @@ def build_bag_table(bags: Sequence[str | Path], topics: BagTopics, *, robot=None
             raise FtcalError("--joints-topic is required with --urdf/--model (the expected wrench needs the joints).")
         robot.sensor(sensor)
         robot.base_frame(options.base)
-    elif topics.joints is not None:
-        raise FtcalError("--joints-topic needs --urdf/--model and --sensor (joints give the expected wrench).")
     config = load_cases or LoadCaseConfig()
     cases = [config.resolve(path, tuple(payloads)) for path in bags]  # group: the load case, else the bag's stem
     if executor is None:
@@ -130,8 +135,18 @@ def build_bag_table(bags: Sequence[str | Path], topics: BagTopics, *, robot=None
         if list(part.columns) != list(parts[0].columns):
             raise FtcalError(f"Bag {path}: gives columns {','.join(part.columns)} but {bags[0]} gives "
                              f"{','.join(parts[0].columns)} (an IMU without orientation in one of them?).")
+    _number_holds_across(parts)
     columns = {name: np.concatenate([p.columns[name] for p in parts]) for name in parts[0].columns}
     return BagTable(columns, tuple(line for p in parts for line in p.notes))
+
+
+def _number_holds_across(parts: Sequence[BagTable]) -> None:
+    """Renumber, in place, each bag's holds (counted from 0) to follow the previous bag's."""
+    offset = 0
+    for part in parts:
+        hold = part.columns["hold"]
+        hold[hold >= 0] += offset
+        offset = max(offset, int(hold.max()) + 1)
 
 
 def _bag_task(path: str, description: tuple | None, segment: int, group: str, topics: BagTopics,
@@ -181,7 +196,8 @@ def bag_columns(path: Path, topics: BagTopics, segment: int, group: str, robot=N
     if topics.temperature is not None:
         streams["T"] = recording.temperature[topics.temperature]
     if topics.joints is not None:
-        streams["q"] = _urdf_joints(path, recording.joints, robot)
+        joints = recording.joints
+        streams["q"] = _urdf_joints(path, joints, robot) if robot is not None else _finite_joints(path, joints)
     orientation_source = None
     if topics.tf is not None:
         orientation_source = tf_key(topics.tf)
@@ -206,12 +222,21 @@ def bag_columns(path: Path, topics: BagTopics, segment: int, group: str, robot=N
                        ("acc", ("ax", "ay", "az"))):
         if key in on_clock:
             columns.update({name: on_clock[key][:, i] for i, name in enumerate(names)})
+    if "q" in on_clock:
+        taken = [name for name in streams["q"].columns if name in columns]
+        if taken:
+            raise FtcalError(f"Bag {path}: {topics.joints} has a joint named {taken[0]!r}, like a column of the "
+                             "table; rename the joint.")
+        columns.update({name: on_clock["q"][:, i] for i, name in enumerate(streams["q"].columns)})
     if robot is not None:
         expected = _expected(path, robot, sensor, streams["q"].columns, on_clock["q"], options)
         if options.align_first_sample:
             raw = raw - (raw[0] - expected[0])
         columns.update({f"u{i + 1}": raw[:, i] for i in range(6)})
         columns.update({name: expected[:, i] for i, name in enumerate(DEFAULT_OUTPUTS)})
+    holds = _holds(clock, on_clock, raw, path)
+    columns["static"] = holds.static.astype(np.int64)
+    columns["hold"] = holds.hold
     n = clock.size
     columns["segment"] = np.full(n, segment)
     columns["group"] = np.full(n, group, dtype=object)
@@ -223,6 +248,29 @@ def bag_columns(path: Path, topics: BagTopics, segment: int, group: str, robot=N
     for stream in {s.name: s for key, s in streams.items() if key != "ft"}.values():
         notes.append(f"  {stream.name}: {stream.n_samples} samples ({stream.clock})")
     return BagTable(columns, tuple(notes))
+
+
+def _holds(clock: np.ndarray, on_clock: dict, raw: np.ndarray, path: Path):
+    """Static holds of one bag: from the orientation, else the joints, else the wrench's variation."""
+    from ..data.holds import find_holds
+
+    if "orientation" in on_clock:
+        return find_holds(clock, orientation=on_clock["orientation"], where=f"Bag {path}")
+    if "q" in on_clock:
+        return find_holds(clock, joints=on_clock["q"], where=f"Bag {path}")
+    return find_holds(clock, wrench=raw, where=f"Bag {path}")
+
+
+def _finite_joints(path: Path, joints: Stream) -> Stream:
+    """The joints of a JointState stream with a finite position throughout (a gripper's may be NaN)."""
+    keep = [c for c in range(len(joints.columns)) if np.all(np.isfinite(joints.data[:, c]))]
+    if not keep:
+        raise FtcalError(f"Bag {path}: {joints.name} has no joint with finite positions throughout.")
+    if len(keep) < len(joints.columns):
+        dropped = [joints.columns[c] for c in range(len(joints.columns)) if c not in keep]
+        warnings.warn(f"Bag {path}: {joints.name}: joint(s) {', '.join(dropped[:5])} have non-finite positions; "
+                      "left out of the table.", FtcalWarning, stacklevel=3)
+    return replace(joints, data=joints.data[:, keep], columns=tuple(joints.columns[c] for c in keep))
 
 
 def _urdf_joints(path: Path, joints: Stream, robot) -> Stream:

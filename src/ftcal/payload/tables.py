@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -26,7 +26,8 @@ def _check_wrench_columns(columns: Sequence[str]) -> tuple[str, ...]:
 
 def table_statistics(paths: Sequence[str | os.PathLike], source: KinematicsSource, *,
                      wrench: Sequence[str] = WRENCH_COLUMNS, group_by: str | None = None,
-                     reaction: bool = False, dynamic: bool = False) -> dict[str, AxisStatistics]:
+                     reaction: bool = False, dynamic: bool = False,
+                     select: Callable | None = None) -> dict[str, AxisStatistics]:
     """Payload statistics of tables, one entry per validation group.
 
     Parameters
@@ -38,6 +39,9 @@ def table_statistics(paths: Sequence[str | os.PathLike], source: KinematicsSourc
     group_by : column naming the groups; None: one group per file
     reaction : negate the readings (sensor reporting the opposite sign)
     dynamic : the 16-parameter model (inertia) instead of the static 10
+    select : callable or None
+        ``select(frame, kinematics, path)`` gives the rows to use (a boolean
+        mask, e.g. the static samples) or None for all of them.
 
     Returns
     -------
@@ -66,6 +70,9 @@ def table_statistics(paths: Sequence[str | os.PathLike], source: KinematicsSourc
                              f"{', '.join(map(str, frame.columns))}.")
         else:
             labels = frame[group_by].astype(str).to_numpy()
+        keep = None if select is None else select(frame, kinematics, str(path))
+        if keep is not None:
+            measured, kinematics, labels = measured[keep], kinematics.take(keep), labels[keep]
         for label in dict.fromkeys(labels):
             rows = np.flatnonzero(labels == label)
             if len(rows) == len(labels):

@@ -1,0 +1,64 @@
+"""``ftcal payload``'s data checks: drop the moving samples before a static identification; the excitation."""
+
+from __future__ import annotations
+
+
+class StaticRows:
+    """The ``select`` of :func:`ftcal.payload.tables.table_statistics`: the static rows of each table.
+
+    Motion is read from the ``--orientation`` quaternions, else from the joint
+    columns of a robot model, else from the gravity direction, over the
+    ``--time`` column; a table without that column is used whole (said in
+    :attr:`notes`). ``notes``: one line per table for the printout.
+    """
+
+    def __init__(self, args, source) -> None:
+        self.args = args
+        self.source = source
+        self.notes: list[str] = []
+
+    def __call__(self, frame, kinematics, path: str):
+        from pathlib import Path
+
+        import numpy as np
+
+        from ..data.holds import MIN_HOLD_S, find_holds
+        from ..data.tables import numeric_columns
+        from ..runtime.errors import FtcalError
+
+        args = self.args
+        if args.time not in frame.columns:
+            self.notes.append(f"{path}: no time column {args.time!r}: all {len(frame)} samples used as static "
+                              "(give --time COL to find and drop the moving ones)")
+            return None
+        time = numeric_columns(frame, (args.time,), Path(path), "time")[:, 0]
+        segments = frame["segment"].to_numpy() if "segment" in frame.columns else None
+        signal = {}
+        if args.orientation is not None:
+            signal["orientation"] = numeric_columns(frame, args.orientation, Path(path), "orientation")
+        elif getattr(args, "robot_urdf", None) is not None or getattr(args, "robot_model", None) is not None:
+            names = set(self.source.columns)
+            joints = numeric_columns(frame, [c for c in frame.columns if c in names], Path(path), "joint")
+            signal["joints"] = np.deg2rad(joints) if args.degrees else joints
+        else:
+            signal["gravity"] = kinematics.gravity
+        holds = find_holds(time, segments=segments, where=path, time_column=args.time, **signal)
+        if not holds.static.any():
+            raise FtcalError(f"{path}: no static hold of {MIN_HOLD_S:g} s or more (every sample moves, from the "
+                             f"{holds.signal}); record still poses, or give --keep-moving to use every sample.")
+        self.notes.append(f"{path}: {holds.describe(time)}; "
+                          + ("excluded" if holds.n_moving else "all used") + " (--keep-moving keeps them)")
+        return holds.static
+
+
+def payload_excitation(groups) -> str:
+    """One line: the relative singular values of the payload regressor, and how many directions they determine."""
+    from ..core.excitation import regressor_excitation
+
+    total = None
+    for stats in groups.values():
+        total = stats if total is None else total + stats
+    singular, n_determined = regressor_excitation(total.gram())
+    return (f"excitation: the poses determine {n_determined} of {len(singular)} parameter directions (relative "
+            f"singular values of the payload regressor, columns scaled to unit norm: "
+            f"{', '.join(f'{v:.2g}' for v in singular)})")

@@ -1,0 +1,281 @@
+"""What the data can determine: the spread of a fit's reference wrenches and of its inputs.
+
+A calibration fit learns the map from raw inputs to the wrench only along the
+directions the reference wrenches vary in: data from one rigid tool turned
+through many poses spans 3 of the 6 wrench directions (the torque is the lever
+arm times the force), and the fitted model predicts nonsense for a push along
+any other. :func:`output_excitation` measures it from the outputs' covariance:
+the reference wrenches are centred, forces and torques are each scaled by their
+block's RMS spread (so N and N·m weigh alike whatever the tool's lever arm),
+and the singular values of the result, relative to the largest, say how far
+each direction is excited. A direction below :data:`UNEXCITED` of the largest
+is not determined, one below :data:`WEAK` hardly; each is named by its largest
+components, with the kind of load that would excite it.
+
+:class:`Spread` holds the count, mean and centred cross-products of columns,
+merged exactly across chunks and files (Chan's formula), so streamed fits get
+it in their first pass. :func:`span_distance` is the Mahalanobis distance of
+new inputs from the training inputs: large along directions the training data
+hardly vary even when every input stays inside its training range.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..runtime.errors import FtcalError
+
+# Relative singular values below these: the direction is not excited / hardly excited.
+UNEXCITED = 1e-3
+WEAK = 0.005
+# A component this large (of a unit direction) is named in the message.
+NAMED_COMPONENT = 0.1
+# Squared Mahalanobis distance beyond which an input is outside the training span: far beyond any
+# plausible training sample (chi-square tail 1e-6 for 7 inputs is 38; corners of a uniform box give 3 per input).
+SPAN_LIMIT_PER_INPUT = 6.0
+SPAN_LIMIT_MIN = 40.0
+# Input directions with less variance than this fraction of the largest are treated as fixed by the training data.
+SPAN_RELATIVE_FLOOR = 1e-12
+
+
+@dataclass(frozen=True)
+class Spread:
+    """Count, mean and centred cross-product matrix Σ (x − mean)(x − mean)ᵀ of some columns."""
+
+    n: int
+    mean: np.ndarray
+    m2: np.ndarray
+
+    @classmethod
+    def of(cls, x: np.ndarray) -> "Spread":
+        """The spread of the rows of ``x`` (n_samples, n_columns)."""
+        x = np.asarray(x, dtype=np.float64)
+        if x.shape[0] == 0:
+            return cls(0, np.zeros(x.shape[1]), np.zeros((x.shape[1], x.shape[1])))
+        mean = x.mean(axis=0)
+        centred = x - mean
+        return cls(int(x.shape[0]), mean, centred.T @ centred)
+
+    def __add__(self, other: "Spread") -> "Spread":
+        if self.n == 0:
+            return other
+        if other.n == 0:
+            return self
+        n = self.n + other.n
+        delta = other.mean - self.mean
+        mean = self.mean + delta * (other.n / n)
+        return Spread(n, mean, self.m2 + other.m2 + np.outer(delta, delta) * (self.n * other.n / n))
+
+    def take(self, columns: slice) -> "Spread":
+        """The spread of some of the columns."""
+        return Spread(self.n, self.mean[columns].copy(), self.m2[columns, columns].copy())
+
+    @property
+    def covariance(self) -> np.ndarray:
+        return self.m2 / max(self.n, 1)
+
+    def to_json(self) -> dict:
+        return {"n": self.n, "mean": self.mean.tolist(), "covariance": self.covariance.tolist()}
+
+    @classmethod
+    def from_json(cls, doc: dict) -> "Spread":
+        n = int(doc["n"])
+        return cls(n, np.asarray(doc["mean"], dtype=np.float64), np.asarray(doc["covariance"], dtype=np.float64) * n)
+
+
+@dataclass(frozen=True)
+class OutputExcitation:
+    """How far the reference wrenches excite each direction.
+
+    Attributes
+    ----------
+    singular_values : ndarray, relative to the largest, descending
+    n_excited : int, directions at or above :data:`UNEXCITED`
+    missing : tuple of str, the directions not excited (named)
+    weak : tuple of str, the directions hardly excited (named)
+    hints : tuple of str, what to record to excite them
+    """
+
+    singular_values: np.ndarray
+    n_excited: int
+    missing: tuple[str, ...]
+    weak: tuple[str, ...]
+    hints: tuple[str, ...]
+
+    def summary(self) -> str:
+        values = ", ".join(f"{v:.2g}" for v in self.singular_values)
+        return (f"excitation: reference wrenches span {self.n_excited} of {len(self.singular_values)} directions "
+                f"(relative singular values of the centred outputs, forces and torques scaled alike: {values})")
+
+    def warning(self) -> str | None:
+        """The warning text, or None when every direction is well excited."""
+        if not self.missing and not self.weak:
+            return None
+        parts = []
+        if self.missing:
+            parts.append(f"reference wrenches span {self.n_excited} of {len(self.singular_values)} directions; "
+                         f"{'; '.join(m + ' never excited' for m in self.missing)}")
+        if self.weak:
+            parts.append("; ".join(w + " hardly excited" for w in self.weak))
+        return (f"{'; '.join(parts)}: the model cannot be trusted for wrenches along "
+                f"{'them' if len(self.missing) + len(self.weak) > 1 else 'it'} — {'; '.join(self.hints)}.")
+
+
+_AXIS_WORDS = {"Fx": "force along x", "Fy": "force along y", "Fz": "force along z",
+               "Tx": "torque about x", "Ty": "torque about y", "Tz": "torque about z"}
+
+
+def _block(name: str) -> str:
+    return name[:1] if name[:1] in ("F", "T") else name
+
+
+def output_excitation(spread: Spread, names: Sequence[str]) -> OutputExcitation:
+    """The excitation of a fit's outputs (reference wrenches) from their spread.
+
+    Parameters
+    ----------
+    spread : Spread of the outputs
+    names : output names; those starting with F are forces, with T torques (scaled as blocks),
+        any other output is scaled on its own.
+
+    Returns
+    -------
+    OutputExcitation
+
+    Raises
+    ------
+    FtcalError
+        When no output varies at all: nothing can be estimated.
+    """
+    cov = spread.covariance
+    k = len(names)
+    scale = np.ones(k)
+    for block in dict.fromkeys(_block(n) for n in names):
+        members = [j for j, n in enumerate(names) if _block(n) == block]
+        rms = np.sqrt(np.trace(cov[np.ix_(members, members)]) / len(members))
+        scale[members] = 1.0 / rms if rms > 0 else 0.0
+    if not np.any(scale):
+        raise FtcalError(f"the reference outputs {','.join(names)} are constant: nothing to fit a calibration to; "
+                         "record several loads or poses.")
+    scaled = cov * scale[:, None] * scale[None, :]
+    values, vectors = np.linalg.eigh(0.5 * (scaled + scaled.T))
+    order = np.argsort(values)[::-1]
+    values, vectors = np.maximum(values[order], 0.0), vectors[:, order]
+    singular = np.sqrt(values / values[0])
+    missing, weak, hints = [], [], []
+    for found, chosen in ((missing, singular < UNEXCITED), (weak, (singular >= UNEXCITED) & (singular < WEAK))):
+        for direction in _readable_basis(vectors[:, chosen]):
+            words, hint = _describe(direction, names)
+            found.append(words)
+            if hint not in hints:
+                hints.append(hint)
+    return OutputExcitation(singular, int(np.sum(singular >= UNEXCITED)), tuple(missing), tuple(weak), tuple(hints))
+
+
+def _readable_basis(basis: np.ndarray) -> list[np.ndarray]:
+    """Sparse unit vectors spanning the columns of ``basis`` (its reduced row echelon form, transposed).
+
+    Any orthonormal basis of a degenerate eigenspace is as good as another; the
+    echelon form gives vectors with few nonzero components, e.g. "torque about z"
+    alone rather than a blend of three null directions.
+    """
+    rows = basis.T.copy()
+    pivot_row = 0
+    for column in range(rows.shape[1]):
+        if pivot_row == rows.shape[0]:
+            break
+        best = pivot_row + int(np.argmax(np.abs(rows[pivot_row:, column])))
+        if abs(rows[best, column]) < 1e-9:
+            continue
+        rows[[pivot_row, best]] = rows[[best, pivot_row]]
+        rows[pivot_row] /= rows[pivot_row, column]
+        others = np.arange(rows.shape[0]) != pivot_row
+        rows[others] -= np.outer(rows[others, column], rows[pivot_row])
+        pivot_row += 1
+    rows[np.abs(rows) < 1e-9] = 0.0
+    return [row / np.linalg.norm(row) for row in rows[:pivot_row]]
+
+
+def _describe(direction: np.ndarray, names: Sequence[str]) -> tuple[str, str]:
+    """A direction of the output space in words, and the kind of data that excites it."""
+    order = np.argsort(-np.abs(direction))
+    named = [j for j in order if abs(direction[j]) >= NAMED_COMPONENT] or [int(order[0])]
+    words = [_AXIS_WORDS.get(names[j], names[j]) for j in named]
+    blocks = {_block(names[j]) for j in named}
+    if len(named) == 1:
+        text = words[0]
+    else:
+        text = " and ".join([", ".join(words[:-1]), words[-1]]) + " (only in a fixed ratio)"
+    if blocks == {"T"}:
+        hint = "add loads or poses that twist the sensor"
+    elif blocks == {"F"}:
+        hint = "add loads or poses that push along other directions"
+    elif blocks <= {"F", "T"}:
+        hint = "add loads with other centres of mass (other lever arms), so torque varies apart from force"
+    else:
+        hint = "add data where these outputs vary independently"
+    return text, hint
+
+
+def regressor_excitation(gram: np.ndarray) -> tuple[np.ndarray, int]:
+    """Relative singular values of a regressor from its Gram matrix AᵀA, columns scaled to unit norm.
+
+    Scaling the columns makes parameters of different units (kg, kg·m, N, N·m)
+    comparable: the values then say how far the data separate the parameters,
+    not how large their units are.
+
+    Parameters
+    ----------
+    gram : ndarray of shape (p, p)
+
+    Returns
+    -------
+    (ndarray of shape (p,), descending, relative to the largest; int, how many are at or above
+    :data:`UNEXCITED`)
+    """
+    diagonal = np.sqrt(np.maximum(np.diag(gram), 0.0))
+    unit = np.where(diagonal > 0, diagonal, 1.0)
+    scaled = gram / unit[:, None] / unit[None, :]
+    values = np.clip(np.linalg.eigvalsh(0.5 * (scaled + scaled.T))[::-1], 0.0, None)
+    singular = np.sqrt(values / values[0]) if values[0] > 0 else np.zeros_like(values)
+    return singular, int(np.sum(singular >= UNEXCITED))
+
+
+def span_distance(spread: Spread, inputs: np.ndarray) -> np.ndarray:
+    """Squared Mahalanobis distance of each row of ``inputs`` from the training inputs' mean.
+
+    Directions the training inputs do not vary in at all (below
+    :data:`SPAN_RELATIVE_FLOOR` of the largest variance, after scaling each input
+    by its own spread) count any departure as infinitely far.
+
+    Parameters
+    ----------
+    spread : Spread of the training inputs
+    inputs : ndarray of shape (n_samples, n_inputs)
+
+    Returns
+    -------
+    ndarray of shape (n_samples,)
+    """
+    cov = spread.covariance
+    std = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    unit = np.where(std > 0, std, 1.0)
+    corr = cov / unit[:, None] / unit[None, :]
+    values, vectors = np.linalg.eigh(0.5 * (corr + corr.T))
+    kept = values > SPAN_RELATIVE_FLOOR * max(values.max(), 0.0)
+    projected = ((np.asarray(inputs, dtype=np.float64) - spread.mean) / unit) @ vectors
+    distance = np.sum(projected[:, kept] ** 2 / values[kept], axis=1)
+    if not kept.all():
+        # Any move along a direction the training data never varied in is outside the span.
+        scale = np.sqrt(max(values.max(), 1e-300))
+        off = np.abs(projected[:, ~kept]).max(axis=1) > 1e-6 * scale
+        distance = np.where(off, np.inf, distance)
+    return distance
+
+
+def span_limit(n_inputs: int) -> float:
+    """The squared Mahalanobis distance beyond which an input is outside the training span."""
+    return max(SPAN_LIMIT_MIN, SPAN_LIMIT_PER_INPUT * n_inputs)

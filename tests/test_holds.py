@@ -1,0 +1,243 @@
+"""Static holds (ftcal.data.holds) and their use: payload on static samples only, dataset columns, the
+/joint_states route from a bag to a payload. Truth from the simulations (hold times, mass, COM)."""
+
+import json
+import warnings
+
+import numpy as np
+import pandas as pd
+import pytest
+from bag_data import Bag
+from scipy.spatial.transform import Rotation
+
+from ftcal.cli import main
+from ftcal.data.holds import MIN_HOLD_S, find_holds
+from ftcal.runtime.errors import FtcalError, FtcalWarning
+
+T0 = 1_700_000_000 * 10**9
+WRENCH = ["u1", "u2", "u3", "u4", "u5", "u6"]
+
+
+def minimum_jerk(phase):
+    return phase ** 3 * (10 - 15 * phase + 6 * phase ** 2)
+
+
+def hold_and_move(n_poses, hold_s, move_s, rate):
+    """Time, pose index k and blend (0 still at pose k, rising to 1 at pose k + 1) of a hold-move schedule."""
+    period = hold_s + move_s
+    t = np.arange(int((n_poses * period - move_s) * rate) + 1) / rate
+    k = np.minimum((t // period).astype(int), n_poses - 1)
+    phase = np.clip((t - k * period - hold_s) / move_s, 0.0, 1.0)
+    return t, k, minimum_jerk(phase), (t - k * period) <= hold_s + 1e-9
+
+
+def rotations(n_poses, seed):
+    return Rotation.random(n_poses, random_state=seed)
+
+
+def slerped(poses, k, blend):
+    nxt = np.minimum(k + 1, len(poses) - 1)
+    delta = (poses[k].inv() * poses[nxt]).as_rotvec()
+    return poses[k] * Rotation.from_rotvec(delta * blend[:, None])
+
+
+def test_orientation_holds_match_the_schedule():
+    t, k, blend, still = hold_and_move(10, 1.0, 1.5, 200.0)
+    holds = find_holds(t, orientation=slerped(rotations(10, 1), k, blend).as_quat())
+    assert holds.n_holds == 10 and holds.signal == "orientation"
+    # each hold is one pose, numbered in time order
+    np.testing.assert_array_equal(np.unique(k[holds.static]), np.arange(10))
+    for j in range(10):  # pose j, or the last instants of the move arriving there
+        m = holds.hold == j
+        assert np.all((k[m] == j) | ((k[m] == j - 1) & (blend[m] > 0.999)))
+    # samples called still that move: only the first instants of a minimum-jerk move (below 0.01 rad/s)
+    assert np.all(still[holds.static] | (np.minimum(blend, 1 - blend)[holds.static] < 1e-3))
+    assert not np.any(holds.static[~still & (blend > 0.01) & (blend < 0.99)])
+    assert np.all(holds.static[still])
+    assert holds.n_moving == np.count_nonzero(~holds.static)
+    line = holds.describe(t)
+    assert f"{holds.n_moving} of {t.size} samples moving (from the orientation) in 9 stretch(es): rows " in line
+
+
+def test_gravity_joints_and_wrench_signals():
+    rng = np.random.default_rng(3)
+    t, k, blend, still = hold_and_move(8, 0.8, 1.2, 100.0)
+    rot = slerped(rotations(8, 2), k, blend)
+    gravity = rot.inv().apply([0.0, 0.0, -9.81])
+    assert find_holds(t, gravity=gravity).n_holds == 8
+    # joints with encoder noise (1e-4 rad): noise is not motion
+    targets = rng.uniform(-2, 2, (8, 6))
+    nxt = np.minimum(k + 1, 7)
+    q = targets[k] + blend[:, None] * (targets[nxt] - targets[k]) + rng.normal(0, 1e-4, (t.size, 6))
+    holds = find_holds(t, joints=q)
+    assert holds.n_holds == 8 and np.mean(holds.static == still) > 0.95
+    # the wrench of a 2 kg tool plus noise, no kinematics: the rolling spread against the noise floor
+    wrench = np.c_[2.0 * gravity, np.cross([0.0, 0.0, 0.1], 2.0 * gravity)]
+    wrench += rng.normal(0, 1, wrench.shape) * [0.05, 0.05, 0.05, 0.002, 0.002, 0.002]
+    holds = find_holds(t, wrench=wrench)
+    assert holds.signal == "wrench variation" and np.mean(holds.static == still) > 0.9
+    assert abs(holds.n_holds - 8) <= 1
+
+
+def test_instant_jumps_keep_every_pose_whole_and_short_stops_are_not_holds():
+    # a table of still poses, 30 samples each at 100 Hz, jumping between them: nothing moves
+    t = np.arange(16 * 30) * 0.01
+    q = np.repeat(rotations(16, 5).as_quat(), 30, axis=0)
+    holds = find_holds(t, orientation=q)
+    assert holds.n_moving == 0 and holds.n_holds == 16
+    np.testing.assert_array_equal(holds.hold, np.repeat(np.arange(16), 30))
+    # a stop shorter than MIN_HOLD_S inside a move is moving
+    t = np.arange(300) * 0.01
+    angle = np.clip(t - 0.5, 0, None) * 0.5  # turning at 0.5 rad/s after 0.5 s ...
+    angle[150:150 + int(MIN_HOLD_S / 0.01) - 5] = angle[150]  # ... with a pause of just under MIN_HOLD_S
+    angle[150 + int(MIN_HOLD_S / 0.01) - 5:] += angle[150] - angle[150 + int(MIN_HOLD_S / 0.01) - 5]
+    holds = find_holds(t, orientation=Rotation.from_rotvec(np.c_[0 * t, 0 * t, angle]).as_quat())
+    assert holds.n_holds == 1 and np.all(holds.hold[:50] == 0) and not holds.static[100:].any()
+
+
+def test_holds_stay_inside_segments_and_time_must_increase():
+    t = np.r_[np.arange(100) * 0.01, np.arange(100) * 0.01]  # two recordings, each from t = 0
+    q = np.tile([0.0, 0.0, 0.0, 1.0], (200, 1))
+    holds = find_holds(t, orientation=q, segments=np.repeat([0, 1], 100))
+    np.testing.assert_array_equal(holds.hold, np.repeat([0, 1], 100))
+    with pytest.raises(FtcalError, match=r"run.csv: column 'stamp' does not increase at row 100; sort the table "
+                                         r"by time \(or, for a ROS bag, rebuild it with --receive-time\)"):
+        find_holds(t, orientation=q, where="run.csv", time_column="stamp")
+    with pytest.raises(FtcalError, match="no orientation, gravity, joint or wrench columns"):
+        find_holds(t[:100])
+
+
+# ---------------------------------------------------------------------------------------------- payload
+
+
+@pytest.fixture(scope="module")
+def moving_bag(tmp_path_factory):
+    """The simulated arm, 60 % of the recording moving between holds (1 s still, 1.5 s moving)."""
+    from ftcal.sim.arm_bag import ArmScenario, write_arm_bag
+
+    root = tmp_path_factory.mktemp("moving")
+    scenario = ArmScenario(force_bias_tc=(0.0, 0.0, 0.0), hold_s=1.0, move_s=1.5, n_poses=12, rate=200.0,
+                           tf_rate=50.0, imu_rate=50.0)
+    truth = write_arm_bag(root / "bag", scenario)
+    table = root / "arm.parquet"
+    assert main(["dataset", str(truth.path), "--wrench-topic", "/ft_sensor/wrench", "--tf", "base_link",
+                 "--imu-topic", "/imu", "--no-filter", "-o", str(table)]) == 0
+    return root, truth, table
+
+
+def payload(capsys, table, out, *options):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", FtcalWarning)
+        code = main(["payload", str(table), "--orientation", "qx,qy,qz,qw", "-o", str(out), *options])
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    return captured.out, json.loads(out.read_text())
+
+
+def z_scores(doc, truth):
+    return np.r_[(doc["mass"] - truth.mass) / doc["stderr"]["mass"],
+                 (np.array(doc["com"]) - truth.com) / np.array(doc["stderr"]["com"])]
+
+
+def test_dataset_marks_the_holds_of_the_simulated_arm(moving_bag, capsys):
+    root, truth, table = moving_bag
+    frame = pd.read_parquet(table)
+    assert {"static", "hold"} <= set(frame.columns)
+    t = frame["time"].to_numpy()
+    still = np.zeros(len(t), bool)
+    for begin, end in truth.holds:
+        still |= (t >= begin - 1e-6) & (t <= end + 1e-6)
+    assert still.mean() < 0.45  # most of the recording moves
+    static = frame["static"].to_numpy() == 1
+    assert np.all(static[still]) and np.mean(static == still) > 0.97
+    assert sorted(set(frame.loc[static, "hold"])) == list(range(12))
+    assert np.all(frame.loc[~static, "hold"] == -1)
+
+
+def test_payload_excludes_the_moving_samples(moving_bag, capsys):
+    root, truth, table = moving_bag
+    out, doc = payload(capsys, table, root / "static.json", "--group-by", "hold")
+    n_moving = int((pd.read_parquet(table)["static"] == 0).sum())
+    assert f"samples moving (from the orientation) in 11 stretch(es): rows " in out and "excluded" in out
+    assert f"{n_moving} of {len(pd.read_parquet(table))} samples moving" in out
+    assert "in 12 group(s)" in out  # one cross-validation group per pose, the moves left out
+    assert np.all(np.abs(z_scores(doc, truth)) < 4), z_scores(doc, truth)
+    # all samples: the moves' inertial wrench pulls the estimates many standard errors away
+    _, kept = payload(capsys, table, root / "all.json", "--keep-moving")
+    assert np.max(np.abs(z_scores(kept, truth))) > 10, z_scores(kept, truth)
+    # --dynamic is unchanged: it uses every sample
+    out, _ = payload(capsys, table, root / "dynamic.json", "--dynamic")
+    assert "static samples" not in out and f"payload from {len(pd.read_parquet(table))} samples" in out
+
+
+def test_payload_without_static_holds_or_time(capsys, tmp_path):
+    t = np.arange(400) * 0.01
+    q = Rotation.from_rotvec(np.c_[0.3 * t, 0.2 * t, 0 * t]).as_quat()  # turning all the time
+    gravity = Rotation.from_quat(q).inv().apply([0.0, 0.0, -9.81])
+    frame = pd.DataFrame(np.c_[t, q, np.c_[gravity, np.cross([0, 0, 0.1], gravity)]],
+                         columns=["time", "qx", "qy", "qz", "qw", *WRENCH])
+    frame.to_csv(tmp_path / "moving.csv", index=False)
+    out = tmp_path / "p.json"
+    assert main(["payload", str(tmp_path / "moving.csv"), "--orientation", "qx,qy,qz,qw", "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no static hold of 0.2 s or more" in err[0] and "--keep-moving" in err[0]
+    assert not out.exists()
+    q = rotations(400, 7).as_quat()  # a table of poses without a clock: used whole
+    gravity = Rotation.from_quat(q).inv().apply([0.0, 0.0, -9.81])
+    frame = pd.DataFrame(np.c_[q, np.c_[gravity, np.cross([0, 0, 0.1], gravity)]], columns=["qx", "qy", "qz", "qw",
+                                                                                          *WRENCH])
+    frame.to_csv(tmp_path / "untimed.csv", index=False)
+    assert main(["payload", str(tmp_path / "untimed.csv"), "--orientation", "qx,qy,qz,qw", "-o", str(out)]) == 0
+    assert "no time column 'time': all 400 samples used as static" in capsys.readouterr().out
+
+
+# ------------------------------------------------------------------------------ the /joint_states route
+
+
+def test_bag_with_only_ft_and_joint_states_to_payload(tmp_path, capsys):
+    """A UR5 holding 10 poses, moving between them: /ft and /joint_states only, no /tf. dataset keeps
+    the joint columns; payload --urdf finds the holds from the joints and recovers the tool."""
+    from test_robot_declare import G_BASE, UR5, ur5_chain_rotation
+
+    if not UR5.is_file():
+        pytest.skip("example-robot-data is not installed")
+    rng = np.random.default_rng(11)
+    names = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint",
+             "wrist_3_joint"]
+    mass, com = 1.6, np.array([0.015, -0.01, 0.09])
+    bias = np.array([3.0, -2.0, 5.0, 0.2, -0.1, 0.05])
+    noise = np.array([0.05, 0.05, 0.05, 0.002, 0.002, 0.002])
+    t, k, blend, still = hold_and_move(10, 0.6, 0.6, 50.0)
+    targets = rng.uniform(-2.5, 2.5, (10, 6))
+    q = targets[k] + blend[:, None] * (targets[np.minimum(k + 1, 9)] - targets[k])
+    bump = np.where(still, 0.0, np.sin(np.pi * blend))  # the tool's inertial force while moving: up to 2 m/s²
+    bag = Bag("mcap")
+    for j in range(t.size):
+        g_sensor = ur5_chain_rotation(q[j], "ee_link")[0].T @ G_BASE
+        force = mass * (g_sensor - [2.0 * bump[j], 0.0, 0.0])
+        wrench = np.r_[force, np.cross(com, force)] + bias + rng.normal(0.0, 1.0, 6) * noise
+        stamp = T0 + int(round(t[j] * 1e9))
+        bag.wrench("/ft", stamp, wrench)
+        bag.joints("/joint_states", stamp, [*names, "gripper_finger"], [*q[j], np.nan])
+    path = bag.write(tmp_path / "ur5")
+    table = tmp_path / "ur5.csv"
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", FtcalWarning)
+        assert main(["dataset", str(path), "--wrench-topic", "/ft", "--joints-topic", "/joint_states",
+                     "--no-filter", "-o", str(table)]) == 0
+    assert "gripper_finger have non-finite positions; left out of the table" in capsys.readouterr().err
+    frame = pd.read_csv(table)
+    np.testing.assert_allclose(frame[names].to_numpy(), q, atol=1e-9)
+    assert frame["hold"].max() == 9 and np.mean((frame["static"] == 1) == still) > 0.95
+    out = tmp_path / "tool.json"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", FtcalWarning)
+        assert main(["payload", str(table), "--urdf", str(UR5), "--ft-joint", "ee_fixed_joint", "--base",
+                     "base_link", "--group-by", "hold", "-o", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "samples moving (from the joints)" in printed and "in 10 group(s)" in printed
+    doc = json.loads(out.read_text())
+    assert abs(doc["mass"] - mass) < 4 * doc["stderr"]["mass"]
+    assert np.all(np.abs(np.array(doc["com"]) - com) < 4 * np.array(doc["stderr"]["com"]))
+    np.testing.assert_allclose(np.r_[doc["force_bias"], doc["torque_bias"]], bias,
+                               atol=4 * max(np.max(doc["stderr"]["force_bias"]), np.max(doc["stderr"]["torque_bias"])))
