@@ -20,7 +20,7 @@ from contextlib import contextmanager
 COMMAND_MODULES = (
     "fit", "evaluate", "predict", "convert", "info", "demo",
     "sensors", "expected", "dataset", "topics", "report",
-    "payload", "compensate",
+    "payload", "compensate", "plan",
 )
 
 ENVIRONMENT = """environment variables:

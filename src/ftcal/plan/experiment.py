@@ -132,6 +132,8 @@ class Plan:
         either (prior + ``--from`` data)
     n_parameters, n_excited : size of the information matrix and how many directions the
         candidates can excite at all
+    n_recorded : poses of the ``--from`` data
+    travel, random_travel : joint-space travel (rad) of the plan and of the random design in the same order
     """
 
     request: PlanRequest
@@ -148,6 +150,7 @@ class Plan:
     recorded: DesignScore
     n_parameters: int
     n_excited: int
+    n_recorded: int
     travel: float
     random_travel: float
 
@@ -243,7 +246,8 @@ def _design(request: PlanRequest, recorded: Sequence[Recorded], space: JointSpac
             raise FtcalError(f"nothing to plan for: no pose of these joints and loads determines "
                              f"{', '.join(missing[:6])} (rank {n_excited} of {p}); free a joint that tilts "
                              f"the sensor, or check the loads.")
-    start = prior(rows) + information(_recorded_rows(request, recorded, n_loads, scaling, p))
+    recorded_rows = _recorded_rows(request, recorded, n_loads, scaling, p)
+    start = prior(rows) + information(recorded_rows)
     if request.objective == "payload":
         features = np.column_stack([np.ones(config.size), candidates.gravity[config]])
         chosen = greedy_design_factored(features, load, payload_blocks(n_loads, request.noise),
@@ -264,7 +268,7 @@ def _design(request: PlanRequest, recorded: Sequence[Recorded], space: JointSpac
                 planned=_score(request, start, rows[chosen], rows, names),
                 random=_score(request, start, rows[baseline], rows, names),
                 recorded=_score(request, start, rows[:0], rows, names),
-                n_parameters=p, n_excited=n_excited,
+                n_parameters=p, n_excited=n_excited, n_recorded=recorded_rows.shape[0],
                 travel=travel(free[config[chosen]], free[reference], steps),
                 random_travel=travel(free[config[baseline]], free[reference], random_steps))
 
