@@ -8,6 +8,11 @@ and the hand (0.6 kg); loads are mounted on the ``tool`` flange 8 cm beyond it.
 
 from __future__ import annotations
 
+HAND_MASS = 0.6  # kg, beyond the sensor
+HAND_COM = (0.01, 0.0, 0.045)  # m, sensor frame
+TOOL_OFFSET = (0.0, 0.0, 0.08)  # m, the tool flange in the sensor frame (same axes)
+BASE_FRAME, SENSOR = "base_link", "wrist_ft"
+
 ARM_URDF = """<?xml version="1.0"?>
 <robot name="plan_arm">
   <link name="base_link">
@@ -31,7 +36,7 @@ ARM_URDF = """<?xml version="1.0"?>
       <inertia ixx="0.0005" ixy="0" ixz="0" iyy="0.0005" iyz="0" izz="0.0005"/></inertial>
   </link>
   <link name="hand">
-    <inertial><origin xyz="0.01 0.0 0.045"/><mass value="0.6"/>
+    <inertial><origin xyz="{hand_com}"/><mass value="{hand_mass}"/>
       <inertia ixx="0.001" ixy="0" ixz="0" iyy="0.001" iyz="0" izz="0.0008"/></inertial>
   </link>
   <link name="tool"/>
@@ -55,7 +60,7 @@ ARM_URDF = """<?xml version="1.0"?>
     <parent link="wrist_pitch_link"/><child link="hand"/><origin xyz="0 0 0.04" rpy="0 0 0"/>
   </joint>
   <joint name="tool_flange" type="fixed">
-    <parent link="hand"/><child link="tool"/><origin xyz="0 0 0.08" rpy="0 0 0"/>
+    <parent link="hand"/><child link="tool"/><origin xyz="{tool}" rpy="0 0 0"/>
   </joint>
   <sensor name="wrist_ft" type="force_torque">
     <parent joint="wrist_ft_sensor"/>
@@ -63,4 +68,4 @@ ARM_URDF = """<?xml version="1.0"?>
     <origin rpy="0 0 0" xyz="0 0 0"/>
   </sensor>
 </robot>
-"""
+""".format(hand_com=" ".join(map(str, HAND_COM)), hand_mass=HAND_MASS, tool=" ".join(map(str, TOOL_OFFSET)))
