@@ -163,17 +163,17 @@ class Plan:
 
 
 def _rows(request: PlanRequest, candidates: Candidates, config: np.ndarray, load: np.ndarray,
-          scaling: WrenchScaling) -> np.ndarray:
-    if request.objective == "calibration":
+          scaling: WrenchScaling | None) -> np.ndarray:
+    if scaling is not None:
         return calibration_rows(candidates.wrench[config, load], request.degree, scaling)
     return payload_rows(candidates.gravity[config], load, candidates.n_loads, request.noise)
 
 
-def _recorded_rows(request: PlanRequest, recorded: Sequence[Recorded], n_loads: int, scaling: WrenchScaling,
-                   p: int) -> np.ndarray:
-    parts = [np.zeros((0, 1 if request.objective == "calibration" else 6, p))]
+def _recorded_rows(request: PlanRequest, recorded: Sequence[Recorded], n_loads: int,
+                   scaling: WrenchScaling | None, p: int) -> np.ndarray:
+    parts = [np.zeros((0, 1 if scaling is not None else 6, p))]
     for data in recorded:
-        if request.objective == "calibration":
+        if scaling is not None:
             if data.wrench is None:
                 raise FtcalError(f"--from {data.source}: no expected wrench columns Fx..Tz, which a "
                                  f"calibration plan needs.")
@@ -233,7 +233,8 @@ def _design(request: PlanRequest, recorded: Sequence[Recorded], space: JointSpac
     n_loads = candidates.n_loads
     config = np.repeat(np.arange(candidates.n_configurations), n_loads)
     load = np.tile(np.arange(n_loads), candidates.n_configurations)
-    scaling = WrenchScaling.of(candidates.wrench.reshape(-1, 6))
+    # The payload objective needs gravity, not the wrench: a constant wrench is its rank check's business.
+    scaling = WrenchScaling.of(candidates.wrench.reshape(-1, 6)) if request.objective == "calibration" else None
     rows = _rows(request, candidates, config, load, scaling)
     p = rows.shape[-1]
     total = information(rows)

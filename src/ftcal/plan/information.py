@@ -29,6 +29,8 @@ from ..runtime.errors import FtcalError
 # Prior information (a ridge) relative to the average information of one candidate:
 # keeps the log-determinant finite while a direction is still unexcited.
 RIDGE = 1e-6
+# A wrench spread (N or N m) below this is rounding error: the wrench does not change.
+SMALLEST_SPREAD = 1e-9
 # Eigenvalues below this fraction of the largest count as not excited at all.
 RANK_TOLERANCE = 1e-9
 BIAS_NAMES = ("Fx_bias", "Fy_bias", "Fz_bias", "Tx_bias", "Ty_bias", "Tz_bias")
@@ -47,7 +49,7 @@ class WrenchScaling:
         w = np.asarray(wrench, dtype=float).reshape(-1, 6)
         centre = w.mean(axis=0)
         spread = np.sqrt(((w - centre) ** 2).reshape(-1, 2, 3).mean(axis=(0, 2)))
-        if not spread.max() > 0:
+        if not spread.max() > SMALLEST_SPREAD:
             raise FtcalError("nothing is identifiable: the expected wrench is the same at every candidate "
                              "pose and load (no mass beyond the sensor, or no joint that turns it); "
                              "add a load or free a joint.")
