@@ -205,7 +205,7 @@ def run_plan(ftcal, cwd: Path, urdf: Path, out: str, *extra: str) -> pd.DataFram
 
 def test_order_mounts_each_load_once_and_returns_to_the_reference(ftcal, tmp_path, arm_urdf):
     table = run_plan(ftcal, tmp_path, arm_urdf, "plan.csv", "--load", "none", "--load", "tool:1@0,0,0.05", "--load", HEAVY,
-                     "--poses", "40", "--reference-every", "7", "--html", "plan.html")
+                     "--poses", "40", "--reference-every", "7")
     assert list(table.columns) == [*LIMITS, "load", "reference", "Fx", "Fy", "Fz", "Tx", "Ty", "Tz"]
     assert (table["reference"] == 0).sum() == 40
     runs = (table["load"] != table["load"].shift()).sum()
@@ -222,6 +222,13 @@ def test_order_mounts_each_load_once_and_returns_to_the_reference(ftcal, tmp_pat
     heavy_ref = table[(table["reference"] == 1) & (table["load"] == 2)][["Fx", "Fy", "Fz"]].to_numpy()[0]
     none_ref = table[(table["reference"] == 1) & (table["load"] == 0)][["Fx", "Fy", "Fz"]].to_numpy()[0]
     assert np.linalg.norm(heavy_ref) / np.linalg.norm(none_ref) == pytest.approx((0.6 + 3.0) / 0.6)
+
+
+@pytest.mark.slow
+def test_html_page_has_the_coverage_figure_and_the_safety_note(ftcal, tmp_path, arm_urdf):
+    loads = ["--load", "none", "--load", HEAVY]
+    run_plan(ftcal, tmp_path, arm_urdf, "first.csv", *loads, "--poses", "12")
+    run_plan(ftcal, tmp_path, arm_urdf, "plan.csv", *loads, "--poses", "12", "--from", "first.csv", "--html", "plan.html")
     page = (tmp_path / "plan.html").read_text()
     assert "data:image/png;base64," in page and "no collision checking" in page
 
