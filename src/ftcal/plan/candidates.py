@@ -68,13 +68,6 @@ class JointSpace:
         index = {name: i for i, name in enumerate(self.joint_names)}
         return q[:, [index[name] for name in self.free]]
 
-    def centre(self) -> np.ndarray:
-        """The configuration in the middle of the sampling box, shape (n_dofs,)."""
-        q = self.sample(1, np.random.default_rng(0))[0]
-        index = {name: i for i, name in enumerate(self.joint_names)}
-        q[[index[name] for name in self.free]] = 0.5 * (self.lower + self.upper)
-        return q
-
 
 def chain_joints(robot: RobotModel, sensor: str, base: str | None = None) -> tuple[str, ...]:
     """Movable joints on the path from the base frame's link to the sensor's parent link.
