@@ -13,10 +13,11 @@ from __future__ import annotations
 import numpy as np
 
 from ..runtime.errors import FtcalError
+from ..runtime.threads import map_ranges
 
 
 def _log_det_identity_plus(s: np.ndarray) -> np.ndarray:
-    """log det(I + S) for a stack of symmetric positive semi-definite S, stored (r, r, n).
+    """log det(I + S) for a stack of symmetric positive semi-definite S, stored (r, r, n); reads S[i, j], i >= j.
 
     A Cholesky factorisation written over the stack (r is at most 6 here): one
     vector operation per entry, on contiguous vectors, instead of one LAPACK
@@ -116,15 +117,17 @@ def greedy_design_factored(features: np.ndarray, groups: np.ndarray, blocks: np.
     stacked = blocks.reshape(n_groups, k * r, p)
     inverse = np.linalg.inv(start)
     inverse = 0.5 * (inverse + inverse.T)
-    s = np.empty((r * r, c))  # S of every candidate, entry-major: contiguous vectors for the gain
+    s = np.zeros((r * r, c))  # S of every candidate, entry-major: contiguous vectors for the gain
+    lower = np.array([i * r + j for i in range(r) for j in range(i + 1)])  # S is symmetric: the gain reads these
     chosen = np.empty(n, dtype=np.int64)
     taken = np.zeros(c, dtype=bool)
     for step in range(n):
         for g in range(n_groups):
             e = stacked[g]
             t = (e @ inverse @ e.T).reshape(k, r, k, r).transpose(0, 2, 1, 3).reshape(k * k, r * r)
-            s[:, bounds[g]:bounds[g + 1]] = t.T @ pairs[bounds[g]:bounds[g + 1]].T
-        gain = _log_det_identity_plus(s.reshape(r, r, c))
+            s[lower, bounds[g]:bounds[g + 1]] = t[:, lower].T @ pairs[bounds[g]:bounds[g + 1]].T
+        stack = s.reshape(r, r, c)
+        gain = np.concatenate(map_ranges(lambda a, b: _log_det_identity_plus(stack[:, :, a:b]), c, 4096))
         gain[taken] = -np.inf
         best = int(np.argmax(gain))
         chosen[step], taken[best] = order[best], True
