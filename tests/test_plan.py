@@ -299,6 +299,49 @@ def test_loads_that_make_nothing_identifiable(ftcal, tmp_path):
     assert not (tmp_path / "o.csv").exists()
 
 
+BRANCHED_URDF = """<?xml version="1.0"?>
+<robot name="branched">
+  <link name="base"><inertial><mass value="5"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link>
+  <link name="upper"><inertial><mass value="1"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.1"/></inertial></link>
+  <link name="forearm"><inertial><mass value="1"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.1"/></inertial></link>
+  <link name="hand"><inertial><origin xyz="0.2 0 0"/><mass value="2"/>
+    <inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.1"/></inertial></link>
+  <link name="other"><inertial><mass value="1"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.1"/></inertial></link>
+  <joint name="shoulder" type="revolute"><parent link="base"/><child link="upper"/><axis xyz="1 0 0"/>
+    <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+  <joint name="roll" type="revolute"><parent link="upper"/><child link="forearm_ft_parent"/><axis xyz="0 0 1"/>
+    <limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <link name="forearm_ft_parent"/>
+  <joint name="ft_joint" type="fixed"><parent link="forearm_ft_parent"/><child link="forearm"/><origin xyz="0 0 0.2"/></joint>
+  <joint name="wrist" type="revolute"><parent link="forearm"/><child link="hand"/><axis xyz="0 1 0"/>
+    <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+  <joint name="side" type="revolute"><parent link="base"/><child link="other"/><axis xyz="0 1 0"/>
+    <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+</robot>
+"""
+
+
+def test_only_the_chain_to_the_sensor_moves(ftcal, tmp_path):
+    urdf = tmp_path / "branched.urdf"
+    urdf.write_text(BRANCHED_URDF)
+    base = ["plan", "--urdf", str(urdf), "--ft-joint", "ft_joint", "--poses", "6", "--candidates", "300"]
+    code, _, stderr = ftcal(*base, "-o", "a.csv", cwd=tmp_path)
+    assert code == 0, stderr
+    free = pd.read_csv(tmp_path / "a.csv")
+    assert [c for c in free.columns if c not in ("load", "reference", "Fx", "Fy", "Fz", "Tx", "Ty", "Tz")] == \
+        ["shoulder", "roll"]
+    code, _, stderr = ftcal(*base, "--joint-range", "wrist:0:0.5", "-o", "b.csv", cwd=tmp_path)
+    assert code == 2 and "--joint-range wrist: the joint is not on the chain" in stderr
+    # a joint beyond the sensor can be pinned: it moves the hand's mass in the sensor frame
+    code, _, stderr = ftcal(*base, "--fixed", "wrist=0.5", "-o", "c.csv", cwd=tmp_path)
+    assert code == 0, stderr
+    pinned = pd.read_csv(tmp_path / "c.csv")
+    assert np.all(pinned["wrist"] == 0.5)
+    # beyond the sensor: the forearm (1 kg) and the hand (2 kg), whatever the pose: |F| = 3 kg · g
+    force = np.linalg.norm(pinned[["Fx", "Fy", "Fz"]].to_numpy(), axis=1)
+    assert force == pytest.approx(np.full(len(force), 3.0 * 9.81))
+
+
 @pytest.mark.slow
 def test_demo_scenario_plan_beats_random(tmp_path):
     done = subprocess.run([FTCAL, "demo", "--scenario", "plan", "--quick", "--out", "d"], cwd=tmp_path,
