@@ -20,7 +20,7 @@ from contextlib import contextmanager
 COMMAND_MODULES = (
     "fit", "evaluate", "predict", "convert", "info", "demo",
     "sensors", "expected", "dataset", "topics", "report",
-    "payload", "compensate", "check",
+    "payload", "compensate", "check", "plan",
 )
 
 ENVIRONMENT = """environment variables:

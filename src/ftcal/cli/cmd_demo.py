@@ -7,7 +7,7 @@ from pathlib import Path
 
 from ._common import nonnegative_int
 
-SCENARIOS = ("paper", "arm")
+SCENARIOS = ("paper", "arm", "plan")
 
 
 def register(sub) -> None:
@@ -15,10 +15,12 @@ def register(sub) -> None:
                                     "(no robot needed)")
     p.add_argument("--scenario", default="paper", metavar="NAME",
                    help="paper: the paper's iCub experiment (default; also writes the arm scenario's ROS 2 bag "
-                        "to DIR/arm); arm: a wrist sensor with an unknown gripper, from a ROS 2 bag")
+                        "to DIR/arm); arm: a wrist sensor with an unknown gripper, from a ROS 2 bag; plan: "
+                        "poses planned by `ftcal plan` against random poses at the same budget")
     p.add_argument("--out", metavar="DIR",
                    help="folder for the recordings, models, summary.json, report.html and the inputs "
-                        "README.md's examples use (default ftcal-demo/, ftcal-arm-demo/ for --scenario arm)")
+                        "README.md's examples use (default ftcal-demo/, ftcal-arm-demo/ for --scenario arm, "
+                        "ftcal-plan-demo/ for --scenario plan)")
     p.add_argument("--seed", type=nonnegative_int, default=0, help="simulation seed, >= 0 (default 0)")
     p.add_argument("--quick", action="store_true", help="a smaller experiment (a few recordings; arm: 8 poses)")
     p.set_defaults(func=run)
@@ -33,6 +35,8 @@ def run(args) -> int:
         raise FtcalError(f"--scenario {args.scenario}: unknown scenario; choose one of {', '.join(SCENARIOS)}.")
     if args.scenario == "arm":
         return run_arm(args)
+    if args.scenario == "plan":
+        return run_plan(args)
     out = output_folder(args.out or "ftcal-demo")
     summary = run_demo(DemoConfig(out_dir=out, seed=args.seed, quick=args.quick))
     print(format_tables(summary))
@@ -52,6 +56,19 @@ def run_arm(args) -> int:
     summary = run_arm_demo(ArmDemoConfig(out_dir=output_folder(args.out or "ftcal-arm-demo"), scenario=scenario))
     print(format_arm_tables(summary))
     print(f"\n{summary['n_samples']} samples; done in {summary['elapsed_s']:.0f} s")
+    print("wrote " + ", ".join(summary["files"]))
+    return 0
+
+
+def run_plan(args) -> int:
+    import dataclasses
+
+    from ..sim.demo_plan import PLAN_QUICK, PlanDemoConfig, format_plan_tables, run_plan_demo
+
+    config = PlanDemoConfig(out_dir=output_folder(args.out or "ftcal-plan-demo"), seed=args.seed)
+    summary = run_plan_demo(dataclasses.replace(config, **(PLAN_QUICK if args.quick else {})))
+    print(format_plan_tables(summary))
+    print(f"\ndone in {summary['elapsed_s']:.0f} s")
     print("wrote " + ", ".join(summary["files"]))
     return 0
 

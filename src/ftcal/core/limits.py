@@ -64,3 +64,15 @@ MAX_TORQUE_ERROR = 0.1
 
 MIN_TOOL_MASS = 0.05
 """kg. ``ftcal check`` calls a stream gravity-compensated when the tool it sees is confidently lighter."""
+PLAN_OBJECTIVES = ("calibration", "payload")
+"""What ``ftcal plan`` designs for: a polynomial calibration of the given degree, or bias + mass + COM."""
+
+MAX_PLAN_POSES = 100_000
+"""Most poses ``ftcal plan`` designs."""
+
+MAX_PLAN_CANDIDATES = 10_000_000
+"""Most random joint configurations ``ftcal plan`` draws to choose from."""
+
+PLAN_DEFAULTS = {"candidates": 10_000, "reference_every": 10, "degree": 2, "noise": (0.1, 0.01)}
+"""``ftcal plan`` defaults: candidate configurations, poses between returns to the reference pose,
+calibration degree, and per-pose noise (N, N m) behind the predicted standard errors."""

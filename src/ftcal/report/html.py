@@ -249,6 +249,33 @@ def _sections(runs: list[ModelRun], validation: Dataset, train: Dataset | None,
     return sections
 
 
+def render_page(title: str, meta: Sequence[str], sections: Sequence[tuple[str, str, Sequence[str]]]) -> str:
+    """A self-contained HTML page: title, a line naming ftcal and the time, ``meta`` lines, a contents list, sections.
+
+    Parameters
+    ----------
+    title : the page title (plain text)
+    meta : lines shown under the title (plain text)
+    sections : (anchor, heading, HTML parts) per section
+
+    Returns
+    -------
+    str, the page
+    """
+    created = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    lines = [f"Made by ftcal {ftcal_version()} on {created}.", *meta]
+    toc = "".join(f'<li><a href="#{a}">{html.escape(t)}</a></li>' for a, t, _ in sections)
+    body = "\n".join(f'<section id="{a}"><h2>{html.escape(t)}</h2>\n' + "\n".join(parts) + "</section>"
+                     for a, t, parts in sections)
+    return ("<!DOCTYPE html>\n"
+            '<html lang="en">\n<head>\n<meta charset="utf-8">\n'
+            '<meta name="viewport" content="width=device-width, initial-scale=1">\n'
+            f"<title>{html.escape(title)}</title>\n<style>{CSS}</style>\n</head>\n<body>\n"
+            f"<h1>{html.escape(title)}</h1>\n"
+            + "".join(f'<p class="meta">{html.escape(line)}</p>\n' for line in lines)
+            + f"<nav><ol>{toc}</ol></nav>\n{body}\n</body>\n</html>\n")
+
+
 def build_report(runs: Sequence[ModelRun], validation: Dataset, out_path: str | os.PathLike, *,
                  train: Dataset | None = None, title: str = "ftcal calibration report",
                  cv: CrossValidationResult | None = None, notes: Sequence[str] = ()) -> Path:
@@ -276,22 +303,11 @@ def build_report(runs: Sequence[ModelRun], validation: Dataset, out_path: str | 
     if notes:
         sections.append(_Section("notes", "Notes", ['<ul class="notes">' + "".join(
             f"<li>{html.escape(str(n))}</li>" for n in notes) + "</ul>"]))
-    created = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
-    meta = [f"Made by ftcal {ftcal_version()} on {created}."]
+    meta = []
     if train is not None:
         meta.append(_dataset_line("Training data", train))
     meta.append(_dataset_line("Validation data", validation))
-    toc = "".join(f'<li><a href="#{s.anchor}">{html.escape(s.title)}</a></li>' for s in sections)
-    body = "\n".join(f'<section id="{s.anchor}"><h2>{html.escape(s.title)}</h2>\n' + "\n".join(s.parts)
-                     + "</section>" for s in sections)
-    page = (
-        "<!DOCTYPE html>\n"
-        '<html lang="en">\n<head>\n<meta charset="utf-8">\n'
-        '<meta name="viewport" content="width=device-width, initial-scale=1">\n'
-        f"<title>{html.escape(title)}</title>\n<style>{CSS}</style>\n</head>\n<body>\n"
-        f"<h1>{html.escape(title)}</h1>\n"
-        + "".join(f'<p class="meta">{html.escape(line)}</p>\n' for line in meta)
-        + f"<nav><ol>{toc}</ol></nav>\n{body}\n</body>\n</html>\n")
+    page = render_page(title, meta, [(s.anchor, s.title, s.parts) for s in sections])
     out = Path(out_path)
     write_text_atomic(out, page)
     return out

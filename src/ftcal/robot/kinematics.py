@@ -202,6 +202,42 @@ def sensor_kinematics(robot: RobotModel, sensor: str, q: np.ndarray, dq: np.ndar
                             frame_H_point=link_H_sensor)
 
 
+def sensor_poses(robot: RobotModel, sensor: str, q: np.ndarray, *, base: str | None = None) -> np.ndarray:
+    """Pose of an F/T sensor's frame in the fixed ``base`` frame, per sample (positions only, no motion).
+
+    Parameters
+    ----------
+    robot : the model
+    sensor : sensor or joint name
+    q : ndarray of shape (n_samples, n_dofs), order of ``robot.joint_names`` (rad)
+    base : fixed base frame (default as :meth:`RobotModel.base_frame`)
+
+    Returns
+    -------
+    ndarray of shape (n_samples, 4, 4)
+        ``base_H_sensor``: rotation (sensor axes in base axes) and origin (m). The
+        gravity vector ``g`` of the base frame reads ``R.T @ g`` in sensor axes.
+    """
+    import idyntree.swig as idyn
+
+    q = check_joints(robot, q, "joint positions")
+    link, link_H_sensor = _sensor_frame(robot, sensor)
+    model = robot.model
+    anchor = robot.base_frame(base)[0]
+    kd = idyn.KinDynComputations()
+    kd.loadRobotModel(model)
+    kd.setFloatingBase(model.getLinkName(model.getFrameLink(anchor)))
+    base_H_link = model.getFrameTransform(anchor).asHomogeneousTransform().toNumPy()
+    kd.setWorldBaseTransform(idyn.Transform(np.linalg.inv(base_H_link)))
+    index = int(model.getFrameIndex(link))
+    out = np.empty((q.shape[0], 4, 4))
+    for k in range(q.shape[0]):
+        if not kd.setJointPos(idyn.VectorDynSize.FromPython(q[k])):
+            raise FtcalError(f"iDynTree could not set the joint positions at sample {k}.")
+        out[k] = kd.getWorldTransform(index).asHomogeneousTransform().toNumPy()
+    return out @ link_H_sensor
+
+
 def payload_regressor(robot: RobotModel, sensor: str, link: str, q: np.ndarray, dq: np.ndarray | None = None,
                       ddq: np.ndarray | None = None, *, base: str | None = None,
                       gravity: Sequence[float] = GRAVITY, floating: FloatingBase | None = None,
