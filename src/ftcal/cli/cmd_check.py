@@ -72,12 +72,10 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from ..runtime.atomic import check_not_an_input
     from ..runtime.errors import FtcalError
 
-    if args.html is not None:
+    if args.html is not None:  # never an input: cli.main checks the OUTPUT_OPTIONS
         require_suffix(args.html, (".html", ".htm"), "--html")
-        check_not_an_input(args.html, "--html")
     if args.history_serial is not None:
         if args.data or args.accept:
             raise FtcalError("--history SERIAL takes no DATA and no --accept; run it on its own.")
