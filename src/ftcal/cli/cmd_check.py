@@ -12,7 +12,7 @@ MAX_POSES_PRINTED = 8
 EXAMPLES = """examples (after `ftcal demo --out ftcal-demo` and the README's arm steps):
   ftcal check ftcal-demo/arm.parquet --orientation qx,qy,qz,qw
   ftcal check --accept ftcal-demo/models/np4-lasso50.json ftcal-demo/validation.parquet --group-by group \\
-      --max-error-percent 1 --serial SN001 --history-dir ftcal-demo/history
+      --max-error-percent 2 --serial SN001 --history-dir ftcal-demo/history
   ftcal check --history SN001 --history-dir ftcal-demo/history
 
 exit codes: 0 no finding / pass, 1 findings / fail, 2 bad input"""
