@@ -226,10 +226,16 @@ def show_history(args) -> int:
 
     import numpy as np
 
-    from ..check.history import DRIFT_KEYS, DRIFT_UNITS, DriftWarning, History, default_history_dir, drift
+    from pathlib import Path
+
+    from ..check.history import (DATABASE_NAME, DRIFT_KEYS, DRIFT_UNITS, DriftWarning, History,
+                                 default_history_dir, drift)
     from ..runtime.errors import FtcalError
 
-    folder = args.history_dir or default_history_dir()
+    folder = Path(args.history_dir or default_history_dir())
+    if not (folder / DATABASE_NAME).is_file():
+        raise FtcalError(f"--history-dir {folder}: no history database ({DATABASE_NAME}) there; record one with "
+                         "ftcal check --accept MODEL DATA --serial SERIAL.")
     with History(folder) as history:
         records = history.calibrations(args.history_serial)
         results = history.acceptances(args.history_serial)
