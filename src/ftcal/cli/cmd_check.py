@@ -100,8 +100,8 @@ def run_conventions(args) -> int:
     report = check_conventions(holds, wrench_columns=tuple(args.wrench), max_com_distance=args.max_com_distance,
                                source=", ".join(args.data))
     force, torque = report.residual
-    print(f"{holds.n_holds} static holds; as declared: mass {report.mass:.4g} ± {report.mass_stderr:.2g} kg "
-          f"(force fit with the best axes), payload-fit residual RMS {force:.4g} N, {torque:.4g} N·m")
+    print(f"{holds.n_holds} static holds; payload-fit residual RMS as declared {force:.4g} N, {torque:.4g} N·m; "
+          f"tool mass {report.mass:.4g} ± {report.mass_stderr:.2g} kg (with the fixes below)")
     for k, f in enumerate(report.findings, 1):
         fix = f.fix
         if args.reaction and f.reaction:
