@@ -62,6 +62,9 @@ class Finding:
     confidence : float in [0, 1]
     before, after : (force RMS N, torque RMS N·m) of the payload fit over the holds
     rpy : (roll, pitch, yaw) rad of the frame correction, when the fix is a rotation
+        (URDF ``<origin rpy>`` of the data's frame in the declared sensor frame)
+    wrench : the reordered --wrench columns, when the fix is a column order
+    reaction : the fix includes --reaction
     """
 
     kind: str
