@@ -79,7 +79,8 @@ def test_a_gain_drift_fails_in_the_loaded_poses_only(capsys, tmp_path, model_pat
     frame.to_csv(path, index=False)
     code, out, _ = accept(capsys, model_path, path)
     assert code == 1 and "FAIL" in out
-    # By hand: the calibration reads M⁻¹ (u − o); the extra 5 % of channel 3 adds M⁻¹ e₃ · 0.05 (u₃ − o₃).
+    # By hand: the calibration reads M⁻¹ (u − o); the extra 5 % of channel 3 adds
+    # M⁻¹ e₃ · 0.05 (u₃ − o₃).
     counts = pose_loads() @ M.T
     extra = np.outer(0.05 * counts[:, 2], np.linalg.inv(M)[:, 2])
     limits = np.array([1.0, 1.0, 1.0, 0.1, 0.1, 0.1])

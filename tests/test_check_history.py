@@ -151,3 +151,11 @@ def test_a_file_that_is_not_a_history_is_refused(tmp_path):
     conn.close()
     with pytest.raises(FtcalError, match="format 'something-else'"):
         History(other)
+
+
+def test_reading_a_history_that_does_not_exist_is_one_line_and_creates_nothing(tmp_path, capsys):
+    folder = tmp_path / "none"
+    assert main(["check", "--history", "SN1", "--history-dir", str(folder)]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "no history database" in err
+    assert not folder.exists()

@@ -62,6 +62,7 @@ class Acceptance:
     thresholds : Thresholds
     error : ndarray of shape (n_samples, 6), prediction minus reference
     labels : ndarray of shape (n_samples,), the pose of each sample
+    reference : ndarray of shape (n_samples, 6) or None, the reference wrench (for the page)
     """
 
     outputs: tuple[str, ...]
@@ -72,7 +73,7 @@ class Acceptance:
     thresholds: Thresholds
     error: np.ndarray
     labels: np.ndarray
-    reference: np.ndarray = field(repr=False, default=None)
+    reference: np.ndarray | None = field(repr=False, default=None)
 
     @property
     def failed_poses(self) -> list[PoseError]:

@@ -62,6 +62,9 @@ class Finding:
     confidence : float in [0, 1]
     before, after : (force RMS N, torque RMS N·m) of the payload fit over the holds
     rpy : (roll, pitch, yaw) rad of the frame correction, when the fix is a rotation
+        (URDF ``<origin rpy>`` of the data's frame in the declared sensor frame)
+    wrench : the reordered --wrench columns, when the fix is a column order
+    reaction : the fix includes --reaction
     """
 
     kind: str
@@ -398,7 +401,8 @@ def _zeroed(holds: Holds, theta: np.ndarray, after) -> list[Finding]:
         f"identifies is the tare offset, not the sensor's",
         "keep the driver's zero fixed while the payload file is in use, and identify the payload again after "
         "every re-zero (or record with zeroing off)",
-        1.0 - _normal_sf(weight / max(float(se_f[k]), 1e-300) / ZERO_STDERR), after, after)]
+        # Confidence: that the hold's zero is not the tool being weightless (weight vs the hold's noise).
+        1.0 - 2.0 * _normal_sf(weight / max(float(se_f[k]), 1e-300)), after, after)]
 
 
 def _lever(holds: Holds, theta: np.ndarray, residual: np.ndarray, max_com_distance: float, after) -> list[Finding]:

@@ -125,15 +125,16 @@ def acceptance_page(result: Acceptance, out: str | os.PathLike, *, model: str = 
     issues = (['<ul class="notes">' + "".join(f"<li>{html.escape(i)}</li>" for i in result.channel_issues)
                + "</ul>"] if result.channel_issues else ["<p>No saturated, stuck or dead input channel.</p>"])
     with rc_context(STYLE):
-        figures = [figure_html(_pose_figure(result), "poses", "RMS error of each pose against the thresholds."),
-                   figure_html(_series_figure(result), "series", "Reference (black) and calibrated (blue) wrench.")]
+        poses = figure_html(_pose_figure(result), "poses", "RMS error of each pose against the thresholds.")
+        series = (figure_html(_series_figure(result), "series", "Reference (black) and calibrated (blue) wrench.")
+                  if result.reference is not None else "<p>No reference wrench kept.</p>")
     return _page(f"ftcal check: acceptance {verdict}",
                  [f"Model: {model}", f"Data: {', '.join(map(str, data))}",
                   f"Thresholds: {result.thresholds.force:.4g} N, {result.thresholds.torque:.4g} N·m "
                   f"({result.thresholds.origin})"], [
         ("Errors per axis", [html_table(["axis", "RMS error", "max |error|", "threshold", ""], axis_rows)]),
         ("Errors by pose", [html_table(["pose", "samples", *result.outputs, "over threshold"], pose_rows),
-                            figures[0]]),
+                            poses]),
         ("Input channels", issues),
-        ("Reference and calibrated wrench", [figures[1]]),
+        ("Reference and calibrated wrench", [series]),
     ], out)

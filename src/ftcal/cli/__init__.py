@@ -32,7 +32,7 @@ exit codes: 0 success, 2 bad input (one line on stderr), 130 Ctrl-C, 143 SIGTERM
 (temporary files are removed on every one of them)"""
 
 # Argument names (dest) of output files and folders: never inputs, never equal to one.
-OUTPUT_OPTIONS = ("output", "out")
+OUTPUT_OPTIONS = ("output", "out", "html")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -12,7 +12,7 @@ MAX_POSES_PRINTED = 8
 EXAMPLES = """examples (after `ftcal demo --out ftcal-demo` and the README's arm steps):
   ftcal check ftcal-demo/arm.parquet --orientation qx,qy,qz,qw
   ftcal check --accept ftcal-demo/models/np4-lasso50.json ftcal-demo/validation.parquet --group-by group \\
-      --max-error-percent 1 --serial SN001 --history-dir ftcal-demo/history
+      --max-error-percent 2 --serial SN001 --history-dir ftcal-demo/history
   ftcal check --history SN001 --history-dir ftcal-demo/history
 
 exit codes: 0 no finding / pass, 1 findings / fail, 2 bad input"""
@@ -72,12 +72,10 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from ..runtime.atomic import check_not_an_input
     from ..runtime.errors import FtcalError
 
-    if args.html is not None:
+    if args.html is not None:  # never an input: cli.main checks the OUTPUT_OPTIONS
         require_suffix(args.html, (".html", ".htm"), "--html")
-        check_not_an_input(args.html, "--html")
     if args.history_serial is not None:
         if args.data or args.accept:
             raise FtcalError("--history SERIAL takes no DATA and no --accept; run it on its own.")
@@ -102,8 +100,8 @@ def run_conventions(args) -> int:
     report = check_conventions(holds, wrench_columns=tuple(args.wrench), max_com_distance=args.max_com_distance,
                                source=", ".join(args.data))
     force, torque = report.residual
-    print(f"{holds.n_holds} static holds; as declared: mass {report.mass:.4g} ± {report.mass_stderr:.2g} kg "
-          f"(force fit with the best axes), payload-fit residual RMS {force:.4g} N, {torque:.4g} N·m")
+    print(f"{holds.n_holds} static holds; payload-fit residual RMS as declared {force:.4g} N, {torque:.4g} N·m; "
+          f"tool mass {report.mass:.4g} ± {report.mass_stderr:.2g} kg (with the fixes below)")
     for k, f in enumerate(report.findings, 1):
         fix = f.fix
         if args.reaction and f.reaction:
@@ -228,10 +226,16 @@ def show_history(args) -> int:
 
     import numpy as np
 
-    from ..check.history import DRIFT_KEYS, DRIFT_UNITS, DriftWarning, History, default_history_dir, drift
+    from pathlib import Path
+
+    from ..check.history import (DATABASE_NAME, DRIFT_KEYS, DRIFT_UNITS, DriftWarning, History,
+                                 default_history_dir, drift)
     from ..runtime.errors import FtcalError
 
-    folder = args.history_dir or default_history_dir()
+    folder = Path(args.history_dir or default_history_dir())
+    if not (folder / DATABASE_NAME).is_file():
+        raise FtcalError(f"--history-dir {folder}: no history database ({DATABASE_NAME}) there; record one with "
+                         "ftcal check --accept MODEL DATA --serial SERIAL.")
     with History(folder) as history:
         records = history.calibrations(args.history_serial)
         results = history.acceptances(args.history_serial)
