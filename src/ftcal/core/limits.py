@@ -34,3 +34,18 @@ ARX_WARMUP = ("drop", "keep")
 
 PAPER_LAMBDAS = (0.5, 1.0, 10.0, 50.0, 100.0, 200.0)
 """The LASSO weights of the paper's Table III."""
+
+FAMILY_NAMES = ("polynomial", "mlp")
+"""Model families this ftcal ships (``core.families.FAMILIES``; ``ftcal fit --family``)."""
+
+MLP_ACTIVATIONS = ("tanh", "relu")
+"""Hidden-layer activations of the MLP family (each has an ONNX operator and a C expression)."""
+
+MLP_MAX_LAYERS = 4
+"""Most hidden layers of an MLP (a calibration map needs one or two)."""
+
+MLP_MAX_UNITS = 256
+"""Most units per hidden layer (the generated C is straight-line: one statement per unit)."""
+
+MLP_MAX_ITER = 100_000
+"""Most L-BFGS iterations of one MLP training run."""

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from ..core.families import check_export
 from ..runtime.errors import FtcalError
 
 MODEL = "ftcal-model"
@@ -166,8 +167,8 @@ def convert(input_path: str | Path, name: str, output: str | Path, values: Mappi
     Raises
     ------
     FtcalError
-        Unknown target, an input kind the target does not take, a bad output path,
-        or anything the writer refuses; nothing is written then.
+        Unknown target, an input kind the target does not take, a target the model's
+        family cannot be exported to, a bad output path, or anything the writer refuses; nothing is written then.
     """
     spec = target(name)
     output_is_folder = str(output).endswith(("/", os.sep))
@@ -181,4 +182,6 @@ def convert(input_path: str | Path, name: str, output: str | Path, values: Mappi
     if kind not in INPUT_READERS:
         raise FtcalError(f"{input_path}: this ftcal cannot read {kind} files.")
     source = resolve(INPUT_READERS[kind])(input_path)
+    if kind == MODEL:
+        check_export(source.model, name)  # a family lists the targets it can be written to
     return resolve(spec.writer)(source, output, ConvertOptions(input_path, dict(values), output_is_folder))
