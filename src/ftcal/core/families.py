@@ -151,5 +151,5 @@ def check_export(model: object, target: str) -> None:
     """Refuse, in one line, a ``ftcal convert`` target the model's family cannot be written to."""
     exports = getattr(model, "exports", frozenset())
     if target not in exports:
-        raise FtcalError(f"--to {target}: a {getattr(model, 'family', '?')} model cannot be exported there; "
-                         f"its family exports {', '.join(sorted(exports))}.")
+        raise FtcalError(f"--to {target}: the {getattr(model, 'family', '?')} family cannot be exported there; "
+                         f"it exports {', '.join(sorted(exports))}.")

@@ -97,6 +97,13 @@ TARGETS: dict[str, Target] = {
                             "ft_tools_ros2 calibration.yaml (payload files)"),
 }
 
+FAMILY_WRITERS: dict[tuple[str, str], str] = {
+    ("c", "mlp"): "ftcal.files.mlp_code:write_c",
+    ("onnx", "mlp"): "ftcal.files.mlp_code:write_onnx",
+}
+"""(target, model family) → writer, where a family's models need their own writer for a target;
+other families use the target's. A family lists the targets it accepts in its ``exports``."""
+
 INPUT_READERS: dict[str, str] = {
     MODEL: "ftcal.files.model_files:read_model_file",
     PAYLOAD: "ftcal.files.payload_json:load_payload",
@@ -182,6 +189,8 @@ def convert(input_path: str | Path, name: str, output: str | Path, values: Mappi
     if kind not in INPUT_READERS:
         raise FtcalError(f"{input_path}: this ftcal cannot read {kind} files.")
     source = resolve(INPUT_READERS[kind])(input_path)
+    writer = spec.writer
     if kind == MODEL:
         check_export(source.model, name)  # a family lists the targets it can be written to
-    return resolve(spec.writer)(source, output, ConvertOptions(input_path, dict(values), output_is_folder))
+        writer = FAMILY_WRITERS.get((name, source.model.family), writer)
+    return resolve(writer)(source, output, ConvertOptions(input_path, dict(values), output_is_folder))
