@@ -5,40 +5,48 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ..core.limits import FAMILY_NAMES, MLP_ACTIVATIONS, MLP_MAX_LAYERS, MLP_MAX_UNITS
+from ..core.limits import FAMILY_NAMES, MLP_ACTIVATIONS, MLP_MAX_ITER, MLP_MAX_LAYERS, MLP_MAX_UNITS
 
 
 def hidden_sizes(text: str) -> tuple[int, ...]:
-    """``"32,32"`` → (32, 32): 1 to MLP_MAX_LAYERS layers of 1 to MLP_MAX_UNITS units."""
+    """``"32,32"`` → (32, 32); one-line FtcalError unless 1 to MLP_MAX_LAYERS layers of 1 to MLP_MAX_UNITS units."""
+    from ..runtime.errors import FtcalError
+
     try:
-        sizes = tuple(int(part) for part in text.split(","))
+        sizes = tuple(int(part) for part in str(text).split(","))
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected comma-separated unit counts such as 32,32; got {text!r}") from None
+        sizes = ()
     if not 1 <= len(sizes) <= MLP_MAX_LAYERS or not all(1 <= s <= MLP_MAX_UNITS for s in sizes):
-        raise argparse.ArgumentTypeError(f"expected 1 to {MLP_MAX_LAYERS} layers of 1 to {MLP_MAX_UNITS} units; "
-                                         f"got {text!r}")
+        raise FtcalError(f"--hidden {text}: expected 1 to {MLP_MAX_LAYERS} comma-separated layer sizes of 1 to "
+                         f"{MLP_MAX_UNITS} units, such as 32,32.")
     return sizes
 
 
-def nonnegative_float(text: str) -> float:
+def weight_decay(text: str) -> float:
+    """A finite number >= 0; one-line FtcalError otherwise."""
     import math
+
+    from ..runtime.errors import FtcalError
 
     try:
         value = float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+        value = math.nan
     if not math.isfinite(value) or value < 0:
-        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text!r}")
+        raise FtcalError(f"--weight-decay {text}: must be a finite number >= 0 (0 turns the penalty off).")
     return value
 
 
-def positive_int(text: str) -> int:
+def whole_number(text: str, option: str, low: int, high: int) -> int:
+    """An int in [low, high]; one-line FtcalError otherwise."""
+    from ..runtime.errors import FtcalError
+
     try:
         value = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1, got {text!r}")
+        value = low - 1
+    if not low <= value <= high:
+        raise FtcalError(f"{option} {text}: must be a whole number in {low}..{high}.")
     return value
 
 
@@ -49,23 +57,35 @@ def add_family_options(parser: argparse.ArgumentParser) -> None:
                              "the grouped folds (--folds, groups from --group-by or the files), printing its "
                              "held-out scores beside the affine model's")
     group = parser.add_argument_group("mlp options (--family mlp)")
-    group.add_argument("--hidden", type=hidden_sizes, default=(32, 32), metavar="H1,H2",
+    # Checked in check_family_options (one error line), not by argparse (usage plus error).
+    group.add_argument("--hidden", metavar="H1,H2",
                        help=f"units per hidden layer (default 32,32; at most {MLP_MAX_LAYERS} layers of "
                             f"{MLP_MAX_UNITS})")
-    group.add_argument("--activation", choices=MLP_ACTIVATIONS, default="tanh", help="hidden activation (default tanh)")
-    group.add_argument("--weight-decay", type=nonnegative_float, default=1e-4, metavar="ALPHA",
+    group.add_argument("--activation", choices=MLP_ACTIVATIONS, help="hidden activation (default tanh)")
+    group.add_argument("--weight-decay", metavar="ALPHA",
                        help="1/2 ALPHA |W|^2 added to the mean squared error of the normalized outputs (default 1e-4)")
-    group.add_argument("--max-iter", type=positive_int, default=400, metavar="N",
+    group.add_argument("--max-iter", metavar="N",
                        help="L-BFGS iterations at most; early stopping picks the count (default 400)")
-    group.add_argument("--seed", type=int, default=0, help="initial weights (default 0): the same seed, the same model")
+    group.add_argument("--seed", metavar="N",
+                       help="initial weights (default 0): the same seed, the same model")
 
 
 def check_family_options(args) -> None:
     """Options the MLP does not take, refused before any data is read."""
     from ..runtime.errors import FtcalError
 
+    own = {"--hidden": args.hidden, "--activation": args.activation, "--weight-decay": args.weight_decay,
+           "--max-iter": args.max_iter, "--seed": args.seed}
     if args.family != "mlp":
+        given = [flag for flag, value in own.items() if value is not None]
+        if given:
+            raise FtcalError(f"{', '.join(given)} go with --family mlp.")
         return
+    args.hidden = hidden_sizes("32,32" if args.hidden is None else args.hidden)
+    args.activation = args.activation or "tanh"
+    args.weight_decay = weight_decay("1e-4" if args.weight_decay is None else args.weight_decay)
+    args.max_iter = whole_number("400" if args.max_iter is None else args.max_iter, "--max-iter", 1, MLP_MAX_ITER)
+    args.seed = whole_number("0" if args.seed is None else args.seed, "--seed", 0, 2**32 - 1)
     given = [flag for flag, on in (("--degree", args.degree is not None), ("--lasso", args.lasso),
                                    ("--ridge", args.ridge), ("--na", args.na), ("--nb", args.nb),
                                    ("--prior", args.prior), ("--estimate-payload", args.estimate_payload),
@@ -76,8 +96,6 @@ def check_family_options(args) -> None:
                          "--hidden, --activation, --weight-decay, --max-iter and --seed.")
     if args.folds < 2:
         raise FtcalError(f"--folds must be at least 2; got {args.folds}.")
-    if not 0 <= args.seed < 2**32:
-        raise FtcalError(f"--seed must be in 0..{2**32 - 1}; got {args.seed}.")
 
 
 def fit_mlp(args, inputs, outputs):
