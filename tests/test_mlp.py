@@ -225,3 +225,18 @@ def test_report_compares_the_mlp_with_polynomials(fitted, tmp_path):
     # Runs are named by file; the MLP is its own family in the tables and figures.
     assert "mlp-lbfgs" in html
     assert "the MLP models" in html and "np1" in html
+
+
+def test_cli_comparison_uses_the_mlps_own_folds():
+    """The affine row printed beside the MLP is scored on the very folds early stopping used."""
+    from ftcal.core.metrics import error_norm_rmse
+    from ftcal.core.select import Candidate, cross_validate, grouped_folds
+
+    data = sensor(600, groups=6, noise=0.5)
+    scores = cross_validate(data, [Candidate(1, "none", None)], n_folds=3).score_of(Candidate(1, "none", None))
+    by_hand = []
+    for held in grouped_folds(data.groups, 3):
+        model = CalibrationModel(1).fit(data.subset(~held))
+        prediction = model.predict(data.subset(held), warn_out_of_range=False)
+        by_hand.append(error_norm_rmse(data.outputs[held, :3], prediction[:, :3]))
+    np.testing.assert_allclose(scores.fold_scores, by_hand, rtol=1e-8)
