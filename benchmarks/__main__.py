@@ -192,6 +192,24 @@ def selection_section(sizes: dict) -> list[str]:
             ""]
 
 
+def mlp_section(sizes: dict) -> list[str]:
+    n = sizes["mlp_n"]
+    r = run_case("mlp_vs_polynomial", n=n)
+    HEADLINE["mlp"] = (f"MLP {r['hidden']} fit {fmt_s(r['mlp_fit_s'])} (early stopping on 5 grouped folds) vs "
+                       f"degree {r['degree']} {fmt_s(r['polynomial_fit_s'])}; prediction "
+                       f"{r['mlp_predict_samples_per_s'] / 1e6:.2f} M vs "
+                       f"{r['polynomial_predict_samples_per_s'] / 1e6:.2f} M samples/s")
+    return [f"## MLP family against degree {r['degree']}: 8 inputs, 60 load cases, 12 held out", "",
+            "| model | N train | fit | predict (one thread) | held-out force error-norm RMSE |",
+            "|---|---:|---:|---:|---:|",
+            f"| MLP {r['hidden']} tanh, {r['mlp_weights']} weights, early-stopped at {r['mlp_iterations']} "
+            f"iterations | {r['n_train']:,} | {fmt_s(r['mlp_fit_s'])} | "
+            f"{r['mlp_predict_samples_per_s'] / 1e6:.2f} M/s | {r['mlp_held_out_force_error_norm_rmse']:.3f} N |",
+            f"| polynomial degree {r['degree']}, least squares | {r['n_train']:,} | {fmt_s(r['polynomial_fit_s'])} | "
+            f"{r['polynomial_predict_samples_per_s'] / 1e6:.2f} M/s | "
+            f"{r['polynomial_held_out_force_error_norm_rmse']:.3f} N |", ""]
+
+
 def payload_section(sizes: dict) -> list[str]:
     n = sizes["payload_n"]
     ours = run_case("ftcal_payload", n=n)
@@ -301,9 +319,10 @@ def scale_section(sizes: dict) -> list[str]:
 
 
 # One line per section; HEADLINE keys name the targets summary's rows.
-SECTIONS = (fit_section, cli_section, lasso_section, predict_section, selection_section, c_section, scaling_section,
-            expected_section, payload_section, bag_section, scale_section)
+SECTIONS = (fit_section, cli_section, lasso_section, predict_section, selection_section, mlp_section, c_section,
+            scaling_section, expected_section, payload_section, bag_section, scale_section)
 LABELS = {"fit": "Fit", "cli": "Whole-process fit", "lasso": "LASSO", "predict": "Prediction", "select": "Model selection",
+          "mlp": "MLP family",
           "c": "Generated C", "expected": "Expected wrenches", "payload": "Payload identification",
           "bags": "Bag reading", "scale": "Streaming and Dask"}
 
@@ -311,11 +330,13 @@ FULL = {"fit_big": 1_000_000, "fit_mid": 100_000, "scaling_n": (10_000, 100_000,
         "degree_n": 100_000, "lasso_n": 200_000, "paper_lasso_n": 10_000, "predict_n": 2_000_000,
         "expected_n": 100_000, "expected_baseline_n": 10_000, "c_evals": 2_000_000, "python_calls": 2_000,
         "payload_n": 1_000_000, "bag_n": 500_000, "cli_n": 200_000, "cli_repeats": 5, "select_n": 74_000,
+        "mlp_n": 74_000,
         "scale": (10, 1_000_000, 4)}
 QUICK = {"fit_big": 20_000, "fit_mid": 5_000, "scaling_n": (2_000, 10_000), "dense_max_n": 10_000,
          "degree_n": 5_000, "lasso_n": 5_000, "paper_lasso_n": 1_000, "predict_n": 100_000,
          "expected_n": 2_000, "expected_baseline_n": 500, "c_evals": 100_000, "python_calls": 200,
          "payload_n": 20_000, "bag_n": 20_000, "cli_n": 5_000, "cli_repeats": 1, "select_n": 6_000,
+         "mlp_n": 6_000,
          "scale": (4, 50_000, 4)}
 
 

@@ -20,6 +20,7 @@ import numpy as np
 
 from benchmarks.bench_bags import CASES as BAG_CASES
 from benchmarks.bench_plan import CASES as PLAN_CASES
+from benchmarks.bench_mlp import CASES as MLP_CASES
 
 N_OUTPUTS = 6
 
@@ -528,6 +529,7 @@ CASES = {f.__name__: f for f in (ftcal_fit, ftcal_statistics, paper_recipe_fit, 
                                  ftcal_predict_one, select_auto, select_auto_baseline, select_auto_new)}
 CASES.update(BAG_CASES)  # bag reading: benchmarks/bench_bags.py
 CASES.update(PLAN_CASES)  # experiment design: benchmarks/bench_plan.py
+CASES.update(MLP_CASES)  # the MLP family against a polynomial: benchmarks/bench_mlp.py
 
 
 if __name__ == "__main__":

@@ -39,7 +39,7 @@ def evaluate(args):
 
     loaded = read_model_file(args.model)
     model = loaded.model
-    if model.layout_.is_static or args.scheduler:
+    if model.is_static or args.scheduler:
         return model, evaluate_streaming(args, model, loaded.training_segments)
     data = read_dataset(args.data, model.input_names_, model.output_names_, segment_by=args.segment_by)
     warn_if_trained_on(data, loaded.training_segments, args.model)

@@ -15,6 +15,7 @@ from ._common import (
     positive_float,
     require_suffix,
 )
+from ._fit_mlp import add_family_options
 
 EPILOG = """examples:
   ftcal fit train/*.csv -o model.json                      affine model, u1..u6,T -> Fx..Tz
@@ -22,6 +23,7 @@ EPILOG = """examples:
   ftcal fit logs/*.parquet --degree auto --group-by group -o best.json
   ftcal fit new/*.csv --degree 2 --ridge 10 --prior last_month.json -o m.json   shrink toward a calibration
   ftcal fit logs/*.parquet --degree 4 --scheduler tcp://host:8786 -o m4.json    one Dask task per file
+  ftcal fit train/*.csv --family mlp --hidden 16 -o mlp.json   neural baseline, early-stopped on grouped folds
 
 Fits stream the files (except --solver osqp and --estimate-payload, which read
 them whole): a pass for the column ranges (the normalization), one for the sufficient statistics
@@ -104,6 +106,7 @@ def register(sub) -> None:
                    help="known mass of that payload (needed when nothing else beyond the sensor moves relative "
                         "to LINK: the mass would trade against the force gains)")
     add_scheduler_option(p)
+    add_family_options(p)
     p.add_argument("-o", "--output", required=True, metavar="MODEL.json", help="model file to write")
     p.set_defaults(func=run)
 
@@ -176,9 +179,18 @@ def run(args) -> int:
     from ..core.model import CalibrationModel
     from ..data.tables import read_dataset
     from ..files.model_json import save_model
+    from ._fit_mlp import check_family_options, fit_mlp, report_mlp
     from ._fit_payload import check_payload_options, read_with_payload
 
     require_suffix(args.output, (".json",), "-o")
+    check_family_options(args)
+    if args.family == "mlp":
+        model, data = fit_mlp(args, args.inputs or default_inputs(args.data),
+                              args.outputs or ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz"))
+        save_model(model, args.output, sources=[str(p) for p in args.data],
+                   training_segments=segment_fingerprints(data))
+        report_mlp(model, args.output)
+        return 0
     check_options(args)
     check_payload_options(args)
     inputs = args.inputs or default_inputs(args.data)

@@ -21,15 +21,17 @@ def run(args) -> int:
     model = loaded.model
     info = model.describe()
     lam = model.solver_info_.get("lambda")
+    polynomial = model.family == "polynomial"  # terms and raw coefficients exist for polynomials only
     arx = f", ARX na={info['na']} nb={info['nb']}" if info["na"] or info["nb"] else ""
-    print(f"{args.model}: polynomial degree {info['degree']}{arx}, {info['n_inputs']} inputs -> "
-          f"{info['n_outputs']} outputs")
-    print(f"coefficients {info['n_coefficients']}, nonzero {info['n_nonzero']}; solver "
-          f"{model.solver_info_.get('name') or 'unknown'}" + (f", lambda {lam:g}" if lam else ""))
-    from ..core.conversion import to_raw
+    kind = f"polynomial degree {info['degree']}{arx}" if polynomial else f"{model.label()} ({model.family} family)"
+    print(f"{args.model}: {kind}, {info['n_inputs']} inputs -> {info['n_outputs']} outputs")
+    print(f"{'coefficients' if polynomial else 'parameters'} {info['n_coefficients']}, nonzero {info['n_nonzero']}; "
+          f"solver {model.solver_info_.get('name') or 'unknown'}" + (f", lambda {lam:g}" if lam else ""))
+    if polynomial:
+        from ..core.conversion import to_raw
 
-    raw_nonzero = int(np.sum(np.abs(to_raw(model)) > 1e-9))
-    print(f"raw-input coefficients with |value| > 1e-9 (the paper's count): {raw_nonzero}")
+        raw_nonzero = int(np.sum(np.abs(to_raw(model)) > 1e-9))
+        print(f"raw-input coefficients with |value| > 1e-9 (the paper's count): {raw_nonzero}")
     if loaded.created_utc:
         print(f"created {loaded.created_utc} by ftcal {loaded.ftcal_version}; "
               f"trained on {model.n_samples_fit_} samples from {len(loaded.sources)} file(s)")
@@ -42,6 +44,8 @@ def run(args) -> int:
     if metrics.get("force_norm_rmse") is not None:
         print(f"training force-norm RMSE {metrics['force_norm_rmse']:.4g}, "
               f"torque-norm RMSE {metrics['torque_norm_rmse']:.4g}")
+    if not polynomial:
+        return 0
     names = model.layout_.column_names(model.input_names_, model.output_names_)
     # Features are normalized to about [-1, 1], so |coefficient| measures a term's contribution.
     magnitude = np.abs(model.coef_)

@@ -64,6 +64,9 @@ MAX_TORQUE_ERROR = 0.1
 
 MIN_TOOL_MASS = 0.05
 """kg. ``ftcal check`` calls a stream gravity-compensated when the tool it sees is confidently lighter."""
+
+# ``ftcal plan``: experiment design.
+
 PLAN_OBJECTIVES = ("calibration", "payload")
 """What ``ftcal plan`` designs for: a polynomial calibration of the given degree, or bias + mass + COM."""
 
@@ -76,3 +79,20 @@ MAX_PLAN_CANDIDATES = 10_000_000
 PLAN_DEFAULTS = {"candidates": 10_000, "reference_every": 10, "degree": 2, "noise": (0.1, 0.01)}
 """``ftcal plan`` defaults: candidate configurations, poses between returns to the reference pose,
 calibration degree, and per-pose noise (N, N m) behind the predicted standard errors."""
+
+# Model families (``ftcal fit --family``).
+
+FAMILY_NAMES = ("polynomial", "mlp")
+"""Model families this ftcal ships (``core.families.FAMILIES``; ``ftcal fit --family``)."""
+
+MLP_ACTIVATIONS = ("tanh", "relu")
+"""Hidden-layer activations of the MLP family (each has an ONNX operator and a C expression)."""
+
+MLP_MAX_LAYERS = 4
+"""Most hidden layers of an MLP (a calibration map needs one or two)."""
+
+MLP_MAX_UNITS = 256
+"""Most units per hidden layer (the generated C is straight-line: one statement per unit)."""
+
+MLP_MAX_ITER = 100_000
+"""Most L-BFGS iterations of one MLP training run."""

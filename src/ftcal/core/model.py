@@ -27,10 +27,10 @@ from ..runtime.threads import map_ranges, single_threaded_blas
 from . import metrics
 from .dataset import Dataset
 from .excitation import Spread, span_distance, span_limit
-from .features import FeatureCombination, MonomialBasis, RegressorLayout, substitution_matrix
+from .features import FeatureCombination, MonomialBasis, RegressorLayout, n_coefficients, substitution_matrix
 from .kernels import compiled, step_table
 from .limits import ARX_WARMUP, FREE_RUN_STARTS, MAX_DEGREE, MAX_LAG, NORMALIZATIONS, PREDICTION_MODES
-from .normalization import Normalization, normalization_from_range
+from .normalization import Normalization, normalization_from_range, variables_normalization, variables_range
 from .solvers.base import ScaledProblem, Solver, SolverResult
 from .solvers.least_squares import LeastSquares
 from .statistics import SufficientStatistics, layout_statistics, sum_statistics
@@ -127,6 +127,11 @@ class CalibrationModel:
     >>> np.round(model.predict(np.array([[0.5]])), 12).tolist()
     [[-0.25]]
     """
+
+    # The model family protocol (ftcal.core.families.ModelFamily).
+    family = "polynomial"
+    exports = frozenset({"json", "paper-xml", "icub-firmware", "wbd", "c", "onnx"})
+    streams = True
 
     def __init__(self, degree: int = 1, *, basis: MonomialBasis | None = None, solver: Solver | None = None,
                  na: int = 0, nb: int = 0, normalization: str | None = None,
@@ -674,6 +679,78 @@ class CalibrationModel:
             summary[other.replace("-", "_")] = metrics.summarize(y[rows], second[rows], self.output_names_)
         return summary
 
+    @property
+    def is_static(self) -> bool:
+        """True without ARX lags (``na = nb = 0``): each prediction depends on its own sample only."""
+        return self.na == 0 and self.nb == 0
+
+    def label(self) -> str:
+        """``np4``, ``np2 na=1 nb=1``, ``np4 lasso λ=50`` (the labels of cross-validation tables)."""
+        d = self.describe()
+        name = f"np{d['degree']}" + (f" na={d['na']} nb={d['nb']}" if d["na"] or d["nb"] else "")
+        solver, lam = str(self.solver_info_.get("name") or ""), self.solver_info_.get("lambda")
+        if lam is not None and ("lasso" in solver or "ridge" in solver):
+            name += f" {'lasso' if 'lasso' in solver else 'ridge'} λ={float(lam):g}"
+        return name
+
+    def to_document(self) -> dict:
+        """The polynomial's model-file fields: ``model``, ``terms``, ``coefficients`` and fit diagnostics.
+
+        Raises
+        ------
+        FtcalError
+            Non-finite coefficients.
+        """
+        self._check_fitted()
+        if not np.all(np.isfinite(self.coef_)):
+            raise FtcalError("The model has non-finite coefficients (NaN or inf); refusing to save it.")
+        layout = self.layout_
+        exponents, lags = layout.exponent_rows()
+        return {"model": {"degree": layout.basis.degree, "na": layout.na, "nb": layout.nb,
+                          "normalization": self.normalization_},
+                "terms": {"exponents": exponents.tolist(), "lags": lags.tolist(),
+                          "names": layout.column_names(self.input_names_, self.output_names_)},
+                "coefficients": self.coef_.tolist(),
+                "fit": {"rank": self.rank_, "condition_number": self.condition_number_}}
+
+    @classmethod
+    def from_document(cls, doc: dict, source: str) -> "CalibrationModel":
+        """The model of a schema-valid model-file document (checks the schema cannot express).
+
+        Raises
+        ------
+        FtcalError
+            Term or coefficient counts that do not match the degree, lags and outputs, terms out of
+            the paper's column order; the message names ``source`` and the field.
+        """
+        spec, inputs, outputs = doc["model"], doc["inputs"], doc["outputs"]
+        nu, ny = len(inputs), len(outputs)
+        model_class = (f"degree {spec['degree']}, na={spec['na']}, nb={spec['nb']} with {nu} inputs "
+                       f"and {ny} outputs")
+        # Count by formula before building the basis, which enumerates every term.
+        n_terms = n_coefficients(nu, spec["degree"], ny, spec["na"], spec["nb"]) // ny
+        coef = doc["coefficients"]
+        for field, entries in (("terms.exponents", doc["terms"]["exponents"]), ("terms.lags", doc["terms"]["lags"]),
+                               ("terms.names", doc["terms"]["names"]), ("coefficients", coef)):
+            if len(entries) != n_terms:
+                raise FtcalError(f"{source}: {field} has {len(entries)} entries; {model_class} has {n_terms} terms.")
+        layout = RegressorLayout(MonomialBasis(nu, spec["degree"]), ny, spec["na"], spec["nb"])
+        _check_terms(doc["terms"], layout, model_class, source)
+        bad_row = next((i for i, row in enumerate(coef) if len(row) != ny), None)
+        if bad_row is not None:
+            raise FtcalError(f"{source}: coefficients[{bad_row}] has {len(coef[bad_row])} values; the model has "
+                             f"{ny} outputs.")
+        fit = doc["fit"]
+        return model_from_fitted(
+            degree=spec["degree"], na=spec["na"], nb=spec["nb"], normalization=spec["normalization"],
+            coef=np.array(coef, dtype=np.float64),
+            input_normalization=variables_normalization(inputs), output_normalization=variables_normalization(outputs),
+            input_names=[v["name"] for v in inputs], output_names=[v["name"] for v in outputs],
+            input_range=variables_range(inputs), output_range=variables_range(outputs),
+            n_samples_fit=fit["n_samples"], rank=fit["rank"],
+            condition_number=float("nan") if fit["condition_number"] is None else float(fit["condition_number"]),
+            solver_info=fit["solver"], training_metrics=fit["metrics"], input_spread=_spread(fit, nu, source))
+
     def describe(self) -> dict:
         """Counts for reports: model class, coefficients, nonzeros."""
         self._check_fitted()
@@ -711,6 +788,31 @@ def _outputs_in_order(data: Dataset, names: Sequence[str]) -> np.ndarray:
         raise FtcalError(f"The data has no output column(s) {', '.join(map(repr, missing))} "
                          "that the model predicts.")
     return data.outputs[:, [index[n] for n in names]]
+
+
+def _spread(fit: dict, n_inputs: int, source: str) -> Spread | None:
+    """The training inputs' mean and covariance (optional: files from before ftcal recorded them)."""
+    doc = fit.get("input_spread")
+    if doc is None:
+        return None
+    mean, cov = doc["mean"], doc["covariance"]
+    if len(mean) != n_inputs or len(cov) != n_inputs or any(len(row) != n_inputs for row in cov):
+        raise FtcalError(f"{source}: fit.input_spread has {len(mean)} means and a {len(cov)}-row covariance; "
+                         f"the model has {n_inputs} inputs.")
+    if any(v is None for v in (*mean, *(x for row in cov for x in row))):
+        raise FtcalError(f"{source}: fit.input_spread holds non-finite values.")
+    return Spread.from_json(doc)
+
+
+def _check_terms(terms: dict, layout: RegressorLayout, model_class: str, source: str) -> None:
+    expected_exps, expected_lags = layout.exponent_rows()
+    for row, (got, want) in enumerate(zip(terms["exponents"], expected_exps.tolist())):
+        if got != want:
+            raise FtcalError(f"{source}: terms.exponents[{row}] is {got}; {model_class} has {want} there "
+                             "(the paper's column order).")
+    for row, (got, want) in enumerate(zip(terms["lags"], expected_lags.tolist())):
+        if got != want:
+            raise FtcalError(f"{source}: terms.lags[{row}] is {got}; {model_class} has {want} there.")
 
 
 def _warn_if_ill_posed(input_names: Sequence[str], span: np.ndarray, layout: RegressorLayout,

@@ -82,3 +82,18 @@ def normalization_from_range(low: np.ndarray, high: np.ndarray, mode: str = "cen
     # ill-posedness is reported by the fit's rank check instead.
     scale = np.where(scale > 0, scale, 1.0)
     return Normalization(offset, scale)
+
+
+def variables_normalization(variables: list[dict]) -> Normalization:
+    """The normalization of a model file's ``inputs`` or ``outputs`` entries (``offset``, ``scale``)."""
+    return Normalization(np.array([v["offset"] for v in variables], dtype=np.float64),
+                         np.array([v["scale"] for v in variables], dtype=np.float64))
+
+
+def variables_range(variables: list[dict]) -> np.ndarray:
+    """Training [min, max] of a model file's ``inputs`` or ``outputs`` entries, shape (n, 2).
+
+    ``null`` means unknown: an unbounded side, so predictions never warn there.
+    """
+    return np.array([[-np.inf if lo is None else lo, np.inf if hi is None else hi]
+                     for lo, hi in (v["range"] for v in variables)], dtype=np.float64).reshape(-1, 2)

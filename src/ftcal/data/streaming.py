@@ -414,7 +414,7 @@ def file_error_sums(path: str, model, fingerprints: Sequence[dict] = (), mode: s
 
     from ..runtime.errors import OutOfRangeWarning
 
-    if not model.layout_.is_static:
+    if not model.is_static:
         return _arx_error_sums(path, model, fingerprints, mode, start, warmup, segment_by)
     total = None
     finder = SegmentFinder(fingerprints)
@@ -548,7 +548,7 @@ def predict_part(path: str, part: str, model, mode: str = "free-run", segment_by
 def _predictions(path: str, model, mode: str, segment_by: str | None, start: str):
     """(first row, inputs, predictions) per chunk of a static model, or once for the whole file (ARX)."""
     with np.errstate(over="ignore", invalid="ignore"):  # overflow is refused by the caller, in one line
-        if model.layout_.is_static:
+        if model.is_static:
             for chunk in iter_table_chunks(path, model.input_names_):
                 yield chunk.first_row, chunk.inputs, model.predict(chunk.inputs, warn_out_of_range=False)
             return

@@ -6,7 +6,7 @@ import os
 from collections.abc import Sequence
 from pathlib import Path
 
-from ..core.model import CalibrationModel
+from ..core.families import ModelFamily, check_export
 from ..runtime.checks import check_choice
 from ..runtime.errors import FtcalError
 from .firmware import firmware_filename, write_firmware_matrix
@@ -18,8 +18,8 @@ WRITE_FORMATS = ("json", "paper-xml", "icub-firmware", "wbd")
 _SNIFF_BYTES = 512
 
 
-def read_model(path: str | Path) -> CalibrationModel:
-    """A model from a native JSON or a paper XML file, told apart by content."""
+def read_model(path: str | Path) -> ModelFamily:
+    """A model from a native JSON (any registered family) or a paper XML file, told apart by content."""
     return read_model_file(path).model
 
 
@@ -43,7 +43,7 @@ def read_model_file(path: str | Path) -> ModelFile:
                      "(expected '{' or '<' as the first character).")
 
 
-def write_model(model: CalibrationModel, path: str | Path, fmt: str, *, sources: Sequence[str] = (),
+def write_model(model: ModelFamily, path: str | Path, fmt: str, *, sources: Sequence[str] = (),
                 input_units: Sequence[str | None] | None = None,
                 output_units: Sequence[str | None] | None = None,
                 serial: str | None = None, sensor: str | None = None) -> Path:
@@ -55,6 +55,7 @@ def write_model(model: CalibrationModel, path: str | Path, fmt: str, *, sources:
     ``sensor`` name used in the wholeBodyDynamics configuration.
     """
     check_choice(fmt, "fmt", "write_model", WRITE_FORMATS)
+    check_export(model, fmt)
     folder = str(path).endswith(("/", os.sep))  # "-o firmware/": a folder, made if missing
     path = Path(path)
     if path.is_dir() and fmt != "icub-firmware":

@@ -23,8 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.features import MonomialBasis, RegressorLayout, n_coefficients
-from ..core.model import CalibrationModel, model_from_fitted
+from ..core.families import DEFAULT_FAMILY, ModelFamily, family_class, family_of
 from ..core.normalization import Normalization
 from ..runtime.atomic import write_text_atomic
 from ..runtime.errors import FtcalError
@@ -44,7 +43,7 @@ _MAX_INT_DIGITS = 18
 class ModelFile:
     """A loaded model file: the model plus what the model object does not carry."""
 
-    model: CalibrationModel
+    model: ModelFamily  # a fitted model of a registered family (CalibrationModel for polynomials)
     input_units: tuple[str | None, ...]
     output_units: tuple[str | None, ...]
     sources: tuple[str, ...]
@@ -56,7 +55,7 @@ class ModelFile:
 
 
 # ---------------------------------------------------------------- writing
-def save_model(model: CalibrationModel, path: str | Path, *, sources: Sequence[str] = (),
+def save_model(model: ModelFamily, path: str | Path, *, sources: Sequence[str] = (),
                input_units: Sequence[str | None] | None = None,
                output_units: Sequence[str | None] | None = None,
                training_segments: Sequence[dict] | None = None, prior: str | Path | None = None) -> None:
@@ -71,39 +70,34 @@ def save_model(model: CalibrationModel, path: str | Path, *, sources: Sequence[s
                                                            training_segments=training_segments, prior=prior)))
 
 
-def model_document(model: CalibrationModel, *, sources: Sequence[str] = (),
+def model_document(model: ModelFamily, *, sources: Sequence[str] = (),
                    input_units: Sequence[str | None] | None = None,
                    output_units: Sequence[str | None] | None = None,
                    training_segments: Sequence[dict] | None = None, prior: str | Path | None = None) -> dict:
-    """The model file content as a JSON-ready dict, digest included (see :func:`save_model`)."""
-    model._check_fitted()
-    layout = model.layout_
-    exponents, lags = layout.exponent_rows()
+    """The model file content as a JSON-ready dict, digest included (see :func:`save_model`).
+
+    The envelope (inputs, outputs, training metrics, creation data, digest) is the same for
+    every family; the family adds its own fields (:meth:`ModelFamily.to_document`).
+    """
+    family = family_of(model)
+    model.describe()  # raises NotFittedError before anything else
+    own = model.to_document()
     info = jsonable(model.solver_info_)
-    doc = {
-        "format": FORMAT,
-        "format_version": FORMAT_VERSION,
-        "model": {"degree": layout.basis.degree, "na": layout.na, "nb": layout.nb,
-                  "normalization": model.normalization_},
-        "inputs": _variables(model.input_names_, input_units, model.input_normalization_,
-                             model.input_range_, "input_units"),
-        "outputs": _variables(model.output_names_, output_units, model.output_normalization_,
-                              model.output_range_, "output_units"),
-        "terms": {"exponents": exponents.tolist(), "lags": lags.tolist(),
-                  "names": layout.column_names(model.input_names_, model.output_names_)},
-        "coefficients": jsonable(model.coef_),
-        "fit": {
-            "solver": {**info, "name": info.get("name"), "lambda": info.get("lambda")},
-            "n_samples": model.n_samples_fit_,
-            "rank": model.rank_,
-            "condition_number": jsonable(model.condition_number_),
-            "metrics": jsonable(model.training_metrics_),
-        },
-        "created": {
-            "ftcal_version": ftcal_version(),
-            "time_utc": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
-            "sources": [str(s) for s in sources],
-        },
+    doc = {"format": FORMAT, "format_version": FORMAT_VERSION, "family": family}
+    if "model" in own:
+        doc["model"] = jsonable(own["model"])
+    doc["inputs"] = _variables(model.input_names_, input_units, model.input_normalization_,
+                               model.input_range_, "input_units")
+    doc["outputs"] = _variables(model.output_names_, output_units, model.output_normalization_,
+                                model.output_range_, "output_units")
+    doc.update({key: jsonable(value) for key, value in own.items() if key not in ("model", "fit")})
+    doc["fit"] = {"solver": {**info, "name": info.get("name"), "lambda": info.get("lambda")},
+                  "n_samples": model.n_samples_fit_, **jsonable(own.get("fit", {})),
+                  "metrics": jsonable(model.training_metrics_)}
+    doc["created"] = {
+        "ftcal_version": ftcal_version(),
+        "time_utc": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        "sources": [str(s) for s in sources],
     }
     if training_segments:
         doc["fit"]["training_segments"] = [dict(fp) for fp in training_segments]
@@ -112,8 +106,6 @@ def model_document(model: CalibrationModel, *, sources: Sequence[str] = (),
     if prior is not None:
         digest_of_file = hashlib.sha256(Path(prior).read_bytes()).hexdigest()
         doc["fit"]["prior"] = {"source": str(prior), "file_sha256": digest_of_file}
-    if any(v is None for row in doc["coefficients"] for v in row):
-        raise FtcalError("The model has non-finite coefficients (NaN or inf); refusing to save it.")
     if any(v[key] is None for v in (*doc["inputs"], *doc["outputs"]) for key in ("offset", "scale")):
         raise FtcalError("The model has a non-finite normalization offset or scale; refusing to save it.")
     doc["sha256"] = digest(doc)
@@ -185,7 +177,7 @@ def _format(value, depth: int) -> str:
 
 
 # ---------------------------------------------------------------- reading
-def load_model(path: str | Path) -> CalibrationModel:
+def load_model(path: str | Path) -> ModelFamily:
     """Read a native JSON model file; raises :class:`FtcalError` saying what is wrong and where."""
     return load_model_file(path).model
 
@@ -341,86 +333,21 @@ def _validator(resource: str = SCHEMA_RESOURCE):
 
 
 def _build(doc: dict, source: str) -> ModelFile:
-    """The model from a schema-valid document, after checks the schema cannot express."""
-    spec, inputs, outputs = doc["model"], doc["inputs"], doc["outputs"]
+    """The model from a schema-valid document: envelope checks here, the rest by the model's family."""
+    inputs, outputs = doc["inputs"], doc["outputs"]
     for what, variables in (("inputs", inputs), ("outputs", outputs)):
         names = [v["name"] for v in variables]
         if len(set(names)) != len(names):
             raise FtcalError(f"{source}: {what} names repeat ({', '.join(names)}); each must be unique.")
-    nu, ny = len(inputs), len(outputs)
-    model_class = (f"degree {spec['degree']}, na={spec['na']}, nb={spec['nb']} with {nu} inputs "
-                   f"and {ny} outputs")
-    # Count by formula before building the basis, which enumerates every term.
-    n_terms = n_coefficients(nu, spec["degree"], ny, spec["na"], spec["nb"]) // ny
-    coef = doc["coefficients"]
-    for field, entries in (("terms.exponents", doc["terms"]["exponents"]), ("terms.lags", doc["terms"]["lags"]),
-                           ("terms.names", doc["terms"]["names"]), ("coefficients", coef)):
-        if len(entries) != n_terms:
-            raise FtcalError(f"{source}: {field} has {len(entries)} entries; {model_class} has {n_terms} terms.")
-    layout = RegressorLayout(MonomialBasis(nu, spec["degree"]), ny, spec["na"], spec["nb"])
-    _check_terms(doc["terms"], layout, model_class, source)
-    bad_row = next((i for i, row in enumerate(coef) if len(row) != len(outputs)), None)
-    if bad_row is not None:
-        raise FtcalError(f"{source}: coefficients[{bad_row}] has {len(coef[bad_row])} values; the model has "
-                         f"{len(outputs)} outputs.")
     fit = doc["fit"]
     for key in PER_OUTPUT_METRICS:
         values = fit["metrics"].get(key)
         if values is not None and len(values) != len(outputs):
             raise FtcalError(f"{source}: fit.metrics.{key} has {len(values)} values; the model has "
                              f"{len(outputs)} outputs.")
-    model = model_from_fitted(
-        degree=spec["degree"], na=spec["na"], nb=spec["nb"], normalization=spec["normalization"],
-        coef=np.array(coef, dtype=np.float64),
-        input_normalization=_normalization(inputs), output_normalization=_normalization(outputs),
-        input_names=[v["name"] for v in inputs], output_names=[v["name"] for v in outputs],
-        input_range=_ranges(inputs), output_range=_ranges(outputs),
-        n_samples_fit=fit["n_samples"], rank=fit["rank"],
-        condition_number=_number(fit["condition_number"]),
-        solver_info=fit["solver"], training_metrics=fit["metrics"], input_spread=_spread(fit, nu, source))
+    # No family field: a file written before families existed, a polynomial.
+    model = family_class(doc.get("family", DEFAULT_FAMILY), source).from_document(doc, source)
     created = doc["created"]
     return ModelFile(model, tuple(v["unit"] for v in inputs), tuple(v["unit"] for v in outputs),
                      tuple(created["sources"]), created["time_utc"], created["ftcal_version"],
                      tuple(fit.get("training_segments", ())), fit.get("prior"))
-
-
-def _check_terms(terms: dict, layout: RegressorLayout, model_class: str, source: str) -> None:
-    expected_exps, expected_lags = layout.exponent_rows()
-    for row, (got, want) in enumerate(zip(terms["exponents"], expected_exps.tolist())):
-        if got != want:
-            raise FtcalError(f"{source}: terms.exponents[{row}] is {got}; {model_class} has {want} there "
-                             "(the paper's column order).")
-    for row, (got, want) in enumerate(zip(terms["lags"], expected_lags.tolist())):
-        if got != want:
-            raise FtcalError(f"{source}: terms.lags[{row}] is {got}; {model_class} has {want} there.")
-
-
-def _spread(fit: dict, n_inputs: int, source: str):
-    """The training inputs' mean and covariance (optional: files from before ftcal recorded them)."""
-    from ..core.excitation import Spread
-
-    doc = fit.get("input_spread")
-    if doc is None:
-        return None
-    mean, cov = doc["mean"], doc["covariance"]
-    if len(mean) != n_inputs or len(cov) != n_inputs or any(len(row) != n_inputs for row in cov):
-        raise FtcalError(f"{source}: fit.input_spread has {len(mean)} means and a {len(cov)}-row covariance; "
-                         f"the model has {n_inputs} inputs.")
-    if any(v is None for v in (*mean, *(x for row in cov for x in row))):
-        raise FtcalError(f"{source}: fit.input_spread holds non-finite values.")
-    return Spread.from_json(doc)
-
-
-def _normalization(variables: list[dict]) -> Normalization:
-    return Normalization(np.array([v["offset"] for v in variables], dtype=np.float64),
-                         np.array([v["scale"] for v in variables], dtype=np.float64))
-
-
-def _ranges(variables: list[dict]) -> np.ndarray:
-    # null means unknown: an unbounded range, so predictions never warn.
-    return np.array([[-np.inf if lo is None else lo, np.inf if hi is None else hi]
-                     for lo, hi in (v["range"] for v in variables)], dtype=np.float64)
-
-
-def _number(value: float | None) -> float:
-    return float("nan") if value is None else float(value)

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from ..core.families import check_export
 from ..runtime.errors import FtcalError
 
 MODEL = "ftcal-model"
@@ -95,6 +96,13 @@ TARGETS: dict[str, Target] = {
     "ft-tools-ros2": Target(PAYLOAD, FILE, (".yaml", ".yml"), "ftcal.files.payload_formats:write_ft_tools_ros2_yaml",
                             "ft_tools_ros2 calibration.yaml (payload files)"),
 }
+
+FAMILY_WRITERS: dict[tuple[str, str], str] = {
+    ("c", "mlp"): "ftcal.files.mlp_code:write_c",
+    ("onnx", "mlp"): "ftcal.files.mlp_code:write_onnx",
+}
+"""(target, model family) → writer, where a family's models need their own writer for a target;
+other families use the target's. A family lists the targets it accepts in its ``exports``."""
 
 INPUT_READERS: dict[str, str] = {
     MODEL: "ftcal.files.model_files:read_model_file",
@@ -166,8 +174,8 @@ def convert(input_path: str | Path, name: str, output: str | Path, values: Mappi
     Raises
     ------
     FtcalError
-        Unknown target, an input kind the target does not take, a bad output path,
-        or anything the writer refuses; nothing is written then.
+        Unknown target, an input kind the target does not take, a target the model's
+        family cannot be exported to, a bad output path, or anything the writer refuses; nothing is written then.
     """
     spec = target(name)
     output_is_folder = str(output).endswith(("/", os.sep))
@@ -181,4 +189,8 @@ def convert(input_path: str | Path, name: str, output: str | Path, values: Mappi
     if kind not in INPUT_READERS:
         raise FtcalError(f"{input_path}: this ftcal cannot read {kind} files.")
     source = resolve(INPUT_READERS[kind])(input_path)
-    return resolve(spec.writer)(source, output, ConvertOptions(input_path, dict(values), output_is_folder))
+    writer = spec.writer
+    if kind == MODEL:
+        check_export(source.model, name)  # a family lists the targets it can be written to
+        writer = FAMILY_WRITERS.get((name, source.model.family), writer)
+    return resolve(writer)(source, output, ConvertOptions(input_path, dict(values), output_is_folder))

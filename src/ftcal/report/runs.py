@@ -14,7 +14,7 @@ import numpy as np
 
 from ..core.dataset import Dataset
 from ..core.metrics import force_torque_columns
-from ..core.model import CalibrationModel
+from ..core.families import ModelFamily
 from ..runtime.errors import FtcalError
 
 LASSO_SOLVERS = ("lasso", "osqp-lasso")
@@ -29,7 +29,7 @@ class ModelRun:
     Attributes
     ----------
     name : label in tables and legends, e.g. ``"np4"`` or ``"np4 λ=50"``
-    model : the fitted :class:`~ftcal.core.model.CalibrationModel`
+    model : a fitted model of any family (:class:`~ftcal.core.families.ModelFamily`)
     train_metrics : ``model.score(train)`` style dict, or None
     validation_metrics : ``model.score(validation)`` style dict
     validation_prediction : ndarray of shape (n_validation, n_outputs), columns in
@@ -37,14 +37,16 @@ class ModelRun:
     """
 
     name: str
-    model: CalibrationModel
+    model: ModelFamily
     train_metrics: dict | None
     validation_metrics: dict
     validation_prediction: np.ndarray
 
     @property
     def family(self) -> str:
-        """"least squares", "LASSO" or "ridge": which paper experiment the run belongs to."""
+        """"least squares", "LASSO", "ridge" (the paper's experiments) or, beyond polynomials, the model family."""
+        if self.model.family != "polynomial":
+            return self.model.family.upper() if self.model.family == "mlp" else self.model.family
         solver = str(self.model.solver_info_.get("name") or "")
         if solver in LASSO_SOLVERS:
             return "LASSO"
@@ -58,20 +60,12 @@ class ModelRun:
         return None if lam is None else float(lam)
 
 
-def default_name(model: CalibrationModel) -> str:
-    """``np4``, ``np4 lasso λ=50``, ``np2 na=1 nb=1`` (the labels of cross-validation tables)."""
-    d = model.describe()
-    name = f"np{d['degree']}"
-    if d["na"] or d["nb"]:
-        name += f" na={d['na']} nb={d['nb']}"
-    solver = model.solver_info_.get("name")
-    lam = model.solver_info_.get("lambda")
-    if solver in LASSO_SOLVERS + RIDGE_SOLVERS and lam is not None:
-        name += f" {'lasso' if solver in LASSO_SOLVERS else 'ridge'} λ={float(lam):g}"
-    return name
+def default_name(model: ModelFamily) -> str:
+    """``np4``, ``np4 lasso λ=50``, ``np2 na=1 nb=1``, ``mlp 32,32 tanh``: the family's label."""
+    return model.label()
 
 
-def evaluate(model: CalibrationModel, validation: Dataset, *, name: str | None = None,
+def evaluate(model: ModelFamily, validation: Dataset, *, name: str | None = None,
              train: Dataset | None = None) -> ModelRun:
     """Score ``model`` on ``validation`` (and ``train``) and keep its validation prediction.
 

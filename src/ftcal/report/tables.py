@@ -81,10 +81,12 @@ def runs_table(runs: Sequence[ModelRun]) -> str:
         d = run.model.describe()
         train = run.train_metrics or {}
         val = run.validation_metrics
-        rows.append([run.name, str(run.model.solver_info_.get("name") or MISSING), str(d["degree"])]
+        polynomial = run.model.family == "polynomial"  # degree and raw coefficients exist for polynomials only
+        rows.append([run.name, str(run.model.solver_info_.get("name") or MISSING),
+                     str(d["degree"]) if polynomial else MISSING]
                     + ([str(d["na"]), str(d["nb"])] if arx else [])
                     + [format_lambda(run.lam), str(d["n_coefficients"]), str(d["n_nonzero"]),
-                       str(int((np.abs(to_raw(run.model)) > 1e-9).sum())),
+                       str(int((np.abs(to_raw(run.model)) > 1e-9).sum())) if polynomial else MISSING,
                        format_metric(train.get("force_norm_rmse")), format_metric(train.get("torque_norm_rmse")),
                        format_metric(val.get("force_norm_rmse")), format_metric(val.get("torque_norm_rmse")),
                        format_metric(val.get("force_error_norm_rmse")),

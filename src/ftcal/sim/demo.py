@@ -2,8 +2,9 @@
 
 simulate robot-logger recordings (iCub right arm, loads 0–10 kg, 25–44 °C)
 → read them with the real readers → expected wrenches with iDynTree
-→ datasets → fit degrees 1–5 and LASSO degree 4 at the paper's λ
-→ validate on held-out recordings → Tables II and III, ``summary.json``, ``report.html``.
+→ datasets → fit degrees 1–5 and LASSO degree 4 at the paper's λ, and a small MLP
+→ validate on held-out recordings → Tables II and III, the neural baseline beside them,
+``summary.json``, ``report.html``.
 
 Validation holds out one temperature per load case, in rotation, so every load
 and temperature appears in both sets, as in the paper's validation plots.
@@ -37,6 +38,10 @@ class DemoConfig:
     lasso_degree: int = 4
     lambdas: tuple[float, ...] = PAPER_LAMBDAS
     quick: bool = False  # fewer recordings, for tests
+    # The neural baseline: small enough to train in seconds (early stopping on the load-case folds).
+    mlp_hidden: tuple[int, ...] = (16,)
+    mlp_max_iter: int = 150
+    mlp_max_samples: int = 8000
 
 
 def simulate_and_read(config: DemoConfig) -> tuple[Dataset, list[dict]]:
@@ -107,22 +112,44 @@ def run_demo(config: DemoConfig = DemoConfig()) -> dict:
                      "n_nonzero_raw_1e9": _raw_nonzero(model),
                      "train": _public(model.training_metrics_), "validation": _public(val_metrics)})
         runs.append((candidate, model, val_metrics, prediction))
-    _write_artifacts(config.out_dir, runs, train, validation)
+    mlp_run = _fit_mlp(config, train, validation)
+    _write_artifacts(config.out_dir, runs, train, validation, mlp_run[1])
     _write_adc_datasets(config, train, validation)
     write_example_inputs(config, manifest, validation)
     raw = _raw_baseline(validation)
-    summary = {"models": rows, "raw_firmware_validation": raw,
+    summary = {"models": rows, "neural_baseline": _mlp_row(*mlp_run), "raw_firmware_validation": raw,
                "n_train_samples": train.n_samples, "n_validation_samples": validation.n_samples,
                "recordings": manifest, "paper": {"validation_force_norm_rmse": PAPER_VALIDATION,
                                                  "train_force_norm_rmse": PAPER_TRAIN,
                                                  "lasso_validation_force_norm_rmse": PAPER_LASSO_VALIDATION}}
     write_text_atomic(config.out_dir / "summary.json", json.dumps(summary, indent=2, default=str) + "\n")
-    _write_report(config, runs, train, validation, raw)
+    _write_report(config, runs + [mlp_run], train, validation, raw)
     summary["elapsed_s"] = time.perf_counter() - started
     return summary
 
 
-def _write_artifacts(out_dir: Path, runs, train: Dataset, validation: Dataset) -> None:
+def _fit_mlp(config: DemoConfig, train: Dataset, validation: Dataset):
+    """The MLP family on the same training data, early-stopped on its load-case folds: (None, model, metrics, prediction)."""
+    from ..core.mlp import MLPModel
+
+    model = MLPModel(config.mlp_hidden, max_iter=config.mlp_max_iter, max_samples=config.mlp_max_samples,
+                     seed=config.seed).fit(train)
+    prediction = model.predict(validation, warn_out_of_range=False)
+    val_metrics = metrics.summarize(validation.outputs, prediction, validation.output_names)
+    val_metrics["n_out_of_range"] = int(model.out_of_range(validation.inputs).sum())
+    return None, model, val_metrics, prediction
+
+
+def _mlp_row(_, model, val_metrics, __) -> dict:
+    d = model.describe()
+    cv = model.cv_ or {}
+    return {"name": model.label(), "family": model.family, "hidden": d["hidden"], "activation": d["activation"],
+            "n_weights": d["n_coefficients"], "iterations": model.n_iter_,
+            "early_stopping": {k: cv.get(k) for k in ("metric", "n_folds", "iterations", "fold_scores")},
+            "train": _public(model.training_metrics_), "validation": _public(val_metrics)}
+
+
+def _write_artifacts(out_dir: Path, runs, train: Dataset, validation: Dataset, mlp=None) -> None:
     """Models as JSON and the two datasets as Parquet, to try `ftcal fit/evaluate/report` on."""
     from ..core.fingerprint import segment_fingerprints
     from ..files.model_json import save_model
@@ -133,6 +160,8 @@ def _write_artifacts(out_dir: Path, runs, train: Dataset, validation: Dataset) -
         name = f"np{candidate.degree}" + (f"-lasso{candidate.lam:g}" if candidate.lam is not None else "")
         save_model(model, out_dir / "models" / f"{name}.json", sources=list(train.sources),
                    training_segments=fingerprints)
+    if mlp is not None:
+        save_model(mlp, out_dir / "models" / "mlp.json", sources=list(train.sources), training_segments=fingerprints)
     write_dataset(train, out_dir / "train.parquet")
     write_dataset(validation, out_dir / "validation.parquet")
 
@@ -235,7 +264,8 @@ def _raw_baseline(validation: Dataset) -> dict:
 def _write_report(config, runs, train, validation, raw) -> None:
     from ..report import ModelRun, build_report
 
-    report_runs = [ModelRun(candidate.label, model, model.training_metrics_, val_metrics, prediction)
+    report_runs = [ModelRun(model.label() if candidate is None else candidate.label, model,
+                            model.training_metrics_, val_metrics, prediction)
                    for candidate, model, val_metrics, prediction in runs]
     notes = [f"Simulated iCub right-arm sensor; {train.n_samples} training and {validation.n_samples} "
              "validation samples (validation = one held-out temperature per load case).",
@@ -264,6 +294,17 @@ def format_tables(summary: dict) -> str:
                          f"{row['train']['force_norm_rmse']:>9.4f} {row['validation']['force_norm_rmse']:>9.4f} "
                          f"{PAPER_LASSO_NONZERO.get(lam, float('nan')):>12} "
                          f"{PAPER_LASSO_VALIDATION.get(lam, float('nan')):>13.4f}")
+    mlp = summary.get("neural_baseline")
+    if mlp is not None:
+        best = min(summary["models"], key=lambda r: r["validation"]["force_norm_rmse"])
+        affine = next(r for r in summary["models"] if r["degree"] == 1 and r["lambda"] is None)
+        lines += ["", "Neural baseline on the same held-out recordings (force-norm RMSE, N)",
+                  f"{'model':<26} {'params':>8} {'train':>9} {'valid.':>9}"]
+        for name, count, row in ((mlp["name"], mlp["n_weights"], mlp),
+                                 (affine["name"], affine["n_coefficients"], affine),
+                                 (best["name"], best["n_nonzero"], best)):
+            lines.append(f"{name:<26} {count:>8} {row['train']['force_norm_rmse']:>9.4f} "
+                         f"{row['validation']['force_norm_rmse']:>9.4f}")
     raw = summary["raw_firmware_validation"]["force_norm_rmse"]
     lines += ["", f"firmware (workbench) calibration, validation force-norm RMSE: {raw:.4f} N"]
     return "\n".join(lines)
