@@ -34,3 +34,16 @@ ARX_WARMUP = ("drop", "keep")
 
 PAPER_LAMBDAS = (0.5, 1.0, 10.0, 50.0, 100.0, 200.0)
 """The LASSO weights of the paper's Table III."""
+
+PAYLOAD_WEIGHTINGS = ("auto", "ols", "wls")
+"""Payload fits: per-axis weighting chosen by held-out evidence, plain least squares, or per-axis 1/σ²."""
+
+BIAS_DRIFTS = ("none", "linear", "random-walk", "auto")
+"""Bias over a payload recording: constant, affine in time, a random walk (state-space model), or chosen
+by evidence (BIC, the simpler model unless the evidence is strong)."""
+
+ROBUST_CLUSTERS = 20
+"""Contiguous time blocks of a payload recording for cluster-robust standard errors and held-out folds."""
+
+DRIFT_BLOCKS = 1000
+"""Most time blocks (equal sample counts) the random-walk bias model is fitted on."""

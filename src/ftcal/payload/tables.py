@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -11,7 +12,9 @@ import numpy as np
 from ..runtime.errors import FtcalError
 from .accumulate import AxisStatistics, payload_statistics
 from .compensate import contact_wrench
-from .kinematics import KinematicsSource
+from .drift import MAX_KNOTS, BiasDrift
+from .identify import PayloadFit, model_fit
+from .kinematics import Kinematics, KinematicsSource
 from .parameters import PayloadParameters
 
 WRENCH_COLUMNS = ("u1", "u2", "u3", "u4", "u5", "u6")  # what the sensor reads, in ftcal datasets
@@ -24,20 +27,119 @@ def _check_wrench_columns(columns: Sequence[str]) -> tuple[str, ...]:
     return tuple(columns)
 
 
-def table_statistics(paths: Sequence[str | os.PathLike], source: KinematicsSource, *,
-                     wrench: Sequence[str] = WRENCH_COLUMNS, group_by: str | None = None,
-                     reaction: bool = False, dynamic: bool = False) -> dict[str, AxisStatistics]:
-    """Payload statistics of tables, one entry per validation group.
+@dataclass(frozen=True)
+class PayloadRecording:
+    """The tables of a payload identification, concatenated in the order given."""
+
+    measured: np.ndarray  # (N, 6), readings in ftcal's sign convention
+    kinematics: Kinematics
+    labels: np.ndarray  # (N,) validation group of each sample
+    time: np.ndarray | None  # (N,) s, strictly increasing, when a time column was asked for
+    temperature: np.ndarray | None  # (N,)
+
+    @property
+    def n_samples(self) -> int:
+        return self.measured.shape[0]
+
+    def hours(self) -> np.ndarray | None:
+        """Time since the first sample, h (None without a time column)."""
+        return None if self.time is None else (self.time - self.time[0]) / 3600.0
+
+
+def read_payload_tables(paths: Sequence[str | os.PathLike], source: KinematicsSource, *,
+                        wrench: Sequence[str] = WRENCH_COLUMNS, group_by: str | None = None,
+                        reaction: bool = False, time: str | None = None,
+                        temperature: str | None = None) -> PayloadRecording:
+    """Read the tables of a payload identification into one recording.
 
     Parameters
     ----------
-    paths : CSV or Parquet files, one row per sample
+    paths : CSV or Parquet files, one row per sample, in time order
     source : KinematicsSource
-        Gives each table's sensor-frame kinematics.
-    wrench : six column names of the measured wrench (N, N·m)
-    group_by : column naming the groups; None: one group per file
+    wrench : six measured-wrench columns (N, N·m)
+    group_by : column naming the validation groups; None: one group per file
     reaction : negate the readings (sensor reporting the opposite sign)
-    dynamic : the 16-parameter model (inertia) instead of the static 10
+    time : time column in s (strictly increasing across all files), or None
+    temperature : temperature column, or None
+
+    Returns
+    -------
+    PayloadRecording
+
+    Raises
+    ------
+    FtcalError
+        Missing, non-numeric or non-finite columns, time not increasing, bad kinematics.
+    """
+    from ..data.tables import numeric_columns, read_table
+    from .drift import check_time
+
+    if not paths:
+        raise FtcalError("No data files given.")
+    wrench = _check_wrench_columns(wrench)
+    sign = -1.0 if reaction else 1.0
+    measured, kinematics, labels, times, temps = [], [], [], [], []
+    for path in paths:
+        frame = read_table(path)
+        measured.append(sign * numeric_columns(frame, wrench, Path(path), "wrench"))
+        kinematics.append(source(frame, str(path)))
+        if group_by is None:
+            labels.append(np.full(len(frame), str(path), dtype=object))
+        elif group_by not in frame.columns:
+            raise FtcalError(f"{path}: no group column {group_by!r}; the file has "
+                             f"{', '.join(map(str, frame.columns))}.")
+        else:
+            labels.append(frame[group_by].astype(str).to_numpy(dtype=object))
+        if time is not None:
+            t = numeric_columns(frame, (time,), Path(path), "time")[:, 0]
+            check_time(t, time, str(path))
+            if times and len(t) and t[0] <= times[-1][-1]:
+                raise FtcalError(f"{path}: time column {time!r} starts at {t[0]!r}, not after the previous "
+                                 f"file's last time {times[-1][-1]!r}; give the files in time order.")
+            times.append(t)
+        if temperature is not None:
+            temps.append(numeric_columns(frame, (temperature,), Path(path), "temperature")[:, 0])
+
+    def join(arrays):
+        return None if any(a is None for a in arrays) else np.concatenate(arrays)
+
+    joined = Kinematics(np.concatenate([k.gravity for k in kinematics]),
+                        *(join([getattr(k, name) for k in kinematics])
+                          for name in ("angular_velocity", "angular_acceleration", "proper_acceleration")))
+    return PayloadRecording(np.concatenate(measured), joined, np.concatenate(labels),
+                            np.concatenate(times) if time is not None else None,
+                            np.concatenate(temps) if temperature is not None else None)
+
+
+def group_statistics(recording: PayloadRecording, *, dynamic: bool = False,
+                     extra: np.ndarray | None = None) -> dict[str, AxisStatistics]:
+    """Payload statistics per validation group, in order of first appearance (see ``payload_statistics``)."""
+    groups: dict[str, AxisStatistics] = {}
+    labels = recording.labels
+    for label in dict.fromkeys(labels):
+        rows = np.flatnonzero(labels == label)
+        if len(rows) == len(labels):
+            groups[label] = payload_statistics(recording.measured, recording.kinematics, dynamic=dynamic, extra=extra)
+        else:
+            groups[label] = payload_statistics(recording.measured[rows], recording.kinematics.take(rows),
+                                               dynamic=dynamic, extra=None if extra is None else extra[rows])
+    return groups
+
+
+def block_statistics(recording: PayloadRecording, n_blocks: int, *, dynamic: bool = False,
+                     extra: np.ndarray | None = None) -> list[AxisStatistics]:
+    """Payload statistics of ``n_blocks`` contiguous row blocks of equal size (clusters, held-out folds)."""
+    n = recording.n_samples
+    edges = np.linspace(0, n, min(n_blocks, n) + 1).astype(np.int64)
+    return [payload_statistics(recording.measured[a:b], recording.kinematics.rows(a, b), dynamic=dynamic,
+                               extra=None if extra is None else extra[a:b])
+            for a, b in zip(edges[:-1], edges[1:])]
+
+
+def table_statistics(paths: Sequence[str | os.PathLike], source: KinematicsSource, *,
+                     wrench: Sequence[str] = WRENCH_COLUMNS, group_by: str | None = None,
+                     reaction: bool = False, dynamic: bool = False) -> dict[str, AxisStatistics]:
+    """Payload statistics of tables, one entry per validation group (files or ``group_by``).
 
     Returns
     -------
@@ -48,36 +150,12 @@ def table_statistics(paths: Sequence[str | os.PathLike], source: KinematicsSourc
     FtcalError
         Missing, non-numeric or non-finite columns, bad kinematics (naming file, column, row).
     """
-    from ..data.tables import numeric_columns, read_table
-
-    if not paths:
-        raise FtcalError("No data files given.")
-    wrench = _check_wrench_columns(wrench)
-    sign = -1.0 if reaction else 1.0
-    groups: dict[str, AxisStatistics] = {}
-    for path in paths:
-        frame = read_table(path)
-        measured = sign * numeric_columns(frame, wrench, Path(path), "wrench")
-        kinematics = source(frame, str(path))
-        if group_by is None:
-            labels = np.full(len(frame), str(path), dtype=object)
-        elif group_by not in frame.columns:
-            raise FtcalError(f"{path}: no group column {group_by!r}; the file has "
-                             f"{', '.join(map(str, frame.columns))}.")
-        else:
-            labels = frame[group_by].astype(str).to_numpy()
-        for label in dict.fromkeys(labels):
-            rows = np.flatnonzero(labels == label)
-            if len(rows) == len(labels):
-                stats = payload_statistics(measured, kinematics, dynamic=dynamic)
-            else:
-                stats = payload_statistics(measured[rows], kinematics.take(rows), dynamic=dynamic)
-            groups[label] = stats if label not in groups else groups[label] + stats
-    return groups
+    recording = read_payload_tables(paths, source, wrench=wrench, group_by=group_by, reaction=reaction)
+    return group_statistics(recording, dynamic=dynamic)
 
 
 def compensate_table(path: str | os.PathLike, payload: PayloadParameters, source: KinematicsSource, *,
-                     wrench: Sequence[str] | None = None, model=None):
+                     wrench: Sequence[str] | None = None, model=None, time_column: str | None = None):
     """One table with its contact wrench as ``Fx..Tz`` (replacing such columns), other columns kept.
 
     Parameters
@@ -88,6 +166,7 @@ def compensate_table(path: str | os.PathLike, payload: PayloadParameters, source
     wrench : six measured-wrench columns; default the ones the payload was identified from
     model : CalibrationModel or None
         When given, the measured wrench is its prediction from its input columns.
+    time_column : time column (s) when the bias drifts in time; default the payload file's
 
     Returns
     -------
@@ -103,8 +182,194 @@ def compensate_table(path: str | os.PathLike, payload: PayloadParameters, source
     else:
         columns = _check_wrench_columns(wrench or payload.fit.get("wrench_columns", WRENCH_COLUMNS))
         measured = numeric_columns(frame, columns, Path(path), "wrench")
-    contact = contact_wrench(measured, payload, source(frame, str(path)))
+    drift = payload.drift
+    time = temperature = None
+    if payload.needs_time:
+        time = numeric_columns(frame, (time_column or drift.time_column,), Path(path), "time")[:, 0]
+    if payload.needs_temperature:
+        temperature = numeric_columns(frame, (drift.temperature_column,), Path(path), "temperature")[:, 0]
+    contact = contact_wrench(measured, payload, source(frame, str(path)), time, temperature, str(path))
     out = frame.copy()
     for j, name in enumerate(CONTACT_COLUMNS):
         out[name] = contact[:, j]
     return out
+
+
+@dataclass(frozen=True)
+class DriftResult:
+    """A payload fit with its bias model, and the constant-bias fit it is compared with."""
+
+    fit: PayloadFit  # the chosen model; its bias is the one at the end of the recording
+    constant: PayloadFit  # constant bias (affine in temperature when asked), same samples
+    drift: BiasDrift | None  # None: constant bias, no time or temperature recorded
+    selection: str  # why this model, in words
+    change: np.ndarray | None  # (6,) bias at the end minus at the start of the recording
+    hours: float  # duration of the recording, h
+    walk_std: np.ndarray | None  # (6,) random-walk standard deviation per √h
+
+
+def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto", dynamic: bool = False,
+                       time_column: str | None = None, temperature_column: str | None = None,
+                       cross_validate: bool = True) -> DriftResult:
+    """Identify payload and bias with the bias model ``bias_drift`` (see :mod:`ftcal.payload.drift`).
+
+    Parameters
+    ----------
+    recording : PayloadRecording
+        With ``time`` for the time models and ``temperature`` for a bias affine in temperature.
+    bias_drift : {"none", "linear", "random-walk", "auto"}
+        ``auto`` without a time column is ``none``.
+    dynamic : the 16-parameter model (constant bias only)
+    time_column, temperature_column : column names, stored in the drift model
+    cross_validate : leave-one-group-out residuals of the least-squares fits
+
+    Returns
+    -------
+    DriftResult
+
+    Raises
+    ------
+    FtcalError
+        A time model without time, with ``dynamic``, a constant temperature, or data that cannot
+        determine the model.
+    """
+    from ..core.limits import BIAS_DRIFTS, ROBUST_CLUSTERS
+    from .drift import BiasDrift, block_means, check_temperature, choose, covariates, fit_state_space
+    from .identify import identify_payload
+
+    if bias_drift not in BIAS_DRIFTS:
+        raise FtcalError(f"--bias-drift: {bias_drift!r} is not one of {', '.join(BIAS_DRIFTS)}.")
+    timed = bias_drift in ("linear", "random-walk")
+    if timed and recording.time is None:
+        raise FtcalError(f"--bias-drift {bias_drift} needs the time column: give --time COL.")
+    if timed and dynamic:
+        raise FtcalError(f"--bias-drift {bias_drift} works with static poses only; leave out --dynamic "
+                         "or use --bias-drift none.")
+    temperature = None
+    if recording.temperature is not None:
+        check_temperature(recording.temperature, temperature_column)
+        reference = float(np.mean(recording.temperature))
+        temperature = recording.temperature - reference
+    hours = recording.hours()
+    extra, names = covariates(None, temperature)
+    groups = group_statistics(recording, dynamic=dynamic, extra=extra)
+    clusters = block_statistics(recording, ROBUST_CLUSTERS, dynamic=dynamic, extra=extra)
+    constant = identify_payload(groups, clusters=clusters, covariates=names, cross_validate=cross_validate)
+    kind, selection = ("none", "") if bias_drift == "auto" and (hours is None or dynamic) else (bias_drift, "")
+    fits = {}
+    if hours is not None and not dynamic and kind in ("auto", "random-walk"):
+        blocks = block_means(hours, recording.kinematics.gravity, recording.measured, temperature)
+        for candidate in (("none", "linear", "random-walk") if kind == "auto" else ("random-walk",)):
+            try:
+                fits[candidate] = fit_state_space(blocks, candidate, temperature is not None)
+            except FtcalError:
+                if kind != "auto" or candidate == "none":
+                    raise
+        if kind == "auto":
+            kind, selection = choose(fits)
+    fit, change, walk = constant, None, None
+    knot_times = knot_bias = None
+    if kind == "linear":
+        extra, names = covariates(hours, temperature)
+        groups = group_statistics(recording, extra=extra)
+        clusters = block_statistics(recording, ROBUST_CLUSTERS, extra=extra)
+        fit = identify_payload(groups, clusters=clusters, covariates=names, cross_validate=cross_validate)
+        slope = fit.theta[10:16]
+        start = fit.theta[4:10]
+        end_hours = hours[-1]
+        at_end = np.zeros((6, fit.theta.size))
+        at_end[np.arange(6), 4 + np.arange(6)] = 1.0
+        at_end[np.arange(6), 10 + np.arange(6)] = end_hours
+        fit = _with_end_bias(fit, start + slope * end_hours,
+                             np.sqrt(np.einsum("jp,pq,jq->j", at_end, fit.covariance, at_end)))
+        knot_times = recording.time[[0, -1]]
+        knot_bias = np.vstack([start, start + slope * end_hours])
+        change = slope * end_hours
+    elif kind == "random-walk":
+        ss = fits["random-walk"]
+        knot_hours = blocks.hours
+        keep = np.unique(np.r_[np.linspace(0, len(knot_hours) - 1, min(len(knot_hours), MAX_KNOTS)).astype(int)])
+        knot_times = recording.time[0] + knot_hours[keep] * 3600.0
+        knot_bias = ss.trajectory[keep]
+        bias = np.column_stack([np.interp(hours, knot_hours, ss.trajectory[:, j]) for j in range(6)])
+        covariate_names = ("temperature",) if temperature is not None else ()
+        predicted = _static_wrench(ss.theta, recording.kinematics.gravity) + bias
+        if temperature is not None:
+            predicted += np.outer(temperature, ss.theta[10:16])
+        rms = np.sqrt(np.mean((recording.measured - predicted) ** 2, axis=0))
+        fit = model_fit(ss.names, ss.theta, ss.covariance, residual_rms=rms, n_samples=recording.n_samples,
+                        stderr_kind=f"state-space model ({len(blocks.count)} time blocks)",
+                        covariates=covariate_names)
+        fit = _with_end_bias(fit, ss.trajectory[-1], ss.end_stderr)
+        change = ss.trajectory[-1] - ss.trajectory[0]
+        walk = np.sqrt(ss.walk_variance)
+    drift = None
+    if hours is not None or temperature is not None:
+        t = recording.time
+        coefficients = fit.covariates["temperature"][0] if temperature is not None else None
+        drift = BiasDrift(kind, time_column if t is not None else None,
+                          None if t is None else float(t[0]), None if t is None else float(t[-1]),
+                          knot_times, knot_bias, temperature_column if temperature is not None else None,
+                          reference if temperature is not None else None, coefficients, selection)
+    return DriftResult(fit, constant, drift, selection, change, 0.0 if hours is None else float(hours[-1]), walk)
+
+
+def _static_wrench(theta: np.ndarray, gravity: np.ndarray) -> np.ndarray:
+    """F = m g, T = (m c) × g for θ = [m, m·c, ...] (ftcal sign convention)."""
+    return np.c_[theta[0] * gravity, np.cross(theta[1:4], gravity)]
+
+
+def _with_end_bias(fit: PayloadFit, bias: np.ndarray, stderr: np.ndarray) -> PayloadFit:
+    from dataclasses import replace
+
+    errors = dict(fit.stderr, force_bias=stderr[:3], torque_bias=stderr[3:])
+    return replace(fit, force_bias=bias[:3], torque_bias=bias[3:], stderr=errors)
+
+
+@dataclass(frozen=True)
+class Rebias:
+    """A bias re-estimated with the mass and centre of mass held fixed."""
+
+    bias: np.ndarray  # (6,)
+    stderr: np.ndarray  # (6,)
+    stderr_kind: str
+
+
+def rebias(recording: PayloadRecording, payload: PayloadParameters) -> Rebias:
+    """Re-tare: the bias that makes ``recording`` fit ``payload``'s mass and centre of mass.
+
+    The bias is the mean of the readings minus the payload's gravity wrench (and
+    the temperature term when the payload has one); its standard error is
+    cluster-robust over :data:`~ftcal.core.limits.ROBUST_CLUSTERS` contiguous
+    blocks (t-scaled), so correlated noise and leftover drift widen it. The mass
+    and centre of mass are taken as exact.
+
+    Parameters
+    ----------
+    recording : PayloadRecording
+        Contact-free samples; readings already in ftcal's sign convention.
+    payload : PayloadParameters
+
+    Returns
+    -------
+    Rebias
+    """
+    from scipy.stats import norm, t
+
+    from ..core.limits import ROBUST_CLUSTERS
+    from .compensate import payload_wrench
+
+    residual = recording.measured - payload_wrench(payload, recording.kinematics)
+    if payload.needs_temperature:
+        drift = payload.drift
+        residual -= np.outer(recording.temperature - drift.temperature_reference, drift.temperature_coefficients)
+    n = recording.n_samples
+    bias = residual.mean(axis=0)
+    g = min(ROBUST_CLUSTERS, n)
+    if g < 2:
+        raise FtcalError("one sample cannot estimate the bias's uncertainty; record more samples.")
+    edges = np.linspace(0, n, g + 1).astype(np.int64)
+    sums = np.add.reduceat(residual - bias, edges[:-1], axis=0)
+    scale = t.ppf(0.975, g - 1) / norm.ppf(0.975)
+    stderr = scale * np.sqrt(g / (g - 1) * np.sum(sums ** 2, axis=0)) / n
+    return Rebias(bias, stderr, f"cluster-robust ({g} contiguous blocks)")
