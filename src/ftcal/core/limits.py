@@ -47,3 +47,6 @@ ROBUST_CLUSTERS = 20
 
 DRIFT_BLOCKS = 1000
 """Most time blocks (equal sample counts) the random-walk bias model is fitted on."""
+
+DRIFT_BLOCK_SECONDS = 1.0
+"""Shortest time block of the random-walk bias model, s: faster wandering is noise, slower is drift."""

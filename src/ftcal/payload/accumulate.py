@@ -10,6 +10,7 @@ the data. Static poses need only the moments of ``[g, 1, wrench]`` (one
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -100,11 +101,14 @@ def payload_statistics(wrench: np.ndarray, kinematics: Kinematics, dynamic: bool
     return AxisStatistics(tuple(sum_statistics([piece.axes[a] for piece in pieces]) for a in range(6)))
 
 
+@lru_cache(maxsize=1)
 def _static_maps() -> np.ndarray:
-    """L of shape (6, 10, 4): the static regressor row of axis i is ``L[i] @ [g, 1]`` (affine in g)."""
+    """L of shape (6, 10, 4): the static regressor row of axis i is ``L[i] @ [g, 1]`` (affine in g); read-only."""
     constant = static_regressor(np.zeros(3))[0]
     slopes = [static_regressor(e)[0] - constant for e in np.eye(3)]
-    return np.stack([np.column_stack([slopes[0][i], slopes[1][i], slopes[2][i], constant[i]]) for i in range(6)])
+    maps = np.stack([np.column_stack([slopes[0][i], slopes[1][i], slopes[2][i], constant[i]]) for i in range(6)])
+    maps.flags.writeable = False
+    return maps
 
 
 def _static_statistics(wrench: np.ndarray, gravity: np.ndarray, chunk: int,

@@ -175,6 +175,10 @@ def block_means(hours: np.ndarray, gravity: np.ndarray, wrench: np.ndarray, temp
                 max_blocks: int | None = None) -> Blocks:
     """Average a recording over at most ``max_blocks`` contiguous blocks of equal sample count.
 
+    A block lasts at least :data:`~ftcal.core.limits.DRIFT_BLOCK_SECONDS` (at the
+    median sampling interval): noise correlated over less than that averages out
+    inside a block, slower wandering is drift.
+
     Parameters
     ----------
     hours : (N,) time since the first sample, h, increasing
@@ -187,10 +191,12 @@ def block_means(hours: np.ndarray, gravity: np.ndarray, wrench: np.ndarray, temp
     -------
     Blocks
     """
-    from ..core.limits import DRIFT_BLOCKS
+    from ..core.limits import DRIFT_BLOCK_SECONDS, DRIFT_BLOCKS
 
     n = len(hours)
-    b = min(n, max_blocks or DRIFT_BLOCKS)
+    step = float(np.median(np.diff(hours))) * SECONDS_PER_HOUR if n > 1 else 1.0
+    per_block = max(1, int(np.ceil(DRIFT_BLOCK_SECONDS / step)) if step > 0 else 1)
+    b = max(1, min(n // per_block, max_blocks or DRIFT_BLOCKS))
     starts = np.linspace(0, n, b + 1).astype(np.int64)[:-1]
     count = np.diff(np.r_[starts, n]).astype(float)
 

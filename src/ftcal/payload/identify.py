@@ -13,9 +13,9 @@ blocks (the ``clusters``, else the groups) and keeps the weighting only when
 it predicts held-out forces and torques no worse than OLS (1 % ties) and one of them better.
 
 Standard errors: with ``clusters`` (contiguous time blocks or poses) the
-covariance is cluster-robust (sandwich ``B⁻¹ (Σ_c u_c u_cᵀ) B⁻¹`` of the
-per-cluster scores, CR1 small-sample factor), which stays honest when the
-residuals are correlated in time or the noise model is wrong; it is scaled by
+covariance is the grouped jackknife over the clusters (cluster-robust, CR3),
+which stays honest when the residuals are correlated in time or the noise
+model is wrong; it is scaled by
 ``(t_{G−1, 0.975} / z_{0.975})²`` so that ±1.96 standard errors is a 95 %
 interval with G − 1 degrees of freedom. Without clusters it is the classical
 per-axis-heteroscedastic covariance. The centre of mass's standard error
@@ -205,8 +205,8 @@ def identify_payload(groups: Mapping[str, AxisStatistics], *, cross_validate: bo
     inverse = 0.5 * (inverse + inverse.T)
     bread = inverse * jacobi[:, None] * jacobi[None, :]
     if len(clusters) > 1:
-        covariance = robust_covariance(bread, clusters, theta, weights, n)
-        kind = f"cluster-robust ({len(clusters)} contiguous blocks)"
+        covariance = robust_covariance(wgram, total.cross(weights), clusters, theta, weights)
+        kind = f"grouped jackknife ({len(clusters)} contiguous blocks)"
     else:
         variance = _axis_variance(total, theta, n, p)
         meat = total.gram(weights ** 2 * variance)
@@ -240,17 +240,20 @@ def _axis_variance(total: AxisStatistics, theta: np.ndarray, n: int, p: int) -> 
     return np.maximum(variance, 1e-24 * np.maximum(scale, 1.0))  # exact synthetic data: no zero weights
 
 
-def robust_covariance(bread: np.ndarray, clusters: Sequence[AxisStatistics], theta: np.ndarray,
-                      weights: np.ndarray, n: int) -> np.ndarray:
-    """Cluster-robust (CR1) covariance of θ, scaled to the t quantile of G − 1 degrees of freedom.
+def robust_covariance(wgram: np.ndarray, wcross: np.ndarray, clusters: Sequence[AxisStatistics],
+                      theta: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """Grouped-jackknife covariance of θ, scaled to the t quantile of G − 1 degrees of freedom.
+
+    ``(G − 1)/G · Σ_c (θ₋c − θ̄)(θ₋c − θ̄)ᵀ`` over the refits without each cluster
+    (from the summed statistics, no pass over the data); it is the CR3
+    cluster-robust estimate, less optimistic than CR1 with few clusters.
 
     Parameters
     ----------
-    bread : (p, p) inverse of the weighted Gram of all samples
+    wgram, wcross : weighted Gram (p, p) and cross products (p,) of all samples
     clusters : per-cluster statistics (they add up to the total)
     theta : (p,) the estimate
     weights : (6,) per-axis weights of the fit
-    n : number of samples
 
     Returns
     -------
@@ -259,13 +262,38 @@ def robust_covariance(bread: np.ndarray, clusters: Sequence[AxisStatistics], the
     from scipy.stats import norm, t
 
     p = theta.shape[0]
-    scores = np.array([sum(w * (s.cross[:, 0] - s.gram @ theta) for w, s in zip(weights, c.axes))
-                       for c in clusters])
-    g = len(clusters)
-    small_sample = g / (g - 1) * (6 * n - 1) / max(6 * n - p, 1)
-    meat = scores.T @ scores * small_sample
+    refits = []
+    for c in clusters:
+        refit = _refit(wgram - c.gram(weights), wcross - c.cross(weights))
+        if refit is not None:  # else this cluster alone identifies something: it cannot be left out
+            refits.append(refit)
+    g = len(refits)
+    if g < 2:
+        raise FtcalError("no contiguous block of the recording can be left out without losing a parameter; "
+                         "record each pose more than once.")
+    spread = np.array(refits) - np.mean(refits, axis=0)
     quantile = t.ppf(0.975, g - 1) / norm.ppf(0.975)
-    return quantile ** 2 * (bread @ meat @ bread)
+    return quantile ** 2 * (g - 1) / g * (spread.T @ spread)
+
+
+# An equilibrated Gram above this condition number has lost a direction (float64 keeps ~16 digits).
+_REFIT_CONDITION = 1e12
+
+
+def _refit(gram: np.ndarray, rhs: np.ndarray) -> np.ndarray | None:
+    """Least squares from a Gram and cross products; None when the Gram is numerically singular.
+
+    The many refits of the jackknife and the held-out folds use this lighter path
+    (equilibrate, condition number, solve) instead of a full spectral analysis.
+    """
+    diagonal = np.diag(gram)
+    if np.any(diagonal <= 0):
+        return None
+    scale = 1.0 / np.sqrt(diagonal)
+    scaled = gram * scale[:, None] * scale[None, :]
+    if np.linalg.cond(scaled) > _REFIT_CONDITION:
+        return None
+    return scale * np.linalg.solve(scaled, rhs * scale)
 
 
 def _without(total: AxisStatistics, part: AxisStatistics) -> AxisStatistics:
@@ -285,13 +313,13 @@ def _choose_weighting(folds: list[AxisStatistics], total: AxisStatistics, p: int
     for fold in folds:
         train = _without(total, fold)
         m = train.n_samples
-        gram = train.gram()
-        conditioning = Conditioning.of(gram)
-        if conditioning.rank < p or 6 * m <= p or m * 6 - p < 6:
+        theta = _refit(train.gram(), train.cross())
+        if theta is None or m * 6 - p < 6:
             continue
-        theta = conditioning.solve(train.cross()[:, None])[:, 0]
         weights = 1.0 / _axis_variance(train, theta, m, p)
-        wtheta = _solve(train.gram(weights), train.cross(weights))
+        wtheta = _refit(train.gram(weights), train.cross(weights))
+        if wtheta is None:
+            continue
         sse["ols"] += fold.residual_sum_of_squares(theta)
         sse["wls"] += fold.residual_sum_of_squares(wtheta)
         scored += 1
