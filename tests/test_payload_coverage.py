@@ -64,8 +64,8 @@ def test_no_drift_correlated_noise_auto_keeps_constant_bias_and_covers():
     assert chosen.count("none") >= 0.9 * RECORDINGS  # the simpler model when there is no drift
     assert coverage(results) >= 0.90
     # The scenario is hard: textbook (independent-noise) standard errors cover far less often.
-    textbook = [identify_payload({"run": payload_statistics(w, Kinematics(g))}, weighting="ols") for w in wrench[:50]]
-    assert np.mean([abs(f.mass - MASS) <= 1.96 * f.stderr["mass"] for f in textbook]) < 0.6
+    textbook = [identify_payload({"run": payload_statistics(w, Kinematics(g))}, weighting="ols") for w in wrench]
+    assert np.mean([abs(f.mass - MASS) <= 1.96 * f.stderr["mass"] for f in textbook]) < 0.8
 
 
 def test_linear_drift_linear_model_covers():

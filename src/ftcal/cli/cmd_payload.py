@@ -155,6 +155,9 @@ def run(args) -> int:
         return run_rebias(args)
     if args.time is None and args.bias_drift in ("linear", "random-walk"):
         raise FtcalError(f"--bias-drift {args.bias_drift} needs the time column: give --time COL.")
+    if args.dynamic and args.bias_drift in ("linear", "random-walk"):
+        raise FtcalError(f"--bias-drift {args.bias_drift} works with static poses only; leave out --dynamic "
+                         "or use --bias-drift none.")
     recording = read_payload_tables(args.data, kinematics_source(args), wrench=args.wrench, group_by=args.group_by,
                                     reaction=args.reaction, time=args.time, temperature=args.temperature)
     result = identify_recording(recording, bias_drift=args.bias_drift, dynamic=args.dynamic,
