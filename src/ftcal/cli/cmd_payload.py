@@ -164,7 +164,7 @@ def run(args) -> int:
                                 time_column=args.time, temperature_column=args.temperature)
     fit = result.fit
     check_mass_sign(fit)
-    print_fit(fit, len(set(recording.labels)), args)
+    print_fit(fit, result.n_groups, args)
     print_drift(result)
     payload = PayloadParameters.from_fit(fit, gravity=args.g, frame=args.frame, reaction=args.reaction,
                                          wrench_columns=tuple(args.wrench), drift=result.drift)

@@ -204,14 +204,16 @@ def identify_payload(groups: Mapping[str, AxisStatistics], *, cross_validate: bo
     inverse = np.linalg.inv(wgram * jacobi[:, None] * jacobi[None, :])
     inverse = 0.5 * (inverse + inverse.T)
     bread = inverse * jacobi[:, None] * jacobi[None, :]
-    if len(clusters) > 1:
-        covariance = robust_covariance(wgram, total.cross(weights), clusters, theta, weights)
+    covariance = robust_covariance(wgram, total.cross(weights), clusters, theta, weights) \
+        if len(clusters) > 1 else None
+    if covariance is not None:
         kind = f"grouped jackknife ({len(clusters)} contiguous blocks)"
     else:
         variance = _axis_variance(total, theta, n, p)
         meat = total.gram(weights ** 2 * variance)
         covariance = bread @ meat @ bread
-        kind = "classical"
+        kind = "classical" if len(clusters) < 2 else \
+            "classical (no time block can be left out without losing a parameter)"
     covariance = 0.5 * (covariance + covariance.T)
     vif = np.diag(inverse)
     poorly = tuple(names[j] for j in np.flatnonzero(vif > EXCITATION_LIMIT))
@@ -257,11 +259,8 @@ def robust_covariance(wgram: np.ndarray, wcross: np.ndarray, clusters: Sequence[
 
     Returns
     -------
-    ndarray of shape (p, p)
+    ndarray of shape (p, p), or None when fewer than two clusters can be left out
     """
-    from scipy.stats import norm, t
-
-    p = theta.shape[0]
     refits = []
     for c in clusters:
         refit = _refit(wgram - c.gram(weights), wcross - c.cross(weights))
@@ -269,11 +268,16 @@ def robust_covariance(wgram: np.ndarray, wcross: np.ndarray, clusters: Sequence[
             refits.append(refit)
     g = len(refits)
     if g < 2:
-        raise FtcalError("no contiguous block of the recording can be left out without losing a parameter; "
-                         "record each pose more than once.")
+        return None
     spread = np.array(refits) - np.mean(refits, axis=0)
-    quantile = t.ppf(0.975, g - 1) / norm.ppf(0.975)
-    return quantile ** 2 * (g - 1) / g * (spread.T @ spread)
+    return t_scale(g - 1) ** 2 * (g - 1) / g * (spread.T @ spread)
+
+
+def t_scale(dof: int) -> float:
+    """``t_{dof, 0.975} / z_{0.975}``: widens ±1.96 standard errors to a 95 % interval with ``dof`` degrees."""
+    from scipy.special import ndtri, stdtrit  # scipy.stats would cost a second of imports
+
+    return float(stdtrit(dof, 0.975) / ndtri(0.975))
 
 
 # An equilibrated Gram above this condition number has lost a direction (float64 keeps ~16 digits).

@@ -114,11 +114,13 @@ def read_payload_tables(paths: Sequence[str | os.PathLike], source: KinematicsSo
 def group_statistics(recording: PayloadRecording, *, dynamic: bool = False,
                      extra: np.ndarray | None = None) -> dict[str, AxisStatistics]:
     """Payload statistics per validation group, in order of first appearance (see ``payload_statistics``)."""
+    import pandas as pd
+
     groups: dict[str, AxisStatistics] = {}
-    labels = recording.labels
-    for label in dict.fromkeys(labels):
-        rows = np.flatnonzero(labels == label)
-        if len(rows) == len(labels):
+    codes, uniques = pd.factorize(recording.labels)  # order of first appearance
+    for code, label in enumerate(uniques):
+        rows = np.flatnonzero(codes == code) if len(uniques) > 1 else np.arange(len(codes))
+        if len(rows) == len(codes):
             groups[label] = payload_statistics(recording.measured, recording.kinematics, dynamic=dynamic, extra=extra)
         else:
             groups[label] = payload_statistics(recording.measured[rows], recording.kinematics.take(rows),
@@ -206,6 +208,7 @@ class DriftResult:
     change: np.ndarray | None  # (6,) bias at the end minus at the start of the recording
     hours: float  # duration of the recording, h
     walk_std: np.ndarray | None  # (6,) random-walk standard deviation per √h
+    n_groups: int = 1  # validation groups (files or --group-by)
 
 
 def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto", dynamic: bool = False,
@@ -233,7 +236,7 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
         A time model without time, with ``dynamic``, a constant temperature, or data that cannot
         determine the model.
     """
-    from ..core.limits import BIAS_DRIFTS, ROBUST_CLUSTERS
+    from ..core.limits import BIAS_DRIFTS
     from .drift import BiasDrift, block_means, check_temperature, choose, covariates, fit_state_space
     from .identify import identify_payload
 
@@ -245,6 +248,8 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
     if timed and dynamic:
         raise FtcalError(f"--bias-drift {bias_drift} works with static poses only; leave out --dynamic "
                          "or use --bias-drift none.")
+    if dynamic and recording.temperature is not None:
+        raise FtcalError("--temperature works with static poses only; leave out --dynamic or --temperature.")
     temperature = None
     if recording.temperature is not None:
         check_temperature(recording.temperature, temperature_column)
@@ -252,8 +257,8 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
         temperature = recording.temperature - reference
     hours = recording.hours()
     extra, names = covariates(None, temperature)
-    groups = group_statistics(recording, dynamic=dynamic, extra=extra)
-    clusters = block_statistics(recording, ROBUST_CLUSTERS, dynamic=dynamic, extra=extra)
+    groups, clusters = _groups_and_blocks(recording, dynamic, extra)
+    n_groups = len(groups)
     constant = identify_payload(groups, clusters=clusters, covariates=names, cross_validate=cross_validate)
     kind, selection = ("none", "") if bias_drift == "auto" and (hours is None or dynamic) else (bias_drift, "")
     fits = {}
@@ -271,8 +276,7 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
     knot_times = knot_bias = None
     if kind == "linear":
         extra, names = covariates(hours, temperature)
-        groups = group_statistics(recording, extra=extra)
-        clusters = block_statistics(recording, ROBUST_CLUSTERS, extra=extra)
+        groups, clusters = _groups_and_blocks(recording, False, extra)
         fit = identify_payload(groups, clusters=clusters, covariates=names, cross_validate=cross_validate)
         slope = fit.theta[10:16]
         start = fit.theta[4:10]
@@ -311,7 +315,22 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
                           None if t is None else float(t[0]), None if t is None else float(t[-1]),
                           knot_times, knot_bias, temperature_column if temperature is not None else None,
                           reference if temperature is not None else None, coefficients, selection)
-    return DriftResult(fit, constant, drift, selection, change, 0.0 if hours is None else float(hours[-1]), walk)
+    return DriftResult(fit, constant, drift, selection, change, 0.0 if hours is None else float(hours[-1]), walk,
+                       n_groups)
+
+
+def _groups_and_blocks(recording: PayloadRecording, dynamic: bool, extra: np.ndarray | None):
+    """Statistics per validation group and per contiguous time block; one pass when there is one group."""
+    from ..core.limits import ROBUST_CLUSTERS
+
+    blocks = block_statistics(recording, ROBUST_CLUSTERS, dynamic=dynamic, extra=extra)
+    first = recording.labels[0] if recording.n_samples else ""
+    if recording.n_samples and np.all(recording.labels == first):
+        total = blocks[0]
+        for b in blocks[1:]:
+            total = total + b
+        return {first: total}, blocks
+    return group_statistics(recording, dynamic=dynamic, extra=extra), blocks
 
 
 def _static_wrench(theta: np.ndarray, gravity: np.ndarray) -> np.ndarray:
@@ -354,10 +373,9 @@ def rebias(recording: PayloadRecording, payload: PayloadParameters) -> Rebias:
     -------
     Rebias
     """
-    from scipy.stats import norm, t
-
     from ..core.limits import ROBUST_CLUSTERS
     from .compensate import payload_wrench
+    from .identify import t_scale
 
     residual = recording.measured - payload_wrench(payload, recording.kinematics)
     if payload.needs_temperature:
@@ -370,6 +388,5 @@ def rebias(recording: PayloadRecording, payload: PayloadParameters) -> Rebias:
         raise FtcalError("one sample cannot estimate the bias's uncertainty; record more samples.")
     edges = np.linspace(0, n, g + 1).astype(np.int64)
     sums = np.add.reduceat(residual - bias, edges[:-1], axis=0)
-    scale = t.ppf(0.975, g - 1) / norm.ppf(0.975)
-    stderr = scale * np.sqrt(g / (g - 1) * np.sum(sums ** 2, axis=0)) / n
+    stderr = t_scale(g - 1) * np.sqrt(g / (g - 1) * np.sum(sums ** 2, axis=0)) / n
     return Rebias(bias, stderr, f"cluster-robust ({g} contiguous blocks)")
