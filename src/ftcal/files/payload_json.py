@@ -85,9 +85,17 @@ def drift_document(drift: BiasDrift) -> dict:
     return doc
 
 
-def _parse_drift(doc: dict) -> BiasDrift:
+def _parse_drift(doc: dict, source: str) -> BiasDrift:
     knots = doc.get("knots")
     temperature = doc.get("temperature")
+    if knots is not None:
+        times = np.asarray(knots["time"], dtype=float)
+        if len(knots["bias"]) != len(times) or np.any(np.diff(times) <= 0):
+            raise FtcalError(f"{source}: drift.knots needs increasing times and one bias per time.")
+        if doc["time_start"] is None or doc["time_end"] is None or doc["time_column"] is None:
+            raise FtcalError(f"{source}: drift.knots needs time_column, time_start and time_end.")
+    if temperature is not None and temperature["column"] is None:
+        raise FtcalError(f"{source}: drift.temperature needs its column.")
     return BiasDrift(doc["model"], doc["time_column"], doc["time_start"], doc["time_end"],
                      None if knots is None else np.asarray(knots["time"], dtype=float),
                      None if knots is None else np.asarray(knots["bias"], dtype=float),
@@ -138,4 +146,4 @@ def parse_payload(text: str, source: str = "<payload>") -> PayloadParameters:
     return PayloadParameters(float(doc["mass"]), np.asarray(doc["com"], dtype=float),
                              np.asarray(doc["force_bias"], dtype=float), np.asarray(doc["torque_bias"], dtype=float),
                              float(doc["gravity"]), doc["frame"], doc["reaction"], inertia, stderr, fit,
-                             _parse_drift(doc["drift"]) if "drift" in doc else None)
+                             _parse_drift(doc["drift"], source) if "drift" in doc else None)

@@ -329,7 +329,10 @@ def _choose_weighting(folds: list[AxisStatistics], total: AxisStatistics, p: int
         scored += 1
     if scored < 2:
         return "ols", "too few identifiable held-out blocks: plain least squares"
-    ratio = [np.sum(sse["wls"][a]) / max(np.sum(sse["ols"][a]), 1e-300) for a in (slice(0, 3), slice(3, 6))]
+    # Each axis' held-out error relative to OLS's, averaged over the force and over the torque axes
+    # (a raw sum would be decided by the noisiest axis alone).
+    per_axis = sse["wls"] / np.maximum(sse["ols"], 1e-300)
+    ratio = [float(np.mean(per_axis[:3])), float(np.mean(per_axis[3:]))]
     text = (f"held-out error of per-axis weighting vs plain least squares over {scored} blocks: "
             f"forces {ratio[0]:.3f}x, torques {ratio[1]:.3f}x")
     # Ties (within 1 %) are no evidence; the weighting must not lose on either kind of axis.
