@@ -236,7 +236,7 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
         A time model without time, with ``dynamic``, a constant temperature, or data that cannot
         determine the model.
     """
-    from ..core.limits import BIAS_DRIFTS
+    from ..core.limits import BIAS_DRIFTS, DRIFT_BLOCK_SECONDS
     from .drift import BiasDrift, block_means, check_temperature, choose, covariates, fit_state_space
     from .identify import identify_payload
 
@@ -268,10 +268,15 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
             try:
                 fits[candidate] = fit_state_space(blocks, candidate, temperature is not None)
             except FtcalError:
-                if kind != "auto" or candidate == "none":
+                if kind != "auto":
                     raise
-        if kind == "auto":
+                if candidate == "none":
+                    break  # too few time blocks to compare bias models at all
+        if kind == "auto" and "none" in fits:
             kind, selection = choose(fits)
+        elif kind == "auto":
+            kind, selection = "none", (f"{len(blocks.count)} time block(s) of at least "
+                                       f"{DRIFT_BLOCK_SECONDS:g} s: too few to compare bias models")
     fit, change, walk = constant, None, None
     knot_times = knot_bias = None
     if kind == "linear":
