@@ -48,7 +48,7 @@ SECONDS_PER_HOUR = 3600.0
 BIC_MARGIN = 10.0
 # Knots of a random-walk trajectory kept in the payload file.
 MAX_KNOTS = 500
-_GRID = 41  # walk-to-noise ratios tried per axis (then refined once)
+_GRID = 25  # walk-to-noise ratios tried per axis, log-spaced (then refined once)
 
 
 @dataclass(frozen=True)

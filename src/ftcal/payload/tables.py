@@ -1,4 +1,10 @@
-"""Payload identification and compensation over CSV/Parquet tables (what the CLI commands call)."""
+"""Payload identification and compensation over CSV/Parquet tables (what the CLI commands call).
+
+``read_payload_tables`` joins the files into one :class:`PayloadRecording`;
+``identify_recording`` fits it with the bias model asked for (constant, linear,
+random walk, or chosen by evidence) and grouped-jackknife or state-space standard
+errors; ``rebias`` re-tares; ``compensate_table`` applies a payload file.
+"""
 
 from __future__ import annotations
 
@@ -300,12 +306,14 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
         keep = np.unique(np.r_[np.linspace(0, len(knot_hours) - 1, min(len(knot_hours), MAX_KNOTS)).astype(int)])
         knot_times = recording.time[0] + knot_hours[keep] * 3600.0
         knot_bias = ss.trajectory[keep]
-        bias = np.column_stack([np.interp(hours, knot_hours, ss.trajectory[:, j]) for j in range(6)])
         covariate_names = ("temperature",) if temperature is not None else ()
-        predicted = _static_wrench(ss.theta, recording.kinematics.gravity) + bias
+        residual = recording.measured - _static_wrench(ss.theta, recording.kinematics.gravity)
+        for j in range(6):
+            residual[:, j] -= np.interp(hours, knot_hours, ss.trajectory[:, j])
         if temperature is not None:
-            predicted += np.outer(temperature, ss.theta[10:16])
-        rms = np.sqrt(np.mean((recording.measured - predicted) ** 2, axis=0))
+            residual -= np.outer(temperature, ss.theta[10:16])
+        rms = np.sqrt(np.einsum("ij,ij->j", residual, residual) / recording.n_samples)
+        del residual
         fit = model_fit(ss.names, ss.theta, ss.covariance, residual_rms=rms, n_samples=recording.n_samples,
                         stderr_kind=f"state-space model ({len(blocks.count)} time blocks)",
                         covariates=covariate_names)
@@ -339,8 +347,14 @@ def _groups_and_blocks(recording: PayloadRecording, dynamic: bool, extra: np.nda
 
 
 def _static_wrench(theta: np.ndarray, gravity: np.ndarray) -> np.ndarray:
-    """F = m g, T = (m c) × g for θ = [m, m·c, ...] (ftcal sign convention)."""
-    return np.c_[theta[0] * gravity, np.cross(theta[1:4], gravity)]
+    """F = m g, T = (m c) × g for θ = [m, m·c, ...] (ftcal sign convention), written column by column."""
+    out = np.empty((gravity.shape[0], 6))
+    np.multiply(gravity, theta[0], out=out[:, :3])
+    (x, y, z), (gx, gy, gz) = theta[1:4], gravity.T
+    out[:, 3] = y * gz - z * gy
+    out[:, 4] = z * gx - x * gz
+    out[:, 5] = x * gy - y * gx
+    return out
 
 
 def _with_end_bias(fit: PayloadFit, bias: np.ndarray, stderr: np.ndarray) -> PayloadFit:
