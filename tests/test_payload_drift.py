@@ -234,3 +234,29 @@ def test_bad_drift_input_is_one_line_exit_2(table, args, message):
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and message in lines[0] and "Traceback" not in done.stderr
     assert not (table / "out.json").exists()
+
+
+# ---------------------------------------------------------------- payload file
+def test_payload_file_round_trips_the_drift_and_old_files_stay_constant(tmp_path):
+    from ftcal.files.payload_json import load_payload, save_payload
+    from ftcal.payload.drift import BiasDrift
+    from ftcal.payload.parameters import PayloadParameters
+
+    stderr = {"mass": 0.01, "com": np.full(3, 1e-3), "force_bias": np.full(3, 0.1), "torque_bias": np.full(3, 0.01)}
+    fit = {"n_samples": 10, "residual_rms": np.ones(6), "condition_number": 1.0, "wrench_columns": list("abcdef")}
+    drift = BiasDrift("linear", "time", 0.0, 3600.0, np.array([0.0, 3600.0]), np.vstack([BIAS, BIAS + SLOPE]),
+                      "temp", 30.0, np.arange(6.0))
+    payload = PayloadParameters(MASS, COM, BIAS[:3] + SLOPE[:3], BIAS[3:] + SLOPE[3:], G, None, False, None,
+                                stderr, fit, drift)
+    save_payload(payload, tmp_path / "p.json")
+    back = load_payload(tmp_path / "p.json").drift
+    assert back.model == "linear" and back.temperature_column == "temp" and back.temperature_reference == 30.0
+    np.testing.assert_array_equal(back.knot_bias, drift.knot_bias)
+    # Half-way through the hour at 31 degrees: half the slope plus one degree of the coefficients.
+    got = back.bias(BIAS, np.array([1800.0]), np.array([31.0]))
+    np.testing.assert_allclose(got[0], BIAS + SLOPE / 2 + np.arange(6.0))
+    doc = json.loads((tmp_path / "p.json").read_text())
+    save_payload(PayloadParameters(MASS, COM, BIAS[:3], BIAS[3:], G, stderr=stderr, fit=fit), tmp_path / "old.json")
+    assert "drift" not in json.loads((tmp_path / "old.json").read_text()) and "drift" in doc
+    old = load_payload(tmp_path / "old.json")
+    assert old.drift is None and np.array_equal(old.bias_of(None, None, 2), np.tile(BIAS, (2, 1)))
