@@ -347,6 +347,26 @@ def ftcal_payload(n: int) -> dict:
     return {"seconds": seconds, "mass": fit.mass}
 
 
+def ftcal_payload_drift(n: int, model: str = "random-walk") -> dict:
+    """``identify_recording`` (what ``ftcal payload --time time --bias-drift MODEL`` runs after reading):
+    the constant-bias fit with grouped-jackknife standard errors, then the bias model. ``random-walk``
+    works on per-block averages (at most 1,000 time blocks), so its extra cost is one O(N) averaging
+    pass plus O(blocks) filtering; the data (N rows, 100 Hz, random-walk bias) is made before the clock."""
+    from ftcal.payload.kinematics import Kinematics, gravity_from_quaternions
+    from ftcal.payload.tables import PayloadRecording, identify_recording
+
+    q, wrench = make_payload_data(n)
+    rng = np.random.default_rng(1)
+    wrench += np.cumsum(rng.normal(size=wrench.shape), axis=0) * [0.003, 0.003, 0.003, 1e-4, 1e-4, 1e-4]
+    time_s = np.arange(n) / 100.0
+    labels = np.full(n, "all", dtype=object)
+    start = time.perf_counter()
+    recording = PayloadRecording(wrench, Kinematics(gravity_from_quaternions(q)), labels, time_s, None)
+    result = identify_recording(recording, bias_drift=model, time_column="time", cross_validate=False)
+    seconds = time.perf_counter() - start
+    return {"seconds": seconds, "mass": result.fit.mass, "mass_stderr": result.fit.stderr["mass"]}
+
+
 def numpy_payload_lstsq(n: int) -> dict:
     """The stacked 6N × 10 regressor built with numpy, then ``numpy.linalg.lstsq`` (no weights, no stderr)."""
     q, wrench = make_payload_data(n)
@@ -525,7 +545,7 @@ def cli_fit_pair(n: int, degree: int, repeats: int = 5) -> dict:
 
 CASES = {f.__name__: f for f in (ftcal_fit, ftcal_statistics, paper_recipe_fit, numpy_lstsq_fit, sklearn_fit,
                                  cli_fit_pair, ftcal_lasso, paper_lasso, sklearn_lasso,
-                                 ftcal_predict, sklearn_predict, ftcal_payload, numpy_payload_lstsq, c_predict,
+                                 ftcal_predict, sklearn_predict, ftcal_payload, ftcal_payload_drift, numpy_payload_lstsq, c_predict,
                                  ftcal_predict_one, select_auto, select_auto_baseline, select_auto_new)}
 CASES.update(BAG_CASES)  # bag reading: benchmarks/bench_bags.py
 CASES.update(PLAN_CASES)  # experiment design: benchmarks/bench_plan.py

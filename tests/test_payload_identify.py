@@ -122,7 +122,8 @@ def dense_regressor(gravity):
 def test_stderr_matches_textbook_weighted_covariance():
     rng = np.random.default_rng(2)
     gravity = random_gravity(30, 20, seed=8)
-    result = fit(gravity, readings(gravity, rng))
+    result = identify_payload({"all": payload_statistics(readings(gravity, rng), Kinematics(gravity))},
+                              weighting="wls")
     a = dense_regressor(gravity)
     weights = np.tile(1.0 / NOISE ** 2, len(gravity))  # the true per-axis noise
     covariance = np.linalg.inv(a.T @ (weights[:, None] * a))

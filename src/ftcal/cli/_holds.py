@@ -27,11 +27,12 @@ class StaticRows:
         from ..runtime.errors import FtcalError
 
         args = self.args
-        if args.time not in frame.columns:
-            self.notes.append(f"{path}: no time column {args.time!r}: all {len(frame)} samples used as static "
+        time_column = args.time or "time"
+        if time_column not in frame.columns:
+            self.notes.append(f"{path}: no time column {time_column!r}: all {len(frame)} samples used as static "
                               "(give --time COL to find and drop the moving ones)")
             return None
-        time = numeric_columns(frame, (args.time,), Path(path), "time")[:, 0]
+        time = numeric_columns(frame, (time_column,), Path(path), "time")[:, 0]
         segments = frame["segment"].to_numpy() if "segment" in frame.columns else None
         signal = {}
         if args.orientation is not None:
@@ -42,7 +43,7 @@ class StaticRows:
             signal["joints"] = np.deg2rad(joints) if args.degrees else joints
         else:
             signal["gravity"] = kinematics.gravity
-        holds = find_holds(time, segments=segments, where=path, time_column=args.time, **signal)
+        holds = find_holds(time, segments=segments, where=path, time_column=time_column, **signal)
         if not holds.static.any():
             raise FtcalError(f"{path}: no static hold of {MIN_HOLD_S:g} s or more (every sample moves, from the "
                              f"{holds.signal}); record still poses, or give --keep-moving to use every sample.")

@@ -162,7 +162,7 @@ def run_accept(args) -> int:
         payload = load_payload(args.payload)
         source = kinematics_source(args)
     error, reference, labels, issues = read_test_data(args.data, model, payload=payload, source=source,
-                                                      group_by=args.group_by, time_column=args.time)
+                                                      group_by=args.group_by, time_column=args.time or "time")
     result = acceptance_test(error, labels, model.output_names_, thresholds, issues, reference)
     limits = axis_limits(result.outputs, thresholds)
     print(f"acceptance of {args.accept} on {error.shape[0]} samples in {len(result.poses)} pose(s); thresholds "

@@ -12,7 +12,10 @@ def register(sub) -> None:
                                    "predicts from the raw channels) minus the bias minus the payload's gravity "
                                    "wrench (and, with --dynamic, its inertial wrench), written as Fx..Tz in the "
                                    "sign of the readings (replacing any Fx..Tz columns of DATA); the other "
-                                   "columns are kept.")
+                                   "columns are kept. A bias that drifts (payload file from --bias-drift linear "
+                                   "or random-walk) is taken at each sample's time (--time, default the "
+                                   "payload file's time column); beyond the identification recording the "
+                                   "nearest end is held, with a warning.")
     p.add_argument("payload", metavar="PAYLOAD.json", help="payload file from `ftcal payload`")
     p.add_argument("data", nargs="+", metavar="DATA", help="CSV or Parquet files")
     p.add_argument("-o", "--output", required=True, metavar="OUT.csv|OUT.parquet",
@@ -44,7 +47,8 @@ def run(args) -> int:
                          "compensate without --dynamic or re-identify with it.")
     source = kinematics_source(args)
     model = read_model(args.model) if args.model else None
-    parts = [compensate_table(path, payload, source, wrench=args.wrench, model=model) for path in args.data]
+    parts = [compensate_table(path, payload, source, wrench=args.wrench, model=model, time_column=args.time)
+             for path in args.data]
     table = pd.concat(parts, ignore_index=True) if len(parts) > 1 else parts[0]
     write_table(table, args.output)
     print(f"wrote {len(table)} contact wrenches to {args.output}", file=sys.stderr)

@@ -4,9 +4,13 @@ from __future__ import annotations
 
 import argparse
 
+from ..core.limits import BIAS_DRIFTS
+from ..runtime.errors import FtcalError
 from ._common import column_list, positive_float, require_suffix
 
 MAX_GROUPS_PRINTED = 8
+# A re-tared bias further than this many standard errors from the identified one is drift, not noise.
+REBIAS_SIGNIFICANT = 3.0
 
 
 def add_kinematics_options(p: argparse.ArgumentParser) -> None:
@@ -28,8 +32,10 @@ def add_kinematics_options(p: argparse.ArgumentParser) -> None:
                         "(default ax,ay,az; used with --dynamic when present, else the origin is at rest)")
     p.add_argument("--angular-acceleration", type=column_list, metavar="C1,C2,C3",
                    help="angular acceleration columns, rad/s² (default: differentiate the angular velocity)")
-    p.add_argument("--time", default="time", metavar="COL",
-                   help="time column in s (default time): finds the static holds; --dynamic differentiates over it")
+    p.add_argument("--time", metavar="COL",
+                   help="time column in s (default: the column 'time' where there is one, to find the static "
+                        "holds; --dynamic differentiates ω over it; payload: enables --bias-drift; compensate: "
+                        "default the payload file's)")
 
 
 def add_robot_source_options(p: argparse.ArgumentParser) -> None:
@@ -72,7 +78,7 @@ def kinematics_source(args):
         if cols is not None and len(cols) != 3:
             raise FtcalError(f"{option} needs 3 columns; got {','.join(cols)}.")
     return MotionSource(source, args.angular_velocity, args.linear_acceleration, args.angular_acceleration,
-                        args.time)
+                        args.time or "time")
 
 
 def robot_source(args):
@@ -127,6 +133,15 @@ def register(sub) -> None:
     p.add_argument("--reaction", action="store_true",
                    help="the sensor reports the wrench it applies on the tool (opposite sign): negate readings")
     p.add_argument("--frame", metavar="NAME", help="name of the sensor frame, stored in the file (e.g. ft_sensor)")
+    drift = p.add_argument_group("a bias that drifts (needs --time for the time models)")
+    drift.add_argument("--bias-drift", choices=BIAS_DRIFTS, default="auto",
+                       help="bias over the recording: constant, affine in time, a random walk (state-space model), "
+                            "or auto: chosen by BIC, the simpler model unless the evidence is strong (default "
+                            "auto; without --time the bias is constant)")
+    drift.add_argument("--temperature", metavar="COL", help="the bias is also affine in this temperature column")
+    drift.add_argument("--rebias", metavar="PAYLOAD.json",
+                       help="re-tare: re-estimate only the bias from DATA with this file's mass and centre of mass "
+                            "fixed, report the drift since identification, write the updated file to -o")
     p.set_defaults(func=run)
 
 
@@ -136,30 +151,126 @@ def run(args) -> int:
 
     from ..check.conventions import ConventionWarning, payload_warning
     from ..files.payload_json import save_payload
-    from ..payload.identify import check_mass_sign, identify_payload
+    from ..payload.identify import check_mass_sign
     from ..payload.parameters import PayloadParameters
-    from ..payload.tables import table_statistics
+    from ..payload.tables import group_statistics, identify_recording, read_payload_tables
     from ._holds import StaticRows, payload_excitation
 
     require_suffix(args.output, (".json",), "-o")
-    check_not_input(args.output, args.data)
+    check_not_input(args.output, args.data + ([args.rebias] if args.rebias else []))
+    if args.rebias:
+        return run_rebias(args)
+    if args.time is None and args.bias_drift in ("linear", "random-walk"):
+        raise FtcalError(f"--bias-drift {args.bias_drift} needs the time column: give --time COL.")
+    if args.dynamic and args.bias_drift in ("linear", "random-walk"):
+        raise FtcalError(f"--bias-drift {args.bias_drift} works with static poses only; leave out --dynamic "
+                         "or use --bias-drift none.")
     source = kinematics_source(args)
     static = None if args.dynamic or args.keep_moving else StaticRows(args, source)
-    groups = table_statistics(args.data, source, wrench=args.wrench, group_by=args.group_by,
-                              reaction=args.reaction, dynamic=args.dynamic, select=static)
+    recording = read_payload_tables(args.data, source, wrench=args.wrench, group_by=args.group_by,
+                                    reaction=args.reaction, time=args.time, temperature=args.temperature,
+                                    select=static)
     for line in () if static is None else static.notes:
         print(f"static samples: {line}")
-    fit = identify_payload(groups)
-    message = payload_warning(args.data, kinematics_source(args), fit, args.g, wrench=args.wrench,
-                              reaction=args.reaction)
+    result = identify_recording(recording, bias_drift=args.bias_drift, dynamic=args.dynamic,
+                                time_column=args.time, temperature_column=args.temperature)
+    fit = result.fit
+    message = payload_warning(args.data, source, fit, args.g, wrench=args.wrench, reaction=args.reaction)
     if message:  # the fit looks like a sign/frame/zeroing mistake: ftcal check's tests on the static holds
         warnings.warn(message, ConventionWarning, stacklevel=1)
     check_mass_sign(fit)
-    print_fit(fit, len(groups), args)
-    print(payload_excitation(groups))
+    print_fit(fit, result.n_groups, args)
+    print_drift(result)
+    print(payload_excitation(group_statistics(recording, dynamic=args.dynamic)))
     payload = PayloadParameters.from_fit(fit, gravity=args.g, frame=args.frame, reaction=args.reaction,
-                                         wrench_columns=tuple(args.wrench))
+                                         wrench_columns=tuple(args.wrench), drift=result.drift)
     save_payload(payload, args.output, sources=args.data)
+    print(f"wrote {args.output}", file=sys.stderr)
+    return 0
+
+
+def print_drift(result) -> None:
+    """What drift was found, and how much modelling it moved mass and centre of mass."""
+    drift = result.drift
+    if drift is None:
+        return
+    if result.selection:
+        print(f"bias model: {drift.model} ({result.selection})")
+    else:
+        print(f"bias model: {drift.model}")
+    if drift.temperature_coefficients is not None:
+        print(f"  bias per unit of {drift.temperature_column}: " + _axes(drift.temperature_coefficients))
+    if result.change is None:
+        return
+    hours = max(result.hours, 1e-300)
+    print(f"  bias change over the recording ({result.hours * 60:.3g} min): " + _axes(result.change))
+    print("  drift rate: " + _axes(result.change / hours, "/h"))
+    if result.walk_std is not None:
+        print("  random-walk std: " + _axes(result.walk_std, "/√h"))
+    fit, constant = result.fit, result.constant
+    dm = fit.mass - constant.mass
+    dc = 1000.0 * (fit.com - constant.com)
+    print(f"  vs a constant bias: mass {dm:+.4g} kg ({dm / max(constant.stderr['mass'], 1e-300):+.2g} of its standard "
+          f"error, {100 * dm / constant.mass:+.2g} %), centre of mass "
+          + " ".join(f"{a} {v:+.3g}" for a, v in zip("xyz", dc)) + " mm")
+
+
+def _axes(values, per: str = "") -> str:
+    units = ("N", "N", "N", "N·m", "N·m", "N·m")
+    return "  ".join(f"{a} {v:+.4g} {u}{per}" for a, v, u in zip(("Fx", "Fy", "Fz", "Tx", "Ty", "Tz"), values, units))
+
+
+def run_rebias(args) -> int:
+    """Re-tare: the bias alone from new data, mass and centre of mass from the payload file."""
+    import sys
+    from dataclasses import replace
+
+    import numpy as np
+
+    from ..files.payload_json import load_payload, save_payload
+    from ..payload.drift import BiasDrift
+    from ..payload.tables import read_payload_tables, rebias
+
+    payload = load_payload(args.rebias)
+    if args.reaction != payload.reaction:
+        raise FtcalError(f"--reaction: {args.rebias} was identified {'with' if payload.reaction else 'without'} "
+                         "--reaction; give the same sign convention.")
+    temperature = payload.drift.temperature_column if payload.needs_temperature else None
+    recording = read_payload_tables(args.data, kinematics_source(args), wrench=args.wrench,
+                                    reaction=payload.reaction, time=args.time, temperature=temperature)
+    found = rebias(recording, payload)
+    old = payload.bias
+    old_se = np.r_[payload.stderr["force_bias"], payload.stderr["torque_bias"]]
+    change = found.bias - old
+    z = change / np.sqrt(found.stderr ** 2 + old_se ** 2)
+    print(f"bias re-estimated from {recording.n_samples} samples with mass {payload.mass:.6g} kg and the centre "
+          f"of mass of {args.rebias} held fixed ({found.stderr_kind})")
+    for a, new, se, d, zi in zip(("Fx", "Fy", "Fz", "Tx", "Ty", "Tz"), found.bias, found.stderr, change, z):
+        unit = "N" if a[0] == "F" else "N·m"
+        print(f"  {a + ' bias':<10}{new:>12.6g} ± {se:.2g} {unit}   change since identification {d:+.4g} {unit} "
+              f"({zi:+.1f} standard errors)")
+    end = payload.drift.time_end if payload.drift is not None else None
+    if recording.time is not None and end is not None and recording.time[0] > end:
+        hours = (float(np.mean(recording.time)) - end) / 3600.0
+        print(f"  drift rate since identification ({hours:.3g} h): " + _axes(change / hours, "/h"))
+    else:
+        print("  drift rate: unknown (needs --time, and a payload file whose recording ended before this one)")
+    beyond = [a for a, zi in zip(("Fx", "Fy", "Fz", "Tx", "Ty", "Tz"), z) if abs(zi) > REBIAS_SIGNIFICANT]
+    if beyond:
+        print(f"  the bias moved more than the identification's uncertainty explains ({REBIAS_SIGNIFICANT:g} standard "
+              f"errors) on {', '.join(beyond)}: the sensor drifted; compensate with the new file")
+    else:
+        print("  the change is within what the identification's uncertainty explains")
+    t = recording.time
+    drift = BiasDrift("none", args.time if t is not None else None, None if t is None else float(t[0]),
+                      None if t is None else float(t[-1]),
+                      temperature_column=temperature,
+                      temperature_reference=payload.drift.temperature_reference if temperature else None,
+                      temperature_coefficients=payload.drift.temperature_coefficients if temperature else None,
+                      selection=f"re-tared from {', '.join(map(str, args.data))}")
+    stderr = dict(payload.stderr, force_bias=found.stderr[:3], torque_bias=found.stderr[3:])
+    updated = replace(payload, force_bias=found.bias[:3], torque_bias=found.bias[3:], stderr=stderr, drift=drift)
+    save_payload(updated, args.output, sources=[args.rebias, *args.data])
     print(f"wrote {args.output}", file=sys.stderr)
     return 0
 
@@ -199,5 +310,6 @@ def print_fit(fit, n_groups: int, args) -> None:
             print(f"  ... {len(ranked) - MAX_GROUPS_PRINTED} more group(s) fit better")
     else:
         print("cross-validation: one group only (give several files or --group-by COL)")
+    print(f"weighting: {fit.weighting} ({fit.weighting_evidence}); standard errors: {fit.stderr_kind}")
     print(f"condition number of the weighted regressor: {fit.condition_number:.3g}"
           + ("" if not fit.poorly_excited else f"; poorly excited: {', '.join(fit.poorly_excited)}"))

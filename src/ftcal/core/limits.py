@@ -96,3 +96,21 @@ MLP_MAX_UNITS = 256
 
 MLP_MAX_ITER = 100_000
 """Most L-BFGS iterations of one MLP training run."""
+
+# ``ftcal payload``: weighting, bias drift and robust standard errors.
+
+PAYLOAD_WEIGHTINGS = ("auto", "ols", "wls")
+"""Payload fits: per-axis weighting chosen by held-out evidence, plain least squares, or per-axis 1/σ²."""
+
+BIAS_DRIFTS = ("none", "linear", "random-walk", "auto")
+"""Bias over a payload recording: constant, affine in time, a random walk (state-space model), or chosen
+by evidence (BIC, the simpler model unless the evidence is strong)."""
+
+ROBUST_CLUSTERS = 20
+"""Contiguous time blocks of a payload recording for cluster-robust standard errors and held-out folds."""
+
+DRIFT_BLOCKS = 1000
+"""Most time blocks (equal sample counts) the random-walk bias model is fitted on."""
+
+DRIFT_BLOCK_SECONDS = 1.0
+"""Shortest time block of the random-walk bias model, s: faster wandering is noise, slower is drift."""

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..payload.drift import BiasDrift
 from ..payload.parameters import PayloadParameters
 from ..runtime.atomic import write_text_atomic
 from ..runtime.errors import FtcalError
@@ -59,11 +60,49 @@ def payload_document(payload: PayloadParameters, *, sources: Sequence[str] = ())
     }
     if payload.inertia is not None:
         doc["inertia"] = jsonable(np.asarray(payload.inertia))
+    if payload.drift is not None:
+        doc["drift"] = drift_document(payload.drift)
     if None in _leaves([doc[k] for k in ("mass", "com", "force_bias", "torque_bias", "gravity", "stderr")]
-                       + [doc.get("inertia", [])]):
+                       + [doc.get("inertia", []), doc.get("drift", {}).get("knots", {}),
+                          doc.get("drift", {}).get("temperature", {}).get("coefficients", [])]):
         raise FtcalError("The payload has non-finite values (NaN or inf); refusing to save it.")
     doc["sha256"] = digest(doc)
     return doc
+
+
+def drift_document(drift: BiasDrift) -> dict:
+    """The ``drift`` field of a payload file."""
+    doc = {"model": drift.model, "time_column": drift.time_column,
+           "time_start": jsonable(drift.time_start), "time_end": jsonable(drift.time_end)}
+    if drift.knot_times is not None:
+        doc["knots"] = {"time": jsonable(np.asarray(drift.knot_times)), "bias": jsonable(np.asarray(drift.knot_bias))}
+    if drift.temperature_coefficients is not None:
+        doc["temperature"] = {"column": drift.temperature_column,
+                              "reference": jsonable(drift.temperature_reference),
+                              "coefficients": jsonable(np.asarray(drift.temperature_coefficients))}
+    if drift.selection:
+        doc["selection"] = drift.selection
+    return doc
+
+
+def _parse_drift(doc: dict, source: str) -> BiasDrift:
+    knots = doc.get("knots")
+    temperature = doc.get("temperature")
+    if knots is not None:
+        times = np.asarray(knots["time"], dtype=float)
+        if len(knots["bias"]) != len(times) or np.any(np.diff(times) <= 0):
+            raise FtcalError(f"{source}: drift.knots needs increasing times and one bias per time.")
+        if doc["time_start"] is None or doc["time_end"] is None or doc["time_column"] is None:
+            raise FtcalError(f"{source}: drift.knots needs time_column, time_start and time_end.")
+    if temperature is not None and temperature["column"] is None:
+        raise FtcalError(f"{source}: drift.temperature needs its column.")
+    return BiasDrift(doc["model"], doc["time_column"], doc["time_start"], doc["time_end"],
+                     None if knots is None else np.asarray(knots["time"], dtype=float),
+                     None if knots is None else np.asarray(knots["bias"], dtype=float),
+                     None if temperature is None else temperature["column"],
+                     None if temperature is None else float(temperature["reference"]),
+                     None if temperature is None else np.asarray(temperature["coefficients"], dtype=float),
+                     doc.get("selection", ""))
 
 
 def _leaves(value) -> list:
@@ -106,4 +145,5 @@ def parse_payload(text: str, source: str = "<payload>") -> PayloadParameters:
     fit["residual_rms"] = np.asarray(fit["residual_rms"], dtype=float)
     return PayloadParameters(float(doc["mass"]), np.asarray(doc["com"], dtype=float),
                              np.asarray(doc["force_bias"], dtype=float), np.asarray(doc["torque_bias"], dtype=float),
-                             float(doc["gravity"]), doc["frame"], doc["reaction"], inertia, stderr, fit)
+                             float(doc["gravity"]), doc["frame"], doc["reaction"], inertia, stderr, fit,
+                             _parse_drift(doc["drift"], source) if "drift" in doc else None)

@@ -10,6 +10,7 @@ the data. Static poses need only the moments of ``[g, 1, wrench]`` (one
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -55,7 +56,7 @@ class AxisStatistics:
 
 
 def payload_statistics(wrench: np.ndarray, kinematics: Kinematics, dynamic: bool = False,
-                       chunk: int = CHUNK_SAMPLES) -> AxisStatistics:
+                       chunk: int = CHUNK_SAMPLES, extra: np.ndarray | None = None) -> AxisStatistics:
     """Statistics of ``wrench ≈ Y θ`` for the static (10) or dynamic (16) parameter set.
 
     Parameters
@@ -67,13 +68,19 @@ def payload_statistics(wrench: np.ndarray, kinematics: Kinematics, dynamic: bool
     dynamic : bool
         Fit the 10 inertial parameters plus 6 biases instead of mass, first
         moment and 6 biases.
+    extra : ndarray of shape (n_samples, k) or None
+        Static model only: k covariates (e.g. time, temperature) the bias is
+        affine in; θ gains 6 coefficients per covariate, ordered covariate
+        by covariate, axis by axis (``Fx..Tz``).
 
     Returns
     -------
     AxisStatistics
     """
     if not dynamic:
-        return _static_statistics(wrench, kinematics.gravity, chunk)
+        return _static_statistics(wrench, kinematics.gravity, chunk, extra)
+    if extra is not None:
+        raise ValueError("covariates of the bias are supported by the static model only")
     n = wrench.shape[0]
     p = 16
 
@@ -94,42 +101,72 @@ def payload_statistics(wrench: np.ndarray, kinematics: Kinematics, dynamic: bool
     return AxisStatistics(tuple(sum_statistics([piece.axes[a] for piece in pieces]) for a in range(6)))
 
 
+@lru_cache(maxsize=1)
 def _static_maps() -> np.ndarray:
-    """L of shape (6, 10, 4): the static regressor row of axis i is ``L[i] @ [g, 1]`` (affine in g)."""
+    """L of shape (6, 10, 4): the static regressor row of axis i is ``L[i] @ [g, 1]`` (affine in g); read-only."""
     constant = static_regressor(np.zeros(3))[0]
     slopes = [static_regressor(e)[0] - constant for e in np.eye(3)]
-    return np.stack([np.column_stack([slopes[0][i], slopes[1][i], slopes[2][i], constant[i]]) for i in range(6)])
+    maps = np.stack([np.column_stack([slopes[0][i], slopes[1][i], slopes[2][i], constant[i]]) for i in range(6)])
+    maps.flags.writeable = False
+    return maps
 
 
-def _static_statistics(wrench: np.ndarray, gravity: np.ndarray, chunk: int) -> AxisStatistics:
-    """Static statistics from the moments of z = [g, 1, wrench] alone: one 10 × 10 product per chunk.
+def _static_statistics(wrench: np.ndarray, gravity: np.ndarray, chunk: int,
+                       extra: np.ndarray | None = None) -> AxisStatistics:
+    """Static statistics from the moments of z = [g, 1, extra, wrench] alone: one small product per chunk.
 
-    Every static regressor row is ``L_i [g, 1]``, so AᵀA of axis i is
-    ``L_i (Σ z zᵀ) L_iᵀ`` and Aᵀb is ``L_i Σ z w_i``; exact, and far cheaper
-    than forming the N × 6 × 10 regressor.
+    Every static regressor row is ``L_i [g, 1]`` (plus the axis' own covariate
+    columns), so AᵀA of axis i is ``L_i (Σ z zᵀ) L_iᵀ`` and Aᵀb is ``L_i Σ z w_i``;
+    exact, and far cheaper than forming the N × 6 × p regressor.
     """
     n = wrench.shape[0]
+    k = 0 if extra is None else extra.shape[1]
+    d = 4 + k  # regressor inputs: g, 1, covariates
 
     def work(begin: int, end: int) -> tuple[np.ndarray, np.ndarray]:
-        moments = np.zeros((10, 10))
-        z = np.empty((min(chunk, end - begin), 10))
-        maxabs = np.zeros(4)
+        moments = np.zeros((d + 6, d + 6))
+        z = np.empty((min(chunk, end - begin), d + 6))
+        maxabs = np.zeros(d)
         for start in range(begin, end, chunk):
             stop = min(start + chunk, end)
             block = z[:stop - start]
             block[:, :3] = gravity[start:stop]
             block[:, 3] = 1.0
-            block[:, 4:] = wrench[start:stop]
+            if k:
+                block[:, 4:d] = extra[start:stop]
+            block[:, d:] = wrench[start:stop]
             moments += block.T @ block
-            np.maximum(maxabs, np.abs(block[:, :4]).max(axis=0), out=maxabs)
+            np.maximum(maxabs, np.abs(block[:, :d]).max(axis=0), out=maxabs)
         return moments, maxabs
 
     parts = map_ranges(work, n, chunk)
-    moments = sum((m for m, _ in parts), np.zeros((10, 10)))
-    maxabs = np.max([a for _, a in parts], axis=0) if parts else np.zeros(4)
-    zz, zw, ww = moments[:4, :4], moments[:4, 4:], np.diag(moments[4:, 4:])
+    moments = sum((m for m, _ in parts), np.zeros((d + 6, d + 6)))
+    maxabs = np.max([a for _, a in parts], axis=0) if parts else np.zeros(d)
+    return static_axis_statistics(moments, maxabs, n)
+
+
+def static_axis_statistics(moments: np.ndarray, maxabs: np.ndarray, n: int) -> AxisStatistics:
+    """Per-axis statistics of the static model from the moments ``Σ z zᵀ`` of z = [g, 1, extra, wrench].
+
+    Parameters
+    ----------
+    moments : ndarray of shape (d + 6, d + 6), d = 4 + number of covariates
+    maxabs : ndarray of shape (d,), max |z| of the regressor inputs (column scaling)
+    n : number of samples summed
+
+    Returns
+    -------
+    AxisStatistics with 10 + 6 k parameters
+    """
+    d = moments.shape[0] - 6
+    k = d - 4
+    zz, zw, ww = moments[:d, :d], moments[:d, d:], np.diag(moments[d:, d:])
     axes = []
-    for i, lmap in enumerate(_static_maps()):
+    for i, lmap4 in enumerate(_static_maps()):
+        lmap = np.zeros((10 + 6 * k, d))
+        lmap[:10, :4] = lmap4
+        for j in range(k):
+            lmap[10 + 6 * j + i, 4 + j] = 1.0  # axis i's bias moves with covariate j
         axes.append(SufficientStatistics(lmap @ zz @ lmap.T, (lmap @ zw[:, i])[:, None], ww[i:i + 1].copy(),
-                                         np.array([moments[3, 4 + i]]), np.abs(lmap) @ maxabs, n))
+                                         np.array([moments[3, d + i]]), np.abs(lmap) @ maxabs, n))
     return AxisStatistics(tuple(axes))

@@ -34,7 +34,9 @@ def payload_wrench(payload: PayloadParameters, kinematics: Kinematics, chunk: in
     return out
 
 
-def contact_wrench(measured: np.ndarray, payload: PayloadParameters, kinematics: Kinematics) -> np.ndarray:
+def contact_wrench(measured: np.ndarray, payload: PayloadParameters, kinematics: Kinematics,
+                   time: np.ndarray | None = None, temperature: np.ndarray | None = None,
+                   source: str = "data") -> np.ndarray:
     """``measured − bias − payload wrench``, in the sign convention of ``measured``.
 
     Parameters
@@ -45,10 +47,16 @@ def contact_wrench(measured: np.ndarray, payload: PayloadParameters, kinematics:
         With ``reaction`` set, readings have the opposite sign to ftcal's
         convention; the result keeps the readings' sign.
     kinematics : Kinematics
+    time, temperature : ndarray of shape (n_samples,) or None
+        Needed when the payload's bias drifts with time or temperature
+        (:class:`~ftcal.payload.drift.BiasDrift`): each sample gets the bias
+        of its time; outside the identification recording the nearest end is held.
+    source : names the data in warnings
 
     Returns
     -------
     ndarray of shape (n_samples, 6)
     """
     sign = -1.0 if payload.reaction else 1.0
-    return measured - sign * (payload.bias + payload_wrench(payload, kinematics))
+    bias = payload.bias_of(time, temperature, measured.shape[0], source)
+    return measured - sign * (bias + payload_wrench(payload, kinematics))

@@ -1,13 +1,25 @@
-"""Payload and bias identification by (weighted) linear least squares on summed statistics.
+"""Payload and bias identification by linear least squares on summed statistics.
 
 Model (ftcal sign convention, see :mod:`ftcal.payload.regressor`): the wrench
 read by the sensor is ``Y θ`` with θ = [m, m·c, force bias, torque bias] for
 static poses, or the ten inertial parameters plus the six biases with
-``dynamic``. Forces (N) and torques (N·m) have different noise, so the fit is
-two-step feasible weighted least squares: an unweighted fit gives each axis'
-residual variance σ², then every axis is weighted by 1/σ². The covariance of
-θ is then the textbook ``(Σ_axis AᵀA / σ²)⁻¹``, the centre of mass's standard
-error follows by the delta method from c = (m·c) / m.
+``dynamic``; covariates the bias is affine in (time, temperature) add six
+coefficients each (:mod:`ftcal.payload.drift`).
+
+Weighting: plain least squares (OLS) unless held-out evidence says otherwise.
+``weighting="auto"`` scores OLS and two-step per-axis weighted least squares
+(each axis weighted by 1/σ² of its OLS residual) on held-out contiguous
+blocks (the ``clusters``, else the groups) and keeps the weighting only when
+it predicts held-out forces and torques no worse than OLS (1 % ties) and one of them better.
+
+Standard errors: with ``clusters`` (contiguous time blocks or poses) the
+covariance is the grouped jackknife over the clusters (cluster-robust, CR3),
+which stays honest when the residuals are correlated in time or the noise
+model is wrong; it is scaled by
+``(t_{G−1, 0.975} / z_{0.975})²`` so that ±1.96 standard errors is a 95 %
+interval with G − 1 degrees of freedom. Without clusters it is the classical
+per-axis-heteroscedastic covariance. The centre of mass's standard error
+follows by the delta method from c = (m·c) / m.
 
 Excitation: a parameter the poses cannot separate from the others has a large
 variance inflation factor ``VIF_j = (G⁻¹)_jj G_jj`` on the weighted Gram G
@@ -19,12 +31,14 @@ deficient rank is an error.
 from __future__ import annotations
 
 import warnings
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..core.limits import PAYLOAD_WEIGHTINGS
 from ..core.solvers.base import Conditioning, Spectrum
+from ..core.statistics import SufficientStatistics
 from ..runtime.errors import FtcalError, IllPosedFitWarning
 from .accumulate import AxisStatistics
 from .regressor import DYNAMIC_PARAMETERS, STATIC_PARAMETERS, inertia_about_com, inertia_matrix
@@ -50,6 +64,10 @@ _HINTS = {
     "Ixz": "add motions rotating about the sensor's x and z axes",
     "Iyz": "add motions rotating about the sensor's y and z axes",
 }
+_COVARIATE_HINT = ("revisit early poses late in the recording (a pose order that follows time, or temperature, "
+                   "confounds the drift with the gravity wrench)")
+# Held-out error ratios within this fraction of 1 are ties (no evidence for or against weighting).
+WEIGHTING_TIE = 0.01
 # |mass| below this many standard errors is not distinguishable from zero.
 SIGNIFICANT_STDERR = 2.0
 # Readable names for messages.
@@ -91,6 +109,10 @@ class PayloadFit:
     variance_inflation: np.ndarray  # (p,)
     poorly_excited: tuple[str, ...]
     cross_validation: tuple[GroupResidual, ...] = field(default=())
+    weighting: str = "ols"  # "ols" or "wls" (per-axis 1/σ²)
+    weighting_evidence: str = ""  # why, in words
+    stderr_kind: str = "classical"  # "classical", "cluster-robust (G blocks)" or "state-space"
+    covariates: dict = field(default_factory=dict)  # name -> (coefficients (6,), stderr (6,)) per unit
 
     @property
     def dynamic(self) -> bool:
@@ -112,16 +134,25 @@ def _describe(names) -> str:
     return ", ".join(LABELS.get(n, n) for n in names)
 
 
-def identify_payload(groups: Mapping[str, AxisStatistics], *, cross_validate: bool = True) -> PayloadFit:
+def identify_payload(groups: Mapping[str, AxisStatistics], *, cross_validate: bool = True,
+                     clusters: Sequence[AxisStatistics] = (), weighting: str = "auto",
+                     covariates: Sequence[str] = ()) -> PayloadFit:
     """Fit the payload and bias to statistics gathered per validation group.
 
     Parameters
     ----------
     groups : mapping of group label to AxisStatistics
         From :func:`~ftcal.payload.accumulate.payload_statistics`, all with the
-        same parameter set (10 static or 16 dynamic).
+        same parameter set (10 static or 16 dynamic, plus 6 per covariate).
     cross_validate : bool
         Also refit without each group in turn and score it (needs >= 2 groups).
+    clusters : sequence of AxisStatistics
+        The same samples cut into contiguous blocks (time blocks or poses):
+        cluster-robust standard errors and the held-out folds of the weighting
+        choice. Empty: classical standard errors, folds are the groups.
+    weighting : {"auto", "ols", "wls"}
+        Per-axis weighting; ``auto`` keeps it only when held-out evidence chooses it.
+    covariates : names of the covariates of the bias (their 6 coefficients each follow the biases)
 
     Returns
     -------
@@ -138,13 +169,16 @@ def identify_payload(groups: Mapping[str, AxisStatistics], *, cross_validate: bo
     IllPosedFitWarning
         For each poorly excited parameter, with the kind of pose to add.
     """
+    if weighting not in PAYLOAD_WEIGHTINGS:
+        raise FtcalError(f"weighting: {weighting!r} is not one of {', '.join(PAYLOAD_WEIGHTINGS)}.")
     if not groups:
         raise FtcalError("No samples to identify the payload from.")
     total = None
     for stats in groups.values():
         total = stats if total is None else total + stats
     p = total.n_parameters
-    names = STATIC_PARAMETERS if p == 10 else DYNAMIC_PARAMETERS
+    base = STATIC_PARAMETERS if p == 10 + 6 * len(covariates) else DYNAMIC_PARAMETERS
+    names = base + tuple(f"{axis}_{c}" for c in covariates for axis in AXES)
     n = total.n_samples
     if 6 * n <= p:
         raise FtcalError(f"{n} sample(s) give {6 * n} equations for {p} unknowns; record more poses.")
@@ -152,35 +186,189 @@ def identify_payload(groups: Mapping[str, AxisStatistics], *, cross_validate: bo
     conditioning = Conditioning.of(gram)
     if conditioning.rank < p:
         missing = _null_parameters(gram, names)
-        hints = sorted({_HINTS[m] for m in missing})
+        hints = sorted({_HINTS.get(m, _COVARIATE_HINT) for m in missing})
         raise FtcalError(f"the poses leave {_describe(missing)} undetermined (regressor rank "
                          f"{conditioning.rank} of {p}): {'; '.join(hints)}.")
     theta0 = conditioning.solve(total.cross()[:, None])[:, 0]
-    # Each axis carries n of the 6n − p residual degrees of freedom.
-    variance = total.residual_sum_of_squares(theta0) / (n - p / 6)
-    scale = np.array([s.target_sq[0] for s in total.axes]) / n
-    variance = np.maximum(variance, 1e-24 * np.maximum(scale, 1.0))  # exact synthetic data: no zero weights
-    weights = 1.0 / variance
+    axis_variance = _axis_variance(total, theta0, n, p)
+    folds = list(clusters) if len(clusters) > 1 else list(groups.values())
+    if weighting == "auto":
+        weighting, evidence = _choose_weighting(folds, total, p)
+    else:
+        evidence = "chosen by the caller"
+    weights = np.ones(6) if weighting == "ols" else 1.0 / axis_variance
     wgram = total.gram(weights)
     theta = _solve(wgram, total.cross(weights))
     # Invert the equilibrated Gram (unit diagonal): the columns' units differ by orders of magnitude.
     jacobi = 1.0 / np.sqrt(np.diag(wgram))
     inverse = np.linalg.inv(wgram * jacobi[:, None] * jacobi[None, :])
     inverse = 0.5 * (inverse + inverse.T)
-    covariance = inverse * jacobi[:, None] * jacobi[None, :]
+    bread = inverse * jacobi[:, None] * jacobi[None, :]
+    covariance = robust_covariance(wgram, total.cross(weights), clusters, theta, weights) \
+        if len(clusters) > 1 else None
+    if covariance is not None:
+        kind = f"grouped jackknife ({len(clusters)} contiguous blocks)"
+    else:
+        variance = _axis_variance(total, theta, n, p)
+        meat = total.gram(weights ** 2 * variance)
+        covariance = bread @ meat @ bread
+        kind = "classical" if len(clusters) < 2 else \
+            "classical (no time block can be left out without losing a parameter)"
+    covariance = 0.5 * (covariance + covariance.T)
     vif = np.diag(inverse)
     poorly = tuple(names[j] for j in np.flatnonzero(vif > EXCITATION_LIMIT))
     for name in poorly:
         j = names.index(name)
         warnings.warn(f"the poses hardly excite {LABELS.get(name, name)} (standard error inflated "
-                      f"{np.sqrt(vif[j]):.0f}x by collinearity): {_HINTS[name]}.", IllPosedFitWarning,
-                      stacklevel=2)
+                      f"{np.sqrt(vif[j]):.0f}x by collinearity): {_HINTS.get(name, _COVARIATE_HINT)}.",
+                      IllPosedFitWarning, stacklevel=2)
     rms = np.sqrt(total.residual_sum_of_squares(theta) / n)
     fit = _derive(names, theta, covariance)
     residuals = _cross_validate(groups, total, weights, p) if cross_validate and len(groups) > 1 else ()
+    se = np.sqrt(np.maximum(np.diag(covariance), 0.0))
+    found = {c: (theta[10 + 6 * k:16 + 6 * k] if base is STATIC_PARAMETERS else None,
+                 se[10 + 6 * k:16 + 6 * k]) for k, c in enumerate(covariates)}
     return PayloadFit(names, theta, covariance, residual_rms=rms, n_samples=n,
                       condition_number=Conditioning.of(wgram).condition_number,
-                      variance_inflation=vif, poorly_excited=poorly, cross_validation=residuals, **fit)
+                      variance_inflation=vif, poorly_excited=poorly, cross_validation=residuals,
+                      weighting=weighting, weighting_evidence=evidence, stderr_kind=kind,
+                      covariates=found, **fit)
+
+
+def _axis_variance(total: AxisStatistics, theta: np.ndarray, n: int, p: int) -> np.ndarray:
+    """Residual variance of each axis; each axis carries n of the 6n − p residual degrees of freedom."""
+    variance = total.residual_sum_of_squares(theta) / (n - p / 6)
+    scale = np.array([s.target_sq[0] for s in total.axes]) / n
+    return np.maximum(variance, 1e-24 * np.maximum(scale, 1.0))  # exact synthetic data: no zero weights
+
+
+def robust_covariance(wgram: np.ndarray, wcross: np.ndarray, clusters: Sequence[AxisStatistics],
+                      theta: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """Grouped-jackknife covariance of θ, scaled to the t quantile of G − 1 degrees of freedom.
+
+    ``(G − 1)/G · Σ_c (θ₋c − θ̄)(θ₋c − θ̄)ᵀ`` over the refits without each cluster
+    (from the summed statistics, no pass over the data); it is the CR3
+    cluster-robust estimate, less optimistic than CR1 with few clusters.
+
+    Parameters
+    ----------
+    wgram, wcross : weighted Gram (p, p) and cross products (p,) of all samples
+    clusters : per-cluster statistics (they add up to the total)
+    theta : (p,) the estimate
+    weights : (6,) per-axis weights of the fit
+
+    Returns
+    -------
+    ndarray of shape (p, p), or None when fewer than two clusters can be left out
+    """
+    refits = []
+    for c in clusters:
+        refit = _refit(wgram - c.gram(weights), wcross - c.cross(weights))
+        if refit is not None:  # else this cluster alone identifies something: it cannot be left out
+            refits.append(refit)
+    g = len(refits)
+    if g < 2:
+        return None
+    spread = np.array(refits) - np.mean(refits, axis=0)
+    return t_scale(g - 1) ** 2 * (g - 1) / g * (spread.T @ spread)
+
+
+def t_scale(dof: int) -> float:
+    """``t_{dof, 0.975} / z_{0.975}``: widens ±1.96 standard errors to a 95 % interval with ``dof`` degrees."""
+    from scipy.special import ndtri, stdtrit  # scipy.stats would cost a second of imports
+
+    return float(stdtrit(dof, 0.975) / ndtri(0.975))
+
+
+# An equilibrated Gram above this condition number has lost a direction (float64 keeps ~16 digits).
+_REFIT_CONDITION = 1e12
+
+
+def _refit(gram: np.ndarray, rhs: np.ndarray) -> np.ndarray | None:
+    """Least squares from a Gram and cross products; None when the Gram is numerically singular.
+
+    The many refits of the jackknife and the held-out folds use this lighter path
+    (equilibrate, condition number, solve) instead of a full spectral analysis.
+    """
+    diagonal = np.diag(gram)
+    if np.any(diagonal <= 0):
+        return None
+    scale = 1.0 / np.sqrt(diagonal)
+    scaled = gram * scale[:, None] * scale[None, :]
+    if np.linalg.cond(scaled) > _REFIT_CONDITION:
+        return None
+    return scale * np.linalg.solve(scaled, rhs * scale)
+
+
+def _without(total: AxisStatistics, part: AxisStatistics) -> AxisStatistics:
+    """The statistics of the samples of ``total`` outside ``part``."""
+    return AxisStatistics(tuple(
+        SufficientStatistics(a.gram - b.gram, a.cross - b.cross, a.target_sq - b.target_sq,
+                             a.target_sum - b.target_sum, a.column_maxabs, a.n_samples - b.n_samples)
+        for a, b in zip(total.axes, part.axes)))
+
+
+def _choose_weighting(folds: list[AxisStatistics], total: AxisStatistics, p: int) -> tuple[str, str]:
+    """OLS or per-axis WLS, by held-out force and torque error over the folds (each left out in turn)."""
+    if len(folds) < 2:
+        return "ols", "one block only: no held-out evidence, plain least squares"
+    sse = {"ols": np.zeros(6), "wls": np.zeros(6)}
+    scored = 0
+    for fold in folds:
+        train = _without(total, fold)
+        m = train.n_samples
+        theta = _refit(train.gram(), train.cross())
+        if theta is None or m * 6 - p < 6:
+            continue
+        weights = 1.0 / _axis_variance(train, theta, m, p)
+        wtheta = _refit(train.gram(weights), train.cross(weights))
+        if wtheta is None:
+            continue
+        sse["ols"] += fold.residual_sum_of_squares(theta)
+        sse["wls"] += fold.residual_sum_of_squares(wtheta)
+        scored += 1
+    if scored < 2:
+        return "ols", "too few identifiable held-out blocks: plain least squares"
+    # Each axis' held-out error relative to OLS's, averaged over the force and over the torque axes
+    # (a raw sum would be decided by the noisiest axis alone).
+    per_axis = sse["wls"] / np.maximum(sse["ols"], 1e-300)
+    ratio = [float(np.mean(per_axis[:3])), float(np.mean(per_axis[3:]))]
+    text = (f"held-out error of per-axis weighting vs plain least squares over {scored} blocks: "
+            f"forces {ratio[0]:.3f}x, torques {ratio[1]:.3f}x")
+    # Ties (within 1 %) are no evidence; the weighting must not lose on either kind of axis.
+    if max(ratio) <= 1.0 + WEIGHTING_TIE and min(ratio) < 1.0 - WEIGHTING_TIE:
+        return "wls", text + " (weighting kept)"
+    return "ols", text + " (plain least squares kept)"
+
+
+def model_fit(names: tuple[str, ...], theta: np.ndarray, covariance: np.ndarray, *, residual_rms: np.ndarray,
+              n_samples: int, stderr_kind: str, covariates: Sequence[str] = ()) -> PayloadFit:
+    """A :class:`PayloadFit` from an estimate and its covariance made elsewhere (the state-space model).
+
+    Parameters
+    ----------
+    names : parameter names of θ (static, then 6 per covariate)
+    theta, covariance : the estimate and its covariance
+    residual_rms : (6,) per-sample residual RMS
+    n_samples : number of samples
+    stderr_kind : how the covariance was estimated, in words
+    covariates : names of the covariates
+
+    Returns
+    -------
+    PayloadFit
+    """
+    se = np.sqrt(np.diag(covariance))
+    correlation = covariance / se[:, None] / se[None, :]
+    # GLS: the Gram is the inverse covariance, so VIF_j = cov_jj (cov⁻¹)_jj = (corr⁻¹)_jj.
+    vif = np.diag(np.linalg.inv(correlation))
+    found = {c: (theta[10 + 6 * k:16 + 6 * k], se[10 + 6 * k:16 + 6 * k]) for k, c in enumerate(covariates)}
+    return PayloadFit(names, theta, covariance, residual_rms=residual_rms, n_samples=n_samples,
+                      condition_number=float(np.linalg.cond(correlation)), variance_inflation=vif,
+                      poorly_excited=tuple(names[j] for j in np.flatnonzero(vif > EXCITATION_LIMIT)),
+                      weighting="state-space", weighting_evidence="generalised least squares of the state-space "
+                      "model (per-axis noise and walk variances by maximum likelihood)", stderr_kind=stderr_kind,
+                      covariates=found, **_derive(names, theta, covariance))
 
 
 def check_mass_sign(fit: PayloadFit) -> None:
@@ -206,7 +394,8 @@ def _derive(names: tuple[str, ...], theta: np.ndarray, cov: np.ndarray) -> dict:
     """Mass, COM, biases, inertia about the COM and their standard errors from θ and cov(θ)."""
     se = np.sqrt(np.maximum(np.diag(cov), 0.0))
     mass, first = theta[0], theta[1:4]
-    bias = theta[-6:]
+    at = names.index("Fx_bias")
+    bias = theta[at:at + 6]
     if mass == 0.0:
         raise FtcalError("the estimated mass is exactly zero; the centre of mass is undefined.")
     com = first / mass
@@ -216,8 +405,9 @@ def _derive(names: tuple[str, ...], theta: np.ndarray, cov: np.ndarray) -> dict:
     jac[:, 1:4] = np.eye(3) / mass
     com_se = np.sqrt(np.maximum(np.diag(jac @ cov @ jac.T), 0.0))
     out = {"mass": float(mass), "com": com, "force_bias": bias[:3], "torque_bias": bias[3:], "inertia": None,
-           "stderr": {"mass": float(se[0]), "com": com_se, "force_bias": se[-6:-3], "torque_bias": se[-3:]}}
-    if len(names) == 16:
+           "stderr": {"mass": float(se[0]), "com": com_se, "force_bias": se[at:at + 3],
+                      "torque_bias": se[at + 3:at + 6]}}
+    if at == 10:
         def about_com(t):
             i_c = inertia_about_com(t[0], t[1:4] / t[0], inertia_matrix(t[4:10]))
             return i_c[np.triu_indices(3)]  # Ixx, Ixy, Ixz, Iyy, Iyz, Izz

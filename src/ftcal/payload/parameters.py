@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .drift import BiasDrift
 from .identify import PayloadFit
 
 
@@ -34,6 +35,10 @@ class PayloadParameters:
     fit : dict
         Diagnostics: ``n_samples``, ``residual_rms`` (6), ``condition_number``,
         ``wrench_columns``.
+    drift : BiasDrift or None
+        How the bias moves with time and temperature; None (or model ``none``
+        without temperature): constant. The bias fields are then its value at
+        the end of the identification recording.
     """
 
     mass: float
@@ -46,14 +51,31 @@ class PayloadParameters:
     inertia: np.ndarray | None = None
     stderr: dict = field(default_factory=dict)
     fit: dict = field(default_factory=dict)
+    drift: BiasDrift | None = None
 
     @classmethod
     def from_fit(cls, fit: PayloadFit, *, gravity: float, frame: str | None, reaction: bool,
-                 wrench_columns: tuple[str, ...]) -> "PayloadParameters":
+                 wrench_columns: tuple[str, ...], drift: BiasDrift | None = None) -> "PayloadParameters":
         return cls(fit.mass, fit.com, fit.force_bias, fit.torque_bias, gravity, frame, reaction, fit.inertia,
-                   dict(fit.stderr),
+                   {k: v for k, v in fit.stderr.items()},
                    {"n_samples": fit.n_samples, "residual_rms": fit.residual_rms,
-                    "condition_number": fit.condition_number, "wrench_columns": list(wrench_columns)})
+                    "condition_number": fit.condition_number, "wrench_columns": list(wrench_columns),
+                    "weighting": fit.weighting, "standard_errors": fit.stderr_kind}, drift)
+
+    @property
+    def needs_time(self) -> bool:
+        return self.drift is not None and self.drift.knot_times is not None
+
+    @property
+    def needs_temperature(self) -> bool:
+        return self.drift is not None and self.drift.temperature_coefficients is not None
+
+    def bias_of(self, time: np.ndarray | None, temperature: np.ndarray | None, n: int,
+                source: str = "data") -> np.ndarray:
+        """The bias of each of ``n`` samples, shape (n, 6) (constant without a drift model)."""
+        if not (self.needs_time or self.needs_temperature):
+            return np.broadcast_to(self.bias, (n, 6))
+        return self.drift.bias(self.bias, time, temperature, source)
 
     @property
     def bias(self) -> np.ndarray:

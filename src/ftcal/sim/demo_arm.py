@@ -135,10 +135,10 @@ def run_arm_demo(config: ArmDemoConfig = ArmDemoConfig()) -> dict:
     from ..files.targets import convert
     from ..insitu.bags import build_bag_table, write_bag_table
     from ..insitu.recordings import InsituOptions
-    from ..payload.identify import check_mass_sign, identify_payload
+    from ..payload.identify import check_mass_sign
     from ..payload.kinematics import MotionSource, OrientationSource
     from ..payload.parameters import PayloadParameters
-    from ..payload.tables import WRENCH_COLUMNS, compensate_table, table_statistics
+    from ..payload.tables import WRENCH_COLUMNS, compensate_table, identify_recording, read_payload_tables
 
     started = time.perf_counter()
     out, scenario = Path(config.out_dir), config.scenario
@@ -150,7 +150,8 @@ def run_arm_demo(config: ArmDemoConfig = ArmDemoConfig()) -> dict:
     write_bag_table(table, dataset)
 
     source = MotionSource(OrientationSource(g=scenario.gravity))
-    fit = identify_payload(table_statistics([dataset], source, dynamic=True))
+    # What `ftcal payload --dynamic` runs: held-out choice of weighting, grouped-jackknife standard errors.
+    fit = identify_recording(read_payload_tables([dataset], source), bias_drift="none", dynamic=True).fit
     check_mass_sign(fit)
     payload = PayloadParameters.from_fit(fit, gravity=scenario.gravity, frame=SENSOR_FRAME, reaction=False,
                                          wrench_columns=WRENCH_COLUMNS)

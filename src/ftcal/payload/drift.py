@@ -1,0 +1,465 @@
+"""A sensor bias that drifts during the recording: affine in time, or a random walk.
+
+Two time models join the constant bias of :mod:`ftcal.payload.identify`:
+
+* ``linear``: the bias is affine in time (and optionally in temperature). These
+  are six extra regressor columns per covariate, fitted exactly by least squares
+  on the per-axis statistics (:func:`covariates`, then ``identify_payload``).
+* ``random-walk``: the six biases are independent random walks, estimated jointly
+  with the mass and first moment as a linear-Gaussian state-space model. The fit
+  runs on **per-block averages**: the recording is cut into at most
+  :data:`~ftcal.core.limits.DRIFT_BLOCKS` contiguous blocks of equal sample
+  count, and each block's mean wrench, gravity and time is one observation.
+  The regressor is affine in gravity, so block means lose nothing of the static
+  part; the walk is resolved to one block. Cost O(N) for the averages, then
+  O(blocks) per likelihood, memory O(blocks).
+
+  State-space model, axis j, block k::
+
+      y_kj = X_kj β + d_kj + v_kj,   d_(k+1)j = d_kj + w_kj,   d_1j = 0
+      v_kj ~ N(0, r_j n̄ / n_k),      w_kj ~ N(0, q_j Δt_k)
+
+  β = [m, m·c, bias at the first block, temperature coefficients] enters as
+  constant states (the augmented Kalman filter of de Jong 1991): one scalar
+  filter per axis runs over the data column and every regressor column, and
+  generalised least squares on its innovations gives β, its covariance and the
+  likelihood. The walk-to-noise ratio q_j / r_j of each axis is chosen by
+  restricted maximum likelihood on a grid (r_j concentrated out), then β is
+  estimated jointly over the six axes: the standard errors of mass and centre
+  of mass come from this model. A Rauch–Tung–Striebel smoother gives the bias
+  trajectory.
+
+``auto`` compares the three models by BIC on the block averages and takes a
+richer model only when it wins by more than :data:`BIC_MARGIN` (strong
+evidence); otherwise the simpler one.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..runtime.errors import FtcalError
+from .regressor import STATIC_PARAMETERS
+
+SECONDS_PER_HOUR = 3600.0
+# A richer bias model must lower the BIC by more than this ("very strong" evidence, Kass & Raftery).
+BIC_MARGIN = 10.0
+# Knots of a random-walk trajectory kept in the payload file.
+MAX_KNOTS = 500
+_GRID = 25  # walk-to-noise ratios tried per axis, log-spaced (then refined once)
+
+
+@dataclass(frozen=True)
+class BiasDrift:
+    """How the bias moves, as stored in the payload file and applied by compensation.
+
+    Attributes
+    ----------
+    model : {"none", "linear", "random-walk"}
+    time_column : str or None
+        The data's time column (s) the knots refer to.
+    time_start, time_end : float or None
+        The identification recording's first and last time, s.
+    knot_times : ndarray of shape (K,) or None
+        Times of the bias trajectory, s; between knots the bias is interpolated
+        linearly (exact for ``linear``), outside ``[time_start, time_end]`` the
+        nearest end is held.
+    knot_bias : ndarray of shape (K, 6) or None
+        The bias at the knots, N and N·m, at the reference temperature.
+    temperature_column : str or None
+    temperature_reference : float or None
+    temperature_coefficients : ndarray of shape (6,) or None
+        Bias change per unit of temperature.
+    selection : str
+        Why this model (``auto``), in words.
+    """
+
+    model: str = "none"
+    time_column: str | None = None
+    time_start: float | None = None
+    time_end: float | None = None
+    knot_times: np.ndarray | None = None
+    knot_bias: np.ndarray | None = None
+    temperature_column: str | None = None
+    temperature_reference: float | None = None
+    temperature_coefficients: np.ndarray | None = None
+    selection: str = ""
+
+    def bias(self, constant: np.ndarray, time: np.ndarray | None, temperature: np.ndarray | None,
+             source: str = "data") -> np.ndarray:
+        """The bias of every sample, shape (N, 6).
+
+        Parameters
+        ----------
+        constant : (6,) the bias to use without knots (time-free models)
+        time : (N,) s, needed when there are knots
+        temperature : (N,), needed with temperature coefficients
+        source : names the data in the warning
+
+        Warns
+        -----
+        OutOfRangeWarning
+            Once, when samples lie outside the identification recording (the nearest end is held).
+        """
+        import warnings
+
+        from ..runtime.errors import OutOfRangeWarning
+
+        n = len(time) if time is not None else len(temperature) if temperature is not None else 0
+        out = np.broadcast_to(np.asarray(constant, dtype=float), (n, 6)).copy()
+        if self.knot_times is not None:
+            out = np.column_stack([np.interp(time, self.knot_times, self.knot_bias[:, j]) for j in range(6)])
+            outside = int(np.count_nonzero((time < self.time_start) | (time > self.time_end)))
+            if outside:
+                warnings.warn(f"{source}: {outside} sample(s) lie outside the identification recording "
+                              f"({self.time_column} {self.time_start:g} to {self.time_end:g} s); the bias "
+                              "there is held at the nearest end of its trajectory.", OutOfRangeWarning, stacklevel=2)
+        if self.temperature_coefficients is not None:
+            out += np.outer(temperature - self.temperature_reference, self.temperature_coefficients)
+        return out
+
+
+def check_time(time: np.ndarray, column: str, source: str) -> None:
+    """Refuse a time column that does not strictly increase.
+
+    Raises
+    ------
+    FtcalError
+        Naming the file, the column and the first offending row.
+    """
+    steps = np.diff(time)
+    bad = np.flatnonzero(~(steps > 0))
+    if bad.size:
+        raise FtcalError(f"{source}: time column {column!r} does not increase at row {bad[0] + 1} "
+                         f"({time[bad[0]]!r} then {time[bad[0] + 1]!r}); sort the rows by time.")
+
+
+def check_temperature(temperature: np.ndarray, column: str) -> None:
+    """Refuse a constant temperature column (no temperature coefficient can be fitted)."""
+    if np.ptp(temperature) == 0.0:
+        raise FtcalError(f"--temperature {column}: the column is constant ({temperature[0]:g}); "
+                         "the bias cannot be fitted against it (leave --temperature out).")
+
+
+def covariates(hours: np.ndarray | None, temperature: np.ndarray | None) -> tuple[np.ndarray | None, tuple[str, ...]]:
+    """Covariate columns of the bias and their names (``time`` in h, ``temperature`` about its mean).
+
+    Returns
+    -------
+    (ndarray of shape (n_samples, k) or None, names)
+    """
+    cols, names = [], []
+    if hours is not None:
+        cols.append(hours)
+        names.append("time")
+    if temperature is not None:
+        cols.append(temperature)
+        names.append("temperature")
+    return (np.column_stack(cols) if cols else None), tuple(names)
+
+
+@dataclass(frozen=True)
+class Blocks:
+    """Per-block averages of a recording (contiguous, equal sample counts up to one)."""
+
+    hours: np.ndarray  # (B,) mean time since the first sample, h
+    count: np.ndarray  # (B,)
+    gravity: np.ndarray  # (B, 3)
+    wrench: np.ndarray  # (B, 6)
+    temperature: np.ndarray | None  # (B,) about the recording's mean, or None
+
+
+def block_means(hours: np.ndarray, gravity: np.ndarray, wrench: np.ndarray, temperature: np.ndarray | None = None,
+                max_blocks: int | None = None) -> Blocks:
+    """Average a recording over at most ``max_blocks`` contiguous blocks of equal sample count.
+
+    A block lasts at least :data:`~ftcal.core.limits.DRIFT_BLOCK_SECONDS` (at the
+    median sampling interval): noise correlated over less than that averages out
+    inside a block, slower wandering is drift.
+
+    Parameters
+    ----------
+    hours : (N,) time since the first sample, h, increasing
+    gravity : (N, 3) gravity in sensor axes, m/s²
+    wrench : (N, 6) readings, N and N·m
+    temperature : (N,) or None, about its mean
+    max_blocks : default :data:`~ftcal.core.limits.DRIFT_BLOCKS`
+
+    Returns
+    -------
+    Blocks
+    """
+    from ..core.limits import DRIFT_BLOCK_SECONDS, DRIFT_BLOCKS
+
+    n = len(hours)
+    step = float(np.median(np.diff(hours))) * SECONDS_PER_HOUR if n > 1 else 1.0
+    per_block = max(1, int(np.ceil(DRIFT_BLOCK_SECONDS / step)) if step > 0 else 1)
+    b = max(1, min(n // per_block, max_blocks or DRIFT_BLOCKS))
+    starts = np.linspace(0, n, b + 1).astype(np.int64)[:-1]
+    count = np.diff(np.r_[starts, n]).astype(float)
+
+    def mean(a):
+        return np.add.reduceat(a, starts, axis=0) / (count if a.ndim == 1 else count[:, None])
+
+    return Blocks(mean(hours), count, mean(gravity), mean(wrench), None if temperature is None else mean(temperature))
+
+
+def _design(blocks: Blocks, slope: bool, temperature: bool) -> np.ndarray:
+    """X of shape (B, 6, P): static regressor at the block's mean gravity plus covariate columns."""
+    from .accumulate import _static_maps
+
+    g1 = np.c_[blocks.gravity, np.ones(len(blocks.count))]
+    static = np.einsum("jpi,bi->bjp", _static_maps(), g1)  # (B, 6, 10)
+    extra = ([blocks.hours] if slope else []) + ([blocks.temperature] if temperature else [])
+    x = np.zeros((len(blocks.count), 6, 10 + 6 * len(extra)))
+    x[:, :, :10] = static
+    for c, column in enumerate(extra):
+        x[:, np.arange(6), 10 + 6 * c + np.arange(6)] = column[:, None]
+    return x
+
+
+def _axis_columns(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Columns of β each axis sees, padded to one width; the pad marks unused slots.
+
+    Returns
+    -------
+    index : (6, c) int, column of β (0 where padded)
+    pad : (6, c) bool
+    """
+    used = [np.flatnonzero(np.any(x[:, j, :] != 0.0, axis=0)) for j in range(6)]
+    width = max(len(u) for u in used)
+    index = np.zeros((6, width), np.int64)
+    pad = np.ones((6, width), bool)
+    for j, u in enumerate(used):
+        index[j, :len(u)], pad[j, :len(u)] = u, False
+    return index, pad
+
+
+def _filter(ratio: np.ndarray, steps: np.ndarray, noise: np.ndarray, data: np.ndarray, pad: np.ndarray):
+    """Augmented scalar Kalman filter of d (walk since the first block), r = 1 units.
+
+    Parameters
+    ----------
+    ratio : (L, 6) walk variance per hour over noise variance, per trial and axis
+    steps : (B,) hours between blocks (0 before the first)
+    noise : (B,) relative noise variance of each block mean (n̄ / n_k)
+    data : (B, 6, 1 + c) the data column then the axis' regressor columns
+    pad : (6, c) padded regressor slots
+
+    Returns
+    -------
+    log_f : (L, 6) Σ log F_k
+    cross : (L, 6, 1 + c, 1 + c) Σ E Eᵀ / F over the innovations E = [e_y, e_x]
+    """
+    shape = ratio.shape
+    width = data.shape[2]
+    p = np.zeros(shape)
+    state = np.zeros(shape + (width,))
+    log_f = np.zeros(shape)
+    cross = np.zeros(shape + (width, width))
+    for k in range(data.shape[0]):
+        p = p + ratio * steps[k]
+        f = p + noise[k]
+        e = data[k] - state
+        ef = e / f[..., None]
+        cross += ef[..., :, None] * e[..., None, :]
+        log_f += np.log(f)
+        gain = p / f
+        state = state + gain[..., None] * e
+        p = p * (1.0 - gain)
+    # Padded slots are all zero: a unit diagonal keeps the Gram invertible without touching the rest.
+    cross[..., 1:, 1:] += np.einsum("jc,cd->jcd", pad.astype(float), np.eye(width - 1))
+    return log_f, cross
+
+
+def _reml(log_f: np.ndarray, cross: np.ndarray, n_columns: np.ndarray, n_blocks: int) -> np.ndarray:
+    """Restricted log-likelihood (noise variance concentrated out), up to a constant, shape (L, 6)."""
+    s, rhs, yy = cross[..., 1:, 1:], cross[..., 1:, 0], cross[..., 0, 0]
+    beta = np.linalg.solve(s, rhs[..., None])[..., 0]
+    rss = np.maximum(yy - np.einsum("...c,...c->...", rhs, beta), 1e-300)
+    dof = n_blocks - n_columns
+    return -0.5 * (dof * np.log(rss / dof) + log_f + np.linalg.slogdet(s)[1])
+
+
+@dataclass(frozen=True)
+class StateSpaceFit:
+    """A bias model fitted on block averages: β, its covariance, likelihood and the bias trajectory."""
+
+    kind: str  # "none", "linear" or "random-walk"
+    names: tuple[str, ...]
+    theta: np.ndarray  # (P,)
+    covariance: np.ndarray  # (P, P)
+    noise_variance: np.ndarray  # (6,) r_j of a block mean of n̄ samples
+    walk_variance: np.ndarray  # (6,) q_j per hour (zero without a walk)
+    log_likelihood: float
+    n_free: int  # estimated numbers (β, noise and walk variances)
+    n_observations: int
+    trajectory: np.ndarray  # (B, 6) bias at each block (walk and slope, temperature excluded)
+    end_stderr: np.ndarray  # (6,) standard error of the bias at the last block
+
+    @property
+    def bic(self) -> float:
+        return -2.0 * self.log_likelihood + self.n_free * np.log(self.n_observations)
+
+
+def fit_state_space(blocks: Blocks, kind: str, temperature: bool = False) -> StateSpaceFit:
+    """Fit one bias model to block averages: ``none`` and ``linear`` have no walk (q = 0).
+
+    Parameters
+    ----------
+    blocks : Blocks
+    kind : {"none", "linear", "random-walk"}
+    temperature : the bias is also affine in the blocks' temperature
+
+    Returns
+    -------
+    StateSpaceFit
+
+    Raises
+    ------
+    FtcalError
+        Fewer blocks than unknowns, or a rank-deficient design.
+    """
+    x = _design(blocks, kind == "linear", temperature)
+    n_blocks, _, n_beta = x.shape
+    index, pad = _axis_columns(x)
+    n_columns = (~pad).sum(axis=1)
+    if n_blocks <= n_columns.max() + (kind == "random-walk"):
+        raise FtcalError(f"{n_blocks} time block(s) cannot fit the {kind} bias model; record more samples.")
+    local = np.take_along_axis(x, np.broadcast_to(index, (n_blocks, 6, index.shape[1])), axis=2)
+    local[:, pad] = 0.0
+    data = np.concatenate([blocks.wrench[:, :, None], local], axis=2)
+    steps = np.r_[0.0, np.diff(blocks.hours)]
+    noise = blocks.count.mean() / blocks.count
+    if kind == "random-walk":
+        ratio = _choose_ratio(blocks, steps, noise, data, pad, n_columns)
+    else:
+        ratio = np.zeros(6)
+    log_f, cross = _filter(ratio[None], steps, noise, data, pad)
+    log_f, cross = log_f[0], cross[0]
+    s_loc, rhs_loc, yy = cross[:, 1:, 1:], cross[:, 1:, 0], cross[:, 0, 0]
+    beta_loc = np.linalg.solve(s_loc, rhs_loc[..., None])[..., 0]
+    rss = np.maximum(yy - np.einsum("jc,jc->j", rhs_loc, beta_loc), 1e-300)
+    r = rss / (n_blocks - n_columns)  # REML noise variance of each axis
+    # Joint generalised least squares over the six axes (they share the mass and first moment).
+    gram = np.zeros((n_beta, n_beta))
+    rhs = np.zeros(n_beta)
+    for j in range(6):
+        keep = ~pad[j]
+        cols = index[j, keep]
+        gram[np.ix_(cols, cols)] += s_loc[j][np.ix_(keep, keep)] / r[j]
+        rhs[cols] += rhs_loc[j, keep] / r[j]
+    jacobi = 1.0 / np.sqrt(np.diag(gram))
+    scaled = gram * jacobi[:, None] * jacobi[None, :]
+    if np.linalg.matrix_rank(scaled) < n_beta:
+        raise FtcalError(f"the poses and times leave the {kind} bias model undetermined; add poses that tilt "
+                         "the sensor and revisit early poses late in the recording.")
+    covariance = np.linalg.inv(scaled) * jacobi[:, None] * jacobi[None, :]
+    covariance = 0.5 * (covariance + covariance.T)
+    theta = covariance @ rhs
+    # Maximum likelihood at β (noise variances re-profiled) for the BIC.
+    log_lik = 0.0
+    for j in range(6):
+        keep = ~pad[j]
+        b = theta[index[j, keep]]
+        q = yy[j] - 2.0 * rhs_loc[j, keep] @ b + b @ s_loc[j][np.ix_(keep, keep)] @ b
+        r_ml = max(q, 1e-300) / n_blocks
+        log_lik += -0.5 * (n_blocks * np.log(2.0 * np.pi * r_ml) + log_f[j] + n_blocks)
+    trajectory, end_var = _smooth(theta, x, blocks, ratio, steps, noise, kind == "linear")
+    names = STATIC_PARAMETERS + tuple(f"{a}_{c}" for c in (["time"] if kind == "linear" else [])
+                                      + (["temperature"] if temperature else [])
+                                      for a in ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz"))
+    # Bias at the last block: its filter error and β's error are uncorrelated (augmented filter).
+    at_end = _end_gradient(x, ratio, steps, noise, kind)
+    end_se = np.sqrt(np.maximum(end_var * r + np.einsum("jp,pq,jq->j", at_end, covariance, at_end), 0.0))
+    n_free = n_beta + 6 + (6 if kind == "random-walk" else 0)
+    return StateSpaceFit(kind, names, theta, covariance, r, ratio * r, float(log_lik), n_free, 6 * n_blocks,
+                         trajectory, end_se)
+
+
+def _choose_ratio(blocks: Blocks, steps, noise, data, pad, n_columns) -> np.ndarray:
+    """Walk-to-noise variance ratio of each axis by restricted maximum likelihood on a log grid, refined once."""
+    duration = max(blocks.hours[-1] - blocks.hours[0], 1e-12)
+    n_blocks = len(blocks.count)
+    # Walk variance over the whole recording from 1e-4 to 1e2 × n_blocks times the block noise, and none.
+    grid = np.r_[0.0, np.logspace(-4, np.log10(100.0 * n_blocks), _GRID)] / duration
+    best = _grid_best(grid[:, None] * np.ones(6), steps, noise, data, pad, n_columns, n_blocks)
+    step = np.log(grid[2] / grid[1])
+    fine = np.exp(np.log(np.maximum(best, grid[1])) + np.linspace(-step, step, 9)[:, None])
+    fine = np.vstack([fine, best[None]])
+    return _grid_best(fine, steps, noise, data, pad, n_columns, n_blocks)
+
+
+def _grid_best(ratios, steps, noise, data, pad, n_columns, n_blocks) -> np.ndarray:
+    log_f, cross = _filter(ratios, steps, noise, data, pad)
+    ll = _reml(log_f, cross, n_columns, n_blocks)
+    return ratios[np.argmax(ll, axis=0), np.arange(6)]
+
+
+def _smooth(theta, x, blocks, ratio, steps, noise, slope: bool):
+    """RTS-smoothed bias at every block (β fixed, temperature term excluded), and the walk's filtered
+    variance at the last block (noise variance units)."""
+    at = STATIC_PARAMETERS.index("Fx_bias")
+    model = theta[at:at + 6] + (blocks.hours[:, None] * theta[10:16] if slope else 0.0)
+    residual = blocks.wrench - np.einsum("bjp,p->bj", x, theta)
+    n_blocks = len(steps)
+    pred_p = np.zeros((n_blocks, 6))
+    filt_p = np.zeros((n_blocks, 6))
+    filt_d = np.zeros((n_blocks, 6))
+    p, d = np.zeros(6), np.zeros(6)
+    for k in range(n_blocks):
+        p = p + ratio * steps[k]
+        pred_p[k] = p
+        gain = p / (p + noise[k])
+        d = d + gain * (residual[k] - d)
+        p = p * (1.0 - gain)
+        filt_p[k], filt_d[k] = p, d
+    smooth = filt_d.copy()
+    for k in range(n_blocks - 2, -1, -1):
+        nxt = pred_p[k + 1]
+        gain = np.divide(filt_p[k], nxt, out=np.zeros(6), where=nxt > 0)
+        smooth[k] = filt_d[k] + gain * (smooth[k + 1] - filt_d[k])
+    return model + smooth, filt_p[-1]
+
+
+def _end_gradient(x, ratio, steps, noise, kind) -> np.ndarray:
+    """∂(bias at the last block)/∂β for each axis, shape (6, P): the bias model minus the filter's pull."""
+    n_blocks, _, n_beta = x.shape
+    at = STATIC_PARAMETERS.index("Fx_bias")
+    grad = np.zeros((6, n_beta))
+    grad[np.arange(6), at + np.arange(6)] = 1.0
+    if kind == "linear":
+        grad[np.arange(6), 10 + np.arange(6)] = x[-1, np.arange(6), 10 + np.arange(6)]
+    if kind != "random-walk":
+        return grad
+    # The filtered walk at the end is linear in the data minus X β: d_B = a − Σ_k c_k X_k β.
+    p, weight = np.zeros(6), np.zeros((6, n_beta))
+    for k in range(n_blocks):
+        p = p + ratio * steps[k]
+        gain = p / (p + noise[k])
+        weight = weight + gain[:, None] * (x[k] - weight)
+        p = p * (1.0 - gain)
+    return grad - weight
+
+
+def choose(fits: dict[str, StateSpaceFit]) -> tuple[str, str]:
+    """The bias model with the best BIC, unless a simpler one is within :data:`BIC_MARGIN`.
+
+    Parameters
+    ----------
+    fits : the candidates keyed by kind, simplest first (``none``, ``linear``, ``random-walk``)
+
+    Returns
+    -------
+    (kind, reason in words)
+    """
+    chosen = "none"
+    for kind in fits:
+        if kind != chosen and fits[kind].bic < fits[chosen].bic - BIC_MARGIN:
+            chosen = kind
+    base = fits["none"].bic
+    scores = ", ".join(f"{k} {f.bic - base:+.1f}" for k, f in fits.items())
+    return chosen, (f"BIC on {len(fits['none'].trajectory)} time blocks relative to a constant bias: {scores}; "
+                    f"a richer model needs to win by more than {BIC_MARGIN:g}")
