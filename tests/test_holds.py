@@ -275,3 +275,19 @@ def test_bag_joints_with_the_urdf_keep_the_joints_and_the_fit_says_one_tool_is_n
     captured = capsys.readouterr()
     assert "excitation: reference wrenches span 3 of 6 directions" in captured.out
     assert "warning: reference wrenches span 3 of 6 directions" in captured.err
+
+
+def test_holds_are_numbered_across_bags(tmp_path):
+    """Two bags, each one still pose (/tf_static): hold 0 in the first, hold 1 in the second."""
+    paths = []
+    for j in range(2):
+        bag = Bag("mcap")
+        for i in range(60):
+            bag.wrench("/ft", T0 + i * 10**7, np.r_[np.ones(6)] + 0.01 * np.sin(i + np.arange(6)), frame="ft")
+        bag.tf(T0, [("base", "ft", Rotation.from_rotvec([0.0, 0.3 * j, 0.0]).as_quat(), T0)], static=True)
+        paths.append(str(bag.write(tmp_path / f"pose{j}")))
+    out = tmp_path / "two.csv"
+    assert main(["dataset", *paths, "--wrench-topic", "/ft", "--tf", "base", "--no-filter", "-o", str(out)]) == 0
+    frame = pd.read_csv(out)
+    assert frame.groupby("segment")["hold"].agg(["min", "max"]).values.tolist() == [[0, 0], [1, 1]]
+    assert frame["static"].eq(1).all()
