@@ -182,14 +182,17 @@ def _window(time: np.ndarray) -> int:
     return max(1, samples | 1)
 
 
-def _split(runs: np.ndarray, starts: np.ndarray) -> np.ndarray:
-    """Run edges [start0, stop0, start1, stop1, ...] cut again at every index of ``starts``."""
-    pairs = []
-    for start, stop in zip(runs[::2], runs[1::2]):
-        cuts = [c for c in starts if start < c < stop]
-        for a, b in zip([start, *cuts], [*cuts, stop]):
-            pairs += [a, b]
-    return np.array(pairs, dtype=np.intp)
+def _split(runs: np.ndarray, cuts: np.ndarray) -> np.ndarray:
+    """Run edges [start0, stop0, start1, stop1, ...] cut again at every index of ``cuts`` inside a run."""
+    if cuts.size == 0:
+        return runs
+    edges = np.union1d(runs, cuts)
+    starts, stops = runs[::2], runs[1::2]
+    # Keep the pieces [edge, next edge) that lie inside a run.
+    left = edges[:-1]
+    inside = np.searchsorted(stops, left, side="right") == np.searchsorted(starts, left, side="right") - 1
+    pieces = np.column_stack([left[inside], edges[1:][inside]])
+    return pieces.ravel()
 
 
 def _kinematic_still(time: np.ndarray, travel, bounds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
