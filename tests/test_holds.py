@@ -93,6 +93,9 @@ def test_instant_jumps_keep_every_pose_whole_and_short_stops_are_not_holds():
     angle[150 + int(MIN_HOLD_S / 0.01) - 5:] += angle[150] - angle[150 + int(MIN_HOLD_S / 0.01) - 5]
     holds = find_holds(t, orientation=Rotation.from_rotvec(np.c_[0 * t, 0 * t, angle]).as_quat())
     assert holds.n_holds == 1 and np.all(holds.hold[:50] == 0) and not holds.static[100:].any()
+    # ... but a recording that never moves is one hold, however short (a file per pose)
+    short = np.arange(5) * 0.01
+    assert find_holds(short, orientation=np.tile([0.0, 0.0, 0.0, 1.0], (5, 1))).n_holds == 1
 
 
 def test_holds_stay_inside_segments_and_time_must_increase():

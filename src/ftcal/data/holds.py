@@ -21,7 +21,7 @@ averages encoder noise out; a sample is still when it does not move on at
 least one side (above :data:`MIN_ANGULAR_RATE`), so an instant jump between two
 still poses (a table of poses) leaves both poses whole and starts a new hold.
 Still stretches shorter than :data:`MIN_HOLD_S` (a pause inside a move) count
-as moving.
+as moving, unless the whole recording (segment) is still.
 """
 
 from __future__ import annotations
@@ -157,8 +157,10 @@ def find_holds(time: np.ndarray, *, orientation: np.ndarray | None = None, gravi
         runs = np.flatnonzero(np.diff(np.r_[0, still[a:b].astype(np.int8), 0]))
         runs = _split(runs, np.flatnonzero(jumps[a:b]))
         for start, stop in zip(runs[::2], runs[1::2]):
-            # Duration of the stretch, counting each sample as one time step.
-            if time[a + stop - 1] - time[a + start] + step >= MIN_HOLD_S:
+            # Duration of the stretch, counting each sample as one time step; a recording that never
+            # moves is one hold however short (a file per pose).
+            whole = start == 0 and stop == b - a
+            if whole or time[a + stop - 1] - time[a + start] + step >= MIN_HOLD_S:
                 hold[a + start:a + stop] = count
                 count += 1
     return Holds(hold >= 0, hold, signal)
