@@ -314,8 +314,12 @@ def test_dataset_from_bag_with_urdf_expected_wrench(tmp_path, capfd):
     np.testing.assert_allclose(frame["shoulder"], 0.5 * t, atol=1e-6)  # the URDF's joint kept, named as it
     assert "gripper_finger" not in frame.columns
     model = tmp_path / "model.json"
-    assert main(["fit", str(out), "--segment-by", "segment", "--group-by", "group", "-o", str(model)]) == 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", FtcalWarning)
+        assert main(["fit", str(out), "--segment-by", "segment", "--group-by", "group", "-o", str(model)]) == 0
     assert model.is_file()
+    # one joint turning one link: its reference wrench spans 2 of the 6 directions, and fit says so
+    assert "warning: reference wrenches span 2 of 6 directions" in capfd.readouterr().err
 
 
 def test_dataset_from_bags_on_a_local_cluster_equals_the_local_run(tmp_path):

@@ -1,5 +1,7 @@
 """The sensors / expected / dataset commands, including their error paths."""
 
+import warnings
+
 import h5py
 import numpy as np
 import pandas as pd
@@ -113,8 +115,12 @@ def test_dataset_then_fit(capfd, tmp_path, urdf, logs):
                                100 + 3 * second[list(WRENCH)].to_numpy(), atol=1e-3)
     pytest.importorskip("ftcal.cli.cmd_fit")
     model = tmp_path / "model.json"
-    assert main(["fit", str(out), "--segment-by", "segment", "--group-by", "group", "-o", str(model)]) == 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")
+        assert main(["fit", str(out), "--segment-by", "segment", "--group-by", "group", "-o", str(model)]) == 0
     assert model.is_file()
+    # one joint turning the forearm: the reference wrenches span 2 of the 6 directions, which fit says
+    assert "warning: reference wrenches span 2 of 6 directions" in capfd.readouterr().err
 
 
 def test_dataset_smoothing_flags(capfd, tmp_path, urdf, logs):

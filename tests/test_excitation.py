@@ -135,3 +135,12 @@ def test_payload_regressor_excitation():
     # scaling a column (other units) changes nothing
     b = a * [1.0, 1e-3, 1.0]
     np.testing.assert_allclose(regressor_excitation(b.T @ b)[0], singular, atol=1e-6)
+
+
+def test_fit_refuses_outputs_that_never_vary(tmp_path, capsys):
+    frame, _ = calibration_table(np.tile([[1.0, 2.0, 3.0, 0.1, 0.2, 0.3]], (50, 1)))
+    frame.to_csv(tmp_path / "flat.csv", index=False)
+    assert main(["fit", str(tmp_path / "flat.csv"), "--inputs", ",".join(INPUTS), "-o", str(tmp_path / "m.json")]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and "are constant: nothing to fit a calibration to" in lines[0]
+    assert not (tmp_path / "m.json").exists()

@@ -93,6 +93,9 @@ def test_instant_jumps_keep_every_pose_whole_and_short_stops_are_not_holds():
     angle[150 + int(MIN_HOLD_S / 0.01) - 5:] += angle[150] - angle[150 + int(MIN_HOLD_S / 0.01) - 5]
     holds = find_holds(t, orientation=Rotation.from_rotvec(np.c_[0 * t, 0 * t, angle]).as_quat())
     assert holds.n_holds == 1 and np.all(holds.hold[:50] == 0) and not holds.static[100:].any()
+    # ... but a recording that never moves is one hold, however short (a file per pose)
+    short = np.arange(5) * 0.01
+    assert find_holds(short, orientation=np.tile([0.0, 0.0, 0.0, 1.0], (5, 1))).n_holds == 1
 
 
 def test_holds_stay_inside_segments_and_time_must_increase():
@@ -116,7 +119,7 @@ def moving_bag(tmp_path_factory):
     from ftcal.sim.arm_bag import ArmScenario, write_arm_bag
 
     root = tmp_path_factory.mktemp("moving")
-    scenario = ArmScenario(force_bias_tc=(0.0, 0.0, 0.0), hold_s=1.0, move_s=1.5, n_poses=12, rate=200.0,
+    scenario = ArmScenario(force_bias_tc=(0.0, 0.0, 0.0), hold_s=1.0, move_s=1.5, n_poses=12, rate=100.0,
                            tf_rate=50.0, imu_rate=50.0)
     truth = write_arm_bag(root / "bag", scenario)
     table = root / "arm.parquet"
@@ -194,18 +197,20 @@ def test_payload_without_static_holds_or_time(capsys, tmp_path):
 # ------------------------------------------------------------------------------ the /joint_states route
 
 
-def test_bag_with_only_ft_and_joint_states_to_payload(tmp_path, capsys):
-    """A UR5 holding 10 poses, moving between them: /ft and /joint_states only, no /tf. dataset keeps
-    the joint columns; payload --urdf finds the holds from the joints and recovers the tool."""
+UR5_TOOL = {"mass": 1.6, "com": np.array([0.015, -0.01, 0.09]), "bias": np.array([3.0, -2.0, 5.0, 0.2, -0.1, 0.05])}
+UR5_JOINTS = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint",
+              "wrist_3_joint"]
+
+
+@pytest.fixture(scope="module")
+def ur5_bag(tmp_path_factory):
+    """A UR5 holding 10 poses, moving between them: /ft and /joint_states only, no /tf."""
     from test_robot_declare import G_BASE, UR5, ur5_chain_rotation
 
     if not UR5.is_file():
         pytest.skip("example-robot-data is not installed")
     rng = np.random.default_rng(11)
-    names = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint",
-             "wrist_3_joint"]
-    mass, com = 1.6, np.array([0.015, -0.01, 0.09])
-    bias = np.array([3.0, -2.0, 5.0, 0.2, -0.1, 0.05])
+    mass, com, bias = UR5_TOOL["mass"], UR5_TOOL["com"], UR5_TOOL["bias"]
     noise = np.array([0.05, 0.05, 0.05, 0.002, 0.002, 0.002])
     t, k, blend, still = hold_and_move(10, 0.6, 0.6, 50.0)
     targets = rng.uniform(-2.5, 2.5, (10, 6))
@@ -218,8 +223,16 @@ def test_bag_with_only_ft_and_joint_states_to_payload(tmp_path, capsys):
         wrench = np.r_[force, np.cross(com, force)] + bias + rng.normal(0.0, 1.0, 6) * noise
         stamp = T0 + int(round(t[j] * 1e9))
         bag.wrench("/ft", stamp, wrench)
-        bag.joints("/joint_states", stamp, [*names, "gripper_finger"], [*q[j], np.nan])
-    path = bag.write(tmp_path / "ur5")
+        bag.joints("/joint_states", stamp, [*UR5_JOINTS, "gripper_finger"], [*q[j], np.nan])
+    root = tmp_path_factory.mktemp("ur5")
+    return bag.write(root / "ur5"), q, still, UR5
+
+
+def test_bag_with_only_ft_and_joint_states_to_payload(ur5_bag, tmp_path, capsys):
+    """dataset keeps the joint columns; payload --urdf finds the holds from the joints and recovers the tool."""
+    path, q, still, ur5 = ur5_bag
+    mass, com, bias = UR5_TOOL["mass"], UR5_TOOL["com"], UR5_TOOL["bias"]
+    names = UR5_JOINTS
     table = tmp_path / "ur5.csv"
     with warnings.catch_warnings():
         warnings.simplefilter("always", FtcalWarning)
@@ -232,7 +245,7 @@ def test_bag_with_only_ft_and_joint_states_to_payload(tmp_path, capsys):
     out = tmp_path / "tool.json"
     with warnings.catch_warnings():
         warnings.simplefilter("error", FtcalWarning)
-        assert main(["payload", str(table), "--urdf", str(UR5), "--ft-joint", "ee_fixed_joint", "--base",
+        assert main(["payload", str(table), "--urdf", str(ur5), "--ft-joint", "ee_fixed_joint", "--base",
                      "base_link", "--group-by", "hold", "-o", str(out)]) == 0
     printed = capsys.readouterr().out
     assert "samples moving (from the joints)" in printed and "in 10 group(s)" in printed
@@ -241,3 +254,43 @@ def test_bag_with_only_ft_and_joint_states_to_payload(tmp_path, capsys):
     assert np.all(np.abs(np.array(doc["com"]) - com) < 4 * np.array(doc["stderr"]["com"]))
     np.testing.assert_allclose(np.r_[doc["force_bias"], doc["torque_bias"]], bias,
                                atol=4 * max(np.max(doc["stderr"]["force_bias"]), np.max(doc["stderr"]["torque_bias"])))
+
+
+@pytest.mark.slow
+def test_bag_joints_with_the_urdf_keep_the_joints_and_the_fit_says_one_tool_is_not_enough(ur5_bag, tmp_path,
+                                                                                          capsys):
+    """With the URDF and the tool as a known payload the bag also gives the expected wrench; one rigid tool
+    spans 3 of the 6 wrench directions, which the fit (grouped by hold) says."""
+    path, q, still, ur5 = ur5_bag
+    mass, com = UR5_TOOL["mass"], UR5_TOOL["com"]
+    model_table = tmp_path / "ur5-model.csv"
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", FtcalWarning)
+        assert main(["dataset", str(path), "--wrench-topic", "/ft", "--joints-topic", "/joint_states",
+                     "--urdf", str(ur5), "--ft-joint", "ee_fixed_joint", "--sensor", "ee_fixed_joint",
+                     "--base", "base_link", "--payload", f"ee_link:{mass}@{com[0]},{com[1]},{com[2]}",
+                     "--no-filter", "--no-cache", "--workers", "1", "-o", str(model_table)]) == 0
+        capsys.readouterr()
+        assert main(["fit", str(model_table), "--inputs", "u1,u2,u3,u4,u5,u6", "--group-by", "hold",
+                     "-o", str(tmp_path / "m.json")]) == 0
+    frame = pd.read_csv(model_table)
+    np.testing.assert_allclose(frame[UR5_JOINTS].to_numpy(), q, atol=1e-9)
+    captured = capsys.readouterr()
+    assert "excitation: reference wrenches span 3 of 6 directions" in captured.out
+    assert "warning: reference wrenches span 3 of 6 directions" in captured.err
+
+
+def test_holds_are_numbered_across_bags(tmp_path):
+    """Two bags, each one still pose (/tf_static): hold 0 in the first, hold 1 in the second."""
+    paths = []
+    for j in range(2):
+        bag = Bag("mcap")
+        for i in range(60):
+            bag.wrench("/ft", T0 + i * 10**7, np.r_[np.ones(6)] + 0.01 * np.sin(i + np.arange(6)), frame="ft")
+        bag.tf(T0, [("base", "ft", Rotation.from_rotvec([0.0, 0.3 * j, 0.0]).as_quat(), T0)], static=True)
+        paths.append(str(bag.write(tmp_path / f"pose{j}")))
+    out = tmp_path / "two.csv"
+    assert main(["dataset", *paths, "--wrench-topic", "/ft", "--tf", "base", "--no-filter", "-o", str(out)]) == 0
+    frame = pd.read_csv(out)
+    assert frame.groupby("segment")["hold"].agg(["min", "max"]).values.tolist() == [[0, 0], [1, 1]]
+    assert frame["static"].eq(1).all()

@@ -281,9 +281,13 @@ def test_cli_selection_options_and_prior(tmp_path, capsys, rng):
     out = capsys.readouterr().out
     assert "np2 ridge λ=200" in out and "lasso" not in out.split("selected")[0]
     # A heavy ridge toward a prior stays at the prior; without a penalty --prior is refused.
-    assert main([*common, "-o", str(tmp_path / "prior.json")]) == 0
-    assert main([*common, "--degree", "1", "--ridge", "1e9", "--prior", str(tmp_path / "prior.json"),
-                 "-o", str(tmp_path / "shrunk.json")]) == 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")
+        assert main([*common, "-o", str(tmp_path / "prior.json")]) == 0
+        # the torques are 0.01 × the forces: 3 of the 6 output directions, which fit says
+        assert "warning: reference wrenches span 3 of 6 directions" in capsys.readouterr().err
+        assert main([*common, "--degree", "1", "--ridge", "1e9", "--prior", str(tmp_path / "prior.json"),
+                     "-o", str(tmp_path / "shrunk.json")]) == 0
     prior, shrunk = load_model(tmp_path / "prior.json"), load_model(tmp_path / "shrunk.json")
     np.testing.assert_allclose(shrunk.predict(data.inputs), prior.predict(data.inputs), rtol=0, atol=1e-4)
     # The model file names its prior, with the digest of the prior file's bytes (hashlib).

@@ -208,12 +208,13 @@ def run(args) -> int:
         report_fit(model, args.output)
         return 0
     if args.estimate_payload is not None:
-        data = read_with_payload(args, inputs, outputs)
+        data = read_with_payload(args, inputs, outputs)  # prints the payload, then the completed wrench's span
+        report_excitation(Spread.of(data.outputs), data.output_names)
     else:
         data = read_dataset(args.data, inputs, outputs, segment_by=args.segment_by, group_by=args.group_by)
+        report_excitation(Spread.of(data.outputs), data.output_names)
         print(f"read {data.n_samples} samples from {len(args.data)} file(s): inputs {','.join(inputs)} "
               f"-> outputs {','.join(outputs)}", file=sys.stderr)
-    report_excitation(Spread.of(data.outputs), data.output_names)
     if args.degree == "auto":
         from ..core.select import fit_best
 
@@ -260,10 +261,10 @@ def fit_streaming(args, template, inputs, outputs):
     with open_executor(args.scheduler) as executor, keep_in_memory():
         summary = executor.map_reduce(file_summary, args.data, inputs, outputs, args.segment_by,
                                       args.group_by, combine=add_statistics, description="ranges")
-        print(f"read {sum(summary.segment_lengths)} samples from {len(args.data)} file(s): inputs "
-              f"{','.join(inputs)} -> outputs {','.join(outputs)}", file=sys.stderr)
         n_in = len(inputs)
         report_excitation(summary.spread.take(slice(n_in, None)), outputs)
+        print(f"read {sum(summary.segment_lengths)} samples from {len(args.data)} file(s): inputs "
+              f"{','.join(inputs)} -> outputs {','.join(outputs)}", file=sys.stderr)
         if args.degree == "auto":
             from ..core.select import best_model
 

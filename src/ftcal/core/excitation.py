@@ -31,6 +31,8 @@ from ..runtime.errors import FtcalError
 # Relative singular values below these: the direction is not excited / hardly excited.
 UNEXCITED = 1e-3
 WEAK = 0.005
+# A block whose spread is below this fraction of its mean's size is constant (rounding only).
+CONSTANT_RELATIVE = 1e-9
 # A component this large (of a unit direction) is named in the message.
 NAMED_COMPONENT = 0.1
 # Squared Mahalanobis distance beyond which an input is outside the training span: far beyond any
@@ -156,7 +158,9 @@ def output_excitation(spread: Spread, names: Sequence[str]) -> OutputExcitation:
     for block in dict.fromkeys(_block(n) for n in names):
         members = [j for j, n in enumerate(names) if _block(n) == block]
         rms = np.sqrt(np.trace(cov[np.ix_(members, members)]) / len(members))
-        scale[members] = 1.0 / rms if rms > 0 else 0.0
+        # Rounding leaves a constant column a spread of ~1e-16 of its value: that is no variation.
+        constant = rms <= CONSTANT_RELATIVE * np.abs(spread.mean[members]).max()
+        scale[members] = 0.0 if rms == 0 or constant else 1.0 / rms
     if not np.any(scale):
         raise FtcalError(f"the reference outputs {','.join(names)} are constant: nothing to fit a calibration to; "
                          "record several loads or poses.")

@@ -21,7 +21,7 @@ averages encoder noise out; a sample is still when it does not move on at
 least one side (above :data:`MIN_ANGULAR_RATE`), so an instant jump between two
 still poses (a table of poses) leaves both poses whole and starts a new hold.
 Still stretches shorter than :data:`MIN_HOLD_S` (a pause inside a move) count
-as moving.
+as moving, unless the whole recording (segment) is still.
 """
 
 from __future__ import annotations
@@ -157,8 +157,10 @@ def find_holds(time: np.ndarray, *, orientation: np.ndarray | None = None, gravi
         runs = np.flatnonzero(np.diff(np.r_[0, still[a:b].astype(np.int8), 0]))
         runs = _split(runs, np.flatnonzero(jumps[a:b]))
         for start, stop in zip(runs[::2], runs[1::2]):
-            # Duration of the stretch, counting each sample as one time step.
-            if time[a + stop - 1] - time[a + start] + step >= MIN_HOLD_S:
+            # Duration of the stretch, counting each sample as one time step; a recording that never
+            # moves is one hold however short (a file per pose).
+            whole = start == 0 and stop == b - a
+            if whole or time[a + stop - 1] - time[a + start] + step >= MIN_HOLD_S:
                 hold[a + start:a + stop] = count
                 count += 1
     return Holds(hold >= 0, hold, signal)
@@ -182,14 +184,17 @@ def _window(time: np.ndarray) -> int:
     return max(1, samples | 1)
 
 
-def _split(runs: np.ndarray, starts: np.ndarray) -> np.ndarray:
-    """Run edges [start0, stop0, start1, stop1, ...] cut again at every index of ``starts``."""
-    pairs = []
-    for start, stop in zip(runs[::2], runs[1::2]):
-        cuts = [c for c in starts if start < c < stop]
-        for a, b in zip([start, *cuts], [*cuts, stop]):
-            pairs += [a, b]
-    return np.array(pairs, dtype=np.intp)
+def _split(runs: np.ndarray, cuts: np.ndarray) -> np.ndarray:
+    """Run edges [start0, stop0, start1, stop1, ...] cut again at every index of ``cuts`` inside a run."""
+    if cuts.size == 0:
+        return runs
+    edges = np.union1d(runs, cuts)
+    starts, stops = runs[::2], runs[1::2]
+    # Keep the pieces [edge, next edge) that lie inside a run.
+    left = edges[:-1]
+    inside = np.searchsorted(stops, left, side="right") == np.searchsorted(starts, left, side="right") - 1
+    pieces = np.column_stack([left[inside], edges[1:][inside]])
+    return pieces.ravel()
 
 
 def _kinematic_still(time: np.ndarray, travel, bounds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

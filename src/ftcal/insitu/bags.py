@@ -223,7 +223,8 @@ def bag_columns(path: Path, topics: BagTopics, segment: int, group: str, robot=N
         if key in on_clock:
             columns.update({name: on_clock[key][:, i] for i, name in enumerate(names)})
     if "q" in on_clock:
-        taken = [name for name in streams["q"].columns if name in columns]
+        later = (*DEFAULT_OUTPUTS, "static", "hold", "segment", "group")
+        taken = [name for name in streams["q"].columns if name in columns or name in later]
         if taken:
             raise FtcalError(f"Bag {path}: {topics.joints} has a joint named {taken[0]!r}, like a column of the "
                              "table; rename the joint.")
