@@ -165,9 +165,12 @@ def test_payload_excludes_the_moving_samples(moving_bag, capsys):
     assert f"{n_moving} of {len(pd.read_parquet(table))} samples moving" in out
     assert "in 12 group(s)" in out  # one cross-validation group per pose, the moves left out
     assert np.all(np.abs(z_scores(doc, truth)) < 4), z_scores(doc, truth)
-    # all samples: the moves' inertial wrench pulls the estimates many standard errors away
+    # all samples: the moves' inertial wrench pulls the estimates many of the static fit's standard errors
+    # away (its own, block-robust standard errors widen to cover part of that: they are not the yardstick)
     _, kept = payload(capsys, table, root / "all.json", "--keep-moving")
-    assert np.max(np.abs(z_scores(kept, truth))) > 10, z_scores(kept, truth)
+    pulled = np.r_[kept["mass"] - truth.mass, np.array(kept["com"]) - truth.com]
+    static_se = np.r_[doc["stderr"]["mass"], doc["stderr"]["com"]]
+    assert np.max(np.abs(pulled / static_se)) > 10, pulled / static_se
     # --dynamic is unchanged: it uses every sample
     out, _ = payload(capsys, table, root / "dynamic.json", "--dynamic")
     assert "static samples" not in out and f"payload from {len(pd.read_parquet(table))} samples" in out
