@@ -34,3 +34,25 @@ ARX_WARMUP = ("drop", "keep")
 
 PAPER_LAMBDAS = (0.5, 1.0, 10.0, 50.0, 100.0, 200.0)
 """The LASSO weights of the paper's Table III."""
+
+SELECT_PER = ("output", "block", "model")
+"""What ``--degree auto`` selects a degree, penalty and λ for: each output, the force and the torque
+blocks, or one model for all outputs."""
+
+OBJECTIVES = ("both", "force", "torque")
+"""What ranks candidates that serve several outputs: force and torque (each relative to the affine
+model, averaged), or one block alone."""
+
+SELECTION_BUDGET_SECONDS = 60.0
+"""Default ``--budget``: degrees whose estimated cost would exceed it are not tried (the search says so)."""
+
+SELECTION_MEMORY_BYTES = 1_500_000_000
+"""Degrees whose estimated peak memory (statistics and eigen-decompositions held per fold) exceeds this are
+not tried."""
+
+SATURATION_RATIO = 0.5
+"""Least-squares fits warn when coefficients per output exceed this fraction of the distinct poses."""
+
+POSE_BINS = 20
+"""Distinct poses are counted as occupied cells of a grid with this many bins per input over its range
+(5 % of the range: a static load case with its noise is one cell, a sweep one cell per 5 % step)."""
