@@ -277,7 +277,7 @@ def test_cli_selection_options_and_prior(tmp_path, capsys, rng):
     common = ["fit", str(path), "--inputs", "s1,s2,s3,s4", "--group-by", "case"]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        assert main([*common, "--degree", "auto", "--penalties", "ridge", "--lambdas", "paper",
+        assert main([*common, "--degree", "auto", "--penalties", "ridge", "--lambdas", "paper", "--verbose",
                      "-o", str(tmp_path / "auto.json")]) == 0
     out = capsys.readouterr().out
     assert "np2 ridge λ=200" in out and "lasso" not in out.split("selected")[0]

@@ -43,10 +43,10 @@ OBJECTIVES = ("both", "force", "torque")
 """What ranks candidates that serve several outputs: force and torque (each relative to the affine
 model, averaged), or one block alone."""
 
-SELECTION_BUDGET_SECONDS = 60.0
+SELECTION_BUDGET_SECONDS = 20.0
 """Default ``--budget``: degrees whose estimated cost would exceed it are not tried (the search says so)."""
 
-SELECTION_MEMORY_BYTES = 1_500_000_000
+SELECTION_MEMORY_BYTES = 1_000_000_000
 """Degrees whose estimated peak memory (statistics and eigen-decompositions held per fold) exceeds this are
 not tried."""
 

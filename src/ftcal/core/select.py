@@ -50,7 +50,7 @@ from ..runtime.threads import single_threaded_blas, worker_count
 from . import metrics
 from .dataset import Dataset
 from .features import MonomialBasis, RegressorLayout
-from .limits import OBJECTIVES, PAPER_LAMBDAS, SELECT_PER
+from .limits import OBJECTIVES, PAPER_LAMBDAS, POSE_BINS, SATURATION_RATIO, SELECT_PER
 from .model import CalibrationModel, FitFrame, change_basis
 from .solvers.base import ScaledProblem, Solver
 from .solvers.lasso import Lasso
@@ -59,8 +59,8 @@ from .statistics import SufficientStatistics, moment_plan, sum_statistics
 
 __all__ = ["Candidate", "CostEstimate", "CrossValidationResult", "DatasetStatistics", "GroupedStatistics",
            "PAPER_LAMBDAS", "SelectionLossWarning", "best_model", "cross_validate", "default_candidates",
-           "estimate_cost", "fit_best", "fit_candidates", "fit_selection", "fold_of_groups", "grouped_folds",
-           "select_model"]
+           "SaturationWarning", "estimate_cost", "fit_best", "fit_candidates", "fit_selection", "fold_of_groups", "grouped_folds",
+           "pose_cells", "select_model", "warn_if_saturated"]
 
 TIE_TOLERANCE = 0.01  # candidates within 1% of the best score count as tied
 DEFAULT_DEGREES = (1, 2, 3, 4, 5)
@@ -73,6 +73,53 @@ UNITS = {"force": "N", "torque": "N·m"}
 
 class SelectionLossWarning(FtcalWarning):
     """The selected model validates worse than the affine model on a block, beyond the fold noise."""
+
+
+class SaturationWarning(FtcalWarning):
+    """A least-squares fit has nearly as many coefficients per output as distinct poses."""
+
+
+def pose_cells(u: np.ndarray, input_range: np.ndarray, bins: int = POSE_BINS) -> set[bytes]:
+    """The cells of a grid over the inputs' ranges (``bins`` per input) that samples ``u`` occupy.
+
+    Their number counts distinct poses: a static load case (one pose and its noise) fills
+    one cell, or a few at a cell border; a sweep fills one cell per 1/``bins`` of the range.
+
+    Parameters
+    ----------
+    u : ndarray of shape (n_samples, n_inputs), raw inputs
+    input_range : ndarray of shape (n_inputs, 2), min and max of each input over all the data
+    bins : int
+
+    Returns
+    -------
+    set of bytes, one per occupied cell (sets of several chunks unite)
+
+    Examples
+    --------
+    >>> u = np.array([[0.0, 0.0], [0.01, 0.0], [1.0, 1.0]])
+    >>> len(pose_cells(u, np.array([[0.0, 1.0], [0.0, 1.0]])))
+    2
+    """
+    low, span = input_range[:, 0], np.maximum(input_range[:, 1] - input_range[:, 0], np.finfo(float).tiny)
+    cells = np.clip(np.floor((np.asarray(u) - low) / span * bins), 0, bins - 1).astype(np.uint8)
+    rows = np.ascontiguousarray(cells).view(np.dtype((np.void, cells.shape[1])))
+    return {bytes(r) for r in np.unique(rows.ravel())}
+
+
+def warn_if_saturated(n_coefficients: int, n_poses: int, n_groups: int, what: str = "The fit") -> bool:
+    """Warn (:class:`SaturationWarning`) when coefficients per output exceed
+    :data:`~ftcal.core.limits.SATURATION_RATIO` times the distinct poses; True when it warned.
+
+    Samples do not count: many samples of one pose determine one point of the map.
+    """
+    if n_coefficients <= SATURATION_RATIO * n_poses:
+        return False
+    warnings.warn(
+        f"{what} is near saturation: {n_coefficients} coefficients per output for {n_poses} distinct poses "
+        f"({n_groups} groups); it can fit the poses' noise and validate worse than affine. Lower the degree, "
+        "use --ridge/--lasso (or --degree auto), or record more poses.", SaturationWarning, stacklevel=2)
+    return True
 
 
 @dataclass(frozen=True)
@@ -732,18 +779,42 @@ class DatasetStatistics:
         return parts
 
 
-def statistics_work(layout: RegressorLayout, n_rows: int) -> int:
-    """Work units of one statistics pass: rows × accumulated products (moments, or Gram cells for ARX)."""
+def statistics_work(layout: RegressorLayout, n_rows: int, n_folds: int) -> int:
+    """Work units of one statistics pass over ``n_folds`` folds: rows × accumulated products (moments, or
+    Gram cells for ARX), plus a fixed cost per fold."""
     if layout.is_static:
-        return n_rows * moment_plan(layout.basis.n_inputs, layout.basis.degree).n_moments
-    return n_rows * layout.n_features * (layout.n_features + 1) // 2
+        cells = n_rows * moment_plan(layout.basis.n_inputs, layout.basis.degree).n_moments
+    else:
+        cells = n_rows * layout.n_features * (layout.n_features + 1) // 2
+    return cells + n_folds * PASS_OVERHEAD
 
 
-def solve_work(p: int, n_outputs: int, n_candidates: int, decompose: bool = True) -> int:
-    """Work units of scoring ``n_candidates`` of ``p`` columns on one fold: the eigen-decomposition
-    shared by the penalized ones (≈ 9 p³, when ``decompose``), the training sums (p²) and the
-    solves and scores (≈ 4 p² per candidate and output)."""
-    return (9 * p ** 3 if decompose else 0) + p * p * (1 + 4 * n_candidates * n_outputs)
+LASSO_ITERATIONS = 150  # ADMM iterations per λ on a warm-started path, typical (benchmarks/cases.py: select_auto)
+# Fixed costs in the same units (≈ 1e-10 s each): Python and BLAS call overhead per candidate and fold
+# (≈ 4 ms), and per fold of a statistics pass (≈ 10 ms). They dominate at degrees 1 and 2.
+CANDIDATE_OVERHEAD = 35_000_000
+PASS_OVERHEAD = 60_000_000
+
+
+def candidate_work(p: int, n_outputs: int, penalty: str, iterations: int | None = None) -> int:
+    """Work units of solving and scoring one candidate of ``p`` columns on one fold.
+
+    Least squares factorizes its own Gram (≈ 9 p³); ridge and LASSO share the fold's
+    eigen-decomposition (counted once per fold, :func:`decomposition_work`): ridge is
+    two products with the eigenvectors, LASSO two per ADMM iteration. Scoring is
+    ≈ 4 p² per output (the validation and training sums).
+    """
+    per_output = 4 * p * p * n_outputs + CANDIDATE_OVERHEAD
+    if penalty == "none":
+        return 9 * p ** 3 + per_output
+    if penalty == "ridge":
+        return 2 * per_output
+    return (LASSO_ITERATIONS if iterations is None else iterations) * 2 * p * p * n_outputs + per_output
+
+
+def decomposition_work(p: int) -> int:
+    """Work units of one fold's eigen-decomposition of its p × p Gram (≈ 9 p³)."""
+    return 9 * p ** 3
 
 
 @dataclass(frozen=True)
@@ -799,9 +870,9 @@ class CostEstimate:
                 f"peak {self.total_peak_bytes / 1e6:.0f} MB of statistics")
 
 
-# Calibrated on the compiled kernel and LAPACK of a 2-core development machine (benchmarks/cases.py:
-# select_auto); a rough scale, not a promise: the estimate is about the units.
-SECONDS_PER_UNIT = {"statistics": 6.0e-10, "solve": 1.5e-10}
+# CPU seconds per unit, calibrated with the compiled kernel and OpenBLAS on the 2-core development machine
+# (benchmarks/cases.py: make_load_cases, degrees 1-4); a scale for the budget, not a promise.
+SECONDS_PER_UNIT = {"statistics": 1.8e-10, "solve": 1.1e-10}
 
 
 def estimate_cost(n_samples: int, n_inputs: int, n_outputs: int, degrees: Sequence[int], n_folds: int, *,
@@ -838,9 +909,12 @@ def estimate_cost(n_samples: int, n_inputs: int, n_outputs: int, degrees: Sequen
     for degree in degrees:
         layout = RegressorLayout(MonomialBasis(n_inputs, degree), n_outputs, na, nb)
         p = layout.n_features
-        stats = n_bases * statistics_work(layout, n_samples - (layout.max_lag if na or nb else 0))
-        solve = n_folds * (solve_work(p, n_outputs, per_degree - 1, decompose=bool(penalties))
-                           + (solve_work(p, n_outputs, 1, decompose=False) if n_bases > 1 else 0))
+        stats = n_bases * statistics_work(layout, n_samples - (layout.max_lag if na or nb else 0), n_folds)
+        solve = candidate_work(p, n_outputs, "none") + (decomposition_work(p) if penalties else 0)
+        for penalty in penalties:
+            points = n_lambdas if n_lambdas is not None else (LASSO_POINTS if penalty == "lasso" else RIDGE_POINTS)
+            solve += points * candidate_work(p, n_outputs, penalty)
+        solve *= n_folds
         units.append((stats, solve))
         seconds.append(stats * SECONDS_PER_UNIT["statistics"] + solve * SECONDS_PER_UNIT["solve"])
         # Kept: each fold's statistics per basis; while scored: training sums and scaled problems per basis
@@ -894,7 +968,7 @@ class _Search:
         if key not in self._stats:
             frame = self._frames[key]
             self._stats[key] = self.data.fold_statistics(frame, self.fold_of, self.n_folds)
-            self.work["statistics"] += statistics_work(frame.layout, frame.n_rows)
+            self.work["statistics"] += statistics_work(frame.layout, frame.n_rows, self.n_folds)
         return self._stats[key]
 
     def full_statistics(self, key: tuple[int, str]) -> SufficientStatistics:
@@ -965,8 +1039,7 @@ class _Search:
             p, ny = parts[0].n_features, parts[0].cross.shape[1]
             penalized = any(c.penalty != "none" for c, _, _ in group)
             decompositions = sum((key, f) not in self._eigen for f in range(self.n_folds)) if penalized else 0
-            self.work["solve"] += (decompositions * 9 * p ** 3
-                                   + self.n_folds * solve_work(p, ny, len(group), decompose=False))
+            self.work["solve"] += decompositions * decomposition_work(p)
             with warnings.catch_warnings(), single_threaded_blas():
                 # Fold fits of high degrees on few groups are often ill-posed; the score says how much that matters.
                 warnings.simplefilter("ignore", IllPosedFitWarning)
@@ -974,7 +1047,8 @@ class _Search:
                 with ThreadPoolExecutor(min(worker_count(), self.n_folds)) as pool:
                     rows = list(pool.map(lambda f: self._fold(key, group, parts, f), range(self.n_folds)))
             for fold_rows in rows:
-                for candidate, val_mse, train_mse, nonzero in fold_rows:
+                for candidate, val_mse, train_mse, nonzero, iterations in fold_rows:
+                    self.work["solve"] += candidate_work(p, ny, candidate.penalty, iterations)
                     entry = self.scores.setdefault(candidate, CandidateScore(candidate, self.scorer))
                     entry.fold_mse.append(val_mse)
                     entry.fold_train_mse.append(train_mse)
@@ -983,7 +1057,7 @@ class _Search:
                         self.scorer.affine = entry
 
     def _fold(self, key, group, parts: list[SufficientStatistics], f: int) -> list[tuple]:
-        """(candidate, validation MSE, training MSE, nonzeros) per output, of ``group`` on fold ``f``."""
+        """(candidate, validation MSE, training MSE, nonzeros per output, ADMM iterations) of ``group`` on fold ``f``."""
         if (key, f) not in self._train:
             train = sum_statistics([parts[g] for g in range(len(parts)) if g != f])
             self._train[(key, f)] = (train, ScaledProblem.from_statistics(train))
@@ -992,7 +1066,7 @@ class _Search:
         for (candidate, _, _), result, prior in self._solve(problem, group, (key, f)):
             coef = (result.coef + (0.0 if prior is None else prior)) / problem.column_scale[:, None]
             rows.append((candidate, self._mse(parts[f], coef), self._mse(train, coef),
-                         np.count_nonzero(coef, axis=0)))
+                         np.count_nonzero(coef, axis=0), result.info.get("iterations")))
         return rows
 
     def _solve(self, problem: ScaledProblem, group, fold_key):
