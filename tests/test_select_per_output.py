@@ -215,3 +215,15 @@ def test_drop_incomplete_counts_the_rows_it_drops(tmp_path, capsys):
     assert main([*common, "--drop-incomplete", "-o", str(tmp_path / "m.json")]) == 0
     assert "dropped 3 row(s)" in capsys.readouterr().err  # rows 3, 17 and 40; row 9's hole is not used
     assert load_model(tmp_path / "m.json").n_samples_fit_ == 47
+
+
+def test_cli_refuses_contradictory_selection_options(tmp_path, capsys):
+    from ftcal.cli import main
+
+    path = tmp_path / "t.csv"
+    path.write_text("a,Fx,Fy,Fz,Tx,Ty,Tz\n" + "".join(f"{i},{i},1,2,3,4,5\n" for i in range(6)))
+    common = ["fit", str(path), "--inputs", "a", "--degree", "auto", "-o", str(tmp_path / "m.json")]
+    assert main([*common, "--objective", "force"]) == 2
+    assert "--select-per model" in capsys.readouterr().err
+    assert main([*common, "--max-degree", "11"]) == 2
+    assert "--max-degree" in capsys.readouterr().err

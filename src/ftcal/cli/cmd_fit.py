@@ -39,8 +39,8 @@ them whole): a pass for the column ranges (the normalization), one for the suffi
 selection is solved from those sums; ARX: lags inside segments), one for the training metrics;
 memory: one chunk (one file for ARX) plus p x p (--degree auto: p x p per fold).
 
---degree auto chooses a degree, penalty and lambda per output (--select-per output, the default),
-per force/torque block, or one for the whole model, by grouped cross-validation, and prints force
+--degree auto chooses a degree, penalty and lambda per force/torque block (--select-per block, the
+default), per output, or one for the whole model, by grouped cross-validation, and prints force
 (N) and torque (N.m) errors side by side against the affine model (--verbose: every candidate; the
 model file keeps the whole table under fit.solver.cross_validation). Lambda grids are relative, so
 they mean the same whatever the number of samples: LASSO lambda / lambda_max (the smallest lambda
@@ -112,10 +112,12 @@ def register(sub) -> None:
                         "for the paper's absolute 0.5,1,10,50,100,200 (default: from the data, 1 down three "
                         "decades of lambda_max for LASSO, six decades of lambda_ref for ridge, extended where "
                         "the best value sits at an edge)")
-    p.add_argument("--select-per", choices=SELECT_PER, default="output",
-                   help="--degree auto: choose degree, penalty and lambda for each output (default), for the "
-                        "force and the torque block, or one for the whole model. A mixed selection is stored at "
-                        "the largest selected degree with exact zeros for the terms an output does not use")
+    p.add_argument("--select-per", choices=SELECT_PER, default="block",
+                   help="--degree auto: choose degree, penalty and lambda for the force and the torque block "
+                        "(default: on held-out load cases it was never worse than one model, and per output was "
+                        "less robust; see benchmarks/bench_select.py), for each output, or one for the whole "
+                        "model. A mixed selection is stored at the largest selected degree with exact zeros for "
+                        "the terms an output does not use")
     p.add_argument("--objective", choices=OBJECTIVES, default="both",
                    help="--degree auto: what ranks one candidate serving force and torque (--select-per model): "
                         "both (force and torque errors each relative to affine, averaged; default), force or "

@@ -867,7 +867,7 @@ class CostEstimate:
     def describe(self) -> str:
         return (f"estimated work: degrees {self.degrees[0]}-{self.degrees[-1]} x {self.n_folds} folds x about "
                 f"{self.candidates} candidates per degree: about {self.total_seconds:.1f} s on one core, "
-                f"peak {self.total_peak_bytes / 1e6:.0f} MB of statistics")
+                f"peak {self.total_peak_bytes / 1e6:.3g} MB of statistics")
 
 
 # CPU seconds per unit, calibrated with the compiled kernel and OpenBLAS on the 2-core development machine
