@@ -86,9 +86,9 @@ def register(sub) -> None:
     penalty.add_argument("--lasso", type=positive_float, metavar="LAMBDA",
                          help="LASSO: minimize 1/2|A t - y|^2 + LAMBDA |t|_1 on the paper's regressor A (raw "
                               "monomials, each column divided by its max |value|, offset column 1). An absolute "
-                              "weight, for reproducing the paper (0.5 .. 200 on its ~2.3e5-sample data sets); "
-                              "the useful value grows with the number of samples and the output units, so "
-                              "prefer --degree auto, whose grid is relative to lambda_max")
+                              "weight, for reproducing the paper: its 0.5 .. 200 (Table III) are on the scale of its "
+                              "own data set's sum of squares; the useful value grows with the number of samples and "
+                              "the output units, so prefer --degree auto, whose grid is relative to lambda_max")
     penalty.add_argument("--ridge", type=positive_float, metavar="LAMBDA",
                          help="ridge: minimize 1/2|A t - y|^2 + 1/2 LAMBDA |t|^2 on the same regressor (sklearn "
                               "Ridge alpha; a QP written 1/2|A t - y|^2 + L |t|^2, as in the paper's MATLAB, "
@@ -219,6 +219,7 @@ def cross_validation(args, data, template, n_samples: int, n_inputs: int):
     degrees, note = estimate.within(args.budget, SELECTION_MEMORY_BYTES)
     if note:
         print(note)
+        print("searching instead: " + estimate.restricted(degrees).describe().removeprefix("estimated work: "))
     options = dict(template=template, n_folds=args.folds, select_per=args.select_per, objective=args.objective)
     if args.lasso or args.ridge:
         kind = "lasso" if args.lasso else "ridge"

@@ -864,6 +864,13 @@ class CostEstimate:
             total += seconds
         return tuple(kept), None
 
+    def restricted(self, degrees: Sequence[int]) -> "CostEstimate":
+        """The estimate of ``degrees`` only (a prefix of :attr:`degrees`, as :meth:`within` keeps)."""
+        keep = [i for i, d in enumerate(self.degrees) if d in set(degrees)]
+        return CostEstimate(tuple(self.degrees[i] for i in keep), tuple(self.units[i] for i in keep),
+                            tuple(self.seconds[i] for i in keep), tuple(self.peak_bytes[i] for i in keep),
+                            self.candidates, self.n_folds)
+
     def describe(self) -> str:
         return (f"estimated work: degrees {self.degrees[0]}-{self.degrees[-1]} x {self.n_folds} folds x about "
                 f"{self.candidates} candidates per degree: about {self.total_seconds:.1f} s on one core, "
