@@ -10,7 +10,6 @@ import pytest
 from ftcal.core.dataset import Dataset
 from ftcal.core.model import CalibrationModel
 from ftcal.core.select import (
-    Candidate,
     SaturationWarning,
     SelectionLossWarning,
     estimate_cost,

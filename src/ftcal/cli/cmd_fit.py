@@ -206,8 +206,11 @@ def streams(args) -> bool:
 def cross_validation(args, data, template, n_samples: int, n_inputs: int):
     """The ``--degree auto`` search over ``data`` (a Dataset or streamed statistics), its cost and summary printed."""
     from ..core.limits import SELECTION_MEMORY_BYTES
-    from ..core.select import Candidate, cross_validate, estimate_cost, select_model
+    from ..core.dataset import Dataset
+    from ..core.select import Candidate, DatasetStatistics, cross_validate, estimate_cost, select_model
 
+    if isinstance(data, Dataset):
+        data = DatasetStatistics(data)
     n_outputs, n_groups = len(data.output_names), len(data.group_sizes())
     penalties = () if args.lasso or args.ridge else args.penalties
     n_lambdas = 1 if args.lasso or args.ridge else (len(args.lambdas) if args.lambdas else None)
@@ -329,12 +332,10 @@ def fit_streaming(args, template, inputs, outputs, dropped) -> int:
     from ..core.statistics import sum_statistics
     from ..data.streaming import (
         StreamedStatistics,
-        add_cells,
         add_error_sums,
         add_statistics,
         file_error_sums,
         file_layout_statistics,
-        file_pose_cells,
         file_summary,
     )
     from ..data.table_chunks import keep_in_memory
@@ -364,12 +365,9 @@ def fit_streaming(args, template, inputs, outputs, dropped) -> int:
                                         outputs, args.segment_by, combine=add_statistics, description="statistics")
             model.fit_statistics(frame, sum_statistics(parts))
         sums = executor.map_reduce(file_error_sums, args.data, model, [], "one-step", "zeros", "drop",
-                                   args.segment_by, combine=add_error_sums, description="training metrics")
-        check_saturation(model, lambda: len(executor.map_reduce(file_pose_cells, args.data, inputs,
-                                                                model.input_range_, combine=add_cells,
-                                                                description="poses")),
-                         len(summary.group_sizes))
+                                   args.segment_by, True, combine=add_error_sums, description="training metrics")
     main, other = sums if isinstance(sums, tuple) else (sums, None)
+    check_saturation(model, lambda: len(main.pose_cells), len(summary.group_sizes))
     model.training_metrics_ = main.summary(outputs)
     if other is not None:
         model.training_metrics_["free_run"] = other.summary(outputs)

@@ -34,7 +34,6 @@ stops at the first degree that improves no output (or block) it selects for.
 
 from __future__ import annotations
 
-import math
 import warnings
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
@@ -58,9 +57,9 @@ from .solvers.least_squares import LeastSquares, Ridge
 from .statistics import SufficientStatistics, moment_plan, sum_statistics
 
 __all__ = ["Candidate", "CostEstimate", "CrossValidationResult", "DatasetStatistics", "GroupedStatistics",
-           "PAPER_LAMBDAS", "SelectionLossWarning", "best_model", "cross_validate", "default_candidates",
-           "SaturationWarning", "estimate_cost", "fit_best", "fit_candidates", "fit_selection", "fold_of_groups", "grouped_folds",
-           "pose_cells", "select_model", "warn_if_saturated"]
+           "PAPER_LAMBDAS", "SaturationWarning", "SelectionLossWarning", "best_model", "cross_validate",
+           "default_candidates", "estimate_cost", "fit_best", "fit_candidates", "fit_selection", "fold_of_groups",
+           "grouped_folds", "pose_cells", "select_model", "warn_if_saturated"]
 
 TIE_TOLERANCE = 0.01  # candidates within 1% of the best score count as tied
 DEFAULT_DEGREES = (1, 2, 3, 4, 5)
@@ -389,8 +388,10 @@ class CrossValidationResult:
     def selection_mse(self, train: bool = False) -> np.ndarray:
         """Per-fold, per-output MSE of the selection (each output's from its candidate), shape (n_folds, ny)."""
         chosen = self.candidate_of_output()
-        return np.column_stack([np.asarray(self.score_of(c).fold_train_mse if train else self.score_of(c).fold_mse)[:, j]
-                                for j, c in enumerate(chosen)])
+        def mse(c: Candidate) -> np.ndarray:
+            return np.asarray(self.score_of(c).fold_train_mse if train else self.score_of(c).fold_mse)
+
+        return np.column_stack([mse(c)[:, j] for j, c in enumerate(chosen)])
 
     def comparison(self) -> Comparison:
         """The best single candidate's margin over the affine model on the objective, with its fold spread."""
@@ -487,16 +488,18 @@ class CrossValidationResult:
         mse = self.selection_mse()
         values = dict(zip([name for name, _, _ in self._block_columns()], self._block_values(mse)))
         pieces = []
-        for name, unit, _ in self._block_columns():
+        chosen = self.candidate_of_output()
+        for name, unit, columns in self._block_columns():
             c = comparisons.get(name if name in comparisons else "outputs")
             text = f"{name} {values[name]:.4g}{(' ' + unit) if unit else ''}"
             if c is not None:
-                text += (f", margin over {c.reference.label} {c.margin:+.3g} on average over {self.n_folds} folds "
-                         f"(fold-to-fold spread {c.spread:.3g}, standard error {c.standard_error:.3g})")
+                unit_text = f" {unit}" if unit else ""
+                text += (f", margin over {c.reference.label} {c.margin:+.3g}{unit_text} on average over "
+                         f"{self.n_folds} folds (fold-to-fold spread {c.spread:.3g}, standard error "
+                         f"{c.standard_error:.3g})")
                 if c.loses:
                     text += f"; WORSE than {c.reference.label} beyond the fold noise"
-                elif c.within_noise and self.mixed or (c.within_noise and self.best != AFFINE
-                                                       and max(x.degree for x in self.candidate_of_output()) > 1):
+                elif c.within_noise and max(chosen[j].degree for j in columns) > 1:
                     text += "; within the fold noise"
             pieces.append(text)
         return head + "\n  " + "\n  ".join(pieces)
@@ -1064,7 +1067,7 @@ class _Search:
                         self.scorer.affine = entry
 
     def _fold(self, key, group, parts: list[SufficientStatistics], f: int) -> list[tuple]:
-        """(candidate, validation MSE, training MSE, nonzeros per output, ADMM iterations) of ``group`` on fold ``f``."""
+        """(candidate, validation MSE, training MSE, nonzeros per output, ADMM iterations) of ``group``, fold ``f``."""
         if (key, f) not in self._train:
             train = sum_statistics([parts[g] for g in range(len(parts)) if g != f])
             self._train[(key, f)] = (train, ScaledProblem.from_statistics(train))

@@ -192,6 +192,9 @@ def add_group_statistics(a: dict[str, SufficientStatistics],
     return total
 
 
+POSE_CELL_CAP = 100_000  # beyond this many distinct poses no polynomial ftcal fits is near saturation
+
+
 class StreamedStatistics:
     """:class:`ftcal.core.select.GroupedStatistics` of files streamed by per-file tasks (static models).
 
@@ -330,6 +333,7 @@ class ErrorSums:
     error_norm_sq: np.ndarray  # Σ ‖v - v̂‖²
     n_out_of_range: int
     training_segments: frozenset = frozenset()  # indices of the model's training fingerprints found
+    pose_cells: frozenset = frozenset()  # occupied cells of the pose grid, when counted (see file_error_sums)
 
     @classmethod
     def of(cls, y: np.ndarray, prediction: np.ndarray, output_names: Sequence[str],
@@ -363,7 +367,9 @@ class ErrorSums:
                          self.r_lag + other.r_lag + self.r_last * other.r_first, self.r_first, other.r_last,
                          np.maximum(self.max_abs, other.max_abs), self.norm_sq + other.norm_sq,
                          self.error_norm_sq + other.error_norm_sq, self.n_out_of_range + other.n_out_of_range,
-                         self.training_segments | other.training_segments)
+                         self.training_segments | other.training_segments,
+                         self.pose_cells | other.pose_cells if len(self.pose_cells) < POSE_CELL_CAP
+                         else self.pose_cells)
 
     def summary(self, output_names: Sequence[str]) -> dict:
         """The metrics of :func:`ftcal.core.metrics.summarize`, plus ``n_out_of_range``."""
@@ -402,8 +408,13 @@ def add_error_sums(a, b):
 
 
 def file_error_sums(path: str, model, fingerprints: Sequence[dict] = (), mode: str = "one-step",
-                    start: str = "zeros", warmup: str = "drop", segment_by: str | None = None):
+                    start: str = "zeros", warmup: str = "drop", segment_by: str | None = None,
+                    count_poses: bool = False):
     """:class:`ErrorSums` of ``model`` on one file with reference outputs.
+
+    With ``count_poses``, ``pose_cells`` holds the cells of the pose grid over the model's
+    input ranges that the file's samples occupy (:func:`ftcal.core.select.pose_cells`; at
+    most ``POSE_CELL_CAP``), for ``fit``'s saturation warning, without another pass.
 
     Static models read the file chunk by chunk. ARX models read it whole and
     give a pair: the sums for ``mode`` and for the other prediction mode,
@@ -416,11 +427,16 @@ def file_error_sums(path: str, model, fingerprints: Sequence[dict] = (), mode: s
 
     from ..runtime.errors import OutOfRangeWarning
 
+    from ..core.select import pose_cells
+
     if not model.layout_.is_static:
-        return _arx_error_sums(path, model, fingerprints, mode, start, warmup, segment_by)
+        return _arx_error_sums(path, model, fingerprints, mode, start, warmup, segment_by, count_poses)
     total = None
+    cells: set = set()
     finder = SegmentFinder(fingerprints)
     for chunk in iter_table_chunks(path, model.input_names_, model.output_names_):
+        if count_poses and len(cells) < POSE_CELL_CAP:
+            cells |= pose_cells(chunk.inputs, model.input_range_)
         def rows_sums(begin: int, end: int) -> ErrorSums:
             inputs, outputs = chunk.inputs[begin:end], chunk.outputs[begin:end]
             prediction = model.predict(inputs, warn_out_of_range=False)
@@ -435,11 +451,12 @@ def file_error_sums(path: str, model, fingerprints: Sequence[dict] = (), mode: s
             finder.feed(np.concatenate([chunk.inputs, chunk.outputs], axis=1))
         total = part if total is None else total + part
     total.training_segments = frozenset(finder.found)
+    total.pose_cells = frozenset(cells)
     return total
 
 
 def _arx_error_sums(path: str, model, fingerprints: Sequence[dict], mode: str, start: str, warmup: str,
-                    segment_by: str | None) -> tuple[ErrorSums, ErrorSums] | None:
+                    segment_by: str | None, count_poses: bool = False) -> tuple[ErrorSums, ErrorSums] | None:
     from .tables import read_dataset
 
     data = read_dataset([path], model.input_names_, model.output_names_, segment_by=segment_by)
@@ -458,6 +475,10 @@ def _arx_error_sums(path: str, model, fingerprints: Sequence[dict], mode: str, s
             prediction = model.predict(data, mode=which, start=start, warn_out_of_range=False)
             pair.append(ErrorSums.of(data.outputs[rows], prediction[rows], model.output_names_, n_out))
     pair[0].training_segments = frozenset(finder.found)
+    if count_poses:
+        from ..core.select import pose_cells
+
+        pair[0].pose_cells = frozenset(pose_cells(data.inputs, model.input_range_))
     return pair[0], pair[1]
 
 
@@ -601,21 +622,3 @@ def join_parts(parts: Sequence[str], target: Path) -> None:
             if writer is not None:
                 writer.close()
 
-
-POSE_CELL_CAP = 100_000  # beyond this many distinct poses no polynomial ftcal fits is near saturation
-
-
-def file_pose_cells(path: str, inputs: Sequence[str], input_range: np.ndarray) -> set:
-    """:func:`ftcal.core.select.pose_cells` of one file, chunk by chunk (at most ``POSE_CELL_CAP`` kept)."""
-    from ..core.select import pose_cells
-
-    cells: set = set()
-    for chunk in iter_table_chunks(path, inputs):
-        if len(cells) < POSE_CELL_CAP:
-            cells |= pose_cells(chunk.inputs, input_range)
-    return cells
-
-
-def add_cells(a: set, b: set) -> set:
-    """The union of two sets of pose cells (a task for the tree reduction)."""
-    return a | b if len(a) < POSE_CELL_CAP else a

@@ -220,8 +220,8 @@ def numeric_columns(frame, columns: Sequence[str], path: Path, role: str, *, fin
             row = int(np.flatnonzero(bad)[0])
             where = f"line {first_row + row + 2}" if path.suffix.lower() == ".csv" else f"row {first_row + row}"
             raise FtcalError(f"{path}: column {name!r} has {int(bad.sum())} empty, NaN or infinite "
-                             f"cell(s), first at {where} ('ftcal fit --drop-incomplete' drops rows with empty "
-                             "cells).")
+                             f"cell(s), first at {where}. ('ftcal fit --drop-incomplete' drops rows with empty "
+                             "cells.)")
         out[:, j] = values
     return out
 
