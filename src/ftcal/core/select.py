@@ -755,6 +755,9 @@ class GroupedStatistics(Protocol):
     def fold_statistics(self, frame: FitFrame, fold_of: dict[str, int], n_folds: int) -> list[SufficientStatistics]:
         """Statistics of each fold (the sum of its groups'), for ``frame``'s layout in its solve basis."""
 
+    def full_statistics(self, frame: FitFrame) -> SufficientStatistics:
+        """Statistics of all the data for ``frame``'s layout in its solve basis (the refit of ARX selections)."""
+
 
 class DatasetStatistics:
     """:class:`GroupedStatistics` of a :class:`Dataset` in memory."""
@@ -780,6 +783,10 @@ class DatasetStatistics:
                     frame.solve_output_normalization))
                 advance(1)
         return parts
+
+    def full_statistics(self, frame: FitFrame) -> SufficientStatistics:
+        return CalibrationModel.statistics(self.data, frame.layout, frame.solve_input_normalization,
+                                           frame.solve_output_normalization)
 
 
 def statistics_work(layout: RegressorLayout, n_rows: int, n_folds: int) -> int:
@@ -955,6 +962,7 @@ class _Search:
         self._train: dict[tuple[tuple[int, str], int], tuple[SufficientStatistics, ScaledProblem]] = {}
         self._eigen: dict[tuple[tuple[int, str], int], tuple[np.ndarray, np.ndarray]] = {}
         self._references: dict[tuple[int, str], float] = {}
+        self._full: dict[tuple, SufficientStatistics] = {}
 
     # ------------------------------------------------------------ statistics
     def _model(self, candidate: Candidate) -> CalibrationModel:
@@ -982,8 +990,14 @@ class _Search:
         return self._stats[key]
 
     def full_statistics(self, key: tuple[int, str]) -> SufficientStatistics:
-        """Statistics of all the data: the sum of the folds'."""
-        return sum_statistics(self.fold_statistics(key))
+        """Statistics of all the data: the sum of the folds' for static layouts (the folds partition the rows);
+        a pass of their own for ARX layouts (a fold's segments lose their warm-up rows where groups change)."""
+        frame = self._frames[key]
+        if frame.layout.is_static:
+            return sum_statistics(self.fold_statistics(key))
+        if ("full",) + key not in self._full:
+            self._full[("full",) + key] = self.data.full_statistics(frame)
+        return self._full[("full",) + key]
 
     def release(self, degree: int) -> None:
         """Drop the training sums and eigen-decompositions of ``degree`` (its fold statistics stay, for the refit)."""

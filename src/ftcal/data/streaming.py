@@ -241,6 +241,13 @@ class StreamedStatistics:
                                          description=f"statistics, degree {frame.layout.basis.degree}")
         return [folds[f] for f in range(n_folds)]
 
+    def full_statistics(self, frame) -> SufficientStatistics:
+        parts = self.executor.map_reduce(file_layout_statistics, self.paths, frame.layout,
+                                         frame.solve_input_normalization, frame.solve_output_normalization,
+                                         self.inputs, self.output_names, self.segment_by, combine=add_statistics,
+                                         description="statistics")
+        return sum_statistics(parts)
+
 
 def file_layout_statistics(path: str, layout: RegressorLayout, in_norm: Normalization, out_norm: Normalization,
                            inputs: Sequence[str], outputs: Sequence[str],
