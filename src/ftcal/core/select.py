@@ -364,7 +364,7 @@ class CrossValidationResult:
     select_per: str = "model"
     selection: list = field(default_factory=list)
     notes: list = field(default_factory=list)
-    search: "object" = field(default=None, repr=False)
+    search: "_Search | None" = field(default=None, repr=False)
 
     @property
     def scorer(self) -> Scorer:
