@@ -380,11 +380,15 @@ def test_degree_auto_picks_at_least_the_true_degree(capsys, tmp_path):
     model = tmp_path / "auto.json"
     # three varying inputs drive all six outputs: the reference wrenches cannot span six directions
     out, _ = run_warning(capsys, ["fit", tmp_path / "three.csv", "--inputs", "u1,u2,u3", "--degree", "auto",
-                                  "--group-by", "case", "--lambdas", "1,10", "-o", model], "never excited")
-    assert "force error-norm RMSE, 4 folds" in out  # 4 groups cap the default 5 folds
-    for label in ("np1", "np3", "np3 lasso λ=1", "np3 ridge λ=10"):
+                                  "--group-by", "case", "--lambdas", "1,0.1", "--verbose", "-o", model],
+                         "never excited")
+    assert "(4 folds;" in out  # 4 groups cap the default 5 folds
+    # --lambdas are relative: to λ_max for LASSO, to λ_ref = trace(A'A)/p for ridge.
+    for label in ("np1", "np3", "np3 lasso λ=1·λmax", "np3 ridge λ=0.1·λref"):
         assert re.search(rf"^\s*\*?{re.escape(label)}\s", out, re.M), label
-    assert re.search(r"^selected np\d.*margin over np1", out, re.M)
+    assert re.search(r"^selected \(per block\): ", out, re.M)
+    assert re.search(r"^\s+force .* N, margin over np1", out, re.M)
+    assert re.search(r"^\s+torque .* N·m, margin over np1", out, re.M)
     doc = json.loads(model.read_text())
     assert doc["model"]["degree"] >= 3
     assert [v["name"] for v in doc["inputs"]] == ["u1", "u2", "u3"]
@@ -405,7 +409,7 @@ def test_each_file_is_one_segment_and_one_group(capsys, work, tmp_path):
     assert json.loads(by_file.read_text())["created"]["sources"] == [str(f) for f in files]
     out, _ = run(capsys, ["fit", *files, "--degree", "auto", "--lambdas", "10", "--inputs", "u1,u2", "-o",
                           tmp_path / "auto.json"])
-    assert "RMSE, 4 folds)" in out and "selected np" in out
+    assert "4 folds" in out and "selected (per block)" in out
     # evaluate concatenates its files.
     payload = json.loads(run(capsys, ["evaluate", work.model3, work.val, work.val, "--json"])[0])
     assert payload["n_samples"] == 2 * N_VAL and payload["n_out_of_range"] == 2 * N_OUTSIDE

@@ -70,7 +70,7 @@ def test_one_group_cannot_be_cross_validated():
 
 def test_least_squares_fold_scores_equal_numpy_lstsq(rng):
     data = grouped_data(rng)
-    result = cross_validate(data, [Candidate(2, "none", None)], n_folds=5)
+    result = cross_validate(data, [Candidate(2, "none", None)], n_folds=5, objective="force")
     folds = grouped_folds(data.groups, 5)
     expected, expected_train = [], []
     for mask in folds:
@@ -78,8 +78,9 @@ def test_least_squares_fold_scores_equal_numpy_lstsq(rng):
         expected.append(force_error_norm_rmse(data.outputs[mask], raw_monomials(data.inputs[mask], 2) @ coef))
         expected_train.append(force_error_norm_rmse(data.outputs[~mask], raw_monomials(data.inputs[~mask], 2) @ coef))
     # Scores come from statistics (θᵀGθ − 2θᵀc + ‖y‖²), never from predictions: check against numpy.
-    np.testing.assert_allclose(result.scores[0].fold_scores, expected, rtol=1e-6)
-    np.testing.assert_allclose(result.scores[0].fold_train_scores, expected_train, rtol=1e-6)
+    scores = result.score_of(Candidate(2, "none", None))
+    np.testing.assert_allclose(scores.fold_scores, expected, rtol=1e-6)
+    np.testing.assert_allclose(scores.fold_train_scores, expected_train, rtol=1e-6)
 
 
 def test_true_degree_wins_and_ties_go_to_fewer_coefficients(rng):
@@ -276,7 +277,7 @@ def test_cli_selection_options_and_prior(tmp_path, capsys, rng):
     common = ["fit", str(path), "--inputs", "s1,s2,s3,s4", "--group-by", "case"]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        assert main([*common, "--degree", "auto", "--penalties", "ridge", "--lambdas", "paper",
+        assert main([*common, "--degree", "auto", "--penalties", "ridge", "--lambdas", "paper", "--verbose",
                      "-o", str(tmp_path / "auto.json")]) == 0
     out = capsys.readouterr().out
     assert "np2 ridge λ=200" in out and "lasso" not in out.split("selected")[0]

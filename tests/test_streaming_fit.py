@@ -203,12 +203,14 @@ def test_arx_degree_auto_streams_and_refits_the_winner(tmp_path):
     result = fit_cli(paths, out, "--degree", "auto", "--na", "1", "--nb", "1", "--group-by", "load",
                      "--lambdas", "10", "--penalties", "ridge")
     assert result.returncode == 0, result.stderr
-    from ftcal.core.select import best_model, select_model
+    from ftcal.core.select import fit_best, select_model
 
     data = read_dataset(paths, INPUTS, DEFAULT_OUTPUTS, group_by="load")
     template = CalibrationModel(na=1, nb=1)
-    winner = best_model(select_model(data, template=template, penalties=("ridge",), lambdas=(10.0,)),
-                        template).fit(data)
+    # The command's defaults: relative λ, selection per force/torque block.
+    result = select_model(data, template=template, penalties=("ridge",), lambdas=(10.0,), relative=True,
+                          select_per="block")
+    winner = fit_best(data, result, template=template)
     model = read_model_file(out).model
     assert (model.layout_.na, model.layout_.nb) == (1, 1)
     assert model.layout_.basis.degree == winner.layout_.basis.degree
@@ -229,10 +231,11 @@ def test_degree_auto_streams_and_refits_the_winner(tmp_path):
     result = fit_cli(paths, out, "--degree", "auto", "--group-by", "load", "--lambdas", "0.5,10",
                      "--penalties", "ridge")
     assert result.returncode == 0, result.stderr
-    from ftcal.core.select import best_model, select_model
+    from ftcal.core.select import fit_best, select_model
 
     data = read_dataset(paths, INPUTS, DEFAULT_OUTPUTS, group_by="load")
-    winner = best_model(select_model(data, penalties=("ridge",), lambdas=(0.5, 10.0))).fit(data)
+    result = select_model(data, penalties=("ridge",), lambdas=(0.5, 10.0), relative=True, select_per="block")
+    winner = fit_best(data, result)
     model = read_model_file(out).model
     assert model.layout_.basis.degree == winner.layout_.basis.degree
     assert relative(model.coef_, winner.coef_) < 1e-12

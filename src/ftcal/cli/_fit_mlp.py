@@ -115,7 +115,7 @@ def fit_mlp(args, inputs, outputs):
     if model.cv_ is not None:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", IllPosedFitWarning)  # judged by its score
-            affine = cross_validate(data, [Candidate(1, "none", None)], n_folds=args.folds)
+            affine = cross_validate(data, [Candidate(1, "none", None)], n_folds=args.folds, objective="force")
         print(cross_validation_table(model, affine.score_of(Candidate(1, "none", None)).fold_scores))
     return model, data
 

@@ -5,7 +5,16 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ..core.limits import MAX_DEGREE, MAX_LAG, NORMALIZATIONS, SOLVERS
+from ..core.limits import (
+    MAX_DEGREE,
+    MAX_LAG,
+    NORMALIZATIONS,
+    OBJECTIVES,
+    PAPER_LAMBDAS,
+    SELECT_PER,
+    SELECTION_BUDGET_SECONDS,
+    SOLVERS,
+)
 from ._common import (
     add_column_options,
     add_scheduler_option,
@@ -21,22 +30,29 @@ EPILOG = """examples:
   ftcal fit train/*.csv -o model.json                      affine model, u1..u6,T -> Fx..Tz
   ftcal fit data.parquet --degree 4 --lasso 50 -o m4.json  LASSO: the paper's problem and lambda scale
   ftcal fit logs/*.parquet --degree auto --group-by group -o best.json
+  ftcal fit logs/*.parquet --degree auto --group-by group --select-per block --budget 20 -o best.json
   ftcal fit new/*.csv --degree 2 --ridge 10 --prior last_month.json -o m.json   shrink toward a calibration
   ftcal fit logs/*.parquet --degree 4 --scheduler tcp://host:8786 -o m4.json    one Dask task per file
   ftcal fit train/*.csv --family mlp --hidden 16 -o mlp.json   neural baseline, early-stopped on grouped folds
 
 Fits stream the files (except --solver osqp and --estimate-payload, which read
 them whole): a pass for the column ranges (the normalization), one for the sufficient statistics
-(summed, then solved here; --degree auto: a pass per degree and basis tried, per group, folds are
-sums of groups; ARX: per fold, lags inside segments), one for the training metrics; memory: one
-chunk (one file for ARX) plus p x p.
+(summed, then solved here; --degree auto: a pass per degree and basis tried, per fold, and the
+selection is solved from those sums; ARX: lags inside segments), one for the training metrics;
+memory: one chunk (one file for ARX) plus p x p (--degree auto: p x p per fold).
+
+--degree auto chooses a degree, penalty and lambda per force/torque block (--select-per block, the
+default), per output, or one for the whole model, by grouped cross-validation, and prints force
+(N) and torque (N.m) errors side by side against the affine model (--verbose: every candidate; the
+model file keeps the whole table under fit.solver.cross_validation). Lambda grids are relative, so
+they mean the same whatever the number of samples: LASSO lambda / lambda_max (the smallest lambda
+that zeroes every coefficient), ridge lambda / lambda_ref (trace(A'A)/p, the mean eigenvalue of the
+Gram matrix). It estimates its cost first and leaves out degrees over --budget.
 """
 
 
 def lambda_grid(text: str) -> tuple[float, ...]:
-    """``paper`` (the paper's six values) or a comma-separated list of positive numbers."""
-    from ..core.limits import PAPER_LAMBDAS
-
+    """``paper`` (the paper's six absolute values) or a comma-separated list of positive relative values."""
     return PAPER_LAMBDAS if text == "paper" else float_list(text)
 
 
@@ -67,12 +83,14 @@ def register(sub) -> None:
     add_column_options(p)
     p.add_argument("--degree", type=degree_value,
                    help=f"polynomial degree, 1 to {MAX_DEGREE} (the paper fits 1 to 5), or 'auto' for grouped "
-                        "cross-validation over 1 to 5 (default 1: affine)")
+                        "cross-validation over 1 to --max-degree (default 1: affine)")
     penalty = p.add_mutually_exclusive_group()
     penalty.add_argument("--lasso", type=positive_float, metavar="LAMBDA",
                          help="LASSO: minimize 1/2|A t - y|^2 + LAMBDA |t|_1 on the paper's regressor A (raw "
-                              "monomials, each column divided by its max |value|, offset column 1); the paper "
-                              "uses 0.5 .. 200")
+                              "monomials, each column divided by its max |value|, offset column 1). An absolute "
+                              "weight, for reproducing the paper: its 0.5 .. 200 (Table III) are on the scale of its "
+                              "own data set's sum of squares; the useful value grows with the number of samples and "
+                              "the output units, so prefer --degree auto, whose grid is relative to lambda_max")
     penalty.add_argument("--ridge", type=positive_float, metavar="LAMBDA",
                          help="ridge: minimize 1/2|A t - y|^2 + 1/2 LAMBDA |t|^2 on the same regressor (sklearn "
                               "Ridge alpha; a QP written 1/2|A t - y|^2 + L |t|^2, as in the paper's MATLAB, "
@@ -90,10 +108,33 @@ def register(sub) -> None:
     p.add_argument("--folds", type=int, default=5, help="cross-validation folds for --degree auto (default 5)")
     p.add_argument("--penalties", type=penalty_list, default=("lasso", "ridge"), metavar="P1,P2",
                    help="penalized candidates for --degree auto beside least squares (default lasso,ridge)")
-    p.add_argument("--lambdas", type=lambda_grid, metavar="L1,L2,...",
-                   help="fixed lambda grid for --degree auto, or 'paper' for the paper's 0.5,1,10,50,100,200 "
-                        "(default: from the data, lambda_max of each degree down three decades for LASSO, six "
-                        "decades under trace(A'A)/p for ridge, extended where the best value sits at an edge)")
+    p.add_argument("--lambdas", type=lambda_grid, metavar="R1,R2,...",
+                   help="fixed relative lambda grid for --degree auto: fractions of lambda_max (LASSO) and of "
+                        "lambda_ref = trace(A'A)/p (ridge), the same whatever the number of samples; or 'paper' "
+                        "for the paper's absolute 0.5,1,10,50,100,200 (default: from the data, 1 down three "
+                        "decades of lambda_max for LASSO, six decades of lambda_ref for ridge, extended where "
+                        "the best value sits at an edge)")
+    p.add_argument("--select-per", choices=SELECT_PER, default="block",
+                   help="--degree auto: choose degree, penalty and lambda for the force and the torque block "
+                        "(default: on held-out load cases it was never worse than one model, and per output was "
+                        "less robust; see benchmarks/bench_select.py), for each output, or one for the whole "
+                        "model. A mixed selection is stored at the largest selected degree with exact zeros for "
+                        "the terms an output does not use")
+    p.add_argument("--objective", choices=OBJECTIVES, default="both",
+                   help="--degree auto: what ranks one candidate serving force and torque (--select-per model): "
+                        "both (force and torque errors each relative to affine, averaged; default), force or "
+                        "torque. Force and torque are always reported, and a selection worse than affine on "
+                        "either beyond the fold noise is flagged")
+    p.add_argument("--max-degree", type=int, default=5, metavar="D",
+                   help=f"--degree auto: highest degree tried, 1 to {MAX_DEGREE} (default 5)")
+    p.add_argument("--budget", type=positive_float, default=SELECTION_BUDGET_SECONDS, metavar="SECONDS",
+                   help="--degree auto: leave out the degrees whose estimated cost (printed before the search) "
+                        f"would exceed this (default {SELECTION_BUDGET_SECONDS:g} s, or 1 GB of statistics)")
+    p.add_argument("--verbose", action="store_true",
+                   help="--degree auto: print every candidate, not only the best of each degree")
+    p.add_argument("--drop-incomplete", action="store_true",
+                   help="drop the rows with an empty cell in the columns used, and say how many (default: "
+                        "refuse them)")
     p.add_argument("--prior", metavar="MODEL.json",
                    help="shrink toward this model (e.g. the workbench or last month's calibration) instead of "
                         "toward zero: the --ridge/--lasso penalty acts on theta - theta_prior (same inputs, "
@@ -148,6 +189,13 @@ def check_options(args) -> None:
     for flag in ("na", "nb"):
         if getattr(args, flag) > MAX_LAG:
             raise FtcalError(f"--{flag} must be at most {MAX_LAG}; got {getattr(args, flag)}.")
+    if not 1 <= args.max_degree <= MAX_DEGREE:
+        raise FtcalError(f"--max-degree must be in 1..{MAX_DEGREE}; got {args.max_degree}.")
+    if args.objective != "both" and args.select_per != "model":
+        raise FtcalError(f"--objective {args.objective} ranks one model for all outputs; add --select-per model "
+                         f"(with --select-per {args.select_per} each part is ranked by its own error).")
+    if args.drop_incomplete and args.scheduler:
+        raise FtcalError("--drop-incomplete filters rows in this process; drop --scheduler to use it.")
     if args.scheduler and not streams(args):
         raise FtcalError("--scheduler runs fits with the streaming solvers; it does not run --estimate-payload "
                          "or --solver osqp (drop --scheduler for those).")
@@ -158,29 +206,48 @@ def streams(args) -> bool:
     return args.estimate_payload is None and args.solver != "osqp"
 
 
-def cross_validation(args, data, template):
-    """The ``--degree auto`` search over ``data`` (a Dataset or streamed statistics), its table printed."""
-    from ..core.select import Candidate, cross_validate, select_model
+def cross_validation(args, data, template, n_samples: int, n_inputs: int):
+    """The ``--degree auto`` search over ``data`` (a Dataset or streamed statistics), its cost and summary printed."""
+    from ..core.limits import SELECTION_MEMORY_BYTES
+    from ..core.dataset import Dataset
+    from ..core.select import Candidate, DatasetStatistics, cross_validate, estimate_cost, select_model
 
+    if isinstance(data, Dataset):
+        data = DatasetStatistics(data)
+    n_outputs, n_groups = len(data.output_names), len(data.group_sizes())
+    penalties = () if args.lasso or args.ridge else args.penalties
+    n_lambdas = 1 if args.lasso or args.ridge else (len(args.lambdas) if args.lambdas else None)
+    estimate = estimate_cost(n_samples, n_inputs, n_outputs, range(1, args.max_degree + 1),
+                             min(args.folds, n_groups), penalties=penalties or ("ridge",) * bool(n_lambdas),
+                             n_lambdas=n_lambdas, na=args.na, nb=args.nb,
+                             n_bases=1 if template.normalization == "center" or not (penalties or n_lambdas) else 2)
+    print(estimate.describe() + f" (--budget {args.budget:g} s)")
+    degrees, note = estimate.within(args.budget, SELECTION_MEMORY_BYTES)
+    if note:
+        print(note)
+        print("searching instead: " + estimate.restricted(degrees).describe().removeprefix("estimated work: "))
+    options = dict(template=template, n_folds=args.folds, select_per=args.select_per, objective=args.objective)
     if args.lasso or args.ridge:
         kind = "lasso" if args.lasso else "ridge"
-        candidates = [Candidate(d, kind, args.lasso or args.ridge) for d in range(1, 6)]
-        result = cross_validate(data, candidates, template=template, n_folds=args.folds)
+        result = cross_validate(data, [Candidate(d, kind, args.lasso or args.ridge) for d in degrees], **options)
     else:
-        result = select_model(data, template=template, penalties=args.penalties, lambdas=args.lambdas,
-                              n_folds=args.folds)
-    print(result.table())
+        paper = args.lambdas is not None and args.lambdas == PAPER_LAMBDAS
+        result = select_model(data, degrees=degrees, penalties=args.penalties, lambdas=args.lambdas,
+                              relative=not paper, **options)
+    print(result.table() if args.verbose else result.summary())
+    result.notes.extend([estimate.describe()] + ([note] if note else []))  # for the model file
     return result
 
 
 def run(args) -> int:
-    from ..core.excitation import Spread
+    from contextlib import nullcontext
+
     from ..core.fingerprint import segment_fingerprints
     from ..core.model import CalibrationModel
-    from ..data.tables import read_dataset
+    from ..data.tables import drop_incomplete
     from ..files.model_json import save_model
     from ._fit_mlp import check_family_options, fit_mlp, report_mlp
-    from ._fit_payload import check_payload_options, read_with_payload
+    from ._fit_payload import check_payload_options
 
     require_suffix(args.output, (".json",), "-o")
     check_family_options(args)
@@ -201,12 +268,23 @@ def run(args) -> int:
 
         prior = read_model(args.prior)
     template = CalibrationModel(na=args.na, nb=args.nb, normalization=args.normalization, prior=prior)
-    if streams(args):
-        model, fingerprints = fit_streaming(args, template, inputs, outputs)
-        save_model(model, args.output, sources=[str(p) for p in args.data], training_segments=fingerprints,
-                   prior=args.prior)
-        report_fit(model, args.output)
-        return 0
+    with drop_incomplete() if args.drop_incomplete else nullcontext() as dropped:
+        if streams(args):
+            return fit_streaming(args, template, inputs, outputs, dropped)
+        return fit_in_memory(args, template, inputs, outputs, dropped)
+
+
+def fit_in_memory(args, template, inputs, outputs, dropped) -> int:
+    """Read the files whole (--solver osqp, --estimate-payload), fit, save."""
+    import numpy as np
+
+    from ..core.excitation import Spread
+    from ..core.fingerprint import segment_fingerprints
+    from ..core.select import pose_cells
+    from ..data.tables import read_dataset
+    from ..files.model_json import save_model
+    from ._fit_payload import read_with_payload
+
     if args.estimate_payload is not None:
         data = read_with_payload(args, inputs, outputs)  # prints the payload, then the completed wrench's span
         report_excitation(Spread.of(data.outputs), data.output_names)
@@ -215,22 +293,50 @@ def run(args) -> int:
         report_excitation(Spread.of(data.outputs), data.output_names)
         print(f"read {data.n_samples} samples from {len(args.data)} file(s): inputs {','.join(inputs)} "
               f"-> outputs {','.join(outputs)}", file=sys.stderr)
+    report_dropped(dropped)
     if args.degree == "auto":
         from ..core.select import fit_best
 
-        model = fit_best(data, cross_validation(args, data, template), template=template)
+        result = cross_validation(args, data, template, data.n_samples, len(inputs))
+        model = fit_best(data, result, template=template)
+        model.solver_info_["cross_validation"] = result.as_dict()
     else:
         model = template.clone(degree=args.degree, solver=make_solver(args)).fit(data)
     if model.input_spread_ is None:
         model.input_spread_ = Spread.of(data.inputs)
+    check_saturation(model, lambda: len(pose_cells(data.inputs, model.input_range_)),
+                     len(np.unique(np.asarray(data.groups, dtype=str))))
     save_model(model, args.output, sources=[str(p) for p in args.data],
                training_segments=segment_fingerprints(data), prior=args.prior)
     report_fit(model, args.output)
     return 0
 
 
-def fit_streaming(args, template, inputs, outputs):
-    """Fit with one task per file, in passes that each hold one chunk (or one ARX file).
+def report_dropped(dropped) -> None:
+    if dropped is not None:
+        print(f"dropped {sum(dropped.values())} row(s) with an empty cell (--drop-incomplete)", file=sys.stderr)
+
+
+def check_saturation(model, count_poses, n_groups: int) -> None:
+    """Warn when the least-squares part of ``model`` has nearly as many coefficients per output as distinct poses."""
+    from ..core.features import MonomialBasis, RegressorLayout
+    from ..core.select import warn_if_saturated
+
+    selection = model.solver_info_.get("selection")
+    if selection:
+        degrees = [entry["degree"] for entry in selection if entry["penalty"] == "none"]
+    else:
+        degrees = [] if model.solver_info_.get("lambda") else [model.layout_.basis.degree]
+    if not degrees:
+        return  # ridge and LASSO are how to fit many coefficients to few poses
+    layout = RegressorLayout(MonomialBasis(len(model.input_names_), max(degrees)), len(model.output_names_),
+                             model.layout_.na, model.layout_.nb)
+    warn_if_saturated(layout.n_features, count_poses(), n_groups,
+                      f"The least-squares fit of degree {max(degrees)}")
+
+
+def fit_streaming(args, template, inputs, outputs, dropped) -> int:
+    """Fit with one task per file, in passes that each hold one chunk (or one ARX file), and save.
 
     Pass 1 gives the ranges, segment lengths and fingerprints; the normalization
     follows from the ranges, so pass 2 accumulates the statistics directly in the
@@ -238,13 +344,9 @@ def fit_streaming(args, template, inputs, outputs):
     exact algebra but not exact arithmetic: degree-8 moments of raw ADC counts
     lose every digit to cancellation). The client solves; pass 3 gives the
     training metrics from additive error sums, as ``ftcal evaluate`` does.
-    ``--degree auto`` adds one pass per (degree, basis) the search tries,
-    giving per-group statistics whose sums are the folds'. Run here, the passes
-    parse each small file once (:func:`ftcal.data.table_chunks.keep_in_memory`).
-
-    Returns
-    -------
-    (CalibrationModel, list of fingerprint dicts)
+    ``--degree auto`` replaces pass 2 by one pass per (degree, basis) the search
+    tries, giving per-fold statistics whose sums solve the selection. Run here, the
+    passes parse each small file once (:func:`ftcal.data.table_chunks.keep_in_memory`).
     """
     from ..core.statistics import sum_statistics
     from ..data.streaming import (
@@ -256,6 +358,7 @@ def fit_streaming(args, template, inputs, outputs):
         file_summary,
     )
     from ..data.table_chunks import keep_in_memory
+    from ..files.model_json import save_model
     from ..runtime.executors import open_executor
 
     with open_executor(args.scheduler) as executor, keep_in_memory():
@@ -265,29 +368,36 @@ def fit_streaming(args, template, inputs, outputs):
         report_excitation(summary.spread.take(slice(n_in, None)), outputs)
         print(f"read {sum(summary.segment_lengths)} samples from {len(args.data)} file(s): inputs "
               f"{','.join(inputs)} -> outputs {','.join(outputs)}", file=sys.stderr)
+        report_dropped(dropped)
         if args.degree == "auto":
-            from ..core.select import best_model
+            from ..core.select import fit_selection
 
             source = StreamedStatistics(executor, args.data, inputs, outputs, summary, args.group_by,
                                         args.segment_by)
-            model = best_model(cross_validation(args, source, template), template)
+            result = cross_validation(args, source, template, sum(summary.segment_lengths), len(inputs))
+            model = fit_selection(result)
+            model.solver_info_["cross_validation"] = result.as_dict()
         else:
             model = template.clone(degree=args.degree, solver=make_solver(args))
-        frame = model.frame_from_ranges(summary.input_range, summary.output_range, inputs, outputs,
-                                        summary.segment_lengths)
-        parts = executor.map_reduce(file_layout_statistics, args.data, frame.layout,
-                                    frame.solve_input_normalization, frame.solve_output_normalization, inputs,
-                                    outputs, args.segment_by, combine=add_statistics, description="statistics")
-        model.fit_statistics(frame, sum_statistics(parts))
+            frame = model.frame_from_ranges(summary.input_range, summary.output_range, inputs, outputs,
+                                            summary.segment_lengths)
+            parts = executor.map_reduce(file_layout_statistics, args.data, frame.layout,
+                                        frame.solve_input_normalization, frame.solve_output_normalization, inputs,
+                                        outputs, args.segment_by, combine=add_statistics, description="statistics")
+            model.fit_statistics(frame, sum_statistics(parts))
         model.input_spread_ = summary.spread.take(slice(0, n_in))
         sums = executor.map_reduce(file_error_sums, args.data, model, [], "one-step", "zeros", "drop",
-                                   args.segment_by, combine=add_error_sums, description="training metrics")
+                                   args.segment_by, True, combine=add_error_sums, description="training metrics")
     main, other = sums if isinstance(sums, tuple) else (sums, None)
+    check_saturation(model, lambda: len(main.pose_cells), len(summary.group_sizes))
     model.training_metrics_ = main.summary(outputs)
     if other is not None:
         model.training_metrics_["free_run"] = other.summary(outputs)
         del model.training_metrics_["free_run"]["n_out_of_range"]
-    return model, summary.fingerprints
+    save_model(model, args.output, sources=[str(p) for p in args.data], training_segments=summary.fingerprints,
+               prior=args.prior)
+    report_fit(model, args.output)
+    return 0
 
 
 def report_excitation(spread, outputs) -> None:

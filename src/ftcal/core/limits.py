@@ -114,3 +114,27 @@ DRIFT_BLOCKS = 1000
 
 DRIFT_BLOCK_SECONDS = 1.0
 """Shortest time block of the random-walk bias model, s: faster wandering is noise, slower is drift."""
+
+# ``ftcal fit --degree auto``: selection per output and its cost.
+
+SELECT_PER = ("output", "block", "model")
+"""What ``--degree auto`` selects a degree, penalty and λ for: each output, the force and the torque
+blocks, or one model for all outputs."""
+
+OBJECTIVES = ("both", "force", "torque")
+"""What ranks candidates that serve several outputs: force and torque (each relative to the affine
+model, averaged), or one block alone."""
+
+SELECTION_BUDGET_SECONDS = 20.0
+"""Default ``--budget``: degrees whose estimated cost would exceed it are not tried (the search says so)."""
+
+SELECTION_MEMORY_BYTES = 1_000_000_000
+"""Degrees whose estimated peak memory (statistics and eigen-decompositions held per fold) exceeds this are
+not tried."""
+
+SATURATION_RATIO = 0.5
+"""Least-squares fits warn when coefficients per output exceed this fraction of the distinct poses."""
+
+POSE_BINS = 20
+"""Distinct poses are counted as occupied cells of a grid with this many bins per input over its range
+(5 % of the range: a static load case with its noise is one cell, a sweep one cell per 5 % step)."""

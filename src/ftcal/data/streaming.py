@@ -149,20 +149,24 @@ def _group_counts(path: str, chunk, group_by: str | None) -> dict[str, int]:
 
 
 def file_group_statistics(path: str, basis: MonomialBasis, normalization: Normalization, inputs: Sequence[str],
-                          outputs: Sequence[str], group_by: str | None = None) -> dict[str, SufficientStatistics]:
-    """Sufficient statistics of a static model over one file, per group label, chunk by chunk.
+                          outputs: Sequence[str], group_by: str | None = None,
+                          fold_of: dict[str, int] | None = None) -> dict:
+    """Sufficient statistics of a static model over one file, per group label (or per fold), chunk by chunk.
 
     Parameters
     ----------
     path : CSV or Parquet file
     basis, normalization, inputs, outputs : as :func:`file_statistics`
     group_by : group label column, or None (the whole file is the group named by its path)
+    fold_of : dict of group label -> fold, optional
+        Accumulate per fold instead of per group: memory per task is then one p × p
+        Gram per fold, not per group (60 load cases at degree 5 over 8 inputs is 0.8 GB).
 
     Returns
     -------
-    dict of group label (str) -> SufficientStatistics; cross-validation folds are sums of these.
+    dict of group label (str), or fold (int) with ``fold_of``, -> SufficientStatistics
     """
-    totals: dict[str, StaticAccumulator] = {}
+    totals: dict = {}
     for chunk in iter_table_chunks(path, inputs, outputs, labels={group_by: "group"} if group_by else ()):
         u_norm = normalization.apply(chunk.inputs)
         if group_by is None:
@@ -170,6 +174,13 @@ def file_group_statistics(path: str, basis: MonomialBasis, normalization: Normal
         else:
             labels = chunk.labels[group_by].astype(str)
             rows = {label: labels == label for label in np.unique(labels).tolist()}
+        if fold_of is not None:  # one selection per fold: the union of its groups' rows
+            folds: dict = {}
+            for label, selection in rows.items():
+                mask = np.zeros(chunk.n_rows, dtype=bool)
+                mask[selection] = True
+                folds[fold_of[label]] = folds[fold_of[label]] | mask if fold_of[label] in folds else mask
+            rows = folds
         for label, selection in rows.items():
             if label not in totals:
                 totals[label] = StaticAccumulator(basis, len(outputs))
@@ -184,6 +195,9 @@ def add_group_statistics(a: dict[str, SufficientStatistics],
     for label, stats in b.items():
         total[label] = stats if label not in total else total[label] + stats
     return total
+
+
+POSE_CELL_CAP = 100_000  # beyond this many distinct poses no polynomial ftcal fits is near saturation
 
 
 class StreamedStatistics:
@@ -226,15 +240,18 @@ class StreamedStatistics:
                                              self.group_by, combine=add_fold_parts,
                                              description=f"statistics, degree {frame.layout.basis.degree}")
             return [sum_statistics(parts) for parts in folds]
-        groups = self.executor.map_reduce(file_group_statistics, self.paths, frame.layout.basis,
-                                          frame.solve_input_normalization, self.inputs, self.output_names,
-                                          self.group_by, combine=add_group_statistics,
-                                          description=f"statistics, degree {frame.layout.basis.degree}")
-        parts: list[SufficientStatistics | None] = [None] * n_folds
-        for label in sorted(groups):
-            f = fold_of[label]
-            parts[f] = groups[label] if parts[f] is None else parts[f] + groups[label]
-        return parts
+        folds = self.executor.map_reduce(file_group_statistics, self.paths, frame.layout.basis,
+                                         frame.solve_input_normalization, self.inputs, self.output_names,
+                                         self.group_by, fold_of, combine=add_group_statistics,
+                                         description=f"statistics, degree {frame.layout.basis.degree}")
+        return [folds[f] for f in range(n_folds)]
+
+    def full_statistics(self, frame) -> SufficientStatistics:
+        parts = self.executor.map_reduce(file_layout_statistics, self.paths, frame.layout,
+                                         frame.solve_input_normalization, frame.solve_output_normalization,
+                                         self.inputs, self.output_names, self.segment_by, combine=add_statistics,
+                                         description="statistics")
+        return sum_statistics(parts)
 
 
 def file_layout_statistics(path: str, layout: RegressorLayout, in_norm: Normalization, out_norm: Normalization,
@@ -328,6 +345,7 @@ class ErrorSums:
     error_norm_sq: np.ndarray  # Σ ‖v - v̂‖²
     n_out_of_range: int
     training_segments: frozenset = frozenset()  # indices of the model's training fingerprints found
+    pose_cells: frozenset = frozenset()  # occupied cells of the pose grid, when counted (see file_error_sums)
 
     @classmethod
     def of(cls, y: np.ndarray, prediction: np.ndarray, output_names: Sequence[str],
@@ -361,7 +379,9 @@ class ErrorSums:
                          self.r_lag + other.r_lag + self.r_last * other.r_first, self.r_first, other.r_last,
                          np.maximum(self.max_abs, other.max_abs), self.norm_sq + other.norm_sq,
                          self.error_norm_sq + other.error_norm_sq, self.n_out_of_range + other.n_out_of_range,
-                         self.training_segments | other.training_segments)
+                         self.training_segments | other.training_segments,
+                         self.pose_cells | other.pose_cells if len(self.pose_cells) < POSE_CELL_CAP
+                         else self.pose_cells)
 
     def summary(self, output_names: Sequence[str]) -> dict:
         """The metrics of :func:`ftcal.core.metrics.summarize`, plus ``n_out_of_range``."""
@@ -400,8 +420,13 @@ def add_error_sums(a, b):
 
 
 def file_error_sums(path: str, model, fingerprints: Sequence[dict] = (), mode: str = "one-step",
-                    start: str = "zeros", warmup: str = "drop", segment_by: str | None = None):
+                    start: str = "zeros", warmup: str = "drop", segment_by: str | None = None,
+                    count_poses: bool = False):
     """:class:`ErrorSums` of ``model`` on one file with reference outputs.
+
+    With ``count_poses``, ``pose_cells`` holds the cells of the pose grid over the model's
+    input ranges that the file's samples occupy (:func:`ftcal.core.select.pose_cells`; at
+    most ``POSE_CELL_CAP``), for ``fit``'s saturation warning, without another pass.
 
     Static models read the file chunk by chunk. ARX models read it whole and
     give a pair: the sums for ``mode`` and for the other prediction mode,
@@ -414,11 +439,16 @@ def file_error_sums(path: str, model, fingerprints: Sequence[dict] = (), mode: s
 
     from ..runtime.errors import OutOfRangeWarning
 
+    from ..core.select import pose_cells
+
     if not model.is_static:
-        return _arx_error_sums(path, model, fingerprints, mode, start, warmup, segment_by)
+        return _arx_error_sums(path, model, fingerprints, mode, start, warmup, segment_by, count_poses)
     total = None
+    cells: set = set()
     finder = SegmentFinder(fingerprints)
     for chunk in iter_table_chunks(path, model.input_names_, model.output_names_):
+        if count_poses and len(cells) < POSE_CELL_CAP:
+            cells |= pose_cells(chunk.inputs, model.input_range_)
         def rows_sums(begin: int, end: int) -> ErrorSums:
             inputs, outputs = chunk.inputs[begin:end], chunk.outputs[begin:end]
             prediction = model.predict(inputs, warn_out_of_range=False)
@@ -433,11 +463,12 @@ def file_error_sums(path: str, model, fingerprints: Sequence[dict] = (), mode: s
             finder.feed(np.concatenate([chunk.inputs, chunk.outputs], axis=1))
         total = part if total is None else total + part
     total.training_segments = frozenset(finder.found)
+    total.pose_cells = frozenset(cells)
     return total
 
 
 def _arx_error_sums(path: str, model, fingerprints: Sequence[dict], mode: str, start: str, warmup: str,
-                    segment_by: str | None) -> tuple[ErrorSums, ErrorSums] | None:
+                    segment_by: str | None, count_poses: bool = False) -> tuple[ErrorSums, ErrorSums] | None:
     from .tables import read_dataset
 
     data = read_dataset([path], model.input_names_, model.output_names_, segment_by=segment_by)
@@ -456,6 +487,10 @@ def _arx_error_sums(path: str, model, fingerprints: Sequence[dict], mode: str, s
             prediction = model.predict(data, mode=which, start=start, warn_out_of_range=False)
             pair.append(ErrorSums.of(data.outputs[rows], prediction[rows], model.output_names_, n_out))
     pair[0].training_segments = frozenset(finder.found)
+    if count_poses:
+        from ..core.select import pose_cells
+
+        pair[0].pose_cells = frozenset(pose_cells(data.inputs, model.input_range_))
     return pair[0], pair[1]
 
 
@@ -598,3 +633,4 @@ def join_parts(parts: Sequence[str], target: Path) -> None:
         finally:
             if writer is not None:
                 writer.close()
+

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..runtime.errors import FtcalError
-from .tables import arrow_numbers, table_columns
+from .tables import arrow_numbers, complete_rows, table_columns
 
 CHUNK_ROWS = 1 << 16  # rows per chunk: ~4 MB of float64 inputs and outputs
 CSV_BLOCK_BYTES = 1 << 22  # CSV bytes parsed per block (~CHUNK_ROWS rows of 13 numbers)
@@ -185,6 +185,8 @@ def _read_table_chunks(path: Path, inputs: Sequence[str], outputs: Sequence[str]
     roles = {**{c: "output" for c in outputs}, **{c: "input" for c in inputs}}
     for batch in _batches(path, needed, roles, chunk_rows, names):
         table = _as_table(batch)
+        n_read = table.num_rows
+        table = complete_rows(table, needed, path, first_row)
         chunk = TableChunk(first_row, arrow_numbers(table, inputs, path, "input", first_row=first_row),
                            arrow_numbers(table, outputs, path, "output", first_row=first_row) if outputs else None)
         for column, role in labels.items():
@@ -192,7 +194,7 @@ def _read_table_chunks(path: Path, inputs: Sequence[str], outputs: Sequence[str]
             if values.null_count:
                 raise FtcalError(f"{path}: {role} column {column!r} has empty cells.")
             chunk.labels[column] = np.asarray(values.to_pylist(), dtype=object)
-        first_row += table.num_rows
+        first_row += n_read
         yield chunk
     if first_row == 0:
         raise FtcalError(f"{path}: the table has no rows.")

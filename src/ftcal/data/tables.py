@@ -8,7 +8,8 @@ segment or group of its own.
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -69,6 +70,48 @@ def read_arrow(path: str | os.PathLike):
 # Arrow types whose values buffer is a plain little-endian numpy array.
 _PLAIN_NUMBERS = {"double": "<f8", "float": "<f4", "int64": "<i8", "int32": "<i4", "int16": "<i2", "int8": "i1",
                   "uint64": "<u8", "uint32": "<u4", "uint16": "<u2", "uint8": "u1"}
+
+
+_DROPPED: dict | None = None  # (file, first row of the chunk) -> rows dropped, inside drop_incomplete()
+
+
+@contextmanager
+def drop_incomplete() -> Iterator[dict]:
+    """Within this block, table reads drop the rows with an empty (null) or NaN cell in the columns they use.
+
+    Yields a dict (file, first row of a chunk) -> rows dropped, filled as files are read;
+    reading a file twice (several passes) overwrites its entries, so ``sum(d.values())``
+    counts every dropped row once. In-process reads only (not on Dask workers).
+    """
+    global _DROPPED
+    previous, _DROPPED = _DROPPED, {}
+    try:
+        yield _DROPPED
+    finally:
+        _DROPPED = previous
+
+
+def complete_rows(table, columns: Sequence[str], path, first_row: int = 0):
+    """``table`` without its incomplete rows (in ``columns``) inside :func:`drop_incomplete`, else ``table``."""
+    if _DROPPED is None:
+        return table
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    keep = None
+    for name in dict.fromkeys(columns):
+        if name not in table.column_names:
+            continue  # a missing column is refused, naming it, by the reader
+        column = table.column(name)
+        valid = pc.is_valid(column)
+        if pa.types.is_floating(column.type):
+            valid = pc.and_(valid, pc.invert(pc.fill_null(pc.is_nan(column), True)))
+        keep = valid if keep is None else pc.and_(keep, valid)
+    if keep is None:
+        return table
+    dropped = table.num_rows - int(pc.sum(pc.cast(keep, pa.int64())).as_py() or 0)
+    _DROPPED[(str(path), first_row)] = dropped
+    return table.filter(keep) if dropped else table
 
 
 def arrow_numbers(table, columns: Sequence[str], path: Path, role: str, *, first_row: int = 0) -> np.ndarray:
@@ -177,7 +220,8 @@ def numeric_columns(frame, columns: Sequence[str], path: Path, role: str, *, fin
             row = int(np.flatnonzero(bad)[0])
             where = f"line {first_row + row + 2}" if path.suffix.lower() == ".csv" else f"row {first_row + row}"
             raise FtcalError(f"{path}: column {name!r} has {int(bad.sum())} empty, NaN or infinite "
-                             f"cell(s), first at {where}.")
+                             f"cell(s), first at {where}. ('ftcal fit --drop-incomplete' drops rows with empty "
+                             "cells.)")
         out[:, j] = values
     return out
 
@@ -214,7 +258,8 @@ def read_dataset(paths: Sequence[str | os.PathLike], inputs: Sequence[str], outp
     parts = []
     for index, raw_path in enumerate(paths):
         path = Path(raw_path)
-        table = read_arrow(path)
+        table = complete_rows(read_arrow(path), [*inputs, *(outputs or ()), *(c for c in (segment_by, group_by) if c)],
+                              path)
         u = arrow_numbers(table, inputs, path, "input")
         y = None
         if outputs:

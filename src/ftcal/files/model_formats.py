@@ -22,8 +22,15 @@ def write_json(source: ModelFile, output: Path, options: ConvertOptions) -> Writ
 
 
 def write_paper_xml(source: ModelFile, output: Path, options: ConvertOptions) -> Written:
-    """The paper's XML (raw-input coefficients)."""
-    return Written((write_model(source.model, output, "paper-xml"),))
+    """The paper's XML (raw-input coefficients); one degree per file, so a per-output selection says so."""
+    notes = ()
+    selection = source.model.solver_info_.get("selection") or []
+    degrees = sorted({entry.get("degree") for entry in selection})
+    if len(degrees) > 1:
+        notes = (f"the paper's XML holds one degree per file: this per-{source.model.solver_info_.get('select_per')} "
+                 f"selection (degrees {', '.join(map(str, degrees))}) is written at degree {degrees[-1]}, with "
+                 "zero coefficients for the terms an output's own degree does not have",)
+    return Written((write_model(source.model, output, "paper-xml"),), notes)
 
 
 def write_icub_firmware(source: ModelFile, output: Path, options: ConvertOptions) -> Written:
