@@ -132,3 +132,158 @@ def test_multi_file_export_is_all_or_nothing(tmp_path):
     assert main(["convert", str(source), "--to", "c", "--name", "cal", "-o", f"{out}/"]) == 2
     assert sorted(p.name for p in out.iterdir()) == ["cal.c"]
     assert (out / "cal.c").is_dir()
+
+
+# ---------------------------------------------------------------- 2. never hang
+
+
+def _demo_table(path: Path, n=40) -> Path:
+    rng = np.random.default_rng(2)
+    cols = {**{f"u{i}": rng.uniform(-1, 1, n) for i in range(1, 7)}, **{k: rng.normal(size=n) for k in
+                                                                         ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")}}
+    path.write_text(",".join(cols) + "\n" + "\n".join(",".join(repr(float(cols[k][i])) for k in cols)
+                                                      for i in range(n)) + "\n")
+    return path
+
+
+def _call_with_timeout(function, fifos=(), seconds=20.0):
+    """Run ``function`` in a thread; if it blocks (on a FIFO), unblock it and fail."""
+    import threading
+
+    outcome = {}
+
+    def run():
+        try:
+            outcome["value"] = function()
+        except BaseException as exc:  # noqa: BLE001 - handed back to the test
+            outcome["error"] = exc
+
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    thread.join(seconds)
+    if thread.is_alive():
+        for fifo in fifos:  # a writer that opens and closes: the blocked reader sees end of file
+            try:
+                os.close(os.open(fifo, os.O_WRONLY | os.O_NONBLOCK))
+            except OSError:
+                pass
+        thread.join(5)
+        pytest.fail(f"{function} blocked for {seconds} s on a FIFO or device")
+    if "error" in outcome:
+        raise outcome["error"]
+    return outcome.get("value")
+
+
+def test_pipes_devices_and_link_loops_are_refused_by_every_reader(tmp_path):
+    """Class: a FIFO, character device or symbolic-link loop given where a file is expected.
+
+    One shared check (ftcal.runtime.inputs.check_input_file) runs in every reader; before it,
+    the readers opened a FIFO and blocked until a writer came (forever), and read /dev/zero
+    without end.
+    """
+    from ftcal.data.logs import read_recording
+    from ftcal.data.tables import read_arrow
+    from ftcal.files.model_files import read_model_file
+    from ftcal.files.paper_xml import read_paper_xml
+    from ftcal.files.targets import input_kind
+    from ftcal.robot import RobotModel, load_case_config
+    from ftcal.runtime.errors import FtcalError
+
+    fifo = tmp_path / "pipe.csv"
+    os.mkfifo(fifo)
+    loop = tmp_path / "loop.json"
+    os.symlink(tmp_path / "loop2.json", loop)
+    os.symlink(loop, tmp_path / "loop2.json")
+    readers = {"table": read_arrow, "model": read_model_file, "paper XML": read_paper_xml, "convert": input_kind,
+               "URDF": lambda p: RobotModel.load(urdf=p), "load cases": load_case_config,
+               "recording": read_recording}
+    for what, reader in readers.items():
+        for bad, kind in ((fifo, "FIFO"), (Path("/dev/zero"), "character device"), (loop, "loop of symbolic")):
+            with pytest.raises(FtcalError, match=kind) as info:
+                _call_with_timeout(lambda: reader(bad), fifos=[fifo])
+            assert str(bad) in str(info.value) and "\n" not in str(info.value), what
+
+
+def test_pipes_and_devices_are_refused_by_the_command_line_in_one_line(tmp_path, capfd):
+    """Class: the same through the CLI, for every command's file arguments (checked before any work).
+
+    Before the fix ``ftcal fit pipe.csv`` blocked forever in the header reader.
+    """
+    fifo = tmp_path / "pipe.csv"
+    os.mkfifo(fifo)
+    train = _demo_table(tmp_path / "t.csv")
+    for argv in (["fit", str(fifo), "-o", str(tmp_path / "m.json")], ["info", "/dev/urandom"],
+                 ["fit", str(train), str(fifo), "-o", str(tmp_path / "m.json")],
+                 ["convert", "/dev/zero", "--to", "c", "-o", f"{tmp_path}/"]):
+        assert _call_with_timeout(lambda: main(argv), fifos=[fifo]) == 2
+        err = capfd.readouterr().err
+        assert len(err.strip().splitlines()) == 1 and "not a regular file" in err, err
+    assert not (tmp_path / "m.json").exists()
+
+
+def test_tf_frame_with_two_parents_and_tf_loops_are_refused():
+    """Class: cycles and ambiguous parents in tf trees.
+
+    Before the fix ``chain`` walked a breadth-first search over both parents and
+    silently used whichever it met first.
+    """
+    from ftcal.data.tf_chain import TransformTree
+    from ftcal.runtime.errors import FtcalError
+
+    q = (0.0, 0.0, 0.0, 1.0)
+    tf = TransformTree("Bag x.bag")
+    tf.add("world", "base", 0.0, q, True)
+    tf.add("base", "ft", 0.0, q, True)
+    tf.add("table", "ft", 0.0, q, True)
+    with pytest.raises(FtcalError, match="'ft' has two parents, 'base' and 'table'"):
+        tf.chain("world", "ft")
+    tf = TransformTree("Bag x.bag")
+    for parent, child in (("a", "b"), ("b", "c"), ("c", "a")):
+        tf.add(parent, child, 0.0, q, True)
+    with pytest.raises(FtcalError, match="loop"):
+        tf.chain("a", "c")
+
+
+LOOP_URDF = """<robot name="r">
+  <link name="a"/><link name="b"/><link name="c"/>
+  <joint name="j1" type="fixed"><parent link="a"/><child link="b"/></joint>
+  <joint name="j2" type="fixed"><parent link="b"/><child link="c"/></joint>
+  <joint name="j3" type="fixed"><parent link="c"/><child link="b"/></joint>
+</robot>"""
+
+
+def _urdf_with(mass="1.0", inertia=("0.1", "0", "0", "0.1", "0", "0.1")):
+    keys = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+    attrs = " ".join(f'{k}="{v}"' for k, v in zip(keys, inertia))
+    return (f'<robot name="r"><link name="base"/><link name="tool"><inertial><origin xyz="0 0 0"/>'
+            f'<mass value="{mass}"/><inertia {attrs}/></inertial></link>'
+            '<joint name="j" type="revolute"><parent link="base"/><child link="tool"/><axis xyz="0 0 1"/>'
+            '<limit lower="-1" upper="1" effort="1" velocity="1"/></joint></robot>')
+
+
+def test_urdf_loops_and_impossible_physics_are_refused_naming_the_link():
+    """Class: URDF kinematic loops and invalid inertial data.
+
+    Before the fix a link with two parent joints loaded without a word (one parent kept),
+    and so did NaN and negative masses (every expected wrench NaN or of the wrong sign).
+    """
+    import warnings
+
+    from ftcal.robot import RobotModel
+    from ftcal.runtime.errors import FtcalError, FtcalWarning
+
+    with pytest.raises(FtcalError, match="'b' is the child of two joints, 'j1' and 'j3'"):
+        RobotModel.from_text(LOOP_URDF, "loop.urdf")
+    for mass, message in (("nan", "mass value='nan'"), ("-2", "negative mass"), ("inf", "mass value='inf'"),
+                          ("heavy", "mass value='heavy'")):
+        with pytest.raises(FtcalError, match=f"link 'tool' has (a )?{message}"):
+            RobotModel.from_text(_urdf_with(mass=mass), "m.urdf")
+    # Principal moments 1, 0.1, 0.1: 1 > 0.1 + 0.1 breaks the triangle inequality of a real body.
+    with pytest.warns(FtcalWarning, match="'tool'.*triangle"):
+        RobotModel.from_text(_urdf_with(inertia=("1", "0", "0", "0.1", "0", "0.1")), "t.urdf")
+    # Off-diagonal 0.2 with diagonal 0.1: eigenvalues 0.3 and -0.1, not positive semi-definite.
+    with pytest.warns(FtcalWarning, match="'tool'.*not positive semi-definite"):
+        RobotModel.from_text(_urdf_with(inertia=("0.1", "0.2", "0", "0.1", "0", "0.1")), "p.urdf")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        RobotModel.from_text(_urdf_with(), "ok.urdf")  # a plausible body: no warning

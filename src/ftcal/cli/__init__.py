@@ -35,8 +35,15 @@ exit codes: 0 success, 2 bad input (one line on stderr), 130 Ctrl-C, 143 SIGTERM
 OUTPUT_OPTIONS = ("output", "out")
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """An argument parser whose refusals are one line (no usage block), ending with where help is."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see '{self.prog} --help').\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="ftcal", epilog=ENVIRONMENT, formatter_class=argparse.RawDescriptionHelpFormatter,
         description="In-situ nonlinear calibration of six-axis force/torque sensors.")
     parser.add_argument("--version", action="store_true", help="print the version and exit")
@@ -95,6 +102,32 @@ def input_files(args: argparse.Namespace) -> list[str]:
     return found
 
 
+def check_input_paths(args: argparse.Namespace) -> None:
+    """Refuse any argument naming a FIFO, device or socket (never opened: reading one may never end).
+
+    The readers make the same check (:func:`ftcal.runtime.inputs.check_input_file`);
+    doing it here first covers every option of every command before any work starts.
+    """
+    import stat
+
+    from ..runtime.errors import FtcalError
+    from ..runtime.inputs import kind_of
+
+    for name, value in vars(args).items():
+        if name in OUTPUT_OPTIONS or name == "func":
+            continue
+        for item in value if isinstance(value, (list, tuple)) else [value]:
+            if not isinstance(item, (str, os.PathLike)) or not item:
+                continue
+            try:
+                mode = os.stat(item).st_mode
+            except (OSError, ValueError):
+                continue  # not a path (a name, an address) or missing: the command says so if it needs one
+            if not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):
+                raise FtcalError(f"{os.fspath(item)}: is {kind_of(mode)}, not a regular file "
+                                 "(ftcal never reads from pipes or devices).")
+
+
 def main(argv: list[str] | None = None) -> int:
     from ..runtime.atomic import check_not_an_input, protected_inputs
     from ..runtime.errors import FtcalError, FtcalWarning
@@ -118,6 +151,7 @@ def main(argv: list[str] | None = None) -> int:
     warnings.showwarning = show
     try:
         with terminating_signals_unwind(), protected_inputs(input_files(args)):
+            check_input_paths(args)
             for option in OUTPUT_OPTIONS:
                 if getattr(args, option, None):
                     check_not_an_input(getattr(args, option), f"--{option}")

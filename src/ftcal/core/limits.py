@@ -34,3 +34,31 @@ ARX_WARMUP = ("drop", "keep")
 
 PAPER_LAMBDAS = (0.5, 1.0, 10.0, 50.0, 100.0, 200.0)
 """The LASSO weights of the paper's Table III."""
+
+# --- Limits on what a file may make ftcal do (docs/security.md lists each with its reason). ---
+# ftcal trusts its command line, not the files it reads: every reader checks what a file declares
+# against these before it allocates or loops.
+
+MAX_MODEL_BYTES = 100 * 10**6
+"""Largest model or payload file (JSON or paper XML): degree 10 over 7 inputs is ~2 MB of text."""
+
+MAX_TEXT_FILE_BYTES = 50 * 10**6
+"""Largest URDF, TOML load-case file or other text configuration read whole into memory."""
+
+MAX_TABLE_COLUMNS = 10_000
+"""Most columns in a CSV or Parquet table (a calibration table has tens; a malformed header can claim millions)."""
+
+MAX_HEADER_BYTES = 10**6
+"""Longest CSV header line read to learn the column names."""
+
+MAX_DECLARED_ELEMENTS = 2 * 10**9
+"""Most numbers one array in a .mat log may declare (16 GB of float64); checked before reading it."""
+
+MAX_NESTING = 64
+"""Deepest nesting of JSON/TOML/XML structures in any file (ftcal's own files nest 4 deep)."""
+
+MAX_REGRESSOR_BYTES = 8 * 10**9
+"""Most memory the compiled kernel's per-thread Gram matrices may take (p² doubles per thread)."""
+
+SCHEDULER_CONNECT_SECONDS = 10
+"""How long to wait for a Dask scheduler (--scheduler) before giving up in one line."""

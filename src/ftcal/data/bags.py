@@ -40,7 +40,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..runtime.errors import FtcalError, FtcalWarning
+from ..runtime.errors import FtcalError
+from ..runtime.inputs import check_folder_files, check_input_file, FtcalWarning
 from .recording import Recording, Stream
 from .tf_chain import QUATERNION_COLUMNS, TransformTree, check_unit_quaternions
 
@@ -94,9 +95,9 @@ def open_bag(path: str | Path) -> Iterator:
     from rosbags.rosbag2 import ReaderError as Ros2ReaderError
     from rosbags.typesys import Stores, TypesysError, get_typestore
 
-    path = Path(path)
-    if not path.exists():
-        raise FtcalError(f"Bag {path}: no such file or folder.")
+    path = check_input_file(path, "bag (file or ROS 2 bag folder)", folder_ok=True)
+    if path.is_dir():
+        check_folder_files(path, "bag file")
     try:
         reader = AnyReader([path], default_typestore=get_typestore(Stores.LATEST))
         reader.open()

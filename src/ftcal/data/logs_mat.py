@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from ..runtime.errors import FtcalError
+from ..runtime.inputs import check_input_file
 from .recording import Recording, Stream
 
 ROOT = "robot_logger_device"
@@ -37,6 +38,8 @@ MAX_HDF5_DEPTH = 32
 def read_mat(path: Path) -> Recording:
     """Read a robot-logger ``.mat`` file (v7.3 or v5) into a :class:`Recording`."""
     import h5py
+
+    path = check_input_file(path, ".mat recording")
 
     tree = _read_hdf5(path) if h5py.is_hdf5(path) else _read_v5(path)
     return _recording(path, tree)

@@ -224,7 +224,7 @@ def _batches(path: Path, columns: list[str], roles: dict[str, str], chunk_rows: 
         else:
             import pyarrow.parquet as pq
 
-            with pq.ParquetFile(path) as parquet:
+            with pq.ParquetFile(path, page_checksum_verification=True) as parquet:
                 yield from parquet.iter_batches(batch_size=chunk_rows, columns=columns)
     except FtcalError:
         raise

@@ -24,18 +24,18 @@ from pathlib import Path
 import numpy as np
 
 from ..core.features import MonomialBasis, RegressorLayout, n_coefficients
+from ..core.limits import MAX_MODEL_BYTES
 from ..core.model import CalibrationModel, model_from_fitted
 from ..core.normalization import Normalization
 from ..runtime.atomic import write_text_atomic
 from ..runtime.errors import FtcalError
+from ..runtime.inputs import check_input_file
 
 FORMAT = "ftcal-model"
 PER_OUTPUT_METRICS = ("rmse", "best_fit", "max_abs_error", "residual_autocorrelation_lag1")
 FORMAT_VERSION = "1.0"
 SCHEMA_RESOURCE = "schemas/model-1.json"
 _MESSAGE_LIMIT = 160
-# The largest model (degree 10, 7 inputs, ARX lags) is a few MB; anything this big is not one.
-MAX_MODEL_BYTES = 100 * 10**6
 # Integers in a model file are counts and exponents; longer ones are hostile (and slow to parse).
 _MAX_INT_DIGITS = 18
 
@@ -190,13 +190,7 @@ def load_model(path: str | Path) -> CalibrationModel:
 
 def check_model_size(path: Path, kind: str = "model") -> None:
     """Refuse a ``kind`` file larger than :data:`MAX_MODEL_BYTES` before reading it."""
-    try:
-        size = path.stat().st_size
-    except OSError as exc:
-        raise FtcalError(f"Cannot read {kind} file {path}: {exc.strerror}.") from None
-    if size > MAX_MODEL_BYTES:
-        raise FtcalError(f"{path}: {size / 1e6:.0f} MB is too large for a {kind} file "
-                         f"(limit {MAX_MODEL_BYTES // 10**6} MB).")
+    check_input_file(path, f"{kind} file", max_bytes=MAX_MODEL_BYTES)
 
 
 def read_document_text(path: Path, kind: str = "model") -> str:

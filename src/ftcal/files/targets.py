@@ -29,7 +29,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from ..core.limits import MAX_MODEL_BYTES
 from ..runtime.errors import FtcalError
+from ..runtime.inputs import check_input_file
 
 MODEL = "ftcal-model"
 PAYLOAD = "ftcal-payload"
@@ -114,7 +116,7 @@ def target(name: str) -> Target:
 
 def input_kind(path: str | Path) -> str:
     """:data:`MODEL` for paper XML files, else the ``format`` field of the ftcal JSON document."""
-    path = Path(path)
+    path = check_input_file(path, "model or payload file", max_bytes=MAX_MODEL_BYTES)
     try:
         with open(path, "rb") as fh:
             head = fh.read(_SNIFF_BYTES)
