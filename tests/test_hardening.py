@@ -287,3 +287,46 @@ def test_urdf_loops_and_impossible_physics_are_refused_naming_the_link():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         RobotModel.from_text(_urdf_with(), "ok.urdf")  # a plausible body: no warning
+
+
+def test_absurd_declared_sizes_are_refused_before_allocating(tmp_path):
+    """Class: well-formed files declaring absurd sizes (a million CSV columns, 10^12 samples in a .mat).
+
+    The HDF5 .mat below is a few kB but declares 10^12 x 6 values; before the fix the reader
+    asked for 48 TB (MemoryError, a traceback). The CSV header holds a million columns;
+    before the fix every column was parsed and typed (seconds and gigabytes) before
+    anything was refused.
+    """
+    import h5py
+
+    from ftcal.core.limits import MAX_DECLARED_ELEMENTS, MAX_TABLE_COLUMNS
+    from ftcal.data.logs import read_recording
+    from ftcal.data.tables import table_columns
+    from ftcal.runtime.errors import FtcalError
+
+    mat = tmp_path / "huge.mat"
+    with h5py.File(mat, "w") as fh:
+        fh.create_group("robot_logger_device/FTs/ft").create_dataset(
+            "data", shape=(6, 10**12), dtype="f8", chunks=(6, 1024))  # nothing written: fill values
+    with pytest.raises(FtcalError, match=f"declares 6,000,000,000,000 values.*limit of {MAX_DECLARED_ELEMENTS:,}"):
+        read_recording(mat)
+    wide = tmp_path / "wide.csv"
+    n = MAX_TABLE_COLUMNS + 1
+    wide.write_text(",".join(f"c{i}" for i in range(n)) + "\n" + ",".join("1" for _ in range(n)) + "\n")
+    with pytest.raises(FtcalError, match=f"declares {n:,} columns"):
+        table_columns(wide)
+    assert main(["fit", str(wide), "-o", str(tmp_path / "m.json")]) == 2
+
+
+def test_csv_headers_in_other_encodings_are_refused_naming_the_encoding(tmp_path, capfd):
+    """Class: text encodings of CSV headers.
+
+    Before the fix a Latin-1 header escaped as a UnicodeDecodeError traceback, and a UTF-16
+    file was reported as a CSV parse error ("Expected 2 columns, got 1") without the encoding.
+    """
+    for name, data, found in (("utf16.csv", "u1,u2\n1,2\n".encode("utf-16"), "UTF-16"),
+                              ("latin.csv", "u1,Température\n1,2\n".encode("latin-1"), "Latin-1")):
+        (tmp_path / name).write_bytes(data)
+        assert main(["fit", str(tmp_path / name), "-o", str(tmp_path / "m.json")]) == 2
+        err = capfd.readouterr().err
+        assert len(err.strip().splitlines()) == 1 and found in err and name in err, err

@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from ..core.limits import MAX_DECLARED_ELEMENTS
 from ..runtime.errors import FtcalError
 from ..runtime.inputs import check_input_file
 from .recording import Recording, Stream
@@ -86,6 +87,10 @@ def _hdf5_node(fh, node, path: Path, depth: int) -> Any:
     if node.is_virtual or node.id.get_create_plist().get_external_count():
         raise FtcalError(f"Recording {path}: the data of {node.name} is stored in other files; "
                          "ftcal reads only the recording itself.")
+    if node.size > MAX_DECLARED_ELEMENTS:  # checked on the declared shape, before anything is allocated
+        raise FtcalError(f"Recording {path}: {node.name} declares {node.size:,} values (shape "
+                         f"{'x'.join(map(str, node.shape))}), more than the limit of {MAX_DECLARED_ELEMENTS:,}; "
+                         "not a robot-logger recording.")
     attr = node.attrs.get("MATLAB_class", b"")
     matlab_class = attr.decode() if isinstance(attr, bytes) else str(attr)
     if node.dtype == h5py.ref_dtype:  # cell array
