@@ -330,3 +330,52 @@ def test_csv_headers_in_other_encodings_are_refused_naming_the_encoding(tmp_path
         assert main(["fit", str(tmp_path / name), "-o", str(tmp_path / "m.json")]) == 2
         err = capfd.readouterr().err
         assert len(err.strip().splitlines()) == 1 and found in err and name in err, err
+
+
+def test_garbage_scheduler_addresses_and_answers_are_one_line(tmp_path, capfd):
+    """Class: a --scheduler that is garbage, or a server that answers garbage.
+
+    Before the fix a malformed address escaped as Dask's ValueError traceback, and a server
+    answering with random bytes made Dask ask for exabytes (a MemoryError traceback).
+    """
+    import socket
+    import threading
+
+    from ftcal.runtime.errors import FtcalError
+    from ftcal.runtime.executors import open_executor
+
+    pytest.importorskip("distributed")
+    train = _demo_table(tmp_path / "t.csv")
+    for address in ("tcp://[::1", "nonsense://host:1"):
+        assert main(["fit", str(train), "--scheduler", address, "-o", str(tmp_path / "m.json")]) == 2
+        err = capfd.readouterr().err
+        assert len(err.strip().splitlines()) == 1 and "--scheduler" in err and "Traceback" not in err, err
+
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen(4)
+    stop = threading.Event()
+
+    def answer_garbage():
+        server.settimeout(0.2)
+        connections = []
+        while not stop.is_set():
+            try:
+                conn, _ = server.accept()
+            except OSError:
+                continue
+            connections.append(conn)
+            conn.sendall(b"\xff" * 64)  # a frame header claiming an absurd length
+        for conn in connections:
+            conn.close()
+
+    thread = threading.Thread(target=answer_garbage, daemon=True)
+    thread.start()
+    try:
+        with pytest.raises(FtcalError, match="--scheduler tcp://127.0.0.1"):
+            with open_executor(f"tcp://127.0.0.1:{server.getsockname()[1]}", connect_timeout=3):
+                pass
+    finally:
+        stop.set()
+        thread.join(2)
+        server.close()

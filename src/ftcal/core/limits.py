@@ -59,6 +59,3 @@ MAX_NESTING = 64
 
 MAX_REGRESSOR_BYTES = 8 * 10**9
 """Most memory the compiled kernel's per-thread Gram matrices may take (p² doubles per thread)."""
-
-SCHEDULER_CONNECT_SECONDS = 10
-"""How long to wait for a Dask scheduler (--scheduler) before giving up in one line."""
