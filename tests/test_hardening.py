@@ -137,12 +137,13 @@ def test_multi_file_export_is_all_or_nothing(tmp_path):
 # ---------------------------------------------------------------- 2. never hang
 
 
-def _demo_table(path: Path, n=40) -> Path:
+def _demo_table(path: Path, n=40, extra=()) -> Path:
+    """A small table with u1..u6 (and the ``extra`` input columns) and Fx..Tz."""
     rng = np.random.default_rng(2)
-    cols = {**{f"u{i}": rng.uniform(-1, 1, n) for i in range(1, 7)}, **{k: rng.normal(size=n) for k in
-                                                                         ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")}}
-    path.write_text(",".join(cols) + "\n" + "\n".join(",".join(repr(float(cols[k][i])) for k in cols)
-                                                      for i in range(n)) + "\n")
+    names = [f"u{i}" for i in range(1, 7)] + list(extra) + ["Fx", "Fy", "Fz", "Tx", "Ty", "Tz"]
+    values = rng.uniform(-1, 1, (n, len(names)))
+    path.write_text(",".join(names) + "\n" + "\n".join(",".join(repr(float(v)) for v in row) for row in values)
+                    + "\n")
     return path
 
 
@@ -379,3 +380,70 @@ def test_garbage_scheduler_addresses_and_answers_are_one_line(tmp_path, capfd):
         stop.set()
         thread.join(2)
         server.close()
+
+
+# ---------------------------------------------------------------- 3. never crash the interpreter
+
+
+def test_fits_too_large_for_memory_are_refused_before_allocating(tmp_path, capfd):
+    """Class: a model size the CLI accepts but memory cannot hold (ARX na = nb = 50 at degree 5).
+
+    Counted by hand: 7 inputs at degree 5 give C(12, 5) = 792 monomials, 791 without the
+    constant, so one output has 6·50 + 1 + 51·791 = 40,642 columns and a Gram matrix of
+    8·40,642² bytes = 13.2 GB. Before the fix numpy asked for it after reading the data
+    (a MemoryError traceback under a memory limit, swapping without one); in this test the
+    under-determined warning, an error under pytest, came first.
+    """
+    train = _demo_table(tmp_path / "t.csv", n=200, extra=("T",))
+    assert main(["fit", str(train), "--degree", "5", "--na", "50", "--nb", "50", "-o", str(tmp_path / "m.json")]) == 2
+    err = [line for line in capfd.readouterr().err.strip().splitlines() if not line.startswith("read ")]
+    assert len(err) == 1 and "40,642 coefficients per output" in err[0] and "13.2 GB" in err[0], err
+    assert "lower --degree, --na or --nb" in err[0]
+    assert not (tmp_path / "m.json").exists()
+
+
+def test_values_near_the_float_limit_are_refused_naming_the_column_or_option(tmp_path, capfd):
+    """Class: overflow from values near 1e308, in data or in options such as ``--g``.
+
+    Both made the payload fit's regressor overflow; before the fix numpy's LinAlgError
+    ("Eigenvalues did not converge") ended the command with a traceback after three
+    RuntimeWarning lines. Now the option parser and the table reader refuse them, naming
+    the option or the column and line.
+    """
+    rng = np.random.default_rng(3)
+    n = 300
+    q = rng.normal(size=(n, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    names = ["u1", "u2", "u3", "u4", "u5", "u6", "qx", "qy", "qz", "qw"]
+    data = np.column_stack([rng.normal(size=(n, 6)), q])
+    table = tmp_path / "poses.csv"
+    table.write_text(",".join(names) + "\n" + "\n".join(",".join(repr(float(v)) for v in row) for row in data))
+    out = str(tmp_path / "p.json")
+    with pytest.raises(SystemExit) as info:
+        main(["payload", str(table), "--orientation", "qx,qy,qz,qw", "--g", "1e308", "-o", out])
+    err = capfd.readouterr().err.strip().splitlines()
+    assert info.value.code == 2 and len(err) == 1 and "--g: must be at most 1e+12" in err[0], err
+    data[41, 2] = 1e300
+    table.write_text(",".join(names) + "\n" + "\n".join(",".join(repr(float(v)) for v in row) for row in data))
+    assert main(["payload", str(table), "--orientation", "qx,qy,qz,qw", "-o", out]) == 2
+    err = capfd.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "column 'u3' holds 1e+300 at line 43" in err[0], err
+    assert not (tmp_path / "p.json").exists()
+
+
+# ---------------------------------------------------------------- 5. what users see
+
+
+def test_errors_quoting_file_text_stay_one_line_and_cannot_drive_the_terminal(tmp_path, capfd):
+    """Class: error and warning lines that quote text from files (column names, frames).
+
+    A column name holding a newline and an ANSI escape (clear screen) is quoted by the
+    missing-column message; before the fix it printed raw: two lines, and the escape
+    reached the terminal.
+    """
+    table = tmp_path / "t.csv"
+    table.write_text('"a\nb\x1b[2J\u202e",u2\n1,2\n')
+    assert main(["fit", str(table), "-o", str(tmp_path / "m.json")]) == 2
+    err = capfd.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "\x1b" not in err and "\u202e" not in err, repr(err)
+    assert "\\x1b[2J" in err and "\\u202e" in err

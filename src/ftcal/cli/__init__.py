@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import re
 import signal
 import sys
 import threading
@@ -128,6 +129,39 @@ def check_input_paths(args: argparse.Namespace) -> None:
                                  "(ftcal never reads from pipes or devices).")
 
 
+# Characters never printed raw to a terminal: C0/C1 controls and the bidirectional overrides.
+_UNPRINTABLE = re.compile("[\x00-\x1f\x7f-\x9f\u200e\u200f\u202a-\u202e\u2066-\u2069]")
+# Option values this far from 1 are where float arithmetic overflows or underflows.
+_EXTREME = 1e150
+
+
+def one_line(message: object) -> str:
+    """``message`` as one line that cannot drive the terminal: newlines become spaces, controls escapes.
+
+    Messages quote names and text from files, which ftcal does not trust.
+    """
+    text = " ".join(str(message).splitlines())
+    return _UNPRINTABLE.sub(lambda m: m.group(0).encode("unicode_escape").decode("ascii"), text)
+
+
+def numerical_failure(exc: BaseException, args: argparse.Namespace) -> str:
+    """One line for an arithmetic, memory or nesting failure, naming the options that can cause it."""
+    extreme = []
+    for name, value in vars(args).items():
+        for item in value if isinstance(value, (list, tuple)) else [value]:
+            if isinstance(item, float) and item != 0 and not 1 / _EXTREME < abs(item) < _EXTREME:
+                extreme.append(f"--{name.replace('_', '-')} {item:g}")
+    kind = {"MemoryError": "ran out of memory", "RecursionError": "met a structure nested too deeply"}.get(
+        type(exc).__name__, "failed numerically")
+    detail = f" ({type(exc).__name__}{': ' + str(exc).splitlines()[0] if str(exc) else ''})"
+    if extreme:
+        return one_line(f"the computation {kind}{detail}: option {', '.join(extreme)} is too far from "
+                        "physical values; give a realistic value.")
+    files = ", ".join(input_files(args)) or "the inputs"
+    return one_line(f"the computation {kind}{detail}; check {files} for values near the limits of floating "
+                    "point (about 1e308), constant or degenerate columns, or ask for a smaller model.")
+
+
 def main(argv: list[str] | None = None) -> int:
     from ..runtime.atomic import check_not_an_input, protected_inputs
     from ..runtime.errors import FtcalError, FtcalWarning
@@ -144,9 +178,9 @@ def main(argv: list[str] | None = None) -> int:
     # Our own warnings go to stderr as one line each, not as Python warning noise.
     def show(message, category, filename, lineno, file=None, line=None):
         if issubclass(category, FtcalWarning):
-            print(f"warning: {message}", file=sys.stderr)
+            print(f"warning: {one_line(message)}", file=sys.stderr)
         else:
-            print(f"{category.__name__}: {message}", file=sys.stderr)
+            print(f"{category.__name__}: {one_line(message)}", file=sys.stderr)
     previous = warnings.showwarning
     warnings.showwarning = show
     try:
@@ -157,7 +191,15 @@ def main(argv: list[str] | None = None) -> int:
                     check_not_an_input(getattr(args, option), f"--{option}")
             return int(args.func(args) or 0)
     except FtcalError as exc:
-        print(f"ftcal {args.command}: error: {exc}", file=sys.stderr)
+        print(f"ftcal {args.command}: error: {one_line(exc)}", file=sys.stderr)
+        return 2
+    except (ArithmeticError, MemoryError, RecursionError, UnicodeError) as exc:
+        print(f"ftcal {args.command}: error: {numerical_failure(exc, args)}", file=sys.stderr)
+        return 2
+    except ValueError as exc:
+        if type(exc).__name__ != "LinAlgError":  # numpy's; other ValueErrors are bugs: keep the traceback
+            raise
+        print(f"ftcal {args.command}: error: {numerical_failure(exc, args)}", file=sys.stderr)
         return 2
     except BrokenPipeError:
         # Output piped into e.g. `head`: stop quietly like other command-line tools.

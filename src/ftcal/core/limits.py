@@ -57,5 +57,15 @@ MAX_DECLARED_ELEMENTS = 2 * 10**9
 MAX_NESTING = 64
 """Deepest nesting of JSON/TOML/XML structures in any file (ftcal's own files nest 4 deep)."""
 
-MAX_REGRESSOR_BYTES = 8 * 10**9
-"""Most memory the compiled kernel's per-thread Gram matrices may take (p² doubles per thread)."""
+MAX_GRAM_BYTES = 4 * 10**9
+"""Largest Gram matrix of a fit (p² doubles for p regressor columns per output), checked before it is
+allocated: degree 10 over 7 inputs (19,448 columns, 3.0 GB) fits; ARX na = nb = 50 at degree 5
+(40,642 columns, 13 GB, and a fit holds a few copies) does not."""
+
+MAX_OPTION_MAGNITUDE = 1e12
+"""Largest magnitude of a number option (--g, --gravity, --lasso, --payload-mass, ...): physical values
+are far smaller, and values near 1e308 overflow the first product they meet."""
+
+MAX_CELL_MAGNITUDE = 1e100
+"""Largest magnitude of a number in a table: sums of squares and products of such values still fit in
+float64 (about 1e308); larger ones are corrupt data, and would make fits overflow into NaN."""

@@ -40,8 +40,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..runtime.errors import FtcalError
-from ..runtime.inputs import check_folder_files, check_input_file, FtcalWarning
+from ..runtime.errors import FtcalError, FtcalWarning
+from ..runtime.inputs import check_folder_files, check_input_file
 from .recording import Recording, Stream
 from .tf_chain import QUATERNION_COLUMNS, TransformTree, check_unit_quaternions
 

@@ -7,6 +7,7 @@ segment or group of its own.
 
 from __future__ import annotations
 
+import io
 import os
 from collections.abc import Sequence
 from pathlib import Path
@@ -14,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.dataset import DEFAULT_INPUTS, DEFAULT_OUTPUTS, Dataset, concatenate
-from ..core.limits import MAX_HEADER_BYTES, MAX_TABLE_COLUMNS
+from ..core.limits import MAX_CELL_MAGNITUDE, MAX_HEADER_BYTES, MAX_TABLE_COLUMNS
 from ..runtime.atomic import atomic_path
 from ..runtime.errors import FtcalError
 from ..runtime.inputs import check_input_file
@@ -110,7 +111,7 @@ def arrow_numbers(table, columns: Sequence[str], path: Path, role: str, *, first
             out[row:row + n, j] = np.frombuffer(chunk.buffers()[1], dtype=dtype, count=n,
                                                 offset=chunk.offset * np.dtype(dtype).itemsize)
             row += n
-    if not np.isfinite(out).all():
+    if not (np.abs(out) <= MAX_CELL_MAGNITUDE).all():  # NaN fails too
         return numeric_columns(table.to_pandas(), columns, path, role, first_row=first_row)
     return out
 
@@ -162,6 +163,11 @@ def _csv_header(path: Path) -> tuple[str, ...]:
 
     with open(path, "rb") as fh:
         line = fh.readline(MAX_HEADER_BYTES + 1)
+        while line.count(b'"') % 2 and len(line) <= MAX_HEADER_BYTES:  # a quoted name holds a line break
+            more = fh.readline(MAX_HEADER_BYTES + 1 - len(line))
+            if not more:
+                break
+            line += more
     if len(line) > MAX_HEADER_BYTES:
         raise FtcalError(f"{path}: the header line is longer than {MAX_HEADER_BYTES:,} bytes; "
                          "not a calibration table.")
@@ -172,7 +178,7 @@ def _csv_header(path: Path) -> tuple[str, ...]:
     except UnicodeDecodeError as exc:
         raise FtcalError(f"{path}: the header is not UTF-8 (byte 0x{line[exc.start]:02X} at offset {exc.start}; "
                          "Latin-1 or Windows-1252 text?); save the file as UTF-8 CSV.") from None
-    header = next(csv.reader([text.rstrip("\r\n")]), None)
+    header = next(csv.reader(io.StringIO(text, newline="")), None)
     return tuple(header) if header else ()
 
 
@@ -211,6 +217,12 @@ def numeric_columns(frame, columns: Sequence[str], path: Path, role: str, *, fin
             where = f"line {first_row + row + 2}" if path.suffix.lower() == ".csv" else f"row {first_row + row}"
             raise FtcalError(f"{path}: column {name!r} has {int(bad.sum())} empty, NaN or infinite "
                              f"cell(s), first at {where}.")
+        huge = np.abs(values) > MAX_CELL_MAGNITUDE if finite else bad
+        if huge.any():
+            row = int(np.flatnonzero(huge)[0])
+            where = f"line {first_row + row + 2}" if path.suffix.lower() == ".csv" else f"row {first_row + row}"
+            raise FtcalError(f"{path}: column {name!r} holds {values[row]:g} at {where}, beyond "
+                             f"{MAX_CELL_MAGNITUDE:g} in magnitude: no sensor reads that, and its square overflows.")
         out[:, j] = values
     return out
 

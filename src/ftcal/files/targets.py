@@ -126,7 +126,7 @@ def input_kind(path: str | Path) -> str:
         return MODEL  # paper XML, or something the model reader rejects with its own message
     try:
         document = json.loads(path.read_text(encoding="utf-8"))
-    except (ValueError, OSError):
+    except (ValueError, OSError, RecursionError):
         return MODEL  # the model reader says what is wrong with it
     kind = document.get("format") if isinstance(document, dict) else None
     return kind if kind in INPUT_READERS or kind == PAYLOAD else MODEL
