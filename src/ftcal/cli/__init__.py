@@ -8,6 +8,7 @@ exit code. Heavy imports happen inside the commands so ``ftcal --help`` is fast.
 from __future__ import annotations
 
 import argparse
+import errno
 import importlib
 import os
 import re
@@ -122,8 +123,12 @@ def check_input_paths(args: argparse.Namespace) -> None:
                 continue
             try:
                 mode = os.stat(item).st_mode
-            except (OSError, ValueError):
+            except OSError as exc:
+                if exc.errno == errno.ELOOP:
+                    raise FtcalError(f"{os.fspath(item)}: a loop of symbolic links, not a file.") from None
                 continue  # not a path (a name, an address) or missing: the command says so if it needs one
+            except ValueError:
+                continue
             if not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):
                 raise FtcalError(f"{os.fspath(item)}: is {kind_of(mode)}, not a regular file "
                                  "(ftcal never reads from pipes or devices).")

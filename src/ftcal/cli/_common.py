@@ -39,10 +39,13 @@ def finite_float(text: str) -> float:
 
 def positive_float(text: str) -> float:
     """Like :func:`finite_float`, and > 0."""
-    value = finite_float(text)
-    if value <= 0:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not math.isfinite(value) or value <= 0:
         raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text!r}")
-    return value
+    return finite_float(text)  # the magnitude limit
 
 
 def nonnegative_int(text: str) -> int:

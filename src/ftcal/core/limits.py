@@ -54,8 +54,10 @@ MAX_HEADER_BYTES = 10**6
 MAX_DECLARED_ELEMENTS = 2 * 10**9
 """Most numbers one array in a .mat log may declare (16 GB of float64); checked before reading it."""
 
-MAX_NESTING = 64
-"""Deepest nesting of JSON/TOML/XML structures in any file (ftcal's own files nest 4 deep)."""
+MAX_NESTING = 32
+"""Deepest nesting of groups in a .mat (HDF5) log: the logger's structs are a few levels deep; deeper
+means a hostile file or a link loop. (JSON and XML nesting is bounded by the parsers' recursion
+limit, caught as a one-line refusal.)"""
 
 MAX_GRAM_BYTES = 4 * 10**9
 """Largest Gram matrix of a fit (p² doubles for p regressor columns per output), checked before it is

@@ -106,11 +106,25 @@ def open_bag(path: str | Path) -> Iterator:
                          f"({type(exc).__name__}: {exc}).") from None
     try:
         yield reader
-    except (AnyReaderError, Ros1ReaderError, Ros2ReaderError, struct.error) as exc:
+    except (AnyReaderError, Ros1ReaderError, Ros2ReaderError, struct.error, *_storage_errors()) as exc:
         raise FtcalError(f"Bag {path}: cannot read it; it may be truncated or corrupt "
                          f"({type(exc).__name__}: {exc}).") from None
     finally:
         reader.close()
+
+
+def _storage_errors() -> tuple[type[BaseException], ...]:
+    """What the storage libraries raise on a corrupt file: sqlite (``.db3``, through apsw or sqlite3)."""
+    import sqlite3
+
+    errors: list[type[BaseException]] = [sqlite3.Error]
+    try:
+        import apsw
+    except ImportError:  # rosbags reads .db3 through apsw when it is installed
+        pass
+    else:
+        errors.append(apsw.Error)
+    return tuple(errors)
 
 
 def list_topics(path: str | Path) -> list[TopicSummary]:

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from ..core.limits import MAX_DECLARED_ELEMENTS
+from ..core.limits import MAX_DECLARED_ELEMENTS, MAX_NESTING
 from ..runtime.errors import FtcalError
 from ..runtime.inputs import check_input_file
 from .recording import Recording, Stream
@@ -32,8 +32,6 @@ GROUPS = ("FTs", "temperatures", "joints_state", "accelerometers", "gyros", "des
 JOINT_FIELDS = {"positions": "joints", "velocities": "joint_velocities", "accelerations": "joint_accelerations"}
 
 
-# The logger's structs are a few levels deep; deeper means a hostile file or a link loop.
-MAX_HDF5_DEPTH = 32
 
 
 def read_mat(path: Path) -> Recording:
@@ -79,8 +77,8 @@ def _child(group, key: str, path: Path):
 def _hdf5_node(fh, node, path: Path, depth: int) -> Any:
     import h5py
 
-    if depth > MAX_HDF5_DEPTH:
-        raise FtcalError(f"Recording {path}: {node.name} is nested more than {MAX_HDF5_DEPTH} levels deep "
+    if depth > MAX_NESTING:
+        raise FtcalError(f"Recording {path}: {node.name} is nested more than {MAX_NESTING} levels deep "
                          "(a link loop?); not a robot-logger file.")
     if isinstance(node, h5py.Group):
         return {key: _hdf5_node(fh, _child(node, key, path), path, depth + 1) for key in node.keys()}

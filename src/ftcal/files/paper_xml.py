@@ -98,6 +98,8 @@ def _params(data: bytes | str, source: str) -> dict[str, str]:
     except ET.ParseError as exc:
         line, column = exc.position
         raise FtcalError(f"{source}: not well-formed XML at line {line}, column {column + 1}.") from None
+    except LookupError as exc:  # <?xml encoding="..."?> naming no codec
+        raise FtcalError(f"{source}: the XML declaration names an encoding Python does not know ({exc}).") from None
     if root.tag != "group":
         raise FtcalError(f"{source}: the root element is <{root.tag}>; a paper model file has "
                          f'<group name="{GROUP_NAME}">.')

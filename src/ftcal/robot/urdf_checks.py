@@ -53,6 +53,12 @@ def check_urdf(text: str, source: str) -> None:
         raise FtcalError(f"URDF {source} does not parse: not valid XML ({exc}).") from None
     except RecursionError:
         raise FtcalError(f"URDF {source} is nested too deeply to be a URDF.") from None
+    except LookupError as exc:  # <?xml encoding="..."?> naming no codec
+        raise FtcalError(f"URDF {source} does not parse: unknown encoding ({exc}).") from None
+    for tag in ("link", "joint"):
+        for element in root.findall(tag):
+            if not element.get("name"):
+                raise FtcalError(f"URDF {source}: a <{tag}> element has no name attribute.")
     _check_tree(root, source)
     for link in root.findall("link"):
         _check_inertial(link, source)
