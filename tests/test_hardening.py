@@ -447,3 +447,58 @@ def test_errors_quoting_file_text_stay_one_line_and_cannot_drive_the_terminal(tm
     err = capfd.readouterr().err
     assert len(err.strip().splitlines()) == 1 and "\x1b" not in err and "\u202e" not in err, repr(err)
     assert "\\x1b[2J" in err and "\\u202e" in err
+
+
+# ---------------------------------------------------------------- 4. never compute from corrupt input
+
+
+@pytest.mark.parametrize("kind", ["db3-file", "mcap-file", "ros1"])
+def test_truncated_bags_are_refused_naming_the_bag(tmp_path, capfd, kind):
+    """Class: truncated or corrupted bags (sqlite .db3, .mcap, ROS 1 .bag).
+
+    Before the fix a .db3 cut short escaped as apsw.CorruptError ("database disk image is
+    malformed") with a traceback, from the message loop that open_bag did not guard (the
+    .mcap and .bag cases passed already; they guard the same reader).
+    """
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from bag_data import Bag
+
+    rng = np.random.default_rng(4)
+    bag = Bag(kind)
+    for i in range(400):
+        bag.wrench("/ft", 10**9 + i * 10**7, rng.normal(size=6))
+    written = bag.write(tmp_path / "run")
+    whole = written.read_bytes()
+    for fraction in (0.35, 0.5, 0.65, 0.8, 0.95):
+        cut = tmp_path / f"cut{int(fraction * 100)}{written.suffix}"
+        cut.write_bytes(whole[:int(len(whole) * fraction)])
+        code = main(["dataset", str(cut), "--wrench-topic", "/ft", "-o", str(tmp_path / "d.parquet")])
+        err = [line for line in capfd.readouterr().err.strip().splitlines() if line]
+        assert code in (0, 2) and "Traceback" not in "\n".join(err), err
+        if code == 2:
+            assert len(err) == 1 and cut.name in err[0], err
+            assert not (tmp_path / "d.parquet").exists()
+
+
+def test_unknown_xml_encodings_and_nameless_urdf_elements_are_one_line(tmp_path):
+    """Class: XML that parses into what the readers did not expect.
+
+    Before the fix ``<?xml version="1.0" encoding="uuf-8"?>`` escaped as a LookupError
+    traceback (paper XML, URDF), and a URDF joint without a name as a TypeError from the
+    hint listing fixed joints.
+    """
+    from ftcal.files.paper_xml import read_paper_xml
+    from ftcal.robot import RobotModel
+    from ftcal.runtime.errors import FtcalError
+
+    xml = tmp_path / "m.xml"
+    xml.write_text('<?xml version="1.0" encoding="uuf-8"?><group name="modelClassParams"/>')
+    with pytest.raises(FtcalError, match="encoding"):
+        read_paper_xml(xml)
+    with pytest.raises(FtcalError, match="encoding"):
+        RobotModel.from_text('<?xml version="1.0" encoding="uuf-8"?><robot name="r"/>', "r.urdf")
+    with pytest.raises(FtcalError, match="a <joint> element has no name"):
+        RobotModel.from_text('<robot name="r"><link name="a"/><link name="b"/><joint type="fixed">'
+                             '<parent link="a"/><child link="b"/></joint></robot>', "r.urdf")
