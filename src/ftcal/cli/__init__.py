@@ -171,8 +171,12 @@ def main(argv: list[str] | None = None) -> int:
     from ..runtime.atomic import check_not_an_input, protected_inputs
     from ..runtime.errors import FtcalError, FtcalWarning
 
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    try:  # the command modules import here: Ctrl-C during the imports is an interruption, not a traceback
+        parser = build_parser()
+        args = parser.parse_args(argv)
+    except KeyboardInterrupt:
+        print("ftcal: interrupted", file=sys.stderr)
+        return 130
     if args.version:
         from .. import __version__
         print(__version__)
