@@ -185,9 +185,22 @@ def variants(name: str, valid: bytes, text_kind: str, rng: random.Random, n_rand
     return out
 
 
+def resealed(text: str) -> bytes:
+    """``text`` with its sha256 field recomputed: an attacker edits the file and fixes the digest too."""
+    from ftcal.files.model_json import digest
+
+    try:
+        d = json.loads(text)
+        if isinstance(d, dict) and "sha256" in d:
+            d["sha256"] = digest(d)
+            return json.dumps(d).encode("utf-8", "surrogatepass")
+    except (ValueError, TypeError):
+        pass
+    return text.encode("utf-8", "surrogatepass")
+
+
 def model_json_variants(valid: bytes, rng: random.Random):
-    """Semantic attacks on an ftcal JSON model: hostile names and units, extreme numbers, bad ranges."""
-    doc = json.loads(valid)
+    """Semantic attacks on an ftcal JSON model (digest resealed): hostile names and units, extreme numbers, bad ranges."""
     out = []
 
     def put(label, change):
@@ -196,7 +209,7 @@ def model_json_variants(valid: bytes, rng: random.Random):
             change(d)
         except (KeyError, IndexError, TypeError):
             return
-        out.append((label, _bytes(json.dumps(d).encode())))
+        out.append((label, _bytes(resealed(json.dumps(d)))))
 
     def find(d, key):
         if isinstance(d, dict):
@@ -222,8 +235,8 @@ def model_json_variants(valid: bytes, rng: random.Random):
         spots = [m.start() for m in re.finditer(r"-?\d+\.\d+(e[-+]?\d+)?", text)]
         for j in rng.sample(spots, min(3, len(spots))):
             m = re.match(r"-?\d+\.\d+(e[-+]?\d+)?", text[j:])
-            out.append((f"number-{number}-{j}", _bytes((text[:j] + number + text[j + m.end():]).encode())))
-    for key in ("range", "input_range", "output_range", "ranges"):
+            out.append((f"number-{number}-{j}", _bytes(resealed(text[:j] + number + text[j + m.end():]))))
+    for key in ("range",):
         def swap(d, key=key):
             for holder in find(d, key):
                 value = holder[key]
@@ -235,7 +248,6 @@ def model_json_variants(valid: bytes, rng: random.Random):
                 for holder in find(d, key):
                     holder[key] = value
             put(f"{key}={value}", setv)
-    del doc
     return out
 
 
@@ -244,11 +256,11 @@ def payload_variants(valid: bytes):
     for i, hostile in enumerate(HOSTILE_NAMES):
         d = json.loads(valid)
         d["frame"] = hostile
-        out.append((f"hostile-frame-{i}", _bytes(json.dumps(d).encode())))
+        out.append((f"hostile-frame-{i}", _bytes(resealed(json.dumps(d)))))
     for key in ("mass", "gravity"):
         for value in (-1.0, 0.0, 1e308, "NaN", None, [1, 2]):
             text = json.dumps({**json.loads(valid), key: value}).replace('"NaN"', "NaN")
-            out.append((f"{key}={value}", _bytes(text.encode())))
+            out.append((f"{key}={value}", _bytes(resealed(text))))
     return out
 
 

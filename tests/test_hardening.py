@@ -502,3 +502,20 @@ def test_unknown_xml_encodings_and_nameless_urdf_elements_are_one_line(tmp_path)
     with pytest.raises(FtcalError, match="a <joint> element has no name"):
         RobotModel.from_text('<robot name="r"><link name="a"/><link name="b"/><joint type="fixed">'
                              '<parent link="a"/><child link="b"/></joint></robot>', "r.urdf")
+
+
+def test_command_output_quoting_file_text_cannot_drive_the_terminal(tmp_path, capsys):
+    """Class: stdout lines quoting names from files (``ftcal info`` lists a model's inputs).
+
+    Before the fix an input named with an ANSI escape (clear screen) and a right-to-left
+    override reached the terminal raw.
+    """
+    rng = np.random.default_rng(6)
+    u = rng.uniform(-1, 1, (50, 2))
+    model = CalibrationModel(1).fit(Dataset.from_arrays(u, u * 3.0, input_names=("a\x1b[2J", "b\u202e"),
+                                                        output_names=("y1", "y2")))
+    save_model(model, tmp_path / "m.json")
+    assert main(["info", str(tmp_path / "m.json")]) == 0
+    out = capsys.readouterr().out
+    assert "\x1b" not in out and "\u202e" not in out
+    assert "a\\x1b[2J" in out and "b\\u202e" in out

@@ -149,6 +149,26 @@ def one_line(message: object) -> str:
     return _UNPRINTABLE.sub(lambda m: m.group(0).encode("unicode_escape").decode("ascii"), text)
 
 
+class EscapingStream:
+    """A text stream that writes controls (except newline and tab) and bidi overrides as escapes.
+
+    Commands print names from files (``ftcal info`` lists a model's inputs); an escape
+    sequence in such a name must not drive the user's terminal.
+    """
+
+    _CONTROLS = re.compile("[\x00-\x08\x0b-\x1f\x7f-\x9f\u200e\u200f\u202a-\u202e\u2066-\u2069]")
+
+    def __init__(self, stream) -> None:
+        self._stream = stream
+
+    def write(self, text: str) -> int:
+        self._stream.write(self._CONTROLS.sub(lambda m: m.group(0).encode("unicode_escape").decode("ascii"), text))
+        return len(text)
+
+    def __getattr__(self, name: str):
+        return getattr(self._stream, name)
+
+
 def numerical_failure(exc: BaseException, args: argparse.Namespace) -> str:
     """One line for an arithmetic, memory or nesting failure, naming the options that can cause it."""
     extreme = []
@@ -156,8 +176,9 @@ def numerical_failure(exc: BaseException, args: argparse.Namespace) -> str:
         for item in value if isinstance(value, (list, tuple)) else [value]:
             if isinstance(item, float) and item != 0 and not 1 / _EXTREME < abs(item) < _EXTREME:
                 extreme.append(f"--{name.replace('_', '-')} {item:g}")
-    kind = {"MemoryError": "ran out of memory", "RecursionError": "met a structure nested too deeply"}.get(
-        type(exc).__name__, "failed numerically")
+    kind = ("met text that is not valid Unicode" if isinstance(exc, UnicodeError) else
+            {"MemoryError": "ran out of memory", "RecursionError": "met a structure nested too deeply"}.get(
+                type(exc).__name__, "failed numerically"))
     detail = f" ({type(exc).__name__}{': ' + str(exc).splitlines()[0] if str(exc) else ''})"
     if extreme:
         return one_line(f"the computation {kind}{detail}: option {', '.join(extreme)} is too far from "
@@ -192,6 +213,8 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{category.__name__}: {one_line(message)}", file=sys.stderr)
     previous = warnings.showwarning
     warnings.showwarning = show
+    stdout = sys.stdout
+    sys.stdout = EscapingStream(stdout)
     try:
         with terminating_signals_unwind(), protected_inputs(input_files(args)):
             check_input_paths(args)
@@ -227,6 +250,7 @@ def main(argv: list[str] | None = None) -> int:
         return 128 + exc.signum
     finally:
         warnings.showwarning = previous  # main() may be called in-process (tests, scripts)
+        sys.stdout = stdout
 
 
 if __name__ == "__main__":

@@ -233,7 +233,12 @@ def check_document(doc: dict, source: str, resource: str = SCHEMA_RESOURCE, kind
     if error is not None:
         message = error.message if len(error.message) <= _MESSAGE_LIMIT else error.message[:_MESSAGE_LIMIT] + "…"
         raise FtcalError(f"{source}: invalid {kind} file at {error.json_path}: {message}.")
-    if digest(doc) != doc["sha256"]:
+    try:
+        sealed = digest(doc)
+    except UnicodeEncodeError as exc:  # a JSON escape of a lone surrogate: it has no UTF-8
+        raise FtcalError(f"{source}: a string holds U+{ord(exc.object[exc.start]):04X}, a lone surrogate, "
+                         f"which is not text; not a valid {kind} file.") from None
+    if sealed != doc["sha256"]:
         raise FtcalError(f"{source}: the sha256 digest does not match the content: the file was modified "
                          f"after it was written. Re-export it from the original {kind}.")
 
