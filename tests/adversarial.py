@@ -446,17 +446,23 @@ class Worker:
             if line:
                 return json.loads(line)
         if not ready:  # no answer: a hang; the worker is replaced
-            self.proc.kill()
-            self.proc.wait()
+            self.stop()
             self.start()
             return {"hang": True}
-        code = self.proc.wait()
+        code = self.stop()
         self.start()
         return {"signal": -code if code < 0 else None, "code": code}
 
-    def close(self) -> None:
-        self.proc.stdin.close()
-        self.proc.wait(10)
+    def stop(self) -> int:
+        """End the worker process and close its pipes; its exit code."""
+        self.proc.kill()
+        code = self.proc.wait()
+        for pipe in (self.proc.stdin, self.proc.stdout):
+            try:
+                pipe.close()
+            except OSError:
+                pass  # the other end is gone
+        return code
 
 
 ERROR_LINE = re.compile(r"^ftcal( [a-z-]+)?: error: ")
@@ -553,8 +559,7 @@ def run(sample: int | None = None, workers: int = 2, out: Path | None = None, n_
                     records.append({**{k: case[k] for k in ("kind", "label", "command", "argv")},
                                     "outcome": outcome, "detail": detail})
         finally:
-            w.proc.kill()
-            w.proc.wait()
+            w.stop()
 
     threads = [threading.Thread(target=drain) for _ in range(workers)]
     for t in threads:

@@ -136,6 +136,8 @@ def check_input_paths(args: argparse.Namespace) -> None:
 
 # Characters never printed raw to a terminal: C0/C1 controls and the bidirectional overrides.
 _UNPRINTABLE = re.compile("[\x00-\x1f\x7f-\x9f\u200e\u200f\u202a-\u202e\u2066-\u2069]")
+# Longest error line: longer ones quote a file's text, shown by its start and end.
+MAX_MESSAGE_CHARS = 1000
 # Option values this far from 1 are where float arithmetic overflows or underflows.
 _EXTREME = 1e150
 
@@ -146,6 +148,9 @@ def one_line(message: object) -> str:
     Messages quote names and text from files, which ftcal does not trust.
     """
     text = " ".join(str(message).splitlines())
+    if len(text) > MAX_MESSAGE_CHARS:  # a 5,000-character name quoted from a file
+        half = MAX_MESSAGE_CHARS // 2
+        text = f"{text[:half]} … {text[-half:]}"
     return _UNPRINTABLE.sub(lambda m: m.group(0).encode("unicode_escape").decode("ascii"), text)
 
 
