@@ -8,8 +8,10 @@ exit code. Heavy imports happen inside the commands so ``ftcal --help`` is fast.
 from __future__ import annotations
 
 import argparse
+import errno
 import importlib
 import os
+import re
 import signal
 import sys
 import threading
@@ -35,8 +37,15 @@ exit codes: 0 success, 2 bad input (one line on stderr), 130 Ctrl-C, 143 SIGTERM
 OUTPUT_OPTIONS = ("output", "out", "html")
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """An argument parser whose refusals are one line (no usage block), ending with where help is."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see '{self.prog} --help').\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="ftcal", epilog=ENVIRONMENT, formatter_class=argparse.RawDescriptionHelpFormatter,
         description="In-situ nonlinear calibration of six-axis force/torque sensors.")
     parser.add_argument("--version", action="store_true", help="print the version and exit")
@@ -95,12 +104,105 @@ def input_files(args: argparse.Namespace) -> list[str]:
     return found
 
 
+def check_input_paths(args: argparse.Namespace) -> None:
+    """Refuse any argument naming a FIFO, device or socket (never opened: reading one may never end).
+
+    The readers make the same check (:func:`ftcal.runtime.inputs.check_input_file`);
+    doing it here first covers every option of every command before any work starts.
+    """
+    import stat
+
+    from ..runtime.errors import FtcalError
+    from ..runtime.inputs import kind_of
+
+    for name, value in vars(args).items():
+        if name in OUTPUT_OPTIONS or name == "func":
+            continue
+        for item in value if isinstance(value, (list, tuple)) else [value]:
+            if not isinstance(item, (str, os.PathLike)) or not item:
+                continue
+            try:
+                mode = os.stat(item).st_mode
+            except OSError as exc:
+                if exc.errno == errno.ELOOP:
+                    raise FtcalError(f"{os.fspath(item)}: a loop of symbolic links, not a file.") from None
+                continue  # not a path (a name, an address) or missing: the command says so if it needs one
+            except ValueError:
+                continue
+            if not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):
+                raise FtcalError(f"{os.fspath(item)}: is {kind_of(mode)}, not a regular file "
+                                 "(ftcal never reads from pipes or devices).")
+
+
+# Characters never printed raw to a terminal: C0/C1 controls and the bidirectional overrides.
+_UNPRINTABLE = re.compile("[\x00-\x1f\x7f-\x9f\u200e\u200f\u202a-\u202e\u2066-\u2069]")
+# Longest error line: longer ones quote a file's text, shown by its start and end.
+MAX_MESSAGE_CHARS = 1000
+# Option values this far from 1 are where float arithmetic overflows or underflows.
+_EXTREME = 1e150
+
+
+def one_line(message: object) -> str:
+    """``message`` as one line that cannot drive the terminal: newlines become spaces, controls escapes.
+
+    Messages quote names and text from files, which ftcal does not trust.
+    """
+    text = " ".join(str(message).splitlines())
+    if len(text) > MAX_MESSAGE_CHARS:  # a 5,000-character name quoted from a file
+        half = MAX_MESSAGE_CHARS // 2
+        text = f"{text[:half]} … {text[-half:]}"
+    return _UNPRINTABLE.sub(lambda m: m.group(0).encode("unicode_escape").decode("ascii"), text)
+
+
+class EscapingStream:
+    """A text stream that writes controls (except newline and tab) and bidi overrides as escapes.
+
+    Commands print names from files (``ftcal info`` lists a model's inputs); an escape
+    sequence in such a name must not drive the user's terminal.
+    """
+
+    _CONTROLS = re.compile("[\x00-\x08\x0b-\x1f\x7f-\x9f\u200e\u200f\u202a-\u202e\u2066-\u2069]")
+
+    def __init__(self, stream) -> None:
+        self._stream = stream
+
+    def write(self, text: str) -> int:
+        self._stream.write(self._CONTROLS.sub(lambda m: m.group(0).encode("unicode_escape").decode("ascii"), text))
+        return len(text)
+
+    def __getattr__(self, name: str):
+        return getattr(self._stream, name)
+
+
+def numerical_failure(exc: BaseException, args: argparse.Namespace) -> str:
+    """One line for an arithmetic, memory or nesting failure, naming the options that can cause it."""
+    extreme = []
+    for name, value in vars(args).items():
+        for item in value if isinstance(value, (list, tuple)) else [value]:
+            if isinstance(item, float) and item != 0 and not 1 / _EXTREME < abs(item) < _EXTREME:
+                extreme.append(f"--{name.replace('_', '-')} {item:g}")
+    kind = ("met text that is not valid Unicode" if isinstance(exc, UnicodeError) else
+            {"MemoryError": "ran out of memory", "RecursionError": "met a structure nested too deeply"}.get(
+                type(exc).__name__, "failed numerically"))
+    detail = f" ({type(exc).__name__}{': ' + str(exc).splitlines()[0] if str(exc) else ''})"
+    if extreme:
+        return one_line(f"the computation {kind}{detail}: option {', '.join(extreme)} is too far from "
+                        "physical values; give a realistic value.")
+    files = ", ".join(input_files(args)) or "the inputs"
+    return one_line(f"the computation {kind}{detail}; check {files} for values near the limits of floating "
+                    "point (about 1e308), constant or degenerate columns, or ask for a smaller model.")
+
+
 def main(argv: list[str] | None = None) -> int:
     from ..runtime.atomic import check_not_an_input, protected_inputs
     from ..runtime.errors import FtcalError, FtcalWarning
 
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    try:  # the command modules import here: Ctrl-C during the imports is an interruption, not a traceback
+        parser = build_parser()
+        args = parser.parse_args(argv)
+    except KeyboardInterrupt:
+        print("ftcal: interrupted", file=sys.stderr)
+        return 130
     if args.version:
         from .. import __version__
         print(__version__)
@@ -111,19 +213,30 @@ def main(argv: list[str] | None = None) -> int:
     # Our own warnings go to stderr as one line each, not as Python warning noise.
     def show(message, category, filename, lineno, file=None, line=None):
         if issubclass(category, FtcalWarning):
-            print(f"warning: {message}", file=sys.stderr)
+            print(f"warning: {one_line(message)}", file=sys.stderr)
         else:
-            print(f"{category.__name__}: {message}", file=sys.stderr)
+            print(f"{category.__name__}: {one_line(message)}", file=sys.stderr)
     previous = warnings.showwarning
     warnings.showwarning = show
+    stdout = sys.stdout
+    sys.stdout = EscapingStream(stdout)
     try:
         with terminating_signals_unwind(), protected_inputs(input_files(args)):
+            check_input_paths(args)
             for option in OUTPUT_OPTIONS:
                 if getattr(args, option, None):
                     check_not_an_input(getattr(args, option), f"--{option}")
             return int(args.func(args) or 0)
     except FtcalError as exc:
-        print(f"ftcal {args.command}: error: {exc}", file=sys.stderr)
+        print(f"ftcal {args.command}: error: {one_line(exc)}", file=sys.stderr)
+        return 2
+    except (ArithmeticError, MemoryError, RecursionError, UnicodeError) as exc:
+        print(f"ftcal {args.command}: error: {numerical_failure(exc, args)}", file=sys.stderr)
+        return 2
+    except ValueError as exc:
+        if type(exc).__name__ != "LinAlgError":  # numpy's; other ValueErrors are bugs: keep the traceback
+            raise
+        print(f"ftcal {args.command}: error: {numerical_failure(exc, args)}", file=sys.stderr)
         return 2
     except BrokenPipeError:
         # Output piped into e.g. `head`: stop quietly like other command-line tools.
@@ -142,6 +255,7 @@ def main(argv: list[str] | None = None) -> int:
         return 128 + exc.signum
     finally:
         warnings.showwarning = previous  # main() may be called in-process (tests, scripts)
+        sys.stdout = stdout
 
 
 if __name__ == "__main__":

@@ -9,6 +9,7 @@ import sys
 from collections.abc import Sequence
 
 from ..core.columns import DEFAULT_INPUTS, DEFAULT_OUTPUTS
+from ..core.limits import MAX_OPTION_MAGNITUDE
 from ..runtime.errors import FtcalError
 
 
@@ -23,23 +24,28 @@ def column_list(text: str) -> tuple[str, ...]:
 
 
 def finite_float(text: str) -> float:
+    """A finite number of magnitude at most :data:`~ftcal.core.limits.MAX_OPTION_MAGNITUDE`."""
     try:
         value = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
     if not math.isfinite(value):
         raise argparse.ArgumentTypeError(f"must be a finite number, got {text!r}")
+    if abs(value) > MAX_OPTION_MAGNITUDE:
+        # Values near 1e308 overflow the first product they meet (NaN fits, eigen-solvers failing).
+        raise argparse.ArgumentTypeError(f"must be at most {MAX_OPTION_MAGNITUDE:g} in magnitude, got {text!r}")
     return value
 
 
 def positive_float(text: str) -> float:
+    """Like :func:`finite_float`, and > 0."""
     try:
         value = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
     if not math.isfinite(value) or value <= 0:
         raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text!r}")
-    return value
+    return finite_float(text)  # the magnitude limit
 
 
 def nonnegative_int(text: str) -> int:

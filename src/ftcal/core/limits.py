@@ -138,3 +138,40 @@ SATURATION_RATIO = 0.5
 POSE_BINS = 20
 """Distinct poses are counted as occupied cells of a grid with this many bins per input over its range
 (5 % of the range: a static load case with its noise is one cell, a sweep one cell per 5 % step)."""
+
+# --- Limits on what a file may make ftcal do (docs/security.md lists each with its reason). ---
+# ftcal trusts its command line, not the files it reads: every reader checks what a file declares
+# against these before it allocates or loops.
+
+MAX_MODEL_BYTES = 100 * 10**6
+"""Largest model or payload file (JSON or paper XML): degree 10 over 7 inputs is ~2 MB of text."""
+
+MAX_TEXT_FILE_BYTES = 50 * 10**6
+"""Largest URDF, TOML load-case file or other text configuration read whole into memory."""
+
+MAX_TABLE_COLUMNS = 10_000
+"""Most columns in a CSV or Parquet table (a calibration table has tens; a malformed header can claim millions)."""
+
+MAX_HEADER_BYTES = 10**6
+"""Longest CSV header line read to learn the column names."""
+
+MAX_DECLARED_ELEMENTS = 2 * 10**9
+"""Most numbers one array in a .mat log may declare (16 GB of float64); checked before reading it."""
+
+MAX_NESTING = 32
+"""Deepest nesting of groups in a .mat (HDF5) log: the logger's structs are a few levels deep; deeper
+means a hostile file or a link loop. (JSON and XML nesting is bounded by the parsers' recursion
+limit, caught as a one-line refusal.)"""
+
+MAX_GRAM_BYTES = 4 * 10**9
+"""Largest Gram matrix of a fit (p² doubles for p regressor columns per output), checked before it is
+allocated: degree 10 over 7 inputs (19,448 columns, 3.0 GB) fits; ARX na = nb = 50 at degree 5
+(40,642 columns, 13 GB, and a fit holds a few copies) does not."""
+
+MAX_OPTION_MAGNITUDE = 1e12
+"""Largest magnitude of a number option (--g, --gravity, --lasso, --payload-mass, ...): physical values
+are far smaller, and values near 1e308 overflow the first product they meet."""
+
+MAX_CELL_MAGNITUDE = 1e100
+"""Largest magnitude of a number in a table: sums of squares and products of such values still fit in
+float64 (about 1e308); larger ones are corrupt data, and would make fits overflow into NaN."""

@@ -29,7 +29,8 @@ from .dataset import Dataset
 from .excitation import Spread, span_distance, span_limit
 from .features import FeatureCombination, MonomialBasis, RegressorLayout, n_coefficients, substitution_matrix
 from .kernels import compiled, step_table
-from .limits import ARX_WARMUP, FREE_RUN_STARTS, MAX_DEGREE, MAX_LAG, NORMALIZATIONS, PREDICTION_MODES
+from .limits import (ARX_WARMUP, FREE_RUN_STARTS, MAX_DEGREE, MAX_GRAM_BYTES, MAX_LAG, NORMALIZATIONS,
+                     PREDICTION_MODES)
 from .normalization import Normalization, normalization_from_range, variables_normalization, variables_range
 from .solvers.base import ScaledProblem, Solver, SolverResult
 from .solvers.least_squares import LeastSquares
@@ -80,6 +81,24 @@ class FitFrame:
     def solves_in_stored_basis(self) -> bool:
         return self.solve_input_normalization is self.input_normalization
 
+
+
+def check_gram_size(layout: RegressorLayout) -> None:
+    """Refuse, before anything is allocated, a fit whose Gram matrix exceeds :data:`MAX_GRAM_BYTES`.
+
+    Raises
+    ------
+    FtcalError
+        Naming the coefficient count, the memory the Gram matrix needs and what to lower.
+    """
+    p = layout.n_features
+    need = 8 * p * p
+    if need > MAX_GRAM_BYTES:
+        arx = "" if layout.is_static else f", na={layout.na}, nb={layout.nb}"
+        lower = "--degree" if layout.is_static else "--degree, --na or --nb"
+        raise FtcalError(f"degree {layout.basis.degree}{arx} over {layout.basis.n_inputs} inputs has {p:,} "
+                         f"coefficients per output ({p * layout.n_outputs:,} in all); its Gram matrix alone needs "
+                         f"{need / 1e9:.1f} GB, above the limit of {MAX_GRAM_BYTES / 1e9:.0f} GB: lower {lower}.")
 
 class CalibrationModel:
     """Polynomial (optionally ARX) map from raw sensor inputs to the wrench.
@@ -282,6 +301,7 @@ class CalibrationModel:
             mode = "maxabs" if penalized else "center"
         mode = check_choice(mode, "normalization", "CalibrationModel", NORMALIZATIONS)
         layout = RegressorLayout(basis, output_range.shape[0], na, nb)
+        check_gram_size(layout)
         (u_min, u_max), (y_min, y_max) = input_range.T, output_range.T
         # Past outputs follow the input basis: the paper's are raw values scaled by max-abs.
         in_norm = normalization_from_range(u_min, u_max, mode)

@@ -41,6 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from ..runtime.errors import FtcalError, FtcalWarning
+from ..runtime.inputs import check_folder_files, check_input_file
 from .recording import Recording, Stream
 from .tf_chain import QUATERNION_COLUMNS, TransformTree, check_unit_quaternions
 
@@ -94,9 +95,9 @@ def open_bag(path: str | Path) -> Iterator:
     from rosbags.rosbag2 import ReaderError as Ros2ReaderError
     from rosbags.typesys import Stores, TypesysError, get_typestore
 
-    path = Path(path)
-    if not path.exists():
-        raise FtcalError(f"Bag {path}: no such file or folder.")
+    path = check_input_file(path, "bag (file or ROS 2 bag folder)", folder_ok=True)
+    if path.is_dir():
+        check_folder_files(path, "bag file")
     try:
         reader = AnyReader([path], default_typestore=get_typestore(Stores.LATEST))
         reader.open()
@@ -105,11 +106,25 @@ def open_bag(path: str | Path) -> Iterator:
                          f"({type(exc).__name__}: {exc}).") from None
     try:
         yield reader
-    except (AnyReaderError, Ros1ReaderError, Ros2ReaderError, struct.error) as exc:
+    except (AnyReaderError, Ros1ReaderError, Ros2ReaderError, struct.error, *_storage_errors()) as exc:
         raise FtcalError(f"Bag {path}: cannot read it; it may be truncated or corrupt "
                          f"({type(exc).__name__}: {exc}).") from None
     finally:
         reader.close()
+
+
+def _storage_errors() -> tuple[type[BaseException], ...]:
+    """What the storage libraries raise on a corrupt file: sqlite (``.db3``, through apsw or sqlite3)."""
+    import sqlite3
+
+    errors: list[type[BaseException]] = [sqlite3.Error]
+    try:
+        import apsw
+    except ImportError:  # rosbags reads .db3 through apsw when it is installed
+        pass
+    else:
+        errors.append(apsw.Error)
+    return tuple(errors)
 
 
 def list_topics(path: str | Path) -> list[TopicSummary]:

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from ..runtime.errors import FtcalError
+from ..runtime.inputs import check_input_file
 from .recording import Recording, Stream
 
 # suffix (lower case) → "module:function"; imported on first use so opening a .csv never loads h5py.
@@ -69,8 +70,7 @@ def read_recording(path: str | Path, joint_units: str = "rad", **options: Any) -
     path = Path(path)
     if joint_units not in ("rad", "deg"):
         raise FtcalError(f"The 'joint_units' parameter must be 'rad' or 'deg'. Got {joint_units!r} instead.")
-    if not path.exists():
-        raise FtcalError(f"Recording {path}: no such file.")
+    check_input_file(path, "recording", folder_ok=True)
     key = log_format(path)
     if key not in READERS:
         what = "a folder" if key == "/" else f"of unknown format {key!r}"

@@ -22,7 +22,9 @@ from typing import Any
 
 import numpy as np
 
+from ..core.limits import MAX_DECLARED_ELEMENTS, MAX_NESTING
 from ..runtime.errors import FtcalError
+from ..runtime.inputs import check_input_file
 from .recording import Recording, Stream
 
 ROOT = "robot_logger_device"
@@ -30,13 +32,13 @@ GROUPS = ("FTs", "temperatures", "joints_state", "accelerometers", "gyros", "des
 JOINT_FIELDS = {"positions": "joints", "velocities": "joint_velocities", "accelerations": "joint_accelerations"}
 
 
-# The logger's structs are a few levels deep; deeper means a hostile file or a link loop.
-MAX_HDF5_DEPTH = 32
 
 
 def read_mat(path: Path) -> Recording:
     """Read a robot-logger ``.mat`` file (v7.3 or v5) into a :class:`Recording`."""
     import h5py
+
+    path = check_input_file(path, ".mat recording")
 
     tree = _read_hdf5(path) if h5py.is_hdf5(path) else _read_v5(path)
     return _recording(path, tree)
@@ -75,14 +77,18 @@ def _child(group, key: str, path: Path):
 def _hdf5_node(fh, node, path: Path, depth: int) -> Any:
     import h5py
 
-    if depth > MAX_HDF5_DEPTH:
-        raise FtcalError(f"Recording {path}: {node.name} is nested more than {MAX_HDF5_DEPTH} levels deep "
+    if depth > MAX_NESTING:
+        raise FtcalError(f"Recording {path}: {node.name} is nested more than {MAX_NESTING} levels deep "
                          "(a link loop?); not a robot-logger file.")
     if isinstance(node, h5py.Group):
         return {key: _hdf5_node(fh, _child(node, key, path), path, depth + 1) for key in node.keys()}
     if node.is_virtual or node.id.get_create_plist().get_external_count():
         raise FtcalError(f"Recording {path}: the data of {node.name} is stored in other files; "
                          "ftcal reads only the recording itself.")
+    if node.size > MAX_DECLARED_ELEMENTS:  # checked on the declared shape, before anything is allocated
+        raise FtcalError(f"Recording {path}: {node.name} declares {node.size:,} values (shape "
+                         f"{'x'.join(map(str, node.shape))}), more than the limit of {MAX_DECLARED_ELEMENTS:,}; "
+                         "not a robot-logger recording.")
     attr = node.attrs.get("MATLAB_class", b"")
     matlab_class = attr.decode() if isinstance(attr, bytes) else str(attr)
     if node.dtype == h5py.ref_dtype:  # cell array

@@ -603,7 +603,7 @@ def _part_writer(part: str, schema):
         return pv.CSVWriter(part, schema)
     import pyarrow.parquet as pq
 
-    return pq.ParquetWriter(part, schema)
+    return pq.ParquetWriter(part, schema, write_page_checksum=True)
 
 
 def join_parts(parts: Sequence[str], target: Path) -> None:
@@ -626,9 +626,9 @@ def join_parts(parts: Sequence[str], target: Path) -> None:
         writer = None
         try:
             for part in parts:
-                with pq.ParquetFile(part) as parquet:
+                with pq.ParquetFile(part, page_checksum_verification=True) as parquet:
                     for batch in parquet.iter_batches():
-                        writer = writer or pq.ParquetWriter(os.fspath(tmp), batch.schema)
+                        writer = writer or pq.ParquetWriter(os.fspath(tmp), batch.schema, write_page_checksum=True)
                         writer.write_batch(batch)
         finally:
             if writer is not None:

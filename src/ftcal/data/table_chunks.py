@@ -226,7 +226,7 @@ def _batches(path: Path, columns: list[str], roles: dict[str, str], chunk_rows: 
         else:
             import pyarrow.parquet as pq
 
-            with pq.ParquetFile(path) as parquet:
+            with pq.ParquetFile(path, page_checksum_verification=True) as parquet:
                 yield from parquet.iter_batches(batch_size=chunk_rows, columns=columns)
     except FtcalError:
         raise
@@ -254,9 +254,12 @@ def _raise_at_bad_cell(path: Path, name: str, role: str) -> None:
     import pyarrow.csv as pv
 
     first_row = 0
-    reader = pv.open_csv(path, read_options=pv.ReadOptions(block_size=CSV_BLOCK_BYTES),
-                         convert_options=pv.ConvertOptions(include_columns=[name],
-                                                           column_types={name: pa.string()}))
+    try:
+        reader = pv.open_csv(path, read_options=pv.ReadOptions(block_size=CSV_BLOCK_BYTES),
+                             convert_options=pv.ConvertOptions(include_columns=[name],
+                                                               column_types={name: pa.string()}))
+    except pa.ArrowException:
+        return  # not even text (invalid UTF-8): the caller reports pyarrow's own error
     with reader:
         for batch in reader:
             text = batch.column(0).to_pandas()

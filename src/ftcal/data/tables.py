@@ -7,6 +7,7 @@ segment or group of its own.
 
 from __future__ import annotations
 
+import io
 import os
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
@@ -15,8 +16,10 @@ from pathlib import Path
 import numpy as np
 
 from ..core.dataset import DEFAULT_INPUTS, DEFAULT_OUTPUTS, Dataset, concatenate
+from ..core.limits import MAX_CELL_MAGNITUDE, MAX_HEADER_BYTES, MAX_TABLE_COLUMNS
 from ..runtime.atomic import atomic_path
 from ..runtime.errors import FtcalError
+from ..runtime.inputs import check_input_file
 
 TABLE_SUFFIXES = (".csv", ".parquet", ".pq")
 
@@ -34,17 +37,15 @@ def read_arrow(path: str | os.PathLike):
     FtcalError
         No such file, not a table, a repeated column name, or no rows.
     """
-    path = Path(path)
-    if not path.exists():
-        raise FtcalError(f"{path}: no such file.")
-    if path.is_dir():
-        raise FtcalError(f"{path}: is a directory, not a CSV or Parquet file.")
+    path = check_input_file(path, "CSV or Parquet table")
     suffix = path.suffix.lower()
+    if suffix in TABLE_SUFFIXES:
+        header_columns(path)  # encoding and column count checked before pyarrow allocates
     try:
         if suffix in (".parquet", ".pq"):
             import pyarrow.parquet as pq
 
-            table = pq.read_table(path)
+            table = pq.read_table(path, page_checksum_verification=True)
         elif suffix == ".csv":
             import pyarrow.csv as pv
 
@@ -153,7 +154,7 @@ def arrow_numbers(table, columns: Sequence[str], path: Path, role: str, *, first
             out[row:row + n, j] = np.frombuffer(chunk.buffers()[1], dtype=dtype, count=n,
                                                 offset=chunk.offset * np.dtype(dtype).itemsize)
             row += n
-    if not np.isfinite(out).all():
+    if not (np.abs(out) <= MAX_CELL_MAGNITUDE).all():  # NaN fails too
         return numeric_columns(table.to_pandas(), columns, path, role, first_row=first_row)
     return out
 
@@ -167,23 +168,61 @@ def default_inputs(paths: Sequence[str | os.PathLike]) -> tuple[str, ...]:
 
 def table_columns(path: str | os.PathLike) -> tuple[str, ...]:
     """The column names of a CSV or Parquet file, read from its header only."""
-    path = Path(path)
-    suffix = path.suffix.lower()
-    if path.is_file() and suffix in (".parquet", ".pq", ".csv"):
-        try:
-            if suffix == ".csv":
-                import csv
+    path = check_input_file(path, "CSV or Parquet table")
+    if path.suffix.lower() in TABLE_SUFFIXES:
+        names = header_columns(path)
+        if names:
+            return names
+    return tuple(read_arrow(path).column_names)
 
-                with open(path, newline="", encoding="utf-8-sig") as fh:  # the header line only
-                    header = next(csv.reader(fh), None)
-                if header:
-                    return tuple(header)
+
+def header_columns(path: Path) -> tuple[str, ...]:
+    """The column names in a table's header, checked before any reader allocates for them.
+
+    A CSV header is read as bytes up to :data:`~ftcal.core.limits.MAX_HEADER_BYTES`
+    and must be UTF-8 (UTF-16 and Latin-1 text is refused naming the encoding,
+    since pyarrow would read it as garbage names); a Parquet schema is read from
+    the footer. Either may declare at most :data:`~ftcal.core.limits.MAX_TABLE_COLUMNS`
+    columns. Returns ``()`` when the file is not readable as such (the full
+    reader then names the problem).
+    """
+    if path.suffix.lower() == ".csv":
+        names = _csv_header(path)
+    else:
+        try:
             import pyarrow.parquet as pq
 
-            return tuple(pq.read_schema(path).names)
+            names = tuple(pq.read_schema(path).names)
         except Exception:  # noqa: BLE001 - a corrupt file: read_arrow names the problem
-            pass
-    return tuple(read_arrow(path).column_names)
+            return ()
+    if len(names) > MAX_TABLE_COLUMNS:
+        raise FtcalError(f"{path}: the header declares {len(names):,} columns, more than the limit of "
+                         f"{MAX_TABLE_COLUMNS:,} for a calibration table.")
+    return names
+
+
+def _csv_header(path: Path) -> tuple[str, ...]:
+    import csv
+
+    with open(path, "rb") as fh:
+        line = fh.readline(MAX_HEADER_BYTES + 1)
+        while line.count(b'"') % 2 and len(line) <= MAX_HEADER_BYTES:  # a quoted name holds a line break
+            more = fh.readline(MAX_HEADER_BYTES + 1 - len(line))
+            if not more:
+                break
+            line += more
+    if len(line) > MAX_HEADER_BYTES:
+        raise FtcalError(f"{path}: the header line is longer than {MAX_HEADER_BYTES:,} bytes; "
+                         "not a calibration table.")
+    if line.startswith((b"\xff\xfe", b"\xfe\xff")) or b"\x00" in line:
+        raise FtcalError(f"{path}: the file is UTF-16 encoded text; save it as UTF-8 (or plain ASCII) CSV.")
+    try:
+        text = line.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise FtcalError(f"{path}: the header is not UTF-8 (byte 0x{line[exc.start]:02X} at offset {exc.start}; "
+                         "Latin-1 or Windows-1252 text?); save the file as UTF-8 CSV.") from None
+    header = next(csv.reader(io.StringIO(text, newline="")), None)
+    return tuple(header) if header else ()
 
 
 def numeric_columns(frame, columns: Sequence[str], path: Path, role: str, *, finite: bool = True,
@@ -222,6 +261,12 @@ def numeric_columns(frame, columns: Sequence[str], path: Path, role: str, *, fin
             raise FtcalError(f"{path}: column {name!r} has {int(bad.sum())} empty, NaN or infinite "
                              f"cell(s), first at {where}. ('ftcal fit --drop-incomplete' drops rows with empty "
                              "cells.)")
+        huge = np.abs(values) > MAX_CELL_MAGNITUDE if finite else bad
+        if huge.any():
+            row = int(np.flatnonzero(huge)[0])
+            where = f"line {first_row + row + 2}" if path.suffix.lower() == ".csv" else f"row {first_row + row}"
+            raise FtcalError(f"{path}: column {name!r} holds {values[row]:g} at {where}, beyond "
+                             f"{MAX_CELL_MAGNITUDE:g} in magnitude: no sensor reads that, and its square overflows.")
         out[:, j] = values
     return out
 
@@ -335,4 +380,4 @@ def write_table(frame, path: str | os.PathLike) -> None:
         if suffix == ".csv":
             frame.to_csv(tmp, index=False, float_format="%.17g")
         else:
-            frame.to_parquet(tmp, index=False)
+            frame.to_parquet(tmp, index=False, write_page_checksum=True)  # readers verify every page

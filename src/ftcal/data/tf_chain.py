@@ -49,6 +49,26 @@ class TransformTree:
         """Every frame named by a transform, sorted."""
         return sorted({f for edge in (*self._static, *self._dynamic) for f in edge})
 
+    def _check_tree(self) -> None:
+        """Refuse a tf graph that is not a tree: a frame with two parents, or a loop of frames.
+
+        tf allows one parent per frame; with two, which chain is meant is ambiguous
+        and picking one silently would give a wrong orientation.
+        """
+        parents: dict[str, str] = {}
+        for parent, child in (*self._static, *self._dynamic):
+            if parents.setdefault(child, parent) != parent:
+                first, second = sorted((parents[child], parent))
+                raise FtcalError(f"{self.where}: tf frame {child!r} has two parents, {first!r} and {second!r}; "
+                                 "a tf tree gives each frame one parent.")
+        for start in parents:
+            seen = [start]
+            while (up := parents.get(seen[-1])) is not None:
+                if up in seen:
+                    loop = " -> ".join(seen[seen.index(up):] + [up])
+                    raise FtcalError(f"{self.where}: tf frames form a loop ({loop}); a tf tree has none.")
+                seen.append(up)
+
     def chain(self, base: str, frame: str) -> list[tuple[str, str, bool]]:
         """Edges (parent, child, walked_backwards) from ``base`` to ``frame``.
 
@@ -57,6 +77,7 @@ class TransformTree:
         FtcalError
             If a frame is unknown or the two are not connected; the message lists the known frames.
         """
+        self._check_tree()
         neighbours: dict[str, list[tuple[str, tuple[str, str, bool]]]] = {}
         for parent, child in (*self._static, *self._dynamic):
             neighbours.setdefault(parent, []).append((child, (parent, child, False)))

@@ -29,7 +29,6 @@ precision, the same operations in the same order).
 from __future__ import annotations
 
 import hashlib
-import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -37,8 +36,9 @@ import numpy as np
 
 from ..core.conversion import sample_training_box
 from ..core.model import RANGE_TOLERANCE, CalibrationModel
-from ..runtime.atomic import write_text_atomic
+from ..runtime.atomic import write_texts_atomic
 from ..runtime.errors import FtcalError
+from .c_text import c_comment, c_identifier, c_string
 from .model_json import ModelFile, ftcal_version
 from .targets import ConvertOptions, Written
 
@@ -46,11 +46,6 @@ DEFAULT_NAME = "ftcal_model"
 # Independent partial sums per output of a static model: four addition chains the CPU overlaps
 # (measured faster than one chain or eight at degrees 4 and 5, benchmarks/cases.py c_predict).
 PARTIAL_SUMS = 4
-_IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
-_C_KEYWORDS = frozenset(
-    "auto break case char const continue default do double else enum extern float for goto if inline "
-    "int long register restrict return short signed sizeof static struct switch typedef union unsigned "
-    "void volatile while _Bool _Complex _Imaginary".split())
 
 
 @dataclass(frozen=True)
@@ -60,14 +55,6 @@ class GeneratedC:
     name: str
     header: str
     source: str
-
-
-def check_name(name: str) -> str:
-    """``name`` if it can prefix C identifiers and file names; :class:`FtcalError` otherwise."""
-    if not _IDENTIFIER.fullmatch(name) or name in _C_KEYWORDS or name.startswith("__"):
-        raise FtcalError(f"--name {name!r} is not a C identifier (letters, digits and underscores, "
-                         "not starting with a digit, not a C keyword).")
-    return name
 
 
 def check_finite(model: CalibrationModel) -> None:
@@ -157,7 +144,7 @@ def generate_c(model: CalibrationModel, *, name: str = DEFAULT_NAME, single_prec
         ``single_precision`` is asked for an ARX model.
     """
     model._check_fitted()
-    check_name(name)
+    c_identifier(name)
     check_finite(model)
     layout = model.layout_
     if single_precision and not layout.is_static:
@@ -211,8 +198,7 @@ def _header_comment(model, name, single, sha256, source_name, input_units, outpu
              f"model file: {source_name or 'unknown'}" + (f", sha256 {sha256}" if sha256 else ""),
              f"inputs (u): {described(model.input_names_, input_units)}",
              f"outputs (y): {described(model.output_names_, output_units)}"]
-    # "*/" inside a name would end the comment early.
-    return "/*\n" + "".join(f" * {line.replace('*/', '* /')}\n" for line in lines) + " */"
+    return c_comment(lines)  # names and units come from the model file: never code
 
 
 def _header(model, name, macro, lit, comment) -> str:
@@ -248,14 +234,8 @@ def _header(model, name, macro, lit, comment) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _c_string(text: str) -> str:
-    escaped = "".join(ch if ch.isascii() and ch.isprintable() and ch not in '"\\?' else
-                      "".join(f"\\{b:03o}" for b in ch.encode("utf-8")) for ch in text)
-    return f'"{escaped}"'
-
-
 def _string_array(symbol: str, size: str, names) -> str:
-    return f"const char *const {symbol}[{size}] = {{{', '.join(_c_string(n) for n in names)}}};"
+    return f"const char *const {symbol}[{size}] = {{{', '.join(c_string(n) for n in names)}}};"
 
 
 def _in_range(model, name, lit) -> str:
@@ -429,7 +409,7 @@ def float_error(model: CalibrationModel, *, n_points: int = 2000, seed: int = 0)
 
 def write_c(source: ModelFile, output: Path, options: ConvertOptions) -> Written:
     """Registry writer: ``output/NAME.h`` and ``output/NAME.c`` (``output`` created if missing)."""
-    name = check_name(options.get("name", DEFAULT_NAME))
+    name = c_identifier(options.get("name", DEFAULT_NAME))
     single = bool(options.get("single_precision", False))
     sha256 = hashlib.sha256(options.input_path.read_bytes()).hexdigest()
     code = generate_c(source.model, name=name, single_precision=single, sha256=sha256,
@@ -444,6 +424,5 @@ def write_c(source: ModelFile, output: Path, options: ConvertOptions) -> Written
     for path in paths:
         if path.resolve() == options.input_path.resolve():
             raise FtcalError(f"{path} is the input file; choose another --name or -o directory.")
-    write_text_atomic(paths[0], code.header)
-    write_text_atomic(paths[1], code.source)
+    write_texts_atomic({paths[0]: code.header, paths[1]: code.source})  # both files or neither
     return Written(paths, tuple(notes))

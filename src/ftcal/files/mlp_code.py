@@ -25,9 +25,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..runtime.atomic import write_text_atomic, write_with
+from ..runtime.atomic import write_texts_atomic, write_with
 from ..runtime.errors import FtcalError
-from .c_code import DEFAULT_NAME, GeneratedC, _in_range, _Literals, _string_array, check_name
+from .c_code import DEFAULT_NAME, GeneratedC, _in_range, _Literals, _string_array
+from .c_text import c_comment, c_identifier
 from .model_json import ModelFile, ftcal_version
 from .onnx_graph import INPUT, IR_VERSION, OPSET, OUTPUT
 from .targets import ConvertOptions, Written
@@ -67,7 +68,7 @@ def generate_mlp_c(model, *, name: str = DEFAULT_NAME, sha256: str | None = None
     FtcalError
         ``name`` is not a C identifier, or the model holds non-finite numbers.
     """
-    check_name(name)
+    name = c_identifier(name)
     _check(model)
     lit, macro = _Literals(False), name.upper()
     nu, ny = len(model.input_names_), len(model.output_names_)
@@ -78,8 +79,7 @@ def generate_mlp_c(model, *, name: str = DEFAULT_NAME, sha256: str | None = None
              f"model file: {source_name or 'unknown'}" + (f", sha256 {sha256}" if sha256 else ""),
              f"inputs (u): {_described(model.input_names_, input_units)}",
              f"outputs (y): {_described(model.output_names_, output_units)}"]
-    # "*/" inside a name would end the comment early.
-    comment = "/*\n" + "".join(f" * {line.replace('*/', '* /')}\n" for line in lines) + " */"
+    comment = c_comment(lines)  # names and units come from the model file: never code
     guard = f"{macro}_H"
     header = "\n".join([
         comment, f"#ifndef {guard}", f"#define {guard}", "", "#ifdef __cplusplus", 'extern "C" {', "#endif", "",
@@ -172,7 +172,7 @@ def write_c(source: ModelFile, output: Path, options: ConvertOptions) -> Written
     """Registry writer (``--to c`` of an mlp model file): ``output/NAME.h`` and ``output/NAME.c``."""
     if options.get("single_precision", False):
         raise FtcalError("--float is for polynomial models; an MLP is generated in double precision.")
-    name = check_name(options.get("name", DEFAULT_NAME))
+    name = c_identifier(options.get("name", DEFAULT_NAME))
     sha256 = hashlib.sha256(options.input_path.read_bytes()).hexdigest()
     code = generate_mlp_c(source.model, name=name, sha256=sha256, source_name=options.input_path.name,
                           input_units=source.input_units, output_units=source.output_units)
@@ -180,8 +180,7 @@ def write_c(source: ModelFile, output: Path, options: ConvertOptions) -> Written
     for path in paths:
         if path.resolve() == options.input_path.resolve():
             raise FtcalError(f"{path} is the input file; choose another --name or -o directory.")
-    write_text_atomic(paths[0], code.header)
-    write_text_atomic(paths[1], code.source)
+    write_texts_atomic({paths[0]: code.header, paths[1]: code.source})  # both files or neither
     return Written(paths)
 
 

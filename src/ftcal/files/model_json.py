@@ -24,17 +24,17 @@ from pathlib import Path
 import numpy as np
 
 from ..core.families import DEFAULT_FAMILY, ModelFamily, family_class, family_of
+from ..core.limits import MAX_MODEL_BYTES
 from ..core.normalization import Normalization
 from ..runtime.atomic import write_text_atomic
 from ..runtime.errors import FtcalError
+from ..runtime.inputs import check_input_file
 
 FORMAT = "ftcal-model"
 PER_OUTPUT_METRICS = ("rmse", "best_fit", "max_abs_error", "residual_autocorrelation_lag1")
 FORMAT_VERSION = "1.0"
 SCHEMA_RESOURCE = "schemas/model-1.json"
 _MESSAGE_LIMIT = 160
-# The largest model (degree 10, 7 inputs, ARX lags) is a few MB; anything this big is not one.
-MAX_MODEL_BYTES = 100 * 10**6
 # Integers in a model file are counts and exponents; longer ones are hostile (and slow to parse).
 _MAX_INT_DIGITS = 18
 
@@ -184,13 +184,7 @@ def load_model(path: str | Path) -> ModelFamily:
 
 def check_model_size(path: Path, kind: str = "model") -> None:
     """Refuse a ``kind`` file larger than :data:`MAX_MODEL_BYTES` before reading it."""
-    try:
-        size = path.stat().st_size
-    except OSError as exc:
-        raise FtcalError(f"Cannot read {kind} file {path}: {exc.strerror}.") from None
-    if size > MAX_MODEL_BYTES:
-        raise FtcalError(f"{path}: {size / 1e6:.0f} MB is too large for a {kind} file "
-                         f"(limit {MAX_MODEL_BYTES // 10**6} MB).")
+    check_input_file(path, f"{kind} file", max_bytes=MAX_MODEL_BYTES)
 
 
 def read_document_text(path: Path, kind: str = "model") -> str:
@@ -233,7 +227,12 @@ def check_document(doc: dict, source: str, resource: str = SCHEMA_RESOURCE, kind
     if error is not None:
         message = error.message if len(error.message) <= _MESSAGE_LIMIT else error.message[:_MESSAGE_LIMIT] + "…"
         raise FtcalError(f"{source}: invalid {kind} file at {error.json_path}: {message}.")
-    if digest(doc) != doc["sha256"]:
+    try:
+        sealed = digest(doc)
+    except UnicodeEncodeError as exc:  # a JSON escape of a lone surrogate: it has no UTF-8
+        raise FtcalError(f"{source}: a string holds U+{ord(exc.object[exc.start]):04X}, a lone surrogate, "
+                         f"which is not text; not a valid {kind} file.") from None
+    if sealed != doc["sha256"]:
         raise FtcalError(f"{source}: the sha256 digest does not match the content: the file was modified "
                          f"after it was written. Re-export it from the original {kind}.")
 

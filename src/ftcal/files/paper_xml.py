@@ -19,10 +19,11 @@ import numpy as np
 from ..core.conversion import from_raw, precision_loss, to_raw_finite
 from ..core.dataset import DEFAULT_INPUTS, DEFAULT_OUTPUTS, default_names
 from ..core.features import MAX_DEGREE, n_coefficients
-from ..core.limits import MAX_LAG
+from ..core.limits import MAX_LAG, MAX_MODEL_BYTES
 from ..core.model import CalibrationModel
 from ..runtime.atomic import write_text_atomic
 from ..runtime.errors import FtcalError
+from ..runtime.inputs import check_input_file
 
 GROUP_NAME = "modelClassParams"
 # (name, lowest, highest) of the integer parameters every file must have.
@@ -62,7 +63,7 @@ def _ordinal(n: int) -> str:
 def read_paper_xml(path: str | Path, *, input_names: Sequence[str] | None = None,
                    output_names: Sequence[str] | None = None) -> CalibrationModel:
     """Read a paper XML model file; names default to u1..u6, T and Fx..Tz when the counts fit."""
-    path = Path(path)
+    path = check_input_file(path, "model file", max_bytes=MAX_MODEL_BYTES)
     try:
         data = path.read_bytes()
     except OSError as exc:
@@ -97,6 +98,8 @@ def _params(data: bytes | str, source: str) -> dict[str, str]:
     except ET.ParseError as exc:
         line, column = exc.position
         raise FtcalError(f"{source}: not well-formed XML at line {line}, column {column + 1}.") from None
+    except LookupError as exc:  # <?xml encoding="..."?> naming no codec
+        raise FtcalError(f"{source}: the XML declaration names an encoding Python does not know ({exc}).") from None
     if root.tag != "group":
         raise FtcalError(f"{source}: the root element is <{root.tag}>; a paper model file has "
                          f'<group name="{GROUP_NAME}">.')

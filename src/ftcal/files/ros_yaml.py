@@ -53,10 +53,24 @@ def _list(values) -> str:
 
 
 def _string(text: str) -> str:
-    # JSON string syntax is valid YAML and quotes frame names such as "/left_arm_ft_sensor".
-    import json
+    """A YAML double-quoted scalar of ``text``: printable ASCII as itself, every other character escaped.
 
-    return json.dumps(text, ensure_ascii=False)
+    Frame names come from payload files: a raw newline, NEL or U+2028 (line
+    breaks to YAML 1.1), a quote or a control character must not end the
+    scalar or start a new key.
+    """
+    out = []
+    for ch in str(text):
+        code = ord(ch)
+        if " " <= ch <= "~" and ch not in '"\\':
+            out.append(ch)
+        elif ch in '"\\':
+            out.append("\\" + ch)
+        elif 0xD800 <= code <= 0xDFFF:
+            raise FtcalError(f"the frame name {text!r} holds a lone surrogate (U+{code:04X}), which YAML cannot carry.")
+        else:
+            out.append(f"\\x{code:02X}" if code < 0x100 else f"\\u{code:04X}" if code < 0x10000 else f"\\U{code:08X}")
+    return '"' + "".join(out) + '"'
 
 
 def ros_yaml_text(payload: PayloadParameters, *, frame: str | None = None,

@@ -30,7 +30,9 @@ from pathlib import Path
 from typing import Any
 
 from ..core.families import check_export
+from ..core.limits import MAX_MODEL_BYTES
 from ..runtime.errors import FtcalError
+from ..runtime.inputs import check_input_file
 
 MODEL = "ftcal-model"
 PAYLOAD = "ftcal-payload"
@@ -122,7 +124,7 @@ def target(name: str) -> Target:
 
 def input_kind(path: str | Path) -> str:
     """:data:`MODEL` for paper XML files, else the ``format`` field of the ftcal JSON document."""
-    path = Path(path)
+    path = check_input_file(path, "model or payload file", max_bytes=MAX_MODEL_BYTES)
     try:
         with open(path, "rb") as fh:
             head = fh.read(_SNIFF_BYTES)
@@ -132,7 +134,7 @@ def input_kind(path: str | Path) -> str:
         return MODEL  # paper XML, or something the model reader rejects with its own message
     try:
         document = json.loads(path.read_text(encoding="utf-8"))
-    except (ValueError, OSError):
+    except (ValueError, OSError, RecursionError):
         return MODEL  # the model reader says what is wrong with it
     kind = document.get("format") if isinstance(document, dict) else None
     return kind if kind in INPUT_READERS or kind == PAYLOAD else MODEL

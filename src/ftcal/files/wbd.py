@@ -22,6 +22,7 @@ from ..core.conversion import affine_part
 from ..core.model import CalibrationModel
 from ..runtime.atomic import write_text_atomic
 from ..runtime.errors import FtcalError
+from .c_text import printable_ascii
 
 N_CHANNELS = 6
 TARGET = "The wholeBodyDynamics configuration"
@@ -51,13 +52,20 @@ def format_wbd(model: CalibrationModel, sensor: str, *, reference_temperature: f
         groups.append(("FT_TEMPERATURE_COEFFICIENTS", np.r_[k, t_ref]))
         offset = offset + k * t_ref
     groups.append(("FT_OFFSET", -offset))
-    lines = [f"<!-- ftcal: affine calibration of {sensor} "
-             f"(inputs {', '.join(model.input_names_)}; outputs {', '.join(model.output_names_)}) -->"]
+    comment = (f"ftcal: affine calibration of {sensor} "
+               f"(inputs {', '.join(model.input_names_)}; outputs {', '.join(model.output_names_)})")
+    lines = [f"<!-- {xml_comment_text(comment)} -->"]  # the names come from the model file
     for name, values in groups:
         lines += [f'<group name="{name}">',
                   f'    <param name="{sensor}">({",".join(repr(float(v)) for v in values)})</param>',
                   "</group>"]
     return "\n".join(lines) + "\n"
+
+
+def xml_comment_text(text: str) -> str:
+    """``text`` made safe inside ``<!-- ... -->``: printable ASCII, no ``--``, not ending in ``-``."""
+    safe = re.sub(r"-(?=-)", "- ", printable_ascii(text))
+    return safe + " " if safe.endswith("-") else safe
 
 
 def _mid_range(model: CalibrationModel) -> float:

@@ -25,6 +25,7 @@ import numpy as np
 
 from ..runtime.atomic import write_with
 from ..runtime.errors import FtcalError, FtcalWarning
+from ..runtime.inputs import check_input_file
 from .model import RobotModel
 
 FORMAT = b"ftcal-expected-cache-v1"
@@ -94,8 +95,12 @@ def cached(key: str, sensors: Sequence[str], n_samples: int, compute: Callable[[
     """
     path = cache_path(key, cache_dir)
     shape = (n_samples, len(sensors), 6)
-    if path.exists():
-        wrenches, problem = _verified(path, key, sensors, shape)
+    if os.path.lexists(path):
+        try:  # a FIFO or device planted in the cache folder is refused, never opened
+            check_input_file(path, "expected-wrench cache entry")
+            wrenches, problem = _verified(path, key, sensors, shape)
+        except FtcalError as exc:
+            wrenches, problem = None, str(exc)
         if problem is None:
             return wrenches
         warnings.warn(f"ignoring the expected-wrench cache entry {path} ({problem}); recomputing it.",

@@ -38,7 +38,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from ..core.limits import MAX_TEXT_FILE_BYTES
 from ..runtime.errors import FtcalError
+from ..runtime.inputs import check_input_file
 from .payloads import Payload
 
 CONVENTION = re.compile(r"^l(?P<left>\d+(?:\.\d+)?)kg-r(?P<right>\d+(?:\.\d+)?)kg$")
@@ -104,7 +106,7 @@ class LoadCaseConfig:
 
 def load_case_config(path: str | Path) -> LoadCaseConfig:
     """Read a payload/load-case TOML file (see the module docstring)."""
-    path = Path(path)
+    path = check_input_file(path, "payload file", max_bytes=MAX_TEXT_FILE_BYTES)
     try:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:

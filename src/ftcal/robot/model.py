@@ -18,10 +18,13 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from ..core.limits import MAX_TEXT_FILE_BYTES
 from ..runtime.errors import FtcalError
+from ..runtime.inputs import check_input_file
 from ._quiet import captured_stderr
 from .declare import SensorDeclaration, no_sensor_hint, prepare_urdf
 from .payloads import Payload
+from .urdf_checks import check_urdf
 
 DEFAULT_BASE = "root_link"
 
@@ -67,6 +70,7 @@ class RobotModel:
         self.source = source
         self.payloads = tuple(payloads)
         self.declared = tuple(declared)
+        check_urdf(urdf_text, source)
         loader = idyn.ModelLoader()
         parsed_text = prepare_urdf(urdf_text, source, self.declared)
         with captured_stderr() as chatter:
@@ -95,6 +99,7 @@ class RobotModel:
         if (urdf is None) == (name is None):
             raise FtcalError("Give exactly one of a URDF path (--urdf) or a robot model name (--model).")
         path = Path(urdf) if urdf is not None else icub_model_path(str(name))
+        check_input_file(path, "URDF", max_bytes=MAX_TEXT_FILE_BYTES)
         try:
             text = path.read_text(encoding="utf-8")
         except FileNotFoundError:

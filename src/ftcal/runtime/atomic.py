@@ -10,8 +10,8 @@ resolving symbolic links, or the same inode: a hard link).
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Iterable, Iterator
-from contextlib import contextmanager
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
 from .errors import FtcalError
@@ -65,13 +65,12 @@ def check_not_an_input(target: str | os.PathLike, option: str = "output") -> Non
 
 
 @contextmanager
-def atomic_path(target: str | os.PathLike) -> Iterator[Path]:
-    """Yield a temporary path; on success it is renamed onto ``target``.
+def _temporary(target: Path) -> Iterator[Path]:
+    """Yield a new empty temporary file beside ``target``; it is removed on exit unless renamed away.
 
     Problems with the destination (a directory in the way, a parent that is a
     file, no permission, a full disk) become one-line :class:`FtcalError`s.
     """
-    target = Path(target)
     if target.is_dir():
         raise FtcalError(f"{target}: is a directory; give a file name to write.")
     check_not_an_input(target)
@@ -96,19 +95,85 @@ def atomic_path(target: str | os.PathLike) -> Iterator[Path]:
         except OSError as exc:
             raise FtcalError(f"{target}: cannot create the output file ({exc.strerror or exc}).") from None
         yield tmp_path
-        os.replace(tmp_path, target)
     except OSError as exc:
         raise FtcalError(f"{target}: cannot write the output file ({exc.strerror or exc}).") from None
     finally:
-        if tmp_path is not None and tmp_path.exists():
+        if tmp_path is not None and os.path.lexists(tmp_path):
             tmp_path.unlink()
+
+
+@contextmanager
+def atomic_path(target: str | os.PathLike) -> Iterator[Path]:
+    """Yield a temporary path; on success it is renamed onto ``target``.
+
+    Problems with the destination (a directory in the way, a parent that is a
+    file, no permission, a full disk) become one-line :class:`FtcalError`s.
+    """
+    target = Path(target)
+    with _temporary(target) as tmp:
+        yield tmp
+        os.replace(tmp, target)
+
+
+@contextmanager
+def atomic_paths(targets: Sequence[str | os.PathLike]) -> Iterator[list[Path]]:
+    """Yield one temporary path per target; on success all are renamed into place, else none.
+
+    All or nothing for multi-file outputs (a ``.h`` and its ``.c``): if writing
+    any part fails, no target changes; if a rename fails after others
+    succeeded, those are rolled back (the previous files restored, new ones
+    removed).
+    """
+    targets = [Path(t) for t in targets]
+    with ExitStack() as stack:
+        temps = [stack.enter_context(_temporary(t)) for t in targets]
+        yield temps
+        _commit(list(zip(temps, targets)))
+
+
+def _commit(pairs: list[tuple[Path, Path]]) -> None:
+    """Rename every temporary onto its target, undoing the done renames if one fails."""
+    done: list[tuple[Path, Path | None]] = []  # (target, backup of its previous content or None)
+    try:
+        for tmp, target in pairs:
+            backup = None
+            if os.path.lexists(target):
+                backup = target.parent / f".{target.name}.{os.urandom(8).hex()}.old"
+                os.link(target, backup)
+            done.append((target, backup))
+            os.replace(tmp, target)
+    except OSError as exc:
+        for target, backup in reversed(done):
+            try:
+                if backup is not None:
+                    os.replace(backup, target)
+                elif os.path.lexists(target):
+                    target.unlink()
+            except OSError:
+                pass  # best effort: the error below still names the failed output
+        raise FtcalError(f"{exc.filename or pairs[-1][1]}: cannot write the output file "
+                         f"({exc.strerror or exc}); no output was changed.") from None
+    finally:
+        for _, backup in done:
+            if backup is not None and os.path.lexists(backup):
+                backup.unlink()
 
 
 def write_text_atomic(target: str | os.PathLike, text: str, newline: str | None = None) -> None:
     """Write ``text`` to ``target`` atomically (UTF-8)."""
-    with atomic_path(target) as tmp:
-        with open(tmp, "w", encoding="utf-8", newline=newline) as fh:
-            fh.write(text)
+    write_texts_atomic({target: text}, newline=newline)
+
+
+def write_texts_atomic(files: Mapping[str | os.PathLike, str], newline: str | None = None) -> None:
+    """Write every ``{target: text}`` atomically and all together (UTF-8): all files or none.
+
+    A lone surrogate (text decoded from a broken file) is written as its
+    ``\\uXXXX`` escape instead of failing mid-write.
+    """
+    with atomic_paths(list(files)) as temps:
+        for tmp, text in zip(temps, files.values()):
+            with open(tmp, "w", encoding="utf-8", errors="backslashreplace", newline=newline) as fh:
+                fh.write(text)
 
 
 def write_with(target: str | os.PathLike, writer: Callable[[Path], None]) -> None:

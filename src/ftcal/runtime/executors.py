@@ -270,6 +270,13 @@ def open_executor(scheduler: str | None, *,
                 raise FtcalError(f"--scheduler {scheduler}: cannot reach the Dask scheduler within "
                                  f"{connect_timeout:g} s ({type(exc).__name__}); check the address and "
                                  "that `dask scheduler` runs there.") from None
+            except ValueError as exc:  # Dask's own address parser: a bad scheme, host or port
+                raise FtcalError(f"--scheduler {scheduler}: not a Dask scheduler address "
+                                 f"({str(exc).splitlines()[0] if str(exc) else type(exc).__name__}).") from None
+            except Exception as exc:  # noqa: BLE001 - whatever answered sent garbage (Dask then
+                # asked for exabytes: MemoryError, or failed to decode: many types)
+                raise FtcalError(f"--scheduler {scheduler}: what answered there is not a Dask scheduler "
+                                 f"({type(exc).__name__} while connecting); check the address.") from None
             with client:
                 check_versions(client, scheduler)
                 yield DaskExecutor(client)
