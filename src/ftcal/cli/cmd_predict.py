@@ -28,17 +28,22 @@ def run(args) -> int:
     import sys
     import warnings
 
+    from ..core.ranges import describe
     from ..files.model_files import read_model
     from ..runtime.errors import OutOfRangeWarning
 
     require_suffix(args.output, (".csv", ".parquet"), "-o")
     model = read_model(args.model)
-    n_rows, n_out = predict_streaming(args, model)
-    if n_out:  # as CalibrationModel.predict warns on data read whole
-        warnings.warn(f"{n_out} of {n_rows} samples have inputs outside the training range; predictions there "
-                      "are extrapolations.", OutOfRangeWarning, stacklevel=2)
-    print(f"wrote {n_rows} predictions to {args.output}"
-          + (f" ({n_out} samples outside the training range)" if n_out else ""), file=sys.stderr)
+    if not model.layout_.is_static:
+        print(f"ARX model: {args.mode} prediction"
+              + (f" from {args.start} history" if args.mode == "free-run" else " (measured past outputs)"),
+              file=sys.stderr)
+    n_rows, ranges = predict_streaming(args, model)
+    # One warning for the whole command (as CalibrationModel.predict on data read whole), never per file.
+    message = ranges and describe(ranges.summary(model.input_names_))
+    if message:
+        warnings.warn(message, OutOfRangeWarning, stacklevel=2)
+    print(f"wrote {n_rows} predictions to {args.output}", file=sys.stderr)
     return 0
 
 
@@ -51,7 +56,7 @@ def predict_streaming(args, model) -> tuple[int, int]:
 
     Returns
     -------
-    (n_rows, n_out_of_range) : ints
+    (n_rows, ranges) : int and :class:`~ftcal.core.ranges.RangeSums` (None without rows)
     """
     import os
     import shutil
@@ -79,4 +84,5 @@ def predict_streaming(args, model) -> tuple[int, int]:
         join_parts([part for _, part in tasks], output)
     finally:
         shutil.rmtree(folder, ignore_errors=True)
-    return sum(n for n, _ in counts), sum(k for _, k in counts)
+    ranges = [r for _, r in counts if r is not None]
+    return sum(n for n, _ in counts), (sum(ranges[1:], ranges[0]) if ranges else None)

@@ -30,6 +30,7 @@ from .features import FeatureCombination, MonomialBasis, RegressorLayout, substi
 from .kernels import compiled, step_table
 from .limits import ARX_WARMUP, FREE_RUN_STARTS, MAX_DEGREE, MAX_LAG, NORMALIZATIONS, PREDICTION_MODES
 from .normalization import Normalization, normalization_from_range
+from .ranges import RangeSums, describe, outside_by_channel
 from .solvers.base import ScaledProblem, Solver, SolverResult
 from .solvers.least_squares import LeastSquares
 from .statistics import SufficientStatistics, layout_statistics, sum_statistics
@@ -38,7 +39,6 @@ PREDICT_CHUNK = 4096
 # The OSQP comparison path builds the dense regressor; refuse beyond this many cells.
 DENSE_LIMIT_CELLS = 200_000_000
 CONDITION_WARNING = 1e7
-RANGE_TOLERANCE = 1e-9
 # Least squares is solved in this basis whatever the stored one (it is the best conditioned).
 SOLVE_BASIS = "center"
 
@@ -461,9 +461,7 @@ class CalibrationModel:
     def out_of_range(self, inputs: np.ndarray) -> np.ndarray:
         """Boolean mask of samples with any input outside the training range."""
         self._check_fitted()
-        low, high = self.input_range_[:, 0], self.input_range_[:, 1]
-        slack = RANGE_TOLERANCE * np.maximum(high - low, 1.0)
-        return np.any((inputs < low - slack) | (inputs > high + slack), axis=1)
+        return np.any(outside_by_channel(inputs, self.input_range_), axis=1)
 
     def predict(self, data: Dataset | np.ndarray, *, mode: str = "free-run", start: str = "zeros",
                 warn_out_of_range: bool = True) -> np.ndarray:
@@ -485,7 +483,8 @@ class CalibrationModel:
             (or, without outputs, the steady state for the first input) as
             history. Models with na = 0 have no feedback: free-run is one-step.
         warn_out_of_range : bool
-            Warn (:class:`~ftcal.runtime.errors.OutOfRangeWarning`) about inputs outside the training range.
+            Warn (:class:`~ftcal.runtime.errors.OutOfRangeWarning`) about inputs outside the training
+            range: which inputs, how far (in training spans), how many samples.
 
         Returns
         -------
@@ -505,11 +504,7 @@ class CalibrationModel:
         u = check_finite_matrix(data.select_inputs(self.input_names_), "inputs",
                                 len(self.input_names_), self.input_names_)
         if warn_out_of_range:
-            n_out = int(self.out_of_range(u).sum())
-            if n_out:
-                warnings.warn(
-                    f"{n_out} of {len(u)} samples have inputs outside the training range; "
-                    "predictions there are extrapolations.", OutOfRangeWarning, stacklevel=2)
+            self._warn_out_of_range(RangeSums.of(u, self.input_range_), stacklevel=3)
         if self.layout_.is_static:
             return self._predict_static(u)
         u_norm = self.input_normalization_.apply(u)
@@ -521,6 +516,11 @@ class CalibrationModel:
             return np.concatenate([self._predict_arx_segment(u_norm[a:b], None if measured is None else measured[a:b],
                                                              mode, start)
                                    for a, b in data.segment_bounds()])
+
+    def _warn_out_of_range(self, ranges: RangeSums, stacklevel: int) -> None:
+        message = describe(ranges.summary(self.input_names_))
+        if message:
+            warnings.warn(message, OutOfRangeWarning, stacklevel=stacklevel)
 
     def _predict_static(self, u: np.ndarray) -> np.ndarray:
         basis = self.layout_.basis
@@ -623,6 +623,8 @@ class CalibrationModel:
             ``"drop"`` (the paper's code) leaves the first max(na, nb) rows of
             each segment out of the metrics; no effect on static models.
         warn_out_of_range : bool
+            Warn once about inputs outside the training range, with the force- and
+            torque-norm errors on those samples next to those inside.
 
         Returns
         -------
@@ -642,9 +644,13 @@ class CalibrationModel:
         if not rows.any():
             raise FtcalError(f"Nothing to evaluate: every segment is shorter than the ARX warm-up "
                              f"max(na, nb) = {self.layout_.max_lag} rows.")
-        prediction = self.predict(data, mode=mode, start=start, warn_out_of_range=warn_out_of_range)
+        prediction = self.predict(data, mode=mode, start=start, warn_out_of_range=False)
         summary = metrics.summarize(y[rows], prediction[rows], self.output_names_)
-        summary["n_out_of_range"] = int(self.out_of_range(data.select_inputs(self.input_names_)).sum())
+        inputs = data.select_inputs(self.input_names_)
+        summary["n_out_of_range"] = int(self.out_of_range(inputs).sum())
+        if warn_out_of_range and summary["n_out_of_range"]:
+            self._warn_out_of_range(RangeSums.of(inputs[rows], self.input_range_, y[rows], prediction[rows],
+                                                 self.output_names_), stacklevel=3)
         if not self.layout_.is_static and data.outputs is not None:
             other = "free-run" if mode == "one-step" else "one-step"
             second = self.predict(data, mode=other, start=start, warn_out_of_range=False)
