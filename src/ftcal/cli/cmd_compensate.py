@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 from ._common import column_list, require_suffix
+from ._examples import epilog
 from .cmd_payload import add_kinematics_options, check_not_input, kinematics_source
 
 
 def register(sub) -> None:
-    p = sub.add_parser("compensate", help="subtract the bias and the payload's gravity wrench",
+    p = sub.add_parser("compensate", **epilog("compensate"), help="subtract the bias and the payload's gravity wrench",
                        description="Contact wrench = measured wrench (or the wrench a calibration model "
                                    "predicts from the raw channels) minus the bias minus the payload's gravity "
                                    "wrench (and, with --dynamic, its inertial wrench), written as Fx..Tz in the "

@@ -7,16 +7,19 @@ import warnings
 
 from ..core.limits import ARX_WARMUP, FREE_RUN_STARTS, PREDICTION_MODES
 from ._common import add_scheduler_option, print_json
+from ._examples import epilog
 
 
 def register(sub) -> None:
-    p = sub.add_parser("evaluate", help="metrics of a model on held-out data")
+    p = sub.add_parser("evaluate", **epilog("evaluate"), help="metrics of a model on held-out data")
     p.add_argument("model", metavar="MODEL", help="model file (ftcal JSON or paper XML)")
     p.add_argument("data", nargs="+", metavar="DATA", help="CSV or Parquet files with the model's columns")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--mode", choices=PREDICTION_MODES, default="one-step",
-                   help="ARX prediction mode: one-step (default, the paper's evaluation: measured past outputs) "
-                        "or free-run (fed-back predictions, as on the robot); both are reported for ARX models")
+                   help="ARX prediction mode: one-step (default, the paper's evaluation: measured past outputs, "
+                        "which evaluation data hold) or free-run (fed-back predictions, as on the robot and "
+                        "'ftcal predict''s default); the table scores this mode and says so, the other mode's "
+                        "norm RMSE follows it")
     p.add_argument("--start", choices=FREE_RUN_STARTS, default="zeros",
                    help="ARX free-run history at each segment start: zeros (default, the paper's code: the "
                         "first max(na,nb) rows predict 0) or measured (ftcal's: the first measured output)")

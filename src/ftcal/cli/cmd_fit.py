@@ -15,15 +15,9 @@ from ._common import (
     positive_float,
     require_suffix,
 )
+from ._examples import epilog
 
-EPILOG = """examples:
-  ftcal fit train/*.csv -o model.json                      affine model, u1..u6,T -> Fx..Tz
-  ftcal fit data.parquet --degree 4 --lasso 50 -o m4.json  LASSO: the paper's problem and lambda scale
-  ftcal fit logs/*.parquet --degree auto --group-by group -o best.json
-  ftcal fit new/*.csv --degree 2 --ridge 10 --prior last_month.json -o m.json   shrink toward a calibration
-  ftcal fit logs/*.parquet --degree 4 --scheduler tcp://host:8786 -o m4.json    one Dask task per file
-
-Fits stream the files (except --solver osqp and --estimate-payload, which read
+STREAMING_NOTE = """Fits stream the files (except --solver osqp and --estimate-payload, which read
 them whole): a pass for the column ranges (the normalization), one for the sufficient statistics
 (summed, then solved here; --degree auto: a pass per degree and basis tried, per group, folds are
 sums of groups; ARX: per fold, lags inside segments), one for the training metrics; memory: one
@@ -59,8 +53,7 @@ def degree_value(text: str) -> int | str:
 
 
 def register(sub) -> None:
-    p = sub.add_parser("fit", help="fit a calibration model", epilog=EPILOG,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = sub.add_parser("fit", help="fit a calibration model", **epilog("fit", STREAMING_NOTE))
     p.add_argument("data", nargs="+", metavar="DATA", help="CSV or Parquet files (each one segment and group)")
     add_column_options(p)
     p.add_argument("--degree", type=degree_value,

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+from ._examples import epilog
+
 N_LARGEST = 10
 
 
 def register(sub) -> None:
-    p = sub.add_parser("info", help="model class, counts, training ranges, largest terms")
+    p = sub.add_parser("info", **epilog("info"), help="model class, counts, training ranges, largest terms")
     p.add_argument("model", metavar="MODEL", help="ftcal JSON or paper XML model file")
     p.add_argument("--terms", type=int, default=N_LARGEST, help=f"largest terms to list (default {N_LARGEST})")
     p.set_defaults(func=run)

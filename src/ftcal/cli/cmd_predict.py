@@ -4,16 +4,20 @@ from __future__ import annotations
 
 from ..core.limits import FREE_RUN_STARTS, PREDICTION_MODES
 from ._common import add_scheduler_option, require_suffix
+from ._examples import epilog
 
 
 def register(sub) -> None:
-    p = sub.add_parser("predict", help="predict the wrench from raw channels")
+    p = sub.add_parser("predict", **epilog("predict"), help="predict the wrench from raw channels")
     p.add_argument("model", metavar="MODEL", help="model file (ftcal JSON or paper XML)")
     p.add_argument("data", nargs="+", metavar="DATA", help="CSV or Parquet files with the model's input columns")
-    p.add_argument("-o", "--output", required=True, metavar="OUT.csv|OUT.parquet")
+    p.add_argument("-o", "--output", required=True, metavar="OUT.csv|OUT.parquet",
+                   help="predicted wrench, one column per model output (Fx..Tz: N, N·m), one row per input row "
+                        "of all DATA files in order; .csv or .parquet")
     p.add_argument("--mode", choices=PREDICTION_MODES, default="free-run",
-                   help="ARX prediction mode: free-run (default: fed-back predictions, as on the robot) or "
-                        "one-step (measured past outputs, which DATA must hold)")
+                   help="ARX prediction mode: free-run (default: fed-back predictions, as on the robot, where no "
+                        "reference wrench exists) or one-step (measured past outputs, which DATA must hold; "
+                        "'ftcal evaluate' defaults to it, the paper's evaluation). The mode that ran is printed")
     p.add_argument("--start", choices=FREE_RUN_STARTS, default="zeros",
                    help="ARX free-run history at each segment start: zeros (default, the paper's code: the "
                         "first max(na,nb) rows predict 0) or measured (the first measured output when DATA "
