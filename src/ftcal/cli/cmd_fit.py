@@ -264,6 +264,8 @@ def fit_streaming(args, template, inputs, outputs):
 
 
 def report_fit(model, path: str) -> None:
+    from ..core.metrics import output_units
+
     info = model.describe()
     metrics = model.training_metrics_
     lam = model.solver_info_.get("lambda")
@@ -277,7 +279,9 @@ def report_fit(model, path: str) -> None:
         raw_count = int((abs(to_raw(model)) > 1e-9).sum())
         print(f"raw-input coefficients with |value| > 1e-9 (the paper's count): {raw_count}")
     if metrics.get("force_norm_rmse") is not None:
-        print(f"training force-norm RMSE {metrics['force_norm_rmse']:.4f}, "
-              f"torque-norm RMSE {metrics['torque_norm_rmse']:.4f}")
-    print("training RMSE per output: " + ", ".join(f"{n} {v:.4g}" for n, v in zip(model.output_names_, metrics["rmse"])))
+        print(f"training force-norm RMSE {metrics['force_norm_rmse']:.4f} N, "
+              f"torque-norm RMSE {metrics['torque_norm_rmse']:.4f} N·m")
+    print("training RMSE per output: " + ", ".join(f"{n} {v:.4g}" + (f" {u}" if u else "") for n, v, u in
+                                                  zip(model.output_names_, metrics["rmse"],
+                                                      output_units(model.output_names_))))
     print(f"wrote {path}")

@@ -42,8 +42,8 @@ def run(args) -> int:
         print(f"  {name:<8} {low:>14.6g} .. {high:<14.6g} {unit or ''}")
     metrics = model.training_metrics_ or {}
     if metrics.get("force_norm_rmse") is not None:
-        print(f"training force-norm RMSE {metrics['force_norm_rmse']:.4g}, "
-              f"torque-norm RMSE {metrics['torque_norm_rmse']:.4g}")
+        print(f"training force-norm RMSE {metrics['force_norm_rmse']:.4g} N, "
+              f"torque-norm RMSE {metrics['torque_norm_rmse']:.4g} N·m")
     names = model.layout_.column_names(model.input_names_, model.output_names_)
     # Features are normalized to about [-1, 1], so |coefficient| measures a term's contribution.
     magnitude = np.abs(model.coef_)
