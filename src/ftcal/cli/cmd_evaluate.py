@@ -67,8 +67,8 @@ def range_summary(model, data, args) -> dict:
     prediction = model.predict(data, mode=args.mode, start=args.start, warn_out_of_range=False)
     inputs = data.select_inputs(model.input_names_)
     y = data.outputs[:, [data.output_names.index(n) for n in model.output_names_]]
-    return RangeSums.of(inputs[rows], model.input_range_, y[rows], prediction[rows],
-                        model.output_names_).summary(model.input_names_)
+    return RangeSums.of(inputs, model.input_range_, y, prediction, model.output_names_,
+                        scored=rows).summary(model.input_names_)
 
 
 def evaluate_streaming(args, model, training_segments) -> dict:

@@ -649,8 +649,8 @@ class CalibrationModel:
         inputs = data.select_inputs(self.input_names_)
         summary["n_out_of_range"] = int(self.out_of_range(inputs).sum())
         if warn_out_of_range and summary["n_out_of_range"]:
-            self._warn_out_of_range(RangeSums.of(inputs[rows], self.input_range_, y[rows], prediction[rows],
-                                                 self.output_names_), stacklevel=3)
+            self._warn_out_of_range(RangeSums.of(inputs, self.input_range_, y, prediction, self.output_names_,
+                                                 scored=rows), stacklevel=3)
         if not self.layout_.is_static and data.outputs is not None:
             other = "free-run" if mode == "one-step" else "one-step"
             second = self.predict(data, mode=other, start=start, warn_out_of_range=False)

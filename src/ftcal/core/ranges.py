@@ -68,8 +68,11 @@ class RangeSums:
     count : ndarray (n_inputs,), samples outside the range per input
     worst : ndarray (n_inputs,), largest excursion per input, in training spans
     norm_sq_in, norm_sq_out : ndarray (2,)
-        Σ (‖v‖ − ‖v̂‖)² for forces and torques over the samples inside / outside
+        Σ (‖v‖ − ‖v̂‖)² for forces and torques over the scored samples inside / outside
         the range; NaN when the reference is unknown or the outputs hold no such triple.
+    n_scored_in, n_scored_out : int
+        The scored samples inside / outside the range (ARX metrics leave out each
+        segment's first max(na, nb) rows).
     """
 
     n: int
@@ -78,10 +81,13 @@ class RangeSums:
     worst: np.ndarray
     norm_sq_in: np.ndarray
     norm_sq_out: np.ndarray
+    n_scored_in: int = 0
+    n_scored_out: int = 0
 
     @classmethod
     def of(cls, inputs: np.ndarray, input_range: np.ndarray, y: np.ndarray | None = None,
-           prediction: np.ndarray | None = None, output_names: Sequence[str] = ()) -> "RangeSums":
+           prediction: np.ndarray | None = None, output_names: Sequence[str] = (),
+           scored: np.ndarray | None = None) -> "RangeSums":
         """Statistics of one block.
 
         Parameters
@@ -91,41 +97,49 @@ class RangeSums:
         y, prediction : ndarray of shape (m, n_outputs), optional
             The reference and the prediction, for the error inside and outside the range.
         output_names : names of the outputs, to find the force and torque triples
+        scored : boolean ndarray of shape (m,), optional
+            The rows the error counts (default all).
         """
         far = excursions(inputs, input_range)
         outside = far > 0
         any_out = outside.any(axis=1)
+        scored = np.ones(len(inputs), dtype=bool) if scored is None else scored
         norm_in, norm_out = np.full(2, np.nan), np.full(2, np.nan)
         if y is not None and prediction is not None:
             for k, columns in enumerate(metrics.force_torque_columns(output_names)):
                 if columns is not None:
                     d = np.linalg.norm(y[:, columns], axis=1) - np.linalg.norm(prediction[:, columns], axis=1)
-                    norm_in[k], norm_out[k] = np.sum(d[~any_out] ** 2), np.sum(d[any_out] ** 2)
+                    norm_in[k] = np.sum(d[scored & ~any_out] ** 2)
+                    norm_out[k] = np.sum(d[scored & any_out] ** 2)
         worst = far.max(axis=0) if len(far) else np.zeros(inputs.shape[1])
-        return cls(len(inputs), int(any_out.sum()), outside.sum(axis=0), worst, norm_in, norm_out)
+        return cls(len(inputs), int(any_out.sum()), outside.sum(axis=0), worst, norm_in, norm_out,
+                   int(np.sum(scored & ~any_out)), int(np.sum(scored & any_out)))
 
     def __add__(self, other: "RangeSums") -> "RangeSums":
         return RangeSums(self.n + other.n, self.n_out + other.n_out, self.count + other.count,
                          np.maximum(self.worst, other.worst), self.norm_sq_in + other.norm_sq_in,
-                         self.norm_sq_out + other.norm_sq_out)
+                         self.norm_sq_out + other.norm_sq_out, self.n_scored_in + other.n_scored_in,
+                         self.n_scored_out + other.n_scored_out)
 
     def summary(self, input_names: Sequence[str]) -> dict:
         """JSON-ready: per input outside the range its count and largest excursion, and the split errors.
 
         Keys: ``n_samples``, ``n_out_of_range``, ``inputs`` ({name: {"samples", "max_excursion"}},
         only the inputs that leave the range), and, when the reference was known,
-        ``force_norm_rmse_in_range``, ``force_norm_rmse_out_of_range`` and the torque
-        pair (None where undefined).
+        ``force_norm_rmse_in_range``, ``force_norm_rmse_out_of_range``, the torque
+        pair (None where undefined) and the scored sample counts ``n_scored_in_range``,
+        ``n_scored_out_of_range`` they average over.
         """
         out: dict = {"n_samples": self.n, "n_out_of_range": self.n_out,
                      "inputs": {name: {"samples": int(c), "max_excursion": float(w)}
                                 for name, c, w in zip(input_names, self.count, self.worst) if c}}
         for k, kind in enumerate(("force", "torque")):
-            for where, sums, rows in (("in_range", self.norm_sq_in, self.n - self.n_out),
-                                      ("out_of_range", self.norm_sq_out, self.n_out)):
+            for where, sums, rows in (("in_range", self.norm_sq_in, self.n_scored_in),
+                                      ("out_of_range", self.norm_sq_out, self.n_scored_out)):
                 value = sums[k]
                 out[f"{kind}_norm_rmse_{where}"] = (None if np.isnan(value) or rows == 0
                                                     else float(np.sqrt(value / rows)))
+        out["n_scored_in_range"], out["n_scored_out_of_range"] = self.n_scored_in, self.n_scored_out
         return out
 
 
@@ -158,13 +172,13 @@ def channel_text(summary: dict) -> str:
 
 def effect_text(summary: dict) -> str:
     """The force- and torque-norm RMSE on the samples outside vs inside the range; "" without a reference."""
-    n_out, n = summary["n_out_of_range"], summary["n_samples"]
     effects = []
     for kind, unit in (("force", metrics.FORCE_UNIT), ("torque", metrics.TORQUE_UNIT)):
         outside, inside = summary.get(f"{kind}_norm_rmse_out_of_range"), summary.get(f"{kind}_norm_rmse_in_range")
         if outside is not None:
             effects.append(f"{kind}-norm RMSE {outside:.4g} {unit} on them"
-                           + (f" vs {inside:.4g} {unit} on the {n - n_out} inside" if inside is not None else ""))
+                           + (f" vs {inside:.4g} {unit} on the {summary['n_scored_in_range']} inside"
+                              if inside is not None else ""))
     return "; ".join(effects)
 
 

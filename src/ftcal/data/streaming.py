@@ -454,8 +454,8 @@ def _arx_error_sums(path: str, model, fingerprints: Sequence[dict], mode: str, s
     for which in (mode, "free-run" if mode == "one-step" else "one-step"):
         with np.errstate(over="ignore", invalid="ignore"):
             prediction = model.predict(data, mode=which, start=start, warn_out_of_range=False)
-            ranges = RangeSums.of(data.inputs[rows], model.input_range_, data.outputs[rows], prediction[rows],
-                                  model.output_names_)
+            ranges = RangeSums.of(data.inputs, model.input_range_, data.outputs, prediction, model.output_names_,
+                                  scored=rows)
             pair.append(ErrorSums.of(data.outputs[rows], prediction[rows], model.output_names_, n_out, ranges))
     pair[0].training_segments = frozenset(finder.found)
     return pair[0], pair[1]
