@@ -179,9 +179,9 @@ def test_runs_table_matches_metrics_computed_here(report, data, models):
         y_val_hat = model.predict(validation.inputs, warn_out_of_range=False)
         y_train_hat = model.predict(train.inputs, warn_out_of_range=False)
         assert row["validation force-norm RMSE [N]"] == f4(norm_rmse(validation.outputs, y_val_hat, FORCES))
-        assert row["validation torque-norm RMSE [Nm]"] == f4(norm_rmse(validation.outputs, y_val_hat, TORQUES))
+        assert row["validation torque-norm RMSE [N·m]"] == f4(norm_rmse(validation.outputs, y_val_hat, TORQUES))
         assert row["train force-norm RMSE [N]"] == f4(norm_rmse(train.outputs, y_train_hat, FORCES))
-        assert row["train torque-norm RMSE [Nm]"] == f4(norm_rmse(train.outputs, y_train_hat, TORQUES))
+        assert row["train torque-norm RMSE [N·m]"] == f4(norm_rmse(train.outputs, y_train_hat, TORQUES))
         error_norm = np.sqrt(np.mean(((validation.outputs - y_val_hat)[:, FORCES] ** 2).sum(axis=1)))
         assert row["validation force error-norm RMSE [N]"] == f4(error_norm)
         # And the same numbers as the library's own score(), formatted alike.
@@ -210,7 +210,7 @@ def test_per_axis_tables_match_numpy(report, data, models):
         rmse = np.sqrt(np.mean(err ** 2, axis=0))
         best_fit = 1.0 - np.sqrt(np.mean(err ** 2, axis=0) / np.mean((y - y.mean(axis=0)) ** 2, axis=0))
         worst = np.abs(err).max(axis=0)
-        for j, axis in enumerate(("Fx [N]", "Fy [N]", "Fz [N]", "Tx [Nm]", "Ty [Nm]", "Tz [Nm]")):
+        for j, axis in enumerate(("Fx [N]", "Fy [N]", "Fz [N]", "Tx [N·m]", "Ty [N·m]", "Tz [N·m]")):
             assert rmse_rows[name][axis] == f4(rmse[j])
             assert max_rows[name][axis] == f4(worst[j])
             assert fit_rows[name][axis.split()[0] + " [%]"] == f"{100 * best_fit[j]:.2f}"

@@ -60,6 +60,11 @@ class _Section:
     title: str
     parts: list[str]
 
+    @property
+    def skipped(self) -> bool:
+        """Every part says why it was skipped: nothing to show."""
+        return all(part.startswith(_SKIPPED) for part in self.parts)
+
 
 def figure_html(fig, key: str, caption: str) -> str:
     """A matplotlib figure as an HTML ``<figure>`` with an embedded PNG.
@@ -84,8 +89,24 @@ def figure_html(fig, key: str, caption: str) -> str:
             f"<figcaption>{html.escape(caption)}</figcaption></figure>")
 
 
+_SKIPPED = '<p class="skipped">'
+
+
 def _skipped(text: str) -> str:
-    return f'<p class="skipped">{html.escape(text)}</p>'
+    return f"{_SKIPPED}{html.escape(text)}</p>"
+
+
+def _gather_skipped(sections: list[_Section]) -> list[_Section]:
+    """Sections with something to show, then one "Not shown" section saying why the others are not.
+
+    The contents then list only what the page shows.
+    """
+    shown = [s for s in sections if not s.skipped]
+    skipped = [s for s in sections if s.skipped]
+    if skipped:
+        shown.append(_Section("not-shown", f"Not shown ({len(skipped)})",
+                              [f"<h3>{html.escape(s.title)}</h3>\n" + "\n".join(s.parts) for s in skipped]))
+    return shown
 
 
 def _chunks(items: Sequence, size: int) -> list[list]:
@@ -272,7 +293,7 @@ def build_report(runs: Sequence[ModelRun], validation: Dataset, out_path: str | 
     runs = list(runs)
     _check(runs, validation)
     with rc_context(STYLE):
-        sections = _sections(runs, validation, train, cv)
+        sections = _gather_skipped(_sections(runs, validation, train, cv))
     if notes:
         sections.append(_Section("notes", "Notes", ['<ul class="notes">' + "".join(
             f"<li>{html.escape(str(n))}</li>" for n in notes) + "</ul>"]))

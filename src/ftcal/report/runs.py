@@ -96,17 +96,6 @@ def expected_outputs(run: ModelRun, data: Dataset) -> np.ndarray:
     return data.outputs[:, [index[n] for n in run.model.output_names_]]
 
 
-def output_units(names: Sequence[str]) -> list[str]:
-    """'N' for force outputs, 'Nm' for torque outputs, '' when the names do not say."""
-    forces, torques = force_torque_columns(names)
-    units = [""] * len(names)
-    for i in forces or ():
-        units[i] = "N"
-    for i in torques or ():
-        units[i] = "Nm"
-    return units
-
-
 def temperature_column(names: Sequence[str]) -> int | None:
     """Index of the temperature input (``T``, ``temp``, ``r_arm_ft_T``...), or None."""
     for i, name in enumerate(names):
