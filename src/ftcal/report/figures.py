@@ -203,10 +203,17 @@ def _group_colors(labels: Sequence) -> dict:
 
 
 def _scatter3d(ax, points: np.ndarray, names: Sequence[str], unit: str, **style) -> object:
+    from matplotlib.ticker import MaxNLocator
+
     artist = ax.scatter(points[:, 0], points[:, 1], points[:, 2], s=2, depthshade=False, **style)
-    ax.set_xlabel(f"{names[0]} [{unit}]")
-    ax.set_ylabel(f"{names[1]} [{unit}]")
-    ax.set_zlabel(f"{names[2]} [{unit}]")
+    for axis in (ax.xaxis, ax.yaxis, ax.zaxis):  # foreshortened 3D axes: few ticks, so labels never collide
+        axis.set_major_locator(MaxNLocator(3))
+    # The layout does not see 3D axis labels: a smaller box keeps them inside the figure.
+    ax.set_box_aspect(None, zoom=0.8)
+    # labelpad: clear of the tick labels, which 3D axes draw close to their label
+    ax.set_xlabel(f"{names[0]} [{unit}]", labelpad=18)
+    ax.set_ylabel(f"{names[1]} [{unit}]", labelpad=18)
+    ax.set_zlabel(f"{names[2]} [{unit}]", labelpad=18)
     return artist
 
 
