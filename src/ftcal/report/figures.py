@@ -15,7 +15,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from ..core.dataset import Dataset
-from ..core.metrics import force_torque_columns, output_units
+from ..core.metrics import METRIC_NAMES, force_torque_columns, output_units
 from ..core.select import CrossValidationResult
 from .runs import ModelRun, expected_outputs, natural_key
 
@@ -382,7 +382,7 @@ def validation_curve(runs: Sequence[ModelRun], *, title: str = "") -> Figure:
             if not np.all(np.isnan(train)):
                 ax.plot(degrees, train, "s--", mfc="none", color=f"C{c}", label=f"training{suffix}")
         ax.set_xlabel("polynomial degree np")
-        ax.set_ylabel(f"RMSE of {label} [{unit}]")
+        ax.set_ylabel(f"{METRIC_NAMES[key]} [{unit}]")
         ax.margins(y=0.12)
         ax.xaxis.get_major_locator().set_params(integer=True)
         ax.grid(True, alpha=0.3)
@@ -423,7 +423,7 @@ def lasso_path(runs: Sequence[ModelRun], *, title: str = "") -> Figure:
         ax.set_xlabel("λ (normalized features)")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=SMALL_TEXT)
-    ax_rmse.set_ylabel(f"RMSE of {label}" + (f" [{unit}]" if unit else ""))
+    ax_rmse.set_ylabel(METRIC_NAMES.get(key, f"RMSE of {label}") + (f" [{unit}]" if unit else ""))
     ax_nz.set_ylabel("nonzero coefficients")
     ax_nz.set_ylim(bottom=0)
     fig.suptitle(title or "LASSO path")

@@ -167,9 +167,10 @@ def _sections(runs: list[ModelRun], validation: Dataset, train: Dataset | None,
         for k, chunk in enumerate(_chunks(members, MAX_RUNS_PER_FIGURE)):
             key = f"errors-{_slug(family)}" + (f"-{k + 1}" if k else "")
             parts.append(figure(
-                key, f"Validation error (expected − predicted) per axis of the {family} models, over the "
-                     "validation samples; the legend gives each model's BestFit on that axis. Grey vertical "
-                     "lines separate recordings. (Paper Figs 9 and 11.)",
+                key, f"Validation error (expected − predicted) of the {family} models over the validation "
+                     "samples: one panel per axis (rows) and model (columns), panels of an axis on one scale; "
+                     "each panel's title gives the model's BestFit on that axis. Grey vertical lines separate "
+                     "recordings. (Paper Figs 9 and 11.)",
                 lambda chunk=chunk, family=family: figures.validation_errors(
                     chunk, validation, colors=colors, title=f"Validation error: {family} models")))
     sections.append(_Section("errors", "Validation error per axis", parts))
@@ -184,8 +185,8 @@ def _sections(runs: list[ModelRun], validation: Dataset, train: Dataset | None,
                 key = f"norms-{_slug(family)}" + (f"-{k + 1}" if k else "")
                 parts.append(figure(
                     key, f"Norms of the force and torque predicted by the {family} models against the "
-                         "expected norms (left) and their difference, whose RMSE is the paper's "
-                         "'RMSE of force norm' (right). (Paper Figs 10 and 12.)",
+                         "expected norms (left) and their difference, whose RMSE is the force-norm RMSE "
+                         "(the paper's 'RMSE of force norm', right). (Paper Figs 10 and 12.)",
                     lambda chunk=chunk, family=family: figures.norm_comparison(
                         chunk, validation, colors=colors, title=f"Force and torque norms: {family} models")))
     sections.append(_Section("norms", "Force and torque norms", parts))

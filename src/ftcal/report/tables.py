@@ -76,7 +76,7 @@ def runs_table(runs: Sequence[ModelRun]) -> str:
         "λ", "coefficients", "nonzero", "raw > 1e-9",
         "train force-norm RMSE [N]", "train torque-norm RMSE [N·m]",
         "validation force-norm RMSE [N]", "validation torque-norm RMSE [N·m]",
-        "validation force error-norm RMSE [N]", "samples out of range"]
+        "validation RMSE of the force error norm [N]", "samples out of range"]
     rows = []
     for run in runs:
         d = run.model.describe()
@@ -96,8 +96,9 @@ def runs_table(runs: Sequence[ModelRun]) -> str:
                                                          for run in runs])]
     return html_table(header, rows, bold=bold, cls="runs",
                       caption="Models on the validation data (best validation value in bold). "
-                              "Norm RMSE is the RMSE of ‖y‖ − ‖ŷ‖ as in the paper; error-norm RMSE is "
-                              "the RMSE of ‖y − ŷ‖. Nonzero counts exact nonzero coefficients (normalized basis); "
+                              "Force-norm RMSE is the RMSE of ‖f‖ − ‖f̂‖ (the paper's 'RMSE of force norm'); "
+                              "the RMSE of the force error norm is sqrt(mean ‖f − f̂‖²), direction errors "
+                              "included (docs/metrics.md). Nonzero counts exact nonzero coefficients (normalized basis); "
                               "raw > 1e-9 is the paper's count, of raw-input coefficients above 1e-9.")
 
 
