@@ -45,8 +45,19 @@ def run(args) -> int:
                          "compensate without --dynamic or re-identify with it.")
     source = kinematics_source(args)
     model = read_model(args.model) if args.model else None
-    parts = [compensate_table(path, payload, source, wrench=args.wrench, model=model) for path in args.data]
+    parts = [compensate_table(path, payload, source, wrench=args.wrench, model=model, warn_out_of_range=False)
+             for path in args.data]
     table = pd.concat(parts, ignore_index=True) if len(parts) > 1 else parts[0]
+    if model is not None:  # one out-of-range warning for all the files
+        import warnings
+
+        from ..core.ranges import RangeSums, describe
+        from ..runtime.errors import OutOfRangeWarning
+
+        ranges = RangeSums.of(table[list(model.input_names_)].to_numpy(dtype=float), model.input_range_)
+        message = describe(ranges.summary(model.input_names_))
+        if message:
+            warnings.warn(message, OutOfRangeWarning, stacklevel=2)
     write_table(table, args.output)
     print(f"wrote {len(table)} contact wrenches to {args.output}", file=sys.stderr)
     return 0
