@@ -112,6 +112,8 @@ def validation_errors(runs: Sequence[ModelRun], validation: Dataset, *, title: s
     panels of one axis share their y scale. Each panel names the model and its BestFit on
     that axis (the paper's Figs 9 and 11).
     """
+    from matplotlib.ticker import MaxNLocator
+
     colors = _colors(runs, colors)
     names = list(runs[0].model.output_names_)
     units = output_units(names)
@@ -119,8 +121,13 @@ def validation_errors(runs: Sequence[ModelRun], validation: Dataset, *, title: s
     both = forces is not None and torques is not None
     order = [*forces, *torques] if both else list(range(len(names)))
     n_rows, n_cols = len(order), len(runs)
-    fig = new_figure(max(6.0, min(13.0, 2.6 * n_cols + 1.0)), 1.35 * n_rows + 0.9)
-    axes = fig.subplots(n_rows, n_cols, sharex=True, sharey="row", squeeze=False)
+    width, height = max(6.0, min(13.0, 2.6 * n_cols + 1.0)), 1.35 * n_rows + 0.9
+    fig = new_figure(width, height)
+    # Fixed margins (in inches) instead of the constrained layout, which is slow for dozens of panels.
+    fig.set_layout_engine("none")
+    margins = {"left": 0.85 / width, "right": 1 - 0.15 / width, "bottom": 0.55 / height, "top": 1 - 0.6 / height,
+               "wspace": 0.12, "hspace": 0.38}
+    axes = fig.subplots(n_rows, n_cols, sharex=True, sharey="row", squeeze=False, gridspec_kw=margins)
     for c, run in enumerate(runs):
         error = expected_outputs(run, validation) - run.validation_prediction
         for r, column in enumerate(order):
@@ -133,12 +140,15 @@ def validation_errors(runs: Sequence[ModelRun], validation: Dataset, *, title: s
             _segment_lines(ax, validation)
             ax.grid(True, alpha=0.3)
             fit = run.validation_metrics["best_fit"][j]
+            # y fixed: automatic title placement measures every axis again, slow over dozens of panels
             ax.set_title(f"BestFit {'n/a' if fit is None else f'{100.0 * fit:.1f} %'}", fontsize=SMALL_TEXT,
-                         loc="right", pad=2)
+                         loc="right", pad=2, y=1.0)
             if c == 0:
                 ax.set_ylabel(_label(names[column], units[column]))
             ax.tick_params(labelsize=SMALL_TEXT)
-        axes[0, c].set_title(run.name, loc="left", fontsize=SMALL_TEXT + 1, color=colors[run.name], pad=2)
+            ax.xaxis.set_major_locator(MaxNLocator(4))
+            ax.yaxis.set_major_locator(MaxNLocator(4))
+        axes[0, c].set_title(run.name, loc="left", fontsize=SMALL_TEXT + 1, color=colors[run.name], pad=2, y=1.0)
         axes[-1, c].set_xlabel("validation sample")
     fig.suptitle(title or "Validation error (expected − predicted)")
     return fig
