@@ -10,7 +10,6 @@ from pathlib import Path
 import cli_data as cd
 import numpy as np
 import pandas as pd
-import pytest
 
 from ftcal import Dataset, load_dataset
 from ftcal.cli import main

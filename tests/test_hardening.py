@@ -7,7 +7,6 @@ command line is trusted.
 
 from __future__ import annotations
 
-import json
 import os
 import re
 import shutil

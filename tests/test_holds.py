@@ -161,7 +161,7 @@ def test_payload_excludes_the_moving_samples(moving_bag, capsys):
     root, truth, table = moving_bag
     out, doc = payload(capsys, table, root / "static.json", "--group-by", "hold")
     n_moving = int((pd.read_parquet(table)["static"] == 0).sum())
-    assert f"samples moving (from the orientation) in 11 stretch(es): rows " in out and "excluded" in out
+    assert "samples moving (from the orientation) in 11 stretch(es): rows " in out and "excluded" in out
     assert f"{n_moving} of {len(pd.read_parquet(table))} samples moving" in out
     assert "in 12 group(s)" in out  # one cross-validation group per pose, the moves left out
     assert np.all(np.abs(z_scores(doc, truth)) < 4), z_scores(doc, truth)

@@ -288,3 +288,36 @@ def test_oversized_payload_file_is_refused_before_reading(capsys, data, tmp_path
         fh.truncate(MAX_MODEL_BYTES + 1)  # sparse: no 100 MB written
     fails(capsys, ["compensate", huge, data[1], "--orientation", "qx,qy,qz,qw", "-o", tmp_path / "c.parquet"],
           "too large for a payload file", tmp_path / "c.parquet")
+
+
+def test_compensate_warns_once_for_all_files_about_inputs_out_of_range(capsys, tmp_path):
+    """A calibration model trained on the lower 80 % of r1: both files hold rows beyond it, one warning."""
+    from ftcal.core.dataset import Dataset
+    from ftcal.core.model import CalibrationModel
+    from ftcal.files.model_json import save_model
+
+    frame = poses_frame(seed=4)
+    wrench = frame[["u1", "u2", "u3", "u4", "u5", "u6"]].to_numpy()
+    names = ["r1", "r2", "r3", "r4", "r5", "r6"]
+    raw = wrench - 3.0  # raw channels: an offset wrench
+    cut = np.quantile(raw[:, 0], 0.8)
+    inside = raw[:, 0] <= cut
+    save_model(CalibrationModel(1).fit(Dataset.from_arrays(raw[inside], wrench[inside], input_names=tuple(names))),
+               tmp_path / "cal.json")
+    frame.to_csv(tmp_path / "poses.csv", index=False)
+    payload = tmp_path / "p.json"
+    run(capsys, ["payload", tmp_path / "poses.csv", "--orientation", "qx,qy,qz,qw", "-o", payload])
+    table = pd.concat([frame[["qx", "qy", "qz", "qw"]], pd.DataFrame(raw, columns=names)], axis=1)
+    half = len(table) // 2
+    table.iloc[:half].to_csv(tmp_path / "a.csv", index=False)
+    table.iloc[half:].to_csv(tmp_path / "b.csv", index=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", FtcalWarning)
+        assert main(["compensate", str(payload), str(tmp_path / "a.csv"), str(tmp_path / "b.csv"), "--model",
+                     str(tmp_path / "cal.json"), "--orientation", "qx,qy,qz,qw", "-o", str(tmp_path / "out.csv")]) == 0
+    err = capsys.readouterr().err
+    lines = [line for line in err.splitlines() if "outside the training range" in line]
+    n_out = int(np.sum(~inside))
+    assert np.sum(~inside[:half]) and np.sum(~inside[half:])  # both files hold some
+    assert len(lines) == 1, err
+    assert lines[0].startswith(f"warning: {n_out} of {len(table)} samples have inputs outside") and "r1 up to" in lines[0]

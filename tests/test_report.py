@@ -179,11 +179,11 @@ def test_runs_table_matches_metrics_computed_here(report, data, models):
         y_val_hat = model.predict(validation.inputs, warn_out_of_range=False)
         y_train_hat = model.predict(train.inputs, warn_out_of_range=False)
         assert row["validation force-norm RMSE [N]"] == f4(norm_rmse(validation.outputs, y_val_hat, FORCES))
-        assert row["validation torque-norm RMSE [Nm]"] == f4(norm_rmse(validation.outputs, y_val_hat, TORQUES))
+        assert row["validation torque-norm RMSE [N·m]"] == f4(norm_rmse(validation.outputs, y_val_hat, TORQUES))
         assert row["train force-norm RMSE [N]"] == f4(norm_rmse(train.outputs, y_train_hat, FORCES))
-        assert row["train torque-norm RMSE [Nm]"] == f4(norm_rmse(train.outputs, y_train_hat, TORQUES))
+        assert row["train torque-norm RMSE [N·m]"] == f4(norm_rmse(train.outputs, y_train_hat, TORQUES))
         error_norm = np.sqrt(np.mean(((validation.outputs - y_val_hat)[:, FORCES] ** 2).sum(axis=1)))
-        assert row["validation force error-norm RMSE [N]"] == f4(error_norm)
+        assert row["validation RMSE of the force error norm [N]"] == f4(error_norm)
         # And the same numbers as the library's own score(), formatted alike.
         score = model.score(validation, warn_out_of_range=False)
         assert row["validation force-norm RMSE [N]"] == f4(score["force_norm_rmse"])
@@ -210,7 +210,7 @@ def test_per_axis_tables_match_numpy(report, data, models):
         rmse = np.sqrt(np.mean(err ** 2, axis=0))
         best_fit = 1.0 - np.sqrt(np.mean(err ** 2, axis=0) / np.mean((y - y.mean(axis=0)) ** 2, axis=0))
         worst = np.abs(err).max(axis=0)
-        for j, axis in enumerate(("Fx [N]", "Fy [N]", "Fz [N]", "Tx [Nm]", "Ty [Nm]", "Tz [Nm]")):
+        for j, axis in enumerate(("Fx [N]", "Fy [N]", "Fz [N]", "Tx [N·m]", "Ty [N·m]", "Tz [N·m]")):
             assert rmse_rows[name][axis] == f4(rmse[j])
             assert max_rows[name][axis] == f4(worst[j])
             assert fit_rows[name][axis.split()[0] + " [%]"] == f"{100 * best_fit[j]:.2f}"
@@ -250,6 +250,11 @@ def test_skipped_figures_say_why(tmp_path):
     assert any("temperature" in s for s in skipped)
     assert any("validation curve" in s for s in skipped)
     assert any("LASSO" in s for s in skipped)
+    # The contents list only what the page shows; the skipped sections are gathered at the end.
+    contents = re.findall(r'<li><a href="#([^"]+)">', page.split("</nav>")[0])
+    assert contents == ["models", "errors", "norms", "axes", "data", "not-shown"]
+    assert all(f'<section id="{anchor}">' in page for anchor in contents)
+    assert '<section id="temperature">' not in page and "<h3>Temperature effect</h3>" in page
     assert "training" not in table(page, "Range of the expected wrench")["Fx [N]"]
 
 

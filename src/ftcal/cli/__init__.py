@@ -19,11 +19,17 @@ import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
 
+# In workflow order: `ftcal --help` lists them so (PIPELINE sketches it).
 COMMAND_MODULES = (
-    "fit", "evaluate", "predict", "convert", "info", "demo",
-    "sensors", "expected", "dataset", "topics", "report",
-    "payload", "compensate", "check", "plan",
+    "demo", "plan", "sensors", "expected", "topics", "dataset", "fit", "evaluate", "report",
+    "check", "predict", "convert", "info", "payload", "compensate",
 )
+
+PIPELINE = """In-situ nonlinear calibration of six-axis force/torque sensors.
+
+calibration:  sensors -> expected -> dataset -> fit -> evaluate / report -> convert (predict: apply a model)
+bias and tool: topics -> dataset -> payload -> compensate (convert --to ros-yaml|ft-tools-ros2)
+try it:       ftcal demo --out ftcal-demo, then any command's --help shows examples on its files"""
 
 ENVIRONMENT = """environment variables:
   FTCAL_PROGRESS=0|1   progress bars off / on (default: on when stderr is a terminal)
@@ -47,7 +53,7 @@ class OneLineParser(argparse.ArgumentParser):
 def build_parser() -> argparse.ArgumentParser:
     parser = OneLineParser(
         prog="ftcal", epilog=ENVIRONMENT, formatter_class=argparse.RawDescriptionHelpFormatter,
-        description="In-situ nonlinear calibration of six-axis force/torque sensors.")
+        description=PIPELINE)
     parser.add_argument("--version", action="store_true", help="print the version and exit")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMAND_MODULES:

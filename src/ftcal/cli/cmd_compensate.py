@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 from ._common import column_list, require_suffix
+from ._examples import epilog
 from .cmd_payload import add_kinematics_options, check_not_input, kinematics_source
 
 
 def register(sub) -> None:
-    p = sub.add_parser("compensate", help="subtract the bias and the payload's gravity wrench",
+    p = sub.add_parser("compensate", **epilog("compensate"), help="subtract the bias and the payload's gravity wrench",
                        description="Contact wrench = measured wrench (or the wrench a calibration model "
                                    "predicts from the raw channels) minus the bias minus the payload's gravity "
                                    "wrench (and, with --dynamic, its inertial wrench), written as Fx..Tz in the "
@@ -47,9 +48,20 @@ def run(args) -> int:
                          "compensate without --dynamic or re-identify with it.")
     source = kinematics_source(args)
     model = read_model(args.model) if args.model else None
-    parts = [compensate_table(path, payload, source, wrench=args.wrench, model=model, time_column=args.time)
+    parts = [compensate_table(path, payload, source, wrench=args.wrench, model=model, time_column=args.time,
+                              warn_out_of_range=False)
              for path in args.data]
     table = pd.concat(parts, ignore_index=True) if len(parts) > 1 else parts[0]
+    if model is not None:  # one out-of-range warning for all the files
+        import warnings
+
+        from ..core.ranges import RangeSums, describe
+        from ..runtime.errors import OutOfRangeWarning
+
+        ranges = RangeSums.of(table[list(model.input_names_)].to_numpy(dtype=float), model.input_range_)
+        message = describe(ranges.summary(model.input_names_))
+        if message:
+            warnings.warn(message, OutOfRangeWarning, stacklevel=2)
     write_table(table, args.output)
     print(f"wrote {len(table)} contact wrenches to {args.output}", file=sys.stderr)
     return 0

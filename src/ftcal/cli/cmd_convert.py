@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from ..files.targets import TARGETS
+from ._examples import epilog
 
 
 def safe_name(text: str) -> str:
@@ -20,7 +21,7 @@ def safe_name(text: str) -> str:
 
 def register(sub) -> None:
     listing = "; ".join(f"{name}: {spec.summary}" for name, spec in TARGETS.items())
-    p = sub.add_parser("convert", help=f"convert a model or payload file ({', '.join(TARGETS)})")
+    p = sub.add_parser("convert", **epilog("convert"), help=f"convert a model or payload file ({', '.join(TARGETS)})")
     p.add_argument("model", metavar="FILE",
                    help="ftcal JSON or paper XML model file, or an ftcal payload file (ros-yaml, ft-tools-ros2)")
     # Checked by the registry, not argparse choices, so an unknown target is one error line.
@@ -35,9 +36,10 @@ def register(sub) -> None:
                                   "ftcal_model)")
     p.add_argument("--float", dest="single_precision", action="store_true",
                    help="generate single-precision C (c; reports the measured error against double)")
-    p.add_argument("--frame", help="ros-yaml: gripper_com_frame_id, the F/T sensor frame (default: the payload "
-                                   "file's frame)")
-    p.add_argument("--com-frame", help="ros-yaml: gripper_com_child_frame_id, the name of the COM frame "
+    p.add_argument("--frame", help="ros-yaml only: gripper_com_frame_id, the F/T sensor frame (default: the "
+                                   "payload file's frame); ignored by ft-tools-ros2, which has no frame names, "
+                                   "and by model targets")
+    p.add_argument("--com-frame", help="ros-yaml only: gripper_com_child_frame_id, the name of the COM frame "
                                        "(default gripper_com)")
     p.set_defaults(func=run)
 

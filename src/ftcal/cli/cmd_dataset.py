@@ -5,12 +5,13 @@ from __future__ import annotations
 import argparse
 
 from ._common import add_scheduler_option, finite_float, positive_float, require_suffix
+from ._examples import epilog
 from .cmd_sensors import add_cache_arguments, add_robot_arguments, load_robot
 
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
-        "dataset", help="robot logs (.mat/.csv/.parquet) or ROS bags to a fit-ready dataset",
+        "dataset", **epilog("dataset"), help="robot logs (.mat/.csv/.parquet) or ROS bags to a fit-ready dataset",
         description="Read robot recordings, put each on the F/T sensor's clock, smooth the raw channels, "
                     "compute the expected wrench with each recording's load case attached, and write a "
                     "dataset with columns u1..u6, T, Fx..Tz, segment (one per recording) and group "

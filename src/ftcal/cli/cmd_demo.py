@@ -6,12 +6,13 @@ import os
 from pathlib import Path
 
 from ._common import nonnegative_int
+from ._examples import epilog
 
 SCENARIOS = ("paper", "arm", "plan")
 
 
 def register(sub) -> None:
-    p = sub.add_parser("demo", help="simulate the paper's experiment (or --scenario arm) and calibrate "
+    p = sub.add_parser("demo", **epilog("demo"), help="simulate the paper's experiment (or --scenario arm) and calibrate "
                                     "(no robot needed)")
     p.add_argument("--scenario", default="paper", metavar="NAME",
                    help="paper: the paper's iCub experiment (default; also writes the arm scenario's ROS 2 bag "

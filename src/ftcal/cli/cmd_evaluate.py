@@ -7,16 +7,19 @@ import warnings
 
 from ..core.limits import ARX_WARMUP, FREE_RUN_STARTS, PREDICTION_MODES
 from ._common import add_scheduler_option, print_json
+from ._examples import epilog
 
 
 def register(sub) -> None:
-    p = sub.add_parser("evaluate", help="metrics of a model on held-out data")
+    p = sub.add_parser("evaluate", **epilog("evaluate"), help="metrics of a model on held-out data")
     p.add_argument("model", metavar="MODEL", help="model file (ftcal JSON or paper XML)")
     p.add_argument("data", nargs="+", metavar="DATA", help="CSV or Parquet files with the model's columns")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--mode", choices=PREDICTION_MODES, default="one-step",
-                   help="ARX prediction mode: one-step (default, the paper's evaluation: measured past outputs) "
-                        "or free-run (fed-back predictions, as on the robot); both are reported for ARX models")
+                   help="ARX prediction mode: one-step (default, the paper's evaluation: measured past outputs, "
+                        "which evaluation data hold) or free-run (fed-back predictions, as on the robot and "
+                        "'ftcal predict''s default); the table scores this mode and says so, the other mode's "
+                        "norm RMSE follows it")
     p.add_argument("--start", choices=FREE_RUN_STARTS, default="zeros",
                    help="ARX free-run history at each segment start: zeros (default, the paper's code: the "
                         "first max(na,nb) rows predict 0) or measured (ftcal's: the first measured output)")
@@ -44,9 +47,28 @@ def evaluate(args):
     data = read_dataset(args.data, model.input_names_, model.output_names_, segment_by=args.segment_by)
     warn_if_trained_on(data, loaded.training_segments, args.model)
     with warnings.catch_warnings(), np.errstate(over="ignore", invalid="ignore"):
-        # The count is reported in the output; no separate warning line. Overflow is refused in run().
+        # Reported once in the output (run()), not as a warning line. Overflow is refused in run().
         warnings.simplefilter("ignore", OutOfRangeWarning)
-        return model, model.score(data, mode=args.mode, start=args.start, warmup=args.warmup)
+        summary = model.score(data, mode=args.mode, start=args.start, warmup=args.warmup)
+        summary["out_of_range"] = range_summary(model, data, args) if summary["n_out_of_range"] else None
+    return model, summary
+
+
+def range_summary(model, data, args) -> dict:
+    """Which inputs left the training range, how far, and the error there (ARX models, data read whole)."""
+    import numpy as np
+
+    from ..core.ranges import RangeSums
+
+    rows = np.ones(data.n_samples, dtype=bool)
+    if args.warmup == "drop":  # the rows the metrics score, as CalibrationModel.score
+        for a, b in data.segment_bounds():
+            rows[a:a + model.layout_.max_lag] = False
+    prediction = model.predict(data, mode=args.mode, start=args.start, warn_out_of_range=False)
+    inputs = data.select_inputs(model.input_names_)
+    y = data.outputs[:, [data.output_names.index(n) for n in model.output_names_]]
+    return RangeSums.of(inputs, model.input_range_, y, prediction, model.output_names_,
+                        scored=rows).summary(model.input_names_)
 
 
 def evaluate_streaming(args, model, training_segments) -> dict:
@@ -70,9 +92,11 @@ def evaluate_streaming(args, model, training_segments) -> dict:
     main, other = sums if isinstance(sums, tuple) else (sums, None)
     warn_training_segments(sorted(main.training_segments), training_segments, args.model)
     summary = main.summary(model.output_names_)
+    summary["out_of_range"] = main.ranges.summary(model.input_names_) if main.n_out_of_range else None
     if other is not None:
         second = other.summary(model.output_names_)
         del second["n_out_of_range"]
+        second.pop("out_of_range", None)
         summary["free_run" if args.mode == "one-step" else "one_step"] = second
     return summary
 
@@ -91,6 +115,8 @@ def check_finite_metrics(summary: dict, keys) -> None:
 
 def run(args) -> int:
     from ..core.metrics import EVALUATION_KEYS as JSON_KEYS
+    from ..core.metrics import METRIC_NAMES, METRIC_NOTES, format_metric, output_units
+    from ..core.ranges import channel_text, effect_text
 
     model, summary = evaluate(args)
     check_finite_metrics(summary, JSON_KEYS)
@@ -98,23 +124,35 @@ def run(args) -> int:
         check_finite_metrics(summary["one_step"], JSON_KEYS)
     if args.json:
         payload = {k: summary[k] for k in JSON_KEYS}
+        payload["out_of_range"] = summary["out_of_range"]
         for other in ("one_step", "free_run"):
             if other in summary:
                 payload[other] = {k: summary[other][k] for k in JSON_KEYS if k in summary[other]}
         print_json(payload)
         return 0
+    if not model.layout_.is_static:  # which prediction the table scores (predict defaults to free-run)
+        print(f"ARX model: metrics of {args.mode} prediction"
+              + (" (measured past outputs, the paper's evaluation)" if args.mode == "one-step"
+                 else f" from {args.start} history") + "; the other mode's norm RMSE is at the end")
     print(f"{summary['n_samples']} samples, {summary['n_out_of_range']} outside the training input range")
-    print(f"{'output':<10}{'RMSE':>12}{'BestFit %':>10}{'max |err|':>12}{'resid. acf(1)':>15}")
-    for name, r, b, m, a in zip(summary["outputs"], summary["rmse"], summary["best_fit"],
-                                summary["max_abs_error"], summary["residual_autocorrelation_lag1"]):
+    if summary["out_of_range"]:  # said once, here, with what it did to the error
+        print(f"  outside: {channel_text(summary['out_of_range'])}")
+        if effect_text(summary["out_of_range"]):
+            print(f"  {effect_text(summary['out_of_range'])}")
+    units = output_units(summary["outputs"])
+    acf = METRIC_NAMES["residual_autocorrelation_lag1"]
+    # RMSE and max |error| are in each output's unit (last column); BestFit in %; the acf has none.
+    print(f"{'output':<10}{'RMSE':>12}{'BestFit %':>10}{'max |error|':>13}{acf:>15}  unit")
+    for name, unit, r, b, m, a in zip(summary["outputs"], units, summary["rmse"], summary["best_fit"],
+                                      summary["max_abs_error"], summary["residual_autocorrelation_lag1"]):
         best = f"{100.0 * b:.2f}" if b is not None else "n/a"
-        print(f"{name:<10}{r:>12.5g}{best:>10}{m:>12.5g}{a:>15.3f}")
-    for key, label in (("force_norm_rmse", "force-norm RMSE"), ("torque_norm_rmse", "torque-norm RMSE"),
-                       ("force_error_norm_rmse", "RMSE of force error norm"),
-                       ("torque_error_norm_rmse", "RMSE of torque error norm")):
+        print(f"{name:<10}{r:>12.5g}{best:>10}{m:>13.5g}{a:>15.3f}  {unit}")
+    for key in ("force_norm_rmse", "torque_norm_rmse", "force_error_norm_rmse", "torque_error_norm_rmse"):
         if summary[key] is not None:
-            print(f"{label}: {summary[key]:.5g}")
+            print(format_metric(key, summary[key]))
     for other, label in (("one_step", "one-step-ahead"), ("free_run", "free-run")):
         if other in summary and summary[other]["force_norm_rmse"] is not None:
-            print(f"{label} force-norm RMSE: {summary[other]['force_norm_rmse']:.5g}")
+            print(f"{label} {format_metric('force_norm_rmse', summary[other]['force_norm_rmse'])}")
+    for note in METRIC_NOTES:
+        print(f"  {note}")
     return 0

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from ._common import add_scheduler_option, finite_float, require_suffix
+from ._examples import epilog
 from .cmd_sensors import add_cache_arguments, add_robot_arguments, load_robot
 
 WRENCH = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
@@ -12,7 +13,7 @@ WRENCH = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
-        "expected", help="expected F/T wrenches for joint positions (iDynTree)",
+        "expected", **epilog("expected"), help="expected F/T wrenches for joint positions (iDynTree)",
         description="Compute the wrench each F/T sensor should measure for every row of a joint table "
                     "(static, fixed base). Output: the wrench the sensor's child link applies on its "
                     "parent link, in the sensor frame, torque about the sensor origin (N, N m).")

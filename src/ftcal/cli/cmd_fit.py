@@ -24,18 +24,10 @@ from ._common import (
     positive_float,
     require_suffix,
 )
+from ._examples import epilog
 from ._fit_mlp import add_family_options
 
-EPILOG = """examples:
-  ftcal fit train/*.csv -o model.json                      affine model, u1..u6,T -> Fx..Tz
-  ftcal fit data.parquet --degree 4 --lasso 50 -o m4.json  LASSO: the paper's problem and lambda scale
-  ftcal fit logs/*.parquet --degree auto --group-by group -o best.json
-  ftcal fit logs/*.parquet --degree auto --group-by group --select-per block --budget 20 -o best.json
-  ftcal fit new/*.csv --degree 2 --ridge 10 --prior last_month.json -o m.json   shrink toward a calibration
-  ftcal fit logs/*.parquet --degree 4 --scheduler tcp://host:8786 -o m4.json    one Dask task per file
-  ftcal fit train/*.csv --family mlp --hidden 16 -o mlp.json   neural baseline, early-stopped on grouped folds
-
-Fits stream the files (except --solver osqp and --estimate-payload, which read
+STREAMING_NOTE = """Fits stream the files (except --solver osqp and --estimate-payload, which read
 them whole): a pass for the column ranges (the normalization), one for the sufficient statistics
 (summed, then solved here; --degree auto: a pass per degree and basis tried, per fold, and the
 selection is solved from those sums; ARX: lags inside segments), one for the training metrics;
@@ -77,8 +69,7 @@ def degree_value(text: str) -> int | str:
 
 
 def register(sub) -> None:
-    p = sub.add_parser("fit", help="fit a calibration model", epilog=EPILOG,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = sub.add_parser("fit", help="fit a calibration model", **epilog("fit", STREAMING_NOTE))
     p.add_argument("data", nargs="+", metavar="DATA", help="CSV or Parquet files (each one segment and group)")
     add_column_options(p)
     p.add_argument("--degree", type=degree_value,
@@ -418,6 +409,8 @@ def report_excitation(spread, outputs) -> None:
 
 
 def report_fit(model, path: str) -> None:
+    from ..core.metrics import output_units
+
     info = model.describe()
     metrics = model.training_metrics_
     lam = model.solver_info_.get("lambda")
@@ -431,7 +424,9 @@ def report_fit(model, path: str) -> None:
         raw_count = int((abs(to_raw(model)) > 1e-9).sum())
         print(f"raw-input coefficients with |value| > 1e-9 (the paper's count): {raw_count}")
     if metrics.get("force_norm_rmse") is not None:
-        print(f"training force-norm RMSE {metrics['force_norm_rmse']:.4f}, "
-              f"torque-norm RMSE {metrics['torque_norm_rmse']:.4f}")
-    print("training RMSE per output: " + ", ".join(f"{n} {v:.4g}" for n, v in zip(model.output_names_, metrics["rmse"])))
+        print(f"training force-norm RMSE {metrics['force_norm_rmse']:.4f} N, "
+              f"torque-norm RMSE {metrics['torque_norm_rmse']:.4f} N·m")
+    print("training RMSE per output: " + ", ".join(f"{n} {v:.4g}" + (f" {u}" if u else "") for n, v, u in
+                                                  zip(model.output_names_, metrics["rmse"],
+                                                      output_units(model.output_names_))))
     print(f"wrote {path}")

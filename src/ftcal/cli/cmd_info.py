@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+from ._examples import epilog
+
 N_LARGEST = 10
 
 
 def register(sub) -> None:
-    p = sub.add_parser("info", help="model class, counts, training ranges, largest terms")
+    p = sub.add_parser("info", **epilog("info"), help="model class, counts, training ranges, largest terms")
     p.add_argument("model", metavar="MODEL", help="ftcal JSON or paper XML model file")
     p.add_argument("--terms", type=int, default=N_LARGEST, help=f"largest terms to list (default {N_LARGEST})")
     p.set_defaults(func=run)
@@ -42,8 +44,8 @@ def run(args) -> int:
         print(f"  {name:<8} {low:>14.6g} .. {high:<14.6g} {unit or ''}")
     metrics = model.training_metrics_ or {}
     if metrics.get("force_norm_rmse") is not None:
-        print(f"training force-norm RMSE {metrics['force_norm_rmse']:.4g}, "
-              f"torque-norm RMSE {metrics['torque_norm_rmse']:.4g}")
+        print(f"training force-norm RMSE {metrics['force_norm_rmse']:.4g} N, "
+              f"torque-norm RMSE {metrics['torque_norm_rmse']:.4g} N·m")
     if not polynomial:
         return 0
     names = model.layout_.column_names(model.input_names_, model.output_names_)

@@ -7,6 +7,7 @@ import argparse
 from ..core.limits import BIAS_DRIFTS
 from ..runtime.errors import FtcalError
 from ._common import column_list, positive_float, require_suffix
+from ._examples import epilog
 
 MAX_GROUPS_PRINTED = 8
 # A re-tared bias further than this many standard errors from the identified one is drift, not noise.
@@ -111,7 +112,7 @@ def check_not_input(output: str, inputs) -> None:
 
 
 def register(sub) -> None:
-    p = sub.add_parser("payload", help="identify the sensor bias and the tool's mass and centre of mass",
+    p = sub.add_parser("payload", **epilog("payload"), help="identify the sensor bias and the tool's mass and centre of mass",
                        description="Identify, by linear least squares, the F/T sensor's force and torque bias "
                                    "and the attached tool's mass and centre of mass (sensor frame) from static "
                                    "poses; --dynamic adds the inertia from angular velocity/acceleration and "
@@ -119,7 +120,9 @@ def register(sub) -> None:
                                    "applies on it (a mass m at rest adds m·g); use --reaction for sensors that "
                                    "report the opposite sign.")
     p.add_argument("data", nargs="+", metavar="DATA", help="CSV or Parquet files, one row per sample")
-    p.add_argument("-o", "--output", required=True, metavar="PAYLOAD.json")
+    p.add_argument("-o", "--output", required=True, metavar="PAYLOAD.json",
+                   help="payload file: mass (kg), com (m), force/torque bias (N, N·m), inertia with --dynamic, "
+                        "standard errors; for 'ftcal compensate' and 'ftcal convert --to ros-yaml|ft-tools-ros2'")
     p.add_argument("--wrench", type=column_list, default=("u1", "u2", "u3", "u4", "u5", "u6"),
                    metavar="FX,FY,FZ,TX,TY,TZ",
                    help="measured wrench columns, N and N·m (default u1,...,u6)")

@@ -4,16 +4,20 @@ from __future__ import annotations
 
 from ..core.limits import FREE_RUN_STARTS, PREDICTION_MODES
 from ._common import add_scheduler_option, require_suffix
+from ._examples import epilog
 
 
 def register(sub) -> None:
-    p = sub.add_parser("predict", help="predict the wrench from raw channels")
+    p = sub.add_parser("predict", **epilog("predict"), help="predict the wrench from raw channels")
     p.add_argument("model", metavar="MODEL", help="model file (ftcal JSON or paper XML)")
     p.add_argument("data", nargs="+", metavar="DATA", help="CSV or Parquet files with the model's input columns")
-    p.add_argument("-o", "--output", required=True, metavar="OUT.csv|OUT.parquet")
+    p.add_argument("-o", "--output", required=True, metavar="OUT.csv|OUT.parquet",
+                   help="predicted wrench, one column per model output (Fx..Tz: N, N·m), one row per input row "
+                        "of all DATA files in order; .csv or .parquet")
     p.add_argument("--mode", choices=PREDICTION_MODES, default="free-run",
-                   help="ARX prediction mode: free-run (default: fed-back predictions, as on the robot) or "
-                        "one-step (measured past outputs, which DATA must hold)")
+                   help="ARX prediction mode: free-run (default: fed-back predictions, as on the robot, where no "
+                        "reference wrench exists) or one-step (measured past outputs, which DATA must hold; "
+                        "'ftcal evaluate' defaults to it, the paper's evaluation). The mode that ran is printed")
     p.add_argument("--start", choices=FREE_RUN_STARTS, default="zeros",
                    help="ARX free-run history at each segment start: zeros (default, the paper's code: the "
                         "first max(na,nb) rows predict 0) or measured (the first measured output when DATA "
@@ -28,17 +32,22 @@ def run(args) -> int:
     import sys
     import warnings
 
+    from ..core.ranges import describe
     from ..files.model_files import read_model
     from ..runtime.errors import OutOfRangeWarning
 
     require_suffix(args.output, (".csv", ".parquet"), "-o")
     model = read_model(args.model)
-    n_rows, n_out = predict_streaming(args, model)
-    if n_out:  # as CalibrationModel.predict warns on data read whole
-        warnings.warn(f"{n_out} of {n_rows} samples have inputs outside the training range; predictions there "
-                      "are extrapolations.", OutOfRangeWarning, stacklevel=2)
-    print(f"wrote {n_rows} predictions to {args.output}"
-          + (f" ({n_out} samples outside the training range)" if n_out else ""), file=sys.stderr)
+    if not model.layout_.is_static:
+        print(f"ARX model: {args.mode} prediction"
+              + (f" from {args.start} history" if args.mode == "free-run" else " (measured past outputs)"),
+              file=sys.stderr)
+    n_rows, ranges = predict_streaming(args, model)
+    # One warning for the whole command (as CalibrationModel.predict on data read whole), never per file.
+    message = ranges and describe(ranges.summary(model.input_names_))
+    if message:
+        warnings.warn(message, OutOfRangeWarning, stacklevel=2)
+    print(f"wrote {n_rows} predictions to {args.output}", file=sys.stderr)
     return 0
 
 
@@ -51,7 +60,7 @@ def predict_streaming(args, model) -> tuple[int, int]:
 
     Returns
     -------
-    (n_rows, n_out_of_range) : ints
+    (n_rows, ranges) : int and :class:`~ftcal.core.ranges.RangeSums` (None without rows)
     """
     import os
     import shutil
@@ -79,4 +88,5 @@ def predict_streaming(args, model) -> tuple[int, int]:
         join_parts([part for _, part in tasks], output)
     finally:
         shutil.rmtree(folder, ignore_errors=True)
-    return sum(n for n, _ in counts), sum(k for _, k in counts)
+    ranges = [r for _, r in counts if r is not None]
+    return sum(n for n, _ in counts), (sum(ranges[1:], ranges[0]) if ranges else None)

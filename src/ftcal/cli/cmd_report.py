@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 
 from ._common import column_list
+from ._examples import epilog
 
 MODEL_SUFFIXES = (".json", ".xml")
 DATA_SUFFIXES = (".csv", ".parquet", ".pq")
@@ -14,7 +15,7 @@ REPORT_SUFFIXES = (".html", ".htm")
 
 def register(sub) -> None:
     p = sub.add_parser(
-        "report", help="HTML report comparing models on validation data",
+        "report", **epilog("report"), help="HTML report comparing models on validation data",
         description="Evaluate every model file on the data files (the validation set) and write one "
                     "self-contained HTML page: per-axis validation errors with BestFit, force and torque "
                     "norms, the data coverage, the temperature effect, the validation curve over degree, "

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import argparse
 
+from ._examples import epilog
+
 
 def add_robot_arguments(parser: argparse.ArgumentParser, required: bool = True) -> None:
     """--urdf PATH | --model NAME (optional unless ``required``), --ft-joint JOINT [--ft-frame LINK],
@@ -61,7 +63,7 @@ def load_robot(args: argparse.Namespace, payloads: bool = True):
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
-        "sensors", help="list F/T sensors, joints and the mass beyond each sensor",
+        "sensors", **epilog("sensors"), help="list F/T sensors, joints and the mass beyond each sensor",
         description="List the six-axis F/T sensors of a robot model (name, joint, links), the mass "
                     "on the far side of each sensor as seen from the base frame (payloads included), "
                     "and the movable joints in the order ftcal uses.")

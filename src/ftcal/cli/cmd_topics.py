@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import argparse
 
+from ._examples import epilog
+
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
-        "topics", help="list a ROS bag's topics (type, count, rate)",
+        "topics", **epilog("topics"), help="list a ROS bag's topics (type, count, rate)",
         description="List the topics of a ROS 1 .bag, a ROS 2 bag folder, a .db3 or an .mcap file: message "
                     "type, message count and mean rate (Hz, from the bag's receive times). Use the names with "
                     "'ftcal dataset BAG --wrench-topic ...'.")

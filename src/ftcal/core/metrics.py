@@ -1,9 +1,11 @@
 """Calibration metrics: plain functions of (y_true, y_pred), arrays of shape (n_samples, n_outputs).
 
 Definitions follow the paper: BestFit = 1 − sqrt(MSE / mean((y − ȳ)²)) per axis,
-and the "RMSE of force norm" is the RMSE of ‖f‖ − ‖f̂‖ (a scalar per sample),
-which ignores direction errors; ``*_error_norm_rmse`` (RMSE of ‖f − f̂‖)
-counts them too.
+and the "force-norm RMSE" (the paper's "RMSE of force norm") is the RMSE of
+‖f‖ − ‖f̂‖ (a scalar per sample), which ignores direction errors; the "RMSE of the
+force error norm" (``*_error_norm_rmse``, sqrt(mean ‖f − f̂‖²)) counts them too.
+Every metric is printed under the name and unit of :data:`METRIC_NAMES` and
+:func:`metric_unit`, defined once for users in docs/metrics.md.
 """
 
 from __future__ import annotations
@@ -12,6 +14,27 @@ import re
 from collections.abc import Sequence
 
 import numpy as np
+
+FORCE_UNIT, TORQUE_UNIT = "N", "N·m"
+
+# The one name of each metric (keys of `ftcal evaluate --json`), as the CLI, the report and docs/metrics.md print it.
+METRIC_NAMES = {
+    "rmse": "RMSE",
+    "best_fit": "BestFit",
+    "max_abs_error": "max |error|",
+    "force_norm_rmse": "force-norm RMSE",
+    "torque_norm_rmse": "torque-norm RMSE",
+    "force_error_norm_rmse": "RMSE of the force error norm",
+    "torque_error_norm_rmse": "RMSE of the torque error norm",
+    "residual_autocorrelation_lag1": "resid. acf(1)",
+}
+# One line per metric for the foot of printed tables; docs/metrics.md has the full definitions.
+METRIC_NOTES = (
+    "force-norm RMSE = RMSE of ‖f‖ − ‖f̂‖ (the paper's; ignores direction errors); "
+    "RMSE of the force error norm = sqrt(mean ‖f − f̂‖²) (counts them; torques alike)",
+    "resid. acf(1) = lag-1 autocorrelation of the residual (near 0: white noise; near 1: slow drift or "
+    "unmodelled dynamics, try --na/--nb or more temperature data); see docs/metrics.md",
+)
 
 _FORCE = re.compile(r"(^|[_\W])(F|f)_?[xyz]$")
 _TORQUE = re.compile(r"(^|[_\W])(T|M|tau)_?[xyz]$")
@@ -168,6 +191,43 @@ def force_torque_columns(output_names: Sequence[str]) -> tuple[list[int] | None,
         if found_torques is None and found_forces is not None:
             found_torques = [i for i in range(6) if i not in found_forces]
     return found_forces, found_torques
+
+
+def output_units(output_names: Sequence[str]) -> list[str]:
+    """N for the force outputs, N·m for the torque outputs, "" for others (found by :func:`force_torque_columns`).
+
+    Examples
+    --------
+    >>> output_units(["Fx", "Fy", "Fz", "Tx", "Ty", "Tz"])
+    ['N', 'N', 'N', 'N·m', 'N·m', 'N·m']
+    """
+    units = [""] * len(output_names)
+    forces, torques = force_torque_columns(output_names)
+    for columns, unit in ((forces, FORCE_UNIT), (torques, TORQUE_UNIT)):
+        for i in columns or ():
+            units[i] = unit
+    return units
+
+
+def metric_unit(key: str) -> str:
+    """The unit of a scalar metric of :data:`METRIC_NAMES` ("%" for BestFit, "" for a per-output unit or none).
+
+    Examples
+    --------
+    >>> metric_unit("force_norm_rmse"), metric_unit("torque_error_norm_rmse"), metric_unit("best_fit")
+    ('N', 'N·m', '%')
+    """
+    if key.startswith("force_"):
+        return FORCE_UNIT
+    if key.startswith("torque_"):
+        return TORQUE_UNIT
+    return "%" if key == "best_fit" else ""
+
+
+def format_metric(key: str, value: float, digits: int = 5) -> str:
+    """``"force-norm RMSE: 2.0921 N"``: a scalar metric with its one name and its unit."""
+    unit = metric_unit(key)
+    return f"{METRIC_NAMES[key]}: {value:.{digits}g}" + (f" {unit}" if unit else "")
 
 
 # The keys of `ftcal evaluate --json` (and of the train/validation entries of the demo's summary.json).

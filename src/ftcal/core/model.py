@@ -32,6 +32,7 @@ from .kernels import compiled, step_table
 from .limits import (ARX_WARMUP, FREE_RUN_STARTS, MAX_DEGREE, MAX_GRAM_BYTES, MAX_LAG, NORMALIZATIONS,
                      PREDICTION_MODES)
 from .normalization import Normalization, normalization_from_range, variables_normalization, variables_range
+from .ranges import RangeSums, describe, outside_by_channel
 from .solvers.base import ScaledProblem, Solver, SolverResult
 from .solvers.least_squares import LeastSquares
 from .statistics import SufficientStatistics, layout_statistics, sum_statistics
@@ -40,7 +41,6 @@ PREDICT_CHUNK = 4096
 # The OSQP comparison path builds the dense regressor; refuse beyond this many cells.
 DENSE_LIMIT_CELLS = 200_000_000
 CONDITION_WARNING = 1e7
-RANGE_TOLERANCE = 1e-9
 # Least squares is solved in this basis whatever the stored one (it is the best conditioned).
 SOLVE_BASIS = "center"
 
@@ -494,9 +494,7 @@ class CalibrationModel:
         See :meth:`out_of_span`.
         """
         self._check_fitted()
-        low, high = self.input_range_[:, 0], self.input_range_[:, 1]
-        slack = RANGE_TOLERANCE * np.maximum(high - low, 1.0)
-        return np.any((inputs < low - slack) | (inputs > high + slack), axis=1) | self.out_of_span(inputs)
+        return np.any(outside_by_channel(inputs, self.input_range_), axis=1) | self.out_of_span(inputs)
 
     def out_of_span(self, inputs: np.ndarray) -> np.ndarray:
         """Boolean mask of samples outside the span of the training inputs, even inside their range.
@@ -534,7 +532,8 @@ class CalibrationModel:
             (or, without outputs, the steady state for the first input) as
             history. Models with na = 0 have no feedback: free-run is one-step.
         warn_out_of_range : bool
-            Warn (:class:`~ftcal.runtime.errors.OutOfRangeWarning`) about inputs outside the training range.
+            Warn (:class:`~ftcal.runtime.errors.OutOfRangeWarning`) about inputs outside the training
+            range: which inputs, how far (in training spans), how many samples.
 
         Returns
         -------
@@ -554,10 +553,7 @@ class CalibrationModel:
         u = check_finite_matrix(data.select_inputs(self.input_names_), "inputs",
                                 len(self.input_names_), self.input_names_)
         if warn_out_of_range:
-            n_out = int(self.out_of_range(u).sum())
-            if n_out:
-                warnings.warn(f"{out_of_range_text(n_out, len(u), int(self.out_of_span(u).sum()))}; "
-                              "predictions there are extrapolations.", OutOfRangeWarning, stacklevel=2)
+            self._warn_out_of_range(RangeSums.of(u, self.input_range_), stacklevel=3, inputs=u)
         if self.layout_.is_static:
             return self._predict_static(u)
         u_norm = self.input_normalization_.apply(u)
@@ -569,6 +565,17 @@ class CalibrationModel:
             return np.concatenate([self._predict_arx_segment(u_norm[a:b], None if measured is None else measured[a:b],
                                                              mode, start)
                                    for a, b in data.segment_bounds()])
+
+    def _warn_out_of_range(self, ranges: RangeSums, stacklevel: int, inputs: np.ndarray | None = None) -> None:
+        """One warning for one cause: inputs outside the training range, and those outside its span."""
+        message = describe(ranges.summary(self.input_names_))
+        n_span = 0 if inputs is None else int((self.out_of_span(inputs)
+                                               & ~np.any(outside_by_channel(inputs, self.input_range_), axis=1)).sum())
+        if n_span:
+            span = out_of_span_text(n_span, len(inputs))
+            message = f"{message}; {span}" if message else span
+        if message:
+            warnings.warn(message, OutOfRangeWarning, stacklevel=stacklevel)
 
     def _predict_static(self, u: np.ndarray) -> np.ndarray:
         basis = self.layout_.basis
@@ -671,6 +678,8 @@ class CalibrationModel:
             ``"drop"`` (the paper's code) leaves the first max(na, nb) rows of
             each segment out of the metrics; no effect on static models.
         warn_out_of_range : bool
+            Warn once about inputs outside the training range, with the force- and
+            torque-norm errors on those samples next to those inside.
 
         Returns
         -------
@@ -690,9 +699,13 @@ class CalibrationModel:
         if not rows.any():
             raise FtcalError(f"Nothing to evaluate: every segment is shorter than the ARX warm-up "
                              f"max(na, nb) = {self.layout_.max_lag} rows.")
-        prediction = self.predict(data, mode=mode, start=start, warn_out_of_range=warn_out_of_range)
+        prediction = self.predict(data, mode=mode, start=start, warn_out_of_range=False)
         summary = metrics.summarize(y[rows], prediction[rows], self.output_names_)
-        summary["n_out_of_range"] = int(self.out_of_range(data.select_inputs(self.input_names_)).sum())
+        inputs = data.select_inputs(self.input_names_)
+        summary["n_out_of_range"] = int(self.out_of_range(inputs).sum())
+        if warn_out_of_range and summary["n_out_of_range"]:
+            self._warn_out_of_range(RangeSums.of(inputs, self.input_range_, y, prediction, self.output_names_,
+                                                 scored=rows), stacklevel=3, inputs=inputs)
         if not self.layout_.is_static and data.outputs is not None:
             other = "free-run" if mode == "one-step" else "one-step"
             second = self.predict(data, mode=other, start=start, warn_out_of_range=False)
@@ -782,13 +795,12 @@ class CalibrationModel:
         }
 
 
-def out_of_range_text(n_out: int, n_samples: int, n_span: int) -> str:
-    """``"N of M samples have inputs outside the training range"``, and how many lie outside its span."""
-    text = f"{n_out} of {n_samples} samples have inputs outside the training range"
-    if n_span:
-        text += (f" ({n_span} of them outside the span of the training inputs: combinations of inputs the "
-                 "training data never had, e.g. a load direction its loads and poses lacked)")
-    return text
+def out_of_span_text(n_span: int, n_samples: int) -> str:
+    """How many samples lie inside the training range but outside the span of the training inputs."""
+    verb = "lies" if n_span == 1 else "lie"
+    return (f"{n_span} of {n_samples} sample(s) inside the training range {verb} outside the span of the training "
+            "inputs (combinations of inputs the training data never had, e.g. a load direction its loads and poses "
+            "lacked); predictions there are extrapolations")
 
 
 def _as_dataset(data, outputs=None, input_names: Sequence[str] | None = None) -> Dataset:

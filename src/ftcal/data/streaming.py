@@ -23,6 +23,7 @@ from ..core import metrics
 from ..core.excitation import Spread
 from ..core.features import MonomialBasis, RegressorLayout
 from ..core.normalization import Normalization
+from ..core.ranges import RangeSums
 from ..core.statistics import CHUNK_SAMPLES, StaticAccumulator, SufficientStatistics, sum_statistics
 from ..runtime.errors import FtcalError
 from ..runtime.threads import map_ranges
@@ -346,10 +347,11 @@ class ErrorSums:
     n_out_of_range: int
     training_segments: frozenset = frozenset()  # indices of the model's training fingerprints found
     pose_cells: frozenset = frozenset()  # occupied cells of the pose grid, when counted (see file_error_sums)
+    ranges: RangeSums | None = None  # which inputs left the training range, how far, the error there
 
     @classmethod
     def of(cls, y: np.ndarray, prediction: np.ndarray, output_names: Sequence[str],
-           n_out_of_range: int) -> "ErrorSums":
+           n_out_of_range: int, ranges: RangeSums | None = None) -> "ErrorSums":
         """Sums of one block of rows.
 
         Parameters
@@ -357,6 +359,7 @@ class ErrorSums:
         y, prediction : ndarray of shape (m, ny), m >= 1
         output_names : names, to find the force and torque triples
         n_out_of_range : rows of the block with inputs outside the training range
+        ranges : the block's :class:`~ftcal.core.ranges.RangeSums`, optional
         """
         r = y - prediction
         norm_sq, error_norm_sq = np.full(2, np.nan), np.full(2, np.nan)
@@ -368,7 +371,7 @@ class ErrorSums:
         mean = y.mean(axis=0)
         return cls(len(y), mean, np.sum((y - mean) ** 2, axis=0), np.einsum("ij,ij->j", r, r), r.sum(axis=0),
                    np.einsum("ij,ij->j", r[1:], r[:-1]), r[0].copy(), r[-1].copy(), np.abs(r).max(axis=0),
-                   norm_sq, error_norm_sq, n_out_of_range)
+                   norm_sq, error_norm_sq, n_out_of_range, ranges=ranges)
 
     def __add__(self, other: "ErrorSums") -> "ErrorSums":
         n = self.n + other.n
@@ -381,7 +384,8 @@ class ErrorSums:
                          self.error_norm_sq + other.error_norm_sq, self.n_out_of_range + other.n_out_of_range,
                          self.training_segments | other.training_segments,
                          self.pose_cells | other.pose_cells if len(self.pose_cells) < POSE_CELL_CAP
-                         else self.pose_cells)
+                         else self.pose_cells,
+                         None if self.ranges is None or other.ranges is None else self.ranges + other.ranges)
 
     def summary(self, output_names: Sequence[str]) -> dict:
         """The metrics of :func:`ftcal.core.metrics.summarize`, plus ``n_out_of_range``."""
@@ -452,7 +456,8 @@ def file_error_sums(path: str, model, fingerprints: Sequence[dict] = (), mode: s
         def rows_sums(begin: int, end: int) -> ErrorSums:
             inputs, outputs = chunk.inputs[begin:end], chunk.outputs[begin:end]
             prediction = model.predict(inputs, warn_out_of_range=False)
-            return ErrorSums.of(outputs, prediction, model.output_names_, int(model.out_of_range(inputs).sum()))
+            ranges = RangeSums.of(inputs, model.input_range_, outputs, prediction, model.output_names_)
+            return ErrorSums.of(outputs, prediction, model.output_names_, ranges.n_out, ranges)
 
         # Overflowing predictions give inf/NaN metrics, which the command refuses in one line.
         with warnings.catch_warnings(), np.errstate(over="ignore", invalid="ignore"):
@@ -485,7 +490,9 @@ def _arx_error_sums(path: str, model, fingerprints: Sequence[dict], mode: str, s
     for which in (mode, "free-run" if mode == "one-step" else "one-step"):
         with np.errstate(over="ignore", invalid="ignore"):
             prediction = model.predict(data, mode=which, start=start, warn_out_of_range=False)
-            pair.append(ErrorSums.of(data.outputs[rows], prediction[rows], model.output_names_, n_out))
+            ranges = RangeSums.of(data.inputs, model.input_range_, data.outputs, prediction, model.output_names_,
+                                  scored=rows)
+            pair.append(ErrorSums.of(data.outputs[rows], prediction[rows], model.output_names_, n_out, ranges))
     pair[0].training_segments = frozenset(finder.found)
     if count_poses:
         from ..core.select import pose_cells
@@ -550,7 +557,7 @@ def predict_part(path: str, part: str, model, mode: str = "free-run", segment_by
 
     Returns
     -------
-    (n_rows, n_out_of_range) : ints
+    (n_rows, ranges) : int and :class:`~ftcal.core.ranges.RangeSums` (inputs outside the training range)
 
     Raises
     ------
@@ -558,7 +565,7 @@ def predict_part(path: str, part: str, model, mode: str = "free-run", segment_by
         A prediction overflows (inf or NaN): names the input file and row.
     """
     names = list(model.output_names_)
-    n_rows = n_out = 0
+    n_rows, ranges = 0, None
     writer = None
     try:
         for first_row, inputs, prediction in _predictions(path, model, mode, segment_by, start):
@@ -573,11 +580,12 @@ def predict_part(path: str, part: str, model, mode: str = "free-run", segment_by
             writer = writer or _part_writer(part, batch.schema)
             writer.write(batch)
             n_rows += len(prediction)
-            n_out += int(model.out_of_range(inputs).sum())
+            block = RangeSums.of(inputs, model.input_range_)
+            ranges = block if ranges is None else ranges + block
     finally:
         if writer is not None:
             writer.close()
-    return n_rows, n_out
+    return n_rows, ranges
 
 
 def _predictions(path: str, model, mode: str, segment_by: str | None, start: str):

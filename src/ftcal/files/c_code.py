@@ -35,7 +35,8 @@ from pathlib import Path
 import numpy as np
 
 from ..core.conversion import sample_training_box
-from ..core.model import RANGE_TOLERANCE, CalibrationModel
+from ..core.model import CalibrationModel
+from ..core.ranges import RANGE_TOLERANCE
 from ..runtime.atomic import write_texts_atomic
 from ..runtime.errors import FtcalError
 from .c_text import c_comment, c_identifier, c_string

@@ -22,15 +22,25 @@ def write_json(source: ModelFile, output: Path, options: ConvertOptions) -> Writ
 
 
 def write_paper_xml(source: ModelFile, output: Path, options: ConvertOptions) -> Written:
-    """The paper's XML (raw-input coefficients); one degree per file, so a per-output selection says so."""
-    notes = ()
+    """The paper's XML (raw-input coefficients), with a note of the measured digit loss, found or not.
+
+    The XML holds one degree per file, so a per-output (or per-block) selection says what it wrote.
+    """
+    from ..core.conversion import PRECISION_TOLERANCE
+    from .paper_xml import write_paper_xml as write_xml
+
+    notes = []
     selection = source.model.solver_info_.get("selection") or []
     degrees = sorted({entry.get("degree") for entry in selection})
     if len(degrees) > 1:
-        notes = (f"the paper's XML holds one degree per file: this per-{source.model.solver_info_.get('select_per')} "
-                 f"selection (degrees {', '.join(map(str, degrees))}) is written at degree {degrees[-1]}, with "
-                 "zero coefficients for the terms an output's own degree does not have",)
-    return Written((write_model(source.model, output, "paper-xml"),), notes)
+        notes.append(f"the paper's XML holds one degree per file: this per-{source.model.solver_info_.get('select_per')} "
+                     f"selection (degrees {', '.join(map(str, degrees))}) is written at degree {degrees[-1]}, with "
+                     "zero coefficients for the terms an output's own degree does not have")
+    loss = write_xml(source.model, output)  # warns (PrecisionLossWarning) when the loss is significant
+    notes.append(f"digit-loss check: the raw-input coefficients reproduce the model's predictions to within "
+                 f"{loss:.3g} (N, N·m) over the training box; more than {PRECISION_TOLERANCE:g} of an output's "
+                 "training range would have printed a warning")
+    return Written((output,), tuple(notes))
 
 
 def write_icub_firmware(source: ModelFile, output: Path, options: ConvertOptions) -> Written:

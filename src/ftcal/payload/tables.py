@@ -175,7 +175,8 @@ def table_statistics(paths: Sequence[str | os.PathLike], source: KinematicsSourc
 
 
 def compensate_table(path: str | os.PathLike, payload: PayloadParameters, source: KinematicsSource, *,
-                     wrench: Sequence[str] | None = None, model=None, time_column: str | None = None):
+                     wrench: Sequence[str] | None = None, model=None, time_column: str | None = None,
+                     warn_out_of_range: bool = True):
     """One table with its contact wrench as ``Fx..Tz`` (replacing such columns), other columns kept.
 
     Parameters
@@ -187,6 +188,9 @@ def compensate_table(path: str | os.PathLike, payload: PayloadParameters, source
     model : CalibrationModel or None
         When given, the measured wrench is its prediction from its input columns.
     time_column : time column (s) when the bias drifts in time; default the payload file's
+    warn_out_of_range : bool
+        Let the model warn about inputs outside its training range (off when the caller
+        warns once for several tables).
 
     Returns
     -------
@@ -198,7 +202,8 @@ def compensate_table(path: str | os.PathLike, payload: PayloadParameters, source
     if model is not None:
         if len(model.output_names_) != 6:
             raise FtcalError(f"the calibration model has {len(model.output_names_)} outputs; a wrench needs 6.")
-        measured = model.predict(numeric_columns(frame, model.input_names_, Path(path), "input"))
+        measured = model.predict(numeric_columns(frame, model.input_names_, Path(path), "input"),
+                                 warn_out_of_range=warn_out_of_range)
     else:
         columns = _check_wrench_columns(wrench or payload.fit.get("wrench_columns", WRENCH_COLUMNS))
         measured = numeric_columns(frame, columns, Path(path), "wrench")

@@ -15,11 +15,13 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from ..core.dataset import Dataset
-from ..core.metrics import force_torque_columns
+from ..core.metrics import METRIC_NAMES, force_torque_columns, output_units
 from ..core.select import CrossValidationResult
-from .runs import ModelRun, expected_outputs, natural_key, output_units
+from .runs import ModelRun, expected_outputs, natural_key
 
 MAX_LINE_POINTS = 5000  # per plotted series
+# Legend and annotation text in points: at the page's 90 dpi, 8 pt is 10 px (at least 9 px as displayed).
+SMALL_TEXT = 8
 MAX_SCATTER_POINTS = 4000  # per 3D scatter
 TEMPERATURE_BINS = 12
 EXPECTED_STYLE = {"color": "black", "lw": 0.9, "label": "expected"}
@@ -68,12 +70,16 @@ def _colors(runs: Sequence[ModelRun], colors: Mapping[str, str] | None) -> Mappi
     return colors if colors is not None else run_colors(runs)
 
 
-def _axis_order(names: Sequence[str]) -> list[int]:
-    """Output columns in plotting order: forces down the left column, torques down the right."""
-    forces, torques = force_torque_columns(names)
-    if forces is not None and torques is not None:
-        return [i for pair in zip(forces, torques) for i in pair]
-    return list(range(len(names)))
+def _plain_log_ticks(axis) -> None:
+    """Plain-text labels ("0.1", "10") on a log axis.
+
+    The report turns mathtext off (``text.parse_math``: names are user text), and the
+    default log formatter writes its labels in mathtext, which then shows as raw TeX.
+    """
+    from matplotlib.ticker import LogFormatter
+
+    axis.set_major_formatter(LogFormatter(labelOnlyBase=False))
+    axis.set_minor_formatter(LogFormatter(labelOnlyBase=False, minor_thresholds=(1, 0.4)))
 
 
 def _label(name: str, unit: str, what: str = "") -> str:
@@ -100,38 +106,50 @@ def _rank_zorder(runs: Sequence[ModelRun]) -> dict[str, float]:
 
 def validation_errors(runs: Sequence[ModelRun], validation: Dataset, *, title: str = "",
                       colors: Mapping[str, str] | None = None) -> Figure:
-    """Expected minus predicted output over the validation samples, one panel per axis.
+    """Expected minus predicted output over the validation samples: one small panel per axis and model.
 
-    Legends give each model's BestFit on that axis (the paper's Figs 9 and 11).
+    Rows are the axes (forces, then torques), columns the models, so no trace hides another;
+    panels of one axis share their y scale. Each panel names the model and its BestFit on
+    that axis (the paper's Figs 9 and 11).
     """
+    from matplotlib.ticker import MaxNLocator
+
     colors = _colors(runs, colors)
-    zorder = _rank_zorder(runs)
     names = list(runs[0].model.output_names_)
     units = output_units(names)
-    order = _axis_order(names)
-    n_rows = (len(order) + 1) // 2
-    fig = new_figure(12.0, 2.3 * n_rows + 0.6)
-    axes = fig.subplots(n_rows, 2, sharex=True, squeeze=False)
-    errors = {run.name: expected_outputs(run, validation) - run.validation_prediction for run in runs}
-    for slot, column in enumerate(order):
-        ax = axes[slot // 2, slot % 2]
-        for run in runs:
+    forces, torques = force_torque_columns(names)
+    both = forces is not None and torques is not None
+    order = [*forces, *torques] if both else list(range(len(names)))
+    n_rows, n_cols = len(order), len(runs)
+    width, height = max(6.0, min(13.0, 2.6 * n_cols + 1.0)), 1.35 * n_rows + 0.9
+    fig = new_figure(width, height)
+    # Fixed margins (in inches) instead of the constrained layout, which is slow for dozens of panels.
+    fig.set_layout_engine("none")
+    margins = {"left": 0.85 / width, "right": 1 - 0.15 / width, "bottom": 0.55 / height, "top": 1 - 0.6 / height,
+               "wspace": 0.12, "hspace": 0.38}
+    axes = fig.subplots(n_rows, n_cols, sharex=True, sharey="row", squeeze=False, gridspec_kw=margins)
+    for c, run in enumerate(runs):
+        error = expected_outputs(run, validation) - run.validation_prediction
+        for r, column in enumerate(order):
+            ax = axes[r, c]
             j = list(run.model.output_names_).index(names[column])
-            err = errors[run.name][:, j]
+            err = error[:, j]
             idx = envelope_indices(err)
+            ax.plot(idx, err[idx], lw=0.5, color=colors[run.name])
+            ax.axhline(0.0, color="0.4", lw=0.6, zorder=1)
+            _segment_lines(ax, validation)
+            ax.grid(True, alpha=0.3)
             fit = run.validation_metrics["best_fit"][j]
-            fit_text = "n/a" if fit is None else f"{100.0 * fit:.1f} %"
-            ax.plot(idx, err[idx], lw=0.6, color=colors[run.name], zorder=zorder[run.name],
-                    label=f"{run.name}  BestFit {fit_text}")
-        ax.axhline(0.0, color="0.4", lw=0.6, zorder=1)
-        _segment_lines(ax, validation)
-        ax.set_ylabel(_label(names[column], units[column], "error"))
-        ax.legend(loc="upper right", fontsize="x-small", framealpha=0.8)
-        ax.grid(True, alpha=0.3)
-    for ax in axes[-1]:
-        ax.set_xlabel("validation sample index")
-    if len(order) % 2:
-        axes[-1, 1].set_visible(False)
+            # y fixed: automatic title placement measures every axis again, slow over dozens of panels
+            ax.set_title(f"BestFit {'n/a' if fit is None else f'{100.0 * fit:.1f} %'}", fontsize=SMALL_TEXT,
+                         loc="right", pad=2, y=1.0)
+            if c == 0:
+                ax.set_ylabel(_label(names[column], units[column]))
+            ax.tick_params(labelsize=SMALL_TEXT)
+            ax.xaxis.set_major_locator(MaxNLocator(4))
+            ax.yaxis.set_major_locator(MaxNLocator(4))
+        axes[0, c].set_title(run.name, loc="left", fontsize=SMALL_TEXT + 1, color=colors[run.name], pad=2, y=1.0)
+        axes[-1, c].set_xlabel("validation sample")
     fig.suptitle(title or "Validation error (expected − predicted)")
     return fig
 
@@ -146,7 +164,7 @@ def norm_comparison(runs: Sequence[ModelRun], validation: Dataset, *, title: str
     zorder = _rank_zorder(runs)
     forces, torques = force_torque_columns(runs[0].model.output_names_)
     rows = [(cols, label, unit, key) for cols, label, unit, key in
-            ((forces, "force norm", "N", "force_norm_rmse"), (torques, "torque norm", "Nm", "torque_norm_rmse"))
+            ((forces, "force norm", "N", "force_norm_rmse"), (torques, "torque norm", "N·m", "torque_norm_rmse"))
             if cols is not None]
     fig = new_figure(12.0, 3.0 * len(rows) + 0.6)
     axes = fig.subplots(len(rows), 2, sharex=True, squeeze=False)
@@ -173,7 +191,7 @@ def norm_comparison(runs: Sequence[ModelRun], validation: Dataset, *, title: str
         for ax in (left, right):
             _segment_lines(ax, validation)
             ax.grid(True, alpha=0.3)
-            ax.legend(loc="upper right", fontsize="x-small", framealpha=0.8)
+            ax.legend(loc="upper right", fontsize=SMALL_TEXT, framealpha=0.8)
         left.set_ylabel(f"{label} [{unit}]")
         right.set_ylabel(f"predicted − expected {label} [{unit}]")
     for ax in axes[-1]:
@@ -195,10 +213,17 @@ def _group_colors(labels: Sequence) -> dict:
 
 
 def _scatter3d(ax, points: np.ndarray, names: Sequence[str], unit: str, **style) -> object:
+    from matplotlib.ticker import MaxNLocator
+
     artist = ax.scatter(points[:, 0], points[:, 1], points[:, 2], s=2, depthshade=False, **style)
-    ax.set_xlabel(f"{names[0]} [{unit}]")
-    ax.set_ylabel(f"{names[1]} [{unit}]")
-    ax.set_zlabel(f"{names[2]} [{unit}]")
+    for axis in (ax.xaxis, ax.yaxis, ax.zaxis):  # foreshortened 3D axes: few ticks, so labels never collide
+        axis.set_major_locator(MaxNLocator(3))
+    # The layout does not see 3D axis labels: a smaller box keeps them inside the figure.
+    ax.set_box_aspect(None, zoom=0.8)
+    # labelpad: clear of the tick labels, which 3D axes draw close to their label
+    ax.set_xlabel(f"{names[0]} [{unit}]", labelpad=18)
+    ax.set_ylabel(f"{names[1]} [{unit}]", labelpad=18)
+    ax.set_zlabel(f"{names[2]} [{unit}]", labelpad=18)
     return artist
 
 
@@ -242,7 +267,7 @@ def readings_space(data: Dataset, *, title: str = "") -> Figure:
     if len(labels) <= 20:
         handles, names = fig.axes[0].get_legend_handles_labels()
         fig.legend(handles, names, loc="outside right center", markerscale=4, title="group",
-                   fontsize="small")
+                   fontsize=SMALL_TEXT)
     fig.suptitle(title or "Measured F/T readings by group")
     return fig
 
@@ -254,7 +279,7 @@ def wrench_space(data: Dataset, *, title: str = "") -> Figure:
     :func:`readings_space` and :func:`temperature_effect`.
     """
     forces, torques = force_torque_columns(data.output_names)
-    panels = [(c, u) for c, u in ((forces, "N"), (torques, "Nm")) if c is not None]
+    panels = [(c, u) for c, u in ((forces, "N"), (torques, "N·m")) if c is not None]
     fig = new_figure(6.0 * len(panels) + 1.6, 5.6)
     idx = spread_indices(data.n_samples)
     groups = np.asarray(data.groups, dtype=str)[idx]
@@ -271,7 +296,7 @@ def wrench_space(data: Dataset, *, title: str = "") -> Figure:
     if len(labels) <= 20:
         handles, names = fig.axes[0].get_legend_handles_labels()
         fig.legend(handles, names, loc="outside right center", markerscale=4, title="group",
-                   fontsize="small")
+                   fontsize=SMALL_TEXT)
     fig.suptitle(title or "Expected wrench by group")
     return fig
 
@@ -306,7 +331,8 @@ def temperature_effect(data: Dataset, runs: Sequence[ModelRun], validation: Data
     temperature = data.inputs[idx, data_temperature]
     artist = _scatter3d(ax3d, data.inputs[np.ix_(idx, channels)], [data.input_names[c] for c in channels],
                         "reading", c=temperature, cmap="plasma")
-    fig.colorbar(artist, ax=ax3d, shrink=0.7, label=f"{data.input_names[data_temperature]} [°C]")
+    # pad: room between the 3D z label and the colour bar's label
+    fig.colorbar(artist, ax=ax3d, shrink=0.7, pad=0.12, label=f"{data.input_names[data_temperature]} [°C]")
     ax3d.set_title("measured force readings coloured by temperature")
 
     ax = fig.add_subplot(1, 2, 2)
@@ -331,7 +357,7 @@ def temperature_effect(data: Dataset, runs: Sequence[ModelRun], validation: Data
     ax.set_ylabel("mean predicted − expected force norm [N]")
     ax.set_title("validation force-norm error by temperature")
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize="x-small", loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    ax.legend(fontsize=SMALL_TEXT, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     fig.suptitle(title or "Temperature effect")
     return fig
 
@@ -348,7 +374,7 @@ def validation_curve(runs: Sequence[ModelRun], *, title: str = "") -> Figure:
         d = run.model.describe()
         configs.setdefault((d["na"], d["nb"]), []).append(run)
     panels = [(k, u, n) for k, u, n in (("force_norm_rmse", "N", "force norm"),
-                                        ("torque_norm_rmse", "Nm", "torque norm"))
+                                        ("torque_norm_rmse", "N·m", "torque norm"))
               if runs[0].validation_metrics.get(k) is not None]
     fig = new_figure(6.0 * len(panels), 4.4)
     axes = fig.subplots(1, len(panels), squeeze=False)[0]
@@ -362,15 +388,15 @@ def validation_curve(runs: Sequence[ModelRun], *, title: str = "") -> Figure:
             ax.plot(degrees, val, "o-", color=f"C{c}", label=f"validation{suffix}")
             for x, y in zip(degrees, val):
                 ax.annotate(f"{y:.3g}", (x, y), textcoords="offset points", xytext=(0, 6),
-                            ha="center", fontsize="x-small")
+                            ha="center", fontsize=SMALL_TEXT)
             if not np.all(np.isnan(train)):
                 ax.plot(degrees, train, "s--", mfc="none", color=f"C{c}", label=f"training{suffix}")
         ax.set_xlabel("polynomial degree np")
-        ax.set_ylabel(f"RMSE of {label} [{unit}]")
+        ax.set_ylabel(f"{METRIC_NAMES[key]} [{unit}]")
         ax.margins(y=0.12)
         ax.xaxis.get_major_locator().set_params(integer=True)
         ax.grid(True, alpha=0.3)
-        ax.legend(fontsize="small")
+        ax.legend(fontsize=SMALL_TEXT)
     fig.suptitle(title or "Validation curve (least squares)")
     return fig
 
@@ -403,10 +429,11 @@ def lasso_path(runs: Sequence[ModelRun], *, title: str = "") -> Figure:
                       label=f"np{degree} all coefficients")
     for ax in (ax_rmse, ax_nz):
         ax.set_xscale("log")
+        _plain_log_ticks(ax.xaxis)
         ax.set_xlabel("λ (normalized features)")
         ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize="small")
-    ax_rmse.set_ylabel(f"RMSE of {label}" + (f" [{unit}]" if unit else ""))
+        ax.legend(fontsize=SMALL_TEXT)
+    ax_rmse.set_ylabel(METRIC_NAMES.get(key, f"RMSE of {label}") + (f" [{unit}]" if unit else ""))
     ax_nz.set_ylabel("nonzero coefficients")
     ax_nz.set_ylim(bottom=0)
     fig.suptitle(title or "LASSO path")
@@ -441,11 +468,12 @@ def cross_validation_curve(cv: CrossValidationResult, *, title: str = "") -> Fig
             ax.plot([s.candidate.lam for s in members], [s.score for s in members], "o-", color=f"C{c}",
                     label=f"np{degree} {penalty}")
         ax.set_xscale("log")
+        _plain_log_ticks(ax.xaxis)
         ax.set_xlabel("λ (normalized features)")
         ax.set_ylabel(f"validation {cv.metric}{unit}")
         ax.set_title("penalized")
     for ax in fig.axes:
         ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize="small")
+        ax.legend(fontsize=SMALL_TEXT)
     fig.suptitle(title or f"Grouped cross-validation ({cv.n_folds} folds), best: {cv.best.label}")
     return fig

@@ -60,6 +60,11 @@ class _Section:
     title: str
     parts: list[str]
 
+    @property
+    def skipped(self) -> bool:
+        """Every part says why it was skipped: nothing to show."""
+        return all(part.startswith(_SKIPPED) for part in self.parts)
+
 
 def figure_html(fig, key: str, caption: str) -> str:
     """A matplotlib figure as an HTML ``<figure>`` with an embedded PNG.
@@ -84,8 +89,24 @@ def figure_html(fig, key: str, caption: str) -> str:
             f"<figcaption>{html.escape(caption)}</figcaption></figure>")
 
 
+_SKIPPED = '<p class="skipped">'
+
+
 def _skipped(text: str) -> str:
-    return f'<p class="skipped">{html.escape(text)}</p>'
+    return f"{_SKIPPED}{html.escape(text)}</p>"
+
+
+def _gather_skipped(sections: list[_Section]) -> list[_Section]:
+    """Sections with something to show, then one "Not shown" section saying why the others are not.
+
+    The contents then list only what the page shows.
+    """
+    shown = [s for s in sections if not s.skipped]
+    skipped = [s for s in sections if s.skipped]
+    if skipped:
+        shown.append(_Section("not-shown", f"Not shown ({len(skipped)})",
+                              [f"<h3>{html.escape(s.title)}</h3>\n" + "\n".join(s.parts) for s in skipped]))
+    return shown
 
 
 def _chunks(items: Sequence, size: int) -> list[list]:
@@ -146,9 +167,10 @@ def _sections(runs: list[ModelRun], validation: Dataset, train: Dataset | None,
         for k, chunk in enumerate(_chunks(members, MAX_RUNS_PER_FIGURE)):
             key = f"errors-{_slug(family)}" + (f"-{k + 1}" if k else "")
             parts.append(figure(
-                key, f"Validation error (expected − predicted) per axis of the {family} models, over the "
-                     "validation samples; the legend gives each model's BestFit on that axis. Grey vertical "
-                     "lines separate recordings. (Paper Figs 9 and 11.)",
+                key, f"Validation error (expected − predicted) of the {family} models over the validation "
+                     "samples: one panel per axis (rows) and model (columns), panels of an axis on one scale; "
+                     "each panel's title gives the model's BestFit on that axis. Grey vertical lines separate "
+                     "recordings. (Paper Figs 9 and 11.)",
                 lambda chunk=chunk, family=family: figures.validation_errors(
                     chunk, validation, colors=colors, title=f"Validation error: {family} models")))
     sections.append(_Section("errors", "Validation error per axis", parts))
@@ -163,8 +185,8 @@ def _sections(runs: list[ModelRun], validation: Dataset, train: Dataset | None,
                 key = f"norms-{_slug(family)}" + (f"-{k + 1}" if k else "")
                 parts.append(figure(
                     key, f"Norms of the force and torque predicted by the {family} models against the "
-                         "expected norms (left) and their difference, whose RMSE is the paper's "
-                         "'RMSE of force norm' (right). (Paper Figs 10 and 12.)",
+                         "expected norms (left) and their difference, whose RMSE is the force-norm RMSE "
+                         "(the paper's 'RMSE of force norm', right). (Paper Figs 10 and 12.)",
                     lambda chunk=chunk, family=family: figures.norm_comparison(
                         chunk, validation, colors=colors, title=f"Force and torque norms: {family} models")))
     sections.append(_Section("norms", "Force and torque norms", parts))
@@ -299,7 +321,7 @@ def build_report(runs: Sequence[ModelRun], validation: Dataset, out_path: str | 
     runs = list(runs)
     _check(runs, validation)
     with rc_context(STYLE):
-        sections = _sections(runs, validation, train, cv)
+        sections = _gather_skipped(_sections(runs, validation, train, cv))
     if notes:
         sections.append(_Section("notes", "Notes", ['<ul class="notes">' + "".join(
             f"<li>{html.escape(str(n))}</li>" for n in notes) + "</ul>"]))

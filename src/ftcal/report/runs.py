@@ -13,7 +13,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.dataset import Dataset
-from ..core.metrics import force_torque_columns
 from ..core.families import ModelFamily
 from ..runtime.errors import FtcalError
 
@@ -88,17 +87,6 @@ def expected_outputs(run: ModelRun, data: Dataset) -> np.ndarray:
     if missing:
         raise FtcalError(f"Model {run.name!r} predicts {', '.join(missing)}, which the validation data lacks.")
     return data.outputs[:, [index[n] for n in run.model.output_names_]]
-
-
-def output_units(names: Sequence[str]) -> list[str]:
-    """'N' for force outputs, 'Nm' for torque outputs, '' when the names do not say."""
-    forces, torques = force_torque_columns(names)
-    units = [""] * len(names)
-    for i in forces or ():
-        units[i] = "N"
-    for i in torques or ():
-        units[i] = "Nm"
-    return units
 
 
 def temperature_column(names: Sequence[str]) -> int | None:

@@ -14,14 +14,15 @@ import numpy as np
 
 from ..core.conversion import to_raw
 from ..core.dataset import Dataset
+from ..core.metrics import output_units
 from ..core.select import CrossValidationResult
-from .runs import ModelRun, natural_key, output_units, temperature_column
+from .runs import ModelRun, natural_key, temperature_column
 
 MISSING = "–"
 
 
 def format_metric(value: float | None) -> str:
-    """An error value (N, Nm) with 4 decimals, like the paper's tables; '–' when undefined."""
+    """An error value (N, N·m) with 4 decimals, like the paper's tables; '–' when undefined."""
     if value is None or not np.isfinite(value):
         return MISSING
     return f"{value:.4f}"
@@ -73,9 +74,9 @@ def runs_table(runs: Sequence[ModelRun]) -> str:
     arx = any(r.model.describe()["na"] or r.model.describe()["nb"] for r in runs)
     header = ["model", "solver", "degree"] + (["na", "nb"] if arx else []) + [
         "λ", "coefficients", "nonzero", "raw > 1e-9",
-        "train force-norm RMSE [N]", "train torque-norm RMSE [Nm]",
-        "validation force-norm RMSE [N]", "validation torque-norm RMSE [Nm]",
-        "validation force error-norm RMSE [N]", "samples out of range"]
+        "train force-norm RMSE [N]", "train torque-norm RMSE [N·m]",
+        "validation force-norm RMSE [N]", "validation torque-norm RMSE [N·m]",
+        "validation RMSE of the force error norm [N]", "samples out of range"]
     rows = []
     for run in runs:
         d = run.model.describe()
@@ -97,8 +98,9 @@ def runs_table(runs: Sequence[ModelRun]) -> str:
                                                          for run in runs])]
     return html_table(header, rows, bold=bold, cls="runs",
                       caption="Models on the validation data (best validation value in bold). "
-                              "Norm RMSE is the RMSE of ‖y‖ − ‖ŷ‖ as in the paper; error-norm RMSE is "
-                              "the RMSE of ‖y − ŷ‖. Nonzero counts exact nonzero coefficients (normalized basis); "
+                              "Force-norm RMSE is the RMSE of ‖f‖ − ‖f̂‖ (the paper's 'RMSE of force norm'); "
+                              "the RMSE of the force error norm is sqrt(mean ‖f − f̂‖²), direction errors "
+                              "included (docs/metrics.md). Nonzero counts exact nonzero coefficients (normalized basis); "
                               "raw > 1e-9 is the paper's count, of raw-input coefficients above 1e-9.")
 
 

@@ -1,0 +1,187 @@
+"""Inputs outside the training range: which channels, how far, and what it did to the error.
+
+A model extrapolates where an input leaves the box its training data spanned. How far
+is measured in units of that channel's training span (``high − low``), so 0.1 means
+"10 % of the training range beyond its edge". :class:`RangeSums` adds up, block by
+block, what one warning needs to say it once per command: the count per channel, the
+largest excursion per channel and, when the reference wrench is known, the force- and
+torque-norm errors of the samples inside and outside the range (docs/metrics.md).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import metrics
+
+# Relative slack at the range edges: values within it of an edge count as inside (rounding).
+RANGE_TOLERANCE = 1e-9
+
+
+def range_widths(input_range: np.ndarray) -> np.ndarray:
+    """The training span of each input, ``high − low``; 1 for a constant input (no span to compare to)."""
+    width = input_range[:, 1] - input_range[:, 0]
+    return np.where(width > 0, width, 1.0)
+
+
+def outside_by_channel(inputs: np.ndarray, input_range: np.ndarray) -> np.ndarray:
+    """Boolean (n_samples, n_inputs): the input is outside its training range (beyond the slack)."""
+    low, high = input_range[:, 0], input_range[:, 1]
+    slack = RANGE_TOLERANCE * np.maximum(high - low, 1.0)
+    return (inputs < low - slack) | (inputs > high + slack)
+
+
+def excursions(inputs: np.ndarray, input_range: np.ndarray) -> np.ndarray:
+    """How far each input lies beyond its training range, in training spans; 0 inside.
+
+    Parameters
+    ----------
+    inputs : ndarray of shape (n_samples, n_inputs)
+    input_range : ndarray of shape (n_inputs, 2), columns (low, high)
+
+    Returns
+    -------
+    ndarray of shape (n_samples, n_inputs)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> excursions(np.array([[-1.0], [0.5], [3.0]]), np.array([[0.0, 2.0]])).ravel().tolist()
+    [0.5, 0.0, 0.5]
+    """
+    low, high = input_range[:, 0], input_range[:, 1]
+    beyond = np.maximum(np.maximum(low - inputs, inputs - high), 0.0)
+    return np.where(outside_by_channel(inputs, input_range), beyond / range_widths(input_range), 0.0)
+
+
+@dataclass
+class RangeSums:
+    """Additive out-of-range statistics of consecutive blocks of samples (``a + b``).
+
+    Attributes
+    ----------
+    n : samples seen
+    n_out : samples with at least one input outside the training range
+    count : ndarray (n_inputs,), samples outside the range per input
+    worst : ndarray (n_inputs,), largest excursion per input, in training spans
+    norm_sq_in, norm_sq_out : ndarray (2,)
+        Σ (‖v‖ − ‖v̂‖)² for forces and torques over the scored samples inside / outside
+        the range; NaN when the reference is unknown or the outputs hold no such triple.
+    n_scored_in, n_scored_out : int
+        The scored samples inside / outside the range (ARX metrics leave out each
+        segment's first max(na, nb) rows).
+    """
+
+    n: int
+    n_out: int
+    count: np.ndarray
+    worst: np.ndarray
+    norm_sq_in: np.ndarray
+    norm_sq_out: np.ndarray
+    n_scored_in: int = 0
+    n_scored_out: int = 0
+
+    @classmethod
+    def of(cls, inputs: np.ndarray, input_range: np.ndarray, y: np.ndarray | None = None,
+           prediction: np.ndarray | None = None, output_names: Sequence[str] = (),
+           scored: np.ndarray | None = None) -> "RangeSums":
+        """Statistics of one block.
+
+        Parameters
+        ----------
+        inputs : ndarray of shape (m, n_inputs)
+        input_range : ndarray of shape (n_inputs, 2)
+        y, prediction : ndarray of shape (m, n_outputs), optional
+            The reference and the prediction, for the error inside and outside the range.
+        output_names : names of the outputs, to find the force and torque triples
+        scored : boolean ndarray of shape (m,), optional
+            The rows the error counts (default all).
+        """
+        far = excursions(inputs, input_range)
+        outside = far > 0
+        any_out = outside.any(axis=1)
+        scored = np.ones(len(inputs), dtype=bool) if scored is None else scored
+        norm_in, norm_out = np.full(2, np.nan), np.full(2, np.nan)
+        if y is not None and prediction is not None:
+            for k, columns in enumerate(metrics.force_torque_columns(output_names)):
+                if columns is not None:
+                    d = np.linalg.norm(y[:, columns], axis=1) - np.linalg.norm(prediction[:, columns], axis=1)
+                    norm_in[k] = np.sum(d[scored & ~any_out] ** 2)
+                    norm_out[k] = np.sum(d[scored & any_out] ** 2)
+        worst = far.max(axis=0) if len(far) else np.zeros(inputs.shape[1])
+        return cls(len(inputs), int(any_out.sum()), outside.sum(axis=0), worst, norm_in, norm_out,
+                   int(np.sum(scored & ~any_out)), int(np.sum(scored & any_out)))
+
+    def __add__(self, other: "RangeSums") -> "RangeSums":
+        return RangeSums(self.n + other.n, self.n_out + other.n_out, self.count + other.count,
+                         np.maximum(self.worst, other.worst), self.norm_sq_in + other.norm_sq_in,
+                         self.norm_sq_out + other.norm_sq_out, self.n_scored_in + other.n_scored_in,
+                         self.n_scored_out + other.n_scored_out)
+
+    def summary(self, input_names: Sequence[str]) -> dict:
+        """JSON-ready: per input outside the range its count and largest excursion, and the split errors.
+
+        Keys: ``n_samples``, ``n_out_of_range``, ``inputs`` ({name: {"samples", "max_excursion"}},
+        only the inputs that leave the range), and, when the reference was known,
+        ``force_norm_rmse_in_range``, ``force_norm_rmse_out_of_range``, the torque
+        pair (None where undefined) and the scored sample counts ``n_scored_in_range``,
+        ``n_scored_out_of_range`` they average over.
+        """
+        out: dict = {"n_samples": self.n, "n_out_of_range": self.n_out,
+                     "inputs": {name: {"samples": int(c), "max_excursion": float(w)}
+                                for name, c, w in zip(input_names, self.count, self.worst) if c}}
+        for k, kind in enumerate(("force", "torque")):
+            for where, sums, rows in (("in_range", self.norm_sq_in, self.n_scored_in),
+                                      ("out_of_range", self.norm_sq_out, self.n_scored_out)):
+                value = sums[k]
+                out[f"{kind}_norm_rmse_{where}"] = (None if np.isnan(value) or rows == 0
+                                                    else float(np.sqrt(value / rows)))
+        out["n_scored_in_range"], out["n_scored_out_of_range"] = self.n_scored_in, self.n_scored_out
+        return out
+
+
+def describe(summary: dict) -> str | None:
+    """One sentence for a warning: how many samples, which inputs, how far, the error inside vs outside.
+
+    ``summary`` is :meth:`RangeSums.summary`; returns None when every sample is in range.
+
+    Examples
+    --------
+    >>> describe({"n_samples": 10, "n_out_of_range": 1,
+    ...           "inputs": {"T": {"samples": 1, "max_excursion": 0.25}}})
+    '1 of 10 samples has inputs outside the training range: T up to 25 % of its training span beyond it (1 sample); predictions there are extrapolations.'
+    """
+    n_out, n = summary["n_out_of_range"], summary["n_samples"]
+    if not n_out:
+        return None
+    effects = effect_text(summary)
+    return (f"{n_out} of {n} samples {'has' if n_out == 1 else 'have'} inputs outside the training range: "
+            f"{channel_text(summary)}; predictions there are extrapolations" + (f" ({effects})" if effects else "")
+            + ".")
+
+
+def channel_text(summary: dict) -> str:
+    """``"T up to 3.2 % of its training span beyond it (138 samples), u2 ..."``, farthest first."""
+    channels = sorted(summary["inputs"].items(), key=lambda item: -item[1]["max_excursion"])
+    return ", ".join(f"{name} up to {100 * info['max_excursion']:.2g} % of its training span beyond it "
+                     f"({plural(info['samples'], 'sample')})" for name, info in channels)
+
+
+def effect_text(summary: dict) -> str:
+    """The force- and torque-norm RMSE on the samples outside vs inside the range; "" without a reference."""
+    effects = []
+    for kind, unit in (("force", metrics.FORCE_UNIT), ("torque", metrics.TORQUE_UNIT)):
+        outside, inside = summary.get(f"{kind}_norm_rmse_out_of_range"), summary.get(f"{kind}_norm_rmse_in_range")
+        if outside is not None:
+            effects.append(f"{kind}-norm RMSE {outside:.4g} {unit} on them"
+                           + (f" vs {inside:.4g} {unit} on the {summary['n_scored_in_range']} inside"
+                              if inside is not None else ""))
+    return "; ".join(effects)
+
+
+def plural(count: int, noun: str) -> str:
+    """``"1 sample"``, ``"2 samples"``."""
+    return f"{count} {noun}{'' if count == 1 else 's'}"
