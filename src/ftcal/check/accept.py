@@ -176,7 +176,7 @@ def read_test_data(paths: Sequence[str | os.PathLike], model, *, payload=None, s
     from ..data.tables import numeric_columns, read_table
     from ..payload.compensate import contact_wrench
 
-    if not model.layout_.is_static:
+    if not model.is_static:
         raise FtcalError("ftcal check --accept takes static models (no ARX lags); evaluate ARX models with "
                          "ftcal evaluate.")
     if len(model.output_names_) != 6:

@@ -63,7 +63,7 @@ def range_summary(model, data, args) -> dict:
     rows = np.ones(data.n_samples, dtype=bool)
     if args.warmup == "drop":  # the rows the metrics score, as CalibrationModel.score
         for a, b in data.segment_bounds():
-            rows[a:a + model.layout_.max_lag] = False
+            rows[a:a + (0 if model.is_static else model.layout_.max_lag)] = False
     prediction = model.predict(data, mode=args.mode, start=args.start, warn_out_of_range=False)
     inputs = data.select_inputs(model.input_names_)
     y = data.outputs[:, [data.output_names.index(n) for n in model.output_names_]]
@@ -130,7 +130,7 @@ def run(args) -> int:
                 payload[other] = {k: summary[other][k] for k in JSON_KEYS if k in summary[other]}
         print_json(payload)
         return 0
-    if not model.layout_.is_static:  # which prediction the table scores (predict defaults to free-run)
+    if not model.is_static:  # which prediction the table scores (predict defaults to free-run)
         print(f"ARX model: metrics of {args.mode} prediction"
               + (" (measured past outputs, the paper's evaluation)" if args.mode == "one-step"
                  else f" from {args.start} history") + "; the other mode's norm RMSE is at the end")

@@ -38,7 +38,7 @@ def run(args) -> int:
 
     require_suffix(args.output, (".csv", ".parquet"), "-o")
     model = read_model(args.model)
-    if not model.layout_.is_static:
+    if not model.is_static:
         print(f"ARX model: {args.mode} prediction"
               + (f" from {args.start} history" if args.mode == "free-run" else " (measured past outputs)"),
               file=sys.stderr)

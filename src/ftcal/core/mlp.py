@@ -43,8 +43,9 @@ from ..runtime.threads import single_threaded_blas
 from . import metrics
 from .dataset import Dataset
 from .limits import MLP_ACTIVATIONS, MLP_MAX_ITER, MLP_MAX_LAYERS, MLP_MAX_UNITS
-from .model import RANGE_TOLERANCE, _as_dataset, _outputs_in_order
+from .model import _as_dataset, _outputs_in_order
 from .normalization import Normalization, normalization_from_range, variables_normalization, variables_range
+from .ranges import RangeSums, describe, outside_by_channel
 from .select import grouped_folds
 
 SOLVER_NAME = "mlp-lbfgs"
@@ -240,9 +241,7 @@ class MLPModel:
     def out_of_range(self, inputs: np.ndarray) -> np.ndarray:
         """Boolean mask of samples with any input outside the training range."""
         self._check_fitted()
-        low, high = self.input_range_[:, 0], self.input_range_[:, 1]
-        slack = RANGE_TOLERANCE * np.maximum(high - low, 1.0)
-        return np.any((inputs < low - slack) | (inputs > high + slack), axis=1)
+        return np.any(outside_by_channel(np.asarray(inputs, dtype=np.float64), self.input_range_), axis=1)
 
     def predict(self, data: Dataset | np.ndarray, *, mode: str = "free-run", start: str = "zeros",
                 warn_out_of_range: bool = True) -> np.ndarray:
@@ -261,11 +260,10 @@ class MLPModel:
         data = _as_dataset(data, None, self.input_names_)
         u = check_finite_matrix(data.select_inputs(self.input_names_), "inputs", len(self.input_names_),
                                 self.input_names_)
-        if warn_out_of_range:
-            n_out = int(self.out_of_range(u).sum())
-            if n_out:
-                warnings.warn(f"{n_out} of {len(u)} samples have inputs outside the training range; "
-                              "predictions there are extrapolations.", OutOfRangeWarning, stacklevel=2)
+        if warn_out_of_range:  # one message, how far on which channel (as the polynomial family says it)
+            message = describe(RangeSums.of(u, self.input_range_).summary(self.input_names_))
+            if message:
+                warnings.warn(message, OutOfRangeWarning, stacklevel=2)
         out = self.output_normalization_
         with single_threaded_blas():  # bit-identical reruns
             return out.offset + out.scale * _forward(self.input_normalization_.apply(u),
