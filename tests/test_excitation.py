@@ -92,14 +92,15 @@ def test_fit_on_one_rigid_tool_warns_and_flags_a_push_it_never_saw(tmp_path, cap
     assert model.out_of_span(push).all() and model.out_of_range(push).all()
     # the training samples themselves are inside
     assert not model.out_of_range(frame[INPUTS].to_numpy()).any()
-    with pytest.warns(OutOfRangeWarning, match="1 of 1 samples have inputs outside the training range "
-                                               r"\(1 of them outside the span of the training inputs"):
+    with pytest.warns(OutOfRangeWarning, match=r"1 of 1 sample\(s\) inside the training range lies outside the "
+                                               "span of the training inputs"):
         model.predict(push)
     pd.DataFrame(push, columns=INPUTS).to_csv(tmp_path / "push.csv", index=False)
     with warnings.catch_warnings():
         warnings.simplefilter("always", FtcalWarning)
         assert main(["predict", str(model_path), str(tmp_path / "push.csv"), "-o", str(tmp_path / "p.csv")]) == 0
-    assert "1 of 1 samples have inputs outside the training range" in capsys.readouterr().err
+    assert "1 of 1 sample(s) inside the training range lies outside the span of the training inputs" in \
+        capsys.readouterr().err
 
 
 def test_model_files_keep_the_span_and_old_files_check_the_range_only(tmp_path):

@@ -16,6 +16,21 @@ DEMO_NOTE = ("The files come from `ftcal demo --out ftcal-demo` (paper scenario:
              "tables, models/; arm scenario: the ROS 2 bag ftcal-demo/arm).")
 
 EXAMPLES = {
+    "plan": """\
+  # 30 poses of an iCub's torso and right arm, with and without a 2 kg plate on the forearm
+  ftcal plan --model iCubGenova11 --sensor r_arm_ft --load none --load r_forearm:2.0@-0.09,0,0.03 \\
+      --poses 30 --candidates 2000 -o ftcal-demo/icub-plan.csv
+  # 10 more for the plate's mass and centre of mass, on top of that plan, within narrower limits
+  ftcal plan --model iCubGenova11 --sensor r_arm_ft --load none --load r_forearm:2.0@-0.09,0,0.03 \\
+      --poses 10 --objective payload --joint-range torso_pitch:0:0.5 --fixed torso_yaw=0 --min-height 0.1 \\
+      --from ftcal-demo/icub-plan.csv --candidates 2000 -o ftcal-demo/icub-more.csv --html ftcal-demo/icub-more.html""",
+    "check": """\
+  # sign, axes, frame, zeroing and torque reference of the arm bag's table (made by `dataset` above)
+  ftcal check ftcal-demo/arm.parquet --orientation qx,qy,qz,qw
+  # acceptance of a calibration on held-out poses, kept in the sensor's history
+  ftcal check --accept ftcal-demo/models/np4-lasso50.json ftcal-demo/validation.parquet --group-by group \\
+      --max-error-percent 2 --serial SN001 --history-dir ftcal-demo/history
+  ftcal check --history SN001 --history-dir ftcal-demo/history""",
     "demo": """\
   # the paper's experiment, simulated: logs, tables, models, Tables II/III, report.html,
   # plus the arm scenario's ROS 2 bag in ftcal-demo/arm (about a minute; --quick: less data)

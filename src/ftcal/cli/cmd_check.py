@@ -5,25 +5,19 @@ from __future__ import annotations
 from ..core.limits import (FINDING_CONFIDENCE, MAX_COM_DISTANCE, MAX_FORCE_ERROR, MAX_TORQUE_ERROR,
                            MIN_HOLDS, MIN_ROTATION_DEG)
 from ._common import column_list, positive_float, require_suffix
+from ._examples import epilog
 from .cmd_payload import add_kinematics_options, add_robot_source_options
 
 MAX_POSES_PRINTED = 8
 
-EXAMPLES = """examples (after `ftcal demo --out ftcal-demo` and the README's arm steps):
-  ftcal check ftcal-demo/arm.parquet --orientation qx,qy,qz,qw
-  ftcal check --accept ftcal-demo/models/np4-lasso50.json ftcal-demo/validation.parquet --group-by group \\
-      --max-error-percent 2 --serial SN001 --history-dir ftcal-demo/history
-  ftcal check --history SN001 --history-dir ftcal-demo/history
-
-exit codes: 0 no finding / pass, 1 findings / fail, 2 bad input"""
+EXIT_CODES = "exit codes: 0 no finding / pass, 1 findings / fail, 2 bad input"
 
 
 def register(sub) -> None:
-    import argparse
 
     p = sub.add_parser(
         "check", help="is the sensor signed, mounted and zeroed as declared; does the installation pass",
-        formatter_class=argparse.RawDescriptionHelpFormatter, epilog=EXAMPLES,
+        **epilog("check", EXIT_CODES),
         description="Three modes. `ftcal check DATA`: from a few static holds at different orientations with "
                     "the tool attached, infer the sign (action/reaction), handedness, axis order, the rotation "
                     "between the data's frame and the declared sensor frame, a wrench already tared / "

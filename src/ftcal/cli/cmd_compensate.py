@@ -55,10 +55,11 @@ def run(args) -> int:
     if model is not None:  # one out-of-range warning for all the files
         import warnings
 
-        from ..core.ranges import RangeSums, describe
+        from ..core.ranges import RangeSums, describe, span_of
         from ..runtime.errors import OutOfRangeWarning
 
-        ranges = RangeSums.of(table[list(model.input_names_)].to_numpy(dtype=float), model.input_range_)
+        inputs = table[list(model.input_names_)].to_numpy(dtype=float)
+        ranges = RangeSums.of(inputs, model.input_range_, outside_span=span_of(model, inputs))
         message = describe(ranges.summary(model.input_names_))
         if message:
             warnings.warn(message, OutOfRangeWarning, stacklevel=2)

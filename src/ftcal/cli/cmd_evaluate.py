@@ -58,7 +58,7 @@ def range_summary(model, data, args) -> dict:
     """Which inputs left the training range, how far, and the error there (ARX models, data read whole)."""
     import numpy as np
 
-    from ..core.ranges import RangeSums
+    from ..core.ranges import RangeSums, span_of
 
     rows = np.ones(data.n_samples, dtype=bool)
     if args.warmup == "drop":  # the rows the metrics score, as CalibrationModel.score
@@ -67,8 +67,8 @@ def range_summary(model, data, args) -> dict:
     prediction = model.predict(data, mode=args.mode, start=args.start, warn_out_of_range=False)
     inputs = data.select_inputs(model.input_names_)
     y = data.outputs[:, [data.output_names.index(n) for n in model.output_names_]]
-    return RangeSums.of(inputs, model.input_range_, y, prediction, model.output_names_,
-                        scored=rows).summary(model.input_names_)
+    return RangeSums.of(inputs, model.input_range_, y, prediction, model.output_names_, scored=rows,
+                        outside_span=span_of(model, inputs)).summary(model.input_names_)
 
 
 def evaluate_streaming(args, model, training_segments) -> dict:

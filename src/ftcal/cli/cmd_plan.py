@@ -6,16 +6,10 @@ import argparse
 
 from ..core.limits import MAX_DEGREE, PLAN_DEFAULTS, PLAN_OBJECTIVES
 from ._common import finite_float, nonnegative_int, require_suffix
+from ._examples import epilog
 from .cmd_sensors import add_robot_arguments, load_robot
 
-EXAMPLE = """examples:
-  ftcal plan --model iCubGenova11 --sensor r_arm_ft --load none --load r_forearm:2.0@-0.09,0,0.03 \\
-      --poses 30 --candidates 2000 -o ftcal-demo/icub-plan.csv
-  ftcal plan --model iCubGenova11 --sensor r_arm_ft --load none --load r_forearm:2.0@-0.09,0,0.03 \\
-      --poses 10 --objective payload --joint-range torso_pitch:0:0.5 --fixed torso_yaw=0 --min-height 0.1 \\
-      --from ftcal-demo/icub-plan.csv --candidates 2000 -o ftcal-demo/icub-more.csv --html ftcal-demo/icub-more.html
-
-ftcal does NO collision checking: check every pose on your robot before running it."""
+PLAN_NOTE = "No collision checking: ftcal checks no pose against obstacles; check every pose on your robot before running it."
 
 
 def positive_int(text: str) -> int:
@@ -61,7 +55,7 @@ def register(subparsers) -> None:
                     "once, short joint travel, a return to a reference pose every few poses so drift can be "
                     "measured. ftcal does NO collision checking: the only safety limits are the joint limits, "
                     "--joint-range, --fixed and --min-height; check every pose before running it.",
-        epilog=EXAMPLE, formatter_class=argparse.RawDescriptionHelpFormatter)
+        **epilog("plan", PLAN_NOTE))
     add_robot_arguments(parser)
     parser.add_argument("--sensor", metavar="NAME", help="F/T sensor (sensor or joint name; default: the only one)")
     parser.add_argument("--load", metavar="SPEC", action="append", default=[],

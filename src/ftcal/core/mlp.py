@@ -17,7 +17,7 @@ cases held out, never random samples): the network is trained on each fold's
 complement with a checkpoint every ``check_every`` iterations, the iteration
 count with the lowest mean held-out score is kept, and the final network is
 trained on all the data for that many iterations. The held-out scores are the
-selection's (force error-norm RMSE, or mean RMSE without a wrench), so they
+selection's (RMSE of the force error norm, or mean RMSE without a wrench), so they
 compare with ``ftcal fit --degree auto``'s table.
 
 Why numpy + scipy and not scikit-learn or a deep-learning framework: this needs
@@ -229,7 +229,7 @@ class MLPModel:
                 table[f, c] = _fold_score(data.outputs[held_out], prediction, forces)
         mean = table.mean(axis=0)
         best = int(np.argmin(mean))
-        return {"metric": "force error-norm RMSE" if forces is not None else "mean RMSE",
+        return {"metric": "RMSE of the force error norm" if forces is not None else "mean RMSE",
                 "n_folds": len(folds), "iterations": checkpoints[best], "checkpoints": checkpoints,
                 "mean_scores": mean.tolist(), "fold_scores": table[:, best].tolist()}
 
@@ -446,7 +446,7 @@ def _train(x: np.ndarray, t: np.ndarray, sizes: Sequence[int], start: np.ndarray
 
 
 def _fold_score(y: np.ndarray, prediction: np.ndarray, forces) -> float:
-    """The selection's score: force error-norm RMSE, or the mean RMSE over outputs without a wrench."""
+    """The selection's score: RMSE of the force error norm, or the mean RMSE over outputs without a wrench."""
     mse = np.mean((y - prediction) ** 2, axis=0)
     if forces is not None:
         return float(np.sqrt(mse[forces].sum()))

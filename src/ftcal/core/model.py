@@ -553,7 +553,8 @@ class CalibrationModel:
         u = check_finite_matrix(data.select_inputs(self.input_names_), "inputs",
                                 len(self.input_names_), self.input_names_)
         if warn_out_of_range:
-            self._warn_out_of_range(RangeSums.of(u, self.input_range_), stacklevel=3, inputs=u)
+            self._warn_out_of_range(RangeSums.of(u, self.input_range_, outside_span=self.out_of_span(u)),
+                                    stacklevel=3)
         if self.layout_.is_static:
             return self._predict_static(u)
         u_norm = self.input_normalization_.apply(u)
@@ -566,14 +567,9 @@ class CalibrationModel:
                                                              mode, start)
                                    for a, b in data.segment_bounds()])
 
-    def _warn_out_of_range(self, ranges: RangeSums, stacklevel: int, inputs: np.ndarray | None = None) -> None:
+    def _warn_out_of_range(self, ranges: RangeSums, stacklevel: int) -> None:
         """One warning for one cause: inputs outside the training range, and those outside its span."""
         message = describe(ranges.summary(self.input_names_))
-        n_span = 0 if inputs is None else int((self.out_of_span(inputs)
-                                               & ~np.any(outside_by_channel(inputs, self.input_range_), axis=1)).sum())
-        if n_span:
-            span = out_of_span_text(n_span, len(inputs))
-            message = f"{message}; {span}" if message else span
         if message:
             warnings.warn(message, OutOfRangeWarning, stacklevel=stacklevel)
 
@@ -705,7 +701,8 @@ class CalibrationModel:
         summary["n_out_of_range"] = int(self.out_of_range(inputs).sum())
         if warn_out_of_range and summary["n_out_of_range"]:
             self._warn_out_of_range(RangeSums.of(inputs, self.input_range_, y, prediction, self.output_names_,
-                                                 scored=rows), stacklevel=3, inputs=inputs)
+                                                 scored=rows, outside_span=self.out_of_span(inputs)),
+                                    stacklevel=3)
         if not self.layout_.is_static and data.outputs is not None:
             other = "free-run" if mode == "one-step" else "one-step"
             second = self.predict(data, mode=other, start=start, warn_out_of_range=False)
@@ -794,13 +791,6 @@ class CalibrationModel:
             "n_nonzero": int(np.count_nonzero(self.coef_)),
         }
 
-
-def out_of_span_text(n_span: int, n_samples: int) -> str:
-    """How many samples lie inside the training range but outside the span of the training inputs."""
-    verb = "lies" if n_span == 1 else "lie"
-    return (f"{n_span} of {n_samples} sample(s) inside the training range {verb} outside the span of the training "
-            "inputs (combinations of inputs the training data never had, e.g. a load direction its loads and poses "
-            "lacked); predictions there are extrapolations")
 
 
 def _as_dataset(data, outputs=None, input_names: Sequence[str] | None = None) -> Dataset:

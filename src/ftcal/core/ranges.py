@@ -83,11 +83,12 @@ class RangeSums:
     norm_sq_out: np.ndarray
     n_scored_in: int = 0
     n_scored_out: int = 0
+    n_span: int = 0  # samples inside the range but outside the span of the training inputs
 
     @classmethod
     def of(cls, inputs: np.ndarray, input_range: np.ndarray, y: np.ndarray | None = None,
            prediction: np.ndarray | None = None, output_names: Sequence[str] = (),
-           scored: np.ndarray | None = None) -> "RangeSums":
+           scored: np.ndarray | None = None, outside_span: np.ndarray | None = None) -> "RangeSums":
         """Statistics of one block.
 
         Parameters
@@ -99,6 +100,9 @@ class RangeSums:
         output_names : names of the outputs, to find the force and torque triples
         scored : boolean ndarray of shape (m,), optional
             The rows the error counts (default all).
+        outside_span : boolean ndarray of shape (m,), optional
+            The rows outside the span of the training inputs (:func:`span_of`); those also
+            outside the range are counted there only.
         """
         far = excursions(inputs, input_range)
         outside = far > 0
@@ -112,14 +116,15 @@ class RangeSums:
                     norm_in[k] = np.sum(d[scored & ~any_out] ** 2)
                     norm_out[k] = np.sum(d[scored & any_out] ** 2)
         worst = far.max(axis=0) if len(far) else np.zeros(inputs.shape[1])
+        n_span = 0 if outside_span is None else int(np.sum(outside_span & ~any_out))
         return cls(len(inputs), int(any_out.sum()), outside.sum(axis=0), worst, norm_in, norm_out,
-                   int(np.sum(scored & ~any_out)), int(np.sum(scored & any_out)))
+                   int(np.sum(scored & ~any_out)), int(np.sum(scored & any_out)), n_span)
 
     def __add__(self, other: "RangeSums") -> "RangeSums":
         return RangeSums(self.n + other.n, self.n_out + other.n_out, self.count + other.count,
                          np.maximum(self.worst, other.worst), self.norm_sq_in + other.norm_sq_in,
                          self.norm_sq_out + other.norm_sq_out, self.n_scored_in + other.n_scored_in,
-                         self.n_scored_out + other.n_scored_out)
+                         self.n_scored_out + other.n_scored_out, self.n_span + other.n_span)
 
     def summary(self, input_names: Sequence[str]) -> dict:
         """JSON-ready: per input outside the range its count and largest excursion, and the split errors.
@@ -140,6 +145,7 @@ class RangeSums:
                 out[f"{kind}_norm_rmse_{where}"] = (None if np.isnan(value) or rows == 0
                                                     else float(np.sqrt(value / rows)))
         out["n_scored_in_range"], out["n_scored_out_of_range"] = self.n_scored_in, self.n_scored_out
+        out["n_outside_span"] = self.n_span
         return out
 
 
@@ -154,13 +160,30 @@ def describe(summary: dict) -> str | None:
     ...           "inputs": {"T": {"samples": 1, "max_excursion": 0.25}}})
     '1 of 10 samples has inputs outside the training range: T up to 25 % of its training span beyond it (1 sample); predictions there are extrapolations.'
     """
-    n_out, n = summary["n_out_of_range"], summary["n_samples"]
-    if not n_out:
-        return None
-    effects = effect_text(summary)
-    return (f"{n_out} of {n} samples {'has' if n_out == 1 else 'have'} inputs outside the training range: "
-            f"{channel_text(summary)}; predictions there are extrapolations" + (f" ({effects})" if effects else "")
-            + ".")
+    n_out, n, n_span = summary["n_out_of_range"], summary["n_samples"], summary.get("n_outside_span", 0)
+    parts = []
+    if n_out:
+        effects = effect_text(summary)
+        parts.append(f"{n_out} of {n} samples {'has' if n_out == 1 else 'have'} inputs outside the training range: "
+                     f"{channel_text(summary)}; predictions there are extrapolations"
+                     + (f" ({effects})" if effects else ""))
+    if n_span:
+        parts.append(out_of_span_text(n_span, n))
+    return "; ".join(parts) + "." if parts else None
+
+
+def out_of_span_text(n_span: int, n_samples: int) -> str:
+    """How many samples lie inside the training range but outside the span of the training inputs."""
+    verb = "lies" if n_span == 1 else "lie"
+    return (f"{n_span} of {n_samples} sample(s) inside the training range {verb} outside the span of the training "
+            "inputs (combinations of inputs the training data never had, e.g. a load direction its loads and poses "
+            "lacked); predictions there are extrapolations")
+
+
+def span_of(model, inputs: np.ndarray) -> np.ndarray | None:
+    """The model's out-of-span mask where its family records the training inputs' spread, else None."""
+    check = getattr(model, "out_of_span", None)
+    return None if check is None else check(inputs)
 
 
 def channel_text(summary: dict) -> str:

@@ -209,9 +209,9 @@ class Scorer:
     @property
     def metric(self) -> str:
         if self.objective != "both":
-            return f"{self.objective} error-norm RMSE ({UNITS[self.objective]})"
-        if len(self.blocks) == 2:
-            return "force and torque error-norm RMSE relative to affine (mean of the two)"
+            return f"RMSE of the {self.objective} error norm ({UNITS[self.objective]})"
+        if len(self.blocks) == 2:  # the mean of the force and the torque block's ratio to the affine model's
+            return "error vs affine (force & torque)"
         return "mean RMSE"
 
     def block(self, mse: np.ndarray, columns: Sequence[int]) -> np.ndarray:

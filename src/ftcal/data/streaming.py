@@ -23,7 +23,7 @@ from ..core import metrics
 from ..core.excitation import Spread
 from ..core.features import MonomialBasis, RegressorLayout
 from ..core.normalization import Normalization
-from ..core.ranges import RangeSums
+from ..core.ranges import RangeSums, span_of
 from ..core.statistics import CHUNK_SAMPLES, StaticAccumulator, SufficientStatistics, sum_statistics
 from ..runtime.errors import FtcalError
 from ..runtime.threads import map_ranges
@@ -456,8 +456,10 @@ def file_error_sums(path: str, model, fingerprints: Sequence[dict] = (), mode: s
         def rows_sums(begin: int, end: int) -> ErrorSums:
             inputs, outputs = chunk.inputs[begin:end], chunk.outputs[begin:end]
             prediction = model.predict(inputs, warn_out_of_range=False)
-            ranges = RangeSums.of(inputs, model.input_range_, outputs, prediction, model.output_names_)
-            return ErrorSums.of(outputs, prediction, model.output_names_, ranges.n_out, ranges)
+            ranges = RangeSums.of(inputs, model.input_range_, outputs, prediction, model.output_names_,
+                                  outside_span=span_of(model, inputs))
+            # outside the range or its span: CalibrationModel.score's n_out_of_range
+            return ErrorSums.of(outputs, prediction, model.output_names_, ranges.n_out + ranges.n_span, ranges)
 
         # Overflowing predictions give inf/NaN metrics, which the command refuses in one line.
         with warnings.catch_warnings(), np.errstate(over="ignore", invalid="ignore"):
@@ -491,7 +493,7 @@ def _arx_error_sums(path: str, model, fingerprints: Sequence[dict], mode: str, s
         with np.errstate(over="ignore", invalid="ignore"):
             prediction = model.predict(data, mode=which, start=start, warn_out_of_range=False)
             ranges = RangeSums.of(data.inputs, model.input_range_, data.outputs, prediction, model.output_names_,
-                                  scored=rows)
+                                  scored=rows, outside_span=span_of(model, data.inputs))
             pair.append(ErrorSums.of(data.outputs[rows], prediction[rows], model.output_names_, n_out, ranges))
     pair[0].training_segments = frozenset(finder.found)
     if count_poses:
@@ -580,7 +582,7 @@ def predict_part(path: str, part: str, model, mode: str = "free-run", segment_by
             writer = writer or _part_writer(part, batch.schema)
             writer.write(batch)
             n_rows += len(prediction)
-            block = RangeSums.of(inputs, model.input_range_)
+            block = RangeSums.of(inputs, model.input_range_, outside_span=span_of(model, inputs))
             ranges = block if ranges is None else ranges + block
     finally:
         if writer is not None:
