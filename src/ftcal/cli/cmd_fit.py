@@ -38,8 +38,8 @@ default), per output, or one for the whole model, by grouped cross-validation, a
 (N) and torque (N.m) errors side by side against the affine model (--verbose: every candidate; the
 model file keeps the whole table under fit.solver.cross_validation). Lambda grids are relative, so
 they mean the same whatever the number of samples: LASSO lambda / lambda_max (the smallest lambda
-that zeroes every coefficient), ridge lambda / lambda_ref (trace(A'A)/p, the mean eigenvalue of the
-Gram matrix). It estimates its cost first and leaves out degrees over --budget.
+that zeroes every coefficient), ridge lambda / lambda_ref (the mean eigenvalue of the Gram matrix:
+its trace over p). It estimates its cost first and leaves out degrees over --budget.
 """
 
 
