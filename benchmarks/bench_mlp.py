@@ -1,6 +1,6 @@
 """The MLP family against a degree-4 polynomial on the same grouped data: fit time, predict time, held-out error.
 
-Data: :func:`benchmarks.cases.make_load_cases` (8 strain channels, 60 load cases, a mildly
+Data: :func:`benchmarks.load_cases.make_load_cases` (8 strain channels, 60 load cases, a mildly
 nonlinear inverse map). The last 12 load cases are held out; both models train on the
 other 48 and are scored on the held-out ones (force error-norm RMSE, N). The MLP fit
 includes its early stopping on 5 grouped folds (six L-BFGS runs); the polynomial is
@@ -15,7 +15,7 @@ import time
 def mlp_vs_polynomial(n: int, hidden: str = "32,32", max_iter: int = 400, degree: int = 4) -> dict:
     import numpy as np
 
-    from benchmarks.cases import make_load_cases
+    from benchmarks.load_cases import make_load_cases
     from ftcal.core.dataset import Dataset
     from ftcal.core.metrics import error_norm_rmse
     from ftcal.core.mlp import MLPModel

@@ -1,7 +1,7 @@
 """Which ``--select-per`` wins on load cases the selection never saw (held out before the search).
 
 ``python -m benchmarks.bench_select [N]``: the 8-channel load-case sensor of
-:func:`benchmarks.cases.make_load_cases` with 90 load cases; the search runs on 60 of them
+:func:`benchmarks.load_cases.make_load_cases` with 90 load cases; the search runs on 60 of them
 (grouped 5-fold CV inside), and each mode's refitted selection is scored on the other 30, force
 (N) and torque (N·m) error-norm RMSE, beside the affine model. Prints one JSON line per mode.
 """
@@ -15,7 +15,7 @@ import warnings
 
 import numpy as np
 
-from benchmarks.cases import make_load_cases
+from benchmarks.load_cases import make_load_cases
 
 
 def main(n: int = 30_000) -> None:
