@@ -194,7 +194,7 @@ def selection_section(sizes: dict) -> list[str]:
 
 def mlp_section(sizes: dict) -> list[str]:
     n = sizes["mlp_n"]
-    r = run_case("mlp_vs_polynomial", n=n)
+    r = run_case("mlp_vs_polynomial", n=n, hidden=sizes["mlp_hidden"], max_iter=sizes["mlp_iterations"])
     HEADLINE["mlp"] = (f"MLP {r['hidden']} fit {fmt_s(r['mlp_fit_s'])} (early stopping on 5 grouped folds) vs "
                        f"degree {r['degree']} {fmt_s(r['polynomial_fit_s'])}; prediction "
                        f"{r['mlp_predict_samples_per_s'] / 1e6:.2f} M vs "
@@ -230,6 +230,24 @@ def payload_section(sizes: dict) -> list[str]:
             f"{fmt_s(ours['seconds'])} | 1.0× | {ours['peak_rss_mb']:,.0f} MB |",
             f"| numpy: stacked 6N × 10 regressor + lstsq | {n:,} | {fmt_s(base['seconds'])} | "
             f"{base['seconds'] / ours['seconds']:.2f}× | {base['peak_rss_mb']:,.0f} MB |", *drift, ""]
+
+
+def plan_section(sizes: dict) -> list[str]:
+    n_poses, n_candidates = sizes["plan"]
+    rows = {objective: run_case("plan_design", n_poses=n_poses, n_candidates=n_candidates, objective=objective)
+            for objective in ("calibration", "payload")}
+    cal = rows["calibration"]
+    HEADLINE["plan"] = (f"`ftcal plan`, {n_poses} poses from {n_candidates:,} configurations × 4 loads: "
+                        f"{fmt_s(cal['seconds'])} (target ≤ 5 s); log det planned {cal['log_det_planned']:.1f} "
+                        f"against random {cal['log_det_random']:.1f}")
+    out = [f"## Experiment design: `ftcal plan`, {n_poses} poses from {n_candidates:,} configurations × 4 loads", "",
+           "| objective | candidate poses | time | candidates (iDynTree) | design | log det planned | "
+           "log det random | peak memory |", "|---|---:|---:|---:|---:|---:|---:|---:|"]
+    for objective, r in rows.items():
+        out.append(f"| {objective} | {r['n_candidate_poses']:,} | {fmt_s(r['seconds'])} | "
+                   f"{fmt_s(r['candidates_seconds'])} | {fmt_s(r['design_seconds'])} | {r['log_det_planned']:.1f} | "
+                   f"{r['log_det_random']:.1f} | {r['peak_rss_mb']:,.0f} MB |")
+    return out + [""]
 
 
 def c_section(sizes: dict) -> list[str]:
@@ -329,10 +347,11 @@ def scale_section(sizes: dict) -> list[str]:
 
 
 # One line per section; HEADLINE keys name the targets summary's rows.
-SECTIONS = (fit_section, cli_section, lasso_section, predict_section, selection_section, mlp_section, c_section,
+SECTIONS = (fit_section, cli_section, lasso_section, predict_section, selection_section, mlp_section, plan_section,
+            c_section,
             scaling_section, expected_section, payload_section, bag_section, scale_section)
 LABELS = {"fit": "Fit", "cli": "Whole-process fit", "lasso": "LASSO", "predict": "Prediction", "select": "Model selection",
-          "mlp": "MLP family",
+          "mlp": "MLP family", "plan": "Experiment design",
           "c": "Generated C", "expected": "Expected wrenches", "payload": "Payload identification",
           "bags": "Bag reading", "scale": "Streaming and Dask"}
 
@@ -340,13 +359,13 @@ FULL = {"fit_big": 1_000_000, "fit_mid": 100_000, "scaling_n": (10_000, 100_000,
         "degree_n": 100_000, "lasso_n": 200_000, "paper_lasso_n": 10_000, "predict_n": 2_000_000,
         "expected_n": 100_000, "expected_baseline_n": 10_000, "c_evals": 2_000_000, "python_calls": 2_000,
         "payload_n": 1_000_000, "bag_n": 500_000, "cli_n": 200_000, "cli_repeats": 5, "select_n": 74_000,
-        "mlp_n": 74_000,
+        "mlp_n": 20_000, "mlp_hidden": "16", "mlp_iterations": 200, "plan": (60, 10_000),
         "scale": (10, 1_000_000, 4)}
 QUICK = {"fit_big": 20_000, "fit_mid": 5_000, "scaling_n": (2_000, 10_000), "dense_max_n": 10_000,
          "degree_n": 5_000, "lasso_n": 5_000, "paper_lasso_n": 1_000, "predict_n": 100_000,
          "expected_n": 2_000, "expected_baseline_n": 500, "c_evals": 100_000, "python_calls": 200,
          "payload_n": 20_000, "bag_n": 20_000, "cli_n": 5_000, "cli_repeats": 1, "select_n": 6_000,
-         "mlp_n": 6_000,
+         "mlp_n": 6_000, "mlp_hidden": "8", "mlp_iterations": 50, "plan": (20, 1_000),
          "scale": (4, 50_000, 4)}
 
 
