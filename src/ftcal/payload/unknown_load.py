@@ -55,6 +55,7 @@ import numpy as np
 
 from ..core.dataset import Dataset
 from ..core.jackknife import block_edges, jackknife_covariance
+from ..core.limits import ROBUST_CLUSTERS
 from ..runtime.errors import FtcalError, IllPosedFitWarning
 from .regressor import INERTIAL_PARAMETERS
 
@@ -142,6 +143,13 @@ def estimate_payload(data: Dataset, payload: np.ndarray, link: str, *,
     ------
     FtcalError : shapes that do not match, too few samples, or a payload direction the
         data cannot identify (the message names it and says what to do).
+
+    Warns
+    -----
+    IllPosedFitWarning
+        Fewer than :data:`~ftcal.core.limits.ROBUST_CLUSTERS` blocks could be left out
+        (too few samples), a parameter with a standard error larger than itself, or a
+        mass that is not positive.
     """
     u, w = data.inputs, data.outputs
     y = np.asarray(payload, dtype=np.float64)
@@ -161,8 +169,6 @@ def estimate_payload(data: Dataset, payload: np.ndarray, link: str, *,
     kf = len(free)
     if n <= 6 + 1 + extra + kf:
         raise FtcalError(f"Too few samples ({n}) to estimate {kf} payload parameters with the sensor model.")
-    from ..core.limits import ROBUST_CLUSTERS
-
     edges = block_edges(n, ROBUST_CLUSTERS)
     blocks, scale = _moments(u, w, y, payload_mass, edges)
     moments = blocks.sum(axis=0)
@@ -190,12 +196,13 @@ def estimate_payload(data: Dataset, payload: np.ndarray, link: str, *,
         stderr, kind = curvature, "likelihood curvature (assumes independent samples)"
     else:
         stderr[free] = np.sqrt(np.clip(np.diag(jackknife), 0.0, None)) / scale
-        kind = f"grouped jackknife over {len(refits)} contiguous blocks of samples (time order in each file)"
+        kind = f"grouped jackknife over {len(refits)} contiguous blocks of samples (sample order: time in each recording)"
     if len(refits) < ROBUST_CLUSTERS:
+        consequence = "rough" if jackknife is not None else \
+            "from the likelihood curvature, too small when the samples are correlated"
         warnings.warn(f"Payload on {link}: only {len(refits)} of the {ROBUST_CLUSTERS} contiguous blocks of "
-                      f"samples can be left out ({n} samples); the standard errors are "
-                      f"{'rough' if jackknife is not None else 'from the likelihood curvature and too small when samples are correlated'}"
-                      f"; record more samples or poses.", IllPosedFitWarning, stacklevel=2)
+                      f"samples can be left out ({n} samples); the standard errors are {consequence}; record "
+                      "more samples or poses.", IllPosedFitWarning, stacklevel=2)
     if payload_mass is not None:
         values[0] = payload_mass
     vague = [names[j] for j in free if stderr[j] > abs(values[j])]
@@ -236,8 +243,10 @@ def _criterion(moments: np.ndarray, n: int, kf: int, extra: int):
         t = fixed + np.tensordot(theta, directions, 1)
         gram = t.T @ lead @ t
         cross = t.T @ cross_all
-        # pinv: at the start (no payload) the known wrench may vanish (nothing else beyond the sensor)
-        coefficients = np.linalg.pinv(gram, rcond=1e-12, hermitian=True) @ cross
+        try:
+            coefficients = np.linalg.solve(gram, cross)
+        except np.linalg.LinAlgError:  # at the start (no payload) the known wrench may vanish
+            coefficients = np.linalg.pinv(gram, rcond=1e-12, hermitian=True) @ cross
         residual = target - cross.T @ coefficients
         sign, logdet = np.linalg.slogdet(residual / n)
         if sign <= 0:
