@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.jackknife import block_edges, t_scale
 from ..runtime.errors import FtcalError
 from .accumulate import AxisStatistics, payload_statistics
 from .compensate import contact_wrench
@@ -147,8 +148,6 @@ def group_statistics(recording: PayloadRecording, *, dynamic: bool = False,
 def block_statistics(recording: PayloadRecording, n_blocks: int, *, dynamic: bool = False,
                      extra: np.ndarray | None = None) -> list[AxisStatistics]:
     """Payload statistics of ``n_blocks`` contiguous row blocks of equal size (clusters, held-out folds)."""
-    from ..core.jackknife import block_edges
-
     edges = block_edges(recording.n_samples, n_blocks)
     return [payload_statistics(recording.measured[a:b], recording.kinematics.rows(a, b), dynamic=dynamic,
                                extra=None if extra is None else extra[a:b])
@@ -412,7 +411,6 @@ def rebias(recording: PayloadRecording, payload: PayloadParameters) -> Rebias:
     """
     from ..core.limits import ROBUST_CLUSTERS
     from .compensate import payload_wrench
-    from ..core.jackknife import block_edges, t_scale
 
     residual = recording.measured - payload_wrench(payload, recording.kinematics)
     if payload.needs_temperature:
