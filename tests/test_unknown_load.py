@@ -66,6 +66,17 @@ def test_recovers_plate_mass_and_com_within_standard_errors(icub_plate):
     assert estimate.stderr[0] < 0.2  # the data pin the mass down to a few percent
 
 
+def test_independent_samples_jackknife_agrees_with_the_curvature(icub_plate):
+    # White noise, random pose order: both standard errors estimate the same spread. The
+    # jackknife over 20 blocks is itself uncertain by about 1/sqrt(2 * 19) = 16 %, and t-scaled
+    # by t(19)/z = 1.07; a refit that did not move (a stalled search) would make it far smaller.
+    data, y, _ = icub_plate
+    estimate = estimate_payload(data, y, "r_forearm")
+    assert estimate.stderr_kind.startswith("grouped jackknife over 20 contiguous blocks")
+    ratio = estimate.stderr / estimate.curvature_stderr
+    assert np.all((ratio > 0.7) & (ratio < 1.6)), ratio
+
+
 def test_same_calibration_as_with_the_true_payload(icub_plate):
     data, y, true = icub_plate
     model, estimate = fit_with_payload(data, y, "r_forearm")
@@ -177,6 +188,7 @@ def test_cli_fit_estimate_payload(tmp_path, icub_plate):
     mass_line = next(line for line in done.stdout.splitlines() if line.strip().startswith("m "))
     value, err = float(mass_line.split()[1]), float(mass_line.split()[3])
     assert abs(value - PLATE.mass) < 3 * err
+    assert "standard errors: grouped jackknife over 20 contiguous blocks of samples" in done.stdout
     from ftcal.files.model_json import load_model
 
     assert load_model(out).predict(data).shape == (len(y), 6)

@@ -193,6 +193,29 @@ def force_torque_columns(output_names: Sequence[str]) -> tuple[list[int] | None,
     return found_forces, found_torques
 
 
+def wrench_blocks(output_names: Sequence[str]) -> dict[str, list[int]]:
+    """The force and torque triples among the outputs by block name, those not found left out.
+
+    Examples
+    --------
+    >>> wrench_blocks(["Fx", "Fy", "Fz", "Tx", "Ty", "Tz"])
+    {'force': [0, 1, 2], 'torque': [3, 4, 5]}
+    """
+    forces, torques = force_torque_columns(output_names)
+    return {name: columns for name, columns in (("force", forces), ("torque", torques)) if columns}
+
+
+def block_error_norm_rmse(mse: np.ndarray, columns: Sequence[int]) -> np.ndarray:
+    """√Σ MSE over ``columns`` of the last axis: a block's error-norm RMSE from its outputs' mean squared errors.
+
+    Examples
+    --------
+    >>> block_error_norm_rmse(np.array([[9.0, 16.0, 1.0]]), [0, 1]).tolist()
+    [5.0]
+    """
+    return np.sqrt(np.asarray(mse)[..., list(columns)].sum(axis=-1))
+
+
 def output_units(output_names: Sequence[str]) -> list[str]:
     """N for the force outputs, N·m for the torque outputs, "" for others (found by :func:`force_torque_columns`).
 
@@ -202,10 +225,9 @@ def output_units(output_names: Sequence[str]) -> list[str]:
     ['N', 'N', 'N', 'N·m', 'N·m', 'N·m']
     """
     units = [""] * len(output_names)
-    forces, torques = force_torque_columns(output_names)
-    for columns, unit in ((forces, FORCE_UNIT), (torques, TORQUE_UNIT)):
-        for i in columns or ():
-            units[i] = unit
+    for name, columns in wrench_blocks(output_names).items():
+        for i in columns:
+            units[i] = FORCE_UNIT if name == "force" else TORQUE_UNIT
     return units
 
 
@@ -249,7 +271,6 @@ def summarize(y_true: np.ndarray, y_pred: np.ndarray, output_names: Sequence[str
     dict
         :data:`EVALUATION_KEYS` except ``n_out_of_range`` (the model adds it).
     """
-    forces, torques = force_torque_columns(output_names)
     summary: dict = {
         "n_samples": int(y_true.shape[0]),
         "outputs": list(output_names),
@@ -262,12 +283,9 @@ def summarize(y_true: np.ndarray, y_pred: np.ndarray, output_names: Sequence[str
         "force_norm_rmse": None, "torque_norm_rmse": None,
         "force_error_norm_rmse": None, "torque_error_norm_rmse": None,
     }
-    if forces is not None:
-        summary["force_norm_rmse"] = norm_rmse(y_true[:, forces], y_pred[:, forces])
-        summary["force_error_norm_rmse"] = error_norm_rmse(y_true[:, forces], y_pred[:, forces])
-    if torques is not None:
-        summary["torque_norm_rmse"] = norm_rmse(y_true[:, torques], y_pred[:, torques])
-        summary["torque_error_norm_rmse"] = error_norm_rmse(y_true[:, torques], y_pred[:, torques])
+    for name, columns in wrench_blocks(output_names).items():
+        summary[f"{name}_norm_rmse"] = norm_rmse(y_true[:, columns], y_pred[:, columns])
+        summary[f"{name}_error_norm_rmse"] = error_norm_rmse(y_true[:, columns], y_pred[:, columns])
     return summary
 
 

@@ -199,8 +199,7 @@ class Scorer:
     def __init__(self, output_names: Sequence[str], objective: str = "both"):
         self.output_names = tuple(output_names)
         self.objective = check_choice(objective, "objective", "select_model", OBJECTIVES)
-        forces, torques = metrics.force_torque_columns(self.output_names)
-        self.blocks = {name: tuple(cols) for name, cols in (("force", forces), ("torque", torques)) if cols}
+        self.blocks = {name: tuple(cols) for name, cols in metrics.wrench_blocks(self.output_names).items()}
         if objective != "both" and objective not in self.blocks:
             raise FtcalError(f"objective={objective!r} needs {objective} outputs; the outputs are "
                              f"{', '.join(self.output_names)}.")
@@ -216,7 +215,7 @@ class Scorer:
 
     def block(self, mse: np.ndarray, columns: Sequence[int]) -> np.ndarray:
         """√Σ MSE over ``columns``, per fold: the error-norm RMSE of a block, or an output's RMSE."""
-        return np.sqrt(np.asarray(mse)[:, list(columns)].sum(axis=1))
+        return metrics.block_error_norm_rmse(mse, columns)
 
     def objective_folds(self, mse: np.ndarray) -> np.ndarray:
         mse = np.asarray(mse)

@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..core.jackknife import jackknife_covariance
 from ..core.limits import PAYLOAD_WEIGHTINGS
 from ..core.solvers.base import Conditioning, Spectrum
 from ..core.statistics import SufficientStatistics
@@ -266,18 +267,7 @@ def robust_covariance(wgram: np.ndarray, wcross: np.ndarray, clusters: Sequence[
         refit = _refit(wgram - c.gram(weights), wcross - c.cross(weights))
         if refit is not None:  # else this cluster alone identifies something: it cannot be left out
             refits.append(refit)
-    g = len(refits)
-    if g < 2:
-        return None
-    spread = np.array(refits) - np.mean(refits, axis=0)
-    return t_scale(g - 1) ** 2 * (g - 1) / g * (spread.T @ spread)
-
-
-def t_scale(dof: int) -> float:
-    """``t_{dof, 0.975} / z_{0.975}``: widens ±1.96 standard errors to a 95 % interval with ``dof`` degrees."""
-    from scipy.special import ndtri, stdtrit  # scipy.stats would cost a second of imports
-
-    return float(stdtrit(dof, 0.975) / ndtri(0.975))
+    return jackknife_covariance(refits)
 
 
 # An equilibrated Gram above this condition number has lost a direction (float64 keeps ~16 digits).

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.jackknife import block_edges, t_scale
 from ..runtime.errors import FtcalError
 from .accumulate import AxisStatistics, payload_statistics
 from .compensate import contact_wrench
@@ -147,8 +148,7 @@ def group_statistics(recording: PayloadRecording, *, dynamic: bool = False,
 def block_statistics(recording: PayloadRecording, n_blocks: int, *, dynamic: bool = False,
                      extra: np.ndarray | None = None) -> list[AxisStatistics]:
     """Payload statistics of ``n_blocks`` contiguous row blocks of equal size (clusters, held-out folds)."""
-    n = recording.n_samples
-    edges = np.linspace(0, n, min(n_blocks, n) + 1).astype(np.int64)
+    edges = block_edges(recording.n_samples, n_blocks)
     return [payload_statistics(recording.measured[a:b], recording.kinematics.rows(a, b), dynamic=dynamic,
                                extra=None if extra is None else extra[a:b])
             for a, b in zip(edges[:-1], edges[1:])]
@@ -411,7 +411,6 @@ def rebias(recording: PayloadRecording, payload: PayloadParameters) -> Rebias:
     """
     from ..core.limits import ROBUST_CLUSTERS
     from .compensate import payload_wrench
-    from .identify import t_scale
 
     residual = recording.measured - payload_wrench(payload, recording.kinematics)
     if payload.needs_temperature:
@@ -422,7 +421,7 @@ def rebias(recording: PayloadRecording, payload: PayloadParameters) -> Rebias:
     g = min(ROBUST_CLUSTERS, n)
     if g < 2:
         raise FtcalError("one sample cannot estimate the bias's uncertainty; record more samples.")
-    edges = np.linspace(0, n, g + 1).astype(np.int64)
+    edges = block_edges(n, g)
     sums = np.add.reduceat(residual - bias, edges[:-1], axis=0)
     stderr = t_scale(g - 1) * np.sqrt(g / (g - 1) * np.sum(sums ** 2, axis=0)) / n
     return Rebias(bias, stderr, f"cluster-robust ({g} contiguous blocks)")
