@@ -24,8 +24,19 @@ follows by the delta method from c = (m·c) / m.
 Excitation: a parameter the poses cannot separate from the others has a large
 variance inflation factor ``VIF_j = (G⁻¹)_jj G_jj`` on the weighted Gram G
 (1 for an orthogonal design). Above :data:`EXCITATION_LIMIT` ftcal warns,
-naming the parameter and the kind of pose that would excite it; a Gram of
-deficient rank is an error.
+naming the parameter and the kind of pose that would excite it.
+
+Rank-deficient poses (e.g. every pose keeps the sensor's z axis vertical, so the
+centre of mass along z never acts on the sensor): the null space of the
+equilibrated Gram gives the parameter combinations the poses do not determine
+(:class:`Undetermined`). Every parameter with a component in it is reported
+undetermined (no estimate, no standard error); to pick one solution, as many of
+them as the null space has dimensions are held at zero, centre-of-mass
+components first (the COM on the sensor's origin along that axis), then biases.
+The others are estimated on the remaining columns, with the same standard
+errors as a full fit (estimable combinations do not depend on that choice).
+When the mass itself (or a drift coefficient) is undetermined there is nothing
+to identify: that is an error.
 """
 
 from __future__ import annotations
@@ -39,7 +50,7 @@ import numpy as np
 from ..core.limits import PAYLOAD_WEIGHTINGS
 from ..core.solvers.base import Conditioning, Spectrum
 from ..core.statistics import SufficientStatistics
-from ..runtime.errors import FtcalError, IllPosedFitWarning
+from ..runtime.errors import FtcalError, IllPosedFitWarning, UndeterminedWarning
 from .accumulate import AxisStatistics
 from .regressor import DYNAMIC_PARAMETERS, STATIC_PARAMETERS, inertia_about_com, inertia_matrix
 
@@ -74,6 +85,39 @@ SIGNIFICANT_STDERR = 2.0
 LABELS = {"m": "mass", "mcx": "com x", "mcy": "com y", "mcz": "com z",
           "Fx_bias": "force bias x", "Fy_bias": "force bias y", "Fz_bias": "force bias z",
           "Tx_bias": "torque bias x", "Ty_bias": "torque bias y", "Tz_bias": "torque bias z"}
+
+
+# A parameter whose row of the (orthonormal, equilibrated) null basis exceeds this has a component
+# in an undetermined direction; rounding leaves ~eps / (smallest kept eigenvalue) in determined rows.
+NULL_ROW = 1e-6
+# Which undetermined parameters are held at zero first: the centre of mass (its component along a
+# direction gravity never crosses), then the inertia, torque and force biases. The mass is never held.
+_HOLD_ORDER = (("mcx", "mcy", "mcz"), ("Ixx", "Ixy", "Ixz", "Iyy", "Iyz", "Izz"),
+               ("Tx_bias", "Ty_bias", "Tz_bias"), ("Fx_bias", "Fy_bias", "Fz_bias"))
+
+
+@dataclass(frozen=True)
+class Undetermined:
+    """Parameter combinations the poses do not determine, and how one solution was picked.
+
+    Attributes
+    ----------
+    names : parameter names of θ that ``directions`` refer to (static or dynamic set, no covariates)
+    parameters : the parameters with a component in an undetermined direction (not determined)
+    held : the parameters held at zero to pick one solution (a subset of ``parameters``)
+    directions : ndarray of shape (len(names), k)
+        Basis of the regressor's null space in θ units, scaled so that ``directions[held] = I``:
+        adding any combination of the columns to θ leaves every recorded pose's wrench unchanged.
+    rank : rank of the regressor (``len(names) − k``)
+    message : what is not determined and what to record, in words
+    """
+
+    names: tuple[str, ...]
+    parameters: tuple[str, ...]
+    held: tuple[str, ...]
+    directions: np.ndarray
+    rank: int
+    message: str
 
 
 @dataclass(frozen=True)
@@ -113,6 +157,7 @@ class PayloadFit:
     weighting_evidence: str = ""  # why, in words
     stderr_kind: str = "classical"  # "classical", "cluster-robust (G blocks)" or "state-space"
     covariates: dict = field(default_factory=dict)  # name -> (coefficients (6,), stderr (6,)) per unit
+    undetermined: Undetermined | None = None  # what the poses do not determine (None: everything is)
 
     @property
     def dynamic(self) -> bool:
@@ -121,13 +166,6 @@ class PayloadFit:
 
 def _solve(gram: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     return Conditioning.of(gram).solve(rhs[:, None])[:, 0]
-
-
-def _null_parameters(gram: np.ndarray, names: tuple[str, ...]) -> list[str]:
-    spectrum = Spectrum.of(gram)
-    weak = spectrum.vectors[:, spectrum.values <= spectrum.rank_threshold()]
-    involved = np.abs(weak).max(axis=1) > 0.1 if weak.size else np.zeros(len(names), bool)
-    return [names[j] for j in np.flatnonzero(involved)]
 
 
 def _describe(names) -> str:
@@ -182,13 +220,17 @@ def identify_payload(groups: Mapping[str, AxisStatistics], *, cross_validate: bo
     n = total.n_samples
     if 6 * n <= p:
         raise FtcalError(f"{n} sample(s) give {6 * n} equations for {p} unknowns; record more poses.")
-    gram = total.gram()
-    conditioning = Conditioning.of(gram)
-    if conditioning.rank < p:
-        missing = _null_parameters(gram, names)
-        hints = sorted({_HINTS.get(m, _COVARIATE_HINT) for m in missing})
-        raise FtcalError(f"the poses leave {_describe(missing)} undetermined (regressor rank "
-                         f"{conditioning.rank} of {p}): {'; '.join(hints)}.")
+    undetermined = find_undetermined(total.gram(), names, len(base))
+    keep = np.arange(p)
+    if undetermined is not None:
+        warnings.warn(undetermined.message, UndeterminedWarning, stacklevel=2)
+        keep = np.array([j for j in range(p) if names[j] not in undetermined.held])
+        groups = {label: stats.take(keep) for label, stats in groups.items()}
+        clusters = [c.take(keep) for c in clusters]
+        total = total.take(keep)
+    full_names, full_p = names, p
+    names, p = tuple(names[j] for j in keep), len(keep)
+    conditioning = Conditioning.of(total.gram())
     theta0 = conditioning.solve(total.cross()[:, None])[:, 0]
     axis_variance = _axis_variance(total, theta0, n, p)
     folds = list(clusters) if len(clusters) > 1 else list(groups.values())
@@ -223,8 +265,12 @@ def identify_payload(groups: Mapping[str, AxisStatistics], *, cross_validate: bo
                       f"{np.sqrt(vif[j]):.0f}x by collinearity): {_HINTS.get(name, _COVARIATE_HINT)}.",
                       IllPosedFitWarning, stacklevel=2)
     rms = np.sqrt(total.residual_sum_of_squares(theta) / n)
-    fit = _derive(names, theta, covariance)
     residuals = _cross_validate(groups, total, weights, p) if cross_validate and len(groups) > 1 else ()
+    if undetermined is not None:  # back to every parameter: the held ones are zero, without variance
+        theta, covariance, vif = _expand(theta, keep, full_p), _expand(covariance, keep, full_p), \
+            _expand(vif, keep, full_p, np.inf)
+        names, p = full_names, full_p
+    fit = _derive(names, theta, covariance, undetermined)
     se = np.sqrt(np.maximum(np.diag(covariance), 0.0))
     found = {c: (theta[10 + 6 * k:16 + 6 * k] if base is STATIC_PARAMETERS else None,
                  se[10 + 6 * k:16 + 6 * k]) for k, c in enumerate(covariates)}
@@ -232,7 +278,119 @@ def identify_payload(groups: Mapping[str, AxisStatistics], *, cross_validate: bo
                       condition_number=Conditioning.of(wgram).condition_number,
                       variance_inflation=vif, poorly_excited=poorly, cross_validation=residuals,
                       weighting=weighting, weighting_evidence=evidence, stderr_kind=kind,
-                      covariates=found, **fit)
+                      covariates=found, undetermined=undetermined, **fit)
+
+
+def _expand(values: np.ndarray, keep: np.ndarray, p: int, fill: float = 0.0) -> np.ndarray:
+    """A vector or matrix over the kept parameters, put back among all ``p`` (``fill`` elsewhere)."""
+    if values.ndim == 1:
+        out = np.full(p, fill)
+        out[keep] = values
+        return out
+    out = np.full((p, p), fill)
+    out[np.ix_(keep, keep)] = values
+    return out
+
+
+def find_undetermined(gram: np.ndarray, names: tuple[str, ...], n_base: int) -> Undetermined | None:
+    """The parameter combinations a Gram matrix leaves undetermined, or None when it has full rank.
+
+    Parameters
+    ----------
+    gram : (p, p) Gram of the payload regressor
+    names : the p parameter names (static or dynamic set, then covariate coefficients)
+    n_base : how many of them are the static or dynamic set (the rest are covariate coefficients)
+
+    Returns
+    -------
+    Undetermined or None
+
+    Raises
+    ------
+    FtcalError
+        When the mass or a covariate coefficient is undetermined: nothing to identify a payload from
+        (the message names what the poses confound and what to record).
+    """
+    spectrum = Spectrum.of(gram)
+    null = spectrum.values <= spectrum.rank_threshold()
+    k = int(np.count_nonzero(null))
+    if k == 0:
+        return None
+    basis = spectrum.vectors[:, null]  # orthonormal, equilibrated metric
+    involved = np.linalg.norm(basis, axis=1) > NULL_ROW
+    parameters = tuple(names[j] for j in np.flatnonzero(involved))
+    rank = len(names) - k
+    if "m" in parameters or rank == 0:
+        others = [q for q in parameters if q != "m"]
+        raise FtcalError(f"the poses do not determine the mass (regressor rank {rank} of {len(names)}"
+                         + (f"; it is confounded with {_describe(others)}" if others else "")
+                         + f"): nothing to identify; {_GRAVITY_HINT}.")
+    if any(names.index(q) >= n_base for q in parameters):
+        drift = sorted({q.split("_", 1)[1] for q in parameters if names.index(q) >= n_base})
+        raise FtcalError(f"the poses leave the bias's {' and '.join(drift)} coefficients undetermined (regressor rank "
+                         f"{rank} of {len(names)}): {_COVARIATE_HINT}, or use --bias-drift none.")
+    held = _choose_held(basis, names)
+    # Directions in θ units, one per held parameter: moving it by 1 and the others along.
+    directions = spectrum.jacobi[:, None] * basis
+    directions = directions @ np.linalg.inv(directions[list(held)])
+    directions[~involved] = 0.0
+    held_names = tuple(names[j] for j in held)
+    return Undetermined(names[:n_base], parameters, held_names, directions[:n_base], rank,
+                        _undetermined_message(directions[:n_base], names[:n_base], parameters, held_names, rank))
+
+
+def _choose_held(basis: np.ndarray, names: tuple[str, ...]) -> list[int]:
+    """Which parameters to hold at zero, one per null direction, by :data:`_HOLD_ORDER` then largest pivot."""
+    remaining = basis.copy()
+    held: list[int] = []
+    for _ in range(basis.shape[1]):
+        for group in _HOLD_ORDER:
+            candidates = [j for j, name in enumerate(names) if name in group and j not in held]
+            scores = np.linalg.norm(remaining[candidates], axis=1) if candidates else np.zeros(0)
+            if scores.size and scores.max() > NULL_ROW:
+                j = candidates[int(np.argmax(scores))]
+                break
+        else:  # unreachable: the mass and covariates were refused, biases alone always have a pivot
+            raise FtcalError("the undetermined payload parameters could not be separated.")
+        held.append(j)
+        row = remaining[j] / np.linalg.norm(remaining[j])
+        remaining = remaining - np.outer(remaining @ row, row)
+    return held
+
+
+def _direction_words(u: np.ndarray) -> str:
+    """A unit vector in sensor axes, in words: an axis when it is one, else its components."""
+    k = int(np.argmax(np.abs(u)))
+    if abs(u[k]) > 0.999:
+        return f"the sensor's {'xyz'[k]} axis"
+    return "the sensor direction (" + ", ".join(f"{v:.2f}" for v in u / np.copysign(1.0, u[k])) + ")"
+
+
+def _undetermined_message(directions: np.ndarray, names: tuple[str, ...], parameters: tuple[str, ...],
+                          held: tuple[str, ...], rank: int) -> str:
+    """What the poses do not determine and the fix, for the warning and the payload file."""
+    at = names.index("Fx_bias")
+    parts = []
+    for c in range(directions.shape[1]):
+        v = directions[:, c]
+        com = v[1:4]
+        if np.linalg.norm(com) > NULL_ROW and np.all(np.abs(v[at:at + 6]) <= NULL_ROW * np.abs(v).max()):
+            where = _direction_words(com / np.linalg.norm(com))
+            parts.append(f"the centre of mass along {where} is not determined: gravity stays parallel to it in "
+                         f"every pose; tilt it by 30° or more from vertical in some poses")
+        elif np.linalg.norm(com) > NULL_ROW:
+            where = _direction_words(com / np.linalg.norm(com))
+            involved = [names[j] for j in np.flatnonzero(np.abs(v) > NULL_ROW * np.abs(v).max()) if j >= at]
+            parts.append(f"the centre of mass along {where} is confounded with the {_describe(involved)}: "
+                         f"gravity changes only along that direction between the poses; add poses that tilt it "
+                         f"by 30° or more")
+        else:
+            involved = [names[j] for j in np.flatnonzero(np.abs(v) > NULL_ROW * np.abs(v).max())]
+            parts.append(f"{_describe(involved)} are confounded: {_HINTS.get(involved[0], _GRAVITY_HINT)}")
+    return (f"the poses determine {rank} of {len(names)} payload parameter directions; "
+            + "; ".join(parts)
+            + f". Not determined: {_describe(parameters)} (reported as undetermined; {_describe(held)} held at 0 "
+            f"to pick one solution, so compensation is right only in poses like the recorded ones).")
 
 
 def _axis_variance(total: AxisStatistics, theta: np.ndarray, n: int, p: int) -> np.ndarray:
@@ -390,8 +548,12 @@ def check_mass_sign(fit: PayloadFit) -> None:
                          "no payload to identify (check the wrench columns and the orientation source).")
 
 
-def _derive(names: tuple[str, ...], theta: np.ndarray, cov: np.ndarray) -> dict:
-    """Mass, COM, biases, inertia about the COM and their standard errors from θ and cov(θ)."""
+def _derive(names: tuple[str, ...], theta: np.ndarray, cov: np.ndarray,
+            undetermined: Undetermined | None = None) -> dict:
+    """Mass, COM, biases, inertia about the COM and their standard errors from θ and cov(θ).
+
+    Standard errors of what ``undetermined`` names are NaN: they have no estimate, only a convention.
+    """
     se = np.sqrt(np.maximum(np.diag(cov), 0.0))
     mass, first = theta[0], theta[1:4]
     at = names.index("Fx_bias")
@@ -416,6 +578,33 @@ def _derive(names: tuple[str, ...], theta: np.ndarray, cov: np.ndarray) -> dict:
                                for j, e in enumerate(np.diag(step))])
         out["inertia"] = inertia_matrix(about_com(theta))
         out["stderr"]["inertia"] = inertia_matrix(np.sqrt(np.maximum(np.diag(jac @ cov @ jac.T), 0.0)))
+    if undetermined is not None:
+        fields = undetermined_fields(undetermined.parameters)
+        if at == 10 and "com" in fields:  # the inertia about the COM moves with it
+            fields["inertia"] = ()
+        for key, index in fields.items():
+            value = out["stderr"][key]
+            if key == "inertia":
+                out["stderr"][key] = np.full((3, 3), np.nan)
+            else:
+                value = np.array(value, dtype=float)
+                value[list(index)] = np.nan
+                out["stderr"][key] = value
+    return out
+
+
+_FIELDS = {"mcx": ("com", 0), "mcy": ("com", 1), "mcz": ("com", 2),
+           "Fx_bias": ("force_bias", 0), "Fy_bias": ("force_bias", 1), "Fz_bias": ("force_bias", 2),
+           "Tx_bias": ("torque_bias", 0), "Ty_bias": ("torque_bias", 1), "Tz_bias": ("torque_bias", 2)}
+
+
+def undetermined_fields(parameters: Sequence[str]) -> dict[str, tuple[int, ...]]:
+    """The payload fields (``com``, ``force_bias``, ``torque_bias``, ``inertia``) and components that
+    undetermined parameters make undetermined (any inertia parameter: the whole inertia)."""
+    out: dict[str, tuple[int, ...]] = {}
+    for name in parameters:
+        key, j = _FIELDS.get(name, ("inertia", -1))
+        out[key] = tuple(sorted(set(out.get(key, ())) | ({j} if j >= 0 else set())))
     return out
 
 
