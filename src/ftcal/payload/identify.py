@@ -500,7 +500,8 @@ def _choose_weighting(folds: list[AxisStatistics], total: AxisStatistics, p: int
 
 
 def model_fit(names: tuple[str, ...], theta: np.ndarray, covariance: np.ndarray, *, residual_rms: np.ndarray,
-              n_samples: int, stderr_kind: str, covariates: Sequence[str] = ()) -> PayloadFit:
+              n_samples: int, stderr_kind: str, covariates: Sequence[str] = (),
+              undetermined: Undetermined | None = None) -> PayloadFit:
     """A :class:`PayloadFit` from an estimate and its covariance made elsewhere (the state-space model).
 
     Parameters
@@ -511,22 +512,24 @@ def model_fit(names: tuple[str, ...], theta: np.ndarray, covariance: np.ndarray,
     n_samples : number of samples
     stderr_kind : how the covariance was estimated, in words
     covariates : names of the covariates
+    undetermined : what the poses do not determine (its held parameters have zero estimate and covariance)
 
     Returns
     -------
     PayloadFit
     """
     se = np.sqrt(np.diag(covariance))
-    correlation = covariance / se[:, None] / se[None, :]
+    keep = np.flatnonzero([undetermined is None or n not in undetermined.held for n in names])
+    correlation = covariance[np.ix_(keep, keep)] / se[keep, None] / se[None, keep]
     # GLS: the Gram is the inverse covariance, so VIF_j = cov_jj (cov⁻¹)_jj = (corr⁻¹)_jj.
-    vif = np.diag(np.linalg.inv(correlation))
+    vif = _expand(np.diag(np.linalg.inv(correlation)), keep, len(names), np.inf)
     found = {c: (theta[10 + 6 * k:16 + 6 * k], se[10 + 6 * k:16 + 6 * k]) for k, c in enumerate(covariates)}
     return PayloadFit(names, theta, covariance, residual_rms=residual_rms, n_samples=n_samples,
                       condition_number=float(np.linalg.cond(correlation)), variance_inflation=vif,
-                      poorly_excited=tuple(names[j] for j in np.flatnonzero(vif > EXCITATION_LIMIT)),
+                      poorly_excited=tuple(names[j] for j in keep if vif[j] > EXCITATION_LIMIT),
                       weighting="state-space", weighting_evidence="generalised least squares of the state-space "
                       "model (per-axis noise and walk variances by maximum likelihood)", stderr_kind=stderr_kind,
-                      covariates=found, **_derive(names, theta, covariance))
+                      covariates=found, undetermined=undetermined, **_derive(names, theta, covariance, undetermined))
 
 
 def check_mass_sign(fit: PayloadFit) -> None:

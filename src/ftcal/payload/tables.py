@@ -259,7 +259,10 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
         A time model without time, with ``dynamic``, a constant temperature, or data that cannot
         determine the model.
     """
+    import warnings
+
     from ..core.limits import BIAS_DRIFTS, DRIFT_BLOCK_SECONDS
+    from ..runtime.errors import UndeterminedWarning
     from .drift import BiasDrift, block_means, check_temperature, choose, covariates, fit_state_space
     from .identify import identify_payload
 
@@ -283,13 +286,14 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
     groups, clusters = _groups_and_blocks(recording, dynamic, extra)
     n_groups = len(groups)
     constant = identify_payload(groups, clusters=clusters, covariates=names, cross_validate=cross_validate)
+    held = () if constant.undetermined is None else constant.undetermined.held
     kind, selection = ("none", "") if bias_drift == "auto" and (hours is None or dynamic) else (bias_drift, "")
     fits = {}
     if hours is not None and not dynamic and kind in ("auto", "random-walk"):
         blocks = block_means(hours, recording.kinematics.gravity, recording.measured, temperature)
         for candidate in (("none", "linear", "random-walk") if kind == "auto" else ("random-walk",)):
             try:
-                fits[candidate] = fit_state_space(blocks, candidate, temperature is not None)
+                fits[candidate] = fit_state_space(blocks, candidate, temperature is not None, held)
             except FtcalError:
                 if kind != "auto":
                     raise
@@ -305,7 +309,9 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
     if kind == "linear":
         extra, names = covariates(hours, temperature)
         groups, clusters = _groups_and_blocks(recording, False, extra)
-        fit = identify_payload(groups, clusters=clusters, covariates=names, cross_validate=cross_validate)
+        with warnings.catch_warnings():  # the constant fit said what the poses do not determine
+            warnings.simplefilter("ignore", UndeterminedWarning)
+            fit = identify_payload(groups, clusters=clusters, covariates=names, cross_validate=cross_validate)
         slope = fit.theta[10:16]
         start = fit.theta[4:10]
         end_hours = hours[-1]
@@ -333,7 +339,7 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
         del residual
         fit = model_fit(ss.names, ss.theta, ss.covariance, residual_rms=rms, n_samples=recording.n_samples,
                         stderr_kind=f"state-space model ({len(blocks.count)} time blocks)",
-                        covariates=covariate_names)
+                        covariates=covariate_names, undetermined=constant.undetermined)
         fit = _with_end_bias(fit, ss.trajectory[-1], ss.end_stderr)
         change = ss.trajectory[-1] - ss.trajectory[0]
         walk = np.sqrt(ss.walk_variance)
@@ -377,6 +383,13 @@ def _static_wrench(theta: np.ndarray, gravity: np.ndarray) -> np.ndarray:
 def _with_end_bias(fit: PayloadFit, bias: np.ndarray, stderr: np.ndarray) -> PayloadFit:
     from dataclasses import replace
 
+    from .identify import undetermined_fields
+
+    stderr = np.array(stderr, dtype=float)
+    if fit.undetermined is not None:  # no standard error for what the poses do not determine
+        fields = undetermined_fields(fit.undetermined.parameters)
+        stderr[list(fields.get("force_bias", ()))] = np.nan
+        stderr[[3 + j for j in fields.get("torque_bias", ())]] = np.nan
     errors = dict(fit.stderr, force_bias=stderr[:3], torque_bias=stderr[3:])
     return replace(fit, force_bias=bias[:3], torque_bias=bias[3:], stderr=errors)
 
