@@ -325,8 +325,8 @@ def fit_state_space(blocks: Blocks, kind: str, temperature: bool = False, held: 
         Fewer blocks than unknowns, or a rank-deficient design.
     """
     full = _design(blocks, kind == "linear", temperature)
-    keep = np.array([j for j in range(full.shape[2]) if j >= 10 or STATIC_PARAMETERS[j] not in held])
-    x = full[:, :, keep]
+    kept = np.array([j for j in range(full.shape[2]) if j >= 10 or STATIC_PARAMETERS[j] not in held])
+    x = full[:, :, kept]
     n_blocks, _, n_beta = x.shape
     index, pad = _axis_columns(x)
     n_columns = (~pad).sum(axis=1)
@@ -373,9 +373,9 @@ def fit_state_space(blocks: Blocks, kind: str, temperature: bool = False, held: 
         log_lik += -0.5 * (n_blocks * np.log(2.0 * np.pi * r_ml) + log_f[j] + n_blocks)
     # Back to every parameter: the held ones are zero, without variance.
     theta_full = np.zeros(full.shape[2])
-    theta_full[keep] = theta
+    theta_full[kept] = theta
     covariance_full = np.zeros((full.shape[2],) * 2)
-    covariance_full[np.ix_(keep, keep)] = covariance
+    covariance_full[np.ix_(kept, kept)] = covariance
     theta, covariance, x = theta_full, covariance_full, full
     trajectory, end_var = _smooth(theta, x, blocks, ratio, steps, noise, kind == "linear")
     names = STATIC_PARAMETERS + tuple(f"{a}_{c}" for c in (["time"] if kind == "linear" else [])

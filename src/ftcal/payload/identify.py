@@ -386,7 +386,8 @@ def _undetermined_message(directions: np.ndarray, names: tuple[str, ...], parame
                          f"by 30° or more")
         else:
             involved = [names[j] for j in np.flatnonzero(np.abs(v) > NULL_ROW * np.abs(v).max())]
-            parts.append(f"{_describe(involved)} are confounded: {_HINTS.get(involved[0], _GRAVITY_HINT)}")
+            state = "is not determined" if len(involved) == 1 else "are confounded"
+            parts.append(f"{_describe(involved)} {state}: {_HINTS.get(involved[0], _GRAVITY_HINT)}")
     return (f"the poses determine {rank} of {len(names)} payload parameter directions; "
             + "; ".join(parts)
             + f". Not determined: {_describe(parameters)} (reported as undetermined; {_describe(held)} held at 0 "

@@ -17,7 +17,7 @@ import numpy as np
 
 from ..runtime.errors import FtcalError
 from .accumulate import AxisStatistics, payload_statistics
-from .compensate import contact_wrench
+from .compensate import contact_wrench, undetermined_samples, warn_undetermined
 from .drift import MAX_KNOTS, BiasDrift
 from .identify import PayloadFit, model_fit
 from .kinematics import Kinematics, KinematicsSource
@@ -189,8 +189,9 @@ def compensate_table(path: str | os.PathLike, payload: PayloadParameters, source
         When given, the measured wrench is its prediction from its input columns.
     time_column : time column (s) when the bias drifts in time; default the payload file's
     warn_out_of_range : bool
-        Let the model warn about inputs outside its training range (off when the caller
-        warns once for several tables).
+        Let the model warn about inputs outside its training range, and warn about samples outside
+        the span of the payload's identification poses (off when the caller warns once for several
+        tables: the count is then ``attrs["undetermined_samples"]`` of the result).
 
     Returns
     -------
@@ -213,10 +214,13 @@ def compensate_table(path: str | os.PathLike, payload: PayloadParameters, source
         time = numeric_columns(frame, (time_column or drift.time_column,), Path(path), "time")[:, 0]
     if payload.needs_temperature:
         temperature = numeric_columns(frame, (drift.temperature_column,), Path(path), "temperature")[:, 0]
-    contact = contact_wrench(measured, payload, source(frame, str(path)), time, temperature, str(path))
+    kinematics = source(frame, str(path))
+    contact = contact_wrench(measured, payload, kinematics, time, temperature, str(path), warn=warn_out_of_range)
     out = frame.copy()
     for j, name in enumerate(CONTACT_COLUMNS):
         out[name] = contact[:, j]
+    if not warn_out_of_range:  # the caller warns once: how many samples the undetermined parameters act on
+        out.attrs["undetermined_samples"] = undetermined_samples(payload, kinematics)
     return out
 
 
@@ -426,6 +430,8 @@ def rebias(recording: PayloadRecording, payload: PayloadParameters) -> Rebias:
     from .compensate import payload_wrench
     from .identify import t_scale
 
+    warn_undetermined(payload, undetermined_samples(payload, recording.kinematics), recording.n_samples,
+                      "the re-tare data")
     residual = recording.measured - payload_wrench(payload, recording.kinematics)
     if payload.needs_temperature:
         drift = payload.drift
