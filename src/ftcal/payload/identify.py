@@ -48,7 +48,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..core.limits import PAYLOAD_WEIGHTINGS
-from ..core.solvers.base import Conditioning, Spectrum
+from ..core.solvers.base import Conditioning
 from ..core.statistics import SufficientStatistics
 from ..runtime.errors import FtcalError, IllPosedFitWarning, UndeterminedWarning
 from .accumulate import AxisStatistics
@@ -90,6 +90,8 @@ LABELS = {"m": "mass", "mcx": "com x", "mcy": "com y", "mcz": "com z",
 # A parameter whose row of the (orthonormal, equilibrated) null basis exceeds this has a component
 # in an undetermined direction; rounding leaves ~eps / (smallest kept eigenvalue) in determined rows.
 NULL_ROW = 1e-6
+# A regressor column whose entries all stay below this fraction of its kind's scale is rounding, not data.
+ROUNDING_COLUMN = 1e-9
 # Which undetermined parameters are held at zero first: the centre of mass (its component along a
 # direction gravity never crosses), then the inertia, torque and force biases. The mass is never held.
 _HOLD_ORDER = (("mcx", "mcy", "mcz"), ("Ixx", "Ixy", "Ixz", "Iyy", "Iyz", "Izz"),
@@ -220,7 +222,7 @@ def identify_payload(groups: Mapping[str, AxisStatistics], *, cross_validate: bo
     n = total.n_samples
     if 6 * n <= p:
         raise FtcalError(f"{n} sample(s) give {6 * n} equations for {p} unknowns; record more poses.")
-    undetermined = find_undetermined(total.gram(), names, len(base))
+    undetermined = find_undetermined(total, names, len(base))
     keep = np.arange(p)
     if undetermined is not None:
         warnings.warn(undetermined.message, UndeterminedWarning, stacklevel=2)
@@ -292,12 +294,17 @@ def _expand(values: np.ndarray, keep: np.ndarray, p: int, fill: float = 0.0) -> 
     return out
 
 
-def find_undetermined(gram: np.ndarray, names: tuple[str, ...], n_base: int) -> Undetermined | None:
-    """The parameter combinations a Gram matrix leaves undetermined, or None when it has full rank.
+def find_undetermined(total: AxisStatistics, names: tuple[str, ...], n_base: int) -> Undetermined | None:
+    """The parameter combinations the regressor leaves undetermined, or None when it has full rank.
+
+    The Gram is equilibrated as usual (unit diagonal), except that a column whose entries are all
+    below :data:`ROUNDING_COLUMN` of its kind's scale (gravity for mass, first moment and inertia,
+    1 for the biases) is rounding, not data: the centre of mass along a sensor axis that gravity
+    never leaves (gravity read from quaternions has ~1e-16 g across it) is not determined.
 
     Parameters
     ----------
-    gram : (p, p) Gram of the payload regressor
+    total : the payload regressor's statistics
     names : the p parameter names (static or dynamic set, then covariate coefficients)
     n_base : how many of them are the static or dynamic set (the rest are covariate coefficients)
 
@@ -311,12 +318,19 @@ def find_undetermined(gram: np.ndarray, names: tuple[str, ...], n_base: int) -> 
         When the mass or a covariate coefficient is undetermined: nothing to identify a payload from
         (the message names what the poses confound and what to record).
     """
-    spectrum = Spectrum.of(gram)
-    null = spectrum.values <= spectrum.rank_threshold()
+    gram = total.gram()
+    maxabs = np.max([a.column_maxabs for a in total.axes], axis=0)
+    bias = np.array([name.endswith("_bias") for name in names])
+    scale = np.where(bias, 1.0, maxabs[0])  # the mass column holds gravity: the others' scale
+    scale[n_base:] = maxabs[n_base:]  # covariates: their own
+    diagonal = np.maximum(np.diag(gram), (ROUNDING_COLUMN * scale) ** 2 * total.n_samples)
+    jacobi = 1.0 / np.sqrt(np.where(diagonal > 0, diagonal, 1.0))
+    values, vectors = np.linalg.eigh(gram * jacobi[:, None] * jacobi[None, :])
+    null = values <= values[-1] * np.finfo(float).eps * max(len(names), 10) * 10  # as Spectrum.rank_threshold
     k = int(np.count_nonzero(null))
     if k == 0:
         return None
-    basis = spectrum.vectors[:, null]  # orthonormal, equilibrated metric
+    basis = vectors[:, null]  # orthonormal, equilibrated metric
     involved = np.linalg.norm(basis, axis=1) > NULL_ROW
     parameters = tuple(names[j] for j in np.flatnonzero(involved))
     rank = len(names) - k
@@ -331,7 +345,7 @@ def find_undetermined(gram: np.ndarray, names: tuple[str, ...], n_base: int) -> 
                          f"{rank} of {len(names)}): {_COVARIATE_HINT}, or use --bias-drift none.")
     held = _choose_held(basis, names)
     # Directions in θ units, one per held parameter: moving it by 1 and the others along.
-    directions = spectrum.jacobi[:, None] * basis
+    directions = jacobi[:, None] * basis
     directions = directions @ np.linalg.inv(directions[list(held)])
     directions[~involved] = 0.0
     held_names = tuple(names[j] for j in held)
