@@ -171,7 +171,7 @@ def test_compensation_is_right_in_determined_poses_and_warns_outside(tmp_path, c
     outside.to_csv(outside_path, index=False)
     _, texts = run(capsys, ["compensate", out, inside_path, outside_path, "--orientation", "qx,qy,qz,qw",
                             "-o", outside_out], allowed=(UndeterminedWarning,))
-    assert len(texts) == 1 and "2 of 8 sample(s) lie outside the span" in texts[0] and "mcz" in texts[0]
+    assert len(texts) == 1 and "2 of 8 sample(s) lie outside the span" in texts[0] and "(com z)" in texts[0]
     wrong = pd.read_csv(outside_out)[["Tx", "Ty", "Tz"]].to_numpy()[6:]
     expected_error = MASS * G * COM[2] * np.sin(np.pi / 4)  # (0, 0, c_z) × m g at 45°: the torque left over
     assert np.all(np.abs(np.linalg.norm(wrong - push[3:], axis=1) - expected_error) < 0.02)
@@ -222,3 +222,12 @@ def test_null_standard_errors_need_the_undetermined_field(tmp_path, capsys):
     doc["sha256"] = digest(doc)
     with pytest.raises(FtcalError, match=r"1.1 goes with the undetermined field"):
         parse_payload(json.dumps(doc), "edited.json")
+
+
+def test_convert_says_what_the_target_file_cannot(tmp_path, capsys):
+    frame, _ = frame_of(vertical_rotations(10, 13), seed=14)
+    data, out, yaml = tmp_path / "vertical.csv", tmp_path / "p.json", tmp_path / "calibration.yaml"
+    frame.to_csv(data, index=False)
+    run(capsys, ["payload", data, "--orientation", "qx,qy,qz,qw", "-o", out], allowed=(UndeterminedWarning,))
+    stdout, _ = run(capsys, ["convert", out, "--to", "ft-tools-ros2", "-o", yaml])
+    assert "com z not determined by the identification poses" in stdout

@@ -8,6 +8,7 @@ import numpy as np
 
 from ..core.limits import UNDETERMINED_EFFECT
 from ..runtime.errors import UndeterminedWarning
+from .identify import describe_parameters
 from .kinematics import Kinematics
 from .parameters import PayloadParameters
 from .regressor import dynamic_regressor, inertial_regressor, static_regressor
@@ -77,7 +78,7 @@ def warn_undetermined(payload: PayloadParameters, n_outside: int, n_samples: int
     if n_outside:
         warnings.warn(f"{source}: {n_outside} of {n_samples} sample(s) lie outside the span of the payload's "
                       f"identification poses, where its compensation uses parameters the poses did not "
-                      f"determine ({', '.join(payload.undetermined.parameters)}); the contact wrench there "
+                      f"determine ({describe_parameters(payload.undetermined.parameters)}); the contact wrench there "
                       f"is not reliable. {payload.undetermined.message}", UndeterminedWarning, stacklevel=3)
 
 

@@ -170,7 +170,8 @@ def _solve(gram: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     return Conditioning.of(gram).solve(rhs[:, None])[:, 0]
 
 
-def _describe(names) -> str:
+def describe_parameters(names) -> str:
+    """Parameter names in words, comma-separated (``mcz`` → ``com z``)."""
     return ", ".join(LABELS.get(n, n) for n in names)
 
 
@@ -337,7 +338,7 @@ def find_undetermined(total: AxisStatistics, names: tuple[str, ...], n_base: int
     if "m" in parameters or rank == 0:
         others = [q for q in parameters if q != "m"]
         raise FtcalError(f"the poses do not determine the mass (regressor rank {rank} of {len(names)}"
-                         + (f"; it is confounded with {_describe(others)}" if others else "")
+                         + (f"; it is confounded with {describe_parameters(others)}" if others else "")
                          + f"): nothing to identify; {_GRAVITY_HINT}.")
     if any(names.index(q) >= n_base for q in parameters):
         drift = sorted({q.split("_", 1)[1] for q in parameters if names.index(q) >= n_base})
@@ -395,16 +396,16 @@ def _undetermined_message(directions: np.ndarray, names: tuple[str, ...], parame
         elif np.linalg.norm(com) > NULL_ROW:
             where = _direction_words(com / np.linalg.norm(com))
             involved = [names[j] for j in np.flatnonzero(np.abs(v) > NULL_ROW * np.abs(v).max()) if j >= at]
-            parts.append(f"the centre of mass along {where} is confounded with the {_describe(involved)}: "
+            parts.append(f"the centre of mass along {where} is confounded with the {describe_parameters(involved)}: "
                          f"gravity changes only along that direction between the poses; add poses that tilt it "
                          f"by 30° or more")
         else:
             involved = [names[j] for j in np.flatnonzero(np.abs(v) > NULL_ROW * np.abs(v).max())]
             state = "is not determined" if len(involved) == 1 else "are confounded"
-            parts.append(f"{_describe(involved)} {state}: {_HINTS.get(involved[0], _GRAVITY_HINT)}")
+            parts.append(f"{describe_parameters(involved)} {state}: {_HINTS.get(involved[0], _GRAVITY_HINT)}")
     return (f"the poses determine {rank} of {len(names)} payload parameter directions; "
             + "; ".join(parts)
-            + f". Not determined: {_describe(parameters)} (reported as undetermined; {_describe(held)} held at 0 "
+            + f". Not determined: {describe_parameters(parameters)} (reported as undetermined; {describe_parameters(held)} held at 0 "
             f"to pick one solution, so compensation is right only in poses like the recorded ones).")
 
 
