@@ -202,11 +202,14 @@ def identify_payload(groups: Mapping[str, AxisStatistics], *, cross_validate: bo
     Raises
     ------
     FtcalError
-        Too few samples, or poses that leave some parameter undetermined
-        (rank-deficient regressor); the message names the parameters.
+        Too few samples, or poses that leave the mass (or a covariate coefficient)
+        undetermined; the message names what the poses confound and what to record.
 
     Warns
     -----
+    UndeterminedWarning
+        Once, when the poses leave some other parameters undetermined (rank-deficient
+        regressor): they are held or reported as :attr:`PayloadFit.undetermined`, with the fix.
     IllPosedFitWarning
         For each poorly excited parameter, with the kind of pose to add.
     """
@@ -261,7 +264,8 @@ def identify_payload(groups: Mapping[str, AxisStatistics], *, cross_validate: bo
             "classical (no time block can be left out without losing a parameter)"
     covariance = 0.5 * (covariance + covariance.T)
     vif = np.diag(inverse)
-    poorly = tuple(names[j] for j in np.flatnonzero(vif > EXCITATION_LIMIT))
+    unknown = () if undetermined is None else undetermined.parameters  # said once above, not "hardly excited"
+    poorly = tuple(names[j] for j in np.flatnonzero(vif > EXCITATION_LIMIT) if names[j] not in unknown)
     for name in poorly:
         j = names.index(name)
         warnings.warn(f"the poses hardly excite {LABELS.get(name, name)} (standard error inflated "
@@ -403,10 +407,10 @@ def _undetermined_message(directions: np.ndarray, names: tuple[str, ...], parame
             involved = [names[j] for j in np.flatnonzero(np.abs(v) > NULL_ROW * np.abs(v).max())]
             state = "is not determined" if len(involved) == 1 else "are confounded"
             parts.append(f"{describe_parameters(involved)} {state}: {_HINTS.get(involved[0], _GRAVITY_HINT)}")
-    return (f"the poses determine {rank} of {len(names)} payload parameter directions; "
-            + "; ".join(parts)
-            + f". Not determined: {describe_parameters(parameters)} (reported as undetermined; {describe_parameters(held)} held at 0 "
-            f"to pick one solution, so compensation is right only in poses like the recorded ones).")
+    return (f"the poses determine {rank} of {len(names)} payload parameter directions; " + "; ".join(parts)
+            + f". Not determined: {describe_parameters(parameters)} (reported as undetermined; "
+            f"{describe_parameters(held)} held at 0 to pick one solution, so compensation is right only in poses "
+            "like the recorded ones).")
 
 
 def _axis_variance(total: AxisStatistics, theta: np.ndarray, n: int, p: int) -> np.ndarray:
