@@ -190,6 +190,13 @@ def test_rebias_keeps_the_undetermined_field(tmp_path, capsys):
     old, new = load_payload(out), load_payload(retared)
     assert new.undetermined.parameters == ("mcz",)
     np.testing.assert_allclose(new.force_bias - old.force_bias, [0.5, 0.0, -0.5], atol=0.1)
+    # Re-taring from tilted poses: the held COM z leaks into the torque bias; the command says so.
+    tilted, _ = frame_of(Rotation.from_euler("y", [[40.0], [-60.0]], degrees=True), seed=15)
+    tilted_path = tmp_path / "tilted.csv"
+    tilted.to_csv(tilted_path, index=False)
+    _, texts = run(capsys, ["payload", "--rebias", out, tilted_path, "--orientation", "qx,qy,qz,qw",
+                            "-o", tmp_path / "r2.json"], allowed=(UndeterminedWarning,))
+    assert len(texts) == 1 and "the re-tare data: 80 of 80 sample(s) lie outside the span" in texts[0]
 
 
 # ---------------------------------------------------------------- (d) well excited: nothing changes
@@ -231,3 +238,26 @@ def test_convert_says_what_the_target_file_cannot(tmp_path, capsys):
     run(capsys, ["payload", data, "--orientation", "qx,qy,qz,qw", "-o", out], allowed=(UndeterminedWarning,))
     stdout, _ = run(capsys, ["convert", out, "--to", "ft-tools-ros2", "-o", yaml])
     assert "com z not determined by the identification poses" in stdout
+
+
+def test_two_gravity_directions_confound_com_along_their_difference_with_a_torque_bias():
+    # Tool down (g = −z) and on its side (g = −x) only: gravity changes along (1, 0, −1)/√2, so a first
+    # moment along that direction plus a torque bias −(m c) × g₁ reproduces every reading (worked by hand:
+    # (1, 0, −1) × (0, 0, −g) = (0, g, 0), a torque bias along y).
+    gravity = np.repeat([[0.0, 0.0, -G], [-G, 0.0, 0.0]] * 5, PER_POSE, axis=0)
+    wrench = statics(gravity) + np.random.default_rng(21).normal(size=(len(gravity), 6)) * NOISE
+    with pytest.warns(UndeterminedWarning, match=r"along the sensor direction \(0\.71, 0\.00, -0\.71\) is "
+                                                 r"confounded with the torque bias y"):
+        fit = fit_blocks(gravity, wrench)
+    assert set(fit.undetermined.parameters) == {"mcx", "mcz", "Ty_bias"} and len(fit.undetermined.held) == 1
+    assert np.isnan(fit.stderr["com"][[0, 2]]).all() and np.isnan(fit.stderr["torque_bias"][1])
+    # Determined: mass, com y, the force biases and torque biases x, z.
+    assert abs(fit.mass - MASS) < 4 * fit.stderr["mass"]
+    assert abs(fit.com[1] - COM[1]) < 4 * fit.stderr["com"][1]
+    np.testing.assert_array_less(np.abs(fit.force_bias - BIAS[:3]), 4 * fit.stderr["force_bias"])
+    np.testing.assert_array_less(np.abs(fit.torque_bias[[0, 2]] - BIAS[[3, 5]]), 4 * fit.stderr["torque_bias"][[0, 2]])
+    # The undetermined combination the poses do see is still right: (m c)·(1, 0, 1) and the y torque at g = −z.
+    first = fit.mass * fit.com
+    assert abs((first[0] + first[2]) - MASS * (COM[0] + COM[2])) < 0.01
+    predicted = np.cross(first, [0.0, 0.0, -G])[1] + fit.torque_bias[1]
+    assert abs(predicted - (np.cross(MASS * COM, [0.0, 0.0, -G])[1] + BIAS[4])) < 0.01
