@@ -261,3 +261,15 @@ def test_two_gravity_directions_confound_com_along_their_difference_with_a_torqu
     assert abs((first[0] + first[2]) - MASS * (COM[0] + COM[2])) < 0.01
     predicted = np.cross(first, [0.0, 0.0, -G])[1] + fit.torque_bias[1]
     assert abs(predicted - (np.cross(MASS * COM, [0.0, 0.0, -G])[1] + BIAS[4])) < 0.01
+
+
+def test_drift_confounded_with_the_pose_order_is_refused():
+    # Gravity's x component grows exactly linearly with time: a bias slope in time along Fx is the same
+    # column as (m gx) minus a constant, so the drift cannot be told from the weight; nothing sensible to hold.
+    t = np.linspace(0.0, 1.0, 400)
+    gx = -5.0 + 8.0 * t
+    gravity = np.c_[gx, np.ones_like(t), -np.sqrt(G ** 2 - gx ** 2 - 1.0)]
+    wrench = statics(gravity) + np.random.default_rng(0).normal(size=(len(t), 6)) * NOISE
+    stats = payload_statistics(wrench, Kinematics(gravity), extra=t[:, None])
+    with pytest.raises(FtcalError, match=r"leave the bias's time coefficients undetermined .*revisit early poses"):
+        identify_payload({"a": stats}, covariates=("time",))

@@ -341,9 +341,10 @@ def find_undetermined(total: AxisStatistics, names: tuple[str, ...], n_base: int
     rank = len(names) - k
     if "m" in parameters or rank == 0:
         others = [q for q in parameters if q != "m"]
+        drift = any(names.index(q) >= n_base for q in parameters)  # the bias's time/temperature terms
         raise FtcalError(f"the poses do not determine the mass (regressor rank {rank} of {len(names)}"
                          + (f"; it is confounded with {describe_parameters(others)}" if others else "")
-                         + f"): nothing to identify; {_GRAVITY_HINT}.")
+                         + f"): nothing to identify; {_COVARIATE_HINT if drift else _GRAVITY_HINT}.")
     if any(names.index(q) >= n_base for q in parameters):
         drift = sorted({q.split("_", 1)[1] for q in parameters if names.index(q) >= n_base})
         raise FtcalError(f"the poses leave the bias's {' and '.join(drift)} coefficients undetermined (regressor rank "
