@@ -273,3 +273,19 @@ def test_drift_confounded_with_the_pose_order_is_refused():
     stats = payload_statistics(wrench, Kinematics(gravity), extra=t[:, None])
     with pytest.raises(FtcalError, match=r"leave the bias's time coefficients undetermined .*revisit early poses"):
         identify_payload({"a": stats}, covariates=("time",))
+
+
+def test_only_undetermined_parameters_may_lack_a_standard_error(tmp_path, capsys):
+    from dataclasses import replace
+
+    from ftcal.files.payload_json import save_payload
+
+    frame, _ = frame_of(vertical_rotations(10, 16), seed=17)
+    data, out = tmp_path / "vertical.csv", tmp_path / "p.json"
+    frame.to_csv(data, index=False)
+    run(capsys, ["payload", data, "--orientation", "qx,qy,qz,qw", "-o", out], allowed=(UndeterminedWarning,))
+    payload = load_payload(out)
+    broken = replace(payload, stderr=dict(payload.stderr, com=np.array([np.nan, 1e-4, np.nan])))  # com x is determined
+    with pytest.raises(FtcalError, match=r"non-finite values"):
+        save_payload(broken, tmp_path / "broken.json")
+    assert not (tmp_path / "broken.json").exists()

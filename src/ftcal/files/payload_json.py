@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..payload.drift import BiasDrift
-from ..payload.identify import Undetermined
+from ..payload.identify import Undetermined, undetermined_fields
 from ..payload.parameters import PayloadParameters
 from ..runtime.atomic import write_text_atomic
 from ..runtime.errors import FtcalError
@@ -69,10 +69,8 @@ def payload_document(payload: PayloadParameters, *, sources: Sequence[str] = ())
     if payload.undetermined is not None:
         doc["format_version"] = FORMAT_VERSION
         doc["undetermined"] = undetermined_document(payload.undetermined)
-    # Standard errors are null (NaN) exactly where the undetermined field says there is no estimate.
-    checked = [stderr] if payload.undetermined is None else []
-    if None in _leaves([doc[k] for k in ("mass", "com", "force_bias", "torque_bias", "gravity")] + checked
-                       + [doc.get("undetermined", {}).get("directions", []), stderr["mass"]]
+    if None in _leaves([doc[k] for k in ("mass", "com", "force_bias", "torque_bias", "gravity")]
+                       + [_determined(stderr, payload.undetermined), doc.get("undetermined", {}).get("directions", [])]
                        + [doc.get("inertia", []), doc.get("drift", {}).get("knots", {}),
                           doc.get("drift", {}).get("temperature", {}).get("coefficients", [])]):
         raise FtcalError("The payload has non-finite values (NaN or inf); refusing to save it.")
@@ -93,6 +91,22 @@ def drift_document(drift: BiasDrift) -> dict:
     if drift.selection:
         doc["selection"] = drift.selection
     return doc
+
+
+def _determined(stderr: dict, undetermined: Undetermined | None) -> dict:
+    """The standard errors of what the poses determined: null (NaN) is allowed only where
+    ``undetermined`` says there is no estimate (the whole inertia when any COM component or inertia
+    parameter is undetermined)."""
+    if undetermined is None:
+        return stderr
+    fields = undetermined_fields(undetermined.parameters)
+    out = dict(stderr)
+    for key, index in fields.items():
+        if key in out and key != "inertia":
+            out[key] = [0.0 if j in index else v for j, v in enumerate(out[key])]
+    if "inertia" in fields or "com" in fields:
+        out.pop("inertia", None)
+    return out
 
 
 def undetermined_document(undetermined: Undetermined) -> dict:
