@@ -187,7 +187,7 @@ def bad_tables(tmp_path):
     cases["nan"] = (nan, "column 'u2' has 1 empty, NaN or infinite cell(s), first at line 7")
     fixed = frame.copy()
     fixed[["qx", "qy", "qz", "qw"]] = [0.0, 0.0, 0.0, 1.0]  # one orientation: nothing separates m from bias
-    cases["degenerate"] = (fixed, "the poses leave mass")
+    cases["degenerate"] = (fixed, "the poses do not determine the mass")
     cases["too_few"] = (frame.iloc[:1], "1 sample(s) give 6 equations for 10 unknowns")
     paths = {}
     for name, (table, fragment) in cases.items():

@@ -37,6 +37,7 @@ def run(args) -> int:
     from ..data.tables import write_table
     from ..files.model_files import read_model
     from ..files.payload_json import load_payload
+    from ..payload.compensate import warn_undetermined
     from ..payload.tables import compensate_table
     from ..runtime.errors import FtcalError
 
@@ -51,7 +52,9 @@ def run(args) -> int:
     parts = [compensate_table(path, payload, source, wrench=args.wrench, model=model, time_column=args.time,
                               warn_out_of_range=False)
              for path in args.data]
+    outside = sum(part.attrs.get("undetermined_samples", 0) for part in parts)
     table = pd.concat(parts, ignore_index=True) if len(parts) > 1 else parts[0]
+    warn_undetermined(payload, outside, len(table), ", ".join(args.data))  # once for all the files
     if model is not None:  # one out-of-range warning for all the files
         import warnings
 

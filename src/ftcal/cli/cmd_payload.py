@@ -250,6 +250,10 @@ def run_rebias(args) -> int:
           f"of mass of {args.rebias} held fixed ({found.stderr_kind})")
     for a, new, se, d, zi in zip(("Fx", "Fy", "Fz", "Tx", "Ty", "Tz"), found.bias, found.stderr, change, z):
         unit = "N" if a[0] == "F" else "N·m"
+        if np.isnan(zi):  # undetermined at identification: the value follows the file's convention
+            print(f"  {a + ' bias':<10}{new:>12.6g} {unit}   undetermined by the identification poses "
+                  f"(consistent with {args.rebias}'s convention; change {d:+.4g} {unit} not comparable)")
+            continue
         print(f"  {a + ' bias':<10}{new:>12.6g} ± {se:.2g} {unit}   change since identification {d:+.4g} {unit} "
               f"({zi:+.1f} standard errors)")
     end = payload.drift.time_end if payload.drift is not None else None
@@ -271,7 +275,8 @@ def run_rebias(args) -> int:
                       temperature_reference=payload.drift.temperature_reference if temperature else None,
                       temperature_coefficients=payload.drift.temperature_coefficients if temperature else None,
                       selection=f"re-tared from {', '.join(map(str, args.data))}")
-    stderr = dict(payload.stderr, force_bias=found.stderr[:3], torque_bias=found.stderr[3:])
+    new_se = np.where(np.isnan(old_se), np.nan, found.stderr)  # still undetermined where it was
+    stderr = dict(payload.stderr, force_bias=new_se[:3], torque_bias=new_se[3:])
     updated = replace(payload, force_bias=found.bias[:3], torque_bias=found.bias[3:], stderr=stderr, drift=drift)
     save_payload(updated, args.output, sources=[args.rebias, *args.data])
     print(f"wrote {args.output}", file=sys.stderr)
@@ -287,14 +292,21 @@ def print_fit(fit, n_groups: int, args) -> None:
     kind = "dynamic (inertia included)" if fit.dynamic else "static"
     print(f"payload from {fit.n_samples} samples in {n_groups} group(s), {kind} model, "
           f"gravity {args.g:g} m/s²")
-    print(f"  {'mass':<14}{fit.mass:>14.6g} ± {fit.stderr['mass']:.2g} {unit['mass']}")
+    def line(name, value, se, unit_name):
+        if np.isnan(se):  # the poses do not determine it: the file holds a convention, not an estimate
+            return f"  {name:<14}{'undetermined':>14} (file: {value:.6g} {unit_name} by convention)"
+        return f"  {name:<14}{value:>14.6g} ± {se:.2g} {unit_name}"
+
+    print(line("mass", fit.mass, fit.stderr["mass"], unit["mass"]))
     for key in ("com", "force_bias", "torque_bias"):
         for axis, value, se in zip("xyz", getattr(fit, key), fit.stderr[key]):
-            print(f"  {key.replace('_', ' ') + ' ' + axis:<14}{value:>14.6g} ± {se:.2g} {unit[key]}")
+            print(line(key.replace("_", " ") + " " + axis, value, se, unit[key]))
     if fit.dynamic:
         for (i, j) in ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)):
             name = "I" + "xyz"[i] + "xyz"[j] + " (com)"
-            print(f"  {name:<14}{fit.inertia[i, j]:>14.6g} ± {fit.stderr['inertia'][i, j]:.2g} {unit['inertia']}")
+            print(line(name, fit.inertia[i, j], fit.stderr["inertia"][i, j], unit["inertia"]))
+    if fit.undetermined is not None:
+        print(f"undetermined: {fit.undetermined.message}")
     print("residual RMS: " + "  ".join(f"{a} {v:.4g}" for a, v in zip(AXES, fit.residual_rms)) + "  (N, N·m)")
     if fit.cross_validation:
         scored = [g for g in fit.cross_validation if g.rms is not None]

@@ -115,6 +115,11 @@ DRIFT_BLOCKS = 1000
 DRIFT_BLOCK_SECONDS = 1.0
 """Shortest time block of the random-walk bias model, s: faster wandering is noise, slower is drift."""
 
+UNDETERMINED_EFFECT = 0.01
+"""Compensation with a payload some of whose parameters the poses did not determine: a sample is outside
+the poses' span when an undetermined direction moves its wrench by more than this fraction of the wrench
+the same change would make at the worst pose (0.01: gravity tilted about 0.6° out of the recorded span)."""
+
 # ``ftcal fit --degree auto``: selection per output and its cost.
 
 SELECT_PER = ("output", "block", "model")

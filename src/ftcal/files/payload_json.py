@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..payload.drift import BiasDrift
+from ..payload.identify import Undetermined, undetermined_fields
 from ..payload.parameters import PayloadParameters
 from ..runtime.atomic import write_text_atomic
 from ..runtime.errors import FtcalError
@@ -29,7 +30,10 @@ from .model_json import (
 )
 
 FORMAT = "ftcal-payload"
-FORMAT_VERSION = "1.0"
+# 1.1 adds the optional ``undetermined`` field (and null standard errors for what it names); files
+# without it are written as 1.0, so older ftcal reads them as before.
+FORMAT_VERSION = "1.1"
+BASE_VERSION = "1.0"
 SCHEMA_RESOURCE = "schemas/payload-1.json"
 
 
@@ -44,7 +48,7 @@ def payload_document(payload: PayloadParameters, *, sources: Sequence[str] = ())
     stderr = {k: jsonable(v) for k, v in payload.stderr.items()}
     doc = {
         "format": FORMAT,
-        "format_version": FORMAT_VERSION,
+        "format_version": BASE_VERSION,
         "mass": jsonable(payload.mass),
         "com": jsonable(np.asarray(payload.com)),
         "force_bias": jsonable(np.asarray(payload.force_bias)),
@@ -62,7 +66,11 @@ def payload_document(payload: PayloadParameters, *, sources: Sequence[str] = ())
         doc["inertia"] = jsonable(np.asarray(payload.inertia))
     if payload.drift is not None:
         doc["drift"] = drift_document(payload.drift)
-    if None in _leaves([doc[k] for k in ("mass", "com", "force_bias", "torque_bias", "gravity", "stderr")]
+    if payload.undetermined is not None:
+        doc["format_version"] = FORMAT_VERSION
+        doc["undetermined"] = undetermined_document(payload.undetermined)
+    if None in _leaves([doc[k] for k in ("mass", "com", "force_bias", "torque_bias", "gravity")]
+                       + [_determined(stderr, payload.undetermined), doc.get("undetermined", {}).get("directions", [])]
                        + [doc.get("inertia", []), doc.get("drift", {}).get("knots", {}),
                           doc.get("drift", {}).get("temperature", {}).get("coefficients", [])]):
         raise FtcalError("The payload has non-finite values (NaN or inf); refusing to save it.")
@@ -83,6 +91,40 @@ def drift_document(drift: BiasDrift) -> dict:
     if drift.selection:
         doc["selection"] = drift.selection
     return doc
+
+
+def _determined(stderr: dict, undetermined: Undetermined | None) -> dict:
+    """The standard errors of what the poses determined: null (NaN) is allowed only where
+    ``undetermined`` says there is no estimate (the whole inertia when any COM component or inertia
+    parameter is undetermined)."""
+    if undetermined is None:
+        return stderr
+    fields = undetermined_fields(undetermined.parameters)
+    out = dict(stderr)
+    for key, index in fields.items():
+        if key in out and key != "inertia":
+            out[key] = [0.0 if j in index else v for j, v in enumerate(out[key])]
+    if "inertia" in fields or "com" in fields:
+        out.pop("inertia", None)
+    return out
+
+
+def undetermined_document(undetermined: Undetermined) -> dict:
+    """The ``undetermined`` field of a payload file."""
+    return {"parameter_names": list(undetermined.names), "parameters": list(undetermined.parameters),
+            "held_at_zero": list(undetermined.held), "rank": int(undetermined.rank),
+            "directions": jsonable(np.asarray(undetermined.directions).T), "message": undetermined.message}
+
+
+def _parse_undetermined(doc: dict, source: str) -> Undetermined:
+    names = tuple(doc["parameter_names"])
+    directions = np.asarray(doc["directions"], dtype=float).T
+    if directions.shape != (len(names), len(doc["held_at_zero"])) or not set(doc["held_at_zero"]) <= set(
+            doc["parameters"]) or not set(doc["parameters"]) <= set(names) or "m" in doc["parameters"]:
+        raise FtcalError(f"{source}: undetermined needs one direction of {len(names)} numbers per held parameter, "
+                         "held parameters among the undetermined ones, and a determined mass.")
+    return Undetermined(names, tuple(doc["parameters"]), tuple(doc["held_at_zero"]), directions, int(doc["rank"]),
+                        doc["message"])
 
 
 def _parse_drift(doc: dict, source: str) -> BiasDrift:
@@ -135,8 +177,15 @@ def load_payload(path: str | Path) -> PayloadParameters:
 def parse_payload(text: str, source: str = "<payload>") -> PayloadParameters:
     """Parse and validate payload-file ``text``; ``source`` names it in error messages."""
     doc = parse_json(text, source, FORMAT, "payload")
-    check_version(doc, source, FORMAT_VERSION)
+    if doc.get("format_version") != BASE_VERSION:
+        check_version(doc, source, FORMAT_VERSION)
     check_document(doc, source, SCHEMA_RESOURCE, "payload")
+    if ("undetermined" in doc) != (doc["format_version"] == FORMAT_VERSION):
+        raise FtcalError(f"{source}: format_version {FORMAT_VERSION} goes with the undetermined field, "
+                         f"{BASE_VERSION} without it.")
+    undetermined = _parse_undetermined(doc["undetermined"], source) if "undetermined" in doc else None
+    if undetermined is None and None in _leaves(doc["stderr"]):
+        raise FtcalError(f"{source}: stderr has null entries but no undetermined field says why.")
     stderr = {k: np.asarray(v, dtype=float) if isinstance(v, list) else float(v) for k, v in doc["stderr"].items()}
     if doc["mass"] <= 0:
         raise FtcalError(f"{source}: mass is {doc['mass']} kg; a payload file needs a positive mass.")
@@ -146,4 +195,4 @@ def parse_payload(text: str, source: str = "<payload>") -> PayloadParameters:
     return PayloadParameters(float(doc["mass"]), np.asarray(doc["com"], dtype=float),
                              np.asarray(doc["force_bias"], dtype=float), np.asarray(doc["torque_bias"], dtype=float),
                              float(doc["gravity"]), doc["frame"], doc["reaction"], inertia, stderr, fit,
-                             _parse_drift(doc["drift"], source) if "drift" in doc else None)
+                             _parse_drift(doc["drift"], source) if "drift" in doc else None, undetermined)

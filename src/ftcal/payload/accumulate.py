@@ -49,6 +49,12 @@ class AxisStatistics:
         w = np.ones(6) if weights is None else weights
         return sum(wi * s.cross[:, 0] for wi, s in zip(w, self.axes))
 
+    def take(self, columns: np.ndarray) -> "AxisStatistics":
+        """The statistics of some of the regressor columns (the others held at zero)."""
+        c = np.asarray(columns, dtype=np.int64)
+        return AxisStatistics(tuple(SufficientStatistics(s.gram[np.ix_(c, c)], s.cross[c], s.target_sq, s.target_sum,
+                                                         s.column_maxabs[c], s.n_samples) for s in self.axes))
+
     def residual_sum_of_squares(self, theta: np.ndarray) -> np.ndarray:
         """‖A θ − b‖² of each axis, shape (6,), from the statistics alone."""
         rss = [s.target_sq[0] - 2.0 * theta @ s.cross[:, 0] + theta @ s.gram @ theta for s in self.axes]

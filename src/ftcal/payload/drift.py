@@ -304,7 +304,7 @@ class StateSpaceFit:
         return -2.0 * self.log_likelihood + self.n_free * np.log(self.n_observations)
 
 
-def fit_state_space(blocks: Blocks, kind: str, temperature: bool = False) -> StateSpaceFit:
+def fit_state_space(blocks: Blocks, kind: str, temperature: bool = False, held: tuple[str, ...] = ()) -> StateSpaceFit:
     """Fit one bias model to block averages: ``none`` and ``linear`` have no walk (q = 0).
 
     Parameters
@@ -312,6 +312,8 @@ def fit_state_space(blocks: Blocks, kind: str, temperature: bool = False) -> Sta
     blocks : Blocks
     kind : {"none", "linear", "random-walk"}
     temperature : the bias is also affine in the blocks' temperature
+    held : static parameters held at zero (the poses do not determine them,
+        :class:`~ftcal.payload.identify.Undetermined`); their estimate and covariance are zero
 
     Returns
     -------
@@ -322,7 +324,9 @@ def fit_state_space(blocks: Blocks, kind: str, temperature: bool = False) -> Sta
     FtcalError
         Fewer blocks than unknowns, or a rank-deficient design.
     """
-    x = _design(blocks, kind == "linear", temperature)
+    full = _design(blocks, kind == "linear", temperature)
+    kept = np.array([j for j in range(full.shape[2]) if j >= 10 or STATIC_PARAMETERS[j] not in held])
+    x = full[:, :, kept]
     n_blocks, _, n_beta = x.shape
     index, pad = _axis_columns(x)
     n_columns = (~pad).sum(axis=1)
@@ -362,11 +366,17 @@ def fit_state_space(blocks: Blocks, kind: str, temperature: bool = False) -> Sta
     # Maximum likelihood at β (noise variances re-profiled) for the BIC.
     log_lik = 0.0
     for j in range(6):
-        keep = ~pad[j]
-        b = theta[index[j, keep]]
-        q = yy[j] - 2.0 * rhs_loc[j, keep] @ b + b @ s_loc[j][np.ix_(keep, keep)] @ b
+        used = ~pad[j]
+        b = theta[index[j, used]]
+        q = yy[j] - 2.0 * rhs_loc[j, used] @ b + b @ s_loc[j][np.ix_(used, used)] @ b
         r_ml = max(q, 1e-300) / n_blocks
         log_lik += -0.5 * (n_blocks * np.log(2.0 * np.pi * r_ml) + log_f[j] + n_blocks)
+    # Back to every parameter: the held ones are zero, without variance.
+    theta_full = np.zeros(full.shape[2])
+    theta_full[kept] = theta
+    covariance_full = np.zeros((full.shape[2],) * 2)
+    covariance_full[np.ix_(kept, kept)] = covariance
+    theta, covariance, x = theta_full, covariance_full, full
     trajectory, end_var = _smooth(theta, x, blocks, ratio, steps, noise, kind == "linear")
     names = STATIC_PARAMETERS + tuple(f"{a}_{c}" for c in (["time"] if kind == "linear" else [])
                                       + (["temperature"] if temperature else [])

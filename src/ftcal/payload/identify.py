@@ -24,8 +24,19 @@ follows by the delta method from c = (m·c) / m.
 Excitation: a parameter the poses cannot separate from the others has a large
 variance inflation factor ``VIF_j = (G⁻¹)_jj G_jj`` on the weighted Gram G
 (1 for an orthogonal design). Above :data:`EXCITATION_LIMIT` ftcal warns,
-naming the parameter and the kind of pose that would excite it; a Gram of
-deficient rank is an error.
+naming the parameter and the kind of pose that would excite it.
+
+Rank-deficient poses (e.g. every pose keeps the sensor's z axis vertical, so the
+centre of mass along z never acts on the sensor): the null space of the
+equilibrated Gram gives the parameter combinations the poses do not determine
+(:class:`Undetermined`). Every parameter with a component in it is reported
+undetermined (no estimate, no standard error); to pick one solution, as many of
+them as the null space has dimensions are held at zero, centre-of-mass
+components first (the COM on the sensor's origin along that axis), then biases.
+The others are estimated on the remaining columns, with the same standard
+errors as a full fit (estimable combinations do not depend on that choice).
+When the mass itself (or a drift coefficient) is undetermined there is nothing
+to identify: that is an error.
 """
 
 from __future__ import annotations
@@ -38,9 +49,9 @@ import numpy as np
 
 from ..core.jackknife import jackknife_covariance
 from ..core.limits import PAYLOAD_WEIGHTINGS
-from ..core.solvers.base import Conditioning, Spectrum
+from ..core.solvers.base import Conditioning
 from ..core.statistics import SufficientStatistics
-from ..runtime.errors import FtcalError, IllPosedFitWarning
+from ..runtime.errors import FtcalError, IllPosedFitWarning, UndeterminedWarning
 from .accumulate import AxisStatistics
 from .regressor import DYNAMIC_PARAMETERS, STATIC_PARAMETERS, inertia_about_com, inertia_matrix
 
@@ -75,6 +86,41 @@ SIGNIFICANT_STDERR = 2.0
 LABELS = {"m": "mass", "mcx": "com x", "mcy": "com y", "mcz": "com z",
           "Fx_bias": "force bias x", "Fy_bias": "force bias y", "Fz_bias": "force bias z",
           "Tx_bias": "torque bias x", "Ty_bias": "torque bias y", "Tz_bias": "torque bias z"}
+
+
+# A parameter whose row of the (orthonormal, equilibrated) null basis exceeds this has a component
+# in an undetermined direction; rounding leaves ~eps / (smallest kept eigenvalue) in determined rows.
+NULL_ROW = 1e-6
+# A regressor column whose entries all stay below this fraction of its kind's scale is rounding, not data.
+ROUNDING_COLUMN = 1e-9
+# Which undetermined parameters are held at zero first: the centre of mass (its component along a
+# direction gravity never crosses), then the inertia, torque and force biases. The mass is never held.
+_HOLD_ORDER = (("mcx", "mcy", "mcz"), ("Ixx", "Ixy", "Ixz", "Iyy", "Iyz", "Izz"),
+               ("Tx_bias", "Ty_bias", "Tz_bias"), ("Fx_bias", "Fy_bias", "Fz_bias"))
+
+
+@dataclass(frozen=True)
+class Undetermined:
+    """Parameter combinations the poses do not determine, and how one solution was picked.
+
+    Attributes
+    ----------
+    names : parameter names of θ that ``directions`` refer to (static or dynamic set, no covariates)
+    parameters : the parameters with a component in an undetermined direction (not determined)
+    held : the parameters held at zero to pick one solution (a subset of ``parameters``)
+    directions : ndarray of shape (len(names), k)
+        Basis of the regressor's null space in θ units, scaled so that ``directions[held] = I``:
+        adding any combination of the columns to θ leaves every recorded pose's wrench unchanged.
+    rank : rank of the regressor (``len(names) − k``)
+    message : what is not determined and what to record, in words
+    """
+
+    names: tuple[str, ...]
+    parameters: tuple[str, ...]
+    held: tuple[str, ...]
+    directions: np.ndarray
+    rank: int
+    message: str
 
 
 @dataclass(frozen=True)
@@ -114,6 +160,7 @@ class PayloadFit:
     weighting_evidence: str = ""  # why, in words
     stderr_kind: str = "classical"  # "classical", "cluster-robust (G blocks)" or "state-space"
     covariates: dict = field(default_factory=dict)  # name -> (coefficients (6,), stderr (6,)) per unit
+    undetermined: Undetermined | None = None  # what the poses do not determine (None: everything is)
 
     @property
     def dynamic(self) -> bool:
@@ -124,14 +171,8 @@ def _solve(gram: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     return Conditioning.of(gram).solve(rhs[:, None])[:, 0]
 
 
-def _null_parameters(gram: np.ndarray, names: tuple[str, ...]) -> list[str]:
-    spectrum = Spectrum.of(gram)
-    weak = spectrum.vectors[:, spectrum.values <= spectrum.rank_threshold()]
-    involved = np.abs(weak).max(axis=1) > 0.1 if weak.size else np.zeros(len(names), bool)
-    return [names[j] for j in np.flatnonzero(involved)]
-
-
-def _describe(names) -> str:
+def describe_parameters(names) -> str:
+    """Parameter names in words, comma-separated (``mcz`` → ``com z``)."""
     return ", ".join(LABELS.get(n, n) for n in names)
 
 
@@ -162,11 +203,14 @@ def identify_payload(groups: Mapping[str, AxisStatistics], *, cross_validate: bo
     Raises
     ------
     FtcalError
-        Too few samples, or poses that leave some parameter undetermined
-        (rank-deficient regressor); the message names the parameters.
+        Too few samples, or poses that leave the mass (or a covariate coefficient)
+        undetermined; the message names what the poses confound and what to record.
 
     Warns
     -----
+    UndeterminedWarning
+        Once, when the poses leave some other parameters undetermined (rank-deficient
+        regressor): they are held or reported as :attr:`PayloadFit.undetermined`, with the fix.
     IllPosedFitWarning
         For each poorly excited parameter, with the kind of pose to add.
     """
@@ -183,13 +227,17 @@ def identify_payload(groups: Mapping[str, AxisStatistics], *, cross_validate: bo
     n = total.n_samples
     if 6 * n <= p:
         raise FtcalError(f"{n} sample(s) give {6 * n} equations for {p} unknowns; record more poses.")
-    gram = total.gram()
-    conditioning = Conditioning.of(gram)
-    if conditioning.rank < p:
-        missing = _null_parameters(gram, names)
-        hints = sorted({_HINTS.get(m, _COVARIATE_HINT) for m in missing})
-        raise FtcalError(f"the poses leave {_describe(missing)} undetermined (regressor rank "
-                         f"{conditioning.rank} of {p}): {'; '.join(hints)}.")
+    undetermined = find_undetermined(total, names, len(base))
+    keep = np.arange(p)
+    if undetermined is not None:
+        warnings.warn(undetermined.message, UndeterminedWarning, stacklevel=2)
+        keep = np.array([j for j in range(p) if names[j] not in undetermined.held])
+        groups = {label: stats.take(keep) for label, stats in groups.items()}
+        clusters = [c.take(keep) for c in clusters]
+        total = total.take(keep)
+    full_names, full_p = names, p
+    names, p = tuple(names[j] for j in keep), len(keep)
+    conditioning = Conditioning.of(total.gram())
     theta0 = conditioning.solve(total.cross()[:, None])[:, 0]
     axis_variance = _axis_variance(total, theta0, n, p)
     folds = list(clusters) if len(clusters) > 1 else list(groups.values())
@@ -217,15 +265,20 @@ def identify_payload(groups: Mapping[str, AxisStatistics], *, cross_validate: bo
             "classical (no time block can be left out without losing a parameter)"
     covariance = 0.5 * (covariance + covariance.T)
     vif = np.diag(inverse)
-    poorly = tuple(names[j] for j in np.flatnonzero(vif > EXCITATION_LIMIT))
+    unknown = () if undetermined is None else undetermined.parameters  # said once above, not "hardly excited"
+    poorly = tuple(names[j] for j in np.flatnonzero(vif > EXCITATION_LIMIT) if names[j] not in unknown)
     for name in poorly:
         j = names.index(name)
         warnings.warn(f"the poses hardly excite {LABELS.get(name, name)} (standard error inflated "
                       f"{np.sqrt(vif[j]):.0f}x by collinearity): {_HINTS.get(name, _COVARIATE_HINT)}.",
                       IllPosedFitWarning, stacklevel=2)
     rms = np.sqrt(total.residual_sum_of_squares(theta) / n)
-    fit = _derive(names, theta, covariance)
     residuals = _cross_validate(groups, total, weights, p) if cross_validate and len(groups) > 1 else ()
+    if undetermined is not None:  # back to every parameter: the held ones are zero, without variance
+        theta, covariance, vif = _expand(theta, keep, full_p), _expand(covariance, keep, full_p), \
+            _expand(vif, keep, full_p, np.inf)
+        names, p = full_names, full_p
+    fit = _derive(names, theta, covariance, undetermined)
     se = np.sqrt(np.maximum(np.diag(covariance), 0.0))
     found = {c: (theta[10 + 6 * k:16 + 6 * k] if base is STATIC_PARAMETERS else None,
                  se[10 + 6 * k:16 + 6 * k]) for k, c in enumerate(covariates)}
@@ -233,7 +286,133 @@ def identify_payload(groups: Mapping[str, AxisStatistics], *, cross_validate: bo
                       condition_number=Conditioning.of(wgram).condition_number,
                       variance_inflation=vif, poorly_excited=poorly, cross_validation=residuals,
                       weighting=weighting, weighting_evidence=evidence, stderr_kind=kind,
-                      covariates=found, **fit)
+                      covariates=found, undetermined=undetermined, **fit)
+
+
+def _expand(values: np.ndarray, keep: np.ndarray, p: int, fill: float = 0.0) -> np.ndarray:
+    """A vector or matrix over the kept parameters, put back among all ``p`` (``fill`` elsewhere)."""
+    if values.ndim == 1:
+        out = np.full(p, fill)
+        out[keep] = values
+        return out
+    out = np.full((p, p), fill)
+    out[np.ix_(keep, keep)] = values
+    return out
+
+
+def find_undetermined(total: AxisStatistics, names: tuple[str, ...], n_base: int) -> Undetermined | None:
+    """The parameter combinations the regressor leaves undetermined, or None when it has full rank.
+
+    The Gram is equilibrated as usual (unit diagonal), except that a column whose entries are all
+    below :data:`ROUNDING_COLUMN` of its kind's scale (gravity for mass, first moment and inertia,
+    1 for the biases) is rounding, not data: the centre of mass along a sensor axis that gravity
+    never leaves (gravity read from quaternions has ~1e-16 g across it) is not determined.
+
+    Parameters
+    ----------
+    total : the payload regressor's statistics
+    names : the p parameter names (static or dynamic set, then covariate coefficients)
+    n_base : how many of them are the static or dynamic set (the rest are covariate coefficients)
+
+    Returns
+    -------
+    Undetermined or None
+
+    Raises
+    ------
+    FtcalError
+        When the mass or a covariate coefficient is undetermined: nothing to identify a payload from
+        (the message names what the poses confound and what to record).
+    """
+    gram = total.gram()
+    maxabs = np.max([a.column_maxabs for a in total.axes], axis=0)
+    bias = np.array([name.endswith("_bias") for name in names])
+    scale = np.where(bias, 1.0, maxabs[0])  # the mass column holds gravity: the others' scale
+    scale[n_base:] = maxabs[n_base:]  # covariates: their own
+    diagonal = np.maximum(np.diag(gram), (ROUNDING_COLUMN * scale) ** 2 * total.n_samples)
+    jacobi = 1.0 / np.sqrt(np.where(diagonal > 0, diagonal, 1.0))
+    values, vectors = np.linalg.eigh(gram * jacobi[:, None] * jacobi[None, :])
+    null = values <= values[-1] * np.finfo(float).eps * max(len(names), 10) * 10  # as Spectrum.rank_threshold
+    k = int(np.count_nonzero(null))
+    if k == 0:
+        return None
+    basis = vectors[:, null]  # orthonormal, equilibrated metric
+    involved = np.linalg.norm(basis, axis=1) > NULL_ROW
+    parameters = tuple(names[j] for j in np.flatnonzero(involved))
+    rank = len(names) - k
+    if "m" in parameters or rank == 0:
+        others = [q for q in parameters if q != "m"]
+        drift = any(names.index(q) >= n_base for q in parameters)  # the bias's time/temperature terms
+        raise FtcalError(f"the poses do not determine the mass (regressor rank {rank} of {len(names)}"
+                         + (f"; it is confounded with {describe_parameters(others)}" if others else "")
+                         + f"): nothing to identify; {_COVARIATE_HINT if drift else _GRAVITY_HINT}.")
+    if any(names.index(q) >= n_base for q in parameters):
+        drift = sorted({q.split("_", 1)[1] for q in parameters if names.index(q) >= n_base})
+        raise FtcalError(f"the poses leave the bias's {' and '.join(drift)} coefficients undetermined (regressor rank "
+                         f"{rank} of {len(names)}): {_COVARIATE_HINT}, or use --bias-drift none.")
+    held = _choose_held(basis, names)
+    # Directions in θ units, one per held parameter: moving it by 1 and the others along.
+    directions = jacobi[:, None] * basis
+    directions = directions @ np.linalg.inv(directions[list(held)])
+    directions[~involved] = 0.0
+    held_names = tuple(names[j] for j in held)
+    return Undetermined(names[:n_base], parameters, held_names, directions[:n_base], rank,
+                        _undetermined_message(directions[:n_base], names[:n_base], parameters, held_names, rank))
+
+
+def _choose_held(basis: np.ndarray, names: tuple[str, ...]) -> list[int]:
+    """Which parameters to hold at zero, one per null direction, by :data:`_HOLD_ORDER` then largest pivot."""
+    remaining = basis.copy()
+    held: list[int] = []
+    for _ in range(basis.shape[1]):
+        for group in _HOLD_ORDER:
+            candidates = [j for j, name in enumerate(names) if name in group and j not in held]
+            scores = np.linalg.norm(remaining[candidates], axis=1) if candidates else np.zeros(0)
+            if scores.size and scores.max() > NULL_ROW:
+                j = candidates[int(np.argmax(scores))]
+                break
+        else:  # unreachable: the mass and covariates were refused, biases alone always have a pivot
+            raise FtcalError("the undetermined payload parameters could not be separated.")
+        held.append(j)
+        row = remaining[j] / np.linalg.norm(remaining[j])
+        remaining = remaining - np.outer(remaining @ row, row)
+    return held
+
+
+def _direction_words(u: np.ndarray) -> str:
+    """A unit vector in sensor axes, in words: an axis when it is one, else its components."""
+    k = int(np.argmax(np.abs(u)))
+    if abs(u[k]) > 0.999:
+        return f"the sensor's {'xyz'[k]} axis"
+    return "the sensor direction (" + ", ".join(f"{v:.2f}" for v in u / np.copysign(1.0, u[k])) + ")"
+
+
+def _undetermined_message(directions: np.ndarray, names: tuple[str, ...], parameters: tuple[str, ...],
+                          held: tuple[str, ...], rank: int) -> str:
+    """What the poses do not determine and the fix, for the warning and the payload file."""
+    at = names.index("Fx_bias")
+    parts = []
+    for c in range(directions.shape[1]):
+        v = directions[:, c]
+        com = v[1:4]
+        if np.linalg.norm(com) > NULL_ROW and np.all(np.abs(v[at:at + 6]) <= NULL_ROW * np.abs(v).max()):
+            where = _direction_words(com / np.linalg.norm(com))
+            parts.append(f"the centre of mass along {where} is not determined: gravity stays parallel to it in "
+                         f"every pose; tilt it by 30° or more from vertical in some poses")
+        elif np.linalg.norm(com) > NULL_ROW:
+            where = _direction_words(com / np.linalg.norm(com))
+            involved = [names[j] for j in np.flatnonzero(np.abs(v) > NULL_ROW * np.abs(v).max()) if j >= at]
+            parts.append(f"the centre of mass along {where} is confounded with the {describe_parameters(involved)}: "
+                         f"gravity changes only along that direction between the poses; add poses that tilt it "
+                         f"by 30° or more")
+        else:
+            involved = [names[j] for j in np.flatnonzero(np.abs(v) > NULL_ROW * np.abs(v).max())]
+            state = "is not determined" if len(involved) == 1 else "are confounded"
+            parts.append(f"{describe_parameters(involved)} {state}: {_HINTS.get(involved[0], _GRAVITY_HINT)}")
+    return (f"the poses determine {rank} of {len(names)} payload parameter directions; " + "; ".join(parts)
+            + f". Not determined: {describe_parameters(parameters)} (reported as undetermined; "
+            f"{describe_parameters(held)} held at 0 to pick one solution, so compensation is right only in poses "
+            "like the recorded ones).")
 
 
 def _axis_variance(total: AxisStatistics, theta: np.ndarray, n: int, p: int) -> np.ndarray:
@@ -332,7 +511,8 @@ def _choose_weighting(folds: list[AxisStatistics], total: AxisStatistics, p: int
 
 
 def model_fit(names: tuple[str, ...], theta: np.ndarray, covariance: np.ndarray, *, residual_rms: np.ndarray,
-              n_samples: int, stderr_kind: str, covariates: Sequence[str] = ()) -> PayloadFit:
+              n_samples: int, stderr_kind: str, covariates: Sequence[str] = (),
+              undetermined: Undetermined | None = None) -> PayloadFit:
     """A :class:`PayloadFit` from an estimate and its covariance made elsewhere (the state-space model).
 
     Parameters
@@ -343,22 +523,24 @@ def model_fit(names: tuple[str, ...], theta: np.ndarray, covariance: np.ndarray,
     n_samples : number of samples
     stderr_kind : how the covariance was estimated, in words
     covariates : names of the covariates
+    undetermined : what the poses do not determine (its held parameters have zero estimate and covariance)
 
     Returns
     -------
     PayloadFit
     """
     se = np.sqrt(np.diag(covariance))
-    correlation = covariance / se[:, None] / se[None, :]
+    keep = np.flatnonzero([undetermined is None or n not in undetermined.held for n in names])
+    correlation = covariance[np.ix_(keep, keep)] / se[keep, None] / se[None, keep]
     # GLS: the Gram is the inverse covariance, so VIF_j = cov_jj (cov⁻¹)_jj = (corr⁻¹)_jj.
-    vif = np.diag(np.linalg.inv(correlation))
+    vif = _expand(np.diag(np.linalg.inv(correlation)), keep, len(names), np.inf)
     found = {c: (theta[10 + 6 * k:16 + 6 * k], se[10 + 6 * k:16 + 6 * k]) for k, c in enumerate(covariates)}
     return PayloadFit(names, theta, covariance, residual_rms=residual_rms, n_samples=n_samples,
                       condition_number=float(np.linalg.cond(correlation)), variance_inflation=vif,
-                      poorly_excited=tuple(names[j] for j in np.flatnonzero(vif > EXCITATION_LIMIT)),
+                      poorly_excited=tuple(names[j] for j in keep if vif[j] > EXCITATION_LIMIT),
                       weighting="state-space", weighting_evidence="generalised least squares of the state-space "
                       "model (per-axis noise and walk variances by maximum likelihood)", stderr_kind=stderr_kind,
-                      covariates=found, **_derive(names, theta, covariance))
+                      covariates=found, undetermined=undetermined, **_derive(names, theta, covariance, undetermined))
 
 
 def check_mass_sign(fit: PayloadFit) -> None:
@@ -380,8 +562,12 @@ def check_mass_sign(fit: PayloadFit) -> None:
                          "no payload to identify (check the wrench columns and the orientation source).")
 
 
-def _derive(names: tuple[str, ...], theta: np.ndarray, cov: np.ndarray) -> dict:
-    """Mass, COM, biases, inertia about the COM and their standard errors from θ and cov(θ)."""
+def _derive(names: tuple[str, ...], theta: np.ndarray, cov: np.ndarray,
+            undetermined: Undetermined | None = None) -> dict:
+    """Mass, COM, biases, inertia about the COM and their standard errors from θ and cov(θ).
+
+    Standard errors of what ``undetermined`` names are NaN: they have no estimate, only a convention.
+    """
     se = np.sqrt(np.maximum(np.diag(cov), 0.0))
     mass, first = theta[0], theta[1:4]
     at = names.index("Fx_bias")
@@ -406,6 +592,33 @@ def _derive(names: tuple[str, ...], theta: np.ndarray, cov: np.ndarray) -> dict:
                                for j, e in enumerate(np.diag(step))])
         out["inertia"] = inertia_matrix(about_com(theta))
         out["stderr"]["inertia"] = inertia_matrix(np.sqrt(np.maximum(np.diag(jac @ cov @ jac.T), 0.0)))
+    if undetermined is not None:
+        fields = undetermined_fields(undetermined.parameters)
+        if at == 10 and "com" in fields:  # the inertia about the COM moves with it
+            fields["inertia"] = ()
+        for key, index in fields.items():
+            value = out["stderr"][key]
+            if key == "inertia":
+                out["stderr"][key] = np.full((3, 3), np.nan)
+            else:
+                value = np.array(value, dtype=float)
+                value[list(index)] = np.nan
+                out["stderr"][key] = value
+    return out
+
+
+_FIELDS = {"mcx": ("com", 0), "mcy": ("com", 1), "mcz": ("com", 2),
+           "Fx_bias": ("force_bias", 0), "Fy_bias": ("force_bias", 1), "Fz_bias": ("force_bias", 2),
+           "Tx_bias": ("torque_bias", 0), "Ty_bias": ("torque_bias", 1), "Tz_bias": ("torque_bias", 2)}
+
+
+def undetermined_fields(parameters: Sequence[str]) -> dict[str, tuple[int, ...]]:
+    """The payload fields (``com``, ``force_bias``, ``torque_bias``, ``inertia``) and components that
+    undetermined parameters make undetermined (any inertia parameter: the whole inertia)."""
+    out: dict[str, tuple[int, ...]] = {}
+    for name in parameters:
+        key, j = _FIELDS.get(name, ("inertia", -1))
+        out[key] = tuple(sorted(set(out.get(key, ())) | ({j} if j >= 0 else set())))
     return out
 
 

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .drift import BiasDrift
-from .identify import PayloadFit
+from .identify import PayloadFit, Undetermined
 
 
 @dataclass(frozen=True)
@@ -39,6 +39,11 @@ class PayloadParameters:
         How the bias moves with time and temperature; None (or model ``none``
         without temperature): constant. The bias fields are then its value at
         the end of the identification recording.
+    undetermined : Undetermined or None
+        What the identification poses did not determine: those parameters hold a
+        stated default (the held ones zero), their standard errors are NaN, and
+        compensation is right only where the undetermined directions do not act
+        (:func:`~ftcal.payload.compensate.undetermined_samples`).
     """
 
     mass: float
@@ -52,6 +57,7 @@ class PayloadParameters:
     stderr: dict = field(default_factory=dict)
     fit: dict = field(default_factory=dict)
     drift: BiasDrift | None = None
+    undetermined: Undetermined | None = None
 
     @classmethod
     def from_fit(cls, fit: PayloadFit, *, gravity: float, frame: str | None, reaction: bool,
@@ -60,7 +66,7 @@ class PayloadParameters:
                    {k: v for k, v in fit.stderr.items()},
                    {"n_samples": fit.n_samples, "residual_rms": fit.residual_rms,
                     "condition_number": fit.condition_number, "wrench_columns": list(wrench_columns),
-                    "weighting": fit.weighting, "standard_errors": fit.stderr_kind}, drift)
+                    "weighting": fit.weighting, "standard_errors": fit.stderr_kind}, drift, fit.undetermined)
 
     @property
     def needs_time(self) -> bool:

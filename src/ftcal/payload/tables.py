@@ -18,7 +18,7 @@ import numpy as np
 from ..core.jackknife import block_edges, t_scale
 from ..runtime.errors import FtcalError
 from .accumulate import AxisStatistics, payload_statistics
-from .compensate import contact_wrench
+from .compensate import contact_wrench, undetermined_samples, warn_undetermined
 from .drift import MAX_KNOTS, BiasDrift
 from .identify import PayloadFit, model_fit
 from .kinematics import Kinematics, KinematicsSource
@@ -189,8 +189,9 @@ def compensate_table(path: str | os.PathLike, payload: PayloadParameters, source
         When given, the measured wrench is its prediction from its input columns.
     time_column : time column (s) when the bias drifts in time; default the payload file's
     warn_out_of_range : bool
-        Let the model warn about inputs outside its training range (off when the caller
-        warns once for several tables).
+        Let the model warn about inputs outside its training range, and warn about samples outside
+        the span of the payload's identification poses (off when the caller warns once for several
+        tables: the count is then ``attrs["undetermined_samples"]`` of the result).
 
     Returns
     -------
@@ -213,10 +214,13 @@ def compensate_table(path: str | os.PathLike, payload: PayloadParameters, source
         time = numeric_columns(frame, (time_column or drift.time_column,), Path(path), "time")[:, 0]
     if payload.needs_temperature:
         temperature = numeric_columns(frame, (drift.temperature_column,), Path(path), "temperature")[:, 0]
-    contact = contact_wrench(measured, payload, source(frame, str(path)), time, temperature, str(path))
+    kinematics = source(frame, str(path))
+    contact = contact_wrench(measured, payload, kinematics, time, temperature, str(path), warn=warn_out_of_range)
     out = frame.copy()
     for j, name in enumerate(CONTACT_COLUMNS):
         out[name] = contact[:, j]
+    if not warn_out_of_range:  # the caller warns once: how many samples the undetermined parameters act on
+        out.attrs["undetermined_samples"] = undetermined_samples(payload, kinematics)
     return out
 
 
@@ -259,7 +263,10 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
         A time model without time, with ``dynamic``, a constant temperature, or data that cannot
         determine the model.
     """
+    import warnings
+
     from ..core.limits import BIAS_DRIFTS, DRIFT_BLOCK_SECONDS
+    from ..runtime.errors import UndeterminedWarning
     from .drift import BiasDrift, block_means, check_temperature, choose, covariates, fit_state_space
     from .identify import identify_payload
 
@@ -283,13 +290,14 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
     groups, clusters = _groups_and_blocks(recording, dynamic, extra)
     n_groups = len(groups)
     constant = identify_payload(groups, clusters=clusters, covariates=names, cross_validate=cross_validate)
+    held = () if constant.undetermined is None else constant.undetermined.held
     kind, selection = ("none", "") if bias_drift == "auto" and (hours is None or dynamic) else (bias_drift, "")
     fits = {}
     if hours is not None and not dynamic and kind in ("auto", "random-walk"):
         blocks = block_means(hours, recording.kinematics.gravity, recording.measured, temperature)
         for candidate in (("none", "linear", "random-walk") if kind == "auto" else ("random-walk",)):
             try:
-                fits[candidate] = fit_state_space(blocks, candidate, temperature is not None)
+                fits[candidate] = fit_state_space(blocks, candidate, temperature is not None, held)
             except FtcalError:
                 if kind != "auto":
                     raise
@@ -305,7 +313,9 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
     if kind == "linear":
         extra, names = covariates(hours, temperature)
         groups, clusters = _groups_and_blocks(recording, False, extra)
-        fit = identify_payload(groups, clusters=clusters, covariates=names, cross_validate=cross_validate)
+        with warnings.catch_warnings():  # the constant fit said what the poses do not determine
+            warnings.simplefilter("ignore", UndeterminedWarning)
+            fit = identify_payload(groups, clusters=clusters, covariates=names, cross_validate=cross_validate)
         slope = fit.theta[10:16]
         start = fit.theta[4:10]
         end_hours = hours[-1]
@@ -333,7 +343,7 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
         del residual
         fit = model_fit(ss.names, ss.theta, ss.covariance, residual_rms=rms, n_samples=recording.n_samples,
                         stderr_kind=f"state-space model ({len(blocks.count)} time blocks)",
-                        covariates=covariate_names)
+                        covariates=covariate_names, undetermined=constant.undetermined)
         fit = _with_end_bias(fit, ss.trajectory[-1], ss.end_stderr)
         change = ss.trajectory[-1] - ss.trajectory[0]
         walk = np.sqrt(ss.walk_variance)
@@ -377,6 +387,13 @@ def _static_wrench(theta: np.ndarray, gravity: np.ndarray) -> np.ndarray:
 def _with_end_bias(fit: PayloadFit, bias: np.ndarray, stderr: np.ndarray) -> PayloadFit:
     from dataclasses import replace
 
+    from .identify import undetermined_fields
+
+    stderr = np.array(stderr, dtype=float)
+    if fit.undetermined is not None:  # no standard error for what the poses do not determine
+        fields = undetermined_fields(fit.undetermined.parameters)
+        stderr[list(fields.get("force_bias", ()))] = np.nan
+        stderr[[3 + j for j in fields.get("torque_bias", ())]] = np.nan
     errors = dict(fit.stderr, force_bias=stderr[:3], torque_bias=stderr[3:])
     return replace(fit, force_bias=bias[:3], torque_bias=bias[3:], stderr=errors)
 
@@ -412,6 +429,8 @@ def rebias(recording: PayloadRecording, payload: PayloadParameters) -> Rebias:
     from ..core.limits import ROBUST_CLUSTERS
     from .compensate import payload_wrench
 
+    warn_undetermined(payload, undetermined_samples(payload, recording.kinematics), recording.n_samples,
+                      "the re-tare data")
     residual = recording.measured - payload_wrench(payload, recording.kinematics)
     if payload.needs_temperature:
         drift = payload.drift

@@ -24,6 +24,10 @@ class IllPosedFitWarning(FtcalWarning):
     """The fit is rank-deficient, ill-conditioned or under-determined."""
 
 
+class UndeterminedWarning(IllPosedFitWarning):
+    """The data determine only some parameters; the others are held at a stated default and reported undetermined."""
+
+
 class OutOfRangeWarning(FtcalWarning):
     """Prediction inputs fall outside the range seen during training."""
 
