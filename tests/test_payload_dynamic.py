@@ -11,7 +11,7 @@ from ftcal.payload.identify import identify_payload
 from ftcal.payload.kinematics import Kinematics
 from ftcal.payload.parameters import PayloadParameters
 from ftcal.payload.regressor import inertia_matrix
-from ftcal.runtime.errors import FtcalError, UndeterminedWarning
+from ftcal.runtime.errors import UndeterminedWarning
 
 BIAS = np.array([1.5, -0.7, 2.0, 0.05, 0.02, -0.03])
 NOISE = np.array([0.05, 0.05, 0.05, 0.002, 0.002, 0.002])

@@ -8,7 +8,6 @@ a torque: it cannot be identified, while mass, COM x/y and all biases can.
 
 import json
 import warnings
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
