@@ -178,7 +178,8 @@ def run(args) -> int:
     result = identify_recording(recording, bias_drift=args.bias_drift, dynamic=args.dynamic,
                                 time_column=args.time, temperature_column=args.temperature)
     fit = result.fit
-    message = payload_warning(args.data, source, fit, args.g, wrench=args.wrench, reaction=args.reaction)
+    message = payload_warning(args.data, source, fit, args.g, wrench=args.wrench, reaction=args.reaction,
+                              time=args.time)
     if message:  # the fit looks like a sign/frame/zeroing mistake: ftcal check's tests on the static holds
         warnings.warn(message, ConventionWarning, stacklevel=1)
     check_mass_sign(fit)
