@@ -197,6 +197,18 @@ def test_payload_without_static_holds_or_time(capsys, tmp_path):
     frame.to_csv(tmp_path / "untimed.csv", index=False)
     assert main(["payload", str(tmp_path / "untimed.csv"), "--orientation", "qx,qy,qz,qw", "-o", str(out)]) == 0
     assert "no time column 'time': all 400 samples used as static" in capsys.readouterr().out
+    # without its clock, a table's own 'static' marks (from ftcal dataset) choose the samples: the second half
+    # here carries a 5 N push, which only the marked-moving rows hold
+    marked = frame.assign(static=np.r_[np.ones(200, int), np.zeros(200, int)])
+    marked.loc[200:, "u1"] += 5.0
+    marked.to_csv(tmp_path / "marked.csv", index=False)
+    assert main(["payload", str(tmp_path / "marked.csv"), "--orientation", "qx,qy,qz,qw", "-o", str(out)]) == 0
+    assert "its 'static' column marks 200 of 400 samples moving; excluded" in capsys.readouterr().out
+    doc = json.loads(out.read_text())
+    assert doc["mass"] == pytest.approx(1.0, abs=1e-6) and doc["force_bias"][0] == pytest.approx(0.0, abs=1e-6)
+    marked.assign(static=2).to_csv(tmp_path / "bad.csv", index=False)
+    assert main(["payload", str(tmp_path / "bad.csv"), "--orientation", "qx,qy,qz,qw", "-o", str(out)]) == 2
+    assert "column 'static' must hold 1 (still) or 0 (moving)" in capsys.readouterr().err
 
 
 # ------------------------------------------------------------------------------ the /joint_states route

@@ -132,7 +132,8 @@ def register(sub) -> None:
                    help="column naming the cross-validation groups, e.g. the pose (default: one per file)")
     p.add_argument("--keep-moving", action="store_true",
                    help="static model: use every sample (default: only the static holds, found from the orientation, "
-                        "joints or gravity over --time; the moving samples are counted and excluded)")
+                        "joints or gravity over --time, else the table's static column from ftcal dataset; the moving "
+                        "samples are counted and excluded)")
     p.add_argument("--reaction", action="store_true",
                    help="the sensor reports the wrench it applies on the tool (opposite sign): negate readings")
     p.add_argument("--frame", metavar="NAME", help="name of the sensor frame, stored in the file (e.g. ft_sensor)")
