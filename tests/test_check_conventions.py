@@ -17,7 +17,7 @@ import pytest
 from scipy.spatial.transform import Rotation, Slerp
 
 from ftcal.check.conventions import check_conventions, rotation_from_rpy
-from ftcal.check.holds import find_holds
+from ftcal.data.holds import find_holds, hold_averages
 from ftcal.cli import main
 from ftcal.runtime.errors import FtcalError, FtcalWarning
 
@@ -51,8 +51,15 @@ def gravity_of(rotation):
     return np.einsum("nji,j->ni", rotation, [0.0, 0.0, -G])
 
 
+def averages(wrench, rotation):
+    """Per-hold means, the holds found from the gravity direction (rows 10 ms apart)."""
+    gravity = gravity_of(rotation)
+    holds = find_holds(np.arange(len(wrench)) * 0.01, gravity=gravity)
+    return hold_averages(holds, wrench, gravity, rotation)
+
+
 def findings(wrench, rotation, **kwargs):
-    return check_conventions(find_holds(wrench, gravity_of(rotation), rotation), **kwargs).findings
+    return check_conventions(averages(wrench, rotation), **kwargs).findings
 
 
 def both(matrix, wrench):
@@ -68,7 +75,7 @@ def test_a_correct_recording_has_no_finding(seed):
 
 def test_holds_are_the_still_stretches():
     wrench, rotation, hold = recording(3)
-    holds = find_holds(wrench, gravity_of(rotation), rotation)
+    holds = averages(wrench, rotation)
     assert holds.n_holds == 8
     for k in range(8):
         rows = np.flatnonzero(hold == k)
@@ -162,10 +169,10 @@ def test_torques_about_another_point_give_an_implausible_com():
 def test_too_few_or_too_similar_holds_are_refused():
     wrench, rotation, hold = recording(12, n_holds=2)
     with pytest.raises(FtcalError, match="2 static hold"):
-        check_conventions(find_holds(wrench, gravity_of(rotation), rotation))
+        check_conventions(averages(wrench, rotation))
     still = np.repeat(rotation[:1], len(rotation), axis=0)
     with pytest.raises(FtcalError, match="no static hold|1 static hold"):
-        check_conventions(find_holds(wrench, gravity_of(still), still))
+        check_conventions(averages(wrench, still))
 
 
 # ---------------------------------------------------------------- the command line

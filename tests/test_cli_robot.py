@@ -107,7 +107,11 @@ def test_dataset_then_fit(capfd, tmp_path, urdf, logs):
                  "--no-filter", "-o", str(out)]) == 0
     assert "group(s) l0kg-r0kg, l0kg-r1kg" in capfd.readouterr().out
     frame = pd.read_parquet(out)
-    assert list(frame.columns) == ["u1", "u2", "u3", "u4", "u5", "u6", "T", *WRENCH, "segment", "group"]
+    assert list(frame.columns) == ["u1", "u2", "u3", "u4", "u5", "u6", "T", *WRENCH, "time", "shoulder", "static",
+                                   "hold", "segment", "group"]
+    # the logged joint on the F/T clock (it turns at 0.5 rad/s from t = 0, so never holds still)
+    np.testing.assert_allclose(frame["shoulder"], 0.5 * frame["time"], atol=1e-12)
+    assert frame["static"].eq(0).all() and frame["hold"].eq(-1).all()
     second = frame[frame["segment"] == 1]
     np.testing.assert_allclose(np.linalg.norm(second[["Fx", "Fy", "Fz"]].to_numpy(), axis=1), 2.5 * 9.81)
     # raw = 100 + 3 · wrench in both recordings, the second one with 1 kg more at the forearm COM

@@ -10,8 +10,10 @@ import pytest
 from bag_data import Bag
 from scipy.spatial.transform import Rotation
 
+from ftcal.check.conventions import read_holds
 from ftcal.cli import main
-from ftcal.data.holds import MIN_HOLD_S, find_holds
+from ftcal.data.holds import MIN_HOLD_S, Holds, find_holds, hold_averages
+from ftcal.payload.kinematics import OrientationSource
 from ftcal.runtime.errors import FtcalError, FtcalWarning
 
 T0 = 1_700_000_000 * 10**9
@@ -195,6 +197,18 @@ def test_payload_without_static_holds_or_time(capsys, tmp_path):
     frame.to_csv(tmp_path / "untimed.csv", index=False)
     assert main(["payload", str(tmp_path / "untimed.csv"), "--orientation", "qx,qy,qz,qw", "-o", str(out)]) == 0
     assert "no time column 'time': all 400 samples used as static" in capsys.readouterr().out
+    # without its clock, a table's own 'static' marks (from ftcal dataset) choose the samples: the second half
+    # here carries a 5 N push, which only the marked-moving rows hold
+    marked = frame.assign(static=np.r_[np.ones(200, int), np.zeros(200, int)])
+    marked.loc[200:, "u1"] += 5.0
+    marked.to_csv(tmp_path / "marked.csv", index=False)
+    assert main(["payload", str(tmp_path / "marked.csv"), "--orientation", "qx,qy,qz,qw", "-o", str(out)]) == 0
+    assert "its 'static' column marks 200 of 400 samples moving; excluded" in capsys.readouterr().out
+    doc = json.loads(out.read_text())
+    assert doc["mass"] == pytest.approx(1.0, abs=1e-6) and doc["force_bias"][0] == pytest.approx(0.0, abs=1e-6)
+    marked.assign(static=2).to_csv(tmp_path / "bad.csv", index=False)
+    assert main(["payload", str(tmp_path / "bad.csv"), "--orientation", "qx,qy,qz,qw", "-o", str(out)]) == 2
+    assert "column 'static' must hold 1 (still) or 0 (moving)" in capsys.readouterr().err
 
 
 # ------------------------------------------------------------------------------ the /joint_states route
@@ -297,3 +311,60 @@ def test_holds_are_numbered_across_bags(tmp_path):
     frame = pd.read_csv(out)
     assert frame.groupby("segment")["hold"].agg(["min", "max"]).values.tolist() == [[0, 0], [1, 1]]
     assert frame["static"].eq(1).all()
+
+
+def test_hold_averages_and_the_longest_hold_per_label():
+    """Means, standard errors and rotations of hand-made holds; one hold per label keeps the longest."""
+    hold = np.array([-1, 0, 0, 0, -1, 1, 1, -1, 2, 2, 2, 2])
+    holds = Holds(hold >= 0, hold, "test")
+    starts, stops = holds.ranges()
+    np.testing.assert_array_equal(starts, [1, 5, 8])
+    np.testing.assert_array_equal(stops, [4, 7, 12])
+    wrench = np.zeros((12, 6))
+    wrench[1:4, 0] = [1.0, 2.0, 6.0]  # mean 3, population std √(14/3)
+    gravity = np.tile([0.0, 0.0, -9.81], (12, 1))
+    turn = Rotation.from_euler("z", [[10.0], [20.0], [30.0]], degrees=True).as_matrix()
+    rotation = np.repeat(np.eye(3)[None], 12, axis=0)
+    rotation[1:4] = turn
+    avg = hold_averages(holds, wrench, gravity, rotation)
+    assert avg.n_holds == 3
+    assert avg.wrench[0, 0] == pytest.approx(3.0) and avg.noise[0, 0] == pytest.approx(np.sqrt(14 / 3) / np.sqrt(3))
+    np.testing.assert_allclose(avg.gravity, [[0.0, 0.0, -9.81]] * 3)
+    # the rotation nearest the mean of rotations by 10°, 20°, 30° about z is the one by 20°
+    np.testing.assert_allclose(avg.rotation[0], turn[1], atol=1e-12)
+    np.testing.assert_array_equal(avg.start, [1, 5, 8])
+    np.testing.assert_array_equal(avg.stop, [4, 7, 12])
+    # labels: rows 0-7 one pose (holds 0 and 1: the longer, 0, is kept), rows 8-11 another
+    labels = np.array(["a"] * 8 + ["b"] * 4, dtype=object)
+    one = holds.longest_per_segment(labels)
+    np.testing.assert_array_equal(one.hold, [-1, 0, 0, 0, -1, -1, -1, -1, 1, 1, 1, 1])
+
+
+def test_check_reads_holds_over_the_time_column_or_the_declared_rate(tmp_path, capsys):
+    """``ftcal check`` finds its holds with ftcal.data.holds: over the time column when the table has one,
+    else at --rate; the same recording, told a rate 20 times too low, sees the slow moves as holds."""
+    t, k, blend, still = hold_and_move(6, 1.0, 1.5, 100.0)
+    poses = rotations(6, 7)
+    q = slerped(poses, k, blend)
+    gravity = q.inv().apply([0.0, 0.0, -9.81])
+    rng = np.random.default_rng(3)
+    wrench = np.c_[1.5 * gravity, np.cross([0.0, 0.0, 0.05], 1.5 * gravity)] + 0.01 * rng.normal(size=(t.size, 6))
+    frame = pd.DataFrame(np.c_[q.as_quat(), wrench], columns=["qx", "qy", "qz", "qw", *WRENCH])
+    plain = tmp_path / "plain.csv"
+    frame.to_csv(plain, index=False)
+    timed = tmp_path / "timed.csv"
+    frame.assign(time=t).to_csv(timed, index=False)
+    for path, extra in ((timed, []), (plain, []), (plain, ["--rate", "100"])):
+        assert main(["check", str(path), "--orientation", "qx,qy,qz,qw", *extra]) == 0
+        assert capsys.readouterr().out.startswith("6 static holds;")
+    source = OrientationSource(("qx", "qy", "qz", "qw"))
+    timed_holds = read_holds([timed], source)
+    np.testing.assert_array_equal(timed_holds.start, read_holds([plain], source, rate=100.0).start)
+    # each hold starts where the schedule's does (the first, at row 0) or within the slowest instants of the move
+    first_rows = np.flatnonzero(np.diff(np.r_[-1, k]))
+    assert np.all((timed_holds.start - first_rows <= 0) & (timed_holds.start - first_rows >= -10))
+    # told 5 Hz, rows look 0.2 s apart: the moves look 20 times slower and their slow ends pass as still
+    slow = read_holds([plain], source, rate=5.0)
+    assert np.sum(slow.stop - slow.start) > np.sum(timed_holds.stop - timed_holds.start) + 6 * 10
+    with pytest.raises(FtcalError, match="no time column 'stamp'"):
+        read_holds([plain], source, time="stamp")

@@ -1,8 +1,8 @@
 """``ftcal check``: is the sensor signed, mounted and zeroed the way the user thinks, and does
 the installation pass?
 
-* :mod:`.holds` finds the static holds of a recording (gravity direction still);
-* :mod:`.conventions` infers sign, handedness, axis permutation, frame rotation, a wrench
+* :mod:`.conventions` reads the static holds of a recording (:mod:`ftcal.data.holds`, from the
+  gravity direction) and infers sign, handedness, axis permutation, frame rotation, a wrench
   already tared / gravity-compensated / in the base frame, and torques about another point,
   each with a confidence, the fix and the residual before and after it;
 * :mod:`.accept` tests a calibration (and payload) against thresholds on a test recording;

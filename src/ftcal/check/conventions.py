@@ -30,10 +30,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..core.limits import FINDING_CONFIDENCE, MAX_COM_DISTANCE, MIN_HOLDS, MIN_ROTATION_DEG, MIN_TOOL_MASS
+from ..core.limits import (FINDING_CONFIDENCE, HOLD_SAMPLE_RATE, MAX_COM_DISTANCE, MIN_HOLDS, MIN_ROTATION_DEG,
+                           MIN_TOOL_MASS)
 from ..payload.regressor import static_regressor
 from ..runtime.errors import FtcalError, FtcalWarning
-from .holds import Holds
+from ..data.holds import HoldAverages
 
 AXES = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
 # Centred gravity directions thinner than this (smallest / largest singular value) lie in a plane:
@@ -84,7 +85,7 @@ class ConventionReport:
 
     Attributes
     ----------
-    holds : Holds
+    holds : HoldAverages
     findings : list of Finding (empty when the recording is as declared)
     force_map : ndarray of shape (3, 3), the fitted ``A`` (``F = m A g + b``)
     mass : float, kg, the best-fit mass with that map
@@ -95,7 +96,7 @@ class ConventionReport:
     notes : caveats (what could not be tested and why)
     """
 
-    holds: Holds
+    holds: HoldAverages
     findings: list[Finding]
     force_map: np.ndarray
     mass: float
@@ -211,17 +212,17 @@ def _format_rpy(rpy) -> str:
             f"({', '.join(f'{math.degrees(v):.2f}°' for v in rpy)})")
 
 
-def _rms(holds: Holds, sign: float, a: np.ndarray) -> tuple[float, float]:
+def _rms(holds: HoldAverages, sign: float, a: np.ndarray) -> tuple[float, float]:
     return residual_rms(static_fit(sign * holds.wrench, holds.gravity @ a.T)[1])
 
 
-def check_conventions(holds: Holds, *, wrench_columns=AXES, max_com_distance: float = MAX_COM_DISTANCE,
+def check_conventions(holds: HoldAverages, *, wrench_columns=AXES, max_com_distance: float = MAX_COM_DISTANCE,
                       source: str = "data") -> ConventionReport:
     """Infer sign, handedness, axis order, frame rotation, base frame, compensation and lever.
 
     Parameters
     ----------
-    holds : Holds
+    holds : HoldAverages
         Static holds at different orientations with the tool attached.
     wrench_columns : the six wrench column names (to spell a column fix)
     max_com_distance : m, farther centres of mass mean torques about another point
@@ -324,14 +325,14 @@ def _normal_sf(z: float) -> float:
     return 0.5 * math.erfc(z / math.sqrt(2.0))
 
 
-def _mass_z(fit: _Procrustes, holds: Holds) -> float:
+def _mass_z(fit: _Procrustes, holds: HoldAverages) -> float:
     """Mass over its standard error (σ from the fit, floored by the holds' noise)."""
     gc = holds.gravity - holds.gravity.mean(axis=0)
     s2 = max(fit.rss / max(fit.dof, 1), float(np.mean(holds.noise[:, :3] ** 2)), 1e-300)
     return fit.mass * math.sqrt(float(np.sum(gc ** 2)) / s2)
 
 
-def _map_finding(holds: Holds, fit: _Procrustes, sigma2: float, columns,
+def _map_finding(holds: HoldAverages, fit: _Procrustes, sigma2: float, columns,
                  declared) -> tuple[float, np.ndarray, Finding | None]:
     """The sign / permutation / handedness / rotation finding of the fitted map, and the fix (sign, A')."""
     force = holds.wrench[:, :3]
@@ -382,7 +383,7 @@ def _map_finding(holds: Holds, fit: _Procrustes, sigma2: float, columns,
                     f"(fitted angle {angle:.2f}°)", rotate, confidence, declared, after, rpy=rpy)
 
 
-def _zeroed(holds: Holds, theta: np.ndarray, after) -> list[Finding]:
+def _zeroed(holds: HoldAverages, theta: np.ndarray, after) -> list[Finding]:
     weight = abs(theta[0]) * float(np.linalg.norm(holds.gravity, axis=1).mean())
     norm_f = np.linalg.norm(holds.wrench[:, :3], axis=1)
     norm_t = np.linalg.norm(holds.wrench[:, 3:], axis=1)
@@ -405,7 +406,7 @@ def _zeroed(holds: Holds, theta: np.ndarray, after) -> list[Finding]:
         1.0 - 2.0 * _normal_sf(weight / max(float(se_f[k]), 1e-300)), after, after)]
 
 
-def _lever(holds: Holds, theta: np.ndarray, residual: np.ndarray, max_com_distance: float, after) -> list[Finding]:
+def _lever(holds: HoldAverages, theta: np.ndarray, residual: np.ndarray, max_com_distance: float, after) -> list[Finding]:
     mass = theta[0]
     if mass <= 0:
         return []
@@ -444,7 +445,8 @@ class ConventionWarning(FtcalWarning):
     """``ftcal payload``'s fit looks like a sign, frame or zeroing mistake."""
 
 
-def payload_warning(paths, source, fit, g: float, *, wrench=AXES, reaction: bool = False) -> str | None:
+def payload_warning(paths, source, fit, g: float, *, wrench=AXES, reaction: bool = False,
+                    time: str | None = None) -> str | None:
     """One line for ``ftcal payload`` when its data look like a convention error, else None.
 
     Parameters
@@ -455,11 +457,10 @@ def payload_warning(paths, source, fit, g: float, *, wrench=AXES, reaction: bool
     g : m/s²
     wrench : its --wrench columns (to spell a fix)
     reaction : its --reaction
+    time : its --time column (default ``time`` where there is one)
     """
-    from .holds import read_holds
-
     try:
-        report = check_conventions(read_holds(paths, source, wrench=wrench, reaction=reaction),
+        report = check_conventions(read_holds(paths, source, wrench=wrench, reaction=reaction, time=time),
                                    wrench_columns=tuple(wrench))
     except FtcalError:
         return None  # no usable static holds (e.g. continuous motion): the fit's own checks apply
@@ -475,3 +476,74 @@ def payload_warning(paths, source, fit, g: float, *, wrench=AXES, reaction: bool
         return (f"the force residual ({force_rms:.3g} N RMS) is of the order of the tool's weight ({weight:.3g} N): "
                 "check the sign, frame and zeroing with ftcal check")
     return None
+
+
+def read_holds(paths, source, *, wrench=("u1", "u2", "u3", "u4", "u5", "u6"), group_by: str | None = None,
+               reaction: bool = False, time: str | None = None, rate: float = HOLD_SAMPLE_RATE) -> HoldAverages:
+    """Static holds of CSV/Parquet recordings and their means (:func:`ftcal.data.holds.find_holds` from
+    the gravity direction).
+
+    Parameters
+    ----------
+    paths : table files
+    source : KinematicsSource giving gravity in the declared sensor frame; with quaternion
+        columns (``OrientationSource``) the full rotations are kept too (base-frame test)
+    wrench : six wrench columns
+    group_by : column naming the holds (each label's longest still stretch is its hold)
+    reaction : negate the readings (the user declares the reaction sign)
+    time : time column, s (default ``time`` where a table has one); holds never span two values of a
+        ``segment`` column
+    rate : Hz, the sample rate of a table without the time column (its rows are then that far apart)
+
+    Returns
+    -------
+    HoldAverages
+
+    Raises
+    ------
+    FtcalError
+        A missing column, or a table without a static hold.
+    """
+    from pathlib import Path
+
+    from ..data.holds import MIN_HOLD_S, concatenate_averages, find_holds, hold_averages
+    from ..data.tables import numeric_columns, read_table
+    from ..payload.kinematics import MotionSource, OrientationSource
+
+    if len(wrench) != 6:
+        raise FtcalError(f"--wrench needs 6 columns Fx,Fy,Fz,Tx,Ty,Tz; got {','.join(wrench)}.")
+    if isinstance(source, MotionSource):
+        source = source.gravity  # holds are static: gravity is all that matters
+    time_column = time or "time"
+    parts = []
+    for path in paths:
+        frame = read_table(path)
+        measured = (-1.0 if reaction else 1.0) * numeric_columns(frame, wrench, Path(path), "wrench")
+        gravity = source(frame, str(path)).gravity
+        rotation = None
+        if isinstance(source, OrientationSource):
+            from scipy.spatial.transform import Rotation
+
+            q = numeric_columns(frame, source.columns, Path(path), "orientation")
+            rotation = Rotation.from_quat(q).as_matrix()  # x, y, z, w (ROS order)
+        if time_column in frame.columns:
+            t = numeric_columns(frame, (time_column,), Path(path), "time")[:, 0]
+        elif time is not None:
+            raise FtcalError(f"{path}: no time column {time!r} (--time); the file has "
+                             f"{', '.join(map(str, frame.columns))}.")
+        else:
+            t = np.arange(len(frame)) / rate
+        labels = frame["segment"].to_numpy() if "segment" in frame.columns else None
+        if group_by is not None:
+            if group_by not in frame.columns:
+                raise FtcalError(f"{path}: no hold column {group_by!r} (--group-by); the file has "
+                                 f"{', '.join(map(str, frame.columns))}.")
+            labels = frame[group_by].astype(str).to_numpy(dtype=object)
+        holds = find_holds(t, gravity=gravity, segments=labels, where=str(path), time_column=time_column)
+        if group_by is not None:
+            holds = holds.longest_per_segment(labels)
+        if holds.n_holds == 0:
+            raise FtcalError(f"{path}: no static hold found (gravity direction still for {MIN_HOLD_S:g} s or "
+                             "more); record the tool at rest in a few orientations.")
+        parts.append(hold_averages(holds, measured, gravity, rotation))
+    return concatenate_averages(parts)

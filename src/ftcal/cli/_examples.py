@@ -51,7 +51,8 @@ EXAMPLES = {
   ftcal topics ftcal-demo/arm""",
     "dataset": """\
   # robot logs + URDF: one segment per recording, group = load case (folders l<x>kg-r<y>kg,
-  # plates placed by payloads.toml); ready for `ftcal fit --segment-by segment --group-by group`
+  # plates placed by payloads.toml), static holds from the logged joints (columns static, hold);
+  # ready for `ftcal fit --segment-by segment --group-by group` (or --group-by hold: one group per pose)
   ftcal dataset ftcal-demo/logs/validation/l0kg-r*/*.mat --model iCubGenova11 --sensor r_arm_ft \\
       --payload-file ftcal-demo/payloads.toml -o ftcal-demo/validation-from-logs.parquet
   # a ROS 2 bag, no URDF: wrench, orientation from tf, IMU and temperature (for `ftcal payload`)

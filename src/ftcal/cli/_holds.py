@@ -8,8 +8,9 @@ class StaticRows:
 
     Motion is read from the ``--orientation`` quaternions, else from the joint
     columns of a robot model, else from the gravity direction, over the
-    ``--time`` column; a table without that column is used whole (said in
-    :attr:`notes`). ``notes``: one line per table for the printout.
+    ``--time`` column; a table without that column keeps the samples its
+    ``static`` column marks still (written by ``ftcal dataset``), else is used
+    whole (said in :attr:`notes`). ``notes``: one line per table for the printout.
     """
 
     def __init__(self, args, source) -> None:
@@ -28,6 +29,20 @@ class StaticRows:
 
         args = self.args
         time_column = args.time or "time"
+        if time_column not in frame.columns and "static" in frame.columns:
+            # The marks `ftcal dataset` wrote (data.holds, from the same signals), for a table without its clock.
+            marks = numeric_columns(frame, ("static",), Path(path), "static")[:, 0]
+            if not np.all((marks == 0) | (marks == 1)):
+                raise FtcalError(f"{path}: column 'static' must hold 1 (still) or 0 (moving).")
+            static = marks == 1
+            if not static.any():
+                raise FtcalError(f"{path}: column 'static' marks no sample still; give --keep-moving to use "
+                                 "every sample.")
+            moving = int(static.size - np.count_nonzero(static))
+            self.notes.append(f"{path}: no time column {time_column!r}: its 'static' column marks {moving} of "
+                              f"{static.size} samples moving; " + ("excluded" if moving else "all used")
+                              + " (--keep-moving keeps them)")
+            return static
         if time_column not in frame.columns:
             self.notes.append(f"{path}: no time column {time_column!r}: all {len(frame)} samples used as static "
                               "(give --time COL to find and drop the moving ones)")

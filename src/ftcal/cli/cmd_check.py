@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from ..core.limits import (FINDING_CONFIDENCE, MAX_COM_DISTANCE, MAX_FORCE_ERROR, MAX_TORQUE_ERROR,
-                           MIN_HOLDS, MIN_ROTATION_DEG)
+from ..core.limits import (FINDING_CONFIDENCE, HOLD_SAMPLE_RATE, MAX_COM_DISTANCE, MAX_FORCE_ERROR,
+                           MAX_TORQUE_ERROR, MIN_HOLDS, MIN_ROTATION_DEG)
 from ._common import column_list, positive_float, require_suffix
 from ._examples import epilog
 from .cmd_payload import add_kinematics_options, add_robot_source_options
@@ -36,6 +36,9 @@ def register(sub) -> None:
     p.add_argument("--group-by", metavar="COL",
                    help="column naming the static holds (conventions) or the poses (--accept); default: holds "
                         "found from the orientation, one pose per file")
+    p.add_argument("--rate", type=positive_float, default=HOLD_SAMPLE_RATE, metavar="HZ",
+                   help=f"sample rate of DATA without a time column, to find the static holds "
+                        f"(default {HOLD_SAMPLE_RATE:g} Hz)")
     p.add_argument("--reaction", action="store_true", help="the readings are declared to have the reaction sign")
     p.add_argument("--max-com-distance", type=positive_float, default=MAX_COM_DISTANCE, metavar="M",
                    help=f"a centre of mass farther from the sensor origin means torques about another point "
@@ -85,12 +88,11 @@ def run(args) -> int:
 
 
 def run_conventions(args) -> int:
-    from ..check.conventions import check_conventions
-    from ..check.holds import read_holds
+    from ..check.conventions import check_conventions, read_holds
     from .cmd_payload import kinematics_source
 
     holds = read_holds(args.data, kinematics_source(args), wrench=args.wrench, group_by=args.group_by,
-                       reaction=args.reaction)
+                       reaction=args.reaction, time=args.time, rate=args.rate)
     report = check_conventions(holds, wrench_columns=tuple(args.wrench), max_com_distance=args.max_com_distance,
                                source=", ".join(args.data))
     force, torque = report.residual

@@ -14,9 +14,11 @@ def register(subparsers) -> None:
         "dataset", **epilog("dataset"), help="robot logs (.mat/.csv/.parquet) or ROS bags to a fit-ready dataset",
         description="Read robot recordings, put each on the F/T sensor's clock, smooth the raw channels, "
                     "compute the expected wrench with each recording's load case attached, and write a "
-                    "dataset with columns u1..u6, T, Fx..Tz, segment (one per recording) and group "
-                    "(load case or recording), ready for 'ftcal fit DATA --segment-by segment "
-                    "--group-by group'. ROS bags (.bag, ROS 2 bag folders, .db3, .mcap; see 'ftcal topics') "
+                    "dataset with columns u1..u6, T, Fx..Tz, time, the logged joint positions (named as the "
+                    "joints), static (1 still, 0 moving, from the joints over the log's time stamps) and hold "
+                    "(the still pose's number over all recordings, -1 moving), segment (one per recording) and "
+                    "group (load case or recording), ready for 'ftcal fit DATA --segment-by segment "
+                    "--group-by group' ('--group-by hold': one cross-validation group per pose). ROS bags (.bag, ROS 2 bag folders, .db3, .mcap; see 'ftcal topics') "
                     "take --wrench-topic and optional --joints-topic, --temperature-topic, --imu-topic, "
                     "--tf BASE[:SENSOR_FRAME]; they need no URDF: the table then holds the measured wrench "
                     "u1..u6, time, and the orientation qx,qy,qz,qw (sensor to a gravity-aligned BASE, "
@@ -92,7 +94,7 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from ..data.logs import READERS, log_format
-    from ..insitu.recordings import InsituOptions, build_dataset, write_dataset
+    from ..insitu.recordings import InsituOptions, build_log_table, write_dataset
     from ..robot import load_case_config, parse_payload_spec
     from ..runtime.errors import FtcalError
 
@@ -131,12 +133,16 @@ def run(args: argparse.Namespace) -> int:
         executor = executor if args.scheduler else None  # without --scheduler: here, sharing one robot model
         if all(is_bag):
             return _run_bags(args, out, robot, payloads, config, options, executor)
-        dataset = build_dataset(args.logs, robot, args.sensor, payloads=payloads, load_cases=config,
+        table = build_log_table(args.logs, robot, args.sensor, payloads=payloads, load_cases=config,
                                 options=options, executor=executor)
-    write_dataset(dataset, out)
+    write_dataset(table, out)
+    for line in table.notes:
+        print(line)
+    dataset = table.dataset
     groups = sorted(set(map(str, dataset.groups)))
+    n_holds = int(table.columns["hold"].max()) + 1 if dataset.n_samples else 0
     print(f"wrote {dataset.n_samples} samples from {len(args.logs)} recording(s), "
-          f"group(s) {', '.join(groups)}, to {out}")
+          f"group(s) {', '.join(groups)}, {n_holds} static hold(s), to {out}")
     return 0
 
 

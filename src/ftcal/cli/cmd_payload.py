@@ -132,7 +132,8 @@ def register(sub) -> None:
                    help="column naming the cross-validation groups, e.g. the pose (default: one per file)")
     p.add_argument("--keep-moving", action="store_true",
                    help="static model: use every sample (default: only the static holds, found from the orientation, "
-                        "joints or gravity over --time; the moving samples are counted and excluded)")
+                        "joints or gravity over --time, else the table's static column from ftcal dataset; the moving "
+                        "samples are counted and excluded)")
     p.add_argument("--reaction", action="store_true",
                    help="the sensor reports the wrench it applies on the tool (opposite sign): negate readings")
     p.add_argument("--frame", metavar="NAME", help="name of the sensor frame, stored in the file (e.g. ft_sensor)")
@@ -178,7 +179,8 @@ def run(args) -> int:
     result = identify_recording(recording, bias_drift=args.bias_drift, dynamic=args.dynamic,
                                 time_column=args.time, temperature_column=args.temperature)
     fit = result.fit
-    message = payload_warning(args.data, source, fit, args.g, wrench=args.wrench, reaction=args.reaction)
+    message = payload_warning(args.data, source, fit, args.g, wrench=args.wrench, reaction=args.reaction,
+                              time=args.time)
     if message:  # the fit looks like a sign/frame/zeroing mistake: ftcal check's tests on the static holds
         warnings.warn(message, ConventionWarning, stacklevel=1)
     check_mass_sign(fit)

@@ -37,11 +37,8 @@ PAPER_LAMBDAS = (0.5, 1.0, 10.0, 50.0, 100.0, 200.0)
 
 # ``ftcal check``: conventions and acceptance (read by ftcal.check and the CLI's help).
 
-HOLD_ANGLE_DEG = 0.5
-"""A static hold ends when the gravity direction moves more than this from the hold's first sample."""
-
-HOLD_MIN_SAMPLES = 20
-"""Shortest static hold kept (samples)."""
+HOLD_SAMPLE_RATE = 100.0
+"""Hz: rows of a table without a time column are this far apart when finding its static holds (--rate)."""
 
 MIN_HOLDS = 3
 """Fewest static holds at different orientations ``ftcal check`` needs."""

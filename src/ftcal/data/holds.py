@@ -22,10 +22,17 @@ least one side (above :data:`MIN_ANGULAR_RATE`), so an instant jump between two
 still poses (a table of poses) leaves both poses whole and starts a new hold.
 Still stretches shorter than :data:`MIN_HOLD_S` (a pause inside a move) count
 as moving, unless the whole recording (segment) is still.
+
+:func:`number_across` numbers the holds of several recordings one after the
+other (``ftcal dataset``'s ``hold`` column, for bags and robot logs alike);
+:func:`hold_averages` gives each hold's mean reading and gravity (``ftcal
+check`` works on these), and :meth:`Holds.longest_per_segment` keeps one hold per
+labelled stretch (a pose column).
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -71,6 +78,37 @@ class Holds:
     @property
     def n_holds(self) -> int:
         return int(self.hold.max()) + 1 if self.hold.size else 0
+
+    def ranges(self) -> tuple[np.ndarray, np.ndarray]:
+        """(first row, last row + 1) of each hold, in hold order (a hold is one run of rows)."""
+        edges = np.flatnonzero(np.diff(np.r_[-1, self.hold, -1]))
+        starts, stops = edges[:-1], edges[1:]
+        held = self.hold[starts] >= 0
+        return starts[held], stops[held]
+
+    def longest_per_segment(self, segments: np.ndarray) -> "Holds":
+        """Only the longest hold of each run of one segment label (one hold per labelled pose), renumbered.
+
+        Parameters
+        ----------
+        segments : ndarray of shape (n_samples,), the labels the holds were found within
+
+        Returns
+        -------
+        Holds
+        """
+        labels = np.asarray(segments)
+        run = np.r_[0, np.cumsum(labels[1:] != labels[:-1])] if labels.size else labels
+        starts, stops = self.ranges()
+        best: dict[int, tuple[int, int]] = {}  # label run -> its longest hold (the first of equal ones)
+        for a, b in zip(starts.tolist(), stops.tolist()):
+            r = int(run[a])
+            if r not in best or b - a > best[r][1] - best[r][0]:
+                best[r] = (a, b)
+        hold = np.full(self.n_samples, -1, dtype=np.int64)
+        for count, (a, b) in enumerate(best.values()):  # runs appear in time order
+            hold[a:b] = count
+        return Holds(hold >= 0, hold, self.signal)
 
     def moving_stretches(self) -> list[tuple[int, int]]:
         """(first row, last row + 1) of each run of moving samples."""
@@ -250,3 +288,104 @@ def _rolling_std(x: np.ndarray, window: int) -> np.ndarray:
     mean = (first[hi] - first[lo]) / count
     var = (second[hi] - second[lo]) / count - mean ** 2
     return np.sqrt(np.maximum(var, 0.0))
+
+
+def number_across(holds: Sequence[np.ndarray]) -> np.ndarray:
+    """One ``hold`` column from several recordings' hold numbers (each counted from 0).
+
+    Parameters
+    ----------
+    holds : sequence of ndarray of int (-1 while moving), one per recording, in writing order
+
+    Returns
+    -------
+    ndarray of int, the concatenation, each recording's holds numbered after the previous ones'
+    (a recording without a hold takes no number); -1 stays -1.
+    """
+    parts, offset = [], 0
+    for hold in holds:
+        hold = np.asarray(hold, dtype=np.int64)
+        parts.append(np.where(hold >= 0, hold + offset, -1))
+        if hold.size and hold.max() >= 0:
+            offset += int(hold.max()) + 1
+    return np.concatenate(parts) if parts else np.zeros(0, dtype=np.int64)
+
+
+@dataclass(frozen=True)
+class HoldAverages:
+    """Per-hold means of a recording (what ``ftcal check`` works on).
+
+    Attributes
+    ----------
+    wrench : ndarray of shape (n_holds, 6)
+        Mean reading, N and N·m.
+    gravity : ndarray of shape (n_holds, 3)
+        Mean gravity vector in the declared sensor frame, m/s².
+    rotation : ndarray of shape (n_holds, 3, 3) or None
+        Sensor-to-world rotation at the hold (when the orientation is known, not just gravity).
+    start, stop : ndarray of shape (n_holds,)
+        Row range of each hold in its recording.
+    noise : ndarray of shape (n_holds, 6)
+        Standard error of each hold's mean reading (sample std / √n).
+    """
+
+    wrench: np.ndarray
+    gravity: np.ndarray
+    rotation: np.ndarray | None
+    start: np.ndarray
+    stop: np.ndarray
+    noise: np.ndarray
+
+    @property
+    def n_holds(self) -> int:
+        return self.wrench.shape[0]
+
+    def map(self, wrench: np.ndarray | None = None, gravity: np.ndarray | None = None) -> "HoldAverages":
+        """The same holds with the wrench and/or gravity replaced (a tested correction)."""
+        return HoldAverages(self.wrench if wrench is None else wrench, self.gravity if gravity is None else gravity,
+                            self.rotation, self.start, self.stop, self.noise)
+
+
+def hold_averages(holds: Holds, wrench: np.ndarray, gravity: np.ndarray,
+                  rotation: np.ndarray | None = None) -> HoldAverages:
+    """Each hold's mean wrench, gravity and (when given) rotation, and its wrench's standard error.
+
+    Parameters
+    ----------
+    holds : Holds of the recording (:func:`find_holds`)
+    wrench : ndarray of shape (n_samples, 6)
+    gravity : ndarray of shape (n_samples, 3)
+    rotation : ndarray of shape (n_samples, 3, 3) or None
+        Sensor-to-world rotations; each hold's is the rotation nearest to their mean.
+
+    Returns
+    -------
+    HoldAverages
+    """
+    start, stop = holds.ranges()
+    w = np.asarray(wrench, dtype=np.float64)
+    g = np.asarray(gravity, dtype=np.float64)
+    rows = list(zip(start.tolist(), stop.tolist()))
+    mean = np.array([w[a:b].mean(axis=0) for a, b in rows]).reshape(-1, w.shape[1])
+    noise = np.array([w[a:b].std(axis=0) / np.sqrt(b - a) for a, b in rows]).reshape(-1, w.shape[1])
+    g_mean = np.array([g[a:b].mean(axis=0) for a, b in rows]).reshape(-1, g.shape[1])
+    rot = None
+    if rotation is not None:
+        rot = np.array([_mean_rotation(rotation[a:b]) for a, b in rows]).reshape(-1, 3, 3)
+    return HoldAverages(mean, g_mean, rot, start.astype(np.int64), stop.astype(np.int64), noise)
+
+
+def concatenate_averages(parts: Sequence[HoldAverages]) -> HoldAverages:
+    """The holds of several recordings as one set (row ranges stay per recording)."""
+    if len(parts) == 1:
+        return parts[0]
+    rotation = None if any(p.rotation is None for p in parts) else np.concatenate([p.rotation for p in parts])
+    return HoldAverages(*(np.concatenate([getattr(p, k) for p in parts]) for k in ("wrench", "gravity")), rotation,
+                        *(np.concatenate([getattr(p, k) for p in parts]) for k in ("start", "stop", "noise")))
+
+
+def _mean_rotation(rotations: np.ndarray) -> np.ndarray:
+    """The rotation nearest (Frobenius) to the mean of ``rotations`` of shape (n, 3, 3)."""
+    u, _, vt = np.linalg.svd(rotations.mean(axis=0))
+    d = np.sign(np.linalg.det(u @ vt))
+    return u @ np.diag([1.0, 1.0, d]) @ vt

@@ -37,6 +37,7 @@ import numpy as np
 from ..core.dataset import DEFAULT_OUTPUTS
 from ..data.alignment import align_streams
 from ..data.bags import BagTopics, tf_key
+from ..data.holds import number_across
 from ..data.recording import Stream
 from ..data.signals import channel_issues, smooth
 from ..robot.loadcases import LoadCaseConfig
@@ -135,18 +136,9 @@ def build_bag_table(bags: Sequence[str | Path], topics: BagTopics, *, robot=None
         if list(part.columns) != list(parts[0].columns):
             raise FtcalError(f"Bag {path}: gives columns {','.join(part.columns)} but {bags[0]} gives "
                              f"{','.join(parts[0].columns)} (an IMU without orientation in one of them?).")
-    _number_holds_across(parts)
     columns = {name: np.concatenate([p.columns[name] for p in parts]) for name in parts[0].columns}
+    columns["hold"] = number_across([p.columns["hold"] for p in parts])
     return BagTable(columns, tuple(line for p in parts for line in p.notes))
-
-
-def _number_holds_across(parts: Sequence[BagTable]) -> None:
-    """Renumber, in place, each bag's holds (counted from 0) to follow the previous bag's."""
-    offset = 0
-    for part in parts:
-        hold = part.columns["hold"]
-        hold[hold >= 0] += offset
-        offset = max(offset, int(hold.max()) + 1)
 
 
 def _bag_task(path: str, description: tuple | None, segment: int, group: str, topics: BagTopics,

@@ -12,9 +12,19 @@ with the recording's load case attached (:mod:`ftcal.robot`) and returns a
 * one segment per recording (ARX lags never cross recordings);
 * group = the recording's load case name, else the recording's file stem.
 
+:func:`build_log_table` returns the same dataset with the columns a fit does not
+take beside it (what ``ftcal dataset`` writes):
+
+* ``time``, s, each recording's own clock;
+* the logged joint positions, rad, one column per joint (named as the joint;
+  the joints every recording logs), for ``ftcal payload --urdf``;
+* ``static`` (1 still, 0 moving) and ``hold`` (the still pose's number over all
+  recordings, -1 while moving), from the logged joint positions over the log's
+  time stamps (:func:`ftcal.data.holds.find_holds`), as for ROS bags.
+
 :func:`write_dataset` stores it as Parquet or CSV with those columns plus
 ``segment`` and ``group``, ready for ``ftcal fit DATA --segment-by segment
---group-by group``.
+--group-by group`` (or ``--group-by hold``: one cross-validation group per pose).
 """
 
 from __future__ import annotations
@@ -30,6 +40,7 @@ import numpy as np
 
 from ..core.dataset import DEFAULT_INPUTS, DEFAULT_OUTPUTS, Dataset, concatenate
 from ..data.alignment import Aligned, align
+from ..data.holds import Holds, find_holds, number_across
 from ..data.logs import read_recording
 from ..data.recording import sensor_aliases
 from ..data.signals import channel_issues, smooth
@@ -83,10 +94,43 @@ class InsituOptions:
     payload_link: str | None = None
 
 
+LOG_COLUMNS = ("time", "static", "hold")  # beside the joints, in a LogTable's columns
+
+
+@dataclass(frozen=True)
+class LogTable:
+    """A dataset from robot logs and the columns beside it that a fit does not take.
+
+    dataset : inputs u1..u6 (and T), outputs Fx..Tz, one segment per recording
+    columns : column name → ndarray of shape (n_samples,), in writing order: ``time``, the joint
+        positions, ``static`` and ``hold`` (see the module docstring)
+    notes : one line per recording: its holds
+    """
+
+    dataset: Dataset
+    columns: dict[str, np.ndarray]
+    notes: tuple[str, ...]
+
+
 def build_dataset(recordings: Sequence[str | Path], robot: RobotModel, sensor: str, *,
                   payloads: Sequence[Payload] = (), load_cases: LoadCaseConfig | None = None,
                   options: InsituOptions = InsituOptions(), executor=None) -> Dataset:
     """One dataset for F/T ``sensor`` from all ``recordings`` (one segment each).
+
+    The dataset of :func:`build_log_table`; the parameters are its.
+
+    Returns
+    -------
+    Dataset with inputs u1..u6 (and T), outputs Fx..Tz, one segment per recording.
+    """
+    return build_log_table(recordings, robot, sensor, payloads=payloads, load_cases=load_cases,
+                           options=options, executor=executor).dataset
+
+
+def build_log_table(recordings: Sequence[str | Path], robot: RobotModel, sensor: str, *,
+                    payloads: Sequence[Payload] = (), load_cases: LoadCaseConfig | None = None,
+                    options: InsituOptions = InsituOptions(), executor=None) -> LogTable:
+    """One dataset for F/T ``sensor`` from all ``recordings`` (one segment each), with time, joints and holds.
 
     Parameters
     ----------
@@ -103,12 +147,14 @@ def build_dataset(recordings: Sequence[str | Path], robot: RobotModel, sensor: s
 
     Returns
     -------
-    Dataset with inputs u1..u6 (and T), outputs Fx..Tz, one segment per recording.
+    LogTable: the dataset (inputs u1..u6 and T, outputs Fx..Tz, one segment per recording) and its
+    ``time``, joint, ``static`` and ``hold`` columns, the holds numbered over all recordings.
 
     Raises
     ------
     FtcalError
-        No recordings, an unknown sensor or base, or a recording that cannot be used.
+        No recordings, an unknown sensor or base, a recording that cannot be used, or a joint
+        named like another column.
     """
     if not recordings:
         raise FtcalError("No recordings given.")
@@ -128,7 +174,7 @@ def build_dataset(recordings: Sequence[str | Path], robot: RobotModel, sensor: s
             continue
         if case.payloads not in models:
             models[case.payloads] = robot.with_payloads(case.payloads)
-        parts.append(recording_dataset(path, models[case.payloads], ft_sensor.name, case, segment, options))
+        parts.append(recording_table(path, models[case.payloads], ft_sensor.name, case, segment, options))
     if executor is not None:
         # One process per task on the workers: a Dask worker must not start its own process pool.
         results = executor.map(_recording_task, tasks, dataclasses.replace(options, workers=1),
@@ -137,18 +183,28 @@ def build_dataset(recordings: Sequence[str | Path], robot: RobotModel, sensor: s
             for message, category in caught:
                 warnings.warn(message, category, stacklevel=2)
             parts.append(part)
-    return concatenate(parts)
+    return _join(parts)
+
+
+def _join(parts: Sequence[LogTable]) -> LogTable:
+    """One table from the recordings' tables: the joints they all log, holds numbered across them."""
+    dataset = concatenate([p.dataset for p in parts])
+    joints = [name for name in parts[0].columns if name not in LOG_COLUMNS
+              and all(name in p.columns for p in parts)]
+    columns = {name: np.concatenate([p.columns[name] for p in parts]) for name in ("time", *joints, "static")}
+    columns["hold"] = number_across([p.columns["hold"] for p in parts])
+    return LogTable(dataset, columns, tuple(line for p in parts for line in p.notes))
 
 
 def _recording_task(path: str | Path, description: tuple, sensor: str, case: LoadCase, segment: int,
-                    options: InsituOptions) -> tuple[Dataset, list[tuple[str, type]]]:
-    """:func:`recording_dataset` as a worker runs it: the dataset and its FtcalWarnings (text, class), in order.
+                    options: InsituOptions) -> tuple[LogTable, list[tuple[str, type]]]:
+    """:func:`recording_table` as a worker runs it: the table and its FtcalWarnings (text, class), in order.
 
     Other warnings (e.g. deprecation notes of the worker's first iDynTree import) stay on the worker.
     """
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        part = recording_dataset(path, robot_from_description(*description), sensor, case, segment, options)
+        part = recording_table(path, robot_from_description(*description), sensor, case, segment, options)
     return part, [(str(w.message), w.category) for w in caught if issubclass(w.category, FtcalWarning)]
 
 
@@ -168,9 +224,9 @@ def robot_from_description(urdf_text: str, source: str, payloads: tuple[Payload,
     return RobotModel(urdf_text, source, payloads, declared)
 
 
-def recording_dataset(path: str | Path, robot: RobotModel, sensor: str, case: LoadCase, segment: int,
-                      options: InsituOptions = InsituOptions()) -> Dataset:
-    """The dataset of one recording; ``robot`` already carries the load case's payloads."""
+def recording_table(path: str | Path, robot: RobotModel, sensor: str, case: LoadCase, segment: int,
+                    options: InsituOptions = InsituOptions()) -> LogTable:
+    """The table of one recording (holds counted from 0); ``robot`` already carries the load case's payloads."""
     path = Path(path)
     ft_sensor = robot.sensor(sensor)
     recording = read_recording(path, options.joint_units)
@@ -197,7 +253,22 @@ def recording_dataset(path: str | Path, robot: RobotModel, sensor: str, case: Lo
         output_names = DEFAULT_OUTPUTS + columns
     ds = Dataset.from_arrays(inputs, outputs, input_names=names, output_names=output_names,
                              segments=np.full(n, segment), groups=np.full(n, case.name, dtype=object))
-    return dataclasses.replace(ds, sources=(str(path),))
+    taken = set(names) | set(output_names) | set(LOG_COLUMNS) | {"segment", "group"}
+    clash = [name for name in data.joint_names if name in taken]
+    if clash:
+        raise FtcalError(f"Recording {path}: a joint is named {clash[0]!r}, like a column of the dataset; "
+                         "rename the joint.")
+    holds = _holds(path, data, raw)
+    columns = {"time": data.time, **{name: data.q[:, j] for j, name in enumerate(data.joint_names)},
+               "static": holds.static.astype(np.int64), "hold": holds.hold}
+    return LogTable(dataclasses.replace(ds, sources=(str(path),)), columns, (f"{path}: {holds.describe(data.time)}",))
+
+
+def _holds(path: Path, data: Aligned, raw: np.ndarray) -> Holds:
+    """Static holds of one recording: from the logged joint positions, else the wrench's variation."""
+    if data.q.shape[1]:
+        return find_holds(data.time, joints=data.q, where=f"Recording {path}")
+    return find_holds(data.time, wrench=raw, where=f"Recording {path}")
 
 
 def _payload_regressor(path: Path, robot: RobotModel, sensor: str, data: Aligned,
@@ -244,19 +315,24 @@ def _expected(path: Path, robot: RobotModel, data: Aligned, options: InsituOptio
     return cached(key, [s.name for s in robot.ft_sensors], q.shape[0], compute, options.cache_dir)
 
 
-def write_dataset(dataset: Dataset, path: str | Path) -> None:
+def write_dataset(dataset: Dataset | LogTable, path: str | Path) -> None:
     """Write ``dataset`` as Parquet or CSV (by extension), atomically.
 
-    Columns: the input names, the output names, ``segment`` and ``group``.
+    Columns: the input names, the output names, for a :class:`LogTable` its columns
+    (``time``, the joints, ``static``, ``hold``), then ``segment`` and ``group``.
     """
     import pandas as pd
 
     from ..data.tables import write_table
 
+    extra: dict[str, np.ndarray] = {}
+    if isinstance(dataset, LogTable):
+        dataset, extra = dataset.dataset, dataset.columns
     if dataset.outputs is None:
         raise FtcalError("The dataset has no outputs to write.")
     columns = {name: dataset.inputs[:, i] for i, name in enumerate(dataset.input_names)}
     columns.update({name: dataset.outputs[:, i] for i, name in enumerate(dataset.output_names)})
+    columns.update(extra)
     columns["segment"] = dataset.segments
     columns["group"] = np.asarray(dataset.groups).astype(str)
     write_table(pd.DataFrame(columns), path)
