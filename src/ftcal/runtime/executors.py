@@ -234,11 +234,11 @@ class DaskExecutor:
                           f"{str(exc).splitlines()[0] if str(exc) else 'no detail'}); nothing was written.")
 
 
-def _name_files(files: Sequence[str], shown: int = 3) -> str:
-    """``a.csv``, ``a.csv, b.csv`` or ``a.csv, b.csv, c.csv and 12 more files``."""
-    if len(files) <= shown:
+def _name_files(files: Sequence[str]) -> str:
+    """``a.csv``, ``a.csv, b.csv`` or ``12 files, a.csv to l.csv`` (a batch is a run of consecutive files)."""
+    if len(files) <= 2:
         return ", ".join(files)
-    return f"{', '.join(files[:shown])} and {len(files) - shown} more files"
+    return f"{len(files)} files, {files[0]} to {files[-1]}"
 
 
 def _wait_quietly(pending) -> set:
@@ -334,11 +334,19 @@ def open_executor(scheduler: str | None, *,
         try:
             with signals_deferred():  # a cluster half started by Ctrl-C would be left running
                 if scheduler.startswith(LOCAL_PREFIX):
-                    cluster = LocalCluster(n_workers=int(scheduler[len(LOCAL_PREFIX):]), threads_per_worker=1,
-                                           processes=True, dashboard_address=":0", silence_logs=logging.CRITICAL)
+                    try:
+                        cluster = LocalCluster(n_workers=int(scheduler[len(LOCAL_PREFIX):]), threads_per_worker=1,
+                                               processes=True, dashboard_address=":0",
+                                               silence_logs=logging.CRITICAL)
+                    except Exception as exc:  # noqa: BLE001 - e.g. a worker process that could not start
+                        raise FtcalError(f"--scheduler {scheduler}: the local Dask cluster did not start "
+                                         f"({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else 'no detail'})"
+                                         "; nothing was written.") from None
                 client = _connect(cluster if cluster is not None else scheduler, scheduler, connect_timeout)
             try:
                 check_versions(client, scheduler)
+                if cluster is not None:
+                    client.register_plugin(_ignore_interrupts_plugin())
                 yield DaskExecutor(client)
             finally:
                 with signals_deferred():
@@ -392,10 +400,11 @@ def _end_processes(processes) -> None:
 def signals_deferred() -> Iterator[None]:
     """Inside the block, Ctrl-C, SIGTERM and SIGHUP wait; the first one arrives again at its end.
 
-    For steps that must not stop half way (starting or stopping a local cluster:
-    a half-started one leaves processes nothing stops). If the block itself
-    raises, that exception goes on and the signal is dropped: the command is
-    already unwinding. Outside the main thread, signals are not Python's to defer.
+    For steps that must not stop half way: starting or stopping a local cluster
+    (a half-started one leaves processes that nothing stops). The signal arrives
+    even if the block raised (a worker killed by the same Ctrl-C fails the
+    cluster's start): the user asked to stop. Outside the main thread nothing is
+    deferred (Python handles signals only there).
     """
     if threading.current_thread() is not threading.main_thread():
         yield
@@ -407,8 +416,27 @@ def signals_deferred() -> Iterator[None]:
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
-    if caught:
-        signal.raise_signal(caught[0])  # the previous handler: KeyboardInterrupt, the CLI's Terminated, ...
+        if caught:
+            signal.raise_signal(caught[0])  # through the previous handler: KeyboardInterrupt, the CLI's Terminated
+
+
+def _ignore_interrupts_plugin():
+    """A Dask worker plugin by which the worker process ignores SIGINT (the client handles Ctrl-C).
+
+    A terminal sends Ctrl-C to the whole process group, local workers included;
+    they would die with a traceback each while the client shuts them down in
+    order. Dask runs the plugin on every worker, replaced ones too.
+    """
+    from distributed import WorkerPlugin
+
+    class IgnoreInterrupts(WorkerPlugin):
+        name = "ftcal-ignore-interrupts"
+
+        def setup(self, worker) -> None:
+            if threading.current_thread() is threading.main_thread():
+                signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+    return IgnoreInterrupts()
 
 
 def check_versions(client, scheduler: str) -> None:
