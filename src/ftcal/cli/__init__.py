@@ -7,13 +7,33 @@ exit code. Heavy imports happen inside the commands so ``ftcal --help`` is fast.
 
 from __future__ import annotations
 
-import argparse
-import errno
-import importlib
 import os
-import re
 import signal
 import sys
+
+
+def _note_interrupt(signum, frame) -> None:
+    _EARLY_INTERRUPTS.append(signum)
+
+
+def _program_start() -> bool:
+    """Whether this import is the `ftcal` command starting (console script or ``python -m ftcal``)."""
+    spec = getattr(sys.modules.get("__main__"), "__spec__", None)
+    script = getattr(sys.modules.get("__main__"), "__file__", None) or ""
+    return (spec is not None and spec.name == "ftcal.__main__") or os.path.basename(script) == "ftcal"
+
+
+# The command imports this module outside any `try`: a Ctrl-C during the imports below would end
+# in a traceback. So, when this import starts the program, a Ctrl-C is only noted until main()
+# takes over, and main() then exits 130 as for any other interruption.
+_EARLY_INTERRUPTS: list[int] = []
+if _program_start() and signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+    signal.signal(signal.SIGINT, _note_interrupt)
+
+import argparse  # the other imports come after the guard, on purpose
+import errno
+import importlib
+import re
 import threading
 import warnings
 from collections.abc import Iterator
@@ -200,15 +220,26 @@ def numerical_failure(exc: BaseException, args: argparse.Namespace) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from ..runtime.atomic import check_not_an_input, protected_inputs
-    from ..runtime.errors import FtcalError, FtcalWarning
-
-    try:  # the command modules import here: Ctrl-C during the imports is an interruption, not a traceback
-        parser = build_parser()
-        args = parser.parse_args(argv)
+    """Run one ftcal command and return its exit code; Ctrl-C at any moment is one line and 130."""
+    try:
+        if signal.getsignal(signal.SIGINT) is _note_interrupt:  # take over from the start-up guard
+            signal.signal(signal.SIGINT, signal.default_int_handler)
+        if _EARLY_INTERRUPTS:
+            _EARLY_INTERRUPTS.clear()
+            raise KeyboardInterrupt
+        return run(argv)  # the command modules import there
     except KeyboardInterrupt:
         print("ftcal: interrupted", file=sys.stderr)
         return 130
+
+
+def run(argv: list[str] | None) -> int:
+    """:func:`main` without the outermost Ctrl-C catch."""
+    from ..runtime.atomic import check_not_an_input, protected_inputs
+    from ..runtime.errors import FtcalError, FtcalWarning
+
+    parser = build_parser()
+    args = parser.parse_args(argv)
     if args.version:
         from .. import __version__
         print(__version__)
