@@ -13,7 +13,14 @@ import sys
 
 
 def _note_interrupt(signum, frame) -> None:
-    _EARLY_INTERRUPTS.append(signum)
+    _INTERRUPTS.append(signum)
+
+
+def _interrupt(signum, frame) -> None:
+    """Python's Ctrl-C, remembered: C code that imports a module turns the KeyboardInterrupt into an
+    ImportError (numpy's does), which must still end as an interruption."""
+    _INTERRUPTS.append(signum)
+    raise KeyboardInterrupt
 
 
 def _program_start() -> bool:
@@ -25,8 +32,9 @@ def _program_start() -> bool:
 
 # The command imports this module outside any `try`: a Ctrl-C during the imports below would end
 # in a traceback. So, when this import starts the program, a Ctrl-C is only noted until main()
-# takes over, and main() then exits 130 as for any other interruption.
-_EARLY_INTERRUPTS: list[int] = []
+# takes over, and main() then exits 130 as for any other interruption. Ctrl-Cs noted (here, or by
+# _interrupt once main() runs):
+_INTERRUPTS: list[int] = []
 if _program_start() and signal.getsignal(signal.SIGINT) is signal.default_int_handler:
     signal.signal(signal.SIGINT, _note_interrupt)
 
@@ -223,14 +231,20 @@ def main(argv: list[str] | None = None) -> int:
     """Run one ftcal command and return its exit code; Ctrl-C at any moment is one line and 130."""
     try:
         if signal.getsignal(signal.SIGINT) is _note_interrupt:  # take over from the start-up guard
-            signal.signal(signal.SIGINT, signal.default_int_handler)
-        if _EARLY_INTERRUPTS:
-            _EARLY_INTERRUPTS.clear()
+            signal.signal(signal.SIGINT, _interrupt)
+        if _INTERRUPTS:
             raise KeyboardInterrupt
         return run(argv)  # the command modules import there
     except KeyboardInterrupt:
         print("ftcal: interrupted", file=sys.stderr)
         return 130
+    except BaseException:
+        if not _INTERRUPTS:
+            raise
+        print("ftcal: interrupted", file=sys.stderr)  # a Ctrl-C that an import turned into another error
+        return 130
+    finally:
+        _INTERRUPTS.clear()
 
 
 def run(argv: list[str] | None) -> int:
