@@ -5,8 +5,32 @@ The packages follow the pipeline, and import only downward (docs/architecture.md
 → ``data`` → ``core`` → ``runtime``.
 """
 
-# Nothing is imported here: the `ftcal` command runs this module before ftcal.cli can note a
-# Ctrl-C, so it must take no time.
+import os
+import sys
+
+# Ctrl-Cs noted while the `ftcal` command starts; ftcal.cli.main takes over and exits 130.
+_INTERRUPTS: list[int] = []
+
+
+def _note_interrupt(signum, frame) -> None:
+    _INTERRUPTS.append(signum)
+
+
+def _command_starting() -> bool:
+    """Whether this import starts the `ftcal` command: its console script, or ``python -m ftcal``."""
+    argv = getattr(sys, "orig_argv", [])
+    by_module = any(a == "-m" and b == "ftcal" for a, b in zip(argv, argv[1:]))
+    return by_module or os.path.basename(sys.argv[0]) == "ftcal"
+
+
+# The command imports this package first, outside any `try`: a Ctrl-C during the imports that
+# follow would end in a traceback. So it is only noted until ftcal.cli.main() runs. Nothing else
+# is imported here: this is the only ftcal code that runs before the guard.
+if _command_starting():
+    import signal
+
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        signal.signal(signal.SIGINT, _note_interrupt)
 
 # The one place the version is declared (pyproject.toml reads it); reading it from the
 # installed metadata instead costs ~30 ms of imports on every run.

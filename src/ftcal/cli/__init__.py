@@ -7,45 +7,19 @@ exit code. Heavy imports happen inside the commands so ``ftcal --help`` is fast.
 
 from __future__ import annotations
 
-import os
-import signal
-import sys
-
-
-def _note_interrupt(signum, frame) -> None:
-    _INTERRUPTS.append(signum)
-
-
-def _interrupt(signum, frame) -> None:
-    """Python's Ctrl-C, remembered: C code that imports a module turns the KeyboardInterrupt into an
-    ImportError (numpy's does), which must still end as an interruption."""
-    _INTERRUPTS.append(signum)
-    raise KeyboardInterrupt
-
-
-def _program_start() -> bool:
-    """Whether this import is the `ftcal` command starting (console script or ``python -m ftcal``)."""
-    spec = getattr(sys.modules.get("__main__"), "__spec__", None)
-    script = getattr(sys.modules.get("__main__"), "__file__", None) or ""
-    return (spec is not None and spec.name == "ftcal.__main__") or os.path.basename(script) == "ftcal"
-
-
-# The command imports this module outside any `try`: a Ctrl-C during the imports below would end
-# in a traceback. So, when this import starts the program, a Ctrl-C is only noted until main()
-# takes over, and main() then exits 130 as for any other interruption. Ctrl-Cs noted (here, or by
-# _interrupt once main() runs):
-_INTERRUPTS: list[int] = []
-if _program_start() and signal.getsignal(signal.SIGINT) is signal.default_int_handler:
-    signal.signal(signal.SIGINT, _note_interrupt)
-
-import argparse  # the other imports come after the guard, on purpose
+import argparse
 import errno
 import importlib
+import os
 import re
+import signal
+import sys
 import threading
 import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
+
+from .. import _INTERRUPTS, _note_interrupt
 
 # In workflow order: `ftcal --help` lists them so (PIPELINE sketches it).
 COMMAND_MODULES = (
@@ -227,10 +201,17 @@ def numerical_failure(exc: BaseException, args: argparse.Namespace) -> str:
                     "point (about 1e308), constant or degenerate columns, or ask for a smaller model.")
 
 
+def _interrupt(signum, frame) -> None:
+    """Python's Ctrl-C, remembered: C code that imports a module turns the KeyboardInterrupt into an
+    ImportError (numpy's does), which must still end as an interruption."""
+    _INTERRUPTS.append(signum)
+    raise KeyboardInterrupt
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run one ftcal command and return its exit code; Ctrl-C at any moment is one line and 130."""
     try:
-        if signal.getsignal(signal.SIGINT) is _note_interrupt:  # take over from the start-up guard
+        if signal.getsignal(signal.SIGINT) is _note_interrupt:  # take over from ftcal/__init__.py's guard
             signal.signal(signal.SIGINT, _interrupt)
         if _INTERRUPTS:
             raise KeyboardInterrupt
