@@ -96,8 +96,10 @@ def test_fit_over_two_thousand_small_files_on_a_cluster_equals_the_local_fit(tmp
         assert done.returncode == 0, done.stderr
         models[name] = json.loads(out.read_text())
     assert "2000/2000" in done.stderr  # the progress bar counts files, not Dask tasks
-    here, dask = models["here"], models["dask"]
-    assert here["coefficients"] == dask["coefficients"] and here["training_metrics"] == dask["training_metrics"]
+    for model in models.values():  # when and the digest over it: the rest must be identical, bit for bit
+        del model["created"], model["sha256"]
+    assert models["here"]["coefficients"] and models["here"]["fit"]
+    assert models["here"] == models["dask"]
 
 
 @pytest.mark.slow
