@@ -259,3 +259,34 @@ def test_ctrl_c_at_any_moment_of_an_automatic_fit_stops_it(tmp_path_factory, tmp
     assert not any("Traceback" in line for line in err), "".join(err)
     assert err[-1].strip() in ("ftcal fit: interrupted", "ftcal: interrupted"), "".join(err)
     assert sorted(os.listdir(tmp_path)) == []  # no model, no temporary file
+
+
+@pytest.mark.slow
+def test_the_command_reports_a_batch_whose_workers_keep_dying_and_writes_nothing(tmp_path):
+    """A real cluster whose worker process is killed (SIGKILL, as the out-of-memory killer does) whenever it runs a task."""
+    import logging
+
+    import dask
+    from distributed import LocalCluster
+
+    paths = write_small_files(tmp_path, 48, 400)
+    out = tmp_path / "model.json"
+    killed = []
+    with dask.config.set({"distributed.scheduler.allowed-failures": 1}), \
+            LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=":0",
+                         silence_logs=logging.CRITICAL) as cluster:
+        proc = subprocess.Popen([FTCAL, "fit", *paths, "--degree", "2", "-o", str(out), "--scheduler",
+                                 cluster.scheduler_address], stderr=subprocess.PIPE, text=True, env=ENV)
+        while proc.poll() is None:
+            for worker in list(cluster.scheduler.workers.values()):
+                if worker.processing and worker.pid not in killed:
+                    killed.append(worker.pid)
+                    os.kill(worker.pid, signal.SIGKILL)
+            time.sleep(0.005)
+        _, err = proc.communicate(timeout=60)
+    assert len(killed) >= 2 and proc.returncode == 2, err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    named = re.search(r"ftcal fit: error: a Dask worker died while running the task of (\d+) files, (\S+) to (\S+) ",
+                      err)
+    assert named and int(named[1]) == paths.index(named[3]) - paths.index(named[2]) + 1, err
+    assert sorted(os.listdir(tmp_path)) == sorted(os.path.basename(p) for p in paths)  # nothing written
