@@ -210,8 +210,9 @@ def _interrupt(signum, frame) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """Run one ftcal command and return its exit code; Ctrl-C at any moment is one line and 130."""
+    command = signal.getsignal(signal.SIGINT) is _note_interrupt  # the `ftcal` command, not a call in a program
     try:
-        if signal.getsignal(signal.SIGINT) is _note_interrupt:  # take over from ftcal/__init__.py's guard
+        if command:  # take over from ftcal/__init__.py's guard
             signal.signal(signal.SIGINT, _interrupt)
         if _INTERRUPTS:
             raise KeyboardInterrupt
@@ -226,6 +227,8 @@ def main(argv: list[str] | None = None) -> int:
         return 130
     finally:
         _INTERRUPTS.clear()
+        if command:  # what is left is Python's exit (joining threads): a Ctrl-C now ends it at once, quietly
+            signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def run(argv: list[str] | None) -> int:

@@ -174,6 +174,8 @@ class DaskExecutor:
     def map_reduce(self, function: Callable[..., T], tasks: Sequence[Task], *args: Any,
                    combine: Callable[[T, T], T], description: str = "tasks") -> T:
         """:func:`tree_reduce` on the workers (in each batch, then across batches); only the total travels back."""
+        if not tasks:
+            return tree_reduce([], combine)  # the same one-line error as here
         futures, counts = self._submit(function, tasks, args, combine)
         n_batches = len(futures)
         level = list(futures)
