@@ -263,7 +263,7 @@ def test_ctrl_c_at_any_moment_of_an_automatic_fit_stops_it(tmp_path_factory, tmp
 
 @pytest.mark.slow
 def test_the_command_reports_a_batch_whose_workers_keep_dying_and_writes_nothing(tmp_path):
-    """A real cluster whose worker process is killed (SIGKILL, as the out-of-memory killer does) whenever it runs a task."""
+    """A real cluster whose worker process is killed (SIGKILL, as the out-of-memory killer does) at every task."""
     import logging
 
     import dask

@@ -195,7 +195,7 @@ class DaskExecutor:
             raise self._explain(exc) from None
 
     def _wait(self, futures, counts: Sequence[int], description: str) -> None:
-        """Wait for ``futures`` with a bar advancing by their ``counts``; fail when the cluster has had no worker for too long."""
+        """Wait for ``futures``, the bar advancing by their ``counts``; fail after too long without workers."""
         import time
 
         count = dict(zip(futures, counts))
@@ -221,7 +221,7 @@ class DaskExecutor:
                                      "or run without --scheduler.")
 
     def _explain(self, exc: BaseException) -> BaseException:
-        """Errors of the cluster itself as one-line FtcalErrors naming the files; the tasks' own FtcalErrors pass through."""
+        """The cluster's own errors as one-line FtcalErrors naming the files; the tasks' FtcalErrors pass through."""
         if isinstance(exc, FtcalError):
             return exc
         from distributed.scheduler import KilledWorker
@@ -341,9 +341,9 @@ def open_executor(scheduler: str | None, *,
                                                processes=True, dashboard_address=":0",
                                                silence_logs=logging.CRITICAL)
                     except Exception as exc:  # noqa: BLE001 - e.g. a worker process that could not start
+                        detail = str(exc).splitlines()[0] if str(exc) else "no detail"
                         raise FtcalError(f"--scheduler {scheduler}: the local Dask cluster did not start "
-                                         f"({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else 'no detail'})"
-                                         "; nothing was written.") from None
+                                         f"({type(exc).__name__}: {detail}); nothing was written.") from None
                 client = _connect(cluster if cluster is not None else scheduler, scheduler, connect_timeout)
             try:
                 check_versions(client, scheduler)
