@@ -230,7 +230,7 @@ class DaskExecutor:
             files = self._files.get(str(exc.task))
             what = (f"the task of {_name_files(files)}" if files else
                     "the sum of the files' results" if str(exc.task).startswith("ftcal-sum-") else repr(exc.task))
-            return FtcalError(f"a Dask worker died while running {what} (each worker that ran it died, possibly "
+            return FtcalError(f"a Dask worker died while running {what} (each worker that held it died, possibly "
                               "out of memory); nothing was written. Give the workers more memory or split the files.")
         return FtcalError(f"the Dask run failed ({type(exc).__name__}: "
                           f"{str(exc).splitlines()[0] if str(exc) else 'no detail'}); nothing was written.")
@@ -327,8 +327,11 @@ def open_executor(scheduler: str | None, *,
         raise FtcalError(f"--scheduler {scheduler}: needs Dask distributed; install it with "
                          "pip install 'ftcal[dask]'.") from None
 
+    # A local scheduler hands each worker one batch at a time (worker-saturation 1): when a worker
+    # dies, Dask blames every task the worker held, so a queued, innocent batch would be blamed too.
     with dask.config.set({"distributed.comm.timeouts.connect": f"{connect_timeout}s",
-                          "distributed.scheduler.allowed-failures": TASK_RETRIES}):
+                          "distributed.scheduler.allowed-failures": TASK_RETRIES,
+                          "distributed.scheduler.worker-saturation": 1.0}):
         import multiprocessing
 
         before = set(multiprocessing.active_children())
