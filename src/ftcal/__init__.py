@@ -5,18 +5,42 @@ The packages follow the pipeline, and import only downward (docs/architecture.md
 → ``data`` → ``core`` → ``runtime``.
 """
 
-from importlib import import_module
+import os
+import sys
 
-from .runtime.errors import FtcalError, FtcalWarning
+# Ctrl-Cs noted while the `ftcal` command starts; ftcal.cli.main takes over and exits 130.
+_INTERRUPTS: list[int] = []
+
+
+def _note_interrupt(signum, frame) -> None:
+    _INTERRUPTS.append(signum)
+
+
+def _command_starting() -> bool:
+    """Whether this import starts the `ftcal` command: its console script, or ``python -m ftcal``."""
+    argv = getattr(sys, "orig_argv", [])
+    by_module = any(a == "-m" and b == "ftcal" for a, b in zip(argv, argv[1:]))
+    return by_module or os.path.basename(sys.argv[0]) == "ftcal"
+
+
+# The command imports this package first, outside any `try`: a Ctrl-C during the imports that
+# follow would end in a traceback. So it is only noted until ftcal.cli.main() runs. Nothing else
+# is imported here: this is the only ftcal code that runs before the guard.
+if _command_starting():
+    import signal
+
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        signal.signal(signal.SIGINT, _note_interrupt)
 
 # The one place the version is declared (pyproject.toml reads it); reading it from the
 # installed metadata instead costs ~30 ms of imports on every run.
 __version__ = "0.1.0"
 
 # Loaded on first use, so that `ftcal --help` does not pay for numpy and scipy.
-_LAZY = {"CalibrationModel": "core.model", "Dataset": "core.dataset", "MonomialBasis": "core.features",
-         "RegressorLayout": "core.features", "n_coefficients": "core.features", "load_dataset": "data.tables",
-         "load_model": "files.model_json", "save_model": "files.model_json"}
+_LAZY = {"FtcalError": "runtime.errors", "FtcalWarning": "runtime.errors", "CalibrationModel": "core.model",
+         "Dataset": "core.dataset", "MonomialBasis": "core.features", "RegressorLayout": "core.features",
+         "n_coefficients": "core.features", "load_dataset": "data.tables", "load_model": "files.model_json",
+         "save_model": "files.model_json"}
 
 __all__ = ["CalibrationModel", "Dataset", "FtcalError", "FtcalWarning", "MonomialBasis",
            "RegressorLayout", "load_dataset", "load_model", "n_coefficients", "save_model"]
@@ -24,5 +48,7 @@ __all__ = ["CalibrationModel", "Dataset", "FtcalError", "FtcalWarning", "Monomia
 
 def __getattr__(name: str):
     if name in _LAZY:
+        from importlib import import_module
+
         return getattr(import_module(f".{_LAZY[name]}", __name__), name)
     raise AttributeError(f"module 'ftcal' has no attribute {name!r}")

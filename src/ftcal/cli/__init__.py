@@ -19,6 +19,8 @@ import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
 
+from .. import _INTERRUPTS, _note_interrupt
+
 # In workflow order: `ftcal --help` lists them so (PIPELINE sketches it).
 COMMAND_MODULES = (
     "demo", "plan", "sensors", "expected", "topics", "dataset", "fit", "evaluate", "report",
@@ -199,16 +201,43 @@ def numerical_failure(exc: BaseException, args: argparse.Namespace) -> str:
                     "point (about 1e308), constant or degenerate columns, or ask for a smaller model.")
 
 
-def main(argv: list[str] | None = None) -> int:
-    from ..runtime.atomic import check_not_an_input, protected_inputs
-    from ..runtime.errors import FtcalError, FtcalWarning
+def _interrupt(signum, frame) -> None:
+    """Python's Ctrl-C, remembered: C code that imports a module turns the KeyboardInterrupt into an
+    ImportError (numpy's does), which must still end as an interruption."""
+    _INTERRUPTS.append(signum)
+    raise KeyboardInterrupt
 
-    try:  # the command modules import here: Ctrl-C during the imports is an interruption, not a traceback
-        parser = build_parser()
-        args = parser.parse_args(argv)
+
+def main(argv: list[str] | None = None) -> int:
+    """Run one ftcal command and return its exit code; Ctrl-C at any moment is one line and 130."""
+    command = signal.getsignal(signal.SIGINT) is _note_interrupt  # the `ftcal` command, not a call in a program
+    try:
+        if command:  # take over from ftcal/__init__.py's guard
+            signal.signal(signal.SIGINT, _interrupt)
+        if _INTERRUPTS:
+            raise KeyboardInterrupt
+        return run(argv)  # the command modules import there
     except KeyboardInterrupt:
         print("ftcal: interrupted", file=sys.stderr)
         return 130
+    except BaseException:
+        if not _INTERRUPTS:
+            raise
+        print("ftcal: interrupted", file=sys.stderr)  # a Ctrl-C that an import turned into another error
+        return 130
+    finally:
+        _INTERRUPTS.clear()
+        if command:  # what is left is Python's exit (joining threads): a Ctrl-C now ends it at once, quietly
+            signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
+def run(argv: list[str] | None) -> int:
+    """:func:`main` without the outermost Ctrl-C catch."""
+    from ..runtime.atomic import check_not_an_input, protected_inputs
+    from ..runtime.errors import FtcalError, FtcalWarning
+
+    parser = build_parser()
+    args = parser.parse_args(argv)
     if args.version:
         from .. import __version__
         print(__version__)

@@ -83,9 +83,11 @@ def default_inputs(paths: Sequence[str]) -> tuple[str, ...]:
 
 def add_scheduler_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scheduler", metavar="ADDRESS",
-                        help="run one task per file on a Dask cluster: tcp://host:8786 (an existing scheduler; "
+                        help="run the per-file work on a Dask cluster: tcp://host:8786 (an existing scheduler; "
                              "the files must be visible to every worker at the same path) or local:N (N worker "
-                             "processes on this machine); default: this process, without Dask")
+                             "processes on this machine, ended with the command, Ctrl-C included); many files "
+                             "travel as a few tasks per worker, and the sums equal a run without Dask; default: "
+                             "this process, without Dask")
 
 
 def print_json(payload: dict) -> None:

@@ -71,7 +71,7 @@ EXAMPLES = {
       -o ftcal-demo/np2-prior.json
   # ARX: one past output and one input lag, lags never crossing a recording
   ftcal fit ftcal-demo/train.parquet --na 1 --nb 1 --segment-by segment -o ftcal-demo/arx.json
-  # one task per file on Dask (local:N worker processes, or tcp://host:8786)
+  # per-file tasks on Dask (local:N worker processes, or tcp://host:8786)
   ftcal fit ftcal-demo/train.parquet --degree 2 --scheduler local:2 -o ftcal-demo/np2-dask.json
   # neural baseline: a 16-unit MLP early-stopped on the grouped folds, scored beside the affine model
   ftcal fit ftcal-demo/train.parquet --family mlp --hidden 16 --group-by group -o ftcal-demo/mlp16.json""",

@@ -13,16 +13,27 @@ task and hand the list to an executor. A task is a path, run as
   processes on this machine). Workers read the files themselves, so the paths
   must be visible to every worker at the same place (a shared file system).
 
+On a cluster, tasks travel in batches (:func:`batch_size`): thousands of small
+files become a few Dask tasks per worker, each running its files one after
+another, instead of thousands of tasks that swamp the scheduler.
+
 Additive results (sufficient statistics, metric sums) are combined by
 :func:`tree_reduce`, pairing neighbours in the same order in both executors so
-a cluster run sums in exactly the order of a local run.
+a cluster run sums in exactly the order of a local run (batches hold a power of
+two of tasks, aligned, so the sum inside a batch is a subtree of the local one).
+
+A local cluster (``local:N``) starts and stops with Ctrl-C, SIGTERM and SIGHUP
+deferred until it is complete, and any process it started that is still alive
+afterwards is ended: no process outlives the command.
 """
 
 from __future__ import annotations
 
 import os
+import signal
+import threading
 import uuid
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from typing import Any, TypeVar, Union
 
@@ -38,27 +49,55 @@ TASK_RETRIES = 1  # local:N clusters run a task whose worker died once more, the
 POLL_S = 1.0
 LOCAL_PREFIX = "local:"
 MAX_LOCAL_WORKERS = 64
+TASKS_PER_WORKER = 4  # Dask tasks per worker when files outnumber them: balance without swamping the scheduler
+SHUTDOWN_TIMEOUT_S = 30.0  # a local cluster's orderly close; processes still alive after it are killed
+DEFERRED_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
 
 
-def tree_reduce(parts: Sequence[T], combine: Callable[[T, T], T]) -> T:
+def tree_reduce(parts: Iterable[T], combine: Callable[[T, T], T]) -> T:
     """Combine ``parts`` pairwise, neighbours first: ((p0+p1)+(p2+p3))+p4.
+
+    The parts are consumed as they come (a binary counter: two sums of 2^k
+    parts are combined as soon as both exist), so at most log2(n) + 1 partial
+    sums are held at once, never all n results.
 
     Parameters
     ----------
-    parts : sequence of additive results, at least one
+    parts : iterable of additive results, at least one
     combine : callable(a, b) -> result
 
     Returns
     -------
-    The combination of all parts, in an order that depends only on ``len(parts)``.
+    The combination of all parts, in an order that depends only on their number:
+    level by level, element 2i with element 2i + 1, an odd last one carried up.
     """
-    if not parts:
+    stack: list[tuple[int, T]] = []  # (number of parts in the sum, sum), sizes strictly decreasing
+    for part in parts:
+        size, total = 1, part
+        while stack and stack[-1][0] == size:
+            left_size, left = stack.pop()
+            size, total = left_size + size, combine(left, total)
+        stack.append((size, total))
+    if not stack:
         raise FtcalError("Nothing to combine: no task produced a result.")
-    level = list(parts)
-    while len(level) > 1:
-        level = [combine(level[i], level[i + 1]) if i + 1 < len(level) else level[i]
-                 for i in range(0, len(level), 2)]
-    return level[0]
+    # The leftover sums of 2^k parts, largest first, combine from the right: the carried odd ones.
+    total = stack.pop()[1]
+    while stack:
+        total = combine(stack.pop()[1], total)
+    return total
+
+
+def batch_size(n_tasks: int, n_workers: int) -> int:
+    """Tasks per Dask task: the smallest power of two giving at most TASKS_PER_WORKER per worker.
+
+    A power of two, and batches that start at its multiples, make each batch's
+    :func:`tree_reduce` exactly a subtree of the reduction of all tasks.
+    """
+    target = TASKS_PER_WORKER * max(1, n_workers)
+    size = 1
+    while -(-n_tasks // size) > target:
+        size *= 2
+    return size
 
 
 class LocalExecutor:
@@ -79,21 +118,23 @@ class LocalExecutor:
         -------
         list of results, in the order of ``tasks``.
         """
-        results = []
-        with progress_bar(description, len(tasks)) as advance:
-            for task in tasks:
-                results.append(function(*_task_arguments(task), *args))
-                advance(1)
-        return results
+        return list(self._results(function, tasks, args, description))
 
     def map_reduce(self, function: Callable[..., T], tasks: Sequence[Task], *args: Any,
                    combine: Callable[[T, T], T], description: str = "tasks") -> T:
-        """:func:`tree_reduce` of :meth:`map`."""
-        return tree_reduce(self.map(function, tasks, *args, description=description), combine)
+        """:func:`tree_reduce` of :meth:`map`, adding each result as it comes."""
+        return tree_reduce(self._results(function, tasks, args, description), combine)
+
+    @staticmethod
+    def _results(function, tasks, args, description) -> Iterator:
+        with progress_bar(description, len(tasks)) as advance:
+            for task in tasks:
+                yield function(*_task_arguments(task), *args)
+                advance(1)
 
 
 class DaskExecutor:
-    """Run tasks on a Dask distributed cluster; results come back to this process.
+    """Run tasks on a Dask distributed cluster, in batches; results come back to this process.
 
     Parameters
     ----------
@@ -102,56 +143,71 @@ class DaskExecutor:
 
     def __init__(self, client):
         self.client = client
+        self._files: dict[str, list[str]] = {}  # Dask key -> the files its batch runs, for error messages
 
-    def _submit(self, function, tasks, args):
-        # pure=False: two runs of one file are two tasks (no stale cached results between commands)
-        return [self.client.submit(_run_on_worker, function, _task_arguments(task), args, pure=False,
-                                   key=f"ftcal-{os.path.basename(os.fspath(_task_arguments(task)[0]))}-"
-                                       f"{uuid.uuid4().hex}")
-                for task in tasks]
+    def _submit(self, function, tasks, args, combine=None) -> tuple[list, list[int]]:
+        """One future per batch of tasks, and the number of tasks in each."""
+        tasks = [_task_arguments(task) for task in tasks]
+        size = batch_size(len(tasks), len(self.client.scheduler_info(n_workers=-1).get("workers", {})))
+        futures, counts = [], []
+        for start in range(0, len(tasks), size):
+            batch = tasks[start:start + size]
+            files = [os.fspath(task[0]) for task in batch]
+            # pure=False and a fresh key: two runs of one file are two tasks (no stale results between commands)
+            key = f"ftcal-{os.path.basename(files[0])}-{uuid.uuid4().hex}"
+            self._files[key] = files
+            futures.append(self.client.submit(_run_batch, function, batch, args, combine, pure=False, key=key))
+            counts.append(len(batch))
+        return futures, counts
 
     def map(self, function: Callable[..., T], tasks: Sequence[Task], *args: Any,
             description: str = "tasks") -> list[T]:
-        """Like :meth:`LocalExecutor.map`, one Dask task per entry of ``tasks``."""
-        futures = self._submit(function, tasks, args)
+        """Like :meth:`LocalExecutor.map`; the tasks run in batches, the bar counts tasks (files)."""
+        futures, counts = self._submit(function, tasks, args)
         try:
-            self._wait(futures, description)
-            return self.client.gather(futures)
+            self._wait(futures, counts, description)
+            return [result for batch in self.client.gather(futures) for result in batch]
         except Exception as exc:
             self.client.cancel(futures)
-            raise _explain(exc) from None
+            raise self._explain(exc) from None
 
     def map_reduce(self, function: Callable[..., T], tasks: Sequence[Task], *args: Any,
                    combine: Callable[[T, T], T], description: str = "tasks") -> T:
-        """:func:`tree_reduce` on the workers; only the total travels back."""
-        futures = self._submit(function, tasks, args)
+        """:func:`tree_reduce` on the workers (in each batch, then across batches); only the total travels back."""
+        if not tasks:
+            return tree_reduce([], combine)  # the same one-line error as here
+        futures, counts = self._submit(function, tasks, args, combine)
+        n_batches = len(futures)
         level = list(futures)
         try:
             while len(level) > 1:
-                level = [self.client.submit(combine, level[i], level[i + 1], pure=False)
+                level = [self.client.submit(combine, level[i], level[i + 1], pure=False,
+                                            key=f"ftcal-sum-{uuid.uuid4().hex}")
                          if i + 1 < len(level) else level[i] for i in range(0, len(level), 2)]
                 futures.extend(level)
-            self._wait(futures[:len(tasks)], description)
-            if len(futures) > len(tasks):  # the sums are watched too: no hang if workers die
-                self._wait(futures[len(tasks):], f"{description}: tree sum")
+            self._wait(futures[:n_batches], counts, description)
+            if len(futures) > n_batches:  # the sums are watched too: no hang if workers die
+                sums = futures[n_batches:]
+                self._wait(sums, [1] * len(sums), f"{description}: tree sum")
             return level[0].result()
         except Exception as exc:
             self.client.cancel(futures)
-            raise _explain(exc) from None
+            raise self._explain(exc) from None
 
-    def _wait(self, futures, description: str) -> None:
-        """Wait for ``futures`` with a progress bar; fail when the cluster has had no worker for too long."""
+    def _wait(self, futures, counts: Sequence[int], description: str) -> None:
+        """Wait for ``futures``, the bar advancing by their ``counts``; fail after too long without workers."""
         import time
 
+        count = dict(zip(futures, counts))
         pending = set(futures)
         without_workers_since = None
-        with progress_bar(description, len(futures)) as advance:
+        with progress_bar(description, sum(counts)) as advance:
             while pending:
                 done = _wait_quietly(pending)
                 for future in done:
                     if future.status == "error":
                         future.result()  # raises the task's own exception
-                advance(len(done))
+                advance(sum(count[future] for future in done))
                 pending -= done
                 if not pending:
                     break
@@ -163,6 +219,28 @@ class DaskExecutor:
                     raise FtcalError(f"the Dask cluster at {self.client.scheduler.address} has had no worker for "
                                      f"{NO_WORKERS_TIMEOUT_S:.0f} s with {len(pending)} task(s) left; start workers "
                                      "or run without --scheduler.")
+
+    def _explain(self, exc: BaseException) -> BaseException:
+        """The cluster's own errors as one-line FtcalErrors naming the files; the tasks' FtcalErrors pass through."""
+        if isinstance(exc, FtcalError):
+            return exc
+        from distributed.scheduler import KilledWorker
+
+        if isinstance(exc, KilledWorker):
+            files = self._files.get(str(exc.task))
+            what = (f"the task of {_name_files(files)}" if files else
+                    "the sum of the files' results" if str(exc.task).startswith("ftcal-sum-") else repr(exc.task))
+            return FtcalError(f"a Dask worker died while running {what} (each worker that held it died, possibly "
+                              "out of memory); nothing was written. Give the workers more memory or split the files.")
+        return FtcalError(f"the Dask run failed ({type(exc).__name__}: "
+                          f"{str(exc).splitlines()[0] if str(exc) else 'no detail'}); nothing was written.")
+
+
+def _name_files(files: Sequence[str]) -> str:
+    """``a.csv``, ``a.csv, b.csv`` or ``12 files, a.csv to l.csv`` (a batch is a run of consecutive files)."""
+    if len(files) <= 2:
+        return ", ".join(files)
+    return f"{len(files)} files, {files[0]} to {files[-1]}"
 
 
 def _wait_quietly(pending) -> set:
@@ -179,6 +257,12 @@ def _task_arguments(task: Task) -> tuple:
     return task if isinstance(task, tuple) else (task,)
 
 
+def _run_batch(function, tasks: Sequence[tuple], args: tuple, combine=None):
+    """A batch as a worker runs it: the tasks' results, or their :func:`tree_reduce` with ``combine``."""
+    results = (_run_on_worker(function, task, args) for task in tasks)
+    return list(results) if combine is None else tree_reduce(results, combine)
+
+
 def _run_on_worker(function, task: tuple, args: tuple):
     """A task as a worker runs it: first check this worker can see the task's file."""
     path = task[0]
@@ -189,20 +273,6 @@ def _run_on_worker(function, task: tuple, args: tuple):
                          "with --scheduler the paths must be visible to every worker at the same place "
                          "(a shared file system).")
     return function(*task, *args)
-
-
-def _explain(exc: BaseException) -> BaseException:
-    """Errors of the cluster itself as one-line FtcalErrors; the tasks' own FtcalErrors pass through."""
-    if isinstance(exc, FtcalError):
-        return exc
-    from distributed.scheduler import KilledWorker
-
-    if isinstance(exc, KilledWorker):
-        return FtcalError(f"a Dask worker died while running {exc.task!r} (each worker that ran it died, "
-                          "possibly out of memory); nothing was written. Give the workers more memory or "
-                          "split the files.")
-    return FtcalError(f"the Dask run failed ({type(exc).__name__}: "
-                      f"{str(exc).splitlines()[0] if str(exc) else 'no detail'}); nothing was written.")
 
 
 def parse_scheduler(text: str) -> str:
@@ -252,37 +322,126 @@ def open_executor(scheduler: str | None, *,
 
     try:
         import dask
-        from distributed import Client, LocalCluster
+        from distributed import LocalCluster
     except ImportError:
         raise FtcalError(f"--scheduler {scheduler}: needs Dask distributed; install it with "
                          "pip install 'ftcal[dask]'.") from None
 
+    # A local scheduler hands each worker one batch at a time (worker-saturation 1): when a worker
+    # dies, Dask blames every task the worker held, so a queued, innocent batch would be blamed too.
     with dask.config.set({"distributed.comm.timeouts.connect": f"{connect_timeout}s",
-                          "distributed.scheduler.allowed-failures": TASK_RETRIES}):
+                          "distributed.scheduler.allowed-failures": TASK_RETRIES,
+                          "distributed.scheduler.worker-saturation": 1.0}):
+        import multiprocessing
+
+        before = set(multiprocessing.active_children())
         cluster = None
         try:
-            if scheduler.startswith(LOCAL_PREFIX):
-                cluster = LocalCluster(n_workers=int(scheduler[len(LOCAL_PREFIX):]), threads_per_worker=1,
-                                       processes=True, dashboard_address=":0", silence_logs=logging.CRITICAL)
+            with signals_deferred():  # a cluster half started by Ctrl-C would be left running
+                if scheduler.startswith(LOCAL_PREFIX):
+                    try:
+                        cluster = LocalCluster(n_workers=int(scheduler[len(LOCAL_PREFIX):]), threads_per_worker=1,
+                                               processes=True, dashboard_address=":0",
+                                               silence_logs=logging.CRITICAL)
+                    except Exception as exc:  # noqa: BLE001 - e.g. a worker process that could not start
+                        detail = str(exc).splitlines()[0] if str(exc) else "no detail"
+                        raise FtcalError(f"--scheduler {scheduler}: the local Dask cluster did not start "
+                                         f"({type(exc).__name__}: {detail}); nothing was written.") from None
+                client = _connect(cluster if cluster is not None else scheduler, scheduler, connect_timeout)
             try:
-                client = Client(cluster if cluster is not None else scheduler, timeout=connect_timeout)
-            except (OSError, TimeoutError) as exc:
-                raise FtcalError(f"--scheduler {scheduler}: cannot reach the Dask scheduler within "
-                                 f"{connect_timeout:g} s ({type(exc).__name__}); check the address and "
-                                 "that `dask scheduler` runs there.") from None
-            except ValueError as exc:  # Dask's own address parser: a bad scheme, host or port
-                raise FtcalError(f"--scheduler {scheduler}: not a Dask scheduler address "
-                                 f"({str(exc).splitlines()[0] if str(exc) else type(exc).__name__}).") from None
-            except Exception as exc:  # noqa: BLE001 - whatever answered sent garbage (Dask then
-                # asked for exabytes: MemoryError, or failed to decode: many types)
-                raise FtcalError(f"--scheduler {scheduler}: what answered there is not a Dask scheduler "
-                                 f"({type(exc).__name__} while connecting); check the address.") from None
-            with client:
                 check_versions(client, scheduler)
+                if cluster is not None:
+                    client.register_plugin(_ignore_interrupts_plugin())
                 yield DaskExecutor(client)
+            finally:
+                with signals_deferred():
+                    client.close()
         finally:
-            if cluster is not None:
-                cluster.close()
+            with signals_deferred():
+                if cluster is not None:
+                    _close_quietly(cluster)
+                _end_processes(set(multiprocessing.active_children()) - before)
+
+
+def _connect(address, scheduler: str, connect_timeout: float):
+    """A distributed.Client on ``address`` (a cluster or an address), failures as one line."""
+    from distributed import Client
+
+    try:
+        return Client(address, timeout=connect_timeout)
+    except (OSError, TimeoutError) as exc:
+        raise FtcalError(f"--scheduler {scheduler}: cannot reach the Dask scheduler within "
+                         f"{connect_timeout:g} s ({type(exc).__name__}); check the address and "
+                         "that `dask scheduler` runs there.") from None
+    except ValueError as exc:  # Dask's own address parser: a bad scheme, host or port
+        raise FtcalError(f"--scheduler {scheduler}: not a Dask scheduler address "
+                         f"({str(exc).splitlines()[0] if str(exc) else type(exc).__name__}).") from None
+    except Exception as exc:  # noqa: BLE001 - whatever answered sent garbage (Dask then
+        # asked for exabytes: MemoryError, or failed to decode: many types)
+        raise FtcalError(f"--scheduler {scheduler}: what answered there is not a Dask scheduler "
+                         f"({type(exc).__name__} while connecting); check the address.") from None
+
+
+def _close_quietly(cluster) -> None:
+    """Close a local cluster; if that fails, :func:`_end_processes` still ends its workers."""
+    try:
+        cluster.close(timeout=SHUTDOWN_TIMEOUT_S)
+    except Exception:  # noqa: BLE001 - e.g. a worker killed mid-start; its process is ended next
+        pass
+
+
+def _end_processes(processes) -> None:
+    """Terminate, then kill, the multiprocessing children still alive (a local cluster's worker processes)."""
+    for process in processes:
+        process.terminate()
+    for process in processes:
+        process.join(SHUTDOWN_TIMEOUT_S)
+        if process.is_alive():
+            process.kill()
+            process.join()
+
+
+@contextmanager
+def signals_deferred() -> Iterator[None]:
+    """Inside the block, Ctrl-C, SIGTERM and SIGHUP wait; the first one arrives again at its end.
+
+    For steps that must not stop half way: starting or stopping a local cluster
+    (a half-started one leaves processes that nothing stops). The signal arrives
+    even if the block raised (a worker killed by the same Ctrl-C fails the
+    cluster's start): the user asked to stop. Outside the main thread nothing is
+    deferred (Python handles signals only there).
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught: list[int] = []
+    previous = {sig: signal.signal(sig, lambda signum, frame: caught.append(signum)) for sig in DEFERRED_SIGNALS}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        if caught:
+            signal.raise_signal(caught[0])  # through the previous handler: KeyboardInterrupt, the CLI's Terminated
+
+
+def _ignore_interrupts_plugin():
+    """A Dask worker plugin by which the worker process ignores SIGINT (the client handles Ctrl-C).
+
+    A terminal sends Ctrl-C to the whole process group, local workers included;
+    they would die with a traceback each while the client shuts them down in
+    order. Dask runs the plugin on every worker, replaced ones too.
+    """
+    from distributed import WorkerPlugin
+
+    class IgnoreInterrupts(WorkerPlugin):
+        name = "ftcal-ignore-interrupts"
+
+        def setup(self, worker) -> None:
+            if threading.current_thread() is threading.main_thread():
+                signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+    return IgnoreInterrupts()
 
 
 def check_versions(client, scheduler: str) -> None:
