@@ -1,0 +1,228 @@
+"""A bounded walk over the element tags of a MATLAB v5 file, before scipy reads it.
+
+A v5 MAT-file is a 128-byte header followed by data elements, each an 8-byte
+tag (type, byte count) and its bytes; a variable is a ``miMATRIX`` element
+(flags, dimensions, name, then its data or, for structs and cells, more
+``miMATRIX`` elements), or a ``miCOMPRESSED`` element holding one zlib-deflated
+``miMATRIX``. scipy trusts the declared dimensions and byte counts: a few bytes
+declaring a 10¹² × 1 struct make it allocate and loop over 10¹² elements, and a
+small deflated stream can expand to terabytes. This walk reads only the tags,
+dimensions and names (skipping the data) and refuses, naming the file and the
+variable, any array declaring more than
+:data:`~ftcal.core.limits.MAX_DECLARED_ELEMENTS` values, any element larger
+than what encloses it (a truncated file), a deflated variable larger than its
+declaration, and nesting deeper than :data:`~ftcal.core.limits.MAX_NESTING`.
+Deflated data is expanded incrementally (``zlib.decompressobj`` with
+``max_length``), never more than the declaration allows.
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+import zlib
+from pathlib import Path
+
+from ..core.limits import MAX_DECLARED_ELEMENTS, MAX_HEADER_BYTES, MAX_NESTING
+from ..runtime.errors import FtcalError
+
+HEADER_BYTES = 128
+MI_INT8, MI_INT32, MI_UINT32, MI_MATRIX, MI_COMPRESSED = 1, 5, 6, 14, 15
+MX_CELL, MX_STRUCT, MX_OBJECT, MX_SPARSE = 1, 2, 3, 5
+_BLOCK = 1 << 20  # bytes skipped or inflated per step
+
+
+class _Short(Exception):
+    """The bytes ran out before an element's declared end."""
+
+
+class _FileBytes:
+    """An element's bytes read straight from the file."""
+
+    def __init__(self, fh):
+        self.fh = fh
+
+    def read(self, n: int) -> bytes:
+        data = self.fh.read(n)
+        if len(data) < n:
+            raise _Short
+        return data
+
+    def skip(self, n: int) -> None:
+        self.fh.seek(n, 1)
+
+
+class _InflatedBytes:
+    """A ``miCOMPRESSED`` element's bytes, inflated as they are asked for (never more)."""
+
+    def __init__(self, fh, compressed: int):
+        self.fh, self.left = fh, compressed
+        self.inflate = zlib.decompressobj()
+
+    def read(self, n: int) -> bytes:
+        out, need = [], n
+        while need:
+            source = self.inflate.unconsumed_tail
+            if not source:
+                if self.inflate.eof or not self.left:
+                    raise _Short
+                source = self.fh.read(min(self.left, _BLOCK))
+                if not source:
+                    raise _Short
+                self.left -= len(source)
+            chunk = self.inflate.decompress(source, min(need, _BLOCK))
+            out.append(chunk)
+            need -= len(chunk)
+        return b"".join(out)
+
+    def skip(self, n: int) -> None:
+        while n:
+            n -= len(self.read(min(n, _BLOCK)))
+
+
+def check_v5(path: Path) -> None:
+    """Refuse a MATLAB v5 file whose declared sizes or structure could exhaust memory or time.
+
+    Parameters
+    ----------
+    path : a file that is not HDF5 (so not v7.3)
+
+    Raises
+    ------
+    FtcalError
+        Not a v5 MAT-file, truncated, corrupt deflated data, an array declaring more than
+        ``MAX_DECLARED_ELEMENTS`` values, an element larger than its enclosure, or nesting
+        deeper than ``MAX_NESTING``; the message names the file and the variable.
+    """
+    size = path.stat().st_size
+    with open(path, "rb") as fh:
+        header = fh.read(HEADER_BYTES)
+        if len(header) < HEADER_BYTES or header[126:128] not in (b"IM", b"MI"):
+            short = "; the file is shorter than one" if len(header) < HEADER_BYTES else ""
+            raise FtcalError(f"Recording {path}: not a MATLAB v5 or v7.3 MAT-file (no v5 header{short}).")
+        walk = _Walk(path, "<" if header[126:128] == b"IM" else ">")
+        position = HEADER_BYTES
+        while position < size:
+            walk.current = f"the variable at byte {position:,}"
+            try:
+                kind, nbytes, taken, _ = walk.tag(_FileBytes(fh), size - position, walk.current, whole=False)
+                if kind == MI_COMPRESSED:
+                    walk.compressed(_InflatedBytes(fh, min(nbytes, size - position - 8)), nbytes > size - position - 8)
+                elif kind == MI_MATRIX:
+                    walk.matrix(_FileBytes(fh), min(nbytes, size - position - 8), "", 1, declared=nbytes)
+            except _Short:
+                raise FtcalError(f"Recording {path}: the MATLAB file is truncated or corrupt: {walk.current} "
+                                 "ends before its declared size.") from None
+            except zlib.error as exc:
+                raise FtcalError(f"Recording {path}: the compressed data of {walk.current} is corrupt "
+                                 f"({exc}).") from None
+            if 8 + nbytes > size - position:  # an element whose name could not be reached
+                raise FtcalError(f"Recording {path}: the MATLAB file is truncated: {walk.current} declares "
+                                 f"{nbytes:,} bytes but only {size - position - 8:,} remain.")
+            position += 8 + nbytes if kind == MI_COMPRESSED else taken
+            fh.seek(position)
+
+
+class _Walk:
+    def __init__(self, path: Path, order: str):
+        self.path, self.order = path, order
+        self.current = "the first variable"  # the innermost variable named so far, for messages
+
+    def tag(self, src, room: int, where: str, whole: bool = True) -> tuple[int, int, int, bytes]:
+        """(type, byte count, bytes taken with tag and padding, data of a small element).
+
+        With ``whole``, an element larger than ``room`` (what is left of its enclosure) is refused.
+        """
+        if room < 8:
+            raise FtcalError(f"Recording {self.path}: the MATLAB file is truncated or corrupt: {where} has no "
+                             f"room for its 8-byte tag ({room} bytes left).")
+        raw = src.read(8)
+        first, nbytes = struct.unpack(self.order + "II", raw)
+        if first >> 16:  # the small element format: type, count and up to 4 bytes of data in 8 bytes
+            return first & 0xFFFF, first >> 16, 8, raw[4:4 + min(first >> 16, 4)]
+        if whole and 8 + nbytes > room:
+            raise FtcalError(f"Recording {self.path}: the MATLAB file is truncated or corrupt: {where} declares "
+                             f"{nbytes:,} bytes but only {room - 8:,} remain.")
+        return first, nbytes, min(8 + nbytes + (-nbytes % 8), max(room, 8 + nbytes)), b""
+
+    def small(self, src, room: int, where: str, what: str) -> tuple[bytes, int]:
+        """A metadata subelement (flags, dimensions, name, field names): its bytes and the room it takes."""
+        _, nbytes, taken, inline = self.tag(src, room, where)
+        if taken == 8 and nbytes <= 4:
+            return inline, 8
+        if nbytes > MAX_HEADER_BYTES:
+            raise FtcalError(f"Recording {self.path}: the {what} of {where} take {nbytes:,} bytes, more than the "
+                             f"limit of {MAX_HEADER_BYTES:,}; not a robot-logger recording.")
+        data = src.read(nbytes)
+        src.skip(taken - 8 - nbytes)
+        return data, taken
+
+    def compressed(self, src: _InflatedBytes, truncated: bool) -> None:
+        first, nbytes = struct.unpack(self.order + "II", src.read(8))
+        if first != MI_MATRIX:
+            if truncated:
+                raise _Short
+            return  # scipy skips anything but a matrix too
+        if nbytes > 8 * MAX_DECLARED_ELEMENTS:
+            raise FtcalError(f"Recording {self.path}: {self.current} declares {nbytes:,} bytes once decompressed, "
+                             f"more than the limit of {8 * MAX_DECLARED_ELEMENTS:,}; not a robot-logger recording.")
+        self.matrix(src, nbytes, "", 1)
+        if truncated:
+            raise _Short
+
+    def matrix(self, src, room: int, prefix: str, depth: int, declared: int | None = None) -> None:
+        """Walk one ``miMATRIX`` of ``room`` bytes (after its tag); ``prefix``: the enclosing variable's path.
+
+        ``declared``: the byte count a top-level tag claims, checked once the variable's name is known.
+        """
+        where = prefix or self.current
+        if depth > MAX_NESTING:
+            raise FtcalError(f"Recording {self.path}: {where} nests arrays more than {MAX_NESTING} levels deep; "
+                             "not a robot-logger recording.")
+        if room == 0:  # an empty array
+            return
+        flags, used = self.small(src, room, where, "array flags")
+        mx_class = struct.unpack(self.order + "I", flags[:4])[0] & 0xFF if len(flags) >= 4 else 0
+        raw_dims, taken = self.small(src, room - used, where, "dimensions")
+        used += taken
+        dims = struct.unpack(f"{self.order}{len(raw_dims) // 4}i", raw_dims[:len(raw_dims) // 4 * 4])
+        name, taken = self.small(src, room - used, where, "name")
+        used += taken
+        if not prefix:
+            where = name.decode("latin-1") or where
+        self.current = where
+        if declared is not None and declared > room:
+            raise FtcalError(f"Recording {self.path}: the MATLAB file is truncated: the variable {where} declares "
+                             f"{declared:,} bytes but only {room:,} remain.")
+        count = math.prod(max(d, 0) for d in dims)
+        if mx_class != MX_SPARSE and count > MAX_DECLARED_ELEMENTS:
+            raise FtcalError(f"Recording {self.path}: the MATLAB variable {where} declares {count:,} values "
+                             f"(dimensions {'x'.join(map(str, dims))}), more than the limit of "
+                             f"{MAX_DECLARED_ELEMENTS:,}; not a robot-logger recording.")
+        fields: list[str] = []
+        if mx_class == MX_CELL:
+            fields = [""]
+        elif mx_class in (MX_STRUCT, MX_OBJECT):
+            if mx_class == MX_OBJECT:
+                used += self.small(src, room - used, where, "class name")[1]
+            length, taken = self.small(src, room - used, where, "field name length")
+            used += taken
+            names, taken = self.small(src, room - used, where, "field names")
+            used += taken
+            width = struct.unpack(self.order + "i", length[:4])[0] if len(length) >= 4 else 0
+            fields = [f".{names[i:i + width].split(bytes(1))[0].decode('latin-1')}"
+                      for i in range(0, len(names), width)] if width > 0 else []
+        for i in range(count if fields else 0):  # each child takes at least its 8-byte tag: bounded by room
+            for field in fields:
+                child = f"{where}{field or f'{{{i + 1}}}'}"
+                kind, nbytes, taken, _ = self.tag(src, room - used, child)
+                if kind != MI_MATRIX:
+                    raise FtcalError(f"Recording {self.path}: {child} is not a MATLAB array (element type {kind}).")
+                self.matrix(src, nbytes, child, depth + 1)
+                src.skip(taken - 8 - nbytes)
+                used += taken
+        self.current = where
+        while used < room:  # the data subelements: each must fit in what is left
+            _, _, taken, _ = self.tag(src, room - used, where)
+            src.skip(taken - 8)
+            used += taken
