@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from ..core.limits import MAX_DECLARED_ELEMENTS, MAX_NESTING
+from ..core.limits import MAX_DECLARED_ELEMENTS, MAX_MAT_ARRAYS, MAX_NESTING
 from ..runtime.errors import FtcalError
 from ..runtime.inputs import check_input_file
 from .mat_v5 import check_v5
@@ -115,6 +115,9 @@ class _Walk:
         if addr in self.open:
             raise FtcalError(f"Recording {self.path}: {where} links back to {self.open[addr]}, which contains it "
                              "(a loop of links); not a robot-logger file.")
+        if len(self.done) + len(self.open) >= MAX_MAT_ARRAYS:
+            raise FtcalError(f"Recording {self.path}: more than {MAX_MAT_ARRAYS:,} groups and arrays (at {where}); "
+                             "not a robot-logger recording.")
         self.open[addr] = where
         value = self._read(node, where, depth)
         del self.open[addr]

@@ -23,7 +23,7 @@ import struct
 import zlib
 from pathlib import Path
 
-from ..core.limits import MAX_DECLARED_ELEMENTS, MAX_HEADER_BYTES, MAX_NESTING
+from ..core.limits import MAX_DECLARED_ELEMENTS, MAX_HEADER_BYTES, MAX_MAT_ARRAYS, MAX_NESTING
 from ..runtime.errors import FtcalError
 
 HEADER_BYTES = 128
@@ -127,6 +127,7 @@ class _Walk:
     def __init__(self, path: Path, order: str):
         self.path, self.order = path, order
         self.current = "the first variable"  # the innermost variable named so far, for messages
+        self.arrays = 0
 
     def tag(self, src, room: int, where: str, whole: bool = True) -> tuple[int, int, int, bytes]:
         """(type, byte count, bytes taken with tag and padding, data of a small element).
@@ -145,9 +146,12 @@ class _Walk:
                              f"{nbytes:,} bytes but only {room - 8:,} remain.")
         return first, nbytes, min(8 + nbytes + (-nbytes % 8), max(room, 8 + nbytes)), b""
 
-    def small(self, src, room: int, where: str, what: str) -> tuple[bytes, int]:
-        """A metadata subelement (flags, dimensions, name, field names): its bytes and the room it takes."""
-        _, nbytes, taken, inline = self.tag(src, room, where)
+    def small(self, src, room: int, where: str, what: str, kind: int) -> tuple[bytes, int]:
+        """A metadata subelement (flags, dimensions, name, field names) of type ``kind``: its bytes and room."""
+        found, nbytes, taken, inline = self.tag(src, room, where)
+        if found != kind:
+            raise FtcalError(f"Recording {self.path}: the {what} of {where} have element type {found}, not {kind}; "
+                             "the MATLAB file is corrupt.")
         if taken == 8 and nbytes <= 4:
             return inline, 8
         if nbytes > MAX_HEADER_BYTES:
@@ -176,17 +180,21 @@ class _Walk:
         ``declared``: the byte count a top-level tag claims, checked once the variable's name is known.
         """
         where = prefix or self.current
+        self.arrays += 1
+        if self.arrays > MAX_MAT_ARRAYS:
+            raise FtcalError(f"Recording {self.path}: more than {MAX_MAT_ARRAYS:,} arrays (at {where}); "
+                             "not a robot-logger recording.")
         if depth > MAX_NESTING:
             raise FtcalError(f"Recording {self.path}: {where} nests arrays more than {MAX_NESTING} levels deep; "
                              "not a robot-logger recording.")
         if room == 0:  # an empty array
             return
-        flags, used = self.small(src, room, where, "array flags")
+        flags, used = self.small(src, room, where, "array flags", MI_UINT32)
         mx_class = struct.unpack(self.order + "I", flags[:4])[0] & 0xFF if len(flags) >= 4 else 0
-        raw_dims, taken = self.small(src, room - used, where, "dimensions")
+        raw_dims, taken = self.small(src, room - used, where, "dimensions", MI_INT32)
         used += taken
         dims = struct.unpack(f"{self.order}{len(raw_dims) // 4}i", raw_dims[:len(raw_dims) // 4 * 4])
-        name, taken = self.small(src, room - used, where, "name")
+        name, taken = self.small(src, room - used, where, "name", MI_INT8)
         used += taken
         if not prefix:
             where = name.decode("latin-1") or where
@@ -204,10 +212,10 @@ class _Walk:
             fields = [""]
         elif mx_class in (MX_STRUCT, MX_OBJECT):
             if mx_class == MX_OBJECT:
-                used += self.small(src, room - used, where, "class name")[1]
-            length, taken = self.small(src, room - used, where, "field name length")
+                used += self.small(src, room - used, where, "class name", MI_INT8)[1]
+            length, taken = self.small(src, room - used, where, "field name length", MI_INT32)
             used += taken
-            names, taken = self.small(src, room - used, where, "field names")
+            names, taken = self.small(src, room - used, where, "field names", MI_INT8)
             used += taken
             width = struct.unpack(self.order + "i", length[:4])[0] if len(length) >= 4 else 0
             fields = [f".{names[i:i + width].split(bytes(1))[0].decode('latin-1')}"
@@ -222,7 +230,10 @@ class _Walk:
                 src.skip(taken - 8 - nbytes)
                 used += taken
         self.current = where
-        while used < room:  # the data subelements: each must fit in what is left
+        for _ in range(4):  # the data subelements (real, imaginary; sparse: ir, jc, pr, pi) must fit in the array
+            if used >= room:
+                return
             _, _, taken, _ = self.tag(src, room - used, where)
             src.skip(taken - 8)
             used += taken
+        src.skip(room - used)

@@ -1,0 +1,177 @@
+"""Issue 17, file readers: link loops in HDF5 .mat logs, declared sizes and truncation in v5 .mat logs.
+
+Each test is one class of hostile input; each failed on the main branch before the fix
+(a traceback, a hang, a message naming no variable, or a truncated file read silently).
+The v5 files are assembled here byte by byte from the MAT-file format specification
+(MathWorks, "MAT-File Format", R2023b: 128-byte header, 8-byte tags, miMATRIX subelements),
+and the builder is checked against scipy's own reader on a valid file.
+"""
+
+import re
+import struct
+import subprocess
+import sys
+import zlib
+
+import h5py
+import numpy as np
+import pytest
+import scipy.io
+
+from ftcal.core.limits import MAX_DECLARED_ELEMENTS
+from ftcal.data.logs import read_recording
+from ftcal.runtime.errors import FtcalError
+from test_logs_mat import logger_tree, signals, write_v5, write_v73  # noqa: F401 (signals: a fixture)
+
+ROOT = "/robot_logger_device"
+TREE = {"FTs": {"s": {"data": np.zeros((5, 6)), "timestamps": np.arange(5.0)}}}
+
+
+def _v73_with(tmp_path, name, mutate):
+    path = write_v73(tmp_path / f"{name}.mat", TREE)
+    with h5py.File(path, "r+") as fh:
+        mutate(fh)
+    return path
+
+
+def _soft_self(fh):
+    fh[f"{ROOT}/FTs"]["x"] = h5py.SoftLink(f"{ROOT}/FTs/x")
+
+
+def _soft_cycle(fh):
+    fh[f"{ROOT}/FTs"]["x"] = h5py.SoftLink(f"{ROOT}/FTs/y")
+    fh[f"{ROOT}/FTs"]["y"] = h5py.SoftLink(f"{ROOT}/FTs/x")
+
+
+def _soft_to_root(fh):
+    fh[f"{ROOT}/FTs"]["x"] = h5py.SoftLink(ROOT)
+
+
+def _hard_self(fh):
+    group = fh[f"{ROOT}/FTs"]
+    group["x"] = group  # the group contains itself
+
+
+def _reference_loop(fh):
+    # A MATLAB cell (object references into #refs#) whose element is the cell itself.
+    cell = fh["#refs#"].create_dataset("loop", shape=(1, 1), dtype=h5py.ref_dtype)
+    cell[0, 0] = cell.ref
+    cell.attrs["MATLAB_class"] = np.bytes_("cell")
+    fh[ROOT]["description_list"] = cell
+    fh[ROOT]["joints_state"] = fh[f"{ROOT}/FTs"]
+
+
+def _external(fh):
+    del fh[f"{ROOT}/FTs/s/data"]
+    fh[f"{ROOT}/FTs/s"]["x"] = h5py.ExternalLink("/dev/zero", "/data")
+
+
+@pytest.mark.parametrize("mutate, link, message", [
+    (_soft_self, f"{ROOT}/FTs/x", "soft link .* never resolves"),
+    (_soft_cycle, f"{ROOT}/FTs/x", "soft link .* never resolves"),
+    (_soft_to_root, f"{ROOT}/FTs/x", f"links back to {ROOT},"),
+    (_hard_self, f"{ROOT}/FTs/x", f"links back to {ROOT}/FTs,"),
+    (_reference_loop, f"{ROOT}/description_list{{1}}", f"links back to {ROOT}/description_list,"),
+    (_external, f"{ROOT}/FTs/s/x", "link to another file \\(/dev/zero\\)"),
+])
+def test_hdf5_link_loops_refused_naming_the_link(tmp_path, mutate, link, message):
+    """Class: link loops and links out of an HDF5 (.mat v7.3) file: one line naming the file and the link."""
+    path = _v73_with(tmp_path, mutate.__name__, mutate)
+    with pytest.raises(FtcalError) as info:
+        read_recording(path)
+    text = str(info.value)
+    assert str(path) in text and "\n" not in text
+    assert text.split(": ")[1].startswith(link + " ")  # the link itself, not a path 32 levels deep
+    assert re.search(message, text)
+
+
+def test_hdf5_shared_links_read_once(tmp_path):
+    """Class: links shared along many paths (no loop). 24 groups, each linking twice to the next, are
+    2^24 paths but 24 objects: the read must take one step per object, not per path (main: minutes)."""
+    def chain(fh):
+        groups = [fh[f"{ROOT}/FTs/s"]] + [fh["#refs#"].create_group(f"g{i}") for i in range(24)]
+        for upper, lower in zip(groups[:-1], groups[1:]):
+            upper["a"], upper["b"] = lower, lower
+    path = _v73_with(tmp_path, "chain", chain)
+    code = ("import sys; from ftcal.data.logs import read_recording; from ftcal.runtime.errors import FtcalError\n"
+            "try: read_recording(sys.argv[1])\nexcept FtcalError as e: print(e)")
+    out = subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0 and out.stderr == ""
+    assert out.stdout.count("\n") <= 1
+
+
+# --- MATLAB v5, assembled from the format specification ---
+
+def _element(kind, data):
+    return struct.pack("<II", kind, len(data)) + data + bytes(-len(data) % 8)
+
+
+def _matrix(name, dims, mx_class, body=b""):
+    inner = (_element(6, struct.pack("<II", mx_class, 0)) + _element(5, struct.pack(f"<{len(dims)}i", *dims))
+             + _element(1, name.encode()) + body)
+    return struct.pack("<II", 14, len(inner)) + inner
+
+
+def _struct(name, dims, fields, children):
+    body = (_element(5, struct.pack("<i", 32)) + _element(1, b"".join(f.encode().ljust(32, b"\0") for f in fields))
+            + b"".join(children))
+    return _matrix(name, dims, 2, body)
+
+
+def _double(values):
+    values = np.asarray(values, float)
+    return _matrix("", values.shape, 6, _element(9, values.T.tobytes()))
+
+
+def _log(data_matrix, compress=False):
+    sensor = _struct("", (1, 1), ["data", "timestamps"], [data_matrix, _double(np.arange(5.0)[:, None])])
+    variable = _struct("robot_logger_device", (1, 1), ["FTs"], [_struct("", (1, 1), ["s"], [sensor])])
+    if compress:
+        packed = zlib.compress(variable)
+        variable = struct.pack("<II", 15, len(packed)) + packed
+    return b"MATLAB 5.0 MAT-file, ftcal test".ljust(116) + bytes(8) + struct.pack("<H", 0x0100) + b"IM" + variable
+
+
+def test_v5_builder_is_a_mat_file(tmp_path):
+    """The hand-assembled bytes are a MAT-file to scipy and to ftcal (so the hostile ones below differ only
+    in what they declare)."""
+    ft = np.arange(30.0).reshape(5, 6)
+    for compress in (False, True):
+        path = tmp_path / f"ok{compress}.mat"
+        path.write_bytes(_log(_double(ft), compress))
+        ours = scipy.io.loadmat(path, simplify_cells=True)["robot_logger_device"]["FTs"]["s"]["data"]
+        np.testing.assert_array_equal(ours, ft)
+        np.testing.assert_array_equal(read_recording(path).ft["s"].data, ft)
+
+
+@pytest.mark.parametrize("compress", [False, True])
+@pytest.mark.parametrize("data, declared", [
+    (_matrix("", (10**6, 10**6), 6, _element(9, bytes(8))), "1,000,000,000,000 values"),  # a 10^12 double
+    (_struct("", (10**5, 10**5), ["a"], []), "10,000,000,000 values"),  # a struct array scipy would allocate
+    (_matrix("", (10**5, 10**5), 1), "10,000,000,000 values"),  # a cell array
+    (_matrix("", (5, 6), 6, struct.pack("<II", 9, 2**32 - 8)), "4,294,967,288 bytes"),  # more bytes than the file
+], ids=["double-1e12", "struct-1e10", "cell-1e10", "bytes-4e9"])
+def test_v5_declared_sizes_refused_naming_the_variable(tmp_path, data, declared, compress):
+    """Class: a v5 file declaring more than it holds or than the limit: refused before scipy allocates,
+    naming the file and the variable (main: scipy's MemoryError or reshape error, no variable named)."""
+    path = tmp_path / "huge.mat"
+    path.write_bytes(_log(data, compress))
+    with pytest.raises(FtcalError) as info:
+        read_recording(path)
+    text = str(info.value)
+    assert f"{path}:" in text and "robot_logger_device.FTs.s.data declares " + declared in text
+    if "values" in declared:
+        assert f"limit of {MAX_DECLARED_ELEMENTS:,}" in text
+
+
+def test_v5_truncation_always_refused(tmp_path, signals):
+    """Class: truncated v5 files. Every cut is refused in one line (main read three cuts silently)."""
+    path = write_v5(tmp_path / "full.mat", logger_tree(signals["ft"], signals["temp"], signals["q"],
+                                                       signals["t_ft"], signals["t_q"]))
+    data = path.read_bytes()
+    cut = tmp_path / "cut.mat"
+    for n in [*range(0, len(data) - 16, 13), *range(len(data) - 16, len(data))]:
+        cut.write_bytes(data[:n])
+        with pytest.raises(FtcalError) as info:
+            read_recording(cut)
+        assert str(cut) in str(info.value) and "\n" not in str(info.value)
