@@ -175,3 +175,88 @@ def test_v5_truncation_always_refused(tmp_path, signals):
         with pytest.raises(FtcalError) as info:
             read_recording(cut)
         assert str(cut) in str(info.value) and "\n" not in str(info.value)
+
+
+# --- Parquet from other writers: no page checksums, only the footer's statistics ---
+
+def _third_party_parquet(path, compression="none"):
+    """A table as another tool writes it: statistics in the footer, no page checksums, 3 row groups."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    rng = np.random.default_rng(3)
+    n = 900
+    columns = {c: rng.normal(0.0, 10.0, n) for c in ("u1", "u2", "u3", "u4", "u5", "u6")}
+    columns.update({c: rng.normal(0.0, 1.0, n) for c in ("fx", "fy", "fz", "tx", "ty", "tz")})
+    columns["u3"][[5, 400]] = [np.nan, -0.0]  # NaN is not in the statistics, -0.0 equals 0.0
+    table = pa.table({**columns, "case": pa.array([f"c{i // 100}" for i in range(n)]),
+                      "count": pa.array(np.arange(n) % 7, pa.int32()),
+                      "note": pa.array([None if i % 5 else "x" for i in range(n)])})
+    pq.write_table(table, path, compression=compression, row_group_size=300, write_page_checksum=False)
+    return table
+
+
+def _read_both(path):
+    from ftcal.data.table_chunks import iter_table_chunks
+    from ftcal.data.tables import read_arrow
+
+    names = ("u1", "u2", "u4", "u5", "u6"), ("fx", "fy", "fz", "tx", "ty", "tz")
+    return read_arrow(path), [chunk for chunk in iter_table_chunks(path, *names, chunk_rows=250)]
+
+
+@pytest.mark.parametrize("compression", ["none", "snappy"])
+def test_parquet_statistics_accept_valid_files(tmp_path, compression):
+    """No false alarm: NaN, -0.0, empty cells, integers, strings, row groups that do not align with chunks."""
+    path = tmp_path / "ok.parquet"
+    table = _third_party_parquet(path, compression)
+    whole, chunks = _read_both(path)
+    assert whole.schema.equals(table.schema) and whole.num_rows == table.num_rows
+    for name in table.column_names:  # array_equal: NaN equals NaN (Table.equals would say the tables differ)
+        np.testing.assert_array_equal(np.array(whole.column(name).to_pylist()), np.array(table.column(name).to_pylist()))
+    np.testing.assert_array_equal(np.vstack([c.outputs for c in chunks]),
+                                  np.column_stack([table.column(c).to_numpy() for c in ("fx", "fy", "fz", "tx", "ty", "tz")]))
+
+
+@pytest.mark.parametrize("where, bit", [
+    (417, 62),  # the exponent's top bit: the value leaves [min, max]
+    ("max", 0),  # the lowest mantissa bit of the row group's largest value: the extreme itself moves
+])
+def test_parquet_bit_flip_without_checksums_refused(tmp_path, where, bit):
+    """Class: a flipped bit in a Parquet data page of a file without page checksums (main: read silently).
+
+    The value's 8 bytes are found in the uncompressed PLAIN page by their own bit pattern, flipped,
+    and the file is read by both readers: each refuses it in one line naming file, column and row group."""
+    path = tmp_path / "third-party.parquet"
+    table = _third_party_parquet(path)
+    fz = table.column("fz").to_numpy()
+    row = int(np.argmax(fz[300:600])) + 300 if where == "max" else where  # row group 1 holds rows 300-599
+    data = bytearray(path.read_bytes())
+    pair = fz[row - 1:row + 1].tobytes()  # with its neighbour: the footer and page header hold the max alone
+    assert bytes(data).count(pair) == 1
+    data[bytes(data).index(pair) + 8 + bit // 8] ^= 1 << (bit % 8)
+    path.write_bytes(data)
+    for read in (lambda: _read_both(path)[0], lambda: _read_both(path)[1]):
+        with pytest.raises(FtcalError) as info:
+            read()
+        text = str(info.value)
+        assert text.startswith(f"{path}: column 'fz', row group 1:") and "\n" not in text
+        assert "ftcal dataset" in text  # the advice: files ftcal writes carry checksums
+
+
+def test_parquet_undecodable_chunk_named(tmp_path):
+    """Class: a page pyarrow cannot decode (snappy data cut short): the line names column and row group
+    (main named neither)."""
+    import pyarrow.parquet as pq
+
+    path = tmp_path / "third-party.parquet"
+    _third_party_parquet(path, "snappy")
+    meta = pq.read_metadata(path)
+    chunk = meta.row_group(1).column([meta.schema.column(i).path for i in range(meta.num_columns)].index("fz"))
+    start = chunk.dictionary_page_offset if chunk.has_dictionary_page else chunk.data_page_offset
+    end = start + chunk.total_compressed_size
+    data = bytearray(path.read_bytes())
+    data[end - chunk.total_compressed_size // 20:end] = b"\xff" * (chunk.total_compressed_size // 20)
+    path.write_bytes(data)
+    for read in (lambda: _read_both(path)[0], lambda: _read_both(path)[1]):
+        with pytest.raises(FtcalError, match=f"^{re.escape(str(path))}: column 'fz', row group 1 cannot be read"):
+            read()
