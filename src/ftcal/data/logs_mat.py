@@ -57,9 +57,11 @@ def _read_hdf5(path: Path) -> dict[str, Any]:
             walk.open[_address(root)] = f"/{ROOT}"  # a link back to the root is a loop too
             return {name: walk.node(_child(root, name, path), f"/{ROOT}/{name}", 1)
                     for name in GROUPS if root.get(name, getlink=True) is not None}
-    except OSError as exc:
+    except FtcalError:
+        raise
+    except (OSError, RuntimeError, KeyError, ValueError, TypeError) as exc:  # h5py's errors on corrupt files
         raise FtcalError(f"Recording {path}: cannot read the MATLAB v7.3 (HDF5) file; "
-                         f"it may be truncated or corrupt ({exc}).") from None
+                         f"it may be truncated or corrupt ({type(exc).__name__}: {exc}).") from None
 
 
 def _child(group, key: str, path: Path):
