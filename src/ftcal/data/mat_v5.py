@@ -150,13 +150,13 @@ class _Walk:
         """A metadata subelement (flags, dimensions, name, field names) of type ``kind``: its bytes and room."""
         found, nbytes, taken, inline = self.tag(src, room, where)
         if found != kind:
-            raise FtcalError(f"Recording {self.path}: the {what} of {where} have element type {found}, not {kind}; "
+            raise FtcalError(f"Recording {self.path}: {where}: the {what} subelement has type {found}, not {kind}; "
                              "the MATLAB file is corrupt.")
         if taken == 8 and nbytes <= 4:
             return inline, 8
         if nbytes > MAX_HEADER_BYTES:
-            raise FtcalError(f"Recording {self.path}: the {what} of {where} take {nbytes:,} bytes, more than the "
-                             f"limit of {MAX_HEADER_BYTES:,}; not a robot-logger recording.")
+            raise FtcalError(f"Recording {self.path}: {where}: the {what} subelement takes {nbytes:,} bytes, more "
+                             f"than the limit of {MAX_HEADER_BYTES:,}; not a robot-logger recording.")
         data = src.read(nbytes)
         src.skip(taken - 8 - nbytes)
         return data, taken
