@@ -29,6 +29,10 @@ from ..runtime.errors import FtcalError
 HEADER_BYTES = 128
 MI_INT8, MI_INT32, MI_UINT32, MI_MATRIX, MI_COMPRESSED = 1, 5, 6, 14, 15
 MX_CELL, MX_STRUCT, MX_OBJECT, MX_SPARSE = 1, 2, 3, 5
+# The data types a numeric, char, logical or sparse array's data may have (miINT8 .. miUINT64, the UTF
+# types). scipy indexes a table with the type and crashes the interpreter on others (11, say).
+MAX_DIMS = 32  # scipy's _MAT_MAXDIMS: a MAT-file array has 2 to 32 dimensions
+DATA_TYPES = frozenset((1, 2, 3, 4, 5, 6, 7, 9, 12, 13, 16, 17, 18))
 _BLOCK = 1 << 20  # bytes skipped or inflated per step
 
 
@@ -49,6 +53,8 @@ class _FileBytes:
         return data
 
     def skip(self, n: int) -> None:
+        if n < 0:
+            raise _Short
         self.fh.seek(n, 1)
 
 
@@ -76,6 +82,8 @@ class _InflatedBytes:
         return b"".join(out)
 
     def skip(self, n: int) -> None:
+        if n < 0:
+            raise _Short
         while n:
             n -= len(self.read(min(n, _BLOCK)))
 
@@ -116,6 +124,10 @@ def check_v5(path: Path) -> None:
             except zlib.error as exc:
                 raise FtcalError(f"Recording {path}: the compressed data of {walk.current} is corrupt "
                                  f"({exc}).") from None
+            except FtcalError:
+                raise
+            except (ValueError, struct.error, OverflowError) as exc:  # a field no check above foresaw
+                raise FtcalError(f"Recording {path}: {walk.current} is corrupt ({exc}).") from None
             if 8 + nbytes > size - position:  # an element whose name could not be reached
                 raise FtcalError(f"Recording {path}: the MATLAB file is truncated: {walk.current} declares "
                                  f"{nbytes:,} bytes but only {size - position - 8:,} remain.")
@@ -140,7 +152,10 @@ class _Walk:
         raw = src.read(8)
         first, nbytes = struct.unpack(self.order + "II", raw)
         if first >> 16:  # the small element format: type, count and up to 4 bytes of data in 8 bytes
-            return first & 0xFFFF, first >> 16, 8, raw[4:4 + min(first >> 16, 4)]
+            if first >> 16 > 4:
+                raise FtcalError(f"Recording {self.path}: {where}: a small data element declares {first >> 16} "
+                                 "bytes (at most 4 fit); the MATLAB file is corrupt.")
+            return first & 0xFFFF, first >> 16, 8, raw[4:4 + (first >> 16)]
         if whole and 8 + nbytes > room:
             raise FtcalError(f"Recording {self.path}: the MATLAB file is truncated or corrupt: {where} declares "
                              f"{nbytes:,} bytes but only {room - 8:,} remain.")
@@ -193,7 +208,10 @@ class _Walk:
         mx_class = struct.unpack(self.order + "I", flags[:4])[0] & 0xFF if len(flags) >= 4 else 0
         raw_dims, taken = self.small(src, room - used, where, "dimensions", MI_INT32)
         used += taken
-        dims = struct.unpack(f"{self.order}{len(raw_dims) // 4}i", raw_dims[:len(raw_dims) // 4 * 4])
+        if len(raw_dims) < 8 or len(raw_dims) % 4 or len(raw_dims) > 4 * MAX_DIMS:
+            raise FtcalError(f"Recording {self.path}: {where}: {len(raw_dims)} bytes of dimensions (2 to {MAX_DIMS} "
+                             "4-byte numbers in a MAT-file); the MATLAB file is corrupt.")
+        dims = struct.unpack(f"{self.order}{len(raw_dims) // 4}i", raw_dims)
         name, taken = self.small(src, room - used, where, "name", MI_INT8)
         used += taken
         if not prefix:
@@ -224,16 +242,24 @@ class _Walk:
             for field in fields:
                 child = f"{where}{field or f'{{{i + 1}}}'}"
                 kind, nbytes, taken, _ = self.tag(src, room - used, child)
-                if kind != MI_MATRIX:
+                if kind != MI_MATRIX or (taken == 8 and nbytes):  # a matrix is never a small element
                     raise FtcalError(f"Recording {self.path}: {child} is not a MATLAB array (element type {kind}).")
                 self.matrix(src, nbytes, child, depth + 1)
                 src.skip(taken - 8 - nbytes)
                 used += taken
         self.current = where
-        for _ in range(4):  # the data subelements (real, imaginary; sparse: ir, jc, pr, pi) must fit in the array
+        if mx_class in (MX_CELL, MX_STRUCT, MX_OBJECT):
+            src.skip(room - used)
+            return
+        for seen in range(4):  # the data subelements (real, imaginary; sparse: ir, jc, pr, pi) must fit in the array
             if used >= room:
+                if seen < (3 if mx_class == MX_SPARSE else 1):  # scipy would read the next array as this one's data
+                    raise FtcalError(f"Recording {self.path}: {where} has no data; the MATLAB file is corrupt.")
                 return
-            _, _, taken, _ = self.tag(src, room - used, where)
+            kind, _, taken, _ = self.tag(src, room - used, where)
+            if kind not in DATA_TYPES:
+                raise FtcalError(f"Recording {self.path}: {where}: its data has element type {kind}, which is no "
+                                 "MATLAB data type; the MATLAB file is corrupt.")
             src.skip(taken - 8)
             used += taken
         src.skip(room - used)
