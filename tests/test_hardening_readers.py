@@ -260,3 +260,42 @@ def test_parquet_undecodable_chunk_named(tmp_path):
     for read in (lambda: _read_both(path)[0], lambda: _read_both(path)[1]):
         with pytest.raises(FtcalError, match=f"^{re.escape(str(path))}: column 'fz', row group 1 cannot be read"):
             read()
+
+
+def _dims_in_small_element(matrix: bytes) -> bytes:
+    """The dimensions subelement (bytes 24..40 of a matrix) turned into a 2-byte small element: no dimensions."""
+    return matrix[:24] + struct.pack("<HH", 5, 2) + bytes(4) + matrix[40:]
+
+
+@pytest.mark.parametrize("data", [
+    _matrix("", (5, 6), 6, struct.pack("<II", 11, 240) + bytes(240)),  # data of element type 11 (none such)
+    _dims_in_small_element(_double(np.zeros((5, 6)))),  # an array without dimensions
+    _matrix("", (5, 6), 6),  # an array without data: scipy reads the next array as its data
+], ids=["type-11", "no-dimensions", "no-data"])
+def test_v5_structures_that_crash_scipy_refused(tmp_path, data):
+    """Class: a v5 file whose structure makes scipy's compiled reader crash the interpreter (segmentation
+    fault on main; each found by flipping one bit of a logger file). Run in a child process: on main it dies."""
+    path = tmp_path / "crash.mat"
+    path.write_bytes(_log(data))
+    code = ("import sys; from ftcal.data.logs import read_recording; from ftcal.runtime.errors import FtcalError\n"
+            "try: read_recording(sys.argv[1])\nexcept FtcalError as e: print(e)")
+    out = subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.returncode
+    assert out.stdout.startswith(f"Recording {path}: robot_logger_device.FTs.s.data") and out.stdout.count("\n") == 1
+
+
+def test_c_range_check_has_no_infinite_literal():
+    """Found by the adversarial pass (a model whose range bound is null, read as -inf): the slack of an open
+    side is infinite, so the other side's bound was printed as 'inf', which is no C. An infinite bound
+    checks nothing (as predict's own check), so it is left out."""
+    from types import SimpleNamespace
+
+    from ftcal.core.ranges import RANGE_TOLERANCE
+    from ftcal.files.c_code import _in_range
+
+    text = _in_range(SimpleNamespace(input_range_=np.array([[-np.inf, 1.0], [0.0, 2.0]])), "cal",
+                     SimpleNamespace(real="double"))
+    assert "inf" not in text and "u[0]" not in text
+    slack = RANGE_TOLERANCE * 2.0  # range 0..2: slack is the tolerance times max(width, 1)
+    bounds = re.search(r"u\[1\] >= (\S+) && u\[1\] <= (\S+)\)\)", text).groups()
+    assert [float(b) for b in bounds] == [-slack, 2.0 + slack]

@@ -215,7 +215,7 @@ class _Walk:
         name, taken = self.small(src, room - used, where, "name", MI_INT8)
         used += taken
         if not prefix:
-            where = name.decode("latin-1") or where
+            where = _printable(name) or where
         self.current = where
         if declared is not None and declared > room:
             raise FtcalError(f"Recording {self.path}: the MATLAB file is truncated: the variable {where} declares "
@@ -236,8 +236,7 @@ class _Walk:
             names, taken = self.small(src, room - used, where, "field names", MI_INT8)
             used += taken
             width = struct.unpack(self.order + "i", length[:4])[0] if len(length) >= 4 else 0
-            fields = [f".{names[i:i + width].split(bytes(1))[0].decode('latin-1')}"
-                      for i in range(0, len(names), width)] if width > 0 else []
+            fields = [f".{_printable(names[i:i + width])}" for i in range(0, len(names), width)] if width > 0 else []
         for i in range(count if fields else 0):  # each child takes at least its 8-byte tag: bounded by room
             for field in fields:
                 child = f"{where}{field or f'{{{i + 1}}}'}"
@@ -263,3 +262,9 @@ class _Walk:
             src.skip(taken - 8)
             used += taken
         src.skip(room - used)
+
+
+def _printable(raw: bytes) -> str:
+    """A name from the file, for messages: up to its NUL, printable ASCII only, at most MATLAB's 63 characters."""
+    text = "".join(c if " " <= c <= "~" else "?" for c in raw.split(bytes(1))[0].decode("latin-1"))
+    return text if len(text) <= 63 else text[:60] + "..."
