@@ -1,18 +1,20 @@
 """How many single-bit flips in a third-party Parquet file (no page checksums) ftcal detects.
 
-``PYTHONPATH=src python -m benchmarks.parquet_bitflips [--flips 500] [--seed 17]``
+``PYTHONPATH=src:. python -m benchmarks.parquet_bitflips [--flips 500] [--seed 17]``
 
 A calibration-like table (8 strain channels, 6 wrench columns, 20,000 rows in 4 row
 groups, with footer statistics as every common writer adds them) is written by pyarrow
-without page checksums: uncompressed and snappy with pyarrow's default dictionary encoding (distinct
-values go to a dictionary page, rows are run-length-coded indices into it), and uncompressed plain. Each trial flips one random bit
-in the bytes of the column chunks (page headers, dictionary and data pages, not the footer) and
-reads the file with ``ftcal.data.tables.read_arrow`` (the whole-table reader) and
+without page checksums: uncompressed and snappy with pyarrow's default dictionary
+encoding (distinct values go to a dictionary page, rows are run-length-coded indices
+into it), and uncompressed plain. Each trial flips one random bit in the bytes of the
+column chunks (page headers, dictionary and data pages, not the footer) and reads the
+file with ``ftcal.data.tables.read_arrow`` (the whole-table reader) and
 ``ftcal.data.table_chunks.iter_table_chunks`` (the streamed one). Each read is:
 detected (a one-line FtcalError), unchanged (read, values identical: the bit was
-unused), or silently changed (read, some value differs; also counted: those where
-the change exceeds 10⁻⁶ of the column's range, i.e. could matter to a calibration
-whose sensor noise is ~10⁻⁴ of range). Any other exception is counted as a crash. Run it with ``PYTHONPATH`` pointing at the tree to measure.
+unused), or silently changed (read, some value differs; also counted: those where the
+change exceeds 10⁻⁶ of the column's range, i.e. could matter to a calibration whose
+sensor noise is ~10⁻⁴ of range). Any other exception is counted as a crash. Run it
+with ``PYTHONPATH`` pointing at the tree to measure.
 """
 
 from __future__ import annotations
@@ -113,7 +115,8 @@ def main() -> None:
     parser.add_argument("--flips", type=int, default=500)
     parser.add_argument("--seed", type=int, default=17)
     args = parser.parse_args()
-    print("| compression | reader | flips | detected | unchanged | silently changed | of which > 1e-6 of range | crash |")
+    print("| compression | reader | flips | detected | unchanged | silently changed | of which > 1e-6 of range "
+          "| crash |")
     print("|---|---|---:|---:|---:|---:|---:|---:|")
     for (codec, reader), tally in measure(args.flips, args.seed).items():
         n = sum(tally[k] for k in ("detected", "unchanged", "silently changed", "crash"))

@@ -212,9 +212,11 @@ def test_parquet_statistics_accept_valid_files(tmp_path, compression):
     whole, chunks = _read_both(path)
     assert whole.schema.equals(table.schema) and whole.num_rows == table.num_rows
     for name in table.column_names:  # array_equal: NaN equals NaN (Table.equals would say the tables differ)
-        np.testing.assert_array_equal(np.array(whole.column(name).to_pylist()), np.array(table.column(name).to_pylist()))
+        np.testing.assert_array_equal(np.array(whole.column(name).to_pylist()),
+                                      np.array(table.column(name).to_pylist()))
+    outputs = ("fx", "fy", "fz", "tx", "ty", "tz")
     np.testing.assert_array_equal(np.vstack([c.outputs for c in chunks]),
-                                  np.column_stack([table.column(c).to_numpy() for c in ("fx", "fy", "fz", "tx", "ty", "tz")]))
+                                  np.column_stack([table.column(c).to_numpy() for c in outputs]))
 
 
 @pytest.mark.parametrize("where, bit", [
