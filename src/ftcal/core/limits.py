@@ -164,9 +164,9 @@ MAX_MAT_ARRAYS = 1_000_000
 thousands; a few compressed bytes can declare billions of empty ones, each a step of the reader."""
 
 MAX_NESTING = 32
-"""Deepest nesting of groups in a .mat (HDF5) log: the logger's structs are a few levels deep; deeper
-means a hostile file or a link loop. (JSON and XML nesting is bounded by the parsers' recursion
-limit, caught as a one-line refusal.)"""
+"""Deepest nesting of groups (v7.3, HDF5) or structs and cells (v5) in a .mat log: the logger's structs are a
+few levels deep; deeper means a hostile file (link loops are refused as such). (JSON and XML nesting is bounded
+by the parsers' recursion limit, caught as a one-line refusal.)"""
 
 MAX_GRAM_BYTES = 4 * 10**9
 """Largest Gram matrix of a fit (p² doubles for p regressor columns per output), checked before it is
