@@ -136,6 +136,8 @@ def check_v5(path: Path) -> None:
 
 
 class _Walk:
+    """The walk over one file: its byte order, the innermost variable named so far, the arrays seen."""
+
     def __init__(self, path: Path, order: str):
         self.path, self.order = path, order
         self.current = "the first variable"  # the innermost variable named so far, for messages
@@ -177,6 +179,7 @@ class _Walk:
         return data, taken
 
     def compressed(self, src: _InflatedBytes, truncated: bool) -> None:
+        """Walk a ``miCOMPRESSED`` variable; ``truncated``: the file ends before its compressed bytes do."""
         first, nbytes = struct.unpack(self.order + "II", src.read(8))
         if first != MI_MATRIX:
             if truncated:
