@@ -119,6 +119,19 @@ def make_fixtures(root: Path) -> dict[str, Path]:
     fx["urdf"].write_text(URDF)
     fx["joints"] = root / "joints.csv"
     pd.DataFrame({"shoulder": np.linspace(-1, 1, 50)}).to_csv(fx["joints"], index=False)
+    import pyarrow.parquet as pq
+
+    # A Parquet file as another tool writes it: uncompressed, plain-encoded, no page checksums.
+    fx["parquet-plain"] = root / "plain.parquet"
+    pq.write_table(pq.read_table(fx["parquet"]), fx["parquet-plain"], compression="none", use_dictionary=False,
+                   write_page_checksum=False)
+    from ftcal.sim.logger_mat import RobotLog, Stream, write_robot_log
+
+    t = np.arange(200) * 0.01
+    log = RobotLog({"arm_ft": Stream(t, rng.normal(size=(200, 6)))},
+                   {"arm_ft": Stream(t, 30 + 0.1 * rng.normal(size=200))}, ("shoulder",), Stream(t, np.sin(t)[:, None]))
+    fx["mat-v73"] = write_robot_log(root / "rec73.mat", log, version="7.3")
+    fx["mat-v5"] = write_robot_log(root / "rec5.mat", log, version="5")
     sys.path.insert(0, str(HERE))
     from bag_data import Bag
 
@@ -331,6 +344,122 @@ def urdf_variants():
     return out
 
 
+def _hdf5(valid: bytes, change):
+    """A copy of the valid v7.3 file, changed with h5py (links, loops, absurd shapes)."""
+    def make(path: Path) -> None:
+        import h5py
+
+        path.write_bytes(valid)
+        with h5py.File(path, "r+") as fh:
+            change(fh, path)
+    return make
+
+
+def mat73_variants(valid: bytes):
+    """Link loops, links out of the file, shared links, deep nesting and absurd shapes in a v7.3 (HDF5) log."""
+    import h5py
+    import numpy as np
+
+    root, fts = "/robot_logger_device", "/robot_logger_device/FTs"
+
+    def soft(fh, _, name, target):
+        fh[fts][name] = h5py.SoftLink(target)
+
+    def cycle(fh, _):
+        soft(fh, _, "x", f"{fts}/y")
+        soft(fh, _, "y", f"{fts}/x")
+
+    def hard(fh, _, names):
+        for name in names:
+            fh[fts][name] = fh[fts]
+
+    def chain(fh, _, depth=24):
+        groups = [fh[f"{fts}/arm_ft"]] + [fh["#refs#"].create_group(f"g{i}") for i in range(depth)]
+        for upper, lower in zip(groups[:-1], groups[1:]):
+            upper["a"], upper["b"] = lower, lower
+
+    def deep(fh, _, depth=100):
+        group = fh[fts]
+        for i in range(depth):
+            group = group.create_group(f"d{i}")
+
+    def ref_loop(fh, _):
+        cell = fh["#refs#"].create_dataset("loop", shape=(1, 2), dtype=h5py.ref_dtype)
+        cell[0, 0] = cell[0, 1] = cell.ref
+        cell.attrs["MATLAB_class"] = np.bytes_("cell")
+        del fh[root]["description_list"]
+        fh[root]["description_list"] = cell
+
+    def external(fh, path, target):
+        if target == "fifo":
+            target = str(path) + ".fifo"
+            os.mkfifo(target)
+        del fh[f"{fts}/arm_ft/data"]
+        fh[f"{fts}/arm_ft"]["data"] = h5py.ExternalLink(target, "/robot_logger_device/FTs/arm_ft/data")
+
+    def huge(fh, _, shape):
+        del fh[f"{fts}/arm_ft/data"]
+        fh[f"{fts}/arm_ft"].create_dataset("data", shape=shape, dtype="f8", chunks=(1, shape[1]))
+
+    return [("soft-self", _hdf5(valid, lambda fh, p: soft(fh, p, "x", f"{fts}/x"))),
+            ("soft-cycle", _hdf5(valid, cycle)),
+            ("soft-to-root", _hdf5(valid, lambda fh, p: soft(fh, p, "x", root))),
+            ("soft-dangling", _hdf5(valid, lambda fh, p: soft(fh, p, "x", "/nowhere"))),
+            ("hard-self", _hdf5(valid, lambda fh, p: hard(fh, p, ["self"]))),
+            ("hard-self-twice", _hdf5(valid, lambda fh, p: hard(fh, p, ["a", "b"]))),
+            ("shared-chain-24", _hdf5(valid, chain)),
+            ("nested-100", _hdf5(valid, deep)),
+            ("ref-loop", _hdf5(valid, ref_loop)),
+            ("external-dev-zero", _hdf5(valid, lambda fh, p: external(fh, p, "/dev/zero"))),
+            ("external-fifo", _hdf5(valid, lambda fh, p: external(fh, p, "fifo"))),
+            ("external-valid-file", _hdf5(valid, lambda fh, p: external(fh, p, "/etc/hostname"))),
+            ("declares-1e12", _hdf5(valid, lambda fh, p: huge(fh, p, (10**12, 6)))),
+            ("declares-1e9", _hdf5(valid, lambda fh, p: huge(fh, p, (10**9, 6))))]
+
+
+def _v5_element(kind: int, data: bytes) -> bytes:
+    import struct
+
+    return struct.pack("<II", kind, len(data)) + data + bytes(-len(data) % 8)
+
+
+def mat5_variants(valid: bytes, rng: random.Random, n_random: int):
+    """Absurd declared sizes, truncations and deflate bombs in a v5 log (scipy writes one deflated variable)."""
+    import struct
+    import zlib
+
+    header = valid[:128]
+    inner = zlib.decompress(valid[136:136 + struct.unpack("<I", valid[132:136])[0]])
+
+    def packed(matrix: bytes) -> bytes:
+        data = zlib.compress(matrix)
+        return header + struct.pack("<II", 15, len(data)) + data
+
+    def with_dims(dims) -> bytes:  # the struct's dimensions subelement sits at bytes 24..40 of the matrix
+        return inner[:32] + struct.pack("<ii", *dims) + inner[40:]
+
+    out = [("dims-1e10", _bytes(packed(with_dims((10**5, 10**5))))),
+           ("dims-2e9", _bytes(packed(with_dims((2 * 10**4, 10**5 + 1))))),
+           ("dims-negative", _bytes(packed(with_dims((-1, 1))))),
+           ("inner-bytes-4e9", _bytes(packed(inner[:4] + struct.pack("<I", 2**32 - 8) + inner[8:]))),
+           ("outer-bytes-2e9", _bytes(valid[:132] + struct.pack("<I", 2**31) + valid[136:])),
+           ("uncompressed", _bytes(header + inner)),
+           ("uncompressed-dims-1e12", _bytes(header + with_dims((10**6, 10**6)))),
+           ("uncompressed-bytes-4e9", _bytes(header + inner[:4] + struct.pack("<I", 2**32 - 8) + inner[8:])),
+           ("deflate-bomb", _bytes(packed(struct.pack("<II", 14, 2**32 - 8) + inner[8:40] + bytes(64 * 2**20))))]
+    nested = _v5_element(14, b"")
+    for _ in range(200):  # a 1 x 1 struct with one field, 200 deep
+        body = (_v5_element(6, struct.pack("<II", 2, 0)) + _v5_element(5, struct.pack("<ii", 1, 1))
+                + _v5_element(1, b"") + _v5_element(5, struct.pack("<i", 8)) + _v5_element(1, b"a".ljust(8, b"\0"))
+                + nested)
+        nested = struct.pack("<II", 14, len(body)) + body
+    out.append(("nested-200", _bytes(header + nested)))
+    flat = header + inner
+    for i in range(n_random):
+        out.append((f"uncompressed-truncated-{i}", _bytes(flat[:rng.randrange(len(flat))])))
+    return out
+
+
 def cases(fx: dict[str, Path], work: Path, rng: random.Random, n_random: int) -> list[dict]:
     """Every case: the hostile file to create, the command lines that read it, and the outputs."""
     out = []
@@ -394,6 +523,15 @@ def cases(fx: dict[str, Path], work: Path, rng: random.Random, n_random: int) ->
     for kind in ("ros1", "mcap-file", "db3-file"):
         for label, writer in variants(kind, fx[kind].read_bytes(), "bin", rng, n_random):
             add(kind, fx[kind], label, writer, bag_cmds)
+    for label, writer in variants("parquet-plain", fx["parquet-plain"].read_bytes(), "bin", rng, n_random):
+        add("parquet-plain", fx["parquet-plain"], label, writer, table_cmds[:1])
+    mat_cmds = [lambda p, f: (["dataset", str(p), "--urdf", str(fx["urdf"]), "--sensor", "arm_ft", "--no-cache",
+                               "-o", o(f, "d.parquet")], [o(f, "d.parquet")], None)]
+    mat73, mat5 = fx["mat-v73"].read_bytes(), fx["mat-v5"].read_bytes()
+    for label, writer in variants("mat-v73", mat73, "bin", rng, n_random) + mat73_variants(mat73):
+        add("mat-v73", fx["mat-v73"], label, writer, mat_cmds)
+    for label, writer in variants("mat-v5", mat5, "bin", rng, n_random) + mat5_variants(mat5, rng, n_random):
+        add("mat-v5", fx["mat-v5"], label, writer, mat_cmds)
     return out
 
 
@@ -528,12 +666,14 @@ def check_injection(case: dict) -> tuple[str, str]:
 
 
 def run(sample: int | None = None, workers: int = 2, out: Path | None = None, n_random: int = 12,
-        seed: int = 17, timeout: float = TIMEOUT_S) -> list[dict]:
-    """Build the fixtures and cases, run them, return one record per case (``outcome``, ``detail``...)."""
+        seed: int = 17, timeout: float = TIMEOUT_S, kinds: list[str] | None = None) -> list[dict]:
+    """Build the fixtures and cases, run them, return one record per case (``outcome``, ``detail``...).
+
+    ``kinds``: run only the cases of these input kinds (default: all)."""
     rng = random.Random(seed)
     root = Path(tempfile.mkdtemp(prefix="ftcal-adversarial-")) if out is None else out
     fx = make_fixtures(root / "fixtures")
-    todo = cases(fx, root / "cases", rng, n_random)
+    todo = [c for c in cases(fx, root / "cases", rng, n_random) if kinds is None or c["kind"] in kinds]
     if sample is not None and sample < len(todo):
         todo = random.Random(seed).sample(todo, sample)
     env = {**os.environ, "FTCAL_PROGRESS": "0", "FTCAL_THREADS": "1", "XDG_CACHE_HOME": str(root / "cache")}
@@ -597,8 +737,9 @@ if __name__ == "__main__":
     parser.add_argument("--random", type=int, default=12, help="random truncations and bit flips per file")
     parser.add_argument("--out", type=Path, help="keep the fixtures and cases here")
     parser.add_argument("--report", type=Path, help="write every case's outcome as JSON lines here")
+    parser.add_argument("--kinds", help="comma-separated input kinds to run (default: all)")
     a = parser.parse_args()
-    recs = run(a.sample, a.workers, a.out, a.random)
+    recs = run(a.sample, a.workers, a.out, a.random, kinds=a.kinds.split(",") if a.kinds else None)
     if a.report:
         a.report.write_text("".join(json.dumps(r) + "\n" for r in recs))
     print(summary(recs))

@@ -1,6 +1,6 @@
 """The adversarial pass (tests/adversarial.py): a random sample always, the full run on request.
 
-The full run (about 1,300 cases) takes many minutes on two cores; set
+The full run (about 1,500 cases) takes many minutes on two cores; set
 ``FTCAL_ADVERSARIAL_FULL=1`` to run it here, or run ``python tests/adversarial.py``.
 """
 

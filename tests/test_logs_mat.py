@@ -119,11 +119,11 @@ def test_truncated_and_foreign_files(tmp_path, signals):
                       logger_tree(s["ft"], s["temp"], s["q"], s["t_ft"], s["t_q"]))
         data = path.read_bytes()
         path.write_bytes(data[: len(data) // 2])
-        with pytest.raises(FtcalError, match=f"{writer.__name__}.mat: cannot read"):
+        with pytest.raises(FtcalError, match=f"{writer.__name__}.mat: (cannot read|the MATLAB file is truncated)"):
             read_recording(path)
     junk = tmp_path / "junk.mat"
     junk.write_bytes(b"not a mat file at all" * 10)
-    with pytest.raises(FtcalError, match="junk.mat: cannot read"):
+    with pytest.raises(FtcalError, match="junk.mat: not a MATLAB v5 or v7.3 MAT-file"):
         read_recording(junk)
     with pytest.raises(FtcalError, match="no such file"):
         read_recording(tmp_path / "missing.mat")

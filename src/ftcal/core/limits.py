@@ -155,15 +155,20 @@ MAX_TABLE_COLUMNS = 10_000
 """Most columns in a CSV or Parquet table (a calibration table has tens; a malformed header can claim millions)."""
 
 MAX_HEADER_BYTES = 10**6
-"""Longest CSV header line read to learn the column names."""
+"""Longest CSV header line read to learn the column names; also the most bytes of one MATLAB v5 array's
+dimensions, name or field names."""
 
 MAX_DECLARED_ELEMENTS = 2 * 10**9
 """Most numbers one array in a .mat log may declare (16 GB of float64); checked before reading it."""
 
+MAX_MAT_ARRAYS = 1_000_000
+"""Most arrays (struct fields, cell elements, HDF5 objects) one .mat log may hold: the logger writes tens to
+thousands; a few compressed bytes can declare billions of empty ones, each a step of the reader."""
+
 MAX_NESTING = 32
-"""Deepest nesting of groups in a .mat (HDF5) log: the logger's structs are a few levels deep; deeper
-means a hostile file or a link loop. (JSON and XML nesting is bounded by the parsers' recursion
-limit, caught as a one-line refusal.)"""
+"""Deepest nesting of groups (v7.3, HDF5) or structs and cells (v5) in a .mat log: the logger's structs are a
+few levels deep; deeper means a hostile file (link loops are refused as such). (JSON and XML nesting is bounded
+by the parsers' recursion limit, caught as a one-line refusal.)"""
 
 MAX_GRAM_BYTES = 4 * 10**9
 """Largest Gram matrix of a fit (p² doubles for p regressor columns per output), checked before it is

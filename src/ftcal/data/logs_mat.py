@@ -22,9 +22,10 @@ from typing import Any
 
 import numpy as np
 
-from ..core.limits import MAX_DECLARED_ELEMENTS, MAX_NESTING
+from ..core.limits import MAX_DECLARED_ELEMENTS, MAX_MAT_ARRAYS, MAX_NESTING
 from ..runtime.errors import FtcalError
 from ..runtime.inputs import check_input_file
+from .mat_v5 import check_v5
 from .recording import Recording, Stream
 
 ROOT = "robot_logger_device"
@@ -49,17 +50,22 @@ def _read_hdf5(path: Path) -> dict[str, Any]:
 
     try:
         with h5py.File(path, "r") as fh:
-            if ROOT not in fh:
+            if fh.get(ROOT, getlink=True) is None:  # the link itself: never resolved to learn it exists
                 raise FtcalError(f"Recording {path}: no '{ROOT}' struct (has: {', '.join(fh.keys()) or 'nothing'}).")
+            walk = _Walk(fh, path)
             root = _child(fh, ROOT, path)
-            return {name: _hdf5_node(fh, _child(root, name, path), path, 1) for name in GROUPS if name in root}
-    except OSError as exc:
+            walk.open[_address(root)] = f"/{ROOT}"  # a link back to the root is a loop too
+            return {name: walk.node(_child(root, name, path), f"/{ROOT}/{name}", 1)
+                    for name in GROUPS if root.get(name, getlink=True) is not None}
+    except FtcalError:
+        raise
+    except (OSError, RuntimeError, KeyError, ValueError, TypeError) as exc:  # h5py's errors on corrupt files
         raise FtcalError(f"Recording {path}: cannot read the MATLAB v7.3 (HDF5) file; "
-                         f"it may be truncated or corrupt ({exc}).") from None
+                         f"it may be truncated or corrupt ({type(exc).__name__}: {exc}).") from None
 
 
 def _child(group, key: str, path: Path):
-    """``group[key]``, refusing links to other files and dangling links."""
+    """``group[key]``, refusing links to other files, soft links that never resolve and dangling links."""
     import h5py
 
     link = group.get(key, getlink=True)
@@ -72,36 +78,89 @@ def _child(group, key: str, path: Path):
         return group[key]
     except KeyError:
         raise FtcalError(f"Recording {path}: {where} is a link to nothing.") from None
+    except RuntimeError:  # HDF5 gives up after 16 soft links in a row: a soft link loop
+        target = f" ({link.path})" if isinstance(link, h5py.SoftLink) else ""
+        raise FtcalError(f"Recording {path}: {where} is a soft link{target} that never resolves "
+                         "(a loop of links); not a robot-logger file.") from None
 
 
-def _hdf5_node(fh, node, path: Path, depth: int) -> Any:
+def _address(node) -> int:
+    """Where ``node`` lives in its file: one object reached by two links has one address."""
     import h5py
 
-    if depth > MAX_NESTING:
-        raise FtcalError(f"Recording {path}: {node.name} is nested more than {MAX_NESTING} levels deep "
-                         "(a link loop?); not a robot-logger file.")
-    if isinstance(node, h5py.Group):
-        return {key: _hdf5_node(fh, _child(node, key, path), path, depth + 1) for key in node.keys()}
-    if node.is_virtual or node.id.get_create_plist().get_external_count():
-        raise FtcalError(f"Recording {path}: the data of {node.name} is stored in other files; "
-                         "ftcal reads only the recording itself.")
-    if node.size > MAX_DECLARED_ELEMENTS:  # checked on the declared shape, before anything is allocated
-        raise FtcalError(f"Recording {path}: {node.name} declares {node.size:,} values (shape "
-                         f"{'x'.join(map(str, node.shape))}), more than the limit of {MAX_DECLARED_ELEMENTS:,}; "
-                         "not a robot-logger recording.")
-    attr = node.attrs.get("MATLAB_class", b"")
-    matlab_class = attr.decode() if isinstance(attr, bytes) else str(attr)
-    if node.dtype == h5py.ref_dtype:  # cell array
-        return [_hdf5_node(fh, fh[ref], path, depth + 1) for ref in np.asarray(node[()]).T.ravel()]
-    value = np.asarray(node[()])
-    if matlab_class == "char":
-        return "".join(map(chr, value.T.ravel()))
-    return value.T  # back to MATLAB axis order
+    return h5py.h5o.get_info(node.id).addr
+
+
+class _Walk:
+    """One bounded walk over an HDF5 tree: each object is read once, loops are refused.
+
+    Hard links, soft links and MATLAB cell references (``#refs#``) can make a
+    group contain itself or point back to an ancestor, and links shared along
+    many paths make a tree of a few objects exponentially large. Objects are
+    keyed by their address in the file: one on the current path again is a loop
+    (refused, naming both paths); one seen elsewhere is reused, not read again.
+    """
+
+    def __init__(self, fh, path: Path):
+        self.fh, self.path = fh, path
+        self.done: dict[int, Any] = {}
+        self.open: dict[int, str] = {}  # objects on the current path → the HDF5 path they were reached by
+
+    def node(self, node, where: str, depth: int) -> Any:
+        """The value of ``node`` (dict, list, str or array), reached by the HDF5 path ``where``."""
+        if depth > MAX_NESTING:
+            raise FtcalError(f"Recording {self.path}: {where} is nested more than {MAX_NESTING} levels deep; "
+                             "not a robot-logger file.")
+        addr = _address(node)
+        if addr in self.done:
+            return self.done[addr]
+        if addr in self.open:
+            raise FtcalError(f"Recording {self.path}: {where} links back to {self.open[addr]}, which contains it "
+                             "(a loop of links); not a robot-logger file.")
+        if len(self.done) + len(self.open) >= MAX_MAT_ARRAYS:
+            raise FtcalError(f"Recording {self.path}: more than {MAX_MAT_ARRAYS:,} groups and arrays (at {where}); "
+                             "not a robot-logger recording.")
+        self.open[addr] = where
+        value = self._read(node, where, depth)
+        del self.open[addr]
+        self.done[addr] = value
+        return value
+
+    def _read(self, node, where: str, depth: int) -> Any:
+        import h5py
+
+        path = self.path
+        if isinstance(node, h5py.Group):
+            return {key: self.node(_child(node, key, path), f"{where}/{key}", depth + 1) for key in node.keys()}
+        if node.is_virtual or node.id.get_create_plist().get_external_count():
+            raise FtcalError(f"Recording {path}: the data of {where} is stored in other files; "
+                             "ftcal reads only the recording itself.")
+        if node.size > MAX_DECLARED_ELEMENTS:  # checked on the declared shape, before anything is allocated
+            raise FtcalError(f"Recording {path}: {where} declares {node.size:,} values (shape "
+                             f"{'x'.join(map(str, node.shape))}), more than the limit of {MAX_DECLARED_ELEMENTS:,}; "
+                             "not a robot-logger recording.")
+        attr = node.attrs.get("MATLAB_class", b"")
+        matlab_class = attr.decode() if isinstance(attr, bytes) else str(attr)
+        if node.dtype == h5py.ref_dtype:  # cell array: references into #refs#
+            return [self.node(self._deref(ref, where), f"{where}{{{i + 1}}}", depth + 1)
+                    for i, ref in enumerate(np.asarray(node[()]).T.ravel())]
+        value = np.asarray(node[()])
+        if matlab_class == "char":
+            return "".join(map(chr, value.T.ravel()))
+        return value.T  # back to MATLAB axis order
+
+    def _deref(self, ref, where: str):
+        try:
+            return self.fh[ref]
+        except (ValueError, KeyError, RuntimeError, TypeError):
+            raise FtcalError(f"Recording {self.path}: a reference in {where} points to nothing; "
+                             "not a robot-logger file.") from None
 
 
 def _read_v5(path: Path) -> dict[str, Any]:
     import scipy.io
 
+    check_v5(path)  # declared sizes and truncation, before scipy allocates what the file claims
     try:
         data = scipy.io.loadmat(path, simplify_cells=True, variable_names=[ROOT])
     except Exception as exc:  # scipy raises many types (ValueError, OSError, MatReadError, ...) on bad files

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..runtime.errors import FtcalError
+from .parquet_checks import FooterCheck, locate_unreadable
 from .tables import arrow_numbers, complete_rows, table_columns
 
 CHUNK_ROWS = 1 << 16  # rows per chunk: ~4 MB of float64 inputs and outputs
@@ -227,19 +228,24 @@ def _batches(path: Path, columns: list[str], roles: dict[str, str], chunk_rows: 
             import pyarrow.parquet as pq
 
             with pq.ParquetFile(path, page_checksum_verification=True) as parquet:
-                yield from parquet.iter_batches(batch_size=chunk_rows, columns=columns)
+                footer = FooterCheck(path, parquet.metadata, columns)
+                for batch in parquet.iter_batches(batch_size=chunk_rows, columns=columns):
+                    footer.feed(batch)
+                    yield batch
+                footer.finish()
     except FtcalError:
         raise
     except Exception as exc:  # pyarrow raises many types for corrupt files and bad CSV cells
         detail = str(exc).splitlines()[0] if str(exc) else "no detail"
+        where = locate_unreadable(path, columns) if suffix != ".csv" else ""
         column = re.search(r"CSV column #(\d+)", detail)
         if column is not None and int(column.group(1)) < len(names):
             name = names[int(column.group(1))]
             if name in roles:
                 _raise_at_bad_cell(path, name, roles[name])
             detail = f"column {name!r}: {detail}"
-        raise FtcalError(f"{path}: cannot be read as {suffix[1:].upper()} ({type(exc).__name__}: {detail}).") \
-            from None
+        raise FtcalError(f"{path}: {where + ' ' if where else ''}cannot be read as {suffix[1:].upper()} "
+                         f"({type(exc).__name__}: {detail}).") from None
 
 
 def _raise_at_bad_cell(path: Path, name: str, role: str) -> None:

@@ -20,6 +20,7 @@ from ..core.limits import MAX_CELL_MAGNITUDE, MAX_HEADER_BYTES, MAX_TABLE_COLUMN
 from ..runtime.atomic import atomic_path
 from ..runtime.errors import FtcalError
 from ..runtime.inputs import check_input_file
+from .parquet_checks import FooterCheck, locate_unreadable
 
 TABLE_SUFFIXES = (".csv", ".parquet", ".pq")
 
@@ -46,6 +47,9 @@ def read_arrow(path: str | os.PathLike):
             import pyarrow.parquet as pq
 
             table = pq.read_table(path, page_checksum_verification=True)
+            footer = FooterCheck(path, pq.read_metadata(path), table.column_names)
+            footer.feed(table)
+            footer.finish()
         elif suffix == ".csv":
             import pyarrow.csv as pv
 
@@ -56,8 +60,9 @@ def read_arrow(path: str | os.PathLike):
     except FtcalError:
         raise
     except Exception as exc:  # pyarrow raises many types for corrupt files
-        raise FtcalError(f"{path}: cannot be read as {suffix[1:].upper()} ({type(exc).__name__}: "
-                         f"{str(exc).splitlines()[0] if str(exc) else 'no detail'}).") from None
+        where = locate_unreadable(path, header_columns(path)) if suffix in (".parquet", ".pq") else None
+        raise FtcalError(f"{path}: {where + ' ' if where else ''}cannot be read as {suffix[1:].upper()} "
+                         f"({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else 'no detail'}).") from None
     names = table.column_names
     twice = next((n for n in names if names.count(n) > 1), None)
     if twice is not None:

@@ -246,10 +246,12 @@ def _in_range(model, name, lit) -> str:
     checks = []
     for i in range(len(low)):
         parts = []
-        if np.isfinite(low[i]):
-            parts.append(f"u[{i}] >= {format(float(low[i] - slack[i]), '.17g')}")
-        if np.isfinite(high[i]):
-            parts.append(f"u[{i}] <= {format(float(high[i] + slack[i]), '.17g')}")
+        # the bound with its slack: an infinite one (an open side, or slack from one) checks nothing, as in predict
+        lower, upper = float(low[i] - slack[i]), float(high[i] + slack[i])
+        if np.isfinite(lower):
+            parts.append(f"u[{i}] >= {format(lower, '.17g')}")
+        if np.isfinite(upper):
+            parts.append(f"u[{i}] <= {format(upper, '.17g')}")
         if parts:
             checks.append(f"    if (!({' && '.join(parts)})) return 0;")
     lines = [f"int {name}_in_range(const {lit.real} *u)", "{"]
