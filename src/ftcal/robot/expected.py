@@ -42,9 +42,6 @@ URDF text and payloads.
 
 from __future__ import annotations
 
-import multiprocessing
-import signal
-import threading
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -52,6 +49,7 @@ import numpy as np
 
 from ..runtime.checks import check_int
 from ..runtime.errors import FtcalError
+from ..runtime.processes import WorkerProcesses
 from ..runtime.progress import progress_bar
 from .declare import SensorDeclaration
 from .model import RobotModel
@@ -184,21 +182,12 @@ def expected_wrenches(robot: RobotModel, q: np.ndarray, *, dq: np.ndarray | None
                 out[a:b] = predictor.compute(*job(a, b))
                 advance(b - a)
             return out
-        # spawn, not fork: the parent may run threads (progress bar) that fork would copy mid-flight.
-        context = multiprocessing.get_context("spawn")
+        # Worker processes with a pipe each: a Ctrl-C, a signal or a worker's error kills them at once.
         init = (robot.urdf_text, robot.source, robot.payloads, robot.declared, predictor.base, tuple(gravity))
-        pool = _start_pool(context, workers, init)
-        try:
-            for (a, b), chunk in zip(bounds, pool.imap(_work, [job(a, b) for a, b in bounds])):
+        with WorkerProcesses(workers, _init_worker, init) as processes:
+            for (a, b), chunk in zip(bounds, processes.map(_work, (job(a, b) for a, b in bounds))):
                 out[a:b] = chunk
                 advance(b - a)
-        except BaseException:
-            # Ctrl-C, a signal or a worker's error: stop the workers now instead of waiting for them.
-            pool.terminate()
-            raise
-        finally:
-            pool.close()
-            pool.join()
     return out
 
 
@@ -220,27 +209,9 @@ def check_joints(robot: RobotModel, values: np.ndarray, what: str, n: int | None
 _PREDICTOR: WrenchPredictor | None = None
 
 
-def _start_pool(context, workers: int, init: tuple):
-    """A pool of workers that ignore SIGINT from their first instruction (the parent handles Ctrl-C).
-
-    A signal disposition of "ignore" survives the exec of a spawned worker, and Python keeps it,
-    so a Ctrl-C while a worker still imports its modules prints no traceback there.
-    """
-    in_main = threading.current_thread() is threading.main_thread()
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if in_main else None
-    try:
-        return context.Pool(workers, initializer=_init_worker, initargs=init)
-    finally:
-        if in_main:
-            signal.signal(signal.SIGINT, previous)
-
-
 def _init_worker(urdf_text: str, source: str, payloads: tuple[Payload, ...],
                  declared: tuple[SensorDeclaration, ...], base: str, gravity: tuple[float, float, float]) -> None:
     global _PREDICTOR
-    # The parent handles Ctrl-C and termination (a terminal sends SIGINT to the whole process group):
-    # workers ignore it, so they print no tracebacks and the parent can stop them cleanly.
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
     _PREDICTOR = WrenchPredictor(RobotModel(urdf_text, source, payloads, declared), base, gravity)
 
 
