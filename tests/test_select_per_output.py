@@ -227,3 +227,17 @@ def test_cli_refuses_contradictory_selection_options(tmp_path, capsys):
     assert "--select-per model" in capsys.readouterr().err
     assert main([*common, "--max-degree", "11"]) == 2
     assert "--max-degree" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("n_inputs", [7, 16])  # integer cell keys (20**7 cells), bytes keys (20**16 ≥ 2**63)
+def test_pose_cells_count_the_distinct_grid_cells(n_inputs):
+    """Against numpy's unique rows of the grid indices, computed here by hand; chunks unite."""
+    from ftcal.core.select import pose_cells
+
+    rng = np.random.default_rng(n_inputs)
+    u = np.round(rng.normal(size=(3000, n_inputs)), 1)  # repeated values: shared cells
+    span = np.c_[u.min(axis=0), u.max(axis=0)]
+    grid = np.minimum(np.floor((u - span[:, 0]) / (span[:, 1] - span[:, 0]) * 20), 19)
+    expected = len(np.unique(grid, axis=0))
+    assert len(pose_cells(u, span)) == expected
+    assert len(pose_cells(u[:1000], span) | pose_cells(u[1000:], span)) == expected

@@ -92,7 +92,8 @@ def pose_cells(u: np.ndarray, input_range: np.ndarray, bins: int = POSE_BINS) ->
 
     Returns
     -------
-    set of bytes, one per occupied cell (sets of several chunks unite)
+    set, one entry per occupied cell (an int, or bytes when the grid has 2⁶³ cells or more;
+    the sets of several chunks of the same inputs unite)
 
     Examples
     --------
@@ -101,8 +102,10 @@ def pose_cells(u: np.ndarray, input_range: np.ndarray, bins: int = POSE_BINS) ->
     2
     """
     low, span = input_range[:, 0], np.maximum(input_range[:, 1] - input_range[:, 0], np.finfo(float).tiny)
-    cells = np.clip(np.floor((np.asarray(u) - low) / span * bins), 0, bins - 1).astype(np.uint8)
-    rows = np.ascontiguousarray(cells).view(np.dtype((np.void, cells.shape[1])))
+    cells = np.clip(np.floor((np.asarray(u) - low) / span * bins), 0, bins - 1).astype(np.int64)
+    if float(bins) ** cells.shape[1] < 2.0**63:  # one integer per cell: far faster to make unique than bytes
+        return set((cells @ (bins ** np.arange(cells.shape[1], dtype=np.int64))).tolist())
+    rows = np.ascontiguousarray(cells.astype(np.uint8)).view(np.dtype((np.void, cells.shape[1])))
     return {bytes(r) for r in np.unique(rows.ravel())}
 
 

@@ -50,6 +50,7 @@ POLL_S = 1.0
 LOCAL_PREFIX = "local:"
 MAX_LOCAL_WORKERS = 64
 TASKS_PER_WORKER = 4  # Dask tasks per worker when files outnumber them: balance without swamping the scheduler
+MIN_DASK_TASKS = 16  # up to this many files, one task each: batching a few large files would unbalance workers
 SHUTDOWN_TIMEOUT_S = 30.0  # a local cluster's orderly close; processes still alive after it are killed
 DEFERRED_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
 
@@ -88,12 +89,18 @@ def tree_reduce(parts: Iterable[T], combine: Callable[[T, T], T]) -> T:
 
 
 def batch_size(n_tasks: int, n_workers: int) -> int:
-    """Tasks per Dask task: the smallest power of two giving at most TASKS_PER_WORKER per worker.
+    """Tasks per Dask task: the smallest power of two giving at most TASKS_PER_WORKER per worker
+    (or MIN_DASK_TASKS in all, whichever is more).
 
     A power of two, and batches that start at its multiples, make each batch's
     :func:`tree_reduce` exactly a subtree of the reduction of all tasks.
+
+    Examples
+    --------
+    >>> batch_size(10, 2), batch_size(17, 2), batch_size(2000, 2), batch_size(2000, 100)
+    (1, 2, 128, 8)
     """
-    target = TASKS_PER_WORKER * max(1, n_workers)
+    target = max(TASKS_PER_WORKER * max(1, n_workers), MIN_DASK_TASKS)
     size = 1
     while -(-n_tasks // size) > target:
         size *= 2
