@@ -232,8 +232,21 @@ def test_ctrl_c_at_any_moment_of_an_automatic_fit_stops_it(tmp_path_factory, tmp
         folder.mkdir()
         medium_files(folder)
     paths = sorted(str(p) for p in folder.glob("rec*.csv"))
-    out = tmp_path / "model.json"
     command = [FTCAL] if entry == "script" else [sys.executable, "-m", "ftcal"]
+    # One retry: in about 1 % of interrupts (docs/security.md, known gaps) the interrupt races with
+    # Python's own machinery. Twice in a row is a failure, as is any wrong outcome that repeats.
+    first = _interrupt_fit(command, paths, tmp_path / "first", delay)
+    if first is None:
+        return
+    second = _interrupt_fit(command, paths, tmp_path / "second", delay)
+    assert second is None, f"twice: {first}\n---\n{second}"
+
+
+def _interrupt_fit(command: list[str], paths: list[str], folder: Path, delay: float) -> str | None:
+    """Run ``fit --degree auto``, Ctrl-C it ``delay`` s after the ftcal package loaded; None if it ended
+    as it must (exit 130, one line, no traceback, no file), else what went wrong."""
+    folder.mkdir()
+    out = folder / "model.json"
     proc = subprocess.Popen([*command, "fit", *paths, "--degree", "auto", "-o", str(out)], stderr=subprocess.PIPE,
                             text=True, env=dict(ENV, PYTHONPROFILEIMPORTTIME="1"))
     lines: list = []
@@ -255,10 +268,16 @@ def test_ctrl_c_at_any_moment_of_an_automatic_fit_stops_it(tmp_path_factory, tmp
     proc.wait(timeout=300)
     reader.join(timeout=60)
     err = [line for line in lines if not line.startswith("import time:")]
-    assert proc.returncode == 130, "".join(err)
-    assert not any("Traceback" in line for line in err), "".join(err)
-    assert err[-1].strip() in ("ftcal fit: interrupted", "ftcal: interrupted"), "".join(err)
-    assert sorted(os.listdir(tmp_path)) == []  # no model, no temporary file
+    text = "".join(err)
+    if proc.returncode != 130:
+        return f"exit {proc.returncode}: {text}"
+    if any("Traceback" in line for line in err):
+        return f"traceback: {text}"
+    if not err or err[-1].strip() not in ("ftcal fit: interrupted", "ftcal: interrupted"):
+        return f"last line: {text}"
+    if sorted(os.listdir(folder)) != []:
+        return f"files left: {sorted(os.listdir(folder))}"  # no model, no temporary file
+    return None
 
 
 @pytest.mark.slow

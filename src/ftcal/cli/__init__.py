@@ -208,11 +208,23 @@ def _interrupt(signum, frame) -> None:
     raise KeyboardInterrupt
 
 
+def _interrupt_again(unraisable, previous=sys.unraisablehook) -> None:
+    """A Ctrl-C raised where Python ignores exceptions (a weakref callback of the import system, a
+    ``__del__``) would be lost: the command would run on. Raise it again in the main thread."""
+    if unraisable.exc_type is not None and issubclass(unraisable.exc_type, KeyboardInterrupt):
+        import _thread
+
+        _thread.interrupt_main(signal.SIGINT)
+        return
+    previous(unraisable)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run one ftcal command and return its exit code; Ctrl-C at any moment is one line and 130."""
     command = signal.getsignal(signal.SIGINT) is _note_interrupt  # the `ftcal` command, not a call in a program
     try:
         if command:  # take over from ftcal/__init__.py's guard
+            sys.unraisablehook = _interrupt_again
             signal.signal(signal.SIGINT, _interrupt)
         if _INTERRUPTS:
             raise KeyboardInterrupt
@@ -227,8 +239,16 @@ def main(argv: list[str] | None = None) -> int:
         return 130
     finally:
         _INTERRUPTS.clear()
-        if command:  # what is left is Python's exit (joining threads): a Ctrl-C now ends it at once, quietly
-            signal.signal(signal.SIGINT, signal.SIG_DFL)
+        if command:  # what is left is Python's exit (joining threads): a Ctrl-C now changes nothing
+            _ignore_further_interrupts()
+
+
+def _ignore_further_interrupts() -> None:
+    """Ignore Ctrl-C from here on; ``signal.signal`` first runs a pending handler, whose interrupt is moot."""
+    try:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except KeyboardInterrupt:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def run(argv: list[str] | None) -> int:
