@@ -452,12 +452,7 @@ class CrossValidationResult:
             values = "".join(f" {v:>16.4g} {t:>14.4g}" for v, t in zip(self._block_values(s.fold_mse),
                                                                       self._block_values(s.fold_train_mse)))
             lines.append(f"{mark}{s.candidate.label:<27}{values} {s.nonzero:>8.0f}")
-        if self.skipped_degrees:
-            lines.append(f"degrees {', '.join(map(str, self.skipped_degrees))} not tried: a lower degree already "
-                         "validated better")
-        lines += self.notes
-        lines.append(self.verdict())
-        return "\n".join(lines)
+        return "\n".join(lines + self._closing_lines())
 
     def summary(self) -> str:
         """The best candidate of each degree, force and torque side by side, the runner-up and the verdict."""
@@ -475,12 +470,15 @@ class CrossValidationResult:
             runner = next(s for s in ranked if s.candidate != self.best)
             lines.append(f"best single model {self.best.label}; runner-up {runner.candidate.label} "
                          f"({runner.score - winner.score:+.3g} on the objective)")
+        return "\n".join(lines + self._closing_lines())
+
+    def _closing_lines(self) -> list[str]:
+        """What the table and the summary both end with: degrees not tried, notes, the verdict."""
+        lines = []
         if self.skipped_degrees:
             lines.append(f"degrees {', '.join(map(str, self.skipped_degrees))} not tried: a lower degree already "
                          "validated better")
-        lines += self.notes
-        lines.append(self.verdict())
-        return "\n".join(lines)
+        return lines + list(self.notes) + [self.verdict()]
 
     def verdict(self) -> str:
         """The selection, then per block its validation error, its margin over affine and the fold noise."""
