@@ -288,3 +288,45 @@ def test_only_undetermined_parameters_may_lack_a_standard_error(tmp_path, capsys
     with pytest.raises(FtcalError, match=r"non-finite values"):
         save_payload(broken, tmp_path / "broken.json")
     assert not (tmp_path / "broken.json").exists()
+
+
+@pytest.mark.parametrize("lapack", ["flipped", "rounds-toward-com-x", "rounds-toward-com-z"])
+def test_the_undetermined_report_does_not_depend_on_the_lapack_build(monkeypatch, lapack):
+    # Another LAPACK (OpenBLAS core type, thread count) may return either sign for a null vector, and rounds
+    # its components differently in the last digits. Emulate both on a null direction whose COM x and z
+    # components are equal in exact arithmetic: the held parameter, directions and text must not move.
+    from ftcal.payload import identify
+
+    gravity = np.repeat([[0.0, 0.0, -G], [-G, 0.0, 0.0]] * 5, PER_POSE, axis=0)
+    wrench = statics(gravity) + np.random.default_rng(21).normal(size=(len(gravity), 6)) * NOISE
+    with pytest.warns(UndeterminedWarning):
+        reference = fit_blocks(gravity, wrench).undetermined
+
+    eigh = np.linalg.eigh
+
+    def other_build(matrix):
+        values, vectors = eigh(matrix)
+        vectors = vectors.copy()
+        null = values <= values[-1] * 1e-12
+        if lapack == "flipped":
+            vectors[:, null] *= -1.0
+        else:  # parameters are (m, mcx, mcy, mcz, biases...): nudge one COM component by 1e-13
+            vectors[1 if lapack.endswith("x") else 3, null] *= 1.0 + 1e-13
+        return values, vectors
+
+    monkeypatch.setattr(identify.np.linalg, "eigh", other_build)
+    with pytest.warns(UndeterminedWarning):
+        other = fit_blocks(gravity, wrench).undetermined
+    assert other.held == reference.held and other.parameters == reference.parameters
+    assert other.message == reference.message
+    np.testing.assert_allclose(other.directions, reference.directions, atol=1e-9)
+
+
+@pytest.mark.parametrize("vector, expected", [((-0.7071067811865476, 0.0, 0.7071067811865475), (1, 0, -1)),
+                                              ((0.7071067811865475, 0.0, -0.7071067811865476), (1, 0, -1)),
+                                              ((1e-12, -0.6, 0.8), (0, 1, -1))])
+def test_a_reported_direction_has_one_sign(vector, expected):
+    # The rule, by hand: the first component within 1e-6 of the largest magnitude is made positive.
+    from ftcal.core.directions import canonical_sign
+
+    assert tuple(np.sign(np.round(canonical_sign(np.array(vector)), 9)).astype(int)) == expected

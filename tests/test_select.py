@@ -182,7 +182,10 @@ def test_auto_selection_never_loses_to_affine_by_more_than_the_fold_noise(rng):
             best = fit_best(train, result)
         affine = CalibrationModel(1).fit(train)
         noise = result.comparison().spread
-        assert held_out_error(best, fresh) <= held_out_error(affine, fresh) + noise
+        # When the search keeps the affine model, the two errors differ by rounding only (its coefficients
+        # come from summed fold statistics): a relative 1e-9 is no loss, and no exact tie is asserted.
+        reference = held_out_error(affine, fresh)
+        assert held_out_error(best, fresh) <= reference + noise + 1e-9 * reference
 
 
 def test_lasso_grid_spans_three_decades_below_lambda_max(rng):

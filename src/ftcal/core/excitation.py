@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..runtime.errors import FtcalError
+from .directions import order_by_size
 
 # Relative singular values below these: the direction is not excited / hardly excited.
 UNEXCITED = 1e-3
@@ -205,7 +206,7 @@ def _readable_basis(basis: np.ndarray) -> list[np.ndarray]:
 
 def _describe(direction: np.ndarray, names: Sequence[str]) -> tuple[str, str]:
     """A direction of the output space in words, and the kind of data that excites it."""
-    order = np.argsort(-np.abs(direction))
+    order = order_by_size(direction)
     named = [j for j in order if abs(direction[j]) >= NAMED_COMPONENT] or [int(order[0])]
     words = [_AXIS_WORDS.get(names[j], names[j]) for j in named]
     blocks = {_block(names[j]) for j in named}

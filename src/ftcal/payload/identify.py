@@ -47,6 +47,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..core.directions import CANONICAL_TIE, canonical_sign
 from ..core.jackknife import jackknife_covariance
 from ..core.limits import PAYLOAD_WEIGHTINGS
 from ..core.solvers.base import Conditioning
@@ -369,7 +370,9 @@ def _choose_held(basis: np.ndarray, names: tuple[str, ...]) -> list[int]:
             candidates = [j for j, name in enumerate(names) if name in group and j not in held]
             scores = np.linalg.norm(remaining[candidates], axis=1) if candidates else np.zeros(0)
             if scores.size and scores.max() > NULL_ROW:
-                j = candidates[int(np.argmax(scores))]
+                # Equal pivots (e.g. COM x and z for gravity moving along (1, 0, −1)) are a tie that rounding
+                # would break differently on each machine: take the first of the near-largest instead.
+                j = candidates[int(np.flatnonzero(scores >= scores.max() * (1.0 - CANONICAL_TIE))[0])]
                 break
         else:  # unreachable: the mass and covariates were refused, biases alone always have a pivot
             raise FtcalError("the undetermined payload parameters could not be separated.")
@@ -384,7 +387,7 @@ def _direction_words(u: np.ndarray) -> str:
     k = int(np.argmax(np.abs(u)))
     if abs(u[k]) > 0.999:
         return f"the sensor's {'xyz'[k]} axis"
-    return "the sensor direction (" + ", ".join(f"{v:.2f}" for v in u / np.copysign(1.0, u[k])) + ")"
+    return "the sensor direction (" + ", ".join(f"{v:.2f}" for v in canonical_sign(u)) + ")"
 
 
 def _undetermined_message(directions: np.ndarray, names: tuple[str, ...], parameters: tuple[str, ...],
