@@ -54,6 +54,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..core.dataset import Dataset
+from ..core.directions import order_by_size
 from ..core.jackknife import block_edges, jackknife_covariance
 from ..core.limits import ROBUST_CLUSTERS
 from ..runtime.errors import FtcalError, IllPosedFitWarning
@@ -184,7 +185,7 @@ def estimate_payload(data: Dataset, payload: np.ndarray, link: str, *,
     d = np.sqrt(np.clip(np.abs(np.diag(hessian)), 1e-300, None))
     eig, vecs = np.linalg.eigh(hessian / np.outer(d, d))
     if eig[0] <= RANK_TOLERANCE * eig[-1]:
-        worst = [names[free[j]] for j in np.argsort(-np.abs(vecs[:, 0]))[:2]]
+        worst = [names[free[j]] for j in order_by_size(vecs[:, 0])[:2]]
         raise FtcalError(_unidentifiable_message(link, worst, payload_mass is None))
     covariance = np.linalg.inv(hessian / np.outer(d, d)) / np.outer(d, d) * (2.0 / n)
     refits = _leave_blocks_out(blocks, np.diff(edges), kf, extra, result.x, hessian)
