@@ -52,3 +52,8 @@ def __getattr__(name: str):
 
         return getattr(import_module(f".{_LAZY[name]}", __name__), name)
     raise AttributeError(f"module 'ftcal' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    # Tab completion lists the public API (the lazy names) beside the module's own attributes.
+    return sorted(set(globals()) - {"os", "sys"} | set(__all__))
