@@ -133,3 +133,14 @@ def edit(pattern, replacement):
 def test_invalid_files_are_rejected_with_a_clear_message(text, message):
     with pytest.raises(FtcalError, match=message):
         parse_paper_xml(text, "hand.xml")
+
+
+def test_the_public_load_model_reads_paper_xml_like_the_cli(tmp_path):
+    import ftcal
+
+    model, u = fitted()
+    path = tmp_path / "m.xml"
+    write_paper_xml(model, path)
+    loaded = ftcal.load_model(path)
+    np.testing.assert_allclose(loaded.predict(u), model.predict(u), rtol=1e-10)
+    assert set(ftcal.__all__) <= set(dir(ftcal))

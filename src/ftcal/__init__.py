@@ -36,11 +36,13 @@ if _command_starting():
 # installed metadata instead costs ~30 ms of imports on every run.
 __version__ = "0.1.0"
 
-# Loaded on first use, so that `ftcal --help` does not pay for numpy and scipy.
-_LAZY = {"FtcalError": "runtime.errors", "FtcalWarning": "runtime.errors", "CalibrationModel": "core.model",
-         "Dataset": "core.dataset", "MonomialBasis": "core.features", "RegressorLayout": "core.features",
-         "n_coefficients": "core.features", "load_dataset": "data.tables", "load_model": "files.model_json",
-         "save_model": "files.model_json"}
+# Loaded on first use, so that `ftcal --help` does not pay for numpy and scipy: name -> "module:attribute".
+# ``load_model`` reads every model file the CLI reads (native JSON of any family, the paper's XML).
+_LAZY = {"FtcalError": "runtime.errors:FtcalError", "FtcalWarning": "runtime.errors:FtcalWarning",
+         "CalibrationModel": "core.model:CalibrationModel", "Dataset": "core.dataset:Dataset",
+         "MonomialBasis": "core.features:MonomialBasis", "RegressorLayout": "core.features:RegressorLayout",
+         "n_coefficients": "core.features:n_coefficients", "load_dataset": "data.tables:load_dataset",
+         "load_model": "files.model_files:read_model", "save_model": "files.model_json:save_model"}
 
 __all__ = ["CalibrationModel", "Dataset", "FtcalError", "FtcalWarning", "MonomialBasis",
            "RegressorLayout", "load_dataset", "load_model", "n_coefficients", "save_model"]
@@ -50,7 +52,8 @@ def __getattr__(name: str):
     if name in _LAZY:
         from importlib import import_module
 
-        return getattr(import_module(f".{_LAZY[name]}", __name__), name)
+        module, attribute = _LAZY[name].split(":")
+        return getattr(import_module(f".{module}", __name__), attribute)
     raise AttributeError(f"module 'ftcal' has no attribute {name!r}")
 
 
