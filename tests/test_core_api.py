@@ -132,7 +132,7 @@ def test_limits_module_imports_nothing_heavy():
 
 DOCTEST_MODULES = ["ftcal.core.features", "ftcal.core.statistics", "ftcal.core.solvers.base", "ftcal.core.solvers.least_squares",
                    "ftcal.core.solvers.lasso", "ftcal.core.model", "ftcal.core.metrics", "ftcal.core.select", "ftcal.core.dataset",
-                   "ftcal.core.normalization"]
+                   "ftcal.core.normalization", "ftcal.core.directions", "ftcal.core.estimator"]
 
 
 @pytest.mark.parametrize("name", DOCTEST_MODULES)
@@ -141,3 +141,21 @@ def test_docstring_examples_run(name):
     result = doctest.testmod(module, optionflags=doctest.NORMALIZE_WHITESPACE)
     assert result.attempted > 0, f"{name} has no examples"
     assert result.failed == 0
+
+
+@pytest.mark.parametrize("family", ["polynomial", "mlp"])
+def test_both_families_follow_sklearns_parameter_contract(family):
+    # scikit-learn's own clone and its parameter checks (get_params/set_params round trip, no
+    # validation in __init__) on each family, through one shared implementation.
+    from sklearn.base import clone
+    from sklearn.utils.estimator_checks import check_get_params_invariance, check_set_params
+
+    from ftcal.core.mlp import MLPModel
+
+    model = CalibrationModel(2, na=1) if family == "polynomial" else MLPModel(hidden=(8,), seed=3)
+    copy = clone(model)
+    assert copy is not model and copy.get_params(deep=False) == model.get_params(deep=False)
+    check_get_params_invariance(type(model).__name__, model)
+    check_set_params(type(model).__name__, model)
+    with pytest.raises(FtcalError, match="has no parameter 'degreee'"):
+        model.set_params(degreee=3)

@@ -42,6 +42,7 @@ from ..runtime.errors import FtcalError, FtcalWarning, NotFittedError, OutOfRang
 from ..runtime.threads import single_threaded_blas
 from . import metrics
 from .dataset import Dataset
+from .estimator import EstimatorParams
 from .limits import MLP_ACTIVATIONS, MLP_MAX_ITER, MLP_MAX_LAYERS, MLP_MAX_UNITS
 from .model import _as_dataset, _outputs_in_order
 from .normalization import Normalization, normalization_from_range, variables_normalization, variables_range
@@ -62,7 +63,7 @@ def _activation(name: str):
     return (lambda z: np.maximum(z, 0.0)), (lambda a: (a > 0.0).astype(np.float64))
 
 
-class MLPModel:
+class MLPModel(EstimatorParams):
     """A multilayer perceptron from raw sensor inputs to the wrench (static).
 
     Parameters
@@ -127,19 +128,6 @@ class MLPModel:
         self.check_every = check_every
         self.max_samples = max_samples
         self.seed = seed
-
-    def get_params(self) -> dict:
-        """The constructor arguments, as a dict."""
-        return {"hidden": self.hidden, "activation": self.activation, "weight_decay": self.weight_decay,
-                "max_iter": self.max_iter, "early_stopping": self.early_stopping, "n_folds": self.n_folds,
-                "check_every": self.check_every, "max_samples": self.max_samples, "seed": self.seed}
-
-    def clone(self, **changes) -> "MLPModel":
-        """An unfitted model with the same parameters, except ``changes``."""
-        unknown = set(changes) - set(self.get_params())
-        if unknown:
-            raise FtcalError(f"MLPModel has no parameter(s) {', '.join(sorted(unknown))}.")
-        return MLPModel(**{**self.get_params(), **changes})
 
     # ------------------------------------------------------------------ fit
     def _checked(self) -> dict:

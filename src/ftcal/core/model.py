@@ -26,6 +26,7 @@ from ..runtime.progress import progress_bar
 from ..runtime.threads import map_ranges, single_threaded_blas
 from . import metrics
 from .dataset import Dataset
+from .estimator import EstimatorParams
 from .excitation import Spread, span_distance, span_limit
 from .features import FeatureCombination, MonomialBasis, RegressorLayout, n_coefficients, substitution_matrix
 from .kernels import compiled, step_table
@@ -100,7 +101,7 @@ def check_gram_size(layout: RegressorLayout) -> None:
                          f"coefficients per output ({p * layout.n_outputs:,} in all); its Gram matrix alone needs "
                          f"{need / 1e9:.1f} GB, above the limit of {MAX_GRAM_BYTES / 1e9:.0f} GB: lower {lower}.")
 
-class CalibrationModel:
+class CalibrationModel(EstimatorParams):
     """Polynomial (optionally ARX) map from raw sensor inputs to the wrench.
 
     Parameters
@@ -162,24 +163,6 @@ class CalibrationModel:
         self.nb = nb
         self.normalization = normalization
         self.prior = prior
-
-    def get_params(self) -> dict:
-        """The constructor arguments, as a dict."""
-        return {"degree": self.degree, "basis": self.basis, "solver": self.solver, "na": self.na,
-                "nb": self.nb, "normalization": self.normalization, "prior": self.prior}
-
-    def clone(self, **changes) -> "CalibrationModel":
-        """An unfitted model with the same parameters, except ``changes`` (like sklearn's ``clone``).
-
-        Examples
-        --------
-        >>> CalibrationModel(2, na=1).clone(degree=3).get_params()["degree"]
-        3
-        """
-        unknown = set(changes) - set(self.get_params())
-        if unknown:
-            raise FtcalError(f"CalibrationModel has no parameter(s) {', '.join(sorted(unknown))}.")
-        return CalibrationModel(**{**self.get_params(), **changes})
 
     # ------------------------------------------------------------------ fit
     def fit(self, data: Dataset | np.ndarray, outputs: np.ndarray | None = None) -> "CalibrationModel":
