@@ -159,3 +159,30 @@ def test_both_families_follow_sklearns_parameter_contract(family):
     check_set_params(type(model).__name__, model)
     with pytest.raises(FtcalError, match="has no parameter 'degreee'"):
         model.set_params(degreee=3)
+
+
+def test_docs_api_lists_exactly_the_public_names():
+    import re
+    from pathlib import Path
+
+    import ftcal
+
+    page = (Path(__file__).parents[1] / "docs" / "api.md").read_text(encoding="utf-8")
+    listed = set(re.findall(r"^\| `(\w+)` \|", page, flags=re.MULTILINE))
+    assert listed == set(ftcal.__all__)
+    assert set(ftcal.__all__) <= set(dir(ftcal))
+
+
+def test_every_public_name_has_an_example_that_runs():
+    import ftcal
+
+    finder, runner = doctest.DocTestFinder(recurse=False), doctest.DocTestRunner(optionflags=doctest.NORMALIZE_WHITESPACE)
+    for name in ftcal.__all__:
+        obj = getattr(ftcal, name)
+        assert "Examples\n" in (obj.__doc__ or ""), f"ftcal.{name} has no Examples section"
+        module = importlib.import_module(obj.__module__)  # examples run in their own module, as doctest does
+        tests = [t for t in finder.find(obj, name, globs=dict(vars(module))) if t.examples]
+        assert tests, f"ftcal.{name} has no runnable example"
+        for test in tests:
+            runner.run(test)
+    assert runner.failures == 0

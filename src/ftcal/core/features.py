@@ -33,6 +33,10 @@ def n_monomials(n_inputs: int, degree: int) -> int:
 def n_coefficients(n_inputs: int, degree: int, n_outputs: int = 1, na: int = 0, nb: int = 0) -> int:
     """Coefficients of a model: ny * (ny*na + 1 + sum_p (nb+1) * C(nu+p-1, p)).
 
+    Examples
+    --------
+    The paper's counts for ny = 6 outputs and nu = 7 inputs, degrees 1 to 5:
+
     >>> [n_coefficients(7, d, 6) for d in range(1, 6)]
     [48, 216, 720, 1980, 4752]
     """
@@ -234,6 +238,13 @@ class RegressorLayout:
     n_outputs : int, number of outputs ny (used by the past-output columns)
     na : past outputs y(k-1) .. y(k-na)
     nb : input lags; monomials are evaluated at lags 0..nb
+
+    Examples
+    --------
+    The paper's degree-4 model over 6 channels and temperature: 1980 coefficients over 6 outputs.
+
+    >>> RegressorLayout(MonomialBasis(7, 4), n_outputs=6).n_features
+    330
     """
 
     def __init__(self, basis: MonomialBasis, n_outputs: int, na: int = 0, nb: int = 0):

@@ -349,6 +349,19 @@ def load_dataset(path: str | os.PathLike | Sequence[str | os.PathLike], *, input
     ------
     FtcalError
         A missing file or column, or a cell that is not a finite number.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> import numpy as np, pandas as pd
+    >>> from ftcal import CalibrationModel, load_dataset, load_model, save_model
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> u = np.linspace(0.0, 1.0, 20)
+    >>> pd.DataFrame({"u1": u, "Fx": 2.0 * u + 1.0}).to_csv(folder / "table.csv", index=False)
+    >>> data = load_dataset(folder / "table.csv", inputs=["u1"], outputs=["Fx"])
+    >>> save_model(CalibrationModel(1).fit(data), folder / "model.json")
+    >>> round(float(load_model(folder / "model.json").predict(np.array([[0.5]]))[0, 0]), 9)
+    2.0
     """
     paths = [path] if isinstance(path, (str, os.PathLike)) or not isinstance(path, Sequence) else list(path)
     return read_dataset(paths, inputs or default_inputs(paths), outputs, segment_by=segment_by, group_by=group_by)

@@ -19,7 +19,22 @@ _SNIFF_BYTES = 512
 
 
 def read_model(path: str | Path) -> ModelFamily:
-    """A model from a native JSON (any registered family) or a paper XML file, told apart by content."""
+    """A model from a native JSON (any registered family) or a paper XML file, told apart by content.
+
+    This is ``ftcal.load_model``: it reads every model file the ``ftcal`` commands read.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> import numpy as np
+    >>> from ftcal import CalibrationModel, load_model
+    >>> from ftcal.files.paper_xml import write_paper_xml
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "model.xml"
+    >>> model = CalibrationModel(1).fit(np.array([[0.0], [1.0], [2.0]]), np.array([[1.0], [3.0], [5.0]]))
+    >>> _ = write_paper_xml(model, path)
+    >>> round(float(load_model(path).predict(np.array([[4.0]]))[0, 0]), 9)
+    9.0
+    """
     return read_model_file(path).model
 
 

@@ -64,6 +64,16 @@ def save_model(model: ModelFamily, path: str | Path, *, sources: Sequence[str] =
     ``training_segments``: :func:`ftcal.core.fingerprint.segment_fingerprints` of the training
     data, so that ``ftcal evaluate`` can warn about evaluation data the model was trained on.
     ``prior``: the model file the fit was shrunk toward (``--prior``), recorded with its digest.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> import numpy as np
+    >>> from ftcal import CalibrationModel, load_model, save_model
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "model.json"
+    >>> save_model(CalibrationModel(1).fit(np.array([[0.0], [1.0], [2.0]]), np.array([[1.0], [3.0], [5.0]])), path)
+    >>> load_model(path).n_coefficients
+    2
     """
     write_text_atomic(path, format_document(model_document(model, sources=sources, input_units=input_units,
                                                            output_units=output_units,

@@ -9,7 +9,17 @@ from __future__ import annotations
 
 
 class FtcalError(ValueError):
-    """Bad input or an impossible request, explained in one sentence."""
+    """Bad input or an impossible request, explained in one sentence.
+
+    Examples
+    --------
+    >>> from ftcal import CalibrationModel, FtcalError
+    >>> try:
+    ...     CalibrationModel(degree=0).fit([[0.0], [1.0]], [[0.0], [1.0]])
+    ... except FtcalError as error:
+    ...     print("refused:", "degree" in str(error))
+    refused: True
+    """
 
 
 class NotFittedError(FtcalError):
@@ -17,7 +27,20 @@ class NotFittedError(FtcalError):
 
 
 class FtcalWarning(UserWarning):
-    """Something the user should know about, that does not stop the work."""
+    """Something the user should know about, that does not stop the work.
+
+    Examples
+    --------
+    >>> import warnings
+    >>> import numpy as np
+    >>> from ftcal import CalibrationModel, FtcalWarning
+    >>> model = CalibrationModel(1).fit(np.array([[0.0], [1.0], [2.0]]), np.array([[0.0], [2.0], [4.0]]))
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     _ = model.predict(np.array([[5.0]]))  # outside the training range
+    >>> any(issubclass(w.category, FtcalWarning) for w in caught)
+    True
+    """
 
 
 class IllPosedFitWarning(FtcalWarning):
