@@ -40,6 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.limits import MAX_BAG_TIMESTAMP_NS
 from ..runtime.errors import FtcalError, FtcalWarning
 from ..runtime.inputs import check_folder_files, check_input_file
 from .recording import Recording, Stream
@@ -98,6 +99,8 @@ def open_bag(path: str | Path) -> Iterator:
     path = check_input_file(path, "bag (file or ROS 2 bag folder)", folder_ok=True)
     if path.is_dir():
         check_folder_files(path, "bag file")
+    for database in sorted(path.glob("*.db3")) if path.is_dir() else [path] if path.suffix == ".db3" else []:
+        check_sqlite_bag(database)
     try:
         reader = AnyReader([path], default_typestore=get_typestore(Stores.LATEST))
         reader.open()
@@ -111,6 +114,77 @@ def open_bag(path: str | Path) -> Iterator:
                          f"({type(exc).__name__}: {exc}).") from None
     finally:
         reader.close()
+
+
+# Each table rosbags reads from a ROS 2 ``.db3``: (column, SQLite type it must hold, extra SQL condition
+# every value must meet, what the condition means). SQLite stores any type in any column (its
+# declared types are affinities), so a hostile or damaged file can hold text where rosbags reads an
+# integer; every field is checked once, in SQL, before rosbags or ftcal reads it.
+_SQLITE_FIELDS = {
+    "topics": (("id", "integer", "id >= 0", "a non-negative integer"),
+               ("name", "text", "length(name) > 0", "a non-empty topic name"),
+               ("type", "text", "length(type) > 0", "a non-empty message type"),
+               ("serialization_format", "text", None, "text"),
+               ("offered_qos_profiles", "text", None, "text"),
+               ("type_description_hash", "text", None, "text")),
+    "message_definitions": (("topic_type", "text", None, "text"),
+                            ("encoding", "text", "encoding IN ('ros2msg', 'ros2idl')", "'ros2msg' or 'ros2idl'"),
+                            ("encoded_message_definition", "text", None, "text"),
+                            ("type_description_hash", "text", None, "text")),
+    "messages": (("id", "integer", None, "an integer"),
+                 ("topic_id", "integer", "topic_id IN (SELECT id FROM topics)", "the id of a row of topics"),
+                 ("timestamp", "integer", f"timestamp BETWEEN 0 AND {MAX_BAG_TIMESTAMP_NS}",
+                  f"nanoseconds in [0, {MAX_BAG_TIMESTAMP_NS}]"),
+                 ("data", "blob", None, "serialized message bytes")),
+    "schema": (("schema_version", "integer", "schema_version >= 0", "a non-negative integer"),),
+}
+
+
+def check_sqlite_bag(path: Path) -> None:
+    """Refuse a ROS 2 ``.db3`` whose tables hold a value of the wrong type or out of range.
+
+    Every column of ``topics``, ``messages``, ``message_definitions`` and ``schema`` that
+    rosbags or ftcal reads is checked for its SQLite storage type (``typeof``) and range (see
+    ``_SQLITE_FIELDS``), in one SQL query per column, so no value of the wrong kind reaches Python.
+
+    Raises
+    ------
+    FtcalError
+        Naming the file, table, row id, column, the type found and what the column must hold;
+        or if the file is not a readable SQLite database.
+    """
+    import sqlite3
+
+    try:
+        connection = sqlite3.connect(f"{path.resolve().as_uri()}?mode=ro&immutable=1", uri=True)
+    except sqlite3.Error as exc:
+        raise FtcalError(f"Bag {path}: cannot open it as an SQLite database ({exc}).") from None
+    try:
+        tables = {row[0] for row in connection.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+        for table, fields in _SQLITE_FIELDS.items():
+            if table not in tables:
+                continue
+            columns = {row[1] for row in connection.execute(f"PRAGMA table_info({table})")}
+            for column, kind, condition, meaning in fields:
+                if column not in columns:
+                    continue
+                bad = f"typeof({column}) != '{kind}'" + (f" OR NOT ({condition})" if condition else "")
+                row = connection.execute(f"SELECT rowid, typeof({column}), quote({column}) FROM {table} "
+                                         f"WHERE {bad} LIMIT 1").fetchone()
+                if row is not None:
+                    rowid, found, value = row
+                    shown = value if len(str(value)) <= 40 else f"{str(value)[:40]}..."
+                    held = "NULL" if found == "null" else f"{found} {shown}"
+                    raise FtcalError(f"Bag {path}: table {table}, row {rowid}: column {column} holds {held}; "
+                                     f"it must be {meaning}.")
+        if "topics" in tables and connection.execute(
+                "SELECT COUNT(id) != COUNT(DISTINCT id) FROM topics").fetchone()[0]:
+            raise FtcalError(f"Bag {path}: table topics: two rows share an id.")
+    except sqlite3.Error as exc:
+        raise FtcalError(f"Bag {path}: cannot read it as a ROS 2 SQLite bag; it may be truncated or corrupt "
+                         f"({type(exc).__name__}: {exc}).") from None
+    finally:
+        connection.close()
 
 
 def _storage_errors() -> tuple[type[BaseException], ...]:
