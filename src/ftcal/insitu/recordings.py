@@ -45,7 +45,7 @@ from ..data.logs import read_recording
 from ..data.recording import sensor_aliases
 from ..data.signals import channel_issues, smooth
 from ..robot.cache import cache_key, cached
-from ..robot.expected import GRAVITY, FloatingBase, expected_wrenches
+from ..robot.expected import GRAVITY, FloatingBase, expected_wrenches, warn_if_zero_reference
 from ..robot.loadcases import LoadCase, LoadCaseConfig
 from ..robot.model import RobotModel
 from ..robot.payloads import Payload
@@ -236,6 +236,7 @@ def recording_table(path: str | Path, robot: RobotModel, sensor: str, case: Load
     data = align(recording, aliases, temperature=options.temperature, derivatives=options.derivatives,
                  imu=options.imu, rate=options.rate)
     expected = _expected(path, robot, data, options)[:, ft_sensor.index, :]
+    warn_if_zero_reference(expected, f"Recording {path}", ft_sensor.name, case.name)
     raw, temp = data.ft, data.temperature
     if options.savgol_frame is not None:
         raw = smooth(raw, options.savgol_frame, options.savgol_order, where=f"Recording {path}")
