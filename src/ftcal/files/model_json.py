@@ -344,9 +344,9 @@ def _build(doc: dict, source: str) -> ModelFile:
         if values is not None and len(values) != len(outputs):
             raise FtcalError(f"{source}: fit.metrics.{key} has {len(values)} values; the model has "
                              f"{len(outputs)} outputs.")
-    check_envelope_consistency(doc, source)
     # No family field: a file written before families existed, a polynomial.
     model = family_class(doc.get("family", DEFAULT_FAMILY), source).from_document(doc, source)
+    check_envelope_consistency(doc, source)
     _check_finite_over_training_range(model, doc, source)
     created = doc["created"]
     return ModelFile(model, tuple(v["unit"] for v in inputs), tuple(v["unit"] for v in outputs),
