@@ -434,15 +434,15 @@ def report_fit(model, path: str) -> None:
 
 
 def warn_if_exact(names, best_fit) -> None:
-    """Say loudly when the training error is ~0 of the outputs' spread: no real sensor fits that well."""
-    import warnings
+    """Say loudly when the training error is ~0 of the outputs' spread: no real sensor fits that well.
 
+    Printed as a warning line, not raised as a Python warning: simulations without noise are legitimate
+    inputs (tests, demos), and the line is for the person reading the fit's report.
+    """
     from ..core.limits import EXACT_FIT
-    from ..runtime.errors import FtcalWarning
 
     exact = [n for n, b in zip(names, best_fit or ()) if b is not None and b > 1.0 - EXACT_FIT]
     if exact:
-        warnings.warn(f"the training error of {', '.join(exact)} is ~0 of the outputs' spread (BestFit > 1 - "
-                      f"{EXACT_FIT:g}): the reference is an exact function of the inputs (a reference copied from "
-                      "or computed from the readings?); no measured sensor fits this well.", FtcalWarning,
-                      stacklevel=2)
+        print(f"warning: the training error of {', '.join(exact)} is ~0 of the outputs' spread (BestFit > 1 - "
+              f"{EXACT_FIT:g}): the reference is an exact function of the inputs (a reference copied from or "
+              "computed from the readings?); no measured sensor fits this well.", file=sys.stderr)
