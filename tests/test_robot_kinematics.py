@@ -191,3 +191,27 @@ def test_cli_compensate_with_gravity_from_the_urdf(tmp_path):
     none = subprocess.run([ftcal, "compensate", str(tmp_path / "p.json"), str(tmp_path / "work.csv"), "-o",
                            str(tmp_path / "d.csv")], capture_output=True, text=True)
     assert none.returncode == 2 and "--urdf PATH" in none.stderr and "--model NAME" not in none.stderr
+
+
+def test_a_missing_joint_on_the_sensor_chain_is_refused_not_held_at_zero(tmp_path):
+    """Issue 27 (no silent zeros): a joint column left out was held at 0 rad, turning gravity in the
+    sensor frame without a word. Joints on the chain from the base to the sensor are required."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import pandas as pd
+
+    rng = np.random.default_rng(3)
+    names = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint"]
+    table = pd.DataFrame(rng.uniform(-3, 3, (20, 5)), columns=names)  # no wrist_3_joint
+    for i in range(6):
+        table[f"u{i + 1}"] = rng.normal(size=20)
+    table.to_csv(tmp_path / "poses.csv", index=False)
+    ftcal = str(Path(sys.executable).with_name("ftcal"))
+    done = subprocess.run([ftcal, "payload", str(tmp_path / "poses.csv"), "--urdf", str(UR5), "--ft-joint",
+                           "ee_fixed_joint", "--base", "base_link", "-o", str(tmp_path / "p.json")],
+                          capture_output=True, text=True)
+    lines = done.stderr.strip().splitlines()
+    assert done.returncode == 2 and len(lines) == 1 and "'wrist_3_joint'" in lines[0], done.stderr
+    assert not (tmp_path / "p.json").exists()

@@ -41,6 +41,7 @@ from ..data.holds import number_across
 from ..data.recording import Stream
 from ..data.signals import channel_issues, smooth
 from ..robot.expected import warn_if_zero_reference
+from ..robot.kinematics import require_chain_joints
 from ..robot.loadcases import LoadCaseConfig
 from ..robot.payloads import Payload
 from ..runtime.errors import FtcalError, FtcalWarning
@@ -191,6 +192,9 @@ def bag_columns(path: Path, topics: BagTopics, segment: int, group: str, robot=N
     if topics.joints is not None:
         joints = recording.joints
         streams["q"] = _urdf_joints(path, joints, robot) if robot is not None else _finite_joints(path, joints)
+        if robot is not None:
+            require_chain_joints(robot, streams["q"].columns, robot.base_frame(options.base)[1], sensor,
+                                 f"Bag {path}: {joints.name}")
     orientation_source = None
     if topics.tf is not None:
         orientation_source = tf_key(topics.tf)

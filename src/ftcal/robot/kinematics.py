@@ -131,6 +131,25 @@ def _prepare(robot: RobotModel, q, dq, ddq, floating):
     return q, dq, ddq
 
 
+def require_chain_joints(robot: RobotModel, given: Sequence[str], base: str, sensor: str, where: str) -> None:
+    """Refuse data that lack a joint on the chain from ``base`` to F/T ``sensor``.
+
+    A joint without data is held at 0 rad (:meth:`RobotModel.joint_matrix`): off that chain that
+    only moves other limbs, but on it it turns gravity in the sensor frame, silently.
+
+    Raises
+    ------
+    FtcalError
+        Naming ``where``, the missing joints, the base and the sensor.
+    """
+    chain = robot.chain_joints(base, _sensor_frame(robot, sensor)[0])
+    missing = [j for j in chain if j not in set(given)]
+    if missing:
+        raise FtcalError(f"{where}: no data for joint(s) {', '.join(map(repr, missing))}, on the chain from base "
+                         f"{base!r} to sensor {sensor!r}: gravity in the sensor frame depends on them, and a joint "
+                         "without data would be held at 0 rad (joints off that chain may be left out).")
+
+
 def _sensor_frame(robot: RobotModel, sensor: str) -> tuple[str, np.ndarray]:
     """Name of the link the sensor's frame is fixed to, and link_H_sensor (4, 4)."""
     import idyntree.swig as idyn
@@ -325,6 +344,7 @@ class JointColumnsSource:
         non_numeric = [c for c in names if not np.issubdtype(frame[c].dtype, np.number)]
         if non_numeric:
             raise FtcalError(f"{source}: joint column {non_numeric[0]!r} is not numeric.")
+        require_chain_joints(self.robot, names, self.robot.base_frame(self.base)[1], self.sensor, source)
         values = frame[names].to_numpy(np.float64)
         if self.degrees:
             values = np.deg2rad(values)
