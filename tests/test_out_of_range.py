@@ -160,3 +160,10 @@ def test_range_and_span_told_apart_text_and_json_agree(tmp_path, capsys):
     assert main(["evaluate", str(tmp_path / "m.json"), str(tmp_path / "new.csv"), "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
     assert (doc["n_outside_range"], doc["n_outside_span"], doc["n_out_of_range"]) == (9, 40, 49)
+    with warnings.catch_warnings():  # predict (and compensate, score): the same split, one warning
+        warnings.simplefilter("always", FtcalWarning)
+        assert main(["predict", str(tmp_path / "m.json"), str(tmp_path / "new.csv"), "-o",
+                     str(tmp_path / "p.csv")]) == 0
+    lines = warning_lines(capsys.readouterr().err)
+    assert len(lines) == 1 and "9 of 149 samples have inputs outside the training range: u1" in lines[0]
+    assert "40 of 149 sample(s) inside the training range lie outside the span" in lines[0]
