@@ -49,6 +49,8 @@ from ..runtime.inputs import check_input_file
 from .payloads import Payload
 
 CONVENTION = re.compile(r"^l(?P<left>\d+(?:\.\d+)?)kg-r(?P<right>\d+(?:\.\d+)?)kg$")
+# A folder name that was meant to follow the convention (for the message when it does not quite).
+CONVENTION_LIKE = re.compile(r"^l\d.*kg", re.IGNORECASE)
 
 
 @dataclass(frozen=True)
@@ -104,10 +106,12 @@ class LoadCaseConfig:
         known = ", ".join(repr(n) for n in names) or "none"
         if self.mounts:
             known += " and folder or file names l<x>kg-r<y>kg"
-        candidates = names + files + (["l0kg-r0kg"] if self.mounts else [])
         ratio, best = max(((difflib.SequenceMatcher(None, given, c).ratio(), c)
-                           for given in (path.name, *components) for c in candidates), default=(0.0, None))
+                           for given in (path.name, *components) for c in names + files), default=(0.0, None))
         hint = f"; nearest: {best!r}" if ratio >= 0.6 else ""
+        almost = next((c for c in components if self.mounts and CONVENTION_LIKE.match(c)), None)
+        if almost is not None and not hint:
+            hint = f"; {almost!r} is not of the form l<x>kg-r<y>kg"
         where = f"Payload file {self.source}" if self.source else "The payload file"
         return (f"{where}: recording {path} matches no load case (cases: {known}{hint}); name it in a "
                 f"[[case]]'s recordings, or declare a case without payload for an unloaded recording.")
