@@ -9,6 +9,9 @@ min > max (a traceback in ``convert --to paper-xml`` before the fix, silently ac
 other consumer), a scale too small to divide by, metrics for other outputs, a covariance that is
 not one, an inertia no rigid body has.
 
+The first class extends to a ROS 2 bag folder's ``metadata.yaml`` (a count written as text, a
+topic name as a number: TypeErrors inside rosbags before the fix).
+
 Every case runs the real command line as a subprocess and asserts exit 2, one line on stderr naming
 the file and the field, no traceback and no output file.
 """
@@ -102,6 +105,43 @@ def test_db3_columns_of_the_wrong_type_are_refused_by_dataset_and_topics(tmp_pat
     out = tmp_path / "d.parquet"
     assert_refused(run("dataset", bag, "--wrench-topic", "/ft", "--joints-topic", "/joint_states",
                        "--no-filter", "-o", out, cwd=tmp_path), "hostile.db3", column)
+    assert not out.exists()
+
+
+@pytest.fixture(scope="module")
+def good_folder(tmp_path_factory):
+    rng = np.random.default_rng(1)
+    bag = Bag("db3")
+    for i in range(150):
+        bag.wrench("/ft", 10**9 + i * 10**7, rng.normal(size=6))
+    return bag.write(tmp_path_factory.mktemp("folder") / "run")
+
+
+METADATA_CASES = {
+    "text message count": ("\n  message_count: 150", "\n  message_count: abc", "message_count"),
+    "text duration": ("nanoseconds: 1490000000", "nanoseconds: xyz", "duration.nanoseconds"),
+    "integer topic name": ("name: /ft", "name: 7", "topic_metadata.name"),
+    "list message type": ("type: geometry_msgs/msg/WrenchStamped", "type: [1, 2]", "topic_metadata.type"),
+    "null start time": ("\n  starting_time:\n    nanoseconds_since_epoch: 1000000000",
+                        "\n  starting_time:\n    nanoseconds_since_epoch: null", "starting_time"),
+    "integer file list": ("  files:", "  files: 7\n  old_files:", "files"),
+    "text version": ("version: 9", "version: nine", "version"),
+}
+
+
+@pytest.mark.parametrize("case", list(METADATA_CASES))
+def test_bag_folder_metadata_of_the_wrong_type_is_refused(tmp_path, good_folder, case):
+    """The same class in a ROS 2 bag folder's metadata.yaml (TypeError tracebacks inside rosbags before)."""
+    old, new, field = METADATA_CASES[case]
+    folder = tmp_path / "hostile"
+    shutil.copytree(good_folder, folder)
+    text = (folder / "metadata.yaml").read_text()
+    assert old in text
+    (folder / "metadata.yaml").write_text(text.replace(old, new, 1))
+    assert_refused(run("topics", folder, cwd=tmp_path), "hostile", "metadata.yaml", field)
+    out = tmp_path / "d.parquet"
+    assert_refused(run("dataset", folder, "--wrench-topic", "/ft", "--no-filter", "-o", out, cwd=tmp_path),
+                   "hostile", field)
     assert not out.exists()
 
 

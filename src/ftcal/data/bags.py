@@ -30,6 +30,7 @@ of ``frame_id``). Every other type goes through rosbags' deserializer.
 
 from __future__ import annotations
 
+import reprlib
 import struct
 import warnings
 from collections.abc import Iterator
@@ -40,7 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.limits import MAX_BAG_TIMESTAMP_NS
+from ..core.limits import MAX_BAG_TIMESTAMP_NS, MAX_TEXT_FILE_BYTES
 from ..runtime.errors import FtcalError, FtcalWarning
 from ..runtime.inputs import check_folder_files, check_input_file
 from .recording import Recording, Stream
@@ -99,6 +100,8 @@ def open_bag(path: str | Path) -> Iterator:
     path = check_input_file(path, "bag (file or ROS 2 bag folder)", folder_ok=True)
     if path.is_dir():
         check_folder_files(path, "bag file")
+    if path.is_dir() and (path / "metadata.yaml").is_file():
+        check_bag_metadata(path / "metadata.yaml")
     for database in sorted(path.glob("*.db3")) if path.is_dir() else [path] if path.suffix == ".db3" else []:
         check_sqlite_bag(database)
     try:
@@ -138,6 +141,92 @@ _SQLITE_FIELDS = {
                  ("data", "blob", None, "serialized message bytes")),
     "schema": (("schema_version", "integer", "schema_version >= 0", "a non-negative integer"),),
 }
+
+
+def _count(value) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and 0 <= value <= MAX_BAG_TIMESTAMP_NS
+
+
+def _text(value) -> bool:
+    return isinstance(value, str)
+
+
+def _optional_text(value) -> bool:
+    return value is None or isinstance(value, str)
+
+
+# What rosbags reads from a ROS 2 bag folder's metadata.yaml (under rosbag2_bagfile_information):
+# field path -> (check, what it must be). "[]" marks each item of a list.
+_METADATA_FIELDS = (
+    (("version",), _count, "a non-negative integer"),
+    (("storage_identifier",), _text, "text (sqlite3 or mcap)"),
+    (("relative_file_paths",), lambda v: isinstance(v, list) and all(map(_text, v)), "a list of file names"),
+    (("compression_format",), _optional_text, "text"),
+    (("compression_mode",), _optional_text, "text"),
+    (("duration", "nanoseconds"), _count, "a non-negative integer (ns)"),
+    (("starting_time", "nanoseconds_since_epoch"), _count, "a non-negative integer (ns)"),
+    (("message_count",), _count, "a non-negative integer"),
+    (("ros_distro",), _optional_text, "text"),
+    (("custom_data",), lambda v: v is None or isinstance(v, dict), "a mapping"),
+    (("topics_with_message_count",), lambda v: isinstance(v, list) and all(isinstance(x, dict) for x in v),
+     "a list of mappings"),
+    (("topics_with_message_count", "[]", "message_count"), _count, "a non-negative integer"),
+    (("topics_with_message_count", "[]", "topic_metadata"), lambda v: isinstance(v, dict), "a mapping"),
+    (("topics_with_message_count", "[]", "topic_metadata", "name"), lambda v: _text(v) and v != "",
+     "a non-empty topic name"),
+    (("topics_with_message_count", "[]", "topic_metadata", "type"), lambda v: _text(v) and v != "",
+     "a non-empty message type"),
+    (("topics_with_message_count", "[]", "topic_metadata", "serialization_format"), _text, "text"),
+    (("topics_with_message_count", "[]", "topic_metadata", "type_description_hash"), _optional_text, "text"),
+    (("topics_with_message_count", "[]", "topic_metadata", "offered_qos_profiles"),
+     lambda v: v is None or isinstance(v, (str, list)), "a list or text"),
+    (("files",), lambda v: v is None or (isinstance(v, list) and all(isinstance(x, dict) for x in v)),
+     "a list of mappings"),
+)
+_MISSING = object()
+
+
+def check_bag_metadata(path: Path) -> None:
+    """Refuse a ROS 2 bag folder's ``metadata.yaml`` holding a field of the wrong type.
+
+    rosbags reads these fields into arithmetic and string operations; a number where text
+    belongs, text where a count belongs, or a mapping where a list belongs ends in a TypeError
+    deep inside it. Each field it reads (:data:`_METADATA_FIELDS`) is checked first; a field
+    that is absent is left to rosbags, which names it.
+
+    Raises
+    ------
+    FtcalError
+        Naming the file, the field (``topics_with_message_count[0].topic_metadata.name``), the value
+        found and what it must be; or if the file is not YAML.
+    """
+    import yaml
+
+    check_input_file(path, "bag metadata file", max_bytes=MAX_TEXT_FILE_BYTES)
+    try:
+        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
+        raise FtcalError(f"Bag {path.parent}: cannot read {path.name} as YAML ({type(exc).__name__}).") from None
+    info = doc.get("rosbag2_bagfile_information") if isinstance(doc, dict) else None
+    if not isinstance(info, dict):
+        raise FtcalError(f"Bag {path.parent}: {path.name} has no rosbag2_bagfile_information mapping.")
+
+    def walk(node, keys: tuple, where: str):
+        if not keys:
+            yield where, node
+            return
+        if keys[0] == "[]":
+            for k, item in enumerate(node if isinstance(node, list) else ()):
+                yield from walk(item, keys[1:], f"{where}[{k}]")
+            return
+        if isinstance(node, dict):
+            yield from walk(node.get(keys[0], _MISSING), keys[1:], f"{where}.{keys[0]}" if where else keys[0])
+
+    for keys, check, meaning in _METADATA_FIELDS:
+        for where, value in walk(info, keys, ""):
+            if value is not _MISSING and not check(value):
+                shown = reprlib.repr(value)  # bounded: YAML aliases can nest a value exponentially
+                raise FtcalError(f"Bag {path.parent}: {path.name}: {where} is {shown}; it must be {meaning}.")
 
 
 def check_sqlite_bag(path: Path) -> None:
