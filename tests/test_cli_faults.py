@@ -238,11 +238,15 @@ def edited_model(source: Path, target: Path, edit) -> Path:
 
 
 def test_overflowing_predictions_are_refused(capfd, files, tmp_path):
-    # Coefficients of 1e300 on the quadratic terms: inputs of a few units overflow to inf.
+    # Coefficients of 1e300 on the quadratic terms: inputs of a few units overflow to inf. The
+    # training ranges shrink to the offsets (where the quadratic terms vanish), or loading refuses
+    # the file first (a prediction that overflows inside its own range).
     def huge(doc):
         for row, exps in zip(doc["coefficients"], doc["terms"]["exponents"]):
             if sum(exps) == 2:  # 28 terms of 1e308 sum to inf
                 row[:] = [1e308] * len(row)
+        for variable in doc["inputs"]:
+            variable["range"] = [variable["offset"]] * 2
     model = edited_model(files.model, tmp_path / "huge.json", huge)
     out = tmp_path / "w.csv"
     fails(capfd, ["predict", model, files.val, "-o", out], "non-finite value(s)")
@@ -255,9 +259,11 @@ def test_overflowing_predictions_are_refused(capfd, files, tmp_path):
 
 
 def test_raw_conversion_overflow_is_refused_in_paper_xml(capfd, files, tmp_path):
-    # An input scale of 1e-200: its raw-input degree-2 coefficients are ~1e400.
+    # An input scale of 1e-200: its raw-input degree-2 coefficients are ~1e400. Its training range
+    # shrinks to the offset with it, or loading refuses the file first (a prediction that overflows
+    # inside its own range: tests/test_hardening_consistency.py).
     model = edited_model(files.model, tmp_path / "tiny-scale.json",
-                         lambda doc: doc["inputs"][0].update(scale=1e-200))
+                         lambda doc: doc["inputs"][0].update(scale=1e-200, range=[doc["inputs"][0]["offset"]] * 2))
     out = tmp_path / "m.xml"
     fails(capfd, ["convert", model, "--to", "paper-xml", "-o", out], "overflows float64")
     assert not out.exists() and not leftovers(tmp_path)

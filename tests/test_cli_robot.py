@@ -167,3 +167,39 @@ def test_dataset_errors(capfd, tmp_path, urdf, logs):
     fails(capfd, ["dataset", str(a), "--urdf", str(bad), "-o", str(out), "--sensor", "arm_ft"], "does not parse")
     fails(capfd, ["dataset", str(a), *base, "--sensor", "arm_ft", "--payload", "forearm:-2"], "mass must be")
     assert not out.exists()
+
+
+def test_a_recording_the_load_cases_do_not_name_is_refused_with_the_nearest(capfd, tmp_path, urdf):
+    """Issue 27: a forgotten or mistyped load case gave the recording no payload, silently."""
+    run = tmp_path / "hevy" / "a.mat"  # the case is 'heavy'
+    make_recording(run, write_v73)
+    toml = tmp_path / "loads.toml"
+    toml.write_text('[[case]]\nname = "heavy"\n[[case.payload]]\nframe = "forearm"\nmass = 2.0\n')
+    out = tmp_path / "d.parquet"
+    fails(capfd, ["dataset", str(run), "--urdf", urdf, "--sensor", "arm_ft", "--payload-file", str(toml),
+                  "--no-filter", "-o", str(out)], "matches no load case (cases: 'heavy'; nearest: 'heavy')")
+    assert not out.exists()
+    typo = tmp_path / "l0kg-r1kgg" / "a.mat"  # the folder convention, mistyped
+    make_recording(typo, write_v73)
+    toml.write_text('[convention.right]\nframe = "forearm"\n')
+    fails(capfd, ["dataset", str(typo), "--urdf", urdf, "--sensor", "arm_ft", "--payload-file", str(toml),
+                  "--no-filter", "-o", str(out)], "'l0kg-r1kgg' is not of the form l<x>kg-r<y>kg")
+    assert not out.exists()
+
+
+def test_a_zero_reference_wrench_is_said_and_refused_by_fit(capfd, tmp_path):
+    """Nothing beyond the sensor (a massless forearm) and no payload: the reference is 0 everywhere."""
+    massless = tmp_path / "massless.urdf"
+    massless.write_text(TINY_URDF.replace('<origin xyz="0.2 0 0"/><mass value="1.5"/>',
+                                          '<origin xyz="0.2 0 0"/><mass value="0.0"/>'))
+    run = tmp_path / "run" / "a.mat"
+    make_recording(run, write_v73)
+    out = tmp_path / "d.parquet"
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")
+        assert main(["dataset", str(run), "--urdf", str(massless), "--sensor", "arm_ft", "--no-filter",
+                     "-o", str(out)]) == 0
+    assert "the reference wrench is zero in every sample" in capfd.readouterr().err
+    assert np.abs(pd.read_parquet(out)[["Fx", "Fy", "Fz", "Tx", "Ty", "Tz"]].to_numpy()).max() < 1e-6
+    fails(capfd, ["fit", str(out), "--degree", "1", "-o", str(tmp_path / "m.json")], "are constant and ~0")
+    assert not (tmp_path / "m.json").exists()

@@ -125,3 +125,45 @@ def test_evaluate_prints_every_metric_with_its_unit(work, capsys):
             [[n] for n in cd.OUTPUTS]}
     assert rows == {"Fx": "N", "Fy": "N", "Fz": "N", "Tx": "N·m", "Ty": "N·m", "Tz": "N·m"}
     assert "resid. acf(1) = lag-1 autocorrelation" in out
+
+
+def test_range_and_span_told_apart_text_and_json_agree(tmp_path, capsys):
+    """Issue 27: 'N outside the training input range' must count only inputs beyond their own min/max.
+
+    Training inputs lie on the line u2 = u1 (± 1e-3); 40 new rows lie on u2 = −u1 inside both
+    ranges (outside the span, by construction), 9 push u1 beyond its maximum (outside the range).
+    Before the fix evaluate printed the 49 as "outside the training input range" with an empty
+    channel list, and the JSON's count disagreed with the text's split.
+    """
+    import pandas as pd
+
+    rng = np.random.default_rng(27)
+    t = rng.uniform(-1, 1, 500)
+    train = pd.DataFrame({"u1": t, "u2": t + 1e-3 * rng.normal(size=500)})
+    train["Fx"] = 2 * train.u1 + train.u2 + 0.01 * rng.normal(size=500)
+    train.to_csv(tmp_path / "train.csv", index=False)
+    assert main(["fit", str(tmp_path / "train.csv"), "--inputs", "u1,u2", "--outputs", "Fx", "--degree", "1",
+                 "-o", str(tmp_path / "m.json")]) == 0
+    s = rng.uniform(-0.8, 0.8, 40)
+    span = pd.DataFrame({"u1": s, "u2": -s})
+    inside = pd.DataFrame({"u1": t[:100] * 0.9, "u2": t[:100] * 0.9})
+    beyond = pd.DataFrame({"u1": np.full(9, train.u1.max() + 0.5), "u2": np.full(9, train.u2.max() * 0.5)})
+    new = pd.concat([span, inside, beyond], ignore_index=True)
+    new["Fx"] = 2 * new.u1 + new.u2
+    new.to_csv(tmp_path / "new.csv", index=False)
+    capsys.readouterr()
+    assert main(["evaluate", str(tmp_path / "m.json"), str(tmp_path / "new.csv")]) == 0
+    text = capsys.readouterr().out
+    assert "149 samples, 9 outside the training input range" in text
+    assert "40 more inside every input's range but outside the training span" in text
+    assert "outside: u1 up to" in text and "u2 up to" not in text
+    assert main(["evaluate", str(tmp_path / "m.json"), str(tmp_path / "new.csv"), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert (doc["n_outside_range"], doc["n_outside_span"], doc["n_out_of_range"]) == (9, 40, 49)
+    with warnings.catch_warnings():  # predict (and compensate, score): the same split, one warning
+        warnings.simplefilter("always", FtcalWarning)
+        assert main(["predict", str(tmp_path / "m.json"), str(tmp_path / "new.csv"), "-o",
+                     str(tmp_path / "p.csv")]) == 0
+    lines = warning_lines(capsys.readouterr().err)
+    assert len(lines) == 1 and "9 of 149 samples have inputs outside the training range: u1" in lines[0]
+    assert "40 of 149 sample(s) inside the training range lie outside the span" in lines[0]

@@ -144,3 +144,74 @@ def test_cli_payload_with_gravity_from_the_urdf(tmp_path):
     nothing = subprocess.run([ftcal, "payload", str(tmp_path / "poses.csv"), "--urdf", str(UR5), "-o",
                               str(tmp_path / "q.json")], capture_output=True, text=True)
     assert nothing.returncode == 2 and "--ft-joint" in nothing.stderr and not (tmp_path / "q.json").exists()
+
+
+def test_cli_compensate_with_gravity_from_the_urdf(tmp_path):
+    """Issue 27: compensate takes the same robot-model gravity source as payload (--urdf/--ft-joint/--base).
+
+    Truth by construction: readings = tool gravity wrench (hand kinematics) + bias + a known contact
+    wrench; compensating with the payload identified from contact-free poses returns the contact.
+    """
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import pandas as pd
+
+    rng = np.random.default_rng(19)
+    names = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint",
+             "wrist_3_joint"]
+    mass, com = 0.9, np.array([-0.02, 0.01, 0.05])
+    bias = np.array([1.0, -0.5, 0.3, 0.02, -0.04, 0.01])
+
+    def table(q, contact):
+        rows = []
+        for k in range(len(q)):
+            rotation, _ = ur5_chain_rotation(q[k], "ee_link")
+            g_sensor = rotation.T @ G_BASE
+            wrench = np.r_[mass * g_sensor, np.cross(com, mass * g_sensor)] + bias + contact[k]
+            rows.append({**dict(zip(names, q[k])), **{f"u{i + 1}": v for i, v in enumerate(wrench)}})
+        return pd.DataFrame(rows)
+
+    q = rng.uniform(-3, 3, (30, 6))
+    table(q, np.zeros((30, 6))).to_csv(tmp_path / "poses.csv", index=False)
+    contact = rng.normal(size=(12, 6))
+    table(rng.uniform(-3, 3, (12, 6)), contact).to_csv(tmp_path / "work.csv", index=False)
+    ftcal = str(Path(sys.executable).with_name("ftcal"))
+    robot = ["--urdf", str(UR5), "--ft-joint", "ee_fixed_joint", "--base", "base_link"]
+    done = subprocess.run([ftcal, "payload", str(tmp_path / "poses.csv"), *robot, "-o", str(tmp_path / "p.json")],
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    done = subprocess.run([ftcal, "compensate", str(tmp_path / "p.json"), str(tmp_path / "work.csv"), *robot,
+                           "-o", str(tmp_path / "c.csv")], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    out = pd.read_csv(tmp_path / "c.csv")
+    np.testing.assert_allclose(out[["Fx", "Fy", "Fz", "Tx", "Ty", "Tz"]].to_numpy(), contact, atol=1e-8)
+    # no gravity source: the message names only options compensate accepts (its --model is a calibration)
+    none = subprocess.run([ftcal, "compensate", str(tmp_path / "p.json"), str(tmp_path / "work.csv"), "-o",
+                           str(tmp_path / "d.csv")], capture_output=True, text=True)
+    assert none.returncode == 2 and "--urdf PATH" in none.stderr and "--model NAME" not in none.stderr
+
+
+def test_a_missing_joint_on_the_sensor_chain_is_refused_not_held_at_zero(tmp_path):
+    """Issue 27 (no silent zeros): a joint column left out was held at 0 rad, turning gravity in the
+    sensor frame without a word. Joints on the chain from the base to the sensor are required."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import pandas as pd
+
+    rng = np.random.default_rng(3)
+    names = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint"]
+    table = pd.DataFrame(rng.uniform(-3, 3, (20, 5)), columns=names)  # no wrist_3_joint
+    for i in range(6):
+        table[f"u{i + 1}"] = rng.normal(size=20)
+    table.to_csv(tmp_path / "poses.csv", index=False)
+    ftcal = str(Path(sys.executable).with_name("ftcal"))
+    done = subprocess.run([ftcal, "payload", str(tmp_path / "poses.csv"), "--urdf", str(UR5), "--ft-joint",
+                           "ee_fixed_joint", "--base", "base_link", "-o", str(tmp_path / "p.json")],
+                          capture_output=True, text=True)
+    lines = done.stderr.strip().splitlines()
+    assert done.returncode == 2 and len(lines) == 1 and "'wrist_3_joint'" in lines[0], done.stderr
+    assert not (tmp_path / "p.json").exists()

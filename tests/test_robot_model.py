@@ -169,7 +169,13 @@ com = [0.2, 0.0, 0.0]
                                                                 ("forearm", 2.5, (0.2, 0.0, 0.0))]
     with pytest.raises(FtcalError, match=r"no \[convention.left\]"):
         config.resolve(tmp_path / "l1kg-r0kg" / "grid.mat")
-    plain = config.resolve(tmp_path / "other.mat", extra=(Payload("tool", 1.0),))
+    # issue 27: a recording the file's cases do not name is refused (no silent zero payload), nearest named
+    with pytest.raises(FtcalError, match=r"matches no load case \(cases: 'heavy'.*nearest: 'heavy'"):
+        config.resolve(tmp_path / "hevy" / "run8.mat")
+    with pytest.raises(FtcalError, match=r"matches no load case.*nearest: 'run7.mat'"):
+        config.resolve(tmp_path / "run8.mat")
+    always = LoadCaseConfig(payloads=config.payloads)  # only [[payload]]: every recording, its own group
+    plain = always.resolve(tmp_path / "other.mat", extra=(Payload("tool", 1.0),))
     assert plain.name == "other" and [p.mass for p in plain.payloads] == [0.4, 1.0]
     assert LoadCaseConfig().resolve("a/b.csv").name == "b"
 

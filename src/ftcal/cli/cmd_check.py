@@ -6,7 +6,7 @@ from ..core.limits import (FINDING_CONFIDENCE, HOLD_SAMPLE_RATE, MAX_COM_DISTANC
                            MAX_TORQUE_ERROR, MIN_HOLDS, MIN_ROTATION_DEG)
 from ._common import column_list, positive_float, require_suffix
 from ._examples import epilog
-from .cmd_payload import add_kinematics_options, add_robot_source_options
+from ._gravity import add_kinematics_options, add_robot_source_options
 
 MAX_POSES_PRINTED = 8
 
@@ -89,7 +89,7 @@ def run(args) -> int:
 
 def run_conventions(args) -> int:
     from ..check.conventions import check_conventions, read_holds
-    from .cmd_payload import kinematics_source
+    from ._gravity import kinematics_source
 
     holds = read_holds(args.data, kinematics_source(args), wrench=args.wrench, group_by=args.group_by,
                        reaction=args.reaction, time=args.time, rate=args.rate)
@@ -145,7 +145,7 @@ def run_accept(args) -> int:
     from ..check.accept import acceptance_test, axis_limits, read_test_data
     from ..files.model_files import read_model_file
     from ..runtime.errors import FtcalError
-    from .cmd_payload import kinematics_source
+    from ._gravity import kinematics_source
 
     if args.history_dir is not None and args.serial is None:
         raise FtcalError("--history-dir needs --serial SERIAL (the sensor the result belongs to).")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from ._common import column_list, require_suffix
 from ._examples import epilog
-from .cmd_payload import add_kinematics_options, check_not_input, kinematics_source
+from ._gravity import add_kinematics_options, add_robot_source_options, check_not_input, kinematics_source
 
 
 def register(sub) -> None:
@@ -26,6 +26,7 @@ def register(sub) -> None:
     p.add_argument("--wrench", type=column_list, metavar="FX,FY,FZ,TX,TY,TZ",
                    help="measured wrench columns without --model (default: the payload file's, else u1,...,u6)")
     add_kinematics_options(p)
+    add_robot_source_options(p, named_models=False)
     p.set_defaults(func=run)
 
 

@@ -113,6 +113,18 @@ def check_finite_metrics(summary: dict, keys) -> None:
                                  "(inputs far outside its training range?); nothing to report.")
 
 
+def range_and_span_counts(summary: dict) -> tuple[int, int]:
+    """(samples with an input outside its training range, samples inside every range but outside the span).
+
+    ``summary["n_out_of_range"]`` counts both (the model's :meth:`out_of_range`); the split is
+    ``summary["out_of_range"]``'s, so the text and the JSON give the same two numbers.
+    """
+    ranges = summary.get("out_of_range")
+    if not ranges:
+        return 0, 0
+    return int(ranges["n_out_of_range"]), int(ranges.get("n_outside_span", 0))
+
+
 def run(args) -> int:
     from ..core.metrics import EVALUATION_KEYS as JSON_KEYS
     from ..core.metrics import METRIC_NAMES, METRIC_NOTES, format_metric, output_units
@@ -122,8 +134,11 @@ def run(args) -> int:
     check_finite_metrics(summary, JSON_KEYS)
     if "one_step" in summary:
         check_finite_metrics(summary["one_step"], JSON_KEYS)
+    outside_range, outside_span = range_and_span_counts(summary)
     if args.json:
         payload = {k: summary[k] for k in JSON_KEYS}
+        # The same two counts as the text: n_out_of_range = n_outside_range + n_outside_span.
+        payload["n_outside_range"], payload["n_outside_span"] = outside_range, outside_span
         payload["out_of_range"] = summary["out_of_range"]
         for other in ("one_step", "free_run"):
             if other in summary:
@@ -134,8 +149,10 @@ def run(args) -> int:
         print(f"ARX model: metrics of {args.mode} prediction"
               + (" (measured past outputs, the paper's evaluation)" if args.mode == "one-step"
                  else f" from {args.start} history") + "; the other mode's norm RMSE is at the end")
-    print(f"{summary['n_samples']} samples, {summary['n_out_of_range']} outside the training input range")
-    if summary["out_of_range"]:  # said once, here, with what it did to the error
+    print(f"{summary['n_samples']} samples, {outside_range} outside the training input range (an input beyond "
+          "its training min/max)" + (f"; {outside_span} more inside every input's range but outside the training "
+                                     "span (input combinations the training data never had)" if outside_span else ""))
+    if outside_range:  # said once, here, with what it did to the error
         print(f"  outside: {channel_text(summary['out_of_range'])}")
         if effect_text(summary["out_of_range"]):
             print(f"  {effect_text(summary['out_of_range'])}")

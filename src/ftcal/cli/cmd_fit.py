@@ -429,4 +429,20 @@ def report_fit(model, path: str) -> None:
     print("training RMSE per output: " + ", ".join(f"{n} {v:.4g}" + (f" {u}" if u else "") for n, v, u in
                                                   zip(model.output_names_, metrics["rmse"],
                                                       output_units(model.output_names_))))
+    warn_if_exact(model.output_names_, metrics.get("best_fit"))
     print(f"wrote {path}")
+
+
+def warn_if_exact(names, best_fit) -> None:
+    """Say loudly when the training error is ~0 of the outputs' spread: no real sensor fits that well.
+
+    Printed as a warning line, not raised as a Python warning: simulations without noise are legitimate
+    inputs (tests, demos), and the line is for the person reading the fit's report.
+    """
+    from ..core.limits import EXACT_FIT
+
+    exact = [n for n, b in zip(names, best_fit or ()) if b is not None and b > 1.0 - EXACT_FIT]
+    if exact:
+        print(f"warning: the training error of {', '.join(exact)} is ~0 of the outputs' spread (BestFit > 1 - "
+              f"{EXACT_FIT:g}): the reference is an exact function of the inputs (a reference copied from or "
+              "computed from the readings?); no measured sensor fits this well.", file=sys.stderr)

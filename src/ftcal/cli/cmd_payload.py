@@ -8,107 +8,11 @@ from ..core.limits import BIAS_DRIFTS
 from ..runtime.errors import FtcalError
 from ._common import column_list, positive_float, require_suffix
 from ._examples import epilog
+from ._gravity import add_kinematics_options, add_robot_source_options, check_not_input, kinematics_source
 
 MAX_GROUPS_PRINTED = 8
 # A re-tared bias further than this many standard errors from the identified one is drift, not noise.
 REBIAS_SIGNIFICANT = 3.0
-
-
-def add_kinematics_options(p: argparse.ArgumentParser) -> None:
-    """Gravity source (orientation or gravity columns), --g and the --dynamic motion columns."""
-    source = p.add_mutually_exclusive_group()
-    source.add_argument("--orientation", type=column_list, metavar="QX,QY,QZ,QW",
-                        help="quaternion columns, ROS order x,y,z,w: rotation from the sensor frame to a "
-                             "world frame with gravity along -z (e.g. qx,qy,qz,qw)")
-    source.add_argument("--gravity-columns", type=column_list, metavar="GX,GY,GZ",
-                        help="gravity vector in the sensor frame, m/s² (e.g. gx,gy,gz)")
-    p.add_argument("--g", type=positive_float, default=9.81, metavar="M/S2",
-                   help="gravity magnitude (default 9.81 m/s²)")
-    p.add_argument("--dynamic", action="store_true",
-                   help="use angular velocity/acceleration and linear acceleration too (10 inertial parameters)")
-    p.add_argument("--angular-velocity", type=column_list, default=("wx", "wy", "wz"), metavar="WX,WY,WZ",
-                   help="gyroscope columns in the sensor frame, rad/s (default wx,wy,wz; --dynamic)")
-    p.add_argument("--linear-acceleration", type=column_list, default=("ax", "ay", "az"), metavar="AX,AY,AZ",
-                   help="accelerometer columns at the sensor origin, sensor frame, m/s², gravity included "
-                        "(default ax,ay,az; used with --dynamic when present, else the origin is at rest)")
-    p.add_argument("--angular-acceleration", type=column_list, metavar="C1,C2,C3",
-                   help="angular acceleration columns, rad/s² (default: differentiate the angular velocity)")
-    p.add_argument("--time", metavar="COL",
-                   help="time column in s (default: the column 'time' where there is one, to find the static "
-                        "holds; --dynamic differentiates ω over it; payload: enables --bias-drift; compensate: "
-                        "default the payload file's)")
-
-
-def add_robot_source_options(p: argparse.ArgumentParser) -> None:
-    """--urdf/--model, --sensor, --ft-joint/--ft-frame, --base, --degrees: gravity from joint columns."""
-    robot = p.add_argument_group("gravity from a robot model and joint columns (named as the URDF's joints)")
-    which = robot.add_mutually_exclusive_group()
-    which.add_argument("--urdf", dest="robot_urdf", metavar="PATH", help="URDF of the robot (with --sensor)")
-    which.add_argument("--model", dest="robot_model", metavar="NAME",
-                       help="robot model from icub-models, e.g. iCubGenova04 (with --sensor)")
-    robot.add_argument("--sensor", metavar="NAME", help="F/T sensor of the model (sensor or joint name)")
-    robot.add_argument("--ft-joint", metavar="JOINT", help="declare the F/T sensor on this fixed joint (plain URDFs)")
-    robot.add_argument("--ft-frame", metavar="LINK", help="sensor frame of --ft-joint (default: its child link)")
-    robot.add_argument("--base", metavar="FRAME", help="fixed base frame, gravity along its -z")
-    robot.add_argument("--degrees", action="store_true", help="joint columns are in degrees")
-
-
-def kinematics_source(args):
-    """The :class:`~ftcal.payload.kinematics.KinematicsSource` the options describe."""
-    from ..payload.kinematics import GravityColumnsSource, MotionSource, OrientationSource
-    from ..runtime.errors import FtcalError
-
-    if getattr(args, "robot_urdf", None) is not None or getattr(args, "robot_model", None) is not None:
-        source = robot_source(args)
-    elif args.orientation is not None:
-        if len(args.orientation) != 4:
-            raise FtcalError(f"--orientation needs 4 columns qx,qy,qz,qw; got {','.join(args.orientation)}.")
-        source = OrientationSource(args.orientation, args.g)
-    elif args.gravity_columns is not None:
-        if len(args.gravity_columns) != 3:
-            raise FtcalError(f"--gravity-columns needs 3 columns; got {','.join(args.gravity_columns)}.")
-        source = GravityColumnsSource(args.gravity_columns, args.g)
-    else:
-        raise FtcalError("give the sensor's orientation: --orientation qx,qy,qz,qw, --gravity-columns gx,gy,gz, "
-                         "or a robot model (--urdf PATH or --model NAME) with --sensor.")
-    if not args.dynamic:
-        return source
-    for option, cols in (("--angular-velocity", args.angular_velocity),
-                         ("--linear-acceleration", args.linear_acceleration),
-                         ("--angular-acceleration", args.angular_acceleration)):
-        if cols is not None and len(cols) != 3:
-            raise FtcalError(f"{option} needs 3 columns; got {','.join(cols)}.")
-    return MotionSource(source, args.angular_velocity, args.linear_acceleration, args.angular_acceleration,
-                        args.time or "time")
-
-
-def robot_source(args):
-    """Gravity in the sensor frame from joint columns and the robot model (--urdf/--model, --sensor)."""
-    from ..robot import RobotModel
-    from ..robot.kinematics import JointColumnsSource
-    from ..runtime.errors import FtcalError
-    from .cmd_sensors import declared_sensors
-
-    if args.orientation is not None or args.gravity_columns is not None:
-        raise FtcalError("give one gravity source: a robot model (--urdf/--model), --orientation or "
-                         "--gravity-columns.")
-    robot = RobotModel.load(urdf=args.robot_urdf, name=args.robot_model, declared=declared_sensors(args))
-    robot.require_ft_sensors()
-    if args.sensor is None and len(robot.ft_sensors) > 1:
-        raise FtcalError(f"--sensor: URDF {robot.source} has {len(robot.ft_sensors)} F/T sensors; name one of "
-                         f"{', '.join(s.name for s in robot.ft_sensors)}.")
-    sensor = robot.sensor(args.sensor) if args.sensor is not None else robot.ft_sensors[0]
-    return JointColumnsSource(robot, sensor.name, args.base, args.g, args.degrees)
-
-
-def check_not_input(output: str, inputs) -> None:
-    from pathlib import Path
-
-    from ..runtime.errors import FtcalError
-
-    target = Path(output).resolve()
-    if any(Path(p).resolve() == target for p in inputs):
-        raise FtcalError(f"-o {output}: is also an input file; write to another file.")
 
 
 def register(sub) -> None:

@@ -28,6 +28,7 @@ import numpy as np
 
 from ..runtime.errors import FtcalError
 from .directions import order_by_size
+from .limits import ZERO_REFERENCE_WRENCH
 
 # Relative singular values below these: the direction is not excited / hardly excited.
 UNEXCITED = 1e-3
@@ -161,10 +162,17 @@ def output_excitation(spread: Spread, names: Sequence[str]) -> OutputExcitation:
         rms = np.sqrt(np.trace(cov[np.ix_(members, members)]) / len(members))
         # Rounding leaves a constant column a spread of ~1e-16 of its value: that is no variation.
         constant = rms <= CONSTANT_RELATIVE * np.abs(spread.mean[members]).max()
+        # Forces (N) and torques (N m) a millionth of a unit apart are zero: a reference wrench of
+        # ~1e-12 everywhere is a missing payload, not a calibration load (issue 27).
+        constant = constant or (block in ("F", "T") and rms < ZERO_REFERENCE_WRENCH)
         scale[members] = 0.0 if rms == 0 or constant else 1.0 / rms
     if not np.any(scale):
-        raise FtcalError(f"the reference outputs {','.join(names)} are constant: nothing to fit a calibration to; "
-                         "record several loads or poses.")
+        size = float(np.abs(spread.mean).max(initial=0.0))
+        raise FtcalError(f"the reference outputs {','.join(names)} are constant"
+                         + (f" and ~0 (largest mean {size:.2g})" if size < ZERO_REFERENCE_WRENCH else "")
+                         + ": nothing to fit a calibration to; record several loads or poses"
+                         + (" (a zero reference is a load case with no payload: see 'ftcal dataset --payload-file')"
+                            if size < ZERO_REFERENCE_WRENCH else "") + ".")
     scaled = cov * scale[:, None] * scale[None, :]
     values, vectors = np.linalg.eigh(0.5 * (scaled + scaled.T))
     order = np.argsort(values)[::-1]

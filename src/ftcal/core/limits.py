@@ -182,3 +182,15 @@ are far smaller, and values near 1e308 overflow the first product they meet."""
 MAX_CELL_MAGNITUDE = 1e100
 """Largest magnitude of a number in a table: sums of squares and products of such values still fit in
 float64 (about 1e308); larger ones are corrupt data, and would make fits overflow into NaN."""
+
+MAX_BAG_TIMESTAMP_NS = 4 * 10**18
+"""ns since the Unix epoch (year 2096): a ROS 2 bag's message timestamps must lie in [0, this]; larger
+values overflow rosbags' int64 arithmetic (``MAX(timestamp) + 1``) or mean a corrupt row."""
+
+ZERO_REFERENCE_WRENCH = 1e-6
+"""N and N m: an expected wrench below this on every axis of every sample of a recording is zero
+(nothing beyond the sensor): ``ftcal dataset`` says so loudly."""
+
+EXACT_FIT = 1e-9
+"""Relative: a training RMSE below this times the output's standard deviation (BestFit above 1 − this)
+means the outputs are an exact function of the inputs (a copied column?): ``ftcal fit`` says so."""

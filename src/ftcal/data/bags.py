@@ -30,6 +30,7 @@ of ``frame_id``). Every other type goes through rosbags' deserializer.
 
 from __future__ import annotations
 
+import reprlib
 import struct
 import warnings
 from collections.abc import Iterator
@@ -40,6 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.limits import MAX_BAG_TIMESTAMP_NS, MAX_TEXT_FILE_BYTES
 from ..runtime.errors import FtcalError, FtcalWarning
 from ..runtime.inputs import check_folder_files, check_input_file
 from .recording import Recording, Stream
@@ -98,6 +100,10 @@ def open_bag(path: str | Path) -> Iterator:
     path = check_input_file(path, "bag (file or ROS 2 bag folder)", folder_ok=True)
     if path.is_dir():
         check_folder_files(path, "bag file")
+    if path.is_dir() and (path / "metadata.yaml").is_file():
+        check_bag_metadata(path / "metadata.yaml")
+    for database in sorted(path.glob("*.db3")) if path.is_dir() else [path] if path.suffix == ".db3" else []:
+        check_sqlite_bag(database)
     try:
         reader = AnyReader([path], default_typestore=get_typestore(Stores.LATEST))
         reader.open()
@@ -111,6 +117,163 @@ def open_bag(path: str | Path) -> Iterator:
                          f"({type(exc).__name__}: {exc}).") from None
     finally:
         reader.close()
+
+
+# Each table rosbags reads from a ROS 2 ``.db3``: (column, SQLite type it must hold, extra SQL condition
+# every value must meet, what the condition means). SQLite stores any type in any column (its
+# declared types are affinities), so a hostile or damaged file can hold text where rosbags reads an
+# integer; every field is checked once, in SQL, before rosbags or ftcal reads it.
+_SQLITE_FIELDS = {
+    "topics": (("id", "integer", "id >= 0", "a non-negative integer"),
+               ("name", "text", "length(name) > 0", "a non-empty topic name"),
+               ("type", "text", "length(type) > 0", "a non-empty message type"),
+               ("serialization_format", "text", None, "text"),
+               ("offered_qos_profiles", "text", None, "text"),
+               ("type_description_hash", "text", None, "text")),
+    "message_definitions": (("topic_type", "text", None, "text"),
+                            ("encoding", "text", "encoding IN ('ros2msg', 'ros2idl')", "'ros2msg' or 'ros2idl'"),
+                            ("encoded_message_definition", "text", None, "text"),
+                            ("type_description_hash", "text", None, "text")),
+    "messages": (("id", "integer", None, "an integer"),
+                 ("topic_id", "integer", "topic_id IN (SELECT id FROM topics)", "the id of a row of topics"),
+                 ("timestamp", "integer", f"timestamp BETWEEN 0 AND {MAX_BAG_TIMESTAMP_NS}",
+                  f"nanoseconds in [0, {MAX_BAG_TIMESTAMP_NS}]"),
+                 ("data", "blob", None, "serialized message bytes")),
+    "schema": (("schema_version", "integer", "schema_version >= 0", "a non-negative integer"),),
+}
+
+
+def _count(value) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and 0 <= value <= MAX_BAG_TIMESTAMP_NS
+
+
+def _text(value) -> bool:
+    return isinstance(value, str)
+
+
+def _optional_text(value) -> bool:
+    return value is None or isinstance(value, str)
+
+
+# What rosbags reads from a ROS 2 bag folder's metadata.yaml (under rosbag2_bagfile_information):
+# field path -> (check, what it must be). "[]" marks each item of a list.
+_METADATA_FIELDS = (
+    (("version",), _count, "a non-negative integer"),
+    (("storage_identifier",), _text, "text (sqlite3 or mcap)"),
+    (("relative_file_paths",), lambda v: isinstance(v, list) and all(map(_text, v)), "a list of file names"),
+    (("compression_format",), _optional_text, "text"),
+    (("compression_mode",), _optional_text, "text"),
+    (("duration", "nanoseconds"), _count, "a non-negative integer (ns)"),
+    (("starting_time", "nanoseconds_since_epoch"), _count, "a non-negative integer (ns)"),
+    (("message_count",), _count, "a non-negative integer"),
+    (("ros_distro",), _optional_text, "text"),
+    (("custom_data",), lambda v: v is None or isinstance(v, dict), "a mapping"),
+    (("topics_with_message_count",), lambda v: isinstance(v, list) and all(isinstance(x, dict) for x in v),
+     "a list of mappings"),
+    (("topics_with_message_count", "[]", "message_count"), _count, "a non-negative integer"),
+    (("topics_with_message_count", "[]", "topic_metadata"), lambda v: isinstance(v, dict), "a mapping"),
+    (("topics_with_message_count", "[]", "topic_metadata", "name"), lambda v: _text(v) and v != "",
+     "a non-empty topic name"),
+    (("topics_with_message_count", "[]", "topic_metadata", "type"), lambda v: _text(v) and v != "",
+     "a non-empty message type"),
+    (("topics_with_message_count", "[]", "topic_metadata", "serialization_format"), _text, "text"),
+    (("topics_with_message_count", "[]", "topic_metadata", "type_description_hash"), _optional_text, "text"),
+    (("topics_with_message_count", "[]", "topic_metadata", "offered_qos_profiles"),
+     lambda v: v is None or isinstance(v, (str, list)), "a list or text"),
+    (("files",), lambda v: v is None or (isinstance(v, list) and all(isinstance(x, dict) for x in v)),
+     "a list of mappings"),
+)
+_MISSING = object()
+
+
+def check_bag_metadata(path: Path) -> None:
+    """Refuse a ROS 2 bag folder's ``metadata.yaml`` holding a field of the wrong type.
+
+    rosbags reads these fields into arithmetic and string operations; a number where text
+    belongs, text where a count belongs, or a mapping where a list belongs ends in a TypeError
+    deep inside it. Each field it reads (:data:`_METADATA_FIELDS`) is checked first; a field
+    that is absent is left to rosbags, which names it.
+
+    Raises
+    ------
+    FtcalError
+        Naming the file, the field (``topics_with_message_count[0].topic_metadata.name``), the value
+        found and what it must be; or if the file is not YAML.
+    """
+    import yaml
+
+    check_input_file(path, "bag metadata file", max_bytes=MAX_TEXT_FILE_BYTES)
+    try:
+        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
+        raise FtcalError(f"Bag {path.parent}: cannot read {path.name} as YAML ({type(exc).__name__}).") from None
+    info = doc.get("rosbag2_bagfile_information") if isinstance(doc, dict) else None
+    if not isinstance(info, dict):
+        raise FtcalError(f"Bag {path.parent}: {path.name} has no rosbag2_bagfile_information mapping.")
+
+    def walk(node, keys: tuple, where: str):
+        if not keys:
+            yield where, node
+            return
+        if keys[0] == "[]":
+            for k, item in enumerate(node if isinstance(node, list) else ()):
+                yield from walk(item, keys[1:], f"{where}[{k}]")
+            return
+        if isinstance(node, dict):
+            yield from walk(node.get(keys[0], _MISSING), keys[1:], f"{where}.{keys[0]}" if where else keys[0])
+
+    for keys, check, meaning in _METADATA_FIELDS:
+        for where, value in walk(info, keys, ""):
+            if value is not _MISSING and not check(value):
+                shown = reprlib.repr(value)  # bounded: YAML aliases can nest a value exponentially
+                raise FtcalError(f"Bag {path.parent}: {path.name}: {where} is {shown}; it must be {meaning}.")
+
+
+def check_sqlite_bag(path: Path) -> None:
+    """Refuse a ROS 2 ``.db3`` whose tables hold a value of the wrong type or out of range.
+
+    Every column of ``topics``, ``messages``, ``message_definitions`` and ``schema`` that
+    rosbags or ftcal reads is checked for its SQLite storage type (``typeof``) and range (see
+    ``_SQLITE_FIELDS``), in one SQL query per column, so no value of the wrong kind reaches Python.
+
+    Raises
+    ------
+    FtcalError
+        Naming the file, table, row id, column, the type found and what the column must hold;
+        or if the file is not a readable SQLite database.
+    """
+    import sqlite3
+
+    try:
+        connection = sqlite3.connect(f"{path.resolve().as_uri()}?mode=ro&immutable=1", uri=True)
+    except sqlite3.Error as exc:
+        raise FtcalError(f"Bag {path}: cannot open it as an SQLite database ({exc}).") from None
+    try:
+        tables = {row[0] for row in connection.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+        for table, fields in _SQLITE_FIELDS.items():
+            if table not in tables:
+                continue
+            columns = {row[1] for row in connection.execute(f"PRAGMA table_info({table})")}
+            for column, kind, condition, meaning in fields:
+                if column not in columns:
+                    continue
+                bad = f"typeof({column}) != '{kind}'" + (f" OR NOT ({condition})" if condition else "")
+                row = connection.execute(f"SELECT rowid, typeof({column}), quote({column}) FROM {table} "
+                                         f"WHERE {bad} LIMIT 1").fetchone()
+                if row is not None:
+                    rowid, found, value = row
+                    shown = value if len(str(value)) <= 40 else f"{str(value)[:40]}..."
+                    held = "NULL" if found == "null" else f"{found} {shown}"
+                    raise FtcalError(f"Bag {path}: table {table}, row {rowid}: column {column} holds {held}; "
+                                     f"it must be {meaning}.")
+        if "topics" in tables and connection.execute(
+                "SELECT COUNT(id) != COUNT(DISTINCT id) FROM topics").fetchone()[0]:
+            raise FtcalError(f"Bag {path}: table topics: two rows share an id.")
+    except sqlite3.Error as exc:
+        raise FtcalError(f"Bag {path}: cannot read it as a ROS 2 SQLite bag; it may be truncated or corrupt "
+                         f"({type(exc).__name__}: {exc}).") from None
+    finally:
+        connection.close()
 
 
 def _storage_errors() -> tuple[type[BaseException], ...]:

@@ -50,6 +50,9 @@ NOISE_FACTOR = 4.0
 # The noise floor is this quantile of the rolling signal (assumes at least this share of still samples).
 FLOOR_QUANTILE = 0.1
 MAX_STRETCHES_SHOWN = 3
+# rad (or rad of joint travel): two rows of a table of poses closer than this are the same pose
+# (the still threshold over one rolling window, MIN_ANGULAR_RATE * HOLD_WINDOW_S).
+SAME_POSE = MIN_ANGULAR_RATE * HOLD_WINDOW_S
 
 
 @dataclass(frozen=True)
@@ -66,6 +69,7 @@ class Holds:
     static: np.ndarray
     hold: np.ndarray
     signal: str
+    per_pose: bool = False  # rows far apart, no samples between them: each pose's row(s) taken as a hold
 
     @property
     def n_samples(self) -> int:
@@ -108,7 +112,7 @@ class Holds:
         hold = np.full(self.n_samples, -1, dtype=np.int64)
         for count, (a, b) in enumerate(best.values()):  # runs appear in time order
             hold[a:b] = count
-        return Holds(hold >= 0, hold, self.signal)
+        return Holds(hold >= 0, hold, self.signal, self.per_pose)
 
     def moving_stretches(self) -> list[tuple[int, int]]:
         """(first row, last row + 1) of each run of moving samples."""
@@ -118,6 +122,10 @@ class Holds:
     def describe(self, time: np.ndarray | None = None) -> str:
         """One line: how many samples move and where (rows, and seconds from the first sample)."""
         stretches = self.moving_stretches()
+        if self.per_pose:
+            gap = f" a median {float(np.median(np.diff(time))):.3g} s apart" if time is not None and time.size > 1 else ""
+            return (f"a table of static poses: rows{gap}, no samples between them to see motion, so each row (or "
+                    f"run of rows at one {self.signal}) is a hold: {self.n_holds} hold(s) in {self.n_samples} rows")
         if not stretches:
             return f"no moving samples ({self.n_holds} hold(s), from the {self.signal})"
         shown = []
@@ -170,19 +178,22 @@ def find_holds(time: np.ndarray, *, orientation: np.ndarray | None = None, gravi
             raise FtcalError(f"{where}: column {time_column!r} does not increase at row {a + bad[0] + 1}; "
                              "sort the table by time (or, for a ROS bag, rebuild it with --receive-time).")
     jumps = np.zeros(n, dtype=bool)
+    travel = None
     if orientation is not None:
         q = np.asarray(orientation, dtype=np.float64)
         q = q / np.linalg.norm(q, axis=1, keepdims=True)
-        signal, (still, jumps) = "orientation", _kinematic_still(time, lambda i, j: _rotation_angle(q[i], q[j]),
-                                                                 bounds)
+        signal, travel = "orientation", lambda i, j: _rotation_angle(q[i], q[j])
     elif gravity is not None:
         g = np.asarray(gravity, dtype=np.float64)
-        signal, (still, jumps) = "gravity direction", _kinematic_still(
-            time, lambda i, j: _direction_angle(g[i], g[j]), bounds)
+        signal, travel = "gravity direction", lambda i, j: _direction_angle(g[i], g[j])
     elif joints is not None:
         qj = np.asarray(joints, dtype=np.float64)
-        signal, (still, jumps) = "joints", _kinematic_still(
-            time, lambda i, j: np.abs(qj[j] - qj[i]).max(axis=1, initial=0.0), bounds)
+        signal, travel = "joints", lambda i, j: np.abs(qj[j] - qj[i]).max(axis=1, initial=0.0)
+    if travel is not None:
+        poses = _pose_rows(time, travel, bounds)
+        if poses is not None:
+            return Holds(np.ones(n, dtype=bool), poses, signal, per_pose=True)
+        still, jumps = _kinematic_still(time, travel, bounds)
     elif wrench is not None:
         signal, still = "wrench variation", _wrench_still(time, np.asarray(wrench, dtype=np.float64), bounds)
     else:
@@ -202,6 +213,29 @@ def find_holds(time: np.ndarray, *, orientation: np.ndarray | None = None, gravi
                 hold[a + start:a + stop] = count
                 count += 1
     return Holds(hold >= 0, hold, signal)
+
+
+def _pose_rows(time: np.ndarray, travel, bounds: np.ndarray) -> np.ndarray | None:
+    """Hold numbers of a table of static poses (one averaged row per pose), else None.
+
+    A recording samples its motion: consecutive rows a fraction of a second apart. A table whose
+    rows lie a median :data:`MIN_HOLD_S` or more apart in every segment has no samples between its
+    rows to see a motion in (a rate over a gap of seconds says nothing), which is the layout of
+    tables of recorded poses (one averaged row each, with the time it was taken). Each row, or run
+    of rows at one pose (travel below :data:`SAME_POSE`), is then a hold.
+    """
+    if time.size < 2:
+        return None
+    hold = np.empty(time.size, dtype=np.int64)
+    count = 0
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        if b - a >= 2 and float(np.median(np.diff(time[a:b]))) < MIN_HOLD_S:
+            return None
+        index = np.arange(a, b)
+        new_pose = np.r_[True, travel(index[:-1], index[1:]) > SAME_POSE] if b - a > 1 else np.ones(1, bool)
+        hold[a:b] = count + np.cumsum(new_pose) - 1
+        count = int(hold[b - 1]) + 1
+    return hold
 
 
 def _rotation_angle(p: np.ndarray, q: np.ndarray) -> np.ndarray:

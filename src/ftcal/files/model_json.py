@@ -356,7 +356,77 @@ def _build(doc: dict, source: str) -> ModelFile:
                              f"{len(outputs)} outputs.")
     # No family field: a file written before families existed, a polynomial.
     model = family_class(doc.get("family", DEFAULT_FAMILY), source).from_document(doc, source)
+    check_envelope_consistency(doc, source)
+    _check_finite_over_training_range(model, doc, source)
     created = doc["created"]
     return ModelFile(model, tuple(v["unit"] for v in inputs), tuple(v["unit"] for v in outputs),
                      tuple(created["sources"]), created["time_utc"], created["ftcal_version"],
                      tuple(fit.get("training_segments", ())), fit.get("prior"))
+
+
+def check_envelope_consistency(doc: dict, source: str) -> None:
+    """Refuse a schema-valid, correctly signed document whose envelope contradicts itself.
+
+    A digest proves the file was not changed after it was written, not that the writer was
+    right: a hand-edited and re-signed file, or one from another tool, can hold an input range
+    with min > max, a scale too small to divide by, per-output metrics for other outputs or a
+    covariance that is no covariance. Each is refused here, once, for every consumer (``predict``,
+    ``evaluate``, ``report``, ``info``, ``check``, ``compensate``, every ``convert`` target).
+
+    Raises
+    ------
+    FtcalError
+        Naming ``source``, the field (JSON path) and what is wrong with it.
+    """
+    tiny = np.finfo(np.float64).tiny
+    for what in ("inputs", "outputs"):
+        for k, variable in enumerate(doc[what]):
+            where = f"{source}: {what}[{k}] ({variable['name']!r})"
+            low, high = variable["range"]
+            if low is not None and high is not None and low > high:
+                raise FtcalError(f"{where}: range [{low:g}, {high:g}] has min > max.")
+            offset, scale = variable["offset"], variable["scale"]
+            if not tiny <= scale < np.inf:
+                raise FtcalError(f"{where}: scale {scale:g} is too small to divide by (a normalization scale "
+                                 f"must be at least {tiny:.3g}).")
+            for bound in (low, high):
+                if bound is not None and not np.isfinite((bound - offset) / scale):
+                    raise FtcalError(f"{where}: range bound {bound:g} with offset {offset:g} and scale {scale:g} "
+                                     "normalizes to an infinite value.")
+    fit = doc["fit"]
+    names = [v["name"] for v in doc["outputs"]]
+    listed = fit["metrics"].get("outputs")
+    if listed is not None and list(listed) != names:
+        raise FtcalError(f"{source}: fit.metrics.outputs lists {', '.join(map(str, listed))}; the model's outputs "
+                         f"are {', '.join(names)}.")
+    n_terms = len(doc.get("coefficients", ()))
+    if n_terms and fit["rank"] > n_terms:
+        raise FtcalError(f"{source}: fit.rank {fit['rank']} exceeds the {n_terms} terms per output.")
+    spread = fit.get("input_spread")
+    if spread is not None and all(isinstance(r, list) for r in spread["covariance"]):
+        try:
+            cov = np.array(spread["covariance"], dtype=np.float64)
+        except (TypeError, ValueError):
+            return  # wrong shapes or nulls: the family's reader names them
+        if cov.ndim == 2 and cov.shape[0] == cov.shape[1] and np.isfinite(cov).all():
+            size = max(float(np.abs(np.diag(cov)).max(initial=0.0)), tiny)
+            if np.abs(cov - cov.T).max(initial=0.0) > 1e-9 * size:
+                raise FtcalError(f"{source}: fit.input_spread.covariance is not symmetric.")
+            if cov.size and np.linalg.eigvalsh(cov).min() < -1e-9 * size * len(cov):
+                raise FtcalError(f"{source}: fit.input_spread.covariance has a negative variance direction "
+                                 "(not positive semi-definite).")
+
+
+def _check_finite_over_training_range(model: ModelFamily, doc: dict, source: str) -> None:
+    """Refuse a static model whose prediction overflows at its own training range's ends or centre."""
+    spec = doc.get("model", {})
+    if spec.get("na", 0) or spec.get("nb", 0):
+        return  # ARX: a prediction needs past outputs; its coefficients and scales are checked above
+    low = np.array([v["offset"] if v["range"][0] is None else v["range"][0] for v in doc["inputs"]], dtype=float)
+    high = np.array([v["offset"] if v["range"][1] is None else v["range"][1] for v in doc["inputs"]], dtype=float)
+    points = np.vstack([low, (low + high) / 2.0, high])
+    with np.errstate(all="ignore"):
+        predicted = np.asarray(model.predict(points, warn_out_of_range=False), dtype=np.float64)
+    if not np.isfinite(predicted).all():
+        raise FtcalError(f"{source}: the model's prediction overflows (inf or NaN) inside its own training range; "
+                         "its coefficients or normalization are not those of a fitted model.")

@@ -147,6 +147,29 @@ def _parse_drift(doc: dict, source: str) -> BiasDrift:
                      doc.get("selection", ""))
 
 
+def _check_inertia(inertia: np.ndarray, source: str) -> None:
+    """A rigid body's inertia about its COM: symmetric, principal moments >= 0 meeting the triangle inequality."""
+    size = max(float(np.abs(inertia).max()), np.finfo(np.float64).tiny)
+    if np.abs(inertia - inertia.T).max() > 1e-9 * size:
+        raise FtcalError(f"{source}: inertia is not symmetric; it must be a rigid body's inertia matrix.")
+    moments = np.linalg.eigvalsh((inertia + inertia.T) / 2.0)  # ascending
+    if moments[0] < -1e-9 * size or moments[2] > moments[0] + moments[1] + 1e-9 * size:
+        raise FtcalError(f"{source}: inertia has principal moments {', '.join(f'{v:.3g}' for v in moments)} kg m^2; "
+                         "a rigid body's are >= 0 and each at most the sum of the other two.")
+
+
+def _check_drift_span(drift: dict, source: str) -> None:
+    """The drift's recording span must run forward and hold its knots."""
+    start, end = drift["time_start"], drift["time_end"]
+    if start is not None and end is not None and start > end:
+        raise FtcalError(f"{source}: drift.time_start {start:g} s is after drift.time_end {end:g} s.")
+    knots = drift.get("knots")
+    if knots is not None and start is not None and end is not None and (
+            min(knots["time"]) < start - 1e-9 * max(abs(start), 1.0)
+            or max(knots["time"]) > end + 1e-9 * max(abs(end), 1.0)):
+        raise FtcalError(f"{source}: drift.knots.time runs outside [time_start, time_end] = [{start:g}, {end:g}] s.")
+
+
 def _leaves(value) -> list:
     """Every scalar in nested lists and dict values (non-finite floats are None after jsonable)."""
     if isinstance(value, dict):
@@ -190,6 +213,10 @@ def parse_payload(text: str, source: str = "<payload>") -> PayloadParameters:
     if doc["mass"] <= 0:
         raise FtcalError(f"{source}: mass is {doc['mass']} kg; a payload file needs a positive mass.")
     inertia = np.asarray(doc["inertia"], dtype=float) if "inertia" in doc else None
+    if inertia is not None:
+        _check_inertia(inertia, source)
+    if "drift" in doc:
+        _check_drift_span(doc["drift"], source)
     fit = dict(doc["fit"])
     fit["residual_rms"] = np.asarray(fit["residual_rms"], dtype=float)
     return PayloadParameters(float(doc["mass"]), np.asarray(doc["com"], dtype=float),

@@ -40,6 +40,8 @@ from ..data.bags import BagTopics, tf_key
 from ..data.holds import number_across
 from ..data.recording import Stream
 from ..data.signals import channel_issues, smooth
+from ..robot.expected import warn_if_zero_reference
+from ..robot.kinematics import require_chain_joints
 from ..robot.loadcases import LoadCaseConfig
 from ..robot.payloads import Payload
 from ..runtime.errors import FtcalError, FtcalWarning
@@ -190,6 +192,9 @@ def bag_columns(path: Path, topics: BagTopics, segment: int, group: str, robot=N
     if topics.joints is not None:
         joints = recording.joints
         streams["q"] = _urdf_joints(path, joints, robot) if robot is not None else _finite_joints(path, joints)
+        if robot is not None:
+            require_chain_joints(robot, streams["q"].columns, robot.base_frame(options.base)[1], sensor,
+                                 f"Bag {path}: {joints.name}")
     orientation_source = None
     if topics.tf is not None:
         orientation_source = tf_key(topics.tf)
@@ -223,6 +228,7 @@ def bag_columns(path: Path, topics: BagTopics, segment: int, group: str, robot=N
         columns.update({name: on_clock["q"][:, i] for i, name in enumerate(streams["q"].columns)})
     if robot is not None:
         expected = _expected(path, robot, sensor, streams["q"].columns, on_clock["q"], options)
+        warn_if_zero_reference(expected, f"Bag {path}", sensor, group)
         if options.align_first_sample:
             raw = raw - (raw[0] - expected[0])
         columns.update({f"u{i + 1}": raw[:, i] for i in range(6)})

@@ -45,7 +45,8 @@ from ..data.logs import read_recording
 from ..data.recording import sensor_aliases
 from ..data.signals import channel_issues, smooth
 from ..robot.cache import cache_key, cached
-from ..robot.expected import GRAVITY, FloatingBase, expected_wrenches
+from ..robot.expected import GRAVITY, FloatingBase, expected_wrenches, warn_if_zero_reference
+from ..robot.kinematics import require_chain_joints
 from ..robot.loadcases import LoadCase, LoadCaseConfig
 from ..robot.model import RobotModel
 from ..robot.payloads import Payload
@@ -235,7 +236,11 @@ def recording_table(path: str | Path, robot: RobotModel, sensor: str, case: Load
         warnings.warn(str(issue), FtcalWarning, stacklevel=2)
     data = align(recording, aliases, temperature=options.temperature, derivatives=options.derivatives,
                  imu=options.imu, rate=options.rate)
+    if set(data.joint_names) <= set(robot.joint_names):  # else joint_matrix names the joints the URDF lacks
+        require_chain_joints(robot, data.joint_names, options.imu_frame or robot.base_frame(options.base)[1],
+                             ft_sensor.name, f"Recording {path}")
     expected = _expected(path, robot, data, options)[:, ft_sensor.index, :]
+    warn_if_zero_reference(expected, f"Recording {path}", ft_sensor.name, case.name)
     raw, temp = data.ft, data.temperature
     if options.savgol_frame is not None:
         raw = smooth(raw, options.savgol_frame, options.savgol_order, where=f"Recording {path}")

@@ -42,13 +42,15 @@ URDF text and payloads.
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
+from ..core.limits import ZERO_REFERENCE_WRENCH
 from ..runtime.checks import check_int
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, FtcalWarning
 from ..runtime.processes import WorkerProcesses
 from ..runtime.progress import progress_bar
 from .declare import SensorDeclaration
@@ -189,6 +191,20 @@ def expected_wrenches(robot: RobotModel, q: np.ndarray, *, dq: np.ndarray | None
                 out[a:b] = chunk
                 advance(b - a)
     return out
+
+
+def warn_if_zero_reference(expected: np.ndarray, where: str, sensor: str, case: str) -> None:
+    """Warn when the expected wrench of a whole recording is ~0: the fit would learn a sensor that reads zero.
+
+    The robot model then has no mass beyond ``sensor`` and the load case ``case`` attaches none, which is
+    almost always a forgotten payload (``--payload``, ``--payload-file``) or a sensor declared at the tip.
+    """
+    size = float(np.abs(expected).max(initial=0.0)) if expected.size else 0.0
+    if size < ZERO_REFERENCE_WRENCH:
+        warnings.warn(f"{where}: the reference wrench is zero in every sample (max |Fx..Tz| = {size:.2g}): nothing "
+                      f"hangs beyond sensor {sensor!r} in the robot model and load case {case!r} attaches no payload; "
+                      "a fit on it learns a sensor that reads zero. Give the load with --payload or --payload-file.",
+                      FtcalWarning, stacklevel=3)
 
 
 def check_joints(robot: RobotModel, values: np.ndarray, what: str, n: int | None = None) -> np.ndarray:

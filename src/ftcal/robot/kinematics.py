@@ -131,6 +131,25 @@ def _prepare(robot: RobotModel, q, dq, ddq, floating):
     return q, dq, ddq
 
 
+def require_chain_joints(robot: RobotModel, given: Sequence[str], base: str, sensor: str, where: str) -> None:
+    """Refuse data that lack a joint on the chain from ``base`` to F/T ``sensor``.
+
+    A joint without data is held at 0 rad (:meth:`RobotModel.joint_matrix`): off that chain that
+    only moves other limbs, but on it it turns gravity in the sensor frame, silently.
+
+    Raises
+    ------
+    FtcalError
+        Naming ``where``, the missing joints, the base and the sensor.
+    """
+    chain = robot.chain_joints(base, _sensor_frame(robot, sensor)[0])
+    missing = [j for j in chain if j not in set(given)]
+    if missing:
+        raise FtcalError(f"{where}: no data for joint(s) {', '.join(map(repr, missing))}, on the chain from base "
+                         f"{base!r} to sensor {sensor!r}: gravity in the sensor frame depends on them, and a joint "
+                         "without data would be held at 0 rad (joints off that chain may be left out).")
+
+
 def _sensor_frame(robot: RobotModel, sensor: str) -> tuple[str, np.ndarray]:
     """Name of the link the sensor's frame is fixed to, and link_H_sensor (4, 4)."""
     import idyntree.swig as idyn
@@ -325,9 +344,75 @@ class JointColumnsSource:
         non_numeric = [c for c in names if not np.issubdtype(frame[c].dtype, np.number)]
         if non_numeric:
             raise FtcalError(f"{source}: joint column {non_numeric[0]!r} is not numeric.")
+        require_chain_joints(self.robot, names, self.robot.base_frame(self.base)[1], self.sensor, source)
         values = frame[names].to_numpy(np.float64)
         if self.degrees:
             values = np.deg2rad(values)
         q = self.robot.joint_matrix(names, values, source)
         kinematics = sensor_kinematics(self.robot, self.sensor, q, base=self.base, gravity=(0.0, 0.0, -self.g))
         return Kinematics(kinematics.gravity)
+
+
+def kinematics_source(*, orientation: Sequence[str] | None = None, gravity_columns: Sequence[str] | None = None,
+                      g: float = 9.81, urdf: str | None = None, robot_name: str | None = None,
+                      sensor: str | None = None, ft_joint: str | None = None, ft_frame: str | None = None,
+                      base: str | None = None, degrees: bool = False, dynamic: bool = False,
+                      angular_velocity: Sequence[str] | None = ("wx", "wy", "wz"),
+                      linear_acceleration: Sequence[str] | None = ("ax", "ay", "az"),
+                      angular_acceleration: Sequence[str] | None = None, time: str | None = None,
+                      robot_options: str = "--urdf PATH or --model NAME"):
+    """The gravity (and motion) source of ``ftcal payload``, ``check`` and ``compensate``.
+
+    Exactly one of: quaternion ``orientation`` columns (x, y, z, w), ``gravity_columns`` (sensor
+    frame, m/s²), or a robot model (``urdf`` or ``robot_name``, with ``sensor`` or a sensor declared
+    on the fixed joint ``ft_joint``) and its joint columns. With ``dynamic`` the source also gives
+    the motion columns (:class:`~ftcal.payload.kinematics.MotionSource`).
+
+    Parameters
+    ----------
+    robot_options : how the calling command spells its robot-model options, for messages
+
+    Returns
+    -------
+    KinematicsSource
+
+    Raises
+    ------
+    FtcalError
+        No source or two sources, wrong column counts, an unknown sensor or a URDF error.
+    """
+    from ..payload.kinematics import GravityColumnsSource, MotionSource, OrientationSource
+    from .declare import SensorDeclaration
+
+    if urdf is not None or robot_name is not None:
+        if orientation is not None or gravity_columns is not None:
+            raise FtcalError(f"give one gravity source: a robot model ({robot_options}), --orientation or "
+                             "--gravity-columns.")
+        if ft_joint is None and ft_frame is not None:
+            raise FtcalError("--ft-frame needs --ft-joint (the fixed joint the sensor sits on).")
+        declared = () if ft_joint is None else (SensorDeclaration(ft_joint, ft_frame),)
+        robot = RobotModel.load(urdf=urdf, name=robot_name, declared=declared)
+        robot.require_ft_sensors()
+        if sensor is None and len(robot.ft_sensors) > 1:
+            raise FtcalError(f"--sensor: URDF {robot.source} has {len(robot.ft_sensors)} F/T sensors; name one of "
+                             f"{', '.join(s.name for s in robot.ft_sensors)}.")
+        chosen = robot.sensor(sensor) if sensor is not None else robot.ft_sensors[0]
+        source = JointColumnsSource(robot, chosen.name, base, g, degrees)
+    elif orientation is not None:
+        if len(orientation) != 4:
+            raise FtcalError(f"--orientation needs 4 columns qx,qy,qz,qw; got {','.join(orientation)}.")
+        source = OrientationSource(tuple(orientation), g)
+    elif gravity_columns is not None:
+        if len(gravity_columns) != 3:
+            raise FtcalError(f"--gravity-columns needs 3 columns; got {','.join(gravity_columns)}.")
+        source = GravityColumnsSource(tuple(gravity_columns), g)
+    else:
+        raise FtcalError("give the sensor's orientation: --orientation qx,qy,qz,qw, --gravity-columns gx,gy,gz, "
+                         f"or a robot model ({robot_options}) with --sensor.")
+    if not dynamic:
+        return source
+    for option, cols in (("--angular-velocity", angular_velocity), ("--linear-acceleration", linear_acceleration),
+                         ("--angular-acceleration", angular_acceleration)):
+        if cols is not None and len(cols) != 3:
+            raise FtcalError(f"{option} needs 3 columns; got {','.join(cols)}.")
+    return MotionSource(source, angular_velocity, linear_acceleration, angular_acceleration, time or "time")

@@ -27,11 +27,16 @@ A TOML file (``--payload-file``) describes them::
     frame = "r_forearm"
     com = [0.0, 0.0, -0.05]
 
-Recordings matching nothing get no extra payload and form their own group.
+A file that declares load cases (``[[case]]`` or ``[convention.*]``) must name every
+recording: one that matches no case is refused, with the known names and the nearest
+match (a forgotten or mistyped case would otherwise get no payload, and the reference
+wrench of a sensor with nothing else beyond it would be zero). A file with only
+``[[payload]]`` entries applies them to every recording, each its own group.
 """
 
 from __future__ import annotations
 
+import difflib
 import re
 import tomllib
 from dataclasses import dataclass, field
@@ -44,6 +49,8 @@ from ..runtime.inputs import check_input_file
 from .payloads import Payload
 
 CONVENTION = re.compile(r"^l(?P<left>\d+(?:\.\d+)?)kg-r(?P<right>\d+(?:\.\d+)?)kg$")
+# A folder name that was meant to follow the convention (for the message when it does not quite).
+CONVENTION_LIKE = re.compile(r"^l\d.*kg", re.IGNORECASE)
 
 
 @dataclass(frozen=True)
@@ -70,6 +77,7 @@ class LoadCaseConfig:
     payloads: tuple[Payload, ...] = ()
     cases: tuple[tuple[str, tuple[str, ...], tuple[Payload, ...]], ...] = ()
     mounts: dict[str, Mount] = field(default_factory=dict)
+    source: str = ""
 
     def resolve(self, recording: str | Path, extra: tuple[Payload, ...] = ()) -> LoadCase:
         """The load case of ``recording``, with the always-on and ``extra`` payloads added."""
@@ -87,7 +95,26 @@ class LoadCaseConfig:
             match = CONVENTION.match(component)
             if match:
                 return LoadCase(component, (*always, *self._convention(match, path)))
+        if self.cases or self.mounts:
+            raise FtcalError(self._unnamed(path, components))
         return LoadCase(path.stem, always)
+
+    def _unnamed(self, path: Path, components: list[str]) -> str:
+        """Why ``path`` matches no declared load case: the names known and the nearest one."""
+        names = [name for name, _, _ in self.cases]
+        files = [f for _, recordings, _ in self.cases for f in recordings]
+        known = ", ".join(repr(n) for n in names) or "none"
+        if self.mounts:
+            known += " and folder or file names l<x>kg-r<y>kg"
+        ratio, best = max(((difflib.SequenceMatcher(None, given, c).ratio(), c)
+                           for given in (path.name, *components) for c in names + files), default=(0.0, None))
+        hint = f"; nearest: {best!r}" if ratio >= 0.6 else ""
+        almost = next((c for c in components if self.mounts and CONVENTION_LIKE.match(c)), None)
+        if almost is not None and not hint:
+            hint = f"; {almost!r} is not of the form l<x>kg-r<y>kg"
+        where = f"Payload file {self.source}" if self.source else "The payload file"
+        return (f"{where}: recording {path} matches no load case (cases: {known}{hint}); name it in a "
+                f"[[case]]'s recordings, or declare a case without payload for an unloaded recording.")
 
     def _convention(self, match: re.Match, path: Path) -> tuple[Payload, ...]:
         out = []
@@ -138,7 +165,7 @@ def load_case_config(path: str | Path) -> LoadCaseConfig:
             raise FtcalError(f"Payload file {path}: [convention.{side}] must be convention.left or convention.right.")
         probe = _payload({**spec, "mass": 1.0}, path, f"convention.{side}")
         mounts[side] = Mount(probe.frame, probe.com, probe.inertia)
-    return LoadCaseConfig(payloads, tuple(cases), mounts)
+    return LoadCaseConfig(payloads, tuple(cases), mounts, str(path))
 
 
 def _list(table: dict, key: str, path: Path) -> list[dict]:

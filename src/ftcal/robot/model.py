@@ -165,6 +165,30 @@ class RobotModel:
         return float(sum(m.getLink(m.getLinkIndex(n)).getInertia().getMass()
                          for n in self.links_beyond(sensor, base)))
 
+    def chain_joints(self, frame_a: str, frame_b: str) -> tuple[str, ...]:
+        """The movable joints on the kinematic path between two frames (links or additional frames).
+
+        The rotation between the two frames depends on these joints only: a table that lacks one of
+        them cannot give the gravity direction in one frame from the other.
+        """
+        import idyntree.swig as idyn
+
+        model = self.model
+        links = [int(model.getFrameLink(model.getFrameIndex(f))) for f in (frame_a, frame_b)]
+        traversal = idyn.Traversal()
+        model.computeFullTreeTraversal(traversal, links[0])  # rooted at frame_a's link
+        found = []
+        link = links[1]
+        while link != links[0]:
+            joint = traversal.getParentJointFromLinkIndex(link)
+            if joint is None:
+                break
+            if joint.getNrOfDOFs() > 0:
+                found.append(model.getJointName(joint.getIndex()))
+            link = traversal.getParentLinkFromLinkIndex(link).getIndex()
+        movable = set(self.joint_names)
+        return tuple(name for name in reversed(found) if name in movable)
+
     def joint_matrix(self, names: Sequence[str], values, where: str):
         """Place columns named ``names`` into the model's joint order; joints not given are 0.
 
