@@ -1064,7 +1064,8 @@ class _Search:
             penalized = any(c.penalty != "none" for c, _, _ in group)
             decompositions = sum((key, f) not in self._eigen for f in range(self.n_folds)) if penalized else 0
             self.work["solve"] += decompositions * decomposition_work(p)
-            with warnings.catch_warnings(), single_threaded_blas():
+            # SciPy loaded before the limit: the fold threads' factorizations are SciPy's (its own OpenBLAS).
+            with warnings.catch_warnings(), single_threaded_blas(scipy=True):
                 # Fold fits of high degrees on few groups are often ill-posed; the score says how much that matters.
                 warnings.simplefilter("ignore", IllPosedFitWarning)
                 # Folds run in parallel threads (numpy releases the GIL in its kernels).

@@ -104,7 +104,7 @@ class Lasso:
         list of SolverResult, one per λ
         """
         lams = [check_float(lam, "lam", "Lasso", 0.0, low_inclusive=False) for lam in lams]
-        with single_threaded_blas():
+        with single_threaded_blas(scipy=True):  # the path's factorizations are SciPy's
             return self._fit_path(problem, lams, eigen)
 
     def _fit_path(self, problem: ScaledProblem, lams: list[float], eigen) -> list[SolverResult]:
