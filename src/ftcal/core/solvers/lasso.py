@@ -123,7 +123,7 @@ class Lasso:
         for step, index in enumerate(order):
             exact = np.array([path[i][step] is not None for i in range(ny)])
             coef = np.column_stack([path[i][step] if exact[i] else np.zeros(p) for i in range(ny)])
-            info = {"iterations": 0, "converged": True, "unconverged": [], "path_events": events,
+            info = {"iterations": 0, "converged": True, "unconverged": [], "events": events[step],
                     "admm_outputs": []}
             if not exact.all():
                 if state is None:
@@ -137,7 +137,7 @@ class Lasso:
                 admm, info = _solve_one_lambda(problem, values, vectors, lams[index], state, self.max_iter,
                                                settled=exact)
                 coef[:, ~exact] = admm[:, ~exact]
-                info.update(path_events=events, admm_outputs=np.flatnonzero(~exact).tolist())
+                info.update(events=events[step], admm_outputs=np.flatnonzero(~exact).tolist())
             previous = coef
             if not info["converged"]:
                 warnings.warn(
@@ -155,23 +155,25 @@ def _homotopy(gram: np.ndarray, cross: np.ndarray, lams: Sequence[float]) -> tup
     """Exact LASSO solutions at ``lams`` (descending) per output, following the path from λ_max.
 
     Returns, per output, one coefficient vector per λ (None where the solution could not be
-    certified: the caller solves those otherwise), and the number of path events taken.
+    certified: the caller solves those otherwise), and the path events taken to reach each λ
+    from the one before (all outputs).
     """
     import scipy.linalg
 
     p, ny = cross.shape
-    paths, total_events = [], 0
+    paths, events = [], np.zeros(len(lams), dtype=int)
     for i in range(ny):
-        solutions, events = _homotopy_one(gram, cross[:, i], lams, scipy.linalg, MAX_PATH_EVENTS_PER_FEATURE * p)
+        solutions, counts = _homotopy_one(gram, cross[:, i], lams, scipy.linalg, MAX_PATH_EVENTS_PER_FEATURE * p)
         paths.append(solutions)
-        total_events += events
-    return paths, total_events
+        events += counts
+    return paths, events.tolist()
 
 
 def _homotopy_one(gram, c, lams, linalg, max_events):
     """One output of :func:`_homotopy`."""
     p = c.size
     solutions: list = []
+    counts = np.zeros(len(lams), dtype=int)
     lam = float(np.abs(c).max())
     targets = iter(lams)
     target = next(targets, None)
@@ -180,11 +182,11 @@ def _homotopy_one(gram, c, lams, linalg, max_events):
         solutions.append(np.zeros(p))
         target = next(targets, None)
     if target is None:
-        return solutions, 0
+        return solutions, counts
     first = int(np.argmax(np.abs(c)))
     support, signs = [first], [float(np.sign(c[first]))]
     last = first  # the coefficient that just changed: it cannot trigger an event at the current λ
-    events = 0
+    events = counted = 0
     inactive = np.ones(p, dtype=bool)
     inactive[first] = False
     while target is not None:
@@ -230,6 +232,8 @@ def _homotopy_one(gram, c, lams, linalg, max_events):
                 # active-set steps at this λ, and resume from the certified support.
                 x = _polish(gram, c, _embed(c.size, support, u - target * d), target)
                 repaired = (x, target) if x is not None else repaired
+            counts[len(solutions)] = events - counted
+            counted = events
             solutions.append(x)
             target = next(targets, None)
         if target is None:
@@ -255,7 +259,7 @@ def _homotopy_one(gram, c, lams, linalg, max_events):
             signs.pop(j_drop)
             inactive[last] = True
     solutions += [None] * (len(lams) - len(solutions))
-    return solutions, events
+    return solutions, counts
 
 
 def _embed(p, support, x_support):
