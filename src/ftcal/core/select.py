@@ -821,10 +821,10 @@ def statistics_work(layout: RegressorLayout, n_rows: int, n_folds: int) -> int:
 
 # Costs in work units of ≈ 1e-10 s (:data:`SECONDS_PER_UNIT`), measured on the demo's dataset and on
 # load-case tables of 2e4-1e6 rows with 6-8 inputs (benchmarks/bench_cost.py):
-# Python and BLAS call overhead per candidate and fold (≈ 2 ms); per fold of a statistics pass (≈ 10 ms);
+# Python and BLAS call overhead per candidate and fold (≈ 2 ms); per fold of a statistics pass (≈ 4 ms);
 # per row of a pass (reading, normalizing: ≈ 0.5 µs).
 CANDIDATE_OVERHEAD = 18_000_000
-PASS_OVERHEAD = 60_000_000
+PASS_OVERHEAD = 20_000_000
 ROW_COST = 5_000
 # Dense p × p factorizations (eigen-decomposition, Cholesky with condition estimate), one thread: ≈ 2.5 p³.
 DENSE_CUBE = 2.5
@@ -847,7 +847,7 @@ def candidate_work(p: int, n_outputs: int, penalty: str, events: float | None = 
 
     Least squares factorizes its own Gram (≈ 2.5 p³); ridge and LASSO share the fold's
     eigen-decomposition (counted once per fold, :func:`decomposition_work`): ridge is
-    two products with the eigenvectors, LASSO its path events per output (``events``: the
+    two products with the eigenvectors (as cheap as scoring), LASSO its path events per output (``events``: the
     number taken per λ, all outputs; by default :func:`path_events` per output). Scoring is
     ≈ 4 p² per output (the validation and training sums).
     """
@@ -855,7 +855,7 @@ def candidate_work(p: int, n_outputs: int, penalty: str, events: float | None = 
     if penalty == "none":
         return int(DENSE_CUBE * p ** 3) + per_output
     if penalty == "ridge":
-        return 2 * per_output
+        return per_output
     events = path_events(p) * n_outputs if events is None else events
     return int(events * (EVENT_OVERHEAD + EVENT_PER_COLUMN * p)) + per_output
 
