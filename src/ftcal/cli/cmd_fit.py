@@ -120,8 +120,10 @@ def register(sub) -> None:
     p.add_argument("--max-degree", type=int, default=5, metavar="D",
                    help=f"--degree auto: highest degree tried, 1 to {MAX_DEGREE} (default 5)")
     p.add_argument("--budget", type=positive_float, default=SELECTION_BUDGET_SECONDS, metavar="SECONDS",
-                   help="--degree auto: leave out the degrees whose estimated cost (printed before the search) "
-                        f"would exceed this (default {SELECTION_BUDGET_SECONDS:g} s, or 1 GB of statistics)")
+                   help="--degree auto: CPU seconds for the whole command; degrees whose estimated cost (printed "
+                        "before the search, re-checked before each degree at the pace measured so far) would "
+                        f"exceed it are left out and named (default {SELECTION_BUDGET_SECONDS:g} s, or 1 GB of "
+                        "statistics)")
     p.add_argument("--verbose", action="store_true",
                    help="--degree auto: print every candidate, not only the best of each degree")
     p.add_argument("--drop-incomplete", action="store_true",

@@ -1222,8 +1222,8 @@ class _Search:
     def _solve(self, problem: ScaledProblem, group, fold_key):
         """Yield ((candidate, model, frame), SolverResult, prior) for one fold; paths share one eigen-decomposition.
 
-        The LASSO path is warm-started from λ to λ within the fold. (Starting a fold from another
-        fold's solutions was measured slower: ADMM's step size and dual do not transfer.)
+        The LASSO λ of a fold are one exact path from λ_max (:mod:`ftcal.core.solvers.lasso`); ridge
+        uses the eigen-decomposition, which the LASSO needs only when it falls back to ADMM.
         """
         plain = [g for g in group if g[0].penalty == "none"]
         for item in plain:

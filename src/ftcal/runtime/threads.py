@@ -1,6 +1,6 @@
 """Thread control for the hot loops.
 
-ftcal's loops run many small matrix products (chunks of 1024 samples, ADMM
+ftcal's loops run many small matrix products (chunks of 1024 samples, LASSO path
 steps on p × p matrices). Multi-threaded BLAS gains nothing on those and, when
 the other core is busy, its spinning threads make them ten times slower. So the
 loops pin BLAS to one thread and use the cores themselves, one chunk range per
