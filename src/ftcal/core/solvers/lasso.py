@@ -40,8 +40,10 @@ RHO_EVERY = 10
 RELAXATION = 1.6
 MAX_ITER = 20000
 MAX_ACTIVE_SET_STEPS = 30
-# Path events per output before the homotopy hands over to ADMM (each adds or drops one coefficient).
+# Path events per output before the homotopy hands over to ADMM (each adds or drops one coefficient):
+# 4 per column plus 10 per λ asked for.
 MAX_PATH_EVENTS_PER_FEATURE = 4
+MAX_PATH_EVENTS_PER_LAMBDA = 10
 # Events closer than this (relative) to the current λ happen "now"; guards ties and rounding.
 EVENT_RTOL = 1e-10
 
@@ -163,7 +165,8 @@ def _homotopy(gram: np.ndarray, cross: np.ndarray, lams: Sequence[float]) -> tup
     p, ny = cross.shape
     paths, events = [], np.zeros(len(lams), dtype=int)
     for i in range(ny):
-        solutions, counts = _homotopy_one(gram, cross[:, i], lams, scipy.linalg, MAX_PATH_EVENTS_PER_FEATURE * p)
+        solutions, counts = _homotopy_one(gram, cross[:, i], lams, scipy.linalg,
+                                           MAX_PATH_EVENTS_PER_FEATURE * p + MAX_PATH_EVENTS_PER_LAMBDA * len(lams))
         paths.append(solutions)
         events += counts
     return paths, events.tolist()
