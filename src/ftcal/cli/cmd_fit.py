@@ -217,12 +217,13 @@ def cross_validation(args, data, template, n_samples: int, n_inputs: int):
     if isinstance(data, Dataset):
         data = DatasetStatistics(data)
     n_outputs, n_groups = len(data.output_names), len(data.group_sizes())
-    penalties = () if args.lasso or args.ridge else args.penalties
-    n_lambdas = 1 if args.lasso or args.ridge else (len(args.lambdas) if args.lambdas else None)
+    fixed = ("lasso",) if args.lasso else ("ridge",) if args.ridge else ()
+    penalties = fixed or args.penalties
+    n_lambdas = 1 if fixed else (len(args.lambdas) if args.lambdas else None)
     estimate = estimate_cost(n_samples, n_inputs, n_outputs, range(1, args.max_degree + 1),
-                             min(args.folds, n_groups), penalties=penalties or ("ridge",) * bool(n_lambdas),
+                             min(args.folds, n_groups), penalties=penalties,
                              n_lambdas=n_lambdas, na=args.na, nb=args.nb,
-                             n_bases=1 if template.normalization == "center" or not (penalties or n_lambdas) else 2,
+                             n_bases=1 if template.normalization == "center" or fixed or not penalties else 2,
                              spent_seconds=time.process_time())
     degrees, note = estimate.within(args.budget, SELECTION_MEMORY_BYTES)
     planned = estimate.restricted(degrees)

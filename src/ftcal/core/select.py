@@ -828,9 +828,11 @@ PASS_OVERHEAD = 20_000_000
 ROW_COST = 5_000
 # Dense p × p factorizations (eigen-decomposition, Cholesky with condition estimate), one thread: ≈ 2.5 p³.
 DENSE_CUBE = 2.5
-# The LASSO path (solvers.lasso): about 0.45·√p events per λ and output on the default grid, each one small
-# Cholesky factorization and two products with p × k rows, ≈ 0.2 ms of overhead plus ≈ 0.16 µs per column.
+# The LASSO path (solvers.lasso): about 0.45·√p events per λ and output on the default grid (3 decades
+# below λ_max), about 10·√p for a path down to a λ near least squares (a fixed, absolute λ), each one
+# small Cholesky factorization and two products with p × k rows, ≈ 0.2 ms of overhead plus ≈ 0.16 µs per column.
 PATH_EVENTS_PER_SQRT_P = 0.45
+FULL_PATH_EVENTS_PER_SQRT_P = 10.0
 EVENT_OVERHEAD = 2_000_000
 EVENT_PER_COLUMN = 1_800
 # The final pass (training metrics): ≈ 5 units per row, column and output.
@@ -992,7 +994,10 @@ def estimate_cost(n_samples: int, n_inputs: int, n_outputs: int, degrees: Sequen
         solve = candidate_work(p, n_outputs, "none") + (decomposition_work(p) if penalties else 0)
         for penalty in penalties:
             points = n_lambdas if n_lambdas is not None else (LASSO_POINTS if penalty == "lasso" else RIDGE_POINTS)
-            solve += points * candidate_work(p, n_outputs, penalty)
+            # Fixed λ are absolute: the path may run all the way down, whatever the number of points.
+            events = (FULL_PATH_EVENTS_PER_SQRT_P * np.sqrt(p) * n_outputs / points
+                      if penalty == "lasso" and n_lambdas is not None else None)
+            solve += points * candidate_work(p, n_outputs, penalty, events)
         solve *= n_folds
         units.append((stats, solve))
         seconds.append(stats * SECONDS_PER_UNIT["statistics"] + solve * SECONDS_PER_UNIT["solve"])
