@@ -346,11 +346,50 @@ def scale_section(sizes: dict) -> list[str]:
     return out
 
 
+def cost_section(sizes: dict) -> list[str]:
+    """``--degree auto``: printed estimate against the whole command's CPU, the budget kept, BLAS threads."""
+    from benchmarks.bench_cost import DEMO_TABLE
+
+    cases = [(n, k, None) for n, k in sizes["cost"]]
+    budget_n, budget_k, budget = sizes["cost_budget"]
+    cases.append((budget_n, budget_k, budget))
+    if DEMO_TABLE.exists():
+        cases.insert(0, (0, 7, None))
+    rows, ratios, kept = [], [], []
+    for n, k, limit in cases:
+        r = run_case("select_cost", n=n, n_inputs=k, budget=limit)
+        table = "demo dataset.parquet (168,420 rows, cond. 1.8e8)" if n == 0 else f"load cases, {n:,} rows"
+        ratios.append(max(r["ratio"], 1 / r["ratio"]))
+        if limit is not None:
+            kept.append(r["cpu_s"] / limit)
+        rows.append(f"| {table} | {k} | {limit if limit is not None else 20:g} s | {r['estimate_s']:.1f} s | "
+                    f"{r['cpu_s']:.1f} s | {r['ratio']:.2f} | {r['wall_s']:.1f} s | {r['child_peak_rss_mb']:,.0f} MB | "
+                    f"{r['dropped'] or '-'} |")
+    threads = ""
+    if DEMO_TABLE.exists():
+        one = run_case("select_cost", n=0, n_inputs=7, blas_threads=1)
+        default = run_case("select_cost", n=0, n_inputs=7)
+        threads = (f"Demo search with `OPENBLAS_NUM_THREADS=1` / default threads: CPU {one['cpu_s']:.1f} s / "
+                   f"{default['cpu_s']:.1f} s = {one['cpu_s'] / default['cpu_s']:.2f} (target ≥ 0.95: no "
+                   "oversubscription).")
+    HEADLINE["cost"] = (f"`--degree auto` estimate within {max(ratios):.2f}× of the measured CPU on {len(ratios)} "
+                        f"tables (target 2×); --budget {budget:g} s used {max(kept) * budget:.1f} s of CPU "
+                        f"({max(kept):.2f}× the budget, target ≤ 1.5×)")
+    return ["## Cost of `--degree auto`: printed estimate against the whole command's CPU", "",
+            "Each row is one `ftcal fit TABLE --degree auto --group-by group` process (imports, reading, search, "
+            "final fit): CPU = user + system from its rusage. Estimate/CPU is the ratio of the printed estimate "
+            "to it.", "",
+            "| table | inputs | --budget | estimate | CPU | estimate/CPU | wall | peak memory | left out |",
+            "|---|---:|---:|---:|---:|---:|---:|---:|---|", *rows, "", threads, ""]
+
+
 # One line per section; HEADLINE keys name the targets summary's rows.
-SECTIONS = (fit_section, cli_section, lasso_section, predict_section, selection_section, mlp_section, plan_section,
+SECTIONS = (fit_section, cli_section, lasso_section, predict_section, selection_section, cost_section,
+            mlp_section, plan_section,
             c_section,
             scaling_section, expected_section, payload_section, bag_section, scale_section)
 LABELS = {"fit": "Fit", "cli": "Whole-process fit", "lasso": "LASSO", "predict": "Prediction", "select": "Model selection",
+          "cost": "Cost of --degree auto",
           "mlp": "MLP family", "plan": "Experiment design",
           "c": "Generated C", "expected": "Expected wrenches", "payload": "Payload identification",
           "bags": "Bag reading", "scale": "Streaming and Dask"}
@@ -360,13 +399,14 @@ FULL = {"fit_big": 1_000_000, "fit_mid": 100_000, "scaling_n": (10_000, 100_000,
         "expected_n": 100_000, "expected_baseline_n": 10_000, "c_evals": 2_000_000, "python_calls": 2_000,
         "payload_n": 1_000_000, "bag_n": 500_000, "cli_n": 200_000, "cli_repeats": 5, "select_n": 74_000,
         "mlp_n": 20_000, "mlp_hidden": "16", "mlp_iterations": 200, "plan": (60, 10_000),
-        "scale": (10, 1_000_000, 4)}
+        "scale": (10, 1_000_000, 4), "cost": ((20_000, 6), (200_000, 7), (1_000_000, 8)),
+        "cost_budget": (1_000_000, 8, 8.0)}
 QUICK = {"fit_big": 20_000, "fit_mid": 5_000, "scaling_n": (2_000, 10_000), "dense_max_n": 10_000,
          "degree_n": 5_000, "lasso_n": 5_000, "paper_lasso_n": 1_000, "predict_n": 100_000,
          "expected_n": 2_000, "expected_baseline_n": 500, "c_evals": 100_000, "python_calls": 200,
          "payload_n": 20_000, "bag_n": 20_000, "cli_n": 5_000, "cli_repeats": 1, "select_n": 6_000,
          "mlp_n": 6_000, "mlp_hidden": "8", "mlp_iterations": 50, "plan": (20, 1_000),
-         "scale": (4, 50_000, 4)}
+         "scale": (4, 50_000, 4), "cost": ((4_000, 6),), "cost_budget": (20_000, 6, 3.0)}
 
 
 def main(argv: list[str] | None = None) -> int:

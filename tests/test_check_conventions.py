@@ -275,3 +275,16 @@ def test_joints_and_urdf_route_finds_a_sensor_turned_on_the_flange(capsys, tmp_p
     out = capsys.readouterr().out
     assert "rotation" in out and 'rpy="0 0 1.5708"' in out and "--ft-frame" in out
     assert "base-frame readings not tested" in out
+
+
+@pytest.mark.parametrize("dof", [1, 2, 3, 4, 7])
+def test_chi2_in_closed_form_matches_scipy_stats(dof):
+    # The convention check's χ² without importing scipy.stats (most of a second): the library is the reference.
+    from scipy.stats import chi2
+
+    from ftcal.check.conventions import chi2_cdf, chi2_quantile
+
+    for x in (1e-3, 0.5, 3.84, 11.3, 60.0):
+        assert chi2_cdf(x, dof) == pytest.approx(chi2.cdf(x, dof), abs=1e-12)
+    for probability in (0.5, 0.95, 0.999):
+        assert chi2_quantile(probability, dof) == pytest.approx(chi2.ppf(probability, dof), rel=1e-9)

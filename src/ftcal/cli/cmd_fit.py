@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import time
 
 from ..core.limits import (
     MAX_DEGREE,
@@ -119,8 +120,10 @@ def register(sub) -> None:
     p.add_argument("--max-degree", type=int, default=5, metavar="D",
                    help=f"--degree auto: highest degree tried, 1 to {MAX_DEGREE} (default 5)")
     p.add_argument("--budget", type=positive_float, default=SELECTION_BUDGET_SECONDS, metavar="SECONDS",
-                   help="--degree auto: leave out the degrees whose estimated cost (printed before the search) "
-                        f"would exceed this (default {SELECTION_BUDGET_SECONDS:g} s, or 1 GB of statistics)")
+                   help="--degree auto: CPU seconds for the whole command; degrees whose estimated cost (printed "
+                        "before the search, re-checked before each degree at the pace measured so far) would "
+                        f"exceed it are left out and named (default {SELECTION_BUDGET_SECONDS:g} s, or 1 GB of "
+                        "statistics)")
     p.add_argument("--verbose", action="store_true",
                    help="--degree auto: print every candidate, not only the best of each degree")
     p.add_argument("--drop-incomplete", action="store_true",
@@ -201,32 +204,46 @@ def cross_validation(args, data, template, n_samples: int, n_inputs: int):
     """The ``--degree auto`` search over ``data`` (a Dataset or streamed statistics), its cost and summary printed."""
     from ..core.limits import SELECTION_MEMORY_BYTES
     from ..core.dataset import Dataset
-    from ..core.select import Candidate, DatasetStatistics, cross_validate, estimate_cost, select_model
+    from ..core.select import (
+        Candidate,
+        DatasetStatistics,
+        SearchBudget,
+        cross_validate,
+        estimate_cost,
+        select_model,
+    )
+    from ..runtime.progress import progress_bar
 
     if isinstance(data, Dataset):
         data = DatasetStatistics(data)
     n_outputs, n_groups = len(data.output_names), len(data.group_sizes())
-    penalties = () if args.lasso or args.ridge else args.penalties
-    n_lambdas = 1 if args.lasso or args.ridge else (len(args.lambdas) if args.lambdas else None)
+    fixed = ("lasso",) if args.lasso else ("ridge",) if args.ridge else ()
+    penalties = fixed or args.penalties
+    n_lambdas = 1 if fixed else (len(args.lambdas) if args.lambdas else None)
     estimate = estimate_cost(n_samples, n_inputs, n_outputs, range(1, args.max_degree + 1),
-                             min(args.folds, n_groups), penalties=penalties or ("ridge",) * bool(n_lambdas),
+                             min(args.folds, n_groups), penalties=penalties,
                              n_lambdas=n_lambdas, na=args.na, nb=args.nb,
-                             n_bases=1 if template.normalization == "center" or not (penalties or n_lambdas) else 2)
-    print(estimate.describe() + f" (--budget {args.budget:g} s)")
+                             n_bases=1 if template.normalization == "center" or fixed or not penalties else 2,
+                             spent_seconds=time.process_time())
     degrees, note = estimate.within(args.budget, SELECTION_MEMORY_BYTES)
+    planned = estimate.restricted(degrees)
+    print(planned.describe() + f" (--budget {args.budget:g} s)")
     if note:
         print(note)
-        print("searching instead: " + estimate.restricted(degrees).describe().removeprefix("estimated work: "))
     options = dict(template=template, n_folds=args.folds, select_per=args.select_per, objective=args.objective)
-    if args.lasso or args.ridge:
-        kind = "lasso" if args.lasso else "ridge"
-        result = cross_validate(data, [Candidate(d, kind, args.lasso or args.ridge) for d in degrees], **options)
-    else:
-        paper = args.lambdas is not None and args.lambdas == PAPER_LAMBDAS
-        result = select_model(data, degrees=degrees, penalties=args.penalties, lambdas=args.lambdas,
-                              relative=not paper, **options)
+    # One bar over the whole search: (candidate, fold) fits, as many as the estimate plans.
+    with progress_bar("search", planned.candidates * planned.n_folds * len(degrees)) as advance:
+        if args.lasso or args.ridge:
+            kind = "lasso" if args.lasso else "ridge"
+            result = cross_validate(data, [Candidate(d, kind, args.lasso or args.ridge) for d in degrees],
+                                    advance=advance, **options)
+        else:
+            paper = args.lambdas is not None and args.lambdas == PAPER_LAMBDAS
+            result = select_model(data, degrees=degrees, penalties=args.penalties, lambdas=args.lambdas,
+                                  relative=not paper, budget=SearchBudget(args.budget, planned), advance=advance,
+                                  **options)
     print(result.table() if args.verbose else result.summary())
-    result.notes.extend([estimate.describe()] + ([note] if note else []))  # for the model file
+    result.notes.extend([planned.describe()] + ([note] if note else []))  # for the model file
     return result
 
 

@@ -19,11 +19,26 @@ def progress_enabled() -> bool:
     return sys.stderr.isatty()
 
 
+_ACTIVE: list = []  # the Progress display on screen, if any: nested bars become its rows
+
+
 @contextmanager
 def progress_bar(description: str, total: float | None):
-    """Yield an ``advance(n)`` callable that moves a bar (or does nothing)."""
+    """Yield an ``advance(n)`` callable that moves a bar (or does nothing).
+
+    A bar opened while another is on screen (e.g. a statistics pass inside the whole search)
+    becomes a row of the same display, removed when it ends: one live display at a time.
+    """
     if not progress_enabled():
         yield lambda n=1: None
+        return
+    if _ACTIVE:
+        bar = _ACTIVE[-1]
+        task = bar.add_task(description, total=total)
+        try:
+            yield lambda n=1: bar.advance(task, n)
+        finally:
+            bar.remove_task(task)
         return
     from rich.console import Console
     from rich.progress import (
@@ -39,7 +54,11 @@ def progress_bar(description: str, total: float | None):
                TimeElapsedColumn(), TimeRemainingColumn()]
     with Progress(*columns, console=Console(stderr=True), transient=False) as bar:
         task = bar.add_task(description, total=total)
-        yield lambda n=1: bar.advance(task, n)
+        _ACTIVE.append(bar)
+        try:
+            yield lambda n=1: bar.advance(task, n)
+        finally:
+            _ACTIVE.pop()
 
 
 def track(items: Iterable[T], description: str, total: int | None = None) -> Iterator[T]:

@@ -1,6 +1,6 @@
 """Thread control for the hot loops.
 
-ftcal's loops run many small matrix products (chunks of 1024 samples, ADMM
+ftcal's loops run many small matrix products (chunks of 1024 samples, LASSO path
 steps on p × p matrices). Multi-threaded BLAS gains nothing on those and, when
 the other core is busy, its spinning threads make them ten times slower. So the
 loops pin BLAS to one thread and use the cores themselves, one chunk range per
@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import contextvars
 import os
+import sys
 import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
@@ -32,18 +33,72 @@ def worker_count() -> int:
     return max(1, min(8, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1))
 
 
-@cache
-def _controller() -> ThreadpoolController:
-    # Scanning the loaded libraries costs milliseconds; a per-call scan made
-    # one-sample predictions a thousand times slower than the arithmetic.
-    return ThreadpoolController()
+class _BlasLimit:
+    """One process-wide limit of every loaded BLAS to one thread, counted across nested and concurrent blocks.
+
+    OpenBLAS's thread count is global to each library, so per-block limits that save and restore
+    it race when worker threads enter and leave blocks at different times; here the first block in
+    limits, the last one out restores. NumPy and SciPy each ship their own OpenBLAS, and a library
+    loaded after the first scan (SciPy is imported lazily) would stay multi-threaded: every entry
+    rescans when modules were imported since the last scan (a scan costs ~10 ms; a check of
+    ``len(sys.modules)`` costs nothing).
+    """
+
+    def __init__(self):
+        self.lock = threading.Lock()
+        self.depth = 0
+        self.modules_seen = -1
+        self.libraries: dict[str, object] = {}      # filepath -> threadpoolctl library controller
+        self.original: dict[str, int] = {}          # filepath -> thread count before the outermost block
+
+    def _scan(self) -> None:
+        if len(sys.modules) == self.modules_seen:
+            return
+        self.modules_seen = len(sys.modules)
+        for library in ThreadpoolController().select(user_api="blas").lib_controllers:
+            self.libraries.setdefault(library.filepath, library)
+
+    def enter(self) -> None:
+        with self.lock:
+            self._scan()
+            for path, library in self.libraries.items():
+                if path not in self.original:
+                    self.original[path] = library.num_threads
+                    library.set_num_threads(1)
+            self.depth += 1
+
+    def exit(self) -> None:
+        with self.lock:
+            self.depth -= 1
+            if self.depth == 0:
+                for path, threads in self.original.items():
+                    self.libraries[path].set_num_threads(threads)
+                self.original.clear()
+
+
+_BLAS = _BlasLimit()
+# A forked child inherits the counts but none of the threads inside blocks: it starts unlimited.
+os.register_at_fork(after_in_child=lambda: _BLAS.__init__())
 
 
 @contextmanager
-def single_threaded_blas():
-    """Limit BLAS to one thread inside the block."""
-    with _controller().limit(limits=1, user_api="blas"):
+def single_threaded_blas(*, scipy: bool = False):
+    """Limit every loaded BLAS (NumPy's, SciPy's) to one thread inside the block.
+
+    Parameters
+    ----------
+    scipy : bool
+        Import SciPy's linear algebra first, so that its own OpenBLAS is limited too when the
+        block may be the first to use it (importing SciPy costs ~0.2-0.7 s; callers that never
+        touch SciPy leave it out).
+    """
+    if scipy:
+        import scipy.linalg  # noqa: F401  (loads libscipy_openblas before the scan)
+    _BLAS.enter()
+    try:
         yield
+    finally:
+        _BLAS.exit()
 
 
 def split_range(n: int, parts: int, align: int) -> list[tuple[int, int]]:

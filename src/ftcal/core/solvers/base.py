@@ -219,7 +219,7 @@ class Conditioning:
         if gram.shape[0] > SMALL_GRAM:
             return cls._of(gram)
         # Small: one thread is as fast, and waking BLAS's thread pool costs ~0.3 s on a first call.
-        with single_threaded_blas():
+        with single_threaded_blas(scipy=gram.shape[0] > SPECTRUM_MAX):  # SciPy's Cholesky above SPECTRUM_MAX
             return cls._of(gram)
 
     @classmethod
