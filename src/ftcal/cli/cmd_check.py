@@ -119,6 +119,8 @@ def run_conventions(args) -> int:
 
 
 def _thresholds(args, model):
+    import math
+
     from ..check.accept import Thresholds, rated_ranges
     from ..runtime.errors import FtcalError
 
@@ -131,6 +133,12 @@ def _thresholds(args, model):
             force = args.rated_force or force
             torque = args.rated_torque or torque
             origin = "--rated-force/--rated-torque"
+        # A model without a training range (paper XML, null ranges) must not make the threshold infinite.
+        for value, option in ((force, "--rated-force N"), (torque, "--rated-torque NM")):
+            if not (math.isfinite(value) and value > 0):
+                raise FtcalError(f"--max-error-percent: {args.accept} has no finite training output range to take "
+                                 f"the percentage of; give {option} (or absolute --max-force-error/"
+                                 "--max-torque-error).")
         return Thresholds.from_percent(args.max_error_percent, force, torque, origin)
     if args.rated_force is not None or args.rated_torque is not None:
         raise FtcalError("--rated-force/--rated-torque go with --max-error-percent.")
@@ -157,9 +165,9 @@ def run_accept(args) -> int:
 
         payload = load_payload(args.payload)
         source = kinematics_source(args)
-    error, reference, labels, issues = read_test_data(args.data, model, payload=payload, source=source,
-                                                      group_by=args.group_by, time_column=args.time or "time")
-    result = acceptance_test(error, labels, model.output_names_, thresholds, issues, reference)
+    error, reference, labels, issues, problems = read_test_data(
+        args.data, model, payload=payload, source=source, group_by=args.group_by, time_column=args.time or "time")
+    result = acceptance_test(error, labels, model.output_names_, thresholds, issues, reference, problems)
     limits = axis_limits(result.outputs, thresholds)
     print(f"acceptance of {args.accept} on {error.shape[0]} samples in {len(result.poses)} pose(s); thresholds "
           f"{thresholds.force:.4g} N, {thresholds.torque:.4g} N·m RMS per axis and pose ({thresholds.origin})")
@@ -174,8 +182,12 @@ def run_accept(args) -> int:
         print(f"... {len(failed) - MAX_POSES_PRINTED} more failing pose(s)")
     for issue in result.channel_issues:
         print(f"channel: {issue}")
+    for problem in result.problems:
+        print(f"unusable: {problem}")
     print("PASS" if result.passed else f"FAIL ({len(failed)} of {len(result.poses)} pose(s) over threshold, "
-                                       f"{len(result.channel_issues)} channel issue(s))")
+                                       f"{len(result.channel_issues)} channel issue(s)"
+                                       + (f", {len(result.problems)} reason(s) the test cannot pass" if result.problems
+                                          else "") + ")")
     if args.serial is not None:
         message = record(args, model, result, thresholds)
         if message:
