@@ -182,3 +182,28 @@ are far smaller, and values near 1e308 overflow the first product they meet."""
 MAX_CELL_MAGNITUDE = 1e100
 """Largest magnitude of a number in a table: sums of squares and products of such values still fit in
 float64 (about 1e308); larger ones are corrupt data, and would make fits overflow into NaN."""
+
+# Physical plausibility of loads and payload files (issue 28: absurd values passed silently).
+
+MAX_LOAD_MASS = 1000.0
+"""kg. Heaviest load or payload ftcal accepts (a --load, --payload or load-case mass, a payload file's mass):
+the largest six-axis sensors carry a few hundred kilograms; beyond this a value is a typo or a hostile file."""
+
+MAX_LOAD_DISTANCE = 10.0
+"""m. Farthest centre of mass of a load from its frame (and of a payload file's from the sensor origin)."""
+
+GRAVITY_RANGE = (0.1, 100.0)
+"""m/s². A payload file's gravity magnitude must lie in this range (the Moon's 1.62 to well above any planet)."""
+
+MAX_WRENCH = 1e6
+"""N or N·m. Largest bias a payload file may hold: sensors are rated far below this."""
+
+MAX_PLAN_WORK = 5e10
+"""Arithmetic operations ``ftcal plan`` may spend on one design (candidate rows × parameters², plus
+parameters³): degree 6 with 10,000 configurations × 2 loads (1.7·10¹⁰) takes about 8 s of CPU here;
+degree 10 (8,008 parameters) would take tens of minutes and is refused with what to lower."""
+
+JOINT_LIMIT_TOLERANCE = 0.05
+"""rad (m for prismatic joints). Joint data beyond a URDF position limit by more than this is warned about
+(encoders overshoot a little); beyond it by more than a full turn (2π) it is refused: degrees read as radians,
+or another robot's log."""

@@ -182,9 +182,46 @@ class RobotModel:
         if len(set(names)) != len(names):
             raise FtcalError(f"{where}: a joint name appears more than once.")
         values = np.asarray(values, dtype=np.float64)
+        self.check_joint_limits(names, values, where)
         out = np.zeros((values.shape[0], len(self.joint_names)))
         out[:, [index[n] for n in names]] = values
         return out
+
+    def check_joint_limits(self, names: Sequence[str], values, where: str) -> None:
+        """Refuse joint values a full turn beyond their URDF limits; warn (once) about values just beyond them.
+
+        values : array of shape (n_samples, len(names)), rad (m for prismatic joints).
+        """
+        import math
+        import warnings
+
+        import numpy as np
+
+        from ..core.limits import JOINT_LIMIT_TOLERANCE
+        from ..runtime.errors import OutOfRangeWarning
+
+        m = self.model
+        worst = None
+        for k, name in enumerate(names):
+            joint = m.getJoint(m.getJointIndex(name))
+            if not joint.hasPosLimits() or values.shape[0] == 0:
+                continue
+            low, high = float(joint.getMinPosLimit(0)), float(joint.getMaxPosLimit(0))
+            column = values[:, k]
+            beyond = np.maximum(low - column, column - high)
+            j = int(np.argmax(beyond))
+            if beyond[j] > 2.0 * math.pi:
+                raise FtcalError(f"{where}: joint {name!r} holds {column[j]:g}, {beyond[j]:g} beyond its URDF limits "
+                                 f"[{low:g}, {high:g}] (radians expected: are the joints in degrees? give "
+                                 "--degrees).")
+            count = int(np.count_nonzero(beyond > JOINT_LIMIT_TOLERANCE))
+            if count and (worst is None or beyond[j] > worst[1]):
+                worst = (name, float(beyond[j]), count, low, high)
+        if worst is not None:
+            name, by, count, low, high = worst
+            warnings.warn(f"{where}: {count} sample(s) of joint {name!r} lie beyond its URDF limits [{low:g}, "
+                          f"{high:g}] (by up to {by:.3g}); the robot model may not match the robot.",
+                          OutOfRangeWarning, stacklevel=3)
 
     def total_mass(self) -> float:
         m = self.model
