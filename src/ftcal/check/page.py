@@ -24,6 +24,12 @@ from .conventions import AXES, ConventionReport
 
 
 def _page(title: str, meta: Sequence[str], sections: Sequence[tuple[str, list[str]]], out: str | os.PathLike) -> Path:
+    path = Path(out)
+    write_text_atomic(path, _page_text(title, meta, sections))
+    return path
+
+
+def _page_text(title: str, meta: Sequence[str], sections: Sequence[tuple[str, list[str]]]) -> str:
     created = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     lines = [f"Made by ftcal {ftcal_version()} on {created}.", *meta]
     body = "\n".join(f"<section><h2>{html.escape(name)}</h2>\n" + "\n".join(parts) + "</section>"
@@ -33,9 +39,7 @@ def _page(title: str, meta: Sequence[str], sections: Sequence[tuple[str, list[st
             f"<h1>{html.escape(title)}</h1>\n"
             + "".join(f'<p class="meta">{html.escape(line)}</p>\n' for line in lines)
             + f"{body}\n</body>\n</html>\n")
-    path = Path(out)
-    write_text_atomic(path, page)
-    return path
+    return page
 
 
 def _hold_bars(report: ConventionReport):
@@ -131,6 +135,13 @@ def _series_figure(result: Acceptance):
 def acceptance_page(result: Acceptance, out: str | os.PathLike, *, model: str = "",
                     data: Sequence[str] = ()) -> Path:
     """Write the page of an acceptance test."""
+    out = Path(out)
+    write_text_atomic(out, acceptance_page_text(result, model=model, data=data))
+    return out
+
+
+def acceptance_page_text(result: Acceptance, *, model: str = "", data: Sequence[str] = ()) -> str:
+    """The page of an acceptance test, as text."""
     from matplotlib import rc_context
 
     limits = axis_limits(result.outputs, result.thresholds)
@@ -149,7 +160,7 @@ def acceptance_page(result: Acceptance, out: str | os.PathLike, *, model: str = 
         poses = figure_html(_pose_figure(result), "poses", "RMS error of each pose against the thresholds.")
         series = (figure_html(_series_figure(result), "series", "Reference (black) and calibrated (blue) wrench.")
                   if result.reference is not None else "<p>No reference wrench kept.</p>")
-    return _page(f"ftcal check: acceptance {verdict}",
+    return _page_text(f"ftcal check: acceptance {verdict}",
                  [f"Model: {model}", f"Data: {', '.join(map(str, data))}",
                   f"Thresholds: {result.thresholds.force:.4g} N, {result.thresholds.torque:.4g} N·m "
                   f"({result.thresholds.origin})"], [
@@ -158,4 +169,4 @@ def acceptance_page(result: Acceptance, out: str | os.PathLike, *, model: str = 
                             *left_out, poses]),
         ("Input channels", issues),
         ("Reference and calibrated wrench", [series]),
-    ], out)
+    ])

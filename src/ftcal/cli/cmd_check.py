@@ -188,22 +188,35 @@ def run_accept(args) -> int:
                                        f"{len(result.channel_issues)} channel issue(s)"
                                        + (f", {len(result.problems)} reason(s) the test cannot pass" if result.problems
                                           else "") + ")")
+    page = None
+    if args.html is not None:  # made before anything is recorded: a run that fails is not in the history
+        from ..check.page import acceptance_page_text
+
+        page = acceptance_page_text(result, model=args.accept, data=args.data)
+    from ..runtime.atomic import write_text_atomic
+
+    def write_page() -> None:
+        if page is not None:
+            write_text_atomic(args.html, page)
+
     if args.serial is not None:
-        message = record(args, model, result, thresholds)
+        # The page is written inside the history's transaction: if it fails, nothing is recorded.
+        message = record(args, model, result, thresholds, before_commit=write_page)
         if message:
             from ..check.history import DriftWarning
 
             warnings.warn(message, DriftWarning, stacklevel=1)
-    if args.html is not None:
-        from ..check.page import acceptance_page
-
-        acceptance_page(result, args.html, model=args.accept, data=args.data)
+    else:
+        write_page()
+    if page is not None:
         _wrote(args.html)
     return 0 if result.passed else 1
 
 
-def record(args, model, result, thresholds) -> str | None:
-    """Append the calibration (if new) and the result to the history; a drift warning, or None."""
+def record(args, model, result, thresholds, before_commit=None) -> str | None:
+    """Append the calibration (if new) and the result to the history; a drift warning, or None.
+
+    ``before_commit()`` runs inside the transaction (the other outputs): if it fails, nothing is recorded."""
     from ..check.history import History, calibration_summary, default_history_dir, drift
 
     summary = calibration_summary(model, args.accept)
@@ -212,7 +225,10 @@ def record(args, model, result, thresholds) -> str | None:
             new = history.append_calibration(conn, args.serial, summary)
             history.append_acceptance(conn, args.serial, summary.model_sha256, result.passed, result.rmse.tolist(),
                                       {"force": thresholds.force, "torque": thresholds.torque,
-                                       "origin": thresholds.origin}, args.data)
+                                       "origin": thresholds.origin, "problems": list(result.problems)},
+                                      args.data)
+            if before_commit is not None:
+                before_commit()
         records = history.calibrations(args.serial)
         print(f"recorded in {history.path} for sensor {args.serial} ({len(records)} calibration(s))")
     return _drift_message(drift(records), args.serial) if new else None
@@ -230,6 +246,7 @@ def _drift_message(result, serial: str) -> str | None:
 
 
 def show_history(args) -> int:
+    import os
     import warnings
 
     import numpy as np
@@ -241,10 +258,10 @@ def show_history(args) -> int:
     from ..runtime.errors import FtcalError
 
     folder = Path(args.history_dir or default_history_dir())
-    if not (folder / DATABASE_NAME).is_file():
+    if not os.path.lexists(folder / DATABASE_NAME):
         raise FtcalError(f"--history-dir {folder}: no history database ({DATABASE_NAME}) there; record one with "
                          "ftcal check --accept MODEL DATA --serial SERIAL.")
-    with History(folder) as history:
+    with History(folder, read_only=True) as history:  # reading never writes (nor waits long for a writer)
         records = history.calibrations(args.history_serial)
         results = history.acceptances(args.history_serial)
         if not records and not results:

@@ -203,7 +203,6 @@ MAX_PLAN_WORK = 5e10
 parameters³): degree 6 with 10,000 configurations × 2 loads (1.7·10¹⁰) takes about 8 s of CPU here;
 degree 10 (8,008 parameters) would take tens of minutes and is refused with what to lower."""
 
-JOINT_LIMIT_TOLERANCE = 0.05
-"""rad (m for prismatic joints). Joint data beyond a URDF position limit by more than this is warned about
-(encoders overshoot a little); beyond it by more than a full turn (2π) it is refused: degrees read as radians,
-or another robot's log."""
+JOINT_LIMIT_SLACK = 6.283185307179586
+"""rad (m for prismatic joints). Joint data more than a full turn (2π) beyond a URDF position limit is
+refused: degrees read as radians, or another robot's log. Less is kept: encoders and simulators overshoot."""

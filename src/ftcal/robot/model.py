@@ -188,20 +188,16 @@ class RobotModel:
         return out
 
     def check_joint_limits(self, names: Sequence[str], values, where: str) -> None:
-        """Refuse joint values a full turn beyond their URDF limits; warn (once) about values just beyond them.
+        """Refuse joint values more than a full turn beyond their URDF limits (degrees read as radians, or
+        another robot's log); values just beyond them are kept (encoders and simulators overshoot).
 
         values : array of shape (n_samples, len(names)), rad (m for prismatic joints).
         """
-        import math
-        import warnings
-
         import numpy as np
 
-        from ..core.limits import JOINT_LIMIT_TOLERANCE
-        from ..runtime.errors import OutOfRangeWarning
+        from ..core.limits import JOINT_LIMIT_SLACK
 
         m = self.model
-        worst = None
         for k, name in enumerate(names):
             joint = m.getJoint(m.getJointIndex(name))
             if not joint.hasPosLimits() or values.shape[0] == 0:
@@ -210,18 +206,10 @@ class RobotModel:
             column = values[:, k]
             beyond = np.maximum(low - column, column - high)
             j = int(np.argmax(beyond))
-            if beyond[j] > 2.0 * math.pi:
+            if beyond[j] > JOINT_LIMIT_SLACK:
                 raise FtcalError(f"{where}: joint {name!r} holds {column[j]:g}, {beyond[j]:g} beyond its URDF limits "
                                  f"[{low:g}, {high:g}] (radians expected: are the joints in degrees? give "
                                  "--degrees).")
-            count = int(np.count_nonzero(beyond > JOINT_LIMIT_TOLERANCE))
-            if count and (worst is None or beyond[j] > worst[1]):
-                worst = (name, float(beyond[j]), count, low, high)
-        if worst is not None:
-            name, by, count, low, high = worst
-            warnings.warn(f"{where}: {count} sample(s) of joint {name!r} lie beyond its URDF limits [{low:g}, "
-                          f"{high:g}] (by up to {by:.3g}); the robot model may not match the robot.",
-                          OutOfRangeWarning, stacklevel=3)
 
     def total_mass(self) -> float:
         m = self.model
