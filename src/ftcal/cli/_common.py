@@ -102,3 +102,12 @@ def print_json(payload: dict) -> None:
 def require_suffix(path: str, suffixes: Sequence[str], option: str) -> None:
     if not any(path.lower().endswith(s) for s in suffixes):
         raise FtcalError(f"{option} {path}: must end in {' or '.join(suffixes)}.")
+
+
+def norm_rmse_text(metrics: dict, spec: str = ".4f", units: bool = True) -> str:
+    """``force-norm RMSE … N, torque-norm RMSE … N·m`` from training metrics; either may be absent
+    (force-only or torque-only outputs); '' when both are."""
+    parts = [f"{what}-norm RMSE {metrics[key]:{spec}}" + (f" {unit}" if units else "")
+             for what, key, unit in (("force", "force_norm_rmse", "N"), ("torque", "torque_norm_rmse", "N·m"))
+             if metrics.get(key) is not None]
+    return ", ".join(parts)

@@ -16,6 +16,7 @@ from ..core.limits import (
     SOLVERS,
 )
 from ._common import (
+    norm_rmse_text,
     add_column_options,
     add_scheduler_option,
     default_inputs,
@@ -45,7 +46,12 @@ its trace over p). It estimates its cost first and leaves out degrees over --bud
 
 def lambda_grid(text: str) -> tuple[float, ...]:
     """``paper`` (the paper's six absolute values) or a comma-separated list of positive relative values."""
-    return PAPER_LAMBDAS if text == "paper" else float_list(text)
+    if text == "paper":
+        return PAPER_LAMBDAS
+    values = float_list(text)
+    if len(set(values)) != len(values):
+        raise argparse.ArgumentTypeError(f"each value once, got {text!r}")
+    return values
 
 
 def penalty_list(text: str) -> tuple[str, ...]:
@@ -423,9 +429,8 @@ def report_fit(model, path: str) -> None:
 
         raw_count = int((abs(to_raw(model)) > 1e-9).sum())
         print(f"raw-input coefficients with |value| > 1e-9 (the paper's count): {raw_count}")
-    if metrics.get("force_norm_rmse") is not None:
-        print(f"training force-norm RMSE {metrics['force_norm_rmse']:.4f} N, "
-              f"torque-norm RMSE {metrics['torque_norm_rmse']:.4f} N·m")
+    if norm_rmse_text(metrics):
+        print("training " + norm_rmse_text(metrics))
     print("training RMSE per output: " + ", ".join(f"{n} {v:.4g}" + (f" {u}" if u else "") for n, v, u in
                                                   zip(model.output_names_, metrics["rmse"],
                                                       output_units(model.output_names_))))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from ._common import norm_rmse_text
 from ._examples import epilog
 
 N_LARGEST = 10
@@ -43,9 +44,8 @@ def run(args) -> int:
     for name, unit, (low, high) in zip(model.input_names_, loaded.input_units, model.input_range_):
         print(f"  {name:<8} {low:>14.6g} .. {high:<14.6g} {unit or ''}")
     metrics = model.training_metrics_ or {}
-    if metrics.get("force_norm_rmse") is not None:
-        print(f"training force-norm RMSE {metrics['force_norm_rmse']:.4g} N, "
-              f"torque-norm RMSE {metrics['torque_norm_rmse']:.4g} N·m")
+    if norm_rmse_text(metrics):
+        print("training " + norm_rmse_text(metrics, ".4g"))
     if not polynomial:
         return 0
     names = model.layout_.column_names(model.input_names_, model.output_names_)
