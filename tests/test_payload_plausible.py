@@ -85,3 +85,18 @@ def test_compensate_uses_the_payload_files_gravity(tmp_path, capsys):
 def test_absurd_load_specs_are_refused(spec):
     with pytest.raises(FtcalError):
         parse_payload_spec(spec)
+
+
+def test_time_in_nanoseconds_is_refused_saying_so(tmp_path, capsys):
+    """A bag's clock in ns (steps of 1e7 at 100 Hz) would read as 2e8 minutes of drift."""
+    rot = Rotation.random(4, random_state=5)
+    q = np.repeat(rot.as_quat(), 100, axis=0)
+    g = Rotation.from_quat(q).inv().apply([0.0, 0.0, -9.81])
+    wrench = np.c_[1.5 * g, np.cross([0.0, 0.01, 0.05], 1.5 * g)] + [1.0, -2.0, 0.5, 0.1, 0.0, -0.1]
+    frame = pd.DataFrame(np.c_[wrench, q], columns=["u1", "u2", "u3", "u4", "u5", "u6", "qx", "qy", "qz", "qw"])
+    frame["t"] = 1.7e18 + np.arange(400) * 1e7  # ns since 1970, 100 Hz
+    frame.to_csv(tmp_path / "ns.csv", index=False)
+    code = main(["payload", str(tmp_path / "ns.csv"), "--orientation", "qx,qy,qz,qw", "--time", "t",
+                 "-o", str(tmp_path / "p.json")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "nanoseconds" in err[0] and not (tmp_path / "p.json").exists()

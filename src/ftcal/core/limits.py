@@ -206,3 +206,10 @@ degree 10 (8,008 parameters) would take tens of minutes and is refused with what
 JOINT_LIMIT_SLACK = 6.283185307179586
 """rad (m for prismatic joints). Joint data more than a full turn (2π) beyond a URDF position limit is
 refused: degrees read as radians, or another robot's log. Less is kept: encoders and simulators overshoot."""
+
+MAX_TIME_STEP_S = 1e5
+"""s. A time column whose median step between samples exceeds this (a day), or whose values exceed
+:data:`MAX_TIME_S`, is in another unit (nanoseconds from a ROS bag or a logger): refused, saying so."""
+
+MAX_TIME_S = 1e13
+"""s. About 300,000 years: a larger time value is nanoseconds (1.7e18 since 1970) or microseconds."""
