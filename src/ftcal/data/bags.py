@@ -514,15 +514,20 @@ def _read_joints(path: Path, reader, info, receive_time: bool) -> Stream:
     main = max(streams, key=lambda s: s.n_samples)
     if len(streams) == 1:
         return main
-    columns, data = list(main.columns), [main.data]
-    for s in streams:
-        if s is main:
-            continue
-        for c, name in enumerate(s.columns):
-            if name not in columns:
-                columns.append(name)
-                data.append(np.interp(main.time, s.time, s.data[:, c])[:, None])
-    return Stream(main.name, main.time, np.hstack(data), tuple(columns), clock=main.clock)
+    # Joint sets change within the bag (a gripper's joint appears halfway): merge every message on one
+    # clock, so no sample is lost; a joint is interpolated within the span it was published in and is NaN
+    # outside it (the table's users then drop that joint, or refuse naming it and the time).
+    time = np.unique(np.concatenate([s.time for s in streams]))
+    columns = list(dict.fromkeys(name for s in streams for name in s.columns))
+    data = np.full((time.size, len(columns)), np.nan)
+    for j, name in enumerate(columns):
+        t = np.concatenate([s.time for s in streams if name in s.columns])
+        v = np.concatenate([s.data[:, s.columns.index(name)] for s in streams if name in s.columns])
+        order = np.argsort(t, kind="stable")
+        t, v = t[order], v[order]
+        inside = (time >= t[0]) & (time <= t[-1])
+        data[inside, j] = np.interp(time[inside], t, v)
+    return Stream(main.name, time, data, tuple(columns), clock=main.clock)
 
 
 def _read_imu(path: Path, reader, info, receive_time: bool) -> tuple[Stream, Stream, Stream | None]:
