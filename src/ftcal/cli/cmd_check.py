@@ -10,6 +10,7 @@ from .cmd_payload import add_kinematics_options, add_robot_source_options
 
 MAX_POSES_PRINTED = 8
 
+DEFAULT_WRENCH = ("u1", "u2", "u3", "u4", "u5", "u6")
 EXIT_CODES = "exit codes: 0 no finding / pass, 1 findings / fail, 2 bad input"
 
 
@@ -29,7 +30,7 @@ def register(sub) -> None:
                     "recording, and its input channels, against thresholds. `ftcal check --history SERIAL`: "
                     "drift of bias and gain over the recorded calibrations.")
     p.add_argument("data", nargs="*", metavar="DATA", help="CSV or Parquet recordings")
-    p.add_argument("--wrench", type=column_list, default=("u1", "u2", "u3", "u4", "u5", "u6"),
+    p.add_argument("--wrench", type=column_list, default=DEFAULT_WRENCH,
                    metavar="FX,FY,FZ,TX,TY,TZ", help="wrench columns, N and N·m (default u1,...,u6)")
     add_kinematics_options(p)
     add_robot_source_options(p)
@@ -80,8 +81,24 @@ def run(args) -> int:
     if not args.data:
         raise FtcalError("give the recording(s) DATA to check (or --history SERIAL).")
     if args.accept is not None:
+        # Options of the conventions mode that an acceptance test does not use are refused, not ignored.
+        for option, given in (("--wrench", tuple(args.wrench) != DEFAULT_WRENCH),
+                              ("--reaction", args.reaction),
+                              ("--max-com-distance", args.max_com_distance != MAX_COM_DISTANCE),
+                              ("--rate", args.rate != HOLD_SAMPLE_RATE)):
+            if given:
+                raise FtcalError(f"{option} is for the conventions check (ftcal check DATA); --accept reads the "
+                                 "model's input columns and does not use it.")
+        if args.payload is None:
+            for option, given in (("--orientation", args.orientation), ("--gravity-columns", args.gravity_columns),
+                                  ("--urdf", args.robot_urdf), ("--model", args.robot_model),
+                                  ("--dynamic", args.dynamic or None)):
+                if given is not None:
+                    raise FtcalError(f"{option} goes with --payload (the reference from a payload file); without "
+                                     "it the reference is DATA's output columns.")
         return run_accept(args)
-    for option in ("payload", "serial", "max_force_error", "max_torque_error", "max_error_percent"):
+    for option in ("payload", "serial", "max_force_error", "max_torque_error", "max_error_percent", "rated_force",
+                   "rated_torque", "history_dir"):
         if getattr(args, option) is not None:
             raise FtcalError(f"--{option.replace('_', '-')} goes with --accept MODEL.")
     return run_conventions(args)
