@@ -74,3 +74,23 @@ def test_mlp_weights_that_are_not_numbers_are_refused(tmp_path, capsys, value):
     assert main(["info", str(tmp_path / "bad.json")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "layers[0]" in err[0], err
+
+
+@pytest.mark.parametrize("max_iter", ["1", "5"])
+def test_mlp_max_iter_below_one_checkpoint_is_no_traceback(tmp_path, capsys, max_iter):
+    rng = np.random.default_rng(3)
+    u = rng.normal(size=(150, 3))
+    frame = pd.DataFrame(np.c_[u, np.tanh(u)], columns=["u1", "u2", "u3", "Fx", "Fy", "Fz"])
+    frame["g"] = np.repeat(["a", "b", "c"], 50)
+    frame.to_csv(tmp_path / "d.csv", index=False)
+    assert main(["fit", str(tmp_path / "d.csv"), "--inputs", "u1,u2,u3", "--outputs", "Fx,Fy,Fz", "--family", "mlp",
+                 "--hidden", "3", "--max-iter", max_iter, "--group-by", "g", "-o", str(tmp_path / "m.json")]) == 0
+    assert json.loads((tmp_path / "m.json").read_text())["family"] == "mlp"
+
+
+def test_an_empty_option_value_is_refused_in_one_line(tmp_path, capsys):
+    data = arx_table(tmp_path / "t.csv")
+    assert main(["fit", str(data), "--inputs", "u1", "--outputs", "Fx", "--degree", "1", "--group-by", "",
+                 "-o", str(tmp_path / "m.json")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--group-by" in err[0] and not (tmp_path / "m.json").exists()

@@ -216,12 +216,13 @@ class MLPModel:
         """Scores of every checkpoint on every grouped fold; the iteration count with the best mean."""
         folds = grouped_folds(data.groups, options["n_folds"], seed=0)
         forces, _ = metrics.force_torque_columns(data.output_names)
-        checkpoints = list(range(options["check_every"], options["max_iter"] + 1, options["check_every"]))
+        every = min(options["check_every"], options["max_iter"])  # max_iter below one checkpoint: check at its end
+        checkpoints = list(range(every, options["max_iter"] + 1, every))
         table = np.empty((len(folds), len(checkpoints)))
         for f, held_out in enumerate(folds):
             snapshots = []
             _train(x[~held_out], t[~held_out], sizes, start, options, options["max_iter"],
-                   every=options["check_every"], snapshots=snapshots)
+                   every=every, snapshots=snapshots)
             for c in range(len(checkpoints)):
                 params = snapshots[min(c, len(snapshots) - 1)]  # converged early: the last one stands
                 prediction = out_norm.offset + out_norm.scale * _forward(x[held_out], _unpack(params, sizes),
