@@ -282,6 +282,9 @@ def run(argv: list[str] | None) -> int:
     def show(message, category, filename, lineno, file=None, line=None):
         if issubclass(category, FtcalWarning):
             print(f"warning: {one_line(message)}", file=sys.stderr)
+        elif issubclass(category, RuntimeWarning):  # numpy's floating-point warnings, in ftcal's words
+            print(f"warning: numerical {one_line(message)} (values near the limits of float64 in an input file?)",
+                  file=sys.stderr)
         else:
             print(f"{category.__name__}: {one_line(message)}", file=sys.stderr)
     previous = warnings.showwarning
