@@ -94,3 +94,14 @@ def test_an_empty_option_value_is_refused_in_one_line(tmp_path, capsys):
                  "-o", str(tmp_path / "m.json")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--group-by" in err[0] and not (tmp_path / "m.json").exists()
+
+
+@pytest.mark.parametrize("extra", [["--folds", "3"], ["--max-degree", "2"], ["--select-per", "model"],
+                                   ["--budget", "5"], ["--verbose"], ["--lambdas", "1,0.1"],
+                                   ["--penalties", "ridge"]])
+def test_search_options_with_a_fixed_degree_are_refused_not_ignored(tmp_path, capsys, extra):
+    data = arx_table(tmp_path / "t.csv")
+    assert main(["fit", str(data), "--inputs", "u1", "--outputs", "Fx", "--degree", "1", *extra,
+                 "-o", str(tmp_path / "m.json")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and extra[0] in err[0] and "--degree auto" in err[0]

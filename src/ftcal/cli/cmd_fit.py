@@ -183,6 +183,19 @@ def check_options(args) -> None:
         args.degree = 1
     if args.folds < 2:
         raise FtcalError(f"--folds must be at least 2; got {args.folds}.")
+    # Options of the --degree auto search are refused, not ignored, by a fit of a given degree.
+    search = {"folds": 5, "penalties": ("lasso", "ridge"), "lambdas": None, "select_per": "block",
+              "objective": "both", "max_degree": 5, "budget": SELECTION_BUDGET_SECONDS, "verbose": False}
+    if args.degree != "auto":
+        for name, default in search.items():
+            if getattr(args, name) != default:
+                raise FtcalError(f"--{name.replace('_', '-')} goes with --degree auto (the search); a fit of "
+                                 f"--degree {args.degree} does not use it.")
+    elif args.lasso or args.ridge:
+        for name in ("penalties", "lambdas"):
+            if getattr(args, name) != search[name]:
+                raise FtcalError(f"--{name}: the search's penalty is fixed by --{'lasso' if args.lasso else 'ridge'} "
+                                 "λ; give one or the other.")
     for flag in ("na", "nb"):
         if getattr(args, flag) > MAX_LAG:
             raise FtcalError(f"--{flag} must be at most {MAX_LAG}; got {getattr(args, flag)}.")
