@@ -101,16 +101,22 @@ def open_bag(path: str | Path) -> Iterator:
     try:
         reader = AnyReader([path], default_typestore=get_typestore(Stores.LATEST))
         reader.open()
-    except (AnyReaderError, TypesysError, OSError, KeyError, ValueError) as exc:
+    except (AnyReaderError, TypesysError, OSError, KeyError, ValueError, MemoryError) as exc:  # a flipped size
         raise FtcalError(f"Bag {path}: cannot open it as a ROS 1 .bag, ROS 2 bag folder, .db3 or .mcap "
-                         f"({type(exc).__name__}: {exc}).") from None
+                         f"({type(exc).__name__}: {_one_line(exc)}).") from None
     try:
         yield reader
-    except (AnyReaderError, Ros1ReaderError, Ros2ReaderError, struct.error, *_storage_errors()) as exc:
+    except (AnyReaderError, Ros1ReaderError, Ros2ReaderError, struct.error, MemoryError, *_storage_errors()) as exc:
         raise FtcalError(f"Bag {path}: cannot read it; it may be truncated or corrupt "
-                         f"({type(exc).__name__}: {exc}).") from None
+                         f"({type(exc).__name__}: {_one_line(exc)}).") from None
     finally:
         reader.close()
+
+
+def _one_line(exc: BaseException, limit: int = 300) -> str:
+    """A library's error text on one line (rosbags quotes whole message definitions), at most ``limit`` characters."""
+    text = " ".join(str(exc).split())
+    return text if len(text) <= limit else text[:limit] + " …"
 
 
 def _storage_errors() -> tuple[type[BaseException], ...]:
@@ -199,7 +205,10 @@ def _indexed_spans(reader) -> dict[str, tuple[int, int]] | None:
                 if len(head) != 15 or head[0] != 0x07:
                     return None
                 size = int.from_bytes(head[11:15], "little")
-                entries = np.frombuffer(s.bio.read(size), "<u8")[::2]  # (log_time, offset) pairs
+                data = s.bio.read(size)
+                if len(data) != size or size % 16:  # a damaged index: read the messages instead
+                    return None
+                entries = np.frombuffer(data, "<u8")[::2]  # (log_time, offset) pairs
                 if entries.size and channel in topic_of:
                     widen(topic_of[channel], int(entries.min()), int(entries.max()))
     return spans
