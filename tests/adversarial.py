@@ -14,7 +14,18 @@ runs them through the commands that read them. Each case ends in one of:
 ``traceback``  an exception escaped, or the error was not one line;
 ``injection``  generated C/YAML/XML carries something the file smuggled in
                (extra symbols after compiling, extra YAML keys or XML elements);
-``lost``       exit 0 without its output, or a failure that left output behind.
+``lost``       exit 0 without its output, or a failure that left output behind;
+``verdict``    ``check`` printed PASS beside a non-finite metric;
+``nonfinite``  exit 0 with NaN or inf in a CSV or JSON output;
+``noise``      Python's words on the terminal (numpy reprs, RuntimeWarning).
+
+Besides files, every option of every subcommand is read from ftcal's own parser
+(:func:`parser_options`) and driven with hostile values of its kind (numbers, column
+lists, structured values, choices, paths: FIFOs, folders, missing and garbage files;
+names with line breaks) on a quick valid invocation of its command
+(:func:`base_invocations`). An option whose kind has no generator, or a subcommand
+without a base invocation, stops the run (:func:`uncovered`), unless :data:`EXEMPT`
+says why.
 
 Cases run in-process (``ftcal.cli.main``) inside worker subprocesses that the
 runner restarts after a hang or a crash, so one bad case cannot stop the run.
@@ -140,8 +151,36 @@ def make_fixtures(root: Path) -> dict[str, Path]:
         for i in range(60):
             bag.wrench("/ft", 10**9 + i * 10**7, rng.normal(size=6))
             bag.temperature("/temp", 10**9 + i * 10**7, 30.0)
+            bag.joints("/joint_states", 10**9 + i * 10**7, ("shoulder",) if i < 30 else ("shoulder", "gripper"),
+                       [0.1 * np.sin(i / 10)] + ([0.5] if i >= 30 else []))
         fx[kind] = bag.write(root / f"{kind}-{name}")
+    fx.update(surface_fixtures(root, fx))
     return fx
+
+
+def surface_fixtures(root: Path, fx: dict) -> dict:
+    """Inputs of the surfaces added since the first pass: acceptance tests and their history, plans,
+    re-tares, MLP models."""
+    from ftcal.cli import main
+    from ftcal.sim.plan_arm import ARM_URDF
+
+    out = {"arm": root / "arm.urdf", "history": root / "history", "plan": root / "plan.csv",
+           "mlp": root / "mlp.json"}
+    out["arm"].write_text(ARM_URDF)
+    quiet = open(os.devnull, "w")
+    old = sys.stdout, sys.stderr
+    sys.stdout = sys.stderr = quiet
+    try:
+        main(["check", "--accept", str(fx["model"]), str(fx["csv"]), "--group-by", "group", "--max-force-error",
+              "1e6", "--max-torque-error", "1e6", "--serial", "SN1", "--history-dir", str(out["history"])])
+        assert main(["plan", "--urdf", str(out["arm"]), "--poses", "6", "--candidates", "100", "--load", "none",
+                     "--load", "tool:1@0.03,0,0.04", "-o", str(out["plan"])]) == 0
+        assert main(["fit", str(fx["csv"]), "--family", "mlp", "--hidden", "4", "--max-iter", "20", "--group-by",
+                     "group", "-o", str(out["mlp"])]) == 0
+    finally:
+        sys.stdout, sys.stderr = old
+        quiet.close()
+    return out
 
 
 # ------------------------------------------------------------------ hostile variants
@@ -532,10 +571,186 @@ def cases(fx: dict[str, Path], work: Path, rng: random.Random, n_random: int) ->
         add("mat-v73", fx["mat-v73"], label, writer, mat_cmds)
     for label, writer in variants("mat-v5", mat5, "bin", rng, n_random) + mat5_variants(mat5, rng, n_random):
         add("mat-v5", fx["mat-v5"], label, writer, mat_cmds)
+
+    def add_option_case(command, action, value, base):
+        folder = work / f"{len(out):05d}"
+        argv, outputs = base(folder)
+        option = max(action.option_strings, key=len)
+        writer, label = (lambda path: None), f"{option}={value}"
+        if isinstance(value, tuple):  # a hostile file given as the option's value
+            writer, label = _hostile_path(value[1]), f"{option}={value[1]}"
+            value = str(folder / f"hostile-{value[1]}{'.csv' if action.dest != 'history_dir' else ''}")
+        argv, output_changed = _with_option(argv, action, value)
+        if output_changed or action.dest in ("output", "html", "out"):
+            outputs = []  # the output went elsewhere (or nowhere): only leftovers are checked
+        path = folder / (f"hostile-{label.split('=')[-1]}" + (".csv" if action.dest != "history_dir" else ""))
+        out.append({"kind": f"option:{command}", "label": label[:80], "command": command, "folder": str(folder),
+                    "path": str(path), "writer": ("option", f"{command} {label}"[:120]), "argv": argv,
+                    "outputs": outputs, "check": None})
+        WRITERS[("option", f"{command} {label}"[:120])] = writer
+
+    option_cases(fx, add_option_case, o)
     return out
 
 
 WRITERS: dict = {}
+
+
+# ------------------------------------------------------------------ every option of every command, from the parser
+
+def base_invocations(fx: dict, o) -> dict:
+    """One valid, quick command line per subcommand: each option's hostile values are tried on it.
+
+    ``o(folder, name)`` is an output path in the case's folder. Each entry:
+    command -> callable(folder) -> (argv, outputs).
+    """
+    model, csv = str(fx["model"]), str(fx["csv"])
+    pose = ["--orientation", "qx,qy,qz,qw"]
+    return {
+        "plan": lambda f: (["plan", "--urdf", str(fx["arm"]), "--poses", "6", "--candidates", "100", "--load", "none",
+                            "--load", "tool:1@0.03,0,0.04", "-o", o(f, "p.csv")], [o(f, "p.csv")]),
+        "sensors": lambda f: (["sensors", "--urdf", str(fx["urdf"])], []),
+        "expected": lambda f: (["expected", "--urdf", str(fx["urdf"]), "--joints", str(fx["joints"]), "--no-cache",
+                                "-o", o(f, "e.csv")], [o(f, "e.csv")]),
+        "topics": lambda f: (["topics", str(fx["mcap-file"])], []),
+        "dataset": lambda f: (["dataset", str(fx["mcap-file"]), "--wrench-topic", "/ft", "--joints-topic",
+                               "/joint_states", "--no-cache", "-o", o(f, "d.parquet")], [o(f, "d.parquet")]),
+        "fit": lambda f: (["fit", csv, "--degree", "2", "-o", o(f, "m.json")], [o(f, "m.json")]),
+        "evaluate": lambda f: (["evaluate", model, csv], []),
+        "report": lambda f: (["report", model, csv, "-o", o(f, "r.html")], [o(f, "r.html")]),
+        "check": lambda f: (["check", "--accept", model, csv, "--group-by", "group", "--max-force-error", "1e6",
+                             "--max-torque-error", "1e6"], []),
+        "predict": lambda f: (["predict", model, csv, "-o", o(f, "p.csv")], [o(f, "p.csv")]),
+        "convert": lambda f: (["convert", model, "--to", "paper-xml", "-o", o(f, "m.xml")], [o(f, "m.xml")]),
+        "info": lambda f: (["info", str(fx["mlp"])], []),
+        "payload": lambda f: (["payload", str(fx["poses"]), *pose, "-o", o(f, "p.json")], [o(f, "p.json")]),
+        "compensate": lambda f: (["compensate", str(fx["payload"]), str(fx["poses"]), *pose, "-o", o(f, "c.csv")],
+                                 [o(f, "c.csv")]),
+    }
+
+
+# Options not driven with hostile values here, each with the reason; any other option without a generator fails.
+EXEMPT = {
+    ("demo", "--quick"): "runs the whole demo (minutes); tests/test_demo.py",
+    ("demo", "--out"): "runs the whole demo (minutes); tests/test_demo.py",
+    ("demo", "--scenario"): "runs the whole demo (minutes); tests/test_demo.py",
+    ("demo", "--seed"): "runs the whole demo (minutes); tests/test_demo.py",
+}
+NUMBER_TYPES = {"int", "nonnegative_int", "positive_int", "positive_float", "finite_float"}
+NUMBER_VALUES = ("0", "-1", "nan", "1e308", "x")
+PAIR_TYPES = {"joint_pin", "joint_range", "_frame_pair", "degree_value", "lambda_grid", "noise_pair", "penalty_list",
+              "safe_name"}
+PAIR_VALUES = ("", "x", "nan:1", "1e308,1e308", "1,1")
+COLUMN_VALUES = ("", "nope", "u1,u1", "u1,u2,u3,u4,u5,u6,u7", "f\npwned")
+TEXT_VALUES = ("", "nope", "f\nwrote 1 file", "k" * 3000)
+PATH_WORDS = (".", "PATH", "DIR", "DATA", "MODEL", "PAGE", "CSV", "JSON", "LINK")
+PATH_VALUES = ("fifo", "directory", "missing", "garbage")
+
+
+def _option_kind(action) -> str | None:
+    import argparse
+
+    if isinstance(action, (argparse._StoreTrueAction, argparse._StoreFalseAction)):
+        return "flag"
+    if action.choices:
+        return "choice"
+    name = getattr(action.type, "__name__", None) if action.type else None
+    if name in NUMBER_TYPES:
+        return "number"
+    if name == "column_list":
+        return "columns"
+    if name in PAIR_TYPES:
+        return "structured"
+    if name is None:
+        text = f"{action.metavar or ''} {action.dest}"
+        return "path" if any(w in text for w in PATH_WORDS) or action.dest in ("output", "html", "out") else "text"
+    return None  # a type this generator does not know: a new option needs a generator
+
+
+def parser_options() -> dict[str, list]:
+    """Every option (its argparse action) of every subcommand, read from ftcal's own parser."""
+    import argparse
+
+    from ftcal.cli import build_parser
+
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    return {name: [a for a in sp._actions if a.option_strings and "--help" not in a.option_strings]
+            for name, sp in sub.choices.items()}
+
+
+def uncovered(fx: dict | None = None) -> list[str]:
+    """Subcommands without a base invocation and options without a generator (nor an exemption)."""
+    bases = base_invocations(fx or {k: Path(k) for k in ("model", "csv", "arm", "urdf", "joints", "mcap-file", "mlp",
+                                                          "poses", "payload")}, lambda f, n: n)
+    missing = []
+    for command, actions in parser_options().items():
+        if command not in bases and not all((command, max(a.option_strings, key=len)) in EXEMPT for a in actions):
+            missing.append(f"{command}: no base invocation")
+        for a in actions:
+            option = max(a.option_strings, key=len)
+            if (command, option) not in EXEMPT and _option_kind(a) is None:
+                missing.append(f"{command} {option}: no generator for type {getattr(a.type, '__name__', a.type)}")
+    return missing
+
+
+def _hostile_path(kind: str):
+    def make(path: Path) -> None:
+        if kind == "fifo":
+            os.mkfifo(path)
+        elif kind == "directory":
+            path.mkdir()
+        elif kind == "garbage":
+            path.write_bytes(b"\x00garbage\xff" * 100)
+    return make
+
+
+def option_cases(fx: dict, add_case, o) -> None:
+    """For every option of every command: its hostile values on the command's base invocation."""
+    problems = uncovered(fx)
+    if problems:
+        raise SystemExit("adversarial.py: " + "; ".join(problems))
+    bases = base_invocations(fx, o)
+    for command, actions in parser_options().items():
+        if command not in bases:
+            continue
+        for action in actions:
+            option = max(action.option_strings, key=len)
+            if (command, option) in EXEMPT:
+                continue
+            kind = _option_kind(action)
+            if kind == "flag":
+                values = [None]
+            elif kind == "choice":
+                values = ["bogus", *[c for c in action.choices if c != action.default][:2]]
+            elif kind == "number":
+                values = list(NUMBER_VALUES)
+            elif kind == "columns":
+                values = list(COLUMN_VALUES)
+            elif kind == "structured":
+                values = list(PAIR_VALUES)
+            elif kind == "path":
+                values = [("path", v) for v in PATH_VALUES]
+            else:
+                values = list(TEXT_VALUES)
+            for value in values:
+                add_case(command, action, value, bases[command])
+
+
+def _with_option(argv: list, action, value) -> tuple[list, bool]:
+    """``argv`` with the option set to ``value`` (replacing its first occurrence); True if it replaced an output."""
+    strings = set(action.option_strings)
+    argv = list(argv)
+    replaced = False
+    for i, word in enumerate(argv):
+        if word in strings:
+            if value is None:
+                return argv, False
+            argv[i + 1] = value
+            replaced = True
+            break
+    if not replaced:
+        argv += [max(action.option_strings, key=len)] + ([] if value is None else [value])
+    return argv, replaced and action.dest in ("output", "html", "out")
 
 
 # ------------------------------------------------------------------ running
@@ -551,6 +766,9 @@ def worker() -> None:
     from ftcal.cli import main
 
     warnings.simplefilter("default")
+    # As the ftcal command runs: iDynTree's SWIG bindings warn on import (pyproject.toml ignores the same).
+    warnings.filterwarnings("ignore", message=r"builtin type .* has no __module__ attribute",
+                            category=DeprecationWarning)
     for line in sys.stdin:
         case = json.loads(line)
         out, err = io.StringIO(), io.StringIO()
@@ -563,7 +781,8 @@ def worker() -> None:
                 code = exc.code if isinstance(exc.code, int) else 2
             except BaseException:  # noqa: BLE001 - what the runner classifies
                 code, escaped = None, traceback.format_exc()
-        print(json.dumps({"code": code, "stderr": err.getvalue()[-4000:], "escaped": escaped}), flush=True)
+        print(json.dumps({"code": code, "stderr": err.getvalue()[-4000:], "stdout": out.getvalue()[-4000:],
+                          "escaped": escaped}), flush=True)
 
 
 class Worker:
@@ -604,6 +823,9 @@ class Worker:
 
 
 ERROR_LINE = re.compile(r"^ftcal( [a-z-]+)?: error: ")
+# Python's own words where a user should see ftcal's: numpy reprs, runtime warnings.
+NOISE = ("np.float64(", "np.int64(", "array([", "RuntimeWarning", "DeprecationWarning")
+NAN_WORD = re.compile(r"(?<![A-Za-z_])(nan|NaN|-?inf|-?Infinity)(?![A-Za-z_])")
 
 
 def classify(case: dict, result: dict) -> tuple[str, str]:
@@ -614,12 +836,23 @@ def classify(case: dict, result: dict) -> tuple[str, str]:
         return "crash", f"signal {result['signal']}" if result["signal"] else f"worker exit {result['code']}"
     if result.get("escaped"):
         return "traceback", result["escaped"].strip().splitlines()[-1][:200]
-    code, stderr = result["code"], result["stderr"]
+    code, stderr, stdout = result["code"], result["stderr"], result.get("stdout", "")
     leftovers = [str(p) for p in Path(case["folder"]).rglob("*.tmp")]
+    noise = [w for w in NOISE if w in stderr or w in stdout]
+    if noise:
+        return "noise", f"{noise[0]!r} in the output: {stderr.strip()[-200:]}"
+    if code in (0, 1) and "PASS" in stdout.split() and NAN_WORD.search(stdout):
+        return "verdict", "PASS printed beside a non-finite metric"
+    if code == 1 and case["command"] == "check":  # findings or FAIL: a verdict, not an error
+        code = 0
     if code == 0:
         missing = [p for p in case["outputs"] if not Path(p).exists()]
         if missing or leftovers:
             return "lost", f"missing {missing} leftovers {leftovers}"
+        nonfinite = [p for p in case["outputs"] if Path(p).suffix in (".csv", ".json")
+                     and NAN_WORD.search(Path(p).read_text(errors="replace"))]
+        if nonfinite:
+            return "nonfinite", f"exit 0 with NaN/inf in {nonfinite}"
         return check_injection(case)
     if code == 2:
         lines = [line for line in stderr.strip().splitlines() if line]
@@ -713,7 +946,7 @@ def run(sample: int | None = None, workers: int = 2, out: Path | None = None, n_
 
 def summary(records: list[dict]) -> str:
     """A Markdown table: cases per input kind and outcome."""
-    outcomes = ("clean", "hang", "crash", "traceback", "injection", "lost")
+    outcomes = ("clean", "hang", "crash", "traceback", "injection", "lost", "verdict", "nonfinite", "noise")
     by_kind = collections.defaultdict(collections.Counter)
     for r in records:
         by_kind[r["kind"]][r["outcome"]] += 1

@@ -21,6 +21,13 @@ def outcomes(records) -> collections.Counter:
     return collections.Counter(r["outcome"] for r in records)
 
 
+def test_every_subcommand_and_option_has_a_generator():
+    """Read from the parser: a new subcommand or option without a generator (or a stated exemption) fails here."""
+    assert adversarial.uncovered() == []
+    options = adversarial.parser_options()
+    assert sum(len(v) for v in options.values()) > 150  # the parser was read, not an empty stub
+
+
 @pytest.mark.slow
 def test_a_sample_of_hostile_inputs_is_handled_cleanly():
     """30 cases drawn from every kind: each exits 0 with its outputs, or 2 with one error line."""
@@ -37,4 +44,5 @@ def test_the_full_adversarial_pass():
     count = outcomes(records)
     assert len(records) >= 1000
     assert count["hang"] == count["crash"] == count["injection"] == count["lost"] == 0, count
+    assert count["verdict"] == count["nonfinite"] == 0, count
     assert count["clean"] >= 0.99 * len(records), count

@@ -22,6 +22,14 @@ from ..runtime.errors import FtcalError
 
 # A stuck run covering this fraction of the recording is a dead channel.
 DEAD_FRACTION = 0.9
+# A change of more than this many noise levels (and two quantisation steps) is a load change, not noise.
+LOAD_CHANGE_NOISE = 10.0
+# A channel that repeats its value in fewer than this share of its steps is analog (noise above one step).
+ANALOG_REPEAT_SHARE = 0.5
+# Converter widths whose full scale an integer channel may show.
+ADC_BITS = (8, 10, 12, 14, 16, 18, 20, 24, 32)
+# A reference wrench no larger than this anywhere (N, N·m) is "zero everywhere".
+ZERO_REFERENCE = 1e-6
 
 
 @dataclass(frozen=True)
@@ -63,6 +71,8 @@ class Acceptance:
     error : ndarray of shape (n_samples, 6), prediction minus reference
     labels : ndarray of shape (n_samples,), the pose of each sample
     reference : ndarray of shape (n_samples, 6) or None, the reference wrench (for the page)
+    problems : reasons the test cannot pass whatever the errors (non-finite errors or thresholds,
+        an unusable reference, a dead sensor); any fails the test
     """
 
     outputs: tuple[str, ...]
@@ -74,6 +84,7 @@ class Acceptance:
     error: np.ndarray
     labels: np.ndarray
     reference: np.ndarray | None = field(repr=False, default=None)
+    problems: list[str] = field(default_factory=list)
 
     @property
     def failed_poses(self) -> list[PoseError]:
@@ -81,7 +92,7 @@ class Acceptance:
 
     @property
     def passed(self) -> bool:
-        return not self.failed_poses and not self.channel_issues
+        return not self.failed_poses and not self.channel_issues and not self.problems
 
 
 def axis_limits(outputs: Sequence[str], thresholds: Thresholds) -> np.ndarray:
@@ -96,7 +107,8 @@ def axis_limits(outputs: Sequence[str], thresholds: Thresholds) -> np.ndarray:
 
 
 def acceptance_test(error: np.ndarray, labels: np.ndarray, outputs: Sequence[str], thresholds: Thresholds,
-                    channel_issues: Sequence[str] = (), reference: np.ndarray | None = None) -> Acceptance:
+                    channel_issues: Sequence[str] = (), reference: np.ndarray | None = None,
+                    problems: Sequence[str] = ()) -> Acceptance:
     """Per-axis and per-pose errors against thresholds.
 
     Parameters
@@ -109,26 +121,97 @@ def acceptance_test(error: np.ndarray, labels: np.ndarray, outputs: Sequence[str
     thresholds : Thresholds
     channel_issues : problems of the input channels (any fails the test)
     reference : ndarray of shape (n_samples, 6), kept for the page
+    problems : reasons the verdict cannot be PASS (e.g. from :func:`read_test_data`); more are added here:
+        non-finite errors, metrics or thresholds
 
     Returns
     -------
     Acceptance
+        A pose fails on an axis unless its RMS error is finite and within the threshold, so a NaN
+        never passes.
     """
     if error.shape[0] == 0:
         raise FtcalError("the test recording has no samples.")
     limits = axis_limits(outputs, thresholds)
-    poses = []
-    for label in dict.fromkeys(labels.tolist()):
-        rows = labels == label
-        rmse = np.sqrt(np.mean(error[rows] ** 2, axis=0))
-        poses.append(PoseError(str(label), int(rows.sum()), rmse,
-                               tuple(outputs[j] for j in np.flatnonzero(rmse > limits))))
-    return Acceptance(tuple(outputs), np.sqrt(np.mean(error ** 2, axis=0)), np.abs(error).max(axis=0), poses,
-                      list(channel_issues), thresholds, error, labels, reference)
+    problems = list(problems)
+    bad_limits = [outputs[j] for j in np.flatnonzero(~(np.isfinite(limits) & (limits > 0)))]
+    if bad_limits:
+        problems.append(f"no usable threshold on {', '.join(bad_limits)} (not a finite positive number): "
+                        "nothing can be judged against it")
+    with np.errstate(over="ignore", invalid="ignore"):
+        squares = error ** 2
+        bad = ~np.isfinite(error)
+        if bad.any():
+            axes = [outputs[j] for j in np.flatnonzero(bad.any(axis=0))]
+            problems.append(f"{int(bad.any(axis=1).sum())} of {error.shape[0]} samples have a non-finite error "
+                            f"(NaN or infinite prediction or reference) on {', '.join(axes)}")
+        codes, names = _pose_codes(labels)
+        sizes = np.bincount(codes, minlength=len(names))
+        sums = np.column_stack([np.bincount(codes, squares[:, j], len(names)) for j in range(squares.shape[1])])
+        pose_rmse = np.sqrt(sums / sizes[:, None])
+        poses = [PoseError(str(label), int(size), r, tuple(outputs[j] for j in np.flatnonzero(~(r <= limits))))
+                 for label, size, r in zip(names, sizes, pose_rmse)]
+        rmse = np.sqrt(np.mean(squares, axis=0))
+        max_abs = np.abs(error).max(axis=0)
+    if not bad.any() and not np.all(np.isfinite(rmse)):
+        axes = [outputs[j] for j in np.flatnonzero(~np.isfinite(rmse))]
+        problems.append(f"the RMS error overflows on {', '.join(axes)} (errors near 1e154 or more)")
+    return Acceptance(tuple(outputs), rmse, max_abs, poses, list(channel_issues), thresholds, error, labels,
+                      reference, problems)
 
 
-def input_channel_issues(inputs: np.ndarray, names: Sequence[str], time: np.ndarray, source: str) -> list[str]:
+def _pose_codes(labels: np.ndarray) -> tuple[np.ndarray, list]:
+    """Integer code of each sample's pose, and the poses in order of appearance (one pass, any number of poses)."""
+    import pandas as pd
+
+    codes, names = pd.factorize(pd.Series(labels, dtype=object), sort=False, use_na_sentinel=False)
+    return codes, list(names)
+
+
+def _noise(x: np.ndarray, labels: np.ndarray) -> np.ndarray:
+    """Per-column noise level, shape (n_columns,): the median over poses of the within-pose standard deviation."""
+    codes, names = _pose_codes(labels)
+    sizes = np.bincount(codes, minlength=len(names))[:, None]
+    mean = np.column_stack([np.bincount(codes, x[:, j], len(names)) for j in range(x.shape[1])]) / sizes
+    centred = x - mean[codes]
+    var = np.column_stack([np.bincount(codes, centred[:, j] ** 2, len(names)) for j in range(x.shape[1])]) / sizes
+    return np.median(np.sqrt(var), axis=0)
+
+
+def _step(column: np.ndarray) -> float:
+    """The smallest difference between two distinct values of ``column`` (its quantisation step); inf if constant."""
+    gaps = np.diff(np.unique(column))
+    return float(gaps.min()) if gaps.size else float("inf")
+
+
+def _spread(x: np.ndarray) -> np.ndarray:
+    """Robust range per column (1st to 99th percentile), shape (n_columns,)."""
+    low, high = np.percentile(x, [1.0, 99.0], axis=0)
+    return high - low
+
+
+def _full_scale(column: np.ndarray) -> tuple[float, ...]:
+    """The rails of the converter an integer channel may come from (observed full scale); () for other channels."""
+    if not np.all(column == np.round(column)):
+        return ()
+    top, bottom = float(column.max()), float(column.min())
+    rails = []
+    for bits in ADC_BITS:
+        if bottom >= 0 and top == 2.0 ** bits - 1:
+            rails += [top, 0.0]
+        if bottom < 0 and (top == 2.0 ** (bits - 1) - 1 or bottom == -2.0 ** (bits - 1)):
+            rails += [2.0 ** (bits - 1) - 1, -2.0 ** (bits - 1)]
+    return tuple(rails)
+
+
+def input_channel_issues(inputs: np.ndarray, names: Sequence[str], time: np.ndarray, source: str,
+                         reference: np.ndarray | None = None, labels: np.ndarray | None = None,
+                         adc_limits: tuple[float, float] | None = None) -> list[str]:
     """Saturated, stuck and dead input channels (temperature columns skipped: they move slowly).
+
+    See the module docstring for the rules: a channel resting on one value is a fault only when the
+    load changed meanwhile (the reference, or the other channels, moved), or when the channel is
+    analog (it changes at most steps elsewhere, so a long exact repeat cannot be noise).
 
     Parameters
     ----------
@@ -136,19 +219,100 @@ def input_channel_issues(inputs: np.ndarray, names: Sequence[str], time: np.ndar
     names : input names
     time : ndarray of shape (n_samples,), s
     source : the file, for messages
+    reference : ndarray of shape (n_samples, 6) or None, the reference wrench (tells load changes)
+    labels : ndarray of shape (n_samples,) or None, the pose of each sample (noise is measured within poses)
+    adc_limits : the converter's declared (low, high) full scale, or None to infer it from integer channels
     """
-    from ..data.recording import Stream
-    from ..data.signals import channel_issues
+    from ..data.signals import SATURATION_RUN, STUCK_RUN
     from ..report.runs import temperature_column
 
+    n = inputs.shape[0]
+    if n < 2:
+        return []
+    labels = np.zeros(n) if labels is None else labels
     skip = temperature_column(names)
     keep = [j for j in range(len(names)) if j != skip]
-    stream = Stream(source, time, inputs[:, keep], tuple(names[j] for j in keep))
+    x = inputs[:, keep]
+    noise = _noise(x, labels)
+    steps = np.array([_step(x[:, c]) for c in range(x.shape[1])])
+    floor = np.maximum(LOAD_CHANGE_NOISE * noise, 2.0 * steps)
+    ref_floor = None
+    if reference is not None and np.all(np.isfinite(reference)):
+        scale = float(np.abs(reference).max())
+        ref_floor = np.maximum(LOAD_CHANGE_NOISE * _noise(reference, labels), 1e-9 * max(scale, 1.0))
+
+    def load_changed(rows: slice, but: int) -> bool:
+        if ref_floor is not None and np.any(_spread(reference[rows]) > ref_floor):
+            return True
+        spread = _spread(x[rows])
+        return any(spread[o] > floor[o] for o in range(x.shape[1]) if o != but)
+
     out = []
-    for issue in channel_issues(stream):
-        dead = issue.kind == "stuck" and issue.samples >= DEAD_FRACTION * inputs.shape[0]
-        out.append(f"{stream.name} channel {issue.column} looks dead: constant over {issue.samples} of "
-                   f"{inputs.shape[0]} samples" if dead else str(issue))
+    for c, j in enumerate(keep):
+        col = x[:, c]
+        name = f"{source} channel {names[j]}"
+        edges = np.flatnonzero(np.diff(np.r_[0, np.diff(col) == 0, 0].astype(np.int8)))
+        if not edges.size:
+            continue
+        longest = int(np.argmax(edges[1::2] - edges[::2]))
+        start, stop = int(edges[2 * longest]), int(edges[2 * longest + 1]) + 1  # the run of equal steps spans one more sample
+        length, value = stop - start, float(col[start])
+        where = f"{length} samples from t={float(time[start]):.3f} s"
+        at_rail = (value <= adc_limits[0] or value >= adc_limits[1]) if adc_limits is not None \
+            else value in _full_scale(col)
+        if length >= SATURATION_RUN and at_rail:
+            out.append(f"{name} looks saturated: at the converter's full scale {value:g} for {where}")
+            continue
+        repeats = np.r_[np.diff(col[:start + 1]) == 0, np.diff(col[stop - 1:]) == 0]
+        analog = repeats.size >= SATURATION_RUN and repeats.mean() < ANALOG_REPEAT_SHARE
+        extreme = value in (col.min(), col.max()) and np.ptp(col) > 0
+        needed = SATURATION_RUN if extreme else STUCK_RUN
+        if length < needed or not (analog or load_changed(slice(start, stop), c)):
+            continue
+        if length >= DEAD_FRACTION * n:
+            out.append(f"{name} looks dead: constant over {length} of {n} samples while the load changes")
+        elif extreme:
+            out.append(f"{name} looks saturated: held at its extreme value {value:g} for {where} while it "
+                       "should move")
+        else:
+            out.append(f"{name} looks stuck: {where}")
+    return out
+
+
+def sensor_problems(inputs: np.ndarray, names: Sequence[str], reference: np.ndarray | None,
+                    labels: np.ndarray, payload: bool) -> list[str]:
+    """Reasons the test recording cannot judge the calibration: a dead sensor, a reference zero everywhere.
+
+    Parameters
+    ----------
+    inputs : ndarray of shape (n_samples, n_inputs)
+    names : input names
+    reference : ndarray of shape (n_samples, 6) or None
+    labels : ndarray of shape (n_samples,), the pose of each sample
+    payload : the reference comes from a payload file (else from the recording's columns)
+    """
+    from ..report.runs import temperature_column
+
+    if reference is None or inputs.shape[0] < 2 or not np.all(np.isfinite(reference)):
+        return []
+    skip = temperature_column(names)
+    x = inputs[:, [j for j in range(len(names)) if j != skip]]
+    floor = np.maximum(LOAD_CHANGE_NOISE * _noise(x, labels),
+                       2.0 * np.array([_step(x[:, c]) for c in range(x.shape[1])]))
+    channels_move = bool(np.any(_spread(x) > floor))
+    scale = float(np.abs(reference).max())
+    out = []
+    if scale <= ZERO_REFERENCE and channels_move:
+        out.append(f"the reference wrench is zero in every sample (|w| <= {ZERO_REFERENCE:g}) although the "
+                   "sensor's channels change: unusable as a reference (was the load case named when the table "
+                   "was made?)")
+    ref_change = _spread(reference)
+    ref_floor = np.maximum(LOAD_CHANGE_NOISE * _noise(reference, labels), 1e-9 * max(scale, 1.0))
+    if not channels_move and np.any(ref_change > ref_floor):
+        j = int(np.argmax(ref_change / np.maximum(ref_floor, 1e-300)))
+        what = "the payload's weight" if payload else "the reference wrench"
+        out.append(f"the sensor looks dead: no input channel changes beyond its noise while {what} changes by "
+                   f"{ref_change[j]:.4g} on axis {j + 1}")
     return out
 
 
@@ -172,6 +336,9 @@ def read_test_data(paths: Sequence[str | os.PathLike], model, *, payload=None, s
     reference : ndarray of shape (n_samples, 6)
     labels : ndarray of shape (n_samples,)
     issues : list of str
+        Saturated, stuck and dead channels.
+    problems : list of str
+        Reasons no verdict can pass (:func:`sensor_problems`).
     """
     from ..data.tables import numeric_columns, read_table
     from ..payload.compensate import contact_wrench
@@ -183,7 +350,7 @@ def read_test_data(paths: Sequence[str | os.PathLike], model, *, payload=None, s
         raise FtcalError(f"the calibration model has {len(model.output_names_)} outputs; a wrench needs 6.")
     if payload is not None and source is None:
         raise FtcalError("--payload needs the sensor's orientation (--orientation, --gravity-columns or --urdf).")
-    errors, references, labels, issues = [], [], [], []
+    errors, references, labels, issues, inputs = [], [], [], [], []
     for path in paths:
         path = Path(path)
         frame = read_table(path)
@@ -204,11 +371,14 @@ def read_test_data(paths: Sequence[str | os.PathLike], model, *, payload=None, s
             label = frame[group_by].astype(str).to_numpy(dtype=object)
         time = (numeric_columns(frame, (time_column,), path, "time")[:, 0] if time_column in frame.columns
                 else np.arange(len(frame), dtype=float))
-        issues += input_channel_issues(u, model.input_names_, time, str(path))
+        issues += input_channel_issues(u, model.input_names_, time, str(path), reference, label)
         errors.append(error)
         references.append(reference)
         labels.append(label)
-    return np.concatenate(errors), np.concatenate(references), np.concatenate(labels), issues
+        inputs.append(u)
+    reference, label = np.concatenate(references), np.concatenate(labels)
+    problems = sensor_problems(np.concatenate(inputs), model.input_names_, reference, label, payload is not None)
+    return np.concatenate(errors), reference, label, issues, problems
 
 
 def rated_ranges(model) -> tuple[float, float]:

@@ -3,8 +3,12 @@
 The database (``history.sqlite`` in the folder the user chooses) is append-only: triggers
 refuse UPDATE and DELETE. It runs in WAL mode and every write is one ``BEGIN IMMEDIATE``
 transaction, so concurrent writers queue (up to :data:`BUSY_TIMEOUT_S`) and a writer killed
-mid-transaction leaves nothing behind. A file that is not an intact ftcal history is refused
-with one line.
+mid-transaction leaves nothing behind. Reading (``ftcal check --history``) opens the file
+read-only (``mode=ro``) and writes nothing; it waits for a writer at most :data:`READ_TIMEOUT_S`.
+A history carries :data:`APPLICATION_ID`; another application's SQLite file is refused, never
+adopted. Every failure is one line that says which it is: a lock, read-only storage, a write
+error, a foreign or non-regular file, an edited row, or, only after SQLite's integrity check
+failed, a corrupt database.
 
 A calibration is summarised by its file's sha256, its *bias* (the wrench it predicts at zero
 signal, other inputs such as temperature at the centre of their training range) and its *gain*
@@ -18,10 +22,12 @@ change of the gain (Frobenius); a new calibration is *unusual* when a change exc
 from __future__ import annotations
 
 import contextlib
+import errno
 import hashlib
 import json
 import os
 import sqlite3
+import stat
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from datetime import datetime, timezone
@@ -35,6 +41,11 @@ DATABASE_NAME = "history.sqlite"
 FORMAT = "ftcal-history"
 FORMAT_VERSION = "1"
 BUSY_TIMEOUT_S = 60.0
+# A reader waits this long at most for a writer to let go (reading a WAL database rarely waits at all).
+READ_TIMEOUT_S = 5.0
+# PRAGMA application_id of a history ("ftHi"): a foreign SQLite file is never adopted.
+APPLICATION_ID = 0x66744869
+_TABLES = {"meta", "calibrations", "acceptances"}
 NORMAL_FACTOR = 3.0
 MIN_CHANGES_FOR_NORMAL = 2
 DRIFT_KEYS = ("force_bias", "torque_bias", "gain")
@@ -183,67 +194,184 @@ def drift(records: Sequence[CalibrationRecord]) -> Drift:
 
 
 class History:
-    """The history database in ``folder`` (made if missing).
+    """The history database in ``folder``.
 
     Parameters
     ----------
-    folder : directory holding ``history.sqlite``
+    folder : directory holding ``history.sqlite`` (made if missing, unless ``read_only``)
+    read_only : open for reading only: nothing is created or written (not even the WAL
+        mode), a writer is waited for at most :data:`READ_TIMEOUT_S`, and a history on
+        read-only media is read as it is
 
     Raises
     ------
     FtcalError
-        The folder cannot be made, or the file is not an intact ftcal history.
+        One line saying which: the folder cannot be made; the file is not a regular file (a
+        FIFO, a device), not SQLite, another application's SQLite database, or a newer
+        history version; the history is locked by a writer (after the wait); it is on
+        read-only storage (when writing); it is corrupt (only after SQLite's integrity check
+        failed).
     """
 
-    def __init__(self, folder: str | os.PathLike) -> None:
+    def __init__(self, folder: str | os.PathLike, *, read_only: bool = False) -> None:
         self.folder = Path(folder)
         self.path = self.folder / DATABASE_NAME
-        try:
-            self.folder.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise FtcalError(f"--history-dir {self.folder}: cannot make the folder ({exc.strerror}).") from None
-        if self.path.exists():
+        self.read_only = read_only
+        self._connection: sqlite3.Connection | None = None
+        if read_only:
+            if not self.path.is_file() and not self.path.exists():
+                raise FtcalError(f"--history-dir {self.folder}: no history database ({DATABASE_NAME}) there.")
+        else:
+            try:
+                self.folder.mkdir(parents=True, exist_ok=True)
+            except OSError as exc:
+                raise FtcalError(f"--history-dir {self.folder}: cannot make the folder ({exc.strerror}"
+                                 + ("; read-only storage" if exc.errno == errno.EROFS else "") + ").") from None
+        exists = self.path.exists() or self.path.is_symlink()
+        if exists:
             self._check_file()
-        self._connection = self._connect()
+        try:
+            if exists:
+                self._connection = self._open_existing()
+            else:
+                self._connection = self._create()
+        except sqlite3.DatabaseError as exc:
+            if self._connection is not None:
+                self._connection.close()
+            raise self._failure(exc, "open") from None
 
-    def _refuse(self, why: str) -> FtcalError:
-        why = (why.splitlines() or ["unreadable"])[0]  # SQLite's reports can run over several lines
-        return FtcalError(f"{self.path}: not an intact ftcal history database ({why}); move it aside to start "
-                          "a new history.")
+    # -- opening ---------------------------------------------------------------------------------
 
     def _check_file(self) -> None:
-        with open(self.path, "rb") as fh:
-            head = fh.read(len(_SQLITE_MAGIC))
-        if head and head != _SQLITE_MAGIC:
-            raise self._refuse("not an SQLite file")
-
-    def _connect(self) -> sqlite3.Connection:
+        """Refuse a FIFO, device or folder (opening one could hang) and a file that is not SQLite, before SQLite sees it."""
+        for path in (self.path, Path(f"{self.path}-wal"), Path(f"{self.path}-shm")):
+            try:
+                mode = path.stat().st_mode
+            except FileNotFoundError:
+                if path == self.path:
+                    raise FtcalError(f"{self.path}: a link to nothing; not a history database.") from None
+                continue
+            except OSError as exc:
+                raise FtcalError(f"{path}: cannot read it ({exc.strerror}).") from None
+            if not stat.S_ISREG(mode):
+                raise FtcalError(f"{path}: not a regular file (a FIFO, device or folder); ftcal keeps its history "
+                                 "in a plain file: choose another --history-dir.")
         try:
-            conn = sqlite3.connect(self.path, timeout=BUSY_TIMEOUT_S, isolation_level=None)
-            conn.execute("PRAGMA journal_mode=WAL")
-            conn.execute("PRAGMA synchronous=FULL")
-            check = conn.execute("PRAGMA quick_check").fetchone()[0]
-            if check != "ok":
-                conn.close()
-                raise self._refuse(f"integrity check: {check}")
-            # Every statement is idempotent, so writers opening a new history at once do not collide.
-            conn.executescript(_SCHEMA + _APPEND_ONLY)
-            conn.execute("INSERT OR IGNORE INTO meta VALUES ('format', ?), ('format_version', ?)",
-                         (FORMAT, FORMAT_VERSION))
-            fmt = dict(conn.execute("SELECT key, value FROM meta").fetchall())
-            if fmt.get("format") != FORMAT:
-                conn.close()
-                raise self._refuse(f"format {fmt.get('format')!r}")
-            if fmt.get("format_version") != FORMAT_VERSION:
-                conn.close()
-                raise FtcalError(f"{self.path}: ftcal history version {fmt.get('format_version')}; this ftcal "
-                                 f"reads version {FORMAT_VERSION}.")
+            with open(self.path, "rb") as fh:
+                head = fh.read(len(_SQLITE_MAGIC))
+        except OSError as exc:
+            raise FtcalError(f"{self.path}: cannot read it ({exc.strerror}).") from None
+        if head and head != _SQLITE_MAGIC:
+            raise FtcalError(f"{self.path}: not an SQLite file, so not an ftcal history; move it aside or choose "
+                             "another --history-dir.")
+
+    def _uri(self, immutable: bool = False) -> str:
+        from urllib.parse import quote
+
+        return f"file:{quote(str(self.path.resolve()))}?mode=ro" + ("&immutable=1" if immutable else "")
+
+    def _open_existing(self) -> sqlite3.Connection:
+        # Check what the file is with a read-only connection first: a foreign file is never written to.
+        try:
+            conn = sqlite3.connect(self._uri(), uri=True, timeout=READ_TIMEOUT_S, isolation_level=None)
+            empty = self._identify(conn)
+        except sqlite3.OperationalError as exc:
+            if not (self.read_only and "unable to open" in str(exc) and not os.access(self.folder, os.W_OK)):
+                raise
+            # Read-only media: SQLite cannot make the WAL index beside the file; nobody can write it either.
+            conn = sqlite3.connect(self._uri(immutable=True), uri=True, isolation_level=None)
+            empty = self._identify(conn)
+        if self.read_only:
             return conn
+        conn.close()
+        if empty:
+            return self._create()
+        conn = sqlite3.connect(self.path, timeout=BUSY_TIMEOUT_S, isolation_level=None)
+        conn.execute("PRAGMA journal_mode=WAL")
+        conn.execute("PRAGMA synchronous=FULL")
+        return conn
+
+    def _identify(self, conn: sqlite3.Connection) -> bool:
+        """Check ``conn``'s database is an ftcal history of this version (reads only); True when it is empty."""
+        application = conn.execute("PRAGMA application_id").fetchone()[0]
+        tables = {r[0] for r in conn.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+        if not tables and application in (0, APPLICATION_ID):
+            return True  # an empty database (another writer is making the history): an empty history
+        if application not in (0, APPLICATION_ID) or "meta" not in tables:
+            what = f"application id {application:#x}" if application else f"tables {', '.join(sorted(tables)[:5])}"
+            raise FtcalError(f"{self.path}: another application's SQLite database ({what}), not an ftcal history; "
+                             "ftcal will not add to it: choose another --history-dir.")
+        fmt = dict(conn.execute("SELECT key, value FROM meta").fetchall())
+        if fmt.get("format") != FORMAT or not _TABLES <= tables:
+            raise FtcalError(f"{self.path}: an SQLite database of format {fmt.get('format')!r}, not an ftcal history; "
+                             "ftcal will not add to it: choose another --history-dir.")
+        if fmt.get("format_version") != FORMAT_VERSION:
+            raise FtcalError(f"{self.path}: ftcal history version {fmt.get('format_version')}; this ftcal "
+                             f"reads version {FORMAT_VERSION}.")
+        return False
+
+    def _create(self) -> sqlite3.Connection:
+        conn = sqlite3.connect(self.path, timeout=BUSY_TIMEOUT_S, isolation_level=None)
+        conn.execute("PRAGMA journal_mode=WAL")
+        conn.execute("PRAGMA synchronous=FULL")
+        conn.execute("BEGIN IMMEDIATE")  # two writers making the history at once: the second sees the first's
+        try:
+            tables = {r[0] for r in conn.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+            if not tables:
+                conn.execute(f"PRAGMA application_id = {APPLICATION_ID}")
+                for statement in (_SCHEMA + _APPEND_ONLY).split(";\n"):
+                    if statement.strip():
+                        conn.execute(statement)
+                conn.execute("INSERT INTO meta VALUES ('format', ?), ('format_version', ?)", (FORMAT, FORMAT_VERSION))
+            conn.execute("COMMIT")
+        except BaseException:
+            conn.execute("ROLLBACK")
+            conn.close()
+            raise
+        self._identify(conn)
+        return conn
+
+    def _failure(self, exc: sqlite3.DatabaseError, doing: str) -> FtcalError:
+        """One line naming what went wrong: a lock, read-only storage, a write error, or (checked) corruption."""
+        text = (str(exc).splitlines() or [type(exc).__name__])[0]
+        name = getattr(exc, "sqlite_errorname", "")
+        low = text.lower()
+        if "locked" in low or "busy" in low or name.startswith(("SQLITE_BUSY", "SQLITE_LOCKED")):
+            wait = READ_TIMEOUT_S if self.read_only else BUSY_TIMEOUT_S
+            return FtcalError(f"{self.path}: the history is locked by another process writing to it (waited "
+                              f"{wait:g} s); try again when it has finished. Nothing was changed.")
+        if "readonly" in low or "read-only" in low or name.startswith("SQLITE_READONLY") or (
+                "unable to open" in low and not os.access(self.folder, os.W_OK)):
+            return FtcalError(f"{self.path}: the history is on read-only storage or not writable by you "
+                              f"(SQLite: {text}); nothing was recorded. Record to a writable --history-dir.")
+        if "full" in low or name in ("SQLITE_FULL", "SQLITE_IOERR") or name.startswith("SQLITE_IOERR"):
+            return FtcalError(f"{self.path}: cannot write the history (SQLite: {text}); nothing was recorded.")
+        if "not a database" in low or name == "SQLITE_NOTADB":
+            return FtcalError(f"{self.path}: SQLite cannot read it as a database ({text}); not a usable ftcal "
+                              "history: move it aside or choose another --history-dir.")
+        check = self._integrity()
+        if check is not None:
+            return FtcalError(f"{self.path}: not an intact ftcal history database (integrity check: {check}); "
+                              "move it aside to start a new history.")
+        return FtcalError(f"{self.path}: cannot {doing} the history (SQLite: {text}).")
+
+    def _integrity(self) -> str | None:
+        """SQLite's quick_check on a fresh read-only connection: its first complaint, or None when it passes."""
+        try:
+            conn = sqlite3.connect(self._uri(), uri=True, timeout=READ_TIMEOUT_S, isolation_level=None)
+            try:
+                result = conn.execute("PRAGMA quick_check").fetchone()[0]
+            finally:
+                conn.close()
         except sqlite3.DatabaseError as exc:
-            raise self._refuse(str(exc) or type(exc).__name__) from None
+            if "malformed" in str(exc) or getattr(exc, "sqlite_errorname", "").startswith("SQLITE_CORRUPT"):
+                return (str(exc).splitlines() or ["malformed"])[0]
+            return None  # the check itself could not run (a lock, ...): corruption is not shown
+        return None if result == "ok" else (str(result).splitlines() or ["failed"])[0]
 
     def close(self) -> None:
-        self._connection.close()
+        if self._connection is not None:
+            self._connection.close()
 
     def __enter__(self) -> "History":
         return self
@@ -251,20 +379,35 @@ class History:
     def __exit__(self, *exc) -> None:
         self.close()
 
+    # -- writing ---------------------------------------------------------------------------------
+
     @contextlib.contextmanager
     def transaction(self) -> Iterator[sqlite3.Connection]:
-        """One write transaction (``BEGIN IMMEDIATE`` … ``COMMIT``; rolled back on any error)."""
+        """One write transaction (``BEGIN IMMEDIATE`` … ``COMMIT``; rolled back on any error).
+
+        Database errors inside it (a full disk, read-only storage, a lock) become one-line
+        :class:`FtcalError`s; nothing of the transaction is kept.
+        """
+        if self.read_only:
+            raise FtcalError(f"{self.path}: opened for reading only.")
         conn = self._connection
         try:
             conn.execute("BEGIN IMMEDIATE")
         except sqlite3.DatabaseError as exc:
-            raise self._refuse(str(exc)) from None
+            raise self._failure(exc, "write to") from None
         try:
             yield conn
+        except sqlite3.DatabaseError as exc:
+            _rollback(conn)
+            raise self._failure(exc, "write to") from None
         except BaseException:
-            conn.execute("ROLLBACK")
+            _rollback(conn)
             raise
-        conn.execute("COMMIT")
+        try:
+            conn.execute("COMMIT")
+        except sqlite3.DatabaseError as exc:
+            _rollback(conn)
+            raise self._failure(exc, "write to") from None
 
     def append_calibration(self, conn: sqlite3.Connection, serial: str, summary: CalibrationSummary,
                            recorded_utc: str | None = None) -> bool:
@@ -273,18 +416,18 @@ class History:
             "INSERT OR IGNORE INTO calibrations (serial, recorded_utc, model_sha256, source, outputs, bias, gain) "
             "VALUES (?, ?, ?, ?, ?, ?, ?)",
             (serial, recorded_utc or _now(), summary.model_sha256, summary.source, json.dumps(summary.outputs),
-             json.dumps(summary.bias.tolist()), json.dumps(summary.gain.tolist())))
+             _json_numbers(summary.bias.tolist()), _json_numbers(summary.gain.tolist())))
         return cursor.rowcount == 1
 
     def append_acceptance(self, conn: sqlite3.Connection, serial: str, model_sha256: str, passed: bool,
                           rmse: Sequence[float], thresholds: dict, data: Sequence[str],
                           recorded_utc: str | None = None) -> None:
-        """Insert an acceptance result inside ``conn``'s transaction."""
+        """Insert an acceptance result inside ``conn``'s transaction (a non-finite RMS is stored as null)."""
         conn.execute(
             "INSERT INTO acceptances (serial, recorded_utc, model_sha256, passed, rmse, thresholds, data) "
             "VALUES (?, ?, ?, ?, ?, ?, ?)",
-            (serial, recorded_utc or _now(), model_sha256, int(bool(passed)), json.dumps([float(v) for v in rmse]),
-             json.dumps(thresholds), json.dumps([str(d) for d in data])))
+            (serial, recorded_utc or _now(), model_sha256, int(bool(passed)), _json_numbers([float(v) for v in rmse]),
+             _json_numbers(thresholds), json.dumps([str(d) for d in data])))
 
     def record_calibration(self, serial: str, summary: CalibrationSummary,
                            recorded_utc: str | None = None) -> bool:
@@ -292,32 +435,115 @@ class History:
         with self.transaction() as conn:
             return self.append_calibration(conn, serial, summary, recorded_utc)
 
+    # -- reading ---------------------------------------------------------------------------------
+
     def calibrations(self, serial: str) -> list[CalibrationRecord]:
         """Calibrations of ``serial``, oldest first."""
         rows = self._read("SELECT id, recorded_utc, model_sha256, source, outputs, bias, gain FROM calibrations "
                           "WHERE serial = ? ORDER BY id", serial)
-        return [CalibrationRecord(r[0], r[1], CalibrationSummary(r[2], r[3], tuple(json.loads(r[4])),
-                                                                 np.array(json.loads(r[5]), dtype=float),
-                                                                 np.array(json.loads(r[6]), dtype=float)))
-                for r in rows]
+        out = []
+        for r in rows:
+            with self._row("calibrations", r[0]):
+                outputs = tuple(str(v) for v in _list(json.loads(r[4])))
+                bias = _numbers(json.loads(r[5]))
+                gain = _numbers(json.loads(r[6]))
+                if bias.shape != (6,) or gain.ndim != 2 or gain.shape[0] != 6 or len(outputs) != 6:
+                    raise ValueError("bias, gain or outputs of the wrong size")
+                out.append(CalibrationRecord(int(r[0]), _text(r[1]),
+                                             CalibrationSummary(_text(r[2]), _text(r[3]), outputs, bias, gain)))
+        return out
 
     def acceptances(self, serial: str) -> list[AcceptanceRecord]:
-        """Acceptance results of ``serial``, oldest first."""
+        """Acceptance results of ``serial``, oldest first (a stored null RMS reads as NaN)."""
         rows = self._read("SELECT id, recorded_utc, model_sha256, passed, rmse, thresholds, data FROM acceptances "
                           "WHERE serial = ? ORDER BY id", serial)
-        return [AcceptanceRecord(r[0], r[1], r[2], bool(r[3]), json.loads(r[4]), json.loads(r[5]),
-                                 json.loads(r[6])) for r in rows]
+        out = []
+        for r in rows:
+            with self._row("acceptances", r[0]):
+                rmse = _numbers(json.loads(r[4]))
+                thresholds = json.loads(r[5])
+                data = [str(d) for d in _list(json.loads(r[6]))]
+                if rmse.ndim != 1 or not isinstance(thresholds, dict) or r[3] not in (0, 1):
+                    raise ValueError("rmse, thresholds or passed of the wrong kind")
+                out.append(AcceptanceRecord(int(r[0]), _text(r[1]), _text(r[2]), bool(r[3]), rmse.tolist(),
+                                            thresholds, data))
+        return out
 
     def serials(self) -> list[str]:
         """Every serial with a record."""
         rows = self._read("SELECT serial FROM calibrations UNION SELECT serial FROM acceptances ORDER BY 1")
-        return [r[0] for r in rows]
+        return [str(r[0]) for r in rows]
 
     def _read(self, sql: str, *params) -> list[tuple]:
+        if self._connection is None or not self._tables():
+            return []  # an empty file read as an empty history
         try:
             return self._connection.execute(sql, params).fetchall()
         except (sqlite3.DatabaseError, ValueError) as exc:
-            raise self._refuse(str(exc)) from None
+            if isinstance(exc, sqlite3.DatabaseError):
+                raise self._failure(exc, "read") from None
+            raise FtcalError(f"{self.path}: cannot read the history ({exc}).") from None
+
+    def _tables(self) -> set[str]:
+        try:
+            return {r[0] for r in self._connection.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+        except sqlite3.DatabaseError as exc:
+            raise self._failure(exc, "read") from None
+
+    @contextlib.contextmanager
+    def _row(self, table: str, row_id) -> Iterator[None]:
+        """A row that does not parse (edited by hand or by another program) is one line naming it."""
+        try:
+            yield
+        except (ValueError, TypeError, KeyError, IndexError, RecursionError) as exc:
+            raise FtcalError(f"{self.path}: row {row_id} of table {table} is not what ftcal wrote ("
+                             f"{(str(exc).splitlines() or [type(exc).__name__])[0][:120]}); the file was edited. "
+                             "Nothing else was changed.") from None
+
+
+def _rollback(conn: sqlite3.Connection) -> None:
+    try:
+        conn.execute("ROLLBACK")
+    except sqlite3.DatabaseError:
+        pass  # no transaction left to roll back (SQLite already did)
+
+
+def _json_numbers(value) -> str:
+    """JSON with non-finite floats as null (strict JSON has no NaN)."""
+    def clean(v):
+        if isinstance(v, float):
+            return v if np.isfinite(v) else None
+        if isinstance(v, dict):
+            return {k: clean(x) for k, x in v.items()}
+        if isinstance(v, (list, tuple)):
+            return [clean(x) for x in v]
+        return v
+    return json.dumps(clean(value), allow_nan=False)
+
+
+def _list(value) -> list:
+    if not isinstance(value, list):
+        raise ValueError("a list was expected")
+    return value
+
+
+def _numbers(value) -> np.ndarray:
+    """Nested lists of numbers (null as NaN) as a float array; anything else is refused."""
+    def check(v):
+        if isinstance(v, list):
+            return [check(x) for x in v]
+        if v is None:
+            return float("nan")
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise ValueError(f"a number was expected, found {type(v).__name__}")
+        return float(v)
+    return np.array(check(value), dtype=float)
+
+
+def _text(value) -> str:
+    if not isinstance(value, str):
+        raise ValueError(f"text was expected, found {type(value).__name__}")
+    return value
 
 
 def _now() -> str:

@@ -24,6 +24,12 @@ from .conventions import AXES, ConventionReport
 
 
 def _page(title: str, meta: Sequence[str], sections: Sequence[tuple[str, list[str]]], out: str | os.PathLike) -> Path:
+    path = Path(out)
+    write_text_atomic(path, _page_text(title, meta, sections))
+    return path
+
+
+def _page_text(title: str, meta: Sequence[str], sections: Sequence[tuple[str, list[str]]]) -> str:
     created = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     lines = [f"Made by ftcal {ftcal_version()} on {created}.", *meta]
     body = "\n".join(f"<section><h2>{html.escape(name)}</h2>\n" + "\n".join(parts) + "</section>"
@@ -33,9 +39,7 @@ def _page(title: str, meta: Sequence[str], sections: Sequence[tuple[str, list[st
             f"<h1>{html.escape(title)}</h1>\n"
             + "".join(f'<p class="meta">{html.escape(line)}</p>\n' for line in lines)
             + f"{body}\n</body>\n</html>\n")
-    path = Path(out)
-    write_text_atomic(path, page)
-    return path
+    return page
 
 
 def _hold_bars(report: ConventionReport):
@@ -81,19 +85,36 @@ def conventions_page(report: ConventionReport, out: str | os.PathLike, *, source
     ], out)
 
 
+# Poses drawn in the figure and listed in the table: the worst ones, so thousands of poses stay a quick page.
+MAX_PAGE_POSES = 40
+MAX_TABLE_POSES = 500
+
+
+def worst_poses(result: Acceptance, count: int) -> list:
+    """The ``count`` poses furthest over (or nearest to) their thresholds, in recording order."""
+    limits = axis_limits(result.outputs, result.thresholds)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = [float(np.nan_to_num(p.rmse / limits, nan=np.inf).max()) for p in result.poses]
+    keep = sorted(np.argsort(ratio, kind="stable")[::-1][:count].tolist())
+    return [result.poses[k] for k in keep]
+
+
 def _pose_figure(result: Acceptance):
     limits = axis_limits(result.outputs, result.thresholds)
+    poses = worst_poses(result, MAX_PAGE_POSES)
     fig = new_figure(10.0, 5.0)
     axes = fig.subplots(2, 3, sharex=True)
-    index = np.arange(len(result.poses))
+    index = np.arange(len(poses))
     for j, ax in enumerate(axes.ravel()):
-        values = [p.rmse[j] for p in result.poses]
-        ax.bar(index, values, color=["#c0504d" if v > limits[j] else "#4f81bd" for v in values])
+        values = np.array([p.rmse[j] for p in poses])
+        ax.bar(index, np.nan_to_num(values, nan=0.0, posinf=0.0),
+               color=["#4f81bd" if v <= limits[j] else "#c0504d" for v in values])
         ax.axhline(limits[j], color="black", lw=0.8, ls="--")
         ax.set_title(result.outputs[j])
     for ax in axes[1]:
-        ax.set_xticks(index, [p.label[-12:] for p in result.poses], rotation=60, fontsize=6)
-    fig.suptitle("RMS error by pose (dashed: threshold; red: over it)")
+        ax.set_xticks(index, [p.label[-12:] for p in poses], rotation=60, fontsize=6)
+    shown = "" if len(poses) == len(result.poses) else f"; the {len(poses)} worst of {len(result.poses)} poses"
+    fig.suptitle(f"RMS error by pose (dashed: threshold; red: over it{shown})")
     return fig
 
 
@@ -114,27 +135,38 @@ def _series_figure(result: Acceptance):
 def acceptance_page(result: Acceptance, out: str | os.PathLike, *, model: str = "",
                     data: Sequence[str] = ()) -> Path:
     """Write the page of an acceptance test."""
+    out = Path(out)
+    write_text_atomic(out, acceptance_page_text(result, model=model, data=data))
+    return out
+
+
+def acceptance_page_text(result: Acceptance, *, model: str = "", data: Sequence[str] = ()) -> str:
+    """The page of an acceptance test, as text."""
     from matplotlib import rc_context
 
     limits = axis_limits(result.outputs, result.thresholds)
     verdict = "PASS" if result.passed else "FAIL"
     axis_rows = [[name, f"{r:.4g}", f"{m:.4g}", f"{lim:.4g}", "ok" if r <= lim else "over"]
                  for name, r, m, lim in zip(result.outputs, result.rmse, result.max_abs_error, limits)]
+    listed = worst_poses(result, MAX_TABLE_POSES)
     pose_rows = [[p.label, str(p.n_samples), *(f"{v:.4g}" for v in p.rmse),
-                  ", ".join(p.failed) or "ok"] for p in result.poses]
-    issues = (['<ul class="notes">' + "".join(f"<li>{html.escape(i)}</li>" for i in result.channel_issues)
-               + "</ul>"] if result.channel_issues else ["<p>No saturated, stuck or dead input channel.</p>"])
+                  ", ".join(p.failed) or "ok"] for p in listed]
+    left_out = ([f"<p>The {len(listed)} worst of {len(result.poses)} poses are listed.</p>"]
+                if len(listed) < len(result.poses) else [])
+    notes = [*(f"unusable: {p}" for p in result.problems), *result.channel_issues]
+    issues = (['<ul class="notes">' + "".join(f"<li>{html.escape(i)}</li>" for i in notes)
+               + "</ul>"] if notes else ["<p>No saturated, stuck or dead input channel.</p>"])
     with rc_context(STYLE):
         poses = figure_html(_pose_figure(result), "poses", "RMS error of each pose against the thresholds.")
         series = (figure_html(_series_figure(result), "series", "Reference (black) and calibrated (blue) wrench.")
                   if result.reference is not None else "<p>No reference wrench kept.</p>")
-    return _page(f"ftcal check: acceptance {verdict}",
+    return _page_text(f"ftcal check: acceptance {verdict}",
                  [f"Model: {model}", f"Data: {', '.join(map(str, data))}",
                   f"Thresholds: {result.thresholds.force:.4g} N, {result.thresholds.torque:.4g} N·m "
                   f"({result.thresholds.origin})"], [
         ("Errors per axis", [html_table(["axis", "RMS error", "max |error|", "threshold", ""], axis_rows)]),
         ("Errors by pose", [html_table(["pose", "samples", *result.outputs, "over threshold"], pose_rows),
-                            poses]),
+                            *left_out, poses]),
         ("Input channels", issues),
         ("Reference and calibrated wrench", [series]),
-    ], out)
+    ])

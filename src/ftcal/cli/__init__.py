@@ -112,6 +112,19 @@ def input_files(args: argparse.Namespace) -> list[str]:
     return found
 
 
+def check_no_empty_values(args: argparse.Namespace) -> None:
+    """Refuse an option given an empty text value (``--group-by ""``): no file, column or name is empty,
+    and an empty value would otherwise be read as "not given" in one place and used in another."""
+    from ..runtime.errors import FtcalError
+
+    for name, value in vars(args).items():
+        if name in ("func", "command"):
+            continue
+        for item in value if isinstance(value, list) else [value]:
+            if isinstance(item, str) and not item.strip():
+                raise FtcalError(f"--{name.replace('_', '-')}: empty value; give a name (or leave the option out).")
+
+
 def check_input_paths(args: argparse.Namespace) -> None:
     """Refuse any argument naming a FIFO, device or socket (never opened: reading one may never end).
 
@@ -269,6 +282,9 @@ def run(argv: list[str] | None) -> int:
     def show(message, category, filename, lineno, file=None, line=None):
         if issubclass(category, FtcalWarning):
             print(f"warning: {one_line(message)}", file=sys.stderr)
+        elif issubclass(category, RuntimeWarning):  # numpy's floating-point warnings, in ftcal's words
+            print(f"warning: numerical {one_line(message)} (values near the limits of float64 in an input file?)",
+                  file=sys.stderr)
         else:
             print(f"{category.__name__}: {one_line(message)}", file=sys.stderr)
     previous = warnings.showwarning
@@ -277,6 +293,7 @@ def run(argv: list[str] | None) -> int:
     sys.stdout = EscapingStream(stdout)
     try:
         with terminating_signals_unwind(), protected_inputs(input_files(args)):
+            check_no_empty_values(args)
             check_input_paths(args)
             for option in OUTPUT_OPTIONS:
                 if getattr(args, option, None):

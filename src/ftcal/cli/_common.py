@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import re
 import sys
 from collections.abc import Sequence
 
@@ -102,3 +103,21 @@ def print_json(payload: dict) -> None:
 def require_suffix(path: str, suffixes: Sequence[str], option: str) -> None:
     if not any(path.lower().endswith(s) for s in suffixes):
         raise FtcalError(f"{option} {path}: must end in {' or '.join(suffixes)}.")
+
+
+def norm_rmse_text(metrics: dict, spec: str = ".4f", units: bool = True) -> str:
+    """``force-norm RMSE … N, torque-norm RMSE … N·m`` from training metrics; either may be absent
+    (force-only or torque-only outputs); '' when both are."""
+    parts = [f"{what}-norm RMSE {metrics[key]:{spec}}" + (f" {unit}" if units else "")
+             for what, key, unit in (("force", "force_norm_rmse", "N"), ("torque", "torque_norm_rmse", "N·m"))
+             if metrics.get(key) is not None]
+    return ", ".join(parts)
+
+
+_LINE_BREAKS = re.compile("[\t\n\x0b\x0c\r\x1c-\x1e\x85\u2028\u2029]")
+
+
+def single_line(text: str) -> str:
+    """``text`` with line breaks and tabs written as escapes: a name from a file (a bag topic, a column,
+    a model's input) cannot start a line of its own in the output and forge it."""
+    return _LINE_BREAKS.sub(lambda m: m.group(0).encode("unicode_escape").decode("ascii"), str(text))

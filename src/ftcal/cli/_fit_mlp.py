@@ -6,6 +6,7 @@ import argparse
 import sys
 
 from ..core.limits import FAMILY_NAMES, MLP_ACTIVATIONS, MLP_MAX_ITER, MLP_MAX_LAYERS, MLP_MAX_UNITS
+from ._common import norm_rmse_text
 
 
 def hidden_sizes(text: str) -> tuple[int, ...]:
@@ -141,8 +142,7 @@ def report_mlp(model, path: str) -> None:
     metrics = model.training_metrics_
     print(f"model: {model.label()}, {info['n_coefficients']} weights, {model.n_iter_} L-BFGS iterations, "
           f"samples: {model.n_samples_fit_}")
-    if metrics.get("force_norm_rmse") is not None:
-        print(f"training force-norm RMSE {metrics['force_norm_rmse']:.4f}, "
-              f"torque-norm RMSE {metrics['torque_norm_rmse']:.4f}")
+    if norm_rmse_text(metrics):
+        print("training " + norm_rmse_text(metrics, units=False))
     print("training RMSE per output: " + ", ".join(f"{n} {v:.4g}" for n, v in zip(model.output_names_, metrics["rmse"])))
     print(f"wrote {path}")

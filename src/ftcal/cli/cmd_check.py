@@ -10,6 +10,7 @@ from ._gravity import add_kinematics_options, add_robot_source_options
 
 MAX_POSES_PRINTED = 8
 
+DEFAULT_WRENCH = ("u1", "u2", "u3", "u4", "u5", "u6")
 EXIT_CODES = "exit codes: 0 no finding / pass, 1 findings / fail, 2 bad input"
 
 
@@ -29,7 +30,7 @@ def register(sub) -> None:
                     "recording, and its input channels, against thresholds. `ftcal check --history SERIAL`: "
                     "drift of bias and gain over the recorded calibrations.")
     p.add_argument("data", nargs="*", metavar="DATA", help="CSV or Parquet recordings")
-    p.add_argument("--wrench", type=column_list, default=("u1", "u2", "u3", "u4", "u5", "u6"),
+    p.add_argument("--wrench", type=column_list, default=DEFAULT_WRENCH,
                    metavar="FX,FY,FZ,TX,TY,TZ", help="wrench columns, N and N·m (default u1,...,u6)")
     add_kinematics_options(p)
     add_robot_source_options(p)
@@ -80,8 +81,24 @@ def run(args) -> int:
     if not args.data:
         raise FtcalError("give the recording(s) DATA to check (or --history SERIAL).")
     if args.accept is not None:
+        # Options of the conventions mode that an acceptance test does not use are refused, not ignored.
+        for option, given in (("--wrench", tuple(args.wrench) != DEFAULT_WRENCH),
+                              ("--reaction", args.reaction),
+                              ("--max-com-distance", args.max_com_distance != MAX_COM_DISTANCE),
+                              ("--rate", args.rate != HOLD_SAMPLE_RATE)):
+            if given:
+                raise FtcalError(f"{option} is for the conventions check (ftcal check DATA); --accept reads the "
+                                 "model's input columns and does not use it.")
+        if args.payload is None:
+            for option, given in (("--orientation", args.orientation), ("--gravity-columns", args.gravity_columns),
+                                  ("--urdf", args.robot_urdf), ("--model", args.robot_model),
+                                  ("--dynamic", args.dynamic or None)):
+                if given is not None:
+                    raise FtcalError(f"{option} goes with --payload (the reference from a payload file); without "
+                                     "it the reference is DATA's output columns.")
         return run_accept(args)
-    for option in ("payload", "serial", "max_force_error", "max_torque_error", "max_error_percent"):
+    for option in ("payload", "serial", "max_force_error", "max_torque_error", "max_error_percent", "rated_force",
+                   "rated_torque", "history_dir"):
         if getattr(args, option) is not None:
             raise FtcalError(f"--{option.replace('_', '-')} goes with --accept MODEL.")
     return run_conventions(args)
@@ -119,6 +136,8 @@ def run_conventions(args) -> int:
 
 
 def _thresholds(args, model):
+    import math
+
     from ..check.accept import Thresholds, rated_ranges
     from ..runtime.errors import FtcalError
 
@@ -131,6 +150,12 @@ def _thresholds(args, model):
             force = args.rated_force or force
             torque = args.rated_torque or torque
             origin = "--rated-force/--rated-torque"
+        # A model without a training range (paper XML, null ranges) must not make the threshold infinite.
+        for value, option in ((force, "--rated-force N"), (torque, "--rated-torque NM")):
+            if not (math.isfinite(value) and value > 0):
+                raise FtcalError(f"--max-error-percent: {args.accept} has no finite training output range to take "
+                                 f"the percentage of; give {option} (or absolute --max-force-error/"
+                                 "--max-torque-error).")
         return Thresholds.from_percent(args.max_error_percent, force, torque, origin)
     if args.rated_force is not None or args.rated_torque is not None:
         raise FtcalError("--rated-force/--rated-torque go with --max-error-percent.")
@@ -157,9 +182,9 @@ def run_accept(args) -> int:
 
         payload = load_payload(args.payload)
         source = kinematics_source(args)
-    error, reference, labels, issues = read_test_data(args.data, model, payload=payload, source=source,
-                                                      group_by=args.group_by, time_column=args.time or "time")
-    result = acceptance_test(error, labels, model.output_names_, thresholds, issues, reference)
+    error, reference, labels, issues, problems = read_test_data(
+        args.data, model, payload=payload, source=source, group_by=args.group_by, time_column=args.time or "time")
+    result = acceptance_test(error, labels, model.output_names_, thresholds, issues, reference, problems)
     limits = axis_limits(result.outputs, thresholds)
     print(f"acceptance of {args.accept} on {error.shape[0]} samples in {len(result.poses)} pose(s); thresholds "
           f"{thresholds.force:.4g} N, {thresholds.torque:.4g} N·m RMS per axis and pose ({thresholds.origin})")
@@ -174,24 +199,41 @@ def run_accept(args) -> int:
         print(f"... {len(failed) - MAX_POSES_PRINTED} more failing pose(s)")
     for issue in result.channel_issues:
         print(f"channel: {issue}")
+    for problem in result.problems:
+        print(f"unusable: {problem}")
     print("PASS" if result.passed else f"FAIL ({len(failed)} of {len(result.poses)} pose(s) over threshold, "
-                                       f"{len(result.channel_issues)} channel issue(s))")
+                                       f"{len(result.channel_issues)} channel issue(s)"
+                                       + (f", {len(result.problems)} reason(s) the test cannot pass" if result.problems
+                                          else "") + ")")
+    page = None
+    if args.html is not None:  # made before anything is recorded: a run that fails is not in the history
+        from ..check.page import acceptance_page_text
+
+        page = acceptance_page_text(result, model=args.accept, data=args.data)
+    from ..runtime.atomic import write_text_atomic
+
+    def write_page() -> None:
+        if page is not None:
+            write_text_atomic(args.html, page)
+
     if args.serial is not None:
-        message = record(args, model, result, thresholds)
+        # The page is written inside the history's transaction: if it fails, nothing is recorded.
+        message = record(args, model, result, thresholds, before_commit=write_page)
         if message:
             from ..check.history import DriftWarning
 
             warnings.warn(message, DriftWarning, stacklevel=1)
-    if args.html is not None:
-        from ..check.page import acceptance_page
-
-        acceptance_page(result, args.html, model=args.accept, data=args.data)
+    else:
+        write_page()
+    if page is not None:
         _wrote(args.html)
     return 0 if result.passed else 1
 
 
-def record(args, model, result, thresholds) -> str | None:
-    """Append the calibration (if new) and the result to the history; a drift warning, or None."""
+def record(args, model, result, thresholds, before_commit=None) -> str | None:
+    """Append the calibration (if new) and the result to the history; a drift warning, or None.
+
+    ``before_commit()`` runs inside the transaction (the other outputs): if it fails, nothing is recorded."""
     from ..check.history import History, calibration_summary, default_history_dir, drift
 
     summary = calibration_summary(model, args.accept)
@@ -200,7 +242,10 @@ def record(args, model, result, thresholds) -> str | None:
             new = history.append_calibration(conn, args.serial, summary)
             history.append_acceptance(conn, args.serial, summary.model_sha256, result.passed, result.rmse.tolist(),
                                       {"force": thresholds.force, "torque": thresholds.torque,
-                                       "origin": thresholds.origin}, args.data)
+                                       "origin": thresholds.origin, "problems": list(result.problems)},
+                                      args.data)
+            if before_commit is not None:
+                before_commit()
         records = history.calibrations(args.serial)
         print(f"recorded in {history.path} for sensor {args.serial} ({len(records)} calibration(s))")
     return _drift_message(drift(records), args.serial) if new else None
@@ -218,6 +263,7 @@ def _drift_message(result, serial: str) -> str | None:
 
 
 def show_history(args) -> int:
+    import os
     import warnings
 
     import numpy as np
@@ -229,10 +275,10 @@ def show_history(args) -> int:
     from ..runtime.errors import FtcalError
 
     folder = Path(args.history_dir or default_history_dir())
-    if not (folder / DATABASE_NAME).is_file():
+    if not os.path.lexists(folder / DATABASE_NAME):
         raise FtcalError(f"--history-dir {folder}: no history database ({DATABASE_NAME}) there; record one with "
                          "ftcal check --accept MODEL DATA --serial SERIAL.")
-    with History(folder) as history:
+    with History(folder, read_only=True) as history:  # reading never writes (nor waits long for a writer)
         records = history.calibrations(args.history_serial)
         results = history.acceptances(args.history_serial)
         if not records and not results:

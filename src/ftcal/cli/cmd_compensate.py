@@ -27,7 +27,10 @@ def register(sub) -> None:
                    help="measured wrench columns without --model (default: the payload file's, else u1,...,u6)")
     add_kinematics_options(p)
     add_robot_source_options(p, named_models=False)
-    p.set_defaults(func=run)
+    for action in p._actions:
+        if action.dest == "g":
+            action.help = "gravity magnitude, m/s² (default: the payload file's, which its mass was identified with)"
+    p.set_defaults(func=run, g=None)
 
 
 def run(args) -> int:
@@ -48,6 +51,11 @@ def run(args) -> int:
     if args.dynamic and payload.inertia is None:
         raise FtcalError(f"{args.payload}: has no inertia (identified without --dynamic); "
                          "compensate without --dynamic or re-identify with it.")
+    if args.g is None:
+        args.g = payload.gravity
+    elif abs(args.g - payload.gravity) > 1e-9 * payload.gravity:
+        raise FtcalError(f"--g {args.g:g}: {args.payload} was identified with g = {payload.gravity:g} m/s² (its "
+                         "mass times g is what the data determined); leave --g out.")
     source = kinematics_source(args)
     model = read_model(args.model) if args.model else None
     parts = [compensate_table(path, payload, source, wrench=args.wrench, model=model, time_column=args.time,

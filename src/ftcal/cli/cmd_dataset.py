@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from ._common import add_scheduler_option, finite_float, positive_float, require_suffix
+from ._common import add_scheduler_option, finite_float, positive_float, require_suffix, single_line
 from ._examples import epilog
 from .cmd_sensors import add_cache_arguments, add_robot_arguments, load_robot
 
@@ -137,7 +137,7 @@ def run(args: argparse.Namespace) -> int:
                                 options=options, executor=executor)
     write_dataset(table, out)
     for line in table.notes:
-        print(line)
+        print(single_line(line))
     dataset = table.dataset
     groups = sorted(set(map(str, dataset.groups)))
     n_holds = int(table.columns["hold"].max()) + 1 if dataset.n_samples else 0
@@ -160,7 +160,7 @@ def _run_bags(args, out, robot, payloads, config, options, executor) -> int:
                             load_cases=config, options=options, executor=executor)
     write_bag_table(table, out)
     for line in table.notes:
-        print(line)
+        print(single_line(line))
     print(f"wrote {table.n_samples} samples from {len(args.logs)} bag(s), columns "
-          f"{','.join(table.columns)}, to {out}")
+          f"{single_line(','.join(table.columns))}, to {out}")
     return 0

@@ -17,6 +17,7 @@ from ..core.limits import (
     SOLVERS,
 )
 from ._common import (
+    norm_rmse_text,
     add_column_options,
     add_scheduler_option,
     default_inputs,
@@ -46,7 +47,12 @@ its trace over p). It estimates its cost first and leaves out degrees over --bud
 
 def lambda_grid(text: str) -> tuple[float, ...]:
     """``paper`` (the paper's six absolute values) or a comma-separated list of positive relative values."""
-    return PAPER_LAMBDAS if text == "paper" else float_list(text)
+    if text == "paper":
+        return PAPER_LAMBDAS
+    values = float_list(text)
+    if len(set(values)) != len(values):
+        raise argparse.ArgumentTypeError(f"each value once, got {text!r}")
+    return values
 
 
 def penalty_list(text: str) -> tuple[str, ...]:
@@ -180,6 +186,19 @@ def check_options(args) -> None:
         args.degree = 1
     if args.folds < 2:
         raise FtcalError(f"--folds must be at least 2; got {args.folds}.")
+    # Options of the --degree auto search are refused, not ignored, by a fit of a given degree.
+    search = {"folds": 5, "penalties": ("lasso", "ridge"), "lambdas": None, "select_per": "block",
+              "objective": "both", "max_degree": 5, "budget": SELECTION_BUDGET_SECONDS, "verbose": False}
+    if args.degree != "auto":
+        for name, default in search.items():
+            if getattr(args, name) != default:
+                raise FtcalError(f"--{name.replace('_', '-')} goes with --degree auto (the search); a fit of "
+                                 f"--degree {args.degree} does not use it.")
+    elif args.lasso or args.ridge:
+        for name in ("penalties", "lambdas"):
+            if getattr(args, name) != search[name]:
+                raise FtcalError(f"--{name}: the search's penalty is fixed by --{'lasso' if args.lasso else 'ridge'} "
+                                 "λ; give one or the other.")
     for flag in ("na", "nb"):
         if getattr(args, flag) > MAX_LAG:
             raise FtcalError(f"--{flag} must be at most {MAX_LAG}; got {getattr(args, flag)}.")
@@ -440,9 +459,8 @@ def report_fit(model, path: str) -> None:
 
         raw_count = int((abs(to_raw(model)) > 1e-9).sum())
         print(f"raw-input coefficients with |value| > 1e-9 (the paper's count): {raw_count}")
-    if metrics.get("force_norm_rmse") is not None:
-        print(f"training force-norm RMSE {metrics['force_norm_rmse']:.4f} N, "
-              f"torque-norm RMSE {metrics['torque_norm_rmse']:.4f} N·m")
+    if norm_rmse_text(metrics):
+        print("training " + norm_rmse_text(metrics))
     print("training RMSE per output: " + ", ".join(f"{n} {v:.4g}" + (f" {u}" if u else "") for n, v, u in
                                                   zip(model.output_names_, metrics["rmse"],
                                                       output_units(model.output_names_))))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from ._common import norm_rmse_text, single_line
 from ._examples import epilog
 
 N_LARGEST = 10
@@ -41,11 +42,10 @@ def run(args) -> int:
         print(f"shrunk toward the prior {loaded.prior['source']} (sha256 {loaded.prior['file_sha256'][:12]}…)")
     print("training ranges:")
     for name, unit, (low, high) in zip(model.input_names_, loaded.input_units, model.input_range_):
-        print(f"  {name:<8} {low:>14.6g} .. {high:<14.6g} {unit or ''}")
+        print(f"  {single_line(name):<8} {low:>14.6g} .. {high:<14.6g} {single_line(unit or '')}")
     metrics = model.training_metrics_ or {}
-    if metrics.get("force_norm_rmse") is not None:
-        print(f"training force-norm RMSE {metrics['force_norm_rmse']:.4g} N, "
-              f"torque-norm RMSE {metrics['torque_norm_rmse']:.4g} N·m")
+    if norm_rmse_text(metrics):
+        print("training " + norm_rmse_text(metrics, ".4g"))
     if not polynomial:
         return 0
     names = model.layout_.column_names(model.input_names_, model.output_names_)
@@ -57,5 +57,5 @@ def run(args) -> int:
     print(f"largest terms (coefficients of {basis}):")
     for flat in order:
         row, col = np.unravel_index(flat, magnitude.shape)
-        print(f"  {model.output_names_[col]:<6} {names[row]:<28} {model.coef_[row, col]: .6g}")
+        print(f"  {single_line(model.output_names_[col]):<6} {single_line(names[row]):<28} {model.coef_[row, col]: .6g}")
     return 0

@@ -129,6 +129,17 @@ def _axes(values, per: str = "") -> str:
     return "  ".join(f"{a} {v:+.4g} {u}{per}" for a, v, u in zip(("Fx", "Fy", "Fz", "Tx", "Ty", "Tz"), values, units))
 
 
+def identified_bias(payload, time):
+    """The payload file's bias to compare a re-tare with, shape (6,): its trajectory averaged over ``time``
+    when it drifts in time (so its own recording is compared like for like), else its constant bias."""
+    import numpy as np
+
+    drift = payload.drift
+    if drift is None or drift.knot_times is None or time is None:
+        return payload.bias
+    return np.array([np.interp(time, drift.knot_times, drift.knot_bias[:, j]).mean() for j in range(6)])
+
+
 def run_rebias(args) -> int:
     """Re-tare: the bias alone from new data, mass and centre of mass from the payload file."""
     import sys
@@ -144,11 +155,28 @@ def run_rebias(args) -> int:
     if args.reaction != payload.reaction:
         raise FtcalError(f"--reaction: {args.rebias} was identified {'with' if payload.reaction else 'without'} "
                          "--reaction; give the same sign convention.")
+    from ._holds import StaticRows
+
+    # Options that change nothing in a re-tare are refused rather than silently ignored.
+    for option, given in (("--dynamic", args.dynamic), ("--bias-drift", args.bias_drift != "auto"),
+                          ("--group-by", args.group_by is not None), ("--frame", args.frame is not None)):
+        if given:
+            raise FtcalError(f"{option} does not apply to --rebias (the re-tare keeps {args.rebias}'s model and "
+                             "estimates one constant bias); leave it out.")
     temperature = payload.drift.temperature_column if payload.needs_temperature else None
-    recording = read_payload_tables(args.data, kinematics_source(args), wrench=args.wrench,
-                                    reaction=payload.reaction, time=args.time, temperature=temperature)
+    if args.temperature is not None and args.temperature != temperature:
+        raise FtcalError(f"--temperature {args.temperature}: {args.rebias} has "
+                         + (f"its temperature term on column {temperature!r}" if temperature else "no temperature term")
+                         + "; --rebias uses the file's; leave it out.")
+    source = kinematics_source(args)
+    # Like the identification: only the still samples (moving ones carry inertial forces the model lacks).
+    static = None if args.keep_moving else StaticRows(args, source)
+    recording = read_payload_tables(args.data, source, wrench=args.wrench, reaction=payload.reaction,
+                                    time=args.time, temperature=temperature, select=static)
+    for line in () if static is None else static.notes:
+        print(f"static samples: {line}")
     found = rebias(recording, payload)
-    old = payload.bias
+    old = identified_bias(payload, recording.time)
     old_se = np.r_[payload.stderr["force_bias"], payload.stderr["torque_bias"]]
     change = found.bias - old
     z = change / np.sqrt(found.stderr ** 2 + old_se ** 2)

@@ -100,12 +100,12 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..data.tables import write_table
+    from ..data.tables import check_finite_output
     from ..plan import PlanRequest, plan_experiment
-    from ..plan.page import format_summary, write_page
+    from ..plan.page import format_summary, page_text
     from ..plan.recorded import plan_frame, read_recorded
     from ..robot import parse_payload_spec
-    from ..runtime.atomic import check_not_an_input
+    from ..runtime.atomic import check_not_an_input, write_texts_atomic
     from ..runtime.errors import FtcalError
 
     require_suffix(args.output, (".csv",), "-o")
@@ -144,9 +144,14 @@ def run(args: argparse.Namespace) -> int:
         recorded = []
     plan = plan_experiment(robot, request, recorded)
     frame = plan_frame(plan)
-    write_table(frame, args.output)
+    check_finite_output(frame, args.output)
+    # The plan and its page are written together or not at all: a failing page never replaces the plan.
+    texts = {args.output: frame.to_csv(index=False, float_format="%.17g")}
+    if args.html:
+        texts[args.html] = page_text(plan, recorded)
+    write_texts_atomic(texts)
     print(format_summary(plan))
     print(f"wrote {args.output} ({len(frame)} rows)")
     if args.html:
-        print(f"wrote {write_page(plan, args.html, recorded)}")
+        print(f"wrote {args.html}")
     return 0

@@ -19,12 +19,14 @@ def register(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..data.bags import list_topics
+    from ._common import single_line
 
     summaries = list_topics(args.bag)
     rows = [("topic", "type", "count", "rate [Hz]")]
-    rows += [(s.name, s.msgtype, str(s.count), "-" if s.rate is None else f"{s.rate:.6g}") for s in summaries]
+    rows += [(single_line(s.name), single_line(s.msgtype), str(s.count), "-" if s.rate is None else f"{s.rate:.6g}")
+             for s in summaries]
     widths = [max(len(r[i]) for r in rows) for i in range(4)]
-    print(f"{args.bag}: {len(summaries)} topic(s)")
+    print(f"{single_line(args.bag)}: {len(summaries)} topic(s)")
     for r in rows:
         print("  " + "  ".join([r[0].ljust(widths[0]), r[1].ljust(widths[1]), r[2].rjust(widths[2]),
                                 r[3].rjust(widths[3])]).rstrip())

@@ -194,3 +194,33 @@ ZERO_REFERENCE_WRENCH = 1e-6
 EXACT_FIT = 1e-9
 """Relative: a training RMSE below this times the output's standard deviation (BestFit above 1 − this)
 means the outputs are an exact function of the inputs (a copied column?): ``ftcal fit`` says so."""
+# Physical plausibility of loads and payload files (issue 28: absurd values passed silently).
+
+MAX_LOAD_MASS = 1000.0
+"""kg. Heaviest load or payload ftcal accepts (a --load, --payload or load-case mass, a payload file's mass):
+the largest six-axis sensors carry a few hundred kilograms; beyond this a value is a typo or a hostile file."""
+
+MAX_LOAD_DISTANCE = 10.0
+"""m. Farthest centre of mass of a load from its frame (and of a payload file's from the sensor origin)."""
+
+GRAVITY_RANGE = (0.1, 100.0)
+"""m/s². A payload file's gravity magnitude must lie in this range (the Moon's 1.62 to well above any planet)."""
+
+MAX_WRENCH = 1e6
+"""N or N·m. Largest bias a payload file may hold: sensors are rated far below this."""
+
+MAX_PLAN_WORK = 5e10
+"""Arithmetic operations ``ftcal plan`` may spend on one design (candidate rows × parameters², plus
+parameters³): degree 6 with 10,000 configurations × 2 loads (1.7·10¹⁰) takes about 8 s of CPU here;
+degree 10 (8,008 parameters) would take tens of minutes and is refused with what to lower."""
+
+JOINT_LIMIT_SLACK = 6.283185307179586
+"""rad (m for prismatic joints). Joint data more than a full turn (2π) beyond a URDF position limit is
+refused: degrees read as radians, or another robot's log. Less is kept: encoders and simulators overshoot."""
+
+MAX_TIME_STEP_S = 1e5
+"""s. A time column whose median step between samples exceeds this (a day), or whose values exceed
+:data:`MAX_TIME_S`, is in another unit (nanoseconds from a ROS bag or a logger): refused, saying so."""
+
+MAX_TIME_S = 1e13
+"""s. About 300,000 years: a larger time value is nanoseconds (1.7e18 since 1970) or microseconds."""

@@ -204,12 +204,13 @@ class MLPModel(EstimatorParams):
         """Scores of every checkpoint on every grouped fold; the iteration count with the best mean."""
         folds = grouped_folds(data.groups, options["n_folds"], seed=0)
         forces, _ = metrics.force_torque_columns(data.output_names)
-        checkpoints = list(range(options["check_every"], options["max_iter"] + 1, options["check_every"]))
+        every = min(options["check_every"], options["max_iter"])  # max_iter below one checkpoint: check at its end
+        checkpoints = list(range(every, options["max_iter"] + 1, every))
         table = np.empty((len(folds), len(checkpoints)))
         for f, held_out in enumerate(folds):
             snapshots = []
             _train(x[~held_out], t[~held_out], sizes, start, options, options["max_iter"],
-                   every=options["check_every"], snapshots=snapshots)
+                   every=every, snapshots=snapshots)
             for c in range(len(checkpoints)):
                 params = snapshots[min(c, len(snapshots) - 1)]  # converged early: the last one stands
                 prediction = out_norm.offset + out_norm.scale * _forward(x[held_out], _unpack(params, sizes),
@@ -325,18 +326,25 @@ class MLPModel(EstimatorParams):
         weights, biases = [], []
         for k, layer in enumerate(layers):
             shape = (sizes[k], sizes[k + 1])
-            try:
-                w = np.array(layer["weights"], dtype=np.float64)
-                b = np.array(layer["biases"], dtype=np.float64)
-            except (KeyError, TypeError, ValueError):
-                fail(f"layers[{k}]", "must have numeric 'weights' and 'biases'")
+            # Strictly JSON numbers: numpy would also turn the strings "nan" or "1e999" into floats.
+            if not isinstance(layer, dict) or not _all_numbers(layer.get("weights")) \
+                    or not _all_numbers(layer.get("biases")):
+                fail(f"layers[{k}]", "must have 'weights' and 'biases' made of finite numbers (not strings)")
+            w = np.array(layer["weights"], dtype=np.float64)
+            b = np.array(layer["biases"], dtype=np.float64)
+            if not (np.all(np.isfinite(w)) and np.all(np.isfinite(b))):
+                fail(f"layers[{k}]", "must have finite 'weights' and 'biases'")
             if w.shape != shape or b.shape != shape[1:]:
                 fail(f"layers[{k}]", f"has weights {w.shape} and biases {b.shape}; inputs, hidden and outputs "
                      f"need {shape} and {shape[1:]}")
             weights.append(w)
             biases.append(b)
-        model = cls(tuple(hidden), activation=p["activation"], weight_decay=float(p.get("weight_decay", 0.0)),
-                    seed=int(p.get("seed", 0)))
+        decay, seed = p.get("weight_decay", 0.0), p.get("seed", 0)
+        if isinstance(decay, bool) or not isinstance(decay, (int, float)) or not 0.0 <= decay < float("inf"):
+            fail("weight_decay", f"is {decay!r}; a finite number >= 0 is expected")
+        if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+            fail("seed", f"is {seed!r}; a whole number >= 0 is expected")
+        model = cls(tuple(hidden), activation=p["activation"], weight_decay=float(decay), seed=seed)
         model.weights_, model.biases_ = weights, biases
         model.input_normalization_ = variables_normalization(inputs)
         model.output_normalization_ = variables_normalization(outputs)
@@ -439,3 +447,10 @@ def _fold_score(y: np.ndarray, prediction: np.ndarray, forces) -> float:
     if forces is not None:
         return float(np.sqrt(mse[forces].sum()))
     return float(np.mean(np.sqrt(mse)))
+
+
+def _all_numbers(value) -> bool:
+    """True for a (nested) list of JSON numbers: no strings, booleans, nulls or objects."""
+    if isinstance(value, list):
+        return all(_all_numbers(v) for v in value)
+    return isinstance(value, (int, float)) and not isinstance(value, bool)

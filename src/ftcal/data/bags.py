@@ -107,14 +107,14 @@ def open_bag(path: str | Path) -> Iterator:
     try:
         reader = AnyReader([path], default_typestore=get_typestore(Stores.LATEST))
         reader.open()
-    except (AnyReaderError, TypesysError, OSError, KeyError, ValueError) as exc:
+    except (AnyReaderError, TypesysError, OSError, KeyError, ValueError, MemoryError) as exc:  # a flipped size
         raise FtcalError(f"Bag {path}: cannot open it as a ROS 1 .bag, ROS 2 bag folder, .db3 or .mcap "
-                         f"({type(exc).__name__}: {exc}).") from None
+                         f"({type(exc).__name__}: {_one_line(exc)}).") from None
     try:
         yield reader
-    except (AnyReaderError, Ros1ReaderError, Ros2ReaderError, struct.error, *_storage_errors()) as exc:
+    except (AnyReaderError, Ros1ReaderError, Ros2ReaderError, struct.error, MemoryError, *_storage_errors()) as exc:
         raise FtcalError(f"Bag {path}: cannot read it; it may be truncated or corrupt "
-                         f"({type(exc).__name__}: {exc}).") from None
+                         f"({type(exc).__name__}: {_one_line(exc)}).") from None
     finally:
         reader.close()
 
@@ -274,6 +274,10 @@ def check_sqlite_bag(path: Path) -> None:
                          f"({type(exc).__name__}: {exc}).") from None
     finally:
         connection.close()
+def _one_line(exc: BaseException, limit: int = 300) -> str:
+    """A library's error text on one line (rosbags quotes whole message definitions), at most ``limit`` characters."""
+    text = " ".join(str(exc).split())
+    return text if len(text) <= limit else text[:limit] + " …"
 
 
 def _storage_errors() -> tuple[type[BaseException], ...]:
@@ -362,7 +366,10 @@ def _indexed_spans(reader) -> dict[str, tuple[int, int]] | None:
                 if len(head) != 15 or head[0] != 0x07:
                     return None
                 size = int.from_bytes(head[11:15], "little")
-                entries = np.frombuffer(s.bio.read(size), "<u8")[::2]  # (log_time, offset) pairs
+                data = s.bio.read(size)
+                if len(data) != size or size % 16:  # a damaged index: read the messages instead
+                    return None
+                entries = np.frombuffer(data, "<u8")[::2]  # (log_time, offset) pairs
                 if entries.size and channel in topic_of:
                     widen(topic_of[channel], int(entries.min()), int(entries.max()))
     return spans
@@ -677,15 +684,20 @@ def _read_joints(path: Path, reader, info, receive_time: bool) -> Stream:
     main = max(streams, key=lambda s: s.n_samples)
     if len(streams) == 1:
         return main
-    columns, data = list(main.columns), [main.data]
-    for s in streams:
-        if s is main:
-            continue
-        for c, name in enumerate(s.columns):
-            if name not in columns:
-                columns.append(name)
-                data.append(np.interp(main.time, s.time, s.data[:, c])[:, None])
-    return Stream(main.name, main.time, np.hstack(data), tuple(columns), clock=main.clock)
+    # Joint sets change within the bag (a gripper's joint appears halfway): merge every message on one
+    # clock, so no sample is lost; a joint is interpolated within the span it was published in and is NaN
+    # outside it (the table's users then drop that joint, or refuse naming it and the time).
+    time = np.unique(np.concatenate([s.time for s in streams]))
+    columns = list(dict.fromkeys(name for s in streams for name in s.columns))
+    data = np.full((time.size, len(columns)), np.nan)
+    for j, name in enumerate(columns):
+        t = np.concatenate([s.time for s in streams if name in s.columns])
+        v = np.concatenate([s.data[:, s.columns.index(name)] for s in streams if name in s.columns])
+        order = np.argsort(t, kind="stable")
+        t, v = t[order], v[order]
+        inside = (time >= t[0]) & (time <= t[-1])
+        data[inside, j] = np.interp(time[inside], t, v)
+    return Stream(main.name, time, data, tuple(columns), clock=main.clock)
 
 
 def _read_imu(path: Path, reader, info, receive_time: bool) -> tuple[Stream, Stream, Stream | None]:

@@ -139,6 +139,21 @@ class Holds:
                 f"{len(stretches)} stretch(es): {', '.join(shown)}{more}; {self.n_holds} hold(s)")
 
 
+def check_seconds(time: np.ndarray, column: str, where: str) -> None:
+    """Refuse a time column that is not in seconds (nanoseconds or microseconds), saying what it looks like."""
+    from ..core.limits import MAX_TIME_S, MAX_TIME_STEP_S
+
+    if time.size == 0:
+        return
+    steps = np.diff(time)
+    step = float(np.median(np.abs(steps))) if steps.size else 0.0
+    top = float(np.max(np.abs(time)))
+    if step > MAX_TIME_STEP_S or top > MAX_TIME_S:
+        unit = "nanoseconds" if step > 1e6 or top > 1e16 else "microseconds or nanoseconds"
+        raise FtcalError(f"{where}: time column {column!r} looks like {unit}, not seconds (median step {step:.4g}, "
+                         f"largest value {top:.4g}); ftcal reads seconds: divide the column by 1e9 (or 1e6).")
+
+
 def find_holds(time: np.ndarray, *, orientation: np.ndarray | None = None, gravity: np.ndarray | None = None,
                joints: np.ndarray | None = None, wrench: np.ndarray | None = None,
                segments: np.ndarray | None = None, where: str = "data", time_column: str = "time") -> Holds:
@@ -169,6 +184,7 @@ def find_holds(time: np.ndarray, *, orientation: np.ndarray | None = None, gravi
         No signal given, or time not increasing inside a segment (names the row).
     """
     time = np.asarray(time, dtype=np.float64).ravel()
+    check_seconds(time, time_column, where)
     n = time.size
     labels = np.zeros(n, dtype=np.int8) if segments is None else np.asarray(segments)
     bounds = np.flatnonzero(np.r_[True, labels[1:] != labels[:-1], True]) if n else np.array([0])

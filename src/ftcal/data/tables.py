@@ -97,10 +97,14 @@ def drop_incomplete() -> Iterator[dict]:
         _DROPPED = previous
 
 
-def complete_rows(table, columns: Sequence[str], path, first_row: int = 0):
-    """``table`` without its incomplete rows (in ``columns``) inside :func:`drop_incomplete`, else ``table``."""
+def complete_rows(table, columns: Sequence[str], path, first_row: int = 0, *, with_breaks: bool = False):
+    """``table`` without its incomplete rows (in ``columns``) inside :func:`drop_incomplete`, else ``table``.
+
+    With ``with_breaks``, also a boolean array over the kept rows, True where rows were dropped just
+    before (a gap: ARX lags must not bridge it), or None when nothing was dropped.
+    """
     if _DROPPED is None:
-        return table
+        return (table, None) if with_breaks else table
     import pyarrow as pa
     import pyarrow.compute as pc
 
@@ -114,10 +118,16 @@ def complete_rows(table, columns: Sequence[str], path, first_row: int = 0):
             valid = pc.and_(valid, pc.invert(pc.fill_null(pc.is_nan(column), True)))
         keep = valid if keep is None else pc.and_(keep, valid)
     if keep is None:
-        return table
+        return (table, None) if with_breaks else table
     dropped = table.num_rows - int(pc.sum(pc.cast(keep, pa.int64())).as_py() or 0)
     _DROPPED[(str(path), first_row)] = dropped
-    return table.filter(keep) if dropped else table
+    kept = table.filter(keep) if dropped else table
+    if not with_breaks:
+        return kept
+    if not dropped:
+        return kept, None
+    index = np.flatnonzero(np.asarray(keep.to_numpy(zero_copy_only=False), dtype=bool))
+    return kept, np.r_[False, np.diff(index) > 1]
 
 
 def arrow_numbers(table, columns: Sequence[str], path: Path, role: str, *, first_row: int = 0) -> np.ndarray:
@@ -308,8 +318,9 @@ def read_dataset(paths: Sequence[str | os.PathLike], inputs: Sequence[str], outp
     parts = []
     for index, raw_path in enumerate(paths):
         path = Path(raw_path)
-        table = complete_rows(read_arrow(path), [*inputs, *(outputs or ()), *(c for c in (segment_by, group_by) if c)],
-                              path)
+        table, breaks = complete_rows(read_arrow(path), [*inputs, *(outputs or ()),
+                                                         *(c for c in (segment_by, group_by) if c)],
+                                      path, with_breaks=True)
         u = arrow_numbers(table, inputs, path, "input")
         y = None
         if outputs:
@@ -317,7 +328,7 @@ def read_dataset(paths: Sequence[str | os.PathLike], inputs: Sequence[str], outp
                 y = arrow_numbers(table, outputs, path, "output")
         seg_labels = _labels(table, segment_by, path, "segment")
         grp_labels = _labels(table, group_by, path, "group")
-        segments = _segment_ids(seg_labels, table.num_rows)
+        segments = _segment_ids(seg_labels, table.num_rows, breaks)
         groups = (np.full(table.num_rows, str(path), dtype=object) if grp_labels is None
                   else np.asarray(grp_labels, dtype=object))
         part = Dataset(u, y, tuple(inputs), tuple(outputs) if y is not None else (), segments, groups,
@@ -367,11 +378,14 @@ def load_dataset(path: str | os.PathLike | Sequence[str | os.PathLike], *, input
     return read_dataset(paths, inputs or default_inputs(paths), outputs, segment_by=segment_by, group_by=group_by)
 
 
-def _segment_ids(labels: np.ndarray | None, n: int) -> np.ndarray:
-    """Segment id per row: a new segment wherever the label changes."""
-    if labels is None:
-        return np.zeros(n, dtype=np.int64)
-    change = np.r_[True, labels[1:] != labels[:-1]]
+def _segment_ids(labels: np.ndarray | None, n: int, breaks: np.ndarray | None = None) -> np.ndarray:
+    """Segment id per row: a new segment wherever the label changes, and after rows dropped
+    (``breaks``, from :func:`complete_rows`): ARX lags never bridge a gap."""
+    change = np.zeros(n, dtype=bool) if labels is None else np.r_[True, labels[1:] != labels[:-1]]
+    if breaks is not None:
+        change |= breaks
+    if n:
+        change[0] = True
     return np.cumsum(change) - 1
 
 

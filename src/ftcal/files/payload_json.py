@@ -168,6 +168,28 @@ def _check_drift_span(drift: dict, source: str) -> None:
             min(knots["time"]) < start - 1e-9 * max(abs(start), 1.0)
             or max(knots["time"]) > end + 1e-9 * max(abs(end), 1.0)):
         raise FtcalError(f"{source}: drift.knots.time runs outside [time_start, time_end] = [{start:g}, {end:g}] s.")
+def _check_plausible(doc: dict, source: str) -> None:
+    """Refuse physically absurd values (a typo or a hostile file) and a wrench read from repeated columns."""
+    import math
+
+    from ..core.limits import GRAVITY_RANGE, MAX_LOAD_DISTANCE, MAX_LOAD_MASS, MAX_WRENCH
+
+    if not doc["mass"] <= MAX_LOAD_MASS:
+        raise FtcalError(f"{source}: mass {doc['mass']:g} kg is beyond {MAX_LOAD_MASS:g} kg.")
+    distance = math.hypot(*map(float, doc["com"]))
+    if not distance <= MAX_LOAD_DISTANCE:
+        raise FtcalError(f"{source}: centre of mass {distance:g} m from the sensor is beyond {MAX_LOAD_DISTANCE:g} m.")
+    if not GRAVITY_RANGE[0] <= doc["gravity"] <= GRAVITY_RANGE[1]:
+        raise FtcalError(f"{source}: gravity {doc['gravity']:g} m/s² is outside {GRAVITY_RANGE[0]:g} to "
+                         f"{GRAVITY_RANGE[1]:g} m/s².")
+    for key in ("force_bias", "torque_bias"):
+        if not max(abs(float(v)) for v in doc[key]) <= MAX_WRENCH:
+            raise FtcalError(f"{source}: {key} holds values beyond {MAX_WRENCH:g}.")
+    columns = doc["fit"].get("wrench_columns") or []
+    repeated = sorted({c for c in columns if columns.count(c) > 1})
+    if repeated:
+        raise FtcalError(f"{source}: fit.wrench_columns repeats {', '.join(map(repr, repeated))}; six distinct "
+                         "columns make a wrench.")
 
 
 def _leaves(value) -> list:
@@ -212,6 +234,7 @@ def parse_payload(text: str, source: str = "<payload>") -> PayloadParameters:
     stderr = {k: np.asarray(v, dtype=float) if isinstance(v, list) else float(v) for k, v in doc["stderr"].items()}
     if doc["mass"] <= 0:
         raise FtcalError(f"{source}: mass is {doc['mass']} kg; a payload file needs a positive mass.")
+    _check_plausible(doc, source)
     inertia = np.asarray(doc["inertia"], dtype=float) if "inertia" in doc else None
     if inertia is not None:
         _check_inertia(inertia, source)

@@ -284,6 +284,14 @@ def _urdf_joints(path: Path, joints: Stream, robot) -> Stream:
         dropped = [name for name in joints.columns if name not in known]
         warnings.warn(f"Bag {path}: {joints.name}: joint(s) {', '.join(dropped[:5])} are not in the URDF; "
                       f"ignored.", FtcalWarning, stacklevel=3)
+    for c in keep:
+        absent = ~np.isfinite(joints.data[:, c])
+        if absent.any():
+            where = np.flatnonzero(absent)
+            raise FtcalError(f"Bag {path}: {joints.name}: URDF joint {joints.columns[c]!r} has no position from "
+                             f"t={float(joints.time[where[0]]):.3f} to t={float(joints.time[where[-1]]):.3f} s "
+                             f"({where.size} of {absent.size} samples; it is not in every JointState message); "
+                             "cut the bag to where it is published (or remove the joint from the URDF).")
     missing = [name for name in robot.joint_names if name not in joints.columns]
     if missing:
         warnings.warn(f"Bag {path}: {joints.name} lacks URDF joint(s) {', '.join(missing[:5])}; they are held "

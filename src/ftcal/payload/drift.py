@@ -129,11 +129,14 @@ def check_time(time: np.ndarray, column: str, source: str) -> None:
     FtcalError
         Naming the file, the column and the first offending row.
     """
+    from ..data.holds import check_seconds
+
     steps = np.diff(time)
     bad = np.flatnonzero(~(steps > 0))
     if bad.size:
         raise FtcalError(f"{source}: time column {column!r} does not increase at row {bad[0] + 1} "
-                         f"({time[bad[0]]!r} then {time[bad[0] + 1]!r}); sort the rows by time.")
+                         f"({float(time[bad[0]]):g} then {float(time[bad[0] + 1]):g}); sort the rows by time.")
+    check_seconds(np.asarray(time, dtype=float), column, source)
 
 
 def check_temperature(temperature: np.ndarray, column: str) -> None:

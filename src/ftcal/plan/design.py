@@ -42,6 +42,10 @@ def _log_det_identity_plus(s: np.ndarray) -> np.ndarray:
     return 2.0 * out
 
 
+# Candidates per block of the largest products: Ctrl-C and SIGTERM are acted upon between blocks.
+BLOCK_CANDIDATES = 1024
+
+
 def greedy_design(rows: np.ndarray, n: int, start: np.ndarray) -> np.ndarray:
     """Indices of ``n`` distinct candidates chosen greedily for the largest log det of the information.
 
@@ -63,8 +67,12 @@ def greedy_design(rows: np.ndarray, n: int, start: np.ndarray) -> np.ndarray:
     inverse = np.linalg.inv(start)
     inverse = 0.5 * (inverse + inverse.T)
     flat = rows.reshape(c * r, p)
-    # S_c = Y_c M⁻¹ Y_cᵀ for every candidate
-    s = np.einsum("crp,csp->crs", (flat @ inverse).reshape(c, r, p), rows)
+    # S_c = Y_c M⁻¹ Y_cᵀ for every candidate, in blocks so a signal is acted upon between them
+    s = np.empty((c, r, r))
+    for a in range(0, c, BLOCK_CANDIDATES):
+        block = rows[a:a + BLOCK_CANDIDATES]
+        s[a:a + BLOCK_CANDIDATES] = np.einsum("crp,csp->crs", (block.reshape(-1, p) @ inverse).reshape(block.shape),
+                                              block)
     chosen = np.empty(n, dtype=np.int64)
     taken = np.zeros(c, dtype=bool)
     for step in range(n):

@@ -13,7 +13,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..core.limits import MAX_DEGREE, MAX_PLAN_CANDIDATES, MAX_PLAN_POSES, PLAN_DEFAULTS, PLAN_OBJECTIVES
+from ..core.limits import (MAX_DEGREE, MAX_PLAN_CANDIDATES, MAX_PLAN_POSES, MAX_PLAN_WORK, PLAN_DEFAULTS,
+                           PLAN_OBJECTIVES)
 from ..robot.model import RobotModel
 from ..robot.payloads import Payload
 from ..runtime.checks import check_choice, check_float, check_int
@@ -237,6 +238,8 @@ def plan_experiment(robot: RobotModel, request: PlanRequest, recorded: Sequence[
     True
     """
     sensor = request.sensor or _only_sensor(robot)
+    _check_loads_beyond(robot, sensor, request)
+    _check_work(request)
     space = joint_space(robot, sensor, request.base, ranges=request.ranges, fixed=request.fixed)
     rng = np.random.default_rng(request.seed)
     candidates = candidate_poses(robot, sensor, space, request.loads, request.n_candidates, rng,
@@ -295,6 +298,44 @@ def _design(request: PlanRequest, recorded: Sequence[Recorded], space: JointSpac
                 n_parameters=p, n_excited=n_excited, n_recorded=recorded_rows.shape[0],
                 travel=travel(free[config[chosen]], free[reference], steps),
                 random_travel=travel(free[config[baseline]], free[reference], random_steps))
+
+
+def _check_work(request: PlanRequest) -> None:
+    """Refuse a design whose arithmetic would run for many minutes, saying what to lower (before any work)."""
+    from math import comb
+
+    n_loads = len(request.loads)
+    if request.objective == "payload":
+        p, r = 6 + 4 * n_loads, 6
+    else:
+        p, r = comb(6 + request.degree, 6), 1
+    rows = request.n_candidates * n_loads * r
+    work = rows * p * p + float(p) ** 3
+    if work <= MAX_PLAN_WORK:
+        return
+    fits = int((MAX_PLAN_WORK - float(p) ** 3) / (n_loads * r * p * p))
+    lower = (f"lower --candidates to {fits} or less, or --degree" if fits >= request.n_poses
+             else "lower --degree")
+    raise FtcalError(f"--degree {request.degree} with {request.n_candidates} candidate configurations x {n_loads} "
+                     f"load(s): {p} parameters, about {work:.1e} operations (the limit is {MAX_PLAN_WORK:.0e}, "
+                     f"minutes of CPU); {lower}.")
+
+
+def _check_loads_beyond(robot: RobotModel, sensor: str, request: PlanRequest) -> None:
+    """Refuse a load the sensor cannot feel: one attached on the base side of the sensor's joint."""
+    beyond = set(robot.links_beyond(robot.sensor(sensor), request.base))
+    model = robot.model
+    for k, load in enumerate(request.loads):
+        if load is None:
+            continue
+        if not model.isFrameNameUsed(load.frame):
+            raise FtcalError(f"--load {load.name or load.frame}: URDF {robot.source} has no link or frame named "
+                             f"{load.frame!r}.")
+        link = model.getLinkName(model.getFrameLink(model.getFrameIndex(load.frame)))
+        if link not in beyond:
+            raise FtcalError(f"--load {load.name or load.frame}: {load.frame!r} is on the base side of sensor "
+                             f"{sensor!r} (link {link!r}); the sensor does not carry it. Attach loads to a link "
+                             f"beyond the sensor: {', '.join(sorted(beyond)[:6])}.")
 
 
 def _only_sensor(robot: RobotModel) -> str:

@@ -111,7 +111,10 @@ def payload_blocks(n_loads: int, noise: tuple[float, float]) -> np.ndarray:
 def information(rows: np.ndarray) -> np.ndarray:
     """Σ Yᵀ Y over poses, rows of shape (n, r, p) → (p, p)."""
     flat = rows.reshape(-1, rows.shape[-1])
-    return flat.T @ flat
+    total = np.zeros((flat.shape[1], flat.shape[1]))
+    for a in range(0, flat.shape[0], 4096):  # blocks: a signal is acted upon between them
+        total += flat[a:a + 4096].T @ flat[a:a + 4096]
+    return total
 
 
 def prior(rows: np.ndarray) -> np.ndarray:

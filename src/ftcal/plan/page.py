@@ -121,6 +121,13 @@ def coverage_figure(plan: Plan, recorded: Sequence[Recorded] = ()):
 
 def write_page(plan: Plan, path: str | Path, recorded: Sequence[Recorded] = ()) -> Path:
     """Write the plan's HTML page (atomically) and return its path."""
+    out = Path(path)
+    write_text_atomic(out, page_text(plan, recorded))
+    return out
+
+
+def page_text(plan: Plan, recorded: Sequence[Recorded] = ()) -> str:
+    """The plan's HTML page, as text (so it can be written together with the plan itself)."""
     from matplotlib import rc_context
 
     header, rows = summary_rows(plan)
@@ -134,6 +141,4 @@ def write_page(plan: Plan, path: str | Path, recorded: Sequence[Recorded] = ()) 
     sections = [("design", "Design", [table]), ("coverage", "Coverage of the wrench space", [figure]),
                 ("notes", "Notes", ['<ul class="notes">' + "".join(f"<li>{html.escape(n)}</li>" for n in notes)
                                     + "</ul>"])]
-    out = Path(path)
-    write_text_atomic(out, render_page("ftcal experiment plan", [], sections))
-    return out
+    return render_page("ftcal experiment plan", [], sections)

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.columns import DEFAULT_OUTPUTS
+from ..core.limits import MAX_WRENCH
 from ..data.tables import numeric_columns, read_table
 from ..robot.kinematics import sensor_poses
 from ..robot.model import RobotModel
@@ -40,6 +41,9 @@ def read_recorded(path: str | Path, robot: RobotModel, sensor: str, *, base: str
     wrench = gravity = load = None
     if all(c in frame.columns for c in DEFAULT_OUTPUTS):
         wrench = numeric_columns(frame, DEFAULT_OUTPUTS, path, "expected wrench")
+        if np.abs(wrench).max() > MAX_WRENCH:  # beyond any sensor; its monomials would overflow to inf/NaN
+            raise FtcalError(f"--from {path}: expected wrench values beyond {MAX_WRENCH:g} N or N·m; not a recording "
+                             "of a force/torque sensor.")
     joints = [c for c in frame.columns if c in robot.joint_names]
     if joints:
         q = robot.joint_matrix(joints, numeric_columns(frame, joints, path, "joint"), str(path))

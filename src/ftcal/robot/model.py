@@ -206,9 +206,34 @@ class RobotModel:
         if len(set(names)) != len(names):
             raise FtcalError(f"{where}: a joint name appears more than once.")
         values = np.asarray(values, dtype=np.float64)
+        self.check_joint_limits(names, values, where)
         out = np.zeros((values.shape[0], len(self.joint_names)))
         out[:, [index[n] for n in names]] = values
         return out
+
+    def check_joint_limits(self, names: Sequence[str], values, where: str) -> None:
+        """Refuse joint values more than a full turn beyond their URDF limits (degrees read as radians, or
+        another robot's log); values just beyond them are kept (encoders and simulators overshoot).
+
+        values : array of shape (n_samples, len(names)), rad (m for prismatic joints).
+        """
+        import numpy as np
+
+        from ..core.limits import JOINT_LIMIT_SLACK
+
+        m = self.model
+        for k, name in enumerate(names):
+            joint = m.getJoint(m.getJointIndex(name))
+            if not joint.hasPosLimits() or values.shape[0] == 0:
+                continue
+            low, high = float(joint.getMinPosLimit(0)), float(joint.getMaxPosLimit(0))
+            column = values[:, k]
+            beyond = np.maximum(low - column, column - high)
+            j = int(np.argmax(beyond))
+            if beyond[j] > JOINT_LIMIT_SLACK:
+                raise FtcalError(f"{where}: joint {name!r} holds {column[j]:g}, {beyond[j]:g} beyond its URDF limits "
+                                 f"[{low:g}, {high:g}] (radians expected: are the joints in degrees? give "
+                                 "--degrees).")
 
     def total_mass(self) -> float:
         m = self.model

@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from ..core.limits import MAX_LOAD_DISTANCE, MAX_LOAD_MASS
 from ..runtime.errors import FtcalError
 
 Vector3 = tuple[float, float, float]
@@ -53,6 +54,11 @@ class Payload:
             raise FtcalError(f"Payload {label!r}: mass must be a finite number > 0 kg; got {self.mass!r}.")
         if len(self.com) != 3 or not all(math.isfinite(v) for v in self.com):
             raise FtcalError(f"Payload {label!r}: com must be three finite numbers (x, y, z in m); got {self.com!r}.")
+        if self.mass > MAX_LOAD_MASS:
+            raise FtcalError(f"Payload {label!r}: mass {self.mass:g} kg is beyond {MAX_LOAD_MASS:g} kg; a typo?")
+        if math.hypot(*self.com) > MAX_LOAD_DISTANCE:
+            raise FtcalError(f"Payload {label!r}: centre of mass {math.hypot(*self.com):g} m from its frame is "
+                             f"beyond {MAX_LOAD_DISTANCE:g} m; a typo?")
         if len(self.inertia) != 6 or not all(math.isfinite(v) for v in self.inertia):
             raise FtcalError(f"Payload {label!r}: inertia must be six finite numbers "
                              f"(ixx, iyy, izz, ixy, ixz, iyz); got {self.inertia!r}.")
