@@ -158,8 +158,8 @@ class LiveCalibrator:
         :data:`DEFAULT_WALK_FRACTION` × the acceptance thresholds
     noise_std : ndarray of shape (6,) or None, per-sample noise of the calibrated wrench; default the
         residual RMS of the first tool file, else :data:`DEFAULT_NOISE_FRACTION` × the thresholds
-    initial_bias, initial_bias_std : ndarray of shape (6,) or None; default the mounted tool's file bias
-        and its standard errors, else unknown (the first static samples set it)
+    initial_bias, initial_bias_std : ndarray of shape (6,) or None; default unknown (the first static,
+        contact-free samples set it, tool compensated)
     gate_probability : the χ² quantile (6 dof) of the contact gate
     unexplained_sigma, unexplained_seconds : the ``unexplained`` flag's k and T
     thresholds : :class:`~ftcal.check.accept.Thresholds` (``check --accept``'s; defaults 1 N, 0.1 N·m)
@@ -199,6 +199,7 @@ class LiveCalibrator:
             raise FtcalError(f"gate_probability must be in (0.5, 1); got {gate_probability}.")
         self.model = model
         self.tools: dict[str, PayloadParameters | None] = {NO_TOOL: None}
+        self.identified: set[str] = set()  # tools identified in place: the state file carries them
         for name, payload in (tools or {}).items():
             self.add_tool(name, payload, log=False)
         if tool not in self.tools:
@@ -255,21 +256,21 @@ class LiveCalibrator:
         return None if j is None else tuple(float(x) for x in self.model.input_range_[j])
 
     def _set_initial_bias(self, bias, std) -> None:
-        payload = self.tools[self.tool]
+        """A given bias (with its std, default the noise's), else unknown: the first static samples set it.
+
+        A payload file's bias is not used: it was the bias during the identification, and the sensor
+        has drifted since (a stale bias held with its small standard error would make every sample a
+        contact until the walk's variance caught up).
+        """
         if bias is not None:
             self.bias = np.broadcast_to(np.asarray(bias, float), (6,)).copy()
+            if not np.all(np.isfinite(self.bias)):
+                raise FtcalError("initial_bias must be six finite numbers.")
             self.variance = (self._vector(std, "initial_bias_std") ** 2 if std is not None
                              else self.noise_std ** 2)
-        elif payload is not None:
-            sign = -1.0 if payload.reaction else 1.0
-            self.bias = sign * payload.bias.astype(float)
-            se = np.r_[payload.stderr.get("force_bias", np.zeros(3)), payload.stderr.get("torque_bias", np.zeros(3))]
-            self.variance = np.maximum(np.nan_to_num(np.asarray(se, float) ** 2, nan=0.0), self.noise_std ** 2)
         else:
             self.bias = np.zeros(6)
             self.variance = RETARE_VARIANCE * self.noise_std ** 2
-        if not np.all(np.isfinite(self.bias)):
-            raise FtcalError("initial_bias must be six finite numbers.")
 
     # ----- the tool library -----------------------------------------------------------------------
     def add_tool(self, name: str, payload: PayloadParameters | str | Path, *, log: bool = True) -> None:
@@ -347,6 +348,7 @@ class LiveCalibrator:
         payload = PayloadParameters.from_fit(fit, gravity=self.gravity_magnitude, frame=None, reaction=False,
                                              wrench_columns=columns)
         self.add_tool(job.name, payload, log=False)
+        self.identified.add(job.name)
         self._event("tool", "identified", f"tool {job.name!r} identified from {len(holds)} holds: "
                     f"{payload.mass:.4g} ± {payload.stderr['mass']:.2g} kg")
         if save_to is not None:
@@ -598,13 +600,14 @@ class LiveCalibrator:
                 "holds_collected": 0 if self.identifying is None else len(self.identifying.holds)}
 
     def state_document(self) -> dict:
-        """The persisted state (JSON-ready): bias, covariance, tool, counters, time, and in-place tools."""
+        """The persisted state (JSON-ready): bias, covariance, tool, counters, time, and the tools identified in
+        place (the others come from their payload files)."""
         from ..files.payload_json import payload_document
 
         doc = {"format": STATE_FORMAT, "format_version": STATE_VERSION, "time": self.last_time,
                "tool": self.tool, "bias": self.bias.tolist(), "variance": self.variance.tolist(),
                "counters": dict(self.counters), "flags": names_of(self.flags_now),
-               "tools": {name: payload_document(p) for name, p in self.tools.items() if p is not None}}
+               "tools": {name: payload_document(self.tools[name]) for name in self.identified}}
         if not all(np.isfinite(doc["bias"])) or not all(np.isfinite(doc["variance"])):
             raise FtcalError("the live state has non-finite values; refusing to save it.")
         return doc
@@ -643,6 +646,7 @@ class LiveCalibrator:
             raise FtcalError(f"{path}: the live state has non-finite bias or variance.")
         for name, payload in tools.items():
             self.tools.setdefault(name, payload)
+            self.identified.add(name)
         if tool not in self.tools:
             raise FtcalError(f"{path}: tool {tool!r} is not in the library.")
         self.bias, self.variance, self.tool, self.counters = bias, variance, tool, counters
