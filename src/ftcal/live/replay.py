@@ -80,6 +80,8 @@ class ReplaySummary:
 
 
 MAX_LISTED = 50
+# Samples per block when pacing at the recording's speed.
+REALTIME_BLOCK = 32
 
 
 def result_columns(result: LiveResult) -> dict[str, np.ndarray]:
@@ -183,6 +185,8 @@ def replay_table(path: str | os.PathLike, live: LiveCalibrator, columns: ReplayC
                     start_wall = wallclock.perf_counter() if start_wall is None else start_wall
                     start_time = t[0] if start_time is None else start_time
                 cuts = [0] + [int(np.searchsorted(t, e.time)) for e in pending if t[0] < e.time <= t[-1]] + [t.size]
+                if realtime:  # small blocks, paced one by one
+                    cuts = sorted(set(cuts) | set(range(0, t.size, REALTIME_BLOCK)))
                 for a, b in zip(cuts[:-1], cuts[1:]):
                     while pending and (a < t.size and pending[0].time <= t[a]):
                         pending.pop(0).apply(live)
