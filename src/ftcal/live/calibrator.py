@@ -382,7 +382,7 @@ class LiveCalibrator:
         reasons = {e[1]: e[3] for e in r.events if e[2] == "raised"}
         return LiveSample(float(r.time[0]), r.calibrated[0], r.compensated[0], r.bias[0], r.bias_std[0],
                           bool(r.static[0]), bool(r.updated[0]),
-                          {name: reasons.get(name, self._active_reason(name)) for name in names_of(bits)}, r.tool)
+                          {name: reasons.get(name, self.reason_of(name)) for name in names_of(bits)}, r.tool)
 
     def run(self, time, *, raw=None, wrench=None, gravity=None, quaternion=None, imu=None, joints=None,
             temperature=None, static=None) -> LiveResult:
@@ -558,7 +558,8 @@ class LiveCalibrator:
                  + ", ".join(f"{v:.3g}" for v in np.abs(tracked.innovation[k])))
         return flags, reasons
 
-    def _active_reason(self, name: str) -> str:
+    def reason_of(self, name: str) -> str:
+        """The reason logged when flag ``name`` was last raised (its name if none is logged)."""
         for e in reversed(self.events):
             if e[1] == name and e[2] == "raised":
                 return e[3]
