@@ -140,7 +140,7 @@ def run(args) -> int:
 
 
 def run_replay(args) -> int:
-    from ..live.replay import ReplayColumns, ScriptedEvent, replay_table
+    from ..live.replay import ScriptedEvent, replay_table
     from ..runtime.errors import FtcalError
     from .cmd_payload import check_not_input
 
@@ -150,7 +150,10 @@ def run_replay(args) -> int:
     inputs = [args.replay, *(path for _, path in args.tool)] + ([args.model] if args.model else [])
     check_not_input(args.output, inputs)
     if args.state:
-        check_not_input(args.state, inputs + [args.output])
+        from pathlib import Path
+
+        if any(Path(p).resolve() == Path(args.state).resolve() for p in inputs + [args.output]):
+            raise FtcalError(f"--state {args.state}: is also an input or the output; give the state its own file.")
     live = build_calibrator(args)
     columns = replay_columns(args, live)
     events = [ScriptedEvent(t, "retare") for t in args.retare_at] + \
