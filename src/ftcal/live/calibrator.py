@@ -125,7 +125,8 @@ def tool_wrench(payload: PayloadParameters | None, gravity: np.ndarray) -> np.nd
         return out
     m, mc = payload.mass, payload.mass * np.asarray(payload.com, dtype=float)
     out[:, :3] = m * gravity
-    out[:, 3:] = np.cross(mc, gravity)
+    gx, gy, gz = gravity[:, 0], gravity[:, 1], gravity[:, 2]
+    out[:, 3], out[:, 4], out[:, 5] = mc[1] * gz - mc[2] * gy, mc[2] * gx - mc[0] * gz, mc[0] * gy - mc[1] * gx
     return -out if payload.reaction else out
 
 
@@ -206,7 +207,8 @@ class LiveCalibrator:
             raise FtcalError(f"tool {tool!r} is not in the library ({', '.join(self.tools)}).")
         self.tool = tool
         self.thresholds = thresholds or Thresholds()
-        scale = np.r_[np.full(3, self.thresholds.force), np.full(3, self.thresholds.torque)]
+        scale = np.repeat([self.thresholds.force, self.thresholds.torque], 3)
+        self._accept_limit = scale
         files = [p for p in self.tools.values() if p is not None]
         self.noise_std = self._vector(noise_std, "noise_std") if noise_std is not None else next(
             (np.asarray(p.fit["residual_rms"], float) for p in files if "residual_rms" in p.fit),
@@ -427,7 +429,9 @@ class LiveCalibrator:
             still, moving = self.motion.static(t, kind, signal)
         payload = self.tools[self.tool]
         z = w - tool_wrench(payload, g)
-        dt = np.diff(np.r_[t[0] if self.last_time is None else self.last_time, t])
+        dt = np.empty(n)
+        dt[0] = 0.0 if self.last_time is None else t[0] - self.last_time
+        dt[1:] = t[1:] - t[:-1]
         gate_static = still & (self.identifying is None)
         tracked = track_block(z, dt, gate_static, self.bias, self.variance, self.walk_variance, self.noise_std ** 2,
                               self.threshold)
@@ -546,7 +550,7 @@ class LiveCalibrator:
         set_flag("contact", contact, lambda k, _: f"wrench the tool {self.tool!r} and the bias do not explain "
                  f"(chi2 {tracked.chi2[k]:.3g} > {self.threshold:.3g}, 6 dof); the bias is not updated")
         sigma = np.sqrt(tracked.innovation_variance)
-        limit = np.r_[np.full(3, self.thresholds.force), np.full(3, self.thresholds.torque)]
+        limit = self._accept_limit
         beyond = (np.abs(tracked.innovation) > np.maximum(self.unexplained_sigma * sigma, limit)).any(axis=1)
         if self.identifying is not None:
             beyond[:] = False
@@ -568,7 +572,12 @@ class LiveCalibrator:
     def _flag_events(self, t, flags, reasons) -> list:
         """Raised and cleared flags over the block (transitions only), logged and returned."""
         events = []
-        previous = np.r_[np.uint16(self.flags_now), flags[:-1]].astype(np.uint16)
+        previous = np.empty_like(flags)
+        previous[0] = self.flags_now & ~BIT["silent"]
+        previous[1:] = flags[:-1]
+        if not np.any(flags != previous):  # nothing raised or cleared (the usual sample)
+            self.flags_now = (int(flags[-1]) & ~BIT["silent"]) | (self.flags_now & BIT["silent"])
+            return events
         for name in FLAGS:
             if name == "silent":
                 continue

@@ -66,7 +66,10 @@ class ExceedanceTimer:
 
     def update(self, time: np.ndarray, exceed: np.ndarray) -> np.ndarray:
         n = time.size
-        begins = exceed & ~np.r_[not np.isnan(self.start), exceed[:-1]]
+        before = np.empty_like(exceed)
+        before[0] = not np.isnan(self.start)
+        before[1:] = exceed[:-1]
+        begins = exceed & ~before
         start_index = np.maximum.accumulate(np.where(begins, np.arange(n), -1))
         start = np.where(start_index >= 0, time[np.maximum(start_index, 0)], self.start)
         duration = np.where(exceed, time - start, -np.inf)

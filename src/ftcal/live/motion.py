@@ -63,7 +63,7 @@ class MotionDetector:
         if kind != self.kind or (self._signal is not None and self._signal.shape[1] != signal.shape[1]):
             self.reset()
             self.kind = kind
-        times = np.r_[self._time, time]
+        times = np.concatenate([self._time, time])
         signals = signal if self._signal is None else np.vstack([self._signal, signal])
         first = times.size - time.size
         ref = np.searchsorted(times, time - self.window, side="right") - 1
