@@ -103,7 +103,7 @@ def live_table_replay(minutes: float) -> dict:
     out = table_path(minutes).with_name(f"out-{minutes:g}.parquet")
     start, cpu = time.perf_counter(), time.process_time()
     code = main(["live", "--replay", str(table_path(minutes)), "--orientation", "qx,qy,qz,qw",
-                 "--wrench", "Fx,Fy,Fz,Tx,Ty,Tz", "--noise-std", "0.05,0.05", "-o", str(out)])
+                 "--wrench", "Fx,Fy,Fz,Tx,Ty,Tz", "--noise-std", "0.05,0.05", "--walk-std", "3,3", "-o", str(out)])
     seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
     out.unlink(missing_ok=True)
     if code != 0:

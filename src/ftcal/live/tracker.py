@@ -17,8 +17,8 @@ an affine one (``b_k = (1 − K_k) b_(k−1) + K_k z_k``); both are prefix scans
 depend on the state, so :func:`track_block` guesses them (every static sample updates, then
 a decision persists along a static run), finds the first sample whose gate disagrees, keeps
 everything before it and rescans from there. A block of one sample is the per-sample filter;
-after :data:`MAX_PASSES` rescans the rest of a block runs one sample at a time (a gate that
-flips every sample cannot make a block slower than that).
+every :data:`HALVE_EVERY` rescans of a chunk the window scanned halves (down to
+:data:`MIN_WINDOW` samples), so a gate that flips often costs short rescans.
 """
 
 from __future__ import annotations
@@ -29,8 +29,10 @@ import numpy as np
 
 # Samples scanned together: a gate that disagrees with the guess costs a rescan of the rest of a chunk.
 CHUNK = 1024
-# Rescans of one chunk before the rest of it runs one sample at a time.
-MAX_PASSES = 24
+# Every this many rescans of one chunk, the scanned window halves (down to MIN_WINDOW samples): a gate
+# that keeps disagreeing with the guesses then costs rescans of short windows, not of the whole chunk.
+HALVE_EVERY = 4
+MIN_WINDOW = 8
 
 
 def affine_scan(a: np.ndarray, c: np.ndarray, x0: np.ndarray) -> np.ndarray:
@@ -161,7 +163,7 @@ def _track_chunk(z, dt, static, update, b, p, walk, noise, threshold, out, start
     """Samples ``start:end`` of :func:`track_block`; returns the state after them."""
     passes = 0
     while start < end:
-        stop = end if passes < MAX_PASSES else start + 1
+        stop = min(end, start + max(MIN_WINDOW, CHUNK >> (passes // HALVE_EVERY)))
         seg = slice(start, stop)
         bias, var, e, s, chi2 = _scan_segment(z[seg], dt[seg], update[seg], b, p, walk, noise)
         out.passes += 1
