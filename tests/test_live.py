@@ -240,3 +240,36 @@ def test_stuck_channel_and_bad_input_are_reported():
         live.run(rec.time[-1:] + 1.0, wrench=np.full((1, 6), np.nan), quaternion=rec.quaternion[-1:])
     with pytest.raises(FtcalError, match="exactly one"):
         live.run(rec.time[-1:] + 1.0, wrench=rec.wrench[-1:])
+
+
+def test_raw_channels_through_a_model_and_its_temperature_range():
+    from ftcal.core.dataset import Dataset
+    from ftcal.core.model import CalibrationModel
+    from ftcal.live.health import BIT
+
+    rng = np.random.default_rng(21)
+    mix = np.eye(6) + 0.05 * rng.normal(size=(6, 6))  # the gauges see a mix of the six axes
+    wrench = rng.uniform(-20, 20, size=(3000, 6))
+    temperature = rng.uniform(25.0, 40.0, size=3000)
+    raw = np.column_stack([wrench @ mix.T + 0.01 * (temperature[:, None] - 30.0), temperature])
+    model = CalibrationModel(degree=1).fit(Dataset.from_arrays(raw, wrench))
+    s = LiveScenario(duration=10.0, rate=200.0, seed=3)
+    rec = simulate_live(s)
+    hot = np.where(rec.time < 6.0, 30.0, 50.0)  # beyond the 25-40 °C the model saw, from 6 s on
+    u = np.column_stack([rec.wrench @ mix.T + 0.01 * (hot[:, None] - 30.0), hot])
+    live = LiveCalibrator(model, tools={"gripper": tool_payload(s.tools["gripper"])}, tool="gripper")
+    r = live.run(rec.time, raw=u, quaternion=rec.quaternion)
+    # Inside its range the affine model recovers the wrench exactly (the simulation is affine in the raw channels).
+    np.testing.assert_allclose(r.calibrated[rec.time < 6.0], rec.wrench[rec.time < 6.0], atol=1e-6)
+    flagged = (r.flags & BIT["temperature"]) != 0
+    assert flagged[rec.time >= 6.0].all() and not flagged[rec.time < 6.0].any()
+    assert any(e[1] == "temperature" and "50" in e[3] for e in r.events)
+
+
+def test_the_docstring_example_runs():
+    import doctest
+
+    import ftcal.live.calibrator as module
+
+    result = doctest.testmod(module, optionflags=doctest.NORMALIZE_WHITESPACE)
+    assert result.attempted > 0 and result.failed == 0
