@@ -106,6 +106,11 @@ def test_live_over_zenoh(tmp_path):
                                     .ok.payload.to_bytes()))
         refused = json.loads(bytes(next(iter(session.get("ft/switch_tool", payload="hammer", timeout=10.0)))
                                    .ok.payload.to_bytes()))
+        retared = json.loads(bytes(next(iter(session.get("ft/retare", timeout=10.0))).ok.payload.to_bytes()))
+        not_started = json.loads(bytes(next(iter(session.get("ft/identify_tool", payload="finish", timeout=10.0)))
+                                       .ok.payload.to_bytes()))
+        started = json.loads(bytes(next(iter(session.get("ft/identify_tool", payload="start probe", timeout=10.0)))
+                                   .ok.payload.to_bytes()))
         time.sleep(1.5)  # silence
         for sub in subs:
             sub.undeclare()
@@ -117,6 +122,9 @@ def test_live_over_zenoh(tmp_path):
     assert status["tool"] == "gripper" and status["counters"]["samples"] > 0.9 * rec.time.size
     assert switched["ok"] and switched["status"]["tool"] == "none"
     assert not refused["ok"] and "hammer" in refused["error"]
+    assert retared["ok"] and retared["status"]["counters"]["retares"] == 1
+    assert not not_started["ok"] and "no identification" in not_started["error"]
+    assert started["ok"] and started["status"]["identifying"] == "probe"
     # Every sample came back, calibrated = the wrench sent (no model) and compensated = truth's contact + noise.
     got = dict(received["compensated"])
     assert len(got) >= 0.95 * rec.time.size

@@ -160,9 +160,14 @@ def run_replay(args) -> int:
              [ScriptedEvent(t, "switch", name) for t, name in args.switch_tool]
     try:
         summary = replay_table(args.replay, live, columns, args.output, events=events, realtime=args.realtime)
-    finally:
+    except FtcalError:
+        raise  # bad input: no output, and the state file is left as it was
+    except BaseException:  # Ctrl-C, SIGTERM: keep what was processed
         if args.state and live.last_time is not None:
             live.save_state()
+        raise
+    if args.state:
+        live.save_state()
     print(summary.line())
     for when, flag, _, reason in summary.events[:10]:
         print(f"  t={when:.3f} s  {flag}: {reason}")
