@@ -297,6 +297,13 @@ def bag_section(sizes: dict) -> list[str]:
     return rows
 
 
+def live_section(sizes: dict) -> list[str]:
+    from benchmarks.bench_live import live_section as section
+
+    rows, HEADLINE["live"] = section(run_case, sizes)
+    return rows
+
+
 def scale_section(sizes: dict) -> list[str]:
     # In its own process: it starts Dask clusters and fresh processes for the memory figures.
     n_files, rows, degree = sizes["scale"]
@@ -387,12 +394,12 @@ def cost_section(sizes: dict) -> list[str]:
 SECTIONS = (fit_section, cli_section, lasso_section, predict_section, selection_section, cost_section,
             mlp_section, plan_section,
             c_section,
-            scaling_section, expected_section, payload_section, bag_section, scale_section)
+            scaling_section, expected_section, payload_section, bag_section, scale_section, live_section)
 LABELS = {"fit": "Fit", "cli": "Whole-process fit", "lasso": "LASSO", "predict": "Prediction", "select": "Model selection",
           "cost": "Cost of --degree auto",
           "mlp": "MLP family", "plan": "Experiment design",
           "c": "Generated C", "expected": "Expected wrenches", "payload": "Payload identification",
-          "bags": "Bag reading", "scale": "Streaming and Dask"}
+          "bags": "Bag reading", "scale": "Streaming and Dask", "live": "Live calibrator"}
 
 FULL = {"fit_big": 1_000_000, "fit_mid": 100_000, "scaling_n": (10_000, 100_000, 1_000_000), "dense_max_n": 100_000,
         "degree_n": 100_000, "lasso_n": 200_000, "paper_lasso_n": 10_000, "predict_n": 2_000_000,
@@ -400,13 +407,15 @@ FULL = {"fit_big": 1_000_000, "fit_mid": 100_000, "scaling_n": (10_000, 100_000,
         "payload_n": 1_000_000, "bag_n": 500_000, "cli_n": 200_000, "cli_repeats": 5, "select_n": 74_000,
         "mlp_n": 20_000, "mlp_hidden": "16", "mlp_iterations": 200, "plan": (60, 10_000),
         "scale": (10, 1_000_000, 4), "cost": ((20_000, 6), (200_000, 7), (1_000_000, 8)),
-        "cost_budget": (1_000_000, 8, 8.0)}
+        "cost_budget": (1_000_000, 8, 8.0), "live_n": 600_000, "live_steps_n": 5_000, "live_minutes": (6, 60),
+        "live_zenoh_s": 10.0}
 QUICK = {"fit_big": 20_000, "fit_mid": 5_000, "scaling_n": (2_000, 10_000), "dense_max_n": 10_000,
          "degree_n": 5_000, "lasso_n": 5_000, "paper_lasso_n": 1_000, "predict_n": 100_000,
          "expected_n": 2_000, "expected_baseline_n": 500, "c_evals": 100_000, "python_calls": 200,
          "payload_n": 20_000, "bag_n": 20_000, "cli_n": 5_000, "cli_repeats": 1, "select_n": 6_000,
          "mlp_n": 6_000, "mlp_hidden": "8", "mlp_iterations": 50, "plan": (20, 1_000),
-         "scale": (4, 50_000, 4), "cost": ((4_000, 6),), "cost_budget": (20_000, 6, 3.0)}
+         "scale": (4, 50_000, 4), "cost": ((4_000, 6),), "cost_budget": (20_000, 6, 3.0), "live_n": 50_000,
+         "live_steps_n": 500, "live_minutes": (1, 2), "live_zenoh_s": 2.0}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -20,6 +20,7 @@ import numpy as np
 
 from benchmarks.bench_bags import CASES as BAG_CASES
 from benchmarks.bench_cost import CASES as COST_CASES
+from benchmarks.bench_live import LIVE_CASES
 from benchmarks.bench_mlp import CASES as MLP_CASES
 from benchmarks.bench_plan import CASES as PLAN_CASES
 from benchmarks.load_cases import make_load_cases
@@ -531,6 +532,7 @@ CASES.update(BAG_CASES)  # bag reading: benchmarks/bench_bags.py
 CASES.update(PLAN_CASES)  # experiment design: benchmarks/bench_plan.py
 CASES.update(MLP_CASES)  # the MLP family against a polynomial: benchmarks/bench_mlp.py
 CASES.update(COST_CASES)  # --degree auto's estimate against its CPU: benchmarks/bench_cost.py
+CASES.update(LIVE_CASES)  # the live calibrator: benchmarks/bench_live.py
 
 
 if __name__ == "__main__":

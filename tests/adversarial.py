@@ -119,13 +119,14 @@ def make_fixtures(root: Path) -> dict[str, Path]:
         poses = pd.DataFrame(np.column_stack([wrench, q]),
                              columns=["u1", "u2", "u3", "u4", "u5", "u6", "qx", "qy", "qz", "qw"])
         poses.to_csv(root / "poses.csv", index=False)
+        poses.assign(time=np.arange(n) * 0.01).to_csv(root / "live.csv", index=False)  # for `ftcal live --replay`
         assert main(["payload", str(root / "poses.csv"), "--orientation", "qx,qy,qz,qw", "--frame", "ft",
                      "-o", str(root / "payload.json")]) == 0
     finally:
         sys.stdout, sys.stderr = old
         quiet.close()
     fx.update(model=root / "model.json", xml=root / "model.xml", affine=root / "affine.json",
-              poses=root / "poses.csv", payload=root / "payload.json")
+              poses=root / "poses.csv", payload=root / "payload.json", live=root / "live.csv")
     fx["urdf"] = root / "tiny.urdf"
     fx["urdf"].write_text(URDF)
     fx["joints"] = root / "joints.csv"
@@ -530,7 +531,9 @@ def cases(fx: dict[str, Path], work: Path, rng: random.Random, n_random: int) ->
     payload_cmds = [lambda p, f: (["convert", str(p), "--to", "ros-yaml", "-o", o(f, "p.yaml")], [o(f, "p.yaml")],
                                   "yaml"),
                     lambda p, f: (["compensate", str(p), str(fx["poses"]), "--orientation", "qx,qy,qz,qw",
-                                   "-o", o(f, "c.csv")], [o(f, "c.csv")], None)]
+                                   "-o", o(f, "c.csv")], [o(f, "c.csv")], None),
+                    lambda p, f: (["live", "--replay", str(fx["live"]), "--orientation", "qx,qy,qz,qw",
+                                   "--tool", f"tool={p}", "-o", o(f, "l.parquet")], [o(f, "l.parquet")], None)]
     urdf_cmds = [lambda p, f: (["sensors", "--urdf", str(p), "--no-cache"], [], None),
                  lambda p, f: (["expected", "--urdf", str(p), "--joints", str(fx["joints"]), "--no-cache",
                                 "-o", o(f, "e.csv")], [o(f, "e.csv")], None)]

@@ -24,13 +24,13 @@ from .. import _INTERRUPTS, _note_interrupt
 # In workflow order: `ftcal --help` lists them so (PIPELINE sketches it).
 COMMAND_MODULES = (
     "demo", "plan", "sensors", "expected", "topics", "dataset", "fit", "evaluate", "report",
-    "check", "predict", "convert", "info", "payload", "compensate",
+    "check", "predict", "convert", "info", "payload", "compensate", "live",
 )
 
 PIPELINE = """In-situ nonlinear calibration of six-axis force/torque sensors.
 
 calibration:  sensors -> expected -> dataset -> fit -> evaluate / report -> convert (predict: apply a model)
-bias and tool: topics -> dataset -> payload -> compensate (convert --to ros-yaml|ft-tools-ros2)
+bias and tool: topics -> dataset -> payload -> compensate (convert --to ros-yaml|ft-tools-ros2) -> live
 try it:       ftcal demo --out ftcal-demo, then any command's --help shows examples on its files"""
 
 ENVIRONMENT = """environment variables:

@@ -8,7 +8,7 @@ from pathlib import Path
 from ._common import nonnegative_int
 from ._examples import epilog
 
-SCENARIOS = ("paper", "arm", "plan")
+SCENARIOS = ("paper", "arm", "plan", "live")
 
 
 def register(sub) -> None:
@@ -17,11 +17,12 @@ def register(sub) -> None:
     p.add_argument("--scenario", default="paper", metavar="NAME",
                    help="paper: the paper's iCub experiment (default; also writes the arm scenario's ROS 2 bag "
                         "to DIR/arm); arm: a wrist sensor with an unknown gripper, from a ROS 2 bag; plan: "
-                        "poses planned by `ftcal plan` against random poses at the same budget")
+                        "poses planned by `ftcal plan` against random poses at the same budget; live: a drifting "
+                        "wrist sensor with a contact and a tool swap, replayed through `ftcal live`")
     p.add_argument("--out", metavar="DIR",
                    help="folder for the recordings, models, summary.json, report.html and the inputs "
                         "README.md's examples use (default ftcal-demo/, ftcal-arm-demo/ for --scenario arm, "
-                        "ftcal-plan-demo/ for --scenario plan)")
+                        "ftcal-plan-demo/ for --scenario plan, ftcal-live-demo/ for --scenario live)")
     p.add_argument("--seed", type=nonnegative_int, default=0, help="simulation seed, >= 0 (default 0)")
     p.add_argument("--quick", action="store_true", help="a smaller experiment (a few recordings; arm: 8 poses)")
     p.set_defaults(func=run)
@@ -38,6 +39,8 @@ def run(args) -> int:
         return run_arm(args)
     if args.scenario == "plan":
         return run_plan(args)
+    if args.scenario == "live":
+        return run_live(args)
     out = output_folder(args.out or "ftcal-demo")
     summary = run_demo(DemoConfig(out_dir=out, seed=args.seed, quick=args.quick))
     print(format_tables(summary))
@@ -69,6 +72,17 @@ def run_plan(args) -> int:
     config = PlanDemoConfig(out_dir=output_folder(args.out or "ftcal-plan-demo"), seed=args.seed)
     summary = run_plan_demo(dataclasses.replace(config, **(PLAN_QUICK if args.quick else {})))
     print(format_plan_tables(summary))
+    print(f"\ndone in {summary['elapsed_s']:.0f} s")
+    print("wrote " + ", ".join(summary["files"]))
+    return 0
+
+
+def run_live(args) -> int:
+    from ..sim.demo_live import LiveDemoConfig, format_live_tables, run_live_demo
+
+    config = LiveDemoConfig(out_dir=output_folder(args.out or "ftcal-live-demo"), seed=args.seed, quick=args.quick)
+    summary = run_live_demo(config)
+    print(format_live_tables(summary))
     print(f"\ndone in {summary['elapsed_s']:.0f} s")
     print("wrote " + ", ".join(summary["files"]))
     return 0

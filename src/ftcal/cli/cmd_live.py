@@ -1,0 +1,225 @@
+"""``ftcal live``: the live calibrator over a recording (--replay) or over Zenoh (--zenoh)."""
+
+from __future__ import annotations
+
+import argparse
+
+from ._common import column_list, finite_float, float_list, positive_float, require_suffix
+from ._examples import epilog
+
+
+def tool_spec(text: str) -> tuple[str, str]:
+    """``NAME=PAYLOAD.json``."""
+    name, sep, path = text.partition("=")
+    if not sep or not name or not path:
+        raise argparse.ArgumentTypeError(f"expected NAME=PAYLOAD.json, got {text!r}")
+    return name, path
+
+
+def switch_spec(text: str) -> tuple[float, str]:
+    """``TIME:NAME``."""
+    when, sep, name = text.partition(":")
+    if not sep or not name:
+        raise argparse.ArgumentTypeError(f"expected TIME:TOOL (e.g. 30:gripper), got {text!r}")
+    return finite_float(when), name
+
+
+def register(sub) -> None:
+    p = sub.add_parser("live", **epilog("live"),
+                       help="calibrate, remove the tool, track the drifting bias and watch the sensor while the "
+                            "robot runs (replay a recording, or live over Zenoh)",
+                       description="The live calibrator (docs/live.md): each sample's calibrated wrench, the "
+                                   "wrench with the mounted tool's gravity and the tracked bias removed (Fx..Tz), "
+                                   "the bias ± its standard deviation, and health flags. The bias is a Kalman "
+                                   "filter of the random-walk model of `ftcal payload --bias-drift random-walk`; "
+                                   "it updates only on static samples whose innovation passes a chi-square gate, "
+                                   "so a contact is flagged and never absorbed. Tools come from payload files "
+                                   "(--tool NAME=PAYLOAD.json); re-tares (bias only, tool kept) and tool switches "
+                                   "can be scripted by time.")
+    mode = p.add_mutually_exclusive_group(required=True)
+    mode.add_argument("--replay", metavar="DATA", help="CSV or Parquet recording to run through the calibrator "
+                                                       "(a ROS bag: make a table with `ftcal dataset` first)")
+    mode.add_argument("--zenoh", action="store_true", help="run live over Zenoh (see the Zenoh options)")
+    p.add_argument("-o", "--output", metavar="OUT.parquet|OUT.csv", help="--replay: the results table")
+    p.add_argument("--model", metavar="CAL.json", help="calibration model: its input columns are the raw channels")
+    p.add_argument("--wrench", type=column_list, metavar="FX,FY,FZ,TX,TY,TZ",
+                   help="wrench columns without --model (default: the first tool's payload file's, else u1,...,u6)")
+    gravity = p.add_mutually_exclusive_group()
+    gravity.add_argument("--orientation", type=column_list, metavar="QX,QY,QZ,QW",
+                         help="quaternion columns, ROS order x,y,z,w: sensor frame to a world with gravity along -z")
+    gravity.add_argument("--gravity-columns", type=column_list, metavar="GX,GY,GZ",
+                         help="gravity vector in the sensor frame, m/s²")
+    gravity.add_argument("--imu-columns", type=column_list, metavar="AX,AY,AZ",
+                         help="accelerometer in the sensor frame, m/s² (gravity = minus the reading at rest)")
+    p.add_argument("--g", type=positive_float, default=9.81, metavar="M/S2", help="gravity magnitude (default 9.81)")
+    p.add_argument("--time", default="time", metavar="COL", help="time column, s (default time)")
+    p.add_argument("--temperature", metavar="COL", help="temperature column, checked against the model's range")
+    p.add_argument("--tool", type=tool_spec, action="append", default=[], metavar="NAME=PAYLOAD.json",
+                   help="a tool of the library (repeat for several); 'none' is always there")
+    p.add_argument("--mount", metavar="NAME", help="tool mounted at the start (default: the first --tool, else none)")
+    p.add_argument("--retare-at", type=finite_float, action="append", default=[], metavar="TIME",
+                   help="--replay: re-tare (bias only, tool kept) at this time, s; repeatable")
+    p.add_argument("--switch-tool", type=switch_spec, action="append", default=[], metavar="TIME:NAME",
+                   help="--replay: mount tool NAME at this time, s (e.g. 30:gripper); repeatable")
+    p.add_argument("--walk-std", type=float_list, metavar="F,T",
+                   help="bias random-walk std per √h, force (N) and torque (N·m), or six values (default: from "
+                        "the first tool's random-walk trajectory, else 1 N, 0.1 N·m)")
+    p.add_argument("--noise-std", type=float_list, metavar="F,T",
+                   help="per-sample noise std, force and torque, or six values (default: the first tool's "
+                        "residual RMS, else 0.1 N, 0.01 N·m)")
+    p.add_argument("--bias", type=float_list, metavar="B1,...,B6",
+                   help="initial bias (default unknown: the first static, contact-free samples set it)")
+    p.add_argument("--state", metavar="STATE.json",
+                   help="state file: resumed from when it exists, saved (atomically) at the end and on Ctrl-C")
+    p.add_argument("--realtime", action="store_true", help="--replay at the recording's speed")
+    zenoh = p.add_argument_group("Zenoh (keys follow zenoh-bridge-ros2dds: topic /ft/raw is key ft/raw)")
+    zenoh.add_argument("--listen", action="append", default=[], metavar="ENDPOINT",
+                       help="endpoint to listen on, e.g. tcp/127.0.0.1:7447 (repeatable)")
+    zenoh.add_argument("--connect", action="append", default=[], metavar="ENDPOINT",
+                       help="endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable)")
+    zenoh.add_argument("--wrench-topic", default="/ft/raw", metavar="TOPIC",
+                       help="raw geometry_msgs/msg/WrenchStamped (default /ft/raw)")
+    zenoh.add_argument("--imu-topic", metavar="TOPIC", help="sensor_msgs/msg/Imu in the sensor frame: gravity "
+                                                           "from its orientation (else its acceleration)")
+    zenoh.add_argument("--prefix", default="/ft", metavar="TOPIC",
+                       help="outputs: PREFIX/calibrated, PREFIX/compensated (WrenchStamped), PREFIX/diagnostics "
+                            "(JSON); queryables PREFIX/retare, /switch_tool, /identify_tool, /status "
+                            "(default /ft)")
+    zenoh.add_argument("--silence", type=positive_float, default=1.0, metavar="S",
+                       help="flag the input silent after this many seconds without a message (default 1)")
+    zenoh.add_argument("--duration", type=positive_float, metavar="S", help="stop after this many seconds")
+    p.set_defaults(func=run)
+
+
+def _six(values, option: str):
+    import numpy as np
+
+    from ..runtime.errors import FtcalError
+
+    if values is None:
+        return None
+    if len(values) == 2:
+        return np.r_[np.full(3, values[0]), np.full(3, values[1])]
+    if len(values) == 6:
+        return np.asarray(values, dtype=float)
+    raise FtcalError(f"{option}: give two values (force, torque) or six; got {len(values)}.")
+
+
+def build_calibrator(args):
+    """The :class:`~ftcal.live.LiveCalibrator` the options describe."""
+    from ..files.model_files import read_model
+    from ..files.payload_json import load_payload
+    from ..live import LiveCalibrator
+    from ..runtime.errors import FtcalError
+
+    tools = {}
+    for name, path in args.tool:
+        if name in tools or name == "none":
+            raise FtcalError(f"--tool {name}={path}: the name {name!r} is taken; give each tool its own name.")
+        tools[name] = load_payload(path)
+    mount = args.mount if args.mount is not None else next(iter(tools), "none")
+    if mount not in tools and mount != "none":
+        raise FtcalError(f"--mount {mount}: no such tool ({', '.join(['none', *tools])}).")
+    model = read_model(args.model) if args.model else None
+    for option in ("walk_std", "noise_std"):
+        values = getattr(args, option)
+        if values is not None and any(v < 0 for v in values):
+            raise FtcalError(f"--{option.replace('_', '-')}: standard deviations must be >= 0.")
+    bias = _six(args.bias, "--bias") if args.bias is not None else None
+    if args.bias is not None and len(args.bias) != 6:
+        raise FtcalError(f"--bias: give six values; got {len(args.bias)}.")
+    return LiveCalibrator(model, tools, tool=mount, walk_std=_six(args.walk_std, "--walk-std"),
+                          noise_std=_six(args.noise_std, "--noise-std"), initial_bias=bias,
+                          gravity_magnitude=args.g, state_path=args.state)
+
+
+def run(args) -> int:
+    if args.zenoh:
+        return run_zenoh(args)
+    return run_replay(args)
+
+
+def run_replay(args) -> int:
+    from ..live.replay import ScriptedEvent, replay_table
+    from ..runtime.errors import FtcalError
+    from .cmd_payload import check_not_input
+
+    if args.output is None:
+        raise FtcalError("--replay needs -o OUT.parquet (or OUT.csv) for the results.")
+    require_suffix(args.output, (".csv", ".parquet"), "-o")
+    inputs = [args.replay, *(path for _, path in args.tool)] + ([args.model] if args.model else [])
+    check_not_input(args.output, inputs)
+    if args.state:
+        from pathlib import Path
+
+        if any(Path(p).resolve() == Path(args.state).resolve() for p in inputs + [args.output]):
+            raise FtcalError(f"--state {args.state}: is also an input or the output; give the state its own file.")
+    live = build_calibrator(args)
+    columns = replay_columns(args, live)
+    events = [ScriptedEvent(t, "retare") for t in args.retare_at] + \
+             [ScriptedEvent(t, "switch", name) for t, name in args.switch_tool]
+    try:
+        summary = replay_table(args.replay, live, columns, args.output, events=events, realtime=args.realtime)
+    except FtcalError:
+        raise  # bad input: no output, and the state file is left as it was
+    except BaseException:  # Ctrl-C, SIGTERM: keep what was processed
+        if args.state and live.last_time is not None:
+            live.save_state()
+        raise
+    if args.state:
+        live.save_state()
+    print(summary.line())
+    for when, flag, _, reason in summary.events[:10]:
+        print(f"  t={when:.3f} s  {flag}: {reason}")
+    if len(summary.events) > 10:
+        print(f"  ... {len(summary.events) - 10} more flag(s) raised (the table's flag_names column has them all)")
+    status = live.status()
+    print("bias now: " + ", ".join(f"{v:.4g} ± {s:.2g}" for v, s in zip(status["bias"], status["bias_std"]))
+          + f" (tool {status['tool']!r})")
+    print(f"wrote {args.output}" + (f" and {args.state}" if args.state else ""))
+    return 0
+
+
+def replay_columns(args, live):
+    """Which columns of --replay feed the calibrator."""
+    from ..live.replay import ReplayColumns
+    from ..runtime.errors import FtcalError
+
+    if live.model is not None:
+        if args.wrench is not None:
+            raise FtcalError("give --model (raw channels) or --wrench, not both.")
+        signal, raw = tuple(live.model.input_names_), True
+    else:
+        first = next((p for p in live.tools.values() if p is not None), None)
+        signal = args.wrench or tuple((first.fit.get("wrench_columns") if first else None)
+                                      or ("u1", "u2", "u3", "u4", "u5", "u6"))
+        if len(signal) != 6:
+            raise FtcalError(f"--wrench needs 6 columns; got {','.join(signal)}.")
+        raw = False
+    if args.orientation is not None:
+        kind, cols, need = "quaternion", args.orientation, 4
+    elif args.gravity_columns is not None:
+        kind, cols, need = "gravity", args.gravity_columns, 3
+    elif args.imu_columns is not None:
+        kind, cols, need = "imu", args.imu_columns, 3
+    else:
+        raise FtcalError("give the sensor's orientation: --orientation qx,qy,qz,qw, --gravity-columns gx,gy,gz "
+                         "or --imu-columns ax,ay,az.")
+    if len(cols) != need:
+        raise FtcalError(f"--{'orientation' if kind == 'quaternion' else kind + '-columns'} needs {need} columns; "
+                         f"got {','.join(cols)}.")
+    return ReplayColumns(args.time, tuple(signal), raw, kind, tuple(cols), args.temperature)
+
+
+def run_zenoh(args) -> int:
+    from ..live.zenoh_node import ZenohOptions, serve
+    from ..runtime.errors import FtcalError
+
+    if args.output or args.retare_at or args.switch_tool or args.realtime:
+        raise FtcalError("-o, --retare-at, --switch-tool and --realtime go with --replay; live, use the "
+                         "queryables (see docs/live.md).")
+    live = build_calibrator(args)
+    options = ZenohOptions(listen=tuple(args.listen), connect=tuple(args.connect), wrench_topic=args.wrench_topic,
+                           imu_topic=args.imu_topic, prefix=args.prefix, silence=args.silence,
+                           duration=args.duration)
+    return serve(live, options)

@@ -1,0 +1,692 @@
+"""The live calibrator: calibration model + tool library + gated bias tracker + health, one sample or one block at a time.
+
+See docs/live.md for the model, its gates and what each flag means. In short, for each sample:
+
+1. the calibrated wrench ``w``: the model's prediction from the raw channels (or the wrench given);
+2. gravity in sensor axes from an orientation quaternion, a gravity vector or an accelerometer (IMU);
+3. the tool's gravity wrench ``Y(g) θ_tool`` (:func:`ftcal.payload.regressor.static_regressor`);
+4. ``z = w − tool``; the bias tracker (:mod:`ftcal.live.tracker`) updates on static samples whose
+   innovation passes the χ² gate, and only predicts on the others;
+5. the compensated wrench is the innovation ``z − bias`` (the bias before the sample);
+6. health flags (:mod:`ftcal.live.health`).
+
+:meth:`LiveCalibrator.run` takes a block of samples and computes exactly what :meth:`LiveCalibrator.step`
+computes one at a time (the same formulas; the block's recursions are prefix scans).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections import deque
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..check.accept import Thresholds
+from ..data.holds import HOLD_WINDOW_S, MIN_ANGULAR_RATE, MIN_HOLD_S
+from ..data.signals import SATURATION_RUN, STUCK_RUN
+from ..payload.kinematics import STANDARD_GRAVITY, gravity_from_quaternions
+from ..payload.parameters import PayloadParameters
+from ..runtime.errors import FtcalError
+from .health import BIT, DEAD_RUN, FLAGS, ExceedanceTimer, RunCounter, names_of
+from .motion import MotionDetector
+from .tracker import track_block
+
+NO_TOOL = "none"
+STATE_FORMAT = "ftcal-live-state"
+STATE_VERSION = "1.0"
+# Gate: a static sample whose innovation has a χ² (6 dof) beyond this quantile is a contact.
+GATE_PROBABILITY = 0.999
+# Unexplained wrench: beyond this many σ ...
+UNEXPLAINED_SIGMA = 5.0
+# ... for longer than this, s.
+UNEXPLAINED_SECONDS = 0.5
+# Without a payload file or an override: noise and walk standard deviations as fractions of
+# ``check --accept``'s thresholds (per sample, and per √h).
+DEFAULT_NOISE_FRACTION = 0.1
+DEFAULT_WALK_FRACTION = 1.0
+# Variance that re-taring gives the bias (in units of the noise variance): the next static samples set it.
+RETARE_VARIANCE = 1e8
+# Events kept in memory (a long run keeps memory flat; the state file keeps the counters).
+MAX_EVENTS = 1000
+SECONDS_PER_HOUR = 3600.0
+
+
+@dataclass
+class LiveResult:
+    """What the calibrator returns for a block of n samples.
+
+    Attributes
+    ----------
+    time : ndarray of shape (n,), s
+    calibrated : ndarray of shape (n, 6), the model's wrench (or the wrench given), N and N·m
+    compensated : ndarray of shape (n, 6), calibrated − tool − bias (the contact wrench)
+    bias, bias_std : ndarray of shape (n, 6), the bias estimate after each sample and its standard deviation
+    static : ndarray of bool, shape (n,), the sample was static
+    updated : ndarray of bool, shape (n,), the sample updated the bias
+    chi2 : ndarray of shape (n,), the innovation's χ² (6 dof)
+    flags : ndarray of uint16, shape (n,), health flags (bits of :data:`ftcal.live.health.BIT`)
+    tool : the tool in use for the block
+    events : flags raised or cleared in the block, as (time, flag, "raised" | "cleared", reason)
+    """
+
+    time: np.ndarray
+    calibrated: np.ndarray
+    compensated: np.ndarray
+    bias: np.ndarray
+    bias_std: np.ndarray
+    static: np.ndarray
+    updated: np.ndarray
+    chi2: np.ndarray
+    flags: np.ndarray
+    tool: str
+    events: list = field(default_factory=list)
+
+    @property
+    def n_samples(self) -> int:
+        return self.time.size
+
+
+@dataclass(frozen=True)
+class LiveSample:
+    """One sample's result (:meth:`LiveCalibrator.step`).
+
+    Attributes
+    ----------
+    time : s
+    calibrated, compensated, bias, bias_std : ndarray of shape (6,)
+    static, updated : bool
+    flags : dict flag name → one-line reason, for the flags raised on this sample
+    tool : str
+    """
+
+    time: float
+    calibrated: np.ndarray
+    compensated: np.ndarray
+    bias: np.ndarray
+    bias_std: np.ndarray
+    static: bool
+    updated: bool
+    flags: dict
+    tool: str
+
+
+def tool_wrench(payload: PayloadParameters | None, gravity: np.ndarray) -> np.ndarray:
+    """The gravity wrench a tool puts on the sensor, in the readings' sign, bias excluded, shape (n, 6).
+
+    ``F = m g``, ``T = (m c) × g`` (ftcal's convention, :mod:`ftcal.payload.regressor`), negated for a
+    payload identified from ``reaction`` readings.
+    """
+    out = np.zeros((gravity.shape[0], 6))
+    if payload is None:
+        return out
+    m, mc = payload.mass, payload.mass * np.asarray(payload.com, dtype=float)
+    out[:, :3] = m * gravity
+    gx, gy, gz = gravity[:, 0], gravity[:, 1], gravity[:, 2]
+    out[:, 3], out[:, 4], out[:, 5] = mc[1] * gz - mc[2] * gy, mc[2] * gx - mc[0] * gz, mc[0] * gy - mc[1] * gx
+    return -out if payload.reaction else out
+
+
+def _walk_from_knots(payload: PayloadParameters) -> np.ndarray | None:
+    """Walk variance per second from a random-walk payload's bias trajectory (its quadratic variation).
+
+    The trajectory is the offline smoother's, which is smoother than the walk itself, so this
+    underestimates the walk; it is the default only when no walk is given.
+    """
+    drift = payload.drift
+    if drift is None or drift.model != "random-walk" or drift.knot_times is None or len(drift.knot_times) < 3:
+        return None
+    steps = np.diff(drift.knot_bias, axis=0)
+    duration = float(drift.knot_times[-1] - drift.knot_times[0])
+    return np.sum(steps ** 2, axis=0) / duration if duration > 0 else None
+
+
+class LiveCalibrator:
+    """Calibrate, compensate the tool and track the sensor's bias while the robot runs.
+
+    Parameters
+    ----------
+    model : a static calibration model (any registered family, e.g. from
+        :func:`ftcal.files.model_json.load_model`) or None when the samples are wrenches already
+    tools : mapping of name → :class:`~ftcal.payload.parameters.PayloadParameters` (or a payload-file path);
+        the library; ``"none"`` (no tool) is always there
+    tool : the tool mounted at the start
+    walk_std : ndarray of shape (6,) or None, the bias' random-walk standard deviation per √h (N/√h, N·m/√h);
+        default: the first tool file with a random-walk drift (its trajectory's variation), else
+        :data:`DEFAULT_WALK_FRACTION` × the acceptance thresholds
+    noise_std : ndarray of shape (6,) or None, per-sample noise of the calibrated wrench; default the
+        residual RMS of the first tool file, else :data:`DEFAULT_NOISE_FRACTION` × the thresholds
+    initial_bias, initial_bias_std : ndarray of shape (6,) or None; default unknown (the first static,
+        contact-free samples set it, tool compensated)
+    gate_probability : the χ² quantile (6 dof) of the contact gate
+    unexplained_sigma, unexplained_seconds : the ``unexplained`` flag's k and T
+    thresholds : :class:`~ftcal.check.accept.Thresholds` (``check --accept``'s; defaults 1 N, 0.1 N·m)
+    adc_limits : (low, high) or None, raw values at or beyond which a channel is saturated
+    temperature_range : (low, high) °C or None; default the model's temperature input range
+    motion_window, min_rate, min_hold : the static test (:mod:`ftcal.live.motion`)
+    gravity_magnitude : m/s², for quaternions
+    state_path : JSON file the state is saved to (atomically) and resumed from when it exists
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from ftcal.live import LiveCalibrator
+    >>> live = LiveCalibrator(noise_std=np.full(6, 0.05))
+    >>> r = live.run(np.arange(0.0, 2.0, 0.001), wrench=np.tile([1.0, 0, 0, 0, 0, 0], (2000, 1)),
+    ...              gravity=np.tile([0.0, 0.0, -9.81], (2000, 1)))
+    >>> bool(abs(r.bias[-1, 0] - 1.0) < 1e-3)
+    True
+    """
+
+    def __init__(self, model=None, tools: Mapping[str, PayloadParameters | str | Path] | None = None, *,
+                 tool: str = NO_TOOL, walk_std=None, noise_std=None, initial_bias=None, initial_bias_std=None,
+                 gate_probability: float = GATE_PROBABILITY, unexplained_sigma: float = UNEXPLAINED_SIGMA,
+                 unexplained_seconds: float = UNEXPLAINED_SECONDS, thresholds: Thresholds | None = None,
+                 adc_limits: tuple[float, float] | None = None, temperature_range: tuple[float, float] | None = None,
+                 motion_window: float = HOLD_WINDOW_S, min_rate: float = MIN_ANGULAR_RATE,
+                 min_hold: float = MIN_HOLD_S, gravity_magnitude: float = STANDARD_GRAVITY,
+                 state_path: str | Path | None = None) -> None:
+        from scipy.stats import chi2
+
+        if model is not None:
+            if not getattr(model, "is_static", True):
+                raise FtcalError("the live calibrator takes static models (no ARX lags).")
+            if len(model.output_names_) != 6:
+                raise FtcalError(f"the calibration model has {len(model.output_names_)} outputs; a wrench needs 6.")
+        if not 0.5 < gate_probability < 1.0:
+            raise FtcalError(f"gate_probability must be in (0.5, 1); got {gate_probability}.")
+        self.model = model
+        self.tools: dict[str, PayloadParameters | None] = {NO_TOOL: None}
+        self.identified: set[str] = set()  # tools identified in place: the state file carries them
+        for name, payload in (tools or {}).items():
+            self.add_tool(name, payload, log=False)
+        if tool not in self.tools:
+            raise FtcalError(f"tool {tool!r} is not in the library ({', '.join(self.tools)}).")
+        self.tool = tool
+        self.thresholds = thresholds or Thresholds()
+        scale = np.repeat([self.thresholds.force, self.thresholds.torque], 3)
+        self._accept_limit = scale
+        files = [p for p in self.tools.values() if p is not None]
+        self.noise_std = self._vector(noise_std, "noise_std") if noise_std is not None else next(
+            (np.asarray(p.fit["residual_rms"], float) for p in files if "residual_rms" in p.fit),
+            DEFAULT_NOISE_FRACTION * scale)
+        self.noise_std = np.maximum(self.noise_std, 1e-12)
+        if walk_std is not None:
+            walk_variance = self._vector(walk_std, "walk_std") ** 2 / SECONDS_PER_HOUR
+        else:
+            walk_variance = next((w for w in map(_walk_from_knots, files) if w is not None),
+                                 (DEFAULT_WALK_FRACTION * scale) ** 2 / SECONDS_PER_HOUR)
+        self.walk_variance = walk_variance  # per second
+        self.threshold = float(chi2.ppf(gate_probability, 6))
+        self.unexplained_sigma, self.unexplained_seconds = float(unexplained_sigma), float(unexplained_seconds)
+        self.adc_limits = adc_limits
+        model_temperature = self._model_temperature()
+        self.temperature_range = temperature_range if temperature_range is not None else model_temperature
+        self.gravity_magnitude = gravity_magnitude
+        self.motion = MotionDetector(motion_window, min_rate, min_hold)
+        self.runs = RunCounter()
+        self.unexplained_timer = ExceedanceTimer()
+        self.flags_now = 0
+        self.events: deque = deque(maxlen=MAX_EVENTS)
+        self.counters = {"samples": 0, "updates": 0, "contacts": 0, "retares": 0, "switches": 0}
+        self.last_time: float | None = None
+        self.identifying: _Identification | None = None
+        self.state_path = None if state_path is None else Path(state_path)
+        self._set_initial_bias(initial_bias, initial_bias_std)
+        if self.state_path is not None and self.state_path.exists():
+            self.load_state(self.state_path)
+
+    # ----- set-up helpers -------------------------------------------------------------------------
+    @staticmethod
+    def _vector(value, name: str) -> np.ndarray:
+        v = np.broadcast_to(np.asarray(value, dtype=float), (6,)).copy()
+        if not np.all(np.isfinite(v)) or np.any(v < 0):
+            raise FtcalError(f"{name} must be six finite numbers >= 0; got {value!r}.")
+        return v
+
+    def _model_temperature(self):
+        """The model's temperature input range (and remember which input it is)."""
+        self._temperature_input = None
+        if self.model is None:
+            return None
+        from ..report.runs import temperature_column
+
+        j = self._temperature_input = temperature_column(self.model.input_names_)
+        return None if j is None else tuple(float(x) for x in self.model.input_range_[j])
+
+    def _set_initial_bias(self, bias, std) -> None:
+        """A given bias (with its std, default the noise's), else unknown: the first static samples set it.
+
+        A payload file's bias is not used: it was the bias during the identification, and the sensor
+        has drifted since (a stale bias held with its small standard error would make every sample a
+        contact until the walk's variance caught up).
+        """
+        if bias is not None:
+            self.bias = np.broadcast_to(np.asarray(bias, float), (6,)).copy()
+            if not np.all(np.isfinite(self.bias)):
+                raise FtcalError("initial_bias must be six finite numbers.")
+            self.variance = (self._vector(std, "initial_bias_std") ** 2 if std is not None
+                             else self.noise_std ** 2)
+        else:
+            self.bias = np.zeros(6)
+            self.variance = RETARE_VARIANCE * self.noise_std ** 2
+
+    # ----- the tool library -----------------------------------------------------------------------
+    def add_tool(self, name: str, payload: PayloadParameters | str | Path, *, log: bool = True) -> None:
+        """Add (or replace) a tool in the library: a payload or a payload file's path."""
+        if not isinstance(name, str) or not name or name == NO_TOOL:
+            raise FtcalError(f"a tool needs a name other than {NO_TOOL!r}; got {name!r}.")
+        if not isinstance(payload, PayloadParameters):
+            from ..files.payload_json import load_payload
+
+            payload = load_payload(payload)
+        self.tools[name] = payload
+        if log:
+            self._event("tool", "added", f"tool {name!r} added to the library ({payload.mass:.4g} kg)")
+
+    def switch_tool(self, name: str) -> None:
+        """Mount another tool of the library, instantly; the bias estimate is kept (it is the sensor's)."""
+        if name not in self.tools:
+            raise FtcalError(f"tool {name!r} is not in the library ({', '.join(self.tools)}).")
+        old, self.tool = self.tool, name
+        self.counters["switches"] += 1
+        self._event("tool", "switched", f"tool {old!r} -> {name!r}")
+
+    def retare(self) -> None:
+        """Re-estimate the bias only, tool kept, in any pose: the bias forgets its value, and the next static
+        samples (the sensor must be free of contact) set it."""
+        self.variance = np.maximum(self.variance, RETARE_VARIANCE * self.noise_std ** 2)
+        self.counters["retares"] += 1
+        self._event("bias", "retare", f"re-tare with tool {self.tool!r} kept: the next static samples set the bias")
+
+    # ----- identification in place ----------------------------------------------------------------
+    def start_identification(self, name: str) -> None:
+        """Collect the next static holds to identify a new tool ``name`` (bias updates pause meanwhile)."""
+        if not isinstance(name, str) or not name or name == NO_TOOL:
+            raise FtcalError(f"a tool needs a name other than {NO_TOOL!r}; got {name!r}.")
+        self.identifying = _Identification(name)
+        self._event("tool", "identifying", f"identifying tool {name!r}: hold the sensor still in varied poses")
+
+    def finish_identification(self, *, mount: bool = True, save_to: str | Path | None = None) -> PayloadParameters:
+        """Identify the tool from the holds collected since :meth:`start_identification`.
+
+        The batch estimator of ``ftcal payload`` (:func:`ftcal.payload.identify.identify_payload`) runs on
+        the holds' statistics, with cluster-robust standard errors over the holds and its excitation
+        check (its warnings are raised as usual). The tool joins the library; with ``mount`` it is
+        mounted and the bias takes the identified value and variance.
+
+        Parameters
+        ----------
+        mount : mount the new tool
+        save_to : payload file to write (atomically), or None
+
+        Returns
+        -------
+        PayloadParameters
+
+        Raises
+        ------
+        FtcalError
+            Not identifying, or too few holds (at least three) or poses that leave the mass undetermined.
+        """
+        from ..payload.identify import identify_payload
+
+        job = self.identifying
+        if job is None:
+            raise FtcalError("no identification in progress (call start_identification first).")
+        holds = [h for h in job.holds if h is not None]
+        if len(holds) < 3:
+            raise FtcalError(f"identifying tool {job.name!r}: {len(holds)} static hold(s) so far; at least 3 "
+                             "in different orientations are needed.")
+        self.identifying = None
+        total = holds[0]
+        for h in holds[1:]:
+            total = total + h
+        fit = identify_payload({job.name: total}, clusters=holds, cross_validate=False)
+        columns = tuple(self.model.output_names_) if self.model is not None else ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
+        payload = PayloadParameters.from_fit(fit, gravity=self.gravity_magnitude, frame=None, reaction=False,
+                                             wrench_columns=columns)
+        self.add_tool(job.name, payload, log=False)
+        self.identified.add(job.name)
+        self._event("tool", "identified", f"tool {job.name!r} identified from {len(holds)} holds: "
+                    f"{payload.mass:.4g} ± {payload.stderr['mass']:.2g} kg")
+        if save_to is not None:
+            from ..files.payload_json import save_payload
+
+            save_payload(payload, save_to, sources=["ftcal live"])
+        if mount:
+            self.switch_tool(job.name)
+            self.bias = payload.bias.astype(float)
+            se = np.r_[payload.stderr["force_bias"], payload.stderr["torque_bias"]]
+            self.variance = np.maximum(np.nan_to_num(se ** 2, nan=0.0), self.noise_std ** 2)
+        return payload
+
+    # ----- one sample, a block --------------------------------------------------------------------
+    def step(self, time: float, *, raw=None, wrench=None, gravity=None, quaternion=None, imu=None,
+             joints=None, temperature=None, static=None) -> LiveSample:
+        """Process one sample; the arguments are those of :meth:`run` for a single sample (vectors, scalars).
+
+        Returns
+        -------
+        LiveSample
+        """
+        def one(x):
+            return None if x is None else np.asarray(x, dtype=float).reshape(1, -1)
+
+        r = self.run(np.array([float(time)]), raw=one(raw), wrench=one(wrench), gravity=one(gravity),
+                     quaternion=one(quaternion), imu=one(imu), joints=one(joints),
+                     temperature=None if temperature is None else np.array([float(temperature)]),
+                     static=None if static is None else np.array([bool(static)]))
+        bits = int(r.flags[0])
+        reasons = {e[1]: e[3] for e in r.events if e[2] == "raised"}
+        return LiveSample(float(r.time[0]), r.calibrated[0], r.compensated[0], r.bias[0], r.bias_std[0],
+                          bool(r.static[0]), bool(r.updated[0]),
+                          {name: reasons.get(name, self.reason_of(name)) for name in names_of(bits)}, r.tool)
+
+    def run(self, time, *, raw=None, wrench=None, gravity=None, quaternion=None, imu=None, joints=None,
+            temperature=None, static=None) -> LiveResult:
+        """Process a block of samples, in time order, continuing from the current state.
+
+        Parameters
+        ----------
+        time : ndarray of shape (n,), s, strictly increasing (and after the previous block)
+        raw : ndarray of shape (n, n_inputs), the model's inputs in its order (needs a model)
+        wrench : ndarray of shape (n, 6), the wrench itself (without a model)
+        gravity : ndarray of shape (n, 3), gravity in sensor axes, m/s²; or
+        quaternion : ndarray of shape (n, 4), sensor-to-world orientation, x y z w (world z up); or
+        imu : ndarray of shape (n, 3), an accelerometer in sensor axes (gravity = −reading at rest)
+        joints : ndarray of shape (n, n_joints) or None, rad: the motion signal when no quaternion is given
+        temperature : ndarray of shape (n,) or None, °C (the model's temperature input is used when it has one)
+        static : ndarray of bool, shape (n,), or None: overrides the motion test
+
+        Returns
+        -------
+        LiveResult
+
+        Raises
+        ------
+        FtcalError
+            Missing or misshapen inputs, non-finite values, or time that does not increase.
+        """
+        t = np.asarray(time, dtype=float).reshape(-1)
+        n = t.size
+        u, w = self._calibrate(raw, wrench, n)
+        g, kind, signal = self._gravity(gravity, quaternion, imu, joints, n)
+        if not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0) or (
+                n and self.last_time is not None and t[0] <= self.last_time):
+            raise FtcalError("time must be finite and strictly increasing (also across blocks).")
+        if n == 0:
+            return self._empty()
+        if static is not None:
+            still = np.asarray(static, dtype=bool).reshape(-1)
+            if still.size != n:
+                raise FtcalError(f"static has {still.size} values for {n} samples.")
+            moving = ~still
+        else:
+            still, moving = self.motion.static(t, kind, signal)
+        payload = self.tools[self.tool]
+        z = w - tool_wrench(payload, g)
+        dt = np.empty(n)
+        dt[0] = 0.0 if self.last_time is None else t[0] - self.last_time
+        dt[1:] = t[1:] - t[:-1]
+        gate_static = still & (self.identifying is None)
+        tracked = track_block(z, dt, gate_static, self.bias, self.variance, self.walk_variance, self.noise_std ** 2,
+                              self.threshold)
+        if self.identifying is not None:
+            self.identifying.add(w, g, still)
+        flags, reasons = self._health(t, u, w, temperature, still, moving, tracked)
+        self.bias, self.variance = tracked.bias[-1].copy(), tracked.variance[-1].copy()
+        self.last_time = float(t[-1])
+        self.counters["samples"] += n
+        self.counters["updates"] += int(tracked.updated.sum())
+        events = self._flag_events(t, flags, reasons)
+        self.counters["contacts"] += sum(1 for e in events if e[1] == "contact" and e[2] == "raised")
+        return LiveResult(t, w, tracked.innovation, tracked.bias, np.sqrt(tracked.variance), still, tracked.updated,
+                          tracked.chi2, flags, self.tool, events)
+
+    def _empty(self) -> LiveResult:
+        z6 = np.empty((0, 6))
+        return LiveResult(np.empty(0), z6, z6, z6, z6, np.empty(0, bool), np.empty(0, bool), np.empty(0),
+                          np.empty(0, np.uint16), self.tool, [])
+
+    def _calibrate(self, raw, wrench, n):
+        if (raw is None) == (wrench is None):
+            raise FtcalError("give either raw (the model's inputs) or wrench, not both or neither.")
+        if raw is not None:
+            if self.model is None:
+                raise FtcalError("raw channels need a calibration model; give wrench instead.")
+            u = np.asarray(raw, dtype=float).reshape(n, -1) if n else np.empty((0, len(self.model.input_names_)))
+            if u.shape[1] != len(self.model.input_names_):
+                raise FtcalError(f"raw has {u.shape[1]} channels; the model takes {len(self.model.input_names_)} "
+                                 f"({', '.join(self.model.input_names_)}).")
+            _finite(u, "raw")
+            w = self.model.predict(u, warn_out_of_range=False) if n else np.empty((0, 6))
+            return u, np.asarray(w, dtype=float)
+        w = np.asarray(wrench, dtype=float)
+        if w.shape != (n, 6):
+            raise FtcalError(f"wrench must have shape ({n}, 6); got {w.shape}.")
+        _finite(w, "wrench")
+        return w, w
+
+    def _gravity(self, gravity, quaternion, imu, joints, n):
+        given = [x is not None for x in (gravity, quaternion, imu)]
+        if sum(given) != 1:
+            raise FtcalError("give exactly one of gravity, quaternion or imu.")
+        if quaternion is not None:
+            q = np.asarray(quaternion, dtype=float).reshape(n, 4)
+            _finite(q, "quaternion")
+            g = gravity_from_quaternions(q, self.gravity_magnitude, source="quaternion")
+            kind, signal = "quaternion", q / np.linalg.norm(q, axis=1, keepdims=True)
+        else:
+            g = np.asarray(gravity if gravity is not None else imu, dtype=float).reshape(n, 3)
+            _finite(g, "gravity" if gravity is not None else "imu")
+            if imu is not None:
+                g = -g
+            if np.any(np.linalg.norm(g, axis=1) == 0.0):
+                raise FtcalError("gravity (or imu) has a zero vector; it gives no direction.")
+            kind, signal = "direction", g
+        if joints is not None and quaternion is None:
+            signal = np.asarray(joints, dtype=float).reshape(n, -1)
+            _finite(signal, "joints")
+            kind = "joints"
+        return g, kind, signal
+
+    def _health(self, t, u, w, temperature, still, moving, tracked):
+        n = t.size
+        flags = np.zeros(n, np.uint16)
+        reasons: dict = {}  # flag -> function of a sample index giving the reason
+        names = self.model.input_names_ if self.model is not None else ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
+        t_col = self._temperature_input
+        channels = [j for j in range(u.shape[1]) if j != t_col]
+        x = u[:, channels]
+        run, changed = self.runs.update(x)
+        other_changed = (changed.sum(axis=1, keepdims=True) - changed) > 0
+        stuck = (run >= STUCK_RUN) & (other_changed | moving[:, None])
+        dead = stuck & (run >= DEAD_RUN)
+
+        def set_flag(name, mask_by_channel, text):
+            hit = mask_by_channel.any(axis=1) if mask_by_channel.ndim == 2 else mask_by_channel
+            if hit.any():
+                flags[hit] |= BIT[name]
+                reasons[name] = lambda k: text(k, mask_by_channel[k] if mask_by_channel.ndim == 2 else None)
+
+        def channel_names(row):
+            return ", ".join(names[channels[j]] for j in np.flatnonzero(row))
+
+        if self.adc_limits is not None:
+            low, high = self.adc_limits
+            saturated = (x <= low) | (x >= high)
+            why = f"at the ADC limits {low:g}/{high:g}"
+        elif self.model is not None:
+            rng = self.model.input_range_[channels]
+            outside = (x < rng[:, 0]) | (x > rng[:, 1])
+            saturated = outside & (run >= SATURATION_RUN)
+            why = f"flat for >= {SATURATION_RUN} samples outside the calibration's range"
+        else:
+            saturated = np.zeros_like(x, bool)
+            why = ""
+        set_flag("saturated", saturated, lambda k, row: f"channel {channel_names(row)} saturated ({why})")
+        set_flag("stuck", stuck & ~dead, lambda k, row: f"channel {channel_names(row)} stuck: one value for "
+                 f"{int(run[k][row].max())} samples while the sensor or other channels move")
+        set_flag("dead", dead, lambda k, row: f"channel {channel_names(row)} dead: one value for "
+                 f"{int(run[k][row].max())} samples")
+        if self.model is not None:
+            outside = np.asarray(self.model.out_of_range(u), bool)
+            set_flag("out_of_range", outside, lambda k, _: "inputs outside the calibration's training range or span")
+        temp = None
+        if temperature is not None:
+            temp = np.asarray(temperature, dtype=float).reshape(-1)
+        elif t_col is not None:
+            temp = u[:, t_col]
+        if temp is not None and self.temperature_range is not None:
+            lo, hi = self.temperature_range
+            hot = ~((temp >= lo) & (temp <= hi))
+            set_flag("temperature", hot, lambda k, _: f"temperature {temp[k]:.4g} outside the calibration's "
+                     f"{lo:.4g} to {hi:.4g}")
+        contact = still & ~tracked.updated & (tracked.chi2 >= self.threshold) & (self.identifying is None)
+        set_flag("contact", contact, lambda k, _: f"wrench the tool {self.tool!r} and the bias do not explain "
+                 f"(chi2 {tracked.chi2[k]:.3g} > {self.threshold:.3g}, 6 dof); the bias is not updated")
+        sigma = np.sqrt(tracked.innovation_variance)
+        limit = self._accept_limit
+        beyond = (np.abs(tracked.innovation) > np.maximum(self.unexplained_sigma * sigma, limit)).any(axis=1)
+        if self.identifying is not None:
+            beyond[:] = False
+        duration = self.unexplained_timer.update(t, beyond)
+        unexplained = duration >= self.unexplained_seconds
+        set_flag("unexplained", unexplained, lambda k, _: "innovation beyond "
+                 f"{self.unexplained_sigma:g} sigma and the acceptance thresholds for {duration[k]:.3g} s "
+                 f"(> {self.unexplained_seconds:g} s): |compensated| = "
+                 + ", ".join(f"{v:.3g}" for v in np.abs(tracked.innovation[k])))
+        return flags, reasons
+
+    def reason_of(self, name: str) -> str:
+        """The reason logged when flag ``name`` was last raised (its name if none is logged)."""
+        for e in reversed(self.events):
+            if e[1] == name and e[2] == "raised":
+                return e[3]
+        return name
+
+    def _flag_events(self, t, flags, reasons) -> list:
+        """Raised and cleared flags over the block (transitions only), logged and returned."""
+        events = []
+        previous = np.empty_like(flags)
+        previous[0] = self.flags_now & ~BIT["silent"]
+        previous[1:] = flags[:-1]
+        if not np.any(flags != previous):  # nothing raised or cleared (the usual sample)
+            self.flags_now = (int(flags[-1]) & ~BIT["silent"]) | (self.flags_now & BIT["silent"])
+            return events
+        for name in FLAGS:
+            if name == "silent":
+                continue
+            bit = BIT[name]
+            on, before = (flags & bit) != 0, (previous & bit) != 0
+            for k in np.flatnonzero(on != before):
+                kind = "raised" if on[k] else "cleared"
+                events.append((float(t[k]), name, kind, reasons[name](k) if on[k] else f"{name} cleared"))
+        events.sort(key=lambda e: e[0])
+        self.flags_now = (int(flags[-1]) & ~BIT["silent"]) | (self.flags_now & BIT["silent"])
+        self.events.extend(events)
+        return events
+
+    def _event(self, flag: str, kind: str, text: str) -> None:
+        self.events.append((self.last_time if self.last_time is not None else math.nan, flag, kind, text))
+
+    def set_silent(self, silent: bool, reason: str = "") -> None:
+        """Raise or clear the ``silent`` flag (the transports call this)."""
+        if bool(self.flags_now & BIT["silent"]) != silent:
+            self.flags_now ^= BIT["silent"]
+            self._event("silent", "raised" if silent else "cleared", reason or "silent cleared")
+
+    # ----- status and persistence -----------------------------------------------------------------
+    def status(self) -> dict:
+        """The state in plain types: bias, its std, tool, tools, flags, counters, time."""
+        return {"time": self.last_time, "tool": self.tool, "tools": list(self.tools),
+                "bias": self.bias.tolist(), "bias_std": np.sqrt(self.variance).tolist(),
+                "flags": names_of(self.flags_now), "counters": dict(self.counters),
+                "identifying": None if self.identifying is None else self.identifying.name,
+                "holds_collected": 0 if self.identifying is None else len(self.identifying.holds)}
+
+    def state_document(self) -> dict:
+        """The persisted state (JSON-ready): bias, covariance, tool, counters, time, and the tools identified in
+        place (the others come from their payload files)."""
+        from ..files.payload_json import payload_document
+
+        doc = {"format": STATE_FORMAT, "format_version": STATE_VERSION, "time": self.last_time,
+               "tool": self.tool, "bias": self.bias.tolist(), "variance": self.variance.tolist(),
+               "counters": dict(self.counters), "flags": names_of(self.flags_now),
+               "tools": {name: payload_document(self.tools[name]) for name in self.identified}}
+        if not all(np.isfinite(doc["bias"])) or not all(np.isfinite(doc["variance"])):
+            raise FtcalError("the live state has non-finite values; refusing to save it.")
+        return doc
+
+    def save_state(self, path: str | Path | None = None) -> Path:
+        """Write the state atomically (to ``path`` or ``state_path``) and return where."""
+        from ..runtime.atomic import write_text_atomic
+
+        target = Path(path) if path is not None else self.state_path
+        if target is None:
+            raise FtcalError("no state file: give a path or state_path.")
+        write_text_atomic(target, json.dumps(self.state_document(), indent=1) + "\n")
+        return target
+
+    def load_state(self, path: str | Path) -> None:
+        """Resume from a state file: bias, covariance, tool (and the tools it carries), counters, time."""
+        from ..files.payload_json import parse_payload
+
+        path = Path(path)
+        try:
+            doc = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+            raise FtcalError(f"{path}: cannot read the live state ({exc}).") from None
+        if not isinstance(doc, dict) or doc.get("format") != STATE_FORMAT or doc.get("format_version") != STATE_VERSION:
+            raise FtcalError(f"{path}: not a live state file ({STATE_FORMAT} {STATE_VERSION}).")
+        try:
+            bias = np.asarray(doc["bias"], dtype=float).reshape(6)
+            variance = np.asarray(doc["variance"], dtype=float).reshape(6)
+            time = doc["time"]
+            tools = {name: parse_payload(json.dumps(d), f"{path}: tool {name!r}") for name, d in doc["tools"].items()}
+            counters = {k: int(doc["counters"][k]) for k in self.counters}
+            tool = str(doc["tool"])
+        except (KeyError, TypeError, ValueError) as exc:
+            raise FtcalError(f"{path}: the live state is malformed ({exc}).") from None
+        if not (np.all(np.isfinite(bias)) and np.all(np.isfinite(variance)) and np.all(variance >= 0)):
+            raise FtcalError(f"{path}: the live state has non-finite bias or variance.")
+        for name, payload in tools.items():
+            self.tools.setdefault(name, payload)
+            self.identified.add(name)
+        if tool not in self.tools:
+            raise FtcalError(f"{path}: tool {tool!r} is not in the library.")
+        self.bias, self.variance, self.tool, self.counters = bias, variance, tool, counters
+        self.last_time = None if time is None else float(time)
+        self._event("state", "resumed", f"resumed from {path} at t={self.last_time}")
+
+
+def _finite(x: np.ndarray, name: str) -> None:
+    if not np.all(np.isfinite(x)):
+        row = int(np.flatnonzero(~np.all(np.isfinite(x), axis=1))[0])
+        raise FtcalError(f"{name} has a non-finite value at sample {row}.")
+
+
+class _Identification:
+    """Static holds collected for an in-place tool identification: one AxisStatistics per hold."""
+
+    def __init__(self, name: str) -> None:
+        self.name = name
+        self.holds: list = []
+        self._in_hold = False
+
+    def add(self, wrench: np.ndarray, gravity: np.ndarray, static: np.ndarray) -> None:
+        from ..payload.accumulate import payload_statistics
+        from ..payload.kinematics import Kinematics
+
+        edges = np.flatnonzero(np.diff(np.r_[0, static.astype(np.int8), 0]))
+        for a, b in zip(edges[::2], edges[1::2]):
+            stats = payload_statistics(wrench[a:b], Kinematics(gravity[a:b]))
+            if a == 0 and self._in_hold and self.holds:
+                self.holds[-1] = self.holds[-1] + stats  # the hold goes on from the previous block
+            else:
+                self.holds.append(stats)
+        self._in_hold = bool(static[-1]) if static.size else self._in_hold

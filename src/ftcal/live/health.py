@@ -1,0 +1,77 @@
+"""Health flags of the live calibrator, one bit each, with the run-length state they need across blocks.
+
+=================  ===================================================================================
+flag               raised when
+=================  ===================================================================================
+``saturated``      an input channel sits at the ADC limits given, or holds one value for
+                   :data:`~ftcal.data.signals.SATURATION_RUN` samples outside the calibration's range
+``stuck``          an input channel holds one value for :data:`~ftcal.data.signals.STUCK_RUN` samples
+                   while another channel changes or the sensor moves (tied to motion: a still, quiet
+                   sensor with a coarse ADC is not stuck)
+``dead``           stuck for :data:`DEAD_RUN` samples
+``out_of_range``   the inputs lie outside the calibration's training range or span
+                   (the model's ``out_of_range``)
+``temperature``    the temperature lies outside the calibration's (its temperature input's range)
+``contact``        a static sample failed the innovation test: a wrench the tool and bias do not
+                   explain; it did not update the bias
+``unexplained``    an axis' innovation stayed beyond ``k σ`` and beyond ``check --accept``'s
+                   threshold for longer than ``T`` s (static or moving)
+``silent``         (transports) no input for longer than the silence timeout
+=================  ===================================================================================
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..data.signals import SATURATION_RUN, STUCK_RUN
+
+FLAGS = ("saturated", "stuck", "dead", "out_of_range", "temperature", "contact", "unexplained", "silent")
+BIT = {name: 1 << i for i, name in enumerate(FLAGS)}
+# A channel stuck this many samples is dead (the offline check calls 90 % of a recording dead).
+DEAD_RUN = 10 * STUCK_RUN
+
+
+def names_of(bits: int) -> list[str]:
+    """The flag names set in ``bits``."""
+    return [name for name in FLAGS if bits & BIT[name]]
+
+
+class RunCounter:
+    """Length of the current run of identical values of each channel, across blocks."""
+
+    def __init__(self) -> None:
+        self.last: np.ndarray | None = None
+        self.run: np.ndarray | None = None
+
+    def update(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Run lengths (n, c) including each sample, and which channels changed at each sample (n, c)."""
+        n, c = x.shape
+        if self.last is None or self.last.shape[0] != c:
+            self.last, self.run = np.full(c, np.nan), np.zeros(c, np.int64)
+        previous = np.vstack([self.last[None], x[:-1]])
+        changed = x != previous
+        index = np.arange(n)[:, None]
+        since = np.maximum.accumulate(np.where(changed, index, -1), axis=0)  # last change at or before k
+        run = np.where(since >= 0, index - since + 1, index + 1 + self.run[None])
+        self.last, self.run = x[-1].copy(), run[-1].copy()
+        return run, changed
+
+
+class ExceedanceTimer:
+    """Time since the current run of exceedances began, across blocks (−inf outside a run)."""
+
+    def __init__(self) -> None:
+        self.start = np.nan  # start of the run in progress, or NaN
+
+    def update(self, time: np.ndarray, exceed: np.ndarray) -> np.ndarray:
+        n = time.size
+        before = np.empty_like(exceed)
+        before[0] = not np.isnan(self.start)
+        before[1:] = exceed[:-1]
+        begins = exceed & ~before
+        start_index = np.maximum.accumulate(np.where(begins, np.arange(n), -1))
+        start = np.where(start_index >= 0, time[np.maximum(start_index, 0)], self.start)
+        duration = np.where(exceed, time - start, -np.inf)
+        self.start = float(start[-1]) if exceed[-1] else np.nan
+        return duration

@@ -1,0 +1,287 @@
+"""The live calibrator over Zenoh, ROS 2–compatible without ROS: CDR ``geometry_msgs/msg/WrenchStamped`` in and out.
+
+Key expressions follow zenoh-bridge-ros2dds with its default namespace ``/``: a ROS topic
+``/ft/raw`` is the Zenoh key ``ft/raw`` (leading and trailing slashes dropped; the bridge's
+``DEFAULT_CONFIG.json5`` documents the namespace as a prefix, so ``namespace: "/robot1"`` would make
+it ``robot1/ft/raw``: give ``--wrench-topic /robot1/ft/raw`` then). Payloads are the CDR bytes that
+DDS carries and the bridge routes unchanged (serialised with ``rosbags``). rmw_zenoh's keys
+(``<domain>/<topic>/<type>/<type hash>``) are not produced: the type hash could not be verified here.
+
+* subscribes: the raw wrench (``WrenchStamped``) and, optionally, an IMU (``sensor_msgs/msg/Imu``:
+  gravity from its orientation, else minus its linear acceleration). Without an IMU the sensor is
+  taken as still in a fixed pose with gravity along its −z axis.
+* publishes: ``PREFIX/calibrated`` and ``PREFIX/compensated`` (``WrenchStamped``, the input's header),
+  and ``PREFIX/diagnostics`` (JSON: flags with their reasons, bias ± std, tool, counters) when a flag
+  changes and once a second.
+* queryables (Zenoh-native, JSON replies; not ROS services): ``PREFIX/retare``,
+  ``PREFIX/switch_tool`` (payload: the tool's name), ``PREFIX/identify_tool`` (payload
+  ``start NAME`` or ``finish``), ``PREFIX/status``.
+
+Messages are processed in the main thread, as many as have arrived in one block
+(:meth:`~ftcal.live.LiveCalibrator.run`: the same result as one at a time). No message for
+``silence`` s raises the ``silent`` flag with a one-line message; Ctrl-C and SIGTERM end the loop
+and the state is saved.
+"""
+
+from __future__ import annotations
+
+import json
+import queue
+import sys
+import threading
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..runtime.errors import FtcalError
+
+WRENCH_TYPE = "geometry_msgs/msg/WrenchStamped"
+IMU_TYPE = "sensor_msgs/msg/Imu"
+DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
+DIAGNOSTICS_PERIOD_S = 1.0
+# Most messages handled as one block (bounds the latency of a backlog).
+MAX_BLOCK = 4096
+
+
+def topic_key(topic: str) -> str:
+    """The Zenoh key of a ROS topic under zenoh-bridge-ros2dds (namespace ``/``): ``/ft/raw`` → ``ft/raw``."""
+    key = topic.strip("/")
+    if not key or any(c in key for c in "*$?#") or "//" in key:
+        raise FtcalError(f"topic {topic!r} is not a ROS topic name a Zenoh key can carry.")
+    return key
+
+
+@dataclass(frozen=True)
+class ZenohOptions:
+    """Endpoints, topics and timing of :func:`serve`."""
+
+    listen: tuple[str, ...] = ()
+    connect: tuple[str, ...] = ()
+    wrench_topic: str = "/ft/raw"
+    imu_topic: str | None = None
+    prefix: str = "/ft"
+    silence: float = 1.0
+    duration: float | None = None
+
+
+def zenoh_config(listen=(), connect=()):
+    """A peer configuration with multicast scouting off and explicit endpoints (listen on
+    :data:`DEFAULT_ENDPOINT` when none is given)."""
+    import zenoh
+
+    config = zenoh.Config()
+    config.insert_json5("mode", json.dumps("peer"))
+    config.insert_json5("scouting/multicast/enabled", "false")
+    config.insert_json5("scouting/gossip/enabled", "false")
+    if not listen and not connect:
+        listen = (DEFAULT_ENDPOINT,)
+    config.insert_json5("listen/endpoints", json.dumps(list(listen)))
+    config.insert_json5("connect/endpoints", json.dumps(list(connect)))
+    return config
+
+
+def typestore():
+    from rosbags.typesys import Stores, get_typestore
+
+    return get_typestore(Stores.ROS2_HUMBLE)
+
+
+def wrench_message(store, stamp_ns: int, frame: str, w: np.ndarray) -> bytes:
+    """CDR bytes of a ``WrenchStamped``."""
+    types = store.types
+    header = types["std_msgs/msg/Header"](
+        stamp=types["builtin_interfaces/msg/Time"](sec=int(stamp_ns // 1_000_000_000),
+                                                  nanosec=int(stamp_ns % 1_000_000_000)), frame_id=frame)
+    vec = types["geometry_msgs/msg/Vector3"]
+    msg = types[WRENCH_TYPE](header=header, wrench=types["geometry_msgs/msg/Wrench"](
+        force=vec(x=float(w[0]), y=float(w[1]), z=float(w[2])), torque=vec(x=float(w[3]), y=float(w[4]),
+                                                                        z=float(w[5]))))
+    return bytes(store.serialize_cdr(msg, WRENCH_TYPE))
+
+
+class LiveNode:
+    """The calibrator behind Zenoh subscribers, publishers and queryables (see the module docstring)."""
+
+    def __init__(self, live, options: ZenohOptions, *, echo=print) -> None:
+        if live.model is not None and len(live.model.input_names_) != 6:
+            raise FtcalError(f"--zenoh: the model takes {len(live.model.input_names_)} inputs; a WrenchStamped "
+                             "carries 6 channels.")
+        self.live, self.options, self.echo = live, options, echo
+        self.store = typestore()
+        self.inbox: queue.Queue = queue.Queue()
+        self.lock = threading.Lock()  # the calibrator: main loop and queryables
+        self.gravity = np.array([0.0, 0.0, -live.gravity_magnitude])
+        self.quaternion: np.ndarray | None = None
+        self.bad_messages = 0
+        self.stale_samples = 0
+        self.keys = {"wrench": topic_key(options.wrench_topic),
+                     "imu": None if options.imu_topic is None else topic_key(options.imu_topic),
+                     **{name: f"{topic_key(options.prefix)}/{name}" for name in
+                        ("calibrated", "compensated", "diagnostics", "retare", "switch_tool", "identify_tool",
+                         "status")}}
+
+    # ----- Zenoh callbacks (zenoh's threads) ------------------------------------------------------
+    def _on_wrench(self, sample) -> None:
+        try:
+            msg = self.store.deserialize_cdr(bytes(sample.payload.to_bytes()), WRENCH_TYPE)
+            f, t = msg.wrench.force, msg.wrench.torque
+            stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+            self.inbox.put((stamp, msg.header.frame_id, (f.x, f.y, f.z, t.x, t.y, t.z), time.perf_counter()))
+        except Exception:  # a broken message is counted and reported, never fatal
+            self.bad_messages += 1
+
+    def _on_imu(self, sample) -> None:
+        try:
+            msg = self.store.deserialize_cdr(bytes(sample.payload.to_bytes()), IMU_TYPE)
+            q = np.array([msg.orientation.x, msg.orientation.y, msg.orientation.z, msg.orientation.w])
+            if msg.orientation_covariance[0] != -1.0 and abs(np.linalg.norm(q) - 1.0) < 1e-3:
+                self.quaternion = q
+            else:
+                a = msg.linear_acceleration
+                self.quaternion = None
+                self.gravity = -np.array([a.x, a.y, a.z])
+        except Exception:
+            self.bad_messages += 1
+
+    def _reply(self, query, doc: dict) -> None:
+        query.reply(query.key_expr, json.dumps(doc))
+
+    def _command(self, query, action) -> None:
+        try:
+            with self.lock:
+                result = action(_payload_text(query))
+            self._reply(query, {"ok": True, **(result or {}), "status": self.live.status()})
+        except FtcalError as exc:
+            self._reply(query, {"ok": False, "error": str(exc)})
+
+    def _identify(self, text: str) -> dict:
+        words = text.split()
+        if len(words) == 2 and words[0] == "start":
+            self.live.start_identification(words[1])
+            return {}
+        if words == ["finish"]:
+            payload = self.live.finish_identification()
+            return {"mass": payload.mass, "mass_stderr": float(payload.stderr["mass"]), "com": payload.com.tolist()}
+        raise FtcalError("identify_tool takes 'start NAME' or 'finish'.")
+
+    # ----- the loop -------------------------------------------------------------------------------
+    def serve(self) -> int:
+        """Run until ``duration`` elapses (or Ctrl-C / SIGTERM); the state is saved on the way out."""
+        import zenoh
+
+        session = zenoh.open(zenoh_config(self.options.listen, self.options.connect))
+        entities = []
+        try:
+            entities.append(session.declare_subscriber(self.keys["wrench"], self._on_wrench))
+            if self.keys["imu"]:
+                entities.append(session.declare_subscriber(self.keys["imu"], self._on_imu))
+            self.publishers = {name: session.declare_publisher(self.keys[name])
+                               for name in ("calibrated", "compensated", "diagnostics")}
+            entities += list(self.publishers.values())
+            entities.append(session.declare_queryable(
+                self.keys["retare"], lambda q: self._command(q, lambda _: self.live.retare())))
+            entities.append(session.declare_queryable(
+                self.keys["switch_tool"], lambda q: self._command(q, lambda name: self.live.switch_tool(name.strip()))))
+            entities.append(session.declare_queryable(
+                self.keys["identify_tool"], lambda q: self._command(q, self._identify)))
+            entities.append(session.declare_queryable(
+                self.keys["status"], lambda q: self._command(q, lambda _: None)))
+            self.echo(f"ftcal live: listening on {self.keys['wrench']}"
+                      + (f" and {self.keys['imu']}" if self.keys["imu"] else " (no IMU: fixed pose, gravity -z)")
+                      + f"; publishing {self.keys['calibrated']}, {self.keys['compensated']}, "
+                        f"{self.keys['diagnostics']}", flush=True)
+            self._loop()
+        finally:
+            for entity in entities:
+                try:
+                    entity.undeclare()
+                except Exception:  # the session may already be closing
+                    pass
+            session.close()
+            if self.live.state_path is not None and self.live.last_time is not None:
+                self.live.save_state()
+        return 0
+
+    def _loop(self) -> None:
+        started = time.monotonic()
+        last_message = time.monotonic()
+        last_diagnostics = 0.0
+        flags_sent = -1
+        while self.options.duration is None or time.monotonic() - started < self.options.duration:
+            try:
+                first = self.inbox.get(timeout=min(0.05, self.options.silence))
+            except queue.Empty:
+                if time.monotonic() - last_message > self.options.silence and not self._silent():
+                    reason = (f"no message on {self.keys['wrench']} for {self.options.silence:g} s")
+                    with self.lock:
+                        self.live.set_silent(True, reason)
+                    self.echo(f"ftcal live: {reason}", file=sys.stderr, flush=True)
+                    flags_sent = self._diagnostics()
+                continue
+            last_message = time.monotonic()
+            batch = [first]
+            while len(batch) < MAX_BLOCK:
+                try:
+                    batch.append(self.inbox.get_nowait())
+                except queue.Empty:
+                    break
+            if self._silent():
+                with self.lock:
+                    self.live.set_silent(False, "messages again")
+                self.echo(f"ftcal live: messages again on {self.keys['wrench']}", file=sys.stderr, flush=True)
+            self._process(batch)
+            now = time.monotonic()
+            if self.live.flags_now != flags_sent or now - last_diagnostics > DIAGNOSTICS_PERIOD_S:
+                flags_sent, last_diagnostics = self._diagnostics(), now
+
+    def _silent(self) -> bool:
+        from .health import BIT
+
+        return bool(self.live.flags_now & BIT["silent"])
+
+    def _process(self, batch: list) -> None:
+        stamps = np.array([b[0] for b in batch], dtype=np.int64)
+        keep = np.r_[True, np.diff(stamps) > 0]
+        if self.live.last_time is not None:
+            keep &= stamps * 1e-9 > self.live.last_time
+        self.stale_samples += int((~keep).sum())
+        if not keep.any():
+            return
+        batch = [b for b, k in zip(batch, keep) if k]
+        t = stamps[keep] * 1e-9
+        w = np.array([b[2] for b in batch], dtype=float)
+        n = len(batch)
+        source = {"quaternion": np.tile(self.quaternion, (n, 1))} if self.quaternion is not None else \
+            {"gravity": np.tile(self.gravity, (n, 1))}
+        with self.lock:
+            try:
+                result = self.live.run(t, **({"raw": w} if self.live.model is not None else {"wrench": w}), **source)
+            except FtcalError:
+                self.bad_messages += n
+                return
+        for k, (stamp, frame, _, _) in enumerate(batch):
+            self.publishers["calibrated"].put(wrench_message(self.store, int(stamp), frame, result.calibrated[k]))
+            self.publishers["compensated"].put(wrench_message(self.store, int(stamp), frame, result.compensated[k]))
+        for when, flag, kind, reason in result.events:
+            if kind == "raised" and flag != "contact":  # contacts come and go: diagnostics carry them
+                self.echo(f"ftcal live: t={when:.3f} s {flag}: {reason}", file=sys.stderr, flush=True)
+
+    def _diagnostics(self) -> int:
+        with self.lock:
+            status = self.live.status()
+            flags = self.live.flags_now
+            status["reasons"] = {name: self.live.reason_of(name) for name in status["flags"]}
+        status["bad_messages"], status["stale_samples"] = self.bad_messages, self.stale_samples
+        self.publishers["diagnostics"].put(json.dumps(status))
+        return flags
+
+
+def _payload_text(query) -> str:
+    payload = query.payload
+    return "" if payload is None else bytes(payload.to_bytes()).decode("utf-8", "replace")
+
+
+def serve(live, options: ZenohOptions) -> int:
+    """Serve ``live`` over Zenoh until ``options.duration`` (or Ctrl-C / SIGTERM)."""
+    return LiveNode(live, options).serve()

@@ -1,0 +1,95 @@
+"""``ftcal live --replay``: the table it writes, scripted events, the state file, bad input, SIGTERM."""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from ftcal.files.payload_json import save_payload
+from ftcal.payload.parameters import PayloadParameters
+from ftcal.sim.live_scenario import LiveScenario, simulate_live
+
+FTCAL = str(Path(sys.executable).with_name("ftcal"))
+NOISE = np.r_[np.full(3, 0.05), np.full(3, 0.004)]
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    root = tmp_path_factory.mktemp("live")
+    s = LiveScenario(duration=40.0, rate=200.0, hold_s=4.0, move_s=1.0, swaps=((21.0, "drill"),),
+                     contacts=((10.5, 2.0, 10.0),), seed=6)
+    rec = simulate_live(s)
+    rec.frame().to_parquet(root / "rec.parquet")
+    for name, tool in s.tools.items():
+        payload = PayloadParameters(tool.mass, np.asarray(tool.com), np.zeros(3), np.zeros(3), 9.81,
+                                    stderr={"mass": 0.001, "com": np.full(3, 1e-4), "force_bias": np.full(3, 0.01),
+                                            "torque_bias": np.full(3, 0.001)},
+                                    fit={"n_samples": 100, "residual_rms": NOISE, "condition_number": 1.0,
+                                         "wrench_columns": ["Fx", "Fy", "Fz", "Tx", "Ty", "Tz"]})
+        save_payload(payload, root / f"{name}.json")
+    return root, rec
+
+
+def ftcal(*args, cwd):
+    return subprocess.run([FTCAL, *args], cwd=cwd, capture_output=True, text=True, timeout=300)
+
+
+BASE = ("live", "--replay", "rec.parquet", "--orientation", "qx,qy,qz,qw", "--tool", "gripper=gripper.json",
+        "--tool", "drill=drill.json")
+
+
+def test_replay_writes_the_live_columns_and_runs_the_script(files):
+    root, rec = files
+    done = ftcal(*BASE, "--switch-tool", "21:drill", "--retare-at", "30", "--state", "state.json",
+                 "-o", "out.parquet", cwd=root)
+    assert done.returncode == 0, done.stderr
+    out = pd.read_parquet(root / "out.parquet")
+    assert len(out) == rec.time.size
+    np.testing.assert_array_equal(out["time"], rec.time)
+    assert list(out["tool"].unique()) == ["gripper", "drill"]
+    assert out["tool"][rec.time >= 21.0].eq("drill").all() and out["tool"][rec.time < 21.0].eq("gripper").all()
+    # Compensated = calibrated (here the wrench itself) − tool − bias: check against the truth where static.
+    quiet = out["static"].to_numpy() & ~np.any(rec.contact != 0, axis=1) & (rec.time > 2.0)
+    contact = out[["Fx", "Fy", "Fz"]].to_numpy()
+    assert np.sqrt(np.mean(contact[quiet] ** 2)) < 1.5 * NOISE[0]
+    np.testing.assert_array_equal(out[["calibrated_Fx", "calibrated_Tz"]].to_numpy(), rec.wrench[:, [0, 5]])
+    pressing = np.linalg.norm(rec.contact[:, :3], axis=1) > 5.0
+    assert out["flag_names"][pressing].str.contains("contact").mean() > 0.99
+    state = json.loads((root / "state.json").read_text())
+    assert state["tool"] == "drill" and state["counters"]["retares"] == 1 and state["counters"]["samples"] == len(out)
+    assert "contact" in done.stdout and "wrote out.parquet" in done.stdout
+
+
+@pytest.mark.parametrize("args, message", [
+    (("--switch-tool", "5:hammer"), "no tool 'hammer'"),
+    (("--wrench", "Fx,Fy,Fz,Tx,Ty,nope"), "nope"),
+    (("--mount", "hammer"), "--mount hammer"),
+    (("--walk-std", "1,2,3"), "--walk-std"),
+])
+def test_bad_input_is_one_line_and_leaves_no_output(files, args, message):
+    root, _ = files
+    done = ftcal(*BASE, *args, "-o", "bad.parquet", cwd=root)
+    assert done.returncode == 2 and message in done.stderr and len(done.stderr.strip().splitlines()) == 1, done.stderr
+    assert not (root / "bad.parquet").exists() and not list(root.glob("*.tmp*"))
+
+
+def test_sigterm_saves_the_state_and_leaves_no_output(files):
+    root, rec = files
+    proc = subprocess.Popen([FTCAL, *BASE, "--realtime", "--state", "term.json", "-o", "term.parquet"], cwd=root,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(8.0)  # start-up, then a few seconds of the 40 s real-time replay
+    assert proc.poll() is None
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 143, err
+    state = json.loads((root / "term.json").read_text())
+    assert 0 < state["counters"]["samples"] < rec.time.size
+    assert not (root / "term.parquet").exists()

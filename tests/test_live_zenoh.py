@@ -1,0 +1,146 @@
+"""``ftcal live --zenoh`` between real Zenoh peers on 127.0.0.1 (multicast scouting off, explicit tcp endpoints).
+
+A peer in this process plays the robot: it publishes CDR WrenchStamped and Imu messages made from a
+simulation with known truth, subscribes to the calibrated and compensated wrenches and the
+diagnostics, and calls the queryables. Then it falls silent (the node must say so, not hang), and
+SIGTERM must end the node with its state saved.
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+zenoh = pytest.importorskip("zenoh")
+
+from ftcal.files.payload_json import save_payload  # noqa: E402
+from ftcal.live.zenoh_node import IMU_TYPE, topic_key, typestore, wrench_message, zenoh_config  # noqa: E402
+from ftcal.payload.parameters import PayloadParameters  # noqa: E402
+from ftcal.sim.live_scenario import LiveScenario, simulate_live  # noqa: E402
+
+FTCAL = str(Path(sys.executable).with_name("ftcal"))
+NOISE = np.r_[np.full(3, 0.05), np.full(3, 0.004)]
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def imu_message(store, stamp_ns: int, q: np.ndarray) -> bytes:
+    types = store.types
+    header = types["std_msgs/msg/Header"](stamp=types["builtin_interfaces/msg/Time"](
+        sec=int(stamp_ns // 1_000_000_000), nanosec=int(stamp_ns % 1_000_000_000)), frame_id="ft")
+    vec = types["geometry_msgs/msg/Vector3"]
+    msg = types[IMU_TYPE](header=header, orientation=types["geometry_msgs/msg/Quaternion"](
+        x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3])), orientation_covariance=np.zeros(9),
+        angular_velocity=vec(x=0.0, y=0.0, z=0.0), angular_velocity_covariance=np.zeros(9),
+        linear_acceleration=vec(x=0.0, y=0.0, z=9.81), linear_acceleration_covariance=np.zeros(9))
+    return bytes(store.serialize_cdr(msg, IMU_TYPE))
+
+
+def test_topic_keys_follow_the_bridge():
+    assert topic_key("/ft/raw") == "ft/raw"
+    assert topic_key("/robot1/ft/raw/") == "robot1/ft/raw"
+
+
+def test_live_over_zenoh(tmp_path):
+    s = LiveScenario(duration=6.0, rate=500.0, hold_s=2.5, move_s=0.5, contacts=((3.2, 1.5, 10.0),), seed=13)
+    rec = simulate_live(s)
+    tool = s.tools["gripper"]
+    save_payload(PayloadParameters(tool.mass, np.asarray(tool.com), np.zeros(3), np.zeros(3), 9.81,
+                                   stderr={"mass": 1e-3, "com": np.full(3, 1e-4), "force_bias": np.full(3, .01),
+                                           "torque_bias": np.full(3, 1e-3)},
+                                   fit={"n_samples": 100, "residual_rms": NOISE, "condition_number": 1.0,
+                                        "wrench_columns": ["Fx", "Fy", "Fz", "Tx", "Ty", "Tz"]}),
+                 tmp_path / "gripper.json")
+    port = free_port()
+    node = subprocess.Popen([FTCAL, "live", "--zenoh", "--listen", f"tcp/127.0.0.1:{port}", "--imu-topic", "/imu",
+                             "--tool", "gripper=gripper.json", "--state", "state.json", "--silence", "0.5"],
+                            cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert "listening on ft/raw" in node.stdout.readline()
+        session = zenoh.open(zenoh_config(connect=(f"tcp/127.0.0.1:{port}",), listen=()))
+        store = typestore()
+        received = {"calibrated": [], "compensated": [], "diagnostics": []}
+        arrival = {}
+
+        def keep(name):
+            def on(sample):
+                data = bytes(sample.payload.to_bytes())
+                if name == "diagnostics":
+                    received[name].append(json.loads(data))
+                    return
+                msg = store.deserialize_cdr(data, "geometry_msgs/msg/WrenchStamped")
+                stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+                f, t = msg.wrench.force, msg.wrench.torque
+                received[name].append((stamp, [f.x, f.y, f.z, t.x, t.y, t.z]))
+                arrival.setdefault(stamp, time.perf_counter())
+            return on
+
+        subs = [session.declare_subscriber(f"ft/{name}", keep(name)) for name in received]
+        wrench_pub, imu_pub = session.declare_publisher("ft/raw"), session.declare_publisher("imu")
+        time.sleep(1.0)  # routes established
+        sent = {}
+        start = time.perf_counter()
+        for k in range(rec.time.size):
+            stamp = int(round(rec.time[k] * 1e9)) + 1_000_000_000
+            imu_pub.put(imu_message(store, stamp, rec.quaternion[k]))
+            sent[stamp] = time.perf_counter()
+            wrench_pub.put(wrench_message(store, stamp, "ft", rec.wrench[k]))
+            ahead = rec.time[k] - (time.perf_counter() - start)
+            if ahead > 0:
+                time.sleep(ahead)
+        status = json.loads(bytes(next(iter(session.get("ft/status", timeout=10.0))).ok.payload.to_bytes()))["status"]
+        switched = json.loads(bytes(next(iter(session.get("ft/switch_tool", payload="none", timeout=10.0)))
+                                    .ok.payload.to_bytes()))
+        refused = json.loads(bytes(next(iter(session.get("ft/switch_tool", payload="hammer", timeout=10.0)))
+                                   .ok.payload.to_bytes()))
+        retared = json.loads(bytes(next(iter(session.get("ft/retare", timeout=10.0))).ok.payload.to_bytes()))
+        not_started = json.loads(bytes(next(iter(session.get("ft/identify_tool", payload="finish", timeout=10.0)))
+                                       .ok.payload.to_bytes()))
+        started = json.loads(bytes(next(iter(session.get("ft/identify_tool", payload="start probe", timeout=10.0)))
+                                   .ok.payload.to_bytes()))
+        time.sleep(1.5)  # silence
+        for sub in subs:
+            sub.undeclare()
+        session.close()
+    finally:
+        node.send_signal(signal.SIGTERM)
+        out, err = node.communicate(timeout=60)
+    assert node.returncode == 143, err
+    assert status["tool"] == "gripper" and status["counters"]["samples"] > 0.9 * rec.time.size
+    assert switched["ok"] and switched["status"]["tool"] == "none"
+    assert not refused["ok"] and "hammer" in refused["error"]
+    assert retared["ok"] and retared["status"]["counters"]["retares"] == 1
+    assert not not_started["ok"] and "no identification" in not_started["error"]
+    assert started["ok"] and started["status"]["identifying"] == "probe"
+    # Every sample came back, calibrated = the wrench sent (no model) and compensated = truth's contact + noise.
+    got = dict(received["compensated"])
+    assert len(got) >= 0.95 * rec.time.size
+    stamps = (np.round(rec.time * 1e9) + 1e9).astype(np.int64)
+    index = {int(s): k for k, s in enumerate(stamps)}
+    rows = np.array([index[s] for s in got])
+    values = np.array([got[s] for s in got])
+    settled = rec.holding[rows] & ~np.any(rec.contact[rows] != 0, axis=1) & (rec.time[rows] > 1.0)
+    assert np.sqrt(np.mean(values[settled, :3] ** 2)) < 2.0 * NOISE[0]
+    pressing = np.linalg.norm(rec.contact[rows, :3], axis=1) > 5.0
+    np.testing.assert_allclose(values[pressing, :3], rec.contact[rows][pressing, :3], atol=0.5)
+    flags = [d["flags"] for d in received["diagnostics"]]
+    assert any("contact" in f for f in flags) and any("silent" in f for f in flags)
+    assert "no message on ft/raw" in err
+    state = json.loads((tmp_path / "state.json").read_text())
+    assert state["counters"]["samples"] >= status["counters"]["samples"] and state["tool"] == "none"
+    latency = np.array([arrival[s] - sent[s] for s in sent if s in arrival])
+    print(f"zenoh loopback latency: median {1e3 * np.median(latency):.2f} ms, p99 {1e3 * np.quantile(latency, .99):.2f}"
+          " ms")
