@@ -24,6 +24,17 @@ EXAMPLES = {
   ftcal plan --model iCubGenova11 --sensor r_arm_ft --load none --load r_forearm:2.0@-0.09,0,0.03 \\
       --poses 10 --objective payload --joint-range torso_pitch:0:0.5 --fixed torso_yaw=0 --min-height 0.1 \\
       --from ftcal-demo/icub-plan.csv --candidates 2000 -o ftcal-demo/icub-more.csv --html ftcal-demo/icub-more.html""",
+    "simulate": """\
+  # a dry run: 6 planned poses of an iCub arm, with and without a 2 kg plate, as ROS 2 bags + truth.json
+  ftcal plan --model iCubGenova11 --sensor r_arm_ft --load none --load r_forearm:2.0@-0.09,0,0.03 \\
+      --poses 6 --candidates 500 -o ftcal-demo/sim-plan.csv
+  ftcal simulate ftcal-demo/sim-plan.csv --model iCubGenova11 --sensor r_arm_ft --load none \\
+      --load r_forearm:2.0@-0.09,0,0.03 --hold 1 -o ftcal-demo/sim
+  # the same poses as robot-log tables, the sensor mounted a quarter turn off (for `ftcal check` to find)
+  ftcal simulate ftcal-demo/sim-plan.csv --model iCubGenova11 --sensor r_arm_ft --load none \\
+      --load r_forearm:2.0@-0.09,0,0.03 --hold 1 --format table --mistake rotate-z:90 -o ftcal-demo/sim-turned
+  ftcal check ftcal-demo/sim-turned/run01-load0.parquet --wrench r_arm_ft_u1,r_arm_ft_u2,r_arm_ft_u3,r_arm_ft_u4,r_arm_ft_u5,r_arm_ft_u6 \\
+      --model iCubGenova11 --sensor r_arm_ft""",
     "check": """\
   # sign, axes, frame, zeroing and torque reference of the arm bag's table (made by `dataset` above)
   ftcal check ftcal-demo/arm.parquet --orientation qx,qy,qz,qw
