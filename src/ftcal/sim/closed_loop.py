@@ -53,6 +53,10 @@ CALIBRATION_LOADS = (None, ("tool", 1.0, (0.05, 0.0, 0.0)), ("tool", 2.0, (0.0, 
 START_Q = np.array([0.45, 1.75, 0.0, 0.94])  # shoulder, elbow, wrist roll, wrist pitch: tool pointing down
 
 
+# `ftcal demo --scenario closed-loop --quick`: a smaller calibration
+CLOSED_LOOP_QUICK = {"calibration_poses": 40, "validation_poses": 15}
+
+
 class NotAvailable(Exception):
     """An estimator that cannot run here (its reason is reported in its row)."""
 

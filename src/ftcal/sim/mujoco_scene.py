@@ -104,7 +104,10 @@ def build_scene(robot: RobotModel, sensor: str, tool: Tool | None = None, *, tab
     tool : rigid tool on the sensor frame, with a contact tip
     table_height : top of a table (m, base z) under the tool; None: no table
     """
-    import mujoco
+    try:
+        import mujoco
+    except ImportError:
+        raise FtcalError("the closed-loop scenario needs MuJoCo: pip install 'ftcal[mujoco]'.") from None
 
     ft = robot.sensor(sensor)
     text, notes = mujoco_urdf(robot.urdf_text, robot.source)
