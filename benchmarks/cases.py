@@ -19,6 +19,7 @@ from itertools import combinations_with_replacement
 import numpy as np
 
 from benchmarks.bench_bags import CASES as BAG_CASES
+from benchmarks.bench_closed_loop import CASES as CLOSED_LOOP_CASES
 from benchmarks.bench_mlp import CASES as MLP_CASES
 from benchmarks.bench_plan import CASES as PLAN_CASES
 from benchmarks.load_cases import make_load_cases
@@ -529,6 +530,7 @@ CASES = {f.__name__: f for f in (ftcal_fit, ftcal_statistics, paper_recipe_fit, 
 CASES.update(BAG_CASES)  # bag reading: benchmarks/bench_bags.py
 CASES.update(PLAN_CASES)  # experiment design: benchmarks/bench_plan.py
 CASES.update(MLP_CASES)  # the MLP family against a polynomial: benchmarks/bench_mlp.py
+CASES.update(CLOSED_LOOP_CASES)  # the calibrated sensor in a MuJoCo force-control loop: benchmarks/bench_closed_loop.py
 
 
 if __name__ == "__main__":

@@ -30,11 +30,9 @@ EXAMPLES = {
       --poses 6 --candidates 500 -o ftcal-demo/sim-plan.csv
   ftcal simulate ftcal-demo/sim-plan.csv --model iCubGenova11 --sensor r_arm_ft --load none \\
       --load r_forearm:2.0@-0.09,0,0.03 --hold 1 -o ftcal-demo/sim
-  # the same poses as robot-log tables, the sensor mounted a quarter turn off (for `ftcal check` to find)
+  # robot-log tables of a sensor mounted a quarter turn off (`ftcal check` on them reports the rotation)
   ftcal simulate ftcal-demo/sim-plan.csv --model iCubGenova11 --sensor r_arm_ft --load none \\
-      --load r_forearm:2.0@-0.09,0,0.03 --hold 1 --format table --mistake rotate-z:90 -o ftcal-demo/sim-turned
-  ftcal check ftcal-demo/sim-turned/run01-load0.parquet --wrench r_arm_ft_u1,r_arm_ft_u2,r_arm_ft_u3,r_arm_ft_u4,r_arm_ft_u5,r_arm_ft_u6 \\
-      --model iCubGenova11 --sensor r_arm_ft""",
+      --load r_forearm:2.0@-0.09,0,0.03 --hold 1 --format table --mistake rotate-z:90 -o ftcal-demo/sim-turned""",
     "check": """\
   # sign, axes, frame, zeroing and torque reference of the arm bag's table (made by `dataset` above)
   ftcal check ftcal-demo/arm.parquet --orientation qx,qy,qz,qw
@@ -47,7 +45,9 @@ EXAMPLES = {
   # plus the arm scenario's ROS 2 bag in ftcal-demo/arm (about a minute; --quick: less data)
   ftcal demo --out ftcal-demo
   # a wrist sensor with an unknown gripper, from a ROS 2 bag (writes ftcal-arm-demo/)
-  ftcal demo --scenario arm""",
+  ftcal demo --scenario arm
+  # the calibrated sensor in a MuJoCo force-control loop (writes ftcal-closed-loop-demo/)
+  ftcal demo --scenario closed-loop""",
     "sensors": """\
   # F/T sensors, joints, and the mass beyond each sensor of a shipped robot model
   ftcal sensors --model iCubGenova11

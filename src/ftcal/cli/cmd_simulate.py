@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from ..core.limits import SIMULATE_CHANNELS, SIMULATE_MISTAKES
 from ._common import finite_float, nonnegative_int, positive_float
 from ._examples import epilog
 from .cmd_sensors import add_robot_arguments, load_robot
@@ -18,10 +19,8 @@ def pair(text: str) -> tuple[float, float]:
 
 def mistake(text: str) -> tuple[str, float]:
     """``none``, ``sign``, ``swap-xy`` or ``rotate-z:DEG``."""
-    from ..sim.sensor_model import MISTAKES
-
     name, _, degrees = text.partition(":")
-    if name not in MISTAKES:
+    if name not in SIMULATE_MISTAKES:
         raise argparse.ArgumentTypeError(f"expected one of none, sign, swap-xy, rotate-z:DEG; got {text!r}")
     if name == "rotate-z":
         angle = finite_float(degrees) if degrees else float("nan")
@@ -68,7 +67,7 @@ def register(subparsers) -> None:
                         help="F/T sample rate (default 250 Hz; joints, tf and IMU at 100 Hz)")
     parser.add_argument("--format", choices=("bag", "table", "both"), default="bag",
                         help="ROS 2 bag folders, robot-log tables (.parquet), or both (default bag)")
-    parser.add_argument("--channels", choices=("wrench", "raw"), default="wrench",
+    parser.add_argument("--channels", choices=SIMULATE_CHANNELS, default="wrench",
                         help="wrench: the driver's factory-calibrated wrench (N, N m; default); raw: the ADC counts")
     sensor = parser.add_argument_group("the simulated sensor (defaults: a mildly nonlinear 250 N / 25 N m sensor)")
     sensor.add_argument("--sensor-file", metavar="JSON",

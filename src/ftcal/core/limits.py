@@ -182,3 +182,12 @@ are far smaller, and values near 1e308 overflow the first product they meet."""
 MAX_CELL_MAGNITUDE = 1e100
 """Largest magnitude of a number in a table: sums of squares and products of such values still fit in
 float64 (about 1e308); larger ones are corrupt data, and would make fits overflow into NaN."""
+
+SIMULATE_MISTAKES = ("none", "sign", "swap-xy", "rotate-z")
+"""Mounting mistakes ``ftcal simulate --mistake`` can make (``rotate-z`` takes an angle: ``rotate-z:DEG``)."""
+
+SIMULATE_CHANNELS = ("wrench", "raw")
+"""What a simulated recording's F/T channels hold: the driver's factory-calibrated wrench, or ADC counts."""
+
+SIMULATE_FORMATS = ("bag", "table")
+"""What ``ftcal simulate`` writes per recording: a ROS 2 bag folder, a robot-log table (Parquet)."""

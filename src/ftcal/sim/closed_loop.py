@@ -67,8 +67,9 @@ class ClosedLoopConfig:
 
     out_dir: Path = Path("ftcal-closed-loop-demo")
     seed: int = 0
-    sensor: SensorSpec = field(default_factory=lambda: SensorSpec(noise=6.0, quadratic=0.015, cubic=0.02, walk=4e-5,
-                                                                  ramp=4e-6))
+    # The gain's temperature coefficient of ftcal.sim.sensor's paper-level sensor (-2.5e-3 per °C).
+    sensor: SensorSpec = field(default_factory=lambda: SensorSpec(
+        noise=12.0, quadratic=0.015, cubic=0.02, gain_tc=-2.5e-3, walk=4e-5, ramp=4e-6))
     tool: Tool = field(default_factory=Tool)
     calibration_poses: int = 60
     validation_poses: int = 30

@@ -41,6 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.limits import SIMULATE_FORMATS as FORMATS
 from ..robot.model import RobotModel
 from ..robot.payloads import Payload
 from ..runtime.atomic import write_text_atomic
@@ -48,7 +49,6 @@ from ..runtime.errors import FtcalError
 from .arm_bag import START_NS, TEMPERATURE_RATE
 from .sensor_model import CHANNELS, SensorModel
 
-FORMATS = ("bag", "table")
 LOAD_COLUMN = "load"
 TRUTH_FORMAT = "ftcal-simulation-truth"
 TRUTH_VERSION = 1

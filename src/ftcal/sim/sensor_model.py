@@ -33,10 +33,10 @@ from dataclasses import asdict, dataclass, field, fields, replace
 
 import numpy as np
 
+from ..core.limits import SIMULATE_CHANNELS as CHANNELS
+from ..core.limits import SIMULATE_MISTAKES as MISTAKES
 from ..runtime.errors import FtcalError
 
-MISTAKES = ("none", "sign", "swap-xy", "rotate-z")
-CHANNELS = ("wrench", "raw")
 ADC_BITS = 16
 
 
@@ -277,3 +277,5 @@ def spec_from_json(text: str, where: str) -> SensorSpec:
         return SensorSpec(**data).check()
     except TypeError as exc:
         raise FtcalError(f"{where}: {exc}.") from None
+    except FtcalError as exc:
+        raise FtcalError(f"{where}: {exc}") from None
