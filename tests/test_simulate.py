@@ -157,3 +157,51 @@ def _field(document, name):
             value = document[key][name]
             return value["value"] if isinstance(value, dict) and "value" in value else value
     return document[name]
+
+
+PENDULUM = """<?xml version="1.0"?>
+<robot name="pendulum">
+  <link name="base"><inertial><mass value="2.0"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.1"/>
+  </inertial></link>
+  <link name="arm"><inertial><origin xyz="0 0 -0.2"/><mass value="1.0"/>
+    <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.001"/></inertial></link>
+  <link name="hand"><inertial><origin xyz="0.03 -0.02 -0.1"/><mass value="1.5"/>
+    <inertia ixx="0.002" ixy="0" ixz="0" iyy="0.002" iyz="0" izz="0.002"/></inertial></link>
+  <joint name="swing" type="revolute"><parent link="base"/><child link="arm"/><origin xyz="0 0 1.0"/>
+    <axis xyz="0 1 0"/><limit lower="-2" upper="2" effort="10" velocity="2"/></joint>
+  <joint name="wrist_fixed" type="fixed"><parent link="arm"/><child link="hand"/><origin xyz="0 0 -0.4"/></joint>
+</robot>
+"""
+
+
+def test_raw_channels_of_a_linear_sensor_invert_to_the_statics_with_the_true_matrix(tmp_path):
+    """A URDF written here: a 1.5 kg hand below a sensor, swung about y. With nonlinearity, drift, noise and
+    temperature effects off, the true matrix maps the recorded counts (minus the zero offset) back to
+    F = m g_s, T = c × m g_s, g_s = R_y(q)ᵀ (0, 0, −9.81), within half a count per channel."""
+    from scipy.spatial.transform import Rotation
+
+    from ftcal.sim.robot_recording import read_truth
+
+    urdf = tmp_path / "pendulum.urdf"
+    urdf.write_text(PENDULUM)
+    plan = tmp_path / "poses.csv"
+    angles = np.array([-1.5, -0.6, 0.0, 0.7, 1.6])
+    pd.DataFrame({"swing": angles}).to_csv(plan, index=False)
+    out = tmp_path / "sim"
+    assert main(["simulate", str(plan), "--urdf", str(urdf), "--ft-joint", "wrist_fixed", "--channels", "raw",
+                 "--format", "table", "--nonlinearity", "0", "--drift", "0,0", "--noise", "0",
+                 "--temperature", "25,25", "--hold", "0.5", "-o", str(out)]) == 0
+    truth, sensor = read_truth(out / "truth.json")
+    table = pd.read_parquet(out / f"{truth['recordings'][0]['name']}.parquet")
+    counts = table[[f"wrist_fixed_u{i}" for i in range(1, 7)]].to_numpy()
+    assert np.array_equal(counts, np.round(counts))  # ADC counts
+    offset = np.array(truth["drift"]["offset_counts"])
+    recovered = (counts - offset) @ np.array(truth["sensor"]["true_matrix"]).T
+    bound = 0.5 * np.abs(sensor.true_matrix).sum(axis=1) + 1e-9
+    mass, com = 1.5, np.array([0.03, -0.02, -0.1])
+    for (start, end), q in zip(truth["recordings"][0]["holds"], angles):
+        inside = (table["time"] >= start) & (table["time"] <= end)
+        g = Rotation.from_euler("y", q).inv().apply([0.0, 0.0, -9.81])
+        statics = np.concatenate([mass * g, np.cross(com, mass * g)])
+        assert inside.sum() > 50
+        assert np.all(np.abs(recovered[inside.to_numpy()] - statics) <= bound)
