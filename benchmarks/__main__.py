@@ -255,7 +255,8 @@ def closed_loop_section(sizes: dict) -> list[str]:
     runs = [run_case("closed_loop", seed=seed, quick=sizes["closed_loop_quick"]) for seed in seeds]
     first = runs[0]
     ratios = first["ratios"]
-    HEADLINE["closed_loop"] = (f"seed {seeds[0]}: factory/ftcal contact-force RMSE {ratios['factory_over_ftcal_rmse']:.2f} "
+    HEADLINE["closed_loop"] = (f"seed {seeds[0]}: factory/ftcal contact-force RMSE "
+                               f"{ratios['factory_over_ftcal_rmse']:.2f} "
                                f"(target ≥ 2), ftcal/true {ratios['ftcal_over_true_rmse']:.2f} (target ≤ 1.5), "
                                f"phantom ftcal/factory {ratios['ftcal_over_factory_phantom']:.3f} (target ≤ 1/3); "
                                f"{fmt_s(first['seconds'])} wall, {fmt_s(first['cpu_seconds'])} CPU")

@@ -54,13 +54,15 @@ def register(subparsers) -> None:
                     "and/or a robot-log table), loads.toml for `ftcal dataset --payload-file`, and truth.json "
                     "(true and factory matrices, drift, tool, holds) to score every later step. The same --seed "
                     "writes the same bytes.")
-    parser.add_argument("plan", metavar="PLAN", help="poses in order: `ftcal plan` CSV or a joint table (.csv/.parquet)")
+    parser.add_argument("plan", metavar="PLAN",
+                        help="poses in order: `ftcal plan` CSV or a joint table (.csv/.parquet)")
     add_robot_arguments(parser)
     parser.add_argument("--sensor", metavar="NAME", help="F/T sensor (sensor or joint name; default: the only one)")
     parser.add_argument("--load", metavar="SPEC", action="append", default=[],
                         help="what PLAN's 'load' index k mounts: the k-th --load, FRAME:MASS[@X,Y,Z][/IXX,IYY,IZZ] "
                              "or 'none'; repeatable, in the order given to `ftcal plan` (default: none)")
-    parser.add_argument("--hold", type=positive_float, default=2.0, metavar="S", help="hold at each pose, s (default 2)")
+    parser.add_argument("--hold", type=positive_float, default=2.0, metavar="S",
+                        help="hold at each pose, s (default 2)")
     parser.add_argument("--speed", type=fraction, default=0.3, metavar="F",
                         help="fastest joint speed as a fraction of its URDF velocity limit, (0, 1] (default 0.3)")
     parser.add_argument("--rate", type=positive_float, default=250.0, metavar="HZ",
@@ -109,10 +111,12 @@ def run(args: argparse.Namespace) -> int:
         raise FtcalError(f"--sensor is required: URDF {robot.source} has {len(robot.ft_sensors)} F/T sensors "
                          f"({', '.join(s.name for s in robot.ft_sensors)}).")
     sensor_name = robot.sensor(args.sensor).name if args.sensor else robot.ft_sensors[0].name
-    loads = tuple(None if spec.strip().lower() == "none" else parse_payload_spec(spec) for spec in (args.load or ["none"]))
+    loads = tuple(None if spec.strip().lower() == "none" else parse_payload_spec(spec)
+                  for spec in (args.load or ["none"]))
     for payload in loads:
         if payload is not None and not robot.model.isFrameNameUsed(payload.frame):
-            raise FtcalError(f"--load {payload.name}: URDF {robot.source} has no link or frame named {payload.frame!r}.")
+            raise FtcalError(f"--load {payload.name}: URDF {robot.source} has no link or frame named "
+                             f"{payload.frame!r}.")
     spec = SensorSpec()
     if args.sensor_file:
         from ..core.limits import MAX_TEXT_FILE_BYTES

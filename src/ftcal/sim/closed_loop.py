@@ -604,6 +604,7 @@ def _write_report(path: Path, summary: dict, traces: list[Trace]) -> None:
     title = "ftcal demo: the calibrated sensor in a MuJoCo force-control loop"
     page = ("<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
             f"<title>{html.escape(title)}</title>\n<style>{CSS}</style>\n</head>\n<body>\n"
-            f"<h1>{html.escape(title)}</h1>\n<section id=\"conditions\"><h2>Conditions</h2>\n{table}{figure}</section>\n"
+            f"<h1>{html.escape(title)}</h1>\n"
+            f"<section id=\"conditions\"><h2>Conditions</h2>\n{table}{figure}</section>\n"
             f"<section id=\"notes\"><h2>Notes</h2><ul class=\"notes\">{notes}</ul></section>\n</body>\n</html>\n")
     write_text_atomic(path, page)
