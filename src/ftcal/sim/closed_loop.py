@@ -415,16 +415,20 @@ def _contact_normal(scene: Scene) -> float:
     return float(scene.data.cfrc_ext[scene.tool_body][5])
 
 
+def smoothed_contact(trace: Trace) -> np.ndarray:
+    """The true contact force averaged over 50 ms: while sliding, the tip's contact chatters sample by sample
+    (single samples without contact, the next with twice the force)."""
+    width = max(1, int(round(0.05 / np.median(np.diff(trace.time))))) if trace.time.size > 1 else 1
+    return np.convolve(trace.true_force, np.ones(width) / width, mode="same")
+
+
 def score(trace: Trace, config: ClosedLoopConfig) -> dict:
     """Contact-force RMSE and max error while force-controlled (after 0.5 s of contact), settling after the
     ramp (to within 5 % of the high force, staying until the slide), phantom force in free motion."""
     in_contact = trace.phase == 1
     t0 = trace.time[in_contact][0] if in_contact.any() else np.inf
     window = in_contact & (trace.time >= t0 + 0.5)
-    # While sliding, the tip's contact chatters sample by sample (single samples without contact, the next
-    # with twice the force); the contact force is scored as its 50 ms moving average.
-    width = max(1, int(round(0.05 / np.median(np.diff(trace.time))))) if trace.time.size > 1 else 1
-    smooth = np.convolve(trace.true_force, np.ones(width) / width, mode="same")
+    smooth = smoothed_contact(trace)
     error = smooth[window] - trace.desired[window]
     band = 0.05 * config.force_high
     hold = (trace.time >= trace.ramp_end) & (trace.time < t0 + 4.5) & in_contact
@@ -576,7 +580,7 @@ def _write_report(path: Path, summary: dict, traces: list[Trace]) -> None:
         colors = {"factory": "#c44e52", "ftcal": "#4c72b0", "ftcal + live": "#55a868", "true": "#333333"}
         for trace in traces:
             contact = trace.phase == 1
-            axes[0].plot(trace.time[contact], trace.true_force[contact], lw=0.8,
+            axes[0].plot(trace.time[contact], smoothed_contact(trace)[contact], lw=0.8,
                          color=colors.get(trace.name), label=f"{trace.name}: true contact force")
             free = trace.phase == 3
             axes[1].plot(trace.time[free] - trace.time[free][0], np.linalg.norm(trace.perceived[free], axis=1), lw=0.8,
@@ -592,8 +596,8 @@ def _write_report(path: Path, summary: dict, traces: list[Trace]) -> None:
         axes[1].set_ylabel("perceived force norm [N]")
         axes[1].legend(loc="upper right")
         axes[1].grid(alpha=0.3)
-        figure = figure_html(fig, "traces", "Top: the true contact force under each condition (press 5 → 30 N, "
-                                            "slide, release). Bottom: the phantom force each condition perceives "
+        figure = figure_html(fig, "traces", "Top: the true contact force under each condition (MuJoCo's, 50 ms "
+                                            "average; press 5 → 30 N, slide, release). Bottom: the phantom force each condition perceives "
                                             "while the wrist rolls and pitches in free air.")
     cal = summary["calibration"]
     notes = "".join(f"<li>{html.escape(n)}</li>" for n in [
