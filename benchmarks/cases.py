@@ -21,6 +21,7 @@ import numpy as np
 from benchmarks.bench_bags import CASES as BAG_CASES
 from benchmarks.bench_cost import CASES as COST_CASES
 from benchmarks.bench_live import LIVE_CASES
+from benchmarks.bench_closed_loop import CASES as CLOSED_LOOP_CASES
 from benchmarks.bench_mlp import CASES as MLP_CASES
 from benchmarks.bench_plan import CASES as PLAN_CASES
 from benchmarks.load_cases import make_load_cases
@@ -533,6 +534,7 @@ CASES.update(PLAN_CASES)  # experiment design: benchmarks/bench_plan.py
 CASES.update(MLP_CASES)  # the MLP family against a polynomial: benchmarks/bench_mlp.py
 CASES.update(COST_CASES)  # --degree auto's estimate against its CPU: benchmarks/bench_cost.py
 CASES.update(LIVE_CASES)  # the live calibrator: benchmarks/bench_live.py
+CASES.update(CLOSED_LOOP_CASES)  # the calibrated sensor in a MuJoCo force-control loop: benchmarks/bench_closed_loop.py
 
 
 if __name__ == "__main__":

@@ -23,7 +23,7 @@ from .. import _INTERRUPTS, _note_interrupt
 
 # In workflow order: `ftcal --help` lists them so (PIPELINE sketches it).
 COMMAND_MODULES = (
-    "demo", "plan", "sensors", "expected", "topics", "dataset", "fit", "evaluate", "report",
+    "demo", "plan", "simulate", "sensors", "expected", "topics", "dataset", "fit", "evaluate", "report",
     "check", "predict", "convert", "info", "payload", "compensate", "live",
 )
 

@@ -24,6 +24,15 @@ EXAMPLES = {
   ftcal plan --model iCubGenova11 --sensor r_arm_ft --load none --load r_forearm:2.0@-0.09,0,0.03 \\
       --poses 10 --objective payload --joint-range torso_pitch:0:0.5 --fixed torso_yaw=0 --min-height 0.1 \\
       --from ftcal-demo/icub-plan.csv --candidates 2000 -o ftcal-demo/icub-more.csv --html ftcal-demo/icub-more.html""",
+    "simulate": """\
+  # a dry run: 6 planned poses of an iCub arm, with and without a 2 kg plate, as ROS 2 bags + truth.json
+  ftcal plan --model iCubGenova11 --sensor r_arm_ft --load none --load r_forearm:2.0@-0.09,0,0.03 \\
+      --poses 6 --candidates 500 -o ftcal-demo/sim-plan.csv
+  ftcal simulate ftcal-demo/sim-plan.csv --model iCubGenova11 --sensor r_arm_ft --load none \\
+      --load r_forearm:2.0@-0.09,0,0.03 --hold 1 -o ftcal-demo/sim
+  # robot-log tables of a sensor mounted a quarter turn off (`ftcal check` on them reports the rotation)
+  ftcal simulate ftcal-demo/sim-plan.csv --model iCubGenova11 --sensor r_arm_ft --load none \\
+      --load r_forearm:2.0@-0.09,0,0.03 --hold 1 --format table --mistake rotate-z:90 -o ftcal-demo/sim-turned""",
     "check": """\
   # sign, axes, frame, zeroing and torque reference of the arm bag's table (made by `dataset` above)
   ftcal check ftcal-demo/arm.parquet --orientation qx,qy,qz,qw
@@ -36,7 +45,9 @@ EXAMPLES = {
   # plus the arm scenario's ROS 2 bag in ftcal-demo/arm (about a minute; --quick: less data)
   ftcal demo --out ftcal-demo
   # a wrist sensor with an unknown gripper, from a ROS 2 bag (writes ftcal-arm-demo/)
-  ftcal demo --scenario arm""",
+  ftcal demo --scenario arm
+  # the calibrated sensor in a MuJoCo force-control loop (writes ftcal-closed-loop-demo/)
+  ftcal demo --scenario closed-loop""",
     "sensors": """\
   # F/T sensors, joints, and the mass beyond each sensor of a shipped robot model
   ftcal sensors --model iCubGenova11

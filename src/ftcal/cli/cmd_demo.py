@@ -8,7 +8,7 @@ from pathlib import Path
 from ._common import nonnegative_int
 from ._examples import epilog
 
-SCENARIOS = ("paper", "arm", "plan", "live")
+SCENARIOS = ("paper", "arm", "plan", "live", "closed-loop")
 
 
 def register(sub) -> None:
@@ -18,11 +18,13 @@ def register(sub) -> None:
                    help="paper: the paper's iCub experiment (default; also writes the arm scenario's ROS 2 bag "
                         "to DIR/arm); arm: a wrist sensor with an unknown gripper, from a ROS 2 bag; plan: "
                         "poses planned by `ftcal plan` against random poses at the same budget; live: a drifting "
-                        "wrist sensor with a contact and a tool swap, replayed through `ftcal live`")
+                        "wrist sensor with a contact and a tool swap, replayed through `ftcal live`; closed-loop: a "
+                        "MuJoCo force controller driven by the factory, ftcal-calibrated and true wrench")
     p.add_argument("--out", metavar="DIR",
                    help="folder for the recordings, models, summary.json, report.html and the inputs "
                         "README.md's examples use (default ftcal-demo/, ftcal-arm-demo/ for --scenario arm, "
-                        "ftcal-plan-demo/ for --scenario plan, ftcal-live-demo/ for --scenario live)")
+                        "ftcal-plan-demo/ for --scenario plan, ftcal-live-demo/ for --scenario live, "
+                        "ftcal-closed-loop-demo/ for --scenario closed-loop)")
     p.add_argument("--seed", type=nonnegative_int, default=0, help="simulation seed, >= 0 (default 0)")
     p.add_argument("--quick", action="store_true", help="a smaller experiment (a few recordings; arm: 8 poses)")
     p.set_defaults(func=run)
@@ -41,6 +43,8 @@ def run(args) -> int:
         return run_plan(args)
     if args.scenario == "live":
         return run_live(args)
+    if args.scenario == "closed-loop":
+        return run_closed_loop(args)
     out = output_folder(args.out or "ftcal-demo")
     summary = run_demo(DemoConfig(out_dir=out, seed=args.seed, quick=args.quick))
     print(format_tables(summary))
@@ -84,6 +88,19 @@ def run_live(args) -> int:
     summary = run_live_demo(config)
     print(format_live_tables(summary))
     print(f"\ndone in {summary['elapsed_s']:.0f} s")
+    print("wrote " + ", ".join(summary["files"]))
+    return 0
+
+
+def run_closed_loop(args) -> int:
+    import dataclasses
+
+    from ..sim.closed_loop import CLOSED_LOOP_QUICK, ClosedLoopConfig, format_closed_loop, run_closed_loop
+
+    config = ClosedLoopConfig(out_dir=output_folder(args.out or "ftcal-closed-loop-demo"), seed=args.seed)
+    summary = run_closed_loop(dataclasses.replace(config, **(CLOSED_LOOP_QUICK if args.quick else {})))
+    print(format_closed_loop(summary))
+    print(f"\ndone in {summary['elapsed_s']:.0f} s ({summary['cpu_s']:.0f} s CPU)")
     print("wrote " + ", ".join(summary["files"]))
     return 0
 

@@ -194,6 +194,7 @@ ZERO_REFERENCE_WRENCH = 1e-6
 EXACT_FIT = 1e-9
 """Relative: a training RMSE below this times the output's standard deviation (BestFit above 1 − this)
 means the outputs are an exact function of the inputs (a copied column?): ``ftcal fit`` says so."""
+
 # Physical plausibility of loads and payload files (issue 28: absurd values passed silently).
 
 MAX_LOAD_MASS = 1000.0
@@ -224,3 +225,12 @@ MAX_TIME_STEP_S = 1e5
 
 MAX_TIME_S = 1e13
 """s. About 300,000 years: a larger time value is nanoseconds (1.7e18 since 1970) or microseconds."""
+
+SIMULATE_MISTAKES = ("none", "sign", "swap-xy", "rotate-z")
+"""Mounting mistakes ``ftcal simulate --mistake`` can make (``rotate-z`` takes an angle: ``rotate-z:DEG``)."""
+
+SIMULATE_CHANNELS = ("wrench", "raw")
+"""What a simulated recording's F/T channels hold: the driver's factory-calibrated wrench, or ADC counts."""
+
+SIMULATE_FORMATS = ("bag", "table")
+"""What ``ftcal simulate`` writes per recording: a ROS 2 bag folder, a robot-log table (Parquet)."""

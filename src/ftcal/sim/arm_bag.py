@@ -39,6 +39,7 @@ from ..runtime.errors import FtcalError
 WRENCH_TOPIC = "/ft_sensor/wrench"
 IMU_TOPIC = "/imu"
 TEMPERATURE_TOPIC = "/ft_sensor/temperature"
+JOINTS_TOPIC = "/joint_states"
 BASE_FRAME, WRIST_FRAME, SENSOR_FRAME = "base_link", "wrist_link", "ft_sensor"
 START_NS = 1_700_000_000 * 10**9
 TEMPERATURE_RATE = 10.0  # Hz
@@ -148,7 +149,7 @@ def write_arm_bag(path: str | Path, scenario: ArmScenario = ArmScenario(), stora
 
     writer = Writer(path, version=9, storage_plugin=plugins[storage])
     with writer:
-        messages = _Messages(writer)
+        messages = BagMessages(writer)
         for k, t in enumerate(t_ft):
             messages.wrench(t, wrench[k])
         t_tf = np.arange(int(duration * s.tf_rate) + 1) / s.tf_rate
@@ -190,15 +191,22 @@ def _sensor_wrench(s: ArmScenario, sensor, t: np.ndarray, temperature: np.ndarra
     return np.hstack([force + np.asarray(s.force_bias) + drift, torque + np.asarray(s.torque_bias)])
 
 
-class _Messages:
-    """Serializes messages with rosbags' ROS 2 types and writes them in time order."""
+class BagMessages:
+    """Serializes messages with rosbags' ROS 2 types and writes them in time order.
 
-    def __init__(self, writer) -> None:
+    ``topics`` overrides the topic names of the arm scenario (keys ``wrench``, ``imu``,
+    ``temperature``, ``joints``); ``frame`` is the header frame of the sensor's messages.
+    """
+
+    def __init__(self, writer, topics: dict[str, str] | None = None, frame: str = SENSOR_FRAME) -> None:
         from rosbags.typesys import Stores, get_typestore
 
         self.ts = get_typestore(Stores.ROS2_HUMBLE)
         self.types = self.ts.types
         self.writer = writer
+        self.topics = {"wrench": WRENCH_TOPIC, "imu": IMU_TOPIC, "temperature": TEMPERATURE_TOPIC,
+                       "joints": JOINTS_TOPIC, **(topics or {})}
+        self.frame = frame
         self.pending: list[tuple[int, str, object, str]] = []
         self.connections: dict[str, object] = {}
 
@@ -214,34 +222,42 @@ class _Messages:
         self.pending.append((ns, topic, msg, msgtype))
 
     def wrench(self, t: float, w: np.ndarray) -> None:
-        ns, header = self._header(t, SENSOR_FRAME)
+        ns, header = self._header(t, self.frame)
         msg = self.types["geometry_msgs/msg/WrenchStamped"](
             header, self.types["geometry_msgs/msg/Wrench"](self._vec(w[:3]), self._vec(w[3:])))
-        self._add(ns, WRENCH_TOPIC, msg, "geometry_msgs/msg/WrenchStamped")
+        self._add(ns, self.topics["wrench"], msg, "geometry_msgs/msg/WrenchStamped")
 
-    def tf(self, t: float, parent: str, child: str, q: np.ndarray, static: bool) -> None:
+    def tf(self, t: float, parent: str, child: str, q: np.ndarray, static: bool,
+           translation: np.ndarray | None = None) -> None:
         ns, header = self._header(t, parent)
+        if translation is None:
+            translation = (0.0, 0.0, 0.0) if static else (0.4, 0.1, 0.6)
         transform = self.types["geometry_msgs/msg/Transform"](
-            self._vec((0.0, 0.0, 0.0) if static else (0.4, 0.1, 0.6)),
-            self.types["geometry_msgs/msg/Quaternion"](*map(float, q)))
+            self._vec(translation), self.types["geometry_msgs/msg/Quaternion"](*map(float, q)))
         msg = self.types["tf2_msgs/msg/TFMessage"]([self.types["geometry_msgs/msg/TransformStamped"](
             header, child, transform)])
         self._add(ns, "/tf_static" if static else "/tf", msg, "tf2_msgs/msg/TFMessage")
 
     def imu(self, t: float, q: np.ndarray, omega: np.ndarray, accel: np.ndarray) -> None:
-        ns, header = self._header(t, SENSOR_FRAME)
+        ns, header = self._header(t, self.frame)
         zeros = np.zeros(9)
         msg = self.types["sensor_msgs/msg/Imu"](header, self.types["geometry_msgs/msg/Quaternion"](*map(float, q)),
                                                 zeros, self._vec(omega), zeros, self._vec(accel), zeros)
-        self._add(ns, IMU_TOPIC, msg, "sensor_msgs/msg/Imu")
+        self._add(ns, self.topics["imu"], msg, "sensor_msgs/msg/Imu")
 
     def temperature(self, t: float, value: float) -> None:
-        ns, header = self._header(t, SENSOR_FRAME)
-        self._add(ns, TEMPERATURE_TOPIC, self.types["sensor_msgs/msg/Temperature"](header, float(value), 0.01),
+        ns, header = self._header(t, self.frame)
+        self._add(ns, self.topics["temperature"], self.types["sensor_msgs/msg/Temperature"](header, float(value), 0.01),
                   "sensor_msgs/msg/Temperature")
 
+    def joint_state(self, t: float, names: list[str], position: np.ndarray, velocity: np.ndarray) -> None:
+        ns, header = self._header(t, "")
+        msg = self.types["sensor_msgs/msg/JointState"](header, list(names), np.asarray(position, dtype=np.float64),
+                                                       np.asarray(velocity, dtype=np.float64), np.zeros(0))
+        self._add(ns, self.topics["joints"], msg, "sensor_msgs/msg/JointState")
+
     def flush(self) -> None:
-        """Write everything in receive-time order (receive time = header stamp here)."""
+        """Write everything in receive-time order (receive time = header stamp here; ties keep the call order)."""
         for ns, topic, msg, msgtype in sorted(self.pending, key=lambda m: m[0]):
             if topic not in self.connections:
                 self.connections[topic] = self.writer.add_connection(topic, msgtype, typestore=self.ts)
