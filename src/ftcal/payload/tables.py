@@ -342,7 +342,7 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
         rms = np.sqrt(np.einsum("ij,ij->j", residual, residual) / recording.n_samples)
         del residual
         fit = model_fit(ss.names, ss.theta, ss.covariance, residual_rms=rms, n_samples=recording.n_samples,
-                        stderr_kind=f"state-space model ({len(blocks.count)} time blocks)",
+                        stderr_kind=_state_space_kind(ss, len(blocks.count)),
                         covariates=covariate_names, undetermined=constant.undetermined)
         fit = _with_end_bias(fit, ss.trajectory[-1], ss.end_stderr)
         change = ss.trajectory[-1] - ss.trajectory[0]
@@ -357,6 +357,19 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
                           reference if temperature is not None else None, coefficients, selection)
     return DriftResult(fit, constant, drift, selection, change, 0.0 if hours is None else float(hours[-1]), walk,
                        n_groups)
+
+
+def _state_space_kind(ss, n_blocks: int) -> str:
+    """How the random-walk model's standard errors were made, in words."""
+    fitted = n_blocks - ss.n_moving
+    text = f"state-space model ({fitted} time blocks"
+    if ss.n_moving:
+        text += f"; {ss.n_moving} blocks in which the sensor turns left out, the walk spans them"
+    text += ")"
+    if ss.jackknife_stretches:
+        text += (f", each raised to a grouped jackknife over {ss.jackknife_stretches} contiguous stretches "
+                 "where that is larger")
+    return text
 
 
 def _groups_and_blocks(recording: PayloadRecording, dynamic: bool, extra: np.ndarray | None):
