@@ -172,6 +172,11 @@ class Blocks:
     wrench: np.ndarray  # (B, 6)
     temperature: np.ndarray | None  # (B,) about the recording's mean, or None
     moving: np.ndarray | None = None  # (B,) bool: gravity turns within the block (a move, or a hold's edge)
+    starts: np.ndarray | None = None  # (B,) first sample of each block
+
+    def of_samples(self, n_samples: int) -> np.ndarray:
+        """The block of each sample, shape (n_samples,)."""
+        return np.searchsorted(self.starts, np.arange(n_samples), side="right") - 1
 
     def observed(self) -> np.ndarray:
         """Blocks the state-space models fit (the others only carry the walk across): the still ones.
@@ -224,7 +229,7 @@ def block_means(hours: np.ndarray, gravity: np.ndarray, wrench: np.ndarray, temp
     # Turning beyond the still blocks' own spread (sensor noise in an IMU's gravity) and beyond ~0.06°.
     moving = spread > max(MOVING_SPREAD * scale, 4.0 * float(np.median(spread)) if n else 0.0)
     return Blocks(mean(hours), count, mean_gravity, mean(wrench), None if temperature is None else mean(temperature),
-                  moving)
+                  moving, starts)
 
 
 def _design(blocks: Blocks, slope: bool, temperature: bool) -> np.ndarray:
@@ -327,13 +332,15 @@ class StateSpaceFit:
     end_stderr: np.ndarray  # (6,) standard error of the bias at the last block
     n_moving: int = 0  # blocks left out of the fit because gravity turns within them (the walk spans them)
     jackknife_stretches: int = 0  # contiguous stretches of the grouped jackknife (0: model covariance only)
+    held_out: tuple = ()  # per fold: (θ (P,), trajectory (B, 6)) fitted without it, or None
 
     @property
     def bic(self) -> float:
         return -2.0 * self.log_likelihood + self.n_free * np.log(self.n_observations)
 
 
-def fit_state_space(blocks: Blocks, kind: str, temperature: bool = False, held: tuple[str, ...] = ()) -> StateSpaceFit:
+def fit_state_space(blocks: Blocks, kind: str, temperature: bool = False, held: tuple[str, ...] = (),
+                    folds: tuple[np.ndarray, ...] = ()) -> StateSpaceFit:
     """Fit one bias model to block averages: ``none`` and ``linear`` have no walk (q = 0).
 
     Parameters
@@ -343,6 +350,8 @@ def fit_state_space(blocks: Blocks, kind: str, temperature: bool = False, held: 
     temperature : the bias is also affine in the blocks' temperature
     held : static parameters held at zero (the poses do not determine them,
         :class:`~ftcal.payload.identify.Undetermined`); their estimate and covariance are zero
+    folds : (B,) bool masks of blocks to hold out in turn (cross-validation groups): each refit
+        (walk ratios and noise variances held) is in :attr:`StateSpaceFit.held_out`
 
     Returns
     -------
@@ -416,8 +425,26 @@ def fit_state_space(blocks: Blocks, kind: str, temperature: bool = False, held: 
     at_end = _end_gradient(x, ratio, steps, noise, kind, observed)
     end_se = np.sqrt(np.maximum(end_var * r + np.einsum("jp,pq,jq->j", at_end, covariance, at_end), 0.0))
     n_free = n_beta + 6 + (6 if kind == "random-walk" else 0)
+    held_out = tuple(_refit_without(fold, theta.size, kept, ratio, steps, noise, data, pad, observed, r, index,
+                                    x, blocks, kind == "linear") for fold in folds)
     return StateSpaceFit(kind, names, theta, covariance, r, ratio * r, float(log_lik), n_free, 6 * n_observed,
-                         trajectory, end_se, n_blocks - n_observed, stretches)
+                         trajectory, end_se, n_blocks - n_observed, stretches, held_out)
+
+
+def _refit_without(fold, p, kept, ratio, steps, noise, data, pad, observed, r, index, x, blocks, slope):
+    """θ (all P parameters) and the smoothed bias trajectory fitted without the blocks ``fold`` marks; None
+    when the rest cannot determine θ."""
+    train = observed & ~fold
+    _, cross = _filter(ratio[None], steps, noise, data, pad, train)
+    gram, rhs = _joint_normal_equations(cross[..., 1:, 1:], cross[..., 1:, 0], r, index, pad, len(kept))
+    scale = 1.0 / np.sqrt(np.maximum(np.diag(gram[0]), 1e-300))
+    scaled = gram[0] * scale[:, None] * scale[None, :]
+    if not np.any(train) or np.linalg.cond(scaled) > 1e12:
+        return None
+    theta = np.zeros(p)
+    theta[kept] = scale * np.linalg.solve(scaled, rhs[0] * scale)
+    trajectory, _ = _smooth(theta, x, blocks, ratio, steps, noise, slope, train)
+    return theta, trajectory
 
 
 def _joint_normal_equations(s_loc, rhs_loc, r, index, pad, n_beta):
