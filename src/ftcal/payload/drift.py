@@ -184,9 +184,10 @@ class Blocks:
         A block whose gravity turns inside it mixes a move (sensor lag, dynamics, a clock offset between
         the wrench and the orientation) into one observation, and a walk that follows the bias from block
         to block takes its mass from exactly those changes: a lag of a tenth of a second biased the mass
-        by several standard errors in simulation. When most blocks move (a recording without holds), all are used.
+        by several standard errors in simulation. When fewer than a fifth of the blocks are still (a recording
+        without holds), all are used.
         """
-        if self.moving is None or np.count_nonzero(self.moving) > len(self.moving) // 2:
+        if self.moving is None or 5 * np.count_nonzero(~self.moving) < len(self.moving):
             return np.ones(len(self.count), bool)
         return ~self.moving
 
@@ -227,7 +228,11 @@ def block_means(hours: np.ndarray, gravity: np.ndarray, wrench: np.ndarray, temp
     spread = np.sqrt(np.maximum(np.sum(mean(gravity ** 2) - mean_gravity ** 2, axis=1), 0.0))
     scale = float(np.median(np.linalg.norm(mean_gravity, axis=1))) if n else 0.0
     # Turning beyond the still blocks' own spread (sensor noise in an IMU's gravity) and beyond ~0.06°.
-    moving = spread > max(MOVING_SPREAD * scale, 4.0 * float(np.median(spread)) if n else 0.0)
+    turning = spread > max(MOVING_SPREAD * scale, 4.0 * float(np.median(spread)) if n else 0.0)
+    # The blocks beside a turn too: a sensor's filter or a clock offset carries the move into them.
+    moving = turning.copy()
+    moving[1:] |= turning[:-1]
+    moving[:-1] |= turning[1:]
     return Blocks(mean(hours), count, mean_gravity, mean(wrench), None if temperature is None else mean(temperature),
                   moving, starts)
 
