@@ -226,6 +226,14 @@ def cross_validation(args, data, template, n_samples: int, n_inputs: int):
         result = select_model(data, degrees=degrees, penalties=args.penalties, lambdas=args.lambdas,
                               relative=not paper, **options)
     print(result.table() if args.verbose else result.summary())
+    from ..core.excitation import group_output_ranges, held_out_span
+
+    ranges = group_output_ranges(data.data.outputs, data.data.groups) if isinstance(data, DatasetStatistics) \
+        else getattr(getattr(data, "summary", None), "group_output_ranges", None)
+    if ranges and result.search is not None:
+        span = held_out_span(ranges, result.search.fold_of, data.output_names)
+        print(span)
+        result.notes.append(span)
     result.notes.extend([estimate.describe()] + ([note] if note else []))  # for the model file
     return result
 

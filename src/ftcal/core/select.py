@@ -1185,11 +1185,12 @@ class _Search:
             searched = max(len({s.candidate.degree for s in ordered} - {AFFINE.degree}), 1)
             comparison = Comparison.of(AFFINE, folds[id(affine)], folds[id(chosen)], searched)
             if comparison.within_noise:
-                self.stable_notes.append(
-                    f"{part.name}: {AFFINE.label} kept; {chosen.candidate.label} beats it by {comparison.margin:+.3g} "
-                    f"on average over {comparison.n_folds} folds, within their noise (t quantile "
-                    f"{comparison.quantile:.3g} for the best of {searched} degree(s) x the standard error of the "
-                    "fold-by-fold log ratio)")
+                if chosen.candidate.degree > AFFINE.degree:  # a penalty at degree 1 changes next to nothing
+                    self.stable_notes.append(
+                        f"{part.name}: {AFFINE.label} kept; {chosen.candidate.label} beats it by "
+                        f"{comparison.margin:+.3g} on average over {comparison.n_folds} folds, within their noise "
+                        f"(t quantile {comparison.quantile:.3g} for the best of {searched} degree(s) x the standard "
+                        "error of the fold-by-fold log ratio)")
                 return AFFINE
         return chosen.candidate
 
