@@ -114,7 +114,9 @@ def run_conventions(args) -> int:
                                source=", ".join(args.data))
     force, torque = report.residual
     print(f"{holds.n_holds} static holds; payload-fit residual RMS as declared {force:.4g} N, {torque:.4g} N·m; "
-          f"tool mass {report.mass:.4g} ± {report.mass_stderr:.2g} kg (with the fixes below)")
+          f"tool mass {report.mass:.4g} ± {report.mass_stderr:.2g} kg (with the fixes below; a constant bias: "
+          "if the bias drifts, `ftcal payload --time COL --bias-drift auto` compares bias models and says which "
+          "mass to trust)")
     for k, f in enumerate(report.findings, 1):
         fix = f.fix
         if args.reaction and f.reaction:

@@ -262,6 +262,14 @@ def cross_validation(args, data, template, n_samples: int, n_inputs: int):
                                   relative=not paper, budget=SearchBudget(args.budget, planned), advance=advance,
                                   **options)
     print(result.table() if args.verbose else result.summary())
+    from ..core.excitation import group_output_ranges, held_out_span
+
+    ranges = group_output_ranges(data.data.outputs, data.data.groups) if isinstance(data, DatasetStatistics) \
+        else getattr(getattr(data, "summary", None), "group_output_ranges", None)
+    if ranges and result.search is not None:
+        span = held_out_span(ranges, result.search.fold_of, data.output_names)
+        print(span)
+        result.notes.append(span)
     result.notes.extend([planned.describe()] + ([note] if note else []))  # for the model file
     return result
 
@@ -283,7 +291,10 @@ def run(args) -> int:
                               args.outputs or ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz"))
         save_model(model, args.output, sources=[str(p) for p in args.data],
                    training_segments=segment_fingerprints(data))
-        report_mlp(model, args.output)
+        if getattr(model, "family", "polynomial") == "mlp":
+            report_mlp(model, args.output)
+        else:  # the MLP lost to the affine model beyond the fold noise: that is what was written
+            report_fit(model, args.output)
         return 0
     check_options(args)
     check_payload_options(args)

@@ -110,6 +110,8 @@ def print_drift(result) -> None:
     if drift.temperature_coefficients is not None:
         print(f"  bias per unit of {drift.temperature_column}: " + _axes(drift.temperature_coefficients))
     if result.change is None:
+        if result.verdict():
+            print(result.verdict())
         return
     hours = max(result.hours, 1e-300)
     print(f"  bias change over the recording ({result.hours * 60:.3g} min): " + _axes(result.change))
@@ -122,6 +124,9 @@ def print_drift(result) -> None:
     print(f"  vs a constant bias: mass {dm:+.4g} kg ({dm / max(constant.stderr['mass'], 1e-300):+.2g} of its standard "
           f"error, {100 * dm / constant.mass:+.2g} %), centre of mass "
           + " ".join(f"{a} {v:+.3g}" for a, v in zip("xyz", dc)) + " mm")
+    verdict = result.verdict()
+    if verdict:
+        print(verdict)
 
 
 def _axes(values, per: str = "") -> str:

@@ -94,6 +94,10 @@ MLP_MAX_UNITS = 256
 MLP_MAX_ITER = 100_000
 """Most L-BFGS iterations of one MLP training run."""
 
+MLP_EQUATIONS_PER_WEIGHT = 5
+"""``fit --family mlp`` sizes its default network to at most one weight per this many equations (rows ×
+outputs); 418 rows of 8 inputs and 6 outputs give 8-20-10-6, the fingertip sensor authors' recipe."""
+
 # ``ftcal payload``: weighting, bias drift and robust standard errors.
 
 PAYLOAD_WEIGHTINGS = ("auto", "ols", "wls")

@@ -361,6 +361,41 @@ class MLPModel(EstimatorParams):
 
 
 # ------------------------------------------------------------------ numerics
+def n_weights(n_inputs: int, hidden: Sequence[int], n_outputs: int) -> int:
+    """Weights and biases of a network with these layer sizes.
+
+    Examples
+    --------
+    >>> n_weights(8, (20, 10), 6)  # 8·20 + 20 + 20·10 + 10 + 10·6 + 6
+    456
+    """
+    sizes = (n_inputs, *hidden, n_outputs)
+    return int(sum(a * b + b for a, b in zip(sizes[:-1], sizes[1:])))
+
+
+def hidden_for_data(n_rows: int, n_inputs: int, n_outputs: int, largest: Sequence[int] = (32, 32)) -> tuple[int, ...]:
+    """The default hidden layers: ``largest``, or (2h, h) with the largest h whose network keeps at most one
+    weight per :data:`~ftcal.core.limits.MLP_EQUATIONS_PER_WEIGHT` equations (rows × outputs); h is at
+    least the number of outputs (a narrower last layer cannot even pass an affine map through).
+
+    Examples
+    --------
+    >>> hidden_for_data(418, 8, 6)  # the fingertip sensor's 8-20-10-6
+    (20, 10)
+    >>> hidden_for_data(100_000, 7, 6)
+    (32, 32)
+    """
+    from .limits import MLP_EQUATIONS_PER_WEIGHT
+
+    budget = n_rows * n_outputs / MLP_EQUATIONS_PER_WEIGHT
+    if n_weights(n_inputs, largest, n_outputs) <= budget:
+        return tuple(largest)
+    h = min(max(2, n_outputs), largest[-1])
+    while h < largest[-1] and n_weights(n_inputs, (2 * (h + 1), h + 1), n_outputs) <= budget:
+        h += 1
+    return (2 * h, h)
+
+
 def _glorot(sizes: Sequence[int], seed: int) -> np.ndarray:
     """Glorot-uniform weights and zero biases, packed (the start of every training run)."""
     rng = np.random.default_rng(seed)

@@ -320,22 +320,54 @@ class Comparison:
     margin: float
     spread: float
     standard_error: float
+    n_folds: int = 0  # 0: unknown (two standard errors)
+    searched: int = 1  # degrees the selection was the best of (a Bonferroni correction of the quantile)
+    log_margin: float | None = None  # mean over folds of log(reference score / selection score)
+    log_standard_error: float | None = None  # its standard error (None: a score not positive)
+
+    @property
+    def quantile(self) -> float:
+        """``t_{K−1, 1 − 0.025/D}`` for K folds and the best of D degrees (2 when K is unknown): the
+        half-width of a 95 % interval in standard errors (D = 1: 12.7 for 2 folds, 2.78 for 5, 2.26 for 10;
+        the best of 4 degrees over 5 folds needs 3.96)."""
+        if self.n_folds < 2:
+            return 2.0
+        from scipy.special import stdtrit  # not scipy.stats: a second of imports
+
+        return float(stdtrit(self.n_folds - 1, 1.0 - 0.025 / max(self.searched, 1)))
+
+    @property
+    def noise(self) -> float:
+        """The fold noise in the scores' units: :attr:`quantile` × the standard error of the margin."""
+        return self.quantile * self.standard_error
 
     @property
     def within_noise(self) -> bool:
-        """The advantage is under two standard errors of the fold-to-fold differences."""
-        return self.margin < 2.0 * self.standard_error
+        """The advantage is under the fold noise. Judged on the log ratio of the fold scores when they are
+        positive: a fold with a large error and a large win does not drown out three consistent ones."""
+        if self.log_standard_error is not None:
+            return self.log_margin < self.quantile * self.log_standard_error
+        return self.margin < self.noise
 
     @property
     def loses(self) -> bool:
-        """Worse than the reference by more than two standard errors."""
-        return self.margin < -2.0 * self.standard_error
+        """Worse than the reference by more than the fold noise (on the log ratio when defined)."""
+        if self.log_standard_error is not None:
+            return self.log_margin < -self.quantile * self.log_standard_error
+        return self.margin < -self.noise
 
     @classmethod
-    def of(cls, reference: Candidate, reference_folds: np.ndarray, folds: np.ndarray) -> "Comparison":
-        difference = np.asarray(reference_folds) - np.asarray(folds)
-        spread = float(np.std(difference, ddof=1)) if difference.size > 1 else 0.0
-        return cls(reference, float(difference.mean()), spread, spread / np.sqrt(difference.size))
+    def of(cls, reference: Candidate, reference_folds: np.ndarray, folds: np.ndarray,
+           searched: int = 1) -> "Comparison":
+        reference_folds, folds = np.asarray(reference_folds, dtype=float), np.asarray(folds, dtype=float)
+        difference = reference_folds - folds
+        n = difference.size
+        spread = float(np.std(difference, ddof=1)) if n > 1 else 0.0
+        log_margin = log_se = None
+        if n > 1 and np.all(reference_folds > 0) and np.all(folds > 0):
+            ratio = np.log(reference_folds / folds)
+            log_margin, log_se = float(ratio.mean()), float(np.std(ratio, ddof=1) / np.sqrt(n))
+        return cls(reference, float(difference.mean()), spread, spread / np.sqrt(n), n, searched, log_margin, log_se)
 
 
 @dataclass
@@ -417,7 +449,7 @@ class CrossValidationResult:
                 for name, cols in scorer.blocks.items()}
 
     def losses(self) -> list[str]:
-        """Blocks on which the selection validates worse than affine beyond twice the fold standard error."""
+        """Blocks on which the selection validates worse than affine beyond the fold noise (t-scaled)."""
         return [name for name, c in self.block_comparisons().items() if c.loses]
 
     def describe_selection(self) -> str:
@@ -744,7 +776,8 @@ def select_model(data: "Dataset | GroupedStatistics", *, template: CalibrationMo
     lost = result.losses()
     if lost:
         warnings.warn(f"The selection ({result.describe_selection()}) validates worse than the affine model on "
-                      f"{' and '.join(lost)} beyond the fold noise (more than twice the fold standard error). "
+                      f"{' and '.join(lost)} beyond the fold noise (more than the t quantile of {result.n_folds} folds "
+                      "times the fold standard error). "
                       "Select per block or per output (--select-per), or use --objective both.",
                       SelectionLossWarning, stacklevel=2)
     comparisons = result.block_comparisons()
@@ -753,8 +786,9 @@ def select_model(data: "Dataset | GroupedStatistics", *, template: CalibrationMo
         margins = ", ".join(f"{name} {c.margin:+.3g} (standard error {c.standard_error:.3g})"
                             for name, c in comparisons.items())
         warnings.warn(
-            f"The selection ({result.describe_selection()}) beats the affine model by less than twice the standard "
-            f"error of the fold-to-fold differences ({margins}): the choice is within the noise of "
+            f"The selection ({result.describe_selection()}) beats the affine model by less than the fold noise "
+            f"(t quantile of {result.n_folds} folds times the standard error of the fold-to-fold differences: "
+            f"{margins}): the choice is within the noise of "
             f"{result.n_folds} folds. Consider the simpler model or record more load cases.",
             FtcalWarning, stacklevel=2)
     return result
@@ -1273,16 +1307,41 @@ class _Search:
             return difference.mean() + best_folds.mean() <= best_folds.mean() * (1 + TIE_TOLERANCE) \
                 or difference.mean() <= noise
 
-        return min((s for s in ordered if tied(s)),
-                   key=lambda s: (s.part_nonzero(part), folds[id(s)].mean())).candidate
+        chosen = min((s for s in ordered if tied(s)), key=lambda s: (s.part_nonzero(part), folds[id(s)].mean()))
+        # The stable choice: a win over affine least squares must exceed the fold noise (t-scaled), else a
+        # held-out set of another kind (a new orientation, a new load) can reverse it.
+        affine = next((s for s in ordered if s.candidate == AFFINE), None)
+        if affine is not None and chosen is not affine:
+            # The best of several degrees on the same folds: its margin is the largest of several (Bonferroni).
+            searched = max(len({s.candidate.degree for s in ordered} - {AFFINE.degree}), 1)
+            comparison = Comparison.of(AFFINE, folds[id(affine)], folds[id(chosen)], searched)
+            if comparison.within_noise:
+                if chosen.candidate.degree > AFFINE.degree:  # a penalty at degree 1 changes next to nothing
+                    self.stable_notes.append(
+                        f"{part.name}: {AFFINE.label} kept; {chosen.candidate.label} beats it by "
+                        f"{comparison.margin:+.3g} on average over {comparison.n_folds} folds, within their noise "
+                        f"(t quantile {comparison.quantile:.3g} for the best of {searched} degree(s) x the standard "
+                        "error of the fold-by-fold log ratio)")
+                return AFFINE
+        return chosen.candidate
 
     def result(self, ordered: list[CandidateScore], select_per: str = "model", skipped: tuple[int, ...] = (),
                notes: list[str] | None = None) -> CrossValidationResult:
+        self.stable_notes = []
         best = self._choose(ordered, Part("model", tuple(range(len(self.scorer.output_names)))))
         parts = self.scorer.parts(select_per)
         selection = [(part, best if part.name == "model" else self._choose(ordered, part)) for part in parts]
+        if select_per == "model":
+            self.stable_notes = self.stable_notes[:1]
         return CrossValidationResult(ordered, best, self.scorer.metric, self.n_folds, skipped, select_per,
-                                     selection, list(notes or []), self)
+                                     selection, [self.fold_note()] + list(notes or []) + self.stable_notes, self)
+
+    def fold_note(self) -> str:
+        """What the folds hold out, and so what the validation errors promise."""
+        n_groups = len(self.fold_of)
+        return (f"folds: each holds out whole groups (about {n_groups / self.n_folds:.3g} of the {n_groups} groups: "
+                "load cases, files or --group-by), never single samples; the validation errors are for new groups "
+                "like these, not for loads, orientations or temperatures that no group covers")
 
 
 def lasso_lambda_max(problem: ScaledProblem) -> float:

@@ -62,6 +62,8 @@ class FileSummary:
     fingerprints : list of dict, :func:`ftcal.core.fingerprint.segment_fingerprints` of those segments
     group_sizes : dict of group label (str) -> samples (a file without group column is one group, its path)
     spread : Spread of the inputs then the outputs (mean, covariance: the excitation and span checks)
+    group_output_ranges : dict of group label -> ndarray (n_outputs, 2), min and max of each output in
+        the group (what grouped cross-validation's folds held out)
     """
 
     input_range: np.ndarray
@@ -70,6 +72,7 @@ class FileSummary:
     fingerprints: list
     group_sizes: dict
     spread: Spread | None = None
+    group_output_ranges: dict | None = None
 
     def __add__(self, other: "FileSummary") -> "FileSummary":
         def widen(a, b):
@@ -78,9 +81,15 @@ class FileSummary:
         sizes = dict(self.group_sizes)
         for label, n in other.group_sizes.items():
             sizes[label] = sizes.get(label, 0) + n
+        ranges = None
+        if self.group_output_ranges is not None and other.group_output_ranges is not None:
+            ranges = dict(self.group_output_ranges)
+            for label, r in other.group_output_ranges.items():
+                ranges[label] = r if label not in ranges else widen(ranges[label], r)
         return FileSummary(widen(self.input_range, other.input_range), widen(self.output_range, other.output_range),
                            self.segment_lengths + other.segment_lengths, self.fingerprints + other.fingerprints,
-                           sizes, None if self.spread is None or other.spread is None else self.spread + other.spread)
+                           sizes, None if self.spread is None or other.spread is None else self.spread + other.spread,
+                           ranges)
 
 
 def file_summary(path: str, inputs: Sequence[str], outputs: Sequence[str], segment_by: str | None = None,
@@ -104,7 +113,7 @@ def file_summary(path: str, inputs: Sequence[str], outputs: Sequence[str], segme
 
     ranges = None
     spread = Spread.of(np.zeros((0, len(inputs) + len(outputs))))
-    lengths, fingerprints, sizes = [], [], {}
+    lengths, fingerprints, sizes, group_ranges = [], [], {}, {}
     digest, last_label = None, None
     labels = {column: role for column, role in ((group_by, "group"), (segment_by, "segment")) if column}
     for chunk in iter_table_chunks(path, inputs, outputs, labels=labels):
@@ -113,6 +122,12 @@ def file_summary(path: str, inputs: Sequence[str], outputs: Sequence[str], segme
         values = np.ascontiguousarray(np.concatenate([chunk.inputs, chunk.outputs], axis=1), dtype="<f8")
         for label, n in _group_counts(path, chunk, group_by).items():
             sizes[label] = sizes.get(label, 0) + n
+        for label, rows in _group_rows(path, chunk, group_by).items():
+            part = chunk.outputs[rows]
+            here = np.c_[part.min(axis=0), part.max(axis=0)]
+            old = group_ranges.get(label)
+            group_ranges[label] = here if old is None else np.c_[np.minimum(old[:, 0], here[:, 0]),
+                                                                 np.maximum(old[:, 1], here[:, 1])]
         spread = spread + Spread.of(values)
         low, high = values.min(axis=0), values.max(axis=0)
         ranges = np.c_[low, high] if ranges is None else np.c_[np.minimum(ranges[:, 0], low),
@@ -138,7 +153,15 @@ def file_summary(path: str, inputs: Sequence[str], outputs: Sequence[str], segme
     for fingerprint, rows in zip(fingerprints, lengths):
         fingerprint["rows"] = rows
     n_in = len(inputs)
-    return FileSummary(ranges[:n_in], ranges[n_in:], lengths, fingerprints, sizes, spread)
+    return FileSummary(ranges[:n_in], ranges[n_in:], lengths, fingerprints, sizes, spread, group_ranges)
+
+
+def _group_rows(path: str, chunk, group_by: str | None) -> dict:
+    """Rows of ``chunk`` per group label (a slice for a whole chunk), labelled as :func:`_group_counts`."""
+    if group_by is None:
+        return {str(Path(path)): slice(None)}
+    labels = chunk.labels[group_by].astype(str)
+    return {label: labels == label for label in np.unique(labels).tolist()}
 
 
 def _group_counts(path: str, chunk, group_by: str | None) -> dict[str, int]:

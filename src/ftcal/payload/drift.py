@@ -49,6 +49,8 @@ BIC_MARGIN = 10.0
 # Knots of a random-walk trajectory kept in the payload file.
 MAX_KNOTS = 500
 _GRID = 25  # walk-to-noise ratios tried per axis, log-spaced (then refined once)
+# A block moves when its gravity's spread (RMS about its mean) exceeds this fraction of |g| (about 0.06°).
+MOVING_SPREAD = 1e-3
 
 
 @dataclass(frozen=True)
@@ -172,6 +174,25 @@ class Blocks:
     gravity: np.ndarray  # (B, 3)
     wrench: np.ndarray  # (B, 6)
     temperature: np.ndarray | None  # (B,) about the recording's mean, or None
+    moving: np.ndarray | None = None  # (B,) bool: gravity turns within the block (a move, or a hold's edge)
+    starts: np.ndarray | None = None  # (B,) first sample of each block
+
+    def of_samples(self, n_samples: int) -> np.ndarray:
+        """The block of each sample, shape (n_samples,)."""
+        return np.searchsorted(self.starts, np.arange(n_samples), side="right") - 1
+
+    def observed(self) -> np.ndarray:
+        """Blocks the state-space models fit (the others only carry the walk across): the still ones.
+
+        A block whose gravity turns inside it mixes a move (sensor lag, dynamics, a clock offset between
+        the wrench and the orientation) into one observation, and a walk that follows the bias from block
+        to block takes its mass from exactly those changes: a lag of a tenth of a second biased the mass
+        by several standard errors in simulation. When fewer than a fifth of the blocks are still (a recording
+        without holds), all are used.
+        """
+        if self.moving is None or 5 * np.count_nonzero(~self.moving) < len(self.moving):
+            return np.ones(len(self.count), bool)
+        return ~self.moving
 
 
 def block_means(hours: np.ndarray, gravity: np.ndarray, wrench: np.ndarray, temperature: np.ndarray | None = None,
@@ -206,7 +227,17 @@ def block_means(hours: np.ndarray, gravity: np.ndarray, wrench: np.ndarray, temp
     def mean(a):
         return np.add.reduceat(a, starts, axis=0) / (count if a.ndim == 1 else count[:, None])
 
-    return Blocks(mean(hours), count, mean(gravity), mean(wrench), None if temperature is None else mean(temperature))
+    mean_gravity = mean(gravity)
+    spread = np.sqrt(np.maximum(np.sum(mean(gravity ** 2) - mean_gravity ** 2, axis=1), 0.0))
+    scale = float(np.median(np.linalg.norm(mean_gravity, axis=1))) if n else 0.0
+    # Turning beyond the still blocks' own spread (sensor noise in an IMU's gravity) and beyond ~0.06°.
+    turning = spread > max(MOVING_SPREAD * scale, 4.0 * float(np.median(spread)) if n else 0.0)
+    # The blocks beside a turn too: a sensor's filter or a clock offset carries the move into them.
+    moving = turning.copy()
+    moving[1:] |= turning[:-1]
+    moving[:-1] |= turning[1:]
+    return Blocks(mean(hours), count, mean_gravity, mean(wrench), None if temperature is None else mean(temperature),
+                  moving, starts)
 
 
 def _design(blocks: Blocks, slope: bool, temperature: bool) -> np.ndarray:
@@ -240,7 +271,8 @@ def _axis_columns(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return index, pad
 
 
-def _filter(ratio: np.ndarray, steps: np.ndarray, noise: np.ndarray, data: np.ndarray, pad: np.ndarray):
+def _filter(ratio: np.ndarray, steps: np.ndarray, noise: np.ndarray, data: np.ndarray, pad: np.ndarray,
+            observed: np.ndarray | None = None):
     """Augmented scalar Kalman filter of d (walk since the first block), r = 1 units.
 
     Parameters
@@ -250,6 +282,7 @@ def _filter(ratio: np.ndarray, steps: np.ndarray, noise: np.ndarray, data: np.nd
     noise : (B,) relative noise variance of each block mean (n̄ / n_k)
     data : (B, 6, 1 + c) the data column then the axis' regressor columns
     pad : (6, c) padded regressor slots
+    observed : (B,) or (L, B) bool, or None (all): unobserved blocks only carry the walk forward
 
     Returns
     -------
@@ -262,14 +295,18 @@ def _filter(ratio: np.ndarray, steps: np.ndarray, noise: np.ndarray, data: np.nd
     state = np.zeros(shape + (width,))
     log_f = np.zeros(shape)
     cross = np.zeros(shape + (width, width))
+    if observed is None:
+        observed = np.ones(data.shape[0], bool)
+    seen = np.broadcast_to(observed, shape[:1] + (data.shape[0],)).astype(float)  # (L, B)
     for k in range(data.shape[0]):
         p = p + ratio * steps[k]
         f = p + noise[k]
         e = data[k] - state
-        ef = e / f[..., None]
+        w = seen[:, k, None]  # (L, 1)
+        ef = (w / f)[..., None] * e
         cross += ef[..., :, None] * e[..., None, :]
-        log_f += np.log(f)
-        gain = p / f
+        log_f += w * np.log(f)
+        gain = w * p / f
         state = state + gain[..., None] * e
         p = p * (1.0 - gain)
     # Padded slots are all zero: a unit diagonal keeps the Gram invertible without touching the rest.
@@ -301,13 +338,17 @@ class StateSpaceFit:
     n_observations: int
     trajectory: np.ndarray  # (B, 6) bias at each block (walk and slope, temperature excluded)
     end_stderr: np.ndarray  # (6,) standard error of the bias at the last block
+    n_moving: int = 0  # blocks left out of the fit because gravity turns within them (the walk spans them)
+    jackknife_stretches: int = 0  # contiguous stretches of the grouped jackknife (0: model covariance only)
+    held_out: tuple = ()  # per fold: (θ (P,), trajectory (B, 6)) fitted without it, or None
 
     @property
     def bic(self) -> float:
         return -2.0 * self.log_likelihood + self.n_free * np.log(self.n_observations)
 
 
-def fit_state_space(blocks: Blocks, kind: str, temperature: bool = False, held: tuple[str, ...] = ()) -> StateSpaceFit:
+def fit_state_space(blocks: Blocks, kind: str, temperature: bool = False, held: tuple[str, ...] = (),
+                    folds: tuple[np.ndarray, ...] = ()) -> StateSpaceFit:
     """Fit one bias model to block averages: ``none`` and ``linear`` have no walk (q = 0).
 
     Parameters
@@ -317,6 +358,8 @@ def fit_state_space(blocks: Blocks, kind: str, temperature: bool = False, held: 
     temperature : the bias is also affine in the blocks' temperature
     held : static parameters held at zero (the poses do not determine them,
         :class:`~ftcal.payload.identify.Undetermined`); their estimate and covariance are zero
+    folds : (B,) bool masks of blocks to hold out in turn (cross-validation groups): each refit
+        (walk ratios and noise variances held) is in :attr:`StateSpaceFit.held_out`
 
     Returns
     -------
@@ -340,24 +383,22 @@ def fit_state_space(blocks: Blocks, kind: str, temperature: bool = False, held: 
     data = np.concatenate([blocks.wrench[:, :, None], local], axis=2)
     steps = np.r_[0.0, np.diff(blocks.hours)]
     noise = blocks.count.mean() / blocks.count
+    observed = blocks.observed()
+    n_observed = int(np.count_nonzero(observed))
+    if n_observed <= n_columns.max() + (kind == "random-walk"):
+        observed, n_observed = np.ones(n_blocks, bool), n_blocks  # too few still blocks: every block
     if kind == "random-walk":
-        ratio = _choose_ratio(blocks, steps, noise, data, pad, n_columns)
+        ratio = _choose_ratio(blocks, steps, noise, data, pad, n_columns, observed)
     else:
         ratio = np.zeros(6)
-    log_f, cross = _filter(ratio[None], steps, noise, data, pad)
+    log_f, cross = _filter(ratio[None], steps, noise, data, pad, observed)
     log_f, cross = log_f[0], cross[0]
     s_loc, rhs_loc, yy = cross[:, 1:, 1:], cross[:, 1:, 0], cross[:, 0, 0]
     beta_loc = np.linalg.solve(s_loc, rhs_loc[..., None])[..., 0]
     rss = np.maximum(yy - np.einsum("jc,jc->j", rhs_loc, beta_loc), 1e-300)
-    r = rss / (n_blocks - n_columns)  # REML noise variance of each axis
-    # Joint generalised least squares over the six axes (they share the mass and first moment).
-    gram = np.zeros((n_beta, n_beta))
-    rhs = np.zeros(n_beta)
-    for j in range(6):
-        keep = ~pad[j]
-        cols = index[j, keep]
-        gram[np.ix_(cols, cols)] += s_loc[j][np.ix_(keep, keep)] / r[j]
-        rhs[cols] += rhs_loc[j, keep] / r[j]
+    r = rss / (n_observed - n_columns)  # REML noise variance of each axis
+    gram, rhs = _joint_normal_equations(s_loc[None], rhs_loc[None], r, index, pad, n_beta)
+    gram, rhs = gram[0], rhs[0]
     jacobi = 1.0 / np.sqrt(np.diag(gram))
     scaled = gram * jacobi[:, None] * jacobi[None, :]
     if np.linalg.matrix_rank(scaled) < n_beta:
@@ -366,52 +407,131 @@ def fit_state_space(blocks: Blocks, kind: str, temperature: bool = False, held: 
     covariance = np.linalg.inv(scaled) * jacobi[:, None] * jacobi[None, :]
     covariance = 0.5 * (covariance + covariance.T)
     theta = covariance @ rhs
+    stretches = 0
+    if kind == "random-walk":
+        covariance, stretches = _with_jackknife(covariance, theta, ratio, steps, noise, data, pad, observed, r,
+                                                index, n_beta)
     # Maximum likelihood at β (noise variances re-profiled) for the BIC.
     log_lik = 0.0
     for j in range(6):
         used = ~pad[j]
         b = theta[index[j, used]]
         q = yy[j] - 2.0 * rhs_loc[j, used] @ b + b @ s_loc[j][np.ix_(used, used)] @ b
-        r_ml = max(q, 1e-300) / n_blocks
-        log_lik += -0.5 * (n_blocks * np.log(2.0 * np.pi * r_ml) + log_f[j] + n_blocks)
+        r_ml = max(q, 1e-300) / n_observed
+        log_lik += -0.5 * (n_observed * np.log(2.0 * np.pi * r_ml) + log_f[j] + n_observed)
     # Back to every parameter: the held ones are zero, without variance.
     theta_full = np.zeros(full.shape[2])
     theta_full[kept] = theta
     covariance_full = np.zeros((full.shape[2],) * 2)
     covariance_full[np.ix_(kept, kept)] = covariance
     theta, covariance, x = theta_full, covariance_full, full
-    trajectory, end_var = _smooth(theta, x, blocks, ratio, steps, noise, kind == "linear")
+    trajectory, end_var = _smooth(theta, x, blocks, ratio, steps, noise, kind == "linear", observed)
     names = STATIC_PARAMETERS + tuple(f"{a}_{c}" for c in (["time"] if kind == "linear" else [])
                                       + (["temperature"] if temperature else [])
                                       for a in ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz"))
     # Bias at the last block: its filter error and β's error are uncorrelated (augmented filter).
-    at_end = _end_gradient(x, ratio, steps, noise, kind)
+    at_end = _end_gradient(x, ratio, steps, noise, kind, observed)
     end_se = np.sqrt(np.maximum(end_var * r + np.einsum("jp,pq,jq->j", at_end, covariance, at_end), 0.0))
     n_free = n_beta + 6 + (6 if kind == "random-walk" else 0)
-    return StateSpaceFit(kind, names, theta, covariance, r, ratio * r, float(log_lik), n_free, 6 * n_blocks,
-                         trajectory, end_se)
+    held_out = tuple(_refit_without(fold, theta.size, kept, ratio, steps, noise, data, pad, observed, r, index,
+                                    x, blocks, kind == "linear") for fold in folds)
+    return StateSpaceFit(kind, names, theta, covariance, r, ratio * r, float(log_lik), n_free, 6 * n_observed,
+                         trajectory, end_se, n_blocks - n_observed, stretches, held_out)
 
 
-def _choose_ratio(blocks: Blocks, steps, noise, data, pad, n_columns) -> np.ndarray:
+def _refit_without(fold, p, kept, ratio, steps, noise, data, pad, observed, r, index, x, blocks, slope):
+    """θ (all P parameters) and the smoothed bias trajectory fitted without the blocks ``fold`` marks; None
+    when the rest cannot determine θ."""
+    train = observed & ~fold
+    _, cross = _filter(ratio[None], steps, noise, data, pad, train)
+    gram, rhs = _joint_normal_equations(cross[..., 1:, 1:], cross[..., 1:, 0], r, index, pad, len(kept))
+    scale = 1.0 / np.sqrt(np.maximum(np.diag(gram[0]), 1e-300))
+    scaled = gram[0] * scale[:, None] * scale[None, :]
+    if not np.any(train) or np.linalg.cond(scaled) > 1e12:
+        return None
+    theta = np.zeros(p)
+    theta[kept] = scale * np.linalg.solve(scaled, rhs[0] * scale)
+    trajectory, _ = _smooth(theta, x, blocks, ratio, steps, noise, slope, train)
+    return theta, trajectory
+
+
+def _joint_normal_equations(s_loc, rhs_loc, r, index, pad, n_beta):
+    """GLS normal equations over the six axes (they share the mass and first moment), for L refits at once.
+
+    ``s_loc`` (L, 6, c, c) and ``rhs_loc`` (L, 6, c) per axis, ``r`` (6,) noise variances; returns
+    the Gram (L, P, P) and right-hand side (L, P).
+    """
+    n = s_loc.shape[0]
+    gram = np.zeros((n, n_beta, n_beta))
+    rhs = np.zeros((n, n_beta))
+    for j in range(6):
+        keep = ~pad[j]
+        cols = index[j, keep]
+        gram[:, cols[:, None], cols[None, :]] += s_loc[:, j][:, keep][:, :, keep] / r[j]
+        rhs[:, cols] += rhs_loc[:, j][:, keep] / r[j]
+    return gram, rhs
+
+
+def _with_jackknife(covariance, theta, ratio, steps, noise, data, pad, observed, r, index, n_beta):
+    """The model's covariance, each standard error raised to the grouped jackknife's where that is larger.
+
+    The jackknife refits β (walk ratios and noise variances held) without each of
+    :data:`~ftcal.core.limits.ROBUST_CLUSTERS` contiguous stretches of the observed
+    blocks in turn; the model's own covariance assumes independent block noise, which
+    errors constant over a hold (hysteresis, a pose's cable force) or an unmodelled lag
+    break. The correlations stay the model's.
+
+    Returns
+    -------
+    (covariance (P, P), number of stretches left out; 0 when too few to leave out)
+    """
+    from ..core.jackknife import block_edges, jackknife_covariance
+    from ..core.limits import ROBUST_CLUSTERS
+
+    rows = np.flatnonzero(observed)
+    edges = block_edges(len(rows), ROBUST_CLUSTERS)
+    if len(edges) < 3:
+        return covariance, 0
+    masks = np.repeat(observed[None], len(edges) - 1, axis=0)
+    for g, (a, b) in enumerate(zip(edges[:-1], edges[1:])):
+        masks[g, rows[a:b]] = False
+    _, cross = _filter(np.broadcast_to(ratio, (len(masks), 6)), steps, noise, data, pad, masks)
+    gram, rhs = _joint_normal_equations(cross[..., 1:, 1:], cross[..., 1:, 0], r, index, pad, n_beta)
+    refits = []
+    for g in range(len(masks)):
+        scale = 1.0 / np.sqrt(np.maximum(np.diag(gram[g]), 1e-300))
+        scaled = gram[g] * scale[:, None] * scale[None, :]
+        if np.linalg.cond(scaled) < 1e12:  # else this stretch alone identifies something: it cannot be left out
+            refits.append(scale * np.linalg.solve(scaled, rhs[g] * scale))
+    jackknife = jackknife_covariance(refits)
+    if jackknife is None:
+        return covariance, 0
+    se = np.sqrt(np.maximum(np.diag(covariance), 0.0))
+    raise_to = np.sqrt(np.maximum(np.diag(jackknife), 0.0))
+    factor = np.where(se > 0, np.maximum(1.0, raise_to / np.where(se > 0, se, 1.0)), 1.0)
+    return covariance * factor[:, None] * factor[None, :], len(refits)
+
+
+def _choose_ratio(blocks: Blocks, steps, noise, data, pad, n_columns, observed) -> np.ndarray:
     """Walk-to-noise variance ratio of each axis by restricted maximum likelihood on a log grid, refined once."""
     duration = max(blocks.hours[-1] - blocks.hours[0], 1e-12)
-    n_blocks = len(blocks.count)
+    n_blocks = int(np.count_nonzero(observed))
     # Walk variance over the whole recording from 1e-4 to 1e2 × n_blocks times the block noise, and none.
     grid = np.r_[0.0, np.logspace(-4, np.log10(100.0 * n_blocks), _GRID)] / duration
-    best = _grid_best(grid[:, None] * np.ones(6), steps, noise, data, pad, n_columns, n_blocks)
+    best = _grid_best(grid[:, None] * np.ones(6), steps, noise, data, pad, n_columns, n_blocks, observed)
     step = np.log(grid[2] / grid[1])
     fine = np.exp(np.log(np.maximum(best, grid[1])) + np.linspace(-step, step, 9)[:, None])
     fine = np.vstack([fine, best[None]])
-    return _grid_best(fine, steps, noise, data, pad, n_columns, n_blocks)
+    return _grid_best(fine, steps, noise, data, pad, n_columns, n_blocks, observed)
 
 
-def _grid_best(ratios, steps, noise, data, pad, n_columns, n_blocks) -> np.ndarray:
-    log_f, cross = _filter(ratios, steps, noise, data, pad)
+def _grid_best(ratios, steps, noise, data, pad, n_columns, n_blocks, observed) -> np.ndarray:
+    log_f, cross = _filter(ratios, steps, noise, data, pad, observed)
     ll = _reml(log_f, cross, n_columns, n_blocks)
     return ratios[np.argmax(ll, axis=0), np.arange(6)]
 
 
-def _smooth(theta, x, blocks, ratio, steps, noise, slope: bool):
+def _smooth(theta, x, blocks, ratio, steps, noise, slope: bool, observed):
     """RTS-smoothed bias at every block (β fixed, temperature term excluded), and the walk's filtered
     variance at the last block (noise variance units)."""
     at = STATIC_PARAMETERS.index("Fx_bias")
@@ -425,7 +545,7 @@ def _smooth(theta, x, blocks, ratio, steps, noise, slope: bool):
     for k in range(n_blocks):
         p = p + ratio * steps[k]
         pred_p[k] = p
-        gain = p / (p + noise[k])
+        gain = p / (p + noise[k]) if observed[k] else 0.0
         d = d + gain * (residual[k] - d)
         p = p * (1.0 - gain)
         filt_p[k], filt_d[k] = p, d
@@ -437,7 +557,7 @@ def _smooth(theta, x, blocks, ratio, steps, noise, slope: bool):
     return model + smooth, filt_p[-1]
 
 
-def _end_gradient(x, ratio, steps, noise, kind) -> np.ndarray:
+def _end_gradient(x, ratio, steps, noise, kind, observed) -> np.ndarray:
     """∂(bias at the last block)/∂β for each axis, shape (6, P): the bias model minus the filter's pull."""
     n_blocks, _, n_beta = x.shape
     at = STATIC_PARAMETERS.index("Fx_bias")
@@ -451,7 +571,7 @@ def _end_gradient(x, ratio, steps, noise, kind) -> np.ndarray:
     p, weight = np.zeros(6), np.zeros((6, n_beta))
     for k in range(n_blocks):
         p = p + ratio * steps[k]
-        gain = p / (p + noise[k])
+        gain = p / (p + noise[k]) if observed[k] else np.zeros(6)
         weight = weight + gain[:, None] * (x[k] - weight)
         p = p * (1.0 - gain)
     return grad - weight

@@ -236,6 +236,11 @@ class DriftResult:
     hours: float  # duration of the recording, h
     walk_std: np.ndarray | None  # (6,) random-walk standard deviation per √h
     n_groups: int = 1  # validation groups (files or --group-by)
+    held_out: HeldOut | None = None  # the bias models on the same held-out stretches of time
+
+    def verdict(self) -> str:
+        """Which mass to trust when the constant-bias and the chosen bias model disagree, and why (or "")."""
+        return drift_verdict(self)
 
 
 def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto", dynamic: bool = False,
@@ -293,16 +298,21 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
     held = () if constant.undetermined is None else constant.undetermined.held
     kind, selection = ("none", "") if bias_drift == "auto" and (hours is None or dynamic) else (bias_drift, "")
     fits = {}
-    if hours is not None and not dynamic and kind in ("auto", "random-walk"):
+    folds, stretches, held_out = {}, (), None
+    if hours is not None and not dynamic and kind in ("auto", "random-walk", "linear"):
         blocks = block_means(hours, recording.kinematics.gravity, recording.measured, temperature)
-        for candidate in (("none", "linear", "random-walk") if kind == "auto" else ("random-walk",)):
+        folds = _group_folds(recording, blocks, groups) if cross_validate and n_groups > 1 else {}
+        stretches = stretch_folds(len(blocks.count))
+        for candidate in ("none", "linear", "random-walk") if kind == "auto" else ("none", kind):
             try:
-                fits[candidate] = fit_state_space(blocks, candidate, temperature is not None, held)
+                fits[candidate] = fit_state_space(blocks, candidate, temperature is not None, held, stretches
+                                                  + (tuple(folds.values()) if candidate == "random-walk" else ()))
             except FtcalError:
-                if kind != "auto":
+                if kind == candidate:
                     raise
                 if candidate == "none":
                     break  # too few time blocks to compare bias models at all
+        held_out = compare_held_out(recording, blocks, fits, hours, temperature)
         if kind == "auto" and "none" in fits:
             kind, selection = choose(fits)
         elif kind == "auto":
@@ -342,9 +352,15 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
         rms = np.sqrt(np.einsum("ij,ij->j", residual, residual) / recording.n_samples)
         del residual
         fit = model_fit(ss.names, ss.theta, ss.covariance, residual_rms=rms, n_samples=recording.n_samples,
-                        stderr_kind=f"state-space model ({len(blocks.count)} time blocks)",
+                        stderr_kind=_state_space_kind(ss, len(blocks.count)),
                         covariates=covariate_names, undetermined=constant.undetermined)
         fit = _with_end_bias(fit, ss.trajectory[-1], ss.end_stderr)
+        if folds:
+            from dataclasses import replace
+
+            groups_only = replace(ss, held_out=ss.held_out[len(stretches):])
+            fit = replace(fit, cross_validation=_walk_residuals(recording, folds, groups_only, knot_hours, hours,
+                                                                temperature))
         change = ss.trajectory[-1] - ss.trajectory[0]
         walk = np.sqrt(ss.walk_variance)
     drift = None
@@ -356,7 +372,105 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
                           knot_times, knot_bias, temperature_column if temperature is not None else None,
                           reference if temperature is not None else None, coefficients, selection)
     return DriftResult(fit, constant, drift, selection, change, 0.0 if hours is None else float(hours[-1]), walk,
-                       n_groups)
+                       n_groups, held_out)
+
+
+def _group_folds(recording: PayloadRecording, blocks, groups) -> dict[str, np.ndarray]:
+    """Per validation group, the time blocks holding any of its samples (held out together)."""
+    of_sample = blocks.of_samples(recording.n_samples)
+    out = {}
+    for label in groups:
+        fold = np.zeros(len(blocks.count), bool)
+        fold[of_sample[recording.labels == label]] = True
+        out[label] = fold
+    return out
+
+
+def _held_out_rms(recording: PayloadRecording, rows: np.ndarray, refit, knot_hours, hours, temperature):
+    """Residual RMS (6,) of the samples ``rows`` against a state-space refit made without them (None: none)."""
+    if refit is None:
+        return None
+    theta, trajectory = refit
+    residual = recording.measured[rows] - _static_wrench(theta, recording.kinematics.gravity[rows])
+    for j in range(6):
+        residual[:, j] -= np.interp(hours[rows], knot_hours, trajectory[:, j])
+    if temperature is not None:
+        residual -= np.outer(temperature[rows], theta[-6:])
+    return np.sqrt(np.mean(residual ** 2, axis=0))
+
+
+def _walk_residuals(recording: PayloadRecording, folds: dict, ss, knot_hours, hours, temperature):
+    """Leave-one-group-out residual RMS of the random-walk model: each group's samples against the fit
+    (mass, centre of mass and the smoothed bias path) made without that group's time blocks."""
+    from .identify import GroupResidual
+
+    out = []
+    for (label, _), refit in zip(folds.items(), ss.held_out):
+        rows = np.flatnonzero(recording.labels == label)
+        out.append(GroupResidual(str(label), len(rows),
+                                 _held_out_rms(recording, rows, refit, knot_hours, hours, temperature)))
+    return tuple(out)
+
+
+@dataclass(frozen=True)
+class HeldOut:
+    """Bias models compared on the same held-out contiguous stretches of time (the walk interpolates across)."""
+
+    stretches: int  # stretches left out in turn
+    rms: dict  # kind -> (6,) pooled held-out residual RMS, N and N·m
+    mass: dict  # kind -> (mass, its standard error) of the fit on all data
+
+
+def compare_held_out(recording: PayloadRecording, blocks, fits: dict, hours, temperature) -> HeldOut | None:
+    """Score each state-space fit in ``fits`` (kind -> StateSpaceFit whose first ``held_out`` refits are
+    over :func:`stretch_folds`) on the samples of each stretch left out."""
+    from ..core.jackknife import block_edges
+    from ..core.limits import ROBUST_CLUSTERS
+
+    edges = block_edges(len(blocks.count), ROBUST_CLUSTERS)
+    of_sample = blocks.of_samples(recording.n_samples)
+    rms, mass = {}, {}
+    for kind, ss in fits.items():
+        if len(ss.held_out) < len(edges) - 1:
+            continue
+        sse, count = np.zeros(6), 0
+        for (a, b), refit in zip(zip(edges[:-1], edges[1:]), ss.held_out[:len(edges) - 1]):
+            rows = np.flatnonzero((of_sample >= a) & (of_sample < b))
+            found = _held_out_rms(recording, rows, refit, blocks.hours, hours, temperature)
+            if found is not None:
+                sse += len(rows) * found ** 2
+                count += len(rows)
+        if count:
+            rms[kind] = np.sqrt(sse / count)
+            mass[kind] = (float(ss.theta[0]), float(np.sqrt(ss.covariance[0, 0])))
+    return HeldOut(len(edges) - 1, rms, mass) if len(rms) > 1 else None
+
+
+def stretch_folds(n_blocks: int) -> tuple[np.ndarray, ...]:
+    """:data:`~ftcal.core.limits.ROBUST_CLUSTERS` contiguous stretches of ``n_blocks`` time blocks, as masks."""
+    from ..core.jackknife import block_edges
+    from ..core.limits import ROBUST_CLUSTERS
+
+    edges = block_edges(n_blocks, ROBUST_CLUSTERS)
+    out = []
+    for a, b in zip(edges[:-1], edges[1:]):
+        fold = np.zeros(n_blocks, bool)
+        fold[a:b] = True
+        out.append(fold)
+    return tuple(out)
+
+
+def _state_space_kind(ss, n_blocks: int) -> str:
+    """How the random-walk model's standard errors were made, in words."""
+    fitted = n_blocks - ss.n_moving
+    text = f"state-space model ({fitted} time blocks"
+    if ss.n_moving:
+        text += f"; {ss.n_moving} blocks in which the sensor turns left out, the walk spans them"
+    text += ")"
+    if ss.jackknife_stretches:
+        text += (f", each raised to a grouped jackknife over {ss.jackknife_stretches} contiguous stretches "
+                 "where that is larger")
+    return text
 
 
 def _groups_and_blocks(recording: PayloadRecording, dynamic: bool, extra: np.ndarray | None):
@@ -444,3 +558,52 @@ def rebias(recording: PayloadRecording, payload: PayloadParameters) -> Rebias:
     sums = np.add.reduceat(residual - bias, edges[:-1], axis=0)
     stderr = t_scale(g - 1) * np.sqrt(g / (g - 1) * np.sum(sums ** 2, axis=0)) / n
     return Rebias(bias, stderr, f"cluster-robust ({g} contiguous blocks)")
+
+
+# Two masses further apart than this many combined standard errors disagree beyond their errors.
+DISAGREE_STDERR = 2.0
+# Held-out error ratios within this fraction of 1 are ties.
+HELD_OUT_TIE = 0.01
+_MODEL_NAMES = {"none": "constant bias", "linear": "bias linear in time", "random-walk": "random-walk bias"}
+
+
+def drift_verdict(result: DriftResult) -> str:
+    """The bias models' held-out residuals and, when the chosen model's mass and the constant-bias mass
+    disagree beyond their errors, which to trust and why. Empty without a comparison."""
+    held = result.held_out
+    if held is None or "none" not in held.rms:
+        return ""
+    chosen = result.drift.model if result.drift is not None else "none"
+    base = held.rms["none"]
+    lines = [f"held-out residual RMS of each bias model ({held.stretches} contiguous stretches of time left out "
+             "in turn; the model bridges the gap):"]
+    ratios = {}
+    for kind, rms in held.rms.items():
+        per_axis = rms / np.maximum(base, 1e-300)
+        ratios[kind] = (float(np.mean(per_axis[:3])), float(np.mean(per_axis[3:])))
+        lines.append(f"  {_MODEL_NAMES[kind]:<20}" + "  ".join(f"{a} {v:.4g}" for a, v in zip(CONTACT_COLUMNS, rms))
+                     + ("" if kind == "none" else f"   ({ratios[kind][0]:.2f}x on force, {ratios[kind][1]:.2f}x on "
+                                                   "torque vs constant)"))
+    if chosen == "none":
+        return "\n".join(lines)
+    m_c, se_c = result.constant.mass, result.constant.stderr["mass"]
+    m_f, se_f = result.fit.mass, result.fit.stderr["mass"]
+    z = (m_f - m_c) / max(np.hypot(se_c, se_f), 1e-300)
+    name = _MODEL_NAMES[chosen]
+    if abs(z) <= DISAGREE_STDERR:
+        lines.append(f"  mass: {name} {m_f:.6g} ± {se_f:.2g} kg and constant bias {m_c:.6g} ± {se_c:.2g} kg agree "
+                     f"({z:+.1f} combined standard errors)")
+        return "\n".join(lines)
+    force, torque = ratios.get(chosen, (1.0, 1.0))
+    lines.append(f"  mass: {name} {m_f:.6g} ± {se_f:.2g} kg and constant bias {m_c:.6g} ± {se_c:.2g} kg disagree "
+                 f"beyond their errors ({z:+.1f} combined standard errors)")
+    if max(force, torque) <= 1.0 + HELD_OUT_TIE and min(force, torque) < 1.0 - HELD_OUT_TIE:
+        lines.append(f"  trust the {name} ({m_f:.6g} kg): it predicts held-out time better, and a constant-bias fit "
+                     "takes part of the drift into the mass and centre of mass when the poses follow time")
+    elif min(force, torque) >= 1.0 - HELD_OUT_TIE and max(force, torque) > 1.0 + HELD_OUT_TIE:
+        lines.append(f"  trust the constant bias ({m_c:.6g} kg): the {name} predicts held-out time worse, so its "
+                     "extra freedom follows pose errors, not drift")
+    else:
+        lines.append(f"  held-out time cannot tell them apart: neither bias model describes the data; take the "
+                     f"difference ({abs(m_f - m_c):.2g} kg) as the mass's uncertainty, not either standard error")
+    return "\n".join(lines)

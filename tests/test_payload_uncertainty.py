@@ -1,0 +1,168 @@
+"""Honest payload uncertainty: stated standard errors against the spread of delete-a-block refits and
+coverage of the truth, on simulated recordings with drift, moves between holds and one row per pose.
+
+Truth comes from hand statics (F = m g + b(t), T = c × m g + b(t)) with a known mass; the reference
+spread is the delete-a-contiguous-block jackknife over 5 blocks computed here from refits on the
+kept rows (the method the issue measured real data with), not from ftcal's own covariance.
+"""
+
+import subprocess
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy.signal import lfilter
+from scipy.spatial.transform import Rotation
+
+from ftcal.payload.kinematics import Kinematics
+from ftcal.payload.tables import PayloadRecording, identify_recording
+
+FTCAL = str(Path(sys.executable).with_name("ftcal"))
+G = 9.81
+MASS = 1.3
+COM = np.array([0.012, -0.025, 0.071])
+BIAS = np.array([3.0, -2.0, 5.0, 0.1, -0.2, 0.05])
+NOISE = np.array([0.3, 0.3, 0.3, 0.01, 0.01, 0.01])
+RATE_HZ = 10.0
+
+
+def statics(g):
+    return np.c_[MASS * g, np.cross(COM, MASS * g)]
+
+
+def simulate(scenario: str, seed: int, n_poses: int = 30, per_pose: int = 60, move: int = 30):
+    """Gravity (N, 3), time (s) and readings (N, 6) of one recording.
+
+    ``holds``: still poses; a random-walk bias, AR(1) noise (correlated over ~1 s) and an error
+    constant over each hold (hysteresis, a cable's pull). ``moves``: the same with the sensor
+    turning between holds, its reading lagging the gravity wrench by a first-order filter
+    (time constant about a sample: a sensor filter or a clock offset). ``per-pose``: one averaged
+    row per pose, 10 s apart, with a drifting bias.
+    """
+    rng = np.random.default_rng(seed)
+    directions = Rotation.random(n_poses, random_state=seed + 1).inv().apply([0.0, 0.0, -G])
+    if scenario == "per-pose":
+        time = np.arange(n_poses) * 10.0
+        path = BIAS + np.cumsum(rng.normal(size=(n_poses, 6)), axis=0) * NOISE * 0.3
+        return directions, time, statics(directions) + path + rng.normal(size=(n_poses, 6)) * NOISE
+    pieces = []
+    for i in range(n_poses):
+        pieces.append(np.repeat(directions[i][None], per_pose, axis=0))
+        if scenario == "moves" and i + 1 < n_poses:
+            s = np.linspace(0.0, 1.0, move + 2)[1:-1, None]
+            turn = directions[i] * (1 - s) + directions[i + 1] * s
+            pieces.append(G * turn / np.linalg.norm(turn, axis=1, keepdims=True))
+    g = np.concatenate(pieces)
+    n = len(g)
+    wrench = statics(g)
+    if scenario == "moves":
+        wrench = lfilter([0.5], [1.0, -0.5], wrench, axis=0, zi=0.5 * wrench[:1])[0]
+    hold = np.cumsum(np.r_[0, np.any(np.diff(g, axis=0) != 0, axis=1)])
+    wrench += rng.normal(size=(hold[-1] + 1, 6))[hold] * NOISE * 0.3
+    wrench += BIAS + np.cumsum(rng.normal(size=(n, 6)), axis=0) * NOISE * 0.03
+    wrench += lfilter([np.sqrt(1 - 0.9 ** 2)], [1.0, -0.9], rng.normal(size=(n, 6)), axis=0) * NOISE
+    return g, np.arange(n) / RATE_HZ, wrench
+
+
+def identify(g, time, wrench, model, labels=None):
+    labels = np.full(len(g), "run", dtype=object) if labels is None else labels
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # a pose set may be poorly excited in some seeds; not what is tested
+        return identify_recording(PayloadRecording(wrench, Kinematics(g), labels, time, None), bias_drift=model,
+                                  time_column="time")
+
+
+def block_refit_spread(g, time, wrench, model, n_blocks=5):
+    """Delete-a-contiguous-block jackknife standard error of the mass (refits on the kept rows)."""
+    edges = np.linspace(0, len(g), n_blocks + 1).astype(int)
+    masses = []
+    for a, b in zip(edges[:-1], edges[1:]):
+        keep = np.r_[0:a, b:len(g)]
+        masses.append(identify(g[keep], time[keep], wrench[keep], model).fit.mass)
+    masses = np.array(masses)
+    return np.sqrt((n_blocks - 1) / n_blocks * np.sum((masses - masses.mean()) ** 2))
+
+
+CASES = [("holds", "none"), ("holds", "random-walk"), ("moves", "none"), ("moves", "random-walk"),
+         ("per-pose", "none"), ("per-pose", "random-walk"), ("holds", "linear")]
+
+
+@pytest.mark.parametrize("scenario,model", CASES)
+def test_stated_mass_stderr_matches_the_spread_of_delete_a_block_refits(scenario, model):
+    # One 5-block spread has 4 degrees of freedom (its own error ~35 %): the median over seeds is compared.
+    ratios = []
+    for seed in range(6):
+        g, time, wrench = simulate(scenario, seed)
+        stated = identify(g, time, wrench, model).fit.stderr["mass"]
+        ratios.append(stated / block_refit_spread(g, time, wrench, model))
+    assert 0.5 <= np.median(ratios) <= 2.0, ratios
+
+
+def test_a_lagging_sensor_during_moves_does_not_bias_the_random_walk_mass():
+    # Before: the walk took the mass from the turns, where the lag biases it (coverage 27 % in 30 seeds).
+    z = []
+    for seed in range(12):
+        g, time, wrench = simulate("moves", seed)
+        fit = identify(g, time, wrench, "random-walk").fit
+        z.append((fit.mass - MASS) / fit.stderr["mass"])
+    assert np.mean(np.abs(z) < 1.96) >= 0.75, np.round(z, 2)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("scenario,model", [("holds", "none"), ("holds", "random-walk"), ("moves", "random-walk"),
+                                            ("per-pose", "random-walk"), ("per-pose", "auto")])
+def test_95_percent_intervals_cover_the_true_mass(scenario, model):
+    z = []
+    for seed in range(100):
+        g, time, wrench = simulate(scenario, 1000 + seed, n_poses=20, per_pose=40)
+        fit = identify(g, time, wrench, model).fit
+        z.append((fit.mass - MASS) / fit.stderr["mass"])
+    assert np.mean(np.abs(z) < 1.96) >= 0.90, np.sort(np.abs(z))[-15:]
+
+
+# ---------------------------------------------------------------- the random walk honours the groups
+def test_random_walk_cross_validates_over_the_groups(tmp_path):
+    g, time, wrench = simulate("holds", 4)
+    labels = np.array([f"part{k}" for k in np.arange(len(g)) * 5 // len(g)], dtype=object)
+    fit = identify(g, time, wrench, "random-walk", labels).fit
+    assert [r.group for r in fit.cross_validation] == [f"part{k}" for k in range(5)]
+    scored = [r.rms for r in fit.cross_validation if r.rms is not None]
+    assert len(scored) == 5
+    # Held-out residuals are at least the noise (a group's own samples were not fitted), and finite.
+    held_out = np.sqrt(np.mean(np.square(scored), axis=0))
+    assert np.all(np.isfinite(held_out)) and np.all(held_out[:3] > 0.5 * NOISE[:3])
+    frame = pd.DataFrame(np.c_[time, g, wrench], columns=["time", "gx", "gy", "gz", "u1", "u2", "u3", "u4", "u5",
+                                                          "u6"])
+    frame["part"] = labels
+    frame.to_parquet(tmp_path / "rec.parquet")
+    out = subprocess.run([FTCAL, "payload", str(tmp_path / "rec.parquet"), "--gravity-columns", "gx,gy,gz",
+                          "--time", "time", "--keep-moving", "--group-by", "part", "--bias-drift", "random-walk",
+                          "-o", str(tmp_path / "p.json")], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert "5 group(s)" in out.stdout and "one group only" not in out.stdout
+    assert "each group left out of the fit in turn" in out.stdout
+
+
+# ---------------------------------------------------------------- two models of one recording
+def test_a_drift_that_follows_the_pose_order_is_named_and_the_drift_model_trusted():
+    # Gravity's z component rises with time while the Fz bias drifts: a constant bias puts the drift into
+    # the mass. The linear model is the truth here.
+    rng = np.random.default_rng(11)
+    n_poses, per_pose = 24, 50
+    tilt = np.linspace(0.2, 2.9, n_poses)
+    azimuth = rng.uniform(0, 2 * np.pi, n_poses)
+    directions = -G * np.c_[np.sin(tilt) * np.cos(azimuth), np.sin(tilt) * np.sin(azimuth), np.cos(tilt)]
+    g = np.repeat(directions, per_pose, axis=0)
+    time = np.arange(len(g)) / RATE_HZ
+    hours = time / 3600.0
+    wrench = statics(g) + BIAS + rng.normal(size=(len(g), 6)) * NOISE
+    wrench[:, 2] += 40.0 * hours  # 1.3 N over the 2-minute recording
+    result = identify(g, time, wrench, "linear")
+    assert abs(result.constant.mass - MASS) > 3 * result.constant.stderr["mass"]  # the leak is real
+    assert abs(result.fit.mass - MASS) < 3 * result.fit.stderr["mass"]
+    verdict = result.verdict()
+    assert "disagree beyond their errors" in verdict
+    assert "trust the bias linear in time" in verdict
