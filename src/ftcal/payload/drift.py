@@ -298,6 +298,12 @@ def _filter(ratio: np.ndarray, steps: np.ndarray, noise: np.ndarray, data: np.nd
     if observed is None:
         observed = np.ones(data.shape[0], bool)
     seen = np.broadcast_to(observed, shape[:1] + (data.shape[0],)).astype(float)  # (L, B)
+    if not np.any(ratio):  # no walk: the state stays 0 and F = noise, so the sums need no recursion
+        weight = seen / noise[None]  # (L, B)
+        cross = np.broadcast_to(np.einsum("lb,bjc,bjd->ljcd", weight, data, data), shape + (width, width)).copy()
+        log_f = np.broadcast_to((seen @ np.log(noise))[:, None], shape).copy()
+        cross[..., 1:, 1:] += np.einsum("jc,cd->jcd", pad.astype(float), np.eye(width - 1))
+        return log_f, cross
     for k in range(data.shape[0]):
         p = p + ratio * steps[k]
         f = p + noise[k]
@@ -433,26 +439,30 @@ def fit_state_space(blocks: Blocks, kind: str, temperature: bool = False, held: 
     at_end = _end_gradient(x, ratio, steps, noise, kind, observed)
     end_se = np.sqrt(np.maximum(end_var * r + np.einsum("jp,pq,jq->j", at_end, covariance, at_end), 0.0))
     n_free = n_beta + 6 + (6 if kind == "random-walk" else 0)
-    held_out = tuple(_refit_without(fold, theta.size, kept, ratio, steps, noise, data, pad, observed, r, index,
-                                    x, blocks, kind == "linear") for fold in folds)
+    held_out = _refit_without(tuple(folds), theta.size, kept, ratio, steps, noise, data, pad, observed, r, index,
+                              x, blocks, kind == "linear")
     return StateSpaceFit(kind, names, theta, covariance, r, ratio * r, float(log_lik), n_free, 6 * n_observed,
                          trajectory, end_se, n_blocks - n_observed, stretches, held_out)
 
 
-def _refit_without(fold, p, kept, ratio, steps, noise, data, pad, observed, r, index, x, blocks, slope):
-    """θ (all P parameters) and the smoothed bias trajectory fitted without the blocks ``fold`` marks; None
-    when the rest cannot determine θ."""
-    train = observed & ~fold
-    _, cross = _filter(ratio[None], steps, noise, data, pad, train)
+def _refit_without(folds, p, kept, ratio, steps, noise, data, pad, observed, r, index, x, blocks, slope):
+    """Per fold, θ (all P parameters) and the smoothed bias trajectory fitted without the blocks the fold
+    marks (all folds in one batched filter and smoother pass); None when the rest cannot determine θ."""
+    if not folds:
+        return ()
+    train = observed[None] & ~np.asarray(folds)
+    _, cross = _filter(np.broadcast_to(ratio, (len(train), 6)), steps, noise, data, pad, train)
     gram, rhs = _joint_normal_equations(cross[..., 1:, 1:], cross[..., 1:, 0], r, index, pad, len(kept))
-    scale = 1.0 / np.sqrt(np.maximum(np.diag(gram[0]), 1e-300))
-    scaled = gram[0] * scale[:, None] * scale[None, :]
-    if not np.any(train) or np.linalg.cond(scaled) > 1e12:
-        return None
-    theta = np.zeros(p)
-    theta[kept] = scale * np.linalg.solve(scaled, rhs[0] * scale)
-    trajectory, _ = _smooth(theta, x, blocks, ratio, steps, noise, slope, train)
-    return theta, trajectory
+    thetas = np.zeros((len(train), p))
+    ok = np.zeros(len(train), bool)
+    for g in range(len(train)):
+        scale = 1.0 / np.sqrt(np.maximum(np.diag(gram[g]), 1e-300))
+        scaled = gram[g] * scale[:, None] * scale[None, :]
+        if np.any(train[g]) and np.linalg.cond(scaled) <= 1e12:
+            thetas[g, kept] = scale * np.linalg.solve(scaled, rhs[g] * scale)
+            ok[g] = True
+    trajectories, _ = _smooth(thetas, x, blocks, ratio, steps, noise, slope, train)
+    return tuple((thetas[g], trajectories[g]) if ok[g] else None for g in range(len(train)))
 
 
 def _joint_normal_equations(s_loc, rhs_loc, r, index, pad, n_beta):
@@ -533,28 +543,39 @@ def _grid_best(ratios, steps, noise, data, pad, n_columns, n_blocks, observed) -
 
 def _smooth(theta, x, blocks, ratio, steps, noise, slope: bool, observed):
     """RTS-smoothed bias at every block (β fixed, temperature term excluded), and the walk's filtered
-    variance at the last block (noise variance units)."""
+    variance at the last block (noise variance units).
+
+    ``theta`` (P,) with ``observed`` (B,), or L refits at once: ``theta`` (L, P) with ``observed`` (L, B)
+    (then the trajectory is (L, B, 6) and the variance (L, 6)).
+    """
+    single = np.ndim(theta) == 1
+    theta = np.atleast_2d(theta)
+    seen = np.broadcast_to(observed, (theta.shape[0], len(steps))).astype(float)
     at = STATIC_PARAMETERS.index("Fx_bias")
-    model = theta[at:at + 6] + (blocks.hours[:, None] * theta[10:16] if slope else 0.0)
-    residual = blocks.wrench - np.einsum("bjp,p->bj", x, theta)
-    n_blocks = len(steps)
-    pred_p = np.zeros((n_blocks, 6))
-    filt_p = np.zeros((n_blocks, 6))
-    filt_d = np.zeros((n_blocks, 6))
-    p, d = np.zeros(6), np.zeros(6)
+    model = theta[:, None, at:at + 6] + (blocks.hours[None, :, None] * theta[:, None, 10:16] if slope else 0.0)
+    if not np.any(ratio):  # no walk: the filter never moves (p stays 0)
+        out, var = np.broadcast_to(model, (theta.shape[0], len(steps), 6)).copy(), np.zeros((theta.shape[0], 6))
+        return (out[0], var[0]) if single else (out, var)
+    residual = blocks.wrench[None] - np.einsum("bjp,lp->lbj", x, theta)
+    n, n_blocks = theta.shape[0], len(steps)
+    pred_p = np.zeros((n_blocks, n, 6))
+    filt_p = np.zeros((n_blocks, n, 6))
+    filt_d = np.zeros((n_blocks, n, 6))
+    p, d = np.zeros((n, 6)), np.zeros((n, 6))
     for k in range(n_blocks):
         p = p + ratio * steps[k]
         pred_p[k] = p
-        gain = p / (p + noise[k]) if observed[k] else 0.0
-        d = d + gain * (residual[k] - d)
+        gain = seen[:, k, None] * p / (p + noise[k])
+        d = d + gain * (residual[:, k] - d)
         p = p * (1.0 - gain)
         filt_p[k], filt_d[k] = p, d
     smooth = filt_d.copy()
     for k in range(n_blocks - 2, -1, -1):
         nxt = pred_p[k + 1]
-        gain = np.divide(filt_p[k], nxt, out=np.zeros(6), where=nxt > 0)
+        gain = np.divide(filt_p[k], nxt, out=np.zeros_like(nxt), where=nxt > 0)
         smooth[k] = filt_d[k] + gain * (smooth[k + 1] - filt_d[k])
-    return model + smooth, filt_p[-1]
+    out = model + smooth.transpose(1, 0, 2)
+    return (out[0], filt_p[-1][0]) if single else (out, filt_p[-1])
 
 
 def _end_gradient(x, ratio, steps, noise, kind, observed) -> np.ndarray:
