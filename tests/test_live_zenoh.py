@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-zenoh = pytest.importorskip("zenoh")
+import zenoh  # the test extra installs eclipse-zenoh: a missing one is a failure, not a skip
 
 from ftcal.files.payload_json import save_payload  # noqa: E402
 from ftcal.live.zenoh_node import IMU_TYPE, topic_key, typestore, wrench_message, zenoh_config  # noqa: E402
