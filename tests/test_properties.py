@@ -237,6 +237,7 @@ def history_bytes(tmp_path_factory):
 
 @SLOW
 @given(st.lists(st.tuples(st.integers(0, 10**9), st.integers(0, 7)), min_size=1, max_size=16), st.booleans())
+@example(flips=[(2416, 7)], truncate=False)  # found by this test: a text byte that is not UTF-8 (UnicodeDecodeError)
 def test_a_damaged_history_is_read_or_refused_in_one_line(tmp_path_factory, history_bytes, flips, truncate):
     data = bytearray(history_bytes)
     for position, bit in flips:

@@ -239,6 +239,12 @@ class History:
             if self._connection is not None:
                 self._connection.close()
             raise self._failure(exc, "open") from None
+        except UnicodeDecodeError:  # a damaged byte in a text of the schema or the meta table
+            check = self._integrity()
+            raise FtcalError(f"{self.path}: " + (f"not an intact ftcal history database (integrity check: {check}); "
+                                                 "move it aside to start a new history." if check else
+                                                 "holds text that is not UTF-8 (edited?); not a usable history."
+                                                 )) from None
 
     # -- opening ---------------------------------------------------------------------------------
 
@@ -359,8 +365,11 @@ class History:
         """SQLite's quick_check on a fresh read-only connection: its first complaint, or None when it passes."""
         try:
             conn = sqlite3.connect(self._uri(), uri=True, timeout=READ_TIMEOUT_S, isolation_level=None)
+            conn.text_factory = lambda raw: raw.decode("utf-8", "replace")  # its report may quote damaged text
             try:
                 result = conn.execute("PRAGMA quick_check").fetchone()[0]
+            except UnicodeDecodeError:
+                return "text that is not UTF-8 where SQLite keeps its schema"
             finally:
                 conn.close()
         except sqlite3.DatabaseError as exc:
@@ -489,6 +498,8 @@ class History:
             return {r[0] for r in self._connection.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
         except sqlite3.DatabaseError as exc:
             raise self._failure(exc, "read") from None
+        except UnicodeDecodeError:
+            raise FtcalError(f"{self.path}: its schema holds text that is not UTF-8; not a usable history.") from None
 
     @contextlib.contextmanager
     def _row(self, table: str, row_id) -> Iterator[None]:
