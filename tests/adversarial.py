@@ -629,6 +629,10 @@ def base_invocations(fx: dict, o) -> dict:
         "payload": lambda f: (["payload", str(fx["poses"]), *pose, "-o", o(f, "p.json")], [o(f, "p.json")]),
         "compensate": lambda f: (["compensate", str(fx["payload"]), str(fx["poses"]), *pose, "-o", o(f, "c.csv")],
                                  [o(f, "c.csv")]),
+        "simulate": lambda f: (["simulate", str(fx["plan"]), "--urdf", str(fx["arm"]), "--load", "none", "--load",
+                                "tool:1@0.03,0,0.04", "--hold", "0.2", "--rate", "50", "--format", "table",
+                                "-o", o(f, "sim")], [o(f, "sim/truth.json"), o(f, "sim/loads.toml")]),
+        "live": lambda f: (["live", "--replay", str(fx["live"]), *pose, "-o", o(f, "l.parquet")], [o(f, "l.parquet")]),
     }
 
 
@@ -639,10 +643,10 @@ EXEMPT = {
     ("demo", "--scenario"): "runs the whole demo (minutes); tests/test_demo.py",
     ("demo", "--seed"): "runs the whole demo (minutes); tests/test_demo.py",
 }
-NUMBER_TYPES = {"int", "nonnegative_int", "positive_int", "positive_float", "finite_float"}
+NUMBER_TYPES = {"int", "nonnegative_int", "positive_int", "positive_float", "finite_float", "fraction"}
 NUMBER_VALUES = ("0", "-1", "nan", "1e308", "x")
 PAIR_TYPES = {"joint_pin", "joint_range", "_frame_pair", "degree_value", "lambda_grid", "noise_pair", "penalty_list",
-              "safe_name"}
+              "safe_name", "pair", "mistake", "tool_spec", "switch_spec", "float_list"}
 PAIR_VALUES = ("", "x", "nan:1", "1e308,1e308", "1,1")
 COLUMN_VALUES = ("", "nope", "u1,u1", "u1,u2,u3,u4,u5,u6,u7", "f\npwned")
 TEXT_VALUES = ("", "nope", "f\nwrote 1 file", "k" * 3000)
@@ -684,7 +688,7 @@ def parser_options() -> dict[str, list]:
 def uncovered(fx: dict | None = None) -> list[str]:
     """Subcommands without a base invocation and options without a generator (nor an exemption)."""
     bases = base_invocations(fx or {k: Path(k) for k in ("model", "csv", "arm", "urdf", "joints", "mcap-file", "mlp",
-                                                          "poses", "payload")}, lambda f, n: n)
+                                                          "poses", "payload", "plan", "live")}, lambda f, n: n)
     missing = []
     for command, actions in parser_options().items():
         if command not in bases and not all((command, max(a.option_strings, key=len)) in EXEMPT for a in actions):

@@ -205,3 +205,34 @@ def test_raw_channels_of_a_linear_sensor_invert_to_the_statics_with_the_true_mat
         statics = np.concatenate([mass * g, np.cross(com, mass * g)])
         assert inside.sum() > 50
         assert np.all(np.abs(recovered[inside.to_numpy()] - statics) <= bound)
+
+
+def test_a_session_that_fails_part_way_leaves_nothing_behind(tmp_path, monkeypatch, capsys):
+    # The session's last file fails to write (a full disk, say): no recording, loads.toml or truth.json appears,
+    # and files the user already had in the folder are untouched.
+    from ftcal.sim import robot_recording
+    from ftcal.sim.plan_arm import ARM_URDF
+
+    urdf = tmp_path / "arm.urdf"
+    urdf.write_text(ARM_URDF)
+    plan = tmp_path / "plan.csv"
+    assert main(["plan", "--urdf", str(urdf), "--poses", "4", "--candidates", "60", "--load", "none", "--load",
+                 "tool:1@0.03,0,0.04", "-o", str(plan)]) == 0
+    out = tmp_path / "sim"
+    out.mkdir()
+    (out / "mine.txt").write_text("keep")
+    written = []
+    original = robot_recording.write_text_atomic
+
+    def failing(path, *args, **kwargs):  # the last file of the session, truth.json, cannot be written
+        if Path(path).name == "truth.json":
+            raise OSError(28, "No space left on device")
+        written.append(Path(path).name)
+        return original(path, *args, **kwargs)
+
+    monkeypatch.setattr(robot_recording, "write_text_atomic", failing)
+    code = main(["simulate", str(plan), "--urdf", str(urdf), "--load", "none", "--load", "tool:1@0.03,0,0.04",
+                 "--hold", "0.2", "--rate", "50", "--format", "table", "-o", str(out)])
+    assert code == 2 and "No space left on device" in capsys.readouterr().err
+    assert written == ["loads.toml"]  # the recordings and loads.toml were written (staged) before the failure
+    assert sorted(p.name for p in out.iterdir()) == ["mine.txt"]

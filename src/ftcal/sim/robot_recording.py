@@ -34,6 +34,9 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import shutil
+import tempfile
 import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
@@ -250,14 +253,35 @@ def simulate_session(robot: RobotModel, sensor_name: str, waypoints: Waypoints, 
     -------
     Session
     """
-    from ..robot.expected import expected_wrenches
-
     ft = robot.sensor(sensor_name)
     _, base_name = robot.base_frame(base)
     position, velocity = joint_bounds(robot)
     check_within_limits(waypoints, robot, position)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    # Everything is written into a hidden staging folder first and moved in at the end, so that a failure
+    # part-way (a bad load, a full disk, Ctrl-C) leaves no partial session beside the user's files.
+    stage = Path(tempfile.mkdtemp(prefix=".simulate-", dir=out))
+    try:
+        truth, recordings = _simulate_into(stage, robot, ft, base_name, waypoints, sensor, loads, config)
+        for item in sorted(stage.iterdir()):
+            target = out / item.name
+            if target.is_dir() and not target.is_symlink():
+                shutil.rmtree(target)
+            os.replace(item, target)
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
+    for rec in recordings:
+        rec["files"] = [str(out / Path(f).name) for f in rec["files"]]
+    return Session(out, recordings, truth)
+
+
+def _simulate_into(out: Path, robot: RobotModel, ft, base_name: str, waypoints: Waypoints, sensor: SensorModel,
+                   loads: Sequence[Payload | None], config: SimulationConfig) -> tuple[dict, list[dict]]:
+    """:func:`simulate_session`'s work, writing into ``out`` (the staging folder)."""
+    from ..robot.expected import expected_wrenches
+
+    position, velocity = joint_bounds(robot)
     rng = np.random.default_rng([config.seed, 31])
     runs = _runs(waypoints.load)
     motions = [Motion(waypoints.q[a:b], config.speed * velocity, config.hold_s, config.min_move_s) for a, b, _ in runs]
@@ -314,7 +338,7 @@ def simulate_session(robot: RobotModel, sensor_name: str, waypoints: Waypoints, 
         "recordings": truth_recordings,
     }
     write_text_atomic(out / "truth.json", json.dumps(truth, indent=2, allow_nan=False) + "\n")
-    return Session(out, recordings, truth)
+    return truth, recordings
 
 
 def read_truth(path: str | Path) -> tuple[dict, SensorModel]:
