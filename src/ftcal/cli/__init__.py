@@ -269,8 +269,17 @@ def run(argv: list[str] | None) -> int:
     from ..runtime.atomic import check_not_an_input, protected_inputs
     from ..runtime.errors import FtcalError, FtcalWarning
 
+    import time
+
+    from .. import _command_starting
+
+    # CPU seconds this command has used start here: at the process's start for the `ftcal` command (its imports
+    # count), at this call when main() runs inside another program (a test, a notebook), whose earlier CPU
+    # must not eat into --budget.
+    cpu_start = 0.0 if _command_starting() else time.process_time()
     parser = build_parser()
     args = parser.parse_args(argv)
+    args.cpu_start = cpu_start
     if args.version:
         from .. import __version__
         print(__version__)

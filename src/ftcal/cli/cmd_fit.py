@@ -243,7 +243,7 @@ def cross_validation(args, data, template, n_samples: int, n_inputs: int):
                              min(args.folds, n_groups), penalties=penalties,
                              n_lambdas=n_lambdas, na=args.na, nb=args.nb,
                              n_bases=1 if template.normalization == "center" or fixed or not penalties else 2,
-                             spent_seconds=time.process_time())
+                             spent_seconds=time.process_time() - args.cpu_start)
     degrees, note = estimate.within(args.budget, SELECTION_MEMORY_BYTES)
     planned = estimate.restricted(degrees)
     print(planned.describe() + f" (--budget {args.budget:g} s)")
@@ -258,9 +258,9 @@ def cross_validation(args, data, template, n_samples: int, n_inputs: int):
                                     advance=advance, **options)
         else:
             paper = args.lambdas is not None and args.lambdas == PAPER_LAMBDAS
+            budget = SearchBudget(args.budget, planned, clock=lambda: time.process_time() - args.cpu_start)
             result = select_model(data, degrees=degrees, penalties=args.penalties, lambdas=args.lambdas,
-                                  relative=not paper, budget=SearchBudget(args.budget, planned), advance=advance,
-                                  **options)
+                                  relative=not paper, budget=budget, advance=advance, **options)
     print(result.table() if args.verbose else result.summary())
     from ..core.excitation import group_output_ranges, held_out_span
 
