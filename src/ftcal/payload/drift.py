@@ -51,6 +51,8 @@ MAX_KNOTS = 500
 _GRID = 25  # walk-to-noise ratios tried per axis, log-spaced (then refined once)
 # A block moves when its gravity's spread (RMS about its mean) exceeds this fraction of |g| (about 0.06°).
 MOVING_SPREAD = 1e-3
+# Smallest residual sum of squares of an axis, relative to its innovations' (rounding level, with margin).
+RSS_FLOOR = 1e-10
 
 
 @dataclass(frozen=True)
@@ -401,7 +403,10 @@ def fit_state_space(blocks: Blocks, kind: str, temperature: bool = False, held: 
     log_f, cross = log_f[0], cross[0]
     s_loc, rhs_loc, yy = cross[:, 1:, 1:], cross[:, 1:, 0], cross[:, 0, 0]
     beta_loc = np.linalg.solve(s_loc, rhs_loc[..., None])[..., 0]
-    rss = np.maximum(yy - np.einsum("jc,jc->j", rhs_loc, beta_loc), 1e-300)
+    # An axis whose walk follows every block (the grid's top ratio) leaves almost no residual; its noise
+    # variance is floored relative to the axis's own innovations, else 1/r weighs rounding (gravity's 1e-16
+    # along an axis it never loads) by 1e300 and the joint solve breaks down (a mass of -1e30 kg).
+    rss = np.maximum(yy - np.einsum("jc,jc->j", rhs_loc, beta_loc), RSS_FLOOR * np.maximum(yy, 1e-300))
     r = rss / (n_observed - n_columns)  # REML noise variance of each axis
     gram, rhs = _joint_normal_equations(s_loc[None], rhs_loc[None], r, index, pad, n_beta)
     gram, rhs = gram[0], rhs[0]
