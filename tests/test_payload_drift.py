@@ -214,12 +214,13 @@ def table(tmp_path_factory):
     backwards = time.copy()
     backwards[57] = backwards[56]
     write_table(tmp / "backwards.parquet", g, backwards, wrench)
+    pd.read_parquet(tmp / "ok.parquet").drop(columns="time").to_parquet(tmp / "notime.parquet")
     return tmp
 
 
 @pytest.mark.parametrize("args, message", [
-    (["ok.parquet", "--bias-drift", "linear"], "--bias-drift linear needs the time column: give --time COL."),
-    (["ok.parquet", "--bias-drift", "random-walk"], "--bias-drift random-walk needs the time column"),
+    (["notime.parquet", "--bias-drift", "linear"], "--bias-drift linear needs the time column and"),
+    (["notime.parquet", "--bias-drift", "random-walk"], "has none named 'time': give --time COL."),
     (["backwards.parquet", "--time", "time", "--bias-drift", "linear"],
      "backwards.parquet: time column 'time' does not increase at row 57"),
     (["ok.parquet", "--temperature", "temp"], "--temperature temp: the column is constant (25)"),
@@ -234,6 +235,14 @@ def test_bad_drift_input_is_one_line_exit_2(table, args, message):
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and message in lines[0] and "Traceback" not in done.stderr
     assert not (table / "out.json").exists()
+
+
+def test_the_time_column_defaults_to_time_as_the_help_says(table):
+    # --time's help: "default: the column 'time' where there is one"; the drift models then need no --time.
+    done = ftcal("payload", table / "ok.parquet", "--bias-drift", "linear", "--gravity-columns", "gx,gy,gz",
+                 "-o", table / "default-time.json")
+    assert done.returncode == 0, done.stderr
+    assert json.loads((table / "default-time.json").read_text())["drift"]["time_column"] == "time"
 
 
 # ---------------------------------------------------------------- payload file

@@ -69,7 +69,13 @@ def run(args) -> int:
     if args.rebias:
         return run_rebias(args)
     if args.time is None and args.bias_drift in ("linear", "random-walk"):
-        raise FtcalError(f"--bias-drift {args.bias_drift} needs the time column: give --time COL.")
+        from ..data.table_chunks import table_has_columns
+
+        # As --time's help says: the column 'time' where every table has one.
+        if not all(table_has_columns(path, ["time"]) for path in args.data):
+            raise FtcalError(f"--bias-drift {args.bias_drift} needs the time column and {', '.join(args.data)} "
+                             "has none named 'time': give --time COL.")
+        args.time = "time"
     if args.dynamic and args.bias_drift in ("linear", "random-walk"):
         raise FtcalError(f"--bias-drift {args.bias_drift} works with static poses only; leave out --dynamic "
                          "or use --bias-drift none.")
