@@ -83,9 +83,18 @@ def test_mlp_max_iter_below_one_checkpoint_is_no_traceback(tmp_path, capsys, max
     frame = pd.DataFrame(np.c_[u, np.tanh(u)], columns=["u1", "u2", "u3", "Fx", "Fy", "Fz"])
     frame["g"] = np.repeat(["a", "b", "c"], 50)
     frame.to_csv(tmp_path / "d.csv", index=False)
-    assert main(["fit", str(tmp_path / "d.csv"), "--inputs", "u1,u2,u3", "--outputs", "Fx,Fy,Fz", "--family", "mlp",
-                 "--hidden", "3", "--max-iter", max_iter, "--group-by", "g", "-o", str(tmp_path / "m.json")]) == 0
-    assert json.loads((tmp_path / "m.json").read_text())["family"] == "mlp"
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")  # main() prints ftcal's warnings as one stderr line each
+        code = main(["fit", str(tmp_path / "d.csv"), "--inputs", "u1,u2,u3", "--outputs", "Fx,Fy,Fz", "--family",
+                     "mlp", "--hidden", "3", "--max-iter", max_iter, "--group-by", "g", "-o", str(tmp_path / "m.json")])
+    assert code == 0
+    # A network stopped after 1 or 5 iterations may validate worse than affine: then the guard writes the affine
+    # model and says so; either way a model file is written and nothing ends in a traceback.
+    lost = "validates worse than the affine model" in capsys.readouterr().err
+    family = json.loads((tmp_path / "m.json").read_text()).get("family", "polynomial")
+    assert family == ("polynomial" if lost else "mlp")
 
 
 def test_an_empty_option_value_is_refused_in_one_line(tmp_path, capsys):

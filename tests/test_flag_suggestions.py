@@ -81,7 +81,8 @@ def literal_parts(node: ast.AST):
 def suggested(text: str, default: set[str] | None):
     """(flag, commands it must belong to, placeholder after it) per flag; a preceding 'ftcal OTHER' overrides."""
     for match in FLAG.finditer(text):
-        before = OTHER_COMMAND.findall(text[:match.start()])
+        # 'ftcal OTHER' names a command only when OTHER is one ("an ftcal history", "ftcal keeps" are prose).
+        before = [name for name in OTHER_COMMAND.findall(text[:match.start()]) if name in COMMAND_MODULES]
         yield match.group(0), ({before[-1]} if before else default), metavar_after(text, match.end())
 
 
