@@ -167,7 +167,7 @@ def test_docs_api_lists_exactly_the_public_names():
 
     import ftcal
 
-    page = (Path(__file__).parents[1] / "docs" / "api.md").read_text(encoding="utf-8")
+    page = (Path(__file__).parents[1] / "docs/api.md").read_text(encoding="utf-8")
     listed = set(re.findall(r"^\| `(\w+)` \|", page, flags=re.MULTILINE))
     assert listed == set(ftcal.__all__)
     assert set(ftcal.__all__) <= set(dir(ftcal))

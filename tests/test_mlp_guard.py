@@ -45,12 +45,14 @@ def plate(path, seed=0, n_cases=9, per_case=6):
 
 
 def test_an_mlp_worse_than_affine_beyond_the_fold_noise_is_not_written(tmp_path, capsys):
+    # One fold per load case: with 3 folds, t(2) makes the noise band so wide that whether a 5 N loss is
+    # "beyond the noise" depended on the L-BFGS path, which differs between OpenBLAS kernels.
     table = plate(tmp_path / "plate.csv")
     out = tmp_path / "m.json"
     with warnings.catch_warnings():
         warnings.simplefilter("always")  # the CLI prints them as "warning: ..." lines
         assert main(["fit", str(table), "--inputs", "u1,u2,u3,u4,u5,u6", "--group-by", "case", "--family", "mlp",
-                     "--hidden", "32,32", "--folds", "3", "-o", str(out)]) == 0
+                     "--hidden", "32,32", "--folds", "9", "-o", str(out)]) == 0
     captured = capsys.readouterr()
     assert "1478 weights for 54 rows" in captured.err  # 6-32-32-6, as on the plate
     assert "worse than the affine model beyond the fold noise" in captured.err
