@@ -236,3 +236,15 @@ def test_a_session_that_fails_part_way_leaves_nothing_behind(tmp_path, monkeypat
     assert code == 2 and "No space left on device" in capsys.readouterr().err
     assert written == ["loads.toml"]  # the recordings and loads.toml were written (staged) before the failure
     assert sorted(p.name for p in out.iterdir()) == ["mine.txt"]
+
+
+def test_a_truth_file_that_is_a_fifo_is_refused_without_hanging(tmp_path):
+    import os
+
+    from ftcal.runtime.errors import FtcalError
+    from ftcal.sim.robot_recording import read_truth
+
+    fifo = tmp_path / "truth.json"
+    os.mkfifo(fifo)
+    with pytest.raises(FtcalError, match="truth file"):
+        read_truth(fifo)

@@ -343,11 +343,13 @@ def _simulate_into(out: Path, robot: RobotModel, ft, base_name: str, waypoints: 
 
 def read_truth(path: str | Path) -> tuple[dict, SensorModel]:
     """A truth file and the sensor it describes (the same counts for the same inputs and noise)."""
-    path = Path(path)
+    from ..core.limits import MAX_TEXT_FILE_BYTES
+    from ..runtime.inputs import check_input_file
+
+    # Like every file ftcal reads: a regular file of bounded size (a FIFO would hang the read).
+    path = check_input_file(path, "truth file", max_bytes=MAX_TEXT_FILE_BYTES)
     try:
         document = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise FtcalError(f"truth file {path}: no such file.") from None
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise FtcalError(f"truth file {path}: cannot read it as JSON ({exc}).") from None
     if not isinstance(document, dict) or document.get("format") != TRUTH_FORMAT:
