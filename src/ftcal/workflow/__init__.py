@@ -1,0 +1,31 @@
+"""The steps of the pipeline, for the CLI, the demos and Python users alike.
+
+Each step (build a dataset, fit, select, evaluate, predict, identify a payload, compensate,
+check, plan, export) takes objects or paths, plus an optional executor for streaming or Dask,
+and returns a result object (:class:`ftcal.workflow.result.StepResult`) with ``summary()`` (the
+text the CLI prints), ``to_dict()``/``to_json()``, a useful ``repr`` and ``_repr_html_``.
+The CLI parses arguments, calls one step and prints its result; the demos call the same steps,
+so the defaults are the same everywhere.
+May import ``live``, ``check``, ``plan``, ``insitu``, ``report``, ``files``, ``robot``,
+``payload``, ``data``, ``core`` and ``runtime``; ``sim`` and ``cli`` import it.
+"""
+
+from __future__ import annotations
+
+# name -> module of this package that defines it; loaded on first use (numpy/scipy stay unloaded
+# for `ftcal --help`). Each step module adds its public names here.
+_STEPS: dict[str, str] = {"StepResult": "result"}
+
+__all__ = sorted(_STEPS)
+
+
+def __getattr__(name: str):
+    if name in _STEPS:
+        from importlib import import_module
+
+        return getattr(import_module(f".{_STEPS[name]}", __name__), name)
+    raise AttributeError(f"module 'ftcal.workflow' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
