@@ -1,0 +1,244 @@
+"""Fold scores of candidates per output, block or model, margins over the affine model, the stable choice.
+
+A candidate's fold scores come from its per-output mean squared errors; blocks are
+scored by their error-norm RMSE, the whole model by the objective (:class:`Scorer`).
+:class:`Comparison` is a margin over a reference with its fold-to-fold noise, and
+:func:`stable_choice` picks the candidate of a part: ties go to fewer nonzeros, and a
+win over the affine model within the fold noise keeps the affine model.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ...runtime.checks import check_choice
+from ...runtime.errors import FtcalError
+from .. import metrics
+from ..limits import OBJECTIVES, SELECT_PER
+from .candidates import AFFINE, Candidate
+
+TIE_TOLERANCE = 0.01  # candidates within 1% of the best score count as tied
+UNITS = {"force": "N", "torque": "N·m"}
+
+
+@dataclass(frozen=True)
+class Part:
+    """What one selection serves: one output, a force or torque block, or all outputs (``"model"``)."""
+
+    name: str
+    columns: tuple[int, ...]
+
+
+class Scorer:
+    """Fold scores of candidates for a part of the outputs, from their per-output mean squared errors.
+
+    Blocks are scored by their error-norm RMSE (√Σ MSE over the block's outputs); the
+    ``"model"`` part by ``objective``: the force or torque block, or (``"both"``) the mean
+    of the force and torque scores each divided by the affine model's.
+    """
+
+    def __init__(self, output_names: Sequence[str], objective: str = "both"):
+        self.output_names = tuple(output_names)
+        self.objective = check_choice(objective, "objective", "select_model", OBJECTIVES)
+        self.blocks = {name: tuple(cols) for name, cols in metrics.wrench_blocks(self.output_names).items()}
+        if objective != "both" and objective not in self.blocks:
+            raise FtcalError(f"objective={objective!r} needs {objective} outputs; the outputs are "
+                             f"{', '.join(self.output_names)}.")
+        self.affine: CandidateScore | None = None
+
+    @property
+    def metric(self) -> str:
+        if self.objective != "both":
+            return f"RMSE of the {self.objective} error norm ({UNITS[self.objective]})"
+        if len(self.blocks) == 2:  # the mean of the force and the torque block's ratio to the affine model's
+            return "error vs affine (force & torque)"
+        return "mean RMSE"
+
+    def block(self, mse: np.ndarray, columns: Sequence[int]) -> np.ndarray:
+        """√Σ MSE over ``columns``, per fold: the error-norm RMSE of a block, or an output's RMSE."""
+        return metrics.block_error_norm_rmse(mse, columns)
+
+    def objective_folds(self, mse: np.ndarray) -> np.ndarray:
+        mse = np.asarray(mse)
+        if self.objective != "both":
+            return self.block(mse, self.blocks[self.objective])
+        if len(self.blocks) == 2 and self.affine is not None:
+            ratios = [self.block(mse, cols) / max(self.block(np.asarray(self.affine.fold_mse), cols).mean(),
+                                                   np.finfo(float).tiny)
+                      for cols in self.blocks.values()]
+            return 0.5 * (ratios[0] + ratios[1])
+        return np.sqrt(mse).mean(axis=1)
+
+    def part_folds(self, mse: np.ndarray, part: Part) -> np.ndarray:
+        return self.objective_folds(mse) if part.name == "model" else self.block(mse, part.columns)
+
+    def parts(self, select_per: str) -> list[Part]:
+        """The parts a ``select_per`` selection chooses for (blocks fall back to outputs without a wrench)."""
+        select_per = check_choice(select_per, "select_per", "select_model", SELECT_PER)
+        everything = tuple(range(len(self.output_names)))
+        if select_per == "model":
+            return [Part("model", everything)]
+        if select_per == "block" and self.blocks:
+            used = {c for cols in self.blocks.values() for c in cols}
+            return ([Part(name, cols) for name, cols in self.blocks.items()]
+                    + [Part(self.output_names[j], (j,)) for j in everything if j not in used])
+        return [Part(self.output_names[j], (j,)) for j in everything]
+
+
+@dataclass
+class CandidateScore:
+    """A candidate's per-output validation and training MSE, one row per fold, and nonzero counts per output."""
+
+    candidate: Candidate
+    scorer: Scorer
+    fold_mse: list[np.ndarray] = field(default_factory=list)
+    fold_train_mse: list[np.ndarray] = field(default_factory=list)
+    fold_nonzero: list[np.ndarray] = field(default_factory=list)
+
+    @property
+    def fold_scores(self) -> list[float]:
+        """The objective's validation score per fold."""
+        return self.scorer.objective_folds(self.fold_mse).tolist()
+
+    @property
+    def fold_train_scores(self) -> list[float]:
+        return self.scorer.objective_folds(self.fold_train_mse).tolist()
+
+    @property
+    def score(self) -> float:
+        return float(np.mean(self.fold_scores))
+
+    @property
+    def train_score(self) -> float:
+        return float(np.mean(self.fold_train_scores))
+
+    @property
+    def nonzero(self) -> float:
+        return float(np.mean(np.sum(self.fold_nonzero, axis=1)))
+
+    def part_scores(self, part: Part, train: bool = False) -> np.ndarray:
+        return self.scorer.part_folds(self.fold_train_mse if train else self.fold_mse, part)
+
+    def part_nonzero(self, part: Part) -> float:
+        return float(np.mean(np.asarray(self.fold_nonzero)[:, list(part.columns)].sum(axis=1)))
+
+    def block_score(self, block: str, train: bool = False) -> float:
+        """Mean over folds of the ``"force"`` or ``"torque"`` error-norm RMSE (N, N·m)."""
+        return float(self.scorer.block(self.fold_train_mse if train else self.fold_mse,
+                                       self.scorer.blocks[block]).mean())
+
+    def as_dict(self) -> dict:
+        out = {**self.candidate.as_dict(), "validation_score": self.score, "train_score": self.train_score,
+               "fold_scores": self.fold_scores, "n_nonzero": self.nonzero,
+               "validation_rmse": dict(zip(self.scorer.output_names,
+                                           np.sqrt(np.mean(self.fold_mse, axis=0)).tolist()))}
+        for block in self.scorer.blocks:
+            out[f"validation_{block}_error_norm_rmse"] = self.block_score(block)
+        return out
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """A selection against the affine model, fold by fold.
+
+    Attributes
+    ----------
+    reference : Candidate
+        Least squares at the lowest degree scored (affine), or the best candidate of that degree.
+    margin : float
+        Mean over folds of (reference score − selection score); positive when the selection is better.
+    spread : float
+        Standard deviation of that difference over folds.
+    standard_error : float
+        ``spread / sqrt(n_folds)``.
+    """
+
+    reference: Candidate
+    margin: float
+    spread: float
+    standard_error: float
+    n_folds: int = 0  # 0: unknown (two standard errors)
+    searched: int = 1  # degrees the selection was the best of (a Bonferroni correction of the quantile)
+    log_margin: float | None = None  # mean over folds of log(reference score / selection score)
+    log_standard_error: float | None = None  # its standard error (None: a score not positive)
+
+    @property
+    def quantile(self) -> float:
+        """``t_{K−1, 1 − 0.025/D}`` for K folds and the best of D degrees (2 when K is unknown): the
+        half-width of a 95 % interval in standard errors (D = 1: 12.7 for 2 folds, 2.78 for 5, 2.26 for 10;
+        the best of 4 degrees over 5 folds needs 3.96)."""
+        if self.n_folds < 2:
+            return 2.0
+        from scipy.special import stdtrit  # not scipy.stats: a second of imports
+
+        return float(stdtrit(self.n_folds - 1, 1.0 - 0.025 / max(self.searched, 1)))
+
+    @property
+    def noise(self) -> float:
+        """The fold noise in the scores' units: :attr:`quantile` × the standard error of the margin."""
+        return self.quantile * self.standard_error
+
+    @property
+    def within_noise(self) -> bool:
+        """The advantage is under the fold noise. Judged on the log ratio of the fold scores when they are
+        positive: a fold with a large error and a large win does not drown out three consistent ones."""
+        if self.log_standard_error is not None:
+            return self.log_margin < self.quantile * self.log_standard_error
+        return self.margin < self.noise
+
+    @property
+    def loses(self) -> bool:
+        """Worse than the reference by more than the fold noise (on the log ratio when defined)."""
+        if self.log_standard_error is not None:
+            return self.log_margin < -self.quantile * self.log_standard_error
+        return self.margin < -self.noise
+
+    @classmethod
+    def of(cls, reference: Candidate, reference_folds: np.ndarray, folds: np.ndarray,
+           searched: int = 1) -> "Comparison":
+        reference_folds, folds = np.asarray(reference_folds, dtype=float), np.asarray(folds, dtype=float)
+        difference = reference_folds - folds
+        n = difference.size
+        spread = float(np.std(difference, ddof=1)) if n > 1 else 0.0
+        log_margin = log_se = None
+        if n > 1 and np.all(reference_folds > 0) and np.all(folds > 0):
+            ratio = np.log(reference_folds / folds)
+            log_margin, log_se = float(ratio.mean()), float(np.std(ratio, ddof=1) / np.sqrt(n))
+        return cls(reference, float(difference.mean()), spread, spread / np.sqrt(n), n, searched, log_margin, log_se)
+
+
+def stable_choice(ordered: list[CandidateScore], part: Part, notes: list[str]) -> Candidate:
+    """The best candidate for ``part``; ties (within 1% or one paired standard error) go to fewer nonzeros.
+
+    A win over the affine model within the fold noise keeps the affine model, and says so in ``notes``.
+    """
+    folds = {id(s): s.part_scores(part) for s in ordered}
+    best = min(ordered, key=lambda s: folds[id(s)].mean())
+    best_folds = folds[id(best)]
+
+    def tied(s: CandidateScore) -> bool:
+        difference = folds[id(s)] - best_folds
+        noise = np.std(difference, ddof=1) / np.sqrt(difference.size) if difference.size > 1 else 0.0
+        return difference.mean() + best_folds.mean() <= best_folds.mean() * (1 + TIE_TOLERANCE) \
+            or difference.mean() <= noise
+
+    chosen = min((s for s in ordered if tied(s)), key=lambda s: (s.part_nonzero(part), folds[id(s)].mean()))
+    # The stable choice: a win over affine least squares must exceed the fold noise (t-scaled), else a
+    # held-out set of another kind (a new orientation, a new load) can reverse it.
+    affine = next((s for s in ordered if s.candidate == AFFINE), None)
+    if affine is not None and chosen is not affine:
+        # The best of several degrees on the same folds: its margin is the largest of several (Bonferroni).
+        searched = max(len({s.candidate.degree for s in ordered} - {AFFINE.degree}), 1)
+        comparison = Comparison.of(AFFINE, folds[id(affine)], folds[id(chosen)], searched)
+        if comparison.within_noise:
+            if chosen.candidate.degree > AFFINE.degree:  # a penalty at degree 1 changes next to nothing
+                notes.append(
+                    f"{part.name}: {AFFINE.label} kept; {chosen.candidate.label} beats it by "
+                    f"{comparison.margin:+.3g} on average over {comparison.n_folds} folds, within their noise "
+                    f"(t quantile {comparison.quantile:.3g} for the best of {searched} degree(s) x the standard "
+                    "error of the fold-by-fold log ratio)")
+            return AFFINE
+    return chosen.candidate
