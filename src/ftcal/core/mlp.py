@@ -44,7 +44,7 @@ from . import metrics
 from .dataset import Dataset
 from .estimator import EstimatorParams
 from .limits import MLP_ACTIVATIONS, MLP_MAX_ITER, MLP_MAX_LAYERS, MLP_MAX_UNITS
-from .model import _as_dataset, _outputs_in_order
+from .model.frame import as_dataset, outputs_in_order
 from .normalization import Normalization, normalization_from_range, variables_normalization, variables_range
 from .ranges import RangeSums, describe, outside_by_channel
 from .select import grouped_folds
@@ -169,7 +169,7 @@ class MLPModel(EstimatorParams):
             Invalid parameters, data without outputs.
         """
         options = self._checked()
-        data = _as_dataset(data, outputs)
+        data = as_dataset(data, outputs)
         if data.outputs is None:
             raise FtcalError("Fitting needs reference outputs (the expected wrench); the data has none.")
         u, y = data.inputs, data.outputs
@@ -246,7 +246,7 @@ class MLPModel(EstimatorParams):
         ndarray of shape (n_samples, n_outputs)
         """
         self._check_fitted()
-        data = _as_dataset(data, None, self.input_names_)
+        data = as_dataset(data, None, self.input_names_)
         u = check_finite_matrix(data.select_inputs(self.input_names_), "inputs", len(self.input_names_),
                                 self.input_names_)
         if warn_out_of_range:  # one message, how far on which channel (as the polynomial family says it)
@@ -264,7 +264,7 @@ class MLPModel(EstimatorParams):
         self._check_fitted()
         if data.outputs is None:
             raise FtcalError("Evaluating needs reference outputs in the data.")
-        y = _outputs_in_order(data, self.output_names_)
+        y = outputs_in_order(data, self.output_names_)
         summary = metrics.summarize(y, self.predict(data, warn_out_of_range=warn_out_of_range), self.output_names_)
         summary["n_out_of_range"] = int(self.out_of_range(data.select_inputs(self.input_names_)).sum())
         return summary

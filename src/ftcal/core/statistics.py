@@ -13,6 +13,12 @@ groups into a few small matrix products. The compiled kernel (see
 :mod:`ftcal.core.kernels`) computes them tile by tile in cache; without it numpy
 computes the same sums chunk by chunk, about three times slower. ARX models (lagged
 columns) use plain chunked AᵀA.
+
+There is one statistics path: :class:`StatisticsAccumulator` takes raw samples,
+normalizes them and adds them up, chunk by chunk. A streamed file
+(:mod:`ftcal.data.streaming`) feeds it one chunk at a time; a dataset in memory
+(:func:`dataset_statistics`, :meth:`ftcal.core.model.CalibrationModel.statistics`)
+is the same accumulator fed one chunk, the whole dataset.
 """
 
 from __future__ import annotations
@@ -27,6 +33,7 @@ import numpy as np
 from ..runtime.threads import map_ranges
 from .features import MonomialBasis, RegressorLayout
 from .kernels import compiled, step_table
+from .normalization import Normalization
 
 CHUNK_SAMPLES = 1024  # numpy kernel: terms × samples chunks of this width; more calls cost more than cache misses
 
@@ -350,3 +357,103 @@ def layout_statistics(layout: RegressorLayout, u_norm: np.ndarray, y: np.ndarray
         if advance is not None:
             advance(stop - start)
     return stats
+
+
+class StatisticsAccumulator:
+    """Sufficient statistics of any layout from raw samples, added chunk by chunk: the one statistics path.
+
+    Each chunk is normalized (``in_norm`` for the inputs, ``out_norm`` for the past outputs of
+    ARX layouts) and added. Static layouts take the rows split anywhere (the moment path,
+    :class:`StaticAccumulator`); ARX layouts take whole segments, so lags never cross a
+    segment boundary, and keep one entry per segment in row order (:meth:`parts`): summed left
+    to right, the entries of consecutive files add in the order of the rows.
+
+    Parameters
+    ----------
+    layout : RegressorLayout
+    in_norm : Normalization
+        Maps raw inputs to the normalized inputs of the basis.
+    out_norm : Normalization, optional
+        Maps raw outputs to the normalized past outputs (needed by ARX layouts only).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> u = np.random.default_rng(0).uniform(-1, 1, (100, 2))
+    >>> y = u[:, :1] ** 2
+    >>> layout, identity = RegressorLayout(MonomialBasis(2, 2), 1), Normalization.identity(2)
+    >>> whole = StatisticsAccumulator(layout, identity)
+    >>> whole.add(u, y)
+    >>> chunked = StatisticsAccumulator(layout, identity)
+    >>> for start in range(0, 100, 30):
+    ...     chunked.add(u[start:start + 30], y[start:start + 30])
+    >>> bool(np.allclose(whole.statistics().gram, chunked.statistics().gram, rtol=1e-13, atol=0))
+    True
+    """
+
+    def __init__(self, layout: RegressorLayout, in_norm: Normalization, out_norm: Normalization | None = None):
+        self.layout = layout
+        self.in_norm = in_norm
+        self.out_norm = out_norm
+        self._static = StaticAccumulator(layout.basis, layout.n_outputs) if layout.is_static else None
+        self._segments: list[SufficientStatistics] = []
+
+    def add(self, u: np.ndarray, y: np.ndarray, segments: Iterable[tuple[int, int]] | None = None,
+            advance=None) -> None:
+        """Add raw inputs ``u`` (m, n_inputs) and targets ``y`` (m, n_outputs).
+
+        Parameters
+        ----------
+        u, y : ndarray
+        segments : iterable of (begin, end), optional
+            The segments of the chunk (row ranges, whole segments); ARX layouts only, by default
+            the chunk is one segment. Static layouts ignore it: their rows add up in any split.
+        advance : callable, optional
+            Called with sample counts as they are done (a progress bar).
+        """
+        u_norm = self.in_norm.apply(u)
+        if self._static is not None:
+            self._static.add(u_norm, y, advance=advance)
+            return
+        if self.out_norm is None:
+            raise ValueError("An ARX layout needs out_norm, the normalization of its past outputs.")
+        y_norm = self.out_norm.apply(y)
+        for begin, end in ([(0, u.shape[0])] if segments is None else segments):
+            self._segments.append(layout_statistics(self.layout, u_norm[begin:end], y[begin:end],
+                                                    y_norm[begin:end], advance=advance))
+
+    def parts(self) -> list[SufficientStatistics]:
+        """The statistics added so far: one entry for static layouts, one per segment (row order) for ARX."""
+        if self._static is not None:
+            return [self._static.statistics()]
+        return list(self._segments)
+
+    def statistics(self) -> SufficientStatistics:
+        """The statistics of every sample added so far (the :meth:`parts` summed left to right)."""
+        parts = self.parts()
+        if not parts:
+            return SufficientStatistics.zeros(self.layout.n_features, self.layout.n_outputs)
+        return sum_statistics(parts)
+
+
+def dataset_statistics(data, layout: RegressorLayout, in_norm: Normalization, out_norm: Normalization,
+                       advance=None) -> SufficientStatistics:
+    """Statistics of a dataset in memory: the :class:`StatisticsAccumulator` over one chunk, the whole dataset.
+
+    Parameters
+    ----------
+    data : Dataset
+        With ``inputs``, ``outputs`` and ``segment_bounds()`` (ARX lags stay inside segments).
+    layout : RegressorLayout
+    in_norm, out_norm : Normalization
+        The basis of the inputs and of the past outputs (ARX).
+    advance : callable, optional
+        Called with sample counts as they are done.
+
+    Returns
+    -------
+    SufficientStatistics
+    """
+    accumulator = StatisticsAccumulator(layout, in_norm, out_norm)
+    accumulator.add(data.inputs, data.outputs, None if layout.is_static else data.segment_bounds(), advance)
+    return accumulator.statistics()

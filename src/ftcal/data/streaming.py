@@ -24,7 +24,7 @@ from ..core.excitation import Spread
 from ..core.features import MonomialBasis, RegressorLayout
 from ..core.normalization import Normalization
 from ..core.ranges import RangeSums, span_of
-from ..core.statistics import CHUNK_SAMPLES, StaticAccumulator, SufficientStatistics, sum_statistics
+from ..core.statistics import CHUNK_SAMPLES, StatisticsAccumulator, SufficientStatistics, sum_statistics
 from ..runtime.errors import FtcalError
 from ..runtime.threads import map_ranges
 from .table_chunks import iter_table_chunks, table_has_columns
@@ -45,9 +45,9 @@ def file_statistics(path: str, basis: MonomialBasis, normalization: Normalizatio
     -------
     SufficientStatistics with p = basis.n_terms features and len(outputs) targets.
     """
-    total = StaticAccumulator(basis, len(outputs))
+    total = StatisticsAccumulator(RegressorLayout(basis, len(outputs)), normalization)
     for chunk in iter_table_chunks(path, inputs, outputs):
-        total.add(normalization.apply(chunk.inputs), chunk.outputs)
+        total.add(chunk.inputs, chunk.outputs)
     return total.statistics()
 
 
@@ -191,8 +191,8 @@ def file_group_statistics(path: str, basis: MonomialBasis, normalization: Normal
     dict of group label (str), or fold (int) with ``fold_of``, -> SufficientStatistics
     """
     totals: dict = {}
+    layout = RegressorLayout(basis, len(outputs))
     for chunk in iter_table_chunks(path, inputs, outputs, labels={group_by: "group"} if group_by else ()):
-        u_norm = normalization.apply(chunk.inputs)
         if group_by is None:
             rows = {str(Path(path)): slice(None)}
         else:
@@ -207,8 +207,8 @@ def file_group_statistics(path: str, basis: MonomialBasis, normalization: Normal
             rows = folds
         for label, selection in rows.items():
             if label not in totals:
-                totals[label] = StaticAccumulator(basis, len(outputs))
-            totals[label].add(u_norm[selection], chunk.outputs[selection])
+                totals[label] = StatisticsAccumulator(layout, normalization)
+            totals[label].add(chunk.inputs[selection], chunk.outputs[selection])
     return {label: total.statistics() for label, total in totals.items()}
 
 
@@ -306,13 +306,12 @@ def segment_statistics(data, layout: RegressorLayout, in_norm: Normalization,
                        out_norm: Normalization) -> list[SufficientStatistics]:
     """Statistics of an ARX layout per segment of ``data`` (a Dataset), in row order; lags stay inside segments.
 
-    Summed left to right they equal :meth:`ftcal.core.model.CalibrationModel.statistics` bit for bit.
+    The accumulator's parts (:meth:`ftcal.core.statistics.StatisticsAccumulator.parts`): the
+    in-memory fit (:func:`ftcal.core.statistics.dataset_statistics`) sums the same parts.
     """
-    from ..core.statistics import layout_statistics
-
-    u_norm, y_norm = in_norm.apply(data.inputs), out_norm.apply(data.outputs)
-    return [layout_statistics(layout, u_norm[a:b], data.outputs[a:b], y_norm[a:b])
-            for a, b in data.segment_bounds()]
+    accumulator = StatisticsAccumulator(layout, in_norm, out_norm)
+    accumulator.add(data.inputs, data.outputs, data.segment_bounds())
+    return accumulator.parts()
 
 
 def file_fold_statistics(path: str, layout: RegressorLayout, in_norm: Normalization, out_norm: Normalization,

@@ -5,15 +5,10 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
-
 import numpy as np
 
 from .candidates import AFFINE, Candidate
 from .scoring import UNITS, CandidateScore, Comparison, Scorer
-
-if TYPE_CHECKING:
-    from .search import _Search
 
 
 @dataclass
@@ -45,7 +40,9 @@ class CrossValidationResult:
     select_per: str = "model"
     selection: list = field(default_factory=list)
     notes: list = field(default_factory=list)
-    search: "_Search | None" = field(default=None, repr=False)
+    # The search that made it (its fold statistics: fit_selection refits from them); typed loosely, since the
+    # search module imports this one.
+    search: object | None = field(default=None, repr=False)
 
     @property
     def scorer(self) -> Scorer:
