@@ -78,7 +78,7 @@ def check_gram_size(layout: RegressorLayout) -> None:
 
 def warn_if_ill_posed(input_names: Sequence[str], span: np.ndarray, layout: RegressorLayout,
                       n_rows: int) -> None:
-    """Warn (:class:`~ftcal.runtime.errors.IllPosedFitWarning`) about fewer rows than coefficients, or a constant input."""
+    """Warn (:class:`~ftcal.runtime.errors.IllPosedFitWarning`): fewer rows than coefficients, or a constant input."""
     p = layout.n_features
     if n_rows < p:
         warnings.warn(

@@ -53,7 +53,7 @@ from .folds import DatasetStatistics, GroupedStatistics, fold_of_groups, grouped
 from .poses import SaturationWarning, pose_cells, warn_if_saturated
 from .refit import best_model, fit_best, fit_candidates, fit_selection
 from .result import CrossValidationResult
-from .scoring import TIE_TOLERANCE, UNITS, CandidateScore, Comparison, Part, Scorer, stable_choice
+from .scoring import TIE_TOLERANCE, UNITS, CandidateScore, Comparison, Part, Scorer, stable_choice, statistics_mse
 from .search import SelectionLossWarning, _Search, cross_validate, select_model
 
 __all__ = ["Candidate", "CostEstimate", "SearchBudget", "CrossValidationResult", "DatasetStatistics", "GroupedStatistics",

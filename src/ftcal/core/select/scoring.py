@@ -18,6 +18,7 @@ from ...runtime.checks import check_choice
 from ...runtime.errors import FtcalError
 from .. import metrics
 from ..limits import OBJECTIVES, SELECT_PER
+from ..statistics import SufficientStatistics
 from .candidates import AFFINE, Candidate
 
 TIE_TOLERANCE = 0.01  # candidates within 1% of the best score count as tied
@@ -208,6 +209,25 @@ class Comparison:
             ratio = np.log(reference_folds / folds)
             log_margin, log_se = float(ratio.mean()), float(np.std(ratio, ddof=1) / np.sqrt(n))
         return cls(reference, float(difference.mean()), spread, spread / np.sqrt(n), n, searched, log_margin, log_se)
+
+
+def statistics_mse(stats: SufficientStatistics, coef: np.ndarray) -> np.ndarray:
+    """Mean squared error per output of coefficients ``coef`` (unscaled columns) on the rows ``stats`` sum.
+
+    Exact algebra, no pass over the rows: ‖Aθ − y‖² = θᵀGθ − 2θᵀc + ‖y‖² per output.
+
+    Parameters
+    ----------
+    stats : SufficientStatistics
+    coef : ndarray of shape (n_features, n_outputs)
+
+    Returns
+    -------
+    ndarray of shape (n_outputs,)
+    """
+    sse = (np.einsum("ij,ij->j", coef, stats.gram @ coef) - 2.0 * np.einsum("ij,ij->j", coef, stats.cross)
+           + stats.target_sq)
+    return np.maximum(sse, 0.0) / max(stats.n_samples, 1)
 
 
 def stable_choice(ordered: list[CandidateScore], part: Part, notes: list[str]) -> Candidate:

@@ -24,7 +24,7 @@ from .candidates import (AFFINE, DEFAULT_DEGREES, DEFAULT_PENALTIES, LASSO_DECAD
 from .cost import SearchBudget, candidate_work, decomposition_work, statistics_work
 from .folds import DatasetStatistics, GroupedStatistics, fold_of_groups
 from .result import CrossValidationResult
-from .scoring import CandidateScore, Part, Scorer, stable_choice
+from .scoring import CandidateScore, Part, Scorer, stable_choice, statistics_mse
 
 
 class SelectionLossWarning(FtcalWarning):
@@ -342,7 +342,7 @@ class _Search:
         rows = []
         for (candidate, _, _), result, prior in self._solve(problem, group, (key, f)):
             coef = (result.coef + (0.0 if prior is None else prior)) / problem.column_scale[:, None]
-            rows.append((candidate, self._mse(parts[f], coef), self._mse(train, coef),
+            rows.append((candidate, statistics_mse(parts[f], coef), statistics_mse(train, coef),
                          np.count_nonzero(coef, axis=0), result.info.get("events")))
         return rows
 
@@ -375,20 +375,13 @@ class _Search:
             for item, result in zip(ridge, results):
                 yield item, result, prior
 
-    @staticmethod
-    def _mse(stats: SufficientStatistics, coef: np.ndarray) -> np.ndarray:
-        """Mean squared error per output of coefficients ``coef`` (unscaled columns) on the rows ``stats`` sum."""
-        # ‖Aθ − y‖² per output, exactly, from AᵀA, Aᵀy and ‖y‖².
-        sse = (np.einsum("ij,ij->j", coef, stats.gram @ coef) - 2.0 * np.einsum("ij,ij->j", coef, stats.cross)
-               + stats.target_sq)
-        return np.maximum(sse, 0.0) / max(stats.n_samples, 1)
-
     def result(self, ordered: list[CandidateScore], select_per: str = "model", skipped: tuple[int, ...] = (),
                notes: list[str] | None = None) -> CrossValidationResult:
         self.stable_notes = []
         best = stable_choice(ordered, Part("model", tuple(range(len(self.scorer.output_names)))), self.stable_notes)
         parts = self.scorer.parts(select_per)
-        selection = [(part, best if part.name == "model" else stable_choice(ordered, part, self.stable_notes)) for part in parts]
+        selection = [(part, best if part.name == "model" else stable_choice(ordered, part, self.stable_notes))
+                     for part in parts]
         if select_per == "model":
             self.stable_notes = self.stable_notes[:1]
         return CrossValidationResult(ordered, best, self.scorer.metric, self.n_folds, skipped, select_per,
