@@ -77,6 +77,7 @@ class Candidate:
 
 AFFINE = Candidate(1, "none", None)
 
+
 def default_candidates(degrees: Sequence[int] = (1, 2, 3, 4, 5), lams: Sequence[float] = PAPER_LAMBDAS,
                        penalty: str | None = "lasso") -> list[Candidate]:
     """Least squares at every degree, plus ``penalty`` at every (degree, λ) when given.
@@ -100,6 +101,7 @@ def default_candidates(degrees: Sequence[int] = (1, 2, 3, 4, 5), lams: Sequence[
     if penalty is not None:
         out += [Candidate(d, penalty, float(lam)) for d in degrees for lam in lams]
     return out
+
 
 def lasso_lambda_max(problem: ScaledProblem) -> float:
     """The smallest λ at which every non-offset coefficient of the LASSO is zero (offset penalized too).

@@ -79,6 +79,7 @@ def fold_of_groups(sizes: dict[str, int], n_folds: int = 5, seed: int = 0) -> di
         load[f] += counts[g]
     return {str(g): int(f) for g, f in zip(labels, fold_of)}
 
+
 class GroupedStatistics(Protocol):
     """What cross-validation needs of the data; :class:`DatasetStatistics` for a :class:`Dataset` in memory,
     :class:`ftcal.data.streaming.StreamedStatistics` for files streamed by per-file tasks."""

@@ -30,6 +30,7 @@ from .scoring import CandidateScore, Part, Scorer, stable_choice, statistics_mse
 class SelectionLossWarning(FtcalWarning):
     """The selected model validates worse than the affine model on a block, beyond the fold noise."""
 
+
 def cross_validate(data: "Dataset | GroupedStatistics", candidates: Sequence[Candidate], *,
                    template: CalibrationModel | None = None, n_folds: int = 5, seed: int = 0,
                    select_per: str = "model", objective: str = "both",
