@@ -5,12 +5,12 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import re
 import sys
 from collections.abc import Sequence
 
 from ..core.columns import DEFAULT_INPUTS, DEFAULT_OUTPUTS
 from ..core.limits import MAX_OPTION_MAGNITUDE
+from ..runtime.errors import single_line  # noqa: F401  (the commands import it from here)
 from ..runtime.errors import FtcalError
 
 
@@ -112,12 +112,3 @@ def norm_rmse_text(metrics: dict, spec: str = ".4f", units: bool = True) -> str:
              for what, key, unit in (("force", "force_norm_rmse", "N"), ("torque", "torque_norm_rmse", "N·m"))
              if metrics.get(key) is not None]
     return ", ".join(parts)
-
-
-_LINE_BREAKS = re.compile("[\t\n\x0b\x0c\r\x1c-\x1e\x85\u2028\u2029]")
-
-
-def single_line(text: str) -> str:
-    """``text`` with line breaks and tabs written as escapes: a name from a file (a bag topic, a column,
-    a model's input) cannot start a line of its own in the output and forge it."""
-    return _LINE_BREAKS.sub(lambda m: m.group(0).encode("unicode_escape").decode("ascii"), str(text))

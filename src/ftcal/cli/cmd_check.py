@@ -74,7 +74,7 @@ def run(args) -> int:
     import sys
 
     from ..runtime.errors import FtcalError
-    from ..workflow.checking import check, sensor_history
+    from ..workflow.checking import check_sensor, sensor_history
 
     if args.html is not None:  # never an input: cli.main checks the OUTPUT_OPTIONS
         require_suffix(args.html, (".html", ".htm"), "--html")
@@ -91,12 +91,13 @@ def run(args) -> int:
         return 0
     if not args.data:
         raise FtcalError("give the recording(s) DATA to check (or --history SERIAL).")
-    result = check(args.data, accept=args.accept, wrench=args.wrench, group_by=args.group_by, rate=args.rate,
-                   reaction=args.reaction, max_com_distance=args.max_com_distance, html=args.html,
-                   payload_json=args.payload_json, max_force_error=args.max_force_error,
-                   max_torque_error=args.max_torque_error, max_error_percent=args.max_error_percent,
-                   rated_force=args.rated_force, rated_torque=args.rated_torque, serial=args.serial,
-                   history_dir=args.history_dir, **source_keywords(args))
+    result = check_sensor(args.data, accept=args.accept, wrench=args.wrench, group_by=args.group_by,
+                          rate=args.rate,
+                          reaction=args.reaction, max_com_distance=args.max_com_distance, html=args.html,
+                          payload_json=args.payload_json, max_force_error=args.max_force_error,
+                          max_torque_error=args.max_torque_error, max_error_percent=args.max_error_percent,
+                          rated_force=args.rated_force, rated_torque=args.rated_torque, serial=args.serial,
+                          history_dir=args.history_dir, **source_keywords(args))
     print(result.summary())
     for path in result.written:
         print(f"wrote {path}", file=sys.stderr)

@@ -7,7 +7,7 @@ import argparse
 from ..core.limits import SIMULATE_CHANNELS, SIMULATE_MISTAKES
 from ._common import finite_float, nonnegative_int, positive_float
 from ._examples import epilog
-from .cmd_sensors import add_robot_arguments, load_robot
+from ._robot import add_robot_arguments, load_robot
 
 
 def pair(text: str) -> tuple[float, float]:

@@ -1,6 +1,6 @@
 """Check a sensor's conventions, test a calibration for acceptance, read a sensor's history: ``ftcal check``.
 
-:func:`check` runs the conventions check on a recording of static holds, or (with ``accept=``) the
+:func:`check_sensor` runs the conventions check on a recording of static holds, or (with ``accept=``) the
 acceptance test of a calibration model; :func:`sensor_history` reads the per-sensor history.
 Each returns a :class:`CheckResult` whose ``summary()`` is what the command prints and whose
 ``passed`` decides its exit code.
@@ -33,6 +33,14 @@ class CheckResult(StepResult):
     report : the check's own report (``ConventionReport``, ``AcceptanceResult`` or the history's records)
     lines : list of str, the text of :meth:`summary`
     written : list of str, files written (HTML page)
+
+    Examples
+    --------
+    >>> result = CheckResult("acceptance", False, None, ["FAIL (1 of 4 pose(s) over threshold, 0 channel issue(s))"])
+    >>> result.exit_code
+    1
+    >>> result
+    <CheckResult: FAIL (1 of 4 pose(s) over threshold, 0 channel issue(s))>
     """
 
     mode: str
@@ -66,7 +74,7 @@ class CheckResult(StepResult):
         return plain(out)
 
 
-def check(data, *, accept=None, wrench: Sequence[str] = DEFAULT_WRENCH, group_by: str | None = None,
+def check_sensor(data, *, accept=None, wrench: Sequence[str] = DEFAULT_WRENCH, group_by: str | None = None,
           rate: float = HOLD_SAMPLE_RATE, reaction: bool = False, max_com_distance: float = MAX_COM_DISTANCE,
           html=None, payload_json=None, max_force_error: float | None = None,
           max_torque_error: float | None = None, max_error_percent: float | None = None,
@@ -111,7 +119,7 @@ def check(data, *, accept=None, wrench: Sequence[str] = DEFAULT_WRENCH, group_by
     >>> path = os.path.join(tempfile.mkdtemp(), "holds.csv")
     >>> pd.DataFrame(rows, columns=["time", "u1", "u2", "u3", "u4", "u5", "u6", "gx", "gy", "gz"]).to_csv(
     ...     path, index=False)
-    >>> result = check(path, gravity_columns=("gx", "gy", "gz"))
+    >>> result = check_sensor(path, gravity_columns=("gx", "gy", "gz"))
     >>> result.passed, round(result.report.mass, 3)
     (True, 1.2)
     """

@@ -21,6 +21,13 @@ class CompensationResult(StepResult):
     ----------
     table : pandas.DataFrame, the other columns kept
     sources : list of str, the input tables
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> table = pd.DataFrame({"Fx": [0.5], "Fy": [0.0], "Fz": [-1.0], "Tx": [0.0], "Ty": [0.0], "Tz": [0.0]})
+    >>> CompensationResult(table, ["run.csv"]).contact.tolist()
+    [[0.5, 0.0, -1.0, 0.0, 0.0, 0.0]]
     """
 
     table: object
@@ -75,19 +82,19 @@ def compensate(payload, data, *, calibration=None, wrench: Sequence[str] | None 
     Examples
     --------
     >>> import numpy as np, pandas as pd, tempfile, os
-    >>> from ftcal.payload.parameters import PayloadParameters
-    >>> from ftcal.files.payload_json import save_payload
+    >>> from scipy.spatial.transform import Rotation
+    >>> from ftcal.workflow.payload import identify_payload
+    >>> gravity = Rotation.random(10, random_state=4).inv().apply([0.0, 0.0, -9.81])
+    >>> force = 1.5 * gravity + [0.3, -0.2, 0.1]                 # a 1.5 kg tool and a force bias
+    >>> table = pd.DataFrame(np.c_[force, np.zeros((10, 3)), gravity],
+    ...                      columns=["u1", "u2", "u3", "u4", "u5", "u6", "gx", "gy", "gz"])
     >>> folder = tempfile.mkdtemp()
-    >>> tool = PayloadParameters(1.5, np.zeros(3), np.zeros(3), np.zeros(3), 9.81, None, False, None,
-    ...                          {"mass": 0.0, "com": np.zeros(3), "force_bias": np.zeros(3),
-    ...                           "torque_bias": np.zeros(3)}, {})
-    >>> save_payload(tool, os.path.join(folder, "tool.json"))
-    >>> table = pd.DataFrame({"u1": [0.0], "u2": [0.0], "u3": [-1.5 * 9.81], "u4": [0.0], "u5": [0.0],
-    ...                       "u6": [0.0], "gx": [0.0], "gy": [0.0], "gz": [-9.81]})
-    >>> table.to_csv(os.path.join(folder, "still.csv"), index=False)
-    >>> result = compensate(os.path.join(folder, "tool.json"), os.path.join(folder, "still.csv"),
+    >>> table.to_csv(os.path.join(folder, "poses.csv"), index=False)
+    >>> _ = identify_payload(os.path.join(folder, "poses.csv"), gravity_columns=("gx", "gy", "gz"),
+    ...                      output=os.path.join(folder, "tool.json"))
+    >>> result = compensate(os.path.join(folder, "tool.json"), os.path.join(folder, "poses.csv"),
     ...                     gravity_columns=("gx", "gy", "gz"))
-    >>> np.abs(result.contact).max() < 1e-9   # the weight of a 1.5 kg tool, removed
+    >>> bool(np.abs(result.contact).max() < 1e-9)   # no contact: weight and bias removed
     True
     """
     import pandas as pd

@@ -134,6 +134,22 @@ class PayloadResult(StepResult):
     excitation : str, one line on how well the poses determine the parameters
     notes : list of str, how the samples and groups were chosen (printed first)
     sources : list of str, the tables
+
+    Examples
+    --------
+    ``identify_payload`` makes it (see its example); its text is what ``ftcal payload`` prints:
+
+    >>> import numpy as np, pandas as pd, tempfile, os
+    >>> from scipy.spatial.transform import Rotation
+    >>> rotations = Rotation.random(10, random_state=2)
+    >>> force = 0.5 * rotations.inv().apply([0.0, 0.0, -9.81])     # a 0.5 kg tool at the sensor origin
+    >>> table = pd.DataFrame(np.c_[force, np.zeros((10, 3)), rotations.as_quat()],
+    ...                      columns=["u1", "u2", "u3", "u4", "u5", "u6", "qx", "qy", "qz", "qw"])
+    >>> path = os.path.join(tempfile.mkdtemp(), "poses.csv")
+    >>> table.to_csv(path, index=False)
+    >>> result = identify_payload(path, orientation=("qx", "qy", "qz", "qw"))
+    >>> isinstance(result, PayloadResult), round(result.mass, 6)
+    (True, 0.5)
     """
 
     payload: object

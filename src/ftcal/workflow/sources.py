@@ -107,3 +107,34 @@ def paths_of(data, role: str = "DATA") -> list[str]:
     if not items:
         raise FtcalError(f"{role}: no file given.")
     return [os.fspath(p) for p in items]
+
+
+def robot_model(*, urdf=None, robot: str | None = None, ft_joint: str | None = None, ft_frame: str | None = None,
+                payload: Sequence[str] = ()):
+    """The robot model of the robot commands: a URDF or a named icub-models robot, with an F/T sensor declared
+    on the fixed joint ``ft_joint`` (sensor frame ``ft_frame``) and the ``payload`` specs attached.
+
+    Parameters
+    ----------
+    urdf : path of a URDF, or None
+    robot : name of a robot model shipped by icub-models (e.g. ``iCubGenova04``), or None
+    ft_joint, ft_frame : declare an F/T sensor on this fixed joint of a plain URDF, and its frame
+    payload : specs ``FRAME:MASS[@X,Y,Z][/IXX,IYY,IZZ[,IXY,IXZ,IYZ]]`` (kg, m, kg m²)
+
+    Returns
+    -------
+    RobotModel
+
+    Raises
+    ------
+    FtcalError
+        ``ft_frame`` without ``ft_joint``, an unreadable URDF, an unknown model or a bad payload spec.
+    """
+    from ..robot import RobotModel, SensorDeclaration, parse_payload_spec
+
+    if ft_joint is None and ft_frame is not None:
+        raise FtcalError("--ft-frame needs --ft-joint (the fixed joint the sensor sits on).")
+    declared = () if ft_joint is None else (SensorDeclaration(ft_joint, ft_frame),)
+    model = RobotModel.load(urdf=None if urdf is None else str(urdf), name=robot, declared=declared)
+    payloads = [parse_payload_spec(spec) for spec in payload]
+    return model.with_payloads(payloads) if payloads else model
