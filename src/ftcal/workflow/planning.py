@@ -91,6 +91,17 @@ def plan_experiment(poses: int, *, urdf=None, robot: str | None = None, ft_joint
     ------
     FtcalError
         Bad robot options, loads, ranges or pins, or a degree out of range.
+
+    Examples
+    --------
+    >>> import tempfile, os
+    >>> from ftcal.sim.plan_arm import ARM_URDF                   # a small arm with one F/T sensor
+    >>> urdf = os.path.join(tempfile.mkdtemp(), "arm.urdf")
+    >>> with open(urdf, "w") as f:
+    ...     _ = f.write(ARM_URDF)
+    >>> result = plan_experiment(6, urdf=urdf, objective="payload", candidates=40, load=["none"])
+    >>> int((result.table["reference"] == 0).sum())                # the designed poses
+    6
     """
     from ..plan import PlanRequest
     from ..plan import plan_experiment as design
