@@ -112,3 +112,20 @@ def norm_rmse_text(metrics: dict, spec: str = ".4f", units: bool = True) -> str:
              for what, key, unit in (("force", "force_norm_rmse", "N"), ("torque", "torque_norm_rmse", "N·m"))
              if metrics.get(key) is not None]
     return ", ".join(parts)
+
+
+def output_folder(path: str):
+    """``--out``: a writable folder, made if missing; one-line errors otherwise."""
+    import os
+    from pathlib import Path
+
+    out = Path(path)
+    if out.exists() and not out.is_dir():
+        raise FtcalError(f"--out {out}: exists and is not a folder; give a folder for the demo's files.")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise FtcalError(f"--out {out}: cannot create the folder ({exc.strerror or exc}).") from None
+    if not os.access(out, os.W_OK | os.X_OK):
+        raise FtcalError(f"--out {out}: the folder is not writable.")
+    return out

@@ -100,7 +100,7 @@ def run(args: argparse.Namespace) -> int:
     from ..runtime.errors import FtcalError
     from ..sim.robot_recording import SimulationConfig, read_waypoints, simulate_session
     from ..sim.sensor_model import SensorSpec, spec_from_json
-    from .cmd_demo import output_folder
+    from ._common import output_folder
 
     out = Path(args.output)
     if out.exists() and not out.is_dir():
