@@ -262,3 +262,17 @@ def test_dataset_sensor_is_implied_by_one_declared_sensor(tmp_path, capsys):
     weight = robot.mass_beyond(robot.sensor("wrist_ft"), robot.base_frame(None)[1]) * 9.81
     np.testing.assert_allclose(np.linalg.norm(implied[["Fx", "Fy", "Fz"]].to_numpy(), axis=1), weight, rtol=1e-9)
     assert math.isfinite(weight) and weight > 0
+
+
+def test_rebias_step_equals_the_command(recorded, payload_file, tmp_path):
+    from ftcal.workflow.payload import rebias_payload
+
+    done = run_cli(["payload", recorded["data"], *QUATERNION, "--rebias", payload_file, "-o", tmp_path / "cli.json"])
+    result = rebias_payload(recorded["data"], payload_file, orientation=("qx", "qy", "qz", "qw"),
+                            output=tmp_path / "py.json")
+    assert done.stdout == result.summary() + "\n"
+    assert numbers(json.loads((tmp_path / "cli.json").read_text())) == numbers(
+        json.loads((tmp_path / "py.json").read_text()))
+    # re-tared on the identification's own still samples: the same bias within its errors, and the true one
+    assert np.all(np.abs(result.z) < 3.0)
+    assert np.all(np.abs(result.bias - BIAS) < 10 * NOISE)
