@@ -227,8 +227,8 @@ def test_check_payload_json_flag_and_its_old_spelling(recorded, payload_file, tm
     assert new.returncode == old.returncode in (0, 1) and new.stdout == old.stdout
     assert "notice:" not in new.stderr
     assert [line for line in old.stderr.splitlines() if line.startswith("notice:")] == [
-        "notice: --payload PAYLOAD.json is now --payload-json PAYLOAD.json (--payload SPEC is a mass/COM spec in "
-        "the robot commands)"]
+        "notice: --payload PAYLOAD.json is now --payload-json PAYLOAD.json (in the robot commands, --payload is a "
+        "mass/COM spec)"]
     # the reference is the payload's bias + weight: the identity calibration's error is the contact, ~ the noise
     # on the still samples; the moving ones carry 30 % of the weight more
     assert new.stdout.startswith(f"acceptance of {model} on {len(recorded['moving'])} samples")

@@ -114,18 +114,18 @@ def norm_rmse_text(metrics: dict, spec: str = ".4f", units: bool = True) -> str:
     return ", ".join(parts)
 
 
-def output_folder(path: str):
-    """``--out``: a writable folder, made if missing; one-line errors otherwise."""
+def output_folder(path: str, option: str = "--out"):
+    """A writable folder, made if missing; one-line errors naming ``option`` (how the command takes it)."""
     import os
     from pathlib import Path
 
     out = Path(path)
     if out.exists() and not out.is_dir():
-        raise FtcalError(f"--out {out}: exists and is not a folder; give a folder for the demo's files.")
+        raise FtcalError(f"{option} {out}: exists and is not a folder; give a folder for the files.")
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise FtcalError(f"--out {out}: cannot create the folder ({exc.strerror or exc}).") from None
+        raise FtcalError(f"{option} {out}: cannot create the folder ({exc.strerror or exc}).") from None
     if not os.access(out, os.W_OK | os.X_OK):
-        raise FtcalError(f"--out {out}: the folder is not writable.")
+        raise FtcalError(f"{option} {out}: the folder is not writable.")
     return out

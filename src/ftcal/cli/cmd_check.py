@@ -81,8 +81,8 @@ def run(args) -> int:
     if args.payload_old is not None:
         if args.payload_json is not None:
             raise FtcalError("--payload-json: given twice (also as --payload, its old spelling); give it once.")
-        print("notice: --payload PAYLOAD.json is now --payload-json PAYLOAD.json (--payload SPEC is a mass/COM "
-              "spec in the robot commands)", file=sys.stderr)
+        print("notice: --payload PAYLOAD.json is now --payload-json PAYLOAD.json (in the robot commands, --payload "
+              "is a mass/COM spec)", file=sys.stderr)
         args.payload_json = args.payload_old
     if args.history_serial is not None:
         if args.data or args.accept:

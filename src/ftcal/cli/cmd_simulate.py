@@ -146,7 +146,7 @@ def run(args: argparse.Namespace) -> int:
                               temperature_start=args.temperature[0], temperature_end=args.temperature[1],
                               channels=args.channels, seed=args.seed,
                               formats=("bag", "table") if args.format == "both" else (args.format,))
-    session = simulate_session(robot, sensor_name, waypoints, sensor, output_folder(args.output), loads=loads,
+    session = simulate_session(robot, sensor_name, waypoints, sensor, output_folder(args.output, "-o"), loads=loads,
                                base=args.base, config=config)
     truth = session.truth
     for rec in truth["recordings"]:
