@@ -130,11 +130,11 @@ def test_every_suggested_flag_is_accepted_by_its_command():
 def test_the_scanner_finds_a_wrong_suggestion(tmp_path):
     """The check can fail: a message of compensate suggesting a flag compensate does not have is caught."""
     options = command_options()
-    tree = ast.parse('raise FtcalError(f"give --orientation or a robot model (--model NAME) with --sensor {x}")')
+    tree = ast.parse('raise FtcalError(f"give --orientation or a calibration (--calibration NAME) with --sensor {x}")')
     found = [(flag, accepted(options, "compensate", flag, placeholder)) for _, text in message_strings(tree)
              for flag, _, placeholder in suggested(text, {"compensate"})]
-    # compensate's --model is the calibration model (CAL.json), not a robot NAME: the old message
-    assert found == [("--orientation", True), ("--model", False), ("--sensor", True)]
+    # compensate's --calibration is a model file (CAL.json), not a NAME: a wrong placeholder is caught
+    assert found == [("--orientation", True), ("--calibration", False), ("--sensor", True)]
     assert accepted(options, "payload", "--model", "NAME")
     tree = ast.parse('raise FtcalError("pass --robot-name X")')
     assert [f for _, t in message_strings(tree) for f, _, p in suggested(t, {"compensate"})

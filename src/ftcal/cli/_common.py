@@ -5,12 +5,12 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import re
 import sys
 from collections.abc import Sequence
 
 from ..core.columns import DEFAULT_INPUTS, DEFAULT_OUTPUTS
 from ..core.limits import MAX_OPTION_MAGNITUDE
+from ..runtime.errors import single_line  # noqa: F401  (the commands import it from here)
 from ..runtime.errors import FtcalError
 
 
@@ -114,10 +114,18 @@ def norm_rmse_text(metrics: dict, spec: str = ".4f", units: bool = True) -> str:
     return ", ".join(parts)
 
 
-_LINE_BREAKS = re.compile("[\t\n\x0b\x0c\r\x1c-\x1e\x85\u2028\u2029]")
+def output_folder(path: str, option: str = "--out"):
+    """A writable folder, made if missing; one-line errors naming ``option`` (how the command takes it)."""
+    import os
+    from pathlib import Path
 
-
-def single_line(text: str) -> str:
-    """``text`` with line breaks and tabs written as escapes: a name from a file (a bag topic, a column,
-    a model's input) cannot start a line of its own in the output and forge it."""
-    return _LINE_BREAKS.sub(lambda m: m.group(0).encode("unicode_escape").decode("ascii"), str(text))
+    out = Path(path)
+    if out.exists() and not out.is_dir():
+        raise FtcalError(f"{option} {out}: exists and is not a folder; give a folder for the files.")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise FtcalError(f"{option} {out}: cannot create the folder ({exc.strerror or exc}).") from None
+    if not os.access(out, os.W_OK | os.X_OK):
+        raise FtcalError(f"{option} {out}: the folder is not writable.")
+    return out

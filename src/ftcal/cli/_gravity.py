@@ -1,7 +1,8 @@
 """Options shared by ``payload``, ``check`` and ``compensate``: where gravity (and motion) in the sensor frame comes from.
 
-The CLI only maps its options onto :func:`ftcal.robot.kinematics.kinematics_source`, which builds
-the source; every command that takes these options gets the same sources and the same messages.
+The CLI only maps its options onto the steps' keywords (:func:`source_keywords`); the steps build
+the source (:mod:`ftcal.workflow.sources`), so every command and every Python caller gets the same
+sources and the same messages.
 """
 
 from __future__ import annotations
@@ -39,7 +40,8 @@ def add_kinematics_options(p: argparse.ArgumentParser) -> None:
 def add_robot_source_options(p: argparse.ArgumentParser, named_models: bool = True) -> None:
     """--urdf (and --model NAME where ``named_models``), --sensor, --ft-joint/--ft-frame, --base, --degrees.
 
-    ``compensate`` passes ``named_models=False``: its ``--model`` is the calibration model file.
+    ``compensate`` passes ``named_models=False`` and adds its own ``--model`` (which also takes the old
+    spelling ``--model CAL.json`` of its ``--calibration``).
     """
     robot = p.add_argument_group("gravity from a robot model and joint columns (named as the URDF's joints)")
     which = robot.add_mutually_exclusive_group()
@@ -52,22 +54,17 @@ def add_robot_source_options(p: argparse.ArgumentParser, named_models: bool = Tr
     robot.add_argument("--ft-frame", metavar="LINK", help="sensor frame of --ft-joint (default: its child link)")
     robot.add_argument("--base", metavar="FRAME", help="fixed base frame, gravity along its -z")
     robot.add_argument("--degrees", action="store_true", help="joint columns are in degrees")
-    p.set_defaults(named_robot_models=named_models)
 
 
-def kinematics_source(args):
-    """The :class:`~ftcal.payload.kinematics.KinematicsSource` the parsed options describe."""
-    from ..robot.kinematics import kinematics_source as build
-
-    return build(orientation=args.orientation, gravity_columns=args.gravity_columns, g=args.g,
-                 urdf=getattr(args, "robot_urdf", None), robot_name=getattr(args, "robot_model", None),
-                 sensor=getattr(args, "sensor", None), ft_joint=getattr(args, "ft_joint", None),
-                 ft_frame=getattr(args, "ft_frame", None), base=getattr(args, "base", None),
-                 degrees=getattr(args, "degrees", False), dynamic=args.dynamic,
-                 angular_velocity=args.angular_velocity, linear_acceleration=args.linear_acceleration,
-                 angular_acceleration=args.angular_acceleration, time=args.time,
-                 robot_options=("--urdf PATH or --model NAME" if getattr(args, "named_robot_models", True)
-                                else "--urdf PATH"))
+def source_keywords(args) -> dict:
+    """The parsed gravity-source options as the steps' keywords (:data:`ftcal.workflow.sources.SOURCE_OPTIONS`)."""
+    return {"orientation": args.orientation, "gravity_columns": args.gravity_columns, "g": args.g,
+            "urdf": getattr(args, "robot_urdf", None), "robot": getattr(args, "robot_model", None),
+            "sensor": getattr(args, "sensor", None), "ft_joint": getattr(args, "ft_joint", None),
+            "ft_frame": getattr(args, "ft_frame", None), "base": getattr(args, "base", None),
+            "degrees": getattr(args, "degrees", False), "dynamic": args.dynamic,
+            "angular_velocity": args.angular_velocity, "linear_acceleration": args.linear_acceleration,
+            "angular_acceleration": args.angular_acceleration, "time": args.time}
 
 
 def check_not_input(output: str, inputs) -> None:

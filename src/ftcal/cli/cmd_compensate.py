@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from ._common import column_list, require_suffix
 from ._examples import epilog
-from ._gravity import add_kinematics_options, add_robot_source_options, check_not_input, kinematics_source
+from ._gravity import add_kinematics_options, add_robot_source_options, check_not_input, source_keywords
 
 
 def register(sub) -> None:
@@ -21,60 +21,46 @@ def register(sub) -> None:
     p.add_argument("data", nargs="+", metavar="DATA", help="CSV or Parquet files")
     p.add_argument("-o", "--output", required=True, metavar="OUT.csv|OUT.parquet",
                    help="one table with the rows of all DATA files in order")
-    p.add_argument("--model", metavar="CAL.json",
+    p.add_argument("--calibration", metavar="CAL.json",
                    help="calibration model: the measured wrench is its prediction from its input columns")
     p.add_argument("--wrench", type=column_list, metavar="FX,FY,FZ,TX,TY,TZ",
-                   help="measured wrench columns without --model (default: the payload file's, else u1,...,u6)")
+                   help="measured wrench columns without --calibration (default: the payload file's, else u1,...,u6)")
     add_kinematics_options(p)
     add_robot_source_options(p, named_models=False)
+    # Outside the --urdf/--model group: the old spelling `--model CAL.json` (a calibration) may come with --urdf.
+    p.add_argument("--model", dest="robot_model", metavar="NAME",
+                   help="robot model from icub-models, e.g. iCubGenova04 (with --sensor); a calibration model "
+                        "file given here (the old spelling) is read as --calibration, with a notice")
     for action in p._actions:
         if action.dest == "g":
             action.help = "gravity magnitude, m/s² (default: the payload file's, which its mass was identified with)"
     p.set_defaults(func=run, g=None)
 
 
+CALIBRATION_SUFFIXES = (".json", ".xml")
+
+
 def run(args) -> int:
+    import os
     import sys
 
-    import pandas as pd
-
-    from ..data.tables import write_table
-    from ..files.model_files import read_model
-    from ..files.payload_json import load_payload
-    from ..payload.compensate import warn_undetermined
-    from ..payload.tables import compensate_table
     from ..runtime.errors import FtcalError
+    from ..workflow.compensation import compensate
 
+    model = args.robot_model
+    if model is not None and (model.lower().endswith(CALIBRATION_SUFFIXES) or os.path.isfile(model)):
+        if args.calibration is not None:
+            raise FtcalError(f"--calibration {args.calibration}: {model} is a calibration model file too; give "
+                             "one calibration, as --calibration CAL.json.")
+        print(f"notice: {model} read as --calibration (the calibration model's option is now --calibration "
+              "CAL.json; --model NAME names a robot model, as in the other commands)", file=sys.stderr)
+        args.calibration, args.robot_model = model, None
+    if args.robot_model is not None and args.robot_urdf is not None:
+        raise FtcalError("--model: not allowed with --urdf (give one robot model).")
     require_suffix(args.output, (".csv", ".parquet"), "-o")
-    check_not_input(args.output, [args.payload, *args.data] + ([args.model] if args.model else []))
-    payload = load_payload(args.payload)
-    if args.dynamic and payload.inertia is None:
-        raise FtcalError(f"{args.payload}: has no inertia (identified without --dynamic); "
-                         "compensate without --dynamic or re-identify with it.")
-    if args.g is None:
-        args.g = payload.gravity
-    elif abs(args.g - payload.gravity) > 1e-9 * payload.gravity:
-        raise FtcalError(f"--g {args.g:g}: {args.payload} was identified with g = {payload.gravity:g} m/s² (its "
-                         "mass times g is what the data determined); leave --g out.")
-    source = kinematics_source(args)
-    model = read_model(args.model) if args.model else None
-    parts = [compensate_table(path, payload, source, wrench=args.wrench, model=model, time_column=args.time,
-                              warn_out_of_range=False)
-             for path in args.data]
-    outside = sum(part.attrs.get("undetermined_samples", 0) for part in parts)
-    table = pd.concat(parts, ignore_index=True) if len(parts) > 1 else parts[0]
-    warn_undetermined(payload, outside, len(table), ", ".join(args.data))  # once for all the files
-    if model is not None:  # one out-of-range warning for all the files
-        import warnings
-
-        from ..core.ranges import RangeSums, describe, span_of
-        from ..runtime.errors import OutOfRangeWarning
-
-        inputs = table[list(model.input_names_)].to_numpy(dtype=float)
-        ranges = RangeSums.of(inputs, model.input_range_, outside_span=span_of(model, inputs))
-        message = describe(ranges.summary(model.input_names_))
-        if message:
-            warnings.warn(message, OutOfRangeWarning, stacklevel=2)
-    write_table(table, args.output)
-    print(f"wrote {len(table)} contact wrenches to {args.output}", file=sys.stderr)
+    check_not_input(args.output, [args.payload, *args.data] + ([args.calibration] if args.calibration else []))
+    result = compensate(args.payload, args.data, calibration=args.calibration, wrench=args.wrench,
+                        **source_keywords(args))
+    result.save(args.output)
+    print(f"wrote {len(result.table)} contact wrenches to {args.output}", file=sys.stderr)
     return 0

@@ -45,13 +45,9 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from ..files.targets import convert
+    from ..workflow.export import convert
 
-    written = convert(args.model, args.to, args.output,
-                      {"serial": args.serial, "sensor": args.sensor, "name": args.name,
-                       "single_precision": args.single_precision, "frame": args.frame,
-                       "com_frame": args.com_frame})
-    for note in written.notes:
-        print(note)
-    print(f"wrote {', '.join(str(p) for p in written.paths)}")
+    result = convert(args.model, args.to, args.output, serial=args.serial, sensor=args.sensor, name=args.name,
+                     single_precision=args.single_precision, frame=args.frame, com_frame=args.com_frame)
+    print(result.summary())
     return 0

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import argparse
 
-from ._common import add_scheduler_option, finite_float, positive_float, require_suffix, single_line
+from ._common import add_scheduler_option, finite_float, positive_float, require_suffix
 from ._examples import epilog
-from .cmd_sensors import add_cache_arguments, add_robot_arguments, load_robot
+from ._robot import add_cache_arguments, add_robot_arguments, robot_keywords
 
 
 def register(subparsers) -> None:
@@ -30,7 +30,9 @@ def register(subparsers) -> None:
     parser.add_argument("logs", metavar="LOG", nargs="+",
                         help="recordings: .mat (v5/v7.3), .csv, .parquet, or ROS bags")
     add_robot_arguments(parser, required=False)
-    parser.add_argument("--sensor", metavar="NAME", help="F/T sensor (sensor or joint name); required with a URDF")
+    parser.add_argument("--sensor", metavar="NAME",
+                        help="F/T sensor (sensor or joint name); default: the robot model's only one (e.g. the "
+                             "--ft-joint sensor of a plain URDF)")
     bags = parser.add_argument_group("ROS bags")
     bags.add_argument("--wrench-topic", metavar="TOPIC",
                       help="geometry_msgs/WrenchStamped or Wrench topic of the F/T sensor (its clock is the table's)")
@@ -87,80 +89,26 @@ def _frame_pair(text: str) -> tuple[str, str | None]:
     return base.strip(), frame.strip() or None
 
 
-BAG_OPTIONS = ("wrench_topic", "joints_topic", "temperature_topic", "imu_topic", "tf", "receive_time")
-
-
 def run(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
-    from ..data.logs import READERS, log_format
-    from ..insitu.recordings import InsituOptions, build_log_table, write_dataset
-    from ..robot import load_case_config, parse_payload_spec
-    from ..runtime.errors import FtcalError
+    from ..runtime.executors import open_executor
+    from ..workflow.datasets import build_dataset
 
     require_suffix(args.output, (".csv", ".parquet", ".pq"), "-o")
-    out = Path(args.output)
-    is_bag = [READERS.get(log_format(Path(p)), "").startswith("ftcal.data.bags:") for p in args.logs]
-    if any(is_bag) and not all(is_bag):
-        raise FtcalError(f"LOG {args.logs[is_bag.index(False)]}: mix of ROS bags and other logs; "
-                         "build one dataset per kind.")
-    if not any(is_bag):
-        given = [f"--{o.replace('_', '-')}" for o in BAG_OPTIONS if getattr(args, o) not in (None, False)]
-        if given:
-            raise FtcalError(f"{given[0]} applies to ROS bags only; {args.logs[0]} is not a bag.")
-        if args.urdf is None and args.model is None:
-            raise FtcalError("--urdf or --model is required for .mat/.csv/.parquet logs.")
-        if args.sensor is None:
-            raise FtcalError("--sensor is required for .mat/.csv/.parquet logs.")
-    if any(is_bag) and args.estimate_payload:
-        raise FtcalError("--estimate-payload applies to .mat/.csv/.parquet logs; for a bag, identify "
-                         "the tool with `ftcal payload` on the bag's dataset.")
-    robot = load_robot(args, payloads=False) if args.urdf or args.model else None
-    payloads = [parse_payload_spec(spec) for spec in args.payload]
-    config = load_case_config(args.payload_file) if args.payload_file else None
-    options = InsituOptions(
-        base=args.base, gravity=tuple(args.gravity),
-        savgol_frame=None if args.no_filter else args.savgol_frame, savgol_order=args.savgol_order,
-        rate=args.rate, temperature=not args.no_temperature, derivatives=args.dynamic,
-        imu=args.imu, imu_frame=args.imu_frame, align_first_sample=args.align_first_sample,
-        joint_units="deg" if args.degrees else "rad",
-        adc_limits=tuple(args.adc_limits) if args.adc_limits else None,
-        cache=not args.no_cache, cache_dir=args.cache_dir, workers=args.workers,
-        payload_link=args.estimate_payload)
-    from ..runtime.executors import open_executor
-
+    keywords = dict(robot_keywords(args, payloads=False), sensor=args.sensor, payload=tuple(args.payload),
+                    base=args.base, wrench_topic=args.wrench_topic, joints_topic=args.joints_topic,
+                    temperature_topic=args.temperature_topic, imu_topic=args.imu_topic,
+                    receive_time=args.receive_time, tf=args.tf, payload_file=args.payload_file,
+                    gravity=tuple(args.gravity), savgol_frame=args.savgol_frame, savgol_order=args.savgol_order,
+                    no_filter=args.no_filter, rate=args.rate, no_temperature=args.no_temperature,
+                    degrees=args.degrees, dynamic=args.dynamic, imu=args.imu, imu_frame=args.imu_frame,
+                    align_first_sample=args.align_first_sample, adc_limits=args.adc_limits,
+                    estimate_payload=args.estimate_payload, workers=args.workers, no_cache=args.no_cache,
+                    cache_dir=args.cache_dir)
     with open_executor(args.scheduler) as executor:
-        executor = executor if args.scheduler else None  # without --scheduler: here, sharing one robot model
-        if all(is_bag):
-            return _run_bags(args, out, robot, payloads, config, options, executor)
-        table = build_log_table(args.logs, robot, args.sensor, payloads=payloads, load_cases=config,
-                                options=options, executor=executor)
-    write_dataset(table, out)
-    for line in table.notes:
-        print(single_line(line))
-    dataset = table.dataset
-    groups = sorted(set(map(str, dataset.groups)))
-    n_holds = int(table.columns["hold"].max()) + 1 if dataset.n_samples else 0
-    print(f"wrote {dataset.n_samples} samples from {len(args.logs)} recording(s), "
-          f"group(s) {', '.join(groups)}, {n_holds} static hold(s), to {out}")
-    return 0
-
-
-def _run_bags(args, out, robot, payloads, config, options, executor) -> int:
-    from ..data.bags import BagTopics
-    from ..insitu.bags import build_bag_table, write_bag_table
-    from ..runtime.errors import FtcalError
-
-    if args.wrench_topic is None:
-        raise FtcalError(f"Bag {args.logs[0]}: --wrench-topic is required (list the topics with "
-                         f"'ftcal topics {args.logs[0]}').")
-    topics = BagTopics(args.wrench_topic, args.joints_topic, args.temperature_topic, args.imu_topic, args.tf,
-                       receive_time=args.receive_time)
-    table = build_bag_table(args.logs, topics, robot=robot, sensor=args.sensor, payloads=payloads,
-                            load_cases=config, options=options, executor=executor)
-    write_bag_table(table, out)
-    for line in table.notes:
-        print(single_line(line))
-    print(f"wrote {table.n_samples} samples from {len(args.logs)} bag(s), columns "
-          f"{single_line(','.join(table.columns))}, to {out}")
+        # without --scheduler: here, sharing one robot model
+        result = build_dataset(args.logs, executor=executor if args.scheduler else None, **keywords)
+        result.save(args.output)
+    for line in result.notes:
+        print(line)
+    print(f"wrote {result.description}, to {args.output}")
     return 0

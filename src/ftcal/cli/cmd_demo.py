@@ -2,10 +2,7 @@
 
 from __future__ import annotations
 
-import os
-from pathlib import Path
-
-from ._common import nonnegative_int
+from ._common import nonnegative_int, output_folder
 from ._examples import epilog
 
 SCENARIOS = ("paper", "arm", "plan", "live", "closed-loop")
@@ -103,19 +100,3 @@ def run_closed_loop(args) -> int:
     print(f"\ndone in {summary['elapsed_s']:.0f} s ({summary['cpu_s']:.0f} s CPU)")
     print("wrote " + ", ".join(summary["files"]))
     return 0
-
-
-def output_folder(path: str) -> Path:
-    """``--out``: a writable folder, made if missing; one-line errors otherwise."""
-    from ..runtime.errors import FtcalError
-
-    out = Path(path)
-    if out.exists() and not out.is_dir():
-        raise FtcalError(f"--out {out}: exists and is not a folder; give a folder for the demo's files.")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise FtcalError(f"--out {out}: cannot create the folder ({exc.strerror or exc}).") from None
-    if not os.access(out, os.W_OK | os.X_OK):
-        raise FtcalError(f"--out {out}: the folder is not writable.")
-    return out

@@ -6,10 +6,7 @@ import argparse
 
 from ._common import add_scheduler_option, finite_float, require_suffix
 from ._examples import epilog
-from .cmd_sensors import add_cache_arguments, add_robot_arguments, load_robot
-
-WRENCH = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
-
+from ._robot import add_cache_arguments, add_robot_arguments, robot_keywords
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
@@ -35,67 +32,17 @@ def register(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """With --scheduler the joints file is one task (a worker reads it and computes in one process)."""
-    from pathlib import Path
-
-    import pandas as pd
-
-    from ..data.tables import write_table
     from ..runtime.executors import open_executor
+    from ..workflow.datasets import expected
 
     require_suffix(args.output, (".csv", ".parquet", ".pq"), "-o")
-    out = Path(args.output)
-    robot = load_robot(args)
-    sensors = [robot.sensor(name) for name in args.sensor] or list(robot.ft_sensors)
-    labels = args.sensor or [s.name for s in sensors]
-    _, base = robot.base_frame(args.base)
-    settings = (base, tuple(args.gravity), args.degrees, not args.no_cache, args.cache_dir)
+    keywords = dict(robot_keywords(args), base=args.base, sensor=tuple(args.sensor), gravity=tuple(args.gravity),
+                    degrees=args.degrees, workers=args.workers, no_cache=args.no_cache, cache_dir=args.cache_dir)
     if args.scheduler:
-        description = (robot.urdf_text, robot.source, robot.payloads, robot.declared)
         with open_executor(args.scheduler) as executor:
-            [(time, wrenches)] = executor.map(_remote_wrenches, [(args.joints, description)], 1, *settings,
-                                              description="joints files")
+            result = expected(args.joints, executor=executor, **keywords)
     else:
-        time, wrenches = joints_file_wrenches(args.joints, robot, args.workers, *settings)
-    columns = {"time": time} if time is not None else {}
-    for label, sensor in zip(labels, sensors):
-        for axis, name in enumerate(WRENCH):
-            columns[f"{label}_{name}"] = wrenches[:, sensor.index, axis]
-    frame = pd.DataFrame(columns)
-    write_table(frame, out)
-    print(f"wrote {len(frame)} samples x {len(sensors)} sensor(s) to {out}")
+        result = expected(args.joints, **keywords)
+    result.save(args.output)
+    print(f"wrote {result.summary()} to {args.output}")
     return 0
-
-
-def joints_file_wrenches(joints, robot, workers, base, gravity, degrees, cache, cache_dir):
-    """The ``time`` column (or None) and the (n_samples, n_sensors, 6) expected wrenches of a joints file."""
-    from pathlib import Path
-
-    import numpy as np
-
-    from ..data.tables import numeric_columns, read_table
-    from ..robot.cache import cache_key, cached
-    from ..robot.expected import expected_wrenches
-
-    table = read_table(Path(joints))
-    joint_cols = [c for c in table.columns if c != "time"]
-    values = numeric_columns(table, joint_cols, Path(joints), "joint")
-    if degrees:
-        values = np.deg2rad(values)
-    q = robot.joint_matrix(joint_cols, values, str(joints))
-
-    def compute() -> np.ndarray:
-        return expected_wrenches(robot, q, base=base, gravity=gravity, workers=workers)
-
-    if not cache:
-        wrenches = compute()
-    else:
-        key = cache_key(robot, [q], (base, tuple(gravity), None))
-        wrenches = cached(key, [s.name for s in robot.ft_sensors], q.shape[0], compute, cache_dir)
-    return (table["time"].to_numpy() if "time" in table.columns else None), wrenches
-
-
-def _remote_wrenches(joints, description, workers, *settings):
-    """:func:`joints_file_wrenches` on a Dask worker: the robot rebuilt from its picklable description."""
-    from ..insitu.recordings import robot_from_description
-
-    return joints_file_wrenches(joints, robot_from_description(*description), workers, *settings)

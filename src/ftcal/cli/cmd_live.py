@@ -142,7 +142,7 @@ def run(args) -> int:
 def run_replay(args) -> int:
     from ..live.replay import ScriptedEvent, replay_table
     from ..runtime.errors import FtcalError
-    from .cmd_payload import check_not_input
+    from ._gravity import check_not_input
 
     if args.output is None:
         raise FtcalError("--replay needs -o OUT.parquet (or OUT.csv) for the results.")

@@ -7,7 +7,7 @@ import argparse
 from ..core.limits import MAX_DEGREE, PLAN_DEFAULTS, PLAN_OBJECTIVES
 from ._common import finite_float, nonnegative_int, require_suffix
 from ._examples import epilog
-from .cmd_sensors import add_robot_arguments, load_robot
+from ._robot import add_robot_arguments, robot_keywords
 
 PLAN_NOTE = "No collision checking: ftcal checks no pose against obstacles; check every pose on your robot before running it."
 
@@ -100,58 +100,23 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..data.tables import check_finite_output
-    from ..plan import PlanRequest, plan_experiment
-    from ..plan.page import format_summary, page_text
-    from ..plan.recorded import plan_frame, read_recorded
-    from ..robot import parse_payload_spec
-    from ..runtime.atomic import check_not_an_input, write_texts_atomic
-    from ..runtime.errors import FtcalError
+    from ..runtime.atomic import check_not_an_input
+    from ..workflow.planning import plan_experiment
 
     require_suffix(args.output, (".csv",), "-o")
     if args.html:
         require_suffix(args.html, (".html", ".htm"), "--html")
         check_not_an_input(args.html, "--html")
-    if args.degree > MAX_DEGREE:
-        raise FtcalError(f"--degree {args.degree}: must be 1..{MAX_DEGREE}.")
-    robot = load_robot(args)
-    loads = tuple(None if spec.strip().lower() == "none" else parse_payload_spec(spec)
-                  for spec in (args.load or ["none"]))
-    ranges: dict[str, tuple[float, float]] = {}
-    for name, low, high in args.joint_range:
-        if name in ranges:
-            raise FtcalError(f"--joint-range {name}: given more than once.")
-        if not low < high:
-            raise FtcalError(f"--joint-range {name}:{low:g}:{high:g}: empty range (LOW must be below HIGH).")
-        ranges[name] = (low, high)
-    fixed: dict[str, float] = {}
-    for name, value in args.fixed:
-        if name in fixed:
-            raise FtcalError(f"--fixed {name}: given more than once.")
-        fixed[name] = value
-    sensor = robot.sensor(args.sensor).name if args.sensor else None
-    request = PlanRequest(loads, args.poses, objective=args.objective, degree=args.degree, sensor=sensor,
-                          base=args.base, ranges=ranges, fixed=fixed, min_height=args.min_height,
-                          n_candidates=args.candidates, reference_every=args.reference_every,
-                          noise=tuple(args.noise), seed=args.seed)
-    if args.recorded:
-        robot.require_ft_sensors()
-        which = sensor or (robot.ft_sensors[0].name if len(robot.ft_sensors) == 1 else None)
-        if which is None:
-            raise FtcalError("--from needs --sensor: the robot has more than one F/T sensor.")
-        recorded = [read_recorded(path, robot, which, base=args.base) for path in args.recorded]
-    else:
-        recorded = []
-    plan = plan_experiment(robot, request, recorded)
-    frame = plan_frame(plan)
-    check_finite_output(frame, args.output)
+    result = plan_experiment(args.poses, **robot_keywords(args), base=args.base, sensor=args.sensor,
+                             load=tuple(args.load),
+                             objective=args.objective, degree=args.degree, joint_range=tuple(args.joint_range),
+                             fixed=tuple(args.fixed), min_height=args.min_height, candidates=args.candidates,
+                             reference_every=args.reference_every, noise=tuple(args.noise),
+                             recorded=tuple(args.recorded), seed=args.seed)
     # The plan and its page are written together or not at all: a failing page never replaces the plan.
-    texts = {args.output: frame.to_csv(index=False, float_format="%.17g")}
-    if args.html:
-        texts[args.html] = page_text(plan, recorded)
-    write_texts_atomic(texts)
-    print(format_summary(plan))
-    print(f"wrote {args.output} ({len(frame)} rows)")
+    result.save(args.output, args.html or None)
+    print(result.summary())
+    print(f"wrote {args.output} ({len(result.table)} rows)")
     if args.html:
         print(f"wrote {args.html}")
     return 0

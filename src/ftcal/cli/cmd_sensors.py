@@ -1,64 +1,11 @@
-"""``ftcal sensors``: the F/T sensors, joints and mass beyond each sensor of a robot model.
-
-Also home of the robot arguments shared by ``expected`` and ``dataset``.
-"""
+"""``ftcal sensors``: the F/T sensors, joints and mass beyond each sensor of a robot model."""
 
 from __future__ import annotations
 
 import argparse
 
 from ._examples import epilog
-
-
-def add_robot_arguments(parser: argparse.ArgumentParser, required: bool = True) -> None:
-    """--urdf PATH | --model NAME (optional unless ``required``), --ft-joint JOINT [--ft-frame LINK],
-    --payload SPEC..., --base FRAME."""
-    which = parser.add_mutually_exclusive_group(required=required)
-    which.add_argument("--urdf", metavar="PATH", help="URDF file of the robot")
-    which.add_argument("--model", metavar="NAME",
-                       help="robot model shipped by icub-models, e.g. iCubGenova04")
-    parser.add_argument("--ft-joint", metavar="JOINT",
-                        help="declare an F/T sensor (named JOINT) on this fixed joint of a plain URDF; it reports "
-                             "the wrench the child link applies on the parent link, in the sensor frame")
-    parser.add_argument("--ft-frame", metavar="LINK",
-                        help="sensor frame of --ft-joint: a link rigidly attached to the joint's child link "
-                             "(default: the child link frame)")
-    parser.add_argument("--payload", metavar="SPEC", action="append", default=[],
-                        help="attach a payload FRAME:MASS[@X,Y,Z][/IXX,IYY,IZZ[,IXY,IXZ,IYZ]] "
-                             "(kg, m, kg m²; COM and inertia in FRAME); repeatable")
-    parser.add_argument("--base", metavar="FRAME", default=None,
-                        help="fixed base frame (default: root_link if the URDF has it, else its base link)")
-
-
-def add_cache_arguments(parser: argparse.ArgumentParser) -> None:
-    """--cache-dir DIR, --no-cache: where expected wrenches are cached (ftcal.robot.cache)."""
-    parser.add_argument("--cache-dir", metavar="DIR",
-                        help="folder of the expected-wrench cache (default $XDG_CACHE_HOME/ftcal, "
-                             "else ~/.cache/ftcal)")
-    parser.add_argument("--no-cache", action="store_true", help="neither read nor write the cache")
-
-
-def declared_sensors(args: argparse.Namespace) -> tuple:
-    """The sensor declared by --ft-joint/--ft-frame, as a tuple of SensorDeclaration (empty if none)."""
-    from ..robot import SensorDeclaration
-    from ..runtime.errors import FtcalError
-
-    if args.ft_joint is None:
-        if args.ft_frame is not None:
-            raise FtcalError("--ft-frame needs --ft-joint (the fixed joint the sensor sits on).")
-        return ()
-    return (SensorDeclaration(args.ft_joint, args.ft_frame),)
-
-
-def load_robot(args: argparse.Namespace, payloads: bool = True):
-    """The robot model of the parsed arguments, with its declared sensor and (if ``payloads``) --payload specs."""
-    from ..robot import RobotModel, parse_payload_spec
-
-    robot = RobotModel.load(urdf=args.urdf, name=args.model, declared=declared_sensors(args))
-    if not payloads:
-        return robot
-    payloads = [parse_payload_spec(spec) for spec in args.payload]
-    return robot.with_payloads(payloads) if payloads else robot
+from ._robot import add_robot_arguments, load_robot
 
 
 def register(subparsers) -> None:

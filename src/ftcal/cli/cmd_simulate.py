@@ -7,7 +7,7 @@ import argparse
 from ..core.limits import SIMULATE_CHANNELS, SIMULATE_MISTAKES
 from ._common import finite_float, nonnegative_int, positive_float
 from ._examples import epilog
-from .cmd_sensors import add_robot_arguments, load_robot
+from ._robot import add_robot_arguments, load_robot
 
 
 def pair(text: str) -> tuple[float, float]:
@@ -100,7 +100,7 @@ def run(args: argparse.Namespace) -> int:
     from ..runtime.errors import FtcalError
     from ..sim.robot_recording import SimulationConfig, read_waypoints, simulate_session
     from ..sim.sensor_model import SensorSpec, spec_from_json
-    from .cmd_demo import output_folder
+    from ._common import output_folder
 
     out = Path(args.output)
     if out.exists() and not out.is_dir():
@@ -146,7 +146,7 @@ def run(args: argparse.Namespace) -> int:
                               temperature_start=args.temperature[0], temperature_end=args.temperature[1],
                               channels=args.channels, seed=args.seed,
                               formats=("bag", "table") if args.format == "both" else (args.format,))
-    session = simulate_session(robot, sensor_name, waypoints, sensor, output_folder(args.output), loads=loads,
+    session = simulate_session(robot, sensor_name, waypoints, sensor, output_folder(args.output, "-o"), loads=loads,
                                base=args.base, config=config)
     truth = session.truth
     for rec in truth["recordings"]:

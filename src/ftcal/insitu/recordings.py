@@ -326,9 +326,14 @@ def write_dataset(dataset: Dataset | LogTable, path: str | Path) -> None:
     Columns: the input names, the output names, for a :class:`LogTable` its columns
     (``time``, the joints, ``static``, ``hold``), then ``segment`` and ``group``.
     """
-    import pandas as pd
-
     from ..data.tables import write_table
+
+    write_table(dataset_frame(dataset), path)
+
+
+def dataset_frame(dataset: Dataset | LogTable):
+    """The columns :func:`write_dataset` writes, as a pandas DataFrame."""
+    import pandas as pd
 
     extra: dict[str, np.ndarray] = {}
     if isinstance(dataset, LogTable):
@@ -340,4 +345,4 @@ def write_dataset(dataset: Dataset | LogTable, path: str | Path) -> None:
     columns.update(extra)
     columns["segment"] = dataset.segments
     columns["group"] = np.asarray(dataset.groups).astype(str)
-    write_table(pd.DataFrame(columns), path)
+    return pd.DataFrame(columns)

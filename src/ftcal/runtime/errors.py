@@ -57,3 +57,18 @@ class OutOfRangeWarning(FtcalWarning):
 
 class PrecisionLossWarning(FtcalWarning):
     """Converting a model to raw-input monomials lost significant digits."""
+
+
+def single_line(text: str) -> str:
+    """``text`` with line breaks and tabs written as escapes: a name from a file (a bag topic, a column,
+    a model's input) cannot start a line of its own in the output and forge it.
+
+    Examples
+    --------
+    >>> single_line("topic\\nwrote model.json")
+    'topic\\\\nwrote model.json'
+    """
+    import re
+
+    return re.sub("[\t\n\x0b\x0c\r\x1c-\x1e\x85\u2028\u2029]",
+                  lambda m: m.group(0).encode("unicode_escape").decode("ascii"), str(text))

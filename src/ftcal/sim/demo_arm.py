@@ -129,37 +129,27 @@ def run_arm_demo(config: ArmDemoConfig = ArmDemoConfig()) -> dict:
         ``residual_rms_after`` (N, N·m by axis), ``noise`` (the simulator's force and torque noise),
         ``n_samples``, ``files`` and ``elapsed_s``.
     """
-    from ..data.bags import BagTopics
-    from ..data.tables import write_table
-    from ..files.payload_json import save_payload
-    from ..files.targets import convert
-    from ..insitu.bags import build_bag_table, write_bag_table
-    from ..insitu.recordings import InsituOptions
-    from ..payload.identify import check_mass_sign
-    from ..payload.kinematics import MotionSource, OrientationSource
-    from ..payload.parameters import PayloadParameters
-    from ..payload.tables import WRENCH_COLUMNS, compensate_table, identify_recording, read_payload_tables
+    from ..payload.tables import WRENCH_COLUMNS
+    from ..workflow.compensation import compensate
+    from ..workflow.datasets import build_dataset
+    from ..workflow.export import convert
+    from ..workflow.payload import identify_payload
 
     started = time.perf_counter()
     out, scenario = Path(config.out_dir), config.scenario
     out.mkdir(parents=True, exist_ok=True)
     truth = write_demo_bag(out / BAG_NAME, scenario)
-    topics = BagTopics(WRENCH_TOPIC, temperature=TEMPERATURE_TOPIC, imu=IMU_TOPIC, tf=(BASE_FRAME, SENSOR_FRAME))
-    table = build_bag_table([truth.path], topics, options=InsituOptions(savgol_frame=config.savgol_frame))
+    # The steps `ftcal dataset`, `payload --dynamic`, `compensate` and `convert` run, with the same defaults.
     dataset = out / DATASET_NAME
-    write_bag_table(table, dataset)
-
-    source = MotionSource(OrientationSource(g=scenario.gravity))
-    # What `ftcal payload --dynamic` runs: held-out choice of weighting, grouped-jackknife standard errors.
-    fit = identify_recording(read_payload_tables([dataset], source), bias_drift="none", dynamic=True).fit
-    check_mass_sign(fit)
-    payload = PayloadParameters.from_fit(fit, gravity=scenario.gravity, frame=SENSOR_FRAME, reaction=False,
-                                         wrench_columns=WRENCH_COLUMNS)
-    save_payload(payload, out / PAYLOAD_NAME, sources=[str(dataset)])
-    contact = compensate_table(dataset, payload, source)
-    write_table(contact, out / CONTACT_NAME)
+    table = build_dataset(truth.path, wrench_topic=WRENCH_TOPIC, temperature_topic=TEMPERATURE_TOPIC,
+                          imu_topic=IMU_TOPIC, tf=(BASE_FRAME, SENSOR_FRAME), savgol_frame=config.savgol_frame,
+                          no_filter=config.savgol_frame is None, output=dataset).table
+    motion = {"orientation": ("qx", "qy", "qz", "qw"), "g": scenario.gravity, "dynamic": True}
+    # Held-out choice of weighting, grouped-jackknife standard errors.
+    fit = identify_payload(dataset, bias_drift="none", frame=SENSOR_FRAME, output=out / PAYLOAD_NAME, **motion).fit
+    contact = compensate(out / PAYLOAD_NAME, dataset, output=out / CONTACT_NAME, **motion).table
     for target, name in ROS_YAML_FILES.items():
-        convert(out / PAYLOAD_NAME, target, out / name, {})
+        convert(out / PAYLOAD_NAME, target, out / name)
 
     measured = np.column_stack([table.columns[c] for c in WRENCH_COLUMNS])
     compensated = contact[list(AXES)].to_numpy()

@@ -1,0 +1,293 @@
+"""Robot logs or ROS bags to a fit-ready dataset (``ftcal dataset``); expected wrenches of joint tables
+(``ftcal expected``)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..runtime.errors import single_line
+from ..runtime.errors import FtcalError
+from .result import StepResult
+from .sources import paths_of, robot_model
+
+WRENCH = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
+BAG_OPTIONS = ("wrench_topic", "joints_topic", "temperature_topic", "imu_topic", "tf", "receive_time")
+
+
+@dataclass(repr=False)
+class DatasetResult(StepResult):
+    """A dataset built from recordings: its columns, and what was noticed on the way.
+
+    Attributes
+    ----------
+    table : LogTable (robot logs) or BagTable (ROS bags); ``save`` writes it
+    kind : {"logs", "bags"}
+    description : str, what the table holds ("N samples from K recording(s), ...")
+    notes : list of str, one line per thing noticed (printed first)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from ftcal.insitu.bags import BagTable
+    >>> table = BagTable({"time": np.arange(3.0), "u1": np.zeros(3)}, ())
+    >>> result = DatasetResult(table, "bags", "3 samples from 1 bag(s), columns time,u1")
+    >>> result.n_samples, result.columns
+    (3, ['time', 'u1'])
+    """
+
+    table: object
+    kind: str
+    description: str
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def n_samples(self) -> int:
+        """Rows of the dataset."""
+        return self.table.dataset.n_samples if self.kind == "logs" else self.table.n_samples
+
+    @property
+    def columns(self) -> list[str]:
+        """The dataset's column names, in file order."""
+        return list(self.table.columns)
+
+    def to_frame(self):
+        """The dataset as a pandas DataFrame (the table ``save`` writes)."""
+        import pandas as pd
+
+        if self.kind == "bags":
+            return pd.DataFrame(dict(self.table.columns))
+        from ..insitu.recordings import dataset_frame
+
+        return dataset_frame(self.table)
+
+    def summary(self) -> str:
+        return "\n".join([*self.notes, self.description])
+
+    def to_dict(self) -> dict:
+        from .result import plain
+
+        return plain({"kind": self.kind, "n_samples": self.n_samples, "columns": self.columns,
+                      "description": self.description, "notes": self.notes})
+
+    def save(self, path) -> None:
+        """Write the dataset (.parquet or .csv, atomically)."""
+        if self.kind == "bags":
+            from ..insitu.bags import write_bag_table
+
+            write_bag_table(self.table, Path(path))
+        else:
+            from ..insitu.recordings import write_dataset
+
+            write_dataset(self.table, Path(path))
+
+
+def build_dataset(logs, *, urdf=None, robot: str | None = None, sensor: str | None = None,
+                  ft_joint: str | None = None, ft_frame: str | None = None, payload: Sequence[str] = (),
+                  base: str | None = None, wrench_topic: str | None = None, joints_topic: str | None = None,
+                  temperature_topic: str | None = None, imu_topic: str | None = None, receive_time: bool = False,
+                  tf: tuple[str, str | None] | None = None, payload_file=None,
+                  gravity: Sequence[float] = (0.0, 0.0, -9.81), savgol_frame: int = 101, savgol_order: int = 3,
+                  no_filter: bool = False, rate: float | None = None, no_temperature: bool = False,
+                  degrees: bool = False, dynamic: bool = False, imu: str | None = None, imu_frame: str | None = None,
+                  align_first_sample: bool = False, adc_limits: tuple[float, float] | None = None,
+                  estimate_payload: str | None = None, workers: int = 2, no_cache: bool = False, cache_dir=None,
+                  executor=None, output=None) -> DatasetResult:
+    """Robot logs (.mat/.csv/.parquet) or ROS bags to a fit-ready dataset for one F/T sensor: ``ftcal dataset``.
+
+    Every keyword is the command's flag of the same name (``ftcal dataset --help``); ``robot`` is
+    ``--model NAME``. ``sensor`` may be left out when the robot model has one F/T sensor (e.g. the one
+    ``ft_joint`` declares on a plain URDF): that one is used, and a note says so.
+
+    Parameters
+    ----------
+    logs : path or list of paths, all robot logs or all ROS bags
+    executor : an executor of :mod:`ftcal.runtime.executors` (e.g. Dask) for the per-file work, or None
+    output : path or None; when given, the dataset is written there
+
+    Returns
+    -------
+    DatasetResult
+
+    Raises
+    ------
+    FtcalError
+        Bad input: a mix of bags and logs, a bag option for logs, no robot model for logs, an
+        ambiguous sensor, or any problem of the recordings (naming file and column).
+
+    Examples
+    --------
+    >>> build_dataset([])
+    Traceback (most recent call last):
+    ...
+    ftcal.runtime.errors.FtcalError: LOG: no file given.
+    """
+    from ..data.logs import READERS, log_format
+    from ..insitu.recordings import InsituOptions, build_log_table
+    from ..robot import load_case_config, parse_payload_spec
+
+    paths = paths_of(logs, "LOG")
+    is_bag = [READERS.get(log_format(Path(p)), "").startswith("ftcal.data.bags:") for p in paths]
+    if any(is_bag) and not all(is_bag):
+        raise FtcalError(f"LOG {paths[is_bag.index(False)]}: mix of ROS bags and other logs; "
+                         "build one dataset per kind.")
+    given = {"wrench_topic": wrench_topic, "joints_topic": joints_topic, "temperature_topic": temperature_topic,
+             "imu_topic": imu_topic, "tf": tf, "receive_time": receive_time}
+    if not any(is_bag):
+        named = [f"--{o.replace('_', '-')}" for o in BAG_OPTIONS if given[o] not in (None, False)]
+        if named:
+            raise FtcalError(f"{named[0]} applies to ROS bags only; {paths[0]} is not a bag.")
+        if urdf is None and robot is None:
+            raise FtcalError("--urdf or --model is required for .mat/.csv/.parquet logs.")
+    if any(is_bag) and estimate_payload:
+        raise FtcalError("--estimate-payload applies to .mat/.csv/.parquet logs; for a bag, identify "
+                         "the tool with `ftcal payload` on the bag's dataset.")
+    model = (robot_model(urdf=urdf, robot=robot, ft_joint=ft_joint, ft_frame=ft_frame)
+             if urdf is not None or robot is not None else None)
+    notes = []
+    if model is not None and sensor is None:
+        sensors = model.ft_sensors
+        if len(sensors) != 1:
+            raise FtcalError("--sensor is required: the robot model has "
+                             + (f"{len(sensors)} F/T sensors ({', '.join(s.name for s in sensors)})."
+                                if sensors else "no F/T sensor (declare one with --ft-joint JOINT)."))
+        sensor = sensors[0].name
+        notes.append(f"sensor: {single_line(sensor)}, the robot model's only F/T sensor")
+    payloads = [parse_payload_spec(spec) for spec in payload]
+    config = load_case_config(payload_file) if payload_file else None
+    options = InsituOptions(
+        base=base, gravity=tuple(gravity), savgol_frame=None if no_filter else savgol_frame,
+        savgol_order=savgol_order, rate=rate, temperature=not no_temperature, derivatives=dynamic,
+        imu=imu, imu_frame=imu_frame, align_first_sample=align_first_sample,
+        joint_units="deg" if degrees else "rad", adc_limits=tuple(adc_limits) if adc_limits else None,
+        cache=not no_cache, cache_dir=cache_dir, workers=workers, payload_link=estimate_payload)
+    if all(is_bag):
+        from ..data.bags import BagTopics
+        from ..insitu.bags import build_bag_table
+
+        if wrench_topic is None:
+            raise FtcalError(f"Bag {paths[0]}: --wrench-topic is required (list the topics with "
+                             f"'ftcal topics {paths[0]}').")
+        topics = BagTopics(wrench_topic, joints_topic, temperature_topic, imu_topic, tf, receive_time=receive_time)
+        table = build_bag_table(paths, topics, robot=model, sensor=sensor, payloads=payloads, load_cases=config,
+                                options=options, executor=executor)
+        description = (f"{table.n_samples} samples from {len(paths)} bag(s), columns "
+                       f"{single_line(','.join(table.columns))}")
+        result = DatasetResult(table, "bags", description, notes + [single_line(n) for n in table.notes])
+    else:
+        table = build_log_table(paths, model, sensor, payloads=payloads, load_cases=config, options=options,
+                                executor=executor)
+        dataset = table.dataset
+        groups = sorted(set(map(str, dataset.groups)))
+        n_holds = int(table.columns["hold"].max()) + 1 if dataset.n_samples else 0
+        description = (f"{dataset.n_samples} samples from {len(paths)} recording(s), "
+                       f"group(s) {', '.join(groups)}, {n_holds} static hold(s)")
+        result = DatasetResult(table, "logs", description, notes + [single_line(n) for n in table.notes])
+    if output is not None:
+        result.save(output)
+    return result
+
+
+@dataclass(repr=False)
+class ExpectedResult(StepResult):
+    """Expected F/T wrenches for a joint table: ``table`` has ``time`` (when given) and ``SENSOR_Fx..Tz``."""
+
+    table: object
+    sensors: list[str] = field(default_factory=list)
+
+    def summary(self) -> str:
+        return f"{len(self.table)} samples x {len(self.sensors)} sensor(s)"
+
+    def to_dict(self) -> dict:
+        from .result import plain
+
+        return plain({"n_samples": len(self.table), "sensors": self.sensors,
+                      "columns": {str(c): self.table[c].to_numpy() for c in self.table.columns}})
+
+    def save(self, path) -> None:
+        """Write the table (CSV or Parquet by suffix, atomically)."""
+        from ..data.tables import write_table
+
+        write_table(self.table, Path(path))
+
+
+def expected(joints, *, urdf=None, robot: str | None = None, ft_joint: str | None = None,
+             ft_frame: str | None = None, payload: Sequence[str] = (), base: str | None = None,
+             sensor: Sequence[str] = (), gravity: Sequence[float] = (0.0, 0.0, -9.81), degrees: bool = False,
+             workers: int = 2, no_cache: bool = False, cache_dir=None, executor=None, output=None) -> ExpectedResult:
+    """The wrench each F/T sensor should measure for every row of a joint table: ``ftcal expected``.
+
+    Parameters
+    ----------
+    joints : path of a CSV/Parquet table, one column per joint (rad, or degrees with ``degrees``)
+    urdf, robot, ft_joint, ft_frame, payload, base : the robot model (as ``ftcal expected``)
+    sensor : sensor names (default: every F/T sensor)
+    gravity : gravity in base-frame axes, m/s²
+    executor : an executor of :mod:`ftcal.runtime.executors`: the joints file is one task there; or None
+    output : path or None; when given, the table is written there
+
+    Returns
+    -------
+    ExpectedResult
+
+    Raises
+    ------
+    FtcalError
+        Bad robot options, an unknown sensor or joint, a non-numeric joint column.
+    """
+    import pandas as pd
+
+    model = robot_model(urdf=urdf, robot=robot, ft_joint=ft_joint, ft_frame=ft_frame, payload=payload)
+    names = [sensor] if isinstance(sensor, str) else list(sensor)
+    sensors = [model.sensor(name) for name in names] or list(model.ft_sensors)
+    labels = names or [s.name for s in sensors]
+    _, base_frame = model.base_frame(base)
+    settings = (base_frame, tuple(gravity), degrees, not no_cache, cache_dir)
+    if executor is not None:
+        description = (model.urdf_text, model.source, model.payloads, model.declared)
+        [(time, wrenches)] = executor.map(_remote_wrenches, [(str(joints), description)], 1, *settings,
+                                          description="joints files")
+    else:
+        time, wrenches = joints_file_wrenches(joints, model, workers, *settings)
+    columns = {"time": time} if time is not None else {}
+    for label, s in zip(labels, sensors):
+        for axis, name in enumerate(WRENCH):
+            columns[f"{label}_{name}"] = wrenches[:, s.index, axis]
+    result = ExpectedResult(pd.DataFrame(columns), labels)
+    if output is not None:
+        result.save(output)
+    return result
+
+
+def joints_file_wrenches(joints, robot, workers, base, gravity, degrees, cache, cache_dir):
+    """The ``time`` column (or None) and the (n_samples, n_sensors, 6) expected wrenches of a joints file."""
+    import numpy as np
+
+    from ..data.tables import numeric_columns, read_table
+    from ..robot.cache import cache_key, cached
+    from ..robot.expected import expected_wrenches
+
+    table = read_table(Path(joints))
+    joint_cols = [c for c in table.columns if c != "time"]
+    values = numeric_columns(table, joint_cols, Path(joints), "joint")
+    if degrees:
+        values = np.deg2rad(values)
+    q = robot.joint_matrix(joint_cols, values, str(joints))
+
+    def compute() -> np.ndarray:
+        return expected_wrenches(robot, q, base=base, gravity=gravity, workers=workers)
+
+    if not cache:
+        wrenches = compute()
+    else:
+        key = cache_key(robot, [q], (base, tuple(gravity), None))
+        wrenches = cached(key, [s.name for s in robot.ft_sensors], q.shape[0], compute, cache_dir)
+    return (table["time"].to_numpy() if "time" in table.columns else None), wrenches
+
+
+def _remote_wrenches(joints, description, workers, *settings):
+    """:func:`joints_file_wrenches` on a Dask worker: the robot rebuilt from its picklable description."""
+    from ..insitu.recordings import robot_from_description
+
+    return joints_file_wrenches(joints, robot_from_description(*description), workers, *settings)
