@@ -6,12 +6,18 @@ and the "force-norm RMSE" (the paper's "RMSE of force norm") is the RMSE of
 force error norm" (``*_error_norm_rmse``, sqrt(mean ‖f − f̂‖²)) counts them too.
 Every metric is printed under the name and unit of :data:`METRIC_NAMES` and
 :func:`metric_unit`, defined once for users in docs/metrics.md.
+
+There is one evaluation path: :class:`ErrorSums` holds additive, centred sums of
+consecutive rows from which every metric of :func:`summarize` follows. A streamed
+file (:mod:`ftcal.data.streaming`) adds them chunk by chunk; :func:`summarize`, the
+in-memory evaluation, is the same sums over one chunk, the whole array.
 """
 
 from __future__ import annotations
 
 import re
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -259,34 +265,196 @@ EVALUATION_KEYS = ("rmse", "best_fit", "max_abs_error", "force_norm_rmse", "torq
 
 
 def summarize(y_true: np.ndarray, y_pred: np.ndarray, output_names: Sequence[str]) -> dict:
-    """All metrics as a JSON-ready dict (the keys of ``ftcal evaluate --json``).
+    """All metrics as a JSON-ready dict (the keys of ``ftcal evaluate --json``): :class:`ErrorSums` of one chunk.
 
     Parameters
     ----------
-    y_true, y_pred : ndarray of shape (n_samples, n_outputs)
+    y_true, y_pred : ndarray of shape (n_samples, n_outputs), n_samples >= 1
     output_names : sequence of str
 
     Returns
     -------
     dict
         :data:`EVALUATION_KEYS` except ``n_out_of_range`` (the model adds it).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> summarize(np.array([[0.0], [0.0]]), np.array([[3.0], [-3.0]]), ["a"])["rmse"]
+    [3.0]
     """
-    summary: dict = {
-        "n_samples": int(y_true.shape[0]),
-        "outputs": list(output_names),
-        "rmse": rmse(y_true, y_pred).tolist(),
-        "best_fit": _json_list(best_fit(y_true, y_pred)),
-        "max_abs_error": max_abs_error(y_true, y_pred).tolist(),
+    return ErrorSums.of(y_true, y_pred, output_names).summary(output_names)
+
+
+@dataclass
+class ErrorSums:
+    """Additive sums of consecutive rows from which every metric of :func:`summarize` follows.
+
+    ``a + b`` (``b``'s rows after ``a``'s) gives the sums of the concatenation, so
+    chunks and files add up in any tree that keeps their order. The first and second
+    moments of the outputs and of the residual r = y − ŷ, and the residual's lag-1
+    product, are kept *centred*: about a centre c near the mean, with the remainder
+    Σ(x − c) carried along. A merge moves both parts to a common centre with exact
+    identities (Chan, Golub & LeVeque's pairwise update, written for any centre), so
+    no step subtracts two large raw sums: a residual whose mean is large next to its
+    spread keeps as many digits as the direct computation on the whole array.
+    Shapes: (n_outputs,) per output; the norm sums are (2,), forces then torques.
+
+    Attributes
+    ----------
+    n : int
+        Rows.
+    y_centre, y_dev_sum, y_dev_sq : ndarray
+        Centre c of the outputs, Σ (y − c) and Σ (y − c)².
+    r_centre, r_dev_sum, r_dev_sq, r_dev_lag : ndarray
+        Centre c of the residual, Σ (r − c), Σ (r − c)² and Σ_t (r_t − c)(r_(t+1) − c).
+    r_first, r_last : ndarray
+        The first and last residual row (to join the lag-1 product across blocks).
+    sse : ndarray
+        Σ r² (a sum of squares: no cancellation).
+    max_abs : ndarray
+        max |r|.
+    norm_sq : ndarray of shape (2,)
+        Σ (‖v‖ − ‖v̂‖)² for the force and torque triples, NaN where the outputs have none.
+    error_norm_sq : ndarray of shape (2,)
+        Σ ‖v − v̂‖², NaN alike.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> y, p = np.array([[1.0], [2.0], [4.0]]), np.zeros((3, 1))
+    >>> split = (ErrorSums.of(y[:1], p[:1], ["a"]) + ErrorSums.of(y[1:], p[1:], ["a"])).summary(["a"])
+    >>> split["max_abs_error"], round(split["rmse"][0] ** 2 * 3, 9)  # Σ r² = 1 + 4 + 16
+    ([4.0], 21.0)
+
+    By hand, r − r̄ = (−4, −1, 5)/3, so acf(1) = ((4 − 5)/9) / (42/9) = −1/42:
+
+    >>> round(split["residual_autocorrelation_lag1"][0] * 42, 9)
+    -1.0
+    """
+
+    n: int
+    y_centre: np.ndarray
+    y_dev_sum: np.ndarray
+    y_dev_sq: np.ndarray
+    r_centre: np.ndarray
+    r_dev_sum: np.ndarray
+    r_dev_sq: np.ndarray
+    r_dev_lag: np.ndarray
+    r_first: np.ndarray
+    r_last: np.ndarray
+    sse: np.ndarray
+    max_abs: np.ndarray
+    norm_sq: np.ndarray
+    error_norm_sq: np.ndarray
+
+    @classmethod
+    def of(cls, y: np.ndarray, prediction: np.ndarray, output_names: Sequence[str]) -> "ErrorSums":
+        """Sums of one block of rows, centred at the block's means.
+
+        Parameters
+        ----------
+        y, prediction : ndarray of shape (m, n_outputs), m >= 1
+        output_names : sequence of str
+            To find the force and torque triples (:func:`force_torque_columns`).
+
+        Returns
+        -------
+        ErrorSums
+        """
+        y, prediction = np.asarray(y, dtype=float), np.asarray(prediction, dtype=float)
+        if y.ndim != 2 or y.shape != prediction.shape or len(y) == 0:
+            raise ValueError(f"ErrorSums needs y and prediction of one shape (m >= 1, n_outputs); "
+                             f"got {y.shape} and {prediction.shape}.")
+        r = y - prediction
+        norm_sq, error_norm_sq = np.full(2, np.nan), np.full(2, np.nan)
+        for k, columns in enumerate(force_torque_columns(output_names)):
+            if columns is not None:
+                norms = np.linalg.norm(y[:, columns], axis=1) - np.linalg.norm(prediction[:, columns], axis=1)
+                norm_sq[k] = norms @ norms
+                error_norm_sq[k] = np.sum(r[:, columns] ** 2)
+        y_centre, r_centre = y.mean(axis=0), r.mean(axis=0)
+        y_dev, r_dev = y - y_centre, r - r_centre
+        return cls(len(y), y_centre, y_dev.sum(axis=0), np.einsum("ij,ij->j", y_dev, y_dev),
+                   r_centre, r_dev.sum(axis=0), np.einsum("ij,ij->j", r_dev, r_dev),
+                   np.einsum("ij,ij->j", r_dev[1:], r_dev[:-1]), r[0].copy(), r[-1].copy(),
+                   np.einsum("ij,ij->j", r, r), np.abs(r).max(axis=0), norm_sq, error_norm_sq)
+
+    def __add__(self, other: "ErrorSums") -> "ErrorSums":
+        return ErrorSums(**self._merged_fields(other))
+
+    def _merged_fields(self, other: "ErrorSums") -> dict:
+        """The fields of ``self + other`` (for subclasses that add fields of their own)."""
+        n = self.n + other.n
+        y_centre = _common_centre(self.n, self.y_centre, self.y_dev_sum, other.n, other.y_centre, other.y_dev_sum)
+        r_centre = _common_centre(self.n, self.r_centre, self.r_dev_sum, other.n, other.r_centre, other.r_dev_sum)
+        y_a, y_b = (_recentred(s.n, s.y_centre, s.y_dev_sum, s.y_dev_sq, y_centre) for s in (self, other))
+        r_a, r_b = (_recentred(s.n, s.r_centre, s.r_dev_sum, s.r_dev_sq, r_centre) for s in (self, other))
+        # the one lag pair across the join: a's last row, b's first row
+        join = (self.r_last - r_centre) * (other.r_first - r_centre)
+        return dict(n=n, y_centre=y_centre, y_dev_sum=y_a[0] + y_b[0], y_dev_sq=y_a[1] + y_b[1],
+                    r_centre=r_centre, r_dev_sum=r_a[0] + r_b[0], r_dev_sq=r_a[1] + r_b[1],
+                    r_dev_lag=self._lag_about(r_centre) + other._lag_about(r_centre) + join,
+                    r_first=self.r_first, r_last=other.r_last, sse=self.sse + other.sse,
+                    max_abs=np.maximum(self.max_abs, other.max_abs), norm_sq=self.norm_sq + other.norm_sq,
+                    error_norm_sq=self.error_norm_sq + other.error_norm_sq)
+
+    def _lag_about(self, centre: np.ndarray) -> np.ndarray:
+        """Σ_t (r_t − centre)(r_(t+1) − centre) over this block's n − 1 pairs (exact identity, any centre).
+
+        With d = centre − c: Σ_(t<n) (r_t − c) = S − (r_last − c) and Σ_(t>1) (r_t − c) = S − (r_first − c),
+        where S = Σ (r − c); the pairs' sum is then L − d (2S − (r_first − c) − (r_last − c)) + (n − 1) d².
+        """
+        shift = centre - self.r_centre
+        ends = (self.r_first - self.r_centre) + (self.r_last - self.r_centre)
+        return self.r_dev_lag - shift * (2 * self.r_dev_sum - ends) + (self.n - 1) * shift * shift
+
+    def summary(self, output_names: Sequence[str]) -> dict:
+        """The metrics of :func:`summarize` (a JSON-ready dict; NaN metrics become None or NaN as there).
+
+        Parameters
+        ----------
+        output_names : sequence of str
+
+        Returns
+        -------
+        dict
+        """
+        n = self.n
+        with np.errstate(all="ignore"):  # undefined metrics become NaN (None in JSON) or are refused
+            y_m2 = _recentred(n, self.y_centre, self.y_dev_sum, self.y_dev_sq, self.y_centre + self.y_dev_sum / n)[1]
+            r_mean = self.r_centre + self.r_dev_sum / n
+            r_m2 = _recentred(n, self.r_centre, self.r_dev_sum, self.r_dev_sq, r_mean)[1]
+            lag = self._lag_about(r_mean)
+            best = np.where(y_m2 > 0, 1.0 - np.sqrt(self.sse / y_m2), np.nan)
+            acf = np.where(r_m2 > 0, lag / r_m2, 0.0) if n > 1 else np.zeros_like(r_m2)
+
+        def root_mean(value: float):
+            return None if np.isnan(value) else float(np.sqrt(value / n))
+
         # Near 1: the residual is slow, unmodelled dynamics or drift (try ARX, --na/--nb).
-        "residual_autocorrelation_lag1": (residual_autocorrelation(y_true, y_pred, 1)[-1].tolist()
-                                          if y_true.shape[0] > 1 else [0.0] * y_true.shape[1]),
-        "force_norm_rmse": None, "torque_norm_rmse": None,
-        "force_error_norm_rmse": None, "torque_error_norm_rmse": None,
-    }
-    for name, columns in wrench_blocks(output_names).items():
-        summary[f"{name}_norm_rmse"] = norm_rmse(y_true[:, columns], y_pred[:, columns])
-        summary[f"{name}_error_norm_rmse"] = error_norm_rmse(y_true[:, columns], y_pred[:, columns])
-    return summary
+        return {"n_samples": int(n), "outputs": list(output_names), "rmse": np.sqrt(self.sse / n).tolist(),
+                "best_fit": _json_list(best), "max_abs_error": self.max_abs.tolist(),
+                "residual_autocorrelation_lag1": acf.tolist(),
+                "force_norm_rmse": root_mean(self.norm_sq[0]), "torque_norm_rmse": root_mean(self.norm_sq[1]),
+                "force_error_norm_rmse": root_mean(self.error_norm_sq[0]),
+                "torque_error_norm_rmse": root_mean(self.error_norm_sq[1])}
+
+
+def _common_centre(n_a: int, centre_a: np.ndarray, dev_sum_a: np.ndarray, n_b: int, centre_b: np.ndarray,
+                   dev_sum_b: np.ndarray) -> np.ndarray:
+    """The mean of two blocks' rows, a's centre plus a small correction (no large raw sums)."""
+    return centre_a + (n_b * (centre_b - centre_a) + dev_sum_a + dev_sum_b) / (n_a + n_b)
+
+
+def _recentred(n: int, centre: np.ndarray, dev_sum: np.ndarray, dev_sq: np.ndarray,
+               new_centre: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(Σ (x − new), Σ (x − new)²) from the sums about ``centre``: S − n d and Q − 2 d S + n d², d = new − centre.
+
+    Near the mean d and S are small, so neither subtracts large numbers (Chan's update when S = 0).
+    """
+    shift = new_centre - centre
+    return dev_sum - n * shift, dev_sq - 2 * shift * dev_sum + n * shift * shift
 
 
 def _json_list(values: np.ndarray) -> list:

@@ -14,7 +14,7 @@ from __future__ import annotations
 import functools
 import os
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -347,33 +347,22 @@ def add_statistics(a: SufficientStatistics, b: SufficientStatistics) -> Sufficie
 
 
 @dataclass
-class ErrorSums:
-    """Additive sums from which every ``evaluate`` metric follows, for consecutive rows.
+class ErrorSums(metrics.ErrorSums):
+    """:class:`ftcal.core.metrics.ErrorSums` of consecutive rows of files, with what ``evaluate`` reports besides.
 
-    Combining two (``a + b``, ``b``'s rows after ``a``'s) gives the sums of
-    their concatenation, so files and chunks are summed in any tree that keeps
-    their order. Shapes: (ny,) per output; norms are scalars.
+    The metric sums, their centred merge and :meth:`summary` are those of the in-memory
+    evaluation (:func:`ftcal.core.metrics.summarize`); this class only adds the rows
+    outside the training range, the training segments found and the pose cells.
     """
 
-    n: int
-    y_mean: np.ndarray
-    y_m2: np.ndarray  # Σ (y - mean)², merged with Chan's formula
-    sse: np.ndarray  # Σ r², r = y - ŷ
-    r_sum: np.ndarray
-    r_lag: np.ndarray  # Σ r_t r_(t+1)
-    r_first: np.ndarray
-    r_last: np.ndarray
-    max_abs: np.ndarray
-    norm_sq: np.ndarray  # Σ (‖v‖ - ‖v̂‖)² for forces, torques (NaN when absent)
-    error_norm_sq: np.ndarray  # Σ ‖v - v̂‖²
-    n_out_of_range: int
+    n_out_of_range: int = 0
     training_segments: frozenset = frozenset()  # indices of the model's training fingerprints found
     pose_cells: frozenset = frozenset()  # occupied cells of the pose grid, when counted (see file_error_sums)
     ranges: RangeSums | None = None  # which inputs left the training range, how far, the error there
 
     @classmethod
     def of(cls, y: np.ndarray, prediction: np.ndarray, output_names: Sequence[str],
-           n_out_of_range: int, ranges: RangeSums | None = None) -> "ErrorSums":
+           n_out_of_range: int = 0, ranges: RangeSums | None = None) -> "ErrorSums":
         """Sums of one block of rows.
 
         Parameters
@@ -383,53 +372,18 @@ class ErrorSums:
         n_out_of_range : rows of the block with inputs outside the training range
         ranges : the block's :class:`~ftcal.core.ranges.RangeSums`, optional
         """
-        r = y - prediction
-        norm_sq, error_norm_sq = np.full(2, np.nan), np.full(2, np.nan)
-        for k, columns in enumerate(metrics.force_torque_columns(output_names)):
-            if columns is not None:
-                norms = np.linalg.norm(y[:, columns], axis=1) - np.linalg.norm(prediction[:, columns], axis=1)
-                norm_sq[k] = norms @ norms
-                error_norm_sq[k] = np.sum(r[:, columns] ** 2)
-        mean = y.mean(axis=0)
-        return cls(len(y), mean, np.sum((y - mean) ** 2, axis=0), np.einsum("ij,ij->j", r, r), r.sum(axis=0),
-                   np.einsum("ij,ij->j", r[1:], r[:-1]), r[0].copy(), r[-1].copy(), np.abs(r).max(axis=0),
-                   norm_sq, error_norm_sq, n_out_of_range, ranges=ranges)
+        return replace(super().of(y, prediction, output_names), n_out_of_range=n_out_of_range, ranges=ranges)
 
     def __add__(self, other: "ErrorSums") -> "ErrorSums":
-        n = self.n + other.n
-        delta = other.y_mean - self.y_mean
-        return ErrorSums(n, self.y_mean + delta * (other.n / n),
-                         self.y_m2 + other.y_m2 + delta ** 2 * (self.n * other.n / n),
-                         self.sse + other.sse, self.r_sum + other.r_sum,
-                         self.r_lag + other.r_lag + self.r_last * other.r_first, self.r_first, other.r_last,
-                         np.maximum(self.max_abs, other.max_abs), self.norm_sq + other.norm_sq,
-                         self.error_norm_sq + other.error_norm_sq, self.n_out_of_range + other.n_out_of_range,
-                         self.training_segments | other.training_segments,
-                         self.pose_cells | other.pose_cells if len(self.pose_cells) < POSE_CELL_CAP
+        return ErrorSums(**self._merged_fields(other), n_out_of_range=self.n_out_of_range + other.n_out_of_range,
+                         training_segments=self.training_segments | other.training_segments,
+                         pose_cells=self.pose_cells | other.pose_cells if len(self.pose_cells) < POSE_CELL_CAP
                          else self.pose_cells,
-                         None if self.ranges is None or other.ranges is None else self.ranges + other.ranges)
+                         ranges=None if self.ranges is None or other.ranges is None else self.ranges + other.ranges)
 
     def summary(self, output_names: Sequence[str]) -> dict:
         """The metrics of :func:`ftcal.core.metrics.summarize`, plus ``n_out_of_range``."""
-        n = self.n
-        with np.errstate(all="ignore"):  # undefined metrics become NaN (None in JSON) or are refused
-            best = np.where(self.y_m2 > 0, 1.0 - np.sqrt(self.sse / self.y_m2), np.nan)
-            # lag-1 autocorrelation of the centred residual, from raw sums
-            m = self.r_sum / n
-            num = self.r_lag - m * (2 * self.r_sum - self.r_first - self.r_last) + (n - 1) * m * m
-            den = self.sse - n * m * m
-            acf = np.where(den > 0, num / den, 0.0) if n > 1 else np.zeros_like(den)
-
-        def root_mean(value: float):
-            return None if np.isnan(value) else float(np.sqrt(value / n))
-
-        return {"n_samples": n, "outputs": list(output_names), "rmse": np.sqrt(self.sse / n).tolist(),
-                "best_fit": [float(v) if np.isfinite(v) else None for v in best],
-                "max_abs_error": self.max_abs.tolist(), "residual_autocorrelation_lag1": acf.tolist(),
-                "force_norm_rmse": root_mean(self.norm_sq[0]), "torque_norm_rmse": root_mean(self.norm_sq[1]),
-                "force_error_norm_rmse": root_mean(self.error_norm_sq[0]),
-                "torque_error_norm_rmse": root_mean(self.error_norm_sq[1]),
-                "n_out_of_range": self.n_out_of_range}
+        return {**super().summary(output_names), "n_out_of_range": self.n_out_of_range}
 
 
 def add_error_sums(a, b):
