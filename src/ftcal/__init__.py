@@ -43,9 +43,13 @@ _LAZY = {"FtcalError": "runtime.errors:FtcalError", "FtcalWarning": "runtime.err
          "MonomialBasis": "core.features:MonomialBasis", "RegressorLayout": "core.features:RegressorLayout",
          "n_coefficients": "core.features:n_coefficients", "load_dataset": "data.tables:load_dataset",
          "load_model": "files.model_files:read_model", "save_model": "files.model_json:save_model"}
+_LAZY.update(fit="workflow.fitting:fit", FitResult="workflow.fitting:FitResult",
+             evaluate="workflow.evaluation:evaluate", EvaluationResult="workflow.evaluation:EvaluationResult",
+             predict="workflow.evaluation:predict", PredictionResult="workflow.evaluation:PredictionResult")
 
 __all__ = ["CalibrationModel", "Dataset", "FtcalError", "FtcalWarning", "MonomialBasis",
            "RegressorLayout", "load_dataset", "load_model", "n_coefficients", "save_model"]
+__all__ += ["EvaluationResult", "FitResult", "PredictionResult", "evaluate", "fit", "predict"]
 
 
 def __getattr__(name: str):

@@ -11,6 +11,7 @@ from collections.abc import Sequence
 
 from ..core.columns import DEFAULT_INPUTS, DEFAULT_OUTPUTS
 from ..core.limits import MAX_OPTION_MAGNITUDE
+from ..core.metrics import norm_rmse_text  # noqa: F401  (the commands' import of it)
 from ..runtime.errors import FtcalError
 
 
@@ -103,15 +104,6 @@ def print_json(payload: dict) -> None:
 def require_suffix(path: str, suffixes: Sequence[str], option: str) -> None:
     if not any(path.lower().endswith(s) for s in suffixes):
         raise FtcalError(f"{option} {path}: must end in {' or '.join(suffixes)}.")
-
-
-def norm_rmse_text(metrics: dict, spec: str = ".4f", units: bool = True) -> str:
-    """``force-norm RMSE … N, torque-norm RMSE … N·m`` from training metrics; either may be absent
-    (force-only or torque-only outputs); '' when both are."""
-    parts = [f"{what}-norm RMSE {metrics[key]:{spec}}" + (f" {unit}" if units else "")
-             for what, key, unit in (("force", "force_norm_rmse", "N"), ("torque", "torque_norm_rmse", "N·m"))
-             if metrics.get(key) is not None]
-    return ", ".join(parts)
 
 
 _LINE_BREAKS = re.compile("[\t\n\x0b\x0c\r\x1c-\x1e\x85\u2028\u2029]")

@@ -15,6 +15,8 @@ from __future__ import annotations
 # name -> module of this package that defines it; loaded on first use (numpy/scipy stay unloaded
 # for `ftcal --help`). Each step module adds its public names here.
 _STEPS: dict[str, str] = {"StepResult": "result"}
+_STEPS.update(fit="fitting", FitResult="fitting")
+_STEPS.update(evaluate="evaluation", predict="evaluation", EvaluationResult="evaluation", PredictionResult="evaluation")
 
 __all__ = sorted(_STEPS)
 
