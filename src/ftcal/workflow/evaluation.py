@@ -31,6 +31,16 @@ class EvaluationResult(StepResult):
         The keys of ``ftcal evaluate --json`` (:data:`ftcal.core.metrics.EVALUATION_KEYS`, the counts
         outside the training range and span, ``out_of_range``, and the other ARX mode's metrics).
     mode, start, warmup : the ARX prediction the metrics score
+
+    Examples
+    --------
+    >>> import numpy as np, pandas as pd
+    >>> import ftcal
+    >>> u = np.linspace(-1.0, 1.0, 30)
+    >>> frame = pd.DataFrame({"u1": u, "Fx": 4.0 * u + 0.02 * np.cos(25 * u)})
+    >>> result = ftcal.evaluate(ftcal.fit(frame, inputs=["u1"], outputs=["Fx"]).model, frame)
+    >>> result.to_dict()["n_outside_range"], result.summary().splitlines()[0]
+    (0, '30 samples, 0 outside the training input range (an input beyond its training min/max)')
     """
 
     model: Any
@@ -96,6 +106,16 @@ class PredictionResult(StepResult):
         Side remarks (standard error of ``ftcal predict``): the ARX prediction mode.
     out_of_range : dict or None
         Which inputs left the training range, how far (:meth:`ftcal.core.ranges.RangeSums.summary`).
+
+    Examples
+    --------
+    >>> import numpy as np, pandas as pd
+    >>> import ftcal
+    >>> u = np.linspace(-1.0, 1.0, 30)
+    >>> model = ftcal.fit(pd.DataFrame({"u1": u, "Fx": 4.0 * u + 0.02 * np.cos(25 * u)}),
+    ...                   inputs=["u1"], outputs=["Fx"]).model
+    >>> ftcal.predict(model, pd.DataFrame({"u1": [0.0, 0.5]}))
+    <PredictionResult: wrote 2 predictions to memory (.predictions)>
     """
 
     n_rows: int

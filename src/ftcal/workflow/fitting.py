@@ -51,6 +51,16 @@ class FitResult(StepResult):
         Side remarks (standard error of ``ftcal fit``): samples read, rows dropped, warnings.
     selection : CrossValidationResult or None
         The ``degree="auto"`` search, when it ran.
+
+    Examples
+    --------
+    >>> import numpy as np, pandas as pd
+    >>> import ftcal
+    >>> u = np.linspace(-1.0, 1.0, 30)
+    >>> result = ftcal.fit(pd.DataFrame({"u1": u, "Fx": 4.0 * u + 0.02 * np.cos(25 * u)}),
+    ...                    inputs=["u1"], outputs=["Fx"])
+    >>> result.model.describe()["degree"], result.to_dict()["n_samples"]
+    (1, 30)
     """
 
     model: Any
@@ -135,8 +145,8 @@ def fit(data, *, inputs: Sequence[str] | None = None, outputs: Sequence[str] | N
     >>> u = np.linspace(-1.0, 1.0, 50)
     >>> frame = pd.DataFrame({"u1": u, "Fx": 3.0 * u + 1.0 + 0.01 * np.sin(40 * u)})
     >>> result = ftcal.fit(frame, inputs=["u1"], outputs=["Fx"])
-    >>> print(result.lines[-1])
-    training RMSE per output: Fx 0.007052 N
+    >>> result.lines[-1].startswith("training RMSE per output: Fx")
+    True
     >>> round(float(result.model.predict(np.array([[0.5]]))[0, 0]), 2)
     2.5
     """
