@@ -29,8 +29,10 @@ from ._fit_mlp import add_family_options
 STREAMING_NOTE = """Fits stream the files (except --solver osqp and --estimate-payload, which read
 them whole): a pass for the column ranges (the normalization), one for the sufficient statistics
 (summed, then solved here; --degree auto: a pass per degree and basis tried, per fold, and the
-selection is solved from those sums; ARX: lags inside segments), one for the training metrics;
-memory: one chunk (one file for ARX) plus p x p (--degree auto: p x p per fold).
+selection is solved from those sums; ARX: lags inside segments), and for ARX and --degree auto one
+for the training metrics (a static fit of a given degree takes its training RMSE and BestFit from the
+summed statistics; max |error| and the norm RMSEs: ftcal evaluate); memory: one chunk (one file for
+ARX) plus p x p (--degree auto: p x p per fold).
 
 --degree auto chooses a degree, penalty and lambda per force/torque block (--select-per block, the
 default), per output, or one for the whole model, by grouped cross-validation, and prints force

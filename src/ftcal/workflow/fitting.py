@@ -529,7 +529,9 @@ class _Fit:
             StreamedStatistics,
             add_error_sums,
             add_statistics,
+            add_statistics_and_poses,
             file_error_sums,
+            file_statistics_and_poses,
             file_summary,
         )
         from ..data.table_chunks import keep_in_memory
@@ -545,7 +547,7 @@ class _Fit:
             self._report_excitation(summary.spread.take(slice(n_in, None)), outputs)
             self._read_note(sum(summary.segment_lengths), inputs, outputs)
             self._dropped_note(dropped)
-            stats = None
+            cells = None
             if o.degree == "auto":
                 from ..core.select import fit_selection
 
@@ -559,13 +561,25 @@ class _Fit:
                 model = template.clone(degree=o.degree, solver=make_solver(o))
                 frame = model.frame_from_ranges(summary.input_range, summary.output_range, inputs, outputs,
                                                 summary.segment_lengths)
-                parts = executor.map_reduce(file_layout_statistics, paths, frame.layout,
-                                            frame.solve_input_normalization, frame.solve_output_normalization,
-                                            inputs, outputs, o.segment_by, combine=add_statistics,
-                                            description="statistics")
+                if frame.layout.is_static:  # the pose cells in the same read: no pass after this one
+                    parts, cells = executor.map_reduce(
+                        file_statistics_and_poses, paths, frame.layout.basis, frame.solve_input_normalization,
+                        inputs, outputs, frame.input_range, combine=add_statistics_and_poses,
+                        description="statistics")
+                else:
+                    parts = executor.map_reduce(file_layout_statistics, paths, frame.layout,
+                                                frame.solve_input_normalization, frame.solve_output_normalization,
+                                                inputs, outputs, o.segment_by, combine=add_statistics,
+                                                description="statistics")
                 stats = sum_statistics(parts)
                 model.fit_statistics(frame, stats)
             model.input_spread_ = summary.spread.take(slice(0, n_in))
+            from_statistics = None if cells is None else training_error_from_statistics(model, frame, stats)
+            if from_statistics is not None:
+                model.training_metrics_ = from_statistics
+                check_saturation(model, lambda: len(cells), len(summary.group_sizes))
+                return model, dict(sources=self.sources, training_segments=summary.fingerprints)
+            # ARX (both prediction modes), selections and near-exact fits: scored in a pass of their own
             sums = executor.map_reduce(file_error_sums, paths, model, [], "one-step", "zeros", "drop",
                                        o.segment_by, True, combine=add_error_sums,
                                        description="training metrics")
@@ -740,6 +754,9 @@ class _Fit:
             self.lines.append(f"raw-input coefficients with |value| > 1e-9 (the paper's count): {raw_count}")
         if norm_rmse_text(metrics):
             self.lines.append("training " + norm_rmse_text(metrics))
+        elif error_norm_text(metrics):  # training errors from the sufficient statistics
+            self.lines.append("training " + error_norm_text(metrics) + " (from the fit's statistics; max |error| "
+                              "and norm RMSE: ftcal evaluate MODEL DATA)")
         self.lines.append("training RMSE per output: " + ", ".join(
             f"{n} {v:.4g}" + (f" {u}" if u else "")
             for n, v, u in zip(model.output_names_, metrics["rmse"], output_units(model.output_names_))))
@@ -759,6 +776,47 @@ class _Fit:
                 f"warning: the training error of {', '.join(exact)} is ~0 of the outputs' spread (BestFit > 1 - "
                 f"{EXACT_FIT:g}): the reference is an exact function of the inputs (a reference copied from or "
                 "computed from the readings?); no measured sensor fits this well.")
+
+
+def error_norm_text(metrics: dict) -> str:
+    """``force-error-norm RMSE … N, torque-error-norm RMSE … N·m``; '' when neither is in ``metrics``."""
+    parts = [f"{what}-error-norm RMSE {metrics[key]:.4f} {unit}"
+             for what, key, unit in (("force", "force_error_norm_rmse", "N"), ("torque", "torque_error_norm_rmse",
+                                                                                 "N·m"))
+             if metrics.get(key) is not None]
+    return ", ".join(parts)
+
+
+def training_error_from_statistics(model, frame, stats) -> dict | None:
+    """The training metrics a static linear-in-coefficients fit gets from its summed statistics, no pass.
+
+    ``stats`` hold the regressor in ``frame``'s solve basis, where the solver found the
+    coefficients (a model stored in another basis, least squares with ``normalization="maxabs"``,
+    is mapped back to it), and the raw targets. RMSE, BestFit and the error-norm RMSEs follow
+    (:func:`ftcal.core.metrics.statistics_training_error`); max |error|, the residual
+    autocorrelation and the norm RMSEs need the samples: not here.
+
+    Returns None where ``yᵀy − 2θᵀc + θᵀGθ`` would cancel too many digits (a residual below
+    ``STATISTICS_ERROR_DIGITS`` of the targets' sum of squares: a near-exact fit, or targets
+    far from zero); the caller then scores the samples.
+    """
+    import numpy as np
+
+    from ..core.limits import STATISTICS_ERROR_DIGITS
+    from ..core.metrics import statistics_training_error
+    from ..core.model import change_basis
+
+    coef = model.coef_
+    if not frame.solves_in_stored_basis:
+        coef = change_basis(frame.layout, coef, frame.input_normalization, frame.output_normalization,
+                            frame.solve_input_normalization, frame.solve_output_normalization)
+    n_outputs = len(model.output_names_)
+    metrics = statistics_training_error(stats.gram, stats.cross, stats.target_sq, stats.target_sum,
+                                        stats.n_samples, coef, np.ones(n_outputs), model.output_names_)
+    sse = np.square(metrics["rmse"]) * stats.n_samples
+    if np.any(sse * 10.0 ** STATISTICS_ERROR_DIGITS <= stats.target_sq):
+        return None
+    return metrics
 
 
 def check_saturation(model, count_poses, n_groups: int) -> None:
