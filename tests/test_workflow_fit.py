@@ -7,6 +7,7 @@ regressor for the training error computed from the sufficient statistics.
 
 import json
 import os
+import re
 import subprocess
 import sys
 import warnings
@@ -210,3 +211,22 @@ def test_targets_far_from_zero_are_scored_in_a_pass(files, tmp_path):
     assert "max_abs_error" in model.training_metrics_
     residual = frame[list(DEFAULT_OUTPUTS)].to_numpy() - model.predict(frame[list(INPUTS)].to_numpy())
     np.testing.assert_allclose(model.training_metrics_["rmse"], np.sqrt(np.mean(residual ** 2, axis=0)), rtol=1e-9)
+
+
+def test_report_from_python_writes_the_commands_page(files, tmp_path):
+    from ftcal.workflow import report
+
+    model = tmp_path / "model.json"
+    ftcal.fit(files[:2], degree=1, output=model)
+    done = command("report", str(model), *files[2:], "--train", files[0], "-o", str(tmp_path / "cli.html"))
+    with warnings.catch_warnings():  # held-out files: a few samples beyond the training range
+        warnings.simplefilter("ignore", OutOfRangeWarning)
+        result = report([model], files[2:], tmp_path / "python.html", train=[files[0]])
+    # Every table and number of the page; the figures (matplotlib names SVG elements at random) and the
+    # minute the page was made aside.
+    pages = [re.sub(r"<svg.*?</svg>", "<svg/>", (tmp_path / name).read_text(encoding="utf-8"), flags=re.S)
+             for name in ("cli.html", "python.html")]
+    pages = [re.sub(r"\d{4}-\d\d-\d\d \d\d:\d\d UTC", "(time)", page) for page in pages]
+    assert pages[0] == pages[1] and "<table" in pages[0]
+    assert result.n_models == 1 and result.n_validation_samples == 600 + 800
+    assert done.stdout.replace("cli.html", "python.html") == result.summary() + "\n"

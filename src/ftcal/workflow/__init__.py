@@ -17,6 +17,7 @@ from __future__ import annotations
 _STEPS: dict[str, str] = {"StepResult": "result"}
 _STEPS.update(fit="fitting", FitResult="fitting")
 _STEPS.update(evaluate="evaluation", predict="evaluation", EvaluationResult="evaluation", PredictionResult="evaluation")
+_STEPS.update(report="evaluation", ReportResult="evaluation")
 
 __all__ = sorted(_STEPS)
 

@@ -1,6 +1,6 @@
-"""The evaluate and predict steps: a model's metrics on data with reference outputs, and its predictions.
+"""The evaluate, predict and report steps: a model's metrics on data with reference outputs, its predictions, a page.
 
-:func:`evaluate` is ``ftcal evaluate`` and :func:`predict` is ``ftcal predict`` as library calls.
+:func:`evaluate`, :func:`predict` and :func:`report` are ``ftcal evaluate``, ``predict`` and ``report`` as calls.
 Files are streamed (one task per file; static models chunk by chunk, ``scheduler``: on Dask);
 ARX models read in this process are scored on the data read whole, which gives the same metrics.
 """
@@ -463,3 +463,87 @@ def _predict_streaming(paths, model, output, mode, start, segment_by, scheduler,
         shutil.rmtree(folder, ignore_errors=True)
     ranges = [r for _, r in counts if r is not None]
     return sum(n for n, _ in counts), (sum(ranges[1:], ranges[0]) if ranges else None)
+
+
+@dataclass(repr=False)
+class ReportResult(StepResult):
+    """What :func:`report` returns: the page written and what it holds.
+
+    Attributes
+    ----------
+    path : Path
+        The HTML page.
+    n_models, n_validation_samples : int
+    size_mb : float
+        The page's size in MB.
+    """
+
+    path: Path
+    n_models: int
+    n_validation_samples: int
+    size_mb: float
+
+    def summary(self) -> str:
+        return (f"wrote {self.path} ({self.n_models} model(s), {self.n_validation_samples} validation samples, "
+                f"{self.size_mb:.1f} MB)")
+
+
+def run_names(paths: Sequence[str]) -> list[str]:
+    """Each model's file name without extension; the whole path where two names would clash."""
+    stems = [Path(p).stem for p in paths]
+    return [stem if stems.count(stem) == 1 else str(p) for stem, p in zip(stems, paths)]
+
+
+def _union(name_lists) -> tuple[str, ...]:
+    out: list[str] = []
+    for names in name_lists:
+        out += [n for n in names if n not in out]
+    return tuple(out)
+
+
+def report(models: Sequence[str], data: Sequence[str], output: str | os.PathLike, *, train: Sequence[str] = (),
+           inputs: Sequence[str] | None = None, outputs: Sequence[str] | None = None,
+           segment_by: str | None = None, group_by: str | None = None,
+           title: str = "ftcal calibration report") -> ReportResult:
+    """Evaluate model files on data files and write one self-contained HTML page, as ``ftcal report`` does.
+
+    Parameters
+    ----------
+    models : model files (ftcal JSON or the paper's XML)
+    data : validation data files (CSV or Parquet)
+    output : the page (.html)
+    train : training data files: adds training metrics and their coverage
+    inputs, outputs : columns to read (default: every input and output any model uses)
+    segment_by, group_by : columns naming segments and groups (default: one per file)
+    title : the page's title
+
+    Returns
+    -------
+    ReportResult
+    """
+    from ..core.fingerprint import warn_if_trained_on
+    from ..data.tables import read_dataset
+    from ..files.model_files import read_model_file
+    from ..report import build_report
+    from ..report import evaluate as evaluate_run
+
+    model_paths, data_paths, train_paths = [str(p) for p in models], [str(p) for p in data], [str(p) for p in train]
+    loaded = [read_model_file(p) for p in model_paths]
+    fitted = [m.model for m in loaded]
+    inputs = tuple(inputs or _union(m.input_names_ for m in fitted))
+    outputs = tuple(outputs or _union(m.output_names_ for m in fitted))
+
+    def read(paths):
+        return read_dataset(paths, inputs, outputs, segment_by=segment_by, group_by=group_by)
+
+    validation = read(data_paths)
+    for path, model_file in zip(model_paths, loaded):
+        warn_if_trained_on(validation, model_file.training_segments, path)
+    training = read(train_paths) if train_paths else None
+    runs = [evaluate_run(model, validation, name=name, train=training)
+            for model, name in zip(fitted, run_names(model_paths))]
+    notes = [f"Model files: {', '.join(model_paths)}.", f"Validation data files: {', '.join(data_paths)}."]
+    if train_paths:
+        notes.append(f"Training data files: {', '.join(train_paths)}.")
+    path = build_report(runs, validation, Path(output), train=training, title=title, notes=notes)
+    return ReportResult(path, len(runs), validation.n_samples, path.stat().st_size / 1e6)
