@@ -11,7 +11,6 @@ from collections.abc import Sequence
 
 from ..core.columns import DEFAULT_INPUTS, DEFAULT_OUTPUTS
 from ..core.limits import MAX_OPTION_MAGNITUDE
-from ..core.metrics import norm_rmse_text  # noqa: F401  (the commands' import of it)
 from ..runtime.errors import FtcalError
 
 
@@ -104,6 +103,13 @@ def print_json(payload: dict) -> None:
 def require_suffix(path: str, suffixes: Sequence[str], option: str) -> None:
     if not any(path.lower().endswith(s) for s in suffixes):
         raise FtcalError(f"{option} {path}: must end in {' or '.join(suffixes)}.")
+
+
+def norm_rmse_text(metrics: dict, spec: str = ".4f", units: bool = True) -> str:
+    """:func:`ftcal.core.metrics.norm_rmse_text`, imported when called (numpy stays unloaded for ``--help``)."""
+    from ..core.metrics import norm_rmse_text as text
+
+    return text(metrics, spec, units)
 
 
 _LINE_BREAKS = re.compile("[\t\n\x0b\x0c\r\x1c-\x1e\x85\u2028\u2029]")
