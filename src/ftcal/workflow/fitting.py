@@ -118,7 +118,7 @@ def fit(data, *, inputs: Sequence[str] | None = None, outputs: Sequence[str] | N
         The ``degree="auto"`` search (see ``ftcal fit --help``); ``budget`` in CPU seconds.
     drop_incomplete : drop rows with empty cells (default: refuse them)
     prior : path or CalibrationModel, optional
-        Shrink a penalized fit toward this model.
+        Shrink a penalized fit toward this model (a file is recorded in the model file with its digest).
     estimate_payload, payload_mass : an unknown payload on this link, and its known mass (kg)
     family : ``"polynomial"`` or ``"mlp"``; hidden, activation, weight_decay, max_iter, seed: the MLP's
     segment_by, group_by : columns naming segments and validation groups
@@ -409,8 +409,6 @@ class _Fit:
             from ..files.model_files import read_model
 
             prior_path, prior = str(prior), read_model(prior)
-        elif prior is not None:
-            prior_path = "prior"
         template = CalibrationModel(na=o.na, nb=o.nb, normalization=o.normalization, prior=prior)
         with drop_incomplete() if o.drop_incomplete else nullcontext() as dropped:
             if _streams(o) and self.dataset is None:
