@@ -43,9 +43,12 @@ _LAZY = {"FtcalError": "runtime.errors:FtcalError", "FtcalWarning": "runtime.err
          "MonomialBasis": "core.features:MonomialBasis", "RegressorLayout": "core.features:RegressorLayout",
          "n_coefficients": "core.features:n_coefficients", "load_dataset": "data.tables:load_dataset",
          "load_model": "files.model_files:read_model", "save_model": "files.model_json:save_model"}
-# The steps of the pipeline (ftcal.workflow) that build a dataset, identify a payload, compensate, check, plan, convert.
+# The steps of the pipeline (ftcal.workflow): build a dataset, fit, evaluate, predict, identify a payload,
+# compensate, check, plan, convert.
 _LAZY.update({name: f"workflow.{module}:{name}" for module, names in (
-    ("datasets", ("build_dataset", "DatasetResult")), ("payload", ("identify_payload", "PayloadResult")),
+    ("datasets", ("build_dataset", "DatasetResult")), ("fitting", ("fit", "FitResult")),
+    ("evaluation", ("evaluate", "EvaluationResult", "predict", "PredictionResult")),
+    ("payload", ("identify_payload", "PayloadResult")),
     ("compensation", ("compensate", "CompensationResult")), ("checking", ("check_sensor", "CheckResult")),
     ("planning", ("plan_experiment", "PlanResult")), ("export", ("convert", "ConvertResult"))) for name in names})
 
@@ -53,6 +56,7 @@ __all__ = ["CalibrationModel", "Dataset", "FtcalError", "FtcalWarning", "Monomia
            "RegressorLayout", "load_dataset", "load_model", "n_coefficients", "save_model"]
 __all__ += ["CheckResult", "CompensationResult", "ConvertResult", "DatasetResult", "PayloadResult", "PlanResult",
             "build_dataset", "check_sensor", "compensate", "convert", "identify_payload", "plan_experiment"]
+__all__ += ["EvaluationResult", "FitResult", "PredictionResult", "evaluate", "fit", "predict"]
 
 
 def __getattr__(name: str):

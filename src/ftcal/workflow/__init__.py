@@ -21,6 +21,9 @@ _STEPS.update(check_sensor="checking", sensor_history="checking", CheckResult="c
 _STEPS.update(build_dataset="datasets", expected="datasets", DatasetResult="datasets", ExpectedResult="datasets")
 _STEPS.update(plan_experiment="planning", PlanResult="planning")
 _STEPS.update(convert="export", ConvertResult="export")
+_STEPS.update(fit="fitting", FitResult="fitting")
+_STEPS.update(evaluate="evaluation", predict="evaluation", EvaluationResult="evaluation", PredictionResult="evaluation")
+_STEPS.update(report="evaluation", ReportResult="evaluation")
 
 __all__ = sorted(_STEPS)
 
