@@ -163,8 +163,12 @@ def run(args) -> int:
                  payload_mass=args.payload_mass, family=args.family, hidden=args.hidden,
                  activation=args.activation, weight_decay=args.weight_decay, max_iter=args.max_iter,
                  seed=args.seed, segment_by=args.segment_by, group_by=args.group_by, scheduler=args.scheduler,
-                 output=args.output, cpu_start=args.cpu_start)
+                 output=args.output, cpu_start=args.cpu_start, echo=echo_line)
     for note in result.notes:
         print(note, file=sys.stderr)
-    print(result.summary())
     return 0
+
+
+def echo_line(line: str) -> None:
+    """Print one line of the fit's report as soon as the step knows it (the estimate before the search)."""
+    print(line, flush=True)

@@ -19,7 +19,7 @@ from collections.abc import Sequence
 from contextlib import nullcontext
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 from ..core.columns import DEFAULT_OUTPUTS
 from ..core.limits import (MAX_DEGREE, MAX_LAG, MLP_EQUATIONS_PER_WEIGHT, MLP_MAX_ITER, MLP_MAX_LAYERS,
@@ -100,7 +100,7 @@ def fit(data, *, inputs: Sequence[str] | None = None, outputs: Sequence[str] | N
         family: str = "polynomial", hidden=None, activation: str | None = None, weight_decay=None,
         max_iter=None, seed=None, segment_by: str | None = None, group_by: str | None = None,
         scheduler: str | None = None, executor=None, output: str | os.PathLike | None = None,
-        cpu_start: float | None = None) -> FitResult:
+        cpu_start: float | None = None, echo: Callable[[str], None] | None = None) -> FitResult:
     """Fit a calibration model, as ``ftcal fit`` does; the keywords are its flags.
 
     Parameters
@@ -128,6 +128,9 @@ def fit(data, *, inputs: Sequence[str] | None = None, outputs: Sequence[str] | N
         Model file to write (JSON, atomically).
     cpu_start : float, optional
         ``time.process_time()`` the ``budget`` counts from (default: now).
+    echo : callable, optional
+        Called with each line of the report as soon as it is known (``ftcal fit`` passes ``print``,
+        so that the cost estimate shows before a long search, not after it).
 
     Returns
     -------
@@ -163,7 +166,7 @@ def fit(data, *, inputs: Sequence[str] | None = None, outputs: Sequence[str] | N
                        weight_decay=weight_decay, max_iter=max_iter, seed=seed, segment_by=segment_by,
                        group_by=group_by, scheduler=scheduler, cpu_start=cpu_start)
     with _as_paths(data) as (paths, dataset, sources):
-        run = _Fit(options, paths, dataset, sources, executor)
+        run = _Fit(options, paths, dataset, sources, executor, echo)
         result = run.run(inputs, outputs)
     if output is not None:
         result.save(output)
@@ -369,16 +372,34 @@ def make_solver(o: _Options):
     return LeastSquares()
 
 
+class _EchoedLines(list):
+    """The report's lines; each one added is also handed to ``echo`` at once (when given)."""
+
+    def __init__(self, echo: Callable[[str], None] | None) -> None:
+        super().__init__()
+        self.echo = echo
+
+    def append(self, line: str) -> None:
+        super().append(line)
+        if self.echo is not None:
+            self.echo(line)
+
+    def extend(self, lines) -> None:
+        for line in lines:
+            self.append(line)
+
+
 class _Fit:
     """One run of :func:`fit`: the options, the data, and the report as it grows."""
 
-    def __init__(self, options: _Options, paths: list[str], dataset, sources: list[str], executor) -> None:
+    def __init__(self, options: _Options, paths: list[str], dataset, sources: list[str], executor,
+                 echo: Callable[[str], None] | None = None) -> None:
         self.o = options
         self.paths = paths
         self.dataset = dataset
         self.sources = sources
         self.executor = executor
-        self.lines: list[str] = []
+        self.lines: list[str] = _EchoedLines(echo)
         self.notes: list[str] = []
         self.selection = None
 
