@@ -57,7 +57,7 @@ def run(args) -> int:
     import sys
     import warnings
 
-    from ..check.conventions import ConventionWarning, payload_warning
+    from ..check.conventions import ConventionWarning, HoldCollector, payload_warning
     from ..files.payload_json import save_payload
     from ..payload.identify import check_mass_sign
     from ..payload.parameters import PayloadParameters
@@ -81,16 +81,18 @@ def run(args) -> int:
                          "or use --bias-drift none.")
     source = kinematics_source(args)
     static = None if args.dynamic or args.keep_moving else StaticRows(args, source)
+    # The convention check's holds are taken from the tables as the fit reads them (one read).
+    holds = HoldCollector(source, static, wrench=args.wrench, reaction=args.reaction, time=args.time)
     recording = read_payload_tables(args.data, source, wrench=args.wrench, group_by=args.group_by,
                                     reaction=args.reaction, time=args.time, temperature=args.temperature,
-                                    select=static)
+                                    select=holds)
     for line in () if static is None else static.notes:
         print(f"static samples: {line}")
     result = identify_recording(recording, bias_drift=args.bias_drift, dynamic=args.dynamic,
                                 time_column=args.time, temperature_column=args.temperature)
     fit = result.fit
     message = payload_warning(args.data, source, fit, args.g, wrench=args.wrench, reaction=args.reaction,
-                              time=args.time)
+                              time=args.time, holds=holds)
     if message:  # the fit looks like a sign/frame/zeroing mistake: ftcal check's tests on the static holds
         warnings.warn(message, ConventionWarning, stacklevel=1)
     check_mass_sign(fit)
