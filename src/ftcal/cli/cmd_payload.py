@@ -262,8 +262,9 @@ def print_fit(fit, n_groups: int, args) -> None:
             print("cross-validated residual RMS (each group left out of the fit in turn): "
                   + "  ".join(f"{a} {v:.4g}" for a, v in zip(AXES, pooled)))
         # The groups that fit worst when left out come first: they are the suspicious poses.
-        ranked = sorted(fit.cross_validation, key=lambda g: -np.inf if g.rms is None else -float(
-            np.sum((g.rms / np.maximum(fit.residual_rms, 1e-300)) ** 2)))
+        with np.errstate(over="ignore"):  # an axis fitted exactly (residual 0) ranks its groups first: inf
+            ranked = sorted(fit.cross_validation, key=lambda g: -np.inf if g.rms is None else -float(
+                np.sum((g.rms / np.maximum(fit.residual_rms, 1e-300)) ** 2)))
         for g in ranked[:MAX_GROUPS_PRINTED]:
             text = ("not identifiable without this group" if g.rms is None
                     else "  ".join(f"{a} {v:.4g}" for a, v in zip(AXES, g.rms)))
