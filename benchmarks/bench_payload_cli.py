@@ -14,7 +14,6 @@ from __future__ import annotations
 import json
 import os
 import re
-import resource
 import subprocess
 import sys
 import tempfile
@@ -55,32 +54,57 @@ def make_table(path: str | os.PathLike, n: int, seed: int = 0) -> None:
     frame.to_parquet(path)
 
 
-def run_payload(table: str, bias_drift: str = "none") -> dict:
-    """One ``ftcal payload TABLE --orientation qx,qy,qz,qw --bias-drift MODEL`` child process."""
-    ftcal = str(Path(sys.executable).with_name("ftcal"))
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    with tempfile.TemporaryDirectory() as folder:
-        argv = [ftcal, "payload", table, "--orientation", "qx,qy,qz,qw", "--bias-drift", bias_drift,
-                "-o", f"{folder}/payload.json"]
+def run_child(argv: list[str], src: str | None = None) -> dict:
+    """``ftcal ARGV`` in a fresh Python process: wall, CPU (user + system of that child alone, from wait4) and
+    its own peak resident memory (VmHWM, which starts afresh at exec; rusage's ru_maxrss would carry this
+    parent's peak into it). ``src``: the ftcal source tree the child imports (default: this one's)."""
+    env = dict(os.environ, FTCAL_PROGRESS="0")
+    if src is not None:
+        env["PYTHONPATH"] = os.pathsep.join([src, *env.get("PYTHONPATH", "").split(os.pathsep)[1:]])
+    code = ("import sys\nfrom ftcal.cli import main\n"
+            f"code = main({argv!r})\n"
+            "hwm = [l for l in open('/proc/self/status') if l.startswith('VmHWM')][0]\n"
+            "print('VmHWM', int(hwm.split()[1]) / 1024.0, file=sys.stderr)\nsys.exit(code)")
+    with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
         start = time.perf_counter()
-        done = subprocess.run(argv, capture_output=True, text=True, env=dict(os.environ, FTCAL_PROGRESS="0"))
+        child = subprocess.Popen([sys.executable, "-c", code], stdout=out, stderr=err, env=env, text=True)
+        _, status, usage = os.wait4(child.pid, 0)
         wall = time.perf_counter() - start
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    if done.returncode != 0:
-        raise RuntimeError(done.stderr[-2000:])
-    mass = re.search(r"mass\s+([-0-9.e+]+)", done.stdout)
-    return {"wall_s": wall, "cpu_s": (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime),
-            "child_peak_rss_mb": after.ru_maxrss / 1024.0, "mass": float(mass.group(1)) if mass else float("nan"),
-            "bias_drift": bias_drift}
+        child.returncode = os.waitstatus_to_exitcode(status)
+        out.seek(0), err.seek(0)
+        stdout, stderr = out.read(), err.read()
+    if child.returncode != 0:
+        raise RuntimeError(stderr[-2000:])
+    peak = re.search(r"^VmHWM ([0-9.]+)", stderr, re.M)
+    return {"wall_s": wall, "cpu_s": usage.ru_utime + usage.ru_stime, "peak_rss_mb": float(peak.group(1)),
+            "stdout": stdout, "stderr": stderr}
 
 
-def payload_cli(n: int, bias_drift: str = "none") -> dict:
-    """Make the table (not timed), then time one whole ``ftcal payload`` process on it."""
+def run_payload(table: str, bias_drift: str = "none", src: str | None = None) -> dict:
+    """One ``ftcal payload TABLE --orientation qx,qy,qz,qw --bias-drift MODEL`` child process."""
+    with tempfile.TemporaryDirectory() as folder:
+        result = run_child(["payload", table, "--orientation", "qx,qy,qz,qw", "--bias-drift", bias_drift,
+                            "-o", f"{folder}/payload.json"], src)
+    mass = re.search(r"^\s*mass\s+([-0-9.e+]+)", result["stdout"], re.M)
+    return {"wall_s": result["wall_s"], "cpu_s": result["cpu_s"], "peak_rss_mb": result["peak_rss_mb"],
+            "mass": float(mass.group(1)) if mass else float("nan"), "bias_drift": bias_drift}
+
+
+def payload_cli(n: int, bias_drift: str = "none", baseline_src: str | None = None) -> dict:
+    """Make the table (not timed), then time whole ``ftcal payload`` processes on it: this tree's and, with
+    ``baseline_src``, another tree's (the code before a change), in turn (this, baseline, this, baseline)."""
     with tempfile.TemporaryDirectory() as folder:
         table = str(Path(folder) / "holds.parquet")
         make_table(table, n)
-        result = run_payload(table, bias_drift)
-    result.update(n=n, seconds=result["wall_s"])
+        runs = {"this": [], "baseline": []}
+        for _ in range(2 if baseline_src else 1):
+            runs["this"].append(run_payload(table, bias_drift))
+            if baseline_src:
+                runs["baseline"].append(run_payload(table, bias_drift, baseline_src))
+    result = {name: {key: float(np.median([r[key] for r in rows])) for key in ("wall_s", "cpu_s", "mass",
+                                                                              "peak_rss_mb")}
+              for name, rows in runs.items() if rows}
+    result.update(n=n, bias_drift=bias_drift, seconds=result["this"]["wall_s"])
     return result
 
 
