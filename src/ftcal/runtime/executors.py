@@ -383,13 +383,17 @@ def open_executor(scheduler: str | None, *,
                 client = _connect(cluster if cluster is not None else scheduler, scheduler, connect_timeout)
             try:
                 check_versions(client, scheduler)
+                startup = None
                 if cluster is not None:
                     client.register_plugin(_ignore_interrupts_plugin())
-                    # The fixed cost of a local cluster, said once: the passes then run on the workers.
+                    startup = time.perf_counter() - started
+                yield DaskExecutor(client)
+                if startup is not None:
+                    # The fixed cost of a local cluster, said once, after a run that succeeded (a failed
+                    # run's stderr is its one-line error).
                     workers = int(scheduler[len(LOCAL_PREFIX):])
                     print(f"Dask {scheduler}: {workers} worker process{'es' if workers > 1 else ''} started in "
-                          f"{time.perf_counter() - started:.1f} s", file=sys.stderr)
-                yield DaskExecutor(client)
+                          f"{startup:.1f} s", file=sys.stderr)
             finally:
                 with signals_deferred():
                     client.close()
