@@ -69,3 +69,39 @@ def test_bad_scheduler_still_one_line_and_no_start_up_line(tmp_path, bad):
     done = subprocess.run([FTCAL, "fit", str(tmp_path / "none.csv"), "--degree", "1", "-o", str(tmp_path / "m.json"),
                            "--scheduler", bad], capture_output=True, text=True, env=dict(os.environ, FTCAL_PROGRESS="0"))
     assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1
+
+
+def _kept_files() -> int:
+    from ftcal.data import table_chunks
+
+    return len([kept for kept in table_chunks._WORKER_KEPT.values() if kept is not None])
+
+
+def test_local_workers_read_a_small_file_once_across_passes(tmp_path):
+    """Three passes over small files on local:2: the workers keep each file as the command's own process does,
+    and what they serve from memory sums exactly like reading the files (the local run's statistics)."""
+    from ftcal.core.features import MonomialBasis
+    from ftcal.core.normalization import normalization_from_range
+    from ftcal.data.streaming import add_statistics, file_statistics
+    from ftcal.data.table_chunks import keep_in_memory
+    from ftcal.runtime.executors import LocalExecutor
+
+    rng = np.random.default_rng(12)
+    paths = []
+    for index in range(4):
+        u, y = sensor_like_data(rng, 500)
+        path = tmp_path / f"f{index}.parquet"
+        pd.DataFrame(np.c_[u, y], columns=[*INPUTS, *DEFAULT_OUTPUTS]).to_parquet(path)
+        paths.append(str(path))
+    basis = MonomialBasis(len(INPUTS), 2)
+    norm = normalization_from_range(np.full(7, -200.0), np.full(7, 200.0))
+    args = (basis, norm, INPUTS, DEFAULT_OUTPUTS)
+    with keep_in_memory():
+        local = LocalExecutor().map_reduce(file_statistics, paths, *args, combine=add_statistics)
+    with open_executor("local:2") as executor:
+        sums = [executor.map_reduce(file_statistics, paths, *args, combine=add_statistics) for _ in range(3)]
+        kept = executor.client.run(_kept_files)
+    assert sum(kept.values()) >= len(paths)  # every file kept by the worker(s) that read it
+    for total in sums:
+        assert np.array_equal(total.gram, local.gram) and np.array_equal(total.cross, local.cross)
+    assert _kept_files() == 0  # this process keeps nothing outside keep_in_memory()

@@ -67,6 +67,10 @@ LOCAL_CLUSTER_CONFIG = {
     "distributed.admin.system-monitor.gil.enabled": False,
     "distributed.scheduler.work-stealing": False,
 }
+# Set in a local cluster's worker processes, which live for one command: they keep the files they read in
+# memory as the command's own process does (ftcal.data.table_chunks.keep_in_memory), so a file that several
+# passes read is read once there too.
+KEEP_FILES_ENV = "FTCAL_WORKER_KEEPS_FILES"
 DEFERRED_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
 
 
@@ -364,7 +368,9 @@ def open_executor(scheduler: str | None, *,
                           "distributed.scheduler.allowed-failures": TASK_RETRIES,
                           "distributed.scheduler.worker-saturation": 1.0,
                           "distributed.nanny.pre-spawn-environ": environ,
-                          **(LOCAL_CLUSTER_CONFIG if local else {})}):
+                          **({**LOCAL_CLUSTER_CONFIG, "distributed.nanny.environ": dict(
+                              dask.config.get("distributed.nanny.environ", {}) or {}, **{KEEP_FILES_ENV: "1"})}
+                             if local else {})}):
         import multiprocessing
 
         before = set(multiprocessing.active_children())
