@@ -424,16 +424,85 @@ def cost_section(sizes: dict) -> list[str]:
             "|---|---:|---:|---:|---:|---:|---:|---:|---|", *rows, "", threads, ""]
 
 
+def threads_section(sizes: dict) -> list[str]:
+    """The demo search with every thread pool forced to one thread against the default (issue 32)."""
+    from benchmarks.bench_cost import DEMO_TABLE
+
+    if not DEMO_TABLE.exists():
+        return []
+    r = run_case("threads_pair", pairs=sizes["threads_pairs"])
+    HEADLINE["threads"] = (f"demo search CPU with threads forced to 1 / default: {r['ratio']:.2f} "
+                           f"(median of {r['pairs']} pairs; target ≥ 0.95: no oversubscribed core)")
+    return ["## No oversubscription: the demo search with every thread pool forced to one thread", "",
+            "`ftcal fit ftcal-demo/dataset.parquet --degree auto --group-by group`, whole process, default threads "
+            "and with `OPENBLAS_NUM_THREADS=OMP_NUM_THREADS=MKL_NUM_THREADS=1`, in turn; CPU = user + system.", "",
+            "| threads | CPU (median) | wall (median) |", "|---|---:|---:|",
+            f"| default | {fmt_s(r['default']['cpu_s'])} | {fmt_s(r['default']['wall_s'])} |",
+            f"| forced to 1 | {fmt_s(r['forced']['cpu_s'])} | {fmt_s(r['forced']['wall_s'])} |", "",
+            f"CPU(forced) / CPU(default) per pair: {', '.join(f'{x:.2f}' for x in r['ratios'])}; median "
+            f"{r['ratio']:.2f} (target ≥ 0.95).", ""]
+
+
+def cluster_section(sizes: dict) -> list[str]:
+    """Whole ``ftcal fit --degree 4``: one process against ``--scheduler local:2`` (issue 32)."""
+    rows, heads = [], []
+    for n_files, n_rows in sizes["cluster"]:
+        r = run_case("cluster_fit", n_files=n_files, rows=n_rows, workers=2, pairs=sizes["cluster_pairs"])
+        one, cl = r["one"], r["cluster"]
+        heads.append(f"{n_files} × {n_rows:,}: {r['ratio']['wall_s']:.2f}× wall, {r['ratio']['cpu_s']:.2f}× CPU")
+        rows.append(f"| {n_files} × {n_rows:,} | {fmt_s(one['wall_s'])} | {fmt_s(one['cpu_s'])} | "
+                    f"{fmt_s(cl['wall_s'])} | {fmt_s(cl['cpu_s'])} | {cl['startup_s']:.1f} s "
+                    f"({r['startup_lines']} line) | {r['ratio']['wall_s']:.2f}× | {r['ratio']['cpu_s']:.2f}× | "
+                    f"{'equal' if r['same_coefficients'] else 'DIFFERENT'} |")
+    HEADLINE["cluster"] = ("`ftcal fit --degree 4 --scheduler local:2` / one process, whole command: " + "; ".join(heads)
+                           + " (targets ≤ 1.1× on 4 files, < 1× on 16)")
+    return ["## Dask `local:2` against one process: whole `ftcal fit FILES --degree 4`", "",
+            "Each run is one whole process (start-up, the cluster's start and stop, three passes, writing); CPU = "
+            "user + system of the command and every worker it waited for. One process and `local:2` alternate; "
+            f"medians of {sizes['cluster_pairs']} pairs, ratios pair by pair. Start-up: the seconds the command "
+            "printed (`Dask local:2: 2 worker processes started in X s`).", "",
+            "| files × rows | one process wall | CPU | local:2 wall | CPU | start-up (printed) | wall ratio | "
+            "CPU ratio | coefficients |", "|---|---:|---:|---:|---:|---:|---:|---:|---|", *rows, ""]
+
+
+def payload_cli_section(sizes: dict) -> list[str]:
+    """Whole ``ftcal payload`` processes; against the tree in FTCAL_BASELINE_SRC (the code before) when set."""
+    n = sizes["payload_cli_n"]
+    baseline = os.environ.get("FTCAL_BASELINE_SRC")
+    out = ["## `ftcal payload` as a user runs it: one Parquet table, 100 still poses, quaternions", "",
+           f"`ftcal payload holds.parquet --orientation qx,qy,qz,qw --bias-drift MODEL`, {n:,} rows at 100 Hz "
+           "(benchmarks/bench_payload_cli.py), whole process, each child's own CPU and peak memory"
+           + (f"; baseline: the same command on `{baseline}`, run in turn with this tree's (median of 2 each)"
+              if baseline else "") + ".", "",
+           "| --bias-drift | CPU | wall | peak memory | mass (true 1.3 kg) | baseline CPU | baseline wall | "
+           "baseline peak | CPU vs baseline |", "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    heads = []
+    for model in ("none", "random-walk"):
+        r = run_case("payload_cli", n=n, bias_drift=model, baseline_src=baseline)
+        this, base = r["this"], r.get("baseline")
+        tail = (f"{fmt_s(base['cpu_s'])} | {fmt_s(base['wall_s'])} | {base['peak_rss_mb']:,.0f} MB | "
+                f"{this['cpu_s'] / base['cpu_s']:.2f}×" if base else "— | — | — | —")
+        out.append(f"| {model} | {fmt_s(this['cpu_s'])} | {fmt_s(this['wall_s'])} | {this['peak_rss_mb']:,.0f} MB | "
+                   f"{this['mass']:.4f} kg | {tail} |")
+        heads.append(f"{model} {this['cpu_s']:.2f} CPU s, {this['peak_rss_mb']:,.0f} MB"
+                     + (f" (before: {base['cpu_s']:.2f} s, {base['peak_rss_mb']:,.0f} MB)" if base else ""))
+    HEADLINE["payload_cli"] = f"whole `ftcal payload` at {n:,} rows: " + "; ".join(heads)
+    return out + [""]
+
+
 # One line per section; HEADLINE keys name the targets summary's rows.
 SECTIONS = (fit_section, cli_section, lasso_section, predict_section, selection_section, cost_section,
             mlp_section, plan_section, closed_loop_section,
             c_section,
-            scaling_section, expected_section, payload_section, bag_section, scale_section, live_section)
+            scaling_section, expected_section, payload_section, payload_cli_section, bag_section, scale_section,
+            cluster_section, threads_section, live_section)
 LABELS = {"fit": "Fit", "cli": "Whole-process fit", "lasso": "LASSO", "predict": "Prediction", "select": "Model selection",
           "cost": "Cost of --degree auto", "closed_loop": "Closed loop",
           "mlp": "MLP family", "plan": "Experiment design",
           "c": "Generated C", "expected": "Expected wrenches", "payload": "Payload identification",
-          "bags": "Bag reading", "scale": "Streaming and Dask", "live": "Live calibrator"}
+          "bags": "Bag reading", "scale": "Streaming and Dask", "live": "Live calibrator",
+          "payload_cli": "Payload, whole command", "cluster": "Dask local:2, whole fit",
+          "threads": "No oversubscription"}
 
 FULL = {"fit_big": 1_000_000, "fit_mid": 100_000, "scaling_n": (10_000, 100_000, 1_000_000), "dense_max_n": 100_000,
         "degree_n": 100_000, "lasso_n": 200_000, "paper_lasso_n": 10_000, "predict_n": 2_000_000,
@@ -442,7 +511,9 @@ FULL = {"fit_big": 1_000_000, "fit_mid": 100_000, "scaling_n": (10_000, 100_000,
         "mlp_n": 20_000, "mlp_hidden": "16", "mlp_iterations": 200, "plan": (60, 10_000),
         "scale": (10, 1_000_000, 4), "cost": ((20_000, 6), (200_000, 7), (1_000_000, 8)),
         "cost_budget": (1_000_000, 8, 8.0), "live_n": 600_000, "live_steps_n": 5_000, "live_minutes": (6, 60),
-        "live_zenoh_s": 10.0, "closed_loop_seeds": (0, 1, 2), "closed_loop_quick": False}
+        "live_zenoh_s": 10.0, "closed_loop_seeds": (0, 1, 2), "closed_loop_quick": False,
+        "payload_cli_n": 1_000_000, "cluster": ((4, 1_000_000), (16, 250_000)), "cluster_pairs": 2,
+        "threads_pairs": 2}
 QUICK = {"fit_big": 20_000, "fit_mid": 5_000, "scaling_n": (2_000, 10_000), "dense_max_n": 10_000,
          "degree_n": 5_000, "lasso_n": 5_000, "paper_lasso_n": 1_000, "predict_n": 100_000,
          "expected_n": 2_000, "expected_baseline_n": 500, "c_evals": 100_000, "python_calls": 200,
@@ -450,15 +521,21 @@ QUICK = {"fit_big": 20_000, "fit_mid": 5_000, "scaling_n": (2_000, 10_000), "den
          "mlp_n": 6_000, "mlp_hidden": "8", "mlp_iterations": 50, "plan": (20, 1_000),
          "scale": (4, 50_000, 4), "cost": ((4_000, 6),), "cost_budget": (20_000, 6, 3.0), "live_n": 50_000,
          "live_steps_n": 500, "live_minutes": (1, 2), "live_zenoh_s": 2.0, "closed_loop_seeds": (0,),
-         "closed_loop_quick": True}
+         "closed_loop_quick": True, "payload_cli_n": 100_000, "cluster": ((2, 20_000),), "cluster_pairs": 1,
+         "threads_pairs": 1}
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks")
     parser.add_argument("--quick", action="store_true", help="small sizes, to check the harness")
     parser.add_argument("--out", default=str(ROOT / "BENCHMARKS.md"))
+    parser.add_argument("--only", metavar="SECTION,...",
+                        help="run only these sections (names without _section, e.g. cluster,payload_cli) and "
+                             "put their tables and target lines into the existing --out file in place")
     args = parser.parse_args(argv)
     sizes = QUICK if args.quick else FULL
+    if args.only:
+        return update_sections(args.only.split(","), sizes, Path(args.out))
     started = time.perf_counter()
     lines = ["# Benchmarks", "",
              "Generated by `make bench` (`python -m benchmarks`). Every case runs in a fresh process; "
@@ -474,6 +551,45 @@ def main(argv: list[str] | None = None) -> int:
     lines += [f"Total benchmark time: {time.perf_counter() - started:.0f} s.", ""]
     Path(args.out).write_text("\n".join(lines))
     print("\n".join(lines))
+    return 0
+
+
+def update_sections(names: list[str], sizes: dict, path: Path) -> int:
+    """Run the named sections only; replace their ``## `` blocks and target lines in ``path`` (append new ones)."""
+    chosen = {f.__name__[:-len("_section")]: f for f in SECTIONS}
+    unknown = [n for n in names if n not in chosen]
+    if unknown:
+        raise SystemExit(f"--only: no section {', '.join(unknown)}; sections: {', '.join(chosen)}")
+    text = path.read_text() if path.exists() else "# Benchmarks\n\n## Against the targets\n\n"
+    for name in names:
+        print(f"{name}_section ...", file=sys.stderr, flush=True)
+        block = chosen[name](sizes)
+        if not block:
+            continue
+        title = block[0]
+        body = "\n".join(block).rstrip("\n") + "\n\n"
+        start = text.find(title + "\n")
+        if start >= 0:
+            end = text.find("\n## ", start + len(title))
+            end = len(text) if end < 0 else end + 1
+            marker = text.find("\nTotal benchmark time", start)
+            if 0 <= marker < end:
+                end = marker + 1
+            text = text[:start] + body + text[end:]
+        else:
+            marker = text.find("Total benchmark time")
+            text = text + "\n" + body if marker < 0 else text[:marker] + body + text[marker:]
+    lines = text.split("\n")
+    for key, value in HEADLINE.items():
+        line = f"- **{LABELS[key]}**: {value}."
+        prefix = f"- **{LABELS[key]}**:"
+        found = [i for i, old in enumerate(lines) if old.startswith(prefix)]
+        if found:
+            lines[found[0]] = line
+        else:
+            heads = [i for i, old in enumerate(lines) if old.startswith("- **")]
+            lines.insert(heads[-1] + 1 if heads else len(lines), line)
+    path.write_text("\n".join(lines))
     return 0
 
 

@@ -55,7 +55,9 @@ def select_cost(n: int = 0, n_inputs: int = 7, budget: float | None = None, blas
 
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     extra = ["--budget", str(budget)] if budget is not None else []
-    env = {"OPENBLAS_NUM_THREADS": str(blas_threads)} if blas_threads else None
+    # Every thread pool forced: OpenBLAS (NumPy's and SciPy's), OpenMP and MKL where present.
+    env = {name: str(blas_threads) for name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")} \
+        if blas_threads else None
     if n == 0:
         if not DEMO_TABLE.exists():
             raise RuntimeError(f"{DEMO_TABLE} is missing: run ftcal demo --out ftcal-demo and README's ftcal dataset")
@@ -80,7 +82,23 @@ def select_cost(n: int = 0, n_inputs: int = 7, budget: float | None = None, blas
     return result
 
 
-CASES = {f.__name__: f for f in (select_cost,)}
+def threads_pair(pairs: int = 2) -> dict:
+    """The demo search with every thread pool forced to one thread against the default, in turn (default,
+    forced, default, forced): CPU(forced) / CPU(default) per pair, its median (issue 32: ≥ 0.95 says no
+    core is oversubscribed; below, the default's extra threads burn CPU without doing work)."""
+    runs = {"default": [], "forced": []}
+    for _ in range(pairs):
+        runs["default"].append(select_cost(0, 7))
+        runs["forced"].append(select_cost(0, 7, blas_threads=1))
+    ratios = [f["cpu_s"] / d["cpu_s"] for d, f in zip(runs["default"], runs["forced"])]
+    median = {name: {key: float(sorted(r[key] for r in rows)[len(rows) // 2]) for key in ("cpu_s", "wall_s")}
+              for name, rows in runs.items()}
+    return {"pairs": pairs, **median, "ratios": ratios, "ratio": sorted(ratios)[len(ratios) // 2] if pairs % 2
+            else 0.5 * (sorted(ratios)[pairs // 2 - 1] + sorted(ratios)[pairs // 2]),
+            "seconds": median["default"]["wall_s"]}
+
+
+CASES = {f.__name__: f for f in (select_cost, threads_pair)}
 
 
 if __name__ == "__main__":

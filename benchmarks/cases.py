@@ -22,6 +22,8 @@ from benchmarks.bench_bags import CASES as BAG_CASES
 from benchmarks.bench_cost import CASES as COST_CASES
 from benchmarks.bench_live import LIVE_CASES
 from benchmarks.bench_closed_loop import CASES as CLOSED_LOOP_CASES
+from benchmarks.bench_payload_cli import CASES as PAYLOAD_CLI_CASES
+from benchmarks.bench_cluster import CASES as CLUSTER_CASES
 from benchmarks.bench_mlp import CASES as MLP_CASES
 from benchmarks.bench_plan import CASES as PLAN_CASES
 from benchmarks.load_cases import make_load_cases
@@ -534,6 +536,8 @@ CASES.update(PLAN_CASES)  # experiment design: benchmarks/bench_plan.py
 CASES.update(MLP_CASES)  # the MLP family against a polynomial: benchmarks/bench_mlp.py
 CASES.update(COST_CASES)  # --degree auto's estimate against its CPU: benchmarks/bench_cost.py
 CASES.update(LIVE_CASES)  # the live calibrator: benchmarks/bench_live.py
+CASES.update(PAYLOAD_CLI_CASES)  # whole ftcal payload processes: benchmarks/bench_payload_cli.py
+CASES.update(CLUSTER_CASES)  # whole ftcal fit, one process against local:N: benchmarks/bench_cluster.py
 CASES.update(CLOSED_LOOP_CASES)  # the calibrated sensor in a MuJoCo force-control loop: benchmarks/bench_closed_loop.py
 
 

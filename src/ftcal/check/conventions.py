@@ -480,7 +480,7 @@ class ConventionWarning(FtcalWarning):
 
 
 def payload_warning(paths, source, fit, g: float, *, wrench=AXES, reaction: bool = False,
-                    time: str | None = None) -> str | None:
+                    time: str | None = None, holds: "HoldCollector | None" = None) -> str | None:
     """One line for ``ftcal payload`` when its data look like a convention error, else None.
 
     Parameters
@@ -492,10 +492,13 @@ def payload_warning(paths, source, fit, g: float, *, wrench=AXES, reaction: bool
     wrench : its --wrench columns (to spell a fix)
     reaction : its --reaction
     time : its --time column (default ``time`` where there is one)
+    holds : the :class:`HoldCollector` that saw the tables as the fit read them (then they are
+        not read again), or None to read ``paths``
     """
     try:
-        report = check_conventions(read_holds(paths, source, wrench=wrench, reaction=reaction, time=time),
-                                   wrench_columns=tuple(wrench))
+        averages = (holds.averages() if holds is not None else
+                    read_holds(paths, source, wrench=wrench, reaction=reaction, time=time))
+        report = check_conventions(averages, wrench_columns=tuple(wrench))
     except FtcalError:
         return None  # no usable static holds (e.g. continuous motion): the fit's own checks apply
     # A negative mass alone is ftcal payload's own error (it offers --reaction).
@@ -510,6 +513,58 @@ def payload_warning(paths, source, fit, g: float, *, wrench=AXES, reaction: bool
         return (f"the force residual ({force_rms:.3g} N RMS) is of the order of the tool's weight ({weight:.3g} N): "
                 "check the sign, frame and zeroing with ftcal check")
     return None
+
+
+class HoldCollector:
+    """The hold averages of the convention check, taken from each table while the payload fit reads it.
+
+    Given as ``select`` to :func:`ftcal.payload.tables.read_payload_tables`, it sees every table's
+    frame and gravity once, as the fit reads them, and keeps what :func:`read_holds` would find in
+    the same files (same holds, same means), so the check needs no second read of the tables and
+    no second gravity computation. It then hands the frame to ``select`` (the fit's own row choice).
+
+    Parameters
+    ----------
+    source : KinematicsSource of the fit (quaternion columns give the holds' rotations too)
+    select : callable or None, the fit's own ``select(frame, kinematics, path)``
+    wrench, reaction, time : as :func:`read_holds`
+    """
+
+    def __init__(self, source, select=None, *, wrench=("u1", "u2", "u3", "u4", "u5", "u6"), reaction: bool = False,
+                 time: str | None = None):
+        from ..payload.kinematics import MotionSource
+
+        # As read_holds: holds are static, gravity's source is all that matters (quaternions give rotations).
+        self.source = source.gravity if isinstance(source, MotionSource) else source
+        self.select = select
+        self.wrench, self.reaction, self.time = tuple(wrench), reaction, time
+        self.parts: list[HoldAverages] = []
+        self.error: FtcalError | None = None  # the first table without usable holds: the check is skipped
+
+    def __call__(self, frame, kinematics, path: str):
+        if self.error is None:
+            try:
+                self.parts.append(_table_holds(frame, str(path), kinematics.gravity, self.source, wrench=self.wrench,
+                                               reaction=self.reaction, time=self.time))
+            except FtcalError as exc:
+                self.error = exc
+        return None if self.select is None else self.select(frame, kinematics, path)
+
+    def averages(self) -> HoldAverages:
+        """The hold averages of all tables seen, as :func:`read_holds` gives them.
+
+        Raises
+        ------
+        FtcalError
+            A table had no usable hold (what :func:`read_holds` raises), or no table was seen.
+        """
+        from ..data.holds import concatenate_averages
+
+        if self.error is not None:
+            raise self.error
+        if not self.parts:
+            raise FtcalError("No table was read.")
+        return concatenate_averages(self.parts)
 
 
 def read_holds(paths, source, *, wrench=("u1", "u2", "u3", "u4", "u5", "u6"), group_by: str | None = None,
@@ -538,46 +593,54 @@ def read_holds(paths, source, *, wrench=("u1", "u2", "u3", "u4", "u5", "u6"), gr
     FtcalError
         A missing column, or a table without a static hold.
     """
-    from pathlib import Path
-
-    from ..data.holds import MIN_HOLD_S, concatenate_averages, find_holds, hold_averages
-    from ..data.tables import numeric_columns, read_table
-    from ..payload.kinematics import MotionSource, OrientationSource
+    from ..data.holds import concatenate_averages
+    from ..data.tables import read_table
+    from ..payload.kinematics import MotionSource
 
     if len(wrench) != 6:
         raise FtcalError(f"--wrench needs 6 columns Fx,Fy,Fz,Tx,Ty,Tz; got {','.join(wrench)}.")
     if isinstance(source, MotionSource):
         source = source.gravity  # holds are static: gravity is all that matters
-    time_column = time or "time"
     parts = []
     for path in paths:
         frame = read_table(path)
-        measured = (-1.0 if reaction else 1.0) * numeric_columns(frame, wrench, Path(path), "wrench")
-        gravity = source(frame, str(path)).gravity
-        rotation = None
-        if isinstance(source, OrientationSource):
-            from scipy.spatial.transform import Rotation
-
-            q = numeric_columns(frame, source.columns, Path(path), "orientation")
-            rotation = Rotation.from_quat(q).as_matrix()  # x, y, z, w (ROS order)
-        if time_column in frame.columns:
-            t = numeric_columns(frame, (time_column,), Path(path), "time")[:, 0]
-        elif time is not None:
-            raise FtcalError(f"{path}: no time column {time!r} (--time); the file has "
-                             f"{', '.join(map(str, frame.columns))}.")
-        else:
-            t = np.arange(len(frame)) / rate
-        labels = frame["segment"].to_numpy() if "segment" in frame.columns else None
-        if group_by is not None:
-            if group_by not in frame.columns:
-                raise FtcalError(f"{path}: no hold column {group_by!r} (--group-by); the file has "
-                                 f"{', '.join(map(str, frame.columns))}.")
-            labels = frame[group_by].astype(str).to_numpy(dtype=object)
-        holds = find_holds(t, gravity=gravity, segments=labels, where=str(path), time_column=time_column)
-        if group_by is not None:
-            holds = holds.longest_per_segment(labels)
-        if holds.n_holds == 0:
-            raise FtcalError(f"{path}: no static hold found (gravity direction still for {MIN_HOLD_S:g} s or "
-                             "more); record the tool at rest in a few orientations.")
-        parts.append(hold_averages(holds, measured, gravity, rotation))
+        parts.append(_table_holds(frame, str(path), source(frame, str(path)).gravity, source, wrench=wrench,
+                                  group_by=group_by, reaction=reaction, time=time, rate=rate))
     return concatenate_averages(parts)
+
+
+def _table_holds(frame, path: str, gravity: np.ndarray, source, *, wrench, group_by: str | None = None,
+                 reaction: bool = False, time: str | None = None, rate: float = HOLD_SAMPLE_RATE) -> HoldAverages:
+    """The hold averages of one table already read (:func:`read_holds`'s work on one file), ``gravity``
+    its gravity in the sensor frame, shape (n, 3)."""
+    from pathlib import Path
+
+    from ..data.holds import MIN_HOLD_S, find_holds, hold_averages
+    from ..data.tables import numeric_columns
+    from ..payload.kinematics import OrientationSource
+
+    time_column = time or "time"
+    measured = (-1.0 if reaction else 1.0) * numeric_columns(frame, wrench, Path(path), "wrench")
+    # Quaternion columns give each hold's rotation too (base-frame test), made per hold from its own rows.
+    quaternions = (numeric_columns(frame, source.columns, Path(path), "orientation")
+                   if isinstance(source, OrientationSource) else None)
+    if time_column in frame.columns:
+        t = numeric_columns(frame, (time_column,), Path(path), "time")[:, 0]
+    elif time is not None:
+        raise FtcalError(f"{path}: no time column {time!r} (--time); the file has "
+                         f"{', '.join(map(str, frame.columns))}.")
+    else:
+        t = np.arange(len(frame)) / rate
+    labels = frame["segment"].to_numpy() if "segment" in frame.columns else None
+    if group_by is not None:
+        if group_by not in frame.columns:
+            raise FtcalError(f"{path}: no hold column {group_by!r} (--group-by); the file has "
+                             f"{', '.join(map(str, frame.columns))}.")
+        labels = frame[group_by].astype(str).to_numpy(dtype=object)
+    holds = find_holds(t, gravity=gravity, segments=labels, where=str(path), time_column=time_column)
+    if group_by is not None:
+        holds = holds.longest_per_segment(labels)
+    if holds.n_holds == 0:
+        raise FtcalError(f"{path}: no static hold found (gravity direction still for {MIN_HOLD_S:g} s or "
+                         "more); record the tool at rest in a few orientations.")
+    return hold_averages(holds, measured, gravity, quaternions=quaternions)

@@ -397,7 +397,7 @@ class HoldAverages:
 
 
 def hold_averages(holds: Holds, wrench: np.ndarray, gravity: np.ndarray,
-                  rotation: np.ndarray | None = None) -> HoldAverages:
+                  rotation: np.ndarray | None = None, *, quaternions: np.ndarray | None = None) -> HoldAverages:
     """Each hold's mean wrench, gravity and (when given) rotation, and its wrench's standard error.
 
     Parameters
@@ -407,6 +407,9 @@ def hold_averages(holds: Holds, wrench: np.ndarray, gravity: np.ndarray,
     gravity : ndarray of shape (n_samples, 3)
     rotation : ndarray of shape (n_samples, 3, 3) or None
         Sensor-to-world rotations; each hold's is the rotation nearest to their mean.
+    quaternions : ndarray of shape (n_samples, 4) or None
+        The same rotations as quaternions (x, y, z, w, any norm), instead of ``rotation``: each
+        hold's matrices are made from its own rows only (no n_samples × 3 × 3 array).
 
     Returns
     -------
@@ -422,6 +425,9 @@ def hold_averages(holds: Holds, wrench: np.ndarray, gravity: np.ndarray,
     rot = None
     if rotation is not None:
         rot = np.array([_mean_rotation(rotation[a:b]) for a, b in rows]).reshape(-1, 3, 3)
+    elif quaternions is not None:
+        q = np.asarray(quaternions, dtype=np.float64)
+        rot = np.array([_mean_rotation(rotation_matrices(q[a:b])) for a, b in rows]).reshape(-1, 3, 3)
     return HoldAverages(mean, g_mean, rot, start.astype(np.int64), stop.astype(np.int64), noise)
 
 
@@ -432,6 +438,25 @@ def concatenate_averages(parts: Sequence[HoldAverages]) -> HoldAverages:
     rotation = None if any(p.rotation is None for p in parts) else np.concatenate([p.rotation for p in parts])
     return HoldAverages(*(np.concatenate([getattr(p, k) for p in parts]) for k in ("wrench", "gravity")), rotation,
                         *(np.concatenate([getattr(p, k) for p in parts]) for k in ("start", "stop", "noise")))
+
+
+def rotation_matrices(quaternions: np.ndarray) -> np.ndarray:
+    """Rotation matrices of quaternions (x, y, z, w, ROS order; normalised first), shape (n, 3, 3).
+
+    The textbook formula, what ``scipy.spatial.transform.Rotation.from_quat(q).as_matrix()`` gives,
+    without importing SciPy for it.
+
+    Examples
+    --------
+    >>> (rotation_matrices(np.array([[0.0, 0.0, 1.0, 1.0]])).round(12) + 0.0)[0].tolist()  # 90° about z
+    [[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]
+    """
+    q = np.asarray(quaternions, dtype=np.float64).reshape(-1, 4)
+    x, y, z, w = (q / np.linalg.norm(q, axis=1, keepdims=True)).T
+    return np.stack([1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - z * w), 2.0 * (x * z + y * w),
+                     2.0 * (x * y + z * w), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - x * w),
+                     2.0 * (x * z - y * w), 2.0 * (y * z + x * w), 1.0 - 2.0 * (x * x + y * y)],
+                    axis=1).reshape(-1, 3, 3)
 
 
 def _mean_rotation(rotations: np.ndarray) -> np.ndarray:

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..runtime.errors import FtcalError
+from ..runtime.executors import KEEP_FILES_ENV
 from .parquet_checks import FooterCheck, locate_unreadable
 from .tables import arrow_numbers, complete_rows, table_columns
 
@@ -77,6 +78,8 @@ class _KeptFile:
 # While keep_in_memory() is active: resolved path -> the file's kept chunks, or None for a file
 # too large to keep. None outside the block.
 _KEPT: dict[Path, _KeptFile | None] | None = None
+# In a local cluster's worker process (KEEP_FILES_ENV set by runtime.executors): the files it kept, for its lifetime.
+_WORKER_KEPT: dict[Path, _KeptFile | None] = {}
 
 
 @contextmanager
@@ -132,11 +135,12 @@ def iter_table_chunks(path: str | os.PathLike, inputs: Sequence[str], outputs: S
         not a finite number (naming column and row), an empty label cell, or no rows.
     """
     chunks = _read_table_chunks(Path(path), inputs, outputs, labels, require_outputs, chunk_rows)
-    if _KEPT is None:
+    kept_files = _KEPT if _KEPT is not None else _WORKER_KEPT if os.environ.get(KEEP_FILES_ENV) == "1" else None
+    if kept_files is None:
         yield from chunks
         return
     key, label_names = Path(path).resolve(), tuple(labels)
-    identity, kept = _identity(key), _KEPT.get(key, ())
+    identity, kept = _identity(key), kept_files.get(key, ())
     if kept and kept.serves(identity, inputs, outputs, label_names):
         for chunk in kept.chunks:
             yield TableChunk(chunk.first_row, chunk.inputs, chunk.outputs if outputs else None,
@@ -152,10 +156,10 @@ def iter_table_chunks(path: str | os.PathLike, inputs: Sequence[str], outputs: S
                 read.append(chunk)
             else:
                 keep, read = False, []
-                _KEPT[key] = None
+                kept_files[key] = None
         yield chunk
     if keep:
-        _KEPT[key] = _KeptFile(identity, tuple(inputs), None if read[0].outputs is None else tuple(outputs),
+        kept_files[key] = _KeptFile(identity, tuple(inputs), None if read[0].outputs is None else tuple(outputs),
                                label_names, read)
 
 

@@ -55,6 +55,22 @@ SHUTDOWN_TIMEOUT_S = 30.0  # a local cluster's orderly close; processes still al
 # glibc's allocator in local workers: large blocks from the heap (32 MiB, glibc's largest mmap threshold), and
 # the heap trimmed only past 256 MiB free.
 WORKER_MALLOC = {"MALLOC_MMAP_THRESHOLD_": 32 * 1024 * 1024, "MALLOC_TRIM_THRESHOLD_": 256 * 1024 * 1024}
+# A local cluster's own housekeeping, set to what a few batch tasks need: Dask's defaults (a stack sample
+# every 10 ms in each worker, memory checks every 100 ms, an event-loop tick every 20 ms, disk and GIL
+# monitors, work stealing) cost a local:2 run 30-40 % more CPU per pass than one process (issue 32).
+LOCAL_CLUSTER_CONFIG = {
+    "distributed.worker.profile.enabled": False,
+    "distributed.worker.memory.monitor-interval": "1s",
+    "distributed.admin.tick.interval": "500ms",
+    "distributed.admin.system-monitor.interval": "5s",
+    "distributed.admin.system-monitor.disk": False,
+    "distributed.admin.system-monitor.gil.enabled": False,
+    "distributed.scheduler.work-stealing": False,
+}
+# Set in a local cluster's worker processes, which live for one command: they keep the files they read in
+# memory as the command's own process does (ftcal.data.table_chunks.keep_in_memory), so a file that several
+# passes read is read once there too.
+KEEP_FILES_ENV = "FTCAL_WORKER_KEEPS_FILES"
 DEFERRED_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
 
 
@@ -329,6 +345,10 @@ def open_executor(scheduler: str | None, *,
         return
     scheduler = parse_scheduler(scheduler)
     import logging
+    import sys
+    import time
+
+    started = time.perf_counter()
 
     try:
         import dask
@@ -343,10 +363,14 @@ def open_executor(scheduler: str | None, *,
     # maps and unmaps every large temporary of a statistics pass (2.5 M page faults, 6 s of kernel time on
     # 4 x 1e6 rows); a heap that keeps them makes local:2 as fast as one process (issue 32).
     environ = dict(dask.config.get("distributed.nanny.pre-spawn-environ", {}) or {}, **WORKER_MALLOC)
+    local = scheduler.startswith(LOCAL_PREFIX)
     with dask.config.set({"distributed.comm.timeouts.connect": f"{connect_timeout}s",
                           "distributed.scheduler.allowed-failures": TASK_RETRIES,
                           "distributed.scheduler.worker-saturation": 1.0,
-                          "distributed.nanny.pre-spawn-environ": environ}):
+                          "distributed.nanny.pre-spawn-environ": environ,
+                          **({**LOCAL_CLUSTER_CONFIG, "distributed.nanny.environ": dict(
+                              dask.config.get("distributed.nanny.environ", {}) or {}, **{KEEP_FILES_ENV: "1"})}
+                             if local else {})}):
         import multiprocessing
 
         before = set(multiprocessing.active_children())
@@ -365,9 +389,17 @@ def open_executor(scheduler: str | None, *,
                 client = _connect(cluster if cluster is not None else scheduler, scheduler, connect_timeout)
             try:
                 check_versions(client, scheduler)
+                startup = None
                 if cluster is not None:
                     client.register_plugin(_ignore_interrupts_plugin())
+                    startup = time.perf_counter() - started
                 yield DaskExecutor(client)
+                if startup is not None:
+                    # The fixed cost of a local cluster, said once, after a run that succeeded (a failed
+                    # run's stderr is its one-line error).
+                    workers = int(scheduler[len(LOCAL_PREFIX):])
+                    print(f"Dask {scheduler}: {workers} worker process{'es' if workers > 1 else ''} started in "
+                          f"{startup:.1f} s", file=sys.stderr)
             finally:
                 with signals_deferred():
                     client.close()

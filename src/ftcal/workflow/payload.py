@@ -242,7 +242,7 @@ def identify_payload(data, *, wrench: Sequence[str] = DEFAULT_WRENCH, group_by: 
     >>> round(result.mass, 6)
     2.0
     """
-    from ..check.conventions import ConventionWarning, payload_warning
+    from ..check.conventions import ConventionWarning, HoldCollector, payload_warning
     from ..core.limits import BIAS_DRIFTS
     from ..files.payload_json import save_payload
     from ..payload.identify import check_mass_sign
@@ -275,13 +275,16 @@ def identify_payload(data, *, wrench: Sequence[str] = DEFAULT_WRENCH, group_by: 
         if group_by is not None:
             notes.append(f"groups: the tables' {HOLD_COLUMN!r} column (one per still pose, from ftcal dataset; "
                          "--group-by COL for another)")
+    # The convention check's holds are taken from the tables as the fit reads them (one read).
+    holds = HoldCollector(gravity_from, static, wrench=wrench, reaction=reaction, time=time)
     recording = read_payload_tables(paths, gravity_from, wrench=wrench, group_by=group_by, reaction=reaction,
-                                    time=time, temperature=temperature, select=static)
+                                    time=time, temperature=temperature, select=holds)
     notes[:0] = [f"static samples: {line}" for line in (() if static is None else static.notes)]
     result = identify_recording(recording, bias_drift=bias_drift, dynamic=dynamic, time_column=time,
                                 temperature_column=temperature)
     fit = result.fit
-    message = payload_warning(paths, gravity_from, fit, options["g"], wrench=wrench, reaction=reaction, time=time)
+    message = payload_warning(paths, gravity_from, fit, options["g"], wrench=wrench, reaction=reaction, time=time,
+                              holds=holds)
     if message:  # the fit looks like a sign/frame/zeroing mistake: ftcal check's tests on the static holds
         warnings.warn(message, ConventionWarning, stacklevel=2)
     check_mass_sign(fit)
@@ -324,8 +327,9 @@ def _fit_lines(fit, n_groups: int, g: float) -> list[str]:
             lines.append("cross-validated residual RMS (each group left out of the fit in turn): "
                          + "  ".join(f"{a} {v:.4g}" for a, v in zip(AXES, pooled)))
         # The groups that fit worst when left out come first: they are the suspicious poses.
-        ranked = sorted(fit.cross_validation, key=lambda g: -np.inf if g.rms is None else -float(
-            np.sum((g.rms / np.maximum(fit.residual_rms, 1e-300)) ** 2)))
+        with np.errstate(over="ignore"):  # an axis fitted exactly (residual 0) ranks its groups first: inf
+            ranked = sorted(fit.cross_validation, key=lambda g: -np.inf if g.rms is None else -float(
+                np.sum((g.rms / np.maximum(fit.residual_rms, 1e-300)) ** 2)))
         for g in ranked[:MAX_GROUPS_PRINTED]:
             text = ("not identifiable without this group" if g.rms is None
                     else "  ".join(f"{a} {v:.4g}" for a, v in zip(AXES, g.rms)))

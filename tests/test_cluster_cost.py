@@ -1,0 +1,107 @@
+"""A local Dask cluster that costs what its work costs (issue 32): worker processes without Dask's per-process
+housekeeping (stack sampling every 10 ms, memory checks every 100 ms), and the cluster's start-up said once, with
+its seconds. Results are checked against the single-process run (the same sums in the same order: bit-identical).
+"""
+
+import json
+import os
+import re
+import subprocess
+import sys
+
+import numpy as np
+import pandas as pd
+import pytest
+from conftest import sensor_like_data
+
+from ftcal.core.dataset import DEFAULT_OUTPUTS
+from ftcal.runtime.executors import open_executor
+
+INPUTS = ("u1", "u2", "u3", "u4", "u5", "u6", "T")
+FTCAL = os.path.join(os.path.dirname(sys.executable), "ftcal")
+
+
+def _worker_settings() -> dict:
+    import dask
+
+    return {"threads": os.environ.get("FTCAL_THREADS"),
+            "profile": dask.config.get("distributed.worker.profile.enabled"),
+            "monitor": dask.config.get("distributed.worker.memory.monitor-interval")}
+
+
+def test_local_workers_skip_the_profiler_and_keep_this_processs_thread_split():
+    with open_executor("local:2") as executor:
+        seen = executor.client.run(_worker_settings)
+    assert len(seen) == 2
+    for settings in seen.values():
+        # Each worker splits a chunk into ranges as this process does: its sums are bit-identical to the local run.
+        assert settings["threads"] == os.environ.get("FTCAL_THREADS")
+        assert settings["profile"] is False
+        assert settings["monitor"] == "1s"
+
+
+def test_fit_on_a_local_cluster_says_its_start_up_once_and_equals_the_local_fit(tmp_path):
+    rng = np.random.default_rng(11)
+    paths = []
+    for index in range(3):
+        u, y = sensor_like_data(rng, 400)
+        path = tmp_path / f"part{index}.csv"
+        pd.DataFrame(np.c_[u, y], columns=[*INPUTS, *DEFAULT_OUTPUTS]).to_csv(path, index=False, float_format="%.17g")
+        paths.append(str(path))
+    env = dict(os.environ, FTCAL_PROGRESS="0")
+    models, errors = {}, {}
+    for name, extra in (("here", []), ("dask", ["--scheduler", "local:2"])):
+        out = tmp_path / f"{name}.json"
+        done = subprocess.run([FTCAL, "fit", *paths, "--degree", "2", "-o", str(out), *extra],
+                              capture_output=True, text=True, env=env, timeout=600)
+        assert done.returncode == 0, done.stderr
+        models[name], errors[name] = json.loads(out.read_text()), done.stderr
+    lines = [line for line in errors["dask"].splitlines() if line.startswith("Dask ")]
+    assert len(lines) == 1 and re.fullmatch(r"Dask local:2: 2 worker processes started in \d+\.\d s", lines[0])
+    assert "Dask" not in errors["here"]
+    for model in models.values():
+        del model["created"], model["sha256"]
+    assert models["here"] == models["dask"]
+
+
+@pytest.mark.parametrize("bad", ["local:0", "local:x"])
+def test_bad_scheduler_still_one_line_and_no_start_up_line(tmp_path, bad):
+    done = subprocess.run([FTCAL, "fit", str(tmp_path / "none.csv"), "--degree", "1", "-o", str(tmp_path / "m.json"),
+                           "--scheduler", bad], capture_output=True, text=True, env=dict(os.environ, FTCAL_PROGRESS="0"))
+    assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1
+
+
+def _kept_files() -> int:
+    from ftcal.data import table_chunks
+
+    return len([kept for kept in table_chunks._WORKER_KEPT.values() if kept is not None])
+
+
+def test_local_workers_read_a_small_file_once_across_passes(tmp_path):
+    """Three passes over small files on local:2: the workers keep each file as the command's own process does,
+    and what they serve from memory sums exactly like reading the files (the local run's statistics)."""
+    from ftcal.core.features import MonomialBasis
+    from ftcal.core.normalization import normalization_from_range
+    from ftcal.data.streaming import add_statistics, file_statistics
+    from ftcal.data.table_chunks import keep_in_memory
+    from ftcal.runtime.executors import LocalExecutor
+
+    rng = np.random.default_rng(12)
+    paths = []
+    for index in range(4):
+        u, y = sensor_like_data(rng, 500)
+        path = tmp_path / f"f{index}.parquet"
+        pd.DataFrame(np.c_[u, y], columns=[*INPUTS, *DEFAULT_OUTPUTS]).to_parquet(path)
+        paths.append(str(path))
+    basis = MonomialBasis(len(INPUTS), 2)
+    norm = normalization_from_range(np.full(7, -200.0), np.full(7, 200.0))
+    args = (basis, norm, INPUTS, DEFAULT_OUTPUTS)
+    with keep_in_memory():
+        local = LocalExecutor().map_reduce(file_statistics, paths, *args, combine=add_statistics)
+    with open_executor("local:2") as executor:
+        sums = [executor.map_reduce(file_statistics, paths, *args, combine=add_statistics) for _ in range(3)]
+        kept = executor.client.run(_kept_files)
+    assert sum(kept.values()) >= len(paths)  # every file kept by the worker(s) that read it
+    for total in sums:
+        assert np.array_equal(total.gram, local.gram) and np.array_equal(total.cross, local.cross)
+    assert _kept_files() == 0  # this process keeps nothing outside keep_in_memory()
