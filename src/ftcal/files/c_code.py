@@ -163,20 +163,48 @@ def generate_c(model: CalibrationModel, *, name: str = DEFAULT_NAME, single_prec
             _in_range(model, name, lit), ""]
     n_monomials = layout.basis.n_terms - 1
     if layout.is_static:
-        inn = model.input_normalization_
-        inv_scale = 1.0 / inn.scale  # predict multiplies by the inverse scale
-        lines = [f"void {name}_predict(const {lit.real} *u, {lit.real} *y)", "{",
-                 f"    {lit.real} m[{n_monomials}];"]
-        lines += [f"    {lit.real} {', '.join(f'a{k}_{j} = 0' for j in range(PARTIAL_SUMS))};" for k in range(ny)]
-        lines += [f"    m[{i}] = (u[{i}] - {lit(inn.offset[i])}) * {lit(inv_scale[i])};" for i in range(nu)]
-        lines += _accumulate(plan, lit, nu)
-        lines += [f"    y[{k}] = {_pairwise([f'a{k}_{j}' for j in range(PARTIAL_SUMS)], lambda a, b: f'({a} + {b})')};"
-                  for k in range(ny)]
-        lines.append("}")
-        body += lines
+        body += _static_predict(model, plan, lit, f"void {name}_predict")
     else:
         body += _arx_functions(model, name, macro, plan, lit, n_monomials)
     return GeneratedC(name, header, "\n".join(body) + "\n")
+
+
+def _static_predict(model: CalibrationModel, plan: _Plan, lit: _Literals, signature: str) -> list[str]:
+    """Lines of a static model's one-sample evaluator ``signature(const real *u, real *y)``."""
+    inn = model.input_normalization_
+    inv_scale = 1.0 / inn.scale  # predict multiplies by the inverse scale
+    nu, ny = len(model.input_names_), len(model.output_names_)
+    lines = [f"{signature}(const {lit.real} *u, {lit.real} *y)", "{",
+             f"    {lit.real} m[{model.layout_.basis.n_terms - 1}];"]
+    lines += [f"    {lit.real} {', '.join(f'a{k}_{j} = 0' for j in range(PARTIAL_SUMS))};" for k in range(ny)]
+    lines += [f"    m[{i}] = (u[{i}] - {lit(inn.offset[i])}) * {lit(inv_scale[i])};" for i in range(nu)]
+    lines += _accumulate(plan, lit, nu)
+    lines += [f"    y[{k}] = {_pairwise([f'a{k}_{j}' for j in range(PARTIAL_SUMS)], lambda a, b: f'({a} + {b})')};"
+              for k in range(ny)]
+    lines.append("}")
+    return lines
+
+
+def static_predict_function(model: CalibrationModel, signature: str) -> str:
+    """C99 text of a double-precision evaluator of a static ``model``, for embedding in other generated code.
+
+    Parameters
+    ----------
+    model : fitted static CalibrationModel with finite numbers
+    signature : everything before the parameter list, e.g. ``"static void ft_calibrate"`` (generated
+        by the caller from checked identifiers, never from file text)
+
+    Returns
+    -------
+    str
+        The function ``signature(const double *u, double *y)``, the same operations as ``NAME_predict``
+        of :func:`generate_c`.
+    """
+    model._check_fitted()
+    check_finite(model)
+    if not model.layout_.is_static:
+        raise FtcalError("this export takes static models (no ARX lags).")
+    return "\n".join(_static_predict(model, _plan(model), _Literals(False), signature))
 
 
 def _pairwise(parts: list, add):
