@@ -10,6 +10,11 @@ term, into :data:`PARTIAL_SUMS` partial sums added pairwise at the end.
 Exact zeros (LASSO) emit no code. The result equals ``predict`` to rounding;
 only the order of the sums differs.
 
+Static models also get ``NAME_predict_batch(n, u, y)``: the same operations over blocks of
+:data:`BATCH_BLOCK` samples, written as one loop over the block's samples with scalar
+temporaries, which the compiler vectorises across samples (``benchmarks/bench_c.py`` measures it
+against the scalar entry point and a vectorised floor).
+
 The code is straight-line C: no allocation, no library calls, no headers
 beyond its own, one monomial array on the stack; it compiles with
 ``-std=c99 -Wall -Wextra -Werror -pedantic`` and from C++ (``extern "C"``).
@@ -47,6 +52,11 @@ DEFAULT_NAME = "ftcal_model"
 # Independent partial sums per output of a static model: four addition chains the CPU overlaps
 # (measured faster than one chain or eight at degrees 4 and 5, benchmarks/cases.py c_predict).
 PARTIAL_SUMS = 4
+# Samples per block of the batch evaluator: a multiple of every vector width (2, 4, 8 doubles).
+BATCH_BLOCK = 8
+# Partial sums per output in the batch loop: each is a vector register of samples; two keep enough
+# additions in flight across six outputs without spilling the accumulators (16 vector registers on x86-64).
+BATCH_PARTIAL_SUMS = 2
 
 
 @dataclass(frozen=True)
@@ -164,6 +174,7 @@ def generate_c(model: CalibrationModel, *, name: str = DEFAULT_NAME, single_prec
     n_monomials = layout.basis.n_terms - 1
     if layout.is_static:
         body += _static_predict(model, plan, lit, f"void {name}_predict")
+        body += ["", *_batch_predict(model, plan, lit, name, macro)]
     else:
         body += _arx_functions(model, name, macro, plan, lit, n_monomials)
     return GeneratedC(name, header, "\n".join(body) + "\n")
@@ -182,6 +193,54 @@ def _static_predict(model: CalibrationModel, plan: _Plan, lit: _Literals, signat
     lines += [f"    y[{k}] = {_pairwise([f'a{k}_{j}' for j in range(PARTIAL_SUMS)], lambda a, b: f'({a} + {b})')};"
               for k in range(ny)]
     lines.append("}")
+    return lines
+
+
+def _batch_predict(model: CalibrationModel, plan: _Plan, lit: _Literals, name: str, macro: str) -> list[str]:
+    """``NAME_predict_batch``: blocks of :data:`BATCH_BLOCK` samples, structure of arrays, one loop per block.
+
+    The block's inputs are transposed into ``x[input][sample]``; one loop over the block's samples then
+    runs the scalar evaluator's operations on scalars (no array indexed by monomial), which the
+    compiler vectorises across samples (one lane per sample), with :data:`BATCH_PARTIAL_SUMS` partial
+    sums per output; outputs are transposed back. A last partial block repeats its last sample in
+    the unused lanes.
+    """
+    inn = model.input_normalization_
+    inv_scale = 1.0 / inn.scale
+    nu, ny = len(model.input_names_), len(model.output_names_)
+    real, block = lit.real, f"{macro}_BATCH_BLOCK"
+    sums = BATCH_PARTIAL_SUMS
+    lines = [f"#ifndef {macro}_NO_BATCH", f"static void {name}_predict_block(long count, const {real} *u, {real} *y)", "{",
+             f"    {real} x[{macro}_N_INPUTS][{block}], v[{macro}_N_OUTPUTS][{block}];", "    long s;", "    int i;",
+             f"    for (s = 0; s < {block}; ++s)", f"        for (i = 0; i < {macro}_N_INPUTS; ++i)",
+             f"            x[i][s] = u[(s < count ? s : count - 1) * {macro}_N_INPUTS + i];",
+             f"    for (s = 0; s < {block}; ++s) {{"]
+    # Only the monomials a term or a needed product uses (an unused variable would not compile with -Werror).
+    needed = {t for kind, _, t, _, _ in plan.terms if kind != "1"}
+    for t in range(nu + len(plan.parents) - 1, nu - 1, -1):
+        if t in needed:
+            needed.update(plan.parents[t - nu])
+    lines += [f"        {real} m{i} = (x[{i}][s] - {lit(inn.offset[i])}) * {lit(inv_scale[i])};"
+              for i in range(nu) if i in needed]
+    lines += [f"        {real} {', '.join(f'a{k}_{j} = 0' for j in range(sums))};" for k in range(ny)]
+    computed, used = nu, {}
+    for kind, _, t, k, c in plan.terms:
+        while kind != "1" and computed <= t:
+            parent, factor = plan.parents[computed - nu]
+            if computed in needed:
+                lines.append(f"        {real} m{computed} = m{parent} * m{factor};")
+            computed += 1
+        j = used.get(k, 0) % sums
+        used[k] = used.get(k, 0) + 1
+        lines.append(f"        a{k}_{j} += {lit(c)};" if kind == "1" else f"        a{k}_{j} += {lit(c)} * m{t};")
+    lines += [f"        v[{k}][s] = {_pairwise([f'a{k}_{j}' for j in range(sums)], lambda a, b: f'({a} + {b})')};"
+              for k in range(ny)]
+    lines += ["    }", "    for (s = 0; s < count; ++s)", f"        for (i = 0; i < {macro}_N_OUTPUTS; ++i)",
+              f"            y[s * {macro}_N_OUTPUTS + i] = v[i][s];", "}", "",
+              f"void {name}_predict_batch(long n, const {real} *u, {real} *y)", "{", "    long start;",
+              f"    for (start = 0; start < n; start += {block})",
+              f"        {name}_predict_block(n - start < {block} ? n - start : {block}, "
+              f"u + start * {macro}_N_INPUTS, y + start * {macro}_N_OUTPUTS);", "}", f"#endif /* {macro}_NO_BATCH */"]
     return lines
 
 
@@ -244,7 +303,14 @@ def _header(model, name, macro, lit, comment) -> str:
     layout = model.layout_
     if layout.is_static:
         lines += [f"/* y[{macro}_N_OUTPUTS] from u[{macro}_N_INPUTS]. */",
-                  f"void {name}_predict(const {real} *u, {real} *y);"]
+                  f"void {name}_predict(const {real} *u, {real} *y);", "",
+                  f"/* Samples per block of the batch evaluator (its vectorised loop's trip count). */",
+                  f"#define {macro}_BATCH_BLOCK {BATCH_BLOCK}",
+                  f"/* n samples at once: u[n][{macro}_N_INPUTS] to y[n][{macro}_N_OUTPUTS], row by row, the same",
+                  "   numbers as n calls of predict up to rounding; the compiler vectorises it across samples.",
+                  f"   Define {macro}_NO_BATCH when compiling NAME.c to leave it out (it compiles several times",
+                  "   slower than predict at degree 5). */",
+                  f"void {name}_predict_batch(long n, const {real} *u, {real} *y);"]
     else:
         members = []
         if layout.nb:
