@@ -250,3 +250,17 @@ def test_bad_convert_input_is_one_line_and_writes_nothing(tmp_path, capsys, argv
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and fragment in err[0], err
     assert not header.exists()
+
+
+def test_the_ros2_control_snippet_of_docs_live_compiles(tmp_path):
+    from pathlib import Path
+
+    docs = (Path(__file__).resolve().parents[1] / "docs" / "live.md").read_text()
+    snippet = docs[docs.index("**From ros2_control.**"):].split("```c\n", 1)[1].split("```", 1)[0]
+    model, _ = gauge_model(1)
+    tools = {"gripper": tool_payload(LiveScenario().tools["gripper"])}
+    (tmp_path / "ft_runtime.h").write_text(generate_c_runtime(model, tools, name="ft_runtime"))
+    (tmp_path / "controller.c").write_text(snippet)
+    done = subprocess.run([CC, "-O2", "-std=c99", "-Wall", "-Wextra", "-Werror", "-c", "controller.c"], cwd=tmp_path,
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
