@@ -10,6 +10,7 @@ contact is flagged while it lasts.
 from __future__ import annotations
 
 import ctypes
+import dataclasses
 import shutil
 import subprocess
 
@@ -185,19 +186,22 @@ def test_c_step_replays_a_recording_as_the_python_calibrator(tmp_path, scenario,
     assert held.sum() > 100 and np.mean(flags[held] & BIT["contact"] != 0) > 0.95
 
 
-def test_static_override_and_saturation_follow_the_python_calibrator(tmp_path, scenario):
+@pytest.mark.parametrize("reaction", [False, True])
+def test_static_override_and_saturation_follow_the_python_calibrator(tmp_path, scenario, reaction):
+    """With a ``reaction`` payload the sensor reports the opposite sign, and so do the readings here."""
     s, rec = scenario
     model, mix = gauge_model(1, seed=4)
-    tools = {"gripper": tool_payload(s.tools["gripper"])}
+    tools = {"gripper": dataclasses.replace(tool_payload(s.tools["gripper"]), reaction=reaction)}
     lib = build(tmp_path, generate_c_runtime(model, tools, name="rt"))
     n = 3000
     time, gravity = rec.time[:n], rec.gravity[:n]
-    u = np.column_stack([rec.wrench[:n] @ mix.T, np.full(n, 30.0)])
+    u = np.column_stack([(-1.0 if reaction else 1.0) * rec.wrench[:n] @ mix.T, np.full(n, 30.0)])
     u[1000:1100, 0] = 1e3  # gauge 1 pinned far beyond anything the calibration saw
     static = rec.holding[:n] & (np.arange(n) % 7 != 0)
     out = replay_c(lib, time, u, gravity, static.astype(int), np.zeros(n, int), 1)
     ref = python_replay(LiveCalibrator(model, tools=tools, tool="gripper"), time, u, gravity, static, {})
     compare(out, ref)
+    assert ref["updated"].sum() > 1000  # the tool's sign is right: its static samples pass the gate
     saturated = (ref["flags"] & BIT["saturated"]) != 0
     # Flat for >= 20 samples outside the range: samples 1019 to 1099 (data.signals.SATURATION_RUN = 20).
     assert saturated[1019:1100].all() and not saturated[:1019].any() and not saturated[1100:].any()

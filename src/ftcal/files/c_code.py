@@ -164,7 +164,6 @@ def generate_c(model: CalibrationModel, *, name: str = DEFAULT_NAME, single_prec
     lit = _Literals(single_precision)
     plan = _plan(model)
     macro = name.upper()
-    nu, ny = len(model.input_names_), len(model.output_names_)
     comment = _header_comment(model, name, single_precision, sha256, source_name, input_units, output_units)
     header = _header(model, name, macro, lit, comment)
     body = [comment, f'#include "{name}.h"', "",

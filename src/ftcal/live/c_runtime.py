@@ -47,7 +47,6 @@ from .health import BIT, DEAD_RUN
 
 DEFAULT_NAME = "ftcal_runtime"
 HISTORY = 1024
-AXES = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
 
 
 def _num(x: float) -> str:
@@ -91,11 +90,11 @@ def runtime_parameters(tools: dict) -> dict:
             "gate_chi2": float(chi2.ppf(GATE_PROBABILITY, 6))}
 
 
-def _span(model) -> tuple[list[str], bool]:
+def _span(model) -> list[str]:
     """C lines computing ``int outside_span`` from ``u`` (:func:`ftcal.core.excitation.span_distance`)."""
     spread = getattr(model, "input_spread_", None)
     if spread is None:
-        return ["    (void)u;", "    return 0;"], False
+        return ["    (void)u;", "    return 0;"]
     cov = spread.covariance
     std = np.sqrt(np.maximum(np.diag(cov), 0.0))
     unit = np.where(std > 0, std, 1.0)
@@ -116,7 +115,7 @@ def _span(model) -> tuple[list[str], bool]:
              "        else if (fabs(p) > off) off = fabs(p);", "    }",
              f"    if (off > 1e-6 * {_num(math.sqrt(max(values.max(), 1e-300)))}) return 1;",
              f"    return distance > {_num(span_limit(nu))};"]
-    return lines, True
+    return lines
 
 
 def generate_c_runtime(model, tools: dict, *, name: str = DEFAULT_NAME, sha256: str | None = None,
@@ -153,7 +152,7 @@ def generate_c_runtime(model, tools: dict, *, name: str = DEFAULT_NAME, sha256: 
     nc = len(channels)
     rng = np.asarray(model.input_range_, float)
     slack = RANGE_TOLERANCE * np.maximum(rng[:, 1] - rng[:, 0], 1.0)
-    span_lines, has_span = _span(model)
+    span_lines = _span(model)
     names = [NO_TOOL, *tools]
     mass = [0.0] + [float(p.mass) for p in tools.values()]
     mc = [[0.0] * 3] + [list(p.mass * np.asarray(p.com, dtype=float)) for p in tools.values()]
@@ -453,7 +452,6 @@ static inline int {name}_step({name}_state *s, double time, const double *u, con
 
 #endif /* {macro}_H */
 """
-    del has_span
     return text
 
 
