@@ -157,9 +157,11 @@ def test_lasso_exact_zeros_emit_no_code(tmp_path):
     n_zero = int(np.sum(model.coef_ == 0))
     assert n_zero > model.coef_.size // 4  # the λ gives many exact zeros
     code = generate_c(model, name="sparse")
-    for indent in ("    ", "        "):  # NAME_predict, and the loop body of NAME_predict_batch
-        accumulations = [line for line in code.source.splitlines() if re.match(indent + r"a\d+_\d \+= ", line)]
-        assert len(accumulations) == np.count_nonzero(model.coef_)
+    accumulations = [line for line in code.source.splitlines() if re.match(r"    a\d+_\d \+= ", line)]
+    assert len(accumulations) == np.count_nonzero(model.coef_)
+    # The batch loop's table holds one row per monomial with a nonzero coefficient (the offset aside).
+    rows = re.search(r"sparse_batch_row\[(\d+)\]", code.source)
+    assert int(rows.group(1)) == np.count_nonzero(np.any(model.coef_[:-1] != 0.0, axis=1))
     exe = build(tmp_path, model, "sparse")
     u_test, _ = sensor_data(200, seed=8)
     assert_relative(run_exe(exe, u_test)[:, :6], model.predict(u_test, warn_out_of_range=False))

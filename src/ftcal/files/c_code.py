@@ -10,10 +10,10 @@ term, into :data:`PARTIAL_SUMS` partial sums added pairwise at the end.
 Exact zeros (LASSO) emit no code. The result equals ``predict`` to rounding;
 only the order of the sums differs.
 
-Static models also get ``NAME_predict_batch(n, u, y)``: the same operations over blocks of
-:data:`BATCH_BLOCK` samples, written as one loop over the block's samples with scalar
-temporaries, which the compiler vectorises across samples (``benchmarks/bench_c.py`` measures it
-against the scalar entry point and a vectorised floor).
+Static models also get ``NAME_predict_batch(n, u, y)``: the same monomials and coefficients over
+blocks of :data:`BATCH_BLOCK` samples in structure-of-arrays form, small table-driven loops whose
+multiply-adds the compiler vectorises across the block's samples (``benchmarks/bench_c.py``
+measures it against the scalar entry point and a vectorised floor).
 
 The code is straight-line C: no allocation, no library calls, no headers
 beyond its own, one monomial array on the stack; it compiles with
@@ -54,9 +54,6 @@ DEFAULT_NAME = "ftcal_model"
 PARTIAL_SUMS = 4
 # Samples per block of the batch evaluator: a multiple of every vector width (2, 4, 8 doubles).
 BATCH_BLOCK = 8
-# Partial sums per output in the batch loop: each is a vector register of samples; two keep enough
-# additions in flight across six outputs without spilling the accumulators (16 vector registers on x86-64).
-BATCH_PARTIAL_SUMS = 2
 
 
 @dataclass(frozen=True)
@@ -196,49 +193,59 @@ def _static_predict(model: CalibrationModel, plan: _Plan, lit: _Literals, signat
 
 
 def _batch_predict(model: CalibrationModel, plan: _Plan, lit: _Literals, name: str, macro: str) -> list[str]:
-    """``NAME_predict_batch``: blocks of :data:`BATCH_BLOCK` samples, structure of arrays, one loop per block.
+    """``NAME_predict_batch``: blocks of :data:`BATCH_BLOCK` samples, structure of arrays, table-driven loops.
 
-    The block's inputs are transposed into ``x[input][sample]``; one loop over the block's samples then
-    runs the scalar evaluator's operations on scalars (no array indexed by monomial), which the
-    compiler vectorises across samples (one lane per sample), with :data:`BATCH_PARTIAL_SUMS` partial
-    sums per output; outputs are transposed back. A last partial block repeats its last sample in
-    the unused lanes.
+    Per block: the normalized inputs and every monomial (parent times one input, as in
+    ``NAME_predict``) go into ``m[monomial][sample]``, each a loop along the block's samples; then one
+    loop over the monomials with a nonzero coefficient adds ``coefficient × m[t][s]`` into one
+    accumulator per output and sample, named scalars the compiler keeps in (vector) registers.
+    The code is a few small loops over ``static const`` tables, so it compiles in a fraction of a
+    second at any degree. A last partial block repeats its last sample in the unused lanes.
     """
     inn = model.input_normalization_
-    inv_scale = 1.0 / inn.scale
     nu, ny = len(model.input_names_), len(model.output_names_)
-    real, block = lit.real, f"{macro}_BATCH_BLOCK"
-    sums = BATCH_PARTIAL_SUMS
-    lines = [f"#ifndef {macro}_NO_BATCH", f"static void {name}_predict_block(long count, const {real} *u, {real} *y)", "{",
-             f"    {real} x[{macro}_N_INPUTS][{block}], v[{macro}_N_OUTPUTS][{block}];", "    long s;", "    int i;",
-             f"    for (s = 0; s < {block}; ++s)", f"        for (i = 0; i < {macro}_N_INPUTS; ++i)",
-             f"            x[i][s] = u[(s < count ? s : count - 1) * {macro}_N_INPUTS + i];",
-             f"    for (s = 0; s < {block}; ++s) {{"]
-    # Only the monomials a term or a needed product uses (an unused variable would not compile with -Werror).
-    needed = {t for kind, _, t, _, _ in plan.terms if kind != "1"}
-    for t in range(nu + len(plan.parents) - 1, nu - 1, -1):
-        if t in needed:
-            needed.update(plan.parents[t - nu])
-    lines += [f"        {real} m{i} = (x[{i}][s] - {lit(inn.offset[i])}) * {lit(inv_scale[i])};"
-              for i in range(nu) if i in needed]
-    lines += [f"        {real} {', '.join(f'a{k}_{j} = 0' for j in range(sums))};" for k in range(ny)]
-    computed, used = nu, {}
+    real, block = lit.real, BATCH_BLOCK
+    n_monomials = model.layout_.basis.n_terms - 1
+    constant, rows = [0.0] * ny, {}
     for kind, _, t, k, c in plan.terms:
-        while kind != "1" and computed <= t:
-            parent, factor = plan.parents[computed - nu]
-            if computed in needed:
-                lines.append(f"        {real} m{computed} = m{parent} * m{factor};")
-            computed += 1
-        j = used.get(k, 0) % sums
-        used[k] = used.get(k, 0) + 1
-        lines.append(f"        a{k}_{j} += {lit(c)};" if kind == "1" else f"        a{k}_{j} += {lit(c)} * m{t};")
-    lines += [f"        v[{k}][s] = {_pairwise([f'a{k}_{j}' for j in range(sums)], lambda a, b: f'({a} + {b})')};"
-              for k in range(ny)]
-    lines += ["    }", "    for (s = 0; s < count; ++s)", f"        for (i = 0; i < {macro}_N_OUTPUTS; ++i)",
-              f"            y[s * {macro}_N_OUTPUTS + i] = v[i][s];", "}", "",
+        if kind == "1":
+            constant[k] = c
+        else:
+            rows.setdefault(t, [0.0] * ny)[k] = c
+    order = sorted(rows)
+    tables = [f"static const {real} {name}_batch_offset[{nu}] = {{{', '.join(lit(v) for v in inn.offset)}}};",
+              f"static const {real} {name}_batch_inv_scale[{nu}] = {{{', '.join(lit(v) for v in 1.0 / inn.scale)}}};"]
+    if plan.parents:
+        tables += [f"static const int {name}_batch_parent[{len(plan.parents)}][2] = "
+                   f"{{{', '.join(f'{{{p}, {f}}}' for p, f in plan.parents)}}};"]
+    if order:
+        tables += [f"static const int {name}_batch_row[{len(order)}] = {{{', '.join(map(str, order))}}};",
+                   f"static const {real} {name}_batch_coef[{len(order)}][{ny}] = "
+                   f"{{{', '.join('{' + ', '.join(lit(c) for c in rows[t]) + '}' for t in order)}}};"]
+    lines = [f"#ifndef {macro}_NO_BATCH", *tables, "",
+             f"static void {name}_predict_block(long count, const {real} *u, {real} *y)", "{",
+             f"    {real} m[{n_monomials}][{block}];"]
+    lines += [f"    {real} {', '.join(f'a{k}_{j} = {lit(constant[k])}' for j in range(block))};" for k in range(ny)]
+    lines += ["    long s;", "    int t, i;",
+              f"    for (s = 0; s < {block}; ++s)", f"        for (i = 0; i < {nu}; ++i)",
+              f"            m[i][s] = (u[(s < count ? s : count - 1) * {nu} + i] - {name}_batch_offset[i])"
+              f" * {name}_batch_inv_scale[i];"]
+    if plan.parents:
+        lines += [f"    for (t = {nu}; t < {n_monomials}; ++t)", f"        for (s = 0; s < {block}; ++s)",
+                  f"            m[t][s] = m[{name}_batch_parent[t - {nu}][0]][s] * m[{name}_batch_parent[t - {nu}][1]][s];"]
+    if order:
+        lines += [f"    for (t = 0; t < {len(order)}; ++t) {{", f"        const {real} *x = m[{name}_batch_row[t]];",
+                  f"        const {real} *c = {name}_batch_coef[t];"]
+        lines += [f"        a{k}_{j} += c[{k}] * x[{j}];" for k in range(ny) for j in range(block)]
+        lines.append("    }")
+    lines += ["    {", f"        {real} out[{block}][{ny}];"]
+    lines += [f"        out[{j}][{k}] = a{k}_{j};" for j in range(block) for k in range(ny)]
+    lines += [f"        for (s = 0; s < count; ++s)", f"            for (i = 0; i < {ny}; ++i) y[s * {ny} + i] = out[s][i];",
+              "    }"]
+    lines += ["}", "",
               f"void {name}_predict_batch(long n, const {real} *u, {real} *y)", "{", "    long start;",
-              f"    for (start = 0; start < n; start += {block})",
-              f"        {name}_predict_block(n - start < {block} ? n - start : {block}, "
+              f"    for (start = 0; start < n; start += {macro}_BATCH_BLOCK)",
+              f"        {name}_predict_block(n - start < {macro}_BATCH_BLOCK ? n - start : {macro}_BATCH_BLOCK, "
               f"u + start * {macro}_N_INPUTS, y + start * {macro}_N_OUTPUTS);", "}", f"#endif /* {macro}_NO_BATCH */"]
     return lines
 
@@ -307,8 +314,8 @@ def _header(model, name, macro, lit, comment) -> str:
                   f"#define {macro}_BATCH_BLOCK {BATCH_BLOCK}",
                   f"/* n samples at once: u[n][{macro}_N_INPUTS] to y[n][{macro}_N_OUTPUTS], row by row, the same",
                   "   numbers as n calls of predict up to rounding; the compiler vectorises it across samples.",
-                  f"   Define {macro}_NO_BATCH when compiling NAME.c to leave it out (it compiles several times",
-                  "   slower than predict at degree 5). */",
+                  f"   Define {macro}_NO_BATCH when compiling NAME.c to leave it out (it keeps a block of",
+                  f"   monomials, {BATCH_BLOCK} x the monomial count of reals, on the stack). */",
                   f"void {name}_predict_batch(long n, const {real} *u, {real} *y);"]
     else:
         members = []
