@@ -225,7 +225,11 @@ def test_convert_writes_a_header_that_compiles_with_hostile_names(tmp_path, caps
     hostile = 'x"*/ int evil; /*??/\n'
     assert main(["convert", str(model_path), "--to", "c-runtime", "--payload-file", str(payload),
                  "--payload-file", f"{hostile}={payload}", "--name", "rt", "-o", str(header)]) == 0
-    assert "3 tools (none, tool, " in capsys.readouterr().out
+    assert "rt_step" in capsys.readouterr().out
+    # Without --name the prefix is the header's name when it is a C identifier, else ftcal_runtime.
+    for file_name, prefix in (("ft_x.h", "ft_x_step"), ("ft-x.h", "ftcal_runtime_step")):
+        assert main(["convert", str(model_path), "--to", "c-runtime", "-o", str(tmp_path / file_name)]) == 0
+        assert prefix in capsys.readouterr().out and f"{prefix}(" in (tmp_path / file_name).read_text()
     # The name reaches the C only as a string literal: the program prints it back byte for byte.
     (tmp_path / "use.c").write_text('#include "ft_runtime.h"\n#include <stdio.h>\n'
                                     'int main(void) { rt_state s; rt_init(&s, 2);\n'

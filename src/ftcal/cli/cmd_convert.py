@@ -33,7 +33,7 @@ def register(sub) -> None:
                                                   "(letters, digits, '_', '-', '.')")
     p.add_argument("--sensor", help="sensor name in the wholeBodyDynamics configuration (wbd)")
     p.add_argument("--name", help="C identifier prefixing the generated files and functions (c; default "
-                                  "ftcal_model)")
+                                  "ftcal_model; c-runtime: default the header's name, e.g. ft_runtime)")
     p.add_argument("--float", dest="single_precision", action="store_true",
                    help="generate single-precision C (c; reports the measured error against double)")
     p.add_argument("--payload-file", dest="payload_files", action="append", metavar="[NAME=]TOOL.json",

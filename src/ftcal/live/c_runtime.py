@@ -456,10 +456,19 @@ static inline int {name}_step({name}_state *s, double time, const double *u, con
 
 
 def write_c_runtime(source: ModelFile, output: Path, options: ConvertOptions) -> Written:
-    """Registry writer: the header ``output`` (``--payload-file [NAME=]TOOL.json``, repeatable, for the tools)."""
+    """Registry writer: the header ``output`` (``--payload-file [NAME=]TOOL.json``, repeatable, for the tools).
+
+    The C prefix is ``--name``, else the header's file name when it is a C identifier
+    (``ft_runtime.h``: ``ft_runtime_step``), else :data:`DEFAULT_NAME`.
+    """
     from ..files.payload_json import load_payload
 
-    name = c_identifier(options.get("name", DEFAULT_NAME))
+    default = output.name[:-2] if output.name.endswith(".h") else DEFAULT_NAME
+    try:  # the prefix follows the file's name (ft_runtime.h: ft_runtime_step) when that is a C identifier
+        default = c_identifier(default)
+    except FtcalError:
+        default = DEFAULT_NAME
+    name = c_identifier(options.get("name", default))
     if getattr(source.model, "family", "polynomial") != "polynomial" or not source.model.layout_.is_static:
         raise FtcalError("--to c-runtime takes a static polynomial model (no ARX lags).")
     tools, files = {}, []
@@ -480,5 +489,6 @@ def write_c_runtime(source: ModelFile, output: Path, options: ConvertOptions) ->
     text = generate_c_runtime(source.model, tools, name=name, sha256=sha256, source_name=options.input_path.name,
                               tool_sources=files)
     write_text_atomic(output, text)
-    return Written((output,), (f"{len(tools) + 1} tools (none, {', '.join(tools)})" if tools else
-                               "1 tool (none); add tools with --payload-file",))
+    library = (f"{len(tools) + 1} tools (none, {', '.join(tools)})" if tools else
+               "1 tool (none); add tools with --payload-file")
+    return Written((output,), (f"{name}_init / {name}_step / {name}_set_tool / {name}_retare; {library}",))
