@@ -150,6 +150,8 @@ def generate_c_runtime(model, tools: dict, *, name: str = DEFAULT_NAME, sha256: 
     t_col = temperature_column(model.input_names_)
     channels = [j for j in range(nu) if j != t_col]
     nc = len(channels)
+    if nc == 0:
+        raise FtcalError("--to c-runtime: the model's only input is a temperature; the step needs sensor channels.")
     rng = np.asarray(model.input_range_, float)
     slack = RANGE_TOLERANCE * np.maximum(rng[:, 1] - rng[:, 0], 1.0)
     span_lines = _span(model)
