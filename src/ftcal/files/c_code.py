@@ -231,8 +231,15 @@ def _batch_predict(model: CalibrationModel, plan: _Plan, lit: _Literals, name: s
               f"            m[i][s] = (u[(s < count ? s : count - 1) * {nu} + i] - {name}_batch_offset[i])"
               f" * {name}_batch_inv_scale[i];"]
     if plan.parents:
-        lines += [f"    for (t = {nu}; t < {n_monomials}; ++t)", f"        for (s = 0; s < {block}; ++s)",
-                  f"            m[t][s] = m[{name}_batch_parent[t - {nu}][0]][s] * m[{name}_batch_parent[t - {nu}][1]][s];"]
+        # Every load before any store: the compiler then packs each group into vectors without having to
+        # prove that the monomial's row is not one of its factors' rows.
+        lines += [f"    for (t = {nu}; t < {n_monomials}; ++t) {{",
+                  f"        const {real} *parent = m[{name}_batch_parent[t - {nu}][0]];",
+                  f"        const {real} *factor = m[{name}_batch_parent[t - {nu}][1]];",
+                  f"        {real} {', '.join(f'p{j} = parent[{j}]' for j in range(block))};",
+                  f"        {real} {', '.join(f'f{j} = factor[{j}]' for j in range(block))};"]
+        lines += [f"        m[t][{j}] = p{j} * f{j};" for j in range(block)]
+        lines.append("    }")
     if order:
         lines += [f"    for (t = 0; t < {len(order)}; ++t) {{", f"        const {real} *x = m[{name}_batch_row[t]];",
                   f"        const {real} *c = {name}_batch_coef[t];"]
