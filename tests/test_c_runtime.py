@@ -263,7 +263,7 @@ def test_bad_convert_input_is_one_line_and_writes_nothing(tmp_path, capsys, argv
 def test_the_ros2_control_snippet_of_docs_live_compiles(tmp_path):
     from pathlib import Path
 
-    docs = (Path(__file__).resolve().parents[1] / "docs" / "live.md").read_text()
+    docs = (Path(__file__).resolve().parents[1] / "docs/live.md").read_text()
     snippet = docs[docs.index("**From ros2_control.**"):].split("```c\n", 1)[1].split("```", 1)[0]
     model, _ = gauge_model(1)
     tools = {"gripper": tool_payload(LiveScenario().tools["gripper"])}
