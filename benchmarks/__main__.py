@@ -302,6 +302,32 @@ def c_section(sizes: dict) -> list[str]:
     return out + [""]
 
 
+def c_batch_section(sizes: dict) -> list[str]:
+    """The batch entry point of generated C against the scalar one and a vectorised floor; the C live step."""
+    out = ["## Generated C in batches, and the C live step: 7 inputs, 6 outputs", "",
+           "CPU ns per sample on one core, measured in one driver run per row (benchmarks/bench_c.py): "
+           "`NAME_predict` per sample, `NAME_predict_batch` over 1,024 samples per call, and the floor: a "
+           "register-blocked multiply-add kernel (GCC vector extensions, 2 vectors × 6 outputs of accumulators) "
+           "doing the model's multiply-adds on monomials already in L1 (no monomials, normalisation or "
+           "transposes), same flags, no fused multiply-add (`-std=c99` does not contract).", "",
+           "| degree | flags | scalar | batch | floor | batch / floor | scalar / batch | CPU s | wall s |",
+           "|---:|---|---:|---:|---:|---:|---:|---:|---:|"]
+    for degree in (4, 5):
+        for march in ("", "native"):
+            r = run_case("c_batch", n=sizes["c_batch_evals"], degree=degree, march=march)
+            out.append(f"| {degree} | `{r['flags']}` | {r['scalar_ns']:,.0f} ns | {r['batch_ns']:,.0f} ns | "
+                       f"{r['floor_ns']:,.0f} ns | {r['batch_over_floor']:.2f} | {r['scalar_over_batch']:.2f} | "
+                       f"{r['cpu_seconds']:.2f} | {r['seconds']:.2f} |")
+    step = run_case("c_runtime_step", n=sizes["c_runtime_n"], degree=4)
+    HEADLINE["c_batch"] = (f"C live step (`convert --to c-runtime`, degree 4, 7 inputs, `-O2`): "
+                           f"{step['step_ns']:,.0f} ns per sample (target ≤ 2,000 ns)")
+    out += ["", f"`NAME_step` of `ftcal convert --to c-runtime` (calibration + tool + bias filter + health, motion test "
+                f"on), degree 4, 7 inputs, `cc -std=c99 -O2`, {sizes['c_runtime_n']:,} samples of a 500 Hz recording: "
+                f"**{step['step_ns']:,.0f} ns per sample** CPU, of which the calibration alone "
+                f"{step['calibrate_ns']:,.0f} ns (target ≤ 2,000 ns).", ""]
+    return out
+
+
 def expected_section(sizes: dict) -> list[str]:
     # In its own process: its worker processes' peak memory must not include other cases'.
     code = ("import contextlib, json, sys\nfrom benchmarks import bench_expected\n"
@@ -493,7 +519,7 @@ def payload_cli_section(sizes: dict) -> list[str]:
 # One line per section; HEADLINE keys name the targets summary's rows.
 SECTIONS = (fit_section, cli_section, lasso_section, predict_section, selection_section, cost_section,
             mlp_section, plan_section, closed_loop_section,
-            c_section,
+            c_section, c_batch_section,
             scaling_section, expected_section, payload_section, payload_cli_section, bag_section, scale_section,
             cluster_section, threads_section, live_section)
 LABELS = {"fit": "Fit", "cli": "Whole-process fit", "lasso": "LASSO", "predict": "Prediction", "select": "Model selection",
@@ -502,7 +528,7 @@ LABELS = {"fit": "Fit", "cli": "Whole-process fit", "lasso": "LASSO", "predict":
           "c": "Generated C", "expected": "Expected wrenches", "payload": "Payload identification",
           "bags": "Bag reading", "scale": "Streaming and Dask", "live": "Live calibrator",
           "payload_cli": "Payload, whole command", "cluster": "Dask local:2, whole fit",
-          "threads": "No oversubscription"}
+          "threads": "No oversubscription", "c_batch": "C live step"}
 
 FULL = {"fit_big": 1_000_000, "fit_mid": 100_000, "scaling_n": (10_000, 100_000, 1_000_000), "dense_max_n": 100_000,
         "degree_n": 100_000, "lasso_n": 200_000, "paper_lasso_n": 10_000, "predict_n": 2_000_000,
@@ -513,7 +539,7 @@ FULL = {"fit_big": 1_000_000, "fit_mid": 100_000, "scaling_n": (10_000, 100_000,
         "cost_budget": (1_000_000, 8, 8.0), "live_n": 600_000, "live_steps_n": 5_000, "live_minutes": (6, 60),
         "live_zenoh_s": 10.0, "closed_loop_seeds": (0, 1, 2), "closed_loop_quick": False,
         "payload_cli_n": 1_000_000, "cluster": ((4, 1_000_000), (16, 250_000)), "cluster_pairs": 2,
-        "threads_pairs": 2}
+        "threads_pairs": 2, "c_batch_evals": 2_000_000, "c_runtime_n": 200_000}
 QUICK = {"fit_big": 20_000, "fit_mid": 5_000, "scaling_n": (2_000, 10_000), "dense_max_n": 10_000,
          "degree_n": 5_000, "lasso_n": 5_000, "paper_lasso_n": 1_000, "predict_n": 100_000,
          "expected_n": 2_000, "expected_baseline_n": 500, "c_evals": 100_000, "python_calls": 200,
@@ -522,7 +548,7 @@ QUICK = {"fit_big": 20_000, "fit_mid": 5_000, "scaling_n": (2_000, 10_000), "den
          "scale": (4, 50_000, 4), "cost": ((4_000, 6),), "cost_budget": (20_000, 6, 3.0), "live_n": 50_000,
          "live_steps_n": 500, "live_minutes": (1, 2), "live_zenoh_s": 2.0, "closed_loop_seeds": (0,),
          "closed_loop_quick": True, "payload_cli_n": 100_000, "cluster": ((2, 20_000),), "cluster_pairs": 1,
-         "threads_pairs": 1}
+         "threads_pairs": 1, "c_batch_evals": 100_000, "c_runtime_n": 20_000}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -19,6 +19,7 @@ from itertools import combinations_with_replacement
 import numpy as np
 
 from benchmarks.bench_bags import CASES as BAG_CASES
+from benchmarks.bench_c import CASES as C_CASES
 from benchmarks.bench_cost import CASES as COST_CASES
 from benchmarks.bench_live import LIVE_CASES
 from benchmarks.bench_closed_loop import CASES as CLOSED_LOOP_CASES
@@ -532,6 +533,7 @@ CASES = {f.__name__: f for f in (ftcal_fit, ftcal_statistics, paper_recipe_fit, 
                                  ftcal_predict, sklearn_predict, ftcal_payload, ftcal_payload_drift, numpy_payload_lstsq, c_predict,
                                  ftcal_predict_one, select_auto, select_auto_baseline, select_auto_new)}
 CASES.update(BAG_CASES)  # bag reading: benchmarks/bench_bags.py
+CASES.update(C_CASES)  # batch generated C and the c-runtime live step: benchmarks/bench_c.py
 CASES.update(PLAN_CASES)  # experiment design: benchmarks/bench_plan.py
 CASES.update(MLP_CASES)  # the MLP family against a polynomial: benchmarks/bench_mlp.py
 CASES.update(COST_CASES)  # --degree auto's estimate against its CPU: benchmarks/bench_cost.py

@@ -526,6 +526,8 @@ def cases(fx: dict[str, Path], work: Path, rng: random.Random, n_random: int) ->
     model_cmds = [lambda p, f: (["info", str(p)], [], None),
                   lambda p, f: (["convert", str(p), "--to", "c", "--name", "cal", "-o", o(f, "c") + "/"],
                                 [o(f, "c/cal.h"), o(f, "c/cal.c")], "c"),
+                  lambda p, f: (["convert", str(p), "--to", "c-runtime", "--name", "cal", "-o", o(f, "rt.h")],
+                                [o(f, "rt.h")], "c-runtime"),
                   lambda p, f: (["evaluate", str(p), str(fx["csv"])], [], None),
                   lambda p, f: (["convert", str(p), "--to", "onnx", "-o", o(f, "m.onnx")], [o(f, "m.onnx")], None),
                   lambda p, f: (["convert", str(p), "--to", "paper-xml", "-o", o(f, "m.xml")], [o(f, "m.xml")], None)]
@@ -533,6 +535,8 @@ def cases(fx: dict[str, Path], work: Path, rng: random.Random, n_random: int) ->
                                  [o(f, "w.xml")], "xml")]
     payload_cmds = [lambda p, f: (["convert", str(p), "--to", "ros-yaml", "-o", o(f, "p.yaml")], [o(f, "p.yaml")],
                                   "yaml"),
+                    lambda p, f: (["convert", str(fx["model"]), "--to", "c-runtime", "--name", "cal",
+                                   "--payload-file", f"tool={p}", "-o", o(f, "rt.h")], [o(f, "rt.h")], "c-runtime"),
                     lambda p, f: (["compensate", str(p), str(fx["poses"]), "--orientation", "qx,qy,qz,qw",
                                    "-o", o(f, "c.csv")], [o(f, "c.csv")], None),
                     lambda p, f: (["live", "--replay", str(fx["live"]), "--orientation", "qx,qy,qz,qw",
@@ -891,6 +895,20 @@ def check_injection(case: dict) -> tuple[str, str]:
         names = {line.split()[0] for line in symbols if line.strip()}
         extra = {n for n in names if not n.startswith("cal_")}
         return ("injection", f"symbols {sorted(extra)}") if extra else ("clean", "C compiled, symbols cal_*")
+    if check == "c-runtime":
+        folder = Path(case["outputs"][0]).parent
+        (folder / "use_rt.c").write_text('#include "rt.h"\nint main(void) { cal_state s; cal_output o; double u[64] = {0};'
+                                         ' double g[3] = {0, 0, -9.81}; cal_init(&s, 0);'
+                                         ' return cal_step(&s, 0.0, u, g, -1, &o) < -1; }\n')
+        done = subprocess.run(["cc", "-std=c99", "-trigraphs", "-c", "use_rt.c", "-o", "use_rt.o"], cwd=folder,
+                              capture_output=True, text=True)
+        if done.returncode != 0:
+            return "injection", f"generated C does not compile: {done.stderr.strip()[:200]}"
+        symbols = subprocess.run(["nm", "--defined-only", "-P", "-g", "use_rt.o"], cwd=folder, capture_output=True,
+                                 text=True).stdout.split("\n")
+        names = {line.split()[0] for line in symbols if line.strip()}
+        return ("injection", f"global symbols {sorted(names)}") if names != {"main"} else (
+            "clean", "C compiled, only main global")
     text = Path(case["outputs"][0]).read_text(encoding="utf-8", errors="replace") if check else ""
     if check == "yaml":
         import yaml

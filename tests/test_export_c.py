@@ -157,8 +157,11 @@ def test_lasso_exact_zeros_emit_no_code(tmp_path):
     n_zero = int(np.sum(model.coef_ == 0))
     assert n_zero > model.coef_.size // 4  # the λ gives many exact zeros
     code = generate_c(model, name="sparse")
-    accumulations = [line for line in code.source.splitlines() if re.match(r"\s+a\d+_\d \+= ", line)]
+    accumulations = [line for line in code.source.splitlines() if re.match(r"    a\d+_\d \+= ", line)]
     assert len(accumulations) == np.count_nonzero(model.coef_)
+    # The batch loop's table holds one row per monomial with a nonzero coefficient (the offset aside).
+    rows = re.search(r"sparse_batch_row\[(\d+)\]", code.source)
+    assert int(rows.group(1)) == np.count_nonzero(np.any(model.coef_[:-1] != 0.0, axis=1))
     exe = build(tmp_path, model, "sparse")
     u_test, _ = sensor_data(200, seed=8)
     assert_relative(run_exe(exe, u_test)[:, :6], model.predict(u_test, warn_out_of_range=False))
@@ -268,3 +271,56 @@ def test_code_is_self_contained_with_one_multiply_per_monomial():
     # C(7+4, 4) − 1 = 329 monomials; the 7 inputs are normalized, each other one is a single product.
     products = re.findall(r"^    m\[(\d+)\] = m\[(\d+)\] \* m\[(\d+)\];$", code.source, flags=re.M)
     assert [int(t) for t, _, _ in products] == list(range(7, 329))
+
+
+BATCH_DRIVER = r"""
+#include <stdio.h>
+#include "NAME.h"
+static REAL u[4096][NAMEU_N_INPUTS], y[4096][NAMEU_N_OUTPUTS];
+int main(void)
+{
+    double v;
+    int n = 0, i, k;
+    while (n < 4096) {
+        for (i = 0; i < NAMEU_N_INPUTS; ++i) {
+            if (scanf("%lf", &v) != 1) goto done;
+            u[n][i] = (REAL)v;
+        }
+        ++n;
+    }
+done:
+    NAME_predict_batch(n, &u[0][0], &y[0][0]);
+    for (k = 0; k < n; ++k) {
+        for (i = 0; i < NAMEU_N_OUTPUTS; ++i) printf("%.17g ", (double)y[k][i]);
+        printf("\n");
+    }
+    return 0;
+}
+"""
+
+
+@needs_cc
+@pytest.mark.parametrize("degree, n, single", [(2, 301, False), (4, 97, False), (3, 5, True)])
+def test_batch_entry_point_matches_predict(tmp_path, degree, n, single):
+    """Blocks of 8 with a partial last block (301 = 37·8 + 5, 97 = 12·8 + 1, 5 < 8)."""
+    u, y = sensor_data(900, seed=degree)
+    model = CalibrationModel(degree).fit(u, y)
+    name = f"b{degree}"
+    code = generate_c(model, name=name, single_precision=single)
+    (tmp_path / f"{name}.h").write_text(code.header)
+    (tmp_path / f"{name}.c").write_text(code.source)
+    driver = BATCH_DRIVER.replace("NAMEU", name.upper()).replace("NAME", name)
+    (tmp_path / "driver.c").write_text(driver.replace("REAL", "float" if single else "double"))
+    subprocess.run([CC, *STRICT, "-O2", "-c", f"{name}.c"], cwd=tmp_path, check=True, capture_output=True)
+    subprocess.run([CC, "-std=c99", "-O2", "driver.c", f"{name}.o", "-o", "batch"], cwd=tmp_path, check=True,
+                   capture_output=True)
+    u_test, _ = sensor_data(n, seed=200 + degree)
+    out = run_exe(tmp_path / "batch", u_test)
+    assert out.shape == (n, 6)
+    if single:  # the batch loop does the float evaluator's operations, summed in another order
+        assert_relative(out, evaluate_like_c(model, u_test, single_precision=True).astype(float), rtol=1e-5)
+    else:
+        assert_relative(out, model.predict(u_test, warn_out_of_range=False))
+    # Leaving the batch evaluator out still compiles (firmware that only needs predict).
+    subprocess.run([CC, *STRICT, "-O2", f"-D{name.upper()}_NO_BATCH", "-c", f"{name}.c"], cwd=tmp_path,
+                   check=True, capture_output=True)

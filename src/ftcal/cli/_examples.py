@@ -108,6 +108,8 @@ EXAMPLES = {
   # C99 for a controller (ftcal-demo/c/r_arm_ft.h and .c) and ONNX for onnxruntime
   ftcal convert ftcal-demo/models/np4-lasso50.json --to c --name r_arm_ft -o ftcal-demo/c
   ftcal convert ftcal-demo/models/np4.json --to onnx -o ftcal-demo/np4.onnx
+  # the live step in C (calibration, tool, bias filter, health); tools: --payload-file NAME=PAYLOAD.json
+  ftcal convert ftcal-demo/models/np4.json --to c-runtime -o ftcal-demo/ft_runtime.h
   # the paper's XML (raw-input monomials; reports the digits the conversion loses)
   ftcal convert ftcal-demo/models/np2.json --to paper-xml -o ftcal-demo/np2.xml
   # iCub strain-board matrix: an affine model of the six ADC channels, no temperature

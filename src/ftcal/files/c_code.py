@@ -10,6 +10,11 @@ term, into :data:`PARTIAL_SUMS` partial sums added pairwise at the end.
 Exact zeros (LASSO) emit no code. The result equals ``predict`` to rounding;
 only the order of the sums differs.
 
+Static models also get ``NAME_predict_batch(n, u, y)``: the same monomials and coefficients over
+blocks of :data:`BATCH_BLOCK` samples in structure-of-arrays form, small table-driven loops whose
+multiply-adds the compiler vectorises across the block's samples (``benchmarks/bench_c.py``
+measures it against the scalar entry point and a vectorised floor).
+
 The code is straight-line C: no allocation, no library calls, no headers
 beyond its own, one monomial array on the stack; it compiles with
 ``-std=c99 -Wall -Wextra -Werror -pedantic`` and from C++ (``extern "C"``).
@@ -47,6 +52,8 @@ DEFAULT_NAME = "ftcal_model"
 # Independent partial sums per output of a static model: four addition chains the CPU overlaps
 # (measured faster than one chain or eight at degrees 4 and 5, benchmarks/cases.py c_predict).
 PARTIAL_SUMS = 4
+# Samples per block of the batch evaluator: a multiple of every vector width (2, 4, 8 doubles).
+BATCH_BLOCK = 8
 
 
 @dataclass(frozen=True)
@@ -154,7 +161,6 @@ def generate_c(model: CalibrationModel, *, name: str = DEFAULT_NAME, single_prec
     lit = _Literals(single_precision)
     plan = _plan(model)
     macro = name.upper()
-    nu, ny = len(model.input_names_), len(model.output_names_)
     comment = _header_comment(model, name, single_precision, sha256, source_name, input_units, output_units)
     header = _header(model, name, macro, lit, comment)
     body = [comment, f'#include "{name}.h"', "",
@@ -163,20 +169,114 @@ def generate_c(model: CalibrationModel, *, name: str = DEFAULT_NAME, single_prec
             _in_range(model, name, lit), ""]
     n_monomials = layout.basis.n_terms - 1
     if layout.is_static:
-        inn = model.input_normalization_
-        inv_scale = 1.0 / inn.scale  # predict multiplies by the inverse scale
-        lines = [f"void {name}_predict(const {lit.real} *u, {lit.real} *y)", "{",
-                 f"    {lit.real} m[{n_monomials}];"]
-        lines += [f"    {lit.real} {', '.join(f'a{k}_{j} = 0' for j in range(PARTIAL_SUMS))};" for k in range(ny)]
-        lines += [f"    m[{i}] = (u[{i}] - {lit(inn.offset[i])}) * {lit(inv_scale[i])};" for i in range(nu)]
-        lines += _accumulate(plan, lit, nu)
-        lines += [f"    y[{k}] = {_pairwise([f'a{k}_{j}' for j in range(PARTIAL_SUMS)], lambda a, b: f'({a} + {b})')};"
-                  for k in range(ny)]
-        lines.append("}")
-        body += lines
+        body += _static_predict(model, plan, lit, f"void {name}_predict")
+        body += ["", *_batch_predict(model, plan, lit, name, macro)]
     else:
         body += _arx_functions(model, name, macro, plan, lit, n_monomials)
     return GeneratedC(name, header, "\n".join(body) + "\n")
+
+
+def _static_predict(model: CalibrationModel, plan: _Plan, lit: _Literals, signature: str) -> list[str]:
+    """Lines of a static model's one-sample evaluator ``signature(const real *u, real *y)``."""
+    inn = model.input_normalization_
+    inv_scale = 1.0 / inn.scale  # predict multiplies by the inverse scale
+    nu, ny = len(model.input_names_), len(model.output_names_)
+    lines = [f"{signature}(const {lit.real} *u, {lit.real} *y)", "{",
+             f"    {lit.real} m[{model.layout_.basis.n_terms - 1}];"]
+    lines += [f"    {lit.real} {', '.join(f'a{k}_{j} = 0' for j in range(PARTIAL_SUMS))};" for k in range(ny)]
+    lines += [f"    m[{i}] = (u[{i}] - {lit(inn.offset[i])}) * {lit(inv_scale[i])};" for i in range(nu)]
+    lines += _accumulate(plan, lit, nu)
+    lines += [f"    y[{k}] = {_pairwise([f'a{k}_{j}' for j in range(PARTIAL_SUMS)], lambda a, b: f'({a} + {b})')};"
+              for k in range(ny)]
+    lines.append("}")
+    return lines
+
+
+def _batch_predict(model: CalibrationModel, plan: _Plan, lit: _Literals, name: str, macro: str) -> list[str]:
+    """``NAME_predict_batch``: blocks of :data:`BATCH_BLOCK` samples, structure of arrays, table-driven loops.
+
+    Per block: the normalized inputs and every monomial (parent times one input, as in
+    ``NAME_predict``) go into ``m[monomial][sample]``, each a loop along the block's samples; then one
+    loop over the monomials with a nonzero coefficient adds ``coefficient × m[t][s]`` into one
+    accumulator per output and sample, named scalars the compiler keeps in (vector) registers.
+    The code is a few small loops over ``static const`` tables, so it compiles in a fraction of a
+    second at any degree. A last partial block repeats its last sample in the unused lanes.
+    """
+    inn = model.input_normalization_
+    nu, ny = len(model.input_names_), len(model.output_names_)
+    real, block = lit.real, BATCH_BLOCK
+    n_monomials = model.layout_.basis.n_terms - 1
+    constant, rows = [0.0] * ny, {}
+    for kind, _, t, k, c in plan.terms:
+        if kind == "1":
+            constant[k] = c
+        else:
+            rows.setdefault(t, [0.0] * ny)[k] = c
+    order = sorted(rows)
+    tables = [f"static const {real} {name}_batch_offset[{nu}] = {{{', '.join(lit(v) for v in inn.offset)}}};",
+              f"static const {real} {name}_batch_inv_scale[{nu}] = {{{', '.join(lit(v) for v in 1.0 / inn.scale)}}};"]
+    if plan.parents:
+        tables += [f"static const int {name}_batch_parent[{len(plan.parents)}][2] = "
+                   f"{{{', '.join(f'{{{p}, {f}}}' for p, f in plan.parents)}}};"]
+    if order:
+        tables += [f"static const int {name}_batch_row[{len(order)}] = {{{', '.join(map(str, order))}}};",
+                   f"static const {real} {name}_batch_coef[{len(order)}][{ny}] = "
+                   f"{{{', '.join('{' + ', '.join(lit(c) for c in rows[t]) + '}' for t in order)}}};"]
+    lines = [f"#ifndef {macro}_NO_BATCH", *tables, "",
+             f"static void {name}_predict_block(long count, const {real} *u, {real} *y)", "{",
+             f"    {real} m[{n_monomials}][{block}];"]
+    lines += [f"    {real} {', '.join(f'a{k}_{j} = {lit(constant[k])}' for j in range(block))};" for k in range(ny)]
+    lines += ["    long s;", "    int t, i;",
+              f"    for (s = 0; s < {block}; ++s)", f"        for (i = 0; i < {nu}; ++i)",
+              f"            m[i][s] = (u[(s < count ? s : count - 1) * {nu} + i] - {name}_batch_offset[i])"
+              f" * {name}_batch_inv_scale[i];"]
+    if plan.parents:
+        # Every load before any store: the compiler then packs each group into vectors without having to
+        # prove that the monomial's row is not one of its factors' rows.
+        lines += [f"    for (t = {nu}; t < {n_monomials}; ++t) {{",
+                  f"        const {real} *parent = m[{name}_batch_parent[t - {nu}][0]];",
+                  f"        const {real} *factor = m[{name}_batch_parent[t - {nu}][1]];",
+                  f"        {real} {', '.join(f'p{j} = parent[{j}]' for j in range(block))};",
+                  f"        {real} {', '.join(f'f{j} = factor[{j}]' for j in range(block))};"]
+        lines += [f"        m[t][{j}] = p{j} * f{j};" for j in range(block)]
+        lines.append("    }")
+    if order:
+        lines += [f"    for (t = 0; t < {len(order)}; ++t) {{", f"        const {real} *x = m[{name}_batch_row[t]];",
+                  f"        const {real} *c = {name}_batch_coef[t];"]
+        lines += [f"        a{k}_{j} += c[{k}] * x[{j}];" for k in range(ny) for j in range(block)]
+        lines.append("    }")
+    lines += ["    {", f"        {real} out[{block}][{ny}];"]
+    lines += [f"        out[{j}][{k}] = a{k}_{j};" for j in range(block) for k in range(ny)]
+    lines += [f"        for (s = 0; s < count; ++s)", f"            for (i = 0; i < {ny}; ++i) y[s * {ny} + i] = out[s][i];",
+              "    }"]
+    lines += ["}", "",
+              f"void {name}_predict_batch(long n, const {real} *u, {real} *y)", "{", "    long start;",
+              f"    for (start = 0; start < n; start += {macro}_BATCH_BLOCK)",
+              f"        {name}_predict_block(n - start < {macro}_BATCH_BLOCK ? n - start : {macro}_BATCH_BLOCK, "
+              f"u + start * {macro}_N_INPUTS, y + start * {macro}_N_OUTPUTS);", "}", f"#endif /* {macro}_NO_BATCH */"]
+    return lines
+
+
+def static_predict_function(model: CalibrationModel, signature: str) -> str:
+    """C99 text of a double-precision evaluator of a static ``model``, for embedding in other generated code.
+
+    Parameters
+    ----------
+    model : fitted static CalibrationModel with finite numbers
+    signature : everything before the parameter list, e.g. ``"static void ft_calibrate"`` (generated
+        by the caller from checked identifiers, never from file text)
+
+    Returns
+    -------
+    str
+        The function ``signature(const double *u, double *y)``, the same operations as ``NAME_predict``
+        of :func:`generate_c`.
+    """
+    model._check_fitted()
+    check_finite(model)
+    if not model.layout_.is_static:
+        raise FtcalError("this export takes static models (no ARX lags).")
+    return "\n".join(_static_predict(model, _plan(model), _Literals(False), signature))
 
 
 def _pairwise(parts: list, add):
@@ -216,7 +316,14 @@ def _header(model, name, macro, lit, comment) -> str:
     layout = model.layout_
     if layout.is_static:
         lines += [f"/* y[{macro}_N_OUTPUTS] from u[{macro}_N_INPUTS]. */",
-                  f"void {name}_predict(const {real} *u, {real} *y);"]
+                  f"void {name}_predict(const {real} *u, {real} *y);", "",
+                  f"/* Samples per block of the batch evaluator (its vectorised loop's trip count). */",
+                  f"#define {macro}_BATCH_BLOCK {BATCH_BLOCK}",
+                  f"/* n samples at once: u[n][{macro}_N_INPUTS] to y[n][{macro}_N_OUTPUTS], row by row, the same",
+                  "   numbers as n calls of predict up to rounding; the compiler vectorises it across samples.",
+                  f"   Define {macro}_NO_BATCH when compiling NAME.c to leave it out (it keeps a block of",
+                  f"   monomials, {BATCH_BLOCK} x the monomial count of reals, on the stack). */",
+                  f"void {name}_predict_batch(long n, const {real} *u, {real} *y);"]
     else:
         members = []
         if layout.nb:

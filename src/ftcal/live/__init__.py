@@ -2,7 +2,9 @@
 
 Owns :class:`LiveCalibrator` (calibration model + tool library + gated random-walk bias tracker +
 health flags, one sample or one block at a time), replaying recordings through it
-(:mod:`ftcal.live.replay`) and serving it over Zenoh (:mod:`ftcal.live.zenoh_node`).
+(:mod:`ftcal.live.replay`), serving it over Zenoh (:mod:`ftcal.live.zenoh_node`), and the same
+per-sample step generated as C99 (:mod:`ftcal.live.c_runtime`, the ``convert --to c-runtime``
+writer, which ``files.targets`` names by string).
 May import ``check``, ``plan``, ``insitu``, ``report``, ``files``, ``robot``, ``payload``, ``data``,
 ``core`` and ``runtime``; ``sim`` and ``cli`` import it.
 """

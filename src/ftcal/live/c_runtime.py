@@ -1,0 +1,496 @@
+"""The live calibrator's per-sample step in C99 (``ftcal convert MODEL --to c-runtime -o NAME.h``).
+
+One header, generated with the model and the tool library: the calibration (the evaluator of
+:func:`ftcal.files.c_code.static_predict_function`), the tool's gravity wrench, the gated
+random-walk bias filter of :mod:`ftcal.live.tracker` and the health flags of
+:mod:`ftcal.live.health`, with the semantics of :class:`ftcal.live.LiveCalibrator` fed one sample
+at a time with ``raw=`` and ``gravity=`` (the motion test on the gravity direction, or the
+caller's ``static``). Its numbers are those of the Python calibrator built from the same model
+and payload files with its defaults (noise from the first tool file's residuals, walk from the
+first random-walk drift, ``check --accept``'s default thresholds); the configuration fields of
+the state struct can be changed after ``NAME_init``.
+
+Fixed-size state, no allocation, no library beyond ``<math.h>`` and ``<string.h>``; every
+function is ``static`` so the header can be included by one or several translation units.
+Names and units from the files reach the C only through :mod:`ftcal.files.c_text`.
+
+What the C does not do (the Python calibrator does): identification in place, the ``silent``
+flag (a transport's), a separate temperature input (the model's temperature input is used),
+quaternion or joint motion signals (the gravity direction is the motion signal, as with
+``gravity=``), flag reasons as text, state files. The motion history holds the newest
+``NAME_HISTORY`` samples (default 1024: ≥ 10 kHz over the 0.1 s window); at a higher rate the
+rate is measured over the span the history holds.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..check.accept import Thresholds
+from ..core.excitation import SPAN_RELATIVE_FLOOR, span_limit
+from ..core.ranges import RANGE_TOLERANCE
+from ..data.holds import HOLD_WINDOW_S, MIN_ANGULAR_RATE, MIN_HOLD_S
+from ..data.signals import SATURATION_RUN, STUCK_RUN
+from ..files.c_code import static_predict_function
+from ..files.c_text import c_comment, c_identifier, c_string
+from ..files.model_json import ModelFile, ftcal_version
+from ..files.targets import ConvertOptions, Written
+from ..runtime.atomic import write_text_atomic
+from ..runtime.errors import FtcalError
+from .calibrator import (DEFAULT_NOISE_FRACTION, DEFAULT_WALK_FRACTION, GATE_PROBABILITY, NO_TOOL, RETARE_VARIANCE,
+                         SECONDS_PER_HOUR, UNEXPLAINED_SECONDS, UNEXPLAINED_SIGMA, _walk_from_knots)
+from .health import BIT, DEAD_RUN
+
+DEFAULT_NAME = "ftcal_runtime"
+HISTORY = 1024
+
+
+def _num(x: float) -> str:
+    """A double literal that round-trips; infinities as ``HUGE_VAL``."""
+    x = float(x)
+    if math.isnan(x):
+        raise FtcalError("the model has a NaN where a number is needed; refusing to generate code.")
+    if math.isinf(x):
+        return "HUGE_VAL" if x > 0 else "(-HUGE_VAL)"
+    text = format(x, ".17g")
+    return text if any(ch in text for ch in ".en") else text + ".0"
+
+
+def _array(values) -> str:
+    return "{" + ", ".join(_num(v) for v in np.ravel(values)) + "}"
+
+
+def runtime_parameters(tools: dict) -> dict:
+    """Noise and walk variances and the gate, as :class:`~ftcal.live.LiveCalibrator` derives them by default.
+
+    Parameters
+    ----------
+    tools : name → PayloadParameters, in library order
+
+    Returns
+    -------
+    dict with ``noise_variance``, ``walk_variance`` (per s), ``accept_limit`` (ndarrays of shape (6,))
+    and ``gate_chi2`` (float)
+    """
+    from scipy.stats import chi2
+
+    thresholds = Thresholds()
+    scale = np.repeat([thresholds.force, thresholds.torque], 3)
+    files = list(tools.values())
+    noise = next((np.asarray(p.fit["residual_rms"], float) for p in files if "residual_rms" in p.fit),
+                 DEFAULT_NOISE_FRACTION * scale)
+    noise = np.maximum(noise, 1e-12)
+    walk = next((w for w in map(_walk_from_knots, files) if w is not None),
+                (DEFAULT_WALK_FRACTION * scale) ** 2 / SECONDS_PER_HOUR)
+    return {"noise_variance": noise ** 2, "walk_variance": np.asarray(walk, float), "accept_limit": scale,
+            "gate_chi2": float(chi2.ppf(GATE_PROBABILITY, 6))}
+
+
+def _span(model) -> list[str]:
+    """C lines computing ``int outside_span`` from ``u`` (:func:`ftcal.core.excitation.span_distance`)."""
+    spread = getattr(model, "input_spread_", None)
+    if spread is None:
+        return ["    (void)u;", "    return 0;"]
+    cov = spread.covariance
+    std = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    unit = np.where(std > 0, std, 1.0)
+    corr = cov / unit[:, None] / unit[None, :]
+    values, vectors = np.linalg.eigh(0.5 * (corr + corr.T))
+    kept = values > SPAN_RELATIVE_FLOOR * max(values.max(), 0.0)
+    nu = cov.shape[0]
+    lines = [f"    static const double mean[{nu}] = {_array(spread.mean)};",
+             f"    static const double unit[{nu}] = {_array(unit)};",
+             f"    static const double vectors[{nu}][{nu}] = {{{', '.join(_array(r) for r in vectors.T)}}};",
+             f"    static const double values[{nu}] = {_array(values)};",
+             f"    static const int kept[{nu}] = {{{', '.join(str(int(k)) for k in kept)}}};",
+             f"    double x[{nu}], distance = 0.0, off = 0.0;", "    int i, k;",
+             f"    for (i = 0; i < {nu}; ++i) x[i] = (u[i] - mean[i]) / unit[i];",
+             f"    for (k = 0; k < {nu}; ++k) {{", "        double p = 0.0;",
+             f"        for (i = 0; i < {nu}; ++i) p += x[i] * vectors[k][i];",
+             "        if (kept[k]) distance += p * p / values[k];",
+             "        else if (fabs(p) > off) off = fabs(p);", "    }",
+             f"    if (off > 1e-6 * {_num(math.sqrt(max(values.max(), 1e-300)))}) return 1;",
+             f"    return distance > {_num(span_limit(nu))};"]
+    return lines
+
+
+def generate_c_runtime(model, tools: dict, *, name: str = DEFAULT_NAME, sha256: str | None = None,
+                       source_name: str | None = None, tool_sources=None) -> str:
+    """The C99 header of the live step for ``model`` and the tool library ``tools``.
+
+    Parameters
+    ----------
+    model : fitted static polynomial CalibrationModel with six outputs
+    tools : mapping name → PayloadParameters (the library; ``"none"`` is added as tool 0)
+    name : C identifier prefixing every symbol (macros upper-cased)
+    sha256, source_name : the model file's digest and name, for the header comment
+    tool_sources : sequence of str or None, the payload files' names, for the header comment
+
+    Returns
+    -------
+    str
+
+    Raises
+    ------
+    FtcalError
+        ``name`` is not a C identifier, the model is not static or has not six outputs, or a number is not finite.
+    """
+    from ..report.runs import temperature_column
+
+    c_identifier(name)
+    if len(model.output_names_) != 6:
+        raise FtcalError(f"--to c-runtime: the model has {len(model.output_names_)} outputs; a wrench needs 6.")
+    predict = static_predict_function(model, f"static inline void {name}_calibrate")
+    params = runtime_parameters(tools)
+    macro, nu = name.upper(), len(model.input_names_)
+    t_col = temperature_column(model.input_names_)
+    channels = [j for j in range(nu) if j != t_col]
+    nc = len(channels)
+    if nc == 0:
+        raise FtcalError("--to c-runtime: the model's only input is a temperature; the step needs sensor channels.")
+    rng = np.asarray(model.input_range_, float)
+    slack = RANGE_TOLERANCE * np.maximum(rng[:, 1] - rng[:, 0], 1.0)
+    span_lines = _span(model)
+    names = [NO_TOOL, *tools]
+    mass = [0.0] + [float(p.mass) for p in tools.values()]
+    mc = [[0.0] * 3] + [list(p.mass * np.asarray(p.com, dtype=float)) for p in tools.values()]
+    sign = [1.0] + [-1.0 if p.reaction else 1.0 for p in tools.values()]
+    for what, values in (("tool masses", mass), ("tool centres of mass", mc), ("noise", params["noise_variance"]),
+                         ("walk", params["walk_variance"])):
+        if not np.all(np.isfinite(np.asarray(values, float))):
+            raise FtcalError(f"--to c-runtime: the {what} are not all finite; refusing to generate code.")
+    sources = list(tool_sources or [None] * len(tools))
+    comment = c_comment([
+        f"{name}: ftcal live step (calibration, tool compensation, bias Kalman filter, health flags),",
+        f"degree {model.layout_.basis.degree}, {nu} inputs. Generated by ftcal {ftcal_version()}; do not edit.",
+        f"model file: {source_name or 'unknown'}" + (f", sha256 {sha256}" if sha256 else ""),
+        f"inputs (u): {', '.join(model.input_names_)}",
+        f"outputs: {', '.join(model.output_names_)}",
+        *[f"tool {i + 1}: {tool}" + (f" from {src}" if src else "") for i, (tool, src) in enumerate(zip(tools, sources))],
+        "Include in one or more translation units; needs -lm. See docs/live.md."])
+    bits = "\n".join(f"#define {macro}_FLAG_{flag.upper()} {bit}u" for flag, bit in BIT.items())
+    temp_line = ("    (void)u;" if t_col is None else
+                 f"    if (!(u[{t_col}] >= {_num(rng[t_col, 0])} && u[{t_col}] <= {_num(rng[t_col, 1])})) "
+                 f"flags |= {macro}_FLAG_TEMPERATURE;")
+    text = f"""{comment}
+#ifndef {macro}_H
+#define {macro}_H
+
+#include <math.h>
+#include <string.h>
+
+#ifdef __cplusplus
+extern "C" {{
+#endif
+
+#define {macro}_N_INPUTS {nu}
+#define {macro}_N_TOOLS {len(names)}
+#define {macro}_N_CHANNELS {nc}
+#ifndef {macro}_HISTORY
+#define {macro}_HISTORY {HISTORY}
+#endif
+{bits}
+
+/* Tool 0 is "none"; the others come from the payload files, in the order given. */
+static inline const char *{name}_tool_name(int tool)
+{{
+    static const char *const names[{macro}_N_TOOLS] = {{{', '.join(c_string(t) for t in names)}}};
+    return tool >= 0 && tool < {macro}_N_TOOLS ? names[tool] : 0;
+}}
+
+static inline const char *{name}_input_name(int input)
+{{
+    static const char *const names[{macro}_N_INPUTS] = {{{', '.join(c_string(t) for t in model.input_names_)}}};
+    return input >= 0 && input < {macro}_N_INPUTS ? names[input] : 0;
+}}
+
+static const double {name}_tool_mass[{macro}_N_TOOLS] = {_array(mass)};
+static const double {name}_tool_mc[{macro}_N_TOOLS][3] = {{{', '.join(_array(r) for r in mc)}}};
+static const double {name}_tool_sign[{macro}_N_TOOLS] = {_array(sign)};
+static const int {name}_channels[{macro}_N_CHANNELS] = {{{', '.join(map(str, channels))}}};
+
+typedef struct {{
+    /* configuration: NAME_init sets the generated defaults; change them after init if needed */
+    double noise_variance[6];    /* r: per-sample noise variance of the calibrated wrench */
+    double walk_variance[6];     /* q: bias random-walk variance per second */
+    double gate_chi2;            /* contact gate, chi2 quantile with 6 dof */
+    double accept_limit[6];      /* check --accept thresholds, N and N m */
+    double unexplained_sigma, unexplained_seconds;
+    double motion_window, min_rate, min_hold;   /* s, rad/s, s */
+    int use_adc_limits;          /* 1: saturated means a channel at adc_low/adc_high */
+    double adc_low, adc_high;
+    /* state */
+    int tool;
+    double bias[6], variance[6];
+    int has_time;
+    double last_time, last_moving;
+    int history_start, history_count;
+    double history_time[{macro}_HISTORY], history_direction[{macro}_HISTORY][3];
+    int has_last;
+    double last_raw[{macro}_N_CHANNELS];
+    long run[{macro}_N_CHANNELS];
+    int exceeding;
+    double exceed_start;
+    unsigned flags;
+    unsigned long samples, updates, contacts, retares, switches;
+}} {name}_state;
+
+typedef struct {{
+    double calibrated[6];    /* the model's wrench */
+    double compensated[6];   /* calibrated - tool - bias (the contact wrench) */
+    double bias[6], bias_std[6];   /* after the sample */
+    double chi2;             /* innovation chi2, 6 dof */
+    int is_static, updated;
+    unsigned flags;          /* {macro}_FLAG_* bits */
+}} {name}_output;
+
+{predict}
+
+static inline int {name}_outside_span(const double *u)
+{{
+{chr(10).join(span_lines)}
+}}
+
+/* Start with tool `tool` mounted and the bias unknown (the first static, contact-free samples set it).
+   Returns 0, or -1 for a tool index outside 0 .. N_TOOLS-1. */
+static inline int {name}_init({name}_state *s, int tool)
+{{
+    static const double noise[6] = {_array(params['noise_variance'])};
+    static const double walk[6] = {_array(params['walk_variance'])};
+    static const double limit[6] = {_array(params['accept_limit'])};
+    int j;
+    if (tool < 0 || tool >= {macro}_N_TOOLS) return -1;
+    memset(s, 0, sizeof *s);
+    for (j = 0; j < 6; ++j) {{
+        s->noise_variance[j] = noise[j];
+        s->walk_variance[j] = walk[j];
+        s->accept_limit[j] = limit[j];
+        s->bias[j] = 0.0;
+        s->variance[j] = {_num(RETARE_VARIANCE)} * noise[j];
+    }}
+    s->gate_chi2 = {_num(params['gate_chi2'])};
+    s->unexplained_sigma = {_num(UNEXPLAINED_SIGMA)};
+    s->unexplained_seconds = {_num(UNEXPLAINED_SECONDS)};
+    s->motion_window = {_num(HOLD_WINDOW_S)};
+    s->min_rate = {_num(MIN_ANGULAR_RATE)};
+    s->min_hold = {_num(MIN_HOLD_S)};
+    s->last_moving = -HUGE_VAL;
+    s->tool = tool;
+    return 0;
+}}
+
+/* Mount another tool instantly; the bias (the sensor's) is kept. Returns 0, or -1 for a bad index. */
+static inline int {name}_set_tool({name}_state *s, int tool)
+{{
+    if (tool < 0 || tool >= {macro}_N_TOOLS) return -1;
+    s->tool = tool;
+    s->switches += 1;
+    return 0;
+}}
+
+/* Re-tare, tool kept, in any pose: the bias forgets its value; the next static samples set it. */
+static inline void {name}_retare({name}_state *s)
+{{
+    int j;
+    for (j = 0; j < 6; ++j)
+        if (s->variance[j] < {_num(RETARE_VARIANCE)} * s->noise_variance[j])
+            s->variance[j] = {_num(RETARE_VARIANCE)} * s->noise_variance[j];
+    s->retares += 1;
+}}
+
+/* Motion test on the gravity direction: sets *still and *moving (ftcal.live.motion). */
+static inline void {name}_motion({name}_state *s, double time, const double *direction, int *still, int *moving)
+{{
+    double cutoff = time - s->motion_window, rate = HUGE_VAL;
+    int last;
+    while (s->history_count >= 2 &&
+           s->history_time[(s->history_start + 1) % {macro}_HISTORY] <= cutoff) {{
+        s->history_start = (s->history_start + 1) % {macro}_HISTORY;
+        s->history_count -= 1;
+    }}
+    if (s->history_count >= 1 && (s->history_time[s->history_start] <= cutoff
+                                  || s->history_count == {macro}_HISTORY)) {{
+        const double *y = s->history_direction[s->history_start];
+        double cx = direction[1] * y[2] - direction[2] * y[1];
+        double cy = direction[2] * y[0] - direction[0] * y[2];
+        double cz = direction[0] * y[1] - direction[1] * y[0];
+        double angle = atan2(sqrt(cx * cx + cy * cy + cz * cz),
+                             direction[0] * y[0] + direction[1] * y[1] + direction[2] * y[2]);
+        rate = angle / (time - s->history_time[s->history_start]);
+    }}
+    if (s->history_count == {macro}_HISTORY) {{   /* full: the oldest goes */
+        s->history_start = (s->history_start + 1) % {macro}_HISTORY;
+        s->history_count -= 1;
+    }}
+    last = (s->history_start + s->history_count) % {macro}_HISTORY;
+    s->history_time[last] = time;
+    memcpy(s->history_direction[last], direction, 3 * sizeof(double));
+    s->history_count += 1;
+    *still = rate < s->min_rate;
+    if (!*still) s->last_moving = time;
+    *moving = rate < HUGE_VAL && !*still;
+    *still = *still && (time - s->last_moving >= s->min_hold);
+}}
+
+/* One sample: time in s (strictly increasing), u[N_INPUTS] the raw channels, gravity[3] in sensor axes
+   (m/s^2, any nonzero length for the direction), static_override -1 (motion test), 0 or 1.
+   Returns 0, or -1 (state untouched, out not written) for non-finite input, time that does not
+   increase or a zero gravity vector. */
+static inline int {name}_step({name}_state *s, double time, const double *u, const double *gravity, int static_override,
+                       {name}_output *out)
+{{
+    double w[6], z[6], e[6], tool[6], direction[3], norm, dt, chi2 = 0.0, predicted[6], innovation_var[6];
+    const double *mc = {name}_tool_mc[s->tool];
+    double m = {name}_tool_mass[s->tool], sign = {name}_tool_sign[s->tool];
+    int j, still, moving, gate, beyond = 0, other;
+    unsigned flags = 0;
+    if (!isfinite(time) || (s->has_time && !(time > s->last_time))) return -1;
+    for (j = 0; j < {macro}_N_INPUTS; ++j) if (!isfinite(u[j])) return -1;
+    for (j = 0; j < 3; ++j) if (!isfinite(gravity[j])) return -1;
+    norm = sqrt(gravity[0] * gravity[0] + gravity[1] * gravity[1] + gravity[2] * gravity[2]);
+    if (norm == 0.0) return -1;
+    {name}_calibrate(u, w);
+    for (j = 0; j < 3; ++j) direction[j] = gravity[j] / norm;
+    if (static_override >= 0) {{
+        still = static_override != 0;
+        moving = !still;
+    }} else {{
+        {name}_motion(s, time, direction, &still, &moving);
+    }}
+    /* the tool's gravity wrench: F = m g, T = (m c) x g, negated for a reaction payload */
+    tool[0] = sign * (m * gravity[0]);
+    tool[1] = sign * (m * gravity[1]);
+    tool[2] = sign * (m * gravity[2]);
+    tool[3] = sign * (mc[1] * gravity[2] - mc[2] * gravity[1]);
+    tool[4] = sign * (mc[2] * gravity[0] - mc[0] * gravity[2]);
+    tool[5] = sign * (mc[0] * gravity[1] - mc[1] * gravity[0]);
+    dt = s->has_time ? time - s->last_time : 0.0;
+    for (j = 0; j < 6; ++j) {{
+        z[j] = w[j] - tool[j];
+        predicted[j] = s->variance[j] + s->walk_variance[j] * dt;
+        innovation_var[j] = predicted[j] + s->noise_variance[j];
+        e[j] = z[j] - s->bias[j];
+        chi2 += e[j] * (e[j] / innovation_var[j]);
+    }}
+    gate = still && chi2 < s->gate_chi2;
+    for (j = 0; j < 6; ++j) {{
+        out->calibrated[j] = w[j];
+        out->compensated[j] = e[j];
+        if (gate) {{   /* Kalman update: gain P-/(P- + r) */
+            double gain = predicted[j] / innovation_var[j];
+            s->bias[j] = (1.0 - gain) * s->bias[j] + gain * z[j];
+            s->variance[j] = s->noise_variance[j] * predicted[j] / innovation_var[j];
+        }} else {{     /* prediction only: a contact is never absorbed */
+            s->variance[j] = predicted[j];
+        }}
+        out->bias[j] = s->bias[j];
+        out->bias_std[j] = sqrt(s->variance[j]);
+        if (fabs(e[j]) > fmax(s->unexplained_sigma * sqrt(innovation_var[j]), s->accept_limit[j])) beyond = 1;
+    }}
+    /* health: run lengths of identical values per channel (temperature excluded) */
+    for (j = 0; j < {macro}_N_CHANNELS; ++j) {{
+        double x = u[{name}_channels[j]];
+        s->run[j] = (s->has_last && x == s->last_raw[j]) ? s->run[j] + 1 : 1;
+    }}
+    for (j = 0; j < {macro}_N_CHANNELS; ++j) {{
+        double x = u[{name}_channels[j]], low, high;
+        int k, stuck, outside;
+        other = 0;
+        for (k = 0; k < {macro}_N_CHANNELS; ++k)
+            if (k != j && !(s->has_last && u[{name}_channels[k]] == s->last_raw[k])) other = 1;
+        stuck = s->run[j] >= {STUCK_RUN} && (other || moving);
+        if (stuck && s->run[j] >= {DEAD_RUN}) flags |= {macro}_FLAG_DEAD;
+        else if (stuck) flags |= {macro}_FLAG_STUCK;
+        if (s->use_adc_limits) {{
+            if (x <= s->adc_low || x >= s->adc_high) flags |= {macro}_FLAG_SATURATED;
+        }} else {{
+            static const double range[{macro}_N_CHANNELS][2] = {{{', '.join(_array(rng[c]) for c in channels)}}};
+            low = range[j][0];
+            high = range[j][1];
+            outside = x < low || x > high;
+            if (outside && s->run[j] >= {SATURATION_RUN}) flags |= {macro}_FLAG_SATURATED;
+        }}
+    }}
+    for (j = 0; j < {macro}_N_CHANNELS; ++j) s->last_raw[j] = u[{name}_channels[j]];
+    s->has_last = 1;
+    {{
+        static const double low[{macro}_N_INPUTS] = {_array(rng[:, 0] - slack)};
+        static const double high[{macro}_N_INPUTS] = {_array(rng[:, 1] + slack)};
+        int outside = 0;
+        for (j = 0; j < {macro}_N_INPUTS; ++j) if (u[j] < low[j] || u[j] > high[j]) outside = 1;
+        if (outside || {name}_outside_span(u)) flags |= {macro}_FLAG_OUT_OF_RANGE;
+    }}
+{temp_line}
+    if (still && !gate && chi2 >= s->gate_chi2) flags |= {macro}_FLAG_CONTACT;
+    if (beyond) {{
+        if (!s->exceeding) {{
+            s->exceeding = 1;
+            s->exceed_start = time;
+        }}
+        if (time - s->exceed_start >= s->unexplained_seconds) flags |= {macro}_FLAG_UNEXPLAINED;
+    }} else {{
+        s->exceeding = 0;
+    }}
+    if ((flags & {macro}_FLAG_CONTACT) && !(s->flags & {macro}_FLAG_CONTACT)) s->contacts += 1;
+    s->flags = flags;
+    s->updates += (unsigned long)gate;
+    s->samples += 1;
+    s->has_time = 1;
+    s->last_time = time;
+    out->chi2 = chi2;
+    out->is_static = still;
+    out->updated = gate;
+    out->flags = flags;
+    return 0;
+}}
+
+#ifdef __cplusplus
+}}
+#endif
+
+#endif /* {macro}_H */
+"""
+    return text
+
+
+def write_c_runtime(source: ModelFile, output: Path, options: ConvertOptions) -> Written:
+    """Registry writer: the header ``output`` (``--payload-file [NAME=]TOOL.json``, repeatable, for the tools).
+
+    The C prefix is ``--name``, else the header's file name when it is a C identifier
+    (``ft_runtime.h``: ``ft_runtime_step``), else :data:`DEFAULT_NAME`.
+    """
+    from ..files.payload_json import load_payload
+
+    default = output.name[:-2] if output.name.endswith(".h") else DEFAULT_NAME
+    try:  # the prefix follows the file's name (ft_runtime.h: ft_runtime_step) when that is a C identifier
+        default = c_identifier(default)
+    except FtcalError:
+        default = DEFAULT_NAME
+    name = c_identifier(options.get("name", default))
+    if getattr(source.model, "family", "polynomial") != "polynomial" or not source.model.layout_.is_static:
+        raise FtcalError("--to c-runtime takes a static polynomial model (no ARX lags).")
+    tools, files = {}, []
+    for spec in options.get("payload_files", []) or []:
+        tool, sep, path = str(spec).partition("=")
+        if not sep:
+            tool, path = Path(spec).stem, spec
+        if not tool or tool == NO_TOOL:
+            raise FtcalError(f"--payload-file {spec}: a tool needs a name other than {NO_TOOL!r}.")
+        if tool in tools:
+            raise FtcalError(f"--payload-file {spec}: the name {tool!r} is taken; give each tool its own name "
+                             "(NAME=FILE).")
+        if Path(path).resolve() == output.resolve():
+            raise FtcalError(f"-o {output} is the input file {path}; choose another output path.")
+        tools[tool] = load_payload(path)
+        files.append(Path(path).name)
+    sha256 = hashlib.sha256(options.input_path.read_bytes()).hexdigest()
+    text = generate_c_runtime(source.model, tools, name=name, sha256=sha256, source_name=options.input_path.name,
+                              tool_sources=files)
+    write_text_atomic(output, text)
+    library = (f"{len(tools) + 1} tools (none, {', '.join(tools)})" if tools else
+               "1 tool (none); add tools with --payload-file")
+    return Written((output,), (f"{name}_init / {name}_step / {name}_set_tool / {name}_retare; {library}",))
