@@ -662,28 +662,19 @@ class LiveCalibrator:
         dt = 0.0 if self.last_time is None else t - self.last_time
         bias, variance = self.bias.tolist(), self.variance.tolist()
         walk, noise, limit = self._plain_constants()
-        z, predicted, innovation_var, innovation = [], [], [], []
-        chi2 = 0.0
-        beyond = False
+        z = [a - sign * b for a, b in zip(w, tool)]
+        predicted = [p + q * dt for p, q in zip(variance, walk)]
+        innovation_var = [p + r for p, r in zip(predicted, noise)]
+        innovation = [a - b for a, b in zip(z, bias)]
+        chi2 = sum([e * (e / v) for e, v in zip(innovation, innovation_var)])
         k2 = self.unexplained_sigma * self.unexplained_sigma
-        for j in range(6):
-            zj = w[j] - sign * tool[j]
-            pj = variance[j] + walk[j] * dt
-            sj = pj + noise[j]
-            ej = zj - bias[j]
-            chi2 += ej * (ej / sj)
-            # |e| > max(k σ, acceptance threshold), σ = √S
-            beyond = beyond or (ej * ej > k2 * sj and abs(ej) > limit[j])
-            z.append(zj)
-            predicted.append(pj)
-            innovation_var.append(sj)
-            innovation.append(ej)
+        # |e| > max(k σ, acceptance threshold), σ = √S
+        beyond = any([e * e > k2 * v and abs(e) > a for e, v, a in zip(innovation, innovation_var, limit)])
         updated = still and chi2 < self.threshold
         if updated:
-            for j in range(6):
-                gain = predicted[j] / innovation_var[j]
-                bias[j] = (1.0 - gain) * bias[j] + gain * z[j]
-                variance[j] = predicted[j] * noise[j] / innovation_var[j]
+            gain = [p / v for p, v in zip(predicted, innovation_var)]
+            bias = [(1.0 - k) * b + k * c for k, b, c in zip(gain, bias, z)]
+            variance = [p * r / v for p, r, v in zip(predicted, noise, innovation_var)]
         else:
             variance = predicted
         # ----- health -----
@@ -900,10 +891,12 @@ def _temperature_text(temperature: float, low: float, high: float) -> str:
 def _plain(values, size: int | None) -> list | None:
     """A sample's vector as a list of finite floats of the given size, or None (then
     :meth:`LiveCalibrator.run` takes the sample and says what is wrong)."""
-    if isinstance(values, np.ndarray) and values.dtype == np.float64:
+    if isinstance(values, np.ndarray):
         out = values.ravel().tolist()
+        if values.dtype != np.float64:
+            out = [*map(float, out)]
     else:
-        out = [float(v) for v in (values.ravel().tolist() if isinstance(values, np.ndarray) else values)]
+        out = [*map(float, values)]
     # A sum is finite only if every term is (an overflowing sum sends a finite sample to run(): slower, same result).
     if (size is not None and len(out) != size) or not math.isfinite(sum(out)):
         return None
