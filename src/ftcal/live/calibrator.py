@@ -169,6 +169,8 @@ class LiveCalibrator:
     motion_window, min_rate, min_hold : the static test (:mod:`ftcal.live.motion`)
     gravity_magnitude : m/s², for quaternions
     state_path : JSON file the state is saved to (atomically) and resumed from when it exists
+    robot : gravity from joint positions, e.g. :class:`ftcal.robot.kinematics.SensorGravity` (a URDF, the
+        F/T sensor, the joints given); then ``joints`` alone gives gravity (and the motion signal)
 
     Examples
     --------
@@ -188,7 +190,7 @@ class LiveCalibrator:
                  adc_limits: tuple[float, float] | None = None, temperature_range: tuple[float, float] | None = None,
                  motion_window: float = HOLD_WINDOW_S, min_rate: float = MIN_ANGULAR_RATE,
                  min_hold: float = MIN_HOLD_S, gravity_magnitude: float = STANDARD_GRAVITY,
-                 state_path: str | Path | None = None) -> None:
+                 state_path: str | Path | None = None, robot=None) -> None:
         from scipy.stats import chi2
 
         if model is not None:
@@ -199,6 +201,7 @@ class LiveCalibrator:
         if not 0.5 < gate_probability < 1.0:
             raise FtcalError(f"gate_probability must be in (0.5, 1); got {gate_probability}.")
         self.model = model
+        self.robot = robot
         self._reasons: dict[str, str] = {}  # flag -> the reason it was last raised with (outlives the event log)
         self._tool_terms: dict = {}  # tool name -> (m, m·c, sign) in plain floats, for the per-sample path
         self._constants = None  # q, r and the acceptance thresholds as lists, for the per-sample path
@@ -411,7 +414,8 @@ class LiveCalibrator:
         gravity : ndarray of shape (n, 3), gravity in sensor axes, m/s²; or
         quaternion : ndarray of shape (n, 4), sensor-to-world orientation, x y z w (world z up); or
         imu : ndarray of shape (n, 3), an accelerometer in sensor axes (gravity = −reading at rest)
-        joints : ndarray of shape (n, n_joints) or None, rad: the motion signal when no quaternion is given
+        joints : ndarray of shape (n, n_joints) or None, rad: the motion signal when no quaternion is given;
+            alone (no gravity, quaternion or imu), gravity too, through ``robot``
         temperature : ndarray of shape (n,) or None, °C (the model's temperature input is used when it has one)
         static : ndarray of bool, shape (n,), or None: overrides the motion test
 
@@ -486,8 +490,17 @@ class LiveCalibrator:
 
     def _gravity(self, gravity, quaternion, imu, joints, n):
         given = [x is not None for x in (gravity, quaternion, imu)]
+        if not any(given) and joints is not None and self.robot is not None:
+            q = np.asarray(joints, dtype=float).reshape(n, -1)
+            if q.shape[1] != len(self.robot.joints):
+                raise FtcalError(f"joints has {q.shape[1]} values per sample; the robot model takes "
+                                 f"{len(self.robot.joints)} ({', '.join(self.robot.joints)}).")
+            _finite(q, "joints")
+            return self.robot(q) if n else np.empty((0, 3)), "joints", q
         if sum(given) != 1:
-            raise FtcalError("give exactly one of gravity, quaternion or imu.")
+            raise FtcalError("give exactly one of gravity, quaternion or imu"
+                             + (" (or joints alone: the robot model gives gravity)." if self.robot is not None
+                                else " (joints give gravity only with a robot model)."))
         if quaternion is not None:
             q = np.asarray(quaternion, dtype=float).reshape(n, 4)
             _finite(q, "quaternion")
@@ -619,9 +632,15 @@ class LiveCalibrator:
                 u = w = _plain(wrench, 6)
                 if w is None:
                     return None
-            if (gravity is not None) + (quaternion is not None) + (imu is not None) != 1:
+            sources = (gravity is not None) + (quaternion is not None) + (imu is not None)
+            if sources == 0 and joints is not None and self.robot is not None:
+                q = _plain(joints, len(self.robot.joints))
+                if q is None:
+                    return None
+                g, kind, signal = self.robot.one(q), "joints", tuple(q)
+            elif sources != 1:
                 return None
-            if quaternion is not None:
+            elif quaternion is not None:
                 q = _plain(quaternion, 4)
                 if q is None:
                     return None
@@ -640,7 +659,7 @@ class LiveCalibrator:
                 if imu is not None:
                     g = [-g[0], -g[1], -g[2]]
                 kind, signal = "direction", tuple(g)
-            if joints is not None and quaternion is None:
+            if joints is not None and quaternion is None and kind != "joints":
                 signal = _plain(joints, None)
                 if signal is None:
                     return None

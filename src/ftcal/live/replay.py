@@ -49,8 +49,8 @@ class ReplayColumns:
     time : time column, s
     signal : raw inputs (the model's) or the wrench columns
     raw : True when ``signal`` are the model's inputs
-    gravity_kind : "quaternion", "gravity" or "imu"
-    gravity : 4 quaternion columns (x, y, z, w) or 3 gravity / accelerometer columns
+    gravity_kind : "quaternion", "gravity", "imu" or "joints" (the calibrator's robot model gives gravity)
+    gravity : 4 quaternion columns (x, y, z, w), 3 gravity / accelerometer columns, or the joint columns
     temperature : temperature column or None
     """
 
@@ -225,7 +225,7 @@ def _run(live: LiveCalibrator, x: np.ndarray, columns: ReplayColumns) -> LiveRes
     gravity = x[:, k:k + len(columns.gravity)]
     k += len(columns.gravity)
     temperature = x[:, k] if columns.temperature else None
-    kinds = {"quaternion": "quaternion", "gravity": "gravity", "imu": "imu"}
+    kinds = {"quaternion": "quaternion", "gravity": "gravity", "imu": "imu", "joints": "joints"}
     source = {kinds[columns.gravity_kind]: gravity}
     signals = {"raw": signal} if columns.raw else {"wrench": signal}
     return live.run(x[:, 0], temperature=temperature, **signals, **source)

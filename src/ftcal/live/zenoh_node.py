@@ -8,8 +8,13 @@ DDS carries and the bridge routes unchanged (serialised with ``rosbags``). rmw_z
 (``<domain>/<topic>/<type>/<type hash>``) are not produced: the type hash could not be verified here.
 
 * subscribes: the raw wrench (``WrenchStamped``) and, optionally, an IMU (``sensor_msgs/msg/Imu``:
-  gravity from its orientation, else minus its linear acceleration). Without an IMU the sensor is
-  taken as still in a fixed pose with gravity along its −z axis.
+  gravity from its orientation, else minus its linear acceleration) or the joint states
+  (``sensor_msgs/msg/JointState``, decoded by ``rosbags``; with a robot model,
+  :class:`ftcal.robot.kinematics.SensorGravity`, gravity in the sensor frame from the joints named in
+  the message, and the joints are the motion signal; wrenches before the first joint state are
+  counted and dropped, and a wrench stamped more than :data:`JOINT_MAX_AGE_S` after the newest joint
+  state is not static, so the bias never takes up a pose that is out of date). Without either the sensor is taken as still in a fixed pose with gravity
+  along its −z axis.
 * publishes: ``PREFIX/calibrated`` and ``PREFIX/compensated`` (``WrenchStamped``, the input's header),
   and ``PREFIX/diagnostics`` (JSON: flags with their reasons, bias ± std, tool, counters) when a flag
   changes and once a second.
@@ -45,6 +50,12 @@ from .health import BIT
 
 WRENCH_TYPE = "geometry_msgs/msg/WrenchStamped"
 IMU_TYPE = "sensor_msgs/msg/Imu"
+JOINT_STATE_TYPE = "sensor_msgs/msg/JointState"
+# Joint-name lists remembered (a JointState publisher keeps one list; a few are plenty).
+MAX_JOINT_LISTS = 16
+# A wrench stamped this much later than the newest joint state is not static (its pose may be out of date:
+# the bias must not take up a tool wrench computed for another pose); counted in the diagnostics.
+JOINT_MAX_AGE_S = 0.02
 DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
 DIAGNOSTICS_PERIOD_S = 1.0
 # The main thread wakes this often to check for silence (and at once when a flag changes).
@@ -70,6 +81,7 @@ class ZenohOptions:
     connect: tuple[str, ...] = ()
     wrench_topic: str = "/ft/raw"
     imu_topic: str | None = None
+    joints_topic: str | None = None
     prefix: str = "/ft"
     silence: float = 1.0
     duration: float | None = None
@@ -113,7 +125,7 @@ def wrench_message(store, stamp_ns: int, frame: str, w: np.ndarray) -> bytes:
 class LiveNode:
     """The calibrator behind Zenoh subscribers, publishers and queryables (see the module docstring)."""
 
-    def __init__(self, live, options: ZenohOptions, *, echo=print) -> None:
+    def __init__(self, live, options: ZenohOptions, *, robot=None, echo=print) -> None:
         if live.model is not None and len(live.model.input_names_) != 6:
             raise FtcalError(f"--zenoh: the model takes {len(live.model.input_names_)} inputs; a WrenchStamped "
                              "carries 6 channels.")
@@ -124,11 +136,19 @@ class LiveNode:
         self.gravity: tuple | None = (0.0, 0.0, -live.gravity_magnitude)
         self.quaternion: tuple | None = None
         self.signal_key = "raw" if live.model is not None else "wrench"
+        if (robot is None) != (options.joints_topic is None):
+            raise FtcalError("--joints-topic and a robot model (--urdf) go together.")
+        self.robot = robot
+        self.pose: tuple | None = None  # (gravity, joint positions) from the latest joint state
+        self.joint_sources: dict = {}  # joint-name tuple -> (SensorGravity over them, their indices), or None
+        self.waiting_for_joints = 0
+        self.stale_joints = 0
         self.bad_messages = 0
         self.stale_samples = 0
         self.last_message = time.monotonic()
         self.keys = {"wrench": topic_key(options.wrench_topic),
                      "imu": None if options.imu_topic is None else topic_key(options.imu_topic),
+                     "joints": None if options.joints_topic is None else topic_key(options.joints_topic),
                      **{name: f"{topic_key(options.prefix)}/{name}" for name in
                         ("calibrated", "compensated", "diagnostics", "retare", "switch_tool", "identify_tool",
                          "status")}}
@@ -142,7 +162,19 @@ class LiveNode:
             return
         self.last_message = time.monotonic()
         t = msg.stamp_ns * 1e-9
-        source = {"quaternion": self.quaternion} if self.quaternion is not None else {"gravity": self.gravity}
+        if self.robot is not None:
+            pose = self.pose
+            if pose is None:
+                self.waiting_for_joints += 1
+                return
+            source = {"gravity": pose[0], "joints": pose[1]}
+            if t - pose[2] > JOINT_MAX_AGE_S:
+                source["static"] = False
+                self.stale_joints += 1
+        elif self.quaternion is not None:
+            source = {"quaternion": self.quaternion}
+        else:
+            source = {"gravity": self.gravity}
         with self.lock:
             if self.live.last_time is not None and t <= self.live.last_time:
                 self.stale_samples += 1
@@ -179,6 +211,32 @@ class LiveNode:
             self.quaternion, self.gravity = None, tuple(-a for a in acceleration)
         else:
             self.bad_messages += 1
+
+    def _on_joints(self, sample) -> None:
+        try:
+            msg = self.store.deserialize_cdr(bytes(sample.payload.to_bytes()), JOINT_STATE_TYPE)
+            names, positions = tuple(msg.name), np.asarray(msg.position, dtype=float)
+            stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+        except Exception:  # rosbags raises several kinds on a broken message: counted, never fatal
+            self.bad_messages += 1
+            return
+        if names not in self.joint_sources:
+            if len(self.joint_sources) >= MAX_JOINT_LISTS:
+                self.joint_sources.clear()
+            known = set(self.robot.robot.joint_names)
+            keep = [i for i, name in enumerate(names) if name in known]
+            try:
+                self.joint_sources[names] = (self.robot.with_joints([names[i] for i in keep], self.keys["joints"]),
+                                             keep)
+            except FtcalError as exc:  # e.g. a joint of the sensor's chain is missing: say so once per list
+                self.joint_sources[names] = None
+                self.echo(f"ftcal live: {exc}", file=sys.stderr, flush=True)
+        source = self.joint_sources[names]
+        if source is None or positions.shape != (len(names),) or not np.all(np.isfinite(positions[source[1]])):
+            self.bad_messages += 1
+            return
+        q = positions[source[1]]
+        self.pose = (source[0].one(q), tuple(q.tolist()), stamp)
 
     def _reply(self, query, doc: dict) -> None:
         query.reply(query.key_expr, json.dumps(doc))
@@ -217,6 +275,8 @@ class LiveNode:
             entities += list(self.publishers.values())
             if self.keys["imu"]:
                 entities.append(session.declare_subscriber(self.keys["imu"], self._on_imu))
+            if self.keys["joints"]:
+                entities.append(session.declare_subscriber(self.keys["joints"], self._on_joints))
             entities.append(session.declare_subscriber(self.keys["wrench"], self._on_wrench))
             entities.append(session.declare_queryable(
                 self.keys["retare"], lambda q: self._command(q, lambda _: self.live.retare())))
@@ -226,8 +286,9 @@ class LiveNode:
                 self.keys["identify_tool"], lambda q: self._command(q, self._identify)))
             entities.append(session.declare_queryable(
                 self.keys["status"], lambda q: self._command(q, lambda _: None)))
+            pose = self.keys["imu"] or self.keys["joints"]
             self.echo(f"ftcal live: listening on {self.keys['wrench']}"
-                      + (f" and {self.keys['imu']}" if self.keys["imu"] else " (no IMU: fixed pose, gravity -z)")
+                      + (f" and {pose}" if pose else " (no IMU or joints: fixed pose, gravity -z)")
                       + f"; publishing {self.keys['calibrated']}, {self.keys['compensated']}, "
                         f"{self.keys['diagnostics']}", flush=True)
             self._loop()
@@ -266,6 +327,7 @@ class LiveNode:
             flags = self.live.flags_now
             status["reasons"] = {name: self.live.reason_of(name) for name in status["flags"]}
         status["bad_messages"], status["stale_samples"] = self.bad_messages, self.stale_samples
+        status["waiting_for_joints"], status["stale_joints"] = self.waiting_for_joints, self.stale_joints
         self.publishers["diagnostics"].put(json.dumps(status))
         return flags
 
@@ -275,6 +337,7 @@ def _payload_text(query) -> str:
     return "" if payload is None else bytes(payload.to_bytes()).decode("utf-8", "replace")
 
 
-def serve(live, options: ZenohOptions) -> int:
-    """Serve ``live`` over Zenoh until ``options.duration`` (or Ctrl-C / SIGTERM)."""
-    return LiveNode(live, options).serve()
+def serve(live, options: ZenohOptions, robot=None) -> int:
+    """Serve ``live`` over Zenoh until ``options.duration`` (or Ctrl-C / SIGTERM); ``robot``: the joints-to-gravity
+    source (:class:`ftcal.robot.kinematics.SensorGravity`) for ``options.joints_topic``."""
+    return LiveNode(live, options, robot=robot).serve()
