@@ -350,3 +350,32 @@ def test_single_samples_reject_bad_input_like_blocks():
     with pytest.raises(FtcalError, match="shape"):
         live.step(0.1, wrench=np.zeros(5), gravity=[0, 0, -9.81])
     assert live.counters["samples"] == 1 and live.last_time == 0.0
+
+
+def test_the_walk_and_noise_that_payload_identifies_reach_the_live_tracker(tmp_path):
+    """Offline ``payload --bias-drift random-walk`` on a recording whose walk and noise are known (the simulation's):
+    the payload file stores the variances it identified, and a live calibrator built from that file uses them."""
+    from ftcal.files.payload_json import load_payload, save_payload
+
+    s = LiveScenario(duration=1800.0, rate=20.0, hold_s=8.0, move_s=2.0, walk=(3.0, 0.3), ramp=(0.0, 0.0), seed=17)
+    rec = simulate_live(s)
+    fit = offline_fit(rec)
+    payload = PayloadParameters.from_fit(fit.fit, gravity=9.81, frame=None, reaction=False,
+                                         wrench_columns=("Fx", "Fy", "Fz", "Tx", "Ty", "Tz"), drift=fit.drift)
+    save_payload(payload, tmp_path / "tool.json")
+    doc = json.loads((tmp_path / "tool.json").read_text())
+    walk = np.sqrt(doc["drift"]["random_walk"]["walk_variance"])  # per √h
+    noise = np.sqrt(doc["drift"]["random_walk"]["noise_variance"])  # per sample
+    truth_walk, truth_noise = np.repeat(s.walk, 3), np.repeat(s.noise, 3)
+    assert np.all((walk > truth_walk / 2) & (walk < 2 * truth_walk)), walk
+    # Per block (1.4 s) the walk moves the bias about 6x the noise of a block mean: the noise is identified
+    # far less precisely than the walk.
+    assert np.all((noise > truth_noise / 2) & (noise < 2 * truth_noise)), noise
+    np.testing.assert_allclose(walk ** 2, fit.drift.walk_variance, rtol=1e-12)  # what the identification returned
+    live = LiveCalibrator(tools={"tool": load_payload(tmp_path / "tool.json")}, tool="tool")
+    np.testing.assert_allclose(live.walk_variance * 3600.0, walk ** 2, rtol=1e-12)
+    np.testing.assert_allclose(live.noise_std, noise, rtol=1e-12)
+    overridden = LiveCalibrator(tools={"tool": load_payload(tmp_path / "tool.json")}, tool="tool",
+                                walk_std=np.full(6, 2.0), noise_std=np.full(6, 0.1))
+    np.testing.assert_allclose(overridden.walk_variance * 3600.0, 4.0)
+    np.testing.assert_allclose(overridden.noise_std, 0.1)

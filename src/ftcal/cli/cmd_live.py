@@ -64,11 +64,13 @@ def register(sub) -> None:
     p.add_argument("--switch-tool", type=switch_spec, action="append", default=[], metavar="TIME:NAME",
                    help="--replay: mount tool NAME at this time, s (e.g. 30:gripper); repeatable")
     p.add_argument("--walk-std", type=float_list, metavar="F,T",
-                   help="bias random-walk std per √h, force (N) and torque (N·m), or six values (default: from "
-                        "the first tool's random-walk trajectory, else 1 N, 0.1 N·m)")
+                   help="bias random-walk std per √h, force (N) and torque (N·m), or six values (default: the "
+                        "walk `payload --bias-drift random-walk` identified, from the first tool file that has "
+                        "one, else 1 N, 0.1 N·m)")
     p.add_argument("--noise-std", type=float_list, metavar="F,T",
-                   help="per-sample noise std, force and torque, or six values (default: the first tool's "
-                        "residual RMS, else 0.1 N, 0.01 N·m)")
+                   help="per-sample noise std, force and torque, or six values (default: the noise the "
+                        "random-walk identification stored, else the first tool's residual RMS, else 0.1 N, "
+                        "0.01 N·m)")
     p.add_argument("--bias", type=float_list, metavar="B1,...,B6",
                    help="initial bias (default unknown: the first static, contact-free samples set it)")
     p.add_argument("--state", metavar="STATE.json",

@@ -130,8 +130,26 @@ def tool_wrench(payload: PayloadParameters | None, gravity: np.ndarray) -> np.nd
     return -out if payload.reaction else out
 
 
+def _walk_from_file(payload: PayloadParameters) -> np.ndarray | None:
+    """Walk variance per second that ``payload --bias-drift random-walk`` identified (the file's
+    ``drift.random_walk``), else None."""
+    drift = payload.drift
+    if drift is None or drift.model != "random-walk" or drift.walk_variance is None:
+        return None
+    return np.asarray(drift.walk_variance, dtype=float) / SECONDS_PER_HOUR
+
+
+def _noise_from_file(payload: PayloadParameters) -> np.ndarray | None:
+    """Per-sample noise standard deviation that ``payload --bias-drift random-walk`` identified, else None."""
+    drift = payload.drift
+    if drift is None or drift.model != "random-walk" or drift.noise_variance is None:
+        return None
+    return np.sqrt(np.asarray(drift.noise_variance, dtype=float))
+
+
 def _walk_from_knots(payload: PayloadParameters) -> np.ndarray | None:
-    """Walk variance per second from a random-walk payload's bias trajectory (its quadratic variation).
+    """Walk variance per second from a random-walk payload's bias trajectory (its quadratic variation), for
+    files written before the payload file stored the walk variance.
 
     The trajectory is the offline smoother's, which is smoother than the walk itself, so this
     underestimates the walk; it is the default only when no walk is given.
@@ -155,9 +173,11 @@ class LiveCalibrator:
         the library; ``"none"`` (no tool) is always there
     tool : the tool mounted at the start
     walk_std : ndarray of shape (6,) or None, the bias' random-walk standard deviation per √h (N/√h, N·m/√h);
-        default: the first tool file with a random-walk drift (its trajectory's variation), else
+        default: the walk variance ``payload --bias-drift random-walk`` identified (the first tool file that
+        stores one), else a random-walk file's trajectory variation (older files), else
         :data:`DEFAULT_WALK_FRACTION` × the acceptance thresholds
-    noise_std : ndarray of shape (6,) or None, per-sample noise of the calibrated wrench; default the
+    noise_std : ndarray of shape (6,) or None, per-sample noise of the calibrated wrench; default the noise
+        variance the random-walk identification stored (the first tool file that stores one), else the
         residual RMS of the first tool file, else :data:`DEFAULT_NOISE_FRACTION` × the thresholds
     initial_bias, initial_bias_std : ndarray of shape (6,) or None; default unknown (the first static,
         contact-free samples set it, tool compensated)
@@ -217,14 +237,16 @@ class LiveCalibrator:
         self._accept_limit = scale
         files = [p for p in self.tools.values() if p is not None]
         self.noise_std = self._vector(noise_std, "noise_std") if noise_std is not None else next(
-            (np.asarray(p.fit["residual_rms"], float) for p in files if "residual_rms" in p.fit),
-            DEFAULT_NOISE_FRACTION * scale)
+            (v for v in map(_noise_from_file, files) if v is not None), None)
+        if self.noise_std is None:
+            self.noise_std = next((np.asarray(p.fit["residual_rms"], float) for p in files if "residual_rms" in p.fit),
+                                  DEFAULT_NOISE_FRACTION * scale)
         self.noise_std = np.maximum(self.noise_std, 1e-12)
         if walk_std is not None:
             walk_variance = self._vector(walk_std, "walk_std") ** 2 / SECONDS_PER_HOUR
         else:
-            walk_variance = next((w for w in map(_walk_from_knots, files) if w is not None),
-                                 (DEFAULT_WALK_FRACTION * scale) ** 2 / SECONDS_PER_HOUR)
+            walk_variance = next((w for w in [*map(_walk_from_file, files), *map(_walk_from_knots, files)]
+                                  if w is not None), (DEFAULT_WALK_FRACTION * scale) ** 2 / SECONDS_PER_HOUR)
         self.walk_variance = walk_variance  # per second
         self.threshold = float(chi2.ppf(gate_probability, 6))
         self.unexplained_sigma, self.unexplained_seconds = float(unexplained_sigma), float(unexplained_seconds)
