@@ -124,8 +124,8 @@ def _frame_pair(text: str):
 
 def robot_gravity(args, joint_names, where: str):
     """The robot model's gravity source (:class:`~ftcal.robot.kinematics.SensorGravity`) over the joints among
-    ``joint_names`` (None: all the robot's), built as ``ftcal payload`` builds its URDF source (same options, same messages); None
-    without --urdf."""
+    ``joint_names`` (None: all the robot's), built as ``ftcal payload`` builds its URDF source (same options,
+    same messages); None without --urdf."""
     from ..robot.kinematics import SensorGravity, kinematics_source
     from ..runtime.errors import FtcalError
 

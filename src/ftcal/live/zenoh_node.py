@@ -13,8 +13,8 @@ DDS carries and the bridge routes unchanged (serialised with ``rosbags``). rmw_z
   :class:`ftcal.robot.kinematics.SensorGravity`, gravity in the sensor frame from the joints named in
   the message, and the joints are the motion signal; wrenches before the first joint state are
   counted and dropped, and a wrench stamped more than :data:`JOINT_MAX_AGE_S` after the newest joint
-  state is not static, so the bias never takes up a pose that is out of date). Without either the sensor is taken as still in a fixed pose with gravity
-  along its −z axis.
+  state is not static, so the bias never takes up a pose that is out of date). Without either the
+  sensor is taken as still in a fixed pose with gravity along its −z axis.
 * publishes: ``PREFIX/calibrated`` and ``PREFIX/compensated`` (``WrenchStamped``, the input's header),
   and ``PREFIX/diagnostics`` (JSON: flags with their reasons, bias ± std, tool, counters) when a flag
   changes and once a second.
