@@ -536,7 +536,7 @@ FULL = {"fit_big": 1_000_000, "fit_mid": 100_000, "scaling_n": (10_000, 100_000,
         "payload_n": 1_000_000, "bag_n": 500_000, "cli_n": 200_000, "cli_repeats": 5, "select_n": 74_000,
         "mlp_n": 20_000, "mlp_hidden": "16", "mlp_iterations": 200, "plan": (60, 10_000),
         "scale": (10, 1_000_000, 4), "cost": ((20_000, 6), (200_000, 7), (1_000_000, 8)),
-        "cost_budget": (1_000_000, 8, 8.0), "live_n": 600_000, "live_steps_n": 5_000, "live_minutes": (6, 60),
+        "cost_budget": (1_000_000, 8, 8.0), "live_n": 600_000, "live_steps_n": 50_000, "live_minutes": (6, 60),
         "live_zenoh_s": 10.0, "closed_loop_seeds": (0, 1, 2), "closed_loop_quick": False,
         "payload_cli_n": 1_000_000, "cluster": ((4, 1_000_000), (16, 250_000)), "cluster_pairs": 2,
         "threads_pairs": 2, "c_batch_evals": 2_000_000, "c_runtime_n": 200_000}

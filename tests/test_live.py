@@ -273,3 +273,109 @@ def test_the_docstring_example_runs():
 
     result = doctest.testmod(module, optionflags=doctest.NORMALIZE_WHITESPACE)
     assert result.attempted > 0 and result.failed == 0
+
+
+def _affine_model_and_raw(rec, seed=21):
+    """A degree-1 model of 6 mixed gauges + temperature, and the raw channels of ``rec`` through that mix."""
+    from ftcal.core.dataset import Dataset
+    from ftcal.core.model import CalibrationModel
+
+    rng = np.random.default_rng(seed)
+    mix = np.eye(6) + 0.05 * rng.normal(size=(6, 6))
+    wrench = rng.uniform(-20, 20, size=(3000, 6))
+    temperature = rng.uniform(25.0, 40.0, size=3000)
+    model = CalibrationModel(degree=1).fit(Dataset.from_arrays(
+        np.column_stack([wrench @ mix.T + 0.01 * (temperature[:, None] - 30.0), temperature]), wrench))
+    hot = np.where(rec.time < 6.0, 30.0, 50.0)
+    return model, np.column_stack([rec.wrench @ mix.T + 0.01 * (hot[:, None] - 30.0), hot])
+
+
+@pytest.mark.parametrize("source", ["gravity", "imu", "gravity+joints"])
+def test_single_samples_take_the_same_path_as_blocks_with_a_model_and_bad_channels(source):
+    """The per-sample path (plain floats) against the block path (prefix scans): a model with a temperature
+    input that leaves its range, a gauge that freezes, every gravity source, and step() and run() mixed."""
+    from ftcal.live.health import names_of
+
+    s = LiveScenario(duration=10.0, rate=200.0, hold_s=1.5, move_s=0.5, contacts=((3.2, 0.6, 10.0),), seed=6)
+    rec = simulate_live(s)
+    model, raw = _affine_model_and_raw(rec)
+    raw[900:1400, 1] = raw[900, 1]  # one gauge freezes for 2.5 s while the others move
+    joints = np.cumsum(np.abs(np.diff(rec.quaternion, axis=0, prepend=rec.quaternion[:1])), axis=0)
+    if source == "gravity":
+        kw = {"gravity": rec.gravity}
+    elif source == "imu":
+        kw = {"imu": -rec.gravity}
+    else:
+        kw = {"gravity": rec.gravity, "joints": joints}
+    tools = {"gripper": tool_payload(s.tools["gripper"])}
+    make = lambda: LiveCalibrator(model, tools=tools, tool="gripper", walk_std=[3, 3, 3, .3, .3, .3])  # noqa: E731
+    block = make().run(rec.time, raw=raw, **kw)
+    live = make()
+    steps, k = [], 0
+    while k < rec.time.size:  # single samples, with a block of 37 now and then
+        if k % 500 == 250:
+            r = live.run(rec.time[k:k + 37], raw=raw[k:k + 37], **{n: v[k:k + 37] for n, v in kw.items()})
+            steps += [(r.bias[i], r.bias_std[i], r.compensated[i], r.calibrated[i], bool(r.updated[i]),
+                       bool(r.static[i]), set(names_of(int(r.flags[i])))) for i in range(r.n_samples)]
+            k += 37
+            continue
+        one = live.step(rec.time[k], raw=raw[k], **{n: v[k] for n, v in kw.items()})
+        steps.append((one.bias, one.bias_std, one.compensated, one.calibrated, one.updated, one.static,
+                      set(one.flags)))
+        k += 1
+    flags = [set(names_of(int(f))) for f in block.flags]
+    assert any("stuck" in f for f in flags) and any("temperature" in f for f in flags)
+    assert block.updated.any() and not block.updated.all()
+    np.testing.assert_array_equal(block.static, [x[5] for x in steps])
+    np.testing.assert_array_equal(block.updated, [x[4] for x in steps])
+    np.testing.assert_allclose(block.calibrated, [x[3] for x in steps], rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(block.bias, [x[0] for x in steps], rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(block.bias_std, [x[1] for x in steps], rtol=1e-9)
+    np.testing.assert_allclose(block.compensated, [x[2] for x in steps], rtol=1e-9, atol=1e-9)
+    assert flags == [x[6] for x in steps]
+    ref = make()
+    ref.run(rec.time, raw=raw, **kw)
+    assert live.counters == ref.counters
+
+
+def test_single_samples_reject_bad_input_like_blocks():
+    live = LiveCalibrator(noise_std=NOISE)
+    live.step(0.0, wrench=np.zeros(6), gravity=[0, 0, -9.81])
+    with pytest.raises(FtcalError, match="non-finite"):
+        live.step(0.1, wrench=[0, 0, np.inf, 0, 0, 0], gravity=[0, 0, -9.81])
+    with pytest.raises(FtcalError, match="unit length"):
+        live.step(0.1, wrench=np.zeros(6), quaternion=[0, 0, 0, 2.0])
+    with pytest.raises(FtcalError, match="increasing"):
+        live.step(0.0, wrench=np.zeros(6), gravity=[0, 0, -9.81])
+    with pytest.raises(FtcalError, match="shape"):
+        live.step(0.1, wrench=np.zeros(5), gravity=[0, 0, -9.81])
+    assert live.counters["samples"] == 1 and live.last_time == 0.0
+
+
+def test_the_walk_and_noise_that_payload_identifies_reach_the_live_tracker(tmp_path):
+    """Offline ``payload --bias-drift random-walk`` on a recording whose walk and noise are known (the simulation's):
+    the payload file stores the variances it identified, and a live calibrator built from that file uses them."""
+    from ftcal.files.payload_json import load_payload, save_payload
+
+    s = LiveScenario(duration=1800.0, rate=20.0, hold_s=8.0, move_s=2.0, walk=(3.0, 0.3), ramp=(0.0, 0.0), seed=17)
+    rec = simulate_live(s)
+    fit = offline_fit(rec)
+    payload = PayloadParameters.from_fit(fit.fit, gravity=9.81, frame=None, reaction=False,
+                                         wrench_columns=("Fx", "Fy", "Fz", "Tx", "Ty", "Tz"), drift=fit.drift)
+    save_payload(payload, tmp_path / "tool.json")
+    doc = json.loads((tmp_path / "tool.json").read_text())
+    walk = np.sqrt(doc["drift"]["random_walk"]["walk_variance"])  # per √h
+    noise = np.sqrt(doc["drift"]["random_walk"]["noise_variance"])  # per sample
+    truth_walk, truth_noise = np.repeat(s.walk, 3), np.repeat(s.noise, 3)
+    assert np.all((walk > truth_walk / 2) & (walk < 2 * truth_walk)), walk
+    # Per block (1.4 s) the walk moves the bias about 6x the noise of a block mean: the noise is identified
+    # far less precisely than the walk.
+    assert np.all((noise > truth_noise / 2) & (noise < 2 * truth_noise)), noise
+    np.testing.assert_allclose(walk ** 2, fit.drift.walk_variance, rtol=1e-12)  # what the identification returned
+    live = LiveCalibrator(tools={"tool": load_payload(tmp_path / "tool.json")}, tool="tool")
+    np.testing.assert_allclose(live.walk_variance * 3600.0, walk ** 2, rtol=1e-12)
+    np.testing.assert_allclose(live.noise_std, noise, rtol=1e-12)
+    overridden = LiveCalibrator(tools={"tool": load_payload(tmp_path / "tool.json")}, tool="tool",
+                                walk_std=np.full(6, 2.0), noise_std=np.full(6, 0.1))
+    np.testing.assert_allclose(overridden.walk_variance * 3600.0, 4.0)
+    np.testing.assert_allclose(overridden.noise_std, 0.1)

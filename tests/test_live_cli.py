@@ -85,7 +85,12 @@ def test_sigterm_saves_the_state_and_leaves_no_output(files):
     root, rec = files
     proc = subprocess.Popen([FTCAL, *BASE, "--realtime", "--state", "term.json", "-o", "term.parquet"], cwd=root,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    time.sleep(8.0)  # start-up, then a few seconds of the 40 s real-time replay
+    # Start-up (seconds of wall time on a loaded machine): until the output's temporary file exists; then a few
+    # seconds of the 40 s real-time replay.
+    deadline = time.monotonic() + 120.0
+    while not list(root.glob(".term.parquet.*.tmp")) and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.1)
+    time.sleep(3.0)
     assert proc.poll() is None
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=60)

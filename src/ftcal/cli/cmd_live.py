@@ -6,6 +6,7 @@ import argparse
 
 from ._common import column_list, finite_float, float_list, positive_float, require_suffix
 from ._examples import epilog
+from ._gravity import add_robot_source_options
 
 
 def tool_spec(text: str) -> tuple[str, str]:
@@ -37,8 +38,9 @@ def register(sub) -> None:
                                    "(--tool NAME=PAYLOAD.json); re-tares (bias only, tool kept) and tool switches "
                                    "can be scripted by time.")
     mode = p.add_mutually_exclusive_group(required=True)
-    mode.add_argument("--replay", metavar="DATA", help="CSV or Parquet recording to run through the calibrator "
-                                                       "(a ROS bag: make a table with `ftcal dataset` first)")
+    mode.add_argument("--replay", metavar="DATA", help="CSV or Parquet recording, or a ROS bag (.bag, .mcap, .db3, "
+                                                       "ROS 2 bag folder; with --wrench-topic and --joints-topic "
+                                                       "or --tf), to run through the calibrator")
     mode.add_argument("--zenoh", action="store_true", help="run live over Zenoh (see the Zenoh options)")
     p.add_argument("-o", "--output", metavar="OUT.parquet|OUT.csv", help="--replay: the results table")
     p.add_argument("--model", metavar="CAL.json", help="calibration model: its input columns are the raw channels")
@@ -62,17 +64,21 @@ def register(sub) -> None:
     p.add_argument("--switch-tool", type=switch_spec, action="append", default=[], metavar="TIME:NAME",
                    help="--replay: mount tool NAME at this time, s (e.g. 30:gripper); repeatable")
     p.add_argument("--walk-std", type=float_list, metavar="F,T",
-                   help="bias random-walk std per √h, force (N) and torque (N·m), or six values (default: from "
-                        "the first tool's random-walk trajectory, else 1 N, 0.1 N·m)")
+                   help="bias random-walk std per √h, force (N) and torque (N·m), or six values (default: the "
+                        "walk `payload --bias-drift random-walk` identified, from the first tool file that has "
+                        "one, else 1 N, 0.1 N·m)")
     p.add_argument("--noise-std", type=float_list, metavar="F,T",
-                   help="per-sample noise std, force and torque, or six values (default: the first tool's "
-                        "residual RMS, else 0.1 N, 0.01 N·m)")
+                   help="per-sample noise std, force and torque, or six values (default: the noise the "
+                        "random-walk identification stored, else the first tool's residual RMS, else 0.1 N, "
+                        "0.01 N·m)")
     p.add_argument("--bias", type=float_list, metavar="B1,...,B6",
                    help="initial bias (default unknown: the first static, contact-free samples set it)")
     p.add_argument("--state", metavar="STATE.json",
                    help="state file: resumed from when it exists, saved (atomically) at the end and on Ctrl-C")
     p.add_argument("--realtime", action="store_true", help="--replay at the recording's speed")
-    zenoh = p.add_argument_group("Zenoh (keys follow zenoh-bridge-ros2dds: topic /ft/raw is key ft/raw)")
+    add_robot_source_options(p, named_models=False)
+    zenoh = p.add_argument_group("Zenoh and ROS bags (Zenoh keys follow zenoh-bridge-ros2dds: topic /ft/raw is "
+                                 "key ft/raw)")
     zenoh.add_argument("--listen", action="append", default=[], metavar="ENDPOINT",
                        help="endpoint to listen on, e.g. tcp/127.0.0.1:7447 (repeatable)")
     zenoh.add_argument("--connect", action="append", default=[], metavar="ENDPOINT",
@@ -81,6 +87,11 @@ def register(sub) -> None:
                        help="raw geometry_msgs/msg/WrenchStamped (default /ft/raw)")
     zenoh.add_argument("--imu-topic", metavar="TOPIC", help="sensor_msgs/msg/Imu in the sensor frame: gravity "
                                                            "from its orientation (else its acceleration)")
+    zenoh.add_argument("--joints-topic", metavar="TOPIC",
+                       help="sensor_msgs/msg/JointState (e.g. /joint_states): gravity from the joints and --urdf")
+    zenoh.add_argument("--tf", metavar="BASE[:SENSOR_FRAME]", type=_frame_pair,
+                       help="--replay of a bag: the sensor's orientation from /tf and /tf_static (BASE gravity-"
+                            "aligned, z up)")
     zenoh.add_argument("--prefix", default="/ft", metavar="TOPIC",
                        help="outputs: PREFIX/calibrated, PREFIX/compensated (WrenchStamped), PREFIX/diagnostics "
                             "(JSON); queryables PREFIX/retare, /switch_tool, /identify_tool, /status "
@@ -105,8 +116,41 @@ def _six(values, option: str):
     raise FtcalError(f"{option}: give two values (force, torque) or six; got {len(values)}.")
 
 
-def build_calibrator(args):
-    """The :class:`~ftcal.live.LiveCalibrator` the options describe."""
+def _frame_pair(text: str):
+    from .cmd_dataset import _frame_pair as parse
+
+    return parse(text)
+
+
+def robot_gravity(args, joint_names, where: str):
+    """The robot model's gravity source (:class:`~ftcal.robot.kinematics.SensorGravity`) over the joints among
+    ``joint_names`` (None: all the robot's), built as ``ftcal payload`` builds its URDF source (same options,
+    same messages); None without --urdf."""
+    from ..robot.kinematics import SensorGravity, kinematics_source
+    from ..runtime.errors import FtcalError
+
+    if args.robot_urdf is None:
+        for option in ("sensor", "ft_joint", "ft_frame", "base"):
+            if getattr(args, option) is not None:
+                raise FtcalError(f"--{option.replace('_', '-')} goes with --urdf (gravity from the joints).")
+        return None
+    if args.orientation or args.gravity_columns or args.imu_columns:
+        raise FtcalError("give one gravity source: --urdf (with the joints), --orientation, --gravity-columns or "
+                         "--imu-columns.")
+    source = kinematics_source(urdf=args.robot_urdf, sensor=args.sensor, ft_joint=args.ft_joint,
+                               ft_frame=args.ft_frame, base=args.base, g=args.g, degrees=args.degrees,
+                               robot_options="--urdf PATH")
+    known = set(source.robot.joint_names)
+    names = source.robot.joint_names if joint_names is None else [n for n in joint_names if n in known]
+    if not names:
+        raise FtcalError(f"{where}: nothing named like a joint of URDF {source.robot.source} "
+                         f"(e.g. {', '.join(source.robot.joint_names[:4])}).")
+    return SensorGravity(source.robot, source.sensor, names, base=source.base, g=source.g, degrees=source.degrees,
+                         source=where)
+
+
+def build_calibrator(args, robot=None):
+    """The :class:`~ftcal.live.LiveCalibrator` the options describe (``robot``: a joints-to-gravity source)."""
     from ..files.model_files import read_model
     from ..files.payload_json import load_payload
     from ..live import LiveCalibrator
@@ -130,7 +174,7 @@ def build_calibrator(args):
         raise FtcalError(f"--bias: give six values; got {len(args.bias)}.")
     return LiveCalibrator(model, tools, tool=mount, walk_std=_six(args.walk_std, "--walk-std"),
                           noise_std=_six(args.noise_std, "--noise-std"), initial_bias=bias,
-                          gravity_magnitude=args.g, state_path=args.state)
+                          gravity_magnitude=args.g, state_path=args.state, robot=robot)
 
 
 def run(args) -> int:
@@ -140,7 +184,7 @@ def run(args) -> int:
 
 
 def run_replay(args) -> int:
-    from ..live.replay import ScriptedEvent, replay_table
+    from ..live.replay import ScriptedEvent
     from ..runtime.errors import FtcalError
     from ._gravity import check_not_input
 
@@ -154,20 +198,13 @@ def run_replay(args) -> int:
 
         if any(Path(p).resolve() == Path(args.state).resolve() for p in inputs + [args.output]):
             raise FtcalError(f"--state {args.state}: is also an input or the output; give the state its own file.")
-    live = build_calibrator(args)
-    columns = replay_columns(args, live)
     events = [ScriptedEvent(t, "retare") for t in args.retare_at] + \
              [ScriptedEvent(t, "switch", name) for t, name in args.switch_tool]
-    try:
-        summary = replay_table(args.replay, live, columns, args.output, events=events, realtime=args.realtime)
-    except FtcalError:
-        raise  # bad input: no output, and the state file is left as it was
-    except BaseException:  # Ctrl-C, SIGTERM: keep what was processed
-        if args.state and live.last_time is not None:
-            live.save_state()
-        raise
-    if args.state:
-        live.save_state()
+    with _replay_source(args) as (table, default_signal, joint_names):
+        robot = robot_gravity(args, joint_names, f"--replay {args.replay}")
+        live = build_calibrator(args, robot)
+        columns = replay_columns(args, live, default_signal)
+        summary = _replay(args, live, table, columns, events)
     print(summary.line())
     for when, flag, _, reason in summary.events[:10]:
         print(f"  t={when:.3f} s  {flag}: {reason}")
@@ -180,7 +217,71 @@ def run_replay(args) -> int:
     return 0
 
 
-def replay_columns(args, live):
+def _replay(args, live, table, columns, events):
+    from ..live.replay import replay_table
+    from ..runtime.errors import FtcalError
+
+    try:
+        summary = replay_table(table, live, columns, args.output, events=events, realtime=args.realtime)
+    except FtcalError:
+        raise  # bad input: no output, and the state file is left as it was
+    except BaseException:  # Ctrl-C, SIGTERM: keep what was processed
+        if args.state and live.last_time is not None:
+            live.save_state()
+        raise
+    if args.state:
+        live.save_state()
+    return summary
+
+
+class _replay_source:
+    """The table to replay (a ROS bag becomes a temporary Parquet table through ``ftcal dataset``'s reader,
+    unsmoothed), the wrench columns it has by default, and its column names (for the joints)."""
+
+    def __init__(self, args) -> None:
+        self.args, self.tmp = args, None
+
+    def __enter__(self):
+        import tempfile
+        from pathlib import Path
+
+        from ..data.logs import READERS, log_format
+        from ..data.tables import table_columns
+        from ..runtime.errors import FtcalError
+
+        args = self.args
+        path = Path(args.replay)
+        if not READERS.get(log_format(path), "").startswith("ftcal.data.bags:"):
+            for option in ("joints_topic", "tf"):
+                if getattr(args, option) is not None:
+                    raise FtcalError(f"--{option.replace('_', '-')} applies to --zenoh and to ROS bags; "
+                                     f"{args.replay} is a table (give its columns).")
+            return args.replay, None, table_columns(args.replay)
+        from ..data.bags import BagTopics
+        from ..insitu.bags import build_bag_table, write_bag_table
+        from ..insitu.recordings import InsituOptions
+
+        if args.model is not None:
+            raise FtcalError("--model with a bag: the bag's wrench topic is the wrench; replay a table of raw "
+                             "channels with --model instead.")
+        topics = BagTopics(wrench=args.wrench_topic, joints=args.joints_topic, imu=args.imu_topic, tf=args.tf)
+        table = build_bag_table([path], topics, options=InsituOptions(savgol_frame=None, temperature=False,
+                                                                      base=args.base))
+        self.tmp = tempfile.TemporaryDirectory(prefix="ftcal-live-bag-")
+        out = Path(self.tmp.name) / "bag.parquet"
+        write_bag_table(table, out)
+        has_orientation = all(c in table.columns for c in ("qx", "qy", "qz", "qw"))
+        if has_orientation and args.orientation is None and args.robot_urdf is None and args.gravity_columns is None \
+                and args.imu_columns is None:
+            args.orientation = ("qx", "qy", "qz", "qw")
+        return str(out), ("u1", "u2", "u3", "u4", "u5", "u6"), tuple(table.columns)
+
+    def __exit__(self, *exc) -> None:
+        if self.tmp is not None:
+            self.tmp.cleanup()
+
+
+def replay_columns(args, live, default_signal=None):
     """Which columns of --replay feed the calibrator."""
     from ..live.replay import ReplayColumns
     from ..runtime.errors import FtcalError
@@ -191,11 +292,13 @@ def replay_columns(args, live):
         signal, raw = tuple(live.model.input_names_), True
     else:
         first = next((p for p in live.tools.values() if p is not None), None)
-        signal = args.wrench or tuple((first.fit.get("wrench_columns") if first else None)
-                                      or ("u1", "u2", "u3", "u4", "u5", "u6"))
+        signal = args.wrench or default_signal or tuple((first.fit.get("wrench_columns") if first else None)
+                                                        or ("u1", "u2", "u3", "u4", "u5", "u6"))
         if len(signal) != 6:
             raise FtcalError(f"--wrench needs 6 columns; got {','.join(signal)}.")
         raw = False
+    if live.robot is not None:
+        return ReplayColumns(args.time, tuple(signal), raw, "joints", tuple(live.robot.joints), args.temperature)
     if args.orientation is not None:
         kind, cols, need = "quaternion", args.orientation, 4
     elif args.gravity_columns is not None:
@@ -203,8 +306,8 @@ def replay_columns(args, live):
     elif args.imu_columns is not None:
         kind, cols, need = "imu", args.imu_columns, 3
     else:
-        raise FtcalError("give the sensor's orientation: --orientation qx,qy,qz,qw, --gravity-columns gx,gy,gz "
-                         "or --imu-columns ax,ay,az.")
+        raise FtcalError("give the sensor's orientation: --orientation qx,qy,qz,qw, --gravity-columns gx,gy,gz, "
+                         "--imu-columns ax,ay,az, or --urdf with the robot's joint columns.")
     if len(cols) != need:
         raise FtcalError(f"--{'orientation' if kind == 'quaternion' else kind + '-columns'} needs {need} columns; "
                          f"got {','.join(cols)}.")
@@ -215,11 +318,16 @@ def run_zenoh(args) -> int:
     from ..live.zenoh_node import ZenohOptions, serve
     from ..runtime.errors import FtcalError
 
-    if args.output or args.retare_at or args.switch_tool or args.realtime:
-        raise FtcalError("-o, --retare-at, --switch-tool and --realtime go with --replay; live, use the "
+    if args.output or args.retare_at or args.switch_tool or args.realtime or args.tf:
+        raise FtcalError("-o, --retare-at, --switch-tool, --realtime and --tf go with --replay; live, use the "
                          "queryables (see docs/live.md).")
+    if (args.joints_topic is None) != (args.robot_urdf is None):
+        raise FtcalError("--joints-topic and --urdf go together: gravity from the joint states and the robot model.")
+    if args.joints_topic and args.imu_topic:
+        raise FtcalError("give one gravity source: --imu-topic, or --joints-topic with --urdf.")
+    robot = robot_gravity(args, None, "--urdf")
     live = build_calibrator(args)
     options = ZenohOptions(listen=tuple(args.listen), connect=tuple(args.connect), wrench_topic=args.wrench_topic,
-                           imu_topic=args.imu_topic, prefix=args.prefix, silence=args.silence,
-                           duration=args.duration)
-    return serve(live, options)
+                           imu_topic=args.imu_topic, joints_topic=args.joints_topic, prefix=args.prefix,
+                           silence=args.silence, duration=args.duration)
+    return serve(live, options, robot=robot)

@@ -72,7 +72,8 @@ def payload_document(payload: PayloadParameters, *, sources: Sequence[str] = ())
     if None in _leaves([doc[k] for k in ("mass", "com", "force_bias", "torque_bias", "gravity")]
                        + [_determined(stderr, payload.undetermined), doc.get("undetermined", {}).get("directions", [])]
                        + [doc.get("inertia", []), doc.get("drift", {}).get("knots", {}),
-                          doc.get("drift", {}).get("temperature", {}).get("coefficients", [])]):
+                          doc.get("drift", {}).get("temperature", {}).get("coefficients", []),
+                          doc.get("drift", {}).get("random_walk", {})]):
         raise FtcalError("The payload has non-finite values (NaN or inf); refusing to save it.")
     doc["sha256"] = digest(doc)
     return doc
@@ -88,6 +89,10 @@ def drift_document(drift: BiasDrift) -> dict:
         doc["temperature"] = {"column": drift.temperature_column,
                               "reference": jsonable(drift.temperature_reference),
                               "coefficients": jsonable(np.asarray(drift.temperature_coefficients))}
+    if drift.walk_variance is not None:
+        doc["random_walk"] = {"walk_variance": jsonable(np.asarray(drift.walk_variance)),
+                              "noise_variance": jsonable(np.asarray(drift.noise_variance)),
+                              "block_samples": jsonable(drift.block_samples)}
     if drift.selection:
         doc["selection"] = drift.selection
     return doc
@@ -130,6 +135,9 @@ def _parse_undetermined(doc: dict, source: str) -> Undetermined:
 def _parse_drift(doc: dict, source: str) -> BiasDrift:
     knots = doc.get("knots")
     temperature = doc.get("temperature")
+    walk = doc.get("random_walk")
+    if walk is not None and doc["model"] != "random-walk":
+        raise FtcalError(f"{source}: drift.random_walk belongs to the random-walk model, not {doc['model']!r}.")
     if knots is not None:
         times = np.asarray(knots["time"], dtype=float)
         if len(knots["bias"]) != len(times) or np.any(np.diff(times) <= 0):
@@ -144,7 +152,10 @@ def _parse_drift(doc: dict, source: str) -> BiasDrift:
                      None if temperature is None else temperature["column"],
                      None if temperature is None else float(temperature["reference"]),
                      None if temperature is None else np.asarray(temperature["coefficients"], dtype=float),
-                     doc.get("selection", ""))
+                     doc.get("selection", ""),
+                     *((None, None, None) if walk is None else (np.asarray(walk["walk_variance"], dtype=float),
+                                                                 np.asarray(walk["noise_variance"], dtype=float),
+                                                                 float(walk["block_samples"]))))
 
 
 def _check_inertia(inertia: np.ndarray, source: str) -> None:

@@ -28,7 +28,7 @@ import numpy as np
 from ..check.accept import Thresholds
 from ..data.holds import HOLD_WINDOW_S, MIN_ANGULAR_RATE, MIN_HOLD_S
 from ..data.signals import SATURATION_RUN, STUCK_RUN
-from ..payload.kinematics import STANDARD_GRAVITY, gravity_from_quaternions
+from ..payload.kinematics import QUATERNION_NORM_TOLERANCE, STANDARD_GRAVITY, gravity_from_quaternions
 from ..payload.parameters import PayloadParameters
 from ..runtime.errors import FtcalError
 from .health import BIT, DEAD_RUN, FLAGS, ExceedanceTimer, RunCounter, names_of
@@ -130,8 +130,26 @@ def tool_wrench(payload: PayloadParameters | None, gravity: np.ndarray) -> np.nd
     return -out if payload.reaction else out
 
 
+def _walk_from_file(payload: PayloadParameters) -> np.ndarray | None:
+    """Walk variance per second that ``payload --bias-drift random-walk`` identified (the file's
+    ``drift.random_walk``), else None."""
+    drift = payload.drift
+    if drift is None or drift.model != "random-walk" or drift.walk_variance is None:
+        return None
+    return np.asarray(drift.walk_variance, dtype=float) / SECONDS_PER_HOUR
+
+
+def _noise_from_file(payload: PayloadParameters) -> np.ndarray | None:
+    """Per-sample noise standard deviation that ``payload --bias-drift random-walk`` identified, else None."""
+    drift = payload.drift
+    if drift is None or drift.model != "random-walk" or drift.noise_variance is None:
+        return None
+    return np.sqrt(np.asarray(drift.noise_variance, dtype=float))
+
+
 def _walk_from_knots(payload: PayloadParameters) -> np.ndarray | None:
-    """Walk variance per second from a random-walk payload's bias trajectory (its quadratic variation).
+    """Walk variance per second from a random-walk payload's bias trajectory (its quadratic variation), for
+    files written before the payload file stored the walk variance.
 
     The trajectory is the offline smoother's, which is smoother than the walk itself, so this
     underestimates the walk; it is the default only when no walk is given.
@@ -155,9 +173,11 @@ class LiveCalibrator:
         the library; ``"none"`` (no tool) is always there
     tool : the tool mounted at the start
     walk_std : ndarray of shape (6,) or None, the bias' random-walk standard deviation per √h (N/√h, N·m/√h);
-        default: the first tool file with a random-walk drift (its trajectory's variation), else
+        default: the walk variance ``payload --bias-drift random-walk`` identified (the first tool file that
+        stores one), else a random-walk file's trajectory variation (older files), else
         :data:`DEFAULT_WALK_FRACTION` × the acceptance thresholds
-    noise_std : ndarray of shape (6,) or None, per-sample noise of the calibrated wrench; default the
+    noise_std : ndarray of shape (6,) or None, per-sample noise of the calibrated wrench; default the noise
+        variance the random-walk identification stored (the first tool file that stores one), else the
         residual RMS of the first tool file, else :data:`DEFAULT_NOISE_FRACTION` × the thresholds
     initial_bias, initial_bias_std : ndarray of shape (6,) or None; default unknown (the first static,
         contact-free samples set it, tool compensated)
@@ -169,6 +189,8 @@ class LiveCalibrator:
     motion_window, min_rate, min_hold : the static test (:mod:`ftcal.live.motion`)
     gravity_magnitude : m/s², for quaternions
     state_path : JSON file the state is saved to (atomically) and resumed from when it exists
+    robot : gravity from joint positions, e.g. :class:`ftcal.robot.kinematics.SensorGravity` (a URDF, the
+        F/T sensor, the joints given); then ``joints`` alone gives gravity (and the motion signal)
 
     Examples
     --------
@@ -188,7 +210,7 @@ class LiveCalibrator:
                  adc_limits: tuple[float, float] | None = None, temperature_range: tuple[float, float] | None = None,
                  motion_window: float = HOLD_WINDOW_S, min_rate: float = MIN_ANGULAR_RATE,
                  min_hold: float = MIN_HOLD_S, gravity_magnitude: float = STANDARD_GRAVITY,
-                 state_path: str | Path | None = None) -> None:
+                 state_path: str | Path | None = None, robot=None) -> None:
         from scipy.stats import chi2
 
         if model is not None:
@@ -199,6 +221,10 @@ class LiveCalibrator:
         if not 0.5 < gate_probability < 1.0:
             raise FtcalError(f"gate_probability must be in (0.5, 1); got {gate_probability}.")
         self.model = model
+        self.robot = robot
+        self._reasons: dict[str, str] = {}  # flag -> the reason it was last raised with (outlives the event log)
+        self._tool_terms: dict = {}  # tool name -> (m, m·c, sign) in plain floats, for the per-sample path
+        self._constants = None  # q, r and the acceptance thresholds as lists, for the per-sample path
         self.tools: dict[str, PayloadParameters | None] = {NO_TOOL: None}
         self.identified: set[str] = set()  # tools identified in place: the state file carries them
         for name, payload in (tools or {}).items():
@@ -211,14 +237,16 @@ class LiveCalibrator:
         self._accept_limit = scale
         files = [p for p in self.tools.values() if p is not None]
         self.noise_std = self._vector(noise_std, "noise_std") if noise_std is not None else next(
-            (np.asarray(p.fit["residual_rms"], float) for p in files if "residual_rms" in p.fit),
-            DEFAULT_NOISE_FRACTION * scale)
+            (v for v in map(_noise_from_file, files) if v is not None), None)
+        if self.noise_std is None:
+            self.noise_std = next((np.asarray(p.fit["residual_rms"], float) for p in files if "residual_rms" in p.fit),
+                                  DEFAULT_NOISE_FRACTION * scale)
         self.noise_std = np.maximum(self.noise_std, 1e-12)
         if walk_std is not None:
             walk_variance = self._vector(walk_std, "walk_std") ** 2 / SECONDS_PER_HOUR
         else:
-            walk_variance = next((w for w in map(_walk_from_knots, files) if w is not None),
-                                 (DEFAULT_WALK_FRACTION * scale) ** 2 / SECONDS_PER_HOUR)
+            walk_variance = next((w for w in [*map(_walk_from_file, files), *map(_walk_from_knots, files)]
+                                  if w is not None), (DEFAULT_WALK_FRACTION * scale) ** 2 / SECONDS_PER_HOUR)
         self.walk_variance = walk_variance  # per second
         self.threshold = float(chi2.ppf(gate_probability, 6))
         self.unexplained_sigma, self.unexplained_seconds = float(unexplained_sigma), float(unexplained_seconds)
@@ -284,6 +312,7 @@ class LiveCalibrator:
 
             payload = load_payload(payload)
         self.tools[name] = payload
+        self._tool_terms.pop(name, None)
         if log:
             self._event("tool", "added", f"tool {name!r} added to the library ({payload.mass:.4g} kg)")
 
@@ -369,10 +398,19 @@ class LiveCalibrator:
              joints=None, temperature=None, static=None) -> LiveSample:
         """Process one sample; the arguments are those of :meth:`run` for a single sample (vectors, scalars).
 
+        One sample runs in plain Python floats (no numpy for 6-vectors): the same formulas as
+        :meth:`run`, whose block recursions are prefix scans. Input it cannot take that way (an
+        identification in progress, or input :meth:`run` rejects, for its message) goes through
+        :meth:`run`.
+
         Returns
         -------
         LiveSample
         """
+        sample = self._step_one(time, raw, wrench, gravity, quaternion, imu, joints, temperature, static)
+        if sample is not None:
+            return sample
+
         def one(x):
             return None if x is None else np.asarray(x, dtype=float).reshape(1, -1)
 
@@ -398,7 +436,8 @@ class LiveCalibrator:
         gravity : ndarray of shape (n, 3), gravity in sensor axes, m/s²; or
         quaternion : ndarray of shape (n, 4), sensor-to-world orientation, x y z w (world z up); or
         imu : ndarray of shape (n, 3), an accelerometer in sensor axes (gravity = −reading at rest)
-        joints : ndarray of shape (n, n_joints) or None, rad: the motion signal when no quaternion is given
+        joints : ndarray of shape (n, n_joints) or None, rad: the motion signal when no quaternion is given;
+            alone (no gravity, quaternion or imu), gravity too, through ``robot``
         temperature : ndarray of shape (n,) or None, °C (the model's temperature input is used when it has one)
         static : ndarray of bool, shape (n,), or None: overrides the motion test
 
@@ -473,8 +512,17 @@ class LiveCalibrator:
 
     def _gravity(self, gravity, quaternion, imu, joints, n):
         given = [x is not None for x in (gravity, quaternion, imu)]
+        if not any(given) and joints is not None and self.robot is not None:
+            q = np.asarray(joints, dtype=float).reshape(n, -1)
+            if q.shape[1] != len(self.robot.joints):
+                raise FtcalError(f"joints has {q.shape[1]} values per sample; the robot model takes "
+                                 f"{len(self.robot.joints)} ({', '.join(self.robot.joints)}).")
+            _finite(q, "joints")
+            return self.robot(q) if n else np.empty((0, 3)), "joints", q
         if sum(given) != 1:
-            raise FtcalError("give exactly one of gravity, quaternion or imu.")
+            raise FtcalError("give exactly one of gravity, quaternion or imu"
+                             + (" (or joints alone: the robot model gives gravity)." if self.robot is not None
+                                else " (joints give gravity only with a robot model)."))
         if quaternion is not None:
             q = np.asarray(quaternion, dtype=float).reshape(n, 4)
             _finite(q, "quaternion")
@@ -516,26 +564,22 @@ class LiveCalibrator:
         def channel_names(row):
             return ", ".join(names[channels[j]] for j in np.flatnonzero(row))
 
+        why = self._saturation_why()
         if self.adc_limits is not None:
             low, high = self.adc_limits
             saturated = (x <= low) | (x >= high)
-            why = f"at the ADC limits {low:g}/{high:g}"
         elif self.model is not None:
             rng = self.model.input_range_[channels]
             outside = (x < rng[:, 0]) | (x > rng[:, 1])
             saturated = outside & (run >= SATURATION_RUN)
-            why = f"flat for >= {SATURATION_RUN} samples outside the calibration's range"
         else:
             saturated = np.zeros_like(x, bool)
-            why = ""
-        set_flag("saturated", saturated, lambda k, row: f"channel {channel_names(row)} saturated ({why})")
-        set_flag("stuck", stuck & ~dead, lambda k, row: f"channel {channel_names(row)} stuck: one value for "
-                 f"{int(run[k][row].max())} samples while the sensor or other channels move")
-        set_flag("dead", dead, lambda k, row: f"channel {channel_names(row)} dead: one value for "
-                 f"{int(run[k][row].max())} samples")
+        set_flag("saturated", saturated, lambda k, row: _saturated_text(channel_names(row), why))
+        set_flag("stuck", stuck & ~dead, lambda k, row: _stuck_text(channel_names(row), int(run[k][row].max())))
+        set_flag("dead", dead, lambda k, row: _dead_text(channel_names(row), int(run[k][row].max())))
         if self.model is not None:
             outside = np.asarray(self.model.out_of_range(u), bool)
-            set_flag("out_of_range", outside, lambda k, _: "inputs outside the calibration's training range or span")
+            set_flag("out_of_range", outside, lambda k, _: OUT_OF_RANGE_TEXT)
         temp = None
         if temperature is not None:
             temp = np.asarray(temperature, dtype=float).reshape(-1)
@@ -544,11 +588,9 @@ class LiveCalibrator:
         if temp is not None and self.temperature_range is not None:
             lo, hi = self.temperature_range
             hot = ~((temp >= lo) & (temp <= hi))
-            set_flag("temperature", hot, lambda k, _: f"temperature {temp[k]:.4g} outside the calibration's "
-                     f"{lo:.4g} to {hi:.4g}")
+            set_flag("temperature", hot, lambda k, _: _temperature_text(temp[k], lo, hi))
         contact = still & ~tracked.updated & (tracked.chi2 >= self.threshold) & (self.identifying is None)
-        set_flag("contact", contact, lambda k, _: f"wrench the tool {self.tool!r} and the bias do not explain "
-                 f"(chi2 {tracked.chi2[k]:.3g} > {self.threshold:.3g}, 6 dof); the bias is not updated")
+        set_flag("contact", contact, lambda k, _: self._contact_text(tracked.chi2[k]))
         sigma = np.sqrt(tracked.innovation_variance)
         limit = self._accept_limit
         beyond = (np.abs(tracked.innovation) > np.maximum(self.unexplained_sigma * sigma, limit)).any(axis=1)
@@ -556,18 +598,217 @@ class LiveCalibrator:
             beyond[:] = False
         duration = self.unexplained_timer.update(t, beyond)
         unexplained = duration >= self.unexplained_seconds
-        set_flag("unexplained", unexplained, lambda k, _: "innovation beyond "
-                 f"{self.unexplained_sigma:g} sigma and the acceptance thresholds for {duration[k]:.3g} s "
-                 f"(> {self.unexplained_seconds:g} s): |compensated| = "
-                 + ", ".join(f"{v:.3g}" for v in np.abs(tracked.innovation[k])))
+        set_flag("unexplained", unexplained, lambda k, _: self._unexplained_text(duration[k],
+                                                                                  tracked.innovation[k].tolist()))
         return flags, reasons
+
+    def _saturation_why(self) -> str:
+        if self.adc_limits is not None:
+            return f"at the ADC limits {self.adc_limits[0]:g}/{self.adc_limits[1]:g}"
+        return f"flat for >= {SATURATION_RUN} samples outside the calibration's range" if self.model is not None else ""
+
+    def _contact_text(self, chi2: float) -> str:
+        return (f"wrench the tool {self.tool!r} and the bias do not explain (chi2 {chi2:.3g} > {self.threshold:.3g}, "
+                "6 dof); the bias is not updated")
+
+    def _unexplained_text(self, duration: float, innovation: list) -> str:
+        return (f"innovation beyond {self.unexplained_sigma:g} sigma and the acceptance thresholds for "
+                f"{duration:.3g} s (> {self.unexplained_seconds:g} s): |compensated| = "
+                + ", ".join(f"{abs(v):.3g}" for v in innovation))
+
+    # ----- one sample in plain floats -------------------------------------------------------------
+    def _tool_terms_of(self, name: str) -> tuple[float, tuple, float]:
+        """(m, m·c, sign) of a tool as plain floats: its gravity wrench is sign·(m g, (m c) × g)."""
+        terms = self._tool_terms.get(name)
+        if terms is None:
+            payload = self.tools[name]
+            if payload is None:
+                terms = (0.0, (0.0, 0.0, 0.0), 1.0)
+            else:
+                mass = float(payload.mass)
+                terms = (mass, tuple(mass * float(c) for c in payload.com), -1.0 if payload.reaction else 1.0)
+            self._tool_terms[name] = terms
+        return terms
+
+    def _step_one(self, time, raw, wrench, gravity, quaternion, imu, joints, temperature,
+                  static) -> LiveSample | None:
+        """:meth:`step` in plain floats; None when :meth:`run` must take the sample (see :meth:`step`).
+
+        Every check comes before the first change of state, so a sample handed on to :meth:`run`
+        meets the state it would have met.
+        """
+        if self.identifying is not None:
+            return None
+        try:
+            t = float(time)
+            if (raw is None) == (wrench is None):
+                return None
+            if raw is not None:
+                if self.model is None:
+                    return None
+                u = _plain(raw, len(self.model.input_names_))
+                if u is None:
+                    return None
+                w = self.model.predict(np.array([u]), warn_out_of_range=False)[0].tolist()
+            else:
+                u = w = _plain(wrench, 6)
+                if w is None:
+                    return None
+            sources = (gravity is not None) + (quaternion is not None) + (imu is not None)
+            if sources == 0 and joints is not None and self.robot is not None:
+                q = _plain(joints, len(self.robot.joints))
+                if q is None:
+                    return None
+                g, kind, signal = self.robot.one(q), "joints", tuple(q)
+            elif sources != 1:
+                return None
+            elif quaternion is not None:
+                q = _plain(quaternion, 4)
+                if q is None:
+                    return None
+                norm = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+                if abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE:
+                    return None
+                qx, qy, qz, qw = signal = (q[0] / norm, q[1] / norm, q[2] / norm, q[3] / norm)
+                gm = -self.gravity_magnitude
+                g = (gm * (2.0 * (qx * qz - qw * qy)), gm * (2.0 * (qy * qz + qw * qx)),
+                     gm * (1.0 - 2.0 * (qx * qx + qy * qy)))
+                kind = "quaternion"
+            else:
+                g = _plain(gravity if gravity is not None else imu, 3)
+                if g is None or g == [0.0, 0.0, 0.0]:
+                    return None
+                if imu is not None:
+                    g = [-g[0], -g[1], -g[2]]
+                kind, signal = "direction", tuple(g)
+            if joints is not None and quaternion is None and kind != "joints":
+                signal = _plain(joints, None)
+                if signal is None:
+                    return None
+                kind, signal = "joints", tuple(signal)
+            temp = None if temperature is None else float(temperature)
+        except (TypeError, ValueError):
+            return None
+        if not math.isfinite(t) or (self.last_time is not None and t <= self.last_time):
+            return None
+        # ----- valid: from here on the state changes -----
+        if static is not None:
+            still = bool(static)
+            moving = not still
+        else:
+            still, moving = self.motion.static_one(t, kind, signal)
+        mass, (m0, m1, m2), sign = self._tool_terms_of(self.tool)
+        gx, gy, gz = g
+        tool = (mass * gx, mass * gy, mass * gz, m1 * gz - m2 * gy, m2 * gx - m0 * gz, m0 * gy - m1 * gx)
+        dt = 0.0 if self.last_time is None else t - self.last_time
+        bias, variance = self.bias.tolist(), self.variance.tolist()
+        walk, noise, limit = self._plain_constants()
+        z = [a - sign * b for a, b in zip(w, tool)]
+        predicted = [p + q * dt for p, q in zip(variance, walk)]
+        innovation_var = [p + r for p, r in zip(predicted, noise)]
+        innovation = [a - b for a, b in zip(z, bias)]
+        chi2 = sum([e * (e / v) for e, v in zip(innovation, innovation_var)])
+        k2 = self.unexplained_sigma * self.unexplained_sigma
+        # |e| > max(k σ, acceptance threshold), σ = √S
+        beyond = any([e * e > k2 * v and abs(e) > a for e, v, a in zip(innovation, innovation_var, limit)])
+        updated = still and chi2 < self.threshold
+        if updated:
+            gain = [p / v for p, v in zip(predicted, innovation_var)]
+            bias = [(1.0 - k) * b + k * c for k, b, c in zip(gain, bias, z)]
+            variance = [p * r / v for p, r, v in zip(predicted, noise, innovation_var)]
+        else:
+            variance = predicted
+        # ----- health -----
+        t_col = self._temperature_input
+        x = u if t_col is None else [v for j, v in enumerate(u) if j != t_col]
+        run, changed = self.runs.update_one(x)
+        n_changed = sum(changed)
+        stuck = [r >= STUCK_RUN and (moving or n_changed - c > 0) for r, c in zip(run, changed)]
+        bits = 0
+        texts = {}
+        if self.adc_limits is not None:
+            low, high = self.adc_limits
+            saturated = [v <= low or v >= high for v in x]
+        elif self.model is not None:
+            ranges = self.model.input_range_.tolist()
+            channels = [j for j in range(len(u)) if j != t_col]
+            saturated = [(v < ranges[c][0] or v > ranges[c][1]) and r >= SATURATION_RUN
+                         for v, c, r in zip(x, channels, run)]
+        else:
+            saturated = None
+
+        def listed(mask):
+            names = self.model.input_names_ if self.model is not None else AXES
+            return ", ".join(names[j] for j, m in zip([j for j in range(len(u)) if j != t_col], mask) if m)
+
+        if saturated is not None and any(saturated):
+            bits |= BIT["saturated"]
+            texts["saturated"] = lambda: _saturated_text(listed(saturated), self._saturation_why())
+        if any(stuck):
+            dead = [s and r >= DEAD_RUN for s, r in zip(stuck, run)]
+            only = [s and not d for s, d in zip(stuck, dead)]
+            if any(only):
+                bits |= BIT["stuck"]
+                texts["stuck"] = lambda: _stuck_text(listed(only), max(r for r, m in zip(run, only) if m))
+            if any(dead):
+                bits |= BIT["dead"]
+                texts["dead"] = lambda: _dead_text(listed(dead), max(r for r, m in zip(run, dead) if m))
+        if self.model is not None and bool(self.model.out_of_range(np.array([u]))[0]):
+            bits |= BIT["out_of_range"]
+            texts["out_of_range"] = lambda: OUT_OF_RANGE_TEXT
+        if temp is None and t_col is not None:
+            temp = u[t_col]
+        if temp is not None and self.temperature_range is not None:
+            lo, hi = self.temperature_range
+            if not lo <= temp <= hi:
+                bits |= BIT["temperature"]
+                texts["temperature"] = lambda: _temperature_text(temp, lo, hi)
+        if still and not updated and chi2 >= self.threshold:
+            bits |= BIT["contact"]
+            texts["contact"] = lambda: self._contact_text(chi2)
+        duration = self.unexplained_timer.update_one(t, beyond)
+        if duration >= self.unexplained_seconds:
+            bits |= BIT["unexplained"]
+            texts["unexplained"] = lambda: self._unexplained_text(duration, innovation)
+        # ----- events, state, result -----
+        silent = self.flags_now & BIT["silent"]
+        before = self.flags_now & ~BIT["silent"]
+        reasons = {}
+        if bits != before:
+            events = []
+            for name in FLAGS:
+                bit = BIT[name]
+                if name != "silent" and (bits & bit) != (before & bit):
+                    if bits & bit:
+                        reasons[name] = texts[name]()
+                        events.append((t, name, "raised", reasons[name]))
+                    else:
+                        events.append((t, name, "cleared", f"{name} cleared"))
+            self._log(events)
+            self.counters["contacts"] += "contact" in reasons
+        self.flags_now = bits | silent
+        # New arrays every sample (never changed in place), so the result may share them.
+        self.bias, self.variance = np.array(bias), np.array(variance)
+        self.last_time = t
+        self.counters["samples"] += 1
+        self.counters["updates"] += updated
+        flags = {name: reasons[name] if name in reasons else self._reasons.get(name, name)
+                 for name in FLAGS if bits & BIT[name]} if bits else {}
+        return LiveSample(t, np.array(w), np.array(innovation), self.bias, np.sqrt(self.variance), still, updated,
+                          flags, self.tool)
+
+    def _plain_constants(self) -> tuple[list, list, list]:
+        """Walk variances q, noise variances r and acceptance thresholds as lists (refreshed if replaced)."""
+        key = (id(self.walk_variance), id(self.noise_std), id(self._accept_limit))
+        if self._constants is None or self._constants[0] != key:
+            self._constants = (key, (self.walk_variance.tolist(), (self.noise_std ** 2).tolist(),
+                                     self._accept_limit.tolist()))
+        return self._constants[1]
+
 
     def reason_of(self, name: str) -> str:
         """The reason logged when flag ``name`` was last raised (its name if none is logged)."""
-        for e in reversed(self.events):
-            if e[1] == name and e[2] == "raised":
-                return e[3]
-        return name
+        return self._reasons.get(name, name)
 
     def _flag_events(self, t, flags, reasons) -> list:
         """Raised and cleared flags over the block (transitions only), logged and returned."""
@@ -588,11 +829,15 @@ class LiveCalibrator:
                 events.append((float(t[k]), name, kind, reasons[name](k) if on[k] else f"{name} cleared"))
         events.sort(key=lambda e: e[0])
         self.flags_now = (int(flags[-1]) & ~BIT["silent"]) | (self.flags_now & BIT["silent"])
-        self.events.extend(events)
+        self._log(events)
         return events
 
+    def _log(self, events) -> None:
+        self.events.extend(events)
+        self._reasons.update((e[1], e[3]) for e in events if e[2] == "raised")
+
     def _event(self, flag: str, kind: str, text: str) -> None:
-        self.events.append((self.last_time if self.last_time is not None else math.nan, flag, kind, text))
+        self._log([(self.last_time if self.last_time is not None else math.nan, flag, kind, text)])
 
     def set_silent(self, silent: bool, reason: str = "") -> None:
         """Raise or clear the ``silent`` flag (the transports call this)."""
@@ -664,7 +909,43 @@ class LiveCalibrator:
         self._event("state", "resumed", f"resumed from {path} at t={self.last_time}")
 
 
+AXES = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
+OUT_OF_RANGE_TEXT = "inputs outside the calibration's training range or span"
+
+
+def _saturated_text(channels: str, why: str) -> str:
+    return f"channel {channels} saturated ({why})"
+
+
+def _stuck_text(channels: str, run: int) -> str:
+    return f"channel {channels} stuck: one value for {run} samples while the sensor or other channels move"
+
+
+def _dead_text(channels: str, run: int) -> str:
+    return f"channel {channels} dead: one value for {run} samples"
+
+
+def _temperature_text(temperature: float, low: float, high: float) -> str:
+    return f"temperature {temperature:.4g} outside the calibration's {low:.4g} to {high:.4g}"
+
+
+def _plain(values, size: int | None) -> list | None:
+    """A sample's vector as a list of finite floats of the given size, or None (then
+    :meth:`LiveCalibrator.run` takes the sample and says what is wrong)."""
+    if isinstance(values, np.ndarray):
+        out = values.ravel().tolist()
+        if values.dtype != np.float64:
+            out = [*map(float, out)]
+    else:
+        out = [*map(float, values)]
+    # A sum is finite only if every term is (an overflowing sum sends a finite sample to run(): slower, same result).
+    if (size is not None and len(out) != size) or not math.isfinite(sum(out)):
+        return None
+    return out
+
+
 def _finite(x: np.ndarray, name: str) -> None:
+
     if not np.all(np.isfinite(x)):
         row = int(np.flatnonzero(~np.all(np.isfinite(x), axis=1))[0])
         raise FtcalError(f"{name} has a non-finite value at sample {row}.")

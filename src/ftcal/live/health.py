@@ -22,6 +22,8 @@ flag               raised when
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..data.signals import SATURATION_RUN, STUCK_RUN
@@ -38,24 +40,33 @@ def names_of(bits: int) -> list[str]:
 
 
 class RunCounter:
-    """Length of the current run of identical values of each channel, across blocks."""
+    """Length of the current run of identical values of each channel, across blocks and single samples."""
 
     def __init__(self) -> None:
-        self.last: np.ndarray | None = None
-        self.run: np.ndarray | None = None
+        self.last: list | None = None  # plain floats: the per-sample path reads them without numpy
+        self.run: list | None = None
 
     def update(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Run lengths (n, c) including each sample, and which channels changed at each sample (n, c)."""
         n, c = x.shape
-        if self.last is None or self.last.shape[0] != c:
-            self.last, self.run = np.full(c, np.nan), np.zeros(c, np.int64)
-        previous = np.vstack([self.last[None], x[:-1]])
+        if self.last is None or len(self.last) != c:
+            self.last, self.run = [np.nan] * c, [0] * c
+        previous = np.vstack([np.asarray(self.last, dtype=float)[None], x[:-1]])
         changed = x != previous
         index = np.arange(n)[:, None]
         since = np.maximum.accumulate(np.where(changed, index, -1), axis=0)  # last change at or before k
-        run = np.where(since >= 0, index - since + 1, index + 1 + self.run[None])
-        self.last, self.run = x[-1].copy(), run[-1].copy()
+        run = np.where(since >= 0, index - since + 1, index + 1 + np.asarray(self.run, dtype=np.int64)[None])
+        self.last, self.run = x[-1].tolist(), run[-1].tolist()
         return run, changed
+
+    def update_one(self, x: list) -> tuple[list, list]:
+        """:meth:`update` for one sample of plain floats: run lengths and changed flags, lists of length c."""
+        if self.last is None or len(self.last) != len(x):
+            self.last, self.run = [math.nan] * len(x), [0] * len(x)
+        changed = [a != b for a, b in zip(x, self.last)]
+        self.run = [1 if ch else r + 1 for ch, r in zip(changed, self.run)]
+        self.last = list(x)
+        return self.run, changed
 
 
 class ExceedanceTimer:
@@ -75,3 +86,12 @@ class ExceedanceTimer:
         duration = np.where(exceed, time - start, -np.inf)
         self.start = float(start[-1]) if exceed[-1] else np.nan
         return duration
+
+    def update_one(self, time: float, exceed: bool) -> float:
+        """:meth:`update` for one sample: the run's duration so far, or −inf."""
+        if not exceed:
+            self.start = math.nan
+            return -math.inf
+        if math.isnan(self.start):
+            self.start = time
+        return time - self.start

@@ -49,8 +49,8 @@ class ReplayColumns:
     time : time column, s
     signal : raw inputs (the model's) or the wrench columns
     raw : True when ``signal`` are the model's inputs
-    gravity_kind : "quaternion", "gravity" or "imu"
-    gravity : 4 quaternion columns (x, y, z, w) or 3 gravity / accelerometer columns
+    gravity_kind : "quaternion", "gravity", "imu" or "joints" (the calibrator's robot model gives gravity)
+    gravity : 4 quaternion columns (x, y, z, w), 3 gravity / accelerometer columns, or the joint columns
     temperature : temperature column or None
     """
 
@@ -131,7 +131,7 @@ class _Writer:
 
 def replay_table(path: str | os.PathLike, live: LiveCalibrator, columns: ReplayColumns, output: str | os.PathLike,
                  *, events: Sequence[ScriptedEvent] = (), realtime: bool = False,
-                 on_block: Callable[[LiveResult], None] | None = None) -> ReplaySummary:
+                 on_block: Callable[[LiveResult], None] | None = None, chunk_rows: int | None = None) -> ReplaySummary:
     """Run ``live`` over a CSV or Parquet table and write its results to ``output`` (atomically).
 
     Parameters
@@ -143,6 +143,8 @@ def replay_table(path: str | os.PathLike, live: LiveCalibrator, columns: ReplayC
     events : scripted re-tares and tool switches
     realtime : pace the replay at the recording's speed (default: as fast as possible)
     on_block : called with each block's result (e.g. to print events)
+    chunk_rows : rows read and run at a time (default :data:`ftcal.data.table_chunks.CHUNK_ROWS`); memory
+        follows it, not the recording's length
 
     Returns
     -------
@@ -153,7 +155,7 @@ def replay_table(path: str | os.PathLike, live: LiveCalibrator, columns: ReplayC
     FtcalError
         Missing columns, non-finite cells, time that does not increase, or an event naming an unknown tool.
     """
-    from ..data.table_chunks import iter_table_chunks
+    from ..data.table_chunks import CHUNK_ROWS, iter_table_chunks
     from ..runtime.atomic import atomic_path
     from .health import FLAGS
 
@@ -175,7 +177,7 @@ def replay_table(path: str | os.PathLike, live: LiveCalibrator, columns: ReplayC
     with atomic_path(output) as tmp:
         writer = _Writer(tmp, suffix)
         try:
-            for chunk in iter_table_chunks(path, names):
+            for chunk in iter_table_chunks(path, names, chunk_rows=chunk_rows or CHUNK_ROWS):
                 x = chunk.inputs
                 t = x[:, 0]
                 if np.any(np.diff(t) <= 0):
@@ -225,7 +227,7 @@ def _run(live: LiveCalibrator, x: np.ndarray, columns: ReplayColumns) -> LiveRes
     gravity = x[:, k:k + len(columns.gravity)]
     k += len(columns.gravity)
     temperature = x[:, k] if columns.temperature else None
-    kinds = {"quaternion": "quaternion", "gravity": "gravity", "imu": "imu"}
+    kinds = {"quaternion": "quaternion", "gravity": "gravity", "imu": "imu", "joints": "joints"}
     source = {kinds[columns.gravity_kind]: gravity}
     signals = {"raw": signal} if columns.raw else {"wrench": signal}
     return live.run(x[:, 0], temperature=temperature, **signals, **source)

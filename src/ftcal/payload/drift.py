@@ -78,6 +78,14 @@ class BiasDrift:
         Bias change per unit of temperature.
     selection : str
         Why this model (``auto``), in words.
+    walk_variance : ndarray of shape (6,) or None
+        ``random-walk``: the walk's variance per hour (N²/h, (N·m)²/h), as identified; the live
+        calibrator's bias tracker (:mod:`ftcal.live.tracker`) reads it.
+    noise_variance : ndarray of shape (6,) or None
+        ``random-walk``: the per-sample noise variance (N², (N·m)²): the identified variance of a time
+        block's mean times the block's mean sample count (exact for white noise).
+    block_samples : float or None
+        ``random-walk``: the time blocks' mean sample count.
     """
 
     model: str = "none"
@@ -90,6 +98,9 @@ class BiasDrift:
     temperature_reference: float | None = None
     temperature_coefficients: np.ndarray | None = None
     selection: str = ""
+    walk_variance: np.ndarray | None = None
+    noise_variance: np.ndarray | None = None
+    block_samples: float | None = None
 
     def bias(self, constant: np.ndarray, time: np.ndarray | None, temperature: np.ndarray | None,
              source: str = "data") -> np.ndarray:

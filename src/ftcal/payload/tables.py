@@ -367,10 +367,17 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
     if hours is not None or temperature is not None:
         t = recording.time
         coefficients = fit.covariates["temperature"][0] if temperature is not None else None
+        variances = {}
+        if kind == "random-walk":
+            ss = fits["random-walk"]
+            block_samples = float(blocks.count.mean())
+            variances = {"walk_variance": np.asarray(ss.walk_variance, dtype=float),
+                         "noise_variance": np.asarray(ss.noise_variance, dtype=float) * block_samples,
+                         "block_samples": block_samples}
         drift = BiasDrift(kind, time_column if t is not None else None,
                           None if t is None else float(t[0]), None if t is None else float(t[-1]),
                           knot_times, knot_bias, temperature_column if temperature is not None else None,
-                          reference if temperature is not None else None, coefficients, selection)
+                          reference if temperature is not None else None, coefficients, selection, **variances)
     return DriftResult(fit, constant, drift, selection, change, 0.0 if hours is None else float(hours[-1]), walk,
                        n_groups, held_out)
 

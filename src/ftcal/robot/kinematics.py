@@ -416,3 +416,68 @@ def kinematics_source(*, orientation: Sequence[str] | None = None, gravity_colum
         if cols is not None and len(cols) != 3:
             raise FtcalError(f"{option} needs 3 columns; got {','.join(cols)}.")
     return MotionSource(source, angular_velocity, linear_acceleration, angular_acceleration, time or "time")
+
+
+class SensorGravity:
+    """Gravity in an F/T sensor's frame from joint positions, one sample or a block at a time (static poses).
+
+    The live calibrator's robot source: it keeps one iDynTree ``KinDynComputations`` (set up once), and
+    per sample sets the joint positions and reads the sensor frame's orientation ``base_R_sensor``;
+    gravity ``(0, 0, −g)`` of the fixed ``base`` frame then reads ``base_R_sensorᵀ (0, 0, −g)`` (what
+    :class:`JointColumnsSource` gives ``ftcal payload`` through :func:`sensor_kinematics`).
+
+    Parameters
+    ----------
+    robot : RobotModel
+    sensor : F/T sensor (sensor or joint name)
+    joints : names of the joint values given, in their order (each a movable joint of ``robot``; the
+        joints on the chain from ``base`` to the sensor must be among them; the others are held at 0)
+    base : fixed base frame (default as :meth:`RobotModel.base_frame`), gravity along its −z
+    g : gravity magnitude, m/s²
+    degrees : joint values are in degrees
+    """
+
+    def __init__(self, robot: RobotModel, sensor: str, joints: Sequence[str], *, base: str | None = None,
+                 g: float = 9.81, degrees: bool = False, source: str = "joints") -> None:
+        import idyntree.swig as idyn
+
+        self.idyn, self.robot, self.joints, self.g, self.degrees = idyn, robot, tuple(joints), float(g), degrees
+        self.base = base
+        ft = robot.sensor(sensor)
+        self.sensor = ft.name
+        anchor, base_name = robot.base_frame(base)
+        robot.joint_matrix(self.joints, np.zeros((1, len(self.joints))), source)  # unknown names: one line
+        require_chain_joints(robot, self.joints, base_name, ft.name, source)
+        index = {n: i for i, n in enumerate(robot.joint_names)}
+        self._order = [index[n] for n in self.joints]
+        self._q = np.zeros(len(robot.joint_names))
+        link, link_H_sensor = _sensor_frame(robot, ft.name)
+        model = robot.model
+        self.kd = idyn.KinDynComputations()
+        self.kd.loadRobotModel(model)
+        self.kd.setFloatingBase(model.getLinkName(model.getFrameLink(anchor)))
+        base_H_link = model.getFrameTransform(anchor).asHomogeneousTransform().toNumPy()
+        self.kd.setWorldBaseTransform(idyn.Transform(np.linalg.inv(base_H_link)))
+        self._frame = int(model.getFrameIndex(link))
+        self._link_R_sensor = link_H_sensor[:3, :3]
+
+    def with_joints(self, joints: Sequence[str], source: str = "joints") -> "SensorGravity":
+        """The same robot, sensor, base and gravity over other joint names (e.g. a JointState message's)."""
+        return SensorGravity(self.robot, self.sensor, joints, base=self.base, g=self.g, degrees=self.degrees,
+                             source=source)
+
+    def one(self, positions) -> tuple[float, float, float]:
+        """Gravity (m/s², sensor axes) for one sample of joint positions (in the order of ``joints``)."""
+        q = self._q
+        values = np.asarray(positions, dtype=float)
+        q[self._order] = np.deg2rad(values) if self.degrees else values
+        if not self.kd.setJointPos(self.idyn.VectorDynSize.FromPython(q)):
+            raise FtcalError("iDynTree could not set the joint positions.")
+        rotation = self.kd.getWorldTransform(self._frame).getRotation().toNumPy() @ self._link_R_sensor
+        # Third row of base_R_sensor is the base z axis in sensor axes.
+        return tuple((-self.g * rotation[2]).tolist())
+
+    def __call__(self, positions: np.ndarray) -> np.ndarray:
+        """Gravity (n, 3), m/s², sensor axes, for joint positions of shape (n, len(joints))."""
+        positions = np.asarray(positions, dtype=float)
+        return np.array([self.one(row) for row in positions]).reshape(-1, 3)
