@@ -272,21 +272,46 @@ def span_distance(spread: Spread, inputs: np.ndarray) -> np.ndarray:
     Returns
     -------
     ndarray of shape (n_samples,)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> x = np.random.default_rng(0).normal(size=(1000, 2))
+    >>> float(span_distance(Spread.of(x), x.mean(axis=0, keepdims=True))[0])
+    0.0
     """
-    cov = spread.covariance
-    std = np.sqrt(np.maximum(np.diag(cov), 0.0))
-    unit = np.where(std > 0, std, 1.0)
-    corr = cov / unit[:, None] / unit[None, :]
-    values, vectors = np.linalg.eigh(0.5 * (corr + corr.T))
-    kept = values > SPAN_RELATIVE_FLOOR * max(values.max(), 0.0)
-    projected = ((np.asarray(inputs, dtype=np.float64) - spread.mean) / unit) @ vectors
-    distance = np.sum(projected[:, kept] ** 2 / values[kept], axis=1)
-    if not kept.all():
-        # Any move along a direction the training data never varied in is outside the span.
-        scale = np.sqrt(max(values.max(), 1e-300))
-        off = np.abs(projected[:, ~kept]).max(axis=1) > 1e-6 * scale
-        distance = np.where(off, np.inf, distance)
-    return distance
+    return SpanTest(spread).distance(inputs)
+
+
+class SpanTest:
+    """:func:`span_distance` with its eigendecomposition done once, for callers that test sample by sample.
+
+    Parameters
+    ----------
+    spread : Spread of the training inputs
+    """
+
+    def __init__(self, spread: Spread) -> None:
+        self.spread = spread
+        cov = spread.covariance
+        std = np.sqrt(np.maximum(np.diag(cov), 0.0))
+        self.unit = np.where(std > 0, std, 1.0)
+        corr = cov / self.unit[:, None] / self.unit[None, :]
+        values, self.vectors = np.linalg.eigh(0.5 * (corr + corr.T))
+        self.kept = values > SPAN_RELATIVE_FLOOR * max(values.max(), 0.0)
+        self.values = values
+        self.scale = np.sqrt(max(values.max(), 1e-300))
+
+    def distance(self, inputs: np.ndarray) -> np.ndarray:
+        """Squared Mahalanobis distance of each row of ``inputs`` (n_samples, n_inputs), as :func:`span_distance`."""
+        projected = ((np.asarray(inputs, dtype=np.float64) - self.spread.mean) / self.unit) @ self.vectors
+        kept = self.kept
+        distance = np.sum(projected[:, kept] ** 2 / self.values[kept], axis=1)
+        if not kept.all():
+            # Any move along a direction the training data never varied in is outside the span.
+            off = np.abs(projected[:, ~kept]).max(axis=1) > 1e-6 * self.scale
+            distance = np.where(off, np.inf, distance)
+        return distance
 
 
 def span_limit(n_inputs: int) -> float:

@@ -630,6 +630,28 @@ class LiveCalibrator:
             self._tool_terms[name] = terms
         return terms
 
+    def _row_predict(self):
+        """The model's one-sample predictor (:meth:`CalibrationModel.row_predictor`), made once per model."""
+        cached = getattr(self, "_row_predictor", None)
+        if cached is None or cached[0] is not self.model:
+            one = getattr(self.model, "row_predictor", lambda: None)()
+            if one is None:  # a family or an ARX model without one: predict()'s own path
+                model = self.model
+                one = lambda u: model.predict(np.array([u]), warn_out_of_range=False)[0]  # noqa: E731
+            cached = self._row_predictor = (self.model, one)
+        return cached[1]
+
+    def _row_outside(self):
+        """The model's one-sample range-and-span test (:meth:`CalibrationModel.row_range_test`), made once."""
+        cached = getattr(self, "_row_range_test", None)
+        if cached is None or cached[0] is not self.model:
+            test = getattr(self.model, "row_range_test", lambda: None)()
+            if test is None:  # a family without one: out_of_range() on one row
+                model = self.model
+                test = lambda u: bool(model.out_of_range(np.array([u]))[0])  # noqa: E731
+            cached = self._row_range_test = (self.model, test)
+        return cached[1]
+
     def _step_one(self, time, raw, wrench, gravity, quaternion, imu, joints, temperature,
                   static) -> LiveSample | None:
         """:meth:`step` in plain floats; None when :meth:`run` must take the sample (see :meth:`step`).
@@ -649,7 +671,7 @@ class LiveCalibrator:
                 u = _plain(raw, len(self.model.input_names_))
                 if u is None:
                     return None
-                w = self.model.predict(np.array([u]), warn_out_of_range=False)[0].tolist()
+                w = self._row_predict()(u).tolist()
             else:
                 u = w = _plain(wrench, 6)
                 if w is None:
@@ -753,7 +775,7 @@ class LiveCalibrator:
             if any(dead):
                 bits |= BIT["dead"]
                 texts["dead"] = lambda: _dead_text(listed(dead), max(r for r, m in zip(run, dead) if m))
-        if self.model is not None and bool(self.model.out_of_range(np.array([u]))[0]):
+        if self.model is not None and self._row_outside()(u):
             bits |= BIT["out_of_range"]
             texts["out_of_range"] = lambda: OUT_OF_RANGE_TEXT
         if temp is None and t_col is not None:

@@ -12,11 +12,11 @@ from ...runtime.errors import FtcalError, OutOfRangeWarning
 from ...runtime.threads import map_ranges, single_threaded_blas
 from .. import metrics
 from ..dataset import Dataset
-from ..excitation import span_distance, span_limit
+from ..excitation import SpanTest, span_limit
 from ..features import FeatureCombination
 from ..kernels import compiled, step_table
 from ..limits import ARX_WARMUP, FREE_RUN_STARTS, PREDICTION_MODES
-from ..ranges import RangeSums, describe, outside_by_channel
+from ..ranges import RANGE_TOLERANCE, RangeSums, describe, outside_by_channel
 from .frame import as_dataset, outputs_in_order
 
 PREDICT_CHUNK = 4096
@@ -51,7 +51,78 @@ class PredictionMixin:
         inputs = np.asarray(inputs, dtype=np.float64)
         if self.input_spread_ is None:
             return np.zeros(inputs.shape[0], dtype=bool)
-        return span_distance(self.input_spread_, inputs) > span_limit(inputs.shape[1])
+        return self._span_test().distance(inputs) > span_limit(inputs.shape[1])
+
+    def _span_test(self) -> SpanTest:
+        # Decomposed once per fitted spread: a live loop tests one sample at a time.
+        cached = getattr(self, "_span_test_cache", None)
+        if cached is None or cached.spread is not self.input_spread_:
+            cached = self._span_test_cache = SpanTest(self.input_spread_)
+        return cached
+
+    def row_range_test(self):
+        """A function telling whether one sample is outside the training range or span.
+
+        :meth:`out_of_range` of one row, with its thresholds and the span's decomposition made
+        once: for loops that test sample by sample (:class:`ftcal.live.LiveCalibrator`).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from ftcal import CalibrationModel, Dataset
+        >>> u = np.random.default_rng(0).uniform(-1, 1, size=(200, 2))
+        >>> outside = CalibrationModel(1).fit(Dataset.from_arrays(u, u, output_names=["Fx", "Fy"])).row_range_test()
+        >>> outside([0.0, 0.1]), outside([3.0, 0.0])
+        (False, True)
+        """
+        self._check_fitted()
+        low, high = self.input_range_[:, 0], self.input_range_[:, 1]
+        slack = RANGE_TOLERANCE * np.maximum(high - low, 1.0)  # as outside_by_channel
+        lows, highs = (low - slack).tolist(), (high + slack).tolist()
+        span = None if self.input_spread_ is None else self._span_test()
+        limit = span_limit(len(lows))
+
+        def outside(u) -> bool:
+            if any(x < lo or x > hi for x, lo, hi in zip(u, lows, highs)):
+                return True
+            return span is not None and bool(span.distance(np.array([u], dtype=np.float64))[0] > limit)
+
+        return outside
+
+    def row_predictor(self):
+        """A function that predicts one sample of a static model: a sequence of n_inputs floats → (n_outputs,).
+
+        The arithmetic of :meth:`predict` on one row (the compiled kernel, or numpy), without its
+        per-call checks and dispatch: for loops that check their inputs themselves, sample by sample
+        (:class:`ftcal.live.LiveCalibrator`). None for ARX models, whose prediction has a history.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from ftcal import CalibrationModel, Dataset
+        >>> u = np.random.default_rng(0).normal(size=(200, 2))
+        >>> model = CalibrationModel(2).fit(Dataset.from_arrays(u, u ** 2, output_names=["Fx", "Fy"]))
+        >>> one = model.row_predictor()
+        >>> bool(np.array_equal(one([0.5, -1.0]), model.predict(np.array([[0.5, -1.0]]))[0]))
+        True
+        """
+        self._check_fitted()
+        if not self.layout_.is_static:
+            return None
+        basis = self.layout_.basis
+        coef_t = np.ascontiguousarray(self.coef_.T)
+        offset, inv_scale = self.input_normalization_.offset, 1.0 / self.input_normalization_.scale
+        kernels = compiled()
+        if kernels is None:
+            return lambda u: self._predict_static(np.array([u], dtype=np.float64))[0]
+        steps = step_table(basis.n_inputs, basis.degree)
+
+        def one(u) -> np.ndarray:
+            out = np.empty((1, coef_t.shape[0]))
+            kernels.predict(np.array([u], dtype=np.float64), offset, inv_scale, coef_t, steps, out)
+            return out[0]
+
+        return one
 
     def predict(self, data: Dataset | np.ndarray, *, mode: str = "free-run", start: str = "zeros",
                 warn_out_of_range: bool = True) -> np.ndarray:
