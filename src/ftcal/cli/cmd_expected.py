@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from ..core.limits import MISSING_JOINTS
 from ._common import add_scheduler_option, finite_float, require_suffix
 from ._examples import epilog
 from .cmd_sensors import add_cache_arguments, add_robot_arguments, load_robot
@@ -19,13 +20,17 @@ def register(subparsers) -> None:
                     "parent link, in the sensor frame, torque about the sensor origin (N, N m).")
     add_robot_arguments(parser)
     parser.add_argument("--joints", metavar="FILE", required=True,
-                        help="CSV/Parquet, one column per joint named as in the URDF (radians); joints "
-                             "not given are 0; an optional 'time' column is copied to the output")
+                        help="CSV/Parquet, one column per joint named as in the URDF (radians); every joint the "
+                             "sensors' wrench depends on (chain from the base, and beyond the sensor) must be "
+                             "there unless --missing-joints zero; an optional 'time' column is copied to the output")
     parser.add_argument("--sensor", metavar="NAME", action="append", default=[],
                         help="F/T sensor (sensor or joint name); repeatable; default all")
     parser.add_argument("--gravity", metavar=("X", "Y", "Z"), nargs=3, type=finite_float,
                         default=(0.0, 0.0, -9.81), help="gravity in base-frame axes, m/s² (default 0 0 -9.81)")
     parser.add_argument("--degrees", action="store_true", help="joint positions are in degrees")
+    parser.add_argument("--missing-joints", choices=MISSING_JOINTS, default="refuse",
+                        help="a joint the wrench depends on that the table lacks: refuse (default), or zero "
+                             "(you say it is at 0 rad)")
     parser.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
     add_scheduler_option(parser)
     add_cache_arguments(parser)
@@ -48,7 +53,8 @@ def run(args: argparse.Namespace) -> int:
     sensors = [robot.sensor(name) for name in args.sensor] or list(robot.ft_sensors)
     labels = args.sensor or [s.name for s in sensors]
     _, base = robot.base_frame(args.base)
-    settings = (base, tuple(args.gravity), args.degrees, not args.no_cache, args.cache_dir)
+    settings = (base, tuple(args.gravity), args.degrees, not args.no_cache, args.cache_dir,
+                tuple(s.name for s in sensors), args.missing_joints)
     if args.scheduler:
         description = (robot.urdf_text, robot.source, robot.payloads, robot.declared)
         with open_executor(args.scheduler) as executor:
@@ -66,8 +72,13 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def joints_file_wrenches(joints, robot, workers, base, gravity, degrees, cache, cache_dir):
-    """The ``time`` column (or None) and the (n_samples, n_sensors, 6) expected wrenches of a joints file."""
+def joints_file_wrenches(joints, robot, workers, base, gravity, degrees, cache, cache_dir, sensors=(),
+                         missing_joints="refuse"):
+    """The ``time`` column (or None) and the (n_samples, n_sensors, 6) expected wrenches of a joints file.
+
+    A joint that the wrench of one of ``sensors`` depends on and that the file lacks is refused unless
+    ``missing_joints`` is ``"zero"`` (the user says it is at 0 rad).
+    """
     from pathlib import Path
 
     import numpy as np
@@ -75,9 +86,13 @@ def joints_file_wrenches(joints, robot, workers, base, gravity, degrees, cache, 
     from ..data.tables import numeric_columns, read_table
     from ..robot.cache import cache_key, cached
     from ..robot.expected import expected_wrenches
+    from ..robot.kinematics import require_wrench_joints
 
     table = read_table(Path(joints))
     joint_cols = [c for c in table.columns if c != "time"]
+    if missing_joints != "zero" and set(joint_cols) <= set(robot.joint_names):  # else joint_matrix names them
+        require_wrench_joints(robot, joint_cols, base, sensors, f"--joints {joints}",
+                              " (give their columns, or --missing-joints zero if they are at 0 rad)")
     values = numeric_columns(table, joint_cols, Path(joints), "joint")
     if degrees:
         values = np.deg2rad(values)

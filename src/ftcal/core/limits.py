@@ -238,3 +238,8 @@ SIMULATE_CHANNELS = ("wrench", "raw")
 
 SIMULATE_FORMATS = ("bag", "table")
 """What ``ftcal simulate`` writes per recording: a ROS 2 bag folder, a robot-log table (Parquet)."""
+
+MISSING_JOINTS = ("refuse", "zero")
+"""What ``ftcal expected --missing-joints`` does with a joint the expected wrench depends on (on the chain
+from the base to the sensor, or beyond the sensor) that the joints table lacks: refuse it, or hold it at 0 rad
+because the user says it is 0."""
