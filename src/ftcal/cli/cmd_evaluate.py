@@ -36,6 +36,7 @@ def evaluate(args):
     import numpy as np
 
     from ..core.fingerprint import warn_if_trained_on
+    from ..core.ranges import LoadSums
     from ..data.tables import read_dataset
     from ..files.model_files import read_model_file
     from ..runtime.errors import OutOfRangeWarning
@@ -51,7 +52,15 @@ def evaluate(args):
         warnings.simplefilter("ignore", OutOfRangeWarning)
         summary = model.score(data, mode=args.mode, start=args.start, warmup=args.warmup)
         summary["out_of_range"] = range_summary(model, data, args) if summary["n_out_of_range"] else None
+    summary["loads_beyond_training"] = load_summary(
+        model, LoadSums.of(data.outputs[:, [data.output_names.index(n) for n in model.output_names_]],
+                           model.output_range_, model.output_names_))
     return model, summary
+
+
+def load_summary(model, loads) -> dict | None:
+    """:meth:`~ftcal.core.ranges.LoadSums.summary` of the reference loads, None without them."""
+    return None if loads is None else loads.summary(model.output_range_, model.output_names_)
 
 
 def range_summary(model, data, args) -> dict:
@@ -93,6 +102,7 @@ def evaluate_streaming(args, model, training_segments) -> dict:
     warn_training_segments(sorted(main.training_segments), training_segments, args.model)
     summary = main.summary(model.output_names_)
     summary["out_of_range"] = main.ranges.summary(model.input_names_) if main.n_out_of_range else None
+    summary["loads_beyond_training"] = load_summary(model, None if main.ranges is None else main.ranges.loads)
     if other is not None:
         second = other.summary(model.output_names_)
         del second["n_out_of_range"]
@@ -128,7 +138,7 @@ def range_and_span_counts(summary: dict) -> tuple[int, int]:
 def run(args) -> int:
     from ..core.metrics import EVALUATION_KEYS as JSON_KEYS
     from ..core.metrics import METRIC_NAMES, METRIC_NOTES, format_metric, output_units
-    from ..core.ranges import channel_text, effect_text
+    from ..core.ranges import channel_text, effect_text, loads_text
 
     model, summary = evaluate(args)
     check_finite_metrics(summary, JSON_KEYS)
@@ -140,6 +150,8 @@ def run(args) -> int:
         # The same two counts as the text: n_out_of_range = n_outside_range + n_outside_span.
         payload["n_outside_range"], payload["n_outside_span"] = outside_range, outside_span
         payload["out_of_range"] = summary["out_of_range"]
+        # loads beyond the training loads (the cross-validated error does not forecast them); see the text
+        payload["loads_beyond_training"] = summary.get("loads_beyond_training")
         for other in ("one_step", "free_run"):
             if other in summary:
                 payload[other] = {k: summary[other][k] for k in JSON_KEYS if k in summary[other]}
@@ -156,6 +168,9 @@ def run(args) -> int:
         print(f"  outside: {channel_text(summary['out_of_range'])}")
         if effect_text(summary["out_of_range"]):
             print(f"  {effect_text(summary['out_of_range'])}")
+    loads = loads_text(summary.get("loads_beyond_training"))
+    if loads:
+        print(loads)
     units = output_units(summary["outputs"])
     acf = METRIC_NAMES["residual_autocorrelation_lag1"]
     # RMSE and max |error| are in each output's unit (last column); BestFit in %; the acf has none.

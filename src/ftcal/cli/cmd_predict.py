@@ -32,7 +32,7 @@ def run(args) -> int:
     import sys
     import warnings
 
-    from ..core.ranges import describe
+    from ..core.ranges import describe, loads_text
     from ..files.model_files import read_model
     from ..runtime.errors import OutOfRangeWarning
 
@@ -45,6 +45,9 @@ def run(args) -> int:
     n_rows, ranges = predict_streaming(args, model)
     # One warning for the whole command (as CalibrationModel.predict on data read whole), never per file.
     message = ranges and describe(ranges.summary(model.input_names_))
+    loads = ranges and ranges.loads and loads_text(ranges.loads.summary(model.output_range_, model.output_names_),
+                                                   "the predicted loads")
+    message = " ".join(part for part in (message, loads) if part)  # one line: inputs, then loads
     if message:
         warnings.warn(message, OutOfRangeWarning, stacklevel=2)
     print(f"wrote {n_rows} predictions to {args.output}", file=sys.stderr)
