@@ -90,7 +90,8 @@ class RangeSums:
     def of(cls, inputs: np.ndarray, input_range: np.ndarray, y: np.ndarray | None = None,
            prediction: np.ndarray | None = None, output_names: Sequence[str] = (),
            scored: np.ndarray | None = None, outside_span: np.ndarray | None = None,
-           loads: np.ndarray | None = None, output_range: np.ndarray | None = None) -> "RangeSums":
+           loads: np.ndarray | None = None, output_range: np.ndarray | None = None,
+           load_rows: np.ndarray | None = None) -> "RangeSums":
         """Statistics of one block.
 
         Parameters
@@ -107,7 +108,8 @@ class RangeSums:
             outside the range are counted there only.
         loads : ndarray of shape (m, n_outputs), optional
             The reference or predicted wrench, counted against ``output_range`` (the training loads'
-            min and max, shape (n_outputs, 2)) with ``output_names`` in :attr:`loads`.
+            min and max, shape (n_outputs, 2)) with ``output_names`` in :attr:`loads`; only the
+            ``load_rows`` (boolean, shape (m,)) when given.
         """
         far = excursions(inputs, input_range)
         outside = far > 0
@@ -122,7 +124,8 @@ class RangeSums:
                     norm_out[k] = np.sum(d[scored & any_out] ** 2)
         worst = far.max(axis=0) if len(far) else np.zeros(inputs.shape[1])
         n_span = 0 if outside_span is None else int(np.sum(outside_span & ~any_out))
-        beyond = None if loads is None or output_range is None else LoadSums.of(loads, output_range, output_names)
+        beyond = None if loads is None or output_range is None else \
+            LoadSums.of(loads, output_range, output_names, load_rows)
         return cls(len(inputs), int(any_out.sum()), outside.sum(axis=0), worst, norm_in, norm_out,
                    int(np.sum(scored & ~any_out)), int(np.sum(scored & any_out)), n_span, beyond)
 
@@ -274,11 +277,15 @@ class LoadSums:
     high: np.ndarray
 
     @classmethod
-    def of(cls, loads: np.ndarray, output_range: np.ndarray, output_names: Sequence[str]) -> "LoadSums":
-        """Counts of one block; ``loads`` is (m, n_outputs), ``output_range`` (n_outputs, 2)."""
+    def of(cls, loads: np.ndarray, output_range: np.ndarray, output_names: Sequence[str],
+           rows: np.ndarray | None = None) -> "LoadSums":
+        """Counts of one block; ``loads`` is (m, n_outputs), ``output_range`` (n_outputs, 2); only the
+        ``rows`` (boolean, shape (m,)) count when given, all of them otherwise."""
         loads = np.asarray(loads, dtype=np.float64)
         margin = load_margins(output_range, output_names)
         beyond = (loads < output_range[:, 0] - margin) | (loads > output_range[:, 1] + margin)
+        if rows is not None:
+            beyond &= np.asarray(rows, dtype=bool)[:, None]
         empty = loads.shape[0] == 0
         return cls(loads.shape[0], int(beyond.any(axis=1).sum()), beyond.sum(axis=0),
                    np.full(loads.shape[1], np.inf) if empty else loads.min(axis=0),

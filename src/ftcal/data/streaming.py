@@ -607,12 +607,16 @@ def predict_part(path: str, part: str, model, mode: str = "free-run", segment_by
             writer = writer or _part_writer(part, batch.schema)
             writer.write(batch)
             n_rows += len(prediction)
-            # The predicted loads: beyond the training loads, the fit's cross-validated error does not apply.
-            # (Not an ARX free run from zeros: its warm-up rows predict 0, which need not be a training load.)
+            # The predicted loads where the model extrapolates (inputs outside the training range or span):
+            # beyond the training loads there, the fit's cross-validated error does not apply. (Inside, a
+            # prediction past the training loads is the model's own error, which the CV error does measure;
+            # and not an ARX free run from zeros: its warm-up rows predict 0, which need not be a training load.)
             warm_zeros = not model.is_static and mode == "free-run" and start == "zeros"
+            outside_span = span_of(model, inputs)
             block = RangeSums.of(inputs, model.input_range_, output_names=model.output_names_,
-                                 outside_span=span_of(model, inputs), loads=None if warm_zeros else prediction,
-                                 output_range=getattr(model, "output_range_", None))
+                                 outside_span=outside_span, loads=None if warm_zeros else prediction,
+                                 output_range=getattr(model, "output_range_", None),
+                                 load_rows=model.out_of_range(inputs))
             ranges = block if ranges is None else ranges + block
     finally:
         if writer is not None:
