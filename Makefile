@@ -22,8 +22,12 @@ install: $(STAMP)
 demo: $(STAMP)
 	$(VENV)/bin/ftcal demo --out ftcal-demo
 
+# Two pytest-xdist workers, one test file each at a time (a file's module fixtures, e.g. the README's demo, run
+# once); every test writes under its own tmp_path, ports are picked free, Dask dashboards bind ":0".
+# TEST_WORKERS=0 runs in one process.
+TEST_WORKERS ?= 2
 test: $(STAMP)
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile
 
 # Bytecode first, as a wheel install has it: with PYTHONDONTWRITEBYTECODE set, an editable
 # install would recompile every module in every timed process.

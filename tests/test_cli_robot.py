@@ -203,3 +203,46 @@ def test_a_zero_reference_wrench_is_said_and_refused_by_fit(capfd, tmp_path):
     assert np.abs(pd.read_parquet(out)[["Fx", "Fy", "Fz", "Tx", "Ty", "Tz"]].to_numpy()).max() < 1e-6
     fails(capfd, ["fit", str(out), "--degree", "1", "-o", str(tmp_path / "m.json")], "are constant and ~0")
     assert not (tmp_path / "m.json").exists()
+
+
+# TINY_URDF with a movable wrist beyond the sensor (1 kg 0.1 m along the tool's x) and a neck off the arm.
+WRIST_URDF = TINY_URDF.replace(
+    '<joint name="tool_fixed" type="fixed">', '<joint name="wrist" type="revolute">').replace(
+    '<origin xyz="0.3 0 0" rpy="0 0 1.5707963267948966"/>',
+    '<origin xyz="0.3 0 0" rpy="0 0 1.5707963267948966"/><axis xyz="0 0 1"/>'
+    '<limit lower="-3" upper="3" effort="10" velocity="1"/>').replace(
+    '<link name="tool"/>',
+    '<link name="tool"><inertial><origin xyz="0.1 0 0"/><mass value="1.0"/>'
+    '<inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial></link>'
+    '<link name="head"/><joint name="neck" type="revolute"><parent link="base"/><child link="head"/>'
+    '<axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="10" velocity="1"/></joint>')
+
+
+def tool_in_sensor(wrist):
+    """The tool mass's position in the sensor (= forearm) frame, by hand: (0.3, 0, 0) + Rz(π/2 + wrist)·(0.1, 0, 0)."""
+    return np.array([0.3 - 0.1 * np.sin(wrist), 0.1 * np.cos(wrist), 0.0])
+
+
+def test_expected_refuses_a_missing_joint_the_wrench_depends_on(capfd, tmp_path):
+    urdf = tmp_path / "wrist.urdf"
+    urdf.write_text(WRIST_URDF)
+    theta, wrist = np.array([0.3, -0.8]), np.array([0.5, -1.1])
+    joints, out = tmp_path / "joints.csv", tmp_path / "out.csv"
+    argv = ["expected", "--urdf", str(urdf), "--joints", str(joints), "--no-cache", "-o", str(out)]
+    # the wrist (beyond the sensor) moves the tool's mass: without its column, refused
+    pd.DataFrame({"shoulder": theta}).to_csv(joints, index=False)
+    fails(capfd, argv, "no data for joint(s) 'wrist'")
+    assert not out.exists()
+    # the shoulder (between base and sensor) turns gravity: refused too, and the hint names the option
+    pd.DataFrame({"wrist": wrist}).to_csv(joints, index=False)
+    fails(capfd, argv, "--missing-joints zero")
+    # the user says the wrist is at 0 rad: the tool hangs at (0.3, 0.1, 0)
+    pd.DataFrame({"shoulder": theta}).to_csv(joints, index=False)
+    assert main([*argv, "--missing-joints", "zero"]) == 0
+    want = [static_wrench([FOREARM, (1.0, tool_in_sensor(0.0))], t) for t in theta]
+    np.testing.assert_allclose(pd.read_csv(out).to_numpy(), want, atol=1e-9)
+    # every joint that matters given, the neck (off the arm) left out: accepted, wrist where the table says
+    pd.DataFrame({"shoulder": theta, "wrist": wrist}).to_csv(joints, index=False)
+    assert main(argv) == 0
+    want = [static_wrench([FOREARM, (1.0, tool_in_sensor(w))], t) for t, w in zip(theta, wrist)]
+    np.testing.assert_allclose(pd.read_csv(out).to_numpy(), want, atol=1e-9)

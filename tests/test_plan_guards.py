@@ -72,3 +72,13 @@ def test_joints_a_turn_beyond_their_limits_are_refused():
     with pytest.raises(FtcalError, match="degrees"):
         robot.joint_matrix([name], np.array([[high + 7.0]]), "t.csv")  # 7 rad > 2π beyond the limit
     assert robot.joint_matrix([name], np.array([[high + 0.5]]), "t.csv").shape == (1, len(robot.joint_names))
+
+
+def test_a_recorded_table_without_a_joint_on_the_chain_to_the_sensor_is_refused(capsys, tmp_path, arm):
+    """A recorded pose table's missing shoulder would be held at 0 rad, turning gravity in the sensor frame."""
+    robot = RobotModel.load(urdf=arm)
+    given = robot.joint_names[1:]  # every joint but the first (shoulder_pitch, on the chain to the wrist sensor)
+    pd.DataFrame(np.zeros((4, len(given))), columns=given).to_csv(tmp_path / "rec.csv", index=False)
+    code, _, err = plan(capsys, arm, "--from", tmp_path / "rec.csv", "-o", tmp_path / "p.csv")
+    assert code == 2 and len(err.strip().splitlines()) == 1 and not (tmp_path / "p.csv").exists()
+    assert f"no data for joint(s) {robot.joint_names[0]!r}" in err and "rec.csv" in err

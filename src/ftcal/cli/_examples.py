@@ -54,9 +54,10 @@ EXAMPLES = {
   # the same with a 2 kg plate on the right forearm (LINK:KG@X,Y,Z, COM in the link frame, m)
   ftcal sensors --model iCubGenova11 --payload r_forearm:2.0@-0.09,0,0.03""",
     "expected": """\
-  # the wrench r_arm_ft should read for each row of a joint table (one column per joint, rad)
+  # the wrench r_arm_ft should read for each row of a joint table (one column per joint, rad);
+  # the demo's table has the arm joints only: the torso is said to be at 0 rad
   ftcal expected --model iCubGenova11 --joints ftcal-demo/joints.csv --sensor r_arm_ft \\
-      --payload r_forearm:2.0@-0.09,0,0.03 -o ftcal-demo/expected.parquet""",
+      --missing-joints zero --payload r_forearm:2.0@-0.09,0,0.03 -o ftcal-demo/expected.parquet""",
     "topics": """\
   # which topics a bag holds (type, count, rate), to pick --wrench-topic etc. for `ftcal dataset`
   ftcal topics ftcal-demo/arm""",

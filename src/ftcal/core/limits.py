@@ -243,3 +243,7 @@ SIMULATE_FORMATS = ("bag", "table")
 # log10(yᵀy / ‖r‖²) of float64's ~16 digits to cancellation; beyond this many the fit scores the
 # samples in a pass instead (a near-exact fit, or targets far from zero).
 STATISTICS_ERROR_DIGITS = 7
+MISSING_JOINTS = ("refuse", "zero")
+"""What ``ftcal expected --missing-joints`` does with a joint the expected wrench depends on (on the chain
+from the base to the sensor, or beyond the sensor) that the joints table lacks: refuse it, or hold it at 0 rad
+because the user says it is 0."""

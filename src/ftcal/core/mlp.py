@@ -10,8 +10,13 @@ It minimizes the per-sample objective
 
     ½ mean over samples of ‖ŷ_norm − y_norm‖² + ½ · weight_decay · Σ ‖Wₗ‖²   (biases not penalized)
 
-with scipy's L-BFGS from Glorot-uniform weights drawn with ``seed``, in float64
-and with one BLAS thread, so a fit is reproducible bit for bit. Early stopping
+with L-BFGS from Glorot-uniform weights drawn with ``seed``, in float64 and without
+BLAS: every product and sum runs in a fixed order (``numpy.einsum`` without
+``optimize``, numpy's own reductions, exactly rounded dot products in the
+optimizer), so a seed gives the same weights bit for bit whatever OpenBLAS kernel
+or thread count the machine uses (:func:`_lbfgs`; scipy's L-BFGS-B calls BLAS,
+whose FMA and non-FMA kernels round differently, and a few hundred iterations
+turn that rounding into different weights and a different early-stopping count). Early stopping
 uses the grouped folds of :func:`ftcal.core.select.grouped_folds` (whole load
 cases held out, never random samples): the network is trained on each fold's
 complement with a checkpoint every ``check_every`` iterations, the iteration
@@ -32,6 +37,7 @@ weights.
 
 from __future__ import annotations
 
+import math
 import warnings
 from collections.abc import Sequence
 
@@ -416,14 +422,24 @@ def _unpack(params: np.ndarray, sizes: Sequence[int]) -> tuple[list[np.ndarray],
     return weights, biases
 
 
+def _matmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a @ b`` in a fixed summation order: numpy's own loops, not BLAS (whose kernels round differently)."""
+    return np.einsum("ij,jk->ik", a, b, optimize=False)
+
+
+def _dot(a: np.ndarray, b: np.ndarray) -> float:
+    """The exactly rounded dot product of two vectors: the same on every machine and BLAS kernel."""
+    return math.fsum(np.multiply(a, b).tolist())
+
+
 def _forward(x: np.ndarray, layers: tuple[list[np.ndarray], list[np.ndarray]], activation: str) -> np.ndarray:
     """Normalized outputs of the network for normalized inputs ``x``."""
     act, _ = _activation(activation)
     weights, biases = layers
     h = x
     for w, b in zip(weights[:-1], biases[:-1]):
-        h = act(h @ w + b)
-    return h @ weights[-1] + biases[-1]
+        h = act(_matmul(h, w) + b)
+    return _matmul(h, weights[-1]) + biases[-1]
 
 
 def _objective(params: np.ndarray, x: np.ndarray, t: np.ndarray, sizes: Sequence[int], activation: str,
@@ -433,17 +449,17 @@ def _objective(params: np.ndarray, x: np.ndarray, t: np.ndarray, sizes: Sequence
     weights, biases = _unpack(params, sizes)
     hs = [x]
     for w, b in zip(weights[:-1], biases[:-1]):
-        hs.append(act(hs[-1] @ w + b))
-    error = hs[-1] @ weights[-1] + biases[-1] - t
+        hs.append(act(_matmul(hs[-1], w) + b))
+    error = _matmul(hs[-1], weights[-1]) + biases[-1] - t
     n = x.shape[0]
     value = 0.5 * float(np.sum(error * error)) / n + 0.5 * decay * sum(float(np.sum(w * w)) for w in weights)
     grads = []
     delta = error / n
     for layer in range(len(weights) - 1, -1, -1):
-        grads.append((hs[layer].T @ delta + decay * weights[layer]).ravel())
+        grads.append((_matmul(hs[layer].T, delta) + decay * weights[layer]).ravel())
         grads.append(delta.sum(axis=0))
         if layer:
-            delta = (delta @ weights[layer].T) * slope(hs[layer])
+            delta = _matmul(delta, weights[layer].T) * slope(hs[layer])
     # grads holds (W_L, b_L, ..., W_1, b_1); the packing is (W_1, b_1, ..., W_L, b_L).
     ordered = [g for pair in reversed(list(zip(grads[0::2], grads[1::2]))) for g in pair]
     return value, np.concatenate(ordered)
@@ -452,8 +468,6 @@ def _objective(params: np.ndarray, x: np.ndarray, t: np.ndarray, sizes: Sequence
 def _train(x: np.ndarray, t: np.ndarray, sizes: Sequence[int], start: np.ndarray, options: dict, iterations: int,
            every: int = 0, snapshots: list | None = None) -> tuple[np.ndarray, int]:
     """L-BFGS from ``start`` for at most ``iterations``; ``snapshots`` gets the weights every ``every`` iterations."""
-    from scipy.optimize import minimize
-
     limit = options["max_samples"]
     if limit is not None and x.shape[0] > limit:
         rows = np.linspace(0, x.shape[0] - 1, limit).round().astype(np.intp)  # evenly spaced, deterministic
@@ -466,14 +480,97 @@ def _train(x: np.ndarray, t: np.ndarray, sizes: Sequence[int], start: np.ndarray
         if snapshots is not None and count[0] % every == 0:
             snapshots.append(params.copy())
 
-    with single_threaded_blas():  # one BLAS thread: the same seed gives the same weights, bit for bit
-        result = minimize(_objective, start, args=(x, t, sizes, options["activation"], options["weight_decay"]),
-                          jac=True, method="L-BFGS-B", callback=checkpoint,
-                          options={"maxiter": iterations, "maxfun": 4 * iterations + 20, "gtol": 1e-12,
-                                   "ftol": 1e-15})
+    def objective(params: np.ndarray) -> tuple[float, np.ndarray]:
+        return _objective(params, x, t, sizes, options["activation"], options["weight_decay"])
+
+    with single_threaded_blas():  # nothing here should reach BLAS; if something does, one thread
+        params, n_iter = _lbfgs(objective, start, iterations, 4 * iterations + 20, checkpoint)
     if snapshots is not None and (not snapshots or count[0] % every):
-        snapshots.append(result.x.copy())  # converged between checkpoints: its final weights
-    return result.x, int(result.nit)
+        snapshots.append(params.copy())  # converged between checkpoints: its final weights
+    return params, n_iter
+
+
+# L-BFGS settings: the memory (pairs kept), the sufficient-decrease constant (Armijo), the smallest step
+# reduction per backtrack, the line search's trials, and the stopping tolerances (as scipy's defaults for gtol,
+# ftol of the previous optimizer: train until the iteration budget, which early stopping chose).
+LBFGS_MEMORY = 10
+LBFGS_ARMIJO = 1e-4
+LBFGS_SHRINK_MIN = 0.1
+LBFGS_TRIALS = 30
+LBFGS_GTOL = 1e-12
+LBFGS_FTOL = 1e-15
+
+
+def _lbfgs(objective, start: np.ndarray, max_iter: int, max_fun: int, callback) -> tuple[np.ndarray, int]:
+    """Minimize ``objective`` (returning value and gradient) by L-BFGS with a backtracking line search.
+
+    Deterministic to the bit on any BLAS: directions come from the two-loop recursion (Nocedal & Wright,
+    algorithm 7.4) with exactly rounded dot products (:func:`_dot`) and elementwise numpy arithmetic; the
+    step is the first of 1, then safeguarded quadratic-interpolation backtracks, that satisfies the Armijo
+    condition; a pair (s, y) enters the memory only with positive curvature sᵀy.
+
+    Parameters
+    ----------
+    objective : callable, params -> (float, ndarray of the params' shape)
+    start : ndarray of shape (n_params,)
+    max_iter, max_fun : most iterations and objective evaluations
+    callback : called with the params after every iteration
+
+    Returns
+    -------
+    (ndarray of shape (n_params,), int) : the params and the iterations run
+    """
+    from collections import deque
+
+    x = np.array(start, dtype=np.float64)
+    f, g = objective(x)
+    n_fun, memory = 1, deque(maxlen=LBFGS_MEMORY)
+    for iteration in range(max_iter):
+        if float(np.max(np.abs(g), initial=0.0)) <= LBFGS_GTOL:
+            return x, iteration
+        q = g.copy()
+        alphas = []
+        for s, y, rho in reversed(memory):
+            a = rho * _dot(s, q)
+            alphas.append(a)
+            q = q - a * y
+        if memory:
+            s, y, _ = memory[-1]
+            q = q * (_dot(s, y) / _dot(y, y))
+        else:  # first step: as long as the gradient is large, at most 1 in the largest coordinate
+            q = q / max(1.0, float(np.max(np.abs(g))))
+        for (s, y, rho), a in zip(memory, reversed(alphas)):
+            q = q + s * (a - rho * _dot(y, q))
+        direction = -q
+        slope = _dot(g, direction)
+        if not slope < 0.0:  # not a descent direction (rounding): restart from the gradient
+            memory.clear()
+            direction = -g / max(1.0, float(np.max(np.abs(g))))
+            slope = _dot(g, direction)
+        step = 1.0
+        for _ in range(LBFGS_TRIALS):
+            trial = x + step * direction
+            f_new, g_new = objective(trial)
+            n_fun += 1
+            if np.isfinite(f_new) and f_new <= f + LBFGS_ARMIJO * step * slope:
+                break
+            if n_fun >= max_fun:
+                return x, iteration
+            curvature = f_new - f - slope * step
+            shrink = -slope * step / (2.0 * curvature) if np.isfinite(f_new) and curvature > 0 else 0.5
+            step *= min(0.5, max(LBFGS_SHRINK_MIN, shrink))
+        else:
+            return x, iteration  # no decrease along the direction: as converged as rounding allows
+        s, y = trial - x, g_new - g
+        sy = _dot(s, y)
+        if sy > 0.0:
+            memory.append((s, y, 1.0 / sy))
+        decrease = f - f_new
+        x, f, g = trial, f_new, g_new
+        callback(x)
+        if decrease <= LBFGS_FTOL * max(abs(f), abs(f + decrease), 1.0) or n_fun >= max_fun:
+            return x, iteration + 1
+    return x, max_iter
 
 
 def _fold_score(y: np.ndarray, prediction: np.ndarray, forces) -> float:

@@ -84,11 +84,14 @@ class RangeSums:
     n_scored_in: int = 0
     n_scored_out: int = 0
     n_span: int = 0  # samples inside the range but outside the span of the training inputs
+    loads: "LoadSums | None" = None  # loads beyond the training loads (given ``loads`` and ``output_range``)
 
     @classmethod
     def of(cls, inputs: np.ndarray, input_range: np.ndarray, y: np.ndarray | None = None,
            prediction: np.ndarray | None = None, output_names: Sequence[str] = (),
-           scored: np.ndarray | None = None, outside_span: np.ndarray | None = None) -> "RangeSums":
+           scored: np.ndarray | None = None, outside_span: np.ndarray | None = None,
+           loads: np.ndarray | None = None, output_range: np.ndarray | None = None,
+           load_rows: np.ndarray | None = None) -> "RangeSums":
         """Statistics of one block.
 
         Parameters
@@ -103,6 +106,10 @@ class RangeSums:
         outside_span : boolean ndarray of shape (m,), optional
             The rows outside the span of the training inputs (:func:`span_of`); those also
             outside the range are counted there only.
+        loads : ndarray of shape (m, n_outputs), optional
+            The reference or predicted wrench, counted against ``output_range`` (the training loads'
+            min and max, shape (n_outputs, 2)) with ``output_names`` in :attr:`loads`; only the
+            ``load_rows`` (boolean, shape (m,)) when given.
         """
         far = excursions(inputs, input_range)
         outside = far > 0
@@ -117,14 +124,17 @@ class RangeSums:
                     norm_out[k] = np.sum(d[scored & any_out] ** 2)
         worst = far.max(axis=0) if len(far) else np.zeros(inputs.shape[1])
         n_span = 0 if outside_span is None else int(np.sum(outside_span & ~any_out))
+        beyond = None if loads is None or output_range is None else \
+            LoadSums.of(loads, output_range, output_names, load_rows)
         return cls(len(inputs), int(any_out.sum()), outside.sum(axis=0), worst, norm_in, norm_out,
-                   int(np.sum(scored & ~any_out)), int(np.sum(scored & any_out)), n_span)
+                   int(np.sum(scored & ~any_out)), int(np.sum(scored & any_out)), n_span, beyond)
 
     def __add__(self, other: "RangeSums") -> "RangeSums":
         return RangeSums(self.n + other.n, self.n_out + other.n_out, self.count + other.count,
                          np.maximum(self.worst, other.worst), self.norm_sq_in + other.norm_sq_in,
                          self.norm_sq_out + other.norm_sq_out, self.n_scored_in + other.n_scored_in,
-                         self.n_scored_out + other.n_scored_out, self.n_span + other.n_span)
+                         self.n_scored_out + other.n_scored_out, self.n_span + other.n_span,
+                         None if self.loads is None or other.loads is None else self.loads + other.loads)
 
     def summary(self, input_names: Sequence[str]) -> dict:
         """JSON-ready: per input outside the range its count and largest excursion, and the split errors.
@@ -208,3 +218,110 @@ def effect_text(summary: dict) -> str:
 def plural(count: int, noun: str) -> str:
     """``"1 sample"``, ``"2 samples"``."""
     return f"{count} {noun}{'' if count == 1 else 's'}"
+
+
+# A load counts as beyond the training loads when it passes their min or max by more than this fraction of
+# the widest training span of its block (forces, torques): noise on an axis the data never loaded is no load.
+LOAD_MARGIN_FRACTION = 0.05
+
+
+def load_margins(output_range: np.ndarray, output_names: Sequence[str]) -> np.ndarray:
+    """How far (in the output's unit) a load may pass its training min/max before it counts as beyond them.
+
+    :data:`LOAD_MARGIN_FRACTION` of the widest training span among the outputs of the same block (``F*``
+    forces, ``T*`` torques; any other output is its own block), so an axis the training data hardly
+    loaded is judged against the loads the sensor did carry.
+
+    Parameters
+    ----------
+    output_range : ndarray of shape (n_outputs, 2), training min and max
+    output_names : names of the outputs
+
+    Returns
+    -------
+    ndarray of shape (n_outputs,)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> load_margins(np.array([[-20.0, 20.0], [-0.1, 0.1], [-1.0, 1.0]]), ["Fx", "Fz", "Tx"]).tolist()
+    [2.0, 2.0, 0.1]
+    """
+    width = output_range[:, 1] - output_range[:, 0]
+    block = [str(n)[:1] if str(n)[:1] in ("F", "T") else str(n) for n in output_names]
+    widest = {b: max(float(width[j]) for j in range(len(block)) if block[j] == b) for b in set(block)}
+    return np.array([LOAD_MARGIN_FRACTION * widest[b] for b in block])
+
+
+@dataclass
+class LoadSums:
+    """Additive counts of loads beyond the training loads, per output, for consecutive blocks (``a + b``).
+
+    The loads are the reference wrench (``evaluate``) or the predicted one (``predict``). A model's
+    cross-validated error was measured on held-out loads inside the training data's span; data that
+    load an axis beyond it (a new axis, a larger load) can err far more (52× on a real sensor whose
+    evaluation loaded a new axis), so the commands say so.
+
+    Attributes
+    ----------
+    n : samples seen
+    n_beyond : samples with at least one output beyond its training loads (:func:`load_margins`)
+    count : ndarray (n_outputs,), samples beyond per output
+    low, high : ndarray (n_outputs,), smallest and largest load seen per output
+    """
+
+    n: int
+    n_beyond: int
+    count: np.ndarray
+    low: np.ndarray
+    high: np.ndarray
+
+    @classmethod
+    def of(cls, loads: np.ndarray, output_range: np.ndarray, output_names: Sequence[str],
+           rows: np.ndarray | None = None) -> "LoadSums":
+        """Counts of one block; ``loads`` is (m, n_outputs), ``output_range`` (n_outputs, 2); only the
+        ``rows`` (boolean, shape (m,)) count when given, all of them otherwise."""
+        loads = np.asarray(loads, dtype=np.float64)
+        margin = load_margins(output_range, output_names)
+        beyond = (loads < output_range[:, 0] - margin) | (loads > output_range[:, 1] + margin)
+        if rows is not None:
+            beyond &= np.asarray(rows, dtype=bool)[:, None]
+        empty = loads.shape[0] == 0
+        return cls(loads.shape[0], int(beyond.any(axis=1).sum()), beyond.sum(axis=0),
+                   np.full(loads.shape[1], np.inf) if empty else loads.min(axis=0),
+                   np.full(loads.shape[1], -np.inf) if empty else loads.max(axis=0))
+
+    def __add__(self, other: "LoadSums") -> "LoadSums":
+        return LoadSums(self.n + other.n, self.n_beyond + other.n_beyond, self.count + other.count,
+                        np.minimum(self.low, other.low), np.maximum(self.high, other.high))
+
+    def summary(self, output_range: np.ndarray, output_names: Sequence[str]) -> dict:
+        """JSON-ready: ``n_samples``, ``n_beyond`` and, per output with loads beyond its training loads,
+        ``{"samples", "low", "high", "training_low", "training_high"}`` under ``outputs``."""
+        return {"n_samples": self.n, "n_beyond": self.n_beyond,
+                "outputs": {name: {"samples": int(c), "low": float(lo), "high": float(hi),
+                                   "training_low": float(r[0]), "training_high": float(r[1])}
+                            for name, c, lo, hi, r in zip(output_names, self.count, self.low, self.high,
+                                                          output_range) if c}}
+
+
+def loads_text(summary: dict, what: str = "the reference loads") -> str | None:
+    """One sentence: which outputs ``what`` drive beyond the training loads, and what that means for the
+    cross-validated error; None when none do. ``summary`` is :meth:`LoadSums.summary`.
+
+    Examples
+    --------
+    >>> loads_text({"n_samples": 10, "n_beyond": 4, "outputs": {"Fz": {"samples": 4, "low": -30.0, "high": 0.0,
+    ...             "training_low": -0.1, "training_high": 0.1}}})  # doctest: +NORMALIZE_WHITESPACE
+    '4 of 10 samples: the reference loads go beyond the training loads on Fz (-30..0 against -0.1..0.1 in
+    training, 4 samples); the cross-validated error of the fit was measured inside the training loads and does
+    not forecast the error there.'
+    """
+    if not summary or not summary["n_beyond"]:
+        return None
+    axes = ", ".join(f"{name} ({info['low']:.3g}..{info['high']:.3g} against {info['training_low']:.3g}.."
+                     f"{info['training_high']:.3g} in training, {plural(info['samples'], 'sample')})"
+                     for name, info in summary["outputs"].items())
+    return (f"{summary['n_beyond']} of {summary['n_samples']} samples: {what} go beyond the training loads on "
+            f"{axes}; the cross-validated error of the fit was measured inside the training loads and does not "
+            "forecast the error there.")

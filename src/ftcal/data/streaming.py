@@ -462,7 +462,8 @@ def file_error_sums(path: str, model, fingerprints: Sequence[dict] = (), mode: s
             inputs, outputs = chunk.inputs[begin:end], chunk.outputs[begin:end]
             prediction = model.predict(inputs, warn_out_of_range=False)
             ranges = RangeSums.of(inputs, model.input_range_, outputs, prediction, model.output_names_,
-                                  outside_span=span_of(model, inputs))
+                                  outside_span=span_of(model, inputs), loads=outputs,
+                                  output_range=getattr(model, "output_range_", None))
             # outside the range or its span: CalibrationModel.score's n_out_of_range
             return ErrorSums.of(outputs, prediction, model.output_names_, ranges.n_out + ranges.n_span, ranges)
 
@@ -498,7 +499,8 @@ def _arx_error_sums(path: str, model, fingerprints: Sequence[dict], mode: str, s
         with np.errstate(over="ignore", invalid="ignore"):
             prediction = model.predict(data, mode=which, start=start, warn_out_of_range=False)
             ranges = RangeSums.of(data.inputs, model.input_range_, data.outputs, prediction, model.output_names_,
-                                  scored=rows, outside_span=span_of(model, data.inputs))
+                                  scored=rows, outside_span=span_of(model, data.inputs), loads=data.outputs,
+                                  output_range=getattr(model, "output_range_", None))
             pair.append(ErrorSums.of(data.outputs[rows], prediction[rows], model.output_names_, n_out, ranges))
     pair[0].training_segments = frozenset(finder.found)
     if count_poses:
@@ -587,7 +589,16 @@ def predict_part(path: str, part: str, model, mode: str = "free-run", segment_by
             writer = writer or _part_writer(part, batch.schema)
             writer.write(batch)
             n_rows += len(prediction)
-            block = RangeSums.of(inputs, model.input_range_, outside_span=span_of(model, inputs))
+            # The predicted loads where the model extrapolates (inputs outside the training range or span):
+            # beyond the training loads there, the fit's cross-validated error does not apply. (Inside, a
+            # prediction past the training loads is the model's own error, which the CV error does measure;
+            # and not an ARX free run from zeros: its warm-up rows predict 0, which need not be a training load.)
+            warm_zeros = not model.is_static and mode == "free-run" and start == "zeros"
+            outside_span = span_of(model, inputs)
+            block = RangeSums.of(inputs, model.input_range_, output_names=model.output_names_,
+                                 outside_span=outside_span, loads=None if warm_zeros else prediction,
+                                 output_range=getattr(model, "output_range_", None),
+                                 load_rows=model.out_of_range(inputs))
             ranges = block if ranges is None else ranges + block
     finally:
         if writer is not None:

@@ -304,9 +304,13 @@ def _expected(path: Path, robot, sensor: str, joint_names: tuple[str, ...], q: n
     """Expected wrench of ``sensor`` at each sample, (n_samples, 6), static (joint positions only)."""
     from ..robot.expected import expected_wrenches
 
+    from ..robot.kinematics import require_wrench_joints
+
     ft_sensor = robot.sensor(sensor)
-    matrix = robot.joint_matrix(joint_names, q, f"Bag {path} joints")
     base = robot.base_frame(options.base)[1]
+    require_wrench_joints(robot, joint_names, base, [ft_sensor.name], f"Bag {path} joints",
+                          " (joints off the chain to the sensor and off the links beyond it may be left out)")
+    matrix = robot.joint_matrix(joint_names, q, f"Bag {path} joints")
     wrenches = expected_wrenches(robot, matrix, base=base, gravity=options.gravity, workers=options.workers,
                                  description=f"expected wrenches {path.name}")
     return wrenches[:, ft_sensor.index, :]

@@ -46,7 +46,7 @@ from ..data.recording import sensor_aliases
 from ..data.signals import channel_issues, smooth
 from ..robot.cache import cache_key, cached
 from ..robot.expected import GRAVITY, FloatingBase, expected_wrenches, warn_if_zero_reference
-from ..robot.kinematics import require_chain_joints
+from ..robot.kinematics import require_wrench_joints
 from ..robot.loadcases import LoadCase, LoadCaseConfig
 from ..robot.model import RobotModel
 from ..robot.payloads import Payload
@@ -237,8 +237,9 @@ def recording_table(path: str | Path, robot: RobotModel, sensor: str, case: Load
     data = align(recording, aliases, temperature=options.temperature, derivatives=options.derivatives,
                  imu=options.imu, rate=options.rate)
     if set(data.joint_names) <= set(robot.joint_names):  # else joint_matrix names the joints the URDF lacks
-        require_chain_joints(robot, data.joint_names, options.imu_frame or robot.base_frame(options.base)[1],
-                             ft_sensor.name, f"Recording {path}")
+        require_wrench_joints(robot, data.joint_names, options.imu_frame or robot.base_frame(options.base)[1],
+                              [ft_sensor.name], f"Recording {path}", " (joints off the chain to the sensor and "
+                              "off the links beyond it may be left out)")
     expected = _expected(path, robot, data, options)[:, ft_sensor.index, :]
     warn_if_zero_reference(expected, f"Recording {path}", ft_sensor.name, case.name)
     raw, temp = data.ft, data.temperature

@@ -14,7 +14,7 @@ import numpy as np
 from ..core.columns import DEFAULT_OUTPUTS
 from ..core.limits import MAX_WRENCH
 from ..data.tables import numeric_columns, read_table
-from ..robot.kinematics import sensor_poses
+from ..robot.kinematics import require_chain_joints, sensor_poses
 from ..robot.model import RobotModel
 from ..runtime.errors import FtcalError
 from .candidates import GRAVITY
@@ -27,7 +27,8 @@ def read_recorded(path: str | Path, robot: RobotModel, sensor: str, *, base: str
     """Expected wrench (columns Fx..Tz), sensor-frame gravity (joint columns) and ``load`` of a table.
 
     Any of them may be missing; the objective that needs one says so
-    (:func:`ftcal.plan.experiment.plan_experiment`). Joints without a column are 0.
+    (:func:`ftcal.plan.experiment.plan_experiment`). A table with joint columns must hold every joint on
+    the chain from the base to the sensor (they turn gravity in the sensor frame); others are 0.
 
     Raises
     ------
@@ -46,6 +47,7 @@ def read_recorded(path: str | Path, robot: RobotModel, sensor: str, *, base: str
                              "of a force/torque sensor.")
     joints = [c for c in frame.columns if c in robot.joint_names]
     if joints:
+        require_chain_joints(robot, joints, robot.base_frame(base)[1], sensor, f"--from {path}")
         q = robot.joint_matrix(joints, numeric_columns(frame, joints, path, "joint"), str(path))
         rotation = sensor_poses(robot, sensor, q, base=base)[:, :3, :3]
         gravity = np.einsum("nji,j->ni", rotation, np.asarray(GRAVITY))

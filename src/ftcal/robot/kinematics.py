@@ -150,6 +150,41 @@ def require_chain_joints(robot: RobotModel, given: Sequence[str], base: str, sen
                          "without data would be held at 0 rad (joints off that chain may be left out).")
 
 
+def require_wrench_joints(robot: RobotModel, given: Sequence[str], base: str, sensors: Sequence[str], where: str,
+                          hint: str = "") -> None:
+    """Refuse data that lack a joint the expected wrench of any of ``sensors`` depends on.
+
+    That is every joint on the chain from ``base`` to the sensor (it turns gravity in the sensor frame) and
+    every joint beyond the sensor (it moves the mass the sensor carries); a joint without data would be
+    held at 0 rad by :meth:`RobotModel.joint_matrix`, silently.
+
+    Parameters
+    ----------
+    robot : the model
+    given : names of the joints the data hold
+    base : fixed base frame
+    sensors : F/T sensor (or sensor joint) names
+    where : the data's name in the message
+    hint : what the user can do instead, appended to the message
+
+    Raises
+    ------
+    FtcalError
+        Naming ``where``, the missing joints and the sensors they matter for.
+    """
+    given_set = set(given)
+    missing: list[str] = []
+    for name in sensors:
+        ft = robot.sensor(name)
+        needed = (*robot.chain_joints(base, _sensor_frame(robot, ft.name)[0]), *robot.joints_beyond(ft, base))
+        missing += [j for j in needed if j not in given_set and j not in missing]
+    if missing:
+        shown = ", ".join(map(repr, missing[:8])) + (f" and {len(missing) - 8} more" if len(missing) > 8 else "")
+        raise FtcalError(f"{where}: no data for joint(s) {shown}; the expected wrench of sensor(s) "
+                         f"{', '.join(sensors)} depends on them (they turn gravity in the sensor frame or move the "
+                         f"mass beyond it), and a joint without data would be held at 0 rad{hint}.")
+
+
 def _sensor_frame(robot: RobotModel, sensor: str) -> tuple[str, np.ndarray]:
     """Name of the link the sensor's frame is fixed to, and link_H_sensor (4, 4)."""
     import idyntree.swig as idyn

@@ -159,6 +159,19 @@ class RobotModel:
                     queue.append(nxt)
         return tuple(m.getLinkName(i) for i in range(m.getNrOfLinks()) if i not in reached)
 
+    def joints_beyond(self, sensor: FTSensor, base: str | None = None) -> tuple[str, ...]:
+        """The movable joints between two :meth:`links_beyond`: they move the mass the sensor carries."""
+        m = self.model
+        beyond = set(self.links_beyond(sensor, base))
+        movable = set(self.joint_names)
+        names = []
+        for j in range(m.getNrOfJoints()):
+            joint = m.getJoint(j)
+            links = (m.getLinkName(joint.getFirstAttachedLink()), m.getLinkName(joint.getSecondAttachedLink()))
+            if m.getJointName(j) in movable and all(link in beyond for link in links):
+                names.append(m.getJointName(j))
+        return tuple(names)
+
     def mass_beyond(self, sensor: FTSensor, base: str | None = None) -> float:
         """Total mass (kg, payloads included) of :meth:`links_beyond`."""
         m = self.model
@@ -191,6 +204,9 @@ class RobotModel:
 
     def joint_matrix(self, names: Sequence[str], values, where: str):
         """Place columns named ``names`` into the model's joint order; joints not given are 0.
+
+        Callers whose result depends on a joint check it is given first
+        (:func:`ftcal.robot.kinematics.require_chain_joints`, :func:`ftcal.robot.kinematics.require_wrench_joints`).
 
         values : array of shape (n_samples, len(names)); returns (n_samples, n_dofs).
         ``where`` names the source in error messages (file and stream).

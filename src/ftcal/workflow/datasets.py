@@ -215,7 +215,8 @@ class ExpectedResult(StepResult):
 def expected(joints, *, urdf=None, robot: str | None = None, ft_joint: str | None = None,
              ft_frame: str | None = None, payload: Sequence[str] = (), base: str | None = None,
              sensor: Sequence[str] = (), gravity: Sequence[float] = (0.0, 0.0, -9.81), degrees: bool = False,
-             workers: int = 2, no_cache: bool = False, cache_dir=None, executor=None, output=None) -> ExpectedResult:
+             workers: int = 2, no_cache: bool = False, cache_dir=None, missing_joints: str = "refuse",
+             executor=None, output=None) -> ExpectedResult:
     """The wrench each F/T sensor should measure for every row of a joint table: ``ftcal expected``.
 
     Parameters
@@ -224,6 +225,8 @@ def expected(joints, *, urdf=None, robot: str | None = None, ft_joint: str | Non
     urdf, robot, ft_joint, ft_frame, payload, base : the robot model (as ``ftcal expected``)
     sensor : sensor names (default: every F/T sensor)
     gravity : gravity in base-frame axes, m/s²
+    missing_joints : ``"refuse"`` (default) a table that lacks a joint the sensors' wrench depends on (on
+        the chain from the base, or beyond the sensor), or ``"zero"``: the caller says it is at 0 rad
     executor : an executor of :mod:`ftcal.runtime.executors`: the joints file is one task there; or None
     output : path or None; when given, the table is written there
 
@@ -243,7 +246,12 @@ def expected(joints, *, urdf=None, robot: str | None = None, ft_joint: str | Non
     sensors = [model.sensor(name) for name in names] or list(model.ft_sensors)
     labels = names or [s.name for s in sensors]
     _, base_frame = model.base_frame(base)
-    settings = (base_frame, tuple(gravity), degrees, not no_cache, cache_dir)
+    from ..core.limits import MISSING_JOINTS
+
+    if missing_joints not in MISSING_JOINTS:
+        raise FtcalError(f"--missing-joints {missing_joints!r}: must be one of {', '.join(MISSING_JOINTS)}.")
+    settings = (base_frame, tuple(gravity), degrees, not no_cache, cache_dir, tuple(s.name for s in sensors),
+                missing_joints)
     if executor is not None:
         description = (model.urdf_text, model.source, model.payloads, model.declared)
         [(time, wrenches)] = executor.map(_remote_wrenches, [(str(joints), description)], 1, *settings,
@@ -260,16 +268,25 @@ def expected(joints, *, urdf=None, robot: str | None = None, ft_joint: str | Non
     return result
 
 
-def joints_file_wrenches(joints, robot, workers, base, gravity, degrees, cache, cache_dir):
-    """The ``time`` column (or None) and the (n_samples, n_sensors, 6) expected wrenches of a joints file."""
+def joints_file_wrenches(joints, robot, workers, base, gravity, degrees, cache, cache_dir, sensors=(),
+                         missing_joints="refuse"):
+    """The ``time`` column (or None) and the (n_samples, n_sensors, 6) expected wrenches of a joints file.
+
+    A joint that the wrench of one of ``sensors`` depends on and that the file lacks is refused unless
+    ``missing_joints`` is ``"zero"`` (the user says it is at 0 rad).
+    """
     import numpy as np
 
     from ..data.tables import numeric_columns, read_table
     from ..robot.cache import cache_key, cached
     from ..robot.expected import expected_wrenches
+    from ..robot.kinematics import require_wrench_joints
 
     table = read_table(Path(joints))
     joint_cols = [c for c in table.columns if c != "time"]
+    if missing_joints != "zero" and set(joint_cols) <= set(robot.joint_names):  # else joint_matrix names them
+        require_wrench_joints(robot, joint_cols, base, sensors, f"--joints {joints}",
+                              " (give their columns, or --missing-joints zero if they are at 0 rad)")
     values = numeric_columns(table, joint_cols, Path(joints), "joint")
     if degrees:
         values = np.deg2rad(values)

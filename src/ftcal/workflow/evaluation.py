@@ -56,7 +56,7 @@ class EvaluationResult(StepResult):
 
     def summary(self) -> str:
         from ..core.metrics import METRIC_NAMES, METRIC_NOTES, format_metric, output_units
-        from ..core.ranges import channel_text, effect_text
+        from ..core.ranges import channel_text, effect_text, loads_text
 
         summary = self.metrics
         lines = []
@@ -73,6 +73,9 @@ class EvaluationResult(StepResult):
             lines.append(f"  outside: {channel_text(summary['out_of_range'])}")
             if effect_text(summary["out_of_range"]):
                 lines.append(f"  {effect_text(summary['out_of_range'])}")
+        loads = loads_text(summary.get("loads_beyond_training"))
+        if loads:  # the cross-validated error does not forecast these
+            lines.append(loads)
         units = output_units(summary["outputs"])
         acf = METRIC_NAMES["residual_autocorrelation_lag1"]
         # RMSE and max |error| are in each output's unit (last column); BestFit in %; the acf has none.
@@ -237,6 +240,8 @@ def evaluate(model, data, *, mode: str = "one-step", start: str = "zeros", warmu
     # The same two counts as the text: n_out_of_range = n_outside_range + n_outside_span.
     metrics["n_outside_range"], metrics["n_outside_span"] = outside_range, outside_span
     metrics["out_of_range"] = summary["out_of_range"]
+    # loads beyond the training loads (the cross-validated error does not forecast them); see the text
+    metrics["loads_beyond_training"] = summary.get("loads_beyond_training")
     for other in ("one_step", "free_run"):
         if other in summary:
             metrics[other] = {k: summary[other][k] for k in EVALUATION_KEYS if k in summary[other]}
@@ -248,6 +253,7 @@ def _evaluate_whole(paths, dataset, model, training_segments, name, mode, start,
     import numpy as np
 
     from ..core.fingerprint import warn_if_trained_on
+    from ..core.ranges import LoadSums
     from ..data.tables import read_dataset
     from ..runtime.errors import OutOfRangeWarning
 
@@ -260,7 +266,14 @@ def _evaluate_whole(paths, dataset, model, training_segments, name, mode, start,
         summary = model.score(data, mode=mode, start=start, warmup=warmup)
         summary["out_of_range"] = (range_summary(model, data, mode, start, warmup)
                                    if summary["n_out_of_range"] else None)
+    y = data.outputs[:, [data.output_names.index(n) for n in model.output_names_]]
+    summary["loads_beyond_training"] = load_summary(model, LoadSums.of(y, model.output_range_, model.output_names_))
     return summary
+
+
+def load_summary(model, loads) -> dict | None:
+    """:meth:`~ftcal.core.ranges.LoadSums.summary` of the reference loads, None without them."""
+    return None if loads is None else loads.summary(model.output_range_, model.output_names_)
 
 
 def range_summary(model, data, mode: str, start: str, warmup: str) -> dict:
@@ -298,6 +311,7 @@ def _evaluate_streaming(paths, model, training_segments, name, mode, start, warm
     warn_training_segments(sorted(main.training_segments), training_segments, name)
     summary = main.summary(model.output_names_)
     summary["out_of_range"] = main.ranges.summary(model.input_names_) if main.n_out_of_range else None
+    summary["loads_beyond_training"] = load_summary(model, None if main.ranges is None else main.ranges.loads)
     if other is not None:
         second = other.summary(model.output_names_)
         del second["n_out_of_range"]
@@ -369,7 +383,7 @@ def predict(model, data, *, output: str | os.PathLike | None = None, mode: str =
     >>> result.n_rows, round(float(result.predictions["Fx"][0]), 1)
     (1, 0.5)
     """
-    from ..core.ranges import describe
+    from ..core.ranges import describe, loads_text
     from ..runtime.errors import OutOfRangeWarning
 
     model, _, _ = _model_and_segments(model)
@@ -398,6 +412,9 @@ def predict(model, data, *, output: str | os.PathLike | None = None, mode: str =
     out_of_range = ranges.summary(model.input_names_) if ranges is not None else None
     # One warning for the whole call (as CalibrationModel.predict on data read whole), never per file.
     message = out_of_range and describe(out_of_range)
+    loads = ranges and ranges.loads and loads_text(ranges.loads.summary(model.output_range_, model.output_names_),
+                                                   "the predicted loads")
+    message = " ".join(part for part in (message, loads) if part)  # one line: inputs, then loads
     if message:
         warnings.warn(message, OutOfRangeWarning, stacklevel=2)
     return PredictionResult(n_rows, output, frame, notes, out_of_range)
@@ -423,7 +440,13 @@ def _predict_whole(paths, dataset, model, mode, start, segment_by):
     inputs = data.select_inputs(model.input_names_)
     ranges = None
     if data.n_samples:
-        ranges = RangeSums.of(inputs, model.input_range_, outside_span=span_of(model, inputs))
+        # As the streamed path (data.streaming.predict_part): the predicted loads where the model
+        # extrapolates, and not an ARX free run from zeros (its warm-up rows predict 0).
+        warm_zeros = not model.is_static and mode == "free-run" and start == "zeros"
+        ranges = RangeSums.of(inputs, model.input_range_, output_names=model.output_names_,
+                              outside_span=span_of(model, inputs), loads=None if warm_zeros else prediction,
+                              output_range=getattr(model, "output_range_", None),
+                              load_rows=model.out_of_range(inputs))
     return data.n_samples, ranges, pd.DataFrame(np.asarray(prediction), columns=list(model.output_names_))
 
 
