@@ -113,7 +113,7 @@ __attribute__((noinline)) static double floor_block(vec m[][2])
 
 
 def _model(degree: int):
-    from benchmarks.cases import make_data
+    from benchmarks.load_cases import make_data
     from ftcal.core.dataset import Dataset
     from ftcal.core.model import CalibrationModel
 
@@ -130,7 +130,7 @@ def _compile(folder: Path, flags: list[str], sources: list[str], output: str) ->
 
 def c_batch(n: int, degree: int, march: str = "") -> dict:
     """Scalar, batch and floor ns per sample, paired in one driver run (see the module docstring)."""
-    from benchmarks.cases import make_data
+    from benchmarks.load_cases import make_data
     from ftcal.files.c_code import generate_c
 
     model = _model(degree)

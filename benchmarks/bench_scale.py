@@ -41,7 +41,7 @@ OUTPUTS = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
 def write_files(folder: Path, n_files: int, rows: int) -> list[str]:
     import pandas as pd
 
-    from benchmarks.cases import make_data
+    from benchmarks.load_cases import make_data
 
     paths = []
     for index in range(n_files):
@@ -99,7 +99,7 @@ def peak_rss_of(code: str) -> float:
 
 
 def memory_rows(paths: list[str], folder: Path, degree: int) -> list[dict]:
-    from benchmarks.cases import make_data
+    from benchmarks.load_cases import make_data
     from ftcal.core.dataset import Dataset
     from ftcal.core.model import CalibrationModel
     from ftcal.files.model_json import save_model

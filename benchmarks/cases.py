@@ -27,23 +27,8 @@ from benchmarks.bench_payload_cli import CASES as PAYLOAD_CLI_CASES
 from benchmarks.bench_cluster import CASES as CLUSTER_CASES
 from benchmarks.bench_mlp import CASES as MLP_CASES
 from benchmarks.bench_plan import CASES as PLAN_CASES
-from benchmarks.load_cases import make_load_cases
+from benchmarks.load_cases import N_OUTPUTS, make_data, make_load_cases
 
-N_OUTPUTS = 6
-
-
-def make_data(n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
-    rng = np.random.default_rng(seed)
-    scale = np.array([120.0, 120.0, 110.0, 25.0, 25.0, 12.0])
-    raw = rng.uniform(-1.0, 1.0, (n, 6)) * scale
-    temperature = rng.uniform(25.0, 44.0, (n, 1))
-    u = np.hstack([raw, temperature])
-    x = raw / scale
-    t = (temperature[:, 0] - 34.5) / 9.5
-    y = np.column_stack([
-        scale[i] * (x[:, i] + 0.05 * np.tanh(2 * x[:, (i + 1) % 6]) + 0.02 * t * x[:, i] + 0.01 * x[:, i] ** 3)
-        for i in range(N_OUTPUTS)]) + rng.normal(0.0, 0.3, (n, N_OUTPUTS))
-    return u, y
 
 
 def paper_features(u: np.ndarray, degree: int) -> np.ndarray:

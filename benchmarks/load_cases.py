@@ -1,9 +1,26 @@
-"""The load-case data the model-selection and MLP benchmarks share (a module of its own, so cases import it
+"""The data the benchmarks share: the synthetic sensor table (make_data) and the load cases of the
+model-selection and MLP benchmarks (a module of its own, so cases import it
 without importing each other)."""
 
 from __future__ import annotations
 
 import numpy as np
+
+N_OUTPUTS = 6
+
+
+def make_data(n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    scale = np.array([120.0, 120.0, 110.0, 25.0, 25.0, 12.0])
+    raw = rng.uniform(-1.0, 1.0, (n, 6)) * scale
+    temperature = rng.uniform(25.0, 44.0, (n, 1))
+    u = np.hstack([raw, temperature])
+    x = raw / scale
+    t = (temperature[:, 0] - 34.5) / 9.5
+    y = np.column_stack([
+        scale[i] * (x[:, i] + 0.05 * np.tanh(2 * x[:, (i + 1) % 6]) + 0.02 * t * x[:, i] + 0.01 * x[:, i] ** 3)
+        for i in range(N_OUTPUTS)]) + rng.normal(0.0, 0.3, (n, N_OUTPUTS))
+    return u, y
 
 
 def make_load_cases(n: int, n_groups: int = 60, n_channels: int = 8, seed: int = 0):
