@@ -121,7 +121,8 @@ def fit(data, *, inputs: Sequence[str] | None = None, outputs: Sequence[str] | N
         Shrink a penalized fit toward this model (a file is recorded in the model file with its digest).
     estimate_payload, payload_mass : an unknown payload on this link, and its known mass (kg)
     family : ``"polynomial"`` or ``"mlp"``; hidden, activation, weight_decay, max_iter, seed: the MLP's
-    segment_by, group_by : columns naming segments and validation groups
+    segment_by, group_by : columns naming segments and validation groups (``group_by`` default: the
+        ``group`` column that ``ftcal dataset`` writes, where every file has one and groups matter)
     scheduler : str, optional
         ``local:N`` or a Dask address; ``executor``: an executor already open (wins over it).
     output : path, optional
@@ -372,6 +373,10 @@ def make_solver(o: _Options):
     return LeastSquares()
 
 
+# The column of load cases that `ftcal dataset` writes: the validation groups by default.
+GROUP_COLUMN = "group"
+
+
 class _EchoedLines(list):
     """The report's lines; each one added is also handed to ``echo`` at once (when given)."""
 
@@ -411,6 +416,7 @@ class _Fit:
 
         o = self.o
         check_family_options(o)
+        self._default_groups()
         if self.dataset is not None:
             inputs = inputs or self.dataset.input_names
             outputs = outputs or self.dataset.output_names
@@ -439,6 +445,24 @@ class _Fit:
         save["prior"] = prior_path
         self._report_fit(model)
         return self._result(model, save)
+
+    def _default_groups(self) -> None:
+        """``group`` (the load cases `ftcal dataset` writes) as the validation groups, when every table has it.
+
+        Only where groups matter (``--degree auto``, the MLP's early stopping and cross-validation,
+        ``--estimate-payload``): held-out folds then hold out whole load cases, not whole files.
+        """
+        from ..data.table_chunks import table_has_columns
+
+        o = self.o
+        if o.group_by is not None or not self.paths:
+            return
+        if not (o.degree == "auto" or o.family == "mlp" or o.estimate_payload):
+            return
+        if all(table_has_columns(path, [GROUP_COLUMN]) for path in self.paths):
+            o.group_by = GROUP_COLUMN
+            self.notes.append(f"groups: the tables' {GROUP_COLUMN!r} column (the load cases ftcal dataset writes); "
+                              "--group-by COL for another")
 
     def _result(self, model, save: dict) -> FitResult:
         return FitResult(model, None, self.lines, self.notes, self.selection, save)

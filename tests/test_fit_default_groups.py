@@ -1,0 +1,65 @@
+"""fit uses the load-case column `ftcal dataset` writes as its validation groups by default, and says so."""
+
+import subprocess
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import ftcal
+
+FTCAL = "/work/main/.venv/bin/ftcal"
+
+
+def write_tables(folder, with_group: bool):
+    """Two files, each holding 4 load cases (so one group per file would be 2 folds, per load case 8)."""
+    rng = np.random.default_rng(11)
+    paths = []
+    for k in range(2):
+        u = rng.uniform(-1.0, 1.0, size=(800, 3))
+        frame = pd.DataFrame(u, columns=["u1", "u2", "u3"])
+        frame["Fx"] = 2.0 * u[:, 0] + 0.3 * u[:, 1] ** 2 + 0.01 * rng.normal(size=800)
+        if with_group:
+            frame["group"] = [f"load{4 * k + i // 200}" for i in range(800)]
+        path = folder / f"part{k}.parquet"
+        frame.to_parquet(path)
+        paths.append(str(path))
+    return paths
+
+
+def test_degree_auto_groups_by_the_dataset_column_when_every_file_has_it(tmp_path):
+    paths = write_tables(tmp_path, with_group=True)
+    default = ftcal.fit(paths, inputs=["u1", "u2", "u3"], outputs=["Fx"], degree="auto", max_degree=2)
+    named = ftcal.fit(paths, inputs=["u1", "u2", "u3"], outputs=["Fx"], degree="auto", max_degree=2,
+                      group_by="group")
+    assert any("'group' column" in note for note in default.notes)
+    assert not any("'group' column" in note for note in named.notes)
+    # The same folds, so the same search table and the same model.
+    # (its notes hold the CPU seconds already spent, which differ between two runs)
+    a, b = default.selection.as_dict(), named.selection.as_dict()
+    assert {k: v for k, v in a.items() if k != "notes"} == {k: v for k, v in b.items() if k != "notes"}
+    assert np.array_equal(default.model.coef_, named.model.coef_)
+    # 8 load cases: 5 folds (the default), where one group per file would allow 2 at most.
+    assert default.selection.as_dict()["n_folds"] == 5
+
+
+def test_without_the_column_each_file_stays_a_group(tmp_path):
+    paths = write_tables(tmp_path, with_group=False)
+    result = ftcal.fit(paths, inputs=["u1", "u2", "u3"], outputs=["Fx"], degree="auto", max_degree=2, folds=2)
+    assert not any("'group' column" in note for note in result.notes)
+    assert result.selection.as_dict()["n_folds"] == 2
+
+
+def test_the_command_says_which_groups_it_used(tmp_path):
+    paths = write_tables(tmp_path, with_group=True)
+    run = subprocess.run([FTCAL, "fit", *paths, "--inputs", "u1,u2,u3", "--outputs", "Fx", "--degree", "auto",
+                          "--max-degree", "2", "-o", str(tmp_path / "m.json")], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    assert "groups: the tables' 'group' column" in run.stderr
+
+
+@pytest.mark.parametrize("degree", [2])
+def test_a_fixed_degree_is_not_regrouped(tmp_path, degree):
+    paths = write_tables(tmp_path, with_group=True)
+    result = ftcal.fit(paths, inputs=["u1", "u2", "u3"], outputs=["Fx"], degree=degree)
+    assert not any("'group' column" in note for note in result.notes)
