@@ -1,4 +1,4 @@
-"""Streamed ``ftcal fit`` (ranges pass, statistics pass, metrics pass; one task per file).
+"""Streamed ``ftcal fit`` (ranges pass, statistics pass, metrics pass for ARX; one task per file).
 
 References: the in-memory fit of the same files read whole (the acceptance criterion:
 coefficients to 1e-12 relative), numpy's lstsq on scikit-learn's PolynomialFeatures
@@ -77,7 +77,17 @@ def test_streamed_fit_equals_the_in_memory_fit(files, tmp_path, options, referen
     assert list(loaded.training_segments) == segment_fingerprints(data)
     streamed, memory = loaded.model.training_metrics_, whole.training_metrics_
     assert streamed["n_samples"] == memory["n_samples"]
-    for key in ("rmse", "best_fit", "max_abs_error", "residual_autocorrelation_lag1"):
+    for key in ("rmse", "best_fit"):
+        assert np.allclose(streamed[key], memory[key], rtol=1e-9, atol=1e-12), key
+    for key in ("force_error_norm_rmse", "torque_error_norm_rmse"):
+        assert streamed[key] == pytest.approx(memory[key], rel=1e-9), key
+    if "--na" not in options:
+        # A static fit's training errors come from its summed statistics (no third pass): what needs
+        # the samples themselves is left to `ftcal evaluate`, and the report says so.
+        assert "max_abs_error" not in streamed and "force_norm_rmse" not in streamed
+        assert "from the fit's statistics" in result.stdout
+        return
+    for key in ("max_abs_error", "residual_autocorrelation_lag1"):
         assert np.allclose(streamed[key], memory[key], rtol=1e-9, atol=1e-12), key
     assert streamed["force_norm_rmse"] == pytest.approx(memory["force_norm_rmse"], rel=1e-9)
     if "--na" in options:

@@ -48,11 +48,15 @@ _LAZY.update({name: f"workflow.{module}:{name}" for module, names in (
     ("datasets", ("build_dataset", "DatasetResult")), ("payload", ("identify_payload", "PayloadResult")),
     ("compensation", ("compensate", "CompensationResult")), ("checking", ("check_sensor", "CheckResult")),
     ("planning", ("plan_experiment", "PlanResult")), ("export", ("convert", "ConvertResult"))) for name in names})
+_LAZY.update(fit="workflow.fitting:fit", FitResult="workflow.fitting:FitResult",
+             evaluate="workflow.evaluation:evaluate", EvaluationResult="workflow.evaluation:EvaluationResult",
+             predict="workflow.evaluation:predict", PredictionResult="workflow.evaluation:PredictionResult")
 
 __all__ = ["CalibrationModel", "Dataset", "FtcalError", "FtcalWarning", "MonomialBasis",
            "RegressorLayout", "load_dataset", "load_model", "n_coefficients", "save_model"]
 __all__ += ["CheckResult", "CompensationResult", "ConvertResult", "DatasetResult", "PayloadResult", "PlanResult",
             "build_dataset", "check_sensor", "compensate", "convert", "identify_payload", "plan_experiment"]
+__all__ += ["EvaluationResult", "FitResult", "PredictionResult", "evaluate", "fit", "predict"]
 
 
 def __getattr__(name: str):

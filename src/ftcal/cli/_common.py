@@ -106,12 +106,10 @@ def require_suffix(path: str, suffixes: Sequence[str], option: str) -> None:
 
 
 def norm_rmse_text(metrics: dict, spec: str = ".4f", units: bool = True) -> str:
-    """``force-norm RMSE … N, torque-norm RMSE … N·m`` from training metrics; either may be absent
-    (force-only or torque-only outputs); '' when both are."""
-    parts = [f"{what}-norm RMSE {metrics[key]:{spec}}" + (f" {unit}" if units else "")
-             for what, key, unit in (("force", "force_norm_rmse", "N"), ("torque", "torque_norm_rmse", "N·m"))
-             if metrics.get(key) is not None]
-    return ", ".join(parts)
+    """:func:`ftcal.core.metrics.norm_rmse_text`, imported when called (numpy stays unloaded for ``--help``)."""
+    from ..core.metrics import norm_rmse_text as text
+
+    return text(metrics, spec, units)
 
 
 def output_folder(path: str, option: str = "--out"):

@@ -30,63 +30,13 @@ def register(sub) -> None:
 
 def run(args) -> int:
     import sys
-    import warnings
 
-    from ..core.ranges import describe
-    from ..files.model_files import read_model
-    from ..runtime.errors import OutOfRangeWarning
+    from ..workflow.evaluation import predict
 
     require_suffix(args.output, (".csv", ".parquet"), "-o")
-    model = read_model(args.model)
-    if not model.is_static:
-        print(f"ARX model: {args.mode} prediction"
-              + (f" from {args.start} history" if args.mode == "free-run" else " (measured past outputs)"),
-              file=sys.stderr)
-    n_rows, ranges = predict_streaming(args, model)
-    # One warning for the whole command (as CalibrationModel.predict on data read whole), never per file.
-    message = ranges and describe(ranges.summary(model.input_names_))
-    if message:
-        warnings.warn(message, OutOfRangeWarning, stacklevel=2)
-    print(f"wrote {n_rows} predictions to {args.output}", file=sys.stderr)
+    result = predict(args.model, args.data, output=args.output, mode=args.mode, start=args.start,
+                     segment_by=args.segment_by, scheduler=args.scheduler)
+    for note in result.notes:
+        print(note, file=sys.stderr)
+    print(result.summary(), file=sys.stderr)
     return 0
-
-
-def predict_streaming(args, model) -> tuple[int, int]:
-    """Predict file by file (``--scheduler``: one Dask task per file); static models chunk by chunk.
-
-    Each task writes a part file in a temporary folder beside the output (on
-    Dask, the workers must see that folder too); the parts are then joined in
-    input order into the output, which appears only when everything worked.
-
-    Returns
-    -------
-    (n_rows, ranges) : int and :class:`~ftcal.core.ranges.RangeSums` (None without rows)
-    """
-    import os
-    import shutil
-    import tempfile
-    from pathlib import Path
-
-    from ..data.streaming import join_parts, predict_part
-    from ..runtime.atomic import check_not_an_input
-    from ..runtime.errors import FtcalError
-    from ..runtime.executors import open_executor
-
-    output = Path(args.output)
-    check_not_an_input(output, "-o")
-    try:
-        output.parent.mkdir(parents=True, exist_ok=True)
-        folder = tempfile.mkdtemp(prefix=f".{output.name}.parts-", dir=output.parent)
-    except OSError as exc:
-        raise FtcalError(f"{output}: cannot create the output file ({exc.strerror or exc}).") from None
-    try:
-        tasks = [(path, os.path.join(folder, f"part-{index:05d}{output.suffix.lower()}"))
-                 for index, path in enumerate(args.data)]
-        with open_executor(args.scheduler) as executor:
-            counts = executor.map(predict_part, tasks, model, args.mode, args.segment_by, args.start,
-                                  description="predict")
-        join_parts([part for _, part in tasks], output)
-    finally:
-        shutil.rmtree(folder, ignore_errors=True)
-    ranges = [r for _, r in counts if r is not None]
-    return sum(n for n, _ in counts), (sum(ranges[1:], ranges[0]) if ranges else None)

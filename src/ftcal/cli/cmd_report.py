@@ -58,55 +58,18 @@ def split_files(files: list[str]) -> tuple[list[str], list[str]]:
     return models, data
 
 
-def run_names(paths: list[str]) -> list[str]:
-    """Each model's file name without extension; the whole path where two names would clash."""
-    stems = [Path(p).stem for p in paths]
-    return [stem if stems.count(stem) == 1 else str(p) for stem, p in zip(stems, paths)]
-
-
-def _union(name_lists) -> tuple[str, ...]:
-    out: list[str] = []
-    for names in name_lists:
-        out += [n for n in names if n not in out]
-    return tuple(out)
-
-
 def run(args: argparse.Namespace) -> int:
-    from ..core.fingerprint import warn_if_trained_on
-    from ..data.tables import read_dataset
-    from ..files.model_files import read_model_file
     from ..runtime.errors import FtcalError
+    from ..workflow.evaluation import report
 
     model_paths, data_paths = split_files(args.files)
     out = Path(args.output)
     if out.suffix.lower() not in REPORT_SUFFIXES:
         raise FtcalError(f"--output {out}: must end in .html.")
-    train_paths = list(args.train)
-    for name in train_paths:
+    for name in args.train:
         if Path(name).suffix.lower() not in DATA_SUFFIXES:
             raise FtcalError(f"--train {name}: data files end in {', '.join(DATA_SUFFIXES)}.")
-
-    loaded = [read_model_file(p) for p in model_paths]
-    models = [m.model for m in loaded]
-    inputs = args.inputs or _union(m.input_names_ for m in models)
-    outputs = args.outputs or _union(m.output_names_ for m in models)
-
-    def read(paths):
-        return read_dataset(paths, inputs, outputs, segment_by=args.segment_by, group_by=args.group_by)
-
-    validation = read(data_paths)
-    for path, model_file in zip(model_paths, loaded):
-        warn_if_trained_on(validation, model_file.training_segments, path)
-    train = read(train_paths) if train_paths else None
-
-    from ..report import build_report, evaluate
-
-    runs = [evaluate(model, validation, name=name, train=train)
-            for model, name in zip(models, run_names(model_paths))]
-    notes = [f"Model files: {', '.join(model_paths)}.", f"Validation data files: {', '.join(data_paths)}."]
-    if train_paths:
-        notes.append(f"Training data files: {', '.join(train_paths)}.")
-    path = build_report(runs, validation, out, train=train, title=args.title, notes=notes)
-    size_mb = path.stat().st_size / 1e6
-    print(f"wrote {path} ({len(runs)} model(s), {validation.n_samples} validation samples, {size_mb:.1f} MB)")
+    result = report(model_paths, data_paths, out, train=args.train, inputs=args.inputs, outputs=args.outputs,
+                    segment_by=args.segment_by, group_by=args.group_by, title=args.title)
+    print(result.summary())
     return 0

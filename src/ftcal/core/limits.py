@@ -238,3 +238,8 @@ SIMULATE_CHANNELS = ("wrench", "raw")
 
 SIMULATE_FORMATS = ("bag", "table")
 """What ``ftcal simulate`` writes per recording: a ROS 2 bag folder, a robot-log table (Parquet)."""
+
+# A static fit's training error from its summed statistics, yᵀy − 2θᵀAᵀy + θᵀAᵀAθ, loses about
+# log10(yᵀy / ‖r‖²) of float64's ~16 digits to cancellation; beyond this many the fit scores the
+# samples in a pass instead (a near-exact fit, or targets far from zero).
+STATISTICS_ERROR_DIGITS = 7

@@ -460,3 +460,72 @@ def _recentred(n: int, centre: np.ndarray, dev_sum: np.ndarray, dev_sq: np.ndarr
 def _json_list(values: np.ndarray) -> list:
     """Floats for JSON, with None where a value is undefined (NaN)."""
     return [float(v) if np.isfinite(v) else None for v in values]
+
+
+def norm_rmse_text(metrics: dict, spec: str = ".4f", units: bool = True) -> str:
+    """``force-norm RMSE … N, torque-norm RMSE … N·m`` from training metrics; either may be absent
+    (force-only or torque-only outputs); '' when both are.
+
+    Examples
+    --------
+    >>> norm_rmse_text({"force_norm_rmse": 1.5, "torque_norm_rmse": None})
+    'force-norm RMSE 1.5000 N'
+    """
+    parts = [f"{what}-norm RMSE {metrics[key]:{spec}}" + (f" {unit}" if units else "")
+             for what, key, unit in (("force", "force_norm_rmse", "N"), ("torque", "torque_norm_rmse", "N·m"))
+             if metrics.get(key) is not None]
+    return ", ".join(parts)
+
+
+def statistics_training_error(gram: np.ndarray, cross: np.ndarray, target_sq: np.ndarray,
+                              target_sum: np.ndarray, n_samples: int, coef: np.ndarray,
+                              output_scale: np.ndarray, output_names: Sequence[str]) -> dict:
+    """Training RMSE, BestFit and error-norm RMSEs of a linear-in-coefficients fit, from its summed statistics.
+
+    With regressor A (n × p), targets B (n × ny) and coefficients Θ (p × ny), each output's sum of
+    squared residuals is ``‖b − Aθ‖² = bᵀb − 2θᵀ(Aᵀb) + θᵀ(AᵀA)θ`` and its spread
+    ``Σ(b − b̄)² = bᵀb − (Σb)²/n``: no second pass over the samples. The statistics may be in a
+    normalized output basis ``b = (y − offset) / output_scale``; both sums scale by ``output_scale²``.
+    What needs the samples themselves (max |error|, residual autocorrelation, the norm of each
+    predicted force) is not here: those stay with a pass over the data (``ftcal evaluate``).
+
+    Parameters
+    ----------
+    gram : ndarray of shape (p, p)      AᵀA
+    cross : ndarray of shape (p, ny)    AᵀB
+    target_sq, target_sum : ndarray of shape (ny,)   Σ b², Σ b per output
+    n_samples : int                     rows of A
+    coef : ndarray of shape (p, ny)     Θ, in the basis of the statistics
+    output_scale : ndarray of shape (ny,)  y = offset + output_scale · b
+    output_names : sequence of str      to find the force and torque triples
+
+    Returns
+    -------
+    dict
+        ``n_samples``, ``outputs``, ``rmse``, ``best_fit`` (None where an output is constant),
+        ``force_error_norm_rmse``, ``torque_error_norm_rmse`` (None without that triple).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> a = np.c_[np.arange(4.0), np.ones(4)]
+    >>> y = np.array([[0.0], [1.0], [2.0], [4.0]])
+    >>> theta = np.linalg.lstsq(a, y, rcond=None)[0]
+    >>> out = statistics_training_error(a.T @ a, a.T @ y, (y ** 2).sum(0), y.sum(0), 4, theta,
+    ...                                 np.ones(1), ["Fx"])
+    >>> bool(np.isclose(out["rmse"][0], np.sqrt(np.mean((y - a @ theta) ** 2))))
+    True
+    """
+    coef = np.asarray(coef, dtype=np.float64)
+    scale_sq = np.asarray(output_scale, dtype=np.float64) ** 2
+    # θᵀ(Gθ − 2c) + bᵀb per output; clipped at 0 (rounding can leave a tiny negative on an exact fit)
+    sse = np.maximum(np.einsum("ij,ij->j", coef, gram @ coef - 2.0 * cross) + target_sq, 0.0) * scale_sq
+    spread = np.maximum(target_sq - target_sum ** 2 / n_samples, 0.0) * scale_sq
+    with np.errstate(divide="ignore", invalid="ignore"):
+        fit = np.where(spread > 0, 1.0 - np.sqrt(sse / spread), np.nan)
+    out: dict = {"n_samples": int(n_samples), "outputs": list(output_names),
+                 "rmse": np.sqrt(sse / n_samples).tolist(), "best_fit": _json_list(fit),
+                 "force_error_norm_rmse": None, "torque_error_norm_rmse": None}
+    for name, columns in wrench_blocks(output_names).items():
+        out[f"{name}_error_norm_rmse"] = float(np.sqrt(sse[columns].sum() / n_samples))
+    return out

@@ -302,6 +302,35 @@ def file_layout_statistics(path: str, layout: RegressorLayout, in_norm: Normaliz
                               out_norm)
 
 
+def file_statistics_and_poses(path: str, basis: MonomialBasis, normalization: Normalization,
+                              inputs: Sequence[str], outputs: Sequence[str],
+                              input_range: np.ndarray) -> tuple[list[SufficientStatistics], frozenset]:
+    """:func:`file_statistics` of a static model, and the pose-grid cells its samples occupy, in one read.
+
+    The cells (:func:`ftcal.core.select.pose_cells` over ``input_range``, at most
+    ``POSE_CELL_CAP``) are for ``fit``'s saturation warning, so that a static fit, whose
+    training errors come from the statistics, needs no pass after this one.
+
+    Returns
+    -------
+    ([SufficientStatistics], frozenset of cells); combine with :func:`add_statistics_and_poses`.
+    """
+    from ..core.select import pose_cells
+
+    total = StaticAccumulator(basis, len(outputs))
+    cells: set = set()
+    for chunk in iter_table_chunks(path, inputs, outputs):
+        if len(cells) < POSE_CELL_CAP:
+            cells |= pose_cells(chunk.inputs, input_range)
+        total.add(normalization.apply(chunk.inputs), chunk.outputs)
+    return [total.statistics()], frozenset(cells)
+
+
+def add_statistics_and_poses(a: tuple[list, frozenset], b: tuple[list, frozenset]) -> tuple[list, frozenset]:
+    """Two files' :func:`file_statistics_and_poses`, ``b``'s after ``a``'s (the lists keep the row order)."""
+    return a[0] + b[0], (a[1] | b[1] if len(a[1]) < POSE_CELL_CAP else a[1])
+
+
 def segment_statistics(data, layout: RegressorLayout, in_norm: Normalization,
                        out_norm: Normalization) -> list[SufficientStatistics]:
     """Statistics of an ARX layout per segment of ``data`` (a Dataset), in row order; lags stay inside segments.

@@ -1,0 +1,851 @@
+"""The fit step: a calibration model from tables (streamed) or a Dataset, with ``degree="auto"`` selection.
+
+:func:`fit` is ``ftcal fit`` as a library call. Files are streamed (a pass for the ranges, one
+for the sufficient statistics, ``degree="auto"``: a pass per degree and basis tried per fold);
+``solver="osqp"``, ``estimate_payload`` and the MLP family read the data whole. A static
+polynomial fit by the streaming solvers takes its training RMSE and BestFit from the summed
+statistics (:func:`ftcal.core.metrics.statistics_error_sums`); a pass over the data is kept only
+for what the statistics do not hold: ARX models (free-run and one-step metrics), ``degree="auto"``
+selections and the in-memory paths (scored on the data they hold anyway).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+import warnings
+from collections.abc import Sequence
+from contextlib import nullcontext
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+from ..core.columns import DEFAULT_OUTPUTS
+from ..core.limits import (MAX_DEGREE, MAX_LAG, MLP_EQUATIONS_PER_WEIGHT, MLP_MAX_ITER, MLP_MAX_LAYERS,
+                           MLP_MAX_UNITS, PAPER_LAMBDAS, SELECTION_BUDGET_SECONDS)
+from ..runtime.errors import FtcalError, FtcalWarning
+from .result import StepResult
+
+# Rows × weights below which the MLP's default max_iter is 2000 instead of 400 (a few seconds either way).
+SMALL_MLP_WORK = 2_000_000
+
+# The --degree auto search's options and their defaults: refused (not ignored) by a fit of a given degree.
+SEARCH_DEFAULTS = {"folds": 5, "penalties": ("lasso", "ridge"), "lambdas": None, "select_per": "block",
+                   "objective": "both", "max_degree": 5, "budget": SELECTION_BUDGET_SECONDS, "verbose": False}
+
+
+@dataclass(repr=False)
+class FitResult(StepResult):
+    """What :func:`fit` returns: the fitted model and the report ``ftcal fit`` prints.
+
+    Attributes
+    ----------
+    model : CalibrationModel or MLPModel
+        The fitted model (its ``training_metrics_`` hold the training errors).
+    output : str or None
+        The model file written, or None (``result.save(path)`` writes it later).
+    lines : list of str
+        The report, line by line (standard output of ``ftcal fit``).
+    notes : list of str
+        Side remarks (standard error of ``ftcal fit``): samples read, rows dropped, warnings.
+    selection : CrossValidationResult or None
+        The ``degree="auto"`` search, when it ran.
+
+    Examples
+    --------
+    >>> import numpy as np, pandas as pd
+    >>> import ftcal
+    >>> u = np.linspace(-1.0, 1.0, 30)
+    >>> result = ftcal.fit(pd.DataFrame({"u1": u, "Fx": 4.0 * u + 0.02 * np.cos(25 * u)}),
+    ...                    inputs=["u1"], outputs=["Fx"])
+    >>> result.model.describe()["degree"], result.to_dict()["n_samples"]
+    (1, 30)
+    """
+
+    model: Any
+    output: str | None
+    lines: list[str]
+    notes: list[str] = field(default_factory=list)
+    selection: Any = None
+    _save: dict = field(default_factory=dict)
+
+    def summary(self) -> str:
+        return "\n".join(self.lines)
+
+    def to_dict(self) -> dict:
+        from .result import plain
+
+        model = self.model
+        info = model.describe()
+        return plain({"family": getattr(model, "family", "polynomial"), "model": info,
+                      "solver": getattr(model, "solver_info_", {}), "n_samples": model.n_samples_fit_,
+                      "training_metrics": model.training_metrics_, "output": self.output, "notes": self.notes,
+                      "selection": self.selection.as_dict() if self.selection is not None else None})
+
+    def save(self, path: str | os.PathLike) -> Path:
+        """Write the model file (JSON, atomically) with this fit's sources and training fingerprints."""
+        from ..files.model_json import save_model
+
+        return save_model(self.model, path, **self._save)
+
+
+def fit(data, *, inputs: Sequence[str] | None = None, outputs: Sequence[str] | None = None,
+        degree: int | str | None = None, lasso: float | None = None, ridge: float | None = None,
+        na: int = 0, nb: int = 0, solver: str = "lstsq", normalization: str | None = None,
+        folds: int = 5, penalties: Sequence[str] = ("lasso", "ridge"), lambdas: Sequence[float] | None = None,
+        select_per: str = "block", objective: str = "both", max_degree: int = 5,
+        budget: float = SELECTION_BUDGET_SECONDS, verbose: bool = False, drop_incomplete: bool = False,
+        prior=None, estimate_payload: str | None = None, payload_mass: float | None = None,
+        family: str = "polynomial", hidden=None, activation: str | None = None, weight_decay=None,
+        max_iter=None, seed=None, segment_by: str | None = None, group_by: str | None = None,
+        scheduler: str | None = None, executor=None, output: str | os.PathLike | None = None,
+        cpu_start: float | None = None) -> FitResult:
+    """Fit a calibration model, as ``ftcal fit`` does; the keywords are its flags.
+
+    Parameters
+    ----------
+    data : path, sequence of paths, pandas.DataFrame or Dataset
+        CSV/Parquet files (each one segment and group unless ``segment_by``/``group_by`` name
+        columns; streamed), a DataFrame (its columns), or a :class:`~ftcal.core.dataset.Dataset`
+        (fitted in memory).
+    inputs, outputs : column names (default ``u1..u6,T`` or ``u1..u6``; ``Fx..Tz``)
+    degree : int in 1..10, ``"auto"`` (grouped cross-validation over 1..``max_degree``) or None (1)
+    lasso, ridge : float, optional
+        The paper's LASSO weight or the ridge weight on its max-abs-scaled regressor.
+    na, nb : ARX lags; solver : ``"lstsq"`` or ``"osqp"``; normalization : ``"maxabs"``/``"center"``
+    folds, penalties, lambdas, select_per, objective, max_degree, budget, verbose
+        The ``degree="auto"`` search (see ``ftcal fit --help``); ``budget`` in CPU seconds.
+    drop_incomplete : drop rows with empty cells (default: refuse them)
+    prior : path or CalibrationModel, optional
+        Shrink a penalized fit toward this model (a file is recorded in the model file with its digest).
+    estimate_payload, payload_mass : an unknown payload on this link, and its known mass (kg)
+    family : ``"polynomial"`` or ``"mlp"``; hidden, activation, weight_decay, max_iter, seed: the MLP's
+    segment_by, group_by : columns naming segments and validation groups
+    scheduler : str, optional
+        ``local:N`` or a Dask address; ``executor``: an executor already open (wins over it).
+    output : path, optional
+        Model file to write (JSON, atomically).
+    cpu_start : float, optional
+        ``time.process_time()`` the ``budget`` counts from (default: now).
+
+    Returns
+    -------
+    FitResult
+
+    Raises
+    ------
+    FtcalError
+        Bad input (a file, a column, an option), in one line.
+
+    Examples
+    --------
+    >>> import numpy as np, pandas as pd
+    >>> import ftcal
+    >>> u = np.linspace(-1.0, 1.0, 50)
+    >>> frame = pd.DataFrame({"u1": u, "Fx": 3.0 * u + 1.0 + 0.01 * np.sin(40 * u)})
+    >>> result = ftcal.fit(frame, inputs=["u1"], outputs=["Fx"])
+    >>> result.lines[-1].startswith("training RMSE per output: Fx")
+    True
+    >>> round(float(result.model.predict(np.array([[0.5]]))[0, 0]), 2)
+    2.5
+    """
+    cpu_start = time.process_time() if cpu_start is None else cpu_start
+    output = None if output is None else str(output)
+    if output is not None and not output.lower().endswith(".json"):
+        raise FtcalError(f"-o {output}: must end in .json.")
+    options = _Options(degree=degree, lasso=lasso, ridge=ridge, na=na, nb=nb, solver=solver,
+                       normalization=normalization, folds=folds, penalties=tuple(penalties),
+                       lambdas=None if lambdas is None else tuple(lambdas), select_per=select_per,
+                       objective=objective, max_degree=max_degree, budget=budget, verbose=verbose,
+                       drop_incomplete=drop_incomplete, prior=prior, estimate_payload=estimate_payload,
+                       payload_mass=payload_mass, family=family, hidden=hidden, activation=activation,
+                       weight_decay=weight_decay, max_iter=max_iter, seed=seed, segment_by=segment_by,
+                       group_by=group_by, scheduler=scheduler, cpu_start=cpu_start)
+    with _as_paths(data) as (paths, dataset, sources):
+        run = _Fit(options, paths, dataset, sources, executor)
+        result = run.run(inputs, outputs)
+    if output is not None:
+        result.save(output)
+        result.output = output
+        result.lines.append(f"wrote {output}")
+    return result
+
+
+@dataclass
+class _Options:
+    degree: Any
+    lasso: Any
+    ridge: Any
+    na: int
+    nb: int
+    solver: str
+    normalization: Any
+    folds: int
+    penalties: tuple
+    lambdas: Any
+    select_per: str
+    objective: str
+    max_degree: int
+    budget: float
+    verbose: bool
+    drop_incomplete: bool
+    prior: Any
+    estimate_payload: Any
+    payload_mass: Any
+    family: str
+    hidden: Any
+    activation: Any
+    weight_decay: Any
+    max_iter: Any
+    seed: Any
+    segment_by: Any
+    group_by: Any
+    scheduler: Any
+    cpu_start: float
+
+
+class _as_paths:
+    """``data`` as (paths, Dataset or None, source names): a DataFrame becomes one temporary Parquet file,
+    so that it runs the very path files run."""
+
+    def __init__(self, data):
+        self.data = data
+        self.folder = None
+
+    def __enter__(self):
+        from ..core.dataset import Dataset
+
+        data = self.data
+        if isinstance(data, Dataset):
+            return [], data, list(data.sources)
+        if isinstance(data, (str, os.PathLike)):
+            return [str(data)], None, [str(data)]
+        if hasattr(data, "to_parquet") and hasattr(data, "columns"):
+            import tempfile
+
+            self.folder = tempfile.TemporaryDirectory(prefix="ftcal-frame-")
+            path = os.path.join(self.folder.name, "frame.parquet")
+            data.to_parquet(path, index=False)
+            return [path], None, ["DataFrame"]
+        if isinstance(data, Sequence) and data and all(isinstance(p, (str, os.PathLike)) for p in data):
+            return [str(p) for p in data], None, [str(p) for p in data]
+        raise FtcalError(f"data: expected a file name, a list of them, a pandas DataFrame or a Dataset; "
+                         f"got {type(data).__name__}.")
+
+    def __exit__(self, *exc):
+        if self.folder is not None:
+            self.folder.cleanup()
+        return False
+
+
+def check_options(o: _Options) -> None:
+    """Option combinations that cannot work, refused before any data is read (named as ``ftcal fit``'s flags)."""
+    if o.solver == "osqp" and o.ridge:
+        raise FtcalError("--solver osqp implements the paper's least-squares and LASSO programs, not --ridge.")
+    if o.degree == "auto" and o.solver == "osqp":
+        raise FtcalError("--degree auto uses the streaming solvers; drop --solver osqp.")
+    if o.prior is not None and o.degree != "auto" and not (o.lasso or o.ridge):
+        raise FtcalError("--prior shrinks a penalized fit toward another model; add --ridge or --lasso "
+                         "(or --degree auto).")
+    if o.degree is None:
+        if o.lasso or o.ridge:
+            warnings.warn(f"--{'lasso' if o.lasso else 'ridge'} without --degree fits degree 1 (affine); "
+                          "give --degree (the paper's LASSO models are degree 4).", FtcalWarning, stacklevel=3)
+        o.degree = 1
+    if o.degree != "auto" and (isinstance(o.degree, bool) or not isinstance(o.degree, int)
+                               or not 1 <= o.degree <= MAX_DEGREE):
+        raise FtcalError(f"--degree must be in 1..{MAX_DEGREE} or 'auto'; got {o.degree!r}.")
+    if o.folds < 2:
+        raise FtcalError(f"--folds must be at least 2; got {o.folds}.")
+    if o.degree != "auto":
+        for name, default in SEARCH_DEFAULTS.items():
+            if getattr(o, name) != default:
+                raise FtcalError(f"--{name.replace('_', '-')} goes with --degree auto (the search); a fit of "
+                                 f"--degree {o.degree} does not use it.")
+    elif o.lasso or o.ridge:
+        for name in ("penalties", "lambdas"):
+            if getattr(o, name) != SEARCH_DEFAULTS[name]:
+                raise FtcalError(f"--{name}: the search's penalty is fixed by --{'lasso' if o.lasso else 'ridge'} "
+                                 "λ; give one or the other.")
+    for flag in ("na", "nb"):
+        if getattr(o, flag) > MAX_LAG:
+            raise FtcalError(f"--{flag} must be at most {MAX_LAG}; got {getattr(o, flag)}.")
+    if not 1 <= o.max_degree <= MAX_DEGREE:
+        raise FtcalError(f"--max-degree must be in 1..{MAX_DEGREE}; got {o.max_degree}.")
+    if o.objective != "both" and o.select_per != "model":
+        raise FtcalError(f"--objective {o.objective} ranks one model for all outputs; add --select-per model "
+                         f"(with --select-per {o.select_per} each part is ranked by its own error).")
+    if o.drop_incomplete and o.scheduler:
+        raise FtcalError("--drop-incomplete filters rows in this process; drop --scheduler to use it.")
+    if o.scheduler and not _streams(o):
+        raise FtcalError("--scheduler runs fits with the streaming solvers; it does not run --estimate-payload "
+                         "or --solver osqp (drop --scheduler for those).")
+    if o.payload_mass is not None and o.estimate_payload is None:
+        raise FtcalError("--payload-mass goes with --estimate-payload LINK.")
+
+
+def _streams(o: _Options) -> bool:
+    """Whether this fit streams its files (one task per file, chunk by chunk) instead of reading them whole."""
+    return o.estimate_payload is None and o.solver != "osqp"
+
+
+def hidden_sizes(text) -> tuple[int, ...]:
+    """``"32,32"`` (or a sequence) → (32, 32); one-line FtcalError unless 1 to MLP_MAX_LAYERS layers of
+    1 to MLP_MAX_UNITS units."""
+    parts = text.split(",") if isinstance(text, str) else list(text)
+    try:
+        sizes = tuple(int(part) for part in parts)
+    except (TypeError, ValueError):
+        sizes = ()
+    if not 1 <= len(sizes) <= MLP_MAX_LAYERS or not all(1 <= s <= MLP_MAX_UNITS for s in sizes):
+        shown = text if isinstance(text, str) else ",".join(map(str, parts))
+        raise FtcalError(f"--hidden {shown}: expected 1 to {MLP_MAX_LAYERS} comma-separated layer sizes of 1 to "
+                         f"{MLP_MAX_UNITS} units, such as 32,32.")
+    return sizes
+
+
+def weight_decay_value(text) -> float:
+    """A finite number >= 0; one-line FtcalError otherwise."""
+    try:
+        value = float(text)
+    except (TypeError, ValueError):
+        value = math.nan
+    if not math.isfinite(value) or value < 0:
+        raise FtcalError(f"--weight-decay {text}: must be a finite number >= 0 (0 turns the penalty off).")
+    return value
+
+
+def whole_number(text, option: str, low: int, high: int) -> int:
+    """An int in [low, high]; one-line FtcalError otherwise."""
+    try:
+        value = int(text)
+    except (TypeError, ValueError):
+        value = low - 1
+    if not low <= value <= high:
+        raise FtcalError(f"{option} {text}: must be a whole number in {low}..{high}.")
+    return value
+
+
+def check_family_options(o: _Options) -> None:
+    """Options the MLP does not take, refused before any data is read; the MLP's own, checked."""
+    own = {"--hidden": o.hidden, "--activation": o.activation, "--weight-decay": o.weight_decay,
+           "--max-iter": o.max_iter, "--seed": o.seed}
+    if o.family != "mlp":
+        given = [flag for flag, value in own.items() if value is not None]
+        if given:
+            raise FtcalError(f"{', '.join(given)} go with --family mlp.")
+        return
+    o.hidden = None if o.hidden is None else hidden_sizes(o.hidden)  # None: sized to the data
+    o.activation = o.activation or "tanh"
+    o.weight_decay = weight_decay_value("1e-4" if o.weight_decay is None else o.weight_decay)
+    # None: 400, or 2000 for a small network on few rows (sized in _fit_mlp, where the rows are known).
+    o.max_iter = None if o.max_iter is None else whole_number(o.max_iter, "--max-iter", 1, MLP_MAX_ITER)
+    o.seed = whole_number("0" if o.seed is None else o.seed, "--seed", 0, 2**32 - 1)
+    given = [flag for flag, on in (("--degree", o.degree is not None), ("--lasso", o.lasso),
+                                   ("--ridge", o.ridge), ("--na", o.na), ("--nb", o.nb),
+                                   ("--prior", o.prior is not None), ("--estimate-payload", o.estimate_payload),
+                                   ("--solver osqp", o.solver == "osqp"), ("--scheduler", o.scheduler),
+                                   ("--normalization", o.normalization)) if on]
+    if given:
+        raise FtcalError(f"--family mlp does not take {', '.join(given)} (polynomial options); its own are "
+                         "--hidden, --activation, --weight-decay, --max-iter and --seed.")
+    if o.folds < 2:
+        raise FtcalError(f"--folds must be at least 2; got {o.folds}.")
+
+
+def make_solver(o: _Options):
+    """The solver the options name (streaming least squares by default)."""
+    from ..core.solvers.lasso import Lasso
+    from ..core.solvers.least_squares import LeastSquares, Ridge
+    from ..core.solvers.osqp_qp import OsqpLasso, OsqpLeastSquares
+
+    if o.solver == "osqp":
+        return OsqpLasso(o.lasso) if o.lasso else OsqpLeastSquares()
+    if o.lasso:
+        return Lasso(o.lasso)
+    if o.ridge:
+        return Ridge(o.ridge)
+    return LeastSquares()
+
+
+class _Fit:
+    """One run of :func:`fit`: the options, the data, and the report as it grows."""
+
+    def __init__(self, options: _Options, paths: list[str], dataset, sources: list[str], executor) -> None:
+        self.o = options
+        self.paths = paths
+        self.dataset = dataset
+        self.sources = sources
+        self.executor = executor
+        self.lines: list[str] = []
+        self.notes: list[str] = []
+        self.selection = None
+
+    # ------------------------------------------------------------------ entry
+    def run(self, inputs, outputs) -> FitResult:
+        from ..core.fingerprint import segment_fingerprints
+        from ..core.model import CalibrationModel
+        from ..data.tables import default_inputs, drop_incomplete
+
+        o = self.o
+        check_family_options(o)
+        if self.dataset is not None:
+            inputs = inputs or self.dataset.input_names
+            outputs = outputs or self.dataset.output_names
+        inputs = tuple(inputs or default_inputs(self.paths))
+        outputs = tuple(outputs or DEFAULT_OUTPUTS)
+        if o.family == "mlp":
+            model, data = self._fit_mlp(inputs, outputs)
+            save = dict(sources=self.sources, training_segments=segment_fingerprints(data))
+            if getattr(model, "family", "polynomial") == "mlp":
+                self._report_mlp(model)
+            else:  # the MLP lost to the affine model beyond the fold noise: that is what was written
+                self._report_fit(model)
+            return self._result(model, save)
+        check_options(o)
+        prior, prior_path = o.prior, None
+        if isinstance(prior, (str, os.PathLike)):
+            from ..files.model_files import read_model
+
+            prior_path, prior = str(prior), read_model(prior)
+        template = CalibrationModel(na=o.na, nb=o.nb, normalization=o.normalization, prior=prior)
+        with drop_incomplete() if o.drop_incomplete else nullcontext() as dropped:
+            if _streams(o) and self.dataset is None:
+                model, save = self._fit_streaming(template, inputs, outputs, dropped)
+            else:
+                model, save = self._fit_in_memory(template, inputs, outputs, dropped)
+        save["prior"] = prior_path
+        self._report_fit(model)
+        return self._result(model, save)
+
+    def _result(self, model, save: dict) -> FitResult:
+        return FitResult(model, None, self.lines, self.notes, self.selection, save)
+
+    def _read_note(self, n_samples: int, inputs, outputs, extra: str = "") -> None:
+        files = len(self.paths) if self.paths else len(self.sources)
+        self.notes.append(f"read {n_samples} samples from {files} file(s): inputs {','.join(inputs)} "
+                          f"-> outputs {','.join(outputs)}{extra}")
+
+    def _dropped_note(self, dropped) -> None:
+        if dropped is not None:
+            self.notes.append(f"dropped {sum(dropped.values())} row(s) with an empty cell (--drop-incomplete)")
+
+    def _read(self, inputs, outputs):
+        """The data whole, as a Dataset (the one given, or the files read)."""
+        from ..data.tables import read_dataset
+
+        if self.dataset is not None:
+            data = self.dataset
+            missing = [c for c in (*inputs, *outputs) if c not in (*data.input_names, *data.output_names)]
+            if missing:
+                raise FtcalError(f"data: no column {missing[0]!r}; the Dataset has "
+                                 f"{', '.join((*data.input_names, *data.output_names))}.")
+            if tuple(inputs) == data.input_names and tuple(outputs) == data.output_names:
+                return data
+            y = data.outputs[:, [data.output_names.index(n) for n in outputs]]
+            return replace(data, inputs=data.select_inputs(inputs), outputs=y, input_names=tuple(inputs),
+                           output_names=tuple(outputs))
+        return read_dataset(self.paths, inputs, outputs, segment_by=self.o.segment_by, group_by=self.o.group_by)
+
+    # ------------------------------------------------------------------ in memory
+    def _fit_in_memory(self, template, inputs, outputs, dropped):
+        """Read the data whole (--solver osqp, --estimate-payload, a Dataset given), fit."""
+        import numpy as np
+
+        from ..core.excitation import Spread
+        from ..core.fingerprint import segment_fingerprints
+        from ..core.select import pose_cells
+
+        o = self.o
+        if o.estimate_payload is not None:
+            data = self._read_with_payload(inputs, outputs)  # the payload, then the completed wrench's span
+            self._report_excitation(Spread.of(data.outputs), data.output_names)
+        else:
+            data = self._read(inputs, outputs)
+            self._report_excitation(Spread.of(data.outputs), data.output_names)
+            self._read_note(data.n_samples, inputs, outputs)
+        self._dropped_note(dropped)
+        if o.degree == "auto":
+            from ..core.select import fit_best
+
+            result = self._cross_validation(data, template, data.n_samples, len(inputs))
+            model = fit_best(data, result, template=template)
+            model.solver_info_["cross_validation"] = result.as_dict()
+        else:
+            model = template.clone(degree=o.degree, solver=make_solver(o)).fit(data)
+        if model.input_spread_ is None:
+            model.input_spread_ = Spread.of(data.inputs)
+        check_saturation(model, lambda: len(pose_cells(data.inputs, model.input_range_)),
+                         len(np.unique(np.asarray(data.groups, dtype=str))))
+        return model, dict(sources=self.sources, training_segments=segment_fingerprints(data))
+
+    def _read_with_payload(self, inputs, outputs):
+        """The dataset with the payload's wrench added to the outputs; the payload estimate reported.
+
+        Reads the ``Y_<LINK>_<output>_<parameter>`` columns written by
+        ``ftcal dataset --estimate-payload LINK`` (4 static or 10 parameters).
+        """
+        from ..data.tables import read_dataset, read_table
+        from ..payload.regressor import INERTIAL_PARAMETERS
+        from ..payload.unknown_load import estimate_payload, payload_column
+
+        o = self.o
+        link = o.estimate_payload
+        if not self.paths:
+            raise FtcalError("--estimate-payload reads the payload regressor columns from the files; give files.")
+        header = set(read_table(self.paths[0]).columns)
+        k = len(INERTIAL_PARAMETERS) if payload_column(link, outputs[0], "Ixx") in header else 4
+        columns = tuple(payload_column(link, name, p) for name in outputs for p in INERTIAL_PARAMETERS[:k])
+        missing = [c for c in columns if c not in header]
+        if missing:
+            raise FtcalError(f"{self.paths[0]}: no column {missing[0]!r}; write the dataset with "
+                             f"'ftcal dataset ... --estimate-payload {link}'.")
+        data = read_dataset(self.paths, inputs, (*outputs, *columns), segment_by=o.segment_by, group_by=o.group_by)
+        self._read_note(data.n_samples, inputs, outputs, f" + payload on {link} ({k} parameters)")
+        known = data.outputs[:, :len(outputs)]
+        regressor = data.outputs[:, len(outputs):].reshape(data.n_samples, len(outputs), k)
+        data = replace(data, outputs=known, output_names=tuple(outputs))
+        estimate = estimate_payload(data, regressor, link, payload_mass=o.payload_mass)
+        self.lines.extend(estimate.lines())
+        return replace(data, outputs=known + regressor @ estimate.values)
+
+    # ------------------------------------------------------------------ streamed
+    def _fit_streaming(self, template, inputs, outputs, dropped):
+        """Fit with one task per file, in passes that each hold one chunk (or one ARX file).
+
+        Pass 1 gives the ranges, segment lengths and fingerprints; the normalization follows from
+        the ranges, so pass 2 accumulates the statistics directly in the solve basis (raw moments
+        changed to another basis afterwards would be exact algebra but not exact arithmetic:
+        degree-8 moments of raw ADC counts lose every digit to cancellation). A static fit of a
+        given degree takes its training errors from those statistics; ARX fits and selections
+        score the training data in a third pass (additive error sums, as ``evaluate``). Run here,
+        the passes parse each small file once (:func:`ftcal.data.table_chunks.keep_in_memory`).
+        """
+        from ..core.statistics import sum_statistics
+        from ..data.streaming import (
+            StreamedStatistics,
+            add_error_sums,
+            add_statistics,
+            add_statistics_and_poses,
+            file_error_sums,
+            file_statistics_and_poses,
+            file_summary,
+        )
+        from ..data.table_chunks import keep_in_memory
+        from ..runtime.executors import open_executor
+
+        o = self.o
+        opened = nullcontext(self.executor) if self.executor is not None else open_executor(o.scheduler)
+        paths = self.paths
+        with opened as executor, keep_in_memory():
+            summary = executor.map_reduce(file_summary, paths, inputs, outputs, o.segment_by,
+                                          o.group_by, combine=add_statistics, description="ranges")
+            n_in = len(inputs)
+            self._report_excitation(summary.spread.take(slice(n_in, None)), outputs)
+            self._read_note(sum(summary.segment_lengths), inputs, outputs)
+            self._dropped_note(dropped)
+            cells = None
+            if o.degree == "auto":
+                from ..core.select import fit_selection
+
+                source = StreamedStatistics(executor, paths, inputs, outputs, summary, o.group_by, o.segment_by)
+                result = self._cross_validation(source, template, sum(summary.segment_lengths), n_in)
+                model = fit_selection(result)
+                model.solver_info_["cross_validation"] = result.as_dict()
+            else:
+                from ..data.streaming import file_layout_statistics
+
+                model = template.clone(degree=o.degree, solver=make_solver(o))
+                frame = model.frame_from_ranges(summary.input_range, summary.output_range, inputs, outputs,
+                                                summary.segment_lengths)
+                if frame.layout.is_static:  # the pose cells in the same read: no pass after this one
+                    parts, cells = executor.map_reduce(
+                        file_statistics_and_poses, paths, frame.layout.basis, frame.solve_input_normalization,
+                        inputs, outputs, frame.input_range, combine=add_statistics_and_poses,
+                        description="statistics")
+                else:
+                    parts = executor.map_reduce(file_layout_statistics, paths, frame.layout,
+                                                frame.solve_input_normalization, frame.solve_output_normalization,
+                                                inputs, outputs, o.segment_by, combine=add_statistics,
+                                                description="statistics")
+                stats = sum_statistics(parts)
+                model.fit_statistics(frame, stats)
+            model.input_spread_ = summary.spread.take(slice(0, n_in))
+            from_statistics = None if cells is None else training_error_from_statistics(model, frame, stats)
+            if from_statistics is not None:
+                model.training_metrics_ = from_statistics
+                check_saturation(model, lambda: len(cells), len(summary.group_sizes))
+                return model, dict(sources=self.sources, training_segments=summary.fingerprints)
+            # ARX (both prediction modes), selections and near-exact fits: scored in a pass of their own
+            sums = executor.map_reduce(file_error_sums, paths, model, [], "one-step", "zeros", "drop",
+                                       o.segment_by, True, combine=add_error_sums,
+                                       description="training metrics")
+        main, other = sums if isinstance(sums, tuple) else (sums, None)
+        check_saturation(model, lambda: len(main.pose_cells), len(summary.group_sizes))
+        model.training_metrics_ = main.summary(outputs)
+        if other is not None:
+            model.training_metrics_["free_run"] = other.summary(outputs)
+            del model.training_metrics_["free_run"]["n_out_of_range"]
+        return model, dict(sources=self.sources, training_segments=summary.fingerprints)
+
+    # ------------------------------------------------------------------ selection
+    def _cross_validation(self, data, template, n_samples: int, n_inputs: int):
+        """The ``degree="auto"`` search over ``data`` (a Dataset or streamed statistics), its cost and summary
+        reported."""
+        from ..core.dataset import Dataset
+        from ..core.excitation import group_output_ranges, held_out_span
+        from ..core.limits import SELECTION_MEMORY_BYTES
+        from ..core.select import (
+            Candidate,
+            DatasetStatistics,
+            SearchBudget,
+            cross_validate,
+            estimate_cost,
+            select_model,
+        )
+        from ..runtime.progress import progress_bar
+
+        o = self.o
+        if isinstance(data, Dataset):
+            data = DatasetStatistics(data)
+        n_outputs, n_groups = len(data.output_names), len(data.group_sizes())
+        fixed = ("lasso",) if o.lasso else ("ridge",) if o.ridge else ()
+        penalties = fixed or o.penalties
+        n_lambdas = 1 if fixed else (len(o.lambdas) if o.lambdas else None)
+        estimate = estimate_cost(n_samples, n_inputs, n_outputs, range(1, o.max_degree + 1),
+                                 min(o.folds, n_groups), penalties=penalties,
+                                 n_lambdas=n_lambdas, na=o.na, nb=o.nb,
+                                 n_bases=1 if template.normalization == "center" or fixed or not penalties else 2,
+                                 spent_seconds=time.process_time() - o.cpu_start)
+        degrees, note = estimate.within(o.budget, SELECTION_MEMORY_BYTES)
+        planned = estimate.restricted(degrees)
+        self.lines.append(planned.describe() + f" (--budget {o.budget:g} s)")
+        if note:
+            self.lines.append(note)
+        options = dict(template=template, n_folds=o.folds, select_per=o.select_per, objective=o.objective)
+        # One bar over the whole search: (candidate, fold) fits, as many as the estimate plans.
+        with progress_bar("search", planned.candidates * planned.n_folds * len(degrees)) as advance:
+            if o.lasso or o.ridge:
+                kind = "lasso" if o.lasso else "ridge"
+                result = cross_validate(data, [Candidate(d, kind, o.lasso or o.ridge) for d in degrees],
+                                        advance=advance, **options)
+            else:
+                paper = o.lambdas is not None and tuple(o.lambdas) == PAPER_LAMBDAS
+                budget = SearchBudget(o.budget, planned, clock=lambda: time.process_time() - o.cpu_start)
+                result = select_model(data, degrees=degrees, penalties=o.penalties, lambdas=o.lambdas,
+                                      relative=not paper, budget=budget, advance=advance, **options)
+        self.lines.append(result.table() if o.verbose else result.summary())
+        ranges = group_output_ranges(data.data.outputs, data.data.groups) if isinstance(data, DatasetStatistics) \
+            else getattr(getattr(data, "summary", None), "group_output_ranges", None)
+        if ranges and result.search is not None:
+            span = held_out_span(ranges, result.search.fold_of, data.output_names)
+            self.lines.append(str(span))
+            result.notes.append(span)
+        result.notes.extend([planned.describe()] + ([note] if note else []))  # for the model file
+        self.selection = result
+        return result
+
+    # ------------------------------------------------------------------ MLP
+    def _fit_mlp(self, inputs, outputs):
+        """Read the data whole, fit the MLP and report its grouped cross-validation beside affine least squares.
+
+        The network is sized to the data unless ``hidden`` is given (:func:`ftcal.core.mlp.hidden_for_data`).
+        When its grouped cross-validation ranks it worse than the affine model beyond the fold noise (the
+        polynomial search's rule), the affine model is fitted and returned instead, and the report says so.
+        """
+        from ..core.mlp import MLPModel, hidden_for_data, n_weights
+        from ..core.model import CalibrationModel
+        from ..core.select import Candidate, Comparison, cross_validate
+        from ..runtime.errors import IllPosedFitWarning
+
+        o = self.o
+        data = self._read(inputs, outputs)
+        self._read_note(data.n_samples, inputs, outputs)
+        n_in, n_out = len(inputs), len(outputs)
+        equations = data.n_samples * n_out
+        hidden = o.hidden
+        if hidden is None:
+            hidden = hidden_for_data(data.n_samples, n_in, n_out)
+            self.lines.append(f"network {n_in}-{'-'.join(map(str, hidden))}-{n_out}: {n_weights(n_in, hidden, n_out)} "
+                              f"weights for {data.n_samples} rows x {n_out} outputs (at most one weight per "
+                              f"{MLP_EQUATIONS_PER_WEIGHT} equations where the data allow; --hidden overrides)")
+        if n_weights(n_in, hidden, n_out) * MLP_EQUATIONS_PER_WEIGHT > equations:
+            fix = "leave --hidden out to size it to the data" if o.hidden is not None else \
+                "even the smallest network sized to the outputs is large for these rows"
+            warnings.warn(f"hidden layers {','.join(map(str, hidden))}: {n_weights(n_in, hidden, n_out)} weights "
+                          f"for {data.n_samples} rows x {n_out} outputs (fewer than {MLP_EQUATIONS_PER_WEIGHT} "
+                          f"equations per weight): the network can fit the noise; {fix}.", FtcalWarning,
+                          stacklevel=4)
+        max_iter = o.max_iter
+        if max_iter is None:  # a small problem converges slowly but cheaply: let early stopping see further
+            small = min(data.n_samples, 20_000) * n_weights(n_in, hidden, n_out) <= SMALL_MLP_WORK
+            max_iter = 2000 if small else 400
+        model = MLPModel(hidden, activation=o.activation, weight_decay=o.weight_decay,
+                         max_iter=max_iter, n_folds=o.folds, seed=o.seed).fit(data)
+        if model.cv_ is not None and model.cv_["iterations"] >= max_iter:
+            self.lines.append(f"early stopping chose the last of the {max_iter} iterations: held-out error was "
+                              "still falling (a larger --max-iter may help)")
+        if model.cv_ is not None:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", IllPosedFitWarning)  # judged by its score
+                affine = cross_validate(data, [Candidate(1, "none", None)], n_folds=o.folds, objective="force")
+            affine_folds = affine.score_of(Candidate(1, "none", None)).fold_scores
+            self.lines.append(mlp_cross_validation_table(model, affine_folds))
+            comparison = Comparison.of(Candidate(1, "none", None), affine_folds, model.cv_["fold_scores"])
+            if comparison.loses:
+                warnings.warn(f"the MLP validates worse than the affine model beyond the fold noise (margin "
+                              f"{comparison.margin:+.3g}, fold standard error {comparison.standard_error:.3g} over "
+                              f"{model.cv_['n_folds']} grouped folds): the affine model is written instead; give "
+                              "--family polynomial --degree auto to search the polynomials.", FtcalWarning,
+                              stacklevel=4)
+                self.lines.append("written: the affine model (least squares, degree 1), not the MLP: the MLP "
+                                  "validates worse beyond the fold noise")
+                model = CalibrationModel(degree=1).fit(data)
+            elif comparison.within_noise:
+                self.lines.append("the MLP is within the fold noise of the affine model: no evidence that it "
+                                  "predicts new load cases better (the MLP is written, as asked)")
+        return model, data
+
+    def _report_mlp(self, model) -> None:
+        from ..core.metrics import norm_rmse_text
+
+        info = model.describe()
+        metrics = model.training_metrics_
+        self.lines.append(f"model: {model.label()}, {info['n_coefficients']} weights, {model.n_iter_} L-BFGS "
+                          f"iterations, samples: {model.n_samples_fit_}")
+        if norm_rmse_text(metrics):
+            self.lines.append("training " + norm_rmse_text(metrics, units=False))
+        self.lines.append("training RMSE per output: " + ", ".join(
+            f"{n} {v:.4g}" for n, v in zip(model.output_names_, metrics["rmse"])))
+
+    # ------------------------------------------------------------------ report
+    def _report_excitation(self, spread, outputs) -> None:
+        """Report how far the reference wrenches excite each direction; warn, with the fix, when some are not.
+
+        Raises FtcalError (through :func:`ftcal.core.excitation.output_excitation`) when no output varies.
+        """
+        from ..core.excitation import output_excitation
+        from ..runtime.errors import IllPosedFitWarning
+
+        excitation = output_excitation(spread, tuple(outputs))
+        self.lines.append(excitation.summary())
+        message = excitation.warning()
+        if message is not None:
+            warnings.warn(message, IllPosedFitWarning, stacklevel=4)
+
+    def _report_fit(self, model) -> None:
+        from ..core.metrics import norm_rmse_text, output_units
+
+        info = model.describe()
+        metrics = model.training_metrics_
+        lam = model.solver_info_.get("lambda")
+        self.lines.append(f"model: degree {info['degree']}"
+                          + (f", ARX na={info['na']} nb={info['nb']}" if info["na"] or info["nb"] else "")
+                          + f", solver {model.solver_info_.get('name')}" + (f" lambda={lam:g}" if lam else ""))
+        self.lines.append(f"coefficients: {info['n_coefficients']} ({info['n_nonzero']} nonzero); samples: "
+                          f"{model.n_samples_fit_}; condition number: {model.condition_number_:.3g}")
+        if lam:
+            from ..core.conversion import to_raw
+
+            raw_count = int((abs(to_raw(model)) > 1e-9).sum())
+            self.lines.append(f"raw-input coefficients with |value| > 1e-9 (the paper's count): {raw_count}")
+        if norm_rmse_text(metrics):
+            self.lines.append("training " + norm_rmse_text(metrics))
+        elif error_norm_text(metrics):  # training errors from the sufficient statistics
+            self.lines.append("training " + error_norm_text(metrics) + " (from the fit's statistics; max |error| "
+                              "and norm RMSE: ftcal evaluate MODEL DATA)")
+        self.lines.append("training RMSE per output: " + ", ".join(
+            f"{n} {v:.4g}" + (f" {u}" if u else "")
+            for n, v, u in zip(model.output_names_, metrics["rmse"], output_units(model.output_names_))))
+        self._warn_if_exact(model.output_names_, metrics.get("best_fit"))
+
+    def _warn_if_exact(self, names, best_fit) -> None:
+        """Say loudly when the training error is ~0 of the outputs' spread: no real sensor fits that well.
+
+        A note (a warning line of the report), not a Python warning: simulations without noise are
+        legitimate inputs (tests, demos), and the line is for the person reading the fit's report.
+        """
+        from ..core.limits import EXACT_FIT
+
+        exact = [n for n, b in zip(names, best_fit or ()) if b is not None and b > 1.0 - EXACT_FIT]
+        if exact:
+            self.notes.append(
+                f"warning: the training error of {', '.join(exact)} is ~0 of the outputs' spread (BestFit > 1 - "
+                f"{EXACT_FIT:g}): the reference is an exact function of the inputs (a reference copied from or "
+                "computed from the readings?); no measured sensor fits this well.")
+
+
+def error_norm_text(metrics: dict) -> str:
+    """``force-error-norm RMSE … N, torque-error-norm RMSE … N·m``; '' when neither is in ``metrics``."""
+    parts = [f"{what}-error-norm RMSE {metrics[key]:.4f} {unit}"
+             for what, key, unit in (("force", "force_error_norm_rmse", "N"), ("torque", "torque_error_norm_rmse",
+                                                                                 "N·m"))
+             if metrics.get(key) is not None]
+    return ", ".join(parts)
+
+
+def training_error_from_statistics(model, frame, stats) -> dict | None:
+    """The training metrics a static linear-in-coefficients fit gets from its summed statistics, no pass.
+
+    ``stats`` hold the regressor in ``frame``'s solve basis, where the solver found the
+    coefficients (a model stored in another basis, least squares with ``normalization="maxabs"``,
+    is mapped back to it), and the raw targets. RMSE, BestFit and the error-norm RMSEs follow
+    (:func:`ftcal.core.metrics.statistics_training_error`); max |error|, the residual
+    autocorrelation and the norm RMSEs need the samples: not here.
+
+    Returns None where ``yᵀy − 2θᵀc + θᵀGθ`` would cancel too many digits (a residual below
+    ``STATISTICS_ERROR_DIGITS`` of the targets' sum of squares: a near-exact fit, or targets
+    far from zero); the caller then scores the samples.
+    """
+    import numpy as np
+
+    from ..core.limits import STATISTICS_ERROR_DIGITS
+    from ..core.metrics import statistics_training_error
+    from ..core.model import change_basis
+
+    coef = model.coef_
+    if not frame.solves_in_stored_basis:
+        coef = change_basis(frame.layout, coef, frame.input_normalization, frame.output_normalization,
+                            frame.solve_input_normalization, frame.solve_output_normalization)
+    n_outputs = len(model.output_names_)
+    metrics = statistics_training_error(stats.gram, stats.cross, stats.target_sq, stats.target_sum,
+                                        stats.n_samples, coef, np.ones(n_outputs), model.output_names_)
+    sse = np.square(metrics["rmse"]) * stats.n_samples
+    if np.any(sse * 10.0 ** STATISTICS_ERROR_DIGITS <= stats.target_sq):
+        return None
+    return metrics
+
+
+def check_saturation(model, count_poses, n_groups: int) -> None:
+    """Warn when the least-squares part of ``model`` has nearly as many coefficients per output as distinct poses."""
+    from ..core.features import MonomialBasis, RegressorLayout
+    from ..core.select import warn_if_saturated
+
+    selection = model.solver_info_.get("selection")
+    if selection:
+        degrees = [entry["degree"] for entry in selection if entry["penalty"] == "none"]
+    else:
+        degrees = [] if model.solver_info_.get("lambda") else [model.layout_.basis.degree]
+    if not degrees:
+        return  # ridge and LASSO are how to fit many coefficients to few poses
+    layout = RegressorLayout(MonomialBasis(len(model.input_names_), max(degrees)), len(model.output_names_),
+                             model.layout_.na, model.layout_.nb)
+    warn_if_saturated(layout.n_features, count_poses(), n_groups,
+                      f"The least-squares fit of degree {max(degrees)}")
+
+
+def mlp_cross_validation_table(model, affine_folds) -> str:
+    """The MLP's held-out scores beside affine least squares on the same grouped folds."""
+    import numpy as np
+
+    cv = model.cv_
+    mlp_folds = np.asarray(cv["fold_scores"])
+    difference = np.asarray(affine_folds) - mlp_folds
+    spread = float(np.std(difference, ddof=1)) if difference.size > 1 else 0.0
+    lines = [f"{'model':<24} {'validation':>11}   ({cv['metric']}, {cv['n_folds']} grouped folds)",
+             f" {'np1':<23} {np.mean(affine_folds):>11.4f}",
+             f"*{model.label():<23} {mlp_folds.mean():>11.4f}   (early stop at {cv['iterations']} iterations)",
+             f"mlp margin over np1 {difference.mean():+.3g} on average over {cv['n_folds']} folds "
+             f"(fold-to-fold spread {spread:.3g}, standard error {spread / np.sqrt(difference.size):.3g})"]
+    return "\n".join(lines)
