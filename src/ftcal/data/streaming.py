@@ -24,7 +24,8 @@ from ..core.excitation import Spread
 from ..core.features import MonomialBasis, RegressorLayout
 from ..core.normalization import Normalization
 from ..core.ranges import RangeSums, span_of
-from ..core.statistics import CHUNK_SAMPLES, StatisticsAccumulator, SufficientStatistics, sum_statistics
+from ..core.statistics import (CHUNK_SAMPLES, StaticAccumulator, StatisticsAccumulator, SufficientStatistics,
+                               sum_statistics)
 from ..runtime.errors import FtcalError
 from ..runtime.threads import map_ranges
 from .table_chunks import iter_table_chunks, table_has_columns
