@@ -43,6 +43,10 @@ def test_the_notebook_runs_the_readme_pipeline():
     readme = (ROOT / "README.md").read_text(encoding="utf-8")
     blocks = [b for b in re.findall(r"^```python\n(.*?)^```", readme, re.M | re.S) if "identify_payload" in b]
     assert len(blocks) == 1
+    # The size: at most 15 lines, importing ftcal (and the shell's glob) only.
+    assert len([line for line in blocks[0].splitlines() if line.strip()]) <= 15
+    assert [line for line in code_lines(blocks[0]) if line.startswith(("import", "from"))] == ["import glob",
+                                                                                              "import ftcal"]
     pipeline = [line for line in code_lines(blocks[0]) if not line.startswith(("import", "for ", "print"))]
     notebook = json.loads(NOTEBOOK.read_text(encoding="utf-8"))
     cells = code_lines("\n".join("".join(c["source"]) for c in notebook["cells"] if c["cell_type"] == "code"))
