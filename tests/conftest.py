@@ -62,3 +62,75 @@ def ref_features():
 @pytest.fixture
 def make_sensor_data():
     return sensor_like_data
+
+
+# The quick demo (`ftcal demo --quick`), run once per session; the notebook and the CLI/Python
+# equality tests each work in a copy of its inputs, so neither sees the other's outputs.
+DEMO_INPUTS = ("logs", "arm", "payloads.toml", "validation.parquet")
+
+
+@pytest.fixture(scope="session")
+def quick_demo(tmp_path_factory):
+    """A folder holding ``ftcal-demo/`` as `ftcal demo --out ftcal-demo --quick` writes it."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = tmp_path_factory.mktemp("quick-demo")
+    ftcal = str(Path(sys.executable).with_name("ftcal"))
+    done = subprocess.run([ftcal, "demo", "--out", "ftcal-demo", "--quick"], cwd=root, capture_output=True,
+                          text=True, timeout=1800)
+    assert done.returncode == 0, done.stderr
+    return root
+
+
+def demo_copy(quick_demo, folder):
+    """A fresh ``folder`` whose ``ftcal-demo/`` holds the demo's pipeline inputs (copied)."""
+    import shutil
+
+    for name in DEMO_INPUTS:
+        source, target = quick_demo / "ftcal-demo" / name, folder / "ftcal-demo" / name
+        target.parent.mkdir(parents=True, exist_ok=True)
+        (shutil.copytree if source.is_dir() else shutil.copy2)(source, target)
+    return folder
+
+
+def run_notebook(path, cwd):
+    """Execute a notebook's code cells in order in one namespace, in ``cwd``, as a kernel would.
+
+    A cell's last expression is displayed as Jupyter does: its ``_repr_html_()`` when it has one,
+    else its ``repr``; None is not shown. Returns the namespace, what the cells printed and the displayed values.
+    """
+    import ast
+    import contextlib
+    import io
+    import json
+
+    notebook = json.loads(path.read_text(encoding="utf-8"))
+    assert notebook["nbformat"] == 4
+    namespace, printed, shown = {"__name__": "__main__"}, io.StringIO(), []
+    with contextlib.chdir(cwd), contextlib.redirect_stdout(printed):
+        for number, cell in enumerate(notebook["cells"]):
+            if cell["cell_type"] != "code":
+                continue
+            assert not cell.get("outputs"), f"cell {number} stores outputs"
+            tree = ast.parse("".join(cell["source"]), filename=f"{path.name}[{number}]")
+            last = tree.body.pop() if tree.body and isinstance(tree.body[-1], ast.Expr) else None
+            exec(compile(tree, f"{path.name}[{number}]", "exec"), namespace)
+            if last is not None:
+                value = eval(compile(ast.Expression(last.value), f"{path.name}[{number}]", "eval"), namespace)
+                if value is not None:  # Jupyter shows no None (a cell ending in print())
+                    html = getattr(value, "_repr_html_", None)
+                    shown.append(html() if html is not None else repr(value))
+    return namespace, printed.getvalue(), shown
+
+
+@pytest.fixture(scope="session")
+def notebook_run(quick_demo, tmp_path_factory):
+    """docs/pipeline.ipynb executed on a copy of the quick demo: (folder, namespace, printed, shown)."""
+    from pathlib import Path
+
+    folder = demo_copy(quick_demo, tmp_path_factory.mktemp("notebook"))
+    namespace, printed, shown = run_notebook(Path(__file__).resolve().parents[1] / "docs" / "pipeline.ipynb",
+                                             folder)
+    return folder, namespace, printed, shown

@@ -53,10 +53,12 @@ def run_ftcal(args: list[str], cwd: Path) -> subprocess.CompletedProcess:
 
 
 @pytest.fixture(scope="module")
-def repo_root(tmp_path_factory) -> Path:
+def repo_root(tmp_path_factory, quick_demo) -> Path:
+    """A copy of the session's quick demo (conftest.py runs `ftcal demo --out ftcal-demo --quick` once)."""
+    import shutil
+
     root = tmp_path_factory.mktemp("readme")
-    done = run_ftcal(DEMO, root)
-    assert done.returncode == 0, done.stderr
+    shutil.copytree(quick_demo / "ftcal-demo", root / "ftcal-demo")
     return root
 
 
