@@ -141,7 +141,11 @@ def test_predict_from_python_writes_the_commands_file(files, tmp_path):
 
 def test_results_explain_themselves_and_the_steps_are_public(files):
     result = ftcal.fit(files[:1], degree=1)
-    assert repr(result).startswith("<FitResult: excitation: reference wrenches span")
+    # The repr says what was fitted (the summary's model line), and how much more print() shows.
+    assert repr(result).startswith("<FitResult: model: degree 1") and "print()" in repr(result)
+    evaluation = ftcal.evaluate(result.model, files[:1])
+    rmse = evaluation.metrics["rmse"][0]
+    assert repr(evaluation).startswith(f"<EvaluationResult: {evaluation.metrics['n_samples']} samples; RMSE Fx {rmse:.4g} N")
     assert str(result) == result.summary()
     document = json.loads(result.to_json())
     assert document["n_samples"] == 500 and document["family"] == "polynomial"

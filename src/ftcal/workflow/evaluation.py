@@ -18,6 +18,7 @@ from typing import Any
 
 from ..runtime.errors import FtcalError
 from .result import StepResult
+from .sources import tables_of
 
 
 @dataclass(repr=False)
@@ -53,6 +54,15 @@ class EvaluationResult(StepResult):
         from .result import plain
 
         return plain(self.metrics)
+
+    def headline(self) -> str:
+        """Samples and RMSE per output, in each output's unit."""
+        from ..core.metrics import output_units
+
+        m = self.metrics
+        units = output_units(m["outputs"])
+        errors = ", ".join(f"{name} {r:.4g}{' ' + u if u else ''}" for name, u, r in zip(m["outputs"], units, m["rmse"]))
+        return f"{m['n_samples']} samples; RMSE {errors}"
 
     def summary(self) -> str:
         from ..core.metrics import METRIC_NAMES, METRIC_NOTES, format_metric, output_units
@@ -150,40 +160,6 @@ def _model_and_segments(model) -> tuple[Any, tuple, str]:
     return model, (), "the model"
 
 
-class _as_paths:
-    """``data`` as (paths, Dataset or None): a DataFrame becomes one temporary Parquet file, so that it
-    runs the very path files run."""
-
-    def __init__(self, data):
-        self.data = data
-        self.folder = None
-
-    def __enter__(self):
-        from ..core.dataset import Dataset
-
-        data = self.data
-        if isinstance(data, Dataset):
-            return [], data
-        if isinstance(data, (str, os.PathLike)):
-            return [str(data)], None
-        if hasattr(data, "to_parquet") and hasattr(data, "columns"):
-            import tempfile
-
-            self.folder = tempfile.TemporaryDirectory(prefix="ftcal-frame-")
-            path = os.path.join(self.folder.name, "frame.parquet")
-            data.to_parquet(path, index=False)
-            return [path], None
-        if isinstance(data, Sequence) and data and all(isinstance(p, (str, os.PathLike)) for p in data):
-            return [str(p) for p in data], None
-        raise FtcalError(f"data: expected a file name, a list of them, a pandas DataFrame or a Dataset; "
-                         f"got {type(data).__name__}.")
-
-    def __exit__(self, *exc):
-        if self.folder is not None:
-            self.folder.cleanup()
-        return False
-
-
 def evaluate(model, data, *, mode: str = "one-step", start: str = "zeros", warmup: str = "drop",
              segment_by: str | None = None, group_by: str | None = None, scheduler: str | None = None,
              executor=None) -> EvaluationResult:
@@ -225,7 +201,7 @@ def evaluate(model, data, *, mode: str = "one-step", start: str = "zeros", warmu
     from ..core.metrics import EVALUATION_KEYS
 
     model, training_segments, name = _model_and_segments(model)
-    with _as_paths(data) as (paths, dataset):
+    with tables_of(data) as (paths, dataset, _):
         if dataset is None and (model.is_static or scheduler or executor is not None):
             summary = _evaluate_streaming(paths, model, training_segments, name, mode, start, warmup, segment_by,
                                           scheduler, executor)
@@ -395,7 +371,7 @@ def predict(model, data, *, output: str | os.PathLike | None = None, mode: str =
         output = str(output)
         if not output.lower().endswith((".csv", ".parquet")):
             raise FtcalError(f"-o {output}: must end in .csv or .parquet.")
-    with _as_paths(data) as (paths, dataset):
+    with tables_of(data) as (paths, dataset, _):
         if output is None or dataset is not None:
             n_rows, ranges, frame = _predict_whole(paths, dataset, model, mode, start, segment_by)
             if output is not None:

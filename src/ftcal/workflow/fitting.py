@@ -26,6 +26,7 @@ from ..core.limits import (MAX_DEGREE, MAX_LAG, MLP_EQUATIONS_PER_WEIGHT, MLP_MA
                            MLP_MAX_UNITS, PAPER_LAMBDAS, SELECTION_BUDGET_SECONDS)
 from ..runtime.errors import FtcalError, FtcalWarning
 from .result import StepResult
+from .sources import tables_of
 
 # Rows × weights below which the MLP's default max_iter is 2000 instead of 400 (a few seconds either way).
 SMALL_MLP_WORK = 2_000_000
@@ -82,6 +83,10 @@ class FitResult(StepResult):
                       "solver": getattr(model, "solver_info_", {}), "n_samples": model.n_samples_fit_,
                       "training_metrics": model.training_metrics_, "output": self.output, "notes": self.notes,
                       "selection": self.selection.as_dict() if self.selection is not None else None})
+
+    def headline(self) -> str:
+        """The model line (degree or network, solver), rather than the excitation line that comes first."""
+        return next((line for line in self.lines if line.startswith("model:")), super().headline())
 
     def save(self, path: str | os.PathLike) -> Path:
         """Write the model file (JSON, atomically) with this fit's sources and training fingerprints."""
@@ -166,7 +171,7 @@ def fit(data, *, inputs: Sequence[str] | None = None, outputs: Sequence[str] | N
                        payload_mass=payload_mass, family=family, hidden=hidden, activation=activation,
                        weight_decay=weight_decay, max_iter=max_iter, seed=seed, segment_by=segment_by,
                        group_by=group_by, scheduler=scheduler, cpu_start=cpu_start)
-    with _as_paths(data) as (paths, dataset, sources):
+    with tables_of(data) as (paths, dataset, sources):
         run = _Fit(options, paths, dataset, sources, executor, echo)
         result = run.run(inputs, outputs)
     if output is not None:
@@ -207,40 +212,6 @@ class _Options:
     group_by: Any
     scheduler: Any
     cpu_start: float
-
-
-class _as_paths:
-    """``data`` as (paths, Dataset or None, source names): a DataFrame becomes one temporary Parquet file,
-    so that it runs the very path files run."""
-
-    def __init__(self, data):
-        self.data = data
-        self.folder = None
-
-    def __enter__(self):
-        from ..core.dataset import Dataset
-
-        data = self.data
-        if isinstance(data, Dataset):
-            return [], data, list(data.sources)
-        if isinstance(data, (str, os.PathLike)):
-            return [str(data)], None, [str(data)]
-        if hasattr(data, "to_parquet") and hasattr(data, "columns"):
-            import tempfile
-
-            self.folder = tempfile.TemporaryDirectory(prefix="ftcal-frame-")
-            path = os.path.join(self.folder.name, "frame.parquet")
-            data.to_parquet(path, index=False)
-            return [path], None, ["DataFrame"]
-        if isinstance(data, Sequence) and data and all(isinstance(p, (str, os.PathLike)) for p in data):
-            return [str(p) for p in data], None, [str(p) for p in data]
-        raise FtcalError(f"data: expected a file name, a list of them, a pandas DataFrame or a Dataset; "
-                         f"got {type(data).__name__}.")
-
-    def __exit__(self, *exc):
-        if self.folder is not None:
-            self.folder.cleanup()
-        return False
 
 
 def check_options(o: _Options) -> None:

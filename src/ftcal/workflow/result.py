@@ -87,11 +87,15 @@ class StepResult:
     def __str__(self) -> str:
         return self.summary()
 
-    def __repr__(self) -> str:
+    def headline(self) -> str:
+        """One line that says what the result is (the ``repr``); the summary's first line unless a step says better."""
         lines = self.summary().strip().splitlines()
-        head = lines[0] if lines else ""
-        more = f" (+{len(lines) - 1} lines: print() it)" if len(lines) > 1 else ""
-        return f"<{type(self).__name__}: {head}{more}>"
+        return lines[0] if lines else ""
+
+    def __repr__(self) -> str:
+        n_lines = len(self.summary().strip().splitlines())
+        more = f" (+{n_lines - 1} lines: print() it)" if n_lines > 1 else ""
+        return f"<{type(self).__name__}: {self.headline()}{more}>"
 
     def _repr_html_(self) -> str:
         return f"<pre>{html.escape(self.summary())}</pre>"

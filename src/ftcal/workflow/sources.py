@@ -8,6 +8,7 @@ and the same messages.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -138,3 +139,40 @@ def robot_model(*, urdf=None, robot: str | None = None, ft_joint: str | None = N
     model = RobotModel.load(urdf=None if urdf is None else str(urdf), name=robot, declared=declared)
     payloads = [parse_payload_spec(spec) for spec in payload]
     return model.with_payloads(payloads) if payloads else model
+
+
+class tables_of:
+    """``data`` as (paths, Dataset or None, source names), for the steps that stream files.
+
+    A DataFrame becomes one temporary Parquet file (removed on exit), so that it runs the very
+    path files run; a :class:`~ftcal.core.dataset.Dataset` is handed on whole.
+    """
+
+    def __init__(self, data):
+        self.data = data
+        self.folder = None
+
+    def __enter__(self):
+        from ..core.dataset import Dataset
+
+        data = self.data
+        if isinstance(data, Dataset):
+            return [], data, list(data.sources)
+        if isinstance(data, (str, os.PathLike)):
+            return [str(data)], None, [str(data)]
+        if hasattr(data, "to_parquet") and hasattr(data, "columns"):
+            import tempfile
+
+            self.folder = tempfile.TemporaryDirectory(prefix="ftcal-frame-")
+            path = os.path.join(self.folder.name, "frame.parquet")
+            data.to_parquet(path, index=False)
+            return [path], None, ["DataFrame"]
+        if isinstance(data, Sequence) and data and all(isinstance(p, (str, os.PathLike)) for p in data):
+            return [str(p) for p in data], None, [str(p) for p in data]
+        raise FtcalError(f"data: expected a file name, a list of them, a pandas DataFrame or a Dataset; "
+                         f"got {type(data).__name__}.")
+
+    def __exit__(self, *exc):
+        if self.folder is not None:
+            self.folder.cleanup()
+        return False
