@@ -63,3 +63,14 @@ def test_a_fixed_degree_is_not_regrouped(tmp_path, degree):
     paths = write_tables(tmp_path, with_group=True)
     result = ftcal.fit(paths, inputs=["u1", "u2", "u3"], outputs=["Fx"], degree=degree)
     assert not any("'group' column" in note for note in result.notes)
+
+
+def test_the_mlp_guard_scores_outputs_without_a_force_block(tmp_path):
+    """With groups, the MLP is compared with the affine model on its own score: here the mean RMSE (Fx alone
+    is no force block); the comparison used to demand a force block and refused the fit."""
+    paths = write_tables(tmp_path, with_group=True)
+    result = ftcal.fit(paths, inputs=["u1", "u2", "u3"], outputs=["Fx"], family="mlp", hidden=[4], max_iter=50,
+                       seed=0)
+    assert any("'group' column" in note for note in result.notes)
+    # The cross-validation table: the MLP beside the affine model (np1), both by the mean RMSE over 5 load-case folds.
+    assert "(mean RMSE, 5 grouped folds)" in result.summary() and " np1 " in result.summary()

@@ -705,7 +705,11 @@ class _Fit:
         if model.cv_ is not None:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", IllPosedFitWarning)  # judged by its score
-                affine = cross_validate(data, [Candidate(1, "none", None)], n_folds=o.folds, objective="force")
+                # Scored as the MLP's folds are: the force error norm, or the mean RMSE without a force block.
+                from ..core.metrics import wrench_blocks
+
+                objective = "force" if "force" in wrench_blocks(data.output_names) else "both"
+                affine = cross_validate(data, [Candidate(1, "none", None)], n_folds=o.folds, objective=objective)
             affine_folds = affine.score_of(Candidate(1, "none", None)).fold_scores
             self.lines.append(mlp_cross_validation_table(model, affine_folds))
             comparison = Comparison.of(Candidate(1, "none", None), affine_folds, model.cv_["fold_scores"])
