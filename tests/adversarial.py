@@ -652,7 +652,7 @@ EXEMPT = {
 }
 NUMBER_TYPES = {"int", "nonnegative_int", "positive_int", "positive_float", "finite_float", "fraction"}
 NUMBER_VALUES = ("0", "-1", "nan", "1e308", "x")
-PAIR_TYPES = {"joint_pin", "joint_range", "_frame_pair", "degree_value", "lambda_grid", "noise_pair", "penalty_list",
+PAIR_TYPES = {"joint_pin", "joint_range", "frame_pair", "degree_value", "lambda_grid", "noise_pair", "penalty_list",
               "safe_name", "pair", "mistake", "tool_spec", "switch_spec", "float_list"}
 PAIR_VALUES = ("", "x", "nan:1", "1e308,1e308", "1,1")
 COLUMN_VALUES = ("", "nope", "u1,u1", "u1,u2,u3,u4,u5,u6,u7", "f\npwned")

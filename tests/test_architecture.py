@@ -131,3 +131,11 @@ def test_the_checker_sees_an_upward_import(tmp_path, monkeypatch):
     (fake / "x.py").write_text("def f():\n    from ..cli import main\n")
     monkeypatch.setattr(sys.modules[__name__], "SRC", tmp_path)
     assert imports(fake / "x.py") == {"ftcal.cli"}
+
+
+def test_no_command_module_imports_another():
+    """A command parses, calls the library and prints: what two commands share lives in cli/_*.py or below."""
+    crossing = [f"{module} -> {target}" for module, targets in graph().items()
+                if module.startswith("ftcal.cli.cmd_")
+                for target in targets if target.startswith("ftcal.cli.cmd_")]
+    assert not crossing, crossing

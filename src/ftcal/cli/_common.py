@@ -129,3 +129,11 @@ def output_folder(path: str, option: str = "--out"):
     if not os.access(out, os.W_OK | os.X_OK):
         raise FtcalError(f"{option} {out}: the folder is not writable.")
     return out
+
+
+def frame_pair(text: str) -> tuple[str, str | None]:
+    """``--tf BASE[:SENSOR_FRAME]`` (dataset, live): the base frame and the sensor frame (None: the wrench's)."""
+    base, sep, frame = text.partition(":")
+    if not base.strip() or (sep and not frame.strip()):
+        raise argparse.ArgumentTypeError(f"expected BASE or BASE:SENSOR_FRAME, got {text!r}")
+    return base.strip(), frame.strip() or None

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from ._common import add_scheduler_option, finite_float, positive_float, require_suffix
+from ._common import add_scheduler_option, finite_float, frame_pair, positive_float, require_suffix
 from ._examples import epilog
 from ._robot import add_cache_arguments, add_robot_arguments, robot_keywords
 
@@ -47,7 +47,7 @@ def register(subparsers) -> None:
     bags.add_argument("--receive-time", action="store_true",
                       help="time every message by the bag's receive time, not its header stamp (default: header "
                            "stamps where messages have them, e.g. when a driver's stamps repeat or jump)")
-    bags.add_argument("--tf", metavar="BASE[:SENSOR_FRAME]", type=_frame_pair,
+    bags.add_argument("--tf", metavar="BASE[:SENSOR_FRAME]", type=frame_pair,
                       help="sensor orientation from /tf and /tf_static: the chain BASE -> ... -> SENSOR_FRAME, "
                            "BASE gravity-aligned with z up -> qx,qy,qz,qw (SENSOR_FRAME defaults to the wrench "
                            "messages' header.frame_id)")
@@ -80,13 +80,6 @@ def register(subparsers) -> None:
     add_cache_arguments(parser)
     parser.add_argument("-o", "--output", metavar="DATASET", required=True, help="output .parquet or .csv")
     parser.set_defaults(func=run)
-
-
-def _frame_pair(text: str) -> tuple[str, str | None]:
-    base, sep, frame = text.partition(":")
-    if not base.strip() or (sep and not frame.strip()):
-        raise argparse.ArgumentTypeError(f"expected BASE or BASE:SENSOR_FRAME, got {text!r}")
-    return base.strip(), frame.strip() or None
 
 
 def run(args: argparse.Namespace) -> int:

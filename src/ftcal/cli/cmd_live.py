@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from ._common import column_list, finite_float, float_list, positive_float, require_suffix
+from ._common import column_list, finite_float, float_list, frame_pair, positive_float, require_suffix
 from ._examples import epilog
 from ._gravity import add_robot_source_options
 
@@ -89,7 +89,7 @@ def register(sub) -> None:
                                                            "from its orientation (else its acceleration)")
     zenoh.add_argument("--joints-topic", metavar="TOPIC",
                        help="sensor_msgs/msg/JointState (e.g. /joint_states): gravity from the joints and --urdf")
-    zenoh.add_argument("--tf", metavar="BASE[:SENSOR_FRAME]", type=_frame_pair,
+    zenoh.add_argument("--tf", metavar="BASE[:SENSOR_FRAME]", type=frame_pair,
                        help="--replay of a bag: the sensor's orientation from /tf and /tf_static (BASE gravity-"
                             "aligned, z up)")
     zenoh.add_argument("--prefix", default="/ft", metavar="TOPIC",
@@ -114,12 +114,6 @@ def _six(values, option: str):
     if len(values) == 6:
         return np.asarray(values, dtype=float)
     raise FtcalError(f"{option}: give two values (force, torque) or six; got {len(values)}.")
-
-
-def _frame_pair(text: str):
-    from .cmd_dataset import _frame_pair as parse
-
-    return parse(text)
 
 
 def robot_gravity(args, joint_names, where: str):
