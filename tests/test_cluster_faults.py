@@ -209,7 +209,9 @@ def medium_files(folder: Path) -> list[str]:
     rng = np.random.default_rng(11)
     paths = []
     for index in range(4):  # four recordings: --degree auto cross-validates across them
-        u, y = sensor_like_data(rng, 15000)
+        # Large enough that the search outlasts the longest delay below (the fit got faster: 15,000 rows ended
+        # within 2 s, before the Ctrl-C it was meant to receive).
+        u, y = sensor_like_data(rng, 60000)
         path = folder / f"rec{index}.csv"
         pd.DataFrame(np.c_[u, y], columns=[*INPUTS, *DEFAULT_OUTPUTS]).to_csv(path, index=False)
         paths.append(str(path))
@@ -264,6 +266,7 @@ def _interrupt_fit(command: list[str], paths: list[str], folder: Path, delay: fl
     reader.start()
     assert started.wait(timeout=120)
     time.sleep(delay)
+    assert proc.poll() is None, "the fit ended before its Ctrl-C: give it more data, this test needs it running"
     proc.send_signal(signal.SIGINT)
     proc.wait(timeout=300)
     reader.join(timeout=60)
