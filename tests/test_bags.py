@@ -258,7 +258,7 @@ def test_dataset_from_bag_columns(tmp_path, capfd):
     assert printed.count(":/imu: ") == 1  # one line per topic, though the IMU gives several streams
     frame = pd.read_csv(out)
     assert list(frame.columns) == ["time", "u1", "u2", "u3", "u4", "u5", "u6", "T", "qx", "qy", "qz", "qw",
-                                   "wx", "wy", "wz", "ax", "ay", "az", "static", "hold", "segment", "group"]
+                                   "wx", "wy", "wz", "ax", "ay", "az", "static", "hold", "segment", "load"]
     # /tf_static holds the sensor still: the whole recording is one hold
     assert frame["static"].eq(1).all() and frame["hold"].eq(0).all()
     t = frame["time"].to_numpy() - secs(T0)
@@ -316,7 +316,7 @@ def test_dataset_from_bag_with_urdf_expected_wrench(tmp_path, capfd):
     model = tmp_path / "model.json"
     with warnings.catch_warnings():
         warnings.simplefilter("always", FtcalWarning)
-        assert main(["fit", str(out), "--segment-by", "segment", "--group-by", "group", "-o", str(model)]) == 0
+        assert main(["fit", str(out), "--segment-by", "segment", "--group-by", "load", "-o", str(model)]) == 0
     assert model.is_file()
     # one joint turning one link: its reference wrench spans 2 of the 6 directions, and fit says so
     assert "warning: reference wrenches span 2 of 6 directions" in capfd.readouterr().err
@@ -465,7 +465,7 @@ def test_two_bags_segments_groups_and_gap_warning(tmp_path, capfd):
             "(largest gap 0.110 s)") in err
     frame = pd.read_csv(out)
     assert frame.groupby("segment").size().to_dict() == {0: 200, 1: 190}
-    assert frame.groupby("segment")["group"].first().to_dict() == {0: "run0", 1: "run1"}
+    assert frame.groupby("segment")["load"].first().to_dict() == {0: "run0", 1: "run1"}
 
 
 def test_tf_frame_other_than_the_wrench_frame_warns(tmp_path, capfd):

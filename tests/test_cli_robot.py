@@ -105,10 +105,10 @@ def test_dataset_then_fit(capfd, tmp_path, urdf, logs):
     out = tmp_path / "data.parquet"
     assert main(["dataset", str(a), str(b), "--urdf", urdf, "--sensor", "arm_ft", "--payload-file", str(toml),
                  "--no-filter", "-o", str(out)]) == 0
-    assert "group(s) l0kg-r0kg, l0kg-r1kg" in capfd.readouterr().out
+    assert "load case(s) l0kg-r0kg, l0kg-r1kg" in capfd.readouterr().out
     frame = pd.read_parquet(out)
     assert list(frame.columns) == ["u1", "u2", "u3", "u4", "u5", "u6", "T", *WRENCH, "time", "shoulder", "static",
-                                   "hold", "segment", "group"]
+                                   "hold", "segment", "load"]
     # the logged joint on the F/T clock (it turns at 0.5 rad/s from t = 0, so never holds still)
     np.testing.assert_allclose(frame["shoulder"], 0.5 * frame["time"], atol=1e-12)
     assert frame["static"].eq(0).all() and frame["hold"].eq(-1).all()
@@ -121,7 +121,7 @@ def test_dataset_then_fit(capfd, tmp_path, urdf, logs):
     model = tmp_path / "model.json"
     with warnings.catch_warnings():
         warnings.simplefilter("always")
-        assert main(["fit", str(out), "--segment-by", "segment", "--group-by", "group", "-o", str(model)]) == 0
+        assert main(["fit", str(out), "--segment-by", "segment", "--group-by", "load", "-o", str(model)]) == 0
     assert model.is_file()
     # one joint turning the forearm: the reference wrenches span 2 of the 6 directions, which fit says
     assert "warning: reference wrenches span 2 of 6 directions" in capfd.readouterr().err
@@ -174,10 +174,10 @@ def test_a_recording_the_load_cases_do_not_name_is_refused_with_the_nearest(capf
     run = tmp_path / "hevy" / "a.mat"  # the case is 'heavy'
     make_recording(run, write_v73)
     toml = tmp_path / "loads.toml"
-    toml.write_text('[[case]]\nname = "heavy"\n[[case.payload]]\nframe = "forearm"\nmass = 2.0\n')
+    toml.write_text('[[load]]\nname = "heavy"\n[[load.payload]]\nframe = "forearm"\nmass = 2.0\n')
     out = tmp_path / "d.parquet"
     fails(capfd, ["dataset", str(run), "--urdf", urdf, "--sensor", "arm_ft", "--payload-file", str(toml),
-                  "--no-filter", "-o", str(out)], "matches no load case (cases: 'heavy'; nearest: 'heavy')")
+                  "--no-filter", "-o", str(out)], "matches no load case (loads: 'heavy'; nearest: 'heavy')")
     assert not out.exists()
     typo = tmp_path / "l0kg-r1kgg" / "a.mat"  # the folder convention, mistyped
     make_recording(typo, write_v73)
@@ -185,6 +185,25 @@ def test_a_recording_the_load_cases_do_not_name_is_refused_with_the_nearest(capf
     fails(capfd, ["dataset", str(typo), "--urdf", urdf, "--sensor", "arm_ft", "--payload-file", str(toml),
                   "--no-filter", "-o", str(out)], "'l0kg-r1kgg' is not of the form l<x>kg-r<y>kg")
     assert not out.exists()
+
+
+def test_the_old_case_spelling_builds_the_same_dataset_with_one_notice(capfd, tmp_path, urdf, logs):
+    """[[case]] / [[case.payload]] (the old spelling of [[load]]) names the same load case: same table."""
+    a, _, _ = logs
+    tables = {}
+    for key in ("load", "case"):
+        toml = tmp_path / f"{key}.toml"
+        toml.write_text(f'[[{key}]]\nname = "heavy"\nrecordings = ["a.mat"]\n[[{key}.payload]]\n'
+                        'frame = "forearm"\nmass = 2.0\n')
+        out = tmp_path / f"{key}.parquet"
+        assert main(["dataset", str(a), "--urdf", urdf, "--sensor", "arm_ft", "--payload-file", str(toml),
+                     "--no-filter", "-o", str(out)]) == 0
+        notices = [line for line in capfd.readouterr().err.splitlines() if line.startswith("notice:")]
+        assert len(notices) == (key == "case"), notices
+        tables[key] = pd.read_parquet(out)
+    assert "[[case]] is now [[load]]" in notices[0]
+    assert set(tables["case"]["load"]) == {"heavy"}
+    pd.testing.assert_frame_equal(tables["case"], tables["load"])
 
 
 def test_a_zero_reference_wrench_is_said_and_refused_by_fit(capfd, tmp_path):

@@ -59,7 +59,7 @@ def test_every_load_case_is_in_both_training_and_validation(quick_demo):
     out, _ = quick_demo
     train = pd.read_parquet(out / "train.parquet")
     validation = pd.read_parquet(out / "validation.parquet")
-    assert set(train["group"]) == set(validation["group"]) == {"l0kg-r0kg", "l0kg-r5kg", "l0kg-r10kg"}
+    assert set(train["load"]) == set(validation["load"]) == {"l0kg-r0kg", "l0kg-r5kg", "l0kg-r10kg"}
     # Recordings are whole: no segment is split between the two sets.
     assert not set(train["segment"]) & set(validation["segment"])
 
@@ -158,7 +158,7 @@ def test_the_demo_data_are_well_excited(quick_demo, capsys):
     capsys.readouterr()
     with warnings.catch_warnings():
         warnings.simplefilter("error", FtcalWarning)
-        assert main(["fit", str(out / "train.parquet"), "--segment-by", "segment", "--group-by", "group",
+        assert main(["fit", str(out / "train.parquet"), "--segment-by", "segment", "--group-by", "load",
                      "-o", str(out / "excited.json")]) == 0
         assert "excitation: reference wrenches span 6 of 6 directions" in capsys.readouterr().out
         assert main(["evaluate", str(out / "excited.json"), str(out / "validation.parquet"), "--json"]) == 0

@@ -121,10 +121,10 @@ def test_write_dataset(tmp_path, tiny, suffix):
     out = tmp_path / f"data{suffix}"
     write_dataset(ds, out)
     frame = pd.read_parquet(out) if suffix == ".parquet" else pd.read_csv(out)
-    assert list(frame.columns) == [*DEFAULT_INPUTS, *DEFAULT_OUTPUTS, "segment", "group"]
+    assert list(frame.columns) == [*DEFAULT_INPUTS, *DEFAULT_OUTPUTS, "segment", "load"]
     np.testing.assert_allclose(frame[list(DEFAULT_OUTPUTS)].to_numpy(), ds.outputs)
     assert sorted(set(frame["segment"])) == [0, 1]
-    assert set(frame["group"]) == {"run"}
+    assert set(frame["load"]) == {"run"}
     assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".data")] == []
     with pytest.raises(FtcalError, match="must end in .csv or .parquet"):
         write_dataset(ds, tmp_path / "data.xlsx")

@@ -33,7 +33,7 @@ LOGS = "ftcal-demo/logs/train/l0kg-r*/*.mat"
 COMMANDS = {
     "dataset": ["dataset", LOGS, "--model", "iCubGenova11", "--sensor", "r_arm_ft",
                 "--payload-file", "ftcal-demo/payloads.toml", "--dynamic", "-o", "ftcal-demo/dataset.parquet"],
-    "fit": ["fit", "ftcal-demo/dataset.parquet", "--degree", "auto", "--group-by", "group",
+    "fit": ["fit", "ftcal-demo/dataset.parquet", "--degree", "auto", "--group-by", "load",
             "-o", "ftcal-demo/best.json"],
     "evaluate": ["evaluate", "ftcal-demo/best.json", "ftcal-demo/validation.parquet"],
     "evaluate-json": ["evaluate", "ftcal-demo/best.json", "ftcal-demo/validation.parquet", "--json"],

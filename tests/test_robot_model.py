@@ -1,5 +1,6 @@
 """Robot models: loading, F/T sensor lookup, mass beyond a sensor, payloads, load cases."""
 
+import warnings
 import xml.etree.ElementTree as ET
 
 import pytest
@@ -146,10 +147,10 @@ def test_load_cases_from_toml(tmp_path):
 frame = "forearm"
 mass = 0.4
 
-[[case]]
+[[load]]
 name = "heavy"
 recordings = ["run7.mat"]
-[[case.payload]]
+[[load.payload]]
 frame = "tool"
 mass = 5.0
 com = [0.0, 0.0, 0.1]
@@ -170,7 +171,7 @@ com = [0.2, 0.0, 0.0]
     with pytest.raises(FtcalError, match=r"no \[convention.left\]"):
         config.resolve(tmp_path / "l1kg-r0kg" / "grid.mat")
     # issue 27: a recording the file's cases do not name is refused (no silent zero payload), nearest named
-    with pytest.raises(FtcalError, match=r"matches no load case \(cases: 'heavy'.*nearest: 'heavy'"):
+    with pytest.raises(FtcalError, match=r"matches no load case \(loads: 'heavy'.*nearest: 'heavy'"):
         config.resolve(tmp_path / "hevy" / "run8.mat")
     with pytest.raises(FtcalError, match=r"matches no load case.*nearest: 'run7.mat'"):
         config.resolve(tmp_path / "run8.mat")
@@ -178,6 +179,24 @@ com = [0.2, 0.0, 0.0]
     plain = always.resolve(tmp_path / "other.mat", extra=(Payload("tool", 1.0),))
     assert plain.name == "other" and [p.mass for p in plain.payloads] == [0.4, 1.0]
     assert LoadCaseConfig().resolve("a/b.csv").name == "b"
+
+
+def test_the_old_case_spelling_reads_the_same_load_cases_with_a_notice(tmp_path):
+    """[[case]] / [[case.payload]] is the old spelling of [[load]] / [[load.payload]]."""
+    body = '{key}]]\nname = "heavy"\nrecordings = ["run7.mat"]\n[[{key}.payload]]\nframe = "tool"\nmass = 5.0\n'
+    new, old = tmp_path / "new.toml", tmp_path / "old.toml"
+    new.write_text("[[" + body.format(key="load"))
+    old.write_text("[[" + body.format(key="case"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the new spelling: no notice
+        expected = load_case_config(new).resolve(tmp_path / "run7.mat")
+    with pytest.warns(FutureWarning, match=r"old.toml: \[\[case\]\] is now \[\[load\]\]"):
+        case = load_case_config(old).resolve(tmp_path / "run7.mat")
+    assert case == expected and case.name == "heavy" and [p.mass for p in case.payloads] == [5.0]
+    both = tmp_path / "both.toml"
+    both.write_text("[[" + body.format(key="load") + "[[" + body.format(key="case"))
+    with pytest.raises(FtcalError, match=r"both.toml: both \[\[load\]\] and \[\[case\]\]"):
+        load_case_config(both)
 
 
 def test_load_case_file_errors(tmp_path):

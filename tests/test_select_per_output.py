@@ -186,7 +186,7 @@ def test_no_saturation_warning_on_the_demo(tmp_path, capsys):
         warnings.simplefilter("ignore")
         warnings.simplefilter("always", SaturationWarning)
         for degree in ("1", "4"):  # least squares up to 330 coefficients per output, on the demo's trajectories
-            assert main(["fit", str(tmp_path / "demo" / "train.parquet"), "--group-by", "group", "--degree",
+            assert main(["fit", str(tmp_path / "demo" / "train.parquet"), "--group-by", "load", "--degree",
                          degree, "-o", str(tmp_path / f"np{degree}.json")]) == 0
     assert "saturation" not in capsys.readouterr().err
 

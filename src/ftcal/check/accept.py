@@ -18,6 +18,7 @@ import numpy as np
 
 from ..core.limits import MAX_FORCE_ERROR, MAX_TORQUE_ERROR
 from ..core.metrics import force_torque_columns
+from ..data.tables import table_label_column
 from ..runtime.errors import FtcalError
 
 # A stuck run covering this fraction of the recording is a dead channel.
@@ -362,13 +363,14 @@ def read_test_data(paths: Sequence[str | os.PathLike], model, *, payload=None, s
         else:
             error = contact_wrench(predicted, payload, source(frame, str(path)))
             reference = predicted - error
-        if group_by is None:
+        column = table_label_column(list(frame.columns), group_by)
+        if column is None:
             label = np.full(len(frame), str(path), dtype=object)
-        elif group_by not in frame.columns:
-            raise FtcalError(f"{path}: no pose column {group_by!r} (--group-by); the file has "
+        elif column not in frame.columns:
+            raise FtcalError(f"{path}: no pose column {column!r} (--group-by); the file has "
                              f"{', '.join(map(str, frame.columns))}.")
         else:
-            label = frame[group_by].astype(str).to_numpy(dtype=object)
+            label = frame[column].astype(str).to_numpy(dtype=object)
         time = (numeric_columns(frame, (time_column,), path, "time")[:, 0] if time_column in frame.columns
                 else np.arange(len(frame), dtype=float))
         issues += input_channel_issues(u, model.input_names_, time, str(path), reference, label)

@@ -32,6 +32,7 @@ import numpy as np
 
 from ..core.limits import (FINDING_CONFIDENCE, HOLD_SAMPLE_RATE, MAX_COM_DISTANCE, MIN_HOLDS, MIN_ROTATION_DEG,
                            MIN_TOOL_MASS)
+from ..data.tables import table_label_column
 from ..payload.regressor import static_regressor
 from ..runtime.errors import FtcalError, FtcalWarning
 from ..data.holds import HoldAverages
@@ -632,6 +633,7 @@ def _table_holds(frame, path: str, gravity: np.ndarray, source, *, wrench, group
     else:
         t = np.arange(len(frame)) / rate
     labels = frame["segment"].to_numpy() if "segment" in frame.columns else None
+    group_by = table_label_column(list(frame.columns), group_by)
     if group_by is not None:
         if group_by not in frame.columns:
             raise FtcalError(f"{path}: no hold column {group_by!r} (--group-by); the file has "

@@ -267,7 +267,7 @@ def _ignore_further_interrupts() -> None:
 def run(argv: list[str] | None) -> int:
     """:func:`main` without the outermost Ctrl-C catch."""
     from ..runtime.atomic import check_not_an_input, protected_inputs
-    from ..runtime.errors import FtcalError, FtcalWarning
+    from ..runtime.errors import FtcalError, FtcalWarning, OldSpellingWarning
 
     import time
 
@@ -289,15 +289,18 @@ def run(argv: list[str] | None) -> int:
         return 2
     # Our own warnings go to stderr as one line each, not as Python warning noise.
     def show(message, category, filename, lineno, file=None, line=None):
-        if issubclass(category, FtcalWarning):
+        if issubclass(category, OldSpellingWarning):
+            print(f"notice: {one_line(message)}", file=sys.stderr)
+        elif issubclass(category, FtcalWarning):
             print(f"warning: {one_line(message)}", file=sys.stderr)
         elif issubclass(category, RuntimeWarning):  # numpy's floating-point warnings, in ftcal's words
             print(f"warning: numerical {one_line(message)} (values near the limits of float64 in an input file?)",
                   file=sys.stderr)
         else:
             print(f"{category.__name__}: {one_line(message)}", file=sys.stderr)
-    previous = warnings.showwarning
+    previous, filters = warnings.showwarning, warnings.filters[:]
     warnings.showwarning = show
+    warnings.filterwarnings("default", category=OldSpellingWarning)  # one notice each, even under -W error
     stdout = sys.stdout
     sys.stdout = EscapingStream(stdout)
     try:
@@ -336,6 +339,8 @@ def run(argv: list[str] | None) -> int:
         return 128 + exc.signum
     finally:
         warnings.showwarning = previous  # main() may be called in-process (tests, scripts)
+        warnings.filters[:] = filters
+        warnings._filters_mutated()  # the restored filters apply at once (as catch_warnings does)
         sys.stdout = stdout
 
 

@@ -73,7 +73,7 @@ def add_column_options(parser: argparse.ArgumentParser, outputs: bool = True) ->
                         help="column whose runs of equal values are separate segments (default: one per file)")
     parser.add_argument("--group-by", metavar="COL",
                         help="column naming validation groups, e.g. the load case (default: one per file; for fit "
-                             "--degree auto, --family mlp or --estimate-payload, the 'group' column ftcal dataset "
+                             "--degree auto, --family mlp or --estimate-payload, the 'load' column ftcal dataset "
                              "writes when every file has one)")
 
 

@@ -37,7 +37,7 @@ EXAMPLES = {
   # sign, axes, frame, zeroing and torque reference of the arm bag's table (made by `dataset` above)
   ftcal check ftcal-demo/arm.parquet --orientation qx,qy,qz,qw
   # acceptance of a calibration on held-out poses, kept in the sensor's history
-  ftcal check --accept ftcal-demo/models/np4-lasso50.json ftcal-demo/validation.parquet --group-by group \\
+  ftcal check --accept ftcal-demo/models/np4-lasso50.json ftcal-demo/validation.parquet --group-by load \\
       --max-error-percent 2 --serial SN001 --history-dir ftcal-demo/history
   ftcal check --history SN001 --history-dir ftcal-demo/history""",
     "demo": """\
@@ -62,9 +62,9 @@ EXAMPLES = {
   # which topics a bag holds (type, count, rate), to pick --wrench-topic etc. for `ftcal dataset`
   ftcal topics ftcal-demo/arm""",
     "dataset": """\
-  # robot logs + URDF: one segment per recording, group = load case (folders l<x>kg-r<y>kg,
+  # robot logs + URDF: one segment per recording, load = load case (folders l<x>kg-r<y>kg,
   # plates placed by payloads.toml), static holds from the logged joints (columns static, hold);
-  # ready for `ftcal fit --segment-by segment --group-by group` (or --group-by hold: one group per pose)
+  # ready for `ftcal fit --segment-by segment --group-by load` (or --group-by hold: one group per pose)
   ftcal dataset ftcal-demo/logs/validation/l0kg-r*/*.mat --model iCubGenova11 --sensor r_arm_ft \\
       --payload-file ftcal-demo/payloads.toml -o ftcal-demo/validation-from-logs.parquet
   # a ROS 2 bag, no URDF: wrench, orientation from tf, IMU and temperature (for `ftcal payload`)
@@ -76,7 +76,7 @@ EXAMPLES = {
   # LASSO: the paper's problem and lambda scale
   ftcal fit ftcal-demo/train.parquet --degree 4 --lasso 50 -o ftcal-demo/np4-lasso50.json
   # grouped cross-validation chooses the degree and penalty (here among ridge lambdas 1 and 100)
-  ftcal fit ftcal-demo/train.parquet --degree auto --group-by group --penalties ridge --lambdas 1,100 \\
+  ftcal fit ftcal-demo/train.parquet --degree auto --group-by load --penalties ridge --lambdas 1,100 \\
       -o ftcal-demo/best.json
   # shrink toward an earlier calibration
   ftcal fit ftcal-demo/train.parquet --degree 2 --ridge 10 --prior ftcal-demo/models/np2.json \\
@@ -86,7 +86,7 @@ EXAMPLES = {
   # per-file tasks on Dask (local:N worker processes, or tcp://host:8786)
   ftcal fit ftcal-demo/train.parquet --degree 2 --scheduler local:2 -o ftcal-demo/np2-dask.json
   # neural baseline: a 16-unit MLP early-stopped on the grouped folds, scored beside the affine model
-  ftcal fit ftcal-demo/train.parquet --family mlp --hidden 16 --group-by group -o ftcal-demo/mlp16.json""",
+  ftcal fit ftcal-demo/train.parquet --family mlp --hidden 16 --group-by load -o ftcal-demo/mlp16.json""",
     "evaluate": """\
   # per-axis RMSE (N, N·m), BestFit (%), max |error|, force/torque-norm RMSE on held-out data
   ftcal evaluate ftcal-demo/models/np4-lasso50.json ftcal-demo/validation.parquet
@@ -96,9 +96,9 @@ EXAMPLES = {
   ftcal fit ftcal-demo/train.parquet --na 1 --nb 1 --segment-by segment -o ftcal-demo/arx.json
   ftcal evaluate ftcal-demo/arx.json ftcal-demo/validation.parquet --segment-by segment --mode free-run""",
     "report": """\
-  # compare models on the validation set, per recording (segment) and load case (group)
+  # compare models on the validation set, per recording (segment) and load case (load)
   ftcal report ftcal-demo/models/np1.json ftcal-demo/models/np4-lasso50.json ftcal-demo/validation.parquet \\
-      --train ftcal-demo/train.parquet --segment-by segment --group-by group -o ftcal-demo/my-report.html""",
+      --train ftcal-demo/train.parquet --segment-by segment --group-by load -o ftcal-demo/my-report.html""",
     "predict": """\
   # the wrench from raw channels (no reference needed)
   ftcal predict ftcal-demo/models/np4-lasso50.json ftcal-demo/new_data.csv -o ftcal-demo/wrench.csv

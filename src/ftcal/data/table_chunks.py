@@ -22,7 +22,7 @@ import numpy as np
 from ..runtime.errors import FtcalError
 from ..runtime.executors import KEEP_FILES_ENV
 from .parquet_checks import FooterCheck, locate_unreadable
-from .tables import arrow_numbers, complete_rows, table_columns
+from .tables import arrow_numbers, complete_rows, table_columns, table_label_column
 
 CHUNK_ROWS = 1 << 16  # rows per chunk: ~4 MB of float64 inputs and outputs
 CSV_BLOCK_BYTES = 1 << 22  # CSV bytes parsed per block (~CHUNK_ROWS rows of 13 numbers)
@@ -181,6 +181,9 @@ def _read_table_chunks(path: Path, inputs: Sequence[str], outputs: Sequence[str]
             raise FtcalError(f"{path}: missing {role} column(s) {', '.join(map(repr, missing))}; "
                              f"the file has {', '.join(names)}.")
     labels = dict(labels) if isinstance(labels, Mapping) else dict.fromkeys(labels, "label")
+    # The label each chunk is keyed by -> the column read for it (an older table's 'group' for 'load').
+    read_as = {column: table_label_column(names, column) for column in labels}
+    labels = {read_as[column]: role for column, role in labels.items()}
     for column, role in labels.items():
         if column not in names:
             raise FtcalError(f"{path}: no {role} column {column!r}; the file has {', '.join(names)}.")
@@ -194,11 +197,11 @@ def _read_table_chunks(path: Path, inputs: Sequence[str], outputs: Sequence[str]
         table = complete_rows(table, needed, path, first_row)
         chunk = TableChunk(first_row, arrow_numbers(table, inputs, path, "input", first_row=first_row),
                            arrow_numbers(table, outputs, path, "output", first_row=first_row) if outputs else None)
-        for column, role in labels.items():
+        for label, column in read_as.items():
             values = table.column(column)
             if values.null_count:
-                raise FtcalError(f"{path}: {role} column {column!r} has empty cells.")
-            chunk.labels[column] = np.asarray(values.to_pylist(), dtype=object)
+                raise FtcalError(f"{path}: {labels[column]} column {column!r} has empty cells.")
+            chunk.labels[label] = np.asarray(values.to_pylist(), dtype=object)
         first_row += n_read
         yield chunk
     if first_row == 0:

@@ -15,10 +15,11 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.columns import LOAD_COLUMN, OLD_LOAD_COLUMN
 from ..core.dataset import DEFAULT_INPUTS, DEFAULT_OUTPUTS, Dataset, concatenate
 from ..core.limits import MAX_CELL_MAGNITUDE, MAX_HEADER_BYTES, MAX_TABLE_COLUMNS
 from ..runtime.atomic import atomic_path
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, old_spelling
 from ..runtime.inputs import check_input_file
 from .parquet_checks import FooterCheck, locate_unreadable
 
@@ -191,6 +192,60 @@ def table_columns(path: str | os.PathLike) -> tuple[str, ...]:
     return tuple(read_arrow(path).column_names)
 
 
+def label_column(paths: Sequence[str | os.PathLike], column: str | None) -> str | None:
+    """The column to read for the label column ``column``: ``load`` is read from ``group``, its old
+    spelling, when no table has ``load`` and every table has ``group`` (with a one-line notice).
+
+    Parameters
+    ----------
+    paths : the tables (CSV or Parquet)
+    column : the label column asked for (``group_by``), or None
+
+    Returns
+    -------
+    str or None
+        ``column``, or ``"group"`` for ``"load"`` in tables written before the load case had its one name.
+    """
+    if column != LOAD_COLUMN or not paths:
+        return column
+    names = [table_columns(p) for p in paths]
+    if any(LOAD_COLUMN in n for n in names) or not all(OLD_LOAD_COLUMN in n for n in names):
+        return column
+    return table_label_column(names[0], column)
+
+
+def table_label_column(names: Sequence[str], column: str | None) -> str | None:
+    """The column of one table to read for the label ``column``: ``group`` for ``load`` in a table that has
+    ``group`` but no ``load`` (the old spelling; a one-line notice), else ``column``.
+
+    Examples
+    --------
+    >>> import warnings
+    >>> with warnings.catch_warnings():
+    ...     warnings.simplefilter("ignore")
+    ...     table_label_column(["u1", "group"], "load"), table_label_column(["u1", "load"], "load")
+    ('group', 'load')
+    """
+    if column != LOAD_COLUMN or LOAD_COLUMN in names or OLD_LOAD_COLUMN not in names:
+        return column
+    old_spelling(f"the table column {OLD_LOAD_COLUMN!r}", f"{LOAD_COLUMN!r} (read as the load case)", stacklevel=4)
+    return OLD_LOAD_COLUMN
+
+
+def default_label_column(paths: Sequence[str | os.PathLike], column: str) -> str | None:
+    """``column`` (through :func:`label_column`) when every table has it, else None.
+
+    Examples
+    --------
+    >>> default_label_column([], "load") is None
+    True
+    """
+    if not paths:
+        return None
+    column = label_column(paths, column)
+    return column if all(column in table_columns(p) for p in paths) else None
+
+
 def header_columns(path: Path) -> tuple[str, ...]:
     """The column names in a table's header, checked before any reader allocates for them.
 
@@ -296,6 +351,7 @@ def _not_a_number(value) -> bool:
 def _labels(table, column: str | None, path: Path, role: str) -> np.ndarray | None:
     if column is None:
         return None
+    column = table_label_column(table.column_names, column)
     if column not in table.column_names:
         raise FtcalError(f"{path}: no {role} column {column!r}; the file has "
                          f"{', '.join(map(str, table.column_names))}.")
@@ -315,6 +371,7 @@ def read_dataset(paths: Sequence[str | os.PathLike], inputs: Sequence[str], outp
     """
     if not paths:
         raise FtcalError("No data files given.")
+    group_by = label_column(paths, group_by)
     parts = []
     for index, raw_path in enumerate(paths):
         path = Path(raw_path)

@@ -21,7 +21,7 @@ joint names        positions, rad, from the joints topic (with a URDF: its joint
                    else the joints, else the wrench's variation), 0 while moving
 ``hold``           the still pose's number, counted over all bags (one cross-validation group per
                    pose with ``--group-by hold``), -1 while moving
-``segment``        one per bag; ``group``: the bag's load case, else its stem
+``segment``        one per bag; ``load``: the bag's load case, else its stem
 =================  =============================================================
 """
 
@@ -34,6 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.columns import LOAD_COLUMN, SEGMENT_COLUMN
 from ..core.dataset import DEFAULT_OUTPUTS
 from ..data.alignment import align_streams
 from ..data.bags import BagTopics, tf_key
@@ -220,7 +221,7 @@ def bag_columns(path: Path, topics: BagTopics, segment: int, group: str, robot=N
         if key in on_clock:
             columns.update({name: on_clock[key][:, i] for i, name in enumerate(names)})
     if "q" in on_clock:
-        later = (*DEFAULT_OUTPUTS, "static", "hold", "segment", "group")
+        later = (*DEFAULT_OUTPUTS, "static", "hold", SEGMENT_COLUMN, LOAD_COLUMN)
         taken = [name for name in streams["q"].columns if name in columns or name in later]
         if taken:
             raise FtcalError(f"Bag {path}: {topics.joints} has a joint named {taken[0]!r}, like a column of the "
@@ -237,8 +238,8 @@ def bag_columns(path: Path, topics: BagTopics, segment: int, group: str, robot=N
     columns["static"] = holds.static.astype(np.int64)
     columns["hold"] = holds.hold
     n = clock.size
-    columns["segment"] = np.full(n, segment)
-    columns["group"] = np.full(n, group, dtype=object)
+    columns[SEGMENT_COLUMN] = np.full(n, segment)
+    columns[LOAD_COLUMN] = np.full(n, group, dtype=object)
     notes = [f"{path}: {topics.wrench} {ft.n_samples} messages ({ft.clock}"
              + (f", frame {ft.frame}" if ft.frame else "") + f"), {n} samples kept"
              + (f" ({trimmed[0]} cut at the start, {trimmed[1]} at the end to overlap the other topics)"

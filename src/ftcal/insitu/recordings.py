@@ -23,8 +23,8 @@ take beside it (what ``ftcal dataset`` writes):
   time stamps (:func:`ftcal.data.holds.find_holds`), as for ROS bags.
 
 :func:`write_dataset` stores it as Parquet or CSV with those columns plus
-``segment`` and ``group``, ready for ``ftcal fit DATA --segment-by segment
---group-by group`` (or ``--group-by hold``: one cross-validation group per pose).
+``segment`` and ``load`` (the load case), which ``ftcal fit DATA`` uses by default
+(or ``--group-by hold``: one cross-validation group per pose).
 """
 
 from __future__ import annotations
@@ -38,6 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.columns import LOAD_COLUMN, SEGMENT_COLUMN
 from ..core.dataset import DEFAULT_INPUTS, DEFAULT_OUTPUTS, Dataset, concatenate
 from ..data.alignment import Aligned, align
 from ..data.holds import Holds, find_holds, number_across
@@ -259,7 +260,7 @@ def recording_table(path: str | Path, robot: RobotModel, sensor: str, case: Load
         output_names = DEFAULT_OUTPUTS + columns
     ds = Dataset.from_arrays(inputs, outputs, input_names=names, output_names=output_names,
                              segments=np.full(n, segment), groups=np.full(n, case.name, dtype=object))
-    taken = set(names) | set(output_names) | set(LOG_COLUMNS) | {"segment", "group"}
+    taken = set(names) | set(output_names) | set(LOG_COLUMNS) | {SEGMENT_COLUMN, LOAD_COLUMN}
     clash = [name for name in data.joint_names if name in taken]
     if clash:
         raise FtcalError(f"Recording {path}: a joint is named {clash[0]!r}, like a column of the dataset; "
@@ -344,6 +345,6 @@ def dataset_frame(dataset: Dataset | LogTable):
     columns = {name: dataset.inputs[:, i] for i, name in enumerate(dataset.input_names)}
     columns.update({name: dataset.outputs[:, i] for i, name in enumerate(dataset.output_names)})
     columns.update(extra)
-    columns["segment"] = dataset.segments
-    columns["group"] = np.asarray(dataset.groups).astype(str)
+    columns[SEGMENT_COLUMN] = dataset.segments
+    columns[LOAD_COLUMN] = np.asarray(dataset.groups).astype(str)
     return pd.DataFrame(columns)

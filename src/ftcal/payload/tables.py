@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.jackknife import block_edges, t_scale
+from ..data.tables import table_label_column
 from ..runtime.errors import FtcalError
 from .accumulate import AxisStatistics, payload_statistics
 from .compensate import contact_wrench, undetermined_samples, warn_undetermined
@@ -93,13 +94,14 @@ def read_payload_tables(paths: Sequence[str | os.PathLike], source: KinematicsSo
         frame = read_table(path)
         measured.append(sign * numeric_columns(frame, wrench, Path(path), "wrench"))
         kinematics.append(source(frame, str(path)))
-        if group_by is None:
+        column = table_label_column(list(frame.columns), group_by)
+        if column is None:
             labels.append(np.full(len(frame), str(path), dtype=object))
-        elif group_by not in frame.columns:
-            raise FtcalError(f"{path}: no group column {group_by!r}; the file has "
+        elif column not in frame.columns:
+            raise FtcalError(f"{path}: no group column {column!r}; the file has "
                              f"{', '.join(map(str, frame.columns))}.")
         else:
-            labels.append(frame[group_by].astype(str).to_numpy(dtype=object))
+            labels.append(frame[column].astype(str).to_numpy(dtype=object))
         if time is not None:
             t = numeric_columns(frame, (time,), Path(path), "time")[:, 0]
             check_time(t, time, str(path))

@@ -9,12 +9,12 @@ A TOML file (``--payload-file``) describes them::
     com = [0.0, 0.0, -0.05]               # optional, m, in frame coordinates
     inertia = [1e-4, 1e-4, 1e-4, 0, 0, 0]  # optional, kg m², about the COM
 
-    # named load cases; a recording belongs to the case that lists its file
+    # named load cases; a recording belongs to the load that lists its file
     # name or stem, or whose name is its stem or one of its folder names
-    [[case]]
+    [[load]]
     name = "r5kg"
     recordings = ["grid_1.mat"]           # optional
-    [[case.payload]]
+    [[load.payload]]
     frame = "r_forearm"
     mass = 5.0
 
@@ -27,11 +27,12 @@ A TOML file (``--payload-file``) describes them::
     frame = "r_forearm"
     com = [0.0, 0.0, -0.05]
 
-A file that declares load cases (``[[case]]`` or ``[convention.*]``) must name every
+A file that declares load cases (``[[load]]`` or ``[convention.*]``) must name every
 recording: one that matches no case is refused, with the known names and the nearest
 match (a forgotten or mistyped case would otherwise get no payload, and the reference
 wrench of a sensor with nothing else beyond it would be zero). A file with only
-``[[payload]]`` entries applies them to every recording, each its own group.
+``[[payload]]`` entries applies them to every recording, each its own load case.
+``[[case]]`` (with ``[[case.payload]]``) is the old spelling of ``[[load]]``: still read, with a notice.
 """
 
 from __future__ import annotations
@@ -44,10 +45,12 @@ from pathlib import Path
 from typing import Any
 
 from ..core.limits import MAX_TEXT_FILE_BYTES
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, old_spelling
 from ..runtime.inputs import check_input_file
 from .payloads import Payload
 
+# The TOML array of load cases, and its old spelling (read with a notice).
+LOAD_KEY, OLD_LOAD_KEY = "load", "case"
 CONVENTION = re.compile(r"^l(?P<left>\d+(?:\.\d+)?)kg-r(?P<right>\d+(?:\.\d+)?)kg$")
 # A folder name that was meant to follow the convention (for the message when it does not quite).
 CONVENTION_LIKE = re.compile(r"^l\d.*kg", re.IGNORECASE)
@@ -113,8 +116,8 @@ class LoadCaseConfig:
         if almost is not None and not hint:
             hint = f"; {almost!r} is not of the form l<x>kg-r<y>kg"
         where = f"Payload file {self.source}" if self.source else "The payload file"
-        return (f"{where}: recording {path} matches no load case (cases: {known}{hint}); name it in a "
-                f"[[case]]'s recordings, or declare a case without payload for an unloaded recording.")
+        return (f"{where}: recording {path} matches no load case (loads: {known}{hint}); name it in a "
+                f"[[load]]'s recordings, or declare a load without payload for an unloaded recording.")
 
     def _convention(self, match: re.Match, path: Path) -> tuple[Payload, ...]:
         out = []
@@ -140,14 +143,21 @@ def load_case_config(path: str | Path) -> LoadCaseConfig:
         raise FtcalError(f"Payload file {path}: no such file.") from None
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise FtcalError(f"Payload file {path}: cannot read it as TOML ({exc}).") from None
-    unknown = set(data) - {"payload", "case", "convention"}
+    unknown = set(data) - {"payload", LOAD_KEY, OLD_LOAD_KEY, "convention"}
     if unknown:
         raise FtcalError(f"Payload file {path}: unknown section(s) {', '.join(sorted(unknown))}; "
-                         f"expected payload, case, convention.")
+                         f"expected payload, load, convention.")
+    key = LOAD_KEY
+    if OLD_LOAD_KEY in data:
+        if LOAD_KEY in data:
+            raise FtcalError(f"Payload file {path}: both [[load]] and [[case]] (its old spelling); "
+                             "write every load case as [[load]].")
+        old_spelling(f"Payload file {path}: [[case]]", "[[load]] (with [[load.payload]])")
+        key = OLD_LOAD_KEY
     payloads = tuple(_payload(p, path, f"payload[{i}]") for i, p in enumerate(_list(data, "payload", path)))
     cases = []
-    for i, case in enumerate(_list(data, "case", path)):
-        where = f"case[{i}]"
+    for i, case in enumerate(_list(data, key, path)):
+        where = f"{LOAD_KEY}[{i}]"  # the new spelling in messages and payload names, either way
         name = case.get("name")
         if not isinstance(name, str) or not name:
             raise FtcalError(f"Payload file {path}: {where} needs a non-empty 'name'.")

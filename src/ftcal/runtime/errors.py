@@ -59,6 +59,71 @@ class PrecisionLossWarning(FtcalWarning):
     """Converting a model to raw-input monomials lost significant digits."""
 
 
+class OldSpellingWarning(FutureWarning):
+    """An old spelling (a keyword, a flag, a file key or column) was read under its new name.
+
+    A ``FutureWarning``, so Python shows it by default; the CLI prints it as one ``notice:`` line.
+    """
+
+
+def old_spelling(old: str, new: str, stacklevel: int = 3) -> None:
+    """Say once that ``old`` was read as ``new`` (the one name of that idea today).
+
+    Parameters
+    ----------
+    old, new : str, how the input spelled it and the name to use instead
+    stacklevel : int, passed to :func:`warnings.warn` (3: the caller of the function that checks)
+
+    Examples
+    --------
+    >>> import warnings
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     old_spelling("wrench=", "inputs=")
+    >>> str(caught[0].message)
+    'wrench= is now inputs= (the old spelling still works)'
+    """
+    import warnings
+
+    warnings.warn(f"{old} is now {new} (the old spelling still works)", OldSpellingWarning, stacklevel=stacklevel)
+
+
+def renamed_keyword(keywords: dict, old: str, new: str, value, stacklevel: int = 4):
+    """``value`` of the keyword ``new``, or the one given under its old name ``old`` (popped from ``keywords``).
+
+    Parameters
+    ----------
+    keywords : dict, the function's ``**kwargs``; ``old`` is removed from it
+    old, new : str, the old and the current keyword names
+    value : the value given as ``new`` (None when not given)
+    stacklevel : int, where the warning points (4: the caller of the function that calls this)
+
+    Returns
+    -------
+    the value to use
+
+    Raises
+    ------
+    FtcalError
+        when both spellings are given
+
+    Examples
+    --------
+    >>> import warnings
+    >>> with warnings.catch_warnings():
+    ...     warnings.simplefilter("ignore", OldSpellingWarning)
+    ...     renamed_keyword({"wrench": ("Fx",)}, "wrench", "inputs", None)
+    ('Fx',)
+    """
+    if old not in keywords:
+        return value
+    given = keywords.pop(old)
+    if value is not None:
+        raise FtcalError(f"{new}: given twice (also as {old}, its old spelling); give it once.")
+    old_spelling(f"{old}=", f"{new}=", stacklevel=stacklevel)
+    return given
+
+
 def single_line(text: str) -> str:
     """``text`` with line breaks and tabs written as escapes: a name from a file (a bag topic, a column,
     a model's input) cannot start a line of its own in the output and forge it.

@@ -376,11 +376,11 @@ def _loads_toml(recordings: list[dict]) -> str:
     lines = ["# The load of each simulated recording (ftcal dataset --payload-file; docs/formats.md).",
              "# The tool (--payload of ftcal simulate) is not listed: give it to ftcal dataset as --payload.", ""]
     for rec in recordings:
-        lines += ["[[case]]", f"name = \"{rec['name']}\"", f"recordings = [\"{rec['name']}\"]"]
+        lines += ["[[load]]", f"name = \"{rec['name']}\"", f"recordings = [\"{rec['name']}\"]"]
         for p in rec["payloads"]:
             com = ", ".join(repr(float(c)) for c in p["com"])
             inertia = ", ".join(repr(float(c)) for c in p["inertia"])
-            lines += ["[[case.payload]]", f"frame = \"{p['frame']}\"", f"mass = {float(p['mass'])!r}",
+            lines += ["[[load.payload]]", f"frame = \"{p['frame']}\"", f"mass = {float(p['mass'])!r}",
                       f"com = [{com}]", f"inertia = [{inertia}]"]
         lines.append("")
     return "\n".join(lines)

@@ -182,7 +182,7 @@ def build_dataset(logs, *, urdf=None, robot: str | None = None, sensor: str | No
         groups = sorted(set(map(str, dataset.groups)))
         n_holds = int(table.columns["hold"].max()) + 1 if dataset.n_samples else 0
         description = (f"{dataset.n_samples} samples from {len(paths)} recording(s), "
-                       f"group(s) {', '.join(groups)}, {n_holds} static hold(s)")
+                       f"load case(s) {', '.join(groups)}, {n_holds} static hold(s)")
         result = DatasetResult(table, "logs", description, notes + [single_line(n) for n in table.notes])
     if output is not None:
         result.save(output)

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Callable
 
-from ..core.columns import DEFAULT_OUTPUTS
+from ..core.columns import DEFAULT_OUTPUTS, LOAD_COLUMN
 from ..core.limits import (MAX_DEGREE, MAX_LAG, MLP_EQUATIONS_PER_WEIGHT, MLP_MAX_ITER, MLP_MAX_LAYERS,
                            MLP_MAX_UNITS, PAPER_LAMBDAS, SELECTION_BUDGET_SECONDS)
 from ..runtime.errors import FtcalError, FtcalWarning
@@ -345,7 +345,7 @@ def make_solver(o: _Options):
 
 
 # The column of load cases that `ftcal dataset` writes: the validation groups by default.
-GROUP_COLUMN = "group"
+GROUP_COLUMN = LOAD_COLUMN
 
 
 class _EchoedLines(list):
@@ -418,21 +418,26 @@ class _Fit:
         return self._result(model, save)
 
     def _default_groups(self) -> None:
-        """``group`` (the load cases `ftcal dataset` writes) as the validation groups, when every table has it.
+        """``load`` (the load cases `ftcal dataset` writes) as the validation groups, when every table has it.
 
         Only where groups matter (``--degree auto``, the MLP's early stopping and cross-validation,
         ``--estimate-payload``): held-out folds then hold out whole load cases, not whole files.
+        Tables written before the load case had its one name hold it as ``group`` (read with a notice).
         """
-        from ..data.table_chunks import table_has_columns
+        from ..data.tables import default_label_column, label_column
 
         o = self.o
-        if o.group_by is not None or not self.paths:
+        if not self.paths:
+            return
+        if o.group_by is not None:
+            o.group_by = label_column(self.paths, o.group_by)
             return
         if not (o.degree == "auto" or o.family == "mlp" or o.estimate_payload):
             return
-        if all(table_has_columns(path, [GROUP_COLUMN]) for path in self.paths):
-            o.group_by = GROUP_COLUMN
-            self.notes.append(f"groups: the tables' {GROUP_COLUMN!r} column (the load cases ftcal dataset writes); "
+        column = default_label_column(self.paths, GROUP_COLUMN)
+        if column is not None:
+            o.group_by = column
+            self.notes.append(f"groups: the tables' {column!r} column (the load cases ftcal dataset writes); "
                               "--group-by COL for another")
 
     def _result(self, model, save: dict) -> FitResult:
