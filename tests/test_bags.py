@@ -437,7 +437,7 @@ def test_bad_bags(tmp_path, capfd):
             bag.imu("/imu", T0 + k * MS, q, (0, 0, 0), (0, 0, 9.81))
         imu_bags.append(str(bag.write(tmp_path / f"imu{j}")))
     fails(capfd, ["dataset", *imu_bags, "--wrench-topic", "/ft", "--imu-topic", "/imu", "--no-filter", "-o", str(out)],
-          "imu1: gives columns time,u1,u2,u3,u4,u5,u6,wx,wy,wz,ax,ay,az,static,hold,segment,group but", out)
+          "imu1: gives columns time,u1,u2,u3,u4,u5,u6,wx,wy,wz,ax,ay,az,static,hold,segment,load but", out)
     for kind in ("ros1", "mcap-file"):
         bag = Bag(kind)
         for k in range(2000):

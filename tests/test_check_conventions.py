@@ -104,7 +104,7 @@ def test_permuted_columns_are_found_and_fixed_by_reordering_the_wrench_columns()
     swap = np.eye(3)[[1, 0, 2]]  # the column named Fx holds Fy and vice versa (and the torques)
     (f,) = findings(both(swap, wrench), rotation, wrench_columns=("Fx", "Fy", "Fz", "Tx", "Ty", "Tz"))
     assert f.kind == "permutation" and f.wrench == ("Fy", "Fx", "Fz", "Ty", "Tx", "Tz")
-    assert f.fix == "--wrench Fy,Fx,Fz,Ty,Tx,Tz"
+    assert f.fix == "--inputs Fy,Fx,Fz,Ty,Tx,Tz"
 
 
 @pytest.mark.parametrize("axis, degrees", [("x", 2.0), ("z", -2.0), ("z", 90.0), ("y", -90.0)])
@@ -188,7 +188,7 @@ def write(tmp_path, wrench, rotation, name="rec.csv"):
 def check(capsys, path, *extra):
     with warnings.catch_warnings():
         warnings.simplefilter("error", FtcalWarning)
-        code = main(["check", str(path), "--wrench", "Fx,Fy,Fz,Tx,Ty,Tz", "--orientation", "qx,qy,qz,qw",
+        code = main(["check", str(path), "--inputs", "Fx,Fy,Fz,Tx,Ty,Tz", "--orientation", "qx,qy,qz,qw",
                      *map(str, extra)])
     captured = capsys.readouterr()
     return code, captured.out, captured.err
@@ -200,11 +200,11 @@ def test_cli_exit_codes_and_the_printed_fix_works(capsys, tmp_path):
     assert check(capsys, good)[0] == 0
     swapped = write(tmp_path, both(np.eye(3)[[1, 0, 2]], wrench), rotation, "swapped.csv")
     code, out, _ = check(capsys, swapped)
-    assert code == 1 and "fix: --wrench Fy,Fx,Fz,Ty,Tx,Tz" in out
+    assert code == 1 and "fix: --inputs Fy,Fx,Fz,Ty,Tx,Tz" in out
     # The printed fix, applied, leaves nothing to report.
     with warnings.catch_warnings():
         warnings.simplefilter("error", FtcalWarning)
-        assert main(["check", str(swapped), "--wrench", "Fy,Fx,Fz,Ty,Tx,Tz", "--orientation", "qx,qy,qz,qw"]) == 0
+        assert main(["check", str(swapped), "--inputs", "Fy,Fx,Fz,Ty,Tx,Tz", "--orientation", "qx,qy,qz,qw"]) == 0
     reaction = write(tmp_path, -wrench, rotation, "reaction.csv")
     code, out, _ = check(capsys, reaction)
     assert code == 1 and "fix: --reaction" in out
@@ -228,14 +228,14 @@ def test_cli_bad_input_is_one_line(capsys, tmp_path):
     path = write(tmp_path, wrench, rotation)
     code, _, err = check(capsys, path)
     assert code == 2 and len(err.strip().splitlines()) == 1 and "at least 3" in err
-    assert main(["check", str(path), "--wrench", "Fx,Fy,Fz,Tx,Ty,Nope", "--orientation", "qx,qy,qz,qw"]) == 2
+    assert main(["check", str(path), "--inputs", "Fx,Fy,Fz,Tx,Ty,Nope", "--orientation", "qx,qy,qz,qw"]) == 2
     assert "Nope" in capsys.readouterr().err
 
 
 def test_payload_warns_on_base_frame_data_and_not_on_good_data(capsys, tmp_path):
     wrench, rotation, _ = recording(16)
     good = write(tmp_path, wrench, rotation, "good.csv")
-    args = ["--wrench", "Fx,Fy,Fz,Tx,Ty,Tz", "--orientation", "qx,qy,qz,qw"]
+    args = ["--inputs", "Fx,Fy,Fz,Tx,Ty,Tz", "--orientation", "qx,qy,qz,qw"]
     with warnings.catch_warnings():
         warnings.simplefilter("error", FtcalWarning)
         assert main(["payload", str(good), *args, "-o", str(tmp_path / "p.json")]) == 0
@@ -269,7 +269,7 @@ def test_joints_and_urdf_route_finds_a_sensor_turned_on_the_flange(capsys, tmp_p
     frame["pose"] = rows
     path = tmp_path / "joints.csv"
     frame.to_csv(path, index=False)
-    args = ["check", str(path), "--wrench", "Fx,Fy,Fz,Tx,Ty,Tz", "--urdf", str(UR5), "--ft-joint", "ee_fixed_joint",
+    args = ["check", str(path), "--inputs", "Fx,Fy,Fz,Tx,Ty,Tz", "--urdf", str(UR5), "--ft-joint", "ee_fixed_joint",
             "--base", "base_link", "--group-by", "pose"]
     assert main(args) == 1
     out = capsys.readouterr().out

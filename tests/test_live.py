@@ -180,7 +180,7 @@ def test_a_tool_identified_in_place_matches_batch_payload(tmp_path):
     rec.frame().to_parquet(table)
     batch_path = tmp_path / "batch.json"
     subprocess.run([sys.executable, "-m", "ftcal", "payload", str(table), "--orientation", "qx,qy,qz,qw",
-                    "--wrench", "Fx,Fy,Fz,Tx,Ty,Tz", "-o", str(batch_path)], check=True, capture_output=True)
+                    "--inputs", "Fx,Fy,Fz,Tx,Ty,Tz", "-o", str(batch_path)], check=True, capture_output=True)
     batch = json.loads(batch_path.read_text())
     assert abs(payload.mass - batch["mass"]) <= batch["stderr"]["mass"]
     assert np.all(np.abs(payload.com - batch["com"]) <= np.asarray(batch["stderr"]["com"]))

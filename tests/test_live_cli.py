@@ -70,7 +70,7 @@ def test_replay_writes_the_live_columns_and_runs_the_script(files):
 
 @pytest.mark.parametrize("args, message", [
     (("--switch-tool", "5:hammer"), "no tool 'hammer'"),
-    (("--wrench", "Fx,Fy,Fz,Tx,Ty,nope"), "nope"),
+    (("--inputs", "Fx,Fy,Fz,Tx,Ty,nope"), "nope"),
     (("--mount", "hammer"), "--mount hammer"),
     (("--walk-std", "1,2,3"), "--walk-std"),
 ])

@@ -134,7 +134,7 @@ def test_replay_a_table_with_joint_columns_and_the_urdf(recording, tmp_path, cap
     save_payload(tool_payload(), tmp_path / "tool.json")
     out = tmp_path / "out.csv"
     assert main(["live", "--replay", str(table), "--urdf", str(UR5), "--ft-joint", "ee_fixed_joint", "--base",
-                 "base_link", "--wrench", ",".join(AXES), "--tool", f"tool={tmp_path / 'tool.json'}",
+                 "base_link", "--inputs", ",".join(AXES), "--tool", f"tool={tmp_path / 'tool.json'}",
                  "-o", str(out)]) == 0
     frame = pd.read_csv(out)
     assert np.all(compensated_rms(frame, holding) < 1.3 * NOISE)
@@ -142,11 +142,11 @@ def test_replay_a_table_with_joint_columns_and_the_urdf(recording, tmp_path, cap
     capsys.readouterr()
     # The same options as `ftcal payload`: an unknown joint name for the sensor is one line, exit 2.
     code = subprocess.run([sys.executable, "-m", "ftcal", "live", "--replay", str(table), "--urdf", str(UR5),
-                           "--ft-joint", "no_such_joint", "--wrench", ",".join(AXES), "-o", str(tmp_path / "x.csv")],
+                           "--ft-joint", "no_such_joint", "--inputs", ",".join(AXES), "-o", str(tmp_path / "x.csv")],
                           capture_output=True, text=True)
     assert code.returncode == 2 and len(code.stderr.strip().splitlines()) == 1 and not (tmp_path / "x.csv").exists()
     code = subprocess.run([sys.executable, "-m", "ftcal", "live", "--replay", str(table), "--urdf", str(UR5),
-                           "--ft-joint", "ee_fixed_joint", "--orientation", "a,b,c,d", "--wrench", ",".join(AXES),
+                           "--ft-joint", "ee_fixed_joint", "--orientation", "a,b,c,d", "--inputs", ",".join(AXES),
                            "-o", str(tmp_path / "x.csv")], capture_output=True, text=True)
     assert code.returncode == 2 and "one gravity source" in code.stderr
 

@@ -117,7 +117,7 @@ def test_payload_reads_each_table_once(tmp_path, monkeypatch):
     monkeypatch.setattr(tables, "read_table", lambda path, *a, **k: reads.append(str(path)) or real(path, *a, **k))
     with warnings.catch_warnings():
         warnings.simplefilter("error", FtcalWarning)  # good data: no convention warning
-        assert main(["payload", *map(str, paths), "--wrench", ",".join(WRENCH), "--orientation", "qx,qy,qz,qw",
+        assert main(["payload", *map(str, paths), "--inputs", ",".join(WRENCH), "--orientation", "qx,qy,qz,qw",
                      "--bias-drift", "none", "-o", str(tmp_path / "p.json")]) == 0
     assert sorted(reads) == sorted(map(str, paths))
     payload = json.loads((tmp_path / "p.json").read_text())
@@ -139,7 +139,7 @@ def test_payload_imports_no_scipy(tmp_path):
     path = tmp_path / "a.parquet"
     noise_free_table(path, seed=7)
     code = ("import sys\nfrom ftcal.cli import main\n"
-            f"assert main(['payload', {str(path)!r}, '--wrench', {','.join(WRENCH)!r}, '--orientation', "
+            f"assert main(['payload', {str(path)!r}, '--inputs', {','.join(WRENCH)!r}, '--orientation', "
             f"'qx,qy,qz,qw', '--time', 'time', '-o', {str(tmp_path / 'p.json')!r}]) == 0\n"
             "print(sorted(m for m in sys.modules if m == 'scipy' or m.startswith('scipy.')))")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,

@@ -133,7 +133,7 @@ def test_check_finds_the_mounting_mistake(session, tmp_path, capsys, mistake, fi
     capsys.readouterr()
     table = sorted(out.glob("*-load0.parquet"))[0]
     wrench = ",".join(f"ee_fixed_joint_u{i}" for i in range(1, 7))
-    assert main(["check", str(table), "--wrench", wrench, *_robot_source()]) == 1
+    assert main(["check", str(table), "--inputs", wrench, *_robot_source()]) == 1
     text = capsys.readouterr().out
     assert f"finding 1: {finding}" in text
 

@@ -65,7 +65,7 @@ class Finding:
     before, after : (force RMS N, torque RMS N·m) of the payload fit over the holds
     rpy : (roll, pitch, yaw) rad of the frame correction, when the fix is a rotation
         (URDF ``<origin rpy>`` of the data's frame in the declared sensor frame)
-    wrench : the reordered --wrench columns, when the fix is a column order
+    wrench : the reordered --inputs columns, when the fix is a column order
     reaction : the fix includes --reaction
     """
 
@@ -396,7 +396,7 @@ def _map_finding(holds: HoldAverages, fit: _Procrustes, sigma2: float, columns,
         names = ", ".join(f"column {columns[k]} holds {AXES[j]}" for j, k in enumerate(order) if k != j)
         return sign, proper, Finding(
             "permutation", f"the wrench axes are permuted ({names}; Tx..Tz likewise)",
-            f"--wrench {','.join(new)}", confidence, declared, after, wrench=new)
+            f"--inputs {','.join(new)}", confidence, declared, after, wrench=new)
     if sign < 0 and angle < MIN_ROTATION_DEG:
         return sign, proper, Finding(
             "sign", "the sensor reports the reaction: at rest it reads −m·g (the wrench it applies on the tool)",
@@ -490,7 +490,7 @@ def payload_warning(paths, source, fit, g: float, *, wrench=AXES, reaction: bool
     source : its KinematicsSource
     fit : its PayloadFit (mass, residual RMS)
     g : m/s²
-    wrench : its --wrench columns (to spell a fix)
+    wrench : its --inputs columns (to spell a fix)
     reaction : its --reaction
     time : its --time column (default ``time`` where there is one)
     holds : the :class:`HoldCollector` that saw the tables as the fit read them (then they are
@@ -599,7 +599,7 @@ def read_holds(paths, source, *, wrench=("u1", "u2", "u3", "u4", "u5", "u6"), gr
     from ..payload.kinematics import MotionSource
 
     if len(wrench) != 6:
-        raise FtcalError(f"--wrench needs 6 columns Fx,Fy,Fz,Tx,Ty,Tz; got {','.join(wrench)}.")
+        raise FtcalError(f"--inputs needs 6 wrench columns Fx,Fy,Fz,Tx,Ty,Tz; got {','.join(wrench)}.")
     if isinstance(source, MotionSource):
         source = source.gravity  # holds are static: gravity is all that matters
     parts = []

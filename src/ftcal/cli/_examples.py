@@ -142,7 +142,7 @@ EXAMPLES = {
   # a drifting wrist sensor in operation, its two tools identified offline (writes ftcal-demo/live/)
   ftcal demo --scenario live --out ftcal-demo/live
   # replay it: the gripper is swapped for the drill at 61 s, a re-tare (tool kept) at 100 s
-  ftcal live --replay ftcal-demo/live/live.parquet --orientation qx,qy,qz,qw --wrench Fx,Fy,Fz,Tx,Ty,Tz \\
+  ftcal live --replay ftcal-demo/live/live.parquet --orientation qx,qy,qz,qw --inputs Fx,Fy,Fz,Tx,Ty,Tz \\
       --tool gripper=ftcal-demo/live/gripper.json --tool drill=ftcal-demo/live/drill.json \\
       --switch-tool 61:drill --retare-at 100 --state ftcal-demo/live/state.json -o ftcal-demo/live/replayed.parquet""",
 }

@@ -5,7 +5,7 @@ from __future__ import annotations
 from ..core.limits import (FINDING_CONFIDENCE, HOLD_SAMPLE_RATE, MAX_COM_DISTANCE, MAX_FORCE_ERROR,
                            MAX_TORQUE_ERROR, MIN_HOLDS, MIN_ROTATION_DEG)
 from ..workflow.sources import DEFAULT_WRENCH
-from ._common import column_list, positive_float, require_suffix
+from ._common import add_inputs_option, inputs_of, positive_float, require_suffix
 from ._examples import epilog
 from ._gravity import add_kinematics_options, add_robot_source_options, source_keywords
 
@@ -28,8 +28,7 @@ def register(sub) -> None:
                     "recording, and its input channels, against thresholds. `ftcal check --history SERIAL`: "
                     "drift of bias and gain over the recorded calibrations.")
     p.add_argument("data", nargs="*", metavar="DATA", help="CSV or Parquet recordings")
-    p.add_argument("--wrench", type=column_list, default=DEFAULT_WRENCH,
-                   metavar="FX,FY,FZ,TX,TY,TZ", help="wrench columns, N and N·m (default u1,...,u6)")
+    add_inputs_option(p, "wrench columns, N and N·m (default u1,...,u6)")
     add_kinematics_options(p)
     add_robot_source_options(p)
     p.add_argument("--group-by", metavar="COL",
@@ -91,7 +90,8 @@ def run(args) -> int:
         return 0
     if not args.data:
         raise FtcalError("give the recording(s) DATA to check (or --history SERIAL).")
-    result = check_sensor(args.data, accept=args.accept, wrench=args.wrench, group_by=args.group_by,
+    inputs = inputs_of(args, DEFAULT_WRENCH)
+    result = check_sensor(args.data, accept=args.accept, inputs=inputs, group_by=args.group_by,
                           rate=args.rate,
                           reaction=args.reaction, max_com_distance=args.max_com_distance, html=args.html,
                           payload_json=args.payload_json, max_force_error=args.max_force_error,

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ._common import column_list, require_suffix
+from ._common import add_inputs_option, inputs_of, require_suffix
 from ._examples import epilog
 from ._gravity import add_kinematics_options, add_robot_source_options, check_not_input, source_keywords
 
@@ -23,8 +23,8 @@ def register(sub) -> None:
                    help="one table with the rows of all DATA files in order")
     p.add_argument("--calibration", metavar="CAL.json",
                    help="calibration model: the measured wrench is its prediction from its input columns")
-    p.add_argument("--wrench", type=column_list, metavar="FX,FY,FZ,TX,TY,TZ",
-                   help="measured wrench columns without --calibration (default: the payload file's, else u1,...,u6)")
+    add_inputs_option(p, "measured wrench columns without --calibration (default: the payload file's, else "
+                         "u1,...,u6); with --calibration the model's own input columns are read")
     add_kinematics_options(p)
     add_robot_source_options(p, named_models=False)
     # Outside the --urdf/--model group: the old spelling `--model CAL.json` (a calibration) may come with --urdf.
@@ -58,8 +58,9 @@ def run(args) -> int:
     if args.robot_model is not None and args.robot_urdf is not None:
         raise FtcalError("--model: not allowed with --urdf (give one robot model).")
     require_suffix(args.output, (".csv", ".parquet"), "-o")
+    inputs = inputs_of(args)
     check_not_input(args.output, [args.payload, *args.data] + ([args.calibration] if args.calibration else []))
-    result = compensate(args.payload, args.data, calibration=args.calibration, wrench=args.wrench,
+    result = compensate(args.payload, args.data, calibration=args.calibration, inputs=inputs,
                         **source_keywords(args))
     result.save(args.output)
     print(f"wrote {len(result.table)} contact wrenches to {args.output}", file=sys.stderr)

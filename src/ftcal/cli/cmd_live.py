@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import argparse
 
-from ._common import column_list, finite_float, float_list, frame_pair, positive_float, require_suffix
+from ._common import (add_inputs_option, column_list, finite_float, float_list, frame_pair, inputs_of, positive_float,
+                      require_suffix)
 from ._examples import epilog
 from ._gravity import add_robot_source_options
 
@@ -44,8 +45,9 @@ def register(sub) -> None:
     mode.add_argument("--zenoh", action="store_true", help="run live over Zenoh (see the Zenoh options)")
     p.add_argument("-o", "--output", metavar="OUT.parquet|OUT.csv", help="--replay: the results table")
     p.add_argument("--model", metavar="CAL.json", help="calibration model: its input columns are the raw channels")
-    p.add_argument("--wrench", type=column_list, metavar="FX,FY,FZ,TX,TY,TZ",
-                   help="wrench columns without --model (default: the first tool's payload file's, else u1,...,u6)")
+    add_inputs_option(p, "--replay's sensor columns: without --model the wrench, 6 columns Fx..Tz (default: the "
+                         "first tool's payload file's, else u1,...,u6); with --model its raw input channels, in "
+                         "the model's input order (default: the model's input names)", metavar="C1,C2,...")
     gravity = p.add_mutually_exclusive_group()
     gravity.add_argument("--orientation", type=column_list, metavar="QX,QY,QZ,QW",
                          help="quaternion columns, ROS order x,y,z,w: sensor frame to a world with gravity along -z")
@@ -172,6 +174,7 @@ def build_calibrator(args, robot=None):
 
 
 def run(args) -> int:
+    inputs_of(args)  # --wrench, the old spelling, read as --inputs (with a notice)
     if args.zenoh:
         return run_zenoh(args)
     return run_replay(args)
@@ -281,15 +284,16 @@ def replay_columns(args, live, default_signal=None):
     from ..runtime.errors import FtcalError
 
     if live.model is not None:
-        if args.wrench is not None:
-            raise FtcalError("give --model (raw channels) or --wrench, not both.")
-        signal, raw = tuple(live.model.input_names_), True
+        signal, raw = tuple(args.inputs or live.model.input_names_), True
+        if len(signal) != len(live.model.input_names_):
+            raise FtcalError(f"--inputs {','.join(signal)}: the model reads {len(live.model.input_names_)} raw "
+                             f"input(s) ({','.join(live.model.input_names_)}); name one column for each, in that order.")
     else:
         first = next((p for p in live.tools.values() if p is not None), None)
-        signal = args.wrench or default_signal or tuple((first.fit.get("wrench_columns") if first else None)
+        signal = args.inputs or default_signal or tuple((first.fit.get("wrench_columns") if first else None)
                                                         or ("u1", "u2", "u3", "u4", "u5", "u6"))
         if len(signal) != 6:
-            raise FtcalError(f"--wrench needs 6 columns; got {','.join(signal)}.")
+            raise FtcalError(f"--inputs needs 6 wrench columns without --model; got {','.join(signal)}.")
         raw = False
     if live.robot is not None:
         return ReplayColumns(args.time, tuple(signal), raw, "joints", tuple(live.robot.joints), args.temperature)

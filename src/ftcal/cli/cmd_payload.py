@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from ..core.limits import BIAS_DRIFTS
 from ..runtime.errors import FtcalError
-from ._common import column_list, require_suffix
+from ._common import add_inputs_option, inputs_of, require_suffix
 from ._examples import epilog
 from ._gravity import add_kinematics_options, add_robot_source_options, check_not_input, source_keywords
 
@@ -21,13 +21,12 @@ def register(sub) -> None:
     p.add_argument("-o", "--output", required=True, metavar="PAYLOAD.json",
                    help="payload file: mass (kg), com (m), force/torque bias (N, N·m), inertia with --dynamic, "
                         "standard errors; for 'ftcal compensate' and 'ftcal convert --to ros-yaml|ft-tools-ros2'")
-    p.add_argument("--wrench", type=column_list, default=("u1", "u2", "u3", "u4", "u5", "u6"),
-                   metavar="FX,FY,FZ,TX,TY,TZ",
-                   help="measured wrench columns, N and N·m (default u1,...,u6)")
+    add_inputs_option(p, "measured wrench columns, N and N·m (default u1,...,u6)")
     add_kinematics_options(p)
     add_robot_source_options(p)
     p.add_argument("--group-by", metavar="COL",
-                   help="column naming the cross-validation groups, e.g. the pose (default: one per file)")
+                   help="column naming the cross-validation groups, e.g. the pose (default: the 'hold' column "
+                        "ftcal dataset writes when every file has one, else one per file)")
     p.add_argument("--keep-moving", action="store_true",
                    help="static model: use every sample (default: only the static holds, found from the orientation, "
                         "joints or gravity over --time, else the table's static column from ftcal dataset; the moving "
@@ -51,9 +50,11 @@ def run(args) -> int:
     import sys
 
     from ..workflow.payload import identify_payload, rebias_payload
+    from ..workflow.sources import DEFAULT_WRENCH
 
     require_suffix(args.output, (".json",), "-o")
     check_not_input(args.output, args.data + ([args.rebias] if args.rebias else []))
+    inputs = inputs_of(args, DEFAULT_WRENCH)
     if args.rebias:
         # Options that change nothing in a re-tare are refused rather than silently ignored.
         for option, given in (("--dynamic", args.dynamic), ("--bias-drift", args.bias_drift != "auto"),
@@ -61,10 +62,10 @@ def run(args) -> int:
             if given:
                 raise FtcalError(f"{option} does not apply to --rebias (the re-tare keeps {args.rebias}'s model and "
                                  "estimates one constant bias); leave it out.")
-        result = rebias_payload(args.data, args.rebias, wrench=args.wrench, keep_moving=args.keep_moving,
+        result = rebias_payload(args.data, args.rebias, inputs=inputs, keep_moving=args.keep_moving,
                                 reaction=args.reaction, temperature=args.temperature, **source_keywords(args))
     else:
-        result = identify_payload(args.data, wrench=args.wrench, group_by=args.group_by,
+        result = identify_payload(args.data, inputs=inputs, group_by=args.group_by,
                                   keep_moving=args.keep_moving, reaction=args.reaction, frame=args.frame,
                                   bias_drift=args.bias_drift, temperature=args.temperature, **source_keywords(args))
     print(result.summary())

@@ -31,7 +31,7 @@ CONTACT_COLUMNS = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
 
 def _check_wrench_columns(columns: Sequence[str]) -> tuple[str, ...]:
     if len(columns) != 6:
-        raise FtcalError(f"--wrench needs 6 columns Fx,Fy,Fz,Tx,Ty,Tz; got {','.join(columns)}.")
+        raise FtcalError(f"--inputs needs 6 wrench columns Fx,Fy,Fz,Tx,Ty,Tz; got {','.join(columns)}.")
     return tuple(columns)
 
 

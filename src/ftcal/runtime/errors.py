@@ -88,14 +88,15 @@ def old_spelling(old: str, new: str, stacklevel: int = 3) -> None:
     warnings.warn(f"{old} is now {new} (the old spelling still works)", OldSpellingWarning, stacklevel=stacklevel)
 
 
-def renamed_keyword(keywords: dict, old: str, new: str, value, stacklevel: int = 4):
+def renamed_keyword(keywords: dict, old: str, new: str, value, default=None, stacklevel: int = 4):
     """``value`` of the keyword ``new``, or the one given under its old name ``old`` (popped from ``keywords``).
 
     Parameters
     ----------
     keywords : dict, the function's ``**kwargs``; ``old`` is removed from it
     old, new : str, the old and the current keyword names
-    value : the value given as ``new`` (None when not given)
+    value : the value given as ``new``
+    default : ``new``'s default (``value`` is that when ``new`` was not given)
     stacklevel : int, where the warning points (4: the caller of the function that calls this)
 
     Returns
@@ -118,7 +119,7 @@ def renamed_keyword(keywords: dict, old: str, new: str, value, stacklevel: int =
     if old not in keywords:
         return value
     given = keywords.pop(old)
-    if value is not None:
+    if value is not default and value != default:
         raise FtcalError(f"{new}: given twice (also as {old}, its old spelling); give it once.")
     old_spelling(f"{old}=", f"{new}=", stacklevel=stacklevel)
     return given

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..core.limits import HOLD_SAMPLE_RATE, MAX_COM_DISTANCE, MAX_FORCE_ERROR, MAX_TORQUE_ERROR
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, renamed_keyword
 from .result import StepResult
 from .sources import DEFAULT_WRENCH, gravity_source, paths_of, source_options
 
@@ -74,7 +74,7 @@ class CheckResult(StepResult):
         return plain(out)
 
 
-def check_sensor(data, *, accept=None, wrench: Sequence[str] = DEFAULT_WRENCH, group_by: str | None = None,
+def check_sensor(data, *, accept=None, inputs: Sequence[str] = DEFAULT_WRENCH, group_by: str | None = None,
           rate: float = HOLD_SAMPLE_RATE, reaction: bool = False, max_com_distance: float = MAX_COM_DISTANCE,
           html=None, payload_json=None, max_force_error: float | None = None,
           max_torque_error: float | None = None, max_error_percent: float | None = None,
@@ -86,8 +86,9 @@ def check_sensor(data, *, accept=None, wrench: Sequence[str] = DEFAULT_WRENCH, g
     ----------
     data : path or list of paths, CSV or Parquet recordings
     accept : path of a calibration model to test on ``data``, or None for the conventions check
-    wrench, reaction, rate, max_com_distance : the conventions check's columns, declared sign, sample
-        rate without a time column (Hz), and farthest plausible centre of mass (m)
+    inputs, reaction, rate, max_com_distance : the conventions check's wrench columns (``wrench=``, the old
+        spelling, still works), declared sign, sample rate without a time column (Hz), and farthest plausible
+        centre of mass (m)
     group_by : column naming the static holds (conventions) or the poses (acceptance)
     html : path or None; an HTML page of the result is written there
     payload_json : path of a payload file: the acceptance reference is its bias + weight (else ``data``'s
@@ -123,6 +124,7 @@ def check_sensor(data, *, accept=None, wrench: Sequence[str] = DEFAULT_WRENCH, g
     >>> result.passed, round(result.report.mass, 3)
     (True, 1.2)
     """
+    wrench = renamed_keyword(source, "wrench", "inputs", inputs, DEFAULT_WRENCH)
     paths = paths_of(data)
     options = source_options(source, "check")
     if html is not None:
@@ -139,7 +141,7 @@ def check_sensor(data, *, accept=None, wrench: Sequence[str] = DEFAULT_WRENCH, g
         return _conventions(paths, options, wrench=wrench, group_by=group_by, rate=rate, reaction=reaction,
                             max_com_distance=max_com_distance, html=html)
     # Options of the conventions mode that an acceptance test does not use are refused, not ignored.
-    for option, given in (("--wrench", tuple(wrench) != DEFAULT_WRENCH), ("--reaction", reaction),
+    for option, given in (("--inputs", tuple(wrench) != DEFAULT_WRENCH), ("--reaction", reaction),
                           ("--max-com-distance", max_com_distance != MAX_COM_DISTANCE),
                           ("--rate", rate != HOLD_SAMPLE_RATE)):
         if given:

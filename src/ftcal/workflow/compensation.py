@@ -6,7 +6,7 @@ import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, renamed_keyword
 from .result import StepResult
 from .sources import gravity_source, paths_of, source_options
 
@@ -54,7 +54,7 @@ class CompensationResult(StepResult):
         write_table(self.table, path)
 
 
-def compensate(payload, data, *, calibration=None, wrench: Sequence[str] | None = None, output=None,
+def compensate(payload, data, *, calibration=None, inputs: Sequence[str] | None = None, output=None,
                **source) -> CompensationResult:
     """Contact wrench = readings (or a calibration's prediction) − bias − the payload's gravity (and inertial) wrench.
 
@@ -64,7 +64,8 @@ def compensate(payload, data, *, calibration=None, wrench: Sequence[str] | None 
     data : path or list of paths, CSV or Parquet tables
     calibration : path of a calibration model file, or None
         When given, the measured wrench is its prediction from its input columns.
-    wrench : six measured-wrench columns (default: the payload file's, else u1..u6)
+    inputs : six measured-wrench columns (default: the payload file's, else u1..u6; ``wrench=``, the old
+        spelling, still works)
     output : path or None; when given, the table is written there
     **source
         The gravity source, as :func:`ftcal.workflow.payload.identify_payload`; ``g`` defaults to
@@ -104,6 +105,7 @@ def compensate(payload, data, *, calibration=None, wrench: Sequence[str] | None 
     from ..payload.compensate import warn_undetermined
     from ..payload.tables import compensate_table
 
+    wrench = renamed_keyword(source, "wrench", "inputs", inputs)
     paths = paths_of(data)
     options = source_options(source, "compensate")
     tool = load_payload(payload)

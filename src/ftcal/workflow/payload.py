@@ -14,7 +14,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, renamed_keyword
 from .result import StepResult
 from .sources import DEFAULT_WRENCH, gravity_source, paths_of, source_options
 
@@ -192,7 +192,7 @@ class PayloadResult(StepResult):
         save_payload(self.payload, path, sources=self.sources)
 
 
-def identify_payload(data, *, wrench: Sequence[str] = DEFAULT_WRENCH, group_by: str | None = None,
+def identify_payload(data, *, inputs: Sequence[str] = DEFAULT_WRENCH, group_by: str | None = None,
                      keep_moving: bool = False, reaction: bool = False, frame: str | None = None,
                      bias_drift: str = "auto", temperature: str | None = None, output=None,
                      **source) -> PayloadResult:
@@ -202,7 +202,7 @@ def identify_payload(data, *, wrench: Sequence[str] = DEFAULT_WRENCH, group_by: 
     ----------
     data : path or list of paths
         CSV or Parquet tables, one row per sample.
-    wrench : six measured-wrench columns, N and N·m
+    inputs : six measured-wrench columns, N and N·m (``wrench=``, the old spelling, still works)
     group_by : str or None
         Column naming the cross-validation groups. Default: the ``hold`` column of ``ftcal dataset``
         (one group per still pose) when every table has it and the model is static, else one group per file.
@@ -249,6 +249,7 @@ def identify_payload(data, *, wrench: Sequence[str] = DEFAULT_WRENCH, group_by: 
     from ..payload.parameters import PayloadParameters
     from ..payload.tables import group_statistics, identify_recording, read_payload_tables
 
+    wrench = renamed_keyword(source, "wrench", "inputs", inputs, DEFAULT_WRENCH)
     paths = paths_of(data)
     options = source_options(source, "identify_payload")
     if bias_drift not in BIAS_DRIFTS:
@@ -417,7 +418,7 @@ class RebiasResult(StepResult):
         save_payload(self.payload, path, sources=self.sources)
 
 
-def rebias_payload(data, payload, *, wrench: Sequence[str] = DEFAULT_WRENCH, keep_moving: bool = False,
+def rebias_payload(data, payload, *, inputs: Sequence[str] = DEFAULT_WRENCH, keep_moving: bool = False,
                    reaction: bool = False, temperature: str | None = None, output=None,
                    **source) -> RebiasResult:
     """Re-tare: the bias alone from new data, mass and centre of mass from a payload file (``payload --rebias``).
@@ -426,7 +427,7 @@ def rebias_payload(data, payload, *, wrench: Sequence[str] = DEFAULT_WRENCH, kee
     ----------
     data : path or list of paths, contact-free CSV/Parquet tables
     payload : path of the payload file (``ftcal payload -o``)
-    wrench, keep_moving, reaction, **source : as :func:`identify_payload`
+    inputs, keep_moving, reaction, **source : as :func:`identify_payload`
     temperature : must be the payload file's temperature column, or None (taken from the file)
     output : path or None; when given, the updated payload file is written there
 
@@ -443,6 +444,7 @@ def rebias_payload(data, payload, *, wrench: Sequence[str] = DEFAULT_WRENCH, kee
     from ..payload.drift import BiasDrift
     from ..payload.tables import read_payload_tables, rebias
 
+    wrench = renamed_keyword(source, "wrench", "inputs", inputs, DEFAULT_WRENCH)
     paths = paths_of(data)
     options = source_options(source, "rebias_payload")
     name = str(payload)
