@@ -91,3 +91,44 @@ def test_the_commands_read_wrench_as_inputs_with_one_notice(poses, tmp_path):
                cwd=tmp_path)
     assert both.returncode == 2 and len(both.stderr.strip().splitlines()) == 1, both.stderr
     assert "given twice" in both.stderr and not (tmp_path / "both.json").exists()
+
+
+def arx_tables(folder):
+    """Three recordings of a first-order sensor (y_k = 0.5 y_{k-1} + 2 u_k), numbered 0, 1, 2 in the
+    'segment' column as ftcal dataset numbers them, in one file; the third also alone in another file."""
+    rng = np.random.default_rng(3)
+    parts = []
+    for segment, n in enumerate((120, 150, 130)):
+        u = rng.uniform(-1.0, 1.0, n)
+        y = np.zeros(n)
+        y[0] = 2.0 * u[0]
+        for k in range(1, n):
+            y[k] = 0.5 * y[k - 1] + 2.0 * u[k]
+        parts.append(pd.DataFrame({"u1": u, "Fx": y, "segment": segment}))
+    whole, third = folder / "three.parquet", folder / "third.parquet"
+    pd.concat(parts, ignore_index=True).to_parquet(whole)
+    parts[2].to_parquet(third)
+    return str(whole), str(third)
+
+
+def test_fit_evaluate_and_predict_use_the_segment_column_by_default(tmp_path):
+    whole, third = arx_tables(tmp_path)
+    keywords = dict(inputs=["u1"], outputs=["Fx"], degree=1, na=1, nb=0)
+    fitted = ftcal.fit(whole, output=tmp_path / "arx.json", **keywords)
+    named = ftcal.fit(whole, segment_by="segment", **keywords)
+    assert any(note.startswith("segments: the tables' 'segment' column") for note in fitted.notes)
+    assert not any(note.startswith("segments:") for note in named.notes)
+    # One warm-up row per recording (na = 1 never reaches across a recording's start).
+    assert fitted.model.training_metrics_["n_samples"] == 400 - 3 == named.model.training_metrics_["n_samples"]
+    np.testing.assert_array_equal(fitted.model.coef_, named.model.coef_)
+
+    # The model file's training fingerprints are per recording: the same segments are found in the data.
+    with pytest.warns(ftcal.FtcalWarning, match="contains 3 of the 3 training segments"):
+        scores = ftcal.evaluate(tmp_path / "arx.json", whole)
+    assert scores.metrics["n_samples"] == 400 - 3  # the same segments as the fit: one warm-up row each
+    assert scores.summary().splitlines()[0].startswith("segments: the tables' 'segment' column")
+    # ... and the third file holds one of the three.
+    with pytest.warns(ftcal.FtcalWarning, match="contains 1 of the 3 training segments"):
+        ftcal.evaluate(tmp_path / "arx.json", third)
+    predicted = ftcal.predict(tmp_path / "arx.json", whole)
+    assert any(note.startswith("segments: the tables' 'segment' column") for note in predicted.notes)

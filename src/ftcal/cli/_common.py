@@ -70,7 +70,8 @@ def add_column_options(parser: argparse.ArgumentParser, outputs: bool = True) ->
         parser.add_argument("--outputs", type=column_list, metavar="C1,...",
                             help=f"reference output columns (default {','.join(DEFAULT_OUTPUTS)})")
     parser.add_argument("--segment-by", metavar="COL",
-                        help="column whose runs of equal values are separate segments (default: one per file)")
+                        help="column whose runs of equal values are separate segments (default: the 'segment' column "
+                             "ftcal dataset writes when every file has one, else one per file)")
     parser.add_argument("--group-by", metavar="COL",
                         help="column naming validation groups, e.g. the load case (default: one per file; for fit "
                              "--degree auto, --family mlp or --estimate-payload, the 'load' column ftcal dataset "

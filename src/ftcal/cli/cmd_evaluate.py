@@ -23,7 +23,8 @@ def register(sub) -> None:
     p.add_argument("--warmup", choices=ARX_WARMUP, default="drop",
                    help="ARX metrics: drop (default, as the paper's code) or keep the first max(na,nb) rows "
                         "of each segment")
-    p.add_argument("--segment-by", metavar="COL", help="column separating segments (ARX)")
+    p.add_argument("--segment-by", metavar="COL", help="column separating segments (ARX; default: the 'segment' "
+                                                       "column ftcal dataset writes when every file has one)")
     p.add_argument("--group-by", metavar="COL", help="accepted for symmetry with fit; unused")
     add_scheduler_option(p)
     p.set_defaults(func=run)

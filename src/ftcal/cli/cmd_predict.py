@@ -23,7 +23,8 @@ def register(sub) -> None:
                         "first max(na,nb) rows predict 0) or measured (the first measured output when DATA "
                         "holds the output columns, else the steady state of the first input, as the "
                         "generated C code's NAME_init(s, u0, NULL))")
-    p.add_argument("--segment-by", metavar="COL", help="column separating segments (ARX)")
+    p.add_argument("--segment-by", metavar="COL", help="column separating segments (ARX; default: the 'segment' "
+                                                       "column ftcal dataset writes when every file has one)")
     add_scheduler_option(p)
     p.set_defaults(func=run)
 

@@ -30,9 +30,11 @@ def register(sub) -> None:
     p.add_argument("--outputs", type=column_list, metavar="C1,...",
                    help="reference output columns (default: the models' outputs)")
     p.add_argument("--segment-by", metavar="COL",
-                   help="column whose runs of equal values are separate segments (default: one per file)")
+                   help="column whose runs of equal values are separate segments (default: the 'segment' column "
+                        "ftcal dataset writes when every file has one, else one per file)")
     p.add_argument("--group-by", metavar="COL",
-                   help="column naming groups, e.g. the load case (default: one per file)")
+                   help="column naming groups, e.g. the load case (default: the 'load' column ftcal dataset "
+                        "writes when every file has one, else one per file)")
     p.add_argument("--title", default="ftcal calibration report", help="page title")
     p.set_defaults(func=run)
 

@@ -18,7 +18,7 @@ from typing import Any
 
 from ..runtime.errors import FtcalError
 from .result import StepResult
-from .sources import tables_of
+from .sources import default_label_columns, tables_of
 
 
 @dataclass(repr=False)
@@ -32,6 +32,7 @@ class EvaluationResult(StepResult):
         The keys of ``ftcal evaluate --json`` (:data:`ftcal.core.metrics.EVALUATION_KEYS`, the counts
         outside the training range and span, ``out_of_range``, and the other ARX mode's metrics).
     mode, start, warmup : the ARX prediction the metrics score
+    notes : list of str, the defaults taken (printed first)
 
     Examples
     --------
@@ -49,6 +50,7 @@ class EvaluationResult(StepResult):
     mode: str = "one-step"
     start: str = "zeros"
     warmup: str = "drop"
+    notes: list[str] = field(default_factory=list)
 
     def to_dict(self) -> dict:
         from .result import plain
@@ -69,7 +71,7 @@ class EvaluationResult(StepResult):
         from ..core.ranges import channel_text, effect_text, loads_text
 
         summary = self.metrics
-        lines = []
+        lines = list(self.notes)
         if not self.model.is_static:  # which prediction the table scores (predict defaults to free-run)
             lines.append(f"ARX model: metrics of {self.mode} prediction"
                          + (" (measured past outputs, the paper's evaluation)" if self.mode == "one-step"
@@ -174,7 +176,8 @@ def evaluate(model, data, *, mode: str = "one-step", start: str = "zeros", warmu
     mode : ``"one-step"`` (measured past outputs) or ``"free-run"``: the ARX prediction scored
     start : ``"zeros"`` or ``"measured"``: ARX free-run history at each segment start
     warmup : ``"drop"`` or ``"keep"`` the first max(na, nb) rows of each segment (ARX)
-    segment_by : column separating segments (ARX); group_by : accepted for symmetry with fit, unused
+    segment_by : column separating segments (ARX; default: the 'segment' column ftcal dataset writes, when
+        every table has one, as fit's); group_by : accepted for symmetry with fit, unused
     scheduler : str, optional
         ``local:N`` or a Dask address; ``executor``: an executor already open (wins over it).
 
@@ -201,7 +204,9 @@ def evaluate(model, data, *, mode: str = "one-step", start: str = "zeros", warmu
     from ..core.metrics import EVALUATION_KEYS
 
     model, training_segments, name = _model_and_segments(model)
+    notes: list[str] = []
     with tables_of(data) as (paths, dataset, _):
+        segment_by, _ = default_label_columns(paths, segment_by, notes)
         if dataset is None and (model.is_static or scheduler or executor is not None):
             summary = _evaluate_streaming(paths, model, training_segments, name, mode, start, warmup, segment_by,
                                           scheduler, executor)
@@ -221,7 +226,7 @@ def evaluate(model, data, *, mode: str = "one-step", start: str = "zeros", warmu
     for other in ("one_step", "free_run"):
         if other in summary:
             metrics[other] = {k: summary[other][k] for k in EVALUATION_KEYS if k in summary[other]}
-    return EvaluationResult(model, metrics, mode, start, warmup)
+    return EvaluationResult(model, metrics, mode, start, warmup, notes)
 
 
 def _evaluate_whole(paths, dataset, model, training_segments, name, mode, start, warmup, segment_by) -> dict:
@@ -335,7 +340,7 @@ def predict(model, data, *, output: str | os.PathLike | None = None, mode: str =
         ``result.predictions`` (a DataFrame: the data is read whole).
     mode : ``"free-run"`` (fed-back predictions, as on the robot) or ``"one-step"`` (ARX)
     start : ``"zeros"`` or ``"measured"``: ARX free-run history at each segment start
-    segment_by : column separating segments (ARX)
+    segment_by : column separating segments (ARX; default: the 'segment' column, as evaluate's)
     scheduler : str, optional
         ``local:N`` or a Dask address; ``executor``: an executor already open (wins over it).
 
@@ -372,6 +377,7 @@ def predict(model, data, *, output: str | os.PathLike | None = None, mode: str =
         if not output.lower().endswith((".csv", ".parquet")):
             raise FtcalError(f"-o {output}: must end in .csv or .parquet.")
     with tables_of(data) as (paths, dataset, _):
+        segment_by, _ = default_label_columns(paths, segment_by, notes)
         if output is None or dataset is not None:
             n_rows, ranges, frame = _predict_whole(paths, dataset, model, mode, start, segment_by)
             if output is not None:
@@ -475,15 +481,17 @@ class ReportResult(StepResult):
     n_models, n_validation_samples : int
     size_mb : float
         The page's size in MB.
+    notes : list of str, the defaults taken (printed first)
     """
 
     path: Path
     n_models: int
     n_validation_samples: int
     size_mb: float
+    notes: list[str] = field(default_factory=list)
 
     def summary(self) -> str:
-        return (f"wrote {self.path} ({self.n_models} model(s), {self.n_validation_samples} validation samples, "
+        return "\n".join(self.notes) + ("\n" if self.notes else "") + (f"wrote {self.path} ({self.n_models} model(s), {self.n_validation_samples} validation samples, "
                 f"{self.size_mb:.1f} MB)")
 
 
@@ -513,7 +521,8 @@ def report(models: Sequence[str], data: Sequence[str], output: str | os.PathLike
     output : the page (.html)
     train : training data files: adds training metrics and their coverage
     inputs, outputs : columns to read (default: every input and output any model uses)
-    segment_by, group_by : columns naming segments and groups (default: one per file)
+    segment_by, group_by : columns naming segments and groups (default: the 'segment' and 'load' columns
+        ftcal dataset writes, when every table has them, else one per file)
     title : the page's title
 
     Returns
@@ -531,6 +540,9 @@ def report(models: Sequence[str], data: Sequence[str], output: str | os.PathLike
     fitted = [m.model for m in loaded]
     inputs = tuple(inputs or _union(m.input_names_ for m in fitted))
     outputs = tuple(outputs or _union(m.output_names_ for m in fitted))
+    defaults: list[str] = []
+    segment_by, group_by = default_label_columns(data_paths + train_paths, segment_by, defaults, group_by=group_by,
+                                                 groups=True)
 
     def read(paths):
         return read_dataset(paths, inputs, outputs, segment_by=segment_by, group_by=group_by)
@@ -545,4 +557,4 @@ def report(models: Sequence[str], data: Sequence[str], output: str | os.PathLike
     if train_paths:
         notes.append(f"Training data files: {', '.join(train_paths)}.")
     path = build_report(runs, validation, Path(output), train=training, title=title, notes=notes)
-    return ReportResult(path, len(runs), validation.n_samples, path.stat().st_size / 1e6)
+    return ReportResult(path, len(runs), validation.n_samples, path.stat().st_size / 1e6, defaults)

@@ -26,7 +26,7 @@ from ..core.limits import (MAX_DEGREE, MAX_LAG, MLP_EQUATIONS_PER_WEIGHT, MLP_MA
                            MLP_MAX_UNITS, PAPER_LAMBDAS, SELECTION_BUDGET_SECONDS)
 from ..runtime.errors import FtcalError, FtcalWarning
 from .result import StepResult
-from .sources import tables_of
+from .sources import default_label_columns, tables_of
 
 # Rows × weights below which the MLP's default max_iter is 2000 instead of 400 (a few seconds either way).
 SMALL_MLP_WORK = 2_000_000
@@ -126,8 +126,9 @@ def fit(data, *, inputs: Sequence[str] | None = None, outputs: Sequence[str] | N
         Shrink a penalized fit toward this model (a file is recorded in the model file with its digest).
     estimate_payload, payload_mass : an unknown payload on this link, and its known mass (kg)
     family : ``"polynomial"`` or ``"mlp"``; hidden, activation, weight_decay, max_iter, seed: the MLP's
-    segment_by, group_by : columns naming segments and validation groups (``group_by`` default: the
-        ``group`` column that ``ftcal dataset`` writes, where every file has one and groups matter)
+    segment_by, group_by : columns naming segments and validation groups (``segment_by`` default: the
+        'segment' column ftcal dataset writes, when every table has one; ``group_by`` default: the
+        ``load`` column that ``ftcal dataset`` writes, where every file has one and groups matter)
     scheduler : str, optional
         ``local:N`` or a Dask address; ``executor``: an executor already open (wins over it).
     output : path, optional
@@ -388,6 +389,7 @@ class _Fit:
         o = self.o
         check_family_options(o)
         self._default_groups()
+        o.segment_by, _ = default_label_columns(self.paths, o.segment_by, self.notes)
         if self.dataset is not None:
             inputs = inputs or self.dataset.input_names
             outputs = outputs or self.dataset.output_names

@@ -141,6 +141,34 @@ def robot_model(*, urdf=None, robot: str | None = None, ft_joint: str | None = N
     return model.with_payloads(payloads) if payloads else model
 
 
+def default_label_columns(paths: Sequence[str], segment_by: str | None, notes: list[str], *,
+                          group_by: str | None = None, groups: bool = False) -> tuple[str | None, str | None]:
+    """(segment column, group column): the ``segment`` and (with ``groups``) ``load`` columns that
+    `ftcal dataset` writes, where none is named and every table has them; each default is said in ``notes``.
+
+    The same defaults for fit, evaluate, predict and report, so a model is evaluated on the segments
+    it was fitted with (its training fingerprints are taken per segment).
+    """
+    from ..core.columns import LOAD_COLUMN, SEGMENT_COLUMN
+    from ..data.tables import default_label_column, label_column
+
+    if not paths:
+        return segment_by, group_by
+    if segment_by is None:
+        segment_by = default_label_column(paths, SEGMENT_COLUMN)
+        if segment_by is not None:
+            notes.append(f"segments: the tables' {SEGMENT_COLUMN!r} column (one per recording, from ftcal dataset); "
+                         "--segment-by COL for another")
+    if group_by is not None:
+        group_by = label_column(paths, group_by)
+    elif groups:
+        group_by = default_label_column(paths, LOAD_COLUMN)
+        if group_by is not None:
+            notes.append(f"groups: the tables' {group_by!r} column (the load cases ftcal dataset writes); "
+                         "--group-by COL for another")
+    return segment_by, group_by
+
+
 class tables_of:
     """``data`` as (paths, Dataset or None, source names), for the steps that stream files.
 
