@@ -92,7 +92,7 @@ def make_fixtures(root: Path) -> dict[str, Path]:
     u = rng.uniform(-1, 1, (n, 6))
     frame = pd.DataFrame(np.column_stack([u * 3000 + 5000, rng.uniform(25, 40, n), u @ rng.normal(size=(6, 6))]),
                          columns=TABLE_COLUMNS)
-    frame["group"] = np.repeat(["a", "b"], n // 2)
+    frame["load"] = np.repeat(["a", "b"], n // 2)
     fx = {"csv": root / "train.csv", "parquet": root / "train.parquet"}
     frame.to_csv(fx["csv"], index=False)
     frame.to_parquet(fx["parquet"], index=False)
@@ -172,7 +172,7 @@ def surface_fixtures(root: Path, fx: dict) -> dict:
     old = sys.stdout, sys.stderr
     sys.stdout = sys.stderr = quiet
     try:
-        main(["check", "--accept", str(fx["model"]), str(fx["csv"]), "--group-by", "group", "--max-force-error",
+        main(["check", "--accept", str(fx["model"]), str(fx["csv"]), "--group-by", "load", "--max-force-error",
               "1e6", "--max-torque-error", "1e6", "--serial", "SN1", "--history-dir", str(out["history"])])
         assert main(["plan", "--urdf", str(out["arm"]), "--poses", "6", "--candidates", "100", "--load", "none",
                      "--load", "tool:1@0.03,0,0.04", "-o", str(out["plan"])]) == 0
@@ -180,7 +180,7 @@ def surface_fixtures(root: Path, fx: dict) -> dict:
         from ftcal import load_dataset, save_model
         from ftcal.core.mlp import MLPModel
 
-        save_model(MLPModel(hidden=(4,), max_iter=20).fit(load_dataset(fx["csv"], group_by="group")), out["mlp"])
+        save_model(MLPModel(hidden=(4,), max_iter=20).fit(load_dataset(fx["csv"], group_by="load")), out["mlp"])
     finally:
         sys.stdout, sys.stderr = old
         quiet.close()
@@ -628,7 +628,7 @@ def base_invocations(fx: dict, o) -> dict:
         "fit": lambda f: (["fit", csv, "--degree", "2", "-o", o(f, "m.json")], [o(f, "m.json")]),
         "evaluate": lambda f: (["evaluate", model, csv], []),
         "report": lambda f: (["report", model, csv, "-o", o(f, "r.html")], [o(f, "r.html")]),
-        "check": lambda f: (["check", "--accept", model, csv, "--group-by", "group", "--max-force-error", "1e6",
+        "check": lambda f: (["check", "--accept", model, csv, "--group-by", "load", "--max-force-error", "1e6",
                              "--max-torque-error", "1e6"], []),
         "predict": lambda f: (["predict", model, csv, "-o", o(f, "p.csv")], [o(f, "p.csv")]),
         "convert": lambda f: (["convert", model, "--to", "paper-xml", "-o", o(f, "m.xml")], [o(f, "m.xml")]),

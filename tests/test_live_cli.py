@@ -98,3 +98,37 @@ def test_sigterm_saves_the_state_and_leaves_no_output(files):
     state = json.loads((root / "term.json").read_text())
     assert 0 < state["counters"]["samples"] < rec.time.size
     assert not (root / "term.parquet").exists()
+
+
+def test_inputs_name_the_wrench_or_with_model_the_raw_channels_and_wrench_is_the_old_spelling(files):
+    """--inputs is the wrench without --model and the model's raw channels (in its input order) with it;
+    --wrench, the old spelling, reads the same with one notice. An identity calibration (fitted on
+    raw = wrench) fed the wrench under other column names gives the wrench back."""
+    from ftcal import fit as fit_model
+
+    root, rec = files
+    axes = ["Fx", "Fy", "Fz", "Tx", "Ty", "Tz"]
+    frame = pd.read_parquet(root / "rec.parquet")
+    for i, axis in enumerate(axes):
+        frame[f"raw{i + 1}"] = frame[axis]
+    frame.to_parquet(root / "raw.parquet")
+    rng = np.random.default_rng(0)
+    u = rng.uniform(-50.0, 50.0, size=(200, 6))
+    fit_model(pd.DataFrame(np.c_[u, u], columns=[*(f"u{i}" for i in range(1, 7)), *axes]),
+              inputs=[f"u{i}" for i in range(1, 7)], outputs=axes, output=root / "identity.json")
+    base = ("live", "--replay", "raw.parquet", "--orientation", "qx,qy,qz,qw", "--tool", "gripper=gripper.json")
+    done = ftcal(*base, "--inputs", ",".join(axes), "-o", "new.parquet", cwd=root)
+    assert done.returncode == 0 and "notice" not in done.stderr, done.stderr
+    old = ftcal(*base, "--wrench", ",".join(axes), "-o", "old.parquet", cwd=root)
+    assert old.returncode == 0, old.stderr
+    assert [line for line in old.stderr.splitlines() if line.startswith("notice:")] == [
+        "notice: --wrench is now --inputs (the old spelling still works)"]
+    pd.testing.assert_frame_equal(pd.read_parquet(root / "old.parquet"), pd.read_parquet(root / "new.parquet"))
+    raw = ftcal(*base, "--model", "identity.json", "--inputs", ",".join(f"raw{i}" for i in range(1, 7)),
+                    "-o", "raw.out.parquet", cwd=root)
+    assert raw.returncode == 0, raw.stderr
+    calibrated = pd.read_parquet(root / "raw.out.parquet")[[f"calibrated_{a}" for a in axes]].to_numpy()
+    np.testing.assert_allclose(calibrated, rec.wrench, atol=1e-6)
+    short = ftcal(*base, "--model", "identity.json", "--inputs", "raw1,raw2", "-o", "short.parquet", cwd=root)
+    assert short.returncode == 2 and len(short.stderr.strip().splitlines()) == 1, short.stderr
+    assert "name one column for each" in short.stderr and not (root / "short.parquet").exists()

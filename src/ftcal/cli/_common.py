@@ -78,26 +78,6 @@ def add_column_options(parser: argparse.ArgumentParser, outputs: bool = True) ->
                              "writes when every file has one)")
 
 
-def add_inputs_option(parser, help: str, metavar: str = "FX,FY,FZ,TX,TY,TZ") -> None:
-    """``--inputs``: the sensor columns the step reads (as in fit, evaluate, report), and ``--wrench``,
-    its old spelling in payload, compensate, check and live (read by :func:`inputs_of`, with a notice)."""
-    parser.add_argument("--inputs", type=column_list, metavar=metavar, help=help)
-    parser.add_argument("--wrench", dest="inputs_old", type=column_list, metavar=metavar,
-                        help="old spelling of --inputs (a notice says so)")
-
-
-def inputs_of(args: argparse.Namespace, default=None):
-    """``--inputs``, or ``--wrench`` (its old spelling: one notice line), or ``default``."""
-    from ..runtime.errors import old_spelling
-
-    if args.inputs_old is not None:
-        if args.inputs is not None:
-            raise FtcalError("--inputs: given twice (also as --wrench, its old spelling); give it once.")
-        old_spelling("--wrench", "--inputs", stacklevel=2)
-        args.inputs = args.inputs_old
-    return default if args.inputs is None else args.inputs
-
-
 def default_inputs(paths: Sequence[str]) -> tuple[str, ...]:
     """u1..u6,T, or u1..u6 when the first file has no T column (temperature is optional)."""
     from ..data.tables import default_inputs as from_files

@@ -5,9 +5,10 @@ from __future__ import annotations
 from ..core.limits import (FINDING_CONFIDENCE, HOLD_SAMPLE_RATE, MAX_COM_DISTANCE, MAX_FORCE_ERROR,
                            MAX_TORQUE_ERROR, MIN_HOLDS, MIN_ROTATION_DEG)
 from ..workflow.sources import DEFAULT_WRENCH
-from ._common import add_inputs_option, inputs_of, positive_float, require_suffix
+from ._common import positive_float, require_suffix
 from ._examples import epilog
 from ._gravity import add_kinematics_options, add_robot_source_options, source_keywords
+from ._inputs import add_inputs_option, inputs_of
 
 EXIT_CODES = "exit codes: 0 no finding / pass, 1 findings / fail, 2 bad input"
 

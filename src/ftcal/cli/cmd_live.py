@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import argparse
 
-from ._common import (add_inputs_option, column_list, finite_float, float_list, frame_pair, inputs_of, positive_float,
-                      require_suffix)
+from ._common import column_list, finite_float, float_list, frame_pair, positive_float, require_suffix
 from ._examples import epilog
 from ._gravity import add_robot_source_options
+from ._inputs import add_inputs_option, inputs_of
 
 
 def tool_spec(text: str) -> tuple[str, str]:

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 from ..core.limits import BIAS_DRIFTS
 from ..runtime.errors import FtcalError
-from ._common import add_inputs_option, inputs_of, require_suffix
+from ._common import require_suffix
 from ._examples import epilog
 from ._gravity import add_kinematics_options, add_robot_source_options, check_not_input, source_keywords
+from ._inputs import add_inputs_option, inputs_of
 
 
 def register(sub) -> None:
