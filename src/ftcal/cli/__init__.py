@@ -298,7 +298,9 @@ def run(argv: list[str] | None) -> int:
                   file=sys.stderr)
         else:
             print(f"{category.__name__}: {one_line(message)}", file=sys.stderr)
-    previous, filters = warnings.showwarning, warnings.filters[:]
+    saved_filters = warnings.catch_warnings()  # main() may be called in-process: its filter goes on return
+    saved_filters.__enter__()
+    previous = warnings.showwarning
     warnings.showwarning = show
     warnings.filterwarnings("default", category=OldSpellingWarning)  # one notice each, even under -W error
     stdout = sys.stdout
@@ -339,8 +341,7 @@ def run(argv: list[str] | None) -> int:
         return 128 + exc.signum
     finally:
         warnings.showwarning = previous  # main() may be called in-process (tests, scripts)
-        warnings.filters[:] = filters
-        warnings._filters_mutated()  # the restored filters apply at once (as catch_warnings does)
+        saved_filters.__exit__(None, None, None)
         sys.stdout = stdout
 
 
