@@ -173,7 +173,12 @@ class tables_of:
         self.dataset = None
 
     def __enter__(self):
-        self.paths, self.dataset, self.sources = self._open(self.data)
+        try:
+            self.paths, self.dataset, self.sources = self._open(self.data)
+        except BaseException:  # __exit__ does not run when __enter__ fails
+            if self.folder is not None:
+                self.folder.cleanup()
+            raise
         return self.paths, self.dataset, self.sources
 
     def _open(self, data):
