@@ -20,7 +20,7 @@ from ftcal.core.dataset import DEFAULT_OUTPUTS, Dataset
 from ftcal.core.model import CalibrationModel
 from ftcal.data.streaming import ErrorSums, add_error_sums, file_error_sums
 from ftcal.data.table_chunks import iter_table_chunks
-from ftcal.files.model_json import save_model
+from ftcal.files.model_files import save_model
 from ftcal.runtime.errors import FtcalError
 from ftcal.runtime.executors import LocalExecutor, open_executor, parse_scheduler, tree_reduce
 
@@ -327,7 +327,7 @@ def test_streamed_fit_without_keeping_files_equals_the_kept_fit(files, tmp_path,
     """The fit's passes read every file each time when it is too large to keep: same model (1e-12)."""
     from ftcal.cli import main
     from ftcal.data import table_chunks
-    from ftcal.files.model_files import read_model_file
+    from ftcal.files.model_files import load_model_file
 
     paths, _, _ = files
     assert main(["fit", *paths, "--degree", "3", "-o", str(tmp_path / "kept.json")]) == 0
@@ -335,6 +335,6 @@ def test_streamed_fit_without_keeping_files_equals_the_kept_fit(files, tmp_path,
     monkeypatch.setattr(table_chunks, "KEEP_IN_MEMORY_BYTES", 0)
     assert main(["fit", *paths, "--degree", "3", "-o", str(tmp_path / "streamed.json")]) == 0
     assert len(reads) == 2 * len(paths)  # ranges, statistics (the training errors come from the statistics)
-    kept, streamed = (read_model_file(tmp_path / name).model for name in ("kept.json", "streamed.json"))
+    kept, streamed = (load_model_file(tmp_path / name).model for name in ("kept.json", "streamed.json"))
     assert np.max(np.abs(kept.coef_ - streamed.coef_)) <= 1e-12 * np.max(np.abs(streamed.coef_))
     assert kept.training_metrics_["rmse"] == pytest.approx(streamed.training_metrics_["rmse"], rel=1e-12)

@@ -22,7 +22,7 @@ from ftcal.core.solvers.least_squares import Ridge
 from ftcal.data.streaming import file_summary
 from ftcal.data.table_chunks import CHUNK_ROWS
 from ftcal.data.tables import read_dataset
-from ftcal.files.model_files import read_model_file
+from ftcal.files.model_files import load_model_file
 
 INPUTS = ("u1", "u2", "u3", "u4", "u5", "u6", "T")
 FTCAL = os.path.join(os.path.dirname(sys.executable), "ftcal")
@@ -67,7 +67,7 @@ def files(tmp_path_factory):
 def test_streamed_fit_equals_the_in_memory_fit(files, tmp_path, options, reference):
     result = fit_cli(files, tmp_path / "m.json", *options)
     assert result.returncode == 0, result.stderr
-    loaded = read_model_file(tmp_path / "m.json")
+    loaded = load_model_file(tmp_path / "m.json")
     segment_by = "seg" if "--segment-by" in options else None
     data = read_dataset(files, INPUTS, DEFAULT_OUTPUTS, segment_by=segment_by)
     whole = CalibrationModel(**reference).fit(data)
@@ -99,7 +99,7 @@ def test_streamed_least_squares_matches_numpy_on_the_dense_regressor(files, tmp_
     from sklearn.preprocessing import PolynomialFeatures
 
     assert fit_cli(files, tmp_path / "m.json", "--degree", "2").returncode == 0
-    model = read_model_file(tmp_path / "m.json").model
+    model = load_model_file(tmp_path / "m.json").model
     data = read_dataset(files, INPUTS, DEFAULT_OUTPUTS)
     # Least squares does not depend on the basis: fit numpy's on inputs centred by hand.
     centred = (data.inputs - data.inputs.mean(axis=0)) / data.inputs.std(axis=0)
@@ -128,8 +128,8 @@ def test_fit_on_a_local_cluster_equals_the_local_run(files, tmp_path):
     assert fit_cli(files, tmp_path / "here.json", "--degree", "3").returncode == 0
     result = fit_cli(files, tmp_path / "there.json", "--degree", "3", "--scheduler", "local:2")
     assert result.returncode == 0, result.stderr
-    here = read_model_file(tmp_path / "here.json")
-    there = read_model_file(tmp_path / "there.json")
+    here = load_model_file(tmp_path / "here.json")
+    there = load_model_file(tmp_path / "there.json")
     # The tree sum pairs files in the same order on the cluster, so the statistics are the same bits.
     assert np.array_equal(there.model.coef_, here.model.coef_)
     assert there.training_segments == here.training_segments
@@ -221,7 +221,7 @@ def test_arx_degree_auto_streams_and_refits_the_winner(tmp_path):
     result = select_model(data, template=template, penalties=("ridge",), lambdas=(10.0,), relative=True,
                           select_per="block")
     winner = fit_best(data, result, template=template)
-    model = read_model_file(out).model
+    model = load_model_file(out).model
     assert (model.layout_.na, model.layout_.nb) == (1, 1)
     assert model.layout_.basis.degree == winner.layout_.basis.degree
     # ARX Grams are BLAS products whose rounding depends on BLAS's thread count (the command's process and
@@ -232,7 +232,7 @@ def test_arx_degree_auto_streams_and_refits_the_winner(tmp_path):
     there = fit_cli(paths, tmp_path / "there.json", "--degree", "auto", "--na", "1", "--nb", "1", "--group-by",
                     "load", "--lambdas", "10", "--penalties", "ridge", "--scheduler", "local:2")
     assert there.returncode == 0, there.stderr
-    assert relative(read_model_file(tmp_path / "there.json").model.coef_, model.coef_) < 1e-9
+    assert relative(load_model_file(tmp_path / "there.json").model.coef_, model.coef_) < 1e-9
 
 
 def test_degree_auto_streams_and_refits_the_winner(tmp_path):
@@ -246,7 +246,7 @@ def test_degree_auto_streams_and_refits_the_winner(tmp_path):
     data = read_dataset(paths, INPUTS, DEFAULT_OUTPUTS, group_by="load")
     result = select_model(data, penalties=("ridge",), lambdas=(0.5, 10.0), relative=True, select_per="block")
     winner = fit_best(data, result)
-    model = read_model_file(out).model
+    model = load_model_file(out).model
     assert model.layout_.basis.degree == winner.layout_.basis.degree
     assert relative(model.coef_, winner.coef_) < 1e-12
 
@@ -257,5 +257,5 @@ def test_degree_auto_on_a_local_cluster_equals_the_local_run(tmp_path):
     assert fit_cli(paths, tmp_path / "here.json", *options).returncode == 0
     result = fit_cli(paths, tmp_path / "there.json", *options, "--scheduler", "local:2")
     assert result.returncode == 0, result.stderr
-    here, there = read_model_file(tmp_path / "here.json").model, read_model_file(tmp_path / "there.json").model
+    here, there = load_model_file(tmp_path / "here.json").model, load_model_file(tmp_path / "there.json").model
     assert np.array_equal(there.coef_, here.coef_)

@@ -370,7 +370,7 @@ def load_dataset(path: str | os.PathLike | Sequence[str | os.PathLike], *, input
     >>> u = np.linspace(0.0, 1.0, 20)
     >>> pd.DataFrame({"u1": u, "Fx": 2.0 * u + 1.0}).to_csv(folder / "table.csv", index=False)
     >>> data = load_dataset(folder / "table.csv", inputs=["u1"], outputs=["Fx"])
-    >>> save_model(CalibrationModel(1).fit(data), folder / "model.json")
+    >>> _ = save_model(CalibrationModel(1).fit(data), folder / "model.json")
     >>> round(float(load_model(folder / "model.json").predict(np.array([[0.5]]))[0, 0]), 9)
     2.0
     """

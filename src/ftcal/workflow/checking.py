@@ -227,14 +227,14 @@ def thresholds_for(model, model_name: str, limits):
 def _acceptance(tables, accept, options, *, group_by, html, payload_json, limits, serial,
                 history_dir) -> CheckResult:
     from ..check.accept import acceptance_test, axis_limits, read_test_data
-    from ..files.model_files import read_model_file
+    from ..files.model_files import load_model_file
     from ..runtime.atomic import write_text_atomic
 
     if history_dir is not None and serial is None:
         raise FtcalError("--history-dir needs --serial SERIAL (the sensor the result belongs to).")
     paths, names = tables.paths, tables.sources
     model_name = str(accept)
-    model = read_model_file(accept).model
+    model = load_model_file(accept).model
     thresholds = thresholds_for(model, model_name, limits)
     payload = source = None
     if payload_json is not None:

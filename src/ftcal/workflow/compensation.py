@@ -104,7 +104,7 @@ def compensate(payload, data, *, calibration=None, wrench: Sequence[str] | None 
     """
     import pandas as pd
 
-    from ..files.model_files import read_model
+    from ..files.model_files import load_model
     from ..files.payload_json import load_payload
     from ..payload.compensate import warn_undetermined
     from ..payload.tables import compensate_table
@@ -121,7 +121,7 @@ def compensate(payload, data, *, calibration=None, wrench: Sequence[str] | None 
         raise FtcalError(f"--g {options['g']:g}: {payload} was identified with g = {tool.gravity:g} m/s² (its "
                          "mass times g is what the data determined); leave --g out.")
     gravity_from = gravity_source(options)
-    model = read_model(calibration) if calibration is not None else None
+    model = load_model(calibration) if calibration is not None else None
     parts = [compensate_table(path, tool, gravity_from, wrench=wrench, model=model, time_column=options["time"],
                               warn_out_of_range=False)
              for path in paths]

@@ -151,9 +151,9 @@ class PredictionResult(StepResult):
 def _model_and_segments(model) -> tuple[Any, tuple, str]:
     """(model, its training fingerprints, its name) from a model file path or a fitted model."""
     if isinstance(model, (str, os.PathLike)):
-        from ..files.model_files import read_model_file
+        from ..files.model_files import load_model_file
 
-        loaded = read_model_file(model)
+        loaded = load_model_file(model)
         return loaded.model, tuple(loaded.training_segments), str(model)
     if not hasattr(model, "predict") or not hasattr(model, "input_names_"):
         raise FtcalError(f"model: expected a model file name or a fitted model; got {type(model).__name__}.")
@@ -522,12 +522,12 @@ def report(models: Sequence[str], data: Sequence[str], output: str | os.PathLike
     """
     from ..core.fingerprint import warn_if_trained_on
     from ..data.tables import read_dataset
-    from ..files.model_files import read_model_file
+    from ..files.model_files import load_model_file
     from ..report import build_report
     from ..report import evaluate as evaluate_run
 
     model_paths, data_paths, train_paths = [str(p) for p in models], [str(p) for p in data], [str(p) for p in train]
-    loaded = [read_model_file(p) for p in model_paths]
+    loaded = [load_model_file(p) for p in model_paths]
     fitted = [m.model for m in loaded]
     inputs = tuple(inputs or _union(m.input_names_ for m in fitted))
     outputs = tuple(outputs or _union(m.output_names_ for m in fitted))

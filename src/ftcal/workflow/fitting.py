@@ -90,7 +90,7 @@ class FitResult(StepResult):
 
     def save(self, path: str | os.PathLike) -> Path:
         """Write the model file (JSON, atomically) with this fit's sources and training fingerprints."""
-        from ..files.model_json import save_model
+        from ..files.model_files import save_model
 
         return save_model(self.model, path, **self._save)
 
@@ -404,9 +404,9 @@ class _Fit:
         check_options(o)
         prior, prior_path = o.prior, None
         if isinstance(prior, (str, os.PathLike)):
-            from ..files.model_files import read_model
+            from ..files.model_files import load_model
 
-            prior_path, prior = str(prior), read_model(prior)
+            prior_path, prior = str(prior), load_model(prior)
         template = CalibrationModel(na=o.na, nb=o.nb, normalization=o.normalization, prior=prior)
         with drop_incomplete() if o.drop_incomplete else nullcontext() as dropped:
             if _streams(o) and self.dataset is None:
