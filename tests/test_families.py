@@ -48,7 +48,7 @@ class LinearFamily:
         self.input_range_, self.output_range_ = np.c_[u.min(0), u.max(0)], np.c_[y.min(0), y.max(0)]
         self.n_samples_fit_ = len(u)
         self.solver_info_ = {"name": "lstsq", "lambda": None}
-        self.training_metrics_ = self.score(data)
+        self.training_metrics_ = self.metrics(data)
         return self
 
     def predict(self, data, *, mode="free-run", start="zeros", warn_out_of_range=True):
@@ -56,7 +56,7 @@ class LinearFamily:
         x = np.c_[self.input_normalization_.apply(u), np.ones(len(u))]
         return self.output_normalization_.offset + self.output_normalization_.scale * (x @ self.matrix_)
 
-    def score(self, data, *, mode="one-step", start="zeros", warmup="drop", warn_out_of_range=True):
+    def metrics(self, data, *, mode="one-step", start="zeros", warmup="drop", warn_out_of_range=True):
         from ftcal.core.metrics import summarize
 
         summary = summarize(data.outputs, self.predict(data), self.output_names_)

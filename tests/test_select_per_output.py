@@ -80,7 +80,7 @@ def test_mixed_penalties_embed_exactly_through_a_change_of_basis(rng, tmp_path):
         expected = alone.predict(fresh, warn_out_of_range=False)[:, j]
         np.testing.assert_allclose(model.predict(fresh, warn_out_of_range=False)[:, j], expected, rtol=0,
                                    atol=1e-8 * np.abs(expected).max())
-    model.training_metrics_ = model.score(data, warn_out_of_range=False)
+    model.training_metrics_ = model.metrics(data, warn_out_of_range=False)
     save_model(model, tmp_path / "m.json")
     np.testing.assert_array_equal(load_model(tmp_path / "m.json").predict(fresh, warn_out_of_range=False),
                                   model.predict(fresh, warn_out_of_range=False))

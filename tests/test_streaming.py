@@ -129,7 +129,7 @@ def test_dask_results_are_identical_to_the_local_run(files, cluster):
     remote = cluster.map_reduce(file_error_sums, paths, model, combine=add_error_sums)
     assert json.dumps(remote.summary(model.output_names_)) == json.dumps(local.summary(model.output_names_))
     data = whole(paths)
-    reference = model.score(Dataset.from_arrays(data[list(INPUTS)].to_numpy(), data[list(DEFAULT_OUTPUTS)].to_numpy(),
+    reference = model.metrics(Dataset.from_arrays(data[list(INPUTS)].to_numpy(), data[list(DEFAULT_OUTPUTS)].to_numpy(),
                                                 input_names=INPUTS, output_names=DEFAULT_OUTPUTS),
                             warn_out_of_range=False)
     assert np.allclose(remote.summary(model.output_names_)["rmse"], reference["rmse"], rtol=1e-12, atol=0)

@@ -440,7 +440,7 @@ def file_error_sums(path: str, model, fingerprints: Sequence[dict] = (), mode: s
     Static models read the file chunk by chunk. ARX models read it whole and
     give a pair: the sums for ``mode`` and for the other prediction mode,
     without the first max(na, nb) rows of each segment when ``warmup`` is
-    ``"drop"`` (as :meth:`CalibrationModel.score`); None when no row is left.
+    ``"drop"`` (as :meth:`CalibrationModel.metrics`); None when no row is left.
     ``fingerprints`` (the model file's training segments) found whole inside
     this file are reported in ``training_segments``.
     """
@@ -464,7 +464,7 @@ def file_error_sums(path: str, model, fingerprints: Sequence[dict] = (), mode: s
             ranges = RangeSums.of(inputs, model.input_range_, outputs, prediction, model.output_names_,
                                   outside_span=span_of(model, inputs), loads=outputs,
                                   output_range=getattr(model, "output_range_", None))
-            # outside the range or its span: CalibrationModel.score's n_out_of_range
+            # outside the range or its span: CalibrationModel.metrics' n_out_of_range
             return ErrorSums.of(outputs, prediction, model.output_names_, ranges.n_out + ranges.n_span, ranges)
 
         # Overflowing predictions give inf/NaN metrics, which the command refuses in one line.

@@ -239,7 +239,7 @@ def _evaluate_whole(paths, dataset, model, training_segments, name, mode, start,
     with warnings.catch_warnings(), np.errstate(over="ignore", invalid="ignore"):
         # Reported once in the result, not as a warning line. Overflow is refused by evaluate().
         warnings.simplefilter("ignore", OutOfRangeWarning)
-        summary = model.score(data, mode=mode, start=start, warmup=warmup)
+        summary = model.metrics(data, mode=mode, start=start, warmup=warmup)
         summary["out_of_range"] = (range_summary(model, data, mode, start, warmup)
                                    if summary["n_out_of_range"] else None)
     y = data.outputs[:, [data.output_names.index(n) for n in model.output_names_]]
@@ -259,7 +259,7 @@ def range_summary(model, data, mode: str, start: str, warmup: str) -> dict:
     from ..core.ranges import RangeSums, span_of
 
     rows = np.ones(data.n_samples, dtype=bool)
-    if warmup == "drop":  # the rows the metrics score, as CalibrationModel.score
+    if warmup == "drop":  # the rows the metrics score, as CalibrationModel.metrics
         for a, _ in data.segment_bounds():
             rows[a:a + (0 if model.is_static else model.layout_.max_lag)] = False
     prediction = model.predict(data, mode=mode, start=start, warn_out_of_range=False)
