@@ -117,8 +117,8 @@ def memory_rows(paths: list[str], folder: Path, degree: int) -> list[dict]:
             ("ftcal evaluate (streaming)",
              f"{cli}assert main(['evaluate', {str(model_path)!r}, *{files}, '--json']) == 0"),
             ("whole tables read, then predict (before streaming)",
-             "from ftcal.files.model_files import load_model\nfrom ftcal.data.tables import read_dataset\n"
-             f"m = load_model({str(model_path)!r})\nd = read_dataset({files}, m.input_names_, None)\n"
+             "from ftcal.files.model_files import load_model\nfrom ftcal.data.tables import load_dataset\n"
+             f"m = load_model({str(model_path)!r})\nd = load_dataset({files}, inputs=m.input_names_, outputs=None)\n"
              "m.predict(d, warn_out_of_range=False)"),
             ("Python + ftcal + pyarrow imported, nothing read",
              "import ftcal.data.streaming, pyarrow.parquet, pandas")):
@@ -141,9 +141,9 @@ def fit_rows(paths: list[str], folder: Path, rows_per_file: int, degree: int) ->
              "from ftcal.cli import main\n"
              f"assert main(['fit', *{files}, '--degree', '{degree}', '-o', {str(streamed)!r}]) == 0"),
             ("whole tables read, then fit in memory (before streaming)",
-             "from ftcal.files.model_files import save_model\nfrom ftcal.data.tables import read_dataset\n"
+             "from ftcal.files.model_files import save_model\nfrom ftcal.data.tables import load_dataset\n"
              "from ftcal.core.model import CalibrationModel\n"
-             f"d = read_dataset({files}, {INPUTS!r}, {OUTPUTS!r})\n"
+             f"d = load_dataset({files}, inputs={INPUTS!r}, outputs={OUTPUTS!r})\n"
              f"save_model(CalibrationModel({degree}).fit(d), {str(whole)!r})")):
         start = time.perf_counter()
         peak = peak_rss_of(code)

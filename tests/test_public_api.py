@@ -146,3 +146,21 @@ def test_the_public_names_are_the_new_ones():
         path = Path(tempfile.mkdtemp()) / "m.xml"
         ftcal.save_model(model_on_a_line(), path, "paper-xml")
         assert float(ftcal.load_model(path).predict(np.array([[0.5]]))[0, 0]) == pytest.approx(2.0, rel=1e-9)
+
+
+def test_read_dataset_is_load_dataset_under_its_old_name(tmp_path):
+    import pandas as pd
+
+    from ftcal.data.tables import read_dataset
+
+    u = np.linspace(0.0, 1.0, 5)
+    pd.DataFrame({"u1": u, "Fx": 3.0 * u, "run": ["a", "a", "b", "b", "b"]}).to_csv(tmp_path / "t.csv", index=False)
+    new = ftcal.load_dataset(tmp_path / "t.csv", inputs=["u1"], outputs=["Fx"], group_by="run")
+    with pytest.warns(DeprecationWarning, match="ftcal.data.tables.read_dataset is deprecated .* use ftcal.load_dataset"):
+        old = read_dataset([tmp_path / "t.csv"], ["u1"], ["Fx"], group_by="run")
+    np.testing.assert_array_equal(old.inputs, u[:, None])
+    np.testing.assert_array_equal(old.outputs, 3.0 * u[:, None])
+    assert list(old.groups) == list(new.groups) == ["a", "a", "b", "b", "b"]
+    # without the output columns, for prediction
+    pd.DataFrame({"u1": u}).to_csv(tmp_path / "inputs.csv", index=False)
+    assert ftcal.load_dataset(tmp_path / "inputs.csv", inputs=["u1"], require_outputs=False).outputs is None

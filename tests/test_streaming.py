@@ -202,10 +202,10 @@ def test_an_existing_cluster_whose_workers_run_another_ftcal_is_refused(tmp_path
 
 def test_cli_predict_arx_one_task_per_file_matches_the_whole_data(files, tmp_path):
     from ftcal.core.solvers.least_squares import Ridge
-    from ftcal.data.tables import read_dataset
+    from ftcal.data.tables import load_dataset
 
     paths, _, _ = files
-    data = read_dataset(paths, INPUTS, DEFAULT_OUTPUTS)
+    data = load_dataset(paths, inputs=INPUTS, outputs=DEFAULT_OUTPUTS)
     # ridge: past outputs are nearly affine in past inputs on this data
     model = CalibrationModel(1, na=1, nb=1, solver=Ridge(1.0)).fit(data)
     save_model(model, tmp_path / "arx.json")
@@ -222,10 +222,10 @@ def test_cli_predict_arx_one_task_per_file_matches_the_whole_data(files, tmp_pat
 
 def test_cli_evaluate_arx_on_a_local_cluster_matches_the_whole_data(files, tmp_path):
     from ftcal.core.solvers.least_squares import Ridge
-    from ftcal.data.tables import read_dataset
+    from ftcal.data.tables import load_dataset
 
     paths, _, _ = files
-    model = CalibrationModel(1, na=2, nb=1, solver=Ridge(1.0)).fit(read_dataset(paths[:1], INPUTS, DEFAULT_OUTPUTS))
+    model = CalibrationModel(1, na=2, nb=1, solver=Ridge(1.0)).fit(load_dataset(paths[:1], inputs=INPUTS, outputs=DEFAULT_OUTPUTS))
     save_model(model, tmp_path / "arx.json")
     env = dict(os.environ, FTCAL_PROGRESS="0")
     results = []

@@ -230,11 +230,11 @@ def _evaluate_whole(paths, dataset, model, training_segments, name, mode, start,
 
     from ..core.fingerprint import warn_if_trained_on
     from ..core.ranges import LoadSums
-    from ..data.tables import read_dataset
+    from ..data.tables import load_dataset
     from ..runtime.errors import OutOfRangeWarning
 
-    data = dataset if dataset is not None else read_dataset(paths, model.input_names_, model.output_names_,
-                                                             segment_by=segment_by)
+    data = dataset if dataset is not None else load_dataset(paths, inputs=model.input_names_,
+                                                             outputs=model.output_names_, segment_by=segment_by)
     warn_if_trained_on(data, training_segments, name)
     with warnings.catch_warnings(), np.errstate(over="ignore", invalid="ignore"):
         # Reported once in the result, not as a warning line. Overflow is refused by evaluate().
@@ -402,10 +402,11 @@ def _predict_whole(paths, dataset, model, mode, start, segment_by):
     import pandas as pd
 
     from ..core.ranges import RangeSums, span_of
-    from ..data.tables import read_dataset
+    from ..data.tables import load_dataset
 
-    data = dataset if dataset is not None else read_dataset(paths, model.input_names_, model.output_names_,
-                                                            segment_by=segment_by, require_outputs=False)
+    data = dataset if dataset is not None else load_dataset(paths, inputs=model.input_names_,
+                                                            outputs=model.output_names_, segment_by=segment_by,
+                                                            require_outputs=False)
     with np.errstate(over="ignore", invalid="ignore"):
         prediction = model.predict(data, mode=mode, start=start, warn_out_of_range=False)
     bad = ~np.isfinite(prediction).all(axis=1)
@@ -521,7 +522,7 @@ def report(models: Sequence[str], data: Sequence[str], output: str | os.PathLike
     ReportResult
     """
     from ..core.fingerprint import warn_if_trained_on
-    from ..data.tables import read_dataset
+    from ..data.tables import load_dataset
     from ..files.model_files import load_model_file
     from ..report import build_report
     from ..report import evaluate as evaluate_run
@@ -533,7 +534,7 @@ def report(models: Sequence[str], data: Sequence[str], output: str | os.PathLike
     outputs = tuple(outputs or _union(m.output_names_ for m in fitted))
 
     def read(paths):
-        return read_dataset(paths, inputs, outputs, segment_by=segment_by, group_by=group_by)
+        return load_dataset(paths, inputs=inputs, outputs=outputs, segment_by=segment_by, group_by=group_by)
 
     validation = read(data_paths)
     for path, model_file in zip(model_paths, loaded):

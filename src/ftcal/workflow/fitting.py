@@ -449,7 +449,7 @@ class _Fit:
 
     def _read(self, inputs, outputs):
         """The data whole, as a Dataset (the one given, or the files read)."""
-        from ..data.tables import read_dataset
+        from ..data.tables import load_dataset
 
         if self.dataset is not None:
             data = self.dataset
@@ -462,7 +462,8 @@ class _Fit:
             y = data.outputs[:, [data.output_names.index(n) for n in outputs]]
             return replace(data, inputs=data.select_inputs(inputs), outputs=y, input_names=tuple(inputs),
                            output_names=tuple(outputs))
-        return read_dataset(self.paths, inputs, outputs, segment_by=self.o.segment_by, group_by=self.o.group_by)
+        return load_dataset(self.paths, inputs=inputs, outputs=outputs, segment_by=self.o.segment_by,
+                            group_by=self.o.group_by)
 
     # ------------------------------------------------------------------ in memory
     def _fit_in_memory(self, template, inputs, outputs, dropped):
@@ -502,7 +503,7 @@ class _Fit:
         Reads the ``Y_<LINK>_<output>_<parameter>`` columns written by
         ``ftcal dataset --estimate-payload LINK`` (4 static or 10 parameters).
         """
-        from ..data.tables import read_dataset, read_table
+        from ..data.tables import load_dataset, read_table
         from ..payload.regressor import INERTIAL_PARAMETERS
         from ..payload.unknown_load import estimate_payload, payload_column
 
@@ -517,7 +518,8 @@ class _Fit:
         if missing:
             raise FtcalError(f"{self.paths[0]}: no column {missing[0]!r}; write the dataset with "
                              f"'ftcal dataset ... --estimate-payload {link}'.")
-        data = read_dataset(self.paths, inputs, (*outputs, *columns), segment_by=o.segment_by, group_by=o.group_by)
+        data = load_dataset(self.paths, inputs=inputs, outputs=(*outputs, *columns), segment_by=o.segment_by,
+                            group_by=o.group_by)
         self._read_note(data.n_samples, inputs, outputs, f" + payload on {link} ({k} parameters)")
         known = data.outputs[:, :len(outputs)]
         regressor = data.outputs[:, len(outputs):].reshape(data.n_samples, len(outputs), k)
