@@ -54,7 +54,7 @@ def test_sklearn_estimator_checks(estimator, check):
 
 
 def test_both_families_share_one_implementation_of_the_contract():
-    for name in ("get_params", "set_params", "clone", "score", "n_features_in_", "__sklearn_tags__"):
+    for name in ("get_params", "set_params", "clone", "score", "n_features_in_", "__sklearn_tags__", "__repr__"):
         assert getattr(CalibrationModel, name) is getattr(MLPModel, name) is getattr(EstimatorParams, name)
 
 
@@ -78,6 +78,15 @@ def test_score_is_sklearns_r2_and_metrics_is_the_papers_dict(model):
     np.testing.assert_allclose(metrics["rmse"], rmse, rtol=1e-9)
     with pytest.raises(FtcalError, match="needs reference outputs"):
         model.score(test)
+
+
+def test_a_model_reads_as_its_constructor_call():
+    from ftcal.core.solvers import Lasso
+
+    assert repr(CalibrationModel()) == "CalibrationModel()"
+    assert repr(CalibrationModel(3, na=2, normalization="maxabs")) == "CalibrationModel(degree=3, na=2, normalization='maxabs')"
+    assert repr(MLPModel(hidden=(8,), seed=3)) == "MLPModel(hidden=(8,), seed=3)"
+    assert repr(CalibrationModel(2, solver=Lasso(1.0))).startswith("CalibrationModel(degree=2, solver=")
 
 
 def test_bad_arrays_are_refused_in_one_line():

@@ -34,6 +34,8 @@ class EstimatorParams:
     >>> u = np.linspace(-1.0, 1.0, 11)[:, None]
     >>> CalibrationModel(2).fit(u, u ** 2).score(u, u ** 2)
     1.0
+    >>> CalibrationModel(2, na=1)
+    CalibrationModel(degree=2, na=1)
     """
 
     @classmethod
@@ -71,6 +73,20 @@ class EstimatorParams:
         if unknown:
             raise FtcalError(f"{type(self).__name__} has no parameter(s) {', '.join(sorted(unknown))}.")
         return type(self)(**{**self.get_params(deep=False), **changes})
+
+    def __repr__(self) -> str:
+        """``CalibrationModel(degree=2, na=1)``: the class and the parameters that differ from their defaults."""
+        defaults = {p.name: p.default for p in inspect.signature(type(self).__init__).parameters.values()}
+        changed = []
+        for name, value in self.get_params(deep=False).items():
+            default = defaults.get(name, inspect.Parameter.empty)
+            try:
+                same = value is default or (type(value) is type(default) and bool(value == default))
+            except (TypeError, ValueError):  # values without a plain equality (arrays) count as changed
+                same = False
+            if not same:
+                changed.append(f"{name}={value!r}")
+        return f"{type(self).__name__}({', '.join(changed)})"
 
     @property
     def n_features_in_(self) -> int:
