@@ -27,7 +27,7 @@ from benchmarks.bench_payload_cli import run_child
 def cluster_fit(n_files: int, rows: int, workers: int = 2, pairs: int = 2, degree: int = 4) -> dict:
     """Paired whole-process fits, one process against ``local:workers``, on ``n_files`` Parquet files."""
     from benchmarks.bench_scale import write_files
-    from ftcal.files.model_files import read_model
+    from ftcal.files.model_files import load_model
 
     with tempfile.TemporaryDirectory(prefix="ftcal-bench-cluster-") as tmp:
         folder = Path(tmp)
@@ -41,7 +41,7 @@ def cluster_fit(n_files: int, rows: int, workers: int = 2, pairs: int = 2, degre
                 result["startup_s"] = float(started.group(1)) if started else 0.0
                 result["startup_lines"] = result["stderr"].count(" started in ")
                 runs[name].append(result)
-        same = bool(np.array_equal(read_model(folder / "one.json").coef_, read_model(folder / "cluster.json").coef_))
+        same = bool(np.array_equal(load_model(folder / "one.json").coef_, load_model(folder / "cluster.json").coef_))
     summary = {name: {key: float(np.median([r[key] for r in rows_])) for key in
                       ("wall_s", "cpu_s", "peak_rss_mb", "startup_s")} for name, rows_ in runs.items()}
     ratios = {key: float(np.median([c[key] / o[key] for o, c in zip(runs["one"], runs["cluster"])]))

@@ -102,7 +102,7 @@ def memory_rows(paths: list[str], folder: Path, degree: int) -> list[dict]:
     from benchmarks.load_cases import make_data
     from ftcal.core.dataset import Dataset
     from ftcal.core.model import CalibrationModel
-    from ftcal.files.model_json import save_model
+    from ftcal.files.model_files import save_model
 
     u, y = make_data(20_000, seed=99)
     model = CalibrationModel(degree).fit(Dataset.from_arrays(u, y, input_names=INPUTS, output_names=OUTPUTS))
@@ -117,8 +117,8 @@ def memory_rows(paths: list[str], folder: Path, degree: int) -> list[dict]:
             ("ftcal evaluate (streaming)",
              f"{cli}assert main(['evaluate', {str(model_path)!r}, *{files}, '--json']) == 0"),
             ("whole tables read, then predict (before streaming)",
-             "from ftcal.files.model_files import read_model\nfrom ftcal.data.tables import read_dataset\n"
-             f"m = read_model({str(model_path)!r})\nd = read_dataset({files}, m.input_names_, None)\n"
+             "from ftcal.files.model_files import load_model\nfrom ftcal.data.tables import load_dataset\n"
+             f"m = load_model({str(model_path)!r})\nd = load_dataset({files}, inputs=m.input_names_, outputs=None)\n"
              "m.predict(d, warn_out_of_range=False)"),
             ("Python + ftcal + pyarrow imported, nothing read",
              "import ftcal.data.streaming, pyarrow.parquet, pandas")):
@@ -130,7 +130,7 @@ def memory_rows(paths: list[str], folder: Path, degree: int) -> list[dict]:
 
 def fit_rows(paths: list[str], folder: Path, rows_per_file: int, degree: int) -> list[dict]:
     """Streamed ``ftcal fit`` against whole tables + in-memory fit: peak RSS, time per sample, fresh processes."""
-    from ftcal.files.model_files import read_model
+    from ftcal.files.model_files import load_model
 
     files = json.dumps(paths)
     streamed, whole = folder / "fit-streamed.json", folder / "fit-whole.json"
@@ -141,16 +141,16 @@ def fit_rows(paths: list[str], folder: Path, rows_per_file: int, degree: int) ->
              "from ftcal.cli import main\n"
              f"assert main(['fit', *{files}, '--degree', '{degree}', '-o', {str(streamed)!r}]) == 0"),
             ("whole tables read, then fit in memory (before streaming)",
-             "from ftcal.files.model_json import save_model\nfrom ftcal.data.tables import read_dataset\n"
+             "from ftcal.files.model_files import save_model\nfrom ftcal.data.tables import load_dataset\n"
              "from ftcal.core.model import CalibrationModel\n"
-             f"d = read_dataset({files}, {INPUTS!r}, {OUTPUTS!r})\n"
+             f"d = load_dataset({files}, inputs={INPUTS!r}, outputs={OUTPUTS!r})\n"
              f"save_model(CalibrationModel({degree}).fit(d), {str(whole)!r})")):
         start = time.perf_counter()
         peak = peak_rss_of(code)
         seconds = time.perf_counter() - start
         rows.append({"method": label, "peak_rss_mb": peak, "seconds": seconds,
                      "us_per_sample": 1e6 * seconds / samples})
-    a, b = read_model(streamed).coef_, read_model(whole).coef_
+    a, b = load_model(streamed).coef_, load_model(whole).coef_
     rows[0]["max_relative_coef_difference"] = float(np.max(np.abs(a - b)) / np.max(np.abs(b)))
     return rows
 

@@ -20,7 +20,7 @@ import pytest
 from ftcal.cli import main
 from ftcal.core.dataset import Dataset
 from ftcal.core.model import CalibrationModel
-from ftcal.files.model_json import save_model
+from ftcal.files.model_files import save_model
 from ftcal.files.payload_json import save_payload
 from ftcal.live import LiveCalibrator
 from ftcal.live.c_runtime import generate_c_runtime

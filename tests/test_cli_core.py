@@ -25,7 +25,7 @@ import pytest
 from sklearn.linear_model import Lasso, Ridge
 
 from ftcal.cli import main
-from ftcal.files.model_json import load_model
+from ftcal.files.model_files import load_model
 from ftcal.runtime.errors import FtcalWarning
 
 FTCAL = Path(sys.executable).with_name("ftcal")

@@ -8,7 +8,7 @@ import pytest
 
 from ftcal.cli import main
 from ftcal.core.model import CalibrationModel
-from ftcal.files.model_json import save_model
+from ftcal.files.model_files import save_model
 from ftcal.sim.synthetic import synthetic_recordings
 
 

@@ -11,7 +11,7 @@ import pandas as pd
 import pytest
 
 from ftcal.cli import main
-from ftcal.files.model_json import load_model
+from ftcal.files.model_files import load_model
 from ftcal.runtime.errors import FtcalWarning
 
 FORCES = ["Fx", "Fy", "Fz"]

@@ -14,8 +14,8 @@ from ftcal.cli import main
 from ftcal.core.dataset import Dataset
 from ftcal.core.excitation import Spread, output_excitation, regressor_excitation, span_distance
 from ftcal.core.model import CalibrationModel
-from ftcal.files.model_files import read_model
-from ftcal.files.model_json import save_model
+from ftcal.files.model_files import load_model
+from ftcal.files.model_files import save_model
 from ftcal.runtime.errors import FtcalError, FtcalWarning, OutOfRangeWarning
 
 OUTPUTS = ["Fx", "Fy", "Fz", "Tx", "Ty", "Tz"]
@@ -86,7 +86,7 @@ def test_fit_on_one_rigid_tool_warns_and_flags_a_push_it_never_saw(tmp_path, cap
     assert len(warned) == 1 and "torque about z never excited" in warned[0] and "twist the sensor" in warned[0]
     # A pure 10 N push along x: its raw gauges stay inside the training box, but not inside its span.
     push = np.linalg.solve(mixing, np.array([10.0, 0, 0, 0, 0, 0]))[None, :]
-    model = read_model(model_path)
+    model = load_model(model_path)
     inside_box = np.all((push >= model.input_range_[:, 0]) & (push <= model.input_range_[:, 1]))
     assert inside_box
     assert model.out_of_span(push).all() and model.out_of_range(push).all()
@@ -110,7 +110,7 @@ def test_model_files_keep_the_span_and_old_files_check_the_range_only(tmp_path):
         model = CalibrationModel(1).fit(Dataset.from_arrays(frame[INPUTS].to_numpy(), frame[OUTPUTS].to_numpy(),
                                                             input_names=tuple(INPUTS)))
     save_model(model, tmp_path / "m.json")
-    loaded = read_model(tmp_path / "m.json")
+    loaded = load_model(tmp_path / "m.json")
     np.testing.assert_allclose(loaded.input_spread_.mean, frame[INPUTS].to_numpy().mean(axis=0), rtol=1e-12)
     push = np.linalg.solve(mixing, np.array([10.0, 0, 0, 0, 0, 0]))[None, :]
     assert loaded.out_of_span(push).all()
@@ -122,7 +122,7 @@ def test_model_files_keep_the_span_and_old_files_check_the_range_only(tmp_path):
     doc.pop("sha256")
     doc["sha256"] = digest(doc)
     (tmp_path / "old.json").write_text(json.dumps(doc))
-    old = read_model(tmp_path / "old.json")
+    old = load_model(tmp_path / "old.json")
     assert old.input_spread_ is None and not old.out_of_span(push).any()
     assert not old.out_of_range(push).any()
 

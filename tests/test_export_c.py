@@ -16,7 +16,7 @@ from ftcal.core.dataset import Dataset
 from ftcal.core.model import CalibrationModel
 from ftcal.core.solvers import Lasso
 from ftcal.files.c_code import evaluate_like_c, generate_c
-from ftcal.files.model_json import save_model
+from ftcal.files.model_files import save_model
 from ftcal.runtime.errors import FtcalError
 
 CC = shutil.which("cc")

@@ -14,7 +14,7 @@ from ftcal.cli import main
 from ftcal.core.dataset import Dataset
 from ftcal.core.model import CalibrationModel
 from ftcal.core.solvers import Lasso
-from ftcal.files.model_json import save_model
+from ftcal.files.model_files import save_model
 from ftcal.files.onnx_graph import OPSET, build_onnx
 from ftcal.runtime.errors import FtcalError
 

@@ -10,7 +10,7 @@ import pytest
 from ftcal.cli import main
 from ftcal.core.model import CalibrationModel
 from ftcal.files import targets
-from ftcal.files.model_json import save_model
+from ftcal.files.model_files import save_model
 from ftcal.runtime.errors import FtcalError
 
 

@@ -21,8 +21,9 @@ from ftcal.core.limits import FAMILY_NAMES
 from ftcal.core.mlp import MLPModel
 from ftcal.core.model import CalibrationModel
 from ftcal.core.normalization import normalization_from_range, variables_normalization, variables_range
-from ftcal.files.model_files import read_model
-from ftcal.files.model_json import digest, format_document, load_model, model_document, save_model
+from ftcal.files.model_files import load_model
+from ftcal.files.model_files import load_model, save_model
+from ftcal.files.model_json import digest, format_document, model_document
 from ftcal.runtime.errors import FtcalError
 
 INPUTS = ("u1", "u2", "u3")
@@ -47,7 +48,7 @@ class LinearFamily:
         self.input_range_, self.output_range_ = np.c_[u.min(0), u.max(0)], np.c_[y.min(0), y.max(0)]
         self.n_samples_fit_ = len(u)
         self.solver_info_ = {"name": "lstsq", "lambda": None}
-        self.training_metrics_ = self.score(data)
+        self.training_metrics_ = self.metrics(data)
         return self
 
     def predict(self, data, *, mode="free-run", start="zeros", warn_out_of_range=True):
@@ -55,7 +56,7 @@ class LinearFamily:
         x = np.c_[self.input_normalization_.apply(u), np.ones(len(u))]
         return self.output_normalization_.offset + self.output_normalization_.scale * (x @ self.matrix_)
 
-    def score(self, data, *, mode="one-step", start="zeros", warmup="drop", warn_out_of_range=True):
+    def metrics(self, data, *, mode="one-step", start="zeros", warmup="drop", warn_out_of_range=True):
         from ftcal.core.metrics import summarize
 
         summary = summarize(data.outputs, self.predict(data), self.output_names_)
@@ -130,7 +131,7 @@ def test_a_new_family_is_one_class_plus_one_registry_line(tmp_path, monkeypatch,
     save_model(model, path)
     doc = json.loads(path.read_text())
     assert doc["family"] == "test-linear" and "coefficients" not in doc
-    loaded = read_model(path)
+    loaded = load_model(path)
     assert type(loaded).__name__ == "LinearFamily"
     u_new = np.array([[0.5, -1.0, 2.5], [1.5, 0.2, -1.5]])  # inside the training box
     np.testing.assert_allclose(loaded.predict(u_new), u_new @ a + b, rtol=1e-10, atol=1e-10)  # the truth

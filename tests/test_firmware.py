@@ -7,7 +7,7 @@ import pytest
 
 from ftcal.core.conversion import from_raw
 from ftcal.files.firmware import firmware_filename, firmware_matrix, write_firmware_matrix
-from ftcal.files.model_files import write_model
+from ftcal.files.model_files import save_model
 from ftcal.runtime.errors import FtcalError, FtcalWarning
 
 CHANNELS = ["s1", "s2", "s3", "s4", "s5", "s6"]
@@ -98,10 +98,10 @@ def test_refuses_wrong_shapes_and_infeasible_gains(tmp_path):
 
 
 def test_write_model_names_the_file_in_a_directory(tmp_path):
-    written = write_model(affine_model(C), tmp_path, "icub-firmware", serial="SN7")
+    written = save_model(affine_model(C), tmp_path, "icub-firmware", serial="SN7")
     assert written == tmp_path / "matrix_SN7.txt" and written.exists()
     with pytest.raises(FtcalError, match="give the sensor serial number"):
-        write_model(affine_model(C), tmp_path, "icub-firmware")
+        save_model(affine_model(C), tmp_path, "icub-firmware")
 
 
 def test_inputs_that_are_not_adc_counts_are_refused_with_what_to_fit():

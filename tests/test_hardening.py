@@ -20,7 +20,7 @@ from ftcal.cli import main
 from ftcal.core.dataset import Dataset
 from ftcal.core.model import CalibrationModel
 from ftcal.files.c_code import generate_c
-from ftcal.files.model_json import save_model
+from ftcal.files.model_files import save_model
 
 CC = shutil.which("cc")
 CXX = shutil.which("c++")
@@ -192,7 +192,7 @@ def test_pipes_devices_and_link_loops_are_refused_by_every_reader(tmp_path):
     """
     from ftcal.data.logs import read_recording
     from ftcal.data.tables import read_arrow
-    from ftcal.files.model_files import read_model_file
+    from ftcal.files.model_files import load_model_file
     from ftcal.files.paper_xml import read_paper_xml
     from ftcal.files.targets import input_kind
     from ftcal.robot import RobotModel, load_case_config
@@ -203,7 +203,7 @@ def test_pipes_devices_and_link_loops_are_refused_by_every_reader(tmp_path):
     loop = tmp_path / "loop.json"
     os.symlink(tmp_path / "loop2.json", loop)
     os.symlink(loop, tmp_path / "loop2.json")
-    readers = {"table": read_arrow, "model": read_model_file, "paper XML": read_paper_xml, "convert": input_kind,
+    readers = {"table": read_arrow, "model": load_model_file, "paper XML": read_paper_xml, "convert": input_kind,
                "URDF": lambda p: RobotModel.load(urdf=p), "load cases": load_case_config,
                "recording": read_recording}
     for what, reader in readers.items():

@@ -189,7 +189,7 @@ def test_in_memory_and_streamed_evaluation_both_go_through_the_error_sums(tmp_pa
     model = CalibrationModel(2).fit(data)
     counted_sums.clear()
 
-    in_memory = model.score(data, warn_out_of_range=False)
+    in_memory = model.metrics(data, warn_out_of_range=False)
     assert counted_sums == [3000]  # one chunk: the whole dataset
 
     path = tmp_path / "data.parquet"

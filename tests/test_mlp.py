@@ -15,8 +15,8 @@ from ftcal.cli import main
 from ftcal.core.dataset import Dataset
 from ftcal.core.mlp import EarlyStoppingWarning, MLPModel, _glorot, _objective
 from ftcal.core.model import CalibrationModel
-from ftcal.files.model_files import read_model
-from ftcal.files.model_json import load_model, save_model
+from ftcal.files.model_files import load_model
+from ftcal.files.model_files import load_model, save_model
 from ftcal.runtime.errors import FtcalError
 
 CC = shutil.which("cc")
@@ -169,7 +169,7 @@ def test_cli_fit_predict_evaluate_and_refusals(tmp_path, capsys):
     assert main(argv) == 0
     printed = capsys.readouterr().out
     assert "np1" in printed and "mlp 6 tanh" in printed and "2 grouped folds" in printed
-    model = read_model(out)
+    model = load_model(out)
     assert main(["predict", str(out), str(table), "-o", str(tmp_path / "p.csv")]) == 0
     predicted = pd.read_csv(tmp_path / "p.csv")[list(OUTPUTS)].to_numpy()
     np.testing.assert_allclose(predicted, model.predict(data.inputs), rtol=1e-12, atol=1e-12)

@@ -14,7 +14,7 @@ import pandas as pd
 
 from ftcal.cli import main
 from ftcal.core.mlp import hidden_for_data, n_weights
-from ftcal.files.model_files import read_model
+from ftcal.files.model_files import load_model
 
 WRENCH = ["Fx", "Fy", "Fz", "Tx", "Ty", "Tz"]
 
@@ -57,7 +57,7 @@ def test_an_mlp_worse_than_affine_beyond_the_fold_noise_is_not_written(tmp_path,
     assert "1478 weights for 54 rows" in captured.err  # 6-32-32-6, as on the plate
     assert "worse than the affine model beyond the fold noise" in captured.err
     assert "written: the affine model" in captured.out
-    model = read_model(out)
+    model = load_model(out)
     assert model.family == "polynomial" and model.degree == 1
 
 

@@ -87,7 +87,7 @@ def test_out_of_range_counts_samples_outside_training_range(rng):
     with pytest.warns(OutOfRangeWarning, match="3 of 6 samples"):
         prediction = model.predict(test)
     np.testing.assert_allclose(prediction, test @ [[1.0], [-1.0]] + 3.0, rtol=1e-12)
-    score = model.score(Dataset.from_arrays(test, test @ [[1.0], [-1.0]] + 3.0), warn_out_of_range=False)
+    score = model.metrics(Dataset.from_arrays(test, test @ [[1.0], [-1.0]] + 3.0), warn_out_of_range=False)
     assert score["n_out_of_range"] == 3
 
 
@@ -318,14 +318,14 @@ def test_arx_metrics_drop_the_warmup_rows_by_default(rng):
     y = data.outputs
     for warmup, rows in (("drop", kept_rows), ("keep", np.arange(70))):
         for mode in ("one-step", "free-run"):
-            summary = model.score(data, mode=mode, warmup=warmup, warn_out_of_range=False)
+            summary = model.metrics(data, mode=mode, warmup=warmup, warn_out_of_range=False)
             prediction = model.predict(data, mode=mode, warn_out_of_range=False)
             expected = np.sqrt(np.mean((y[rows] - prediction[rows]) ** 2, axis=0))
             np.testing.assert_allclose(summary["rmse"], expected, rtol=1e-12)
             assert summary["n_samples"] == len(rows)
     # The default is the paper's evaluation: one-step, with the free-run figures beside it.
-    default = model.score(data, warn_out_of_range=False)
-    assert "free_run" in default and default["rmse"] == model.score(data, mode="one-step")["rmse"]
+    default = model.metrics(data, warn_out_of_range=False)
+    assert "free_run" in default and default["rmse"] == model.metrics(data, mode="one-step")["rmse"]
 
 
 def test_input_lags_only_model_is_a_fir_filter(rng):

@@ -15,16 +15,8 @@ from ftcal.core.features import MonomialBasis, RegressorLayout
 from ftcal.core.model import CalibrationModel, model_from_fitted
 from ftcal.core.normalization import Normalization
 from ftcal.core.solvers.lasso import Lasso
-from ftcal.files.model_files import read_model, read_model_file, write_model
-from ftcal.files.model_json import (
-    digest,
-    format_document,
-    load_model,
-    load_model_file,
-    model_document,
-    parse_model,
-    save_model,
-)
+from ftcal.files.model_files import load_model, load_model_file, save_model
+from ftcal.files.model_json import digest, format_document, model_document, parse_model
 from ftcal.runtime.errors import FtcalError
 
 
@@ -197,16 +189,16 @@ def test_other_documents_are_not_model_files(saved_text):
 
 def test_read_model_dispatches_on_content(tmp_path):
     model, u = fitted(degree=1)
-    json_path = write_model(model, tmp_path / "model.any", "json", output_units=["N", "Nm"])
-    xml_path = write_model(model, tmp_path / "model.other", "paper-xml")
-    assert read_model_file(json_path).output_units == ("N", "Nm")
-    np.testing.assert_array_equal(read_model(json_path).predict(u), model.predict(u))
-    xml_model = read_model(xml_path)
+    json_path = save_model(model, tmp_path / "model.any", "json", output_units=["N", "Nm"])
+    xml_path = save_model(model, tmp_path / "model.other", "paper-xml")
+    assert load_model_file(json_path).output_units == ("N", "Nm")
+    np.testing.assert_array_equal(load_model(json_path).predict(u), model.predict(u))
+    xml_model = load_model(xml_path)
     np.testing.assert_allclose(xml_model.predict(u), model.predict(u), rtol=1e-9)
     (tmp_path / "junk").write_text("hello")
     with pytest.raises(FtcalError, match="neither an ftcal JSON model file nor a paper XML"):
-        read_model(tmp_path / "junk")
+        load_model(tmp_path / "junk")
     with pytest.raises(FtcalError, match="is a directory; give the path of the json file"):
-        write_model(model, tmp_path, "json")
-    with pytest.raises(FtcalError, match="'fmt' parameter of write_model must be one of"):
-        write_model(model, tmp_path / "x", "pickle")
+        save_model(model, tmp_path, "json")
+    with pytest.raises(FtcalError, match="'fmt' parameter of save_model must be one of"):
+        save_model(model, tmp_path / "x", "pickle")

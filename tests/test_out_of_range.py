@@ -108,7 +108,7 @@ def test_score_warns_once_with_the_error_split(work):
     data = Dataset.from_arrays(new, y_new, input_names=cd.INPUTS, output_names=cd.OUTPUTS)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        model.score(data)
+        model.metrics(data)
     messages = [str(w.message) for w in caught if issubclass(w.category, OutOfRangeWarning)]
     assert len(messages) == 1 and "force-norm RMSE" in messages[0] and "on them vs" in messages[0]
 

@@ -109,7 +109,7 @@ def test_compensate_removes_payload_to_noise(capsys, data):
 def test_compensate_through_a_calibration_model(capsys, tmp_path):
     from ftcal.core.dataset import Dataset
     from ftcal.core.model import CalibrationModel
-    from ftcal.files.model_json import save_model
+    from ftcal.files.model_files import save_model
 
     # Raw channels r = M⁻¹ (w − o): an affine calibration model maps them back to the wrench.
     frame = poses_frame(seed=3)
@@ -294,7 +294,7 @@ def test_compensate_warns_once_for_all_files_about_inputs_out_of_range(capsys, t
     """A calibration model trained on the lower 80 % of r1: both files hold rows beyond it, one warning."""
     from ftcal.core.dataset import Dataset
     from ftcal.core.model import CalibrationModel
-    from ftcal.files.model_json import save_model
+    from ftcal.files.model_files import save_model
 
     frame = poses_frame(seed=4)
     wrench = frame[["u1", "u2", "u3", "u4", "u5", "u6"]].to_numpy()

@@ -131,7 +131,7 @@ def _paths(doc, prefix=()):
 @FAST
 @given(st.data(), json_values)
 def test_a_model_file_loads_a_finite_model_or_is_refused(tmp_path_factory, model_text, data, value):
-    from ftcal.files.model_files import read_model
+    from ftcal.files.model_files import load_model
 
     doc = json.loads(model_text)
     where = data.draw(st.sampled_from(sorted(_paths(doc), key=str)))
@@ -145,7 +145,7 @@ def test_a_model_file_loads_a_finite_model_or_is_refused(tmp_path_factory, model
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         try:
-            model = read_model(path)
+            model = load_model(path)
         except FtcalError as exc:
             assert "\n" not in str(exc)
             return

@@ -185,7 +185,7 @@ def test_runs_table_matches_metrics_computed_here(report, data, models):
         error_norm = np.sqrt(np.mean(((validation.outputs - y_val_hat)[:, FORCES] ** 2).sum(axis=1)))
         assert row["validation RMSE of the force error norm [N]"] == f4(error_norm)
         # And the same numbers as the library's own score(), formatted alike.
-        score = model.score(validation, warn_out_of_range=False)
+        score = model.metrics(validation, warn_out_of_range=False)
         assert row["validation force-norm RMSE [N]"] == f4(score["force_norm_rmse"])
         assert row["nonzero"] == str(np.count_nonzero(model.coef_))
     # Coefficient counts per the paper: ny · (1 + Σ_p C(nu+p−1, p)), nu = 7, ny = 6.

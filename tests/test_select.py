@@ -269,7 +269,7 @@ def test_cli_selection_options_and_prior(tmp_path, capsys, rng):
     import pandas as pd
 
     from ftcal.cli import main
-    from ftcal.files.model_json import load_model
+    from ftcal.files.model_files import load_model
 
     data = load_case_sensor(rng, 6, 40, nonlinear=True)
     table = pd.DataFrame(data.inputs, columns=data.input_names)
@@ -297,12 +297,12 @@ def test_cli_selection_options_and_prior(tmp_path, capsys, rng):
     # The model file names its prior, with the digest of the prior file's bytes (hashlib).
     import hashlib
 
-    from ftcal.files.model_files import read_model_file
+    from ftcal.files.model_files import load_model_file
 
-    recorded = read_model_file(tmp_path / "shrunk.json").prior
+    recorded = load_model_file(tmp_path / "shrunk.json").prior
     assert recorded == {"source": str(tmp_path / "prior.json"),
                         "file_sha256": hashlib.sha256((tmp_path / "prior.json").read_bytes()).hexdigest()}
-    assert read_model_file(tmp_path / "prior.json").prior is None
+    assert load_model_file(tmp_path / "prior.json").prior is None
     capsys.readouterr()
     assert main(["info", str(tmp_path / "shrunk.json")]) == 0
     assert f"shrunk toward the prior {tmp_path / 'prior.json'}" in capsys.readouterr().out

@@ -68,7 +68,7 @@ def test_per_output_selection_recovers_cubic_forces_and_affine_torques(rng):
 
 
 def test_mixed_penalties_embed_exactly_through_a_change_of_basis(rng, tmp_path):
-    from ftcal.files.model_json import load_model, save_model
+    from ftcal.files.model_files import load_model, save_model
 
     data = sensor(rng)
     result = quiet(select_model, data, degrees=(1, 2, 3), penalties=("ridge",), select_per="output")
@@ -80,7 +80,7 @@ def test_mixed_penalties_embed_exactly_through_a_change_of_basis(rng, tmp_path):
         expected = alone.predict(fresh, warn_out_of_range=False)[:, j]
         np.testing.assert_allclose(model.predict(fresh, warn_out_of_range=False)[:, j], expected, rtol=0,
                                    atol=1e-8 * np.abs(expected).max())
-    model.training_metrics_ = model.score(data, warn_out_of_range=False)
+    model.training_metrics_ = model.metrics(data, warn_out_of_range=False)
     save_model(model, tmp_path / "m.json")
     np.testing.assert_array_equal(load_model(tmp_path / "m.json").predict(fresh, warn_out_of_range=False),
                                   model.predict(fresh, warn_out_of_range=False))
@@ -193,7 +193,7 @@ def test_no_saturation_warning_on_the_demo(tmp_path, capsys):
 
 def test_drop_incomplete_counts_the_rows_it_drops(tmp_path, capsys):
     from ftcal.cli import main
-    from ftcal.files.model_json import load_model
+    from ftcal.files.model_files import load_model
 
     rng = np.random.default_rng(1)
     u = rng.uniform(-1, 1, (50, 2))

@@ -20,7 +20,7 @@ from ftcal.core.dataset import DEFAULT_OUTPUTS, Dataset
 from ftcal.core.model import CalibrationModel
 from ftcal.data.streaming import ErrorSums, add_error_sums, file_error_sums
 from ftcal.data.table_chunks import iter_table_chunks
-from ftcal.files.model_json import save_model
+from ftcal.files.model_files import save_model
 from ftcal.runtime.errors import FtcalError
 from ftcal.runtime.executors import LocalExecutor, open_executor, parse_scheduler, tree_reduce
 
@@ -129,7 +129,7 @@ def test_dask_results_are_identical_to_the_local_run(files, cluster):
     remote = cluster.map_reduce(file_error_sums, paths, model, combine=add_error_sums)
     assert json.dumps(remote.summary(model.output_names_)) == json.dumps(local.summary(model.output_names_))
     data = whole(paths)
-    reference = model.score(Dataset.from_arrays(data[list(INPUTS)].to_numpy(), data[list(DEFAULT_OUTPUTS)].to_numpy(),
+    reference = model.metrics(Dataset.from_arrays(data[list(INPUTS)].to_numpy(), data[list(DEFAULT_OUTPUTS)].to_numpy(),
                                                 input_names=INPUTS, output_names=DEFAULT_OUTPUTS),
                             warn_out_of_range=False)
     assert np.allclose(remote.summary(model.output_names_)["rmse"], reference["rmse"], rtol=1e-12, atol=0)
@@ -202,10 +202,10 @@ def test_an_existing_cluster_whose_workers_run_another_ftcal_is_refused(tmp_path
 
 def test_cli_predict_arx_one_task_per_file_matches_the_whole_data(files, tmp_path):
     from ftcal.core.solvers.least_squares import Ridge
-    from ftcal.data.tables import read_dataset
+    from ftcal.data.tables import load_dataset
 
     paths, _, _ = files
-    data = read_dataset(paths, INPUTS, DEFAULT_OUTPUTS)
+    data = load_dataset(paths, inputs=INPUTS, outputs=DEFAULT_OUTPUTS)
     # ridge: past outputs are nearly affine in past inputs on this data
     model = CalibrationModel(1, na=1, nb=1, solver=Ridge(1.0)).fit(data)
     save_model(model, tmp_path / "arx.json")
@@ -222,10 +222,10 @@ def test_cli_predict_arx_one_task_per_file_matches_the_whole_data(files, tmp_pat
 
 def test_cli_evaluate_arx_on_a_local_cluster_matches_the_whole_data(files, tmp_path):
     from ftcal.core.solvers.least_squares import Ridge
-    from ftcal.data.tables import read_dataset
+    from ftcal.data.tables import load_dataset
 
     paths, _, _ = files
-    model = CalibrationModel(1, na=2, nb=1, solver=Ridge(1.0)).fit(read_dataset(paths[:1], INPUTS, DEFAULT_OUTPUTS))
+    model = CalibrationModel(1, na=2, nb=1, solver=Ridge(1.0)).fit(load_dataset(paths[:1], inputs=INPUTS, outputs=DEFAULT_OUTPUTS))
     save_model(model, tmp_path / "arx.json")
     env = dict(os.environ, FTCAL_PROGRESS="0")
     results = []
@@ -327,7 +327,7 @@ def test_streamed_fit_without_keeping_files_equals_the_kept_fit(files, tmp_path,
     """The fit's passes read every file each time when it is too large to keep: same model (1e-12)."""
     from ftcal.cli import main
     from ftcal.data import table_chunks
-    from ftcal.files.model_files import read_model_file
+    from ftcal.files.model_files import load_model_file
 
     paths, _, _ = files
     assert main(["fit", *paths, "--degree", "3", "-o", str(tmp_path / "kept.json")]) == 0
@@ -335,6 +335,6 @@ def test_streamed_fit_without_keeping_files_equals_the_kept_fit(files, tmp_path,
     monkeypatch.setattr(table_chunks, "KEEP_IN_MEMORY_BYTES", 0)
     assert main(["fit", *paths, "--degree", "3", "-o", str(tmp_path / "streamed.json")]) == 0
     assert len(reads) == 2 * len(paths)  # ranges, statistics (the training errors come from the statistics)
-    kept, streamed = (read_model_file(tmp_path / name).model for name in ("kept.json", "streamed.json"))
+    kept, streamed = (load_model_file(tmp_path / name).model for name in ("kept.json", "streamed.json"))
     assert np.max(np.abs(kept.coef_ - streamed.coef_)) <= 1e-12 * np.max(np.abs(streamed.coef_))
     assert kept.training_metrics_["rmse"] == pytest.approx(streamed.training_metrics_["rmse"], rel=1e-12)

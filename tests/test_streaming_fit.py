@@ -21,8 +21,8 @@ from ftcal.core.model import CalibrationModel
 from ftcal.core.solvers.least_squares import Ridge
 from ftcal.data.streaming import file_summary
 from ftcal.data.table_chunks import CHUNK_ROWS
-from ftcal.data.tables import read_dataset
-from ftcal.files.model_files import read_model_file
+from ftcal.data.tables import load_dataset
+from ftcal.files.model_files import load_model_file
 
 INPUTS = ("u1", "u2", "u3", "u4", "u5", "u6", "T")
 FTCAL = os.path.join(os.path.dirname(sys.executable), "ftcal")
@@ -67,9 +67,9 @@ def files(tmp_path_factory):
 def test_streamed_fit_equals_the_in_memory_fit(files, tmp_path, options, reference):
     result = fit_cli(files, tmp_path / "m.json", *options)
     assert result.returncode == 0, result.stderr
-    loaded = read_model_file(tmp_path / "m.json")
+    loaded = load_model_file(tmp_path / "m.json")
     segment_by = "seg" if "--segment-by" in options else None
-    data = read_dataset(files, INPUTS, DEFAULT_OUTPUTS, segment_by=segment_by)
+    data = load_dataset(files, inputs=INPUTS, outputs=DEFAULT_OUTPUTS, segment_by=segment_by)
     whole = CalibrationModel(**reference).fit(data)
     assert relative(loaded.model.coef_, whole.coef_) < 1e-12
     assert np.array_equal(loaded.model.input_range_, whole.input_range_)
@@ -99,8 +99,8 @@ def test_streamed_least_squares_matches_numpy_on_the_dense_regressor(files, tmp_
     from sklearn.preprocessing import PolynomialFeatures
 
     assert fit_cli(files, tmp_path / "m.json", "--degree", "2").returncode == 0
-    model = read_model_file(tmp_path / "m.json").model
-    data = read_dataset(files, INPUTS, DEFAULT_OUTPUTS)
+    model = load_model_file(tmp_path / "m.json").model
+    data = load_dataset(files, inputs=INPUTS, outputs=DEFAULT_OUTPUTS)
     # Least squares does not depend on the basis: fit numpy's on inputs centred by hand.
     centred = (data.inputs - data.inputs.mean(axis=0)) / data.inputs.std(axis=0)
     a = PolynomialFeatures(2).fit_transform(centred)
@@ -117,7 +117,7 @@ def test_fingerprints_follow_segments_across_chunks(tmp_path):
     path = tmp_path / "long.parquet"
     frame.to_parquet(path, row_group_size=10_000)
     summary = file_summary(str(path), INPUTS, DEFAULT_OUTPUTS, "seg")
-    data = read_dataset([path], INPUTS, DEFAULT_OUTPUTS, segment_by="seg")
+    data = load_dataset([path], inputs=INPUTS, outputs=DEFAULT_OUTPUTS, segment_by="seg")
     assert summary.fingerprints == segment_fingerprints(data)
     assert summary.segment_lengths == [50_000, CHUNK_ROWS - 50_000, 100_000 - CHUNK_ROWS, n - 100_000]
     assert np.array_equal(summary.input_range, np.c_[u.min(axis=0), u.max(axis=0)])
@@ -128,8 +128,8 @@ def test_fit_on_a_local_cluster_equals_the_local_run(files, tmp_path):
     assert fit_cli(files, tmp_path / "here.json", "--degree", "3").returncode == 0
     result = fit_cli(files, tmp_path / "there.json", "--degree", "3", "--scheduler", "local:2")
     assert result.returncode == 0, result.stderr
-    here = read_model_file(tmp_path / "here.json")
-    there = read_model_file(tmp_path / "there.json")
+    here = load_model_file(tmp_path / "here.json")
+    there = load_model_file(tmp_path / "there.json")
     # The tree sum pairs files in the same order on the cluster, so the statistics are the same bits.
     assert np.array_equal(there.model.coef_, here.model.coef_)
     assert there.training_segments == here.training_segments
@@ -174,7 +174,7 @@ def test_streamed_cross_validation_scores_equal_the_in_memory_ones(tmp_path):
 
     paths = grouped_files(tmp_path)
     summary = tree_reduce([file_summary(p, INPUTS, DEFAULT_OUTPUTS, None, "load") for p in paths], add_statistics)
-    data = read_dataset(paths, INPUTS, DEFAULT_OUTPUTS, group_by="load")
+    data = load_dataset(paths, inputs=INPUTS, outputs=DEFAULT_OUTPUTS, group_by="load")
     # group sizes: 500 rows per load case, the last of each file shorter (hand count)
     assert summary.group_sizes["L0-4"] == 500 and summary.group_sizes["L1-2"] == 200
     assert sum(summary.group_sizes.values()) == 2500 + 1200 + 3100 + 1800
@@ -199,7 +199,7 @@ def test_streamed_arx_cross_validation_equals_the_in_memory_one(tmp_path):
     source = StreamedStatistics(LocalExecutor(), paths, INPUTS, DEFAULT_OUTPUTS, summary, "load")
     template = CalibrationModel(na=1, nb=1)
     streamed = select_model(source, template=template, degrees=(1, 2), lambdas=(0.5, 10.0))
-    memory = select_model(read_dataset(paths, INPUTS, DEFAULT_OUTPUTS, group_by="load"), template=template,
+    memory = select_model(load_dataset(paths, inputs=INPUTS, outputs=DEFAULT_OUTPUTS, group_by="load"), template=template,
                           degrees=(1, 2), lambdas=(0.5, 10.0))
     assert streamed.best == memory.best
     for a, b in zip(streamed.scores, memory.scores, strict=True):
@@ -215,13 +215,13 @@ def test_arx_degree_auto_streams_and_refits_the_winner(tmp_path):
     assert result.returncode == 0, result.stderr
     from ftcal.core.select import fit_best, select_model
 
-    data = read_dataset(paths, INPUTS, DEFAULT_OUTPUTS, group_by="load")
+    data = load_dataset(paths, inputs=INPUTS, outputs=DEFAULT_OUTPUTS, group_by="load")
     template = CalibrationModel(na=1, nb=1)
     # The command's defaults: relative λ, selection per force/torque block.
     result = select_model(data, template=template, penalties=("ridge",), lambdas=(10.0,), relative=True,
                           select_per="block")
     winner = fit_best(data, result, template=template)
-    model = read_model_file(out).model
+    model = load_model_file(out).model
     assert (model.layout_.na, model.layout_.nb) == (1, 1)
     assert model.layout_.basis.degree == winner.layout_.basis.degree
     # ARX Grams are BLAS products whose rounding depends on BLAS's thread count (the command's process and
@@ -232,7 +232,7 @@ def test_arx_degree_auto_streams_and_refits_the_winner(tmp_path):
     there = fit_cli(paths, tmp_path / "there.json", "--degree", "auto", "--na", "1", "--nb", "1", "--group-by",
                     "load", "--lambdas", "10", "--penalties", "ridge", "--scheduler", "local:2")
     assert there.returncode == 0, there.stderr
-    assert relative(read_model_file(tmp_path / "there.json").model.coef_, model.coef_) < 1e-9
+    assert relative(load_model_file(tmp_path / "there.json").model.coef_, model.coef_) < 1e-9
 
 
 def test_degree_auto_streams_and_refits_the_winner(tmp_path):
@@ -243,10 +243,10 @@ def test_degree_auto_streams_and_refits_the_winner(tmp_path):
     assert result.returncode == 0, result.stderr
     from ftcal.core.select import fit_best, select_model
 
-    data = read_dataset(paths, INPUTS, DEFAULT_OUTPUTS, group_by="load")
+    data = load_dataset(paths, inputs=INPUTS, outputs=DEFAULT_OUTPUTS, group_by="load")
     result = select_model(data, penalties=("ridge",), lambdas=(0.5, 10.0), relative=True, select_per="block")
     winner = fit_best(data, result)
-    model = read_model_file(out).model
+    model = load_model_file(out).model
     assert model.layout_.basis.degree == winner.layout_.basis.degree
     assert relative(model.coef_, winner.coef_) < 1e-12
 
@@ -257,5 +257,5 @@ def test_degree_auto_on_a_local_cluster_equals_the_local_run(tmp_path):
     assert fit_cli(paths, tmp_path / "here.json", *options).returncode == 0
     result = fit_cli(paths, tmp_path / "there.json", *options, "--scheduler", "local:2")
     assert result.returncode == 0, result.stderr
-    here, there = read_model_file(tmp_path / "here.json").model, read_model_file(tmp_path / "there.json").model
+    here, there = load_model_file(tmp_path / "here.json").model, load_model_file(tmp_path / "there.json").model
     assert np.array_equal(there.coef_, here.coef_)

@@ -189,7 +189,7 @@ def test_cli_fit_estimate_payload(tmp_path, icub_plate):
     value, err = float(mass_line.split()[1]), float(mass_line.split()[3])
     assert abs(value - PLATE.mass) < 3 * err
     assert "standard errors: grouped jackknife over 20 contiguous blocks of samples" in done.stdout
-    from ftcal.files.model_json import load_model
+    from ftcal.files.model_files import load_model
 
     assert load_model(out).predict(data).shape == (len(y), 6)
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from ftcal.core.conversion import from_raw
-from ftcal.files.model_files import write_model
+from ftcal.files.model_files import save_model
 from ftcal.files.wbd import format_wbd
 from ftcal.runtime.errors import FtcalError
 
@@ -53,7 +53,7 @@ def test_device_formula_reproduces_the_model():
 
 def test_no_temperature_group_without_a_temperature_input(tmp_path):
     model = from_raw(np.vstack([C.T, O]), degree=1, input_names=CHANNELS, output_names=OUTPUTS)
-    path = write_model(model, tmp_path / "wbd.xml", "wbd", sensor="r_arm_ft_sensor")
+    path = save_model(model, tmp_path / "wbd.xml", "wbd", sensor="r_arm_ft_sensor")
     g = groups(path.read_text())
     assert set(g) == {"FT_SECONDARY_CALIBRATION", "FT_OFFSET"}
     np.testing.assert_allclose(g["FT_OFFSET"], -O)
@@ -71,12 +71,12 @@ def test_refusals():
     with pytest.raises(FtcalError, match="not a valid wholeBodyDynamics parameter name"):
         format_wbd(temperature_model(), "r arm")
     with pytest.raises(FtcalError, match="needs the sensor name"):
-        write_model(temperature_model(), "unused.xml", "wbd")
+        save_model(temperature_model(), "unused.xml", "wbd")
 
 
 def test_convert_writes_the_temperature_group(tmp_path, capsys):
     from ftcal.cli import main
-    from ftcal.files.model_json import save_model
+    from ftcal.files.model_files import save_model
 
     path = tmp_path / "affine-t.json"
     save_model(temperature_model(), path)

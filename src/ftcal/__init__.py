@@ -42,7 +42,7 @@ _LAZY = {"FtcalError": "runtime.errors:FtcalError", "FtcalWarning": "runtime.err
          "CalibrationModel": "core.model:CalibrationModel", "Dataset": "core.dataset:Dataset",
          "MonomialBasis": "core.features:MonomialBasis", "RegressorLayout": "core.features:RegressorLayout",
          "n_coefficients": "core.features:n_coefficients", "load_dataset": "data.tables:load_dataset",
-         "load_model": "files.model_files:read_model", "save_model": "files.model_json:save_model"}
+         "load_model": "files.model_files:load_model", "save_model": "files.model_files:save_model"}
 # The steps of the pipeline (ftcal.workflow): build a dataset, fit, evaluate, predict, identify a payload,
 # compensate, check, plan, convert.
 _LAZY.update({name: f"workflow.{module}:{name}" for module, names in (

@@ -267,7 +267,8 @@ def _ignore_further_interrupts() -> None:
 def run(argv: list[str] | None) -> int:
     """:func:`main` without the outermost Ctrl-C catch."""
     from ..runtime.atomic import check_not_an_input, protected_inputs
-    from ..runtime.errors import FtcalError, FtcalWarning, OldSpellingWarning
+    from ..runtime.deprecation import OldSpellingWarning
+    from ..runtime.errors import FtcalError, FtcalWarning
 
     import time
 

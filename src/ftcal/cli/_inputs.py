@@ -18,7 +18,7 @@ def add_inputs_option(parser, help: str, metavar: str = "FX,FY,FZ,TX,TY,TZ") -> 
 
 def inputs_of(args: argparse.Namespace, default=None):
     """``--inputs``, or ``--wrench`` (its old spelling: one notice line), or ``default``."""
-    from ..runtime.errors import old_spelling
+    from ..runtime.deprecation import old_spelling
 
     if args.inputs_old is not None:
         if args.inputs is not None:

@@ -18,9 +18,9 @@ def register(sub) -> None:
 def run(args) -> int:
     import numpy as np
 
-    from ..files.model_files import read_model_file
+    from ..files.model_files import load_model_file
 
-    loaded = read_model_file(args.model)
+    loaded = load_model_file(args.model)
     model = loaded.model
     info = model.describe()
     lam = model.solver_info_.get("lambda")

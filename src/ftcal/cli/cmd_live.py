@@ -147,7 +147,7 @@ def robot_gravity(args, joint_names, where: str):
 
 def build_calibrator(args, robot=None):
     """The :class:`~ftcal.live.LiveCalibrator` the options describe (``robot``: a joints-to-gravity source)."""
-    from ..files.model_files import read_model
+    from ..files.model_files import load_model
     from ..files.payload_json import load_payload
     from ..live import LiveCalibrator
     from ..runtime.errors import FtcalError
@@ -160,7 +160,7 @@ def build_calibrator(args, robot=None):
     mount = args.mount if args.mount is not None else next(iter(tools), "none")
     if mount not in tools and mount != "none":
         raise FtcalError(f"--mount {mount}: no such tool ({', '.join(['none', *tools])}).")
-    model = read_model(args.model) if args.model else None
+    model = load_model(args.model) if args.model else None
     for option in ("walk_std", "noise_std"):
         values = getattr(args, option)
         if values is not None and any(v < 0 for v in values):

@@ -73,8 +73,8 @@ class ModelFamily(Protocol):
                 warn_out_of_range: bool = True) -> Any:
         """Predicted outputs, ndarray of shape (n_samples, n_outputs); ``mode``/``start`` matter for ARX only."""
 
-    def score(self, data: Any, *, mode: str = "one-step", start: str = "zeros", warmup: str = "drop",
-              warn_out_of_range: bool = True) -> dict:
+    def metrics(self, data: Any, *, mode: str = "one-step", start: str = "zeros", warmup: str = "drop",
+                warn_out_of_range: bool = True) -> dict:
         """:func:`ftcal.core.metrics.summarize` of the prediction plus ``n_out_of_range``."""
 
     def out_of_range(self, inputs: Any) -> Any:
@@ -131,8 +131,8 @@ def family_class(name: str, source: str = "model") -> type:
                          f"{', '.join(FAMILIES)}.") from None
     module, _, attribute = dotted.partition(":")
     cls = getattr(importlib.import_module(module), attribute)
-    missing = [m for m in ("family", "exports", "streams", "fit", "predict", "score", "out_of_range", "describe",
-                           "label", "to_document", "from_document") if not hasattr(cls, m)]
+    missing = [m for m in ("family", "exports", "streams", "fit", "predict", "metrics", "out_of_range",
+                           "describe", "label", "to_document", "from_document") if not hasattr(cls, m)]
     if missing or cls.family != name:
         raise FtcalError(f"Model family {name!r} ({dotted}) does not follow ModelFamily: "
                          + (f"it lacks {', '.join(missing)}." if missing else f"its family is {cls.family!r}."))

@@ -156,13 +156,13 @@ class MLPModel(EstimatorParams):
             "seed": check_int(self.seed, "seed", owner, 0, 2**32 - 1),
         }
 
-    def fit(self, data: Dataset | np.ndarray, outputs: np.ndarray | None = None) -> "MLPModel":
-        """Fit on a :class:`Dataset` (or an inputs array plus ``outputs``), early stopping on its groups.
+    def fit(self, data: Dataset | np.ndarray, y: np.ndarray | None = None) -> "MLPModel":
+        """Fit on a :class:`Dataset` (or an inputs array plus its outputs ``y``), early stopping on its groups.
 
         Parameters
         ----------
         data : Dataset, or ndarray of shape (n_samples, n_inputs)
-        outputs : ndarray of shape (n_samples, n_outputs), optional
+        y : ndarray of shape (n_samples, n_outputs), optional, the outputs when ``data`` is an array
 
         Returns
         -------
@@ -175,9 +175,10 @@ class MLPModel(EstimatorParams):
             Invalid parameters, data without outputs.
         """
         options = self._checked()
-        data = as_dataset(data, outputs)
+        data = as_dataset(data, y)
         if data.outputs is None:
-            raise FtcalError("Fitting needs reference outputs (the expected wrench); the data has none.")
+            raise FtcalError("Fitting needs reference outputs (the expected wrench); the data has none: the model "
+                             "requires y to be passed, but the target y is None.")
         u, y = data.inputs, data.outputs
         in_norm = normalization_from_range(u.min(axis=0), u.max(axis=0), "center")
         out_norm = normalization_from_range(y.min(axis=0), y.max(axis=0), "center")
@@ -202,7 +203,7 @@ class MLPModel(EstimatorParams):
         self.solver_info_ = {"name": SOLVER_NAME, "lambda": None, "weight_decay": options["weight_decay"],
                              "iterations": int(self.n_iter_)}
         self.training_metrics_ = {}
-        self.training_metrics_ = self.score(data, warn_out_of_range=False)
+        self.training_metrics_ = self.metrics(data, warn_out_of_range=False)
         return self
 
     def _early_stopping(self, data: Dataset, x: np.ndarray, t: np.ndarray, out_norm: Normalization,
@@ -252,7 +253,7 @@ class MLPModel(EstimatorParams):
         ndarray of shape (n_samples, n_outputs)
         """
         self._check_fitted()
-        data = as_dataset(data, None, self.input_names_)
+        data = as_dataset(data, None, self.input_names_, type(self).__name__)
         u = check_finite_matrix(data.select_inputs(self.input_names_), "inputs", len(self.input_names_),
                                 self.input_names_)
         if warn_out_of_range:  # one message, how far on which channel (as the polynomial family says it)
@@ -264,7 +265,7 @@ class MLPModel(EstimatorParams):
             return out.offset + out.scale * _forward(self.input_normalization_.apply(u),
                                                      (self.weights_, self.biases_), self.activation)
 
-    def score(self, data: Dataset, *, mode: str = "one-step", start: str = "zeros", warmup: str = "drop",
+    def metrics(self, data: Dataset, *, mode: str = "one-step", start: str = "zeros", warmup: str = "drop",
               warn_out_of_range: bool = True) -> dict:
         """:func:`ftcal.core.metrics.summarize` of the prediction on ``data`` plus ``n_out_of_range``."""
         self._check_fitted()

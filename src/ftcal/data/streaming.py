@@ -165,7 +165,7 @@ def _group_rows(path: str, chunk, group_by: str | None) -> dict:
 
 
 def _group_counts(path: str, chunk, group_by: str | None) -> dict[str, int]:
-    """Rows of ``chunk`` per group label, labelled as :func:`ftcal.data.tables.read_dataset` does (str)."""
+    """Rows of ``chunk`` per group label, labelled as :func:`ftcal.data.tables.load_dataset` does (str)."""
     if group_by is None:
         return {str(Path(path)): chunk.n_rows}
     labels, counts = np.unique(chunk.labels[group_by].astype(str), return_counts=True)
@@ -296,10 +296,10 @@ def file_layout_statistics(path: str, layout: RegressorLayout, in_norm: Normaliz
     """
     if layout.is_static:
         return [file_statistics(path, layout.basis, in_norm, inputs, outputs)]
-    from .tables import read_dataset
+    from .tables import load_dataset
 
-    return segment_statistics(read_dataset([path], inputs, outputs, segment_by=segment_by), layout, in_norm,
-                              out_norm)
+    return segment_statistics(load_dataset([path], inputs=inputs, outputs=outputs, segment_by=segment_by), layout,
+                              in_norm, out_norm)
 
 
 def file_statistics_and_poses(path: str, basis: MonomialBasis, normalization: Normalization,
@@ -357,9 +357,9 @@ def file_fold_statistics(path: str, layout: RegressorLayout, in_norm: Normalizat
     -------
     list of ``n_folds`` lists of SufficientStatistics (empty for a fold without rows here)
     """
-    from .tables import read_dataset
+    from .tables import load_dataset
 
-    data = read_dataset([path], inputs, outputs, segment_by=segment_by, group_by=group_by)
+    data = load_dataset([path], inputs=inputs, outputs=outputs, segment_by=segment_by, group_by=group_by)
     sample_fold = np.array([fold_of[g] for g in np.asarray(data.groups, dtype=str)])
     return [segment_statistics(data.subset(sample_fold == f), layout, in_norm, out_norm)
             if np.any(sample_fold == f) else [] for f in range(n_folds)]
@@ -440,7 +440,7 @@ def file_error_sums(path: str, model, fingerprints: Sequence[dict] = (), mode: s
     Static models read the file chunk by chunk. ARX models read it whole and
     give a pair: the sums for ``mode`` and for the other prediction mode,
     without the first max(na, nb) rows of each segment when ``warmup`` is
-    ``"drop"`` (as :meth:`CalibrationModel.score`); None when no row is left.
+    ``"drop"`` (as :meth:`CalibrationModel.metrics`); None when no row is left.
     ``fingerprints`` (the model file's training segments) found whole inside
     this file are reported in ``training_segments``.
     """
@@ -464,7 +464,7 @@ def file_error_sums(path: str, model, fingerprints: Sequence[dict] = (), mode: s
             ranges = RangeSums.of(inputs, model.input_range_, outputs, prediction, model.output_names_,
                                   outside_span=span_of(model, inputs), loads=outputs,
                                   output_range=getattr(model, "output_range_", None))
-            # outside the range or its span: CalibrationModel.score's n_out_of_range
+            # outside the range or its span: CalibrationModel.metrics' n_out_of_range
             return ErrorSums.of(outputs, prediction, model.output_names_, ranges.n_out + ranges.n_span, ranges)
 
         # Overflowing predictions give inf/NaN metrics, which the command refuses in one line.
@@ -482,9 +482,9 @@ def file_error_sums(path: str, model, fingerprints: Sequence[dict] = (), mode: s
 
 def _arx_error_sums(path: str, model, fingerprints: Sequence[dict], mode: str, start: str, warmup: str,
                     segment_by: str | None, count_poses: bool = False) -> tuple[ErrorSums, ErrorSums] | None:
-    from .tables import read_dataset
+    from .tables import load_dataset
 
-    data = read_dataset([path], model.input_names_, model.output_names_, segment_by=segment_by)
+    data = load_dataset([path], inputs=model.input_names_, outputs=model.output_names_, segment_by=segment_by)
     rows = np.ones(data.n_samples, dtype=bool)
     if warmup == "drop":
         for a, b in data.segment_bounds():
@@ -613,12 +613,12 @@ def _predictions(path: str, model, mode: str, segment_by: str | None, start: str
             for chunk in iter_table_chunks(path, model.input_names_):
                 yield chunk.first_row, chunk.inputs, model.predict(chunk.inputs, warn_out_of_range=False)
             return
-        from .tables import read_dataset
+        from .tables import load_dataset
 
         # Measured outputs: one-step needs them; a "measured" free-run start uses them when the file has them.
         wants_outputs = mode == "one-step" or (start == "measured" and table_has_columns(path, model.output_names_))
-        data = read_dataset([path], model.input_names_, model.output_names_ if wants_outputs else None,
-                            segment_by=segment_by)
+        data = load_dataset([path], inputs=model.input_names_,
+                            outputs=model.output_names_ if wants_outputs else None, segment_by=segment_by)
         yield 0, data.inputs, model.predict(data, mode=mode, start=start, warn_out_of_range=False)
 
 

@@ -1,7 +1,7 @@
 """CSV and Parquet tables read chunk by chunk (Parquet record batches, CSV blocks).
 
 Memory stays at one chunk whatever the file size. Each chunk is checked like a
-whole-table read (:func:`ftcal.data.tables.read_dataset`): the file's header
+whole-table read (:func:`ftcal.data.tables.load_dataset`): the file's header
 first (repeated names, missing columns), then every chunk's cells (not a
 number, boolean or date, empty, NaN or infinite), naming the file, column and
 row. Numeric columns of a CSV are read as float64 from the start, so a column

@@ -19,7 +19,8 @@ from ..core.columns import LOAD_COLUMN, OLD_LOAD_COLUMN
 from ..core.dataset import DEFAULT_INPUTS, DEFAULT_OUTPUTS, Dataset, concatenate
 from ..core.limits import MAX_CELL_MAGNITUDE, MAX_HEADER_BYTES, MAX_TABLE_COLUMNS
 from ..runtime.atomic import atomic_path
-from ..runtime.errors import FtcalError, old_spelling
+from ..runtime.deprecation import deprecated_alias, old_spelling
+from ..runtime.errors import FtcalError
 from ..runtime.inputs import check_input_file
 from .parquet_checks import FooterCheck, locate_unreadable
 
@@ -361,14 +362,10 @@ def _labels(table, column: str | None, path: Path, role: str) -> np.ndarray | No
     return np.asarray(values.to_pylist(), dtype=object)
 
 
-def read_dataset(paths: Sequence[str | os.PathLike], inputs: Sequence[str], outputs: Sequence[str] | None,
+def _read_tables(paths: Sequence[str | os.PathLike], inputs: Sequence[str], outputs: Sequence[str] | None,
                  *, segment_by: str | None = None, group_by: str | None = None,
                  require_outputs: bool = True) -> Dataset:
-    """Read tables into one :class:`Dataset`.
-
-    ``outputs=None`` or ``require_outputs=False`` with absent output columns
-    gives a dataset without outputs (for prediction).
-    """
+    """Read tables into one :class:`Dataset` (:func:`load_dataset` with its columns chosen)."""
     if not paths:
         raise FtcalError("No data files given.")
     group_by = label_column(paths, group_by)
@@ -398,7 +395,7 @@ def read_dataset(paths: Sequence[str | os.PathLike], inputs: Sequence[str], outp
 
 def load_dataset(path: str | os.PathLike | Sequence[str | os.PathLike], *, inputs: Sequence[str] | None = None,
                  outputs: Sequence[str] | None = DEFAULT_OUTPUTS, segment_by: str | None = None,
-                 group_by: str | None = None) -> Dataset:
+                 group_by: str | None = None, require_outputs: bool = True) -> Dataset:
     """Read CSV or Parquet file(s) (docs/formats.md) into a :class:`Dataset`, as ``ftcal fit DATA`` does.
 
     Parameters
@@ -408,6 +405,8 @@ def load_dataset(path: str | os.PathLike | Sequence[str | os.PathLike], *, input
     inputs : input columns; default ``u1..u6,T``, or ``u1..u6`` when the first file has no ``T``
     outputs : reference output columns (default ``Fx..Tz``); None for inputs only
     segment_by, group_by : columns whose values name segments and validation groups
+    require_outputs : with False, tables without the output columns give a dataset without outputs
+        (for prediction); ``outputs=None`` always does
 
     Returns
     -------
@@ -427,12 +426,19 @@ def load_dataset(path: str | os.PathLike | Sequence[str | os.PathLike], *, input
     >>> u = np.linspace(0.0, 1.0, 20)
     >>> pd.DataFrame({"u1": u, "Fx": 2.0 * u + 1.0}).to_csv(folder / "table.csv", index=False)
     >>> data = load_dataset(folder / "table.csv", inputs=["u1"], outputs=["Fx"])
-    >>> save_model(CalibrationModel(1).fit(data), folder / "model.json")
+    >>> _ = save_model(CalibrationModel(1).fit(data), folder / "model.json")
     >>> round(float(load_model(folder / "model.json").predict(np.array([[0.5]]))[0, 0]), 9)
     2.0
     """
     paths = [path] if isinstance(path, (str, os.PathLike)) or not isinstance(path, Sequence) else list(path)
-    return read_dataset(paths, inputs or default_inputs(paths), outputs, segment_by=segment_by, group_by=group_by)
+    if not paths:
+        raise FtcalError("No data files given.")
+    return _read_tables(paths, inputs or default_inputs(paths), outputs, segment_by=segment_by, group_by=group_by,
+                        require_outputs=require_outputs)
+
+
+# The old name, one release (runtime.deprecation): its columns were positional.
+read_dataset = deprecated_alias(_read_tables, "ftcal.data.tables.read_dataset", "ftcal.load_dataset")
 
 
 def _segment_ids(labels: np.ndarray | None, n: int, breaks: np.ndarray | None = None) -> np.ndarray:

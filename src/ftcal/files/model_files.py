@@ -1,4 +1,11 @@
-"""One entry point for model files: read by content, write by format name (``ftcal convert``)."""
+"""One entry point for model files: read by content (:func:`load_model`, ``ftcal.load_model``), write by
+format name (:func:`save_model`, ``ftcal.save_model``; ``ftcal convert``).
+
+``load``/``save`` name these entry points (every format); ``read_<format>``/``write_<format>`` name one
+format's reader and writer (:func:`~ftcal.files.model_json.read_model_json`,
+:func:`~ftcal.files.paper_xml.write_paper_xml`, ...). The old names ``read_model``, ``read_model_file``
+and ``write_model`` stay one release, with a DeprecationWarning.
+"""
 
 from __future__ import annotations
 
@@ -8,9 +15,10 @@ from pathlib import Path
 
 from ..core.families import ModelFamily, check_export
 from ..runtime.checks import check_choice
+from ..runtime.deprecation import deprecated_alias
 from ..runtime.errors import FtcalError
 from .firmware import firmware_filename, write_firmware_matrix
-from .model_json import ModelFile, check_model_size, load_model_file, save_model
+from .model_json import ModelFile, check_model_size, read_model_json, write_model_json
 from .paper_xml import read_paper_xml, write_paper_xml
 from .wbd import write_wbd
 
@@ -18,10 +26,24 @@ WRITE_FORMATS = ("json", "paper-xml", "icub-firmware", "wbd")
 _SNIFF_BYTES = 512
 
 
-def read_model(path: str | Path) -> ModelFamily:
+def load_model(path: str | Path) -> ModelFamily:
     """A model from a native JSON (any registered family) or a paper XML file, told apart by content.
 
     This is ``ftcal.load_model``: it reads every model file the ``ftcal`` commands read.
+
+    Parameters
+    ----------
+    path : str or Path
+
+    Returns
+    -------
+    ModelFamily
+        A fitted model (:class:`~ftcal.core.model.CalibrationModel` for polynomials).
+
+    Raises
+    ------
+    FtcalError
+        Not a model file, or a file that is wrong somewhere (the message says where).
 
     Examples
     --------
@@ -35,11 +57,11 @@ def read_model(path: str | Path) -> ModelFamily:
     >>> round(float(load_model(path).predict(np.array([[4.0]]))[0, 0]), 9)
     9.0
     """
-    return read_model_file(path).model
+    return load_model_file(path).model
 
 
-def read_model_file(path: str | Path) -> ModelFile:
-    """Like :func:`read_model`, with units and sources (empty for paper XML, which has none)."""
+def load_model_file(path: str | Path) -> ModelFile:
+    """Like :func:`load_model`, with units and sources (empty for paper XML, which has none)."""
     path = Path(path)
     check_model_size(path)
     try:
@@ -49,7 +71,7 @@ def read_model_file(path: str | Path) -> ModelFile:
         raise FtcalError(f"Cannot read model file {path}: {exc.strerror}.") from None
     first = head.lstrip(b"\xef\xbb\xbf \t\r\n")[:1]
     if first == b"{":
-        return load_model_file(path)
+        return read_model_json(path)
     if first == b"<":
         model = read_paper_xml(path)
         return ModelFile(model, (None,) * len(model.input_names_), (None,) * len(model.output_names_),
@@ -58,25 +80,59 @@ def read_model_file(path: str | Path) -> ModelFile:
                      "(expected '{' or '<' as the first character).")
 
 
-def write_model(model: ModelFamily, path: str | Path, fmt: str, *, sources: Sequence[str] = (),
-                input_units: Sequence[str | None] | None = None,
-                output_units: Sequence[str | None] | None = None,
-                serial: str | None = None, sensor: str | None = None) -> Path:
-    """Write ``model`` in format ``fmt`` (one of :data:`WRITE_FORMATS`); returns the path written.
+def save_model(model: ModelFamily, path: str | Path, fmt: str = "json", *, sources: Sequence[str] = (),
+               input_units: Sequence[str | None] | None = None,
+               output_units: Sequence[str | None] | None = None,
+               training_segments: Sequence[dict] | None = None, prior: str | Path | None = None,
+               serial: str | None = None, sensor: str | None = None) -> Path:
+    """Write ``model`` in format ``fmt`` (one of :data:`WRITE_FORMATS`, atomically); returns the path written.
 
-    ``sources`` and the units go into JSON files (``icub-firmware`` checks the input
-    units are ADC counts). For ``icub-firmware`` a
-    directory ``path`` gets ``matrix_<serial>.txt`` inside it. ``wbd`` needs the
-    ``sensor`` name used in the wholeBodyDynamics configuration.
+    This is ``ftcal.save_model``; the default is the native JSON model file (versioned schema,
+    sha256 digest, every float exact).
+
+    Parameters
+    ----------
+    model : a fitted model of a registered family
+    path : file to write; for ``icub-firmware`` a directory gets ``matrix_<serial>.txt`` inside it
+    fmt : {"json", "paper-xml", "icub-firmware", "wbd"}
+    sources, input_units, output_units : recorded in JSON files (``icub-firmware`` checks the input
+        units are ADC counts)
+    training_segments, prior : JSON only; see :func:`ftcal.files.model_json.write_model_json`
+    serial : sensor serial, naming the firmware matrix file in a directory
+    sensor : the sensor name used in the wholeBodyDynamics configuration (``wbd``)
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    FtcalError
+        An unknown format, one the model's family cannot be written to, or a missing serial/sensor.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> import numpy as np
+    >>> from ftcal import CalibrationModel, load_model, save_model
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> model = CalibrationModel(1).fit(np.array([[0.0], [1.0], [2.0]]), np.array([[1.0], [3.0], [5.0]]))
+    >>> save_model(model, folder / "model.json").name, save_model(model, folder / "model.xml", "paper-xml").name
+    ('model.json', 'model.xml')
+    >>> round(float(load_model(folder / "model.json").predict(np.array([[1.5]]))[0, 0]), 9)
+    4.0
     """
-    check_choice(fmt, "fmt", "write_model", WRITE_FORMATS)
+    check_choice(fmt, "fmt", "save_model", WRITE_FORMATS)
     check_export(model, fmt)
     folder = str(path).endswith(("/", os.sep))  # "-o firmware/": a folder, made if missing
     path = Path(path)
     if path.is_dir() and fmt != "icub-firmware":
         raise FtcalError(f"{path} is a directory; give the path of the {fmt} file to write.")
     if fmt == "json":
-        save_model(model, path, sources=sources, input_units=input_units, output_units=output_units)
+        write_model_json(model, path, sources=sources, input_units=input_units, output_units=output_units,
+                         training_segments=training_segments, prior=prior)
+    elif training_segments is not None or prior is not None:
+        raise FtcalError(f"save_model: training_segments and prior are fields of the JSON model file, not of {fmt}.")
     elif fmt == "paper-xml":
         write_paper_xml(model, path)
     elif fmt == "icub-firmware":
@@ -92,3 +148,10 @@ def write_model(model: ModelFamily, path: str | Path, fmt: str, *, sources: Sequ
                              "(such as r_arm_ft_sensor).")
         write_wbd(model, path, sensor)
     return path
+
+
+# The old names, one release (runtime.deprecation).
+read_model = deprecated_alias(load_model, "ftcal.files.model_files.read_model", "ftcal.load_model")
+read_model_file = deprecated_alias(load_model_file, "ftcal.files.model_files.read_model_file",
+                                   "ftcal.files.model_files.load_model_file")
+write_model = deprecated_alias(save_model, "ftcal.files.model_files.write_model", "ftcal.save_model")

@@ -1,6 +1,6 @@
 """Writers for the native model formats (JSON, paper XML, firmware, WBD), in the registry's writer contract.
 
-Each adapter hands a loaded model file to :func:`ftcal.files.model_files.write_model`
+Each adapter hands a loaded model file to :func:`ftcal.files.model_files.save_model`
 with the options its format uses.
 """
 
@@ -9,14 +9,14 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from .model_files import write_model
+from .model_files import save_model
 from .model_json import ModelFile
 from .targets import ConvertOptions, Written
 
 
 def write_json(source: ModelFile, output: Path, options: ConvertOptions) -> Written:
     """Native JSON, keeping units and data sources (the input file when it lists none)."""
-    return Written((write_model(source.model, output, "json",
+    return Written((save_model(source.model, output, "json",
                                 sources=source.sources or (str(options.input_path),),
                                 input_units=source.input_units, output_units=source.output_units),))
 
@@ -46,10 +46,10 @@ def write_paper_xml(source: ModelFile, output: Path, options: ConvertOptions) ->
 def write_icub_firmware(source: ModelFile, output: Path, options: ConvertOptions) -> Written:
     """``matrix_<serial>.txt`` (``output`` a file, or a directory plus ``serial``)."""
     target = f"{output}{os.sep}" if options.output_is_folder else output
-    return Written((write_model(source.model, target, "icub-firmware", serial=options.get("serial"),
+    return Written((save_model(source.model, target, "icub-firmware", serial=options.get("serial"),
                                 input_units=source.input_units),))
 
 
 def write_wbd(source: ModelFile, output: Path, options: ConvertOptions) -> Written:
     """wholeBodyDynamics groups for ``sensor``."""
-    return Written((write_model(source.model, output, "wbd", sensor=options.get("sensor")),))
+    return Written((save_model(source.model, output, "wbd", sensor=options.get("sensor")),))

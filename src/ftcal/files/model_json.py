@@ -27,6 +27,7 @@ from ..core.families import DEFAULT_FAMILY, ModelFamily, family_class, family_of
 from ..core.limits import MAX_MODEL_BYTES
 from ..core.normalization import Normalization
 from ..runtime.atomic import write_text_atomic
+from ..runtime.deprecation import deprecated_alias
 from ..runtime.errors import FtcalError
 from ..runtime.inputs import check_input_file
 
@@ -55,11 +56,11 @@ class ModelFile:
 
 
 # ---------------------------------------------------------------- writing
-def save_model(model: ModelFamily, path: str | Path, *, sources: Sequence[str] = (),
-               input_units: Sequence[str | None] | None = None,
-               output_units: Sequence[str | None] | None = None,
-               training_segments: Sequence[dict] | None = None, prior: str | Path | None = None) -> None:
-    """Write ``model`` to ``path`` as a native JSON model file (atomically).
+def write_model_json(model: ModelFamily, path: str | Path, *, sources: Sequence[str] = (),
+                     input_units: Sequence[str | None] | None = None,
+                     output_units: Sequence[str | None] | None = None,
+                     training_segments: Sequence[dict] | None = None, prior: str | Path | None = None) -> None:
+    """Write ``model`` to ``path`` as a native JSON model file (atomically); ``ftcal.save_model``'s default format.
 
     ``training_segments``: :func:`ftcal.core.fingerprint.segment_fingerprints` of the training
     data, so that ``ftcal evaluate`` can warn about evaluation data the model was trained on.
@@ -69,10 +70,11 @@ def save_model(model: ModelFamily, path: str | Path, *, sources: Sequence[str] =
     --------
     >>> import pathlib, tempfile
     >>> import numpy as np
-    >>> from ftcal import CalibrationModel, load_model, save_model
+    >>> from ftcal import CalibrationModel
     >>> path = pathlib.Path(tempfile.mkdtemp()) / "model.json"
-    >>> save_model(CalibrationModel(1).fit(np.array([[0.0], [1.0], [2.0]]), np.array([[1.0], [3.0], [5.0]])), path)
-    >>> load_model(path).n_coefficients
+    >>> write_model_json(CalibrationModel(1).fit(np.array([[0.0], [1.0], [2.0]]), np.array([[1.0], [3.0], [5.0]])),
+    ...                  path)
+    >>> read_model_json(path).model.n_coefficients
     2
     """
     write_text_atomic(path, format_document(model_document(model, sources=sources, input_units=input_units,
@@ -84,7 +86,7 @@ def model_document(model: ModelFamily, *, sources: Sequence[str] = (),
                    input_units: Sequence[str | None] | None = None,
                    output_units: Sequence[str | None] | None = None,
                    training_segments: Sequence[dict] | None = None, prior: str | Path | None = None) -> dict:
-    """The model file content as a JSON-ready dict, digest included (see :func:`save_model`).
+    """The model file content as a JSON-ready dict, digest included (see :func:`write_model_json`).
 
     The envelope (inputs, outputs, training metrics, creation data, digest) is the same for
     every family; the family adds its own fields (:meth:`ModelFamily.to_document`).
@@ -187,11 +189,6 @@ def _format(value, depth: int) -> str:
 
 
 # ---------------------------------------------------------------- reading
-def load_model(path: str | Path) -> ModelFamily:
-    """Read a native JSON model file; raises :class:`FtcalError` saying what is wrong and where."""
-    return load_model_file(path).model
-
-
 def check_model_size(path: Path, kind: str = "model") -> None:
     """Refuse a ``kind`` file larger than :data:`MAX_MODEL_BYTES` before reading it."""
     check_input_file(path, f"{kind} file", max_bytes=MAX_MODEL_BYTES)
@@ -208,8 +205,16 @@ def read_document_text(path: Path, kind: str = "model") -> str:
         raise FtcalError(f"Cannot read {kind} file {path}: {exc.strerror}.") from None
 
 
-def load_model_file(path: str | Path) -> ModelFile:
-    """Like :func:`load_model`, also returning units, data sources and creation metadata."""
+def read_model_json(path: str | Path) -> ModelFile:
+    """Read a native JSON model file: the model, its units, data sources and creation metadata.
+
+    ``ftcal.load_model`` reads this format and the others, told apart by content.
+
+    Raises
+    ------
+    FtcalError
+        Saying what is wrong and where.
+    """
     path = Path(path)
     return parse_model(read_document_text(path), str(path))
 
@@ -430,3 +435,13 @@ def _check_finite_over_training_range(model: ModelFamily, doc: dict, source: str
     if not np.isfinite(predicted).all():
         raise FtcalError(f"{source}: the model's prediction overflows (inf or NaN) inside its own training range; "
                          "its coefficients or normalization are not those of a fitted model.")
+
+
+# The old names, one release (runtime.deprecation); the entry points read and write every format.
+save_model = deprecated_alias("ftcal.files.model_files:save_model", "ftcal.files.model_json.save_model",
+                              "ftcal.save_model")
+load_model = deprecated_alias("ftcal.files.model_files:load_model", "ftcal.files.model_json.load_model",
+                              "ftcal.load_model")
+load_model_file = deprecated_alias("ftcal.files.model_files:load_model_file",
+                                   "ftcal.files.model_json.load_model_file",
+                                   "ftcal.files.model_files.load_model_file")

@@ -109,7 +109,7 @@ FAMILY_WRITERS: dict[tuple[str, str], str] = {
 other families use the target's. A family lists the targets it accepts in its ``exports``."""
 
 INPUT_READERS: dict[str, str] = {
-    MODEL: "ftcal.files.model_files:read_model_file",
+    MODEL: "ftcal.files.model_files:load_model_file",
     PAYLOAD: "ftcal.files.payload_json:load_payload",
 }
 

@@ -168,7 +168,7 @@ class LiveCalibrator:
     Parameters
     ----------
     model : a static calibration model (any registered family, e.g. from
-        :func:`ftcal.files.model_json.load_model`) or None when the samples are wrenches already
+        :func:`ftcal.load_model`) or None when the samples are wrenches already
     tools : mapping of name → :class:`~ftcal.payload.parameters.PayloadParameters` (or a payload-file path);
         the library; ``"none"`` (no tool) is always there
     tool : the tool mounted at the start

@@ -29,8 +29,8 @@ class ModelRun:
     ----------
     name : label in tables and legends, e.g. ``"np4"`` or ``"np4 λ=50"``
     model : a fitted model of any family (:class:`~ftcal.core.families.ModelFamily`)
-    train_metrics : ``model.score(train)`` style dict, or None
-    validation_metrics : ``model.score(validation)`` style dict
+    train_metrics : ``model.metrics(train)`` style dict, or None
+    validation_metrics : ``model.metrics(validation)`` style dict
     validation_prediction : ndarray of shape (n_validation, n_outputs), columns in
         ``model.output_names_`` order
     """
@@ -71,10 +71,10 @@ def evaluate(model: ModelFamily, validation: Dataset, *, name: str | None = None
     Samples outside the training range are counted (``n_out_of_range`` in the
     metrics, a column of the report) instead of warned about.
     """
-    validation_metrics = model.score(validation, warn_out_of_range=False)
+    validation_metrics = model.metrics(validation, warn_out_of_range=False)
     # The prediction the metrics score: one-step for ARX models (the paper's evaluation).
     prediction = model.predict(validation, mode="one-step", warn_out_of_range=False)
-    train_metrics = None if train is None else model.score(train, warn_out_of_range=False)
+    train_metrics = None if train is None else model.metrics(train, warn_out_of_range=False)
     return ModelRun(name or default_name(model), model, train_metrics, validation_metrics, prediction)
 
 

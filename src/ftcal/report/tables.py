@@ -2,7 +2,7 @@
 
 Numbers are formatted by :func:`format_metric` (errors, 4 decimals) and
 :func:`format_percent` (BestFit), so a reader can compare them with
-``model.score(...)`` output directly.
+``model.metrics(...)`` output directly.
 """
 
 from __future__ import annotations

@@ -45,7 +45,8 @@ from pathlib import Path
 from typing import Any
 
 from ..core.limits import MAX_TEXT_FILE_BYTES
-from ..runtime.errors import FtcalError, old_spelling
+from ..runtime.deprecation import old_spelling
+from ..runtime.errors import FtcalError
 from ..runtime.inputs import check_input_file
 from .payloads import Payload
 

@@ -152,7 +152,7 @@ def _mlp_row(_, model, val_metrics, __) -> dict:
 def _write_artifacts(out_dir: Path, runs, train: Dataset, validation: Dataset, mlp=None) -> None:
     """Models as JSON and the two datasets as Parquet, to try `ftcal fit/evaluate/report` on."""
     from ..core.fingerprint import segment_fingerprints
-    from ..files.model_json import save_model
+    from ..files.model_files import save_model
     from ..insitu.recordings import write_dataset
 
     fingerprints = segment_fingerprints(train)

@@ -15,9 +15,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..core.limits import HOLD_SAMPLE_RATE, MAX_COM_DISTANCE, MAX_FORCE_ERROR, MAX_TORQUE_ERROR
-from ..runtime.errors import FtcalError, renamed_keyword
+from ..runtime.deprecation import renamed_keyword
+from ..runtime.errors import FtcalError
 from .result import StepResult
-from .sources import DEFAULT_WRENCH, gravity_source, paths_of, source_options
+from .sources import DEFAULT_WRENCH, gravity_source, reads_tables, source_options
 
 MAX_POSES_PRINTED = 8
 
@@ -74,6 +75,7 @@ class CheckResult(StepResult):
         return plain(out)
 
 
+@reads_tables()
 def check_sensor(data, *, accept=None, inputs: Sequence[str] = DEFAULT_WRENCH, group_by: str | None = None,
           rate: float = HOLD_SAMPLE_RATE, reaction: bool = False, max_com_distance: float = MAX_COM_DISTANCE,
           html=None, payload_json=None, max_force_error: float | None = None,
@@ -84,7 +86,10 @@ def check_sensor(data, *, accept=None, inputs: Sequence[str] = DEFAULT_WRENCH, g
 
     Parameters
     ----------
-    data : path or list of paths, CSV or Parquet recordings
+    data : path, list of paths, DataFrame, list or dict of DataFrames, or Dataset
+        CSV or Parquet recordings, or the same tables in memory (as
+        :func:`ftcal.workflow.payload.identify_payload`). There is no ``executor``: the holds are read in
+        this process (``ftcal check`` has no ``--scheduler``).
     accept : path of a calibration model to test on ``data``, or None for the conventions check
     inputs, reaction, rate, max_com_distance : the conventions check's wrench columns (``wrench=``, the old
         spelling, still works), declared sign, sample rate without a time column (Hz), and farthest plausible
@@ -125,7 +130,6 @@ def check_sensor(data, *, accept=None, inputs: Sequence[str] = DEFAULT_WRENCH, g
     (True, 1.2)
     """
     wrench = renamed_keyword(source, "wrench", "inputs", inputs, DEFAULT_WRENCH)
-    paths = paths_of(data)
     options = source_options(source, "check")
     if html is not None:
         from ..runtime.atomic import check_not_an_input
@@ -138,7 +142,7 @@ def check_sensor(data, *, accept=None, inputs: Sequence[str] = DEFAULT_WRENCH, g
                               ("rated_torque", rated_torque), ("history_dir", history_dir)):
             if value is not None:
                 raise FtcalError(f"--{option.replace('_', '-')} goes with --accept MODEL.")
-        return _conventions(paths, options, wrench=wrench, group_by=group_by, rate=rate, reaction=reaction,
+        return _conventions(data, options, wrench=wrench, group_by=group_by, rate=rate, reaction=reaction,
                             max_com_distance=max_com_distance, html=html)
     # Options of the conventions mode that an acceptance test does not use are refused, not ignored.
     for option, given in (("--inputs", tuple(wrench) != DEFAULT_WRENCH), ("--reaction", reaction),
@@ -154,18 +158,19 @@ def check_sensor(data, *, accept=None, inputs: Sequence[str] = DEFAULT_WRENCH, g
             if given is not None:
                 raise FtcalError(f"{option} goes with --payload-json (the reference from a payload file); without "
                                  "it the reference is DATA's output columns.")
-    return _acceptance(paths, accept, options, group_by=group_by, html=html, payload_json=payload_json,
+    return _acceptance(data, accept, options, group_by=group_by, html=html, payload_json=payload_json,
                        limits=(max_force_error, max_torque_error, max_error_percent, rated_force, rated_torque),
                        serial=serial, history_dir=history_dir)
 
 
-def _conventions(paths, options, *, wrench, group_by, rate, reaction, max_com_distance, html) -> CheckResult:
+def _conventions(tables, options, *, wrench, group_by, rate, reaction, max_com_distance, html) -> CheckResult:
     from ..check.conventions import check_conventions, read_holds
 
+    paths, names = tables.paths, tables.sources
     holds = read_holds(paths, gravity_source(options), wrench=wrench, group_by=group_by, reaction=reaction,
                        time=options["time"], rate=rate)
     report = check_conventions(holds, wrench_columns=tuple(wrench), max_com_distance=max_com_distance,
-                               source=", ".join(paths))
+                               source=", ".join(names))
     force, torque = report.residual
     lines = [f"{holds.n_holds} static holds; payload-fit residual RMS as declared {force:.4g} N, {torque:.4g} N·m; "
              f"tool mass {report.mass:.4g} ± {report.mass_stderr:.2g} kg (with the fixes below; a constant bias: "
@@ -179,14 +184,14 @@ def _conventions(paths, options, *, wrench, group_by, rate, reaction, max_com_di
         lines.append(f"  fix: {fix}")
         lines.append(f"  residual RMS before {f.before[0]:.4g} N, {f.before[1]:.4g} N·m; after {f.after[0]:.4g} N, "
                      f"{f.after[1]:.4g} N·m")
-    lines += [f"note: {note}" for note in report.notes]
+    lines += [f"note: {tables.named(note)}" for note in report.notes]
     if not report.findings:
         lines.append("no finding: sign, axes, frame, zeroing and torque reference look as declared")
     written = []
     if html is not None:
         from ..check.page import conventions_page
 
-        conventions_page(report, html, source=", ".join(paths))
+        conventions_page(report, html, source=", ".join(names))
         written.append(str(html))
     return CheckResult("conventions", not report.findings, report, lines, written)
 
@@ -222,16 +227,17 @@ def thresholds_for(model, model_name: str, limits):
                       "given" if given else "defaults")
 
 
-def _acceptance(paths, accept, options, *, group_by, html, payload_json, limits, serial,
+def _acceptance(tables, accept, options, *, group_by, html, payload_json, limits, serial,
                 history_dir) -> CheckResult:
     from ..check.accept import acceptance_test, axis_limits, read_test_data
-    from ..files.model_files import read_model_file
+    from ..files.model_files import load_model_file
     from ..runtime.atomic import write_text_atomic
 
     if history_dir is not None and serial is None:
         raise FtcalError("--history-dir needs --serial SERIAL (the sensor the result belongs to).")
+    paths, names = tables.paths, tables.sources
     model_name = str(accept)
-    model = read_model_file(accept).model
+    model = load_model_file(accept).model
     thresholds = thresholds_for(model, model_name, limits)
     payload = source = None
     if payload_json is not None:
@@ -241,6 +247,7 @@ def _acceptance(paths, accept, options, *, group_by, html, payload_json, limits,
         source = gravity_source(options)
     error, reference, labels, issues, problems = read_test_data(
         paths, model, payload=payload, source=source, group_by=group_by, time_column=options["time"] or "time")
+    labels, issues, problems = tables.named_labels(labels), tables.named(issues), tables.named(problems)
     result = acceptance_test(error, labels, model.output_names_, thresholds, issues, reference, problems)
     limits_per_axis = axis_limits(result.outputs, thresholds)
     lines = [f"acceptance of {model_name} on {error.shape[0]} samples in {len(result.poses)} pose(s); thresholds "
@@ -263,7 +270,7 @@ def _acceptance(paths, accept, options, *, group_by, html, payload_json, limits,
     if html is not None:  # made before anything is recorded: a run that fails is not in the history
         from ..check.page import acceptance_page_text
 
-        page = acceptance_page_text(result, model=model_name, data=paths)
+        page = acceptance_page_text(result, model=model_name, data=names)
 
     def write_page() -> None:
         if page is not None:
@@ -271,7 +278,7 @@ def _acceptance(paths, accept, options, *, group_by, html, payload_json, limits,
 
     if serial is not None:
         # The page is written inside the history's transaction: if it fails, nothing is recorded.
-        message = _record(model, model_name, paths, result, thresholds, serial, history_dir, lines,
+        message = _record(model, model_name, names, result, thresholds, serial, history_dir, lines,
                           before_commit=write_page)
         if message:
             from ..check.history import DriftWarning

@@ -6,9 +6,10 @@ import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-from ..runtime.errors import FtcalError, renamed_keyword
+from ..runtime.deprecation import renamed_keyword
+from ..runtime.errors import FtcalError
 from .result import StepResult
-from .sources import gravity_source, paths_of, source_options
+from .sources import gravity_source, reads_tables, source_options
 
 CONTACT_COLUMNS = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
 
@@ -54,6 +55,7 @@ class CompensationResult(StepResult):
         write_table(self.table, path)
 
 
+@reads_tables()
 def compensate(payload, data, *, calibration=None, inputs: Sequence[str] | None = None, output=None,
                **source) -> CompensationResult:
     """Contact wrench = readings (or a calibration's prediction) − bias − the payload's gravity (and inertial) wrench.
@@ -61,7 +63,11 @@ def compensate(payload, data, *, calibration=None, inputs: Sequence[str] | None 
     Parameters
     ----------
     payload : path of a payload file (``ftcal payload -o``)
-    data : path or list of paths, CSV or Parquet tables
+    data : path, list of paths, DataFrame, list or dict of DataFrames, or Dataset
+        CSV or Parquet tables, or the same tables in memory (as
+        :func:`ftcal.workflow.payload.identify_payload`); the compensated table is the one the same
+        tables give from Parquet files. There is no ``executor``: each table is read and compensated
+        in this process (``ftcal compensate`` has no ``--scheduler``).
     calibration : path of a calibration model file, or None
         When given, the measured wrench is its prediction from its input columns.
     inputs : six measured-wrench columns (default: the payload file's, else u1..u6; ``wrench=``, the old
@@ -100,13 +106,13 @@ def compensate(payload, data, *, calibration=None, inputs: Sequence[str] | None 
     """
     import pandas as pd
 
-    from ..files.model_files import read_model
+    from ..files.model_files import load_model
     from ..files.payload_json import load_payload
     from ..payload.compensate import warn_undetermined
     from ..payload.tables import compensate_table
 
     wrench = renamed_keyword(source, "wrench", "inputs", inputs)
-    paths = paths_of(data)
+    paths, names = data.paths, data.sources
     options = source_options(source, "compensate")
     tool = load_payload(payload)
     if options["dynamic"] and tool.inertia is None:
@@ -118,13 +124,13 @@ def compensate(payload, data, *, calibration=None, inputs: Sequence[str] | None 
         raise FtcalError(f"--g {options['g']:g}: {payload} was identified with g = {tool.gravity:g} m/s² (its "
                          "mass times g is what the data determined); leave --g out.")
     gravity_from = gravity_source(options)
-    model = read_model(calibration) if calibration is not None else None
+    model = load_model(calibration) if calibration is not None else None
     parts = [compensate_table(path, tool, gravity_from, wrench=wrench, model=model, time_column=options["time"],
                               warn_out_of_range=False)
              for path in paths]
     outside = sum(part.attrs.get("undetermined_samples", 0) for part in parts)
     table = pd.concat(parts, ignore_index=True) if len(parts) > 1 else parts[0]
-    warn_undetermined(tool, outside, len(table), ", ".join(paths))  # once for all the files
+    warn_undetermined(tool, outside, len(table), ", ".join(names))  # once for all the files
     if model is not None:  # one out-of-range warning for all the files
         from ..core.ranges import RangeSums, describe, span_of
         from ..runtime.errors import OutOfRangeWarning
@@ -134,7 +140,7 @@ def compensate(payload, data, *, calibration=None, inputs: Sequence[str] | None 
         message = describe(ranges.summary(model.input_names_))
         if message:
             warnings.warn(message, OutOfRangeWarning, stacklevel=2)
-    result = CompensationResult(table, paths)
+    result = CompensationResult(table, names)
     if output is not None:
         result.save(output)
     return result

@@ -10,7 +10,7 @@ from pathlib import Path
 from ..runtime.errors import single_line
 from ..runtime.errors import FtcalError
 from .result import StepResult
-from .sources import paths_of, robot_model
+from .sources import reads_tables, robot_model
 
 WRENCH = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
 BAG_OPTIONS = ("wrench_topic", "joints_topic", "temperature_topic", "imu_topic", "tf", "receive_time")
@@ -83,6 +83,7 @@ class DatasetResult(StepResult):
             write_dataset(self.table, Path(path))
 
 
+@reads_tables("logs", "LOG", dataset="refuse")
 def build_dataset(logs, *, urdf=None, robot: str | None = None, sensor: str | None = None,
                   ft_joint: str | None = None, ft_frame: str | None = None, payload: Sequence[str] = (),
                   base: str | None = None, wrench_topic: str | None = None, joints_topic: str | None = None,
@@ -102,7 +103,8 @@ def build_dataset(logs, *, urdf=None, robot: str | None = None, sensor: str | No
 
     Parameters
     ----------
-    logs : path or list of paths, all robot logs or all ROS bags
+    logs : path or list of paths, all robot logs or all ROS bags; or robot-log tables in memory (a
+        DataFrame, a list of them, or a dict name -> DataFrame), read as the same tables in Parquet files
     executor : an executor of :mod:`ftcal.runtime.executors` (e.g. Dask) for the per-file work, or None
     output : path or None; when given, the dataset is written there
 
@@ -127,7 +129,7 @@ def build_dataset(logs, *, urdf=None, robot: str | None = None, sensor: str | No
     from ..insitu.recordings import InsituOptions, build_log_table
     from ..robot import load_case_config, parse_payload_spec
 
-    paths = paths_of(logs, "LOG")
+    paths = logs.paths
     is_bag = [READERS.get(log_format(Path(p)), "").startswith("ftcal.data.bags:") for p in paths]
     if any(is_bag) and not all(is_bag):
         raise FtcalError(f"LOG {paths[is_bag.index(False)]}: mix of ROS bags and other logs; "
@@ -212,6 +214,7 @@ class ExpectedResult(StepResult):
         write_table(self.table, Path(path))
 
 
+@reads_tables("joints", "--joints", dataset="refuse")
 def expected(joints, *, urdf=None, robot: str | None = None, ft_joint: str | None = None,
              ft_frame: str | None = None, payload: Sequence[str] = (), base: str | None = None,
              sensor: Sequence[str] = (), gravity: Sequence[float] = (0.0, 0.0, -9.81), degrees: bool = False,
@@ -221,7 +224,9 @@ def expected(joints, *, urdf=None, robot: str | None = None, ft_joint: str | Non
 
     Parameters
     ----------
-    joints : path of a CSV/Parquet table, one column per joint (rad, or degrees with ``degrees``)
+    joints : path of a CSV/Parquet table, one column per joint (rad, or degrees with ``degrees``), or that
+        table as a pandas DataFrame (written to a temporary Parquet file for the step; with an executor,
+        its workers must see this machine's temporary folder, as ``local:N`` does)
     urdf, robot, ft_joint, ft_frame, payload, base : the robot model (as ``ftcal expected``)
     sensor : sensor names (default: every F/T sensor)
     gravity : gravity in base-frame axes, m/s²
@@ -241,6 +246,9 @@ def expected(joints, *, urdf=None, robot: str | None = None, ft_joint: str | Non
     """
     import pandas as pd
 
+    if len(joints.paths) != 1:
+        raise FtcalError(f"--joints: one joint table, not {len(joints.paths)}.")
+    [path] = joints.paths
     model = robot_model(urdf=urdf, robot=robot, ft_joint=ft_joint, ft_frame=ft_frame, payload=payload)
     names = [sensor] if isinstance(sensor, str) else list(sensor)
     sensors = [model.sensor(name) for name in names] or list(model.ft_sensors)
@@ -254,10 +262,10 @@ def expected(joints, *, urdf=None, robot: str | None = None, ft_joint: str | Non
                 missing_joints)
     if executor is not None:
         description = (model.urdf_text, model.source, model.payloads, model.declared)
-        [(time, wrenches)] = executor.map(_remote_wrenches, [(str(joints), description)], 1, *settings,
+        [(time, wrenches)] = executor.map(_remote_wrenches, [(path, description)], 1, *settings,
                                           description="joints files")
     else:
-        time, wrenches = joints_file_wrenches(joints, model, workers, *settings)
+        time, wrenches = joints_file_wrenches(path, model, workers, *settings)
     columns = {"time": time} if time is not None else {}
     for label, s in zip(labels, sensors):
         for axis, name in enumerate(WRENCH):

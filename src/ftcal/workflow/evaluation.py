@@ -153,9 +153,9 @@ class PredictionResult(StepResult):
 def _model_and_segments(model) -> tuple[Any, tuple, str]:
     """(model, its training fingerprints, its name) from a model file path or a fitted model."""
     if isinstance(model, (str, os.PathLike)):
-        from ..files.model_files import read_model_file
+        from ..files.model_files import load_model_file
 
-        loaded = read_model_file(model)
+        loaded = load_model_file(model)
         return loaded.model, tuple(loaded.training_segments), str(model)
     if not hasattr(model, "predict") or not hasattr(model, "input_names_"):
         raise FtcalError(f"model: expected a model file name or a fitted model; got {type(model).__name__}.")
@@ -235,16 +235,16 @@ def _evaluate_whole(paths, dataset, model, training_segments, name, mode, start,
 
     from ..core.fingerprint import warn_if_trained_on
     from ..core.ranges import LoadSums
-    from ..data.tables import read_dataset
+    from ..data.tables import load_dataset
     from ..runtime.errors import OutOfRangeWarning
 
-    data = dataset if dataset is not None else read_dataset(paths, model.input_names_, model.output_names_,
-                                                             segment_by=segment_by)
+    data = dataset if dataset is not None else load_dataset(paths, inputs=model.input_names_,
+                                                             outputs=model.output_names_, segment_by=segment_by)
     warn_if_trained_on(data, training_segments, name)
     with warnings.catch_warnings(), np.errstate(over="ignore", invalid="ignore"):
         # Reported once in the result, not as a warning line. Overflow is refused by evaluate().
         warnings.simplefilter("ignore", OutOfRangeWarning)
-        summary = model.score(data, mode=mode, start=start, warmup=warmup)
+        summary = model.metrics(data, mode=mode, start=start, warmup=warmup)
         summary["out_of_range"] = (range_summary(model, data, mode, start, warmup)
                                    if summary["n_out_of_range"] else None)
     y = data.outputs[:, [data.output_names.index(n) for n in model.output_names_]]
@@ -264,7 +264,7 @@ def range_summary(model, data, mode: str, start: str, warmup: str) -> dict:
     from ..core.ranges import RangeSums, span_of
 
     rows = np.ones(data.n_samples, dtype=bool)
-    if warmup == "drop":  # the rows the metrics score, as CalibrationModel.score
+    if warmup == "drop":  # the rows the metrics score, as CalibrationModel.metrics
         for a, _ in data.segment_bounds():
             rows[a:a + (0 if model.is_static else model.layout_.max_lag)] = False
     prediction = model.predict(data, mode=mode, start=start, warn_out_of_range=False)
@@ -408,10 +408,11 @@ def _predict_whole(paths, dataset, model, mode, start, segment_by):
     import pandas as pd
 
     from ..core.ranges import RangeSums, span_of
-    from ..data.tables import read_dataset
+    from ..data.tables import load_dataset
 
-    data = dataset if dataset is not None else read_dataset(paths, model.input_names_, model.output_names_,
-                                                            segment_by=segment_by, require_outputs=False)
+    data = dataset if dataset is not None else load_dataset(paths, inputs=model.input_names_,
+                                                            outputs=model.output_names_, segment_by=segment_by,
+                                                            require_outputs=False)
     with np.errstate(over="ignore", invalid="ignore"):
         prediction = model.predict(data, mode=mode, start=start, warn_out_of_range=False)
     bad = ~np.isfinite(prediction).all(axis=1)
@@ -530,13 +531,13 @@ def report(models: Sequence[str], data: Sequence[str], output: str | os.PathLike
     ReportResult
     """
     from ..core.fingerprint import warn_if_trained_on
-    from ..data.tables import read_dataset
-    from ..files.model_files import read_model_file
+    from ..data.tables import load_dataset
+    from ..files.model_files import load_model_file
     from ..report import build_report
     from ..report import evaluate as evaluate_run
 
     model_paths, data_paths, train_paths = [str(p) for p in models], [str(p) for p in data], [str(p) for p in train]
-    loaded = [read_model_file(p) for p in model_paths]
+    loaded = [load_model_file(p) for p in model_paths]
     fitted = [m.model for m in loaded]
     inputs = tuple(inputs or _union(m.input_names_ for m in fitted))
     outputs = tuple(outputs or _union(m.output_names_ for m in fitted))
@@ -545,7 +546,7 @@ def report(models: Sequence[str], data: Sequence[str], output: str | os.PathLike
                                                  groups=True)
 
     def read(paths):
-        return read_dataset(paths, inputs, outputs, segment_by=segment_by, group_by=group_by)
+        return load_dataset(paths, inputs=inputs, outputs=outputs, segment_by=segment_by, group_by=group_by)
 
     validation = read(data_paths)
     for path, model_file in zip(model_paths, loaded):

@@ -60,7 +60,7 @@ def convert(model, to: str, output, *, serial: str | None = None, sensor: str | 
     >>> from ftcal import CalibrationModel, Dataset, save_model
     >>> raw = np.random.default_rng(0).normal(size=(50, 6))
     >>> folder = tempfile.mkdtemp()
-    >>> save_model(CalibrationModel(1).fit(Dataset.from_arrays(raw, 2.0 * raw)), os.path.join(folder, "m.json"))
+    >>> _ = save_model(CalibrationModel(1).fit(Dataset.from_arrays(raw, 2.0 * raw)), os.path.join(folder, "m.json"))
     >>> result = convert(os.path.join(folder, "m.json"), "paper-xml", os.path.join(folder, "m.xml"))
     >>> result.paths == [os.path.join(folder, "m.xml")]
     True

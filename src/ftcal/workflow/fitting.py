@@ -90,7 +90,7 @@ class FitResult(StepResult):
 
     def save(self, path: str | os.PathLike) -> Path:
         """Write the model file (JSON, atomically) with this fit's sources and training fingerprints."""
-        from ..files.model_json import save_model
+        from ..files.model_files import save_model
 
         return save_model(self.model, path, **self._save)
 
@@ -406,9 +406,9 @@ class _Fit:
         check_options(o)
         prior, prior_path = o.prior, None
         if isinstance(prior, (str, os.PathLike)):
-            from ..files.model_files import read_model
+            from ..files.model_files import load_model
 
-            prior_path, prior = str(prior), read_model(prior)
+            prior_path, prior = str(prior), load_model(prior)
         template = CalibrationModel(na=o.na, nb=o.nb, normalization=o.normalization, prior=prior)
         with drop_incomplete() if o.drop_incomplete else nullcontext() as dropped:
             if _streams(o) and self.dataset is None:
@@ -456,7 +456,7 @@ class _Fit:
 
     def _read(self, inputs, outputs):
         """The data whole, as a Dataset (the one given, or the files read)."""
-        from ..data.tables import read_dataset
+        from ..data.tables import load_dataset
 
         if self.dataset is not None:
             data = self.dataset
@@ -469,7 +469,8 @@ class _Fit:
             y = data.outputs[:, [data.output_names.index(n) for n in outputs]]
             return replace(data, inputs=data.select_inputs(inputs), outputs=y, input_names=tuple(inputs),
                            output_names=tuple(outputs))
-        return read_dataset(self.paths, inputs, outputs, segment_by=self.o.segment_by, group_by=self.o.group_by)
+        return load_dataset(self.paths, inputs=inputs, outputs=outputs, segment_by=self.o.segment_by,
+                            group_by=self.o.group_by)
 
     # ------------------------------------------------------------------ in memory
     def _fit_in_memory(self, template, inputs, outputs, dropped):
@@ -509,7 +510,7 @@ class _Fit:
         Reads the ``Y_<LINK>_<output>_<parameter>`` columns written by
         ``ftcal dataset --estimate-payload LINK`` (4 static or 10 parameters).
         """
-        from ..data.tables import read_dataset, read_table
+        from ..data.tables import load_dataset, read_table
         from ..payload.regressor import INERTIAL_PARAMETERS
         from ..payload.unknown_load import estimate_payload, payload_column
 
@@ -524,7 +525,8 @@ class _Fit:
         if missing:
             raise FtcalError(f"{self.paths[0]}: no column {missing[0]!r}; write the dataset with "
                              f"'ftcal dataset ... --estimate-payload {link}'.")
-        data = read_dataset(self.paths, inputs, (*outputs, *columns), segment_by=o.segment_by, group_by=o.group_by)
+        data = load_dataset(self.paths, inputs=inputs, outputs=(*outputs, *columns), segment_by=o.segment_by,
+                            group_by=o.group_by)
         self._read_note(data.n_samples, inputs, outputs, f" + payload on {link} ({k} parameters)")
         known = data.outputs[:, :len(outputs)]
         regressor = data.outputs[:, len(outputs):].reshape(data.n_samples, len(outputs), k)

@@ -1,6 +1,6 @@
 """Identify a payload (bias, mass, centre of mass, inertia) and re-tare a payload file: ``ftcal payload``.
 
-:func:`identify_payload` and :func:`rebias_payload` take CSV/Parquet paths and the keywords of the
+:func:`identify_payload` and :func:`rebias_payload` take CSV/Parquet paths (or DataFrames) and the keywords of the
 command's flags, keep only the static samples by default (as the command does), and return a
 :class:`PayloadResult` / :class:`RebiasResult` whose ``summary()`` is the text the command prints
 and whose ``save(path)`` writes the payload file.
@@ -14,9 +14,10 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..runtime.errors import FtcalError, renamed_keyword
+from ..runtime.deprecation import renamed_keyword
+from ..runtime.errors import FtcalError
 from .result import StepResult
-from .sources import DEFAULT_WRENCH, gravity_source, paths_of, source_options
+from .sources import DEFAULT_WRENCH, gravity_source, reads_tables, source_options
 
 MAX_GROUPS_PRINTED = 8
 # A re-tared bias further than this many standard errors from the identified one is drift, not noise.
@@ -192,6 +193,7 @@ class PayloadResult(StepResult):
         save_payload(self.payload, path, sources=self.sources)
 
 
+@reads_tables()
 def identify_payload(data, *, inputs: Sequence[str] = DEFAULT_WRENCH, group_by: str | None = None,
                      keep_moving: bool = False, reaction: bool = False, frame: str | None = None,
                      bias_drift: str = "auto", temperature: str | None = None, output=None,
@@ -200,8 +202,13 @@ def identify_payload(data, *, inputs: Sequence[str] = DEFAULT_WRENCH, group_by: 
 
     Parameters
     ----------
-    data : path or list of paths
-        CSV or Parquet tables, one row per sample.
+    data : path, list of paths, DataFrame, list or dict of DataFrames, or Dataset
+        CSV or Parquet tables, one row per sample; or the same tables in memory (a dict names them,
+        e.g. ``{"run1": frame}``; a :class:`~ftcal.workflow.datasets.DatasetResult`, such as a bag's
+        dataset, is taken as its table; a Dataset as one table per segment of its input and output
+        columns). The numbers are those of the same tables read from Parquet files. There is no
+        ``executor``: the tables are read and summed in this process (``ftcal payload`` has no
+        ``--scheduler``).
     inputs : six measured-wrench columns, N and N·m (``wrench=``, the old spelling, still works)
     group_by : str or None
         Column naming the cross-validation groups. Default: the ``hold`` column of ``ftcal dataset``
@@ -250,7 +257,7 @@ def identify_payload(data, *, inputs: Sequence[str] = DEFAULT_WRENCH, group_by: 
     from ..payload.tables import group_statistics, identify_recording, read_payload_tables
 
     wrench = renamed_keyword(source, "wrench", "inputs", inputs, DEFAULT_WRENCH)
-    paths = paths_of(data)
+    paths, names = data.paths, data.sources
     options = source_options(source, "identify_payload")
     if bias_drift not in BIAS_DRIFTS:
         raise FtcalError(f"bias_drift {bias_drift!r}: must be one of {', '.join(BIAS_DRIFTS)}.")
@@ -280,21 +287,23 @@ def identify_payload(data, *, inputs: Sequence[str] = DEFAULT_WRENCH, group_by: 
     holds = HoldCollector(gravity_from, static, wrench=wrench, reaction=reaction, time=time)
     recording = read_payload_tables(paths, gravity_from, wrench=wrench, group_by=group_by, reaction=reaction,
                                     time=time, temperature=temperature, select=holds)
-    notes[:0] = [f"static samples: {line}" for line in (() if static is None else static.notes)]
+    if group_by is None:  # one group per table: named as the caller named it
+        recording = replace(recording, labels=data.named_labels(recording.labels))
+    notes[:0] = [f"static samples: {data.named(line)}" for line in (() if static is None else static.notes)]
     result = identify_recording(recording, bias_drift=bias_drift, dynamic=dynamic, time_column=time,
                                 temperature_column=temperature)
     fit = result.fit
-    message = payload_warning(paths, gravity_from, fit, options["g"], wrench=wrench, reaction=reaction, time=time,
-                              holds=holds)
+    message = data.named(payload_warning(names, gravity_from, fit, options["g"], wrench=wrench, reaction=reaction,
+                                         time=time, holds=holds))
     if message:  # the fit looks like a sign/frame/zeroing mistake: ftcal check's tests on the static holds
         warnings.warn(message, ConventionWarning, stacklevel=2)
     check_mass_sign(fit)
     excitation = payload_excitation(group_statistics(recording, dynamic=dynamic))
     payload = PayloadParameters.from_fit(fit, gravity=options["g"], frame=frame, reaction=reaction,
                                          wrench_columns=tuple(wrench), drift=result.drift)
-    out = PayloadResult(payload, fit, result, excitation, notes, paths)
+    out = PayloadResult(payload, fit, result, excitation, notes, names)
     if output is not None:
-        save_payload(payload, output, sources=paths)
+        save_payload(payload, output, sources=names)
     return out
 
 
@@ -418,6 +427,7 @@ class RebiasResult(StepResult):
         save_payload(self.payload, path, sources=self.sources)
 
 
+@reads_tables()
 def rebias_payload(data, payload, *, inputs: Sequence[str] = DEFAULT_WRENCH, keep_moving: bool = False,
                    reaction: bool = False, temperature: str | None = None, output=None,
                    **source) -> RebiasResult:
@@ -425,7 +435,9 @@ def rebias_payload(data, payload, *, inputs: Sequence[str] = DEFAULT_WRENCH, kee
 
     Parameters
     ----------
-    data : path or list of paths, contact-free CSV/Parquet tables
+    data : path, list of paths, DataFrame, list or dict of DataFrames, or Dataset
+        Contact-free CSV/Parquet tables, or the same in memory (as :func:`identify_payload`; no
+        ``executor`` either).
     payload : path of the payload file (``ftcal payload -o``)
     inputs, keep_moving, reaction, **source : as :func:`identify_payload`
     temperature : must be the payload file's temperature column, or None (taken from the file)
@@ -445,7 +457,7 @@ def rebias_payload(data, payload, *, inputs: Sequence[str] = DEFAULT_WRENCH, kee
     from ..payload.tables import read_payload_tables, rebias
 
     wrench = renamed_keyword(source, "wrench", "inputs", inputs, DEFAULT_WRENCH)
-    paths = paths_of(data)
+    paths, names = data.paths, data.sources
     options = source_options(source, "rebias_payload")
     name = str(payload)
     identified = load_payload(payload)
@@ -464,7 +476,7 @@ def rebias_payload(data, payload, *, inputs: Sequence[str] = DEFAULT_WRENCH, kee
         joints=options["urdf"] is not None or options["robot"] is not None, degrees=options["degrees"])
     recording = read_payload_tables(paths, gravity_from, wrench=wrench, reaction=identified.reaction,
                                     time=options["time"], temperature=own_temperature, select=static)
-    lines = [f"static samples: {line}" for line in (() if static is None else static.notes)]
+    lines = [f"static samples: {data.named(line)}" for line in (() if static is None else static.notes)]
     found = rebias(recording, identified)
     old = identified_bias(identified, recording.time)
     old_se = np.r_[identified.stderr["force_bias"], identified.stderr["torque_bias"]]
@@ -500,11 +512,11 @@ def rebias_payload(data, payload, *, inputs: Sequence[str] = DEFAULT_WRENCH, kee
                       temperature_column=own_temperature,
                       temperature_reference=identified.drift.temperature_reference if own_temperature else None,
                       temperature_coefficients=identified.drift.temperature_coefficients if own_temperature else None,
-                      selection=f"re-tared from {', '.join(paths)}")
+                      selection=f"re-tared from {', '.join(names)}")
     new_se = np.where(np.isnan(old_se), np.nan, found.stderr)  # still undetermined where it was
     stderr = dict(identified.stderr, force_bias=new_se[:3], torque_bias=new_se[3:])
     updated = replace(identified, force_bias=found.bias[:3], torque_bias=found.bias[3:], stderr=stderr, drift=drift)
-    out = RebiasResult(updated, found.bias, found.stderr, change, z, rate, lines, [name, *paths])
+    out = RebiasResult(updated, found.bias, found.stderr, change, z, rate, lines, [name, *names])
     if output is not None:
         save_payload(updated, output, sources=out.sources)
     return out

@@ -94,22 +94,6 @@ def _text(value) -> str | None:
     return None if value is None else str(value)
 
 
-def paths_of(data, role: str = "DATA") -> list[str]:
-    """One path or several, as a list of strings (what the steps read).
-
-    Raises
-    ------
-    FtcalError
-        No path given.
-    """
-    import os
-
-    items = [data] if isinstance(data, (str, os.PathLike)) else list(data)
-    if not items:
-        raise FtcalError(f"{role}: no file given.")
-    return [os.fspath(p) for p in items]
-
-
 def robot_model(*, urdf=None, robot: str | None = None, ft_joint: str | None = None, ft_frame: str | None = None,
                 payload: Sequence[str] = ()):
     """The robot model of the robot commands: a URDF or a named icub-models robot, with an F/T sensor declared
@@ -170,37 +154,193 @@ def default_label_columns(paths: Sequence[str], segment_by: str | None, notes: l
 
 
 class tables_of:
-    """``data`` as (paths, Dataset or None, source names), for the steps that stream files.
+    """``data`` as (paths, Dataset or None, source names), for the steps that read tables.
 
-    A DataFrame becomes one temporary Parquet file (removed on exit), so that it runs the very
-    path files run; a :class:`~ftcal.core.dataset.Dataset` is handed on whole.
+    ``data`` may be a path or a list of paths (CSV/Parquet), a pandas DataFrame, a list of
+    DataFrames (one per recording, named ``DataFrame 1``, ``DataFrame 2``, ...), a dict
+    name -> DataFrame (the names name the recordings), an object with ``to_frame()`` (the
+    :class:`~ftcal.workflow.datasets.DatasetResult` of :func:`~ftcal.workflow.datasets.build_dataset`,
+    a bag table) or a :class:`~ftcal.core.dataset.Dataset`.
+    Each DataFrame becomes one temporary Parquet file (removed on exit), so that it runs the very
+    path files run. :meth:`named` puts the given names back in place of the temporary files' paths
+    in the step's text, and an :class:`~ftcal.runtime.errors.FtcalError` raised inside the ``with``
+    block names the DataFrame, not its temporary file.
+
+    Parameters
+    ----------
+    data : what the step was given
+    role : how the step's messages call it (``DATA``, ``LOG``, ...)
+    dataset : {"whole", "tables", "refuse"}
+        What a Dataset becomes: handed on whole (fit, evaluate, predict); one table per segment
+        holding its input and output columns (steps that read columns by name, such as the payload
+        steps); or an error (steps that need recordings, such as building a dataset).
+
+    Attributes
+    ----------
+    paths : list of str, the files to read (temporary for DataFrames), set on entry
+    sources : list of str, their names (the paths, or the DataFrames' names)
+    dataset : Dataset or None, a Dataset handed on whole
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> tables = tables_of({"left": pd.DataFrame({"u1": [1.0]}), "right": pd.DataFrame({"u1": [2.0]})})
+    >>> with tables as (paths, dataset, names):
+    ...     [pd.read_parquet(p)["u1"].item() for p in paths], dataset, names, tables.named(paths[1] + ": ok")
+    ([1.0, 2.0], None, ['left', 'right'], 'right: ok')
     """
 
-    def __init__(self, data):
+    def __init__(self, data, role: str = "DATA", *, dataset: str = "whole"):
         self.data = data
+        self.role = role
+        self.mode = dataset
         self.folder = None
+        self.given: dict[str, str] = {}  # temporary path -> the name the user gave
+        self.paths: list[str] = []
+        self.sources: list[str] = []
+        self.dataset = None
 
     def __enter__(self):
+        try:
+            self.paths, self.dataset, self.sources = self._open(self.data)
+        except BaseException:  # __exit__ does not run when __enter__ fails
+            if self.folder is not None:
+                self.folder.cleanup()
+            raise
+        return self.paths, self.dataset, self.sources
+
+    def _open(self, data):
         from ..core.dataset import Dataset
 
-        data = self.data
         if isinstance(data, Dataset):
-            return [], data, list(data.sources)
+            if self.mode == "refuse":
+                raise FtcalError(f"{self.role}: a Dataset is already built; give the recordings (paths or "
+                                 "DataFrames).")
+            if self.mode == "whole":
+                return [], data, list(data.sources)
+            return self._write(_dataset_frames(data))
         if isinstance(data, (str, os.PathLike)):
             return [str(data)], None, [str(data)]
-        if hasattr(data, "to_parquet") and hasattr(data, "columns"):
-            import tempfile
-
-            self.folder = tempfile.TemporaryDirectory(prefix="ftcal-frame-")
-            path = os.path.join(self.folder.name, "frame.parquet")
-            data.to_parquet(path, index=False)
-            return [path], None, ["DataFrame"]
-        if isinstance(data, Sequence) and data and all(isinstance(p, (str, os.PathLike)) for p in data):
+        if _is_frame(data) or hasattr(data, "to_frame"):
+            return self._write({"DataFrame": data})
+        if isinstance(data, Mapping):
+            if not data:
+                raise FtcalError(f"{self.role}: no table given (an empty dict).")
+            return self._write({str(name): frame for name, frame in data.items()})
+        if isinstance(data, Sequence) and all(isinstance(p, (str, os.PathLike)) for p in data):
+            if not data:
+                raise FtcalError(f"{self.role}: no file given.")
             return [str(p) for p in data], None, [str(p) for p in data]
-        raise FtcalError(f"data: expected a file name, a list of them, a pandas DataFrame or a Dataset; "
-                         f"got {type(data).__name__}.")
+        if isinstance(data, Sequence) and all(_is_frame(f) or hasattr(f, "to_frame") for f in data):
+            return self._write({f"DataFrame {k}": frame for k, frame in enumerate(data, 1)})
+        raise FtcalError(f"{self.role}: expected a file name, a list of them, a pandas DataFrame, a list or dict of "
+                         f"them, or a Dataset; got {type(data).__name__}.")
 
-    def __exit__(self, *exc):
+    def _write(self, frames: dict):
+        import tempfile
+
+        self.folder = tempfile.TemporaryDirectory(prefix="ftcal-frame-")
+        paths = []
+        for k, (name, frame) in enumerate(frames.items()):
+            if not _is_frame(frame) and hasattr(frame, "to_frame"):
+                frame = frame.to_frame()
+            if not _is_frame(frame):
+                raise FtcalError(f"{self.role} {name}: expected a pandas DataFrame; got {type(frame).__name__}.")
+            # A folder per table keeps the paths apart; the file's stem is the name (a log's default group).
+            folder = os.path.join(self.folder.name, str(k))
+            os.mkdir(folder)
+            stem = "".join("_" if c in "/\\\0" else c for c in name).strip(" .") or "table"
+            path = os.path.join(folder, f"{stem}.parquet")
+            try:
+                frame.to_parquet(path, index=False)
+            except (TypeError, ValueError, ImportError) as error:  # e.g. non-string column names
+                first = str(error).splitlines()[0] if str(error) else type(error).__name__
+                raise FtcalError(f"{self.role} {name}: cannot be written as a table: {first}.") from None
+            self.given[path] = name
+            paths.append(path)
+        return paths, None, list(frames)
+
+    def named(self, value):
+        """``value`` (a string, or a list/tuple of them) with each temporary path replaced by its name."""
+        if isinstance(value, (list, tuple)):
+            return type(value)(self.named(v) for v in value)
+        if not isinstance(value, str):
+            return value
+        for path, name in self.given.items():
+            value = value.replace(path, name)
+        return value
+
+    def named_labels(self, labels):
+        """An object array of per-sample labels (such as one group per file) with the temporary paths named."""
+        import numpy as np
+
+        if not self.given:
+            return labels
+        values, inverse = np.unique(labels, return_inverse=True)
+        return np.array(self.named(list(values)), dtype=object)[inverse]
+
+    def __exit__(self, kind, error, traceback):
         if self.folder is not None:
             self.folder.cleanup()
+        if isinstance(error, FtcalError) and self.given:
+            text = str(error)
+            if self.named(text) != text:
+                raise type(error)(self.named(text)) from None
         return False
+
+
+def reads_tables(argument: str = "data", role: str = "DATA", dataset: str = "tables"):
+    """Decorator: the step's ``argument`` arrives opened as a :class:`tables_of` (``.paths``, ``.sources``,
+    ``.named``), whatever the caller gave (paths, DataFrames, a Dataset); the temporary files live
+    while the step runs, and its errors name what the caller gave.
+
+    Parameters
+    ----------
+    argument : the step's parameter that takes the data
+    role, dataset : as :class:`tables_of`
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> @reads_tables()
+    ... def rows(data):
+    ...     return data.sources, [len(pd.read_parquet(p)) for p in data.paths]
+    >>> rows([pd.DataFrame({"u1": [1.0, 2.0]}), pd.DataFrame({"u1": [3.0]})])
+    (['DataFrame 1', 'DataFrame 2'], [2, 1])
+    """
+    import functools
+    import inspect
+
+    def decorate(step):
+        signature = inspect.signature(step)
+
+        @functools.wraps(step)
+        def run(*args, **kwargs):
+            bound = signature.bind(*args, **kwargs)
+            tables = tables_of(bound.arguments[argument], role, dataset=dataset)
+            with tables:
+                bound.arguments[argument] = tables
+                return step(*bound.args, **bound.kwargs)
+
+        return run
+
+    return decorate
+
+
+def _is_frame(value) -> bool:
+    return hasattr(value, "to_parquet") and hasattr(value, "columns")
+
+
+def _dataset_frames(dataset) -> dict:
+    """One DataFrame per segment of ``dataset`` (its input and output columns), named by its source."""
+    import pandas as pd
+
+    frames = {}
+    for k, (start, stop) in enumerate(dataset.segment_bounds()):
+        segment = int(dataset.segments[start])
+        columns = {name: dataset.inputs[start:stop, j] for j, name in enumerate(dataset.input_names)}
+        if dataset.outputs is not None:
+            columns.update({name: dataset.outputs[start:stop, j] for j, name in enumerate(dataset.output_names)})
+        name = dataset.sources[segment] if 0 <= segment < len(dataset.sources) else f"segment {segment}"
+        frames[name if name not in frames else f"{name} ({k + 1})"] = pd.DataFrame(columns)
+    return frames

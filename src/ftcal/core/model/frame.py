@@ -109,15 +109,35 @@ def dense_regressor(data: Dataset, frame: FitFrame) -> tuple[np.ndarray, np.ndar
     return np.concatenate(blocks), np.concatenate(targets)
 
 
-def as_dataset(data, outputs=None, input_names: Sequence[str] | None = None) -> Dataset:
-    """``data`` as a Dataset: itself, or an inputs array (with ``outputs`` and ``input_names`` when given)."""
+def as_dataset(data, outputs=None, input_names: Sequence[str] | None = None, owner: str = "the model") -> Dataset:
+    """``data`` as a Dataset: itself, or an inputs array (with ``outputs`` and ``input_names`` when given).
+
+    An array must have one column per name of ``input_names`` (``owner``'s inputs, named in the message);
+    sparse and complex arrays are refused.
+    """
     if isinstance(data, Dataset):
         return data
-    u = np.asarray(data, dtype=np.float64)
+    arrays = []
+    for value, name in ((data, "inputs"), (outputs, "outputs")):
+        if value is not None and (hasattr(value, "toarray") or type(value).__module__.startswith("scipy.sparse")):
+            raise FtcalError(f"The {name} are a sparse matrix; sparse input is not supported (the regressor's "
+                             "monomials of a sparse column are dense): convert it with .toarray().")
+        array = None if value is None else np.asarray(value)
+        if array is not None and array.dtype.kind == "c":
+            raise FtcalError(f"Complex data not supported: the {name} hold complex numbers; a calibration needs "
+                             "real ones.")
+        arrays.append(array)
+    u = np.asarray(arrays[0], dtype=np.float64)
     if u.ndim == 1:
         u = u[:, None]
-    names = tuple(input_names) if input_names is not None and len(input_names) == u.shape[1] else None
-    return Dataset.from_arrays(u, outputs, input_names=names)
+    if u.ndim != 2 or u.shape[1] == 0:
+        raise FtcalError(f"Found array with 0 feature(s) (shape={u.shape}) while a minimum of 1 is required: "
+                         "the inputs need one column per input channel.")
+    if input_names is not None and len(input_names) != u.shape[1]:
+        raise FtcalError(f"X has {u.shape[1]} features, but {owner} is expecting {len(input_names)} features as "
+                         f"input: one column per input {', '.join(input_names)}.")
+    names = tuple(input_names) if input_names is not None else None
+    return Dataset.from_arrays(u, arrays[1], input_names=names)
 
 
 def outputs_in_order(data: Dataset, names: Sequence[str]) -> np.ndarray:

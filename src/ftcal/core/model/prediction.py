@@ -23,7 +23,7 @@ PREDICT_CHUNK = 4096
 
 
 class PredictionMixin:
-    """``predict``, ``score`` and the range checks of :class:`~ftcal.core.model.CalibrationModel`.
+    """``predict``, ``metrics`` and the range checks of :class:`~ftcal.core.model.CalibrationModel`.
 
     Reads only the fitted state (``layout_``, ``coef_``, the normalizations, names, ranges and
     ``input_spread_``) and ``_check_fitted``, which the model class provides.
@@ -161,7 +161,7 @@ class PredictionMixin:
         self._check_fitted()
         check_choice(mode, "mode", "CalibrationModel.predict", PREDICTION_MODES)
         check_choice(start, "start", "CalibrationModel.predict", FREE_RUN_STARTS)
-        data = as_dataset(data, None, self.input_names_)
+        data = as_dataset(data, None, self.input_names_, type(self).__name__)
         u = check_finite_matrix(data.select_inputs(self.input_names_), "inputs",
                                 len(self.input_names_), self.input_names_)
         if warn_out_of_range:
@@ -271,7 +271,7 @@ class PredictionMixin:
         except np.linalg.LinAlgError:
             return exogenous
 
-    def score(self, data: Dataset, *, mode: str = "one-step", start: str = "zeros", warmup: str = "drop",
+    def metrics(self, data: Dataset, *, mode: str = "one-step", start: str = "zeros", warmup: str = "drop",
               warn_out_of_range: bool = True) -> dict:
         """Metrics of :func:`ftcal.core.metrics.summarize` plus ``n_out_of_range``.
 
@@ -296,7 +296,7 @@ class PredictionMixin:
             or ``"one_step"``.
         """
         self._check_fitted()
-        check_choice(warmup, "warmup", "CalibrationModel.score", ARX_WARMUP)
+        check_choice(warmup, "warmup", "CalibrationModel.metrics", ARX_WARMUP)
         if data.outputs is None:
             raise FtcalError("Evaluating needs reference outputs in the data.")
         y = outputs_in_order(data, self.output_names_)

@@ -98,13 +98,13 @@ class CalibrationModel(PredictionMixin, DocumentMixin, EstimatorParams):
         self.prior = prior
 
     # ------------------------------------------------------------------ fit
-    def fit(self, data: Dataset | np.ndarray, outputs: np.ndarray | None = None) -> "CalibrationModel":
-        """Fit on a :class:`Dataset` (or an inputs array plus ``outputs``).
+    def fit(self, data: Dataset | np.ndarray, y: np.ndarray | None = None) -> "CalibrationModel":
+        """Fit on a :class:`Dataset` (or an inputs array plus its outputs ``y``).
 
         Parameters
         ----------
         data : Dataset, or ndarray of shape (n_samples, n_inputs)
-        outputs : ndarray of shape (n_samples, n_outputs), optional
+        y : ndarray of shape (n_samples, n_outputs), optional
             Reference outputs (N, N·m) when ``data`` is an array.
 
         Returns
@@ -117,7 +117,7 @@ class CalibrationModel(PredictionMixin, DocumentMixin, EstimatorParams):
         FtcalError
             On invalid parameters, data without outputs, or no regressor rows.
         """
-        data = as_dataset(data, outputs)
+        data = as_dataset(data, y)
         frame = self.frame(data)
         stats = self.statistics(data, frame.layout, frame.solve_input_normalization,
                                 frame.solve_output_normalization)
@@ -127,7 +127,7 @@ class CalibrationModel(PredictionMixin, DocumentMixin, EstimatorParams):
 
         self.fit_statistics(frame, stats, dense)
         self.input_spread_ = Spread.of(data.inputs)
-        self.training_metrics_ = self.score(data, warn_out_of_range=False)
+        self.training_metrics_ = self.metrics(data, warn_out_of_range=False)
         return self
 
     def fit_statistics(self, frame: FitFrame, stats: SufficientStatistics,
@@ -179,7 +179,8 @@ class CalibrationModel(PredictionMixin, DocumentMixin, EstimatorParams):
         FitFrame
         """
         if data.outputs is None:
-            raise FtcalError("Fitting needs reference outputs (the expected wrench); the data has none.")
+            raise FtcalError("Fitting needs reference outputs (the expected wrench); the data has none: the model "
+                             "requires y to be passed, but the target y is None.")
         u, y = data.inputs, data.outputs
         return self.frame_from_ranges(np.c_[u.min(axis=0), u.max(axis=0)], np.c_[y.min(axis=0), y.max(axis=0)],
                                       data.input_names, data.output_names,

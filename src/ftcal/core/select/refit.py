@@ -36,7 +36,7 @@ def fit_best(data: Dataset, result: CrossValidationResult, *,
     """
     if result.search is not None and (result.mixed or template is None or template is result.search.template):
         model = fit_selection(result)
-        model.training_metrics_ = model.score(data, warn_out_of_range=False)
+        model.training_metrics_ = model.metrics(data, warn_out_of_range=False)
         return model
     return best_model(result, template).fit(data)
 
@@ -167,7 +167,7 @@ def fit_candidates(data: Dataset, candidates: Sequence[Candidate], *, template: 
         problem = ScaledProblem.from_statistics(stats)
         for (candidate, model, frame), result in _solve_group(problem, group):
             model.adopt(frame, problem, result)
-            model.training_metrics_ = model.score(data, warn_out_of_range=False)
+            model.training_metrics_ = model.metrics(data, warn_out_of_range=False)
             fitted[candidate] = model
             if advance is not None:
                 advance(1)
