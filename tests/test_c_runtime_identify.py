@@ -35,7 +35,8 @@ PARAMETERS = ("m", "mcx", "mcy", "mcz", "Fx_bias", "Fy_bias", "Fz_bias", "Tx_bia
 DRIVER = r"""
 #include <string.h>
 #include "rt.h"
-/* action[k] before sample k: 0 nothing, 1 start identifying, 2 finish and mount, 3 finish without mounting */
+/* action[k] before sample k: 0 nothing, 1 start identifying, 2 finish and mount, 3 finish without mounting,
+   4 finish on a copy of the state and adopt the tool, mounted (as a controller does outside its real-time loop) */
 int replay(int n, const double *t, const double *u, const double *g, const int *override, const int *action,
            int tool, double *out, double *fits, int *status)
 {
@@ -43,13 +44,20 @@ int replay(int n, const double *t, const double *u, const double *g, const int *
     rt_output o;
     rt_tool_fit f;
     rt_tool_se e;
+    static rt_state copy;
     int k, j, done = 0;
     if (rt_init(&s, tool)) return -2;
     for (k = 0; k < n; ++k) {
         if (action[k] == 1) rt_start_identification(&s);
         else if (action[k] >= 2) {
             double *x = fits + 43 * done;
-            status[done] = rt_finish_identification(&s, &f, &e, action[k] == 2);
+            if (action[k] == 4) {
+                copy = s;
+                status[done] = rt_finish_identification(&copy, &f, &e, 0);
+                if (status[done] == 0 && rt_adopt_identification(&s, &f, &e, 1)) return -3;
+            } else {
+                status[done] = rt_finish_identification(&s, &f, &e, action[k] == 2);
+            }
             x[0] = f.mass;
             for (j = 0; j < 3; ++j) x[1 + j] = f.com[j];
             for (j = 0; j < 6; ++j) x[4 + j] = f.bias[j];
@@ -157,13 +165,15 @@ def assert_same_fit(c, payload, fit, n_holds):
     assert int(c[40]) == n_holds and int(c[41]) == fit.n_samples
 
 
-def test_a_tool_identified_in_place_matches_python_and_the_truth(tmp_path):
+@pytest.mark.parametrize("finish_action", [2, 4])
+def test_a_tool_identified_in_place_matches_python_and_the_truth(tmp_path, finish_action):
+    """``finish_action`` 4: the finish runs on a copy of the state, and the tool is adopted (the same result)."""
     rec, model, u = recording(poses=8, seed=3)
     lib = build(tmp_path, generate_c_runtime(model, {}, name="rt"))
     n = rec.time.size
     finish = int(np.searchsorted(rec.time, 20.5))  # during the 7th move (holds at 3k to 3k + 2 s): seven holds
     action = np.zeros(n, int)
-    action[0], action[finish] = 1, 2
+    action[0], action[finish] = 1, finish_action
     out, fits, status, tool = replay_c(lib, rec.time, u, rec.gravity, np.full(n, -1), action)
     finishes = Finishes()
     live = LiveCalibrator(model, tool="none")

@@ -66,6 +66,13 @@ static inline void {name}_start_identification({name}_state *s)
     s->hold_gravity_max = 0.0;
 }}
 
+/* End the collection without a tool (the bias filter and the flags resume). */
+static inline void {name}_stop_identification({name}_state *s)
+{{
+    s->identifying = 0;
+    s->in_hold = 0;
+}}
+
 /* One sample of the identification: called by NAME_step. */
 static inline void {name}_collect({name}_state *s, int still, const double *g, const double *w)
 {{
@@ -329,6 +336,34 @@ static inline void {name}_id_hold(const {name}_state *s, int h, double mo[10][10
         for (k = j; k < 10; ++k) mo[j][k] = mo[k][j] = s->hold_moments[h][j][k];
 }}
 
+/* Make an identified tool the state's {macro}_IDENTIFIED_TOOL and end the collection; with `mount`, mount it and
+   give the bias the identified value and variance max(SE^2, noise variance) (finish_identification(mount=True)).
+   NAME_finish_identification calls it; call it yourself when the finish ran on a copy of the state outside the
+   real-time loop (docs/live.md). Returns 0, or -1 (nothing changed) for a mass of 0 or numbers not finite. */
+static inline int {name}_adopt_identification({name}_state *s, const {name}_tool_fit *tool, const {name}_tool_se *se,
+                                              int mount)
+{{
+    int j, finite = isfinite(tool->mass) && tool->mass != 0.0;
+    for (j = 0; j < 3; ++j) finite = finite && isfinite(tool->com[j]) && isfinite(tool->mass * tool->com[j]);
+    for (j = 0; j < 6; ++j) finite = finite && isfinite(tool->bias[j]) && isfinite(se->bias[j] * se->bias[j]);
+    if (!finite) return -1;
+    s->identifying = 0;
+    s->in_hold = 0;
+    s->has_identified = 1;
+    s->identified_mass = tool->mass;
+    for (j = 0; j < 3; ++j) s->identified_mc[j] = tool->mass * tool->com[j];
+    if (mount) {{
+        s->tool = {macro}_IDENTIFIED_TOOL;
+        s->switches += 1;
+        for (j = 0; j < 6; ++j) {{
+            double v = se->bias[j] * se->bias[j];
+            s->bias[j] = tool->bias[j];
+            s->variance[j] = v > s->noise_variance[j] ? v : s->noise_variance[j];
+        }}
+    }}
+    return 0;
+}}
+
 /* Identify the tool from the holds collected since NAME_start_identification: mass, centre of mass and bias
    with the standard errors of LiveCalibrator.finish_identification (ftcal.payload.identify.identify_payload).
    Holds past {macro}_MAX_HOLDS were left out (out_tool->holds_dropped counts them).
@@ -492,18 +527,6 @@ static inline int {name}_finish_identification({name}_state *s, {name}_tool_fit 
         out_tool->bias[j] = theta[4 + j];
         out_se->bias[j] = sqrt(fmax(covariance[4 + j][4 + j], 0.0));
     }}
-    s->has_identified = 1;
-    s->identified_mass = mass;
-    for (j = 0; j < 3; ++j) s->identified_mc[j] = mass * out_tool->com[j];
-    if (mount) {{
-        s->tool = {macro}_IDENTIFIED_TOOL;
-        s->switches += 1;
-        for (j = 0; j < 6; ++j) {{
-            double v = out_se->bias[j] * out_se->bias[j];
-            s->bias[j] = theta[4 + j];
-            s->variance[j] = v > s->noise_variance[j] ? v : s->noise_variance[j];
-        }}
-    }}
-    return {macro}_ID_OK;
+    return {name}_adopt_identification(s, out_tool, out_se, mount) ? {macro}_ID_SINGULAR : {macro}_ID_OK;
 }}
 """
