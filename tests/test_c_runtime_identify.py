@@ -88,6 +88,29 @@ int replay(int n, const double *t, const double *u, const double *g, const int *
     }
     return s.tool;
 }
+
+/* A tool that is not one (mass 0, a COM or a standard error not finite) is not adopted, and nothing changes;
+   the identified tool cannot be mounted before there is one. */
+int adopt_refuses(void)
+{
+    rt_state s, before;
+    rt_tool_fit f;
+    rt_tool_se e;
+    int refused;
+    rt_init(&s, 0);
+    rt_start_identification(&s);
+    before = s;
+    memset(&f, 0, sizeof f);
+    memset(&e, 0, sizeof e);
+    refused = rt_adopt_identification(&s, &f, &e, 1) == -1 && rt_set_tool(&s, RT_IDENTIFIED_TOOL) == -1;
+    f.mass = 1.0;
+    f.com[2] = HUGE_VAL;
+    refused = refused && rt_adopt_identification(&s, &f, &e, 1) == -1;
+    f.com[2] = 0.05;
+    e.bias[4] = HUGE_VAL;
+    refused = refused && rt_adopt_identification(&s, &f, &e, 1) == -1;
+    return refused && memcmp(&s, &before, sizeof s) == 0;
+}
 """
 
 
@@ -99,7 +122,7 @@ def build(tmp_path, header: str):
                            "driver.c", "-o", str(library), "-lm"], cwd=tmp_path, capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     lib = ctypes.CDLL(str(library))
-    lib.replay.restype = ctypes.c_int
+    lib.replay.restype = lib.adopt_refuses.restype = ctypes.c_int
     return lib
 
 
@@ -316,6 +339,11 @@ def test_max_holds_is_checked():
     for bad in (2, 10_000, 4.0):
         with pytest.raises(FtcalError, match="max_holds"):
             generate_c_runtime(model, {}, name="rt", max_holds=bad)
+
+
+def test_a_tool_that_is_not_one_is_not_adopted(tmp_path):
+    model, _ = gauge_model(1)
+    assert build(tmp_path, generate_c_runtime(model, {}, name="rt")).adopt_refuses() == 1
 
 
 def test_finish_without_start_is_refused(tmp_path):
