@@ -28,7 +28,7 @@ from ftcal.sim.live_scenario import LiveScenario, Tool, simulate_live
 from test_c_runtime import CC, FIELDS, compare, gauge_model, pointer, python_replay
 
 pytestmark = pytest.mark.skipif(CC is None, reason="no C compiler `cc`")
-FIT = 43  # per finish: mass, com 3, bias 6, se (mass, com 3, bias 6), rms 6, vif 10, 7 counts
+FIT = 44  # per finish: mass, com 3, bias 6, se (mass, com 3, bias 6), rms 6, vif 10, 8 counts
 DRILL = Tool(2.1, (0.02, 0.01, 0.09))
 PARAMETERS = ("m", "mcx", "mcy", "mcz", "Fx_bias", "Fy_bias", "Fz_bias", "Tx_bias", "Ty_bias", "Tz_bias")
 
@@ -50,7 +50,7 @@ int replay(int n, const double *t, const double *u, const double *g, const int *
     for (k = 0; k < n; ++k) {
         if (action[k] == 1) rt_start_identification(&s);
         else if (action[k] >= 2) {
-            double *x = fits + 43 * done;
+            double *x = fits + 44 * done;
             if (action[k] == 4) {
                 copy = s;
                 status[done] = rt_finish_identification(&copy, &f, &e, 0);
@@ -73,6 +73,7 @@ int replay(int n, const double *t, const double *u, const double *g, const int *
             x[40] = f.n_holds;
             x[41] = (double)f.n_samples;
             x[42] = (double)f.holds_dropped;
+            x[43] = f.held;
             done += 1;
         }
         if (rt_step(&s, t[k], u + RT_N_INPUTS * k, g + 3 * k, override[k], &o)) return -1 - k;
@@ -183,9 +184,14 @@ def assert_same_fit(c, payload, fit, n_holds):
     np.testing.assert_allclose(c[26:36], fit.variance_inflation, **close)
     assert int(c[36]) == sum(1 << PARAMETERS.index(p) for p in fit.poorly_excited)
     assert int(c[38]) == (fit.weighting == "wls")
-    assert fit.stderr_kind == (f"grouped jackknife ({int(c[39])} contiguous blocks)" if c[39] else
+    # Python's text counts the holds; the C counts those that could be left out (the jackknife's refits).
+    assert fit.stderr_kind == (f"grouped jackknife ({n_holds} contiguous blocks)" if c[39] >= 2 else
                                "classical (no time block can be left out without losing a parameter)")
+    assert int(c[39]) <= n_holds
     assert int(c[40]) == n_holds and int(c[41]) == fit.n_samples
+    unknown = fit.undetermined
+    assert int(c[37]) == (0 if unknown is None else sum(1 << PARAMETERS.index(p) for p in unknown.parameters))
+    assert int(c[43]) == (0 if unknown is None else sum(1 << PARAMETERS.index(p) for p in unknown.held))
 
 
 @pytest.mark.parametrize("finish_action", [2, 4])
@@ -254,35 +260,47 @@ def held_poses(gravity_of_hold, samples=200, rate=250.0, noise=(0.05, 0.05, 0.05
     return np.arange(n) / rate, g, wrench, np.array(static)
 
 
-@pytest.mark.parametrize("case, gravity, expected, code", [
-    # Gravity never changes: m g_z and the z force bias add up; m c_z x g = 0; m c_x, m c_y and the y, x
-    # torque biases add up. Involved: m, all of m c, Fz, Tx, Ty biases (Fx, Fy, Tz are determined).
-    ("same pose", [(0.0, 0.0, -9.81)] * 3, ("m", "mcx", "mcy", "mcz", "Fz_bias", "Tx_bias", "Ty_bias"),
-     "MASS_UNDETERMINED"),
-    # Tool down and up: g_z = ±9.81 separates the mass from the z bias, but c_z never meets gravity.
-    ("z vertical", [(0.0, 0.0, -9.81), (0.0, 0.0, 9.81), (0.0, 0.0, -9.81)], ("mcz",), "UNDETERMINED"),
-])
-def test_degenerate_poses_are_refused_as_hand_computation_says(tmp_path, case, gravity, expected, code):
+def bits(names) -> int:
+    return sum(1 << PARAMETERS.index(p) for p in names)
+
+
+def degenerate_replay(tmp_path, gravity):
+    """The C and Python over holds at the given gravity vectors (static flags given), finishing at the end."""
     time, g, wrench, static = held_poses(gravity)
     model, mix = gauge_model(1)
     u = np.column_stack([wrench @ mix.T, np.full(time.size, 30.0)])
     lib = build(tmp_path, generate_c_runtime(model, {}, name="rt"))
-    action = np.zeros(time.size + 1, int)
+    action = np.zeros(time.size, int)
     action[0], action[-1] = 1, 2
-    t1 = np.r_[time, time[-1] + 1.0]
-    _, fits, status, tool = replay_c(lib, t1, np.vstack([u, u[-1]]), np.vstack([g, g[-1]]), np.r_[static, 0], action)
-    assert status.tolist() == [STATUS[code]] and tool == 0
-    assert int(fits[0, 37]) == sum(1 << PARAMETERS.index(p) for p in expected)
+    out, fits, status, tool = replay_c(lib, time, u, g, static, action)
+    finishes = Finishes()
     live = LiveCalibrator(model, tool="none")
-    live.start_identification("drill")
-    live.run(time, raw=u, gravity=g, static=static.astype(bool))
-    if code == "MASS_UNDETERMINED":  # both refuse
-        with pytest.raises(FtcalError, match="do not determine the mass"):
-            live.finish_identification()
-    else:  # Python holds c_z at zero and warns; the C refuses (documented)
-        with pytest.warns(UndeterminedWarning, match="centre of mass"):
-            payload = live.finish_identification()
-        assert payload.undetermined.parameters == expected
+    ref = python_replay(live, time, u, g, static.astype(bool),
+                        {0: lambda c: c.start_identification("drill"), time.size - 1: finishes(True)})
+    return out, fits[0], status[0], tool, finishes.results[0], ref
+
+
+def test_poses_that_leave_the_mass_undetermined_are_refused_by_both(tmp_path):
+    # Gravity never changes: m g_z and the z force bias add up; m c_z x g = 0; m c_x, m c_y and the y, x
+    # torque biases add up. Involved: m, all of m c, Fz, Tx, Ty biases (Fx, Fy, Tz are determined).
+    _, fit, status, tool, (payload, _, refusal), _ = degenerate_replay(tmp_path, [(0.0, 0.0, -9.81)] * 3)
+    assert status == STATUS["MASS_UNDETERMINED"] and tool == 0
+    assert int(fit[37]) == bits(("m", "mcx", "mcy", "mcz", "Fz_bias", "Tx_bias", "Ty_bias"))
+    assert payload is None and "do not determine the mass" in refusal
+
+
+def test_a_com_component_the_poses_leave_undetermined_is_held_at_zero_by_both(tmp_path):
+    # Tool down, up, down: g_z = ±9.81 separates the mass from the z bias, but c_z never meets gravity.
+    with pytest.warns(UndeterminedWarning, match="centre of mass"):
+        out, fit, status, tool, (payload, batch, n_holds), ref = degenerate_replay(
+            tmp_path, [(0.0, 0.0, -9.81), (0.0, 0.0, 9.81), (0.0, 0.0, -9.81)])
+    assert status == STATUS["OK"] and tool == 1
+    assert payload.undetermined.parameters == ("mcz",) and int(fit[37]) == int(fit[43]) == bits(("mcz",))
+    assert fit[3] == 0.0 and np.isnan(fit[13]) and np.isinf(fit[29])  # c_z held at 0, no SE, infinite VIF
+    # Leaving out the tool-up hold leaves gravity one way only (mass and z bias confounded): two refits.
+    assert int(fit[39]) == 2
+    assert_same_fit(fit, payload, batch, n_holds)
+    compare(out, ref)
 
 
 def unit_rows(seed: int, k: int) -> np.ndarray:

@@ -10,8 +10,9 @@ cross-validation), on fixed-size 10 × 10 matrices:
 
 - the rank test of :func:`~ftcal.payload.identify.find_undetermined` (eigenvalues of the equilibrated
   Gram by cyclic Jacobi, the same threshold and floor): the mass undetermined is refused as in Python;
-  any other undetermined parameter is refused too (Python holds it at zero and warns), with the
-  parameters named in a bit mask;
+  other undetermined parameters are named in a bit mask, and as many as the null space has dimensions
+  are held at zero in Python's order (``_choose_held``: COM first, then torque, then force biases,
+  largest pivot), the others estimated on the remaining columns; their standard errors are NaN;
 - OLS or per-axis WLS chosen by held-out error over the holds (``_choose_weighting``), the refits
   with ``_refit``'s condition-number test (1e12);
 - the grouped-jackknife covariance over the holds, t-scaled (``robust_covariance``), else the
@@ -25,6 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..core.directions import CANONICAL_TIE
 from ..core.jackknife import t_scale
 from ..payload.accumulate import _static_maps
 from ..payload.identify import _REFIT_CONDITION, EXCITATION_LIMIT, NULL_ROW, ROUNDING_COLUMN, WEIGHTING_TIE
@@ -33,8 +35,7 @@ from ..payload.identify import _REFIT_CONDITION, EXCITATION_LIMIT, NULL_ROW, ROU
 RANK_RELATIVE = float(np.finfo(float).eps * max(10, 10) * 10)
 
 # Status codes of NAME_finish_identification (the C's #defines; tests and docs read them here).
-STATUS = {"OK": 0, "NOT_IDENTIFYING": -1, "TOO_FEW_HOLDS": -2, "MASS_UNDETERMINED": -3, "UNDETERMINED": -4,
-          "SINGULAR": -5}
+STATUS = {"OK": 0, "NOT_IDENTIFYING": -1, "TOO_FEW_HOLDS": -2, "MASS_UNDETERMINED": -3, "SINGULAR": -4}
 
 
 def state_fields(macro: str) -> str:
@@ -128,8 +129,9 @@ typedef struct {{
     double variance_inflation[10];   /* theta order: m, m cx, m cy, m cz, Fx .. Tz bias */
     unsigned poorly_excited; /* bit j: variance inflation of theta_j > {_num(EXCITATION_LIMIT)} (Python warns) */
     unsigned undetermined;   /* bit j: theta_j lies in a direction the poses do not determine */
+    unsigned held;           /* bit j: theta_j held at 0 to pick one solution (a subset of undetermined) */
     int weighted;            /* 1: per-axis weighting kept by held-out evidence, 0: plain least squares */
-    int jackknife_blocks;    /* standard errors from a grouped jackknife over this many holds; 0: classical */
+    int jackknife_blocks;    /* standard errors from a grouped jackknife: the holds that could be left out; 0: classical */
     int n_holds;
     long n_samples;
     unsigned long holds_dropped;
@@ -188,8 +190,8 @@ static inline void {name}_id_rss(double mo[10][10], const double *theta, double 
     }}
 }}
 
-/* Residual variance per axis; each axis carries n of the 6 n - 10 degrees of freedom (payload.identify). */
-static inline void {name}_id_axis_variance(double mo[10][10], const double *theta, long n, double *variance)
+/* Residual variance per axis; each axis carries n of the 6 n - p degrees of freedom (payload.identify). */
+static inline void {name}_id_axis_variance(double mo[10][10], const double *theta, long n, int p, double *variance)
 {{
     double rss[6];
     int i;
@@ -197,7 +199,7 @@ static inline void {name}_id_axis_variance(double mo[10][10], const double *thet
     for (i = 0; i < 6; ++i) {{
         double scale = mo[4 + i][4 + i] / (double)n, floor;
         floor = 1e-24 * (scale > 1.0 ? scale : 1.0);
-        variance[i] = rss[i] / ((double)n - 10.0 / 6.0);
+        variance[i] = rss[i] / ((double)n - (double)p / 6.0);
         if (!(variance[i] >= floor)) variance[i] = floor;
     }}
 }}
@@ -312,6 +314,19 @@ static inline int {name}_id_solve(double gram[10][10], const double *cross, doub
     return 0;
 }}
 
+/* Hold the parameters of `held` (bits) at zero: their rows and columns become the identity's, their
+   cross products zero, so the others solve the system without them (payload.identify's take(keep)). */
+static inline void {name}_id_hold_at_zero(double gram[10][10], double *cross, unsigned held)
+{{
+    int j, k;
+    for (j = 0; j < 10; ++j)
+        if (held & (1u << j)) {{
+            for (k = 0; k < 10; ++k) gram[j][k] = gram[k][j] = 0.0;
+            gram[j][j] = 1.0;
+            cross[j] = 0.0;
+        }}
+}}
+
 /* The moments of all holds, or of all but hold `without` (-1: none), made symmetric; returns the samples. */
 static inline long {name}_id_moments(const {name}_state *s, int without, double mo[10][10])
 {{
@@ -339,13 +354,14 @@ static inline void {name}_id_hold(const {name}_state *s, int h, double mo[10][10
 /* Make an identified tool the state's {macro}_IDENTIFIED_TOOL and end the collection; with `mount`, mount it and
    give the bias the identified value and variance max(SE^2, noise variance) (finish_identification(mount=True)).
    NAME_finish_identification calls it; call it yourself when the finish ran on a copy of the state outside the
-   real-time loop (docs/live.md). Returns 0, or -1 (nothing changed) for a mass of 0 or numbers not finite. */
+   real-time loop (docs/live.md). Returns 0, or -1 (nothing changed) for a mass of 0, numbers not finite or an
+   infinite standard error (NaN, undetermined, is taken: that bias gets the noise variance). */
 static inline int {name}_adopt_identification({name}_state *s, const {name}_tool_fit *tool, const {name}_tool_se *se,
                                               int mount)
 {{
     int j, finite = isfinite(tool->mass) && tool->mass != 0.0;
     for (j = 0; j < 3; ++j) finite = finite && isfinite(tool->com[j]) && isfinite(tool->mass * tool->com[j]);
-    for (j = 0; j < 6; ++j) finite = finite && isfinite(tool->bias[j]) && isfinite(se->bias[j] * se->bias[j]);
+    for (j = 0; j < 6; ++j) finite = finite && isfinite(tool->bias[j]) && !isinf(se->bias[j] * se->bias[j]);
     if (!finite) return -1;
     s->identifying = 0;
     s->in_hold = 0;
@@ -356,7 +372,7 @@ static inline int {name}_adopt_identification({name}_state *s, const {name}_tool
         s->tool = {macro}_IDENTIFIED_TOOL;
         s->switches += 1;
         for (j = 0; j < 6; ++j) {{
-            double v = se->bias[j] * se->bias[j];
+            double v = isnan(se->bias[j]) ? 0.0 : se->bias[j] * se->bias[j];   /* undetermined: the noise's */
             s->bias[j] = tool->bias[j];
             s->variance[j] = v > s->noise_variance[j] ? v : s->noise_variance[j];
         }}
@@ -369,14 +385,13 @@ static inline int {name}_adopt_identification({name}_state *s, const {name}_tool
    Holds past {macro}_MAX_HOLDS were left out (out_tool->holds_dropped counts them).
    On success (0) the tool is {macro}_IDENTIFIED_TOOL; with `mount` it is mounted and the bias takes the
    identified value and variance (as finish_identification(mount=True)). Errors (out_tool may be partly written;
-   `undetermined` names the parameters on {macro}_ID_MASS_UNDETERMINED and {macro}_ID_UNDETERMINED):
+   out_tool->undetermined names the parameters the poses do not determine: on success those held at zero
+   (their standard errors NaN) and the others confounded with them; on {macro}_ID_MASS_UNDETERMINED all):
    {macro}_ID_NOT_IDENTIFYING  no identification in progress;
    {macro}_ID_TOO_FEW_HOLDS    fewer than {macro}_MIN_HOLDS holds: still identifying, collect more;
    {macro}_ID_MASS_UNDETERMINED the poses do not determine the mass (Python refuses the same);
-   {macro}_ID_UNDETERMINED     the poses leave the COM or a bias undetermined (Python warns and holds it at 0;
-                                the C refuses: record poses that tilt the sensor);
    {macro}_ID_SINGULAR         a singular solve or a mass of exactly zero.
-   The last three end the identification. Cost: a few hundred 10 x 10 solves (see docs/live.md). */
+   The last two end the identification. Cost: a few hundred 10 x 10 solves (see docs/live.md). */
 static inline int {name}_finish_identification({name}_state *s, {name}_tool_fit *out_tool, {name}_tool_se *out_se,
                                                int mount)
 {{
@@ -386,7 +401,8 @@ static inline int {name}_finish_identification({name}_state *s, {name}_tool_fit 
     double jac[10], values[10], vectors[10][10], top = 0.0, row[10], inverse[10][10], factor[10][10];
     double covariance[10][10], refits[{macro}_MAX_HOLDS][10], sse_ols[6], sse_wls[6], rss[6], mass;
     long n;
-    int h, i, j, k, null = 0, scored = 0, g = 0;
+    int h, i, j, k, null = 0, scored = 0, g = 0, p = 10;   /* p: parameters estimated (not held) */
+    unsigned held = 0;
     if (!s->identifying) return {macro}_ID_NOT_IDENTIFYING;
     memset(out_tool, 0, sizeof *out_tool);
     memset(out_se, 0, sizeof *out_se);
@@ -417,21 +433,62 @@ static inline int {name}_finish_identification({name}_state *s, {name}_tool_fit 
             for (j = 0; j < 10; ++j) row[j] += vectors[j][k] * vectors[j][k];
         }}
     if (null > 0) {{
+        /* payload.identify._choose_held: one parameter per null direction, COM first, then torque and force
+           biases, the largest pivot (the first of near-equal ones); its row is projected out of the basis */
+        static const int groups[3] = {{1, 7, 4}};
+        int it, c, cols[10], nc = 0;
         for (j = 0; j < 10; ++j) if (sqrt(row[j]) > {_num(NULL_ROW)}) out_tool->undetermined |= 1u << j;
-        return (out_tool->undetermined & 1u) || null == 10 ? {macro}_ID_MASS_UNDETERMINED : {macro}_ID_UNDETERMINED;
+        if ((out_tool->undetermined & 1u) || null == 10) return {macro}_ID_MASS_UNDETERMINED;
+        for (k = 0; k < 10; ++k) if (values[k] <= top * {_num(RANK_RELATIVE)}) cols[nc++] = k;
+        for (j = 0; j < 10; ++j)
+            for (c = 0; c < nc; ++c) part[j][c] = vectors[j][cols[c]];
+        for (it = 0; it < nc; ++it) {{
+            int pick = -1, grp;
+            double unit[10], length = 0.0;
+            for (grp = 0; grp < 3 && pick < 0; ++grp) {{
+                double score[3], best = 0.0;
+                for (j = 0; j < 3; ++j) {{
+                    int q = groups[grp] + j;
+                    score[j] = -1.0;
+                    if (held & (1u << q)) continue;
+                    score[j] = 0.0;
+                    for (c = 0; c < nc; ++c) score[j] += part[q][c] * part[q][c];
+                    score[j] = sqrt(score[j]);
+                    if (score[j] > best) best = score[j];
+                }}
+                if (best > {_num(NULL_ROW)})
+                    for (j = 0; j < 3 && pick < 0; ++j)
+                        if (score[j] >= best * (1.0 - {_num(CANONICAL_TIE)})) pick = groups[grp] + j;
+            }}
+            if (pick < 0) return {macro}_ID_SINGULAR;   /* unreachable: biases alone always have a pivot */
+            held |= 1u << pick;
+            p -= 1;
+            for (c = 0; c < nc; ++c) length += part[pick][c] * part[pick][c];
+            length = sqrt(length);
+            for (c = 0; c < nc; ++c) unit[c] = part[pick][c] / length;
+            for (j = 0; j < 10; ++j) {{
+                double dot = 0.0;
+                for (c = 0; c < nc; ++c) dot += part[j][c] * unit[c];
+                for (c = 0; c < nc; ++c) part[j][c] -= dot * unit[c];
+            }}
+        }}
+        {name}_id_hold_at_zero(gram, cross, held);
+        out_tool->held = held;
     }}
     if ({name}_id_solve(gram, cross, theta0, 0)) return {macro}_ID_SINGULAR;
-    {name}_id_axis_variance(mo, theta0, n, variance);
+    {name}_id_axis_variance(mo, theta0, n, p, variance);
     /* weighting: per-axis 1/sigma^2 only if it predicts held-out holds no worse, and better somewhere */
     for (i = 0; i < 6; ++i) sse_ols[i] = sse_wls[i] = 0.0;
     for (h = 0; h < s->n_holds; ++h) {{
         double train[10][10], t_ols[10], t_wls[10], v[6], w[6], fold[10][10];
         long m = {name}_id_moments(s, h, train);
         {name}_id_gram(train, ones, gram, cross);
-        if ({name}_id_solve(gram, cross, t_ols, 1) || m * 6 - 10 < 6) continue;
-        {name}_id_axis_variance(train, t_ols, m, v);
+        {name}_id_hold_at_zero(gram, cross, held);
+        if ({name}_id_solve(gram, cross, t_ols, 1) || m * 6 - p < 6) continue;
+        {name}_id_axis_variance(train, t_ols, m, p, v);
         for (i = 0; i < 6; ++i) w[i] = 1.0 / v[i];
         {name}_id_gram(train, w, gram, cross);
+        {name}_id_hold_at_zero(gram, cross, held);
         if ({name}_id_solve(gram, cross, t_wls, 1)) continue;
         {name}_id_hold(s, h, fold);
         {name}_id_rss(fold, t_ols, rss);
@@ -448,6 +505,7 @@ static inline int {name}_finish_identification({name}_state *s, {name}_tool_fit 
     }}
     for (i = 0; i < 6; ++i) weights[i] = out_tool->weighted ? 1.0 / variance[i] : 1.0;
     {name}_id_gram(mo, weights, gram, cross);
+    {name}_id_hold_at_zero(gram, cross, held);
     if ({name}_id_solve(gram, cross, theta, 0)) return {macro}_ID_SINGULAR;
     /* the inverse of the equilibrated weighted Gram: variance inflation, and the classical covariance's bread */
     for (j = 0; j < 10; ++j) jac[j] = 1.0 / sqrt(gram[j][j]);
@@ -471,6 +529,7 @@ static inline int {name}_finish_identification({name}_state *s, {name}_tool_fit 
             hold_cross[j] = cross[j] - hold_cross[j];
             for (k = 0; k < 10; ++k) hold_gram[j][k] = gram[j][k] - hold_gram[j][k];
         }}
+        {name}_id_hold_at_zero(hold_gram, hold_cross, held);
         if ({name}_id_solve(hold_gram, hold_cross, refits[g], 1) == 0) g += 1;
     }}
     if (g >= 2) {{
@@ -489,9 +548,11 @@ static inline int {name}_finish_identification({name}_state *s, {name}_tool_fit 
         out_tool->jackknife_blocks = g;
     }} else {{   /* classical: bread meat bread, meat = sum_i w_i^2 sigma_i^2 A_i^T A_i */
         double meat[10][10], half[10][10], w2[6];
-        {name}_id_axis_variance(mo, theta, n, variance);
+        {name}_id_axis_variance(mo, theta, n, p, variance);
         for (i = 0; i < 6; ++i) w2[i] = weights[i] * weights[i] * variance[i];
         {name}_id_gram(mo, w2, meat, cross);
+        {name}_id_hold_at_zero(meat, cross, held);
+        for (j = 0; j < 10; ++j) if (held & (1u << j)) meat[j][j] = 0.0;
         for (j = 0; j < 10; ++j)
             for (k = 0; k < 10; ++k) {{
                 double v = 0.0;
@@ -507,9 +568,10 @@ static inline int {name}_finish_identification({name}_state *s, {name}_tool_fit 
     }}
     for (j = 0; j < 10; ++j)
         for (k = 0; k < j; ++k) covariance[j][k] = covariance[k][j] = 0.5 * (covariance[j][k] + covariance[k][j]);
-    for (j = 0; j < 10; ++j) {{
-        out_tool->variance_inflation[j] = inverse[j][j];
-        if (inverse[j][j] > {_num(EXCITATION_LIMIT)}) out_tool->poorly_excited |= 1u << j;
+    for (j = 0; j < 10; ++j) {{   /* held: no estimate (infinite inflation); undetermined: said once, not as poorly excited */
+        out_tool->variance_inflation[j] = held & (1u << j) ? HUGE_VAL : inverse[j][j];
+        if (inverse[j][j] > {_num(EXCITATION_LIMIT)} && !(out_tool->undetermined & (1u << j)))
+            out_tool->poorly_excited |= 1u << j;
     }}
     {name}_id_rss(mo, theta, rss);
     for (i = 0; i < 6; ++i) out_tool->residual_rms[i] = sqrt(rss[i] / (double)n);
@@ -527,6 +589,11 @@ static inline int {name}_finish_identification({name}_state *s, {name}_tool_fit 
         out_tool->bias[j] = theta[4 + j];
         out_se->bias[j] = sqrt(fmax(covariance[4 + j][4 + j], 0.0));
     }}
+    for (j = 1; j < 10; ++j)   /* undetermined: no standard error (NaN), as in Python */
+        if (out_tool->undetermined & (1u << j)) {{
+            if (j < 4) out_se->com[j - 1] = NAN;
+            else out_se->bias[j - 4] = NAN;
+        }}
     return {name}_adopt_identification(s, out_tool, out_se, mount) ? {macro}_ID_SINGULAR : {macro}_ID_OK;
 }}
 """

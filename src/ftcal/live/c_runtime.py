@@ -20,7 +20,7 @@ Identification in place (:mod:`ftcal.live.c_identify`): ``NAME_start_identificat
 tool as :meth:`LiveCalibrator.finish_identification` does; it becomes tool ``NAME_IDENTIFIED_TOOL``.
 
 What the C does not do (the Python calibrator does): several tools identified in place (the C keeps
-the last), holding undetermined COM components at zero (the C refuses those poses), the ``silent``
+the last), warnings and reasons as text (the C reports bit masks), the ``silent``
 flag (a transport's), a separate temperature input (the model's temperature input is used),
 quaternion or joint motion signals (the gravity direction is the motion signal, as with
 ``gravity=``), flag reasons as text, state files. The motion history holds the newest
