@@ -24,18 +24,36 @@ Python constants it mirrors; nothing from a file reaches this C.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..core.directions import CANONICAL_TIE
 from ..core.jackknife import t_scale
 from ..payload.accumulate import _static_maps
 from ..payload.identify import _REFIT_CONDITION, EXCITATION_LIMIT, NULL_ROW, ROUNDING_COLUMN, WEIGHTING_TIE
+from ..runtime.errors import FtcalError
 
 # find_undetermined's null-eigenvalue threshold, relative to the largest (Spectrum.rank_threshold for p = 10).
 RANK_RELATIVE = float(np.finfo(float).eps * max(10, 10) * 10)
 
 # Status codes of NAME_finish_identification (the C's #defines; tests and docs read them here).
 STATUS = {"OK": 0, "NOT_IDENTIFYING": -1, "TOO_FEW_HOLDS": -2, "MASS_UNDETERMINED": -3, "SINGULAR": -4}
+
+
+def _num(x: float) -> str:
+    """A double literal that round-trips; infinities as ``HUGE_VAL``."""
+    x = float(x)
+    if math.isnan(x):
+        raise FtcalError("the model has a NaN where a number is needed; refusing to generate code.")
+    if math.isinf(x):
+        return "HUGE_VAL" if x > 0 else "(-HUGE_VAL)"
+    text = format(x, ".17g")
+    return text if any(ch in text for ch in ".en") else text + ".0"
+
+
+def _array(values) -> str:
+    return "{" + ", ".join(_num(v) for v in np.ravel(values)) + "}"
 
 
 def state_fields(macro: str) -> str:
@@ -112,8 +130,6 @@ static inline void {name}_collect({name}_state *s, int still, const double *g, c
 
 def finish_text(name: str, macro: str, max_holds: int) -> str:
     """The C of ``NAME_finish_identification``, its result types and status codes (after NAME_step)."""
-    from .c_runtime import _array, _num
-
     maps = _static_maps()  # (6, 10, 4): axis i's regressor row is maps[i] @ (g, 1)
     scales = [t_scale(d) for d in range(1, max_holds)]
     status = "\n".join(f"#define {macro}_ID_{key} ({value})" for key, value in STATUS.items())

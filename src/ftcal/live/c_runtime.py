@@ -48,28 +48,13 @@ from ..files.model_json import ModelFile, ftcal_version
 from ..files.targets import ConvertOptions, Written
 from ..runtime.atomic import write_text_atomic
 from ..runtime.errors import FtcalError
-from .c_identify import collect_text, finish_text, state_fields
+from .c_identify import _array, _num, collect_text, finish_text, state_fields
 from .calibrator import (DEFAULT_NOISE_FRACTION, DEFAULT_WALK_FRACTION, GATE_PROBABILITY, NO_TOOL, RETARE_VARIANCE,
                          SECONDS_PER_HOUR, UNEXPLAINED_SECONDS, UNEXPLAINED_SIGMA, _walk_from_knots)
 from .health import BIT, DEAD_RUN
 
 DEFAULT_NAME = "ftcal_runtime"
 HISTORY = 1024
-
-
-def _num(x: float) -> str:
-    """A double literal that round-trips; infinities as ``HUGE_VAL``."""
-    x = float(x)
-    if math.isnan(x):
-        raise FtcalError("the model has a NaN where a number is needed; refusing to generate code.")
-    if math.isinf(x):
-        return "HUGE_VAL" if x > 0 else "(-HUGE_VAL)"
-    text = format(x, ".17g")
-    return text if any(ch in text for ch in ".en") else text + ".0"
-
-
-def _array(values) -> str:
-    return "{" + ", ".join(_num(v) for v in np.ravel(values)) + "}"
 
 
 def runtime_parameters(tools: dict) -> dict:
