@@ -213,10 +213,10 @@ static inline void {name}_id_axis_variance(double mo[10][10], const double *thet
     int i;
     {name}_id_rss(mo, theta, rss);
     for (i = 0; i < 6; ++i) {{
-        double scale = mo[4 + i][4 + i] / (double)n, floor;
-        floor = 1e-24 * (scale > 1.0 ? scale : 1.0);
+        double scale = mo[4 + i][4 + i] / (double)n, least;
+        least = 1e-24 * (scale > 1.0 ? scale : 1.0);
         variance[i] = rss[i] / ((double)n - (double)p / 6.0);
-        if (!(variance[i] >= floor)) variance[i] = floor;
+        if (!(variance[i] >= least)) variance[i] = least;
     }}
 }}
 
@@ -433,9 +433,9 @@ static inline int {name}_finish_identification({name}_state *s, {name}_tool_fit 
     {name}_id_gram(mo, ones, gram, cross);
     for (j = 0; j < 10; ++j) {{
         double unit = j >= 4 ? 1.0 : s->hold_gravity_max;
-        double floor = {_num(ROUNDING_COLUMN)} * unit, d = gram[j][j];
-        floor = floor * floor * (double)n;
-        if (floor > d) d = floor;
+        double least = {_num(ROUNDING_COLUMN)} * unit, d = gram[j][j];
+        least = least * least * (double)n;
+        if (least > d) d = least;
         jac[j] = 1.0 / sqrt(d > 0.0 ? d : 1.0);
     }}
     for (j = 0; j < 10; ++j)
