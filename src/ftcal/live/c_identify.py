@@ -147,7 +147,7 @@ typedef struct {{
     unsigned undetermined;   /* bit j: theta_j lies in a direction the poses do not determine */
     unsigned held;           /* bit j: theta_j held at 0 to pick one solution (a subset of undetermined) */
     int weighted;            /* 1: per-axis weighting kept by held-out evidence, 0: plain least squares */
-    int jackknife_blocks;    /* standard errors from a grouped jackknife: the holds that could be left out; 0: classical */
+    int jackknife_blocks;    /* grouped-jackknife standard errors: the holds that could be left out; 0: classical */
     int n_holds;
     long n_samples;
     unsigned long holds_dropped;
@@ -584,7 +584,8 @@ static inline int {name}_finish_identification({name}_state *s, {name}_tool_fit 
     }}
     for (j = 0; j < 10; ++j)
         for (k = 0; k < j; ++k) covariance[j][k] = covariance[k][j] = 0.5 * (covariance[j][k] + covariance[k][j]);
-    for (j = 0; j < 10; ++j) {{   /* held: no estimate (infinite inflation); undetermined: said once, not as poorly excited */
+    /* held: no estimate (infinite inflation); undetermined: said once, not as poorly excited */
+    for (j = 0; j < 10; ++j) {{
         out_tool->variance_inflation[j] = held & (1u << j) ? HUGE_VAL : inverse[j][j];
         if (inverse[j][j] > {_num(EXCITATION_LIMIT)} && !(out_tool->undetermined & (1u << j)))
             out_tool->poorly_excited |= 1u << j;

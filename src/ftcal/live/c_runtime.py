@@ -394,7 +394,8 @@ static inline int {name}_step({name}_state *s, double time, const double *u, con
         }}
         out->bias[j] = s->bias[j];
         out->bias_std[j] = sqrt(s->variance[j]);
-        if (!s->identifying && fabs(e[j]) > fmax(s->unexplained_sigma * sqrt(innovation_var[j]), s->accept_limit[j])) beyond = 1;
+        if (!s->identifying
+            && fabs(e[j]) > fmax(s->unexplained_sigma * sqrt(innovation_var[j]), s->accept_limit[j])) beyond = 1;
     }}
     /* health: run lengths of identical values per channel (temperature excluded) */
     for (j = 0; j < {macro}_N_CHANNELS; ++j) {{
