@@ -10,7 +10,9 @@
   ``march="native"`` also ``-march=native``).
 * ``c_runtime_step``: ``NAME_step`` of ``ftcal convert --to c-runtime`` (calibration + tool + bias
   filter + health) per sample over a simulated recording (motion test on, one tool), and the
-  calibration alone (``NAME_calibrate``) in the same run.
+  calibration alone (``NAME_calibrate``) in the same run; then the same steps with an identification
+  in place running (each static hold's moments collected), and ``NAME_finish_identification`` on the
+  holds they collected (µs per call, repeated on copies of the state).
 """
 
 from __future__ import annotations
@@ -180,10 +182,13 @@ int main(int argc, char **argv)
 {
     long n = atol(argv[1]), k;
     double *u = malloc(sizeof(double) * n * RT_N_INPUTS), *g = malloc(sizeof(double) * n * 3), w[6];
-    double checksum = 0, t0, t1, t2;
-    rt_state *s = malloc(sizeof *s);
+    double checksum = 0, t0, t1, t2, t3, t4, finish = 0.0;
+    rt_state *s = malloc(sizeof *s), *saved = malloc(sizeof *s);
     rt_output o;
-    int i, flagged = 0;
+    rt_tool_fit fit;
+    rt_tool_se se;
+    int i, flagged = 0, status = 0, r, repeats = 20;
+    long updates;
     (void)argc;
     for (k = 0; k < n; ++k) {
         for (i = 0; i < RT_N_INPUTS; ++i) if (scanf("%lf", &u[k * RT_N_INPUTS + i]) != 1) return 1;
@@ -202,7 +207,24 @@ int main(int argc, char **argv)
         checksum += w[k % 6];
     }
     t2 = now();
-    printf("%.9f %.9f %ld %d %.17g\n", t1 - t0, t2 - t1, (long)s->updates, flagged, checksum);
+    updates = (long)s->updates;
+    rt_init(s, 1);
+    rt_start_identification(s);
+    for (k = 0; k < n; ++k) {
+        if (rt_step(s, 0.002 * k, u + k * RT_N_INPUTS, g + 3 * k, -1, &o)) return 2;
+        checksum += o.compensated[k % 6];
+    }
+    t3 = now();
+    *saved = *s;
+    for (r = 0; r < repeats; ++r) {
+        *s = *saved;
+        t4 = now();
+        status |= rt_finish_identification(s, &fit, &se, 1);
+        finish += now() - t4;
+        checksum += fit.mass;
+    }
+    printf("%.9f %.9f %ld %d %.17g %.9f %.9f %d %d %.17g\n", t1 - t0, t2 - t1, updates, flagged, checksum,
+           t3 - t2, finish / repeats, fit.n_holds, status, fit.mass);
     return 0;
 }
 """
@@ -235,11 +257,18 @@ def c_runtime_step(n: int, degree: int) -> dict:
         (folder / "driver.c").write_text(RUNTIME_DRIVER)
         _compile(folder, ["-std=c99", "-O2", "-Wall", "-Werror"], ["driver.c"], "bench")
         text = "\n".join(" ".join(repr(float(v)) for v in np.r_[a, b]) for a, b in zip(u, rec.gravity))
+        start = time.perf_counter()
         out = subprocess.run([str(folder / "bench"), str(rec.time.size)], input=text, capture_output=True,
                              text=True, check=True).stdout.split()
-    step, calibrate = float(out[0]), float(out[1])
-    return {"seconds": step + calibrate, "step_ns": step / rec.time.size * 1e9,
-            "calibrate_ns": calibrate / rec.time.size * 1e9, "updates": int(out[2]), "flagged": int(out[3])}
+        wall = time.perf_counter() - start
+    step, calibrate, identifying, finish = float(out[0]), float(out[1]), float(out[5]), float(out[6])
+    if int(out[8]) != 0:
+        raise RuntimeError(f"rt_finish_identification returned {out[8]} on the benchmark's holds")
+    return {"seconds": wall, "cpu_seconds": step + calibrate + identifying + 20 * finish,
+            "step_ns": step / rec.time.size * 1e9, "calibrate_ns": calibrate / rec.time.size * 1e9,
+            "identifying_step_ns": identifying / rec.time.size * 1e9, "finish_us": finish * 1e6,
+            "holds": int(out[7]), "identified_mass": float(out[9]), "true_mass": tool.mass,
+            "updates": int(out[2]), "flagged": int(out[3])}
 
 
 CASES = {f.__name__: f for f in (c_batch, c_runtime_step)}

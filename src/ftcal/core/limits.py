@@ -247,3 +247,10 @@ MISSING_JOINTS = ("refuse", "zero")
 """What ``ftcal expected --missing-joints`` does with a joint the expected wrench depends on (on the chain
 from the base to the sensor, or beyond the sensor) that the joints table lacks: refuse it, or hold it at 0 rad
 because the user says it is 0."""
+
+LIVE_MIN_HOLDS = 3
+"""Fewest static holds (in different orientations) an identification in place takes, in Python and in the C runtime."""
+
+C_RUNTIME_MAX_HOLDS = 32
+"""Static holds the generated C runtime's state keeps for an identification in place (fixed size, no allocation):
+holds past it are counted (``holds_dropped``) and left out, so the tool is identified from the first ones."""

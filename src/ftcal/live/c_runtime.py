@@ -14,7 +14,13 @@ Fixed-size state, no allocation, no library beyond ``<math.h>`` and ``<string.h>
 function is ``static`` so the header can be included by one or several translation units.
 Names and units from the files reach the C only through :mod:`ftcal.files.c_text`.
 
-What the C does not do (the Python calibrator does): identification in place, the ``silent``
+Identification in place (:mod:`ftcal.live.c_identify`): ``NAME_start_identification`` and
+``NAME_finish_identification`` keep up to ``NAME_MAX_HOLDS`` static holds
+(:data:`~ftcal.core.limits.C_RUNTIME_MAX_HOLDS`; later holds are left out and counted) and identify the
+tool as :meth:`LiveCalibrator.finish_identification` does; it becomes tool ``NAME_IDENTIFIED_TOOL``.
+
+What the C does not do (the Python calibrator does): several tools identified in place (the C keeps
+the last), warnings and reasons as text (the C reports bit masks), the ``silent``
 flag (a transport's), a separate temperature input (the model's temperature input is used),
 quaternion or joint motion signals (the gravity direction is the motion signal, as with
 ``gravity=``), flag reasons as text, state files. The motion history holds the newest
@@ -32,6 +38,7 @@ import numpy as np
 
 from ..check.accept import Thresholds
 from ..core.excitation import SPAN_RELATIVE_FLOOR, span_limit
+from ..core.limits import C_RUNTIME_MAX_HOLDS, LIVE_MIN_HOLDS
 from ..core.ranges import RANGE_TOLERANCE
 from ..data.holds import HOLD_WINDOW_S, MIN_ANGULAR_RATE, MIN_HOLD_S
 from ..data.signals import SATURATION_RUN, STUCK_RUN
@@ -41,27 +48,13 @@ from ..files.model_json import ModelFile, ftcal_version
 from ..files.targets import ConvertOptions, Written
 from ..runtime.atomic import write_text_atomic
 from ..runtime.errors import FtcalError
+from .c_identify import _array, _num, collect_text, finish_text, state_fields
 from .calibrator import (DEFAULT_NOISE_FRACTION, DEFAULT_WALK_FRACTION, GATE_PROBABILITY, NO_TOOL, RETARE_VARIANCE,
                          SECONDS_PER_HOUR, UNEXPLAINED_SECONDS, UNEXPLAINED_SIGMA, _walk_from_knots)
 from .health import BIT, DEAD_RUN
 
 DEFAULT_NAME = "ftcal_runtime"
 HISTORY = 1024
-
-
-def _num(x: float) -> str:
-    """A double literal that round-trips; infinities as ``HUGE_VAL``."""
-    x = float(x)
-    if math.isnan(x):
-        raise FtcalError("the model has a NaN where a number is needed; refusing to generate code.")
-    if math.isinf(x):
-        return "HUGE_VAL" if x > 0 else "(-HUGE_VAL)"
-    text = format(x, ".17g")
-    return text if any(ch in text for ch in ".en") else text + ".0"
-
-
-def _array(values) -> str:
-    return "{" + ", ".join(_num(v) for v in np.ravel(values)) + "}"
 
 
 def runtime_parameters(tools: dict) -> dict:
@@ -119,7 +112,8 @@ def _span(model) -> list[str]:
 
 
 def generate_c_runtime(model, tools: dict, *, name: str = DEFAULT_NAME, sha256: str | None = None,
-                       source_name: str | None = None, tool_sources=None) -> str:
+                       source_name: str | None = None, tool_sources=None,
+                       max_holds: int = C_RUNTIME_MAX_HOLDS) -> str:
     """The C99 header of the live step for ``model`` and the tool library ``tools``.
 
     Parameters
@@ -129,6 +123,7 @@ def generate_c_runtime(model, tools: dict, *, name: str = DEFAULT_NAME, sha256: 
     name : C identifier prefixing every symbol (macros upper-cased)
     sha256, source_name : the model file's digest and name, for the header comment
     tool_sources : sequence of str or None, the payload files' names, for the header comment
+    max_holds : static holds an identification in place keeps (``NAME_MAX_HOLDS``; holds past it are left out)
 
     Returns
     -------
@@ -142,6 +137,8 @@ def generate_c_runtime(model, tools: dict, *, name: str = DEFAULT_NAME, sha256: 
     from ..report.runs import temperature_column
 
     c_identifier(name)
+    if not isinstance(max_holds, int) or not LIVE_MIN_HOLDS <= max_holds <= C_RUNTIME_MAX_HOLDS:
+        raise FtcalError(f"max_holds must be an int in [{LIVE_MIN_HOLDS}, {C_RUNTIME_MAX_HOLDS}]; got {max_holds!r}.")
     if len(model.output_names_) != 6:
         raise FtcalError(f"--to c-runtime: the model has {len(model.output_names_)} outputs; a wrench needs 6.")
     predict = static_predict_function(model, f"static inline void {name}_calibrate")
@@ -190,6 +187,9 @@ extern "C" {{
 #define {macro}_N_INPUTS {nu}
 #define {macro}_N_TOOLS {len(names)}
 #define {macro}_N_CHANNELS {nc}
+#define {macro}_MAX_HOLDS {max_holds}   /* holds an identification in place keeps; later ones are left out */
+#define {macro}_MIN_HOLDS {LIVE_MIN_HOLDS}
+#define {macro}_IDENTIFIED_TOOL {macro}_N_TOOLS   /* the tool identified in place (after a successful finish) */
 #ifndef {macro}_HISTORY
 #define {macro}_HISTORY {HISTORY}
 #endif
@@ -237,6 +237,7 @@ typedef struct {{
     double exceed_start;
     unsigned flags;
     unsigned long samples, updates, contacts, retares, switches;
+{state_fields(macro)}
 }} {name}_state;
 
 typedef struct {{
@@ -283,10 +284,11 @@ static inline int {name}_init({name}_state *s, int tool)
     return 0;
 }}
 
-/* Mount another tool instantly; the bias (the sensor's) is kept. Returns 0, or -1 for a bad index. */
+/* Mount another tool instantly; the bias (the sensor's) is kept. Returns 0, or -1 for a bad index
+   ({macro}_IDENTIFIED_TOOL only after an identification in place). */
 static inline int {name}_set_tool({name}_state *s, int tool)
 {{
-    if (tool < 0 || tool >= {macro}_N_TOOLS) return -1;
+    if (tool < 0 || tool > {macro}_N_TOOLS || (tool == {macro}_IDENTIFIED_TOOL && !s->has_identified)) return -1;
     s->tool = tool;
     s->switches += 1;
     return 0;
@@ -336,6 +338,7 @@ static inline void {name}_motion({name}_state *s, double time, const double *dir
     *still = *still && (time - s->last_moving >= s->min_hold);
 }}
 
+{collect_text(name, macro)}
 /* One sample: time in s (strictly increasing), u[N_INPUTS] the raw channels, gravity[3] in sensor axes
    (m/s^2, any nonzero length for the direction), static_override -1 (motion test), 0 or 1.
    Returns 0, or -1 (state untouched, out not written) for non-finite input, time that does not
@@ -344,8 +347,9 @@ static inline int {name}_step({name}_state *s, double time, const double *u, con
                        {name}_output *out)
 {{
     double w[6], z[6], e[6], tool[6], direction[3], norm, dt, chi2 = 0.0, predicted[6], innovation_var[6];
-    const double *mc = {name}_tool_mc[s->tool];
-    double m = {name}_tool_mass[s->tool], sign = {name}_tool_sign[s->tool];
+    int known = s->tool < {macro}_N_TOOLS;   /* else the tool identified in place */
+    const double *mc = known ? {name}_tool_mc[s->tool] : s->identified_mc;
+    double m = known ? {name}_tool_mass[s->tool] : s->identified_mass, sign = known ? {name}_tool_sign[s->tool] : 1.0;
     int j, still, moving, gate, beyond = 0, other;
     unsigned flags = 0;
     if (!isfinite(time) || (s->has_time && !(time > s->last_time))) return -1;
@@ -361,6 +365,7 @@ static inline int {name}_step({name}_state *s, double time, const double *u, con
     }} else {{
         {name}_motion(s, time, direction, &still, &moving);
     }}
+    if (s->identifying) {name}_collect(s, still, gravity, w);
     /* the tool's gravity wrench: F = m g, T = (m c) x g, negated for a reaction payload */
     tool[0] = sign * (m * gravity[0]);
     tool[1] = sign * (m * gravity[1]);
@@ -376,7 +381,7 @@ static inline int {name}_step({name}_state *s, double time, const double *u, con
         e[j] = z[j] - s->bias[j];
         chi2 += e[j] * (e[j] / innovation_var[j]);
     }}
-    gate = still && chi2 < s->gate_chi2;
+    gate = still && !s->identifying && chi2 < s->gate_chi2;
     for (j = 0; j < 6; ++j) {{
         out->calibrated[j] = w[j];
         out->compensated[j] = e[j];
@@ -389,7 +394,8 @@ static inline int {name}_step({name}_state *s, double time, const double *u, con
         }}
         out->bias[j] = s->bias[j];
         out->bias_std[j] = sqrt(s->variance[j]);
-        if (fabs(e[j]) > fmax(s->unexplained_sigma * sqrt(innovation_var[j]), s->accept_limit[j])) beyond = 1;
+        if (!s->identifying
+            && fabs(e[j]) > fmax(s->unexplained_sigma * sqrt(innovation_var[j]), s->accept_limit[j])) beyond = 1;
     }}
     /* health: run lengths of identical values per channel (temperature excluded) */
     for (j = 0; j < {macro}_N_CHANNELS; ++j) {{
@@ -425,7 +431,7 @@ static inline int {name}_step({name}_state *s, double time, const double *u, con
         if (outside || {name}_outside_span(u)) flags |= {macro}_FLAG_OUT_OF_RANGE;
     }}
 {temp_line}
-    if (still && !gate && chi2 >= s->gate_chi2) flags |= {macro}_FLAG_CONTACT;
+    if (still && !gate && chi2 >= s->gate_chi2 && !s->identifying) flags |= {macro}_FLAG_CONTACT;
     if (beyond) {{
         if (!s->exceeding) {{
             s->exceeding = 1;
@@ -448,6 +454,7 @@ static inline int {name}_step({name}_state *s, double time, const double *u, con
     return 0;
 }}
 
+{finish_text(name, macro, max_holds)}
 #ifdef __cplusplus
 }}
 #endif
@@ -493,4 +500,5 @@ def write_c_runtime(source: ModelFile, output: Path, options: ConvertOptions) ->
     write_text_atomic(output, text)
     library = (f"{len(tools) + 1} tools (none, {', '.join(tools)})" if tools else
                "1 tool (none); add tools with --payload-file")
-    return Written((output,), (f"{name}_init / {name}_step / {name}_set_tool / {name}_retare; {library}",))
+    return Written((output,), (f"{name}_init / {name}_step / {name}_set_tool / {name}_retare / "
+                               f"{name}_start_identification / {name}_finish_identification; {library}",))

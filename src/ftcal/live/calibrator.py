@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from ..check.accept import Thresholds
+from ..core.limits import LIVE_MIN_HOLDS
 from ..data.holds import HOLD_WINDOW_S, MIN_ANGULAR_RATE, MIN_HOLD_S
 from ..data.signals import SATURATION_RUN, STUCK_RUN
 from ..payload.kinematics import QUATERNION_NORM_TOLERANCE, STANDARD_GRAVITY, gravity_from_quaternions
@@ -367,8 +368,9 @@ class LiveCalibrator:
         if job is None:
             raise FtcalError("no identification in progress (call start_identification first).")
         holds = [h for h in job.holds if h is not None]
-        if len(holds) < 3:
-            raise FtcalError(f"identifying tool {job.name!r}: {len(holds)} static hold(s) so far; at least 3 "
+        if len(holds) < LIVE_MIN_HOLDS:
+            raise FtcalError(f"identifying tool {job.name!r}: {len(holds)} static hold(s) so far; at least "
+                             f"{LIVE_MIN_HOLDS} "
                              "in different orientations are needed.")
         self.identifying = None
         total = holds[0]
