@@ -247,3 +247,13 @@ MISSING_JOINTS = ("refuse", "zero")
 """What ``ftcal expected --missing-joints`` does with a joint the expected wrench depends on (on the chain
 from the base to the sensor, or beyond the sensor) that the joints table lacks: refuse it, or hold it at 0 rad
 because the user says it is 0."""
+
+LIVE_KEY_CONVENTIONS = ("bridge", "rmw_zenoh")
+"""Zenoh key expressions of ``ftcal live --zenoh``'s ROS topics: zenoh-bridge-ros2dds's (topic ``/ft/raw`` is key
+``ft/raw``) or rmw_zenoh's (``<domain>/<topic>/<DDS type>/<RIHS01 type hash>``, with attachments and liveliness)."""
+
+MAX_ROS_DOMAIN_ID = 232
+"""Highest ROS 2 domain id (ROS 2's documented range is 0-232; rmw_zenoh puts it at the head of every key)."""
+
+MAX_RT_PRIORITY = 99
+"""Highest SCHED_FIFO priority on Linux (``ftcal live --rt-priority``; 1 is the lowest real-time priority)."""
