@@ -36,6 +36,7 @@ is saved.
 
 from __future__ import annotations
 
+import gc
 import json
 import math
 import sys
@@ -64,8 +65,11 @@ WATCH_PERIOD_S = 0.05
 # GIL switch interval in the node (Python's default is 5 ms): the longest the main thread's diagnostics
 # can hold a subscriber callback up.
 SWITCH_INTERVAL_S = 0.0002
-# Publisher settings (zenoh.Session.declare_publisher keywords; names resolved when zenoh is imported).
-PUBLISHER_SETTINGS = {"express": True}
+# Publisher settings (zenoh.Session.declare_publisher keywords; names resolved when zenoh is imported). A late
+# answer is dropped rather than the callback blocked (rmw_zenoh's choice for KEEP_LAST topics). Not express:
+# measured at 2 kHz, express=True lost 36-407 of 16,000 answers (each message then takes one of the link's two
+# queued batches) for no lower p99 (docs/live.md).
+PUBLISHER_SETTINGS = {"congestion_control": "DROP"}
 
 
 def topic_key(topic: str) -> str:
@@ -328,6 +332,7 @@ class LiveNode:
                       + (f" and {pose}" if pose else " (no IMU or joints: fixed pose, gravity -z)")
                       + f"; publishing {self.keys['calibrated']}, {self.keys['compensated']}, "
                         f"{self.keys['diagnostics']}", flush=True)
+            self.settle()
             self._loop()
         finally:
             sys.setswitchinterval(switch_interval)
@@ -340,6 +345,12 @@ class LiveNode:
             if self.live.state_path is not None and self.live.last_time is not None:
                 self.live.save_state()
         return 0
+
+    def settle(self) -> None:
+        """After setup, before the first message: collect once, then move every object alive now (modules, the
+        model, the type store) out of the collector's sight, so that a collection never walks them mid-stream."""
+        gc.collect()
+        gc.freeze()
 
     def _realtime(self, priority: int) -> None:
         """SCHED_FIFO for this thread before the session starts, so that Zenoh's threads inherit it."""
