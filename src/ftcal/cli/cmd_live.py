@@ -79,7 +79,7 @@ def register(sub) -> None:
     p.add_argument("--realtime", action="store_true", help="--replay at the recording's speed")
     add_robot_source_options(p, named_models=False)
     zenoh = p.add_argument_group("Zenoh and ROS bags (Zenoh keys follow zenoh-bridge-ros2dds: topic /ft/raw is "
-                                 "key ft/raw)")
+                                 "key ft/raw; rmw_zenoh's with --keys rmw_zenoh)")
     zenoh.add_argument("--listen", action="append", default=[], metavar="ENDPOINT",
                        help="endpoint to listen on, e.g. tcp/127.0.0.1:7447 (repeatable)")
     zenoh.add_argument("--connect", action="append", default=[], metavar="ENDPOINT",
