@@ -27,8 +27,9 @@ Each wrench is processed as it arrives, in Zenoh's subscriber callback: decoded 
 :mod:`ftcal.live.cdr` (no message objects), one :meth:`~ftcal.live.LiveCalibrator.step` (plain
 floats), the two answers encoded with the input's header and put. Handing samples to another
 thread through a queue cost a wake-up and a GIL hand-over per message (p99 12.9 ms at 2 kHz); the
-main thread now only watches for silence and publishes diagnostics, and the GIL switch interval is
-shortened so that this thread never holds the callback up for long. A lock serialises the
+main thread now only watches for silence and publishes diagnostics (Python's GIL switch interval stays at
+its 5 ms: at 0.2 ms, 4 of 8 runs at 2 kHz under load stalled to a p99 of 68 ms-2 s, against 1 of 8 at
+5 ms; docs/live.md). A lock serialises the
 calibrator between the callback, the queryables and the diagnostics. No message for ``silence`` s
 raises the ``silent`` flag with a one-line message; Ctrl-C and SIGTERM end the loop and the state
 is saved.
@@ -62,9 +63,6 @@ DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
 DIAGNOSTICS_PERIOD_S = 1.0
 # The main thread wakes this often to check for silence (and at once when a flag changes).
 WATCH_PERIOD_S = 0.05
-# GIL switch interval in the node (Python's default is 5 ms): the longest the main thread's diagnostics
-# can hold a subscriber callback up.
-SWITCH_INTERVAL_S = 0.0002
 # Publisher settings (zenoh.Session.declare_publisher keywords; names resolved when zenoh is imported). A late
 # answer is dropped rather than the callback blocked (rmw_zenoh's choice for KEEP_LAST topics). Not express:
 # measured at 2 kHz, express=True lost 36-407 of 16,000 answers (each message then takes one of the link's two
@@ -304,8 +302,6 @@ class LiveNode:
             self._realtime(self.options.rt_priority)
         session = zenoh.open(zenoh_config(self.options.listen, self.options.connect))
         entities = []
-        switch_interval = sys.getswitchinterval()
-        sys.setswitchinterval(SWITCH_INTERVAL_S)
         try:
             # Publishers first: a subscriber callback may run as soon as it is declared.
             settings = publisher_settings()
@@ -335,7 +331,6 @@ class LiveNode:
             self.settle()
             self._loop()
         finally:
-            sys.setswitchinterval(switch_interval)
             for entity in entities:
                 try:
                     entity.undeclare()
