@@ -140,6 +140,16 @@ def test_live_over_rmw_zenoh_keys(tmp_path):
     assert any(t.endswith(f"/%ft%calibrated/{WRENCH_DDS}/{hash_}/::,10:,:,:,,") for t in tokens)
 
 
+def test_imu_topic_gets_its_own_type_and_hash(tmp_path):
+    port = free_port()
+    node = subprocess.Popen([FTCAL, "live", "--zenoh", "--keys", "rmw_zenoh", "--listen", f"tcp/127.0.0.1:{port}",
+                             "--imu-topic", "/imu", "--duration", "0.5"], cwd=tmp_path, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    out, err = node.communicate(timeout=60)
+    assert node.returncode == 0, err
+    assert f"0/imu/sensor_msgs::msg::dds_::Imu_/RIHS01_{PUBLISHED['sensor_msgs/msg/Imu']}" in out
+
+
 def _fifo_permitted() -> bool:
     """Whether this machine lets a process ask for SCHED_FIFO (asked in a child, so this one is unchanged)."""
     probe = "import os; os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(1))"
