@@ -13,6 +13,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import tempfile
 import time
@@ -113,8 +114,16 @@ def live_table_replay(minutes: float) -> dict:
             "samples_per_s": minutes * 60_000 / seconds}
 
 
-def live_zenoh(rate: float, seconds: float) -> dict:
-    """Round-trip latency publish → compensated wrench back, through ``ftcal live --zenoh`` on loopback."""
+def live_zenoh(rate: float, seconds: float, path: str = "ftcal", warmup: float = 1.0, rt_priority: int | None = None,
+               peers_rt: bool = False) -> dict:
+    """Latency publish → compensated wrench back, three processes on loopback Zenoh.
+
+    A publisher process (:mod:`benchmarks.zenoh_peers`) stamps each raw wrench with CLOCK_MONOTONIC when it sends
+    it; the node (``path="ftcal"``: ``ftcal live --zenoh``; ``"relay"``: a callback that republishes the bytes,
+    Zenoh and Python without ftcal) answers on ``ft/compensated``; this process receives the answers and reads
+    latency = arrival − stamp on the same clock. The first ``warmup`` seconds are left out. ``rt_priority``: the
+    node runs under SCHED_FIFO (``ftcal live --rt-priority``); ``peers_rt``: the publisher and this process too.
+    """
     import signal
     import socket
     import subprocess
@@ -123,51 +132,111 @@ def live_zenoh(rate: float, seconds: float) -> dict:
     import zenoh
 
     from ftcal.live.cdr import WRENCH_DOUBLES, decode_stamped
-    from ftcal.live.zenoh_node import typestore, wrench_message, zenoh_config
+    from ftcal.live.zenoh_node import zenoh_config
 
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
-    ftcal = str(Path(sys.executable).with_name("ftcal"))
-    node = subprocess.Popen([ftcal, "live", "--zenoh", "--listen", f"tcp/127.0.0.1:{port}", "--noise-std",
-                             "0.05,0.004"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    endpoint = f"tcp/127.0.0.1:{port}"
+    if path == "ftcal":
+        argv = [str(Path(sys.executable).with_name("ftcal")), "live", "--zenoh", "--listen", endpoint,
+                "--noise-std", "0.05,0.004", *(["--rt-priority", str(rt_priority)] if rt_priority else [])]
+    else:
+        argv = [sys.executable, "-m", "benchmarks.zenoh_peers", "relay", endpoint]
+    root = str(Path(__file__).resolve().parent.parent)
+    node = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=root)
     node.stdout.readline()
-    store = typestore()
-    arrival = {}
-    session = zenoh.open(zenoh_config(connect=(f"tcp/127.0.0.1:{port}",)))
+    arrival: list = []
+    if peers_rt:  # Zenoh's threads, started by zenoh.open, inherit the policy
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(rt_priority))
+    session = zenoh.open(zenoh_config(connect=(endpoint,)))
+    if peers_rt:
+        os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
 
     def on(sample):  # the stamp only, read with ftcal's codec (tests check it against rosbags)
-        arrival[decode_stamped(sample.payload.to_bytes(), WRENCH_DOUBLES).stamp_ns] = time.perf_counter()
+        now = time.monotonic_ns()
+        arrival.append(now - decode_stamped(sample.payload.to_bytes(), WRENCH_DOUBLES).stamp_ns)
+
+    processed = []  # the node's sample counter, from its diagnostics: messages lost before or after the node
+
+    def on_diagnostics(sample):
+        processed.append(json.loads(bytes(sample.payload.to_bytes()))["counters"]["samples"])
 
     sub = session.declare_subscriber("ft/compensated", on)
-    pub = session.declare_publisher("ft/raw")
-    time.sleep(1.0)
-    rng = np.random.default_rng(0)
+    diagnostics = session.declare_subscriber("ft/diagnostics", on_diagnostics) if path == "ftcal" else None
+    time.sleep(0.5)
     n = int(rate * seconds)
-    payloads = [wrench_message(store, 1_000_000_000 + int(k * 1e9 / rate), "ft",
-                               np.r_[0.0, 0.0, -11.8, 0.0, 0.0, 0.0] + rng.normal(scale=0.05, size=6))
-                for k in range(n)]
-    sent = {}
-    node_cpu0, cpu0 = _process_cpu(node.pid), time.process_time()
-    start = time.perf_counter()
-    for k in range(n):
-        stamp = 1_000_000_000 + int(k * 1e9 / rate)
-        sent[stamp] = time.perf_counter()
-        pub.put(payloads[k])
-        ahead = (k + 1) / rate - (time.perf_counter() - start)
-        if ahead > 0:
-            time.sleep(ahead)
-    time.sleep(1.0)
-    node_cpu, cpu = _process_cpu(node.pid) - node_cpu0, time.process_time() - cpu0
+    publisher = subprocess.Popen([sys.executable, "-m", "benchmarks.zenoh_peers", "publish", endpoint, str(rate),
+                                  str(seconds), str(rt_priority if peers_rt else 0)], cwd=root)
+    node_cpu0, node_wall0 = _process_cpu(node.pid), time.monotonic()
+    loads = []
+    while publisher.poll() is None:
+        loads.append(os.getloadavg()[0])
+        time.sleep(1.0)
+    node_cpu, wall = _process_cpu(node.pid) - node_cpu0, time.monotonic() - node_wall0
+    time.sleep(1.5)  # the last answers, and a diagnostics message after them
     sub.undeclare()
+    if diagnostics is not None:
+        diagnostics.undeclare()
     session.close()
     node.send_signal(signal.SIGTERM)
     node.communicate(timeout=60)
-    latency = np.array([arrival[s] - t for s, t in sent.items() if s in arrival])
-    return {"seconds": seconds, "rate": rate, "sent": n, "received": int(latency.size),
-            "median_ms": 1e3 * float(np.median(latency)), "p99_ms": 1e3 * float(np.quantile(latency, 0.99)),
-            "max_ms": 1e3 * float(latency.max()), "node_cpu_seconds": node_cpu, "peer_cpu_seconds": cpu,
-            "node_cpu_us_per_message": 1e6 * node_cpu / n, "load_average": os.getloadavg()[0]}
+    latency = np.array(arrival[int(warmup * rate):], dtype=float) * 1e-6  # ms
+    q = {f"p{p:g}_ms": float(np.quantile(latency, p / 100)) for p in (50, 90, 99, 99.9)}
+    return {"path": path, "rt_priority": rt_priority, "peers_rt": peers_rt, "seconds": seconds, "rate": rate, "sent": n, "received": len(arrival),
+            "lost": n - len(arrival), "node_processed": processed[-1] if processed else None, **q, "max_ms": float(latency.max()), "node_cpu_seconds": node_cpu,
+            "node_wall_seconds": wall, "node_cpu_us_per_message": 1e6 * node_cpu / n,
+            "load_average": float(np.mean(loads)) if loads else os.getloadavg()[0]}
+
+
+def live_callback(rate: float, seconds: float, warmup: float = 1.0, settle: bool = True) -> dict:
+    """The node's subscriber callback without Zenoh: :meth:`LiveNode._on_wrench` on the same CDR messages, paced at
+    ``rate``, its puts going nowhere; per message, the time from entering the callback to the second put."""
+    from ftcal.live.cdr import encode_stamped
+    from ftcal.live.zenoh_node import LiveNode, ZenohOptions
+
+    class Sample:
+        def __init__(self, data: bytes) -> None:
+            self.payload, self.data = self, data
+
+        def to_bytes(self):
+            return self.data
+
+    class Sink:
+        def __init__(self) -> None:
+            self.last = 0
+
+        def put(self, payload, **_) -> None:
+            self.last = time.perf_counter_ns()
+
+    from ftcal.live import LiveCalibrator
+
+    live = LiveCalibrator(noise_std=[0.05] * 3 + [0.004] * 3)
+    node = LiveNode(live, ZenohOptions(), echo=lambda *a, **k: None)
+    node.publishers = {"calibrated": Sink(), "compensated": Sink(), "diagnostics": Sink()}
+    if settle:
+        node.settle()
+    rng = np.random.default_rng(0)
+    n = int(rate * seconds)
+    sample = Sample(b"")
+    times = np.empty(n)
+    cpu0, start = time.process_time(), time.monotonic()
+    for k in range(n):
+        row = rng.normal(scale=0.05, size=6)
+        row[2] -= 11.8
+        sample.data = encode_stamped(1_000_000_000 + k * int(1e9 / rate), "ft", row.tolist())
+        t0 = time.perf_counter_ns()
+        node._on_wrench(sample)
+        times[k] = node.publishers["compensated"].last - t0
+        ahead = (k + 1) / rate - (time.monotonic() - start)
+        if ahead > 0:
+            time.sleep(ahead)
+    cpu = time.process_time() - cpu0
+    latency = times[int(warmup * rate):] * 1e-6
+    q = {f"p{p:g}_ms": float(np.quantile(latency, p / 100)) for p in (50, 90, 99, 99.9)}
+    return {"path": "callback", "settle": settle, "seconds": seconds, "rate": rate, "sent": n, "received": n, "lost": 0, **q,
+            "max_ms": float(latency.max()), "node_cpu_seconds": cpu, "node_wall_seconds": seconds,
+            "node_cpu_us_per_message": 1e6 * cpu / n, "load_average": os.getloadavg()[0]}
 
 
 def _process_cpu(pid: int) -> float:
@@ -176,7 +245,8 @@ def _process_cpu(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-LIVE_CASES = {f.__name__: f for f in (live_replay, live_steps, live_table_prepare, live_table_replay, live_zenoh)}
+LIVE_CASES = {f.__name__: f for f in (live_replay, live_steps, live_table_prepare, live_table_replay, live_zenoh,
+                                      live_callback)}
 
 
 def live_section(run_case, sizes: dict) -> tuple[list[str], str]:
@@ -187,7 +257,15 @@ def live_section(run_case, sizes: dict) -> tuple[list[str], str]:
     for minutes in sizes["live_minutes"]:
         run_case("live_table_prepare", minutes=minutes)
         memory.append((minutes, run_case("live_table_replay", minutes=minutes)))
-    zen = [run_case("live_zenoh", rate=rate, seconds=sizes["live_zenoh_s"]) for rate in (1000.0, 2000.0)]
+    seconds = sizes["live_zenoh_s"]
+    zen = [run_case("live_callback", rate=2000.0, seconds=seconds),
+           run_case("live_zenoh", rate=2000.0, seconds=seconds, path="relay"),
+           run_case("live_zenoh", rate=1000.0, seconds=seconds),
+           run_case("live_zenoh", rate=2000.0, seconds=seconds),
+           run_case("live_zenoh", rate=2000.0, seconds=seconds, rt_priority=10)]
+    labels = ["the node's callback alone, no Zenoh (`LiveNode._on_wrench`, puts to nowhere)",
+              "Zenoh + a Python callback that republishes the bytes, no ftcal (relay)",
+              "`ftcal live --zenoh`", "`ftcal live --zenoh`", "`ftcal live --zenoh --rt-priority 10` (SCHED_FIFO)"]
     out = ["## Live calibrator (`ftcal live`, `ftcal.live.LiveCalibrator`)", "",
            "| case | samples | wall | CPU | samples/s (wall) | samples/CPU s | peak memory |",
            "|---|---:|---:|---:|---:|---:|---:|",
@@ -204,22 +282,24 @@ def live_section(run_case, sizes: dict) -> tuple[list[str], str]:
     ratio = steps["samples_per_cpu_s"] / blocks["samples_per_cpu_s"]
     out += ["", f"`step` runs {ratio:.2f}x the samples per CPU second of `run`'s blocks (the per-sample path is "
             "plain Python floats; blocks are numpy prefix scans).", "",
-            "| Zenoh loopback, round trip publish → compensated | sent | received | median | p99 | max | node CPU "
-            "| node CPU per message | peer CPU | load average |",
-            "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
-    for r in zen:
-        out.append(f"| {r['rate']:,.0f} Hz for {r['seconds']:g} s | {r['sent']:,} | {r['received']:,} | "
-                   f"{r['median_ms']:.2f} ms | {r['p99_ms']:.2f} ms | {r['max_ms']:.2f} ms | "
-                   f"{fmt(r['node_cpu_seconds'])} | {r['node_cpu_us_per_message']:.0f} µs | "
-                   f"{fmt(r['peer_cpu_seconds'])} | {r['load_average']:.1f} |")
-    out += ["", "The Zenoh figures include the publishing peer, the node and the receiving peer on the same "
-            "2 cores (load average: the machine's, at the end); the node handles each message in its "
-            "subscriber callback (ftcal.live.cdr, one `step`).", ""]
+            "| Latency, publish → compensated wrench back (3 processes, loopback Zenoh) | rate | sent | lost | "
+            "p50 | p90 | p99 | p99.9 | max | node CPU / wall | node CPU per message | load average |",
+            "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for label, r in zip(labels, zen):
+        out.append(f"| {label} | {r['rate']:,.0f} Hz | {r['sent']:,} | {r['lost']:,} | {r['p50_ms']:.2f} ms | "
+                   f"{r['p90_ms']:.2f} ms | {r['p99_ms']:.2f} ms | {r['p99.9_ms']:.2f} ms | {r['max_ms']:.2f} ms | "
+                   f"{fmt(r['node_cpu_seconds'])} / {fmt(r['node_wall_seconds'])} | "
+                   f"{r['node_cpu_us_per_message']:.0f} µs | {r['load_average']:.1f} |")
+    out += ["", "A publisher process stamps each wrench with CLOCK_MONOTONIC as it sends it; the node answers; this "
+            "process reads arrival − stamp (the first second left out). The callback row is ftcal's own share; the "
+            "relay row is the floor that Zenoh and a Python callback set on this machine. All three processes share "
+            "the 2 cores with whatever else runs (load average: the machine's, sampled each second).", ""]
     headline = (f"replay {blocks['samples_per_cpu_s']:,.0f} samples per CPU second in blocks (target ≥ 200,000/s), "
                 f"{steps['samples_per_cpu_s']:,.0f} one step at a time ({ratio:.2f}x; target ≥ 20,000); peak memory {memory[0][1]['peak_rss_mb']:,.0f} "
                 f"MB for {memory[0][0]:g} min and {memory[-1][1]['peak_rss_mb']:,.0f} MB for {memory[-1][0]:g} min; "
-                f"Zenoh {zen[-1]['rate']:,.0f} Hz: {zen[-1]['received']:,} of {zen[-1]['sent']:,} back, p99 "
-                f"{zen[-1]['p99_ms']:.1f} ms (target ≤ 2 ms)")
+                f"Zenoh 2,000 Hz: {zen[3]['sent'] - zen[3]['lost']:,} of {zen[3]['sent']:,} back, p99 "
+                f"{zen[3]['p99_ms']:.1f} ms (target ≤ 2 ms; Zenoh + Python alone {zen[1]['p99_ms']:.1f} ms, ftcal's "
+                f"callback {zen[0]['p99_ms']:.2f} ms; load {zen[3]['load_average']:.1f})")
     return out, headline
 
 

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import argparse
 
-from ._common import column_list, finite_float, float_list, frame_pair, positive_float, require_suffix
+from ..core.limits import LIVE_KEY_CONVENTIONS
+from ._common import column_list, finite_float, float_list, frame_pair, nonnegative_int, positive_float, require_suffix
 from ._examples import epilog
 from ._gravity import add_robot_source_options
 from ._inputs import add_inputs_option, inputs_of
@@ -80,7 +81,7 @@ def register(sub) -> None:
     p.add_argument("--realtime", action="store_true", help="--replay at the recording's speed")
     add_robot_source_options(p, named_models=False)
     zenoh = p.add_argument_group("Zenoh and ROS bags (Zenoh keys follow zenoh-bridge-ros2dds: topic /ft/raw is "
-                                 "key ft/raw)")
+                                 "key ft/raw; rmw_zenoh's with --keys rmw_zenoh)")
     zenoh.add_argument("--listen", action="append", default=[], metavar="ENDPOINT",
                        help="endpoint to listen on, e.g. tcp/127.0.0.1:7447 (repeatable)")
     zenoh.add_argument("--connect", action="append", default=[], metavar="ENDPOINT",
@@ -101,6 +102,15 @@ def register(sub) -> None:
     zenoh.add_argument("--silence", type=positive_float, default=1.0, metavar="S",
                        help="flag the input silent after this many seconds without a message (default 1)")
     zenoh.add_argument("--duration", type=positive_float, metavar="S", help="stop after this many seconds")
+    zenoh.add_argument("--keys", choices=LIVE_KEY_CONVENTIONS, default="bridge",
+                       help="key expressions of the ROS topics: zenoh-bridge-ros2dds's (default: /ft/raw is ft/raw) "
+                            "or rmw_zenoh's (DOMAIN/ft/raw/geometry_msgs::msg::dds_::WrenchStamped_/RIHS01_..., with "
+                            "attachments and liveliness tokens); diagnostics and queryables keep PREFIX/NAME")
+    zenoh.add_argument("--domain-id", type=nonnegative_int, default=0, metavar="N",
+                       help="--keys rmw_zenoh: the ROS domain id at the head of every key (default 0)")
+    zenoh.add_argument("--rt-priority", type=nonnegative_int, metavar="N",
+                       help="--zenoh: run the node under SCHED_FIFO at priority N (1-99; Linux, needs CAP_SYS_NICE "
+                            "or an rtprio limit); says in one line when it is not permitted and runs on")
     p.set_defaults(func=run)
 
 
@@ -313,6 +323,7 @@ def replay_columns(args, live, default_signal=None):
 
 
 def run_zenoh(args) -> int:
+    from ..core.limits import MAX_ROS_DOMAIN_ID, MAX_RT_PRIORITY
     from ..live.zenoh_node import ZenohOptions, serve
     from ..runtime.errors import FtcalError
 
@@ -323,9 +334,16 @@ def run_zenoh(args) -> int:
         raise FtcalError("--joints-topic and --urdf go together: gravity from the joint states and the robot model.")
     if args.joints_topic and args.imu_topic:
         raise FtcalError("give one gravity source: --imu-topic, or --joints-topic with --urdf.")
+    if args.domain_id > MAX_ROS_DOMAIN_ID:
+        raise FtcalError(f"--domain-id {args.domain_id}: ROS 2 domain ids go from 0 to {MAX_ROS_DOMAIN_ID}.")
+    if args.domain_id and args.keys != "rmw_zenoh":
+        raise FtcalError("--domain-id goes with --keys rmw_zenoh (zenoh-bridge-ros2dds's keys carry no domain).")
+    if args.rt_priority is not None and not 1 <= args.rt_priority <= MAX_RT_PRIORITY:
+        raise FtcalError(f"--rt-priority {args.rt_priority}: SCHED_FIFO priorities go from 1 to {MAX_RT_PRIORITY}.")
     robot = robot_gravity(args, None, "--urdf")
     live = build_calibrator(args)
     options = ZenohOptions(listen=tuple(args.listen), connect=tuple(args.connect), wrench_topic=args.wrench_topic,
                            imu_topic=args.imu_topic, joints_topic=args.joints_topic, prefix=args.prefix,
-                           silence=args.silence, duration=args.duration)
+                           silence=args.silence, duration=args.duration, keys=args.keys, domain_id=args.domain_id,
+                           rt_priority=args.rt_priority)
     return serve(live, options, robot=robot)

@@ -254,3 +254,13 @@ LIVE_MIN_HOLDS = 3
 C_RUNTIME_MAX_HOLDS = 32
 """Static holds the generated C runtime's state keeps for an identification in place (fixed size, no allocation):
 holds past it are counted (``holds_dropped``) and left out, so the tool is identified from the first ones."""
+
+LIVE_KEY_CONVENTIONS = ("bridge", "rmw_zenoh")
+"""Zenoh key expressions of ``ftcal live --zenoh``'s ROS topics: zenoh-bridge-ros2dds's (topic ``/ft/raw`` is key
+``ft/raw``) or rmw_zenoh's (``<domain>/<topic>/<DDS type>/<RIHS01 type hash>``, with attachments and liveliness)."""
+
+MAX_ROS_DOMAIN_ID = 232
+"""Highest ROS 2 domain id (ROS 2's documented range is 0-232; rmw_zenoh puts it at the head of every key)."""
+
+MAX_RT_PRIORITY = 99
+"""Highest SCHED_FIFO priority on Linux (``ftcal live --rt-priority``; 1 is the lowest real-time priority)."""

@@ -4,8 +4,9 @@ Key expressions follow zenoh-bridge-ros2dds with its default namespace ``/``: a 
 ``/ft/raw`` is the Zenoh key ``ft/raw`` (leading and trailing slashes dropped; the bridge's
 ``DEFAULT_CONFIG.json5`` documents the namespace as a prefix, so ``namespace: "/robot1"`` would make
 it ``robot1/ft/raw``: give ``--wrench-topic /robot1/ft/raw`` then). Payloads are the CDR bytes that
-DDS carries and the bridge routes unchanged (serialised with ``rosbags``). rmw_zenoh's keys
-(``<domain>/<topic>/<type>/<type hash>``) are not produced: the type hash could not be verified here.
+DDS carries and the bridge routes unchanged (serialised with ``rosbags``). With ``keys="rmw_zenoh"`` the
+ROS topics use rmw_zenoh's keys instead (``<domain>/<topic>/<type>/<RIHS01 type hash>``, an attachment per
+sample, liveliness tokens: :mod:`ftcal.live.rmw_zenoh`); diagnostics and queryables stay plain Zenoh keys.
 
 * subscribes: the raw wrench (``WrenchStamped``) and, optionally, an IMU (``sensor_msgs/msg/Imu``:
   gravity from its orientation, else minus its linear acceleration) or the joint states
@@ -26,8 +27,9 @@ Each wrench is processed as it arrives, in Zenoh's subscriber callback: decoded 
 :mod:`ftcal.live.cdr` (no message objects), one :meth:`~ftcal.live.LiveCalibrator.step` (plain
 floats), the two answers encoded with the input's header and put. Handing samples to another
 thread through a queue cost a wake-up and a GIL hand-over per message (p99 12.9 ms at 2 kHz); the
-main thread now only watches for silence and publishes diagnostics, and the GIL switch interval is
-shortened so that this thread never holds the callback up for long. A lock serialises the
+main thread now only watches for silence and publishes diagnostics (Python's GIL switch interval stays at
+its 5 ms: at 0.2 ms, 4 of 8 runs at 2 kHz under load stalled to a p99 of 68 ms-2 s, against 1 of 8 at
+5 ms; docs/live.md). A lock serialises the
 calibrator between the callback, the queryables and the diagnostics. No message for ``silence`` s
 raises the ``silent`` flag with a one-line message; Ctrl-C and SIGTERM end the loop and the state
 is saved.
@@ -35,6 +37,7 @@ is saved.
 
 from __future__ import annotations
 
+import gc
 import json
 import math
 import sys
@@ -60,9 +63,11 @@ DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
 DIAGNOSTICS_PERIOD_S = 1.0
 # The main thread wakes this often to check for silence (and at once when a flag changes).
 WATCH_PERIOD_S = 0.05
-# GIL switch interval in the node (Python's default is 5 ms): the longest the main thread's diagnostics
-# can hold a subscriber callback up.
-SWITCH_INTERVAL_S = 0.0002
+# Publisher settings (zenoh.Session.declare_publisher keywords; names resolved when zenoh is imported). A late
+# answer is dropped rather than the callback blocked (rmw_zenoh's choice for KEEP_LAST topics). Not express:
+# measured at 2 kHz, express=True lost 36-407 of 16,000 answers (each message then takes one of the link's two
+# queued batches) for no lower p99 (docs/live.md).
+PUBLISHER_SETTINGS = {"congestion_control": "DROP"}
 
 
 def topic_key(topic: str) -> str:
@@ -85,6 +90,9 @@ class ZenohOptions:
     prefix: str = "/ft"
     silence: float = 1.0
     duration: float | None = None
+    keys: str = "bridge"  # or "rmw_zenoh"
+    domain_id: int = 0
+    rt_priority: int | None = None  # SCHED_FIFO priority of the node's threads
 
 
 def zenoh_config(listen=(), connect=()):
@@ -101,6 +109,14 @@ def zenoh_config(listen=(), connect=()):
     config.insert_json5("listen/endpoints", json.dumps(list(listen)))
     config.insert_json5("connect/endpoints", json.dumps(list(connect)))
     return config
+
+
+def publisher_settings() -> dict:
+    """:data:`PUBLISHER_SETTINGS` as zenoh's enum values."""
+    import zenoh
+
+    kinds = {"priority": zenoh.Priority, "congestion_control": zenoh.CongestionControl}
+    return {name: getattr(kinds[name], value) if name in kinds else value for name, value in PUBLISHER_SETTINGS.items()}
 
 
 def typestore():
@@ -146,12 +162,23 @@ class LiveNode:
         self.bad_messages = 0
         self.stale_samples = 0
         self.last_message = time.monotonic()
-        self.keys = {"wrench": topic_key(options.wrench_topic),
-                     "imu": None if options.imu_topic is None else topic_key(options.imu_topic),
-                     "joints": None if options.joints_topic is None else topic_key(options.joints_topic),
-                     **{name: f"{topic_key(options.prefix)}/{name}" for name in
-                        ("calibrated", "compensated", "diagnostics", "retare", "switch_tool", "identify_tool",
-                         "status")}}
+        self.topics = {"wrench": (options.wrench_topic, WRENCH_TYPE), "imu": (options.imu_topic, IMU_TYPE),
+                       "joints": (options.joints_topic, JOINT_STATE_TYPE),
+                       "calibrated": (f"{options.prefix.rstrip('/')}/calibrated", WRENCH_TYPE),
+                       "compensated": (f"{options.prefix.rstrip('/')}/compensated", WRENCH_TYPE)}
+        if options.keys == "rmw_zenoh":
+            from .rmw_zenoh import data_key
+
+            ros_key = lambda topic, msgtype: data_key(options.domain_id, topic, msgtype)  # noqa: E731
+        elif options.keys == "bridge":
+            ros_key = lambda topic, msgtype: topic_key(topic)  # noqa: E731
+        else:
+            raise FtcalError(f"keys must be 'bridge' or 'rmw_zenoh'; got {options.keys!r}.")
+        self.keys = {name: None if topic is None else ros_key(topic, msgtype)
+                     for name, (topic, msgtype) in self.topics.items()}
+        self.keys.update({name: f"{topic_key(options.prefix)}/{name}" for name in
+                          ("diagnostics", "retare", "switch_tool", "identify_tool", "status")})
+        self.attachments: dict = {}  # rmw_zenoh: the attachment of each ROS publisher
 
     # ----- Zenoh callbacks (zenoh's threads) ------------------------------------------------------
     def _on_wrench(self, sample) -> None:
@@ -189,8 +216,15 @@ class LiveNode:
                 self.bad_messages += 1
                 return
             after = self.live.flags_now
-        self.publishers["calibrated"].put(encode_like(msg, result.calibrated.tolist()))
-        self.publishers["compensated"].put(encode_like(msg, result.compensated.tolist()))
+        if self.attachments:
+            now = time.time_ns()
+            self.publishers["calibrated"].put(encode_like(msg, result.calibrated.tolist()),
+                                              attachment=self.attachments["calibrated"].next(now))
+            self.publishers["compensated"].put(encode_like(msg, result.compensated.tolist()),
+                                               attachment=self.attachments["compensated"].next(now))
+        else:
+            self.publishers["calibrated"].put(encode_like(msg, result.calibrated.tolist()))
+            self.publishers["compensated"].put(encode_like(msg, result.compensated.tolist()))
         if after != before:
             self.wake.set()
             for flag, reason in result.flags.items():  # contacts come and go: diagnostics carry them
@@ -264,15 +298,18 @@ class LiveNode:
         """Run until ``duration`` elapses (or Ctrl-C / SIGTERM); the state is saved on the way out."""
         import zenoh
 
+        if self.options.rt_priority is not None:
+            self._realtime(self.options.rt_priority)
         session = zenoh.open(zenoh_config(self.options.listen, self.options.connect))
         entities = []
-        switch_interval = sys.getswitchinterval()
-        sys.setswitchinterval(SWITCH_INTERVAL_S)
         try:
             # Publishers first: a subscriber callback may run as soon as it is declared.
-            self.publishers = {name: session.declare_publisher(self.keys[name])
+            settings = publisher_settings()
+            self.publishers = {name: session.declare_publisher(self.keys[name], **settings)
                                for name in ("calibrated", "compensated", "diagnostics")}
             entities += list(self.publishers.values())
+            if self.options.keys == "rmw_zenoh":
+                entities += self._declare_rmw_zenoh(session)
             if self.keys["imu"]:
                 entities.append(session.declare_subscriber(self.keys["imu"], self._on_imu))
             if self.keys["joints"]:
@@ -291,9 +328,9 @@ class LiveNode:
                       + (f" and {pose}" if pose else " (no IMU or joints: fixed pose, gravity -z)")
                       + f"; publishing {self.keys['calibrated']}, {self.keys['compensated']}, "
                         f"{self.keys['diagnostics']}", flush=True)
+            self.settle()
             self._loop()
         finally:
-            sys.setswitchinterval(switch_interval)
             for entity in entities:
                 try:
                     entity.undeclare()
@@ -303,6 +340,38 @@ class LiveNode:
             if self.live.state_path is not None and self.live.last_time is not None:
                 self.live.save_state()
         return 0
+
+    def settle(self) -> None:
+        """After setup, before the first message: collect once, then move every object alive now (modules, the
+        model, the type store) out of the collector's sight, so that a collection never walks them mid-stream."""
+        gc.collect()
+        gc.freeze()
+
+    def _realtime(self, priority: int) -> None:
+        """SCHED_FIFO for this thread before the session starts, so that Zenoh's threads inherit it."""
+        import os
+
+        try:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+        except (AttributeError, OSError) as exc:  # not Linux, or no CAP_SYS_NICE / rtprio limit
+            reason = getattr(exc, "strerror", None) or "not available on this system"
+            self.echo(f"ftcal live: --rt-priority {priority}: SCHED_FIFO not permitted ({reason}); running at normal "
+                      "priority", file=sys.stderr, flush=True)
+
+    def _declare_rmw_zenoh(self, session) -> list:
+        """rmw_zenoh: an attachment per ROS publisher, liveliness tokens for the node and its topics."""
+        from .rmw_zenoh import Attachment, liveliness_token
+
+        zid = str(session.zid())
+        self.attachments = {name: Attachment(self.keys[name], zid) for name in ("calibrated", "compensated")}
+        domain = self.options.domain_id
+        tokens = [liveliness_token(domain, zid, 0, "NN")]
+        for entity, name in enumerate(("wrench", "imu", "joints", "calibrated", "compensated"), start=1):
+            topic, msgtype = self.topics[name]
+            if topic is not None:
+                kind = "MP" if name in ("calibrated", "compensated") else "MS"
+                tokens.append(liveliness_token(domain, zid, entity, kind, topic, msgtype))
+        return [session.liveliness().declare_token(token) for token in tokens]
 
     def _loop(self) -> None:
         started = time.monotonic()
