@@ -23,7 +23,7 @@ from ..core import metrics
 from ..core.excitation import Spread
 from ..core.features import MonomialBasis, RegressorLayout
 from ..core.normalization import Normalization
-from ..core.ranges import RangeSums, span_of
+from ..core.ranges import RangeSums, column_extremes, span_of
 from ..core.statistics import CHUNK_SAMPLES, StatisticsAccumulator, SufficientStatistics, sum_statistics
 from ..runtime.errors import FtcalError
 from ..runtime.threads import map_ranges
@@ -122,14 +122,14 @@ def file_summary(path: str, inputs: Sequence[str], outputs: Sequence[str], segme
         values = np.ascontiguousarray(np.concatenate([chunk.inputs, chunk.outputs], axis=1), dtype="<f8")
         for label, n in _group_counts(path, chunk, group_by).items():
             sizes[label] = sizes.get(label, 0) + n
+        low, high = column_extremes(values)
         for label, rows in _group_rows(path, chunk, group_by).items():
-            part = chunk.outputs[rows]
-            here = np.c_[part.min(axis=0), part.max(axis=0)]
+            # without a group column the chunk is one group: its output extremes are the chunk's
+            here = np.c_[low, high][len(inputs):] if group_by is None else np.c_[column_extremes(chunk.outputs[rows])]
             old = group_ranges.get(label)
             group_ranges[label] = here if old is None else np.c_[np.minimum(old[:, 0], here[:, 0]),
                                                                  np.maximum(old[:, 1], here[:, 1])]
         spread = spread + Spread.of(values)
-        low, high = values.min(axis=0), values.max(axis=0)
         ranges = np.c_[low, high] if ranges is None else np.c_[np.minimum(ranges[:, 0], low),
                                                                np.maximum(ranges[:, 1], high)]
         if segment_by:
