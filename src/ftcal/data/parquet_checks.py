@@ -145,6 +145,50 @@ def _extremes(values) -> tuple:
     return extremes["min"].as_py(), extremes["max"].as_py()
 
 
+def footer_ranges(paths, columns) -> "np.ndarray | None":
+    """Min and max of each column over Parquet files, as their footers declare them, or None.
+
+    None unless every file is a regular Parquet file whose every non-empty row group states the
+    minimum and maximum of every column (plain numbers, no empty cells). What the data hold is
+    checked against these figures as they are read (:class:`FooterCheck`); a caller that uses them
+    before reading must still compare them with the ranges it reads.
+
+    Parameters
+    ----------
+    paths : sequence of files
+    columns : column names
+
+    Returns
+    -------
+    ndarray of shape (len(columns), 2), float64, or None
+    """
+    import numpy as np
+
+    low, high = np.full(len(columns), np.inf), np.full(len(columns), -np.inf)
+    for path in map(Path, paths):
+        if path.suffix.lower() not in (".parquet", ".pq") or not path.is_file():
+            return None
+        try:
+            import pyarrow.parquet as pq
+
+            meta = pq.read_metadata(path)
+            leaves = {meta.schema.column(i).path: i for i in range(meta.num_columns)}
+            for g in range(meta.num_row_groups):
+                group = meta.row_group(g)
+                if group.num_rows == 0:
+                    continue
+                for j, name in enumerate(columns):
+                    chunk = group.column(leaves[name])
+                    stats = chunk.statistics if chunk.is_stats_set else None
+                    if (stats is None or not stats.has_min_max or not stats.has_null_count or stats.null_count
+                            or str(chunk.physical_type) not in ("DOUBLE", "FLOAT", "INT32", "INT64")):
+                        return None
+                    low[j], high[j] = min(low[j], float(stats.min)), max(high[j], float(stats.max))
+        except Exception:  # noqa: BLE001 - unreadable or other columns: the readers name the problem
+            return None
+    return np.c_[low, high] if np.isfinite(low).all() and np.isfinite(high).all() else None
+
+
 def _same(decoded, declared) -> bool:
     if isinstance(declared, float) or isinstance(decoded, float):
         return float(decoded) == float(declared)  # -0.0 == 0.0; NaN matches nothing
