@@ -548,7 +548,7 @@ FULL = {"fit_big": 1_000_000, "fit_mid": 100_000, "scaling_n": (10_000, 100_000,
         "live_zenoh_s": 10.0, "closed_loop_seeds": (0, 1, 2), "closed_loop_quick": False,
         "payload_cli_n": 1_000_000, "cluster": ((4, 1_000_000), (16, 250_000)), "cluster_pairs": 2,
         "threads_pairs": 2, "c_batch_evals": 2_000_000, "c_runtime_n": 200_000, "floor_n": 1_000_000,
-        "floor_pairs": 3}
+        "floor_pairs": 5}
 QUICK = {"fit_big": 20_000, "fit_mid": 5_000, "scaling_n": (2_000, 10_000), "dense_max_n": 10_000,
          "degree_n": 5_000, "lasso_n": 5_000, "paper_lasso_n": 1_000, "predict_n": 100_000,
          "expected_n": 2_000, "expected_baseline_n": 500, "c_evals": 100_000, "python_calls": 200,
