@@ -630,7 +630,9 @@ class _Fit:
         n_in = len(inputs)
         model = template.clone(degree=o.degree, solver=make_solver(o))
         try:
-            with warnings.catch_warnings():  # the frame from the ranges read warns, once
+            # Only its basis and normalization are used: the segment lengths are not known before the read,
+            # and the warnings about them come from the frame of the ranges read, once.
+            with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
                 frame = model.frame_from_ranges(ranges[:n_in], ranges[n_in:], inputs, outputs, [1])
         except FtcalError:
