@@ -21,6 +21,7 @@ import numpy as np
 from benchmarks.bench_bags import CASES as BAG_CASES
 from benchmarks.bench_c import CASES as C_CASES
 from benchmarks.bench_cost import CASES as COST_CASES
+from benchmarks.bench_floor import CASES as FLOOR_CASES
 from benchmarks.bench_live import LIVE_CASES
 from benchmarks.bench_closed_loop import CASES as CLOSED_LOOP_CASES
 from benchmarks.bench_payload_cli import CASES as PAYLOAD_CLI_CASES
@@ -525,6 +526,7 @@ CASES.update(COST_CASES)  # --degree auto's estimate against its CPU: benchmarks
 CASES.update(LIVE_CASES)  # the live calibrator: benchmarks/bench_live.py
 CASES.update(PAYLOAD_CLI_CASES)  # whole ftcal payload processes: benchmarks/bench_payload_cli.py
 CASES.update(CLUSTER_CASES)  # whole ftcal fit, one process against local:N: benchmarks/bench_cluster.py
+CASES.update(FLOOR_CASES)  # whole ftcal fit against the flop floor: benchmarks/bench_floor.py
 CASES.update(CLOSED_LOOP_CASES)  # the calibrated sensor in a MuJoCo force-control loop: benchmarks/bench_closed_loop.py
 
 

@@ -23,7 +23,7 @@ from ..core import metrics
 from ..core.excitation import Spread
 from ..core.features import MonomialBasis, RegressorLayout
 from ..core.normalization import Normalization
-from ..core.ranges import RangeSums, span_of
+from ..core.ranges import RangeSums, column_extremes, span_of
 from ..core.statistics import CHUNK_SAMPLES, StatisticsAccumulator, SufficientStatistics, sum_statistics
 from ..runtime.errors import FtcalError
 from ..runtime.threads import map_ranges
@@ -107,35 +107,51 @@ def file_summary(path: str, inputs: Sequence[str], outputs: Sequence[str], segme
     -------
     FileSummary, whose fingerprints equal those of the file read whole.
     """
-    import hashlib
+    summary = _SummaryAccumulator(path, inputs, outputs, segment_by, group_by)
+    for chunk in iter_table_chunks(path, inputs, outputs, labels=summary.labels):
+        summary.add(chunk)
+    return summary.summary()
 
-    from ..core.fingerprint import row_hashes
 
-    ranges = None
-    spread = Spread.of(np.zeros((0, len(inputs) + len(outputs))))
-    lengths, fingerprints, sizes, group_ranges = [], [], {}, {}
-    digest, last_label = None, None
-    labels = {column: role for column, role in ((group_by, "group"), (segment_by, "segment")) if column}
-    for chunk in iter_table_chunks(path, inputs, outputs, labels=labels):
+class _SummaryAccumulator:
+    """:func:`file_summary` of the chunks of one file, added in file order."""
+
+    def __init__(self, path: str, inputs: Sequence[str], outputs: Sequence[str], segment_by: str | None,
+                 group_by: str | None):
+        self.path, self.n_inputs, self.segment_by, self.group_by = path, len(inputs), segment_by, group_by
+        self.labels = {column: role for column, role in ((group_by, "group"), (segment_by, "segment")) if column}
+        self.ranges = None
+        self.spread = Spread.of(np.zeros((0, len(inputs) + len(outputs))))
+        self.lengths, self.fingerprints, self.sizes, self.group_ranges = [], [], {}, {}
+        self.digest, self.last_label = None, None
+
+    def add(self, chunk) -> None:
+        import hashlib
+
+        from ..core.fingerprint import row_hashes
+
         if chunk.n_rows == 0:  # an empty Parquet row group
-            continue
+            return
+        path, group_by, segment_by = self.path, self.group_by, self.segment_by
         values = np.ascontiguousarray(np.concatenate([chunk.inputs, chunk.outputs], axis=1), dtype="<f8")
         for label, n in _group_counts(path, chunk, group_by).items():
-            sizes[label] = sizes.get(label, 0) + n
+            self.sizes[label] = self.sizes.get(label, 0) + n
+        low, high = column_extremes(values)
         for label, rows in _group_rows(path, chunk, group_by).items():
-            part = chunk.outputs[rows]
-            here = np.c_[part.min(axis=0), part.max(axis=0)]
-            old = group_ranges.get(label)
-            group_ranges[label] = here if old is None else np.c_[np.minimum(old[:, 0], here[:, 0]),
-                                                                 np.maximum(old[:, 1], here[:, 1])]
-        spread = spread + Spread.of(values)
-        low, high = values.min(axis=0), values.max(axis=0)
-        ranges = np.c_[low, high] if ranges is None else np.c_[np.minimum(ranges[:, 0], low),
-                                                               np.maximum(ranges[:, 1], high)]
+            # without a group column the chunk is one group: its output extremes are the chunk's
+            here = np.c_[low, high][self.n_inputs:] if group_by is None else np.c_[column_extremes(chunk.outputs[rows])]
+            old = self.group_ranges.get(label)
+            self.group_ranges[label] = here if old is None else np.c_[np.minimum(old[:, 0], here[:, 0]),
+                                                                      np.maximum(old[:, 1], here[:, 1])]
+        self.spread = self.spread + Spread.of(values)
+        ranges = self.ranges
+        self.ranges = np.c_[low, high] if ranges is None else np.c_[np.minimum(ranges[:, 0], low),
+                                                                    np.maximum(ranges[:, 1], high)]
+        digest, lengths, fingerprints = self.digest, self.lengths, self.fingerprints
         if segment_by:
             label = chunk.labels[segment_by]
-            starts = np.flatnonzero(np.r_[digest is None or label[0] != last_label, label[1:] != label[:-1]])
-            last_label = label[-1]
+            starts = np.flatnonzero(np.r_[digest is None or label[0] != self.last_label, label[1:] != label[:-1]])
+            self.last_label = label[-1]
         else:
             starts = np.array([0] if digest is None else [], dtype=np.intp)
         bounds = [*starts.tolist(), len(values)]
@@ -149,11 +165,15 @@ def file_summary(path: str, inputs: Sequence[str], outputs: Sequence[str], segme
             lengths.append(end - begin)
             fingerprints.append({"rows": 0, "first_row": f"{int(row_hashes(values[begin:begin + 1])[0]):016x}",
                                  "sha256": ""})
-    fingerprints[-1]["sha256"] = digest.hexdigest()
-    for fingerprint, rows in zip(fingerprints, lengths):
-        fingerprint["rows"] = rows
-    n_in = len(inputs)
-    return FileSummary(ranges[:n_in], ranges[n_in:], lengths, fingerprints, sizes, spread, group_ranges)
+        self.digest = digest
+
+    def summary(self) -> FileSummary:
+        self.fingerprints[-1]["sha256"] = self.digest.hexdigest()
+        for fingerprint, rows in zip(self.fingerprints, self.lengths):
+            fingerprint["rows"] = rows
+        n_in, ranges = self.n_inputs, self.ranges
+        return FileSummary(ranges[:n_in], ranges[n_in:], self.lengths, self.fingerprints, self.sizes, self.spread,
+                           self.group_ranges)
 
 
 def _group_rows(path: str, chunk, group_by: str | None) -> dict:
@@ -324,6 +344,39 @@ def file_statistics_and_poses(path: str, basis: MonomialBasis, normalization: No
             cells |= pose_cells(chunk.inputs, input_range)
         total.add(chunk.inputs, chunk.outputs)
     return [total.statistics()], frozenset(cells)
+
+
+def file_summary_statistics_and_poses(path: str, inputs: Sequence[str], outputs: Sequence[str],
+                                      segment_by: str | None, group_by: str | None, basis: MonomialBasis,
+                                      normalization: Normalization, input_range: np.ndarray) -> tuple:
+    """:func:`file_summary` and :func:`file_statistics_and_poses` in one read of the file.
+
+    For a fit whose normalization is known before the data are read (from the Parquet footers,
+    :func:`ftcal.data.parquet_checks.footer_ranges`): the caller keeps the statistics only when
+    the summary's ranges give the same normalization, and reads the files again otherwise. The
+    chunks are those of the two passes, so the sums are the same to the last bit.
+
+    Returns
+    -------
+    (FileSummary, ([SufficientStatistics], frozenset of cells)); combine with
+    :func:`add_summary_statistics_and_poses`.
+    """
+    from ..core.select import pose_cells
+
+    summary = _SummaryAccumulator(path, inputs, outputs, segment_by, group_by)
+    total = StatisticsAccumulator(RegressorLayout(basis, len(outputs)), normalization)
+    cells: set = set()
+    for chunk in iter_table_chunks(path, inputs, outputs, labels=summary.labels):
+        summary.add(chunk)
+        if len(cells) < POSE_CELL_CAP:
+            cells |= pose_cells(chunk.inputs, input_range)
+        total.add(chunk.inputs, chunk.outputs)
+    return summary.summary(), ([total.statistics()], frozenset(cells))
+
+
+def add_summary_statistics_and_poses(a: tuple, b: tuple) -> tuple:
+    """Two files' :func:`file_summary_statistics_and_poses`, ``b``'s after ``a``'s."""
+    return a[0] + b[0], add_statistics_and_poses(a[1], b[1])
 
 
 def add_statistics_and_poses(a: tuple[list, frozenset], b: tuple[list, frozenset]) -> tuple[list, frozenset]:

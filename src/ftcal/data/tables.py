@@ -22,6 +22,7 @@ from ..runtime.atomic import atomic_path
 from ..runtime.deprecation import deprecated_alias, old_spelling
 from ..runtime.errors import FtcalError
 from ..runtime.inputs import check_input_file
+from .parquet_checks import PLAIN_NUMBERS as _PLAIN_NUMBERS
 from .parquet_checks import FooterCheck, locate_unreadable
 
 TABLE_SUFFIXES = (".csv", ".parquet", ".pq")
@@ -76,8 +77,6 @@ def read_arrow(path: str | os.PathLike):
 
 
 # Arrow types whose values buffer is a plain little-endian numpy array.
-_PLAIN_NUMBERS = {"double": "<f8", "float": "<f4", "int64": "<i8", "int32": "<i4", "int16": "<i2", "int8": "i1",
-                  "uint64": "<u8", "uint32": "<u4", "uint16": "<u2", "uint8": "u1"}
 
 
 _DROPPED: dict | None = None  # (file, first row of the chunk) -> rows dropped, inside drop_incomplete()

@@ -564,8 +564,10 @@ class _Fit:
         opened = nullcontext(self.executor) if self.executor is not None else open_executor(o.scheduler)
         paths = self.paths
         with opened as executor, keep_in_memory():
-            summary = executor.map_reduce(file_summary, paths, inputs, outputs, o.segment_by,
-                                          o.group_by, combine=add_statistics, description="ranges")
+            early = self._one_pass_statistics(executor, template, inputs, outputs)
+            summary = early[0] if early is not None else executor.map_reduce(
+                file_summary, paths, inputs, outputs, o.segment_by, o.group_by, combine=add_statistics,
+                description="ranges")
             n_in = len(inputs)
             self._report_excitation(summary.spread.take(slice(n_in, None)), outputs)
             self._read_note(sum(summary.segment_lengths), inputs, outputs)
@@ -584,7 +586,9 @@ class _Fit:
                 model = template.clone(degree=o.degree, solver=make_solver(o))
                 frame = model.frame_from_ranges(summary.input_range, summary.output_range, inputs, outputs,
                                                 summary.segment_lengths)
-                if frame.layout.is_static:  # the pose cells in the same read: no pass after this one
+                if early is not None and _same_basis(early[1], frame):  # read once: ranges and statistics
+                    parts, cells = early[2]
+                elif frame.layout.is_static:  # the pose cells in the same read: no pass after this one
                     parts, cells = executor.map_reduce(
                         file_statistics_and_poses, paths, frame.layout.basis, frame.solve_input_normalization,
                         inputs, outputs, frame.input_range, combine=add_statistics_and_poses,
@@ -613,6 +617,42 @@ class _Fit:
             model.training_metrics_["free_run"] = other.summary(outputs)
             del model.training_metrics_["free_run"]["n_out_of_range"]
         return model, dict(sources=self.sources, training_segments=summary.fingerprints)
+
+    def _one_pass_statistics(self, executor, template, inputs, outputs):
+        """The ranges pass and the statistics pass of a static fit of a given degree in one read, or None.
+
+        Possible when the Parquet footers state every column's min and max
+        (:func:`ftcal.data.parquet_checks.footer_ranges`): the normalization follows from them before
+        the data are read. Returns (summary, provisional frame, (statistics parts, pose cells)); the
+        caller keeps the statistics only if the frame from the ranges actually read has the same basis
+        (rows dropped by ``drop_incomplete`` narrow them: that case is not tried at all).
+        """
+        from ..data.parquet_checks import footer_ranges
+        from ..data.streaming import add_summary_statistics_and_poses, file_summary_statistics_and_poses
+
+        o = self.o
+        if o.degree == "auto" or o.drop_incomplete:
+            return None
+        ranges = footer_ranges(self.paths, (*inputs, *outputs))
+        if ranges is None:
+            return None
+        n_in = len(inputs)
+        model = template.clone(degree=o.degree, solver=make_solver(o))
+        try:
+            # Only its basis and normalization are used: the segment lengths are not known before the read,
+            # and the warnings about them come from the frame of the ranges read, once.
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                frame = model.frame_from_ranges(ranges[:n_in], ranges[n_in:], inputs, outputs, [1])
+        except FtcalError:
+            return None  # the two passes report it
+        if not frame.layout.is_static:
+            return None
+        summary, statistics = executor.map_reduce(
+            file_summary_statistics_and_poses, self.paths, inputs, outputs, o.segment_by, o.group_by,
+            frame.layout.basis, frame.solve_input_normalization, frame.input_range,
+            combine=add_summary_statistics_and_poses, description="ranges and statistics")
+        return summary, frame, statistics
 
     # ------------------------------------------------------------------ selection
     def _cross_validation(self, data, template, n_samples: int, n_inputs: int):
@@ -812,6 +852,21 @@ def error_norm_text(metrics: dict) -> str:
                                                                                  "N·m"))
              if metrics.get(key) is not None]
     return ", ".join(parts)
+
+
+def _same_basis(provisional, frame) -> bool:
+    """Whether statistics accumulated for ``provisional`` (a FitFrame) are those ``frame`` needs, bit for bit."""
+    import numpy as np
+
+    def same(a, b):
+        a, b = np.asarray(a), np.asarray(b)
+        return a.shape == b.shape and bool(np.all(a == b)) and bool(np.all(np.signbit(a) == np.signbit(b)))
+
+    p, f = provisional.solve_input_normalization, frame.solve_input_normalization
+    basis, wanted = provisional.layout.basis, frame.layout.basis
+    return (frame.layout.is_static and type(basis) is type(wanted) and basis.n_inputs == wanted.n_inputs
+            and basis.degree == wanted.degree and same(p.offset, f.offset) and same(p.scale, f.scale)
+            and same(provisional.input_range, frame.input_range))
 
 
 def training_error_from_statistics(model, frame, stats) -> dict | None:
