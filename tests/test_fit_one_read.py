@@ -20,8 +20,8 @@ import ftcal.data.streaming as streaming
 from ftcal.core.dataset import DEFAULT_OUTPUTS
 from ftcal.core.model import CalibrationModel
 from ftcal.core.ranges import column_extremes
-from ftcal.data.tables import read_dataset
-from ftcal.files.model_files import read_model_file
+from ftcal.data.tables import load_dataset
+from ftcal.files.model_files import load_model_file
 from ftcal.workflow.fitting import fit
 
 INPUTS = ("u1", "u2", "u3", "u4", "u5", "u6", "T")
@@ -62,14 +62,14 @@ def test_one_read_equals_two_passes_bit_for_bit(tmp_path, monkeypatch, options):
     calls.clear()
     b = fit([two], output=tmp_path / "two.json", **options)
     assert calls == ["file_summary", "file_statistics_and_poses"]
-    ma, mb = read_model_file(tmp_path / "one.json"), read_model_file(tmp_path / "two.json")
+    ma, mb = load_model_file(tmp_path / "one.json"), load_model_file(tmp_path / "two.json")
     assert np.array_equal(ma.model.coef_, mb.model.coef_)
     assert ma.model.training_metrics_ == mb.model.training_metrics_
     assert ma.training_segments == mb.training_segments
     assert np.array_equal(ma.model.input_range_, np.c_[u.min(axis=0), u.max(axis=0)])
     assert a.lines[:-1] == b.lines[:-1]  # all but "wrote FILE"
     if "ridge" not in options and "group_by" not in options:
-        whole = CalibrationModel(options["degree"]).fit(read_dataset([one], INPUTS, DEFAULT_OUTPUTS))
+        whole = CalibrationModel(options["degree"]).fit(load_dataset([one], inputs=INPUTS, outputs=DEFAULT_OUTPUTS))
         assert np.max(np.abs(ma.model.coef_ - whole.coef_)) <= 1e-12 * np.max(np.abs(whole.coef_))
 
 
@@ -83,7 +83,7 @@ def test_several_files_and_a_footer_that_gives_another_normalization(tmp_path, m
     calls = count_passes(monkeypatch)
     again = fit(paths, output=tmp_path / "again.json", degree=3)
     assert calls == ["file_summary_statistics_and_poses"] * 3 + ["file_statistics_and_poses"] * 3
-    ma, mb = read_model_file(tmp_path / "reference.json"), read_model_file(tmp_path / "again.json")
+    ma, mb = load_model_file(tmp_path / "reference.json"), load_model_file(tmp_path / "again.json")
     assert np.array_equal(ma.model.coef_, mb.model.coef_)
     assert reference.lines[:-1] == again.lines[:-1]
 
@@ -146,7 +146,7 @@ def test_one_read_on_a_local_cluster_equals_the_local_run(tmp_path):
     paths = [write_table(tmp_path / f"part{i}.parquet", 2000 + 500 * i, seed=20 + i)[0] for i in range(3)]
     fit(paths, output=tmp_path / "here.json", degree=3)
     fit(paths, output=tmp_path / "there.json", degree=3, scheduler="local:2")
-    here, there = read_model_file(tmp_path / "here.json"), read_model_file(tmp_path / "there.json")
+    here, there = load_model_file(tmp_path / "here.json"), load_model_file(tmp_path / "there.json")
     # the tree sum pairs files in the same order on the cluster: the same bits
     assert np.array_equal(there.model.coef_, here.model.coef_)
     assert there.training_segments == here.training_segments
