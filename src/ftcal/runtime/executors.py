@@ -24,17 +24,20 @@ two of tasks, aligned, so the sum inside a batch is a subtree of the local one).
 
 A local cluster (``local:N``) starts and stops with Ctrl-C, SIGTERM and SIGHUP
 deferred until it is complete, and any process it started that is still alive
-afterwards is ended: no process outlives the command.
+afterwards is ended: no process outlives the command. On Linux its workers are
+forked from this process (:func:`worker_start_method`), its imports done, and
+reset what they must not inherit (:class:`_ForkedWorkerSetup`).
 """
 
 from __future__ import annotations
 
 import os
 import signal
+import sys
 import threading
 import uuid
 from collections.abc import Callable, Iterable, Iterator, Sequence
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 from typing import Any, TypeVar, Union
 
 from .errors import FtcalError
@@ -72,6 +75,89 @@ LOCAL_CLUSTER_CONFIG = {
 # passes read is read once there too.
 KEEP_FILES_ENV = "FTCAL_WORKER_KEEPS_FILES"
 DEFERRED_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
+# glibc's mallopt parameter numbers (malloc.h) for the two WORKER_MALLOC settings.
+MALLOPT_PARAMETERS = {"MALLOC_TRIM_THRESHOLD_": -1, "MALLOC_MMAP_THRESHOLD_": -3}
+
+
+def worker_start_method() -> str:
+    """How a local cluster starts its worker processes: ``fork`` on Linux, else ``spawn`` (Dask's default).
+
+    A spawned worker is a fresh interpreter that imports Dask distributed, then
+    ftcal, NumPy and pandas for its first task: ~1.5 CPU s per worker before any
+    work (issue 32). A forked one is a copy of this process, its imports done, and
+    starts in a few tens of ms. macOS has fork but its system libraries are not
+    safe to use in a forked child, so only Linux forks.
+    """
+    import multiprocessing
+
+    return "fork" if sys.platform.startswith("linux") and "fork" in multiprocessing.get_all_start_methods() \
+        else "spawn"
+
+
+class _ForkedWorkerSetup:
+    """What a worker forked from this process resets before it runs, while a local cluster is open.
+
+    A forked child inherits this process's signal handlers (inside :func:`signals_deferred`, ones that
+    only record a signal: the worker would never stop on SIGTERM) and its allocator, already set up
+    (glibc reads ``MALLOC_*`` from the environment once, at a process's start). So the child gets the
+    default SIGTERM/SIGHUP, ignores SIGINT (the client handles Ctrl-C) and has WORKER_MALLOC applied
+    with ``mallopt``. Other forks of this process (none of them are a cluster's) are left alone.
+    """
+
+    def __init__(self):
+        self.open_clusters = 0
+        self.mallopt = None  # glibc's mallopt, resolved before forking (nothing is loaded in the child)
+
+    def __enter__(self):
+        if self.mallopt is None:
+            self.mallopt = _glibc_mallopt()
+        self.open_clusters += 1
+        return self
+
+    def __exit__(self, *exc_info):
+        self.open_clusters -= 1
+
+    def in_child(self) -> None:
+        if not self.open_clusters:
+            return
+        self.open_clusters = 0  # the child's own forks are not workers
+        for sig in DEFERRED_SIGNALS:
+            signal.signal(sig, signal.SIG_IGN if sig == signal.SIGINT else signal.SIG_DFL)
+        if self.mallopt:
+            for name, value in WORKER_MALLOC.items():
+                self.mallopt(MALLOPT_PARAMETERS[name], value)
+
+
+def _glibc_mallopt():
+    """glibc's ``mallopt``, or False elsewhere (musl, macOS: WORKER_MALLOC does not apply)."""
+    import ctypes
+    import platform
+
+    if platform.libc_ver()[0] != "glibc":
+        return False
+    mallopt = ctypes.CDLL(None).mallopt
+    mallopt.argtypes, mallopt.restype = (ctypes.c_int, ctypes.c_int), ctypes.c_int
+    return mallopt
+
+
+# Imported before forking local workers: every file task reads its table with Arrow (~0.35 CPU s to import),
+# once here instead of once in each worker.
+TASK_IMPORTS = ("pyarrow.parquet", "pyarrow.csv")
+
+
+def _preload_task_imports() -> None:
+    import importlib
+
+    for name in TASK_IMPORTS:
+        try:
+            importlib.import_module(name)
+        except ImportError:  # the task that needs it says so, in its own words
+            pass
+
+
+_FORKED_WORKERS = _ForkedWorkerSetup()
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_FORKED_WORKERS.in_child)
 
 
 def tree_reduce(parts: Iterable[T], combine: Callable[[T, T], T]) -> T:
@@ -345,7 +431,6 @@ def open_executor(scheduler: str | None, *,
         return
     scheduler = parse_scheduler(scheduler)
     import logging
-    import sys
     import time
 
     started = time.perf_counter()
@@ -368,46 +453,51 @@ def open_executor(scheduler: str | None, *,
                           "distributed.scheduler.allowed-failures": TASK_RETRIES,
                           "distributed.scheduler.worker-saturation": 1.0,
                           "distributed.nanny.pre-spawn-environ": environ,
-                          **({**LOCAL_CLUSTER_CONFIG, "distributed.nanny.environ": dict(
+                          **({**LOCAL_CLUSTER_CONFIG, "distributed.worker.multiprocessing-method": worker_start_method(),
+                              "distributed.nanny.environ": dict(
                               dask.config.get("distributed.nanny.environ", {}) or {}, **{KEEP_FILES_ENV: "1"})}
                              if local else {})}):
         import multiprocessing
 
+        if local and worker_start_method() == "fork":
+            _preload_task_imports()
         before = set(multiprocessing.active_children())
         cluster = None
-        try:
-            with signals_deferred():  # a cluster half started by Ctrl-C would be left running
-                if scheduler.startswith(LOCAL_PREFIX):
-                    try:
-                        cluster = LocalCluster(n_workers=int(scheduler[len(LOCAL_PREFIX):]), threads_per_worker=1,
-                                               processes=True, dashboard_address=":0",
-                                               silence_logs=logging.CRITICAL)
-                    except Exception as exc:  # noqa: BLE001 - e.g. a worker process that could not start
-                        detail = str(exc).splitlines()[0] if str(exc) else "no detail"
-                        raise FtcalError(f"--scheduler {scheduler}: the local Dask cluster did not start "
-                                         f"({type(exc).__name__}: {detail}); nothing was written.") from None
-                client = _connect(cluster if cluster is not None else scheduler, scheduler, connect_timeout)
+        # Forked workers (worker_start_method) reset what they inherit; replaced ones too, while it is open.
+        with _FORKED_WORKERS if local else nullcontext():
             try:
-                check_versions(client, scheduler)
-                startup = None
-                if cluster is not None:
-                    client.register_plugin(_ignore_interrupts_plugin())
-                    startup = time.perf_counter() - started
-                yield DaskExecutor(client)
-                if startup is not None:
-                    # The fixed cost of a local cluster, said once, after a run that succeeded (a failed
-                    # run's stderr is its one-line error).
-                    workers = int(scheduler[len(LOCAL_PREFIX):])
-                    print(f"Dask {scheduler}: {workers} worker process{'es' if workers > 1 else ''} started in "
-                          f"{startup:.1f} s", file=sys.stderr)
+                with signals_deferred():  # a cluster half started by Ctrl-C would be left running
+                    if scheduler.startswith(LOCAL_PREFIX):
+                        try:
+                            cluster = LocalCluster(n_workers=int(scheduler[len(LOCAL_PREFIX):]),
+                                                   threads_per_worker=1, processes=True, dashboard_address=":0",
+                                                   silence_logs=logging.CRITICAL)
+                        except Exception as exc:  # noqa: BLE001 - e.g. a worker process that could not start
+                            detail = str(exc).splitlines()[0] if str(exc) else "no detail"
+                            raise FtcalError(f"--scheduler {scheduler}: the local Dask cluster did not start "
+                                             f"({type(exc).__name__}: {detail}); nothing was written.") from None
+                    client = _connect(cluster if cluster is not None else scheduler, scheduler, connect_timeout)
+                try:
+                    check_versions(client, scheduler)
+                    startup = None
+                    if cluster is not None:
+                        client.register_plugin(_worker_setup_plugin())
+                        startup = time.perf_counter() - started
+                    yield DaskExecutor(client)
+                    if startup is not None:
+                        # The fixed cost of a local cluster, said once, after a run that succeeded (a failed
+                        # run's stderr is its one-line error).
+                        workers = int(scheduler[len(LOCAL_PREFIX):])
+                        print(f"Dask {scheduler}: {workers} worker process{'es' if workers > 1 else ''} started in "
+                              f"{startup:.1f} s", file=sys.stderr)
+                finally:
+                    with signals_deferred():
+                        client.close()
             finally:
                 with signals_deferred():
-                    client.close()
-        finally:
-            with signals_deferred():
-                if cluster is not None:
-                    _close_quietly(cluster)
-                _end_processes(set(multiprocessing.active_children()) - before)
+                    if cluster is not None:
+                        _close_quietly(cluster)
+                    _end_processes(set(multiprocessing.active_children()) - before)
 
 
 def _connect(address, scheduler: str, connect_timeout: float):
@@ -472,23 +562,28 @@ def signals_deferred() -> Iterator[None]:
             signal.raise_signal(caught[0])  # through the previous handler: KeyboardInterrupt, the CLI's Terminated
 
 
-def _ignore_interrupts_plugin():
-    """A Dask worker plugin by which the worker process ignores SIGINT (the client handles Ctrl-C).
+def _worker_setup_plugin():
+    """A Dask worker plugin run on every local worker, replaced ones too: SIGINT ignored, BLAS on one thread.
 
     A terminal sends Ctrl-C to the whole process group, local workers included;
     they would die with a traceback each while the client shuts them down in
-    order. Dask runs the plugin on every worker, replaced ones too.
+    order. A forked worker inherits this process's BLAS thread count (Dask's
+    ``OPENBLAS_NUM_THREADS=1`` is read only by a fresh interpreter); a worker is one
+    thread on one core, so its BLAS gets one thread, as a spawned one's does.
     """
     from distributed import WorkerPlugin
 
-    class IgnoreInterrupts(WorkerPlugin):
-        name = "ftcal-ignore-interrupts"
+    class WorkerSetup(WorkerPlugin):
+        name = "ftcal-worker-setup"
 
         def setup(self, worker) -> None:
+            from threadpoolctl import threadpool_limits
+
             if threading.current_thread() is threading.main_thread():
                 signal.signal(signal.SIGINT, signal.SIG_IGN)
+            threadpool_limits(1, user_api="blas")
 
-    return IgnoreInterrupts()
+    return WorkerSetup()
 
 
 def check_versions(client, scheduler: str) -> None:
