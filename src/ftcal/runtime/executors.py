@@ -248,14 +248,25 @@ class LocalExecutor:
 class DaskExecutor:
     """Run tasks on a Dask distributed cluster, in batches; results come back to this process.
 
+    On a local cluster (``local=True``) the client feeds the batches itself, one
+    at a time to each idle worker, and gives a worker the files it ran in the
+    previous pass: it kept them in memory (``KEEP_FILES_ENV``), so a command's
+    second pass reads nothing again. Dask's queue places them by free worker
+    alone, and about half of a fit's second-pass files were read again by the
+    other worker, kept twice (issue 32). The batches' results come back and are
+    combined here in batch order: the same sums as :class:`LocalExecutor`'s.
+
     Parameters
     ----------
     client : distributed.Client, connected and checked by :func:`open_executor`
+    local : whether the cluster is this command's own ``local:N``
     """
 
-    def __init__(self, client):
+    def __init__(self, client, local: bool = False):
         self.client = client
+        self.local = local
         self._files: dict[str, list[str]] = {}  # Dask key -> the files its batch runs, for error messages
+        self._placed: dict[str, str] = {}  # file -> the worker that last ran it (local clusters)
 
     def _submit(self, function, tasks, args, combine=None) -> tuple[list, list[int]]:
         """One future per batch of tasks, and the number of tasks in each."""
@@ -272,9 +283,80 @@ class DaskExecutor:
             counts.append(len(batch))
         return futures, counts
 
+    def _workers(self) -> list[str]:
+        return sorted(self.client.scheduler_info(n_workers=-1).get("workers", {}))
+
+    def _fed(self, function, tasks, args, combine, description: str) -> list:
+        """The batches' results in batch order, each batch given to an idle worker (see the class docstring)."""
+        import time
+
+        tasks = [_task_arguments(task) for task in tasks]
+        workers = self._workers()
+        size = batch_size(len(tasks), len(workers))
+        batches = [tasks[start:start + size] for start in range(0, len(tasks), size)]
+        waiting = list(range(len(batches)))
+        results: list = [None] * len(batches)
+        running: dict = {}  # future -> (batch index, the worker it was given to)
+        without_workers_since = None
+        with progress_bar(description, len(tasks)) as advance:
+            try:
+                while waiting or running:
+                    busy = {worker for _, worker in running.values()}
+                    for worker in workers:
+                        index = self._choose(waiting, batches, worker, workers) if worker not in busy else None
+                        if index is not None:
+                            waiting.remove(index)
+                            running[self._submit_batch(function, batches[index], args, combine, worker)] = \
+                                (index, worker)
+                    done = _wait_quietly(set(running)) if running else set()
+                    if not running:  # no worker yet
+                        time.sleep(POLL_S)
+                    for future in done:
+                        index, _ = running.pop(future)
+                        where, results[index] = future.result()  # raises the task's own exception
+                        self._placed.update((os.fspath(task[0]), where) for task in batches[index])
+                        advance(len(batches[index]))
+                    workers = self._workers()
+                    if workers:
+                        without_workers_since = None
+                    elif without_workers_since is None:
+                        without_workers_since = time.monotonic()
+                    elif time.monotonic() - without_workers_since > NO_WORKERS_TIMEOUT_S:
+                        raise FtcalError(f"the Dask cluster at {self.client.scheduler.address} has had no worker "
+                                         f"for {NO_WORKERS_TIMEOUT_S:.0f} s with {len(waiting) + len(running)} "
+                                         "task(s) left; start workers or run without --scheduler.")
+            except Exception as exc:
+                self.client.cancel(list(running))
+                raise self._explain(exc) from None
+        return results
+
+    def _choose(self, waiting: list[int], batches: list, worker: str, workers: list[str]) -> int | None:
+        """The batch for an idle ``worker``: the first it ran before, else the first no live worker ran, else
+        none. A batch another worker keeps waits for it: reading the files again here would cost more than
+        that worker's pass over memory, and on this machine an idle worker leaves its core to the busy
+        worker's threads (``ftcal.runtime.threads``)."""
+        placed = [self._placed.get(os.fspath(batches[index][0][0])) for index in waiting]
+        for index, where in zip(waiting, placed):
+            if where == worker:
+                return index
+        for index, where in zip(waiting, placed):
+            if where not in workers:
+                return index
+        return None
+
+    def _submit_batch(self, function, batch, args, combine, worker: str):
+        files = [os.fspath(task[0]) for task in batch]
+        key = f"ftcal-{os.path.basename(files[0])}-{uuid.uuid4().hex}"
+        self._files[key] = files
+        # A hint, not a restriction: if the worker dies, Dask runs the batch on another.
+        return self.client.submit(_run_placed_batch, function, batch, args, combine, pure=False, key=key,
+                                  workers=[worker], allow_other_workers=True)
+
     def map(self, function: Callable[..., T], tasks: Sequence[Task], *args: Any,
             description: str = "tasks") -> list[T]:
         """Like :meth:`LocalExecutor.map`; the tasks run in batches, the bar counts tasks (files)."""
+        if self.local:
+            return [result for batch in self._fed(function, tasks, args, None, description) for result in batch]
         futures, counts = self._submit(function, tasks, args)
         try:
             self._wait(futures, counts, description)
@@ -288,6 +370,8 @@ class DaskExecutor:
         """:func:`tree_reduce` on the workers (in each batch, then across batches); only the total travels back."""
         if not tasks:
             return tree_reduce([], combine)  # the same one-line error as here
+        if self.local:  # batches hold aligned powers of two of tasks: their sums are subtrees of the local one
+            return tree_reduce(self._fed(function, tasks, args, combine, description), combine)
         futures, counts = self._submit(function, tasks, args, combine)
         n_batches = len(futures)
         level = list(futures)
@@ -373,6 +457,13 @@ def _run_batch(function, tasks: Sequence[tuple], args: tuple, combine=None):
     """A batch as a worker runs it: the tasks' results, or their :func:`tree_reduce` with ``combine``."""
     results = (_run_on_worker(function, task, args) for task in tasks)
     return list(results) if combine is None else tree_reduce(results, combine)
+
+
+def _run_placed_batch(function, tasks: Sequence[tuple], args: tuple, combine=None) -> tuple:
+    """:func:`_run_batch`, and the address of the worker that ran it (which now keeps its files)."""
+    from distributed import get_worker
+
+    return get_worker().address, _run_batch(function, tasks, args, combine)
 
 
 def _run_on_worker(function, task: tuple, args: tuple):
@@ -483,7 +574,7 @@ def open_executor(scheduler: str | None, *,
                     if cluster is not None:
                         client.register_plugin(_worker_setup_plugin())
                         startup = time.perf_counter() - started
-                    yield DaskExecutor(client)
+                    yield DaskExecutor(client, local=cluster is not None)
                     if startup is not None:
                         # The fixed cost of a local cluster, said once, after a run that succeeded (a failed
                         # run's stderr is its one-line error).
