@@ -312,3 +312,19 @@ def test_the_command_reports_a_batch_whose_workers_keep_dying_and_writes_nothing
                       err)
     assert named and int(named[1]) == paths.index(named[3]) - paths.index(named[2]) + 1, err
     assert sorted(os.listdir(tmp_path)) == sorted(os.path.basename(p) for p in paths)  # nothing written
+
+
+def _allocator_environment() -> dict:
+    return {name: os.environ.get(name) for name in ("MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_",
+                                                    "OPENBLAS_NUM_THREADS")}
+
+
+def test_local_workers_keep_large_blocks_on_the_heap(cluster):
+    # Dask's own default trims the heap past 64 KiB: every large temporary was mapped and unmapped
+    # (issue 32). The workers' environment is what glibc reads at their start.
+    seen = cluster.client.run(_allocator_environment)
+    assert len(seen) == 2
+    for environment in seen.values():
+        assert int(environment["MALLOC_MMAP_THRESHOLD_"]) == 32 * 1024 * 1024  # glibc's largest allowed value
+        assert int(environment["MALLOC_TRIM_THRESHOLD_"]) >= 32 * 1024 * 1024
+        assert environment["OPENBLAS_NUM_THREADS"] == "1"  # Dask's one-thread default is kept

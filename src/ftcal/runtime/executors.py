@@ -24,20 +24,17 @@ two of tasks, aligned, so the sum inside a batch is a subtree of the local one).
 
 A local cluster (``local:N``) starts and stops with Ctrl-C, SIGTERM and SIGHUP
 deferred until it is complete, and any process it started that is still alive
-afterwards is ended: no process outlives the command. On Linux its workers are
-forked from this process (:func:`worker_start_method`), its imports done, and
-reset what they must not inherit (:class:`_ForkedWorkerSetup`).
+afterwards is ended: no process outlives the command.
 """
 
 from __future__ import annotations
 
 import os
 import signal
-import sys
 import threading
 import uuid
 from collections.abc import Callable, Iterable, Iterator, Sequence
-from contextlib import contextmanager, nullcontext
+from contextlib import contextmanager
 from typing import Any, TypeVar, Union
 
 from .errors import FtcalError
@@ -75,89 +72,6 @@ LOCAL_CLUSTER_CONFIG = {
 # passes read is read once there too.
 KEEP_FILES_ENV = "FTCAL_WORKER_KEEPS_FILES"
 DEFERRED_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
-# glibc's mallopt parameter numbers (malloc.h) for the two WORKER_MALLOC settings.
-MALLOPT_PARAMETERS = {"MALLOC_TRIM_THRESHOLD_": -1, "MALLOC_MMAP_THRESHOLD_": -3}
-
-
-def worker_start_method() -> str:
-    """How a local cluster starts its worker processes: ``fork`` on Linux, else ``spawn`` (Dask's default).
-
-    A spawned worker is a fresh interpreter that imports Dask distributed, then
-    ftcal, NumPy and pandas for its first task: ~1.5 CPU s per worker before any
-    work (issue 32). A forked one is a copy of this process, its imports done, and
-    starts in a few tens of ms. macOS has fork but its system libraries are not
-    safe to use in a forked child, so only Linux forks.
-    """
-    import multiprocessing
-
-    return "fork" if sys.platform.startswith("linux") and "fork" in multiprocessing.get_all_start_methods() \
-        else "spawn"
-
-
-class _ForkedWorkerSetup:
-    """What a worker forked from this process resets before it runs, while a local cluster is open.
-
-    A forked child inherits this process's signal handlers (inside :func:`signals_deferred`, ones that
-    only record a signal: the worker would never stop on SIGTERM) and its allocator, already set up
-    (glibc reads ``MALLOC_*`` from the environment once, at a process's start). So the child gets the
-    default SIGTERM/SIGHUP, ignores SIGINT (the client handles Ctrl-C) and has WORKER_MALLOC applied
-    with ``mallopt``. Other forks of this process (none of them are a cluster's) are left alone.
-    """
-
-    def __init__(self):
-        self.open_clusters = 0
-        self.mallopt = None  # glibc's mallopt, resolved before forking (nothing is loaded in the child)
-
-    def __enter__(self):
-        if self.mallopt is None:
-            self.mallopt = _glibc_mallopt()
-        self.open_clusters += 1
-        return self
-
-    def __exit__(self, *exc_info):
-        self.open_clusters -= 1
-
-    def in_child(self) -> None:
-        if not self.open_clusters:
-            return
-        self.open_clusters = 0  # the child's own forks are not workers
-        for sig in DEFERRED_SIGNALS:
-            signal.signal(sig, signal.SIG_IGN if sig == signal.SIGINT else signal.SIG_DFL)
-        if self.mallopt:
-            for name, value in WORKER_MALLOC.items():
-                self.mallopt(MALLOPT_PARAMETERS[name], value)
-
-
-def _glibc_mallopt():
-    """glibc's ``mallopt``, or False elsewhere (musl, macOS: WORKER_MALLOC does not apply)."""
-    import ctypes
-    import platform
-
-    if platform.libc_ver()[0] != "glibc":
-        return False
-    mallopt = ctypes.CDLL(None).mallopt
-    mallopt.argtypes, mallopt.restype = (ctypes.c_int, ctypes.c_int), ctypes.c_int
-    return mallopt
-
-
-# Imported before forking local workers: every file task reads its table with Arrow (~0.35 CPU s to import),
-# once here instead of once in each worker.
-TASK_IMPORTS = ("pyarrow.parquet", "pyarrow.csv")
-
-
-def _preload_task_imports() -> None:
-    import importlib
-
-    for name in TASK_IMPORTS:
-        try:
-            importlib.import_module(name)
-        except ImportError:  # the task that needs it says so, in its own words
-            pass
-
-
-_FORKED_WORKERS = _ForkedWorkerSetup()
-if hasattr(os, "register_at_fork"):
-    os.register_at_fork(after_in_child=_FORKED_WORKERS.in_child)
 
 
 def tree_reduce(parts: Iterable[T], combine: Callable[[T, T], T]) -> T:
@@ -248,25 +162,14 @@ class LocalExecutor:
 class DaskExecutor:
     """Run tasks on a Dask distributed cluster, in batches; results come back to this process.
 
-    On a local cluster (``local=True``) the client feeds the batches itself, one
-    at a time to each idle worker, and gives a worker the files it ran in the
-    previous pass: it kept them in memory (``KEEP_FILES_ENV``), so a command's
-    second pass reads nothing again. Dask's queue places them by free worker
-    alone, and about half of a fit's second-pass files were read again by the
-    other worker, kept twice (issue 32). The batches' results come back and are
-    combined here in batch order: the same sums as :class:`LocalExecutor`'s.
-
     Parameters
     ----------
     client : distributed.Client, connected and checked by :func:`open_executor`
-    local : whether the cluster is this command's own ``local:N``
     """
 
-    def __init__(self, client, local: bool = False):
+    def __init__(self, client):
         self.client = client
-        self.local = local
         self._files: dict[str, list[str]] = {}  # Dask key -> the files its batch runs, for error messages
-        self._placed: dict[str, str] = {}  # file -> the worker that last ran it (local clusters)
 
     def _submit(self, function, tasks, args, combine=None) -> tuple[list, list[int]]:
         """One future per batch of tasks, and the number of tasks in each."""
@@ -283,80 +186,9 @@ class DaskExecutor:
             counts.append(len(batch))
         return futures, counts
 
-    def _workers(self) -> list[str]:
-        return sorted(self.client.scheduler_info(n_workers=-1).get("workers", {}))
-
-    def _fed(self, function, tasks, args, combine, description: str) -> list:
-        """The batches' results in batch order, each batch given to an idle worker (see the class docstring)."""
-        import time
-
-        tasks = [_task_arguments(task) for task in tasks]
-        workers = self._workers()
-        size = batch_size(len(tasks), len(workers))
-        batches = [tasks[start:start + size] for start in range(0, len(tasks), size)]
-        waiting = list(range(len(batches)))
-        results: list = [None] * len(batches)
-        running: dict = {}  # future -> (batch index, the worker it was given to)
-        without_workers_since = None
-        with progress_bar(description, len(tasks)) as advance:
-            try:
-                while waiting or running:
-                    busy = {worker for _, worker in running.values()}
-                    for worker in workers:
-                        index = self._choose(waiting, batches, worker, workers) if worker not in busy else None
-                        if index is not None:
-                            waiting.remove(index)
-                            running[self._submit_batch(function, batches[index], args, combine, worker)] = \
-                                (index, worker)
-                    done = _wait_quietly(set(running)) if running else set()
-                    if not running:  # no worker yet
-                        time.sleep(POLL_S)
-                    for future in done:
-                        index, _ = running.pop(future)
-                        where, results[index] = future.result()  # raises the task's own exception
-                        self._placed.update((os.fspath(task[0]), where) for task in batches[index])
-                        advance(len(batches[index]))
-                    workers = self._workers()
-                    if workers:
-                        without_workers_since = None
-                    elif without_workers_since is None:
-                        without_workers_since = time.monotonic()
-                    elif time.monotonic() - without_workers_since > NO_WORKERS_TIMEOUT_S:
-                        raise FtcalError(f"the Dask cluster at {self.client.scheduler.address} has had no worker "
-                                         f"for {NO_WORKERS_TIMEOUT_S:.0f} s with {len(waiting) + len(running)} "
-                                         "task(s) left; start workers or run without --scheduler.")
-            except Exception as exc:
-                self.client.cancel(list(running))
-                raise self._explain(exc) from None
-        return results
-
-    def _choose(self, waiting: list[int], batches: list, worker: str, workers: list[str]) -> int | None:
-        """The batch for an idle ``worker``: the first it ran before, else the first no live worker ran, else
-        none. A batch another worker keeps waits for it: reading the files again here would cost more than
-        that worker's pass over memory, and on this machine an idle worker leaves its core to the busy
-        worker's threads (``ftcal.runtime.threads``)."""
-        placed = [self._placed.get(os.fspath(batches[index][0][0])) for index in waiting]
-        for index, where in zip(waiting, placed):
-            if where == worker:
-                return index
-        for index, where in zip(waiting, placed):
-            if where not in workers:
-                return index
-        return None
-
-    def _submit_batch(self, function, batch, args, combine, worker: str):
-        files = [os.fspath(task[0]) for task in batch]
-        key = f"ftcal-{os.path.basename(files[0])}-{uuid.uuid4().hex}"
-        self._files[key] = files
-        # A hint, not a restriction: if the worker dies, Dask runs the batch on another.
-        return self.client.submit(_run_placed_batch, function, batch, args, combine, pure=False, key=key,
-                                  workers=[worker], allow_other_workers=True)
-
     def map(self, function: Callable[..., T], tasks: Sequence[Task], *args: Any,
             description: str = "tasks") -> list[T]:
         """Like :meth:`LocalExecutor.map`; the tasks run in batches, the bar counts tasks (files)."""
-        if self.local:
-            return [result for batch in self._fed(function, tasks, args, None, description) for result in batch]
         futures, counts = self._submit(function, tasks, args)
         try:
             self._wait(futures, counts, description)
@@ -370,8 +202,6 @@ class DaskExecutor:
         """:func:`tree_reduce` on the workers (in each batch, then across batches); only the total travels back."""
         if not tasks:
             return tree_reduce([], combine)  # the same one-line error as here
-        if self.local:  # batches hold aligned powers of two of tasks: their sums are subtrees of the local one
-            return tree_reduce(self._fed(function, tasks, args, combine, description), combine)
         futures, counts = self._submit(function, tasks, args, combine)
         n_batches = len(futures)
         level = list(futures)
@@ -459,13 +289,6 @@ def _run_batch(function, tasks: Sequence[tuple], args: tuple, combine=None):
     return list(results) if combine is None else tree_reduce(results, combine)
 
 
-def _run_placed_batch(function, tasks: Sequence[tuple], args: tuple, combine=None) -> tuple:
-    """:func:`_run_batch`, and the address of the worker that ran it (which now keeps its files)."""
-    from distributed import get_worker
-
-    return get_worker().address, _run_batch(function, tasks, args, combine)
-
-
 def _run_on_worker(function, task: tuple, args: tuple):
     """A task as a worker runs it: first check this worker can see the task's file."""
     path = task[0]
@@ -522,6 +345,7 @@ def open_executor(scheduler: str | None, *,
         return
     scheduler = parse_scheduler(scheduler)
     import logging
+    import sys
     import time
 
     started = time.perf_counter()
@@ -544,51 +368,46 @@ def open_executor(scheduler: str | None, *,
                           "distributed.scheduler.allowed-failures": TASK_RETRIES,
                           "distributed.scheduler.worker-saturation": 1.0,
                           "distributed.nanny.pre-spawn-environ": environ,
-                          **({**LOCAL_CLUSTER_CONFIG, "distributed.worker.multiprocessing-method": worker_start_method(),
-                              "distributed.nanny.environ": dict(
+                          **({**LOCAL_CLUSTER_CONFIG, "distributed.nanny.environ": dict(
                               dask.config.get("distributed.nanny.environ", {}) or {}, **{KEEP_FILES_ENV: "1"})}
                              if local else {})}):
         import multiprocessing
 
-        if local and worker_start_method() == "fork":
-            _preload_task_imports()
         before = set(multiprocessing.active_children())
         cluster = None
-        # Forked workers (worker_start_method) reset what they inherit; replaced ones too, while it is open.
-        with _FORKED_WORKERS if local else nullcontext():
+        try:
+            with signals_deferred():  # a cluster half started by Ctrl-C would be left running
+                if scheduler.startswith(LOCAL_PREFIX):
+                    try:
+                        cluster = LocalCluster(n_workers=int(scheduler[len(LOCAL_PREFIX):]), threads_per_worker=1,
+                                               processes=True, dashboard_address=":0",
+                                               silence_logs=logging.CRITICAL)
+                    except Exception as exc:  # noqa: BLE001 - e.g. a worker process that could not start
+                        detail = str(exc).splitlines()[0] if str(exc) else "no detail"
+                        raise FtcalError(f"--scheduler {scheduler}: the local Dask cluster did not start "
+                                         f"({type(exc).__name__}: {detail}); nothing was written.") from None
+                client = _connect(cluster if cluster is not None else scheduler, scheduler, connect_timeout)
             try:
-                with signals_deferred():  # a cluster half started by Ctrl-C would be left running
-                    if scheduler.startswith(LOCAL_PREFIX):
-                        try:
-                            cluster = LocalCluster(n_workers=int(scheduler[len(LOCAL_PREFIX):]),
-                                                   threads_per_worker=1, processes=True, dashboard_address=":0",
-                                                   silence_logs=logging.CRITICAL)
-                        except Exception as exc:  # noqa: BLE001 - e.g. a worker process that could not start
-                            detail = str(exc).splitlines()[0] if str(exc) else "no detail"
-                            raise FtcalError(f"--scheduler {scheduler}: the local Dask cluster did not start "
-                                             f"({type(exc).__name__}: {detail}); nothing was written.") from None
-                    client = _connect(cluster if cluster is not None else scheduler, scheduler, connect_timeout)
-                try:
-                    check_versions(client, scheduler)
-                    startup = None
-                    if cluster is not None:
-                        client.register_plugin(_worker_setup_plugin())
-                        startup = time.perf_counter() - started
-                    yield DaskExecutor(client, local=cluster is not None)
-                    if startup is not None:
-                        # The fixed cost of a local cluster, said once, after a run that succeeded (a failed
-                        # run's stderr is its one-line error).
-                        workers = int(scheduler[len(LOCAL_PREFIX):])
-                        print(f"Dask {scheduler}: {workers} worker process{'es' if workers > 1 else ''} started in "
-                              f"{startup:.1f} s", file=sys.stderr)
-                finally:
-                    with signals_deferred():
-                        client.close()
+                check_versions(client, scheduler)
+                startup = None
+                if cluster is not None:
+                    client.register_plugin(_ignore_interrupts_plugin())
+                    startup = time.perf_counter() - started
+                yield DaskExecutor(client)
+                if startup is not None:
+                    # The fixed cost of a local cluster, said once, after a run that succeeded (a failed
+                    # run's stderr is its one-line error).
+                    workers = int(scheduler[len(LOCAL_PREFIX):])
+                    print(f"Dask {scheduler}: {workers} worker process{'es' if workers > 1 else ''} started in "
+                          f"{startup:.1f} s", file=sys.stderr)
             finally:
                 with signals_deferred():
-                    if cluster is not None:
-                        _close_quietly(cluster)
-                    _end_processes(set(multiprocessing.active_children()) - before)
+                    client.close()
+        finally:
+            with signals_deferred():
+                if cluster is not None:
+                    _close_quietly(cluster)
+                _end_processes(set(multiprocessing.active_children()) - before)
 
 
 def _connect(address, scheduler: str, connect_timeout: float):
@@ -653,28 +472,23 @@ def signals_deferred() -> Iterator[None]:
             signal.raise_signal(caught[0])  # through the previous handler: KeyboardInterrupt, the CLI's Terminated
 
 
-def _worker_setup_plugin():
-    """A Dask worker plugin run on every local worker, replaced ones too: SIGINT ignored, BLAS on one thread.
+def _ignore_interrupts_plugin():
+    """A Dask worker plugin by which the worker process ignores SIGINT (the client handles Ctrl-C).
 
     A terminal sends Ctrl-C to the whole process group, local workers included;
     they would die with a traceback each while the client shuts them down in
-    order. A forked worker inherits this process's BLAS thread count (Dask's
-    ``OPENBLAS_NUM_THREADS=1`` is read only by a fresh interpreter); a worker is one
-    thread on one core, so its BLAS gets one thread, as a spawned one's does.
+    order. Dask runs the plugin on every worker, replaced ones too.
     """
     from distributed import WorkerPlugin
 
-    class WorkerSetup(WorkerPlugin):
-        name = "ftcal-worker-setup"
+    class IgnoreInterrupts(WorkerPlugin):
+        name = "ftcal-ignore-interrupts"
 
         def setup(self, worker) -> None:
-            from threadpoolctl import threadpool_limits
-
             if threading.current_thread() is threading.main_thread():
                 signal.signal(signal.SIGINT, signal.SIG_IGN)
-            threadpool_limits(1, user_api="blas")
 
-    return WorkerSetup()
+    return IgnoreInterrupts()
 
 
 def check_versions(client, scheduler: str) -> None:
