@@ -482,25 +482,40 @@ def threads_section(sizes: dict) -> list[str]:
 
 
 def cluster_section(sizes: dict) -> list[str]:
-    """Whole ``ftcal fit --degree 4``: one process against ``--scheduler local:2`` (issue 32)."""
-    rows, heads = [], []
+    """Whole ``ftcal fit --degree 4``: one process against ``--scheduler local:2`` (issue 32); against the
+    tree in FTCAL_BASELINE_SRC's ``local:2`` too (the code before) when set."""
+    baseline = os.environ.get("FTCAL_BASELINE_SRC")
+    rows, heads, load = [], [], []
     for n_files, n_rows in sizes["cluster"]:
-        r = run_case("cluster_fit", n_files=n_files, rows=n_rows, workers=2, pairs=sizes["cluster_pairs"])
-        one, cl = r["one"], r["cluster"]
+        r = run_case("cluster_fit", n_files=n_files, rows=n_rows, workers=2, pairs=sizes["cluster_pairs"],
+                     baseline_src=baseline)
+        load.extend(r["load_average"])
+        one = r["one"]
         heads.append(f"{n_files} × {n_rows:,}: {r['ratio']['wall_s']:.2f}× wall, {r['ratio']['cpu_s']:.2f}× CPU")
-        rows.append(f"| {n_files} × {n_rows:,} | {fmt_s(one['wall_s'])} | {fmt_s(one['cpu_s'])} | "
-                    f"{fmt_s(cl['wall_s'])} | {fmt_s(cl['cpu_s'])} | {cl['startup_s']:.1f} s "
-                    f"({r['startup_lines']} line) | {r['ratio']['wall_s']:.2f}× | {r['ratio']['cpu_s']:.2f}× | "
-                    f"{'equal' if r['same_coefficients'] else 'DIFFERENT'} |")
+        rows.append(f"| {n_files} × {n_rows:,} | one process | {fmt_s(one['wall_s'])} | {fmt_s(one['cpu_s'])} | "
+                    f"{one['peak_rss_mb']:.0f} MB | | | | 1.00× | 1.00× | |")
+        for name, label in (("cluster", "local:2"), ("baseline", "local:2, code before")):
+            if name not in r:
+                continue
+            c = r[name]
+            rows.append(f"| {n_files} × {n_rows:,} | {label} | {fmt_s(c['wall_s'])} | {fmt_s(c['cpu_s'])} | "
+                        f"{c['peak_rss_mb']:.0f} MB + {c['worker_peak_rss_mb']:.0f} MB | {c['startup_s']:.1f} s | "
+                        f"{c['worker_page_faults']:,.0f} | {fmt_s(c['worker_system_s'])} | "
+                        f"{r['ratios'][name]['wall_s']:.2f}× | {r['ratios'][name]['cpu_s']:.2f}× | "
+                        f"{'equal' if r['same_coefficients'] else 'DIFFERENT'} |")
     HEADLINE["cluster"] = ("`ftcal fit --degree 4 --scheduler local:2` / one process, whole command: " + "; ".join(heads)
                            + " (targets ≤ 1.1× on 4 files, < 1× on 16)")
     return ["## Dask `local:2` against one process: whole `ftcal fit FILES --degree 4`", "",
-            "Each run is one whole process (start-up, the cluster's start and stop, three passes, writing); CPU = "
-            "user + system of the command and every worker it waited for. One process and `local:2` alternate; "
-            f"medians of {sizes['cluster_pairs']} pairs, ratios pair by pair. Start-up: the seconds the command "
-            "printed (`Dask local:2: 2 worker processes started in X s`).", "",
-            "| files × rows | one process wall | CPU | local:2 wall | CPU | start-up (printed) | wall ratio | "
-            "CPU ratio | coefficients |", "|---|---:|---:|---:|---:|---:|---:|---:|---|", *rows, ""]
+            "Each run is one whole process (start-up, the cluster's start and stop, the passes, writing); CPU = "
+            "user + system of the command and every worker it waited for; memory: the command's peak + its largest "
+            "worker's; the workers' page faults and kernel seconds (what their allocator settings change). The "
+            f"variants alternate; medians of {sizes['cluster_pairs']} rounds, ratios to the one-process run of the "
+            "same round, median. Start-up: the seconds the command printed (`Dask local:2: 2 worker processes "
+            f"started in X s`, one line). 1-minute load average during the runs: {min(load):.1f}–{max(load):.1f} "
+            f"on {os.cpu_count()} cores.", "",
+            "| files × rows | run | wall | CPU | peak memory | start-up | worker page faults | worker kernel | "
+            "wall ratio | CPU ratio | coefficients |", "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|",
+            *rows, ""]
 
 
 def payload_cli_section(sizes: dict) -> list[str]:
@@ -550,7 +565,7 @@ FULL = {"fit_big": 1_000_000, "fit_mid": 100_000, "scaling_n": (10_000, 100_000,
         "scale": (10, 1_000_000, 4), "cost": ((20_000, 6), (200_000, 7), (1_000_000, 8)),
         "cost_budget": (1_000_000, 8, 8.0), "live_n": 600_000, "live_steps_n": 50_000, "live_minutes": (6, 60),
         "live_zenoh_s": 10.0, "closed_loop_seeds": (0, 1, 2), "closed_loop_quick": False,
-        "payload_cli_n": 1_000_000, "cluster": ((4, 1_000_000), (16, 250_000)), "cluster_pairs": 2,
+        "payload_cli_n": 1_000_000, "cluster": ((4, 1_000_000), (16, 250_000)), "cluster_pairs": 3,
         "threads_pairs": 2, "c_batch_evals": 2_000_000, "c_runtime_n": 200_000, "floor_n": 1_000_000,
         "floor_pairs": 5}
 QUICK = {"fit_big": 20_000, "fit_mid": 5_000, "scaling_n": (2_000, 10_000), "dense_max_n": 10_000,
