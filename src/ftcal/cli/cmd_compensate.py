@@ -59,10 +59,9 @@ def run(args) -> int:
     if args.robot_model is not None and args.robot_urdf is not None:
         raise FtcalError("--model: not allowed with --urdf (give one robot model).")
     require_suffix(args.output, (".csv", ".parquet"), "-o")
-    inputs = inputs_of(args)
+    inputs, gravity = inputs_of(args), source_keywords(args)
     check_not_input(args.output, [args.payload, *args.data] + ([args.calibration] if args.calibration else []))
-    result = compensate(args.payload, args.data, calibration=args.calibration, inputs=inputs,
-                        **source_keywords(args))
+    result = compensate(args.payload, args.data, calibration=args.calibration, inputs=inputs, **gravity)
     result.save(args.output)
     print(f"wrote {len(result.table)} contact wrenches to {args.output}", file=sys.stderr)
     return 0
