@@ -722,7 +722,13 @@ def test_fit_rejects_bad_options(capsys, work, tmp_path, args, fragments):
 ])
 def test_fit_rejects_impossible_requests(capsys, work, tmp_path, args, fragments):
     out = tmp_path / "m.json"
-    fails(capsys, ["fit", work.train, *args, "-o", out], *fragments, out=out)
+    data = work.train
+    if "--group-by" not in args:
+        # One file without a load column: one group, nothing to cross-validate over (with the column, fit
+        # groups by it by default; tests/test_fit_default_groups.py covers that).
+        data = tmp_path / "one_group.csv"
+        work.train_frame.drop(columns=["load"]).to_csv(data, index=False)
+    fails(capsys, ["fit", data, *args, "-o", out], *fragments, out=out)
 
 
 def test_output_suffix_is_checked_before_any_work(capsys, work, tmp_path):

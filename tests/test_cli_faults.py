@@ -411,7 +411,13 @@ def test_evaluate_warns_when_the_data_holds_training_segments(capfd, files, tmp_
         err = capfd.readouterr().err
         assert "contains 1 of the 1 training segments" in err and "400 samples" in err, err
     assert run(["report", str(files.model), str(mixed), "-o", str(tmp_path / "r.html")]) == 0
-    assert "training segments" in capfd.readouterr().err
+    out, err = capfd.readouterr()
+    assert "training segments" in err
+    # The training rows carry a load column, the validation rows none: a default never fails a command, it
+    # is left unused and the reason is said (a --group-by load the user gives is still refused).
+    assert "its 'load' column has empty cells, so it is not used by default" in out, out
+    assert run(["report", str(files.model), str(mixed), "--group-by", "load", "-o", str(tmp_path / "r2.html")]) == 2
+    assert "group column 'load' has empty cells" in capfd.readouterr().err
 
 
 # ------------------------------------------------------------------ the cache from the command line

@@ -27,8 +27,8 @@ FTCAL = str(Path(sys.executable).with_name("ftcal"))
 #   tests check against rmw_zenoh_cpp interop): String, Header, PoseStamped, TwistStamped, Imu, Odometry;
 # - Pico-ROS/Pico-ROS-software, examples/example_types.h (made with rosidl_generator_type_description): Vector3,
 #   Quaternion, Time, Pose, Twist (and String, Header, Odometry again);
-# - janvanhulzen/test_ws_09112025, readme.md: `ros2 topic info /joint_states --verbose` printed by a running ROS 2
-#   system ("Topic type hash: RIHS01_a13ee3a3...");
+# - janvanhulzen/test_ws_09112025, its top-level README (github.com/janvanhulzen/test_ws_09112025/blob/HEAD/readme.md):
+#   `ros2 topic info /joint_states --verbose` printed by a running ROS 2 system ("Topic type hash: RIHS01_a13ee3a3...");
 # - WrenchStamped and Wrench: a Pico-ROS type header generated from /opt/ros/jazzy/share (found by exact-string
 #   search; the index does not name its repository) and a generated msgspec message module that carries the same
 #   WrenchStamped value.

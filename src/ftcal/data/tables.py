@@ -232,8 +232,13 @@ def table_label_column(names: Sequence[str], column: str | None) -> str | None:
     return OLD_LOAD_COLUMN
 
 
-def default_label_column(paths: Sequence[str | os.PathLike], column: str) -> str | None:
-    """``column`` (through :func:`label_column`) when every table has it, else None.
+def default_label_column(paths: Sequence[str | os.PathLike], column: str,
+                         why: list[str] | None = None) -> str | None:
+    """``column`` (through :func:`label_column`) when every table has it without empty cells, else None.
+
+    A default is never a reason to fail: a table whose column has empty cells (a validation table
+    concatenated with a training one, say) leaves the default unused, and ``why`` (when given) gets a
+    line saying so; a column the user names is still refused with its empty cells.
 
     Examples
     --------
@@ -243,7 +248,37 @@ def default_label_column(paths: Sequence[str | os.PathLike], column: str) -> str
     if not paths:
         return None
     column = label_column(paths, column)
-    return column if all(column in table_columns(p) for p in paths) else None
+    if not all(column in table_columns(p) for p in paths):
+        return None
+    gaps = [str(p) for p in paths if _has_empty_cells(Path(p), column)]
+    if gaps:
+        if why is not None:
+            why.append(f"{gaps[0]}: its {column!r} column has empty cells, so it is not used by default"
+                       f"{f' (nor in {len(gaps) - 1} other table(s))' if len(gaps) > 1 else ''}")
+        return None
+    return column
+
+
+def _has_empty_cells(path: Path, column: str) -> bool:
+    """Whether ``column`` of the table at ``path`` has a missing cell (Parquet: from the footer's null
+    counts where every row group has one; otherwise that one column is read)."""
+    try:
+        if path.suffix.lower() in (".parquet", ".pq"):
+            import pyarrow.parquet as pq
+
+            meta = pq.read_metadata(path)
+            index = meta.schema.to_arrow_schema().get_field_index(column)
+            stats = [meta.row_group(g).column(index).statistics for g in range(meta.num_row_groups)]
+            if index >= 0 and all(st is not None and st.has_null_count for st in stats):
+                return any(st.null_count for st in stats)
+            return pq.read_table(path, columns=[column]).column(column).null_count > 0
+        import pyarrow.csv as pv
+
+        table = pv.read_csv(path, convert_options=pv.ConvertOptions(include_columns=[column],
+                                                                    strings_can_be_null=True))
+        return table.column(column).null_count > 0
+    except Exception:  # noqa: BLE001 - an unreadable table: the reader that follows names the problem
+        return False
 
 
 def header_columns(path: Path) -> tuple[str, ...]:

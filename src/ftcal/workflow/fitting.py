@@ -436,7 +436,7 @@ class _Fit:
             return
         if not (o.degree == "auto" or o.family == "mlp" or o.estimate_payload):
             return
-        column = default_label_column(self.paths, GROUP_COLUMN)
+        column = default_label_column(self.paths, GROUP_COLUMN, self.notes)
         if column is not None:
             o.group_by = column
             self.notes.append(f"groups: the tables' {column!r} column (the load cases ftcal dataset writes); "

@@ -139,14 +139,14 @@ def default_label_columns(paths: Sequence[str], segment_by: str | None, notes: l
     if not paths:
         return segment_by, group_by
     if segment_by is None:
-        segment_by = default_label_column(paths, SEGMENT_COLUMN)
+        segment_by = default_label_column(paths, SEGMENT_COLUMN, notes)
         if segment_by is not None:
             notes.append(f"segments: the tables' {SEGMENT_COLUMN!r} column (one per recording, from ftcal dataset); "
                          "--segment-by COL for another")
     if group_by is not None:
         group_by = label_column(paths, group_by)
     elif groups:
-        group_by = default_label_column(paths, LOAD_COLUMN)
+        group_by = default_label_column(paths, LOAD_COLUMN, notes)
         if group_by is not None:
             notes.append(f"groups: the tables' {group_by!r} column (the load cases ftcal dataset writes); "
                          "--group-by COL for another")
