@@ -251,9 +251,12 @@ def main(argv: list[str] | None = None) -> int:
         print("ftcal: interrupted", file=sys.stderr)  # a Ctrl-C that an import turned into another error
         return 130
     finally:
-        _INTERRUPTS.clear()
         if command:  # what is left is Python's exit (joining threads): a Ctrl-C now changes nothing
-            _ignore_further_interrupts()
+            try:
+                _ignore_further_interrupts()
+            except KeyboardInterrupt:  # a pending one ran as the call began: it is moot too
+                _ignore_further_interrupts()
+        _INTERRUPTS.clear()
 
 
 def _ignore_further_interrupts() -> None:
@@ -262,6 +265,16 @@ def _ignore_further_interrupts() -> None:
         signal.signal(signal.SIGINT, signal.SIG_IGN)
     except KeyboardInterrupt:
         signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _leave_ctrl_c_to_ftcal() -> None:
+    """Keep pyarrow from taking Ctrl-C during its reads: its temporary handler both cancels the read (one
+    KeyboardInterrupt) and passes the signal on (a second, after ftcal has reported the first: exit by
+    SIGINT instead of 130), or loses it when the read ends first (the command ran on). Measured: 6 of 24
+    Ctrl-Cs under load went wrong with it, 0 of 24 without. A read now ends its chunk, then stops."""
+    import pyarrow
+
+    pyarrow.enable_signal_handlers(False)
 
 
 def run(argv: list[str] | None) -> int:
@@ -288,6 +301,8 @@ def run(argv: list[str] | None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    if signal.getsignal(signal.SIGINT) is _interrupt:
+        _leave_ctrl_c_to_ftcal()
     # Our own warnings go to stderr as one line each, not as Python warning noise.
     def show(message, category, filename, lineno, file=None, line=None):
         if issubclass(category, OldSpellingWarning):
