@@ -209,7 +209,7 @@ int main(int argc, char **argv)
     t2 = now();
     updates = (long)s->updates;
     rt_init(s, 1);
-    rt_start_identification(s);
+    rt_start_identification(s, "tool");
     for (k = 0; k < n; ++k) {
         if (rt_step(s, 0.002 * k, u + k * RT_N_INPUTS, g + 3 * k, -1, &o)) return 2;
         checksum += o.compensated[k % 6];

@@ -233,7 +233,7 @@ def test_convert_writes_a_header_that_compiles_with_hostile_names(tmp_path, caps
     # The name reaches the C only as a string literal: the program prints it back byte for byte.
     (tmp_path / "use.c").write_text('#include "ft_runtime.h"\n#include <stdio.h>\n'
                                     'int main(void) { rt_state s; rt_init(&s, 2);\n'
-                                    '  fputs(rt_tool_name(s.tool), stdout); return 0; }\n')
+                                    '  fputs(rt_tool_name(&s, s.tool), stdout); return 0; }\n')
     done = subprocess.run([CC, "-O2", "-std=c99", "-Wall", "-Werror", "use.c", "-o", "use", "-lm"], cwd=tmp_path,
                           capture_output=True, text=True)
     assert done.returncode == 0, done.stderr

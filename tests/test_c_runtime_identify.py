@@ -48,7 +48,7 @@ int replay(int n, const double *t, const double *u, const double *g, const int *
     int k, j, done = 0;
     if (rt_init(&s, tool)) return -2;
     for (k = 0; k < n; ++k) {
-        if (action[k] == 1) rt_start_identification(&s);
+        if (action[k] == 1 && rt_start_identification(&s, "drill")) return -4;
         else if (action[k] >= 2) {
             double *x = fits + 44 * done;
             if (action[k] == 4) {
@@ -99,11 +99,11 @@ int adopt_refuses(void)
     rt_tool_se e;
     int refused;
     rt_init(&s, 0);
-    rt_start_identification(&s);
+    rt_start_identification(&s, "drill");
     before = s;
     memset(&f, 0, sizeof f);
     memset(&e, 0, sizeof e);
-    refused = rt_adopt_identification(&s, &f, &e, 1) == -1 && rt_set_tool(&s, RT_IDENTIFIED_TOOL) == -1;
+    refused = rt_adopt_identification(&s, &f, &e, 1) == -1 && rt_set_tool(&s, RT_N_TOOLS) == -1;
     f.mass = 1.0;
     f.com[2] = HUGE_VAL;
     refused = refused && rt_adopt_identification(&s, &f, &e, 1) == -1;
@@ -211,7 +211,7 @@ def test_a_tool_identified_in_place_matches_python_and_the_truth(tmp_path, finis
     payload, fit, n_holds = finishes.results[0]
     assert status.tolist() == [STATUS["OK"]] and n_holds == 7
     assert_same_fit(fits[0], payload, fit, n_holds)
-    assert tool == 1 and live.tool == "drill"  # RT_IDENTIFIED_TOOL, mounted
+    assert tool == 1 and live.tool == "drill"  # the first slot after the compiled-in tools, mounted
     compare(out, ref)  # every sample, before (no bias updates, no contact flags) and after the mount
     assert not ref["updated"][:finish].any() and ref["updated"][finish:].any()
     # Truth: the simulated drill and bias lie within 4 standard errors of both estimates.

@@ -255,6 +255,14 @@ C_RUNTIME_MAX_HOLDS = 32
 """Static holds the generated C runtime's state keeps for an identification in place (fixed size, no allocation):
 holds past it are counted (``holds_dropped``) and left out, so the tool is identified from the first ones."""
 
+C_RUNTIME_MAX_TOOLS = 8
+"""Tools the generated C runtime's state can add at run time (identified in place under a new name), beside the
+compiled-in ones: fixed-size slots; a tool identified under a name the library has replaces that tool instead."""
+
+C_RUNTIME_MAX_TOOL_NAME = 63
+"""Longest tool name, in bytes (UTF-8, without the terminating NUL), the generated C runtime copies into a slot at
+run time; a longer or empty name is refused."""
+
 LIVE_KEY_CONVENTIONS = ("bridge", "rmw_zenoh")
 """Zenoh key expressions of ``ftcal live --zenoh``'s ROS topics: zenoh-bridge-ros2dds's (topic ``/ft/raw`` is key
 ``ft/raw``) or rmw_zenoh's (``<domain>/<topic>/<DDS type>/<RIHS01 type hash>``, with attachments and liveliness)."""

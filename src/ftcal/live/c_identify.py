@@ -39,6 +39,8 @@ RANK_RELATIVE = float(np.finfo(float).eps * max(10, 10) * 10)
 
 # Status codes of NAME_finish_identification (the C's #defines; tests and docs read them here).
 STATUS = {"OK": 0, "NOT_IDENTIFYING": -1, "TOO_FEW_HOLDS": -2, "MASS_UNDETERMINED": -3, "SINGULAR": -4}
+# Return codes of the tool library (NAME_start_identification, NAME_adopt_identification), NAME_TOOL_* in the C.
+TOOL_STATUS = {"OK": 0, "NO_NAME": -5, "NAME_TOO_LONG": -6, "NAME_RESERVED": -7, "LIBRARY_FULL": -8}
 
 
 def _num(x: float) -> str:
@@ -65,8 +67,7 @@ def state_fields(macro: str) -> str:
     long hold_samples[{macro}_MAX_HOLDS];
     double hold_moments[{macro}_MAX_HOLDS][10][10];   /* sum of z z^T, z = (g, 1, w); upper triangle */
     double hold_gravity_max;     /* max |g component| over the collected samples */
-    int has_identified;          /* tool {macro}_IDENTIFIED_TOOL is the last tool identified in place */
-    double identified_mass, identified_mc[3];"""
+    char identifying_name[{macro}_MAX_TOOL_NAME + 1];   /* the tool being identified */"""
 
 
 def collect_text(name: str, macro: str) -> str:
@@ -74,15 +75,24 @@ def collect_text(name: str, macro: str) -> str:
     return f"""
 /* ----- identification in place: collecting the holds ----- */
 
-/* Start collecting static holds for a new tool (the previous collection is dropped). While identifying,
-   the bias is not updated and the contact and unexplained flags are not raised (the tool is unknown). */
-static inline void {name}_start_identification({name}_state *s)
+/* Start collecting static holds for the tool `tool_name` (the previous collection is dropped). While identifying,
+   the bias is not updated and the contact and unexplained flags are not raised (the tool is unknown). On success
+   the tool joins the library under that name: a name the library has is replaced (it keeps its index, and if it
+   is mounted the new tool is), a new one takes the next slot. Returns {macro}_TOOL_OK (0), or, nothing changed:
+   {macro}_TOOL_NO_NAME (a null pointer or an empty name), {macro}_TOOL_NAME_TOO_LONG (more than
+   {macro}_MAX_TOOL_NAME bytes), {macro}_TOOL_NAME_RESERVED ("none", tool 0), {macro}_TOOL_LIBRARY_FULL (a new name
+   and {macro}_MAX_ADDED_TOOLS tools added already). */
+static inline int {name}_start_identification({name}_state *s, const char *tool_name)
 {{
+    int status = {name}_check_new_tool(s, tool_name);
+    if (status) return status;
+    memcpy(s->identifying_name, tool_name, strlen(tool_name) + 1);
     s->identifying = 1;
     s->in_hold = 0;
     s->n_holds = 0;
     s->holds_dropped = 0;
     s->hold_gravity_max = 0.0;
+    return {macro}_TOOL_OK;
 }}
 
 /* End the collection without a tool (the bias filter and the flags resume). */
@@ -367,25 +377,32 @@ static inline void {name}_id_hold(const {name}_state *s, int h, double mo[10][10
         for (k = j; k < 10; ++k) mo[j][k] = mo[k][j] = s->hold_moments[h][j][k];
 }}
 
-/* Make an identified tool the state's {macro}_IDENTIFIED_TOOL and end the collection; with `mount`, mount it and
-   give the bias the identified value and variance max(SE^2, noise variance) (finish_identification(mount=True)).
-   NAME_finish_identification calls it; call it yourself when the finish ran on a copy of the state outside the
-   real-time loop (docs/live.md). Returns 0, or -1 (nothing changed) for a mass of 0, numbers not finite or an
-   infinite standard error (NaN, undetermined, is taken: that bias gets the noise variance). */
-static inline int {name}_adopt_identification({name}_state *s, const {name}_tool_fit *tool, const {name}_tool_se *se,
-                                              int mount)
+/* Put a tool identified as `tool_name` into the library (replacing a tool of that name, else in the next slot);
+   with `mount`, mount it and give the bias the identified value and variance max(SE^2, noise variance)
+   (finish_identification(mount=True)). Returns 0, -1 (nothing changed) for a mass of 0, numbers not finite or an
+   infinite standard error (NaN, undetermined, is taken: that bias gets the noise variance), or a NAME_TOOL_* code
+   for the name. */
+static inline int {name}_add_identified({name}_state *s, const char *tool_name, const {name}_tool_fit *tool,
+                                        const {name}_tool_se *se, int mount)
 {{
-    int j, finite = isfinite(tool->mass) && tool->mass != 0.0;
+    int j, index, finite = isfinite(tool->mass) && tool->mass != 0.0, status = {name}_check_new_tool(s, tool_name);
     for (j = 0; j < 3; ++j) finite = finite && isfinite(tool->com[j]) && isfinite(tool->mass * tool->com[j]);
     for (j = 0; j < 6; ++j) finite = finite && isfinite(tool->bias[j]) && !isinf(se->bias[j] * se->bias[j]);
     if (!finite) return -1;
+    if (status) return status;
+    index = {name}_find_tool(s, tool_name);
+    if (index < 0) {{   /* a new name: the next slot */
+        index = s->n_tools;
+        memcpy(s->tool_names[index - {macro}_N_TOOLS], tool_name, strlen(tool_name) + 1);
+        s->n_tools += 1;
+    }}
     s->identifying = 0;
     s->in_hold = 0;
-    s->has_identified = 1;
-    s->identified_mass = tool->mass;
-    for (j = 0; j < 3; ++j) s->identified_mc[j] = tool->mass * tool->com[j];
+    s->tool_mass[index] = tool->mass;
+    for (j = 0; j < 3; ++j) s->tool_mc[index][j] = tool->mass * tool->com[j];
+    s->tool_sign[index] = 1.0;   /* identified from the readings themselves (reaction=False) */
     if (mount) {{
-        s->tool = {macro}_IDENTIFIED_TOOL;
+        s->tool = index;
         s->switches += 1;
         for (j = 0; j < 6; ++j) {{
             double v = isnan(se->bias[j]) ? 0.0 : se->bias[j] * se->bias[j];   /* undetermined: the noise's */
@@ -396,10 +413,22 @@ static inline int {name}_adopt_identification({name}_state *s, const {name}_tool
     return 0;
 }}
 
+/* Put the tool of the identification in progress into the library (see NAME_add_identified), as
+   NAME_finish_identification does, and end the identification: call it when the finish ran on a copy of the state
+   outside the real-time loop (docs/live.md). Returns 0, or -1 (nothing changed) when no identification is in
+   progress or for a tool that is not one (NAME_add_identified). */
+static inline int {name}_adopt_identification({name}_state *s, const {name}_tool_fit *tool, const {name}_tool_se *se,
+                                              int mount)
+{{
+    if (!s->identifying) return -1;
+    return {name}_add_identified(s, s->identifying_name, tool, se, mount);
+}}
+
 /* Identify the tool from the holds collected since NAME_start_identification: mass, centre of mass and bias
    with the standard errors of LiveCalibrator.finish_identification (ftcal.payload.identify.identify_payload).
    Holds past {macro}_MAX_HOLDS were left out (out_tool->holds_dropped counts them).
-   On success (0) the tool is {macro}_IDENTIFIED_TOOL; with `mount` it is mounted and the bias takes the
+   On success (0) the tool is in the library under the name given to NAME_start_identification (NAME_find_tool
+   gives its index); with `mount` it is mounted and the bias takes the
    identified value and variance (as finish_identification(mount=True)). Errors (out_tool may be partly written;
    out_tool->undetermined names the parameters the poses do not determine: on success those held at zero
    (their standard errors NaN) and the others confounded with them; on {macro}_ID_MASS_UNDETERMINED all):
@@ -417,7 +446,7 @@ static inline int {name}_finish_identification({name}_state *s, {name}_tool_fit 
     double jac[10], values[10], vectors[10][10], top = 0.0, row[10], inverse[10][10], factor[10][10];
     double covariance[10][10], refits[{macro}_MAX_HOLDS][10], sse_ols[6], sse_wls[6], rss[6], mass;
     long n;
-    int h, i, j, k, null = 0, scored = 0, g = 0, p = 10;   /* p: parameters estimated (not held) */
+    int h, i, j, k, null = 0, scored = 0, g = 0, p = 10, added;   /* p: parameters estimated (not held) */
     unsigned held = 0;
     if (!s->identifying) return {macro}_ID_NOT_IDENTIFYING;
     memset(out_tool, 0, sizeof *out_tool);
@@ -611,6 +640,7 @@ static inline int {name}_finish_identification({name}_state *s, {name}_tool_fit 
             if (j < 4) out_se->com[j - 1] = NAN;
             else out_se->bias[j - 4] = NAN;
         }}
-    return {name}_adopt_identification(s, out_tool, out_se, mount) ? {macro}_ID_SINGULAR : {macro}_ID_OK;
+    added = {name}_add_identified(s, s->identifying_name, out_tool, out_se, mount);   /* the name was checked */
+    return added == -1 ? {macro}_ID_SINGULAR : added;
 }}
 """

@@ -17,13 +17,19 @@ Names and units from the files reach the C only through :mod:`ftcal.files.c_text
 Identification in place (:mod:`ftcal.live.c_identify`): ``NAME_start_identification`` and
 ``NAME_finish_identification`` keep up to ``NAME_MAX_HOLDS`` static holds
 (:data:`~ftcal.core.limits.C_RUNTIME_MAX_HOLDS`; later holds are left out and counted) and identify the
-tool as :meth:`LiveCalibrator.finish_identification` does; it becomes tool ``NAME_IDENTIFIED_TOOL``.
+tool as :meth:`LiveCalibrator.finish_identification` does.
 
-What the C does not do (the Python calibrator does): several tools identified in place (the C keeps
-the last), warnings and reasons as text (the C reports bit masks), the ``silent``
+The tool library grows at run time as Python's does: a tool identified in place joins it under the
+name given to ``NAME_start_identification`` (copied into a fixed slot of at most
+:data:`~ftcal.core.limits.C_RUNTIME_MAX_TOOL_NAME` bytes; :data:`~ftcal.core.limits.C_RUNTIME_MAX_TOOLS`
+slots), replacing a tool of that name (same index) or taking the next index, so indices follow
+Python's ``list(live.tools)``; ``NAME_find_tool`` looks a name up. Flags have names and Python's
+reasons as text (:mod:`ftcal.live.c_health`).
+
+What the C does not do (the Python calibrator does): warnings as text and an event log, the ``silent``
 flag (a transport's), a separate temperature input (the model's temperature input is used),
 quaternion or joint motion signals (the gravity direction is the motion signal, as with
-``gravity=``), flag reasons as text, state files. The motion history holds the newest
+``gravity=``), state files. The motion history holds the newest
 ``NAME_HISTORY`` samples (default 1024: ≥ 10 kHz over the 0.1 s window); at a higher rate the
 rate is measured over the span the history holds.
 """
@@ -38,17 +44,18 @@ import numpy as np
 
 from ..check.accept import Thresholds
 from ..core.excitation import SPAN_RELATIVE_FLOOR, span_limit
-from ..core.limits import C_RUNTIME_MAX_HOLDS, LIVE_MIN_HOLDS
+from ..core.limits import C_RUNTIME_MAX_HOLDS, C_RUNTIME_MAX_TOOL_NAME, C_RUNTIME_MAX_TOOLS, LIVE_MIN_HOLDS
 from ..core.ranges import RANGE_TOLERANCE
 from ..data.holds import HOLD_WINDOW_S, MIN_ANGULAR_RATE, MIN_HOLD_S
 from ..data.signals import SATURATION_RUN, STUCK_RUN
 from ..files.c_code import static_predict_function
-from ..files.c_text import c_comment, c_identifier, c_string
+from ..files.c_text import c_comment, c_identifier, c_string, printable_ascii
 from ..files.model_json import ModelFile, ftcal_version
 from ..files.targets import ConvertOptions, Written
 from ..runtime.atomic import write_text_atomic
 from ..runtime.errors import FtcalError
-from .c_identify import _array, _num, collect_text, finish_text, state_fields
+from .c_health import describe_text, note_text, reason_fields
+from .c_identify import TOOL_STATUS, _array, _num, collect_text, finish_text, state_fields
 from .calibrator import (DEFAULT_NOISE_FRACTION, DEFAULT_WALK_FRACTION, GATE_PROBABILITY, NO_TOOL, RETARE_VARIANCE,
                          SECONDS_PER_HOUR, UNEXPLAINED_SECONDS, UNEXPLAINED_SIGMA, _walk_from_knots)
 from .health import BIT, DEAD_RUN
@@ -153,6 +160,10 @@ def generate_c_runtime(model, tools: dict, *, name: str = DEFAULT_NAME, sha256: 
     slack = RANGE_TOLERANCE * np.maximum(rng[:, 1] - rng[:, 0], 1.0)
     span_lines = _span(model)
     names = [NO_TOOL, *tools]
+    for tool in tools:
+        if not isinstance(tool, str) or not tool or tool == NO_TOOL or "\0" in tool:
+            raise FtcalError(f"--to c-runtime: tool {printable_ascii(repr(tool))[:80]} needs a name other than "
+                             f"{NO_TOOL!r}, without NUL characters.")
     mass = [0.0] + [float(p.mass) for p in tools.values()]
     mc = [[0.0] * 3] + [list(p.mass * np.asarray(p.com, dtype=float)) for p in tools.values()]
     sign = [1.0] + [-1.0 if p.reaction else 1.0 for p in tools.values()]
@@ -170,6 +181,7 @@ def generate_c_runtime(model, tools: dict, *, name: str = DEFAULT_NAME, sha256: 
         *[f"tool {i + 1}: {tool}" + (f" from {src}" if src else "") for i, (tool, src) in enumerate(zip(tools, sources))],
         "Include in one or more translation units; needs -lm. See docs/live.md."])
     bits = "\n".join(f"#define {macro}_FLAG_{flag.upper()} {bit}u" for flag, bit in BIT.items())
+    tool_status = "\n".join(f"#define {macro}_TOOL_{key} ({value})" for key, value in TOOL_STATUS.items())
     temp_line = ("    (void)u;" if t_col is None else
                  f"    if (!(u[{t_col}] >= {_num(rng[t_col, 0])} && u[{t_col}] <= {_num(rng[t_col, 1])})) "
                  f"flags |= {macro}_FLAG_TEMPERATURE;")
@@ -189,18 +201,14 @@ extern "C" {{
 #define {macro}_N_CHANNELS {nc}
 #define {macro}_MAX_HOLDS {max_holds}   /* holds an identification in place keeps; later ones are left out */
 #define {macro}_MIN_HOLDS {LIVE_MIN_HOLDS}
-#define {macro}_IDENTIFIED_TOOL {macro}_N_TOOLS   /* the tool identified in place (after a successful finish) */
+#define {macro}_MAX_ADDED_TOOLS {C_RUNTIME_MAX_TOOLS}   /* tools identified in place under new names */
+#define {macro}_MAX_TOOLS ({macro}_N_TOOLS + {macro}_MAX_ADDED_TOOLS)
+#define {macro}_MAX_TOOL_NAME {C_RUNTIME_MAX_TOOL_NAME}   /* bytes of a run-time tool name, without the NUL */
+{tool_status}
 #ifndef {macro}_HISTORY
 #define {macro}_HISTORY {HISTORY}
 #endif
 {bits}
-
-/* Tool 0 is "none"; the others come from the payload files, in the order given. */
-static inline const char *{name}_tool_name(int tool)
-{{
-    static const char *const names[{macro}_N_TOOLS] = {{{', '.join(c_string(t) for t in names)}}};
-    return tool >= 0 && tool < {macro}_N_TOOLS ? names[tool] : 0;
-}}
 
 static inline const char *{name}_input_name(int input)
 {{
@@ -208,6 +216,7 @@ static inline const char *{name}_input_name(int input)
     return input >= 0 && input < {macro}_N_INPUTS ? names[input] : 0;
 }}
 
+/* The compiled-in tools: NAME_init copies them into the state's library. */
 static const double {name}_tool_mass[{macro}_N_TOOLS] = {_array(mass)};
 static const double {name}_tool_mc[{macro}_N_TOOLS][3] = {{{', '.join(_array(r) for r in mc)}}};
 static const double {name}_tool_sign[{macro}_N_TOOLS] = {_array(sign)};
@@ -225,6 +234,10 @@ typedef struct {{
     double adc_low, adc_high;
     /* state */
     int tool;
+    /* the tool library: 0 .. N_TOOLS-1 compiled in (copied by NAME_init), then the tools identified in place */
+    int n_tools;
+    double tool_mass[{macro}_MAX_TOOLS], tool_mc[{macro}_MAX_TOOLS][3], tool_sign[{macro}_MAX_TOOLS];
+    char tool_names[{macro}_MAX_ADDED_TOOLS][{macro}_MAX_TOOL_NAME + 1];
     double bias[6], variance[6];
     int has_time;
     double last_time, last_moving;
@@ -238,6 +251,7 @@ typedef struct {{
     unsigned flags;
     unsigned long samples, updates, contacts, retares, switches;
 {state_fields(macro)}
+{reason_fields(macro)}
 }} {name}_state;
 
 typedef struct {{
@@ -281,14 +295,51 @@ static inline int {name}_init({name}_state *s, int tool)
     s->min_hold = {_num(MIN_HOLD_S)};
     s->last_moving = -HUGE_VAL;
     s->tool = tool;
+    s->n_tools = {macro}_N_TOOLS;
+    for (j = 0; j < {macro}_N_TOOLS; ++j) {{
+        s->tool_mass[j] = {name}_tool_mass[j];
+        memcpy(s->tool_mc[j], {name}_tool_mc[j], sizeof s->tool_mc[j]);
+        s->tool_sign[j] = {name}_tool_sign[j];
+    }}
     return 0;
 }}
 
-/* Mount another tool instantly; the bias (the sensor's) is kept. Returns 0, or -1 for a bad index
-   ({macro}_IDENTIFIED_TOOL only after an identification in place). */
+/* The name of tool `tool`: 0 is "none", then the payload files' in the order given, then the tools identified in
+   place (in the order they were first added); 0 (a null pointer) for an index not in the library. */
+static inline const char *{name}_tool_name(const {name}_state *s, int tool)
+{{
+    static const char *const names[{macro}_N_TOOLS] = {{{', '.join(c_string(t) for t in names)}}};
+    if (tool >= 0 && tool < {macro}_N_TOOLS) return names[tool];
+    return tool >= {macro}_N_TOOLS && tool < s->n_tools ? s->tool_names[tool - {macro}_N_TOOLS] : 0;
+}}
+
+/* The index of the tool named `tool_name` (compared byte for byte), or -1 (none by that name, or a null pointer). */
+static inline int {name}_find_tool(const {name}_state *s, const char *tool_name)
+{{
+    int i;
+    if (!tool_name) return -1;
+    for (i = 0; i < s->n_tools; ++i) if (strcmp({name}_tool_name(s, i), tool_name) == 0) return i;
+    return -1;
+}}
+
+/* Whether a tool may be identified as `tool_name`: {macro}_TOOL_OK or the reason it may not
+   (NAME_start_identification lists them). Reads at most {macro}_MAX_TOOL_NAME + 1 bytes of the name. */
+static inline int {name}_check_new_tool(const {name}_state *s, const char *tool_name)
+{{
+    int n = 0;
+    if (!tool_name || !tool_name[0]) return {macro}_TOOL_NO_NAME;
+    while (n <= {macro}_MAX_TOOL_NAME && tool_name[n]) ++n;
+    if (n > {macro}_MAX_TOOL_NAME) return {macro}_TOOL_NAME_TOO_LONG;
+    if (strcmp(tool_name, {c_string(NO_TOOL)}) == 0) return {macro}_TOOL_NAME_RESERVED;
+    if ({name}_find_tool(s, tool_name) < 0 && s->n_tools == {macro}_MAX_TOOLS) return {macro}_TOOL_LIBRARY_FULL;
+    return {macro}_TOOL_OK;
+}}
+
+/* Mount another tool of the library instantly (switch_tool; by name: NAME_find_tool); the bias (the sensor's) is
+   kept. Returns 0, or -1 for an index not in the library (0 .. s->n_tools - 1). */
 static inline int {name}_set_tool({name}_state *s, int tool)
 {{
-    if (tool < 0 || tool > {macro}_N_TOOLS || (tool == {macro}_IDENTIFIED_TOOL && !s->has_identified)) return -1;
+    if (tool < 0 || tool >= s->n_tools) return -1;
     s->tool = tool;
     s->switches += 1;
     return 0;
@@ -338,7 +389,7 @@ static inline void {name}_motion({name}_state *s, double time, const double *dir
     *still = *still && (time - s->last_moving >= s->min_hold);
 }}
 
-{collect_text(name, macro)}
+{collect_text(name, macro)}{note_text(name, macro, t_col)}
 /* One sample: time in s (strictly increasing), u[N_INPUTS] the raw channels, gravity[3] in sensor axes
    (m/s^2, any nonzero length for the direction), static_override -1 (motion test), 0 or 1.
    Returns 0, or -1 (state untouched, out not written) for non-finite input, time that does not
@@ -347,11 +398,11 @@ static inline int {name}_step({name}_state *s, double time, const double *u, con
                        {name}_output *out)
 {{
     double w[6], z[6], e[6], tool[6], direction[3], norm, dt, chi2 = 0.0, predicted[6], innovation_var[6];
-    int known = s->tool < {macro}_N_TOOLS;   /* else the tool identified in place */
-    const double *mc = known ? {name}_tool_mc[s->tool] : s->identified_mc;
-    double m = known ? {name}_tool_mass[s->tool] : s->identified_mass, sign = known ? {name}_tool_sign[s->tool] : 1.0;
+    const double *mc = s->tool_mc[s->tool];
+    double m = s->tool_mass[s->tool], sign = s->tool_sign[s->tool];
     int j, still, moving, gate, beyond = 0, other;
     unsigned flags = 0;
+    unsigned char hit[3][{macro}_N_CHANNELS];   /* saturated, stuck, dead channels: the reasons' */
     if (!isfinite(time) || (s->has_time && !(time > s->last_time))) return -1;
     for (j = 0; j < {macro}_N_INPUTS; ++j) if (!isfinite(u[j])) return -1;
     for (j = 0; j < 3; ++j) if (!isfinite(gravity[j])) return -1;
@@ -409,16 +460,20 @@ static inline int {name}_step({name}_state *s, double time, const double *u, con
         for (k = 0; k < {macro}_N_CHANNELS; ++k)
             if (k != j && !(s->has_last && u[{name}_channels[k]] == s->last_raw[k])) other = 1;
         stuck = s->run[j] >= {STUCK_RUN} && (other || moving);
-        if (stuck && s->run[j] >= {DEAD_RUN}) flags |= {macro}_FLAG_DEAD;
+        hit[2][j] = stuck && s->run[j] >= {DEAD_RUN};
+        hit[1][j] = stuck && !hit[2][j];
+        if (hit[2][j]) flags |= {macro}_FLAG_DEAD;
         else if (stuck) flags |= {macro}_FLAG_STUCK;
         if (s->use_adc_limits) {{
-            if (x <= s->adc_low || x >= s->adc_high) flags |= {macro}_FLAG_SATURATED;
+            hit[0][j] = x <= s->adc_low || x >= s->adc_high;
+            if (hit[0][j]) flags |= {macro}_FLAG_SATURATED;
         }} else {{
             static const double range[{macro}_N_CHANNELS][2] = {{{', '.join(_array(rng[c]) for c in channels)}}};
             low = range[j][0];
             high = range[j][1];
             outside = x < low || x > high;
-            if (outside && s->run[j] >= {SATURATION_RUN}) flags |= {macro}_FLAG_SATURATED;
+            hit[0][j] = outside && s->run[j] >= {SATURATION_RUN};
+            if (hit[0][j]) flags |= {macro}_FLAG_SATURATED;
         }}
     }}
     for (j = 0; j < {macro}_N_CHANNELS; ++j) s->last_raw[j] = u[{name}_channels[j]];
@@ -441,6 +496,7 @@ static inline int {name}_step({name}_state *s, double time, const double *u, con
     }} else {{
         s->exceeding = 0;
     }}
+    if (flags & ~s->flags) {name}_note_reasons(s, flags & ~s->flags, time - s->exceed_start, u, e, chi2, hit);
     if ((flags & {macro}_FLAG_CONTACT) && !(s->flags & {macro}_FLAG_CONTACT)) s->contacts += 1;
     s->flags = flags;
     s->updates += (unsigned long)gate;
@@ -454,7 +510,8 @@ static inline int {name}_step({name}_state *s, double time, const double *u, con
     return 0;
 }}
 
-{finish_text(name, macro, max_holds)}
+{finish_text(name, macro, max_holds)}{describe_text(name, macro, [repr(t) for t in names],
+                                             None if t_col is None else tuple(rng[t_col]))}
 #ifdef __cplusplus
 }}
 #endif
@@ -500,5 +557,6 @@ def write_c_runtime(source: ModelFile, output: Path, options: ConvertOptions) ->
     write_text_atomic(output, text)
     library = (f"{len(tools) + 1} tools (none, {', '.join(tools)})" if tools else
                "1 tool (none); add tools with --payload-file")
-    return Written((output,), (f"{name}_init / {name}_step / {name}_set_tool / {name}_retare / "
-                               f"{name}_start_identification / {name}_finish_identification; {library}",))
+    return Written((output,), (f"{name}_init / {name}_step / {name}_set_tool / {name}_find_tool / {name}_retare / "
+                               f"{name}_start_identification / {name}_finish_identification / "
+                               f"{name}_describe_flags; {library}",))
