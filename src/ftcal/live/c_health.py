@@ -17,11 +17,11 @@ U+00AD; other non-ASCII bytes are copied (Python escapes the non-printable ones 
 
 from __future__ import annotations
 
-from ..data.signals import SATURATION_RUN
+from ..data.signals import SATURATION_RUN, STUCK_RUN
 from ..files.c_text import c_string
 from .c_identify import _num
 from .calibrator import OUT_OF_RANGE_TEXT
-from .health import FLAGS
+from .health import DEAD_RUN, FLAGS
 
 
 def reason_fields(macro: str) -> str:
@@ -40,27 +40,44 @@ def note_text(name: str, macro: str, t_col: int | None) -> str:
     """``NAME_note_reasons``: the step calls it on a sample that raises a flag (before NAME_step)."""
     temperature = "0.0" if t_col is None else f"u[{t_col}]"
     return f"""
-/* The numbers of the flags `raised` on this sample, kept for NAME_describe_flags (called by NAME_step). */
-static void {name}_note_reasons({name}_state *s, unsigned raised, double duration, const double *u, const double *e,
-                                double chi2, unsigned char hit[3][{macro}_N_CHANNELS])
+/* The numbers of the flags `raised` on this sample, kept for NAME_describe_flags (called by NAME_step, after the run
+   lengths are updated; the flagged channels are found again here, so that the usual sample stores nothing). */
+#if defined(__GNUC__)
+#define {macro}_RARE __attribute__((noinline, cold))   /* off the step's path: called on the samples raising a flag */
+#else
+#define {macro}_RARE
+#endif
+static {macro}_RARE void {name}_note_reasons({name}_state *s, unsigned raised, double duration, const double *u, const double *e,
+                                double chi2, int moving)
 {{
-    int j;
+    int j, k;
     s->raised_ever |= raised;
     if (raised & {macro}_FLAG_SATURATED) {{
-        memcpy(s->why_saturated, hit[0], sizeof s->why_saturated);
+        for (j = 0; j < {macro}_N_CHANNELS; ++j) {{
+            double x = u[{name}_channels[j]];
+            s->why_saturated[j] = s->use_adc_limits ? x <= s->adc_low || x >= s->adc_high
+                : (x < {name}_channel_range[j][0] || x > {name}_channel_range[j][1]) && s->run[j] >= {SATURATION_RUN};
+        }}
         s->why_adc = s->use_adc_limits;
         s->why_adc_low = s->adc_low;
         s->why_adc_high = s->adc_high;
     }}
-    if (raised & {macro}_FLAG_STUCK) {{
-        memcpy(s->why_stuck, hit[1], sizeof s->why_stuck);
-        s->why_stuck_run = 0;
-        for (j = 0; j < {macro}_N_CHANNELS; ++j) if (hit[1][j] && s->run[j] > s->why_stuck_run) s->why_stuck_run = s->run[j];
-    }}
-    if (raised & {macro}_FLAG_DEAD) {{
-        memcpy(s->why_dead, hit[2], sizeof s->why_dead);
-        s->why_dead_run = 0;
-        for (j = 0; j < {macro}_N_CHANNELS; ++j) if (hit[2][j] && s->run[j] > s->why_dead_run) s->why_dead_run = s->run[j];
+    if (raised & ({macro}_FLAG_STUCK | {macro}_FLAG_DEAD)) {{
+        if (raised & {macro}_FLAG_STUCK) s->why_stuck_run = 0;
+        if (raised & {macro}_FLAG_DEAD) s->why_dead_run = 0;
+        for (j = 0; j < {macro}_N_CHANNELS; ++j) {{
+            int other = 0, stuck;
+            for (k = 0; k < {macro}_N_CHANNELS; ++k) if (k != j && s->run[k] == 1) other = 1;   /* k changed */
+            stuck = s->run[j] >= {STUCK_RUN} && (other || moving);
+            if (raised & {macro}_FLAG_DEAD) {{
+                s->why_dead[j] = stuck && s->run[j] >= {DEAD_RUN};
+                if (s->why_dead[j] && s->run[j] > s->why_dead_run) s->why_dead_run = s->run[j];
+            }}
+            if (raised & {macro}_FLAG_STUCK) {{
+                s->why_stuck[j] = stuck && s->run[j] < {DEAD_RUN};
+                if (s->why_stuck[j] && s->run[j] > s->why_stuck_run) s->why_stuck_run = s->run[j];
+            }}
+        }}
     }}
     if (raised & {macro}_FLAG_TEMPERATURE) s->why_temperature = {temperature};
     if (raised & {macro}_FLAG_CONTACT) {{

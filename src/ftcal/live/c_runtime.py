@@ -221,6 +221,8 @@ static const double {name}_tool_mass[{macro}_N_TOOLS] = {_array(mass)};
 static const double {name}_tool_mc[{macro}_N_TOOLS][3] = {{{', '.join(_array(r) for r in mc)}}};
 static const double {name}_tool_sign[{macro}_N_TOOLS] = {_array(sign)};
 static const int {name}_channels[{macro}_N_CHANNELS] = {{{', '.join(map(str, channels))}}};
+/* the channels' training range: beyond it, flat for {SATURATION_RUN} samples, a channel is saturated */
+static const double {name}_channel_range[{macro}_N_CHANNELS][2] = {{{', '.join(_array(rng[c]) for c in channels)}}};
 
 typedef struct {{
     /* configuration: NAME_init sets the generated defaults; change them after init if needed */
@@ -402,7 +404,6 @@ static inline int {name}_step({name}_state *s, double time, const double *u, con
     double m = s->tool_mass[s->tool], sign = s->tool_sign[s->tool];
     int j, still, moving, gate, beyond = 0, other;
     unsigned flags = 0;
-    unsigned char hit[3][{macro}_N_CHANNELS];   /* saturated, stuck, dead channels: the reasons' */
     if (!isfinite(time) || (s->has_time && !(time > s->last_time))) return -1;
     for (j = 0; j < {macro}_N_INPUTS; ++j) if (!isfinite(u[j])) return -1;
     for (j = 0; j < 3; ++j) if (!isfinite(gravity[j])) return -1;
@@ -460,20 +461,15 @@ static inline int {name}_step({name}_state *s, double time, const double *u, con
         for (k = 0; k < {macro}_N_CHANNELS; ++k)
             if (k != j && !(s->has_last && u[{name}_channels[k]] == s->last_raw[k])) other = 1;
         stuck = s->run[j] >= {STUCK_RUN} && (other || moving);
-        hit[2][j] = stuck && s->run[j] >= {DEAD_RUN};
-        hit[1][j] = stuck && !hit[2][j];
-        if (hit[2][j]) flags |= {macro}_FLAG_DEAD;
+        if (stuck && s->run[j] >= {DEAD_RUN}) flags |= {macro}_FLAG_DEAD;
         else if (stuck) flags |= {macro}_FLAG_STUCK;
         if (s->use_adc_limits) {{
-            hit[0][j] = x <= s->adc_low || x >= s->adc_high;
-            if (hit[0][j]) flags |= {macro}_FLAG_SATURATED;
+            if (x <= s->adc_low || x >= s->adc_high) flags |= {macro}_FLAG_SATURATED;
         }} else {{
-            static const double range[{macro}_N_CHANNELS][2] = {{{', '.join(_array(rng[c]) for c in channels)}}};
-            low = range[j][0];
-            high = range[j][1];
+            low = {name}_channel_range[j][0];
+            high = {name}_channel_range[j][1];
             outside = x < low || x > high;
-            hit[0][j] = outside && s->run[j] >= {SATURATION_RUN};
-            if (hit[0][j]) flags |= {macro}_FLAG_SATURATED;
+            if (outside && s->run[j] >= {SATURATION_RUN}) flags |= {macro}_FLAG_SATURATED;
         }}
     }}
     for (j = 0; j < {macro}_N_CHANNELS; ++j) s->last_raw[j] = u[{name}_channels[j]];
@@ -496,7 +492,7 @@ static inline int {name}_step({name}_state *s, double time, const double *u, con
     }} else {{
         s->exceeding = 0;
     }}
-    if (flags & ~s->flags) {name}_note_reasons(s, flags & ~s->flags, time - s->exceed_start, u, e, chi2, hit);
+    if (flags & ~s->flags) {name}_note_reasons(s, flags & ~s->flags, time - s->exceed_start, u, e, chi2, moving);
     if ((flags & {macro}_FLAG_CONTACT) && !(s->flags & {macro}_FLAG_CONTACT)) s->contacts += 1;
     s->flags = flags;
     s->updates += (unsigned long)gate;
