@@ -95,6 +95,14 @@ int replay(int n, const double *t, const double *u, const double *g, const int *
 }
 
 int n_tools(void) { return last.n_tools; }
+void counters(double *out)   /* LiveCalibrator.counters' order */
+{
+    out[0] = (double)last.samples;
+    out[1] = (double)last.updates;
+    out[2] = (double)last.contacts;
+    out[3] = (double)last.retares;
+    out[4] = (double)last.switches;
+}
 const char *tool_name(int i) { return rt_tool_name(&last, i); }
 int find_tool(const char *tool_name) { return rt_find_tool(&last, tool_name); }
 
@@ -247,7 +255,10 @@ def test_a_library_grown_at_run_time_replays_as_python(tmp_path):
     compare(out, ref)
     order = list(live.tools)
     assert order == ["none", "gripper", "drill", HOSTILE] and live.tool == HOSTILE and tool == 3
-    assert live.counters["switches"] == 4 and live.counters["retares"] == 2
+    assert live.counters["switches"] == 4 and live.counters["retares"] == 2 and live.counters["contacts"] >= 1
+    counters = np.zeros(5)
+    lib.counters(pointer(counters))
+    assert counters.tolist() == [live.counters[k] for k in ("samples", "updates", "contacts", "retares", "switches")]
     assert codes[[at[w] for w, _, _ in script], 0].tolist() == [0] * len(script)
     assert [codes[at[w], 1] for w in (30.2, 33.2, 36.2)] == [order.index(n) for n in ("none", "drill", HOSTILE)]
     assert lib.n_tools() == 4 and [lib.tool_name(i) for i in range(4)] == [n.encode() for n in order]
