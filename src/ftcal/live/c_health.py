@@ -47,8 +47,8 @@ def note_text(name: str, macro: str, t_col: int | None) -> str:
 #else
 #define {macro}_RARE
 #endif
-static {macro}_RARE void {name}_note_reasons({name}_state *s, unsigned raised, double duration, const double *u, const double *e,
-                                double chi2, int moving)
+static {macro}_RARE void {name}_note_reasons({name}_state *s, unsigned raised, double duration, const double *u,
+                                            const double *e, double chi2, int moving)
 {{
     int j, k;
     s->raised_ever |= raised;
