@@ -114,15 +114,18 @@ def live_table_replay(minutes: float) -> dict:
             "samples_per_s": minutes * 60_000 / seconds}
 
 
-def live_zenoh(rate: float, seconds: float, path: str = "ftcal", warmup: float = 1.0, rt_priority: int | None = None,
-               peers_rt: bool = False) -> dict:
-    """Latency publish → compensated wrench back, three processes on loopback Zenoh.
+def live_zenoh(rate: float, seconds: float, path: str = "ftcal", warmup: float = 1.0,
+               rt_priority: int | None = None) -> dict:
+    """Latency publish → compensated wrench back, two processes on loopback Zenoh.
 
-    A publisher process (:mod:`benchmarks.zenoh_peers`) stamps each raw wrench with CLOCK_MONOTONIC when it sends
-    it; the node (``path="ftcal"``: ``ftcal live --zenoh``; ``"relay"``: a callback that republishes the bytes,
-    Zenoh and Python without ftcal) answers on ``ft/compensated``; this process receives the answers and reads
-    latency = arrival − stamp on the same clock. The first ``warmup`` seconds are left out. ``rt_priority``: the
-    node runs under SCHED_FIFO (``ftcal live --rt-priority``); ``peers_rt``: the publisher and this process too.
+    This process plays the robot and the consumer at once: it publishes CDR WrenchStamped on ``ft/raw`` at ``rate``
+    Hz, each stamped with CLOCK_MONOTONIC as it is sent, and receives ``ft/compensated``, reading latency = arrival
+    − stamp on the same clock (the first ``warmup`` seconds left out). The node is a child process: ``path="ftcal"``
+    is ``ftcal live --zenoh``; ``"relay"`` is a callback that republishes the bytes (Zenoh and Python without
+    ftcal: :mod:`benchmarks.zenoh_peers`), measured by the same harness so that the two stay comparable. Both ends
+    use the node's peer configuration (:func:`ftcal.live.zenoh_node.zenoh_config`). The forces carry 0.05 N of
+    noise and the torques 0.004 N·m, what the node is told (``--noise-std``), so the χ² gate passes as on a
+    sensor whose noise is known. ``rt_priority``: the node runs under SCHED_FIFO (``ftcal live --rt-priority``).
     """
     import signal
     import socket
@@ -131,8 +134,8 @@ def live_zenoh(rate: float, seconds: float, path: str = "ftcal", warmup: float =
 
     import zenoh
 
-    from ftcal.live.cdr import WRENCH_DOUBLES, decode_stamped
-    from ftcal.live.zenoh_node import zenoh_config
+    from ftcal.live.cdr import WRENCH_DOUBLES, decode_stamped, encode_stamped
+    from ftcal.live.zenoh_node import publisher_settings, zenoh_config
 
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
@@ -147,35 +150,41 @@ def live_zenoh(rate: float, seconds: float, path: str = "ftcal", warmup: float =
     node = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=root)
     node.stdout.readline()
     arrival: list = []
-    if peers_rt:  # Zenoh's threads, started by zenoh.open, inherit the policy
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(rt_priority))
+    processed: list = []  # the node's sample counter, from its diagnostics: messages lost before or after the node
     session = zenoh.open(zenoh_config(connect=(endpoint,)))
-    if peers_rt:
-        os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
 
     def on(sample):  # the stamp only, read with ftcal's codec (tests check it against rosbags)
         now = time.monotonic_ns()
         arrival.append(now - decode_stamped(sample.payload.to_bytes(), WRENCH_DOUBLES).stamp_ns)
-
-    processed = []  # the node's sample counter, from its diagnostics: messages lost before or after the node
 
     def on_diagnostics(sample):
         processed.append(json.loads(bytes(sample.payload.to_bytes()))["counters"]["samples"])
 
     sub = session.declare_subscriber("ft/compensated", on)
     diagnostics = session.declare_subscriber("ft/diagnostics", on_diagnostics) if path == "ftcal" else None
-    time.sleep(0.5)
+    pub = session.declare_publisher("ft/raw", **publisher_settings())
+    time.sleep(1.0)  # routes established
     n = int(rate * seconds)
-    publisher = subprocess.Popen([sys.executable, "-m", "benchmarks.zenoh_peers", "publish", endpoint, str(rate),
-                                  str(seconds), str(rt_priority if peers_rt else 0)], cwd=root)
-    node_cpu0, node_wall0 = _process_cpu(node.pid), time.monotonic()
-    loads = []
-    while publisher.poll() is None:
-        loads.append(os.getloadavg()[0])
-        time.sleep(1.0)
-    node_cpu, wall = _process_cpu(node.pid) - node_cpu0, time.monotonic() - node_wall0
+    rng = np.random.default_rng(0)
+    rows = (rng.normal(size=(n, 6)) * np.r_[np.full(3, 0.05), np.full(3, 0.004)] + [0, 0, -11.8, 0, 0, 0]).tolist()
+    threads0 = _thread_cpu(node.pid)
+    node_cpu0, cpu0, start = _process_cpu(node.pid), time.process_time(), time.monotonic()
+    loads, next_load = [os.getloadavg()[0]], start + 1.0
+    for k, row in enumerate(rows):
+        pub.put(encode_stamped(time.monotonic_ns(), "ft", row))
+        now = time.monotonic()
+        if now > next_load:
+            loads.append(os.getloadavg()[0])
+            next_load += 1.0
+        ahead = (k + 1) / rate - (now - start)
+        if ahead > 0:
+            time.sleep(ahead)
+    wall = time.monotonic() - start
+    node_cpu, cpu = _process_cpu(node.pid) - node_cpu0, time.process_time() - cpu0
+    threads = _thread_cpu(node.pid)
     time.sleep(1.5)  # the last answers, and a diagnostics message after them
     sub.undeclare()
+    pub.undeclare()
     if diagnostics is not None:
         diagnostics.undeclare()
     session.close()
@@ -183,10 +192,16 @@ def live_zenoh(rate: float, seconds: float, path: str = "ftcal", warmup: float =
     node.communicate(timeout=60)
     latency = np.array(arrival[int(warmup * rate):], dtype=float) * 1e-6  # ms
     q = {f"p{p:g}_ms": float(np.quantile(latency, p / 100)) for p in (50, 90, 99, 99.9)}
-    return {"path": path, "rt_priority": rt_priority, "peers_rt": peers_rt, "seconds": seconds, "rate": rate, "sent": n, "received": len(arrival),
-            "lost": n - len(arrival), "node_processed": processed[-1] if processed else None, **q, "max_ms": float(latency.max()), "node_cpu_seconds": node_cpu,
-            "node_wall_seconds": wall, "node_cpu_us_per_message": 1e6 * node_cpu / n,
-            "load_average": float(np.mean(loads)) if loads else os.getloadavg()[0]}
+    per_thread: dict = {}
+    for tid, (name, ticks) in threads.items():  # node CPU per message by thread name (Zenoh's rx-N, tx-N, ...)
+        per_thread[name] = per_thread.get(name, 0.0) + (ticks - threads0.get(tid, (name, 0))[1])
+    tick = os.sysconf("SC_CLK_TCK")
+    return {"path": path, "rt_priority": rt_priority, "seconds": seconds, "rate": rate, "sent": n,
+            "received": len(arrival), "lost": n - len(arrival), "node_processed": processed[-1] if processed else None,
+            **q, "max_ms": float(latency.max()), "node_cpu_seconds": node_cpu, "node_wall_seconds": wall,
+            "node_cpu_us_per_message": 1e6 * node_cpu / n, "harness_cpu_us_per_message": 1e6 * cpu / n,
+            "node_threads_us_per_message": {name: 1e6 * ticks / tick / n for name, ticks in per_thread.items()},
+            "load_average": float(np.mean(loads))}
 
 
 def live_callback(rate: float, seconds: float, warmup: float = 1.0, settle: bool = True) -> dict:
@@ -237,6 +252,19 @@ def live_callback(rate: float, seconds: float, warmup: float = 1.0, settle: bool
     return {"path": "callback", "settle": settle, "seconds": seconds, "rate": rate, "sent": n, "received": n, "lost": 0, **q,
             "max_ms": float(latency.max()), "node_cpu_seconds": cpu, "node_wall_seconds": seconds,
             "node_cpu_us_per_message": 1e6 * cpu / n, "load_average": os.getloadavg()[0]}
+
+
+def _thread_cpu(pid: int) -> dict:
+    """Per thread of a process: (name, user + system clock ticks so far) (Linux /proc)."""
+    out = {}
+    for tid in os.listdir(f"/proc/{pid}/task"):
+        try:
+            stat = Path(f"/proc/{pid}/task/{tid}/stat").read_text()
+        except OSError:  # the thread ended
+            continue
+        fields = stat.rsplit(")", 1)[1].split()
+        out[tid] = (stat[stat.index("(") + 1:stat.rindex(")")], int(fields[11]) + int(fields[12]))
+    return out
 
 
 def _process_cpu(pid: int) -> float:
