@@ -1,11 +1,14 @@
-"""The relay of the Zenoh latency benchmark, its own process (as a node is): ``python -m benchmarks.zenoh_peers relay
-ENDPOINT``.
+"""Nodes of the Zenoh latency benchmark other than ``ftcal live --zenoh``, each its own process (as a node is):
+``python -m benchmarks.zenoh_peers relay|node ENDPOINT [queued]``.
 
-Zenoh and a Python callback without ftcal: it republishes every ``ft/raw`` payload unchanged on ``ft/compensated``
-(the floor under ``ftcal live --zenoh``'s own work). It uses the node's publisher settings
-(:func:`ftcal.live.zenoh_node.publisher_settings`) and peer configuration
+* ``relay``: Zenoh and a Python callback without ftcal: republishes every ``ft/raw`` payload unchanged on
+  ``ft/compensated`` (the floor under ``ftcal live --zenoh``'s own work).
+* ``node``: what ``ftcal live --zenoh --listen ENDPOINT --noise-std 0.05,0.004`` runs, from Python.
+
+Both use the node's publisher settings (:func:`ftcal.live.zenoh_node.publisher_settings`) and peer configuration
 (:func:`ftcal.live.zenoh_node.zenoh_config`: multicast scouting off, explicit tcp/127.0.0.1 endpoints, the
-low-latency transport). The publishing and measuring side is :func:`benchmarks.bench_live.live_zenoh` itself.
+low-latency transport, or with ``queued`` Zenoh's queued transport, to measure the difference). The publishing and
+measuring side is :func:`benchmarks.bench_live.live_zenoh` itself.
 """
 
 from __future__ import annotations
@@ -13,7 +16,7 @@ from __future__ import annotations
 import sys
 
 
-def relay(endpoint: str) -> None:
+def relay(endpoint: str, low_latency: bool = True) -> None:
     import signal
     import threading
 
@@ -21,7 +24,7 @@ def relay(endpoint: str) -> None:
 
     from ftcal.live.zenoh_node import publisher_settings, zenoh_config
 
-    session = zenoh.open(zenoh_config(listen=(endpoint,)))
+    session = zenoh.open(zenoh_config(listen=(endpoint,), low_latency=low_latency))
     pub = session.declare_publisher("ft/compensated", **publisher_settings())
     sub = session.declare_subscriber("ft/raw", lambda sample: pub.put(sample.payload))
     done = threading.Event()
@@ -32,7 +35,24 @@ def relay(endpoint: str) -> None:
     session.close()
 
 
+def node(endpoint: str, low_latency: bool = True) -> None:
+    import signal
+
+    from ftcal.live import LiveCalibrator
+    from ftcal.live.zenoh_node import ZenohOptions, serve
+
+    def stop(*_):
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGTERM, stop)  # as ftcal live: the node's loop ends, the session closes
+    try:
+        serve(LiveCalibrator(noise_std=[0.05] * 3 + [0.004] * 3),
+              ZenohOptions(listen=(endpoint,), low_latency=low_latency))
+    except KeyboardInterrupt:
+        pass
+
+
 if __name__ == "__main__":
-    if sys.argv[1:2] != ["relay"] or len(sys.argv) != 3:
-        sys.exit("usage: python -m benchmarks.zenoh_peers relay ENDPOINT")
-    relay(sys.argv[2])
+    if sys.argv[1:2] not in (["relay"], ["node"]) or len(sys.argv) not in (3, 4) or sys.argv[3:] not in ([], ["queued"]):
+        sys.exit("usage: python -m benchmarks.zenoh_peers relay|node ENDPOINT [queued]")
+    (relay if sys.argv[1] == "relay" else node)(sys.argv[2], low_latency=sys.argv[3:] != ["queued"])

@@ -100,11 +100,12 @@ class ZenohOptions:
     keys: str = "bridge"  # or "rmw_zenoh"
     domain_id: int = 0
     rt_priority: int | None = None  # SCHED_FIFO priority of the node's threads
+    low_latency: bool = True  # ask for Zenoh's low-latency transport (TRANSPORT_SETTINGS)
 
 
-def zenoh_config(listen=(), connect=()):
+def zenoh_config(listen=(), connect=(), low_latency: bool = True):
     """A peer configuration with multicast scouting off, explicit endpoints (listen on :data:`DEFAULT_ENDPOINT` when
-    none is given) and :data:`TRANSPORT_SETTINGS`."""
+    none is given) and, with ``low_latency``, :data:`TRANSPORT_SETTINGS` (else Zenoh's queued transport)."""
     import zenoh
 
     config = zenoh.Config()
@@ -115,7 +116,7 @@ def zenoh_config(listen=(), connect=()):
         listen = (DEFAULT_ENDPOINT,)
     config.insert_json5("listen/endpoints", json.dumps(list(listen)))
     config.insert_json5("connect/endpoints", json.dumps(list(connect)))
-    for key, value in TRANSPORT_SETTINGS.items():
+    for key, value in TRANSPORT_SETTINGS.items() if low_latency else ():
         config.insert_json5(key, json.dumps(value))
     return config
 
@@ -312,7 +313,7 @@ class LiveNode:
 
         if self.options.rt_priority is not None:
             self._realtime(self.options.rt_priority)
-        session = zenoh.open(zenoh_config(self.options.listen, self.options.connect))
+        session = zenoh.open(zenoh_config(self.options.listen, self.options.connect, self.options.low_latency))
         entities = []
         try:
             # Publishers first: a subscriber callback may run as soon as it is declared.
