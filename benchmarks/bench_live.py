@@ -173,7 +173,7 @@ def live_zenoh(rate: float, seconds: float, path: str = "ftcal", warmup: float =
     n = int(rate * seconds)
     rng = np.random.default_rng(0)
     rows = (rng.normal(size=(n, 6)) * np.r_[np.full(3, 0.05), np.full(3, 0.004)] + [0, 0, -11.8, 0, 0, 0]).tolist()
-    threads0 = _thread_cpu(node.pid)
+    threads0, waits0 = _thread_cpu(node.pid), _runqueue_wait(node.pid)
     node_cpu0, cpu0, start = _process_cpu(node.pid), time.process_time(), time.monotonic()
     loads, next_load = [os.getloadavg()[0]], start + 1.0
     for k, row in enumerate(rows):
@@ -187,7 +187,7 @@ def live_zenoh(rate: float, seconds: float, path: str = "ftcal", warmup: float =
             time.sleep(ahead)
     wall = time.monotonic() - start
     node_cpu, cpu = _process_cpu(node.pid) - node_cpu0, time.process_time() - cpu0
-    threads = _thread_cpu(node.pid)
+    threads, waits = _thread_cpu(node.pid), _runqueue_wait(node.pid)
     time.sleep(1.5)  # the last answers, and a diagnostics message after them
     sub.undeclare()
     pub.undeclare()
@@ -207,6 +207,8 @@ def live_zenoh(rate: float, seconds: float, path: str = "ftcal", warmup: float =
             **q, "max_ms": float(latency.max()), "node_cpu_seconds": node_cpu, "node_wall_seconds": wall,
             "node_cpu_us_per_message": 1e6 * node_cpu / n, "harness_cpu_us_per_message": 1e6 * cpu / n,
             "node_threads_us_per_message": {name: 1e6 * ticks / tick / n for name, ticks in per_thread.items()},
+            # time the node's threads were ready to run but waited for a core (the scheduler's share of the latency)
+            "node_runqueue_wait_us_per_message": 1e-3 * sum(w - waits0.get(tid, 0) for tid, w in waits.items()) / n,
             "load_average": float(np.mean(loads))}
 
 
@@ -273,6 +275,17 @@ def _thread_cpu(pid: int) -> dict:
     return out
 
 
+def _runqueue_wait(pid: int) -> dict:
+    """Per thread of a process: nanoseconds spent runnable but waiting for a CPU so far (Linux /proc schedstat)."""
+    out = {}
+    for tid in os.listdir(f"/proc/{pid}/task"):
+        try:
+            out[tid] = int(Path(f"/proc/{pid}/task/{tid}/schedstat").read_text().split()[1])
+        except (OSError, IndexError, ValueError):  # the thread ended, or no schedstat in this kernel
+            continue
+    return out
+
+
 def _process_cpu(pid: int) -> float:
     """User + system CPU seconds of a process so far (Linux /proc)."""
     fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
@@ -323,25 +336,25 @@ def live_section(run_case, sizes: dict) -> tuple[list[str], str]:
               "ftcal": "`ftcal live --zenoh` (low-latency transport)",
               "rt": "`ftcal live --zenoh --rt-priority 10` (SCHED_FIFO)"}
     out += ["", "| Latency, publish → compensated wrench back (2 processes, loopback Zenoh) | rate | rounds | sent | lost | "
-            "p50 | p90 | p99 | p99.9 | max | p99 per round | node CPU per message | harness CPU per message | "
-            "load average |",
-            "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|---:|---|"]
+            "p50 | p90 | p99 | p99.9 | max | p99 per round | node CPU per message | node run-queue wait per message | "
+            "harness CPU per message | load average |",
+            "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|---:|---:|---|"]
     r = callback
     out.append(f"| the node's callback alone, no Zenoh (`LiveNode._on_wrench`, puts to nowhere) | 2,000 Hz | 1 | "
                f"{r['sent']:,} | 0 | {r['p50_ms']:.2f} ms | {r['p90_ms']:.2f} ms | {r['p99_ms']:.2f} ms | "
                f"{r['p99.9_ms']:.2f} ms | {r['max_ms']:.2f} ms | | {r['node_cpu_us_per_message']:.0f} µs (with the "
-               f"harness) | | {r['load_average']:.1f} |")
+               f"harness) | | | {r['load_average']:.1f} |")
     rows = [(name, runs[name]) for name in ("relay", "queued", "ftcal", "rt")] + [("ftcal", one_khz)]
     for name, rs in rows:
         med = {k: float(np.median([r[k] for r in rs])) for k in
                ("p50_ms", "p90_ms", "p99_ms", "p99.9_ms", "max_ms", "node_cpu_us_per_message",
-                "harness_cpu_us_per_message")}
+                "harness_cpu_us_per_message", "node_runqueue_wait_us_per_message")}
         loads = [r["load_average"] for r in rs]
         out.append(f"| {labels[name]} | {rs[0]['rate']:,.0f} Hz | {len(rs)} | {rs[0]['sent']:,} | "
                    f"{sum(r['lost'] for r in rs):,} | {med['p50_ms']:.2f} ms | {med['p90_ms']:.2f} ms | "
                    f"{med['p99_ms']:.2f} ms | {med['p99.9_ms']:.2f} ms | {med['max_ms']:.2f} ms | "
                    f"{', '.join(format(r['p99_ms'], '.2f') for r in rs)} ms | {med['node_cpu_us_per_message']:.0f} µs | "
-                   f"{med['harness_cpu_us_per_message']:.0f} µs | {min(loads):.1f}–{max(loads):.1f} |")
+                   f"{med['node_runqueue_wait_us_per_message']:.0f} µs | {med['harness_cpu_us_per_message']:.0f} µs | {min(loads):.1f}–{max(loads):.1f} |")
     threads = {}
     for name in ("queued", "ftcal"):
         median_run = sorted(runs[name], key=lambda r: r["p99_ms"])[len(runs[name]) // 2]
