@@ -25,7 +25,9 @@ sample, liveliness tokens: :mod:`ftcal.live.rmw_zenoh`); diagnostics and queryab
   ``PREFIX/switch_tool`` (payload: the tool's name), ``PREFIX/identify_tool`` (payload
   ``start NAME`` or ``finish``), ``PREFIX/status``.
 
-Each wrench is processed as it arrives, in Zenoh's subscriber callback: decoded with
+Each wrench is processed as it arrives, in Zenoh's subscriber callback (zenoh-python's own callback thread: running
+it on Zenoh's network thread instead, ``indirect=False``, saved no CPU, and with the low-latency transport stalled
+Zenoh's receive path; docs/live.md): decoded with
 :mod:`ftcal.live.cdr` (no message objects), one :meth:`~ftcal.live.LiveCalibrator.step` (plain
 floats), the two answers encoded with the input's header and put. Handing samples to another
 thread through a queue cost a wake-up and a GIL hand-over per message (p99 12.9 ms at 2 kHz); the
