@@ -10,6 +10,7 @@ import numpy as np
 from ftcal.core.limits import LIVE_DIAGNOSTICS_MIN_INTERVAL_S, LIVE_DIAGNOSTICS_PERIOD_S
 from ftcal.live import LiveCalibrator
 from ftcal.live.cdr import encode_stamped
+from ftcal.live.health import BIT
 from ftcal.live.zenoh_node import LiveNode, ZenohOptions
 
 NOISE = np.r_[np.full(3, 0.05), np.full(3, 0.004)]
@@ -63,3 +64,56 @@ def test_the_diagnostics_rates_are_ros_diagnostic_updaters():
     # at most this many a second.
     assert LIVE_DIAGNOSTICS_PERIOD_S == 1.0
     assert 1.0 / LIVE_DIAGNOSTICS_MIN_INTERVAL_S <= 20
+
+
+class FakeClock:
+    """Simulated time for the node's main loop: ``wait`` advances the clock instead of sleeping, and, like the
+    subscriber callback, flips the ``contact`` flag every ``flip_every`` s (and wakes the loop) when asked to."""
+
+    def __init__(self, node: LiveNode, flip_every: float | None) -> None:
+        self.now, self.node, self.flip_every = 0.0, node, flip_every
+        self.next_flip = flip_every if flip_every is not None else float("inf")
+
+    def monotonic(self) -> float:
+        return self.now
+
+    def wait(self, timeout: float) -> bool:
+        if self.now + timeout < self.next_flip:
+            self.now += timeout
+            return False
+        self.now = self.next_flip
+        self.next_flip += self.flip_every
+        before = self.node.live.flags_now
+        self.node.live.flags_now ^= BIT["contact"]
+        self.node.raised |= self.node.live.flags_now & ~before
+        self.node.last_message = self.now
+        return True
+
+    def clear(self) -> None:
+        pass
+
+
+def diagnostics_in(seconds: float, flip_every: float | None, monkeypatch) -> int:
+    import types
+
+    from ftcal.live import zenoh_node
+
+    node = node_with_sinks()
+    node.options = ZenohOptions(duration=seconds, silence=1e9)
+    clock = FakeClock(node, flip_every)
+    monkeypatch.setattr(zenoh_node, "time", types.SimpleNamespace(monotonic=clock.monotonic))
+    node.wake = clock
+    node._loop()
+    return len(node.publishers["diagnostics"].messages)
+
+
+def test_diagnostics_every_period_when_nothing_changes(monkeypatch):
+    # t = 0 (the first), then one per period: 0, 1, 2, 3 within 3.5 s
+    assert LIVE_DIAGNOSTICS_PERIOD_S == 1.0
+    assert diagnostics_in(3.5, None, monkeypatch) == 4
+
+
+def test_diagnostics_are_capped_when_a_flag_flickers(monkeypatch):
+    # the contact flag flips every millisecond for 2 s: one message per minimum interval (0.05 s), not 2,000
+    count = diagnostics_in(2.0, 0.001, monkeypatch)
+    assert 2.0 / LIVE_DIAGNOSTICS_MIN_INTERVAL_S <= count <= 2.0 / LIVE_DIAGNOSTICS_MIN_INTERVAL_S + 1
