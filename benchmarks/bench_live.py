@@ -377,11 +377,13 @@ def live_section(run_case, sizes: dict) -> tuple[list[str], str]:
     zen = runs["ftcal"]
     z99 = float(np.median([r["p99_ms"] for r in zen]))
     relay99 = float(np.median([r["p99_ms"] for r in runs["relay"]]))
+    rt99 = float(np.median([r["p99_ms"] for r in runs["rt"]]))
     headline = (f"replay {blocks['samples_per_cpu_s']:,.0f} samples per CPU second in blocks (target ≥ 200,000/s), "
                 f"{steps['samples_per_cpu_s']:,.0f} one step at a time ({ratio:.2f}x; target ≥ 20,000); peak memory {memory[0][1]['peak_rss_mb']:,.0f} "
                 f"MB for {memory[0][0]:g} min and {memory[-1][1]['peak_rss_mb']:,.0f} MB for {memory[-1][0]:g} min; "
                 f"Zenoh 2,000 Hz: {sum(r['sent'] - r['lost'] for r in zen):,} of {sum(r['sent'] for r in zen):,} back, "
-                f"p99 {z99:.1f} ms, median of {len(zen)} (target ≤ 2 ms; Zenoh + Python alone {relay99:.1f} ms, "
+                f"p99 {z99:.1f} ms, median of {len(zen)} (target ≤ 2 ms; with --rt-priority 10 {rt99:.1f} ms; "
+                f"Zenoh + Python alone {relay99:.1f} ms, "
                 f"ftcal's callback {callback['p99_ms']:.2f} ms; load {min(r['load_average'] for r in zen):.1f}–"
                 f"{max(r['load_average'] for r in zen):.1f})")
     return out, headline
