@@ -1,49 +1,22 @@
-"""Peers of the Zenoh latency benchmark, each its own process (as on a robot): ``python -m benchmarks.zenoh_peers``.
+"""Nodes of the Zenoh latency benchmark other than ``ftcal live --zenoh``, each its own process (as a node is):
+``python -m benchmarks.zenoh_peers relay|node ENDPOINT [queued]``.
 
-* ``publish ENDPOINT RATE SECONDS [RT_PRIORITY]``: the robot's driver. Publishes CDR WrenchStamped on ``ft/raw`` at RATE Hz,
-  each stamped with CLOCK_MONOTONIC at the moment of sending (``time.monotonic_ns``: one clock for every
-  process on this host), so the receiver reads the latency from the message it gets back.
-* ``relay ENDPOINT``: Zenoh and a Python callback without ftcal: republishes every ``ft/raw`` payload unchanged on
+* ``relay``: Zenoh and a Python callback without ftcal: republishes every ``ft/raw`` payload unchanged on
   ``ft/compensated`` (the floor under ``ftcal live --zenoh``'s own work).
+* ``node``: what ``ftcal live --zenoh --listen ENDPOINT --noise-std 0.05,0.004`` runs, from Python.
 
-Both use the node's publisher settings (:func:`ftcal.live.zenoh_node.publisher_settings`) and a peer
-configuration with multicast scouting off and explicit tcp/127.0.0.1 endpoints.
+Both use the node's publisher settings (:func:`ftcal.live.zenoh_node.publisher_settings`) and peer configuration
+(:func:`ftcal.live.zenoh_node.zenoh_config`: multicast scouting off, explicit tcp/127.0.0.1 endpoints, the
+low-latency transport, or with ``queued`` Zenoh's queued transport, to measure the difference). The publishing and
+measuring side is :func:`benchmarks.bench_live.live_zenoh` itself.
 """
 
 from __future__ import annotations
 
 import sys
-import time
-
-import numpy as np
 
 
-def publish(endpoint: str, rate: float, seconds: float, rt_priority: int = 0) -> None:
-    import os
-
-    import zenoh
-
-    from ftcal.live.cdr import encode_stamped
-    from ftcal.live.zenoh_node import publisher_settings, zenoh_config
-
-    if rt_priority:  # as a real-time driver would run; Zenoh's threads inherit it
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(rt_priority))
-    session = zenoh.open(zenoh_config(connect=(endpoint,)))
-    pub = session.declare_publisher("ft/raw", **publisher_settings())
-    time.sleep(1.0)  # routes established
-    rng = np.random.default_rng(0)
-    noise = rng.normal(scale=0.05, size=(int(rate * seconds), 6)).tolist()
-    start = time.monotonic()
-    for k, row in enumerate(noise):
-        pub.put(encode_stamped(time.monotonic_ns(), "ft", [row[0], row[1], row[2] - 11.8, row[3], row[4], row[5]]))
-        ahead = (k + 1) / rate - (time.monotonic() - start)
-        if ahead > 0:
-            time.sleep(ahead)
-    time.sleep(0.5)
-    session.close()
-
-
-def relay(endpoint: str) -> None:
+def relay(endpoint: str, low_latency: bool = True) -> None:
     import signal
     import threading
 
@@ -51,7 +24,7 @@ def relay(endpoint: str) -> None:
 
     from ftcal.live.zenoh_node import publisher_settings, zenoh_config
 
-    session = zenoh.open(zenoh_config(listen=(endpoint,)))
+    session = zenoh.open(zenoh_config(listen=(endpoint,), low_latency=low_latency))
     pub = session.declare_publisher("ft/compensated", **publisher_settings())
     sub = session.declare_subscriber("ft/raw", lambda sample: pub.put(sample.payload))
     done = threading.Event()
@@ -62,8 +35,24 @@ def relay(endpoint: str) -> None:
     session.close()
 
 
+def node(endpoint: str, low_latency: bool = True) -> None:
+    import signal
+
+    from ftcal.live import LiveCalibrator
+    from ftcal.live.zenoh_node import ZenohOptions, serve
+
+    def stop(*_):
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGTERM, stop)  # as ftcal live: the node's loop ends, the session closes
+    try:
+        serve(LiveCalibrator(noise_std=[0.05] * 3 + [0.004] * 3),
+              ZenohOptions(listen=(endpoint,), low_latency=low_latency))
+    except KeyboardInterrupt:
+        pass
+
+
 if __name__ == "__main__":
-    if sys.argv[1] == "publish":
-        publish(sys.argv[2], float(sys.argv[3]), float(sys.argv[4]), int(sys.argv[5]) if len(sys.argv) > 5 else 0)
-    else:
-        relay(sys.argv[2])
+    if sys.argv[1:2] not in (["relay"], ["node"]) or len(sys.argv) not in (3, 4) or sys.argv[3:] not in ([], ["queued"]):
+        sys.exit("usage: python -m benchmarks.zenoh_peers relay|node ENDPOINT [queued]")
+    (relay if sys.argv[1] == "relay" else node)(sys.argv[2], low_latency=sys.argv[3:] != ["queued"])

@@ -144,3 +144,46 @@ def test_live_over_zenoh(tmp_path):
     latency = np.array([arrival[s] - sent[s] for s in sent if s in arrival])
     print(f"zenoh loopback latency: median {1e3 * np.median(latency):.2f} ms, p99 {1e3 * np.quantile(latency, .99):.2f}"
           " ms")
+
+
+def test_a_peer_with_zenohs_default_transport_talks_to_the_node(tmp_path):
+    """The node asks for Zenoh's low-latency transport (TRANSPORT_SETTINGS); a peer that does not (Zenoh's defaults:
+    QoS on, the queued transport, as an unconfigured zenoh-bridge-ros2dds) must still exchange every message."""
+    port = free_port()
+    node = subprocess.Popen([FTCAL, "live", "--zenoh", "--listen", f"tcp/127.0.0.1:{port}", "--noise-std", "0.05,0.004"],
+                            cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert "listening on ft/raw" in node.stdout.readline()
+        config = zenoh.Config()  # Zenoh's defaults but for discovery: loopback only, no multicast
+        config.insert_json5("mode", '"peer"')
+        config.insert_json5("scouting/multicast/enabled", "false")
+        config.insert_json5("scouting/gossip/enabled", "false")
+        config.insert_json5("connect/endpoints", json.dumps([f"tcp/127.0.0.1:{port}"]))
+        unicast = json.loads(str(config))["transport"]["unicast"]
+        assert unicast["lowlatency"] is False and unicast["qos"]["enabled"] is True
+        session = zenoh.open(config)
+        got = []
+        done = threading.Event()
+        n = 200
+
+        def on(sample):
+            got.append(bytes(sample.payload.to_bytes()))
+            if len(got) == n:
+                done.set()
+
+        sub = session.declare_subscriber("ft/compensated", on)
+        pub = session.declare_publisher("ft/raw")
+        store = typestore()
+        time.sleep(1.0)  # routes established
+        for k in range(n):
+            pub.put(wrench_message(store, 1_000_000_000 + k * 1_000_000, "ft", np.array([0, 0, -11.8, 0, 0, 0.0])))
+            time.sleep(0.001)
+        done.wait(timeout=20.0)
+        sub.undeclare()
+        session.close()
+    finally:
+        node.send_signal(signal.SIGTERM)
+        node.communicate(timeout=60)
+    assert len(got) == n
+    stamps = sorted(store.deserialize_cdr(g, "geometry_msgs/msg/WrenchStamped").header.stamp.nanosec for g in got)
+    assert stamps == [k * 1_000_000 for k in range(n)]

@@ -272,3 +272,12 @@ MAX_ROS_DOMAIN_ID = 232
 
 MAX_RT_PRIORITY = 99
 """Highest SCHED_FIFO priority on Linux (``ftcal live --rt-priority``; 1 is the lowest real-time priority)."""
+
+LIVE_DIAGNOSTICS_PERIOD_S = 1.0
+"""``ftcal live --zenoh`` publishes its diagnostics this often (ROS's ``diagnostic_updater`` default period, 1 s), and
+also when a flag changes (as ``diagnostic_updater::Updater::force_update``), but then no sooner than
+:data:`LIVE_DIAGNOSTICS_MIN_INTERVAL_S` after the previous message."""
+
+LIVE_DIAGNOSTICS_MIN_INTERVAL_S = 0.05
+"""Least time between two diagnostics messages of ``ftcal live --zenoh`` (at most 20 a second however often flags
+change: a flag that comes and goes between two messages is still reported, in the next message's ``raised``)."""

@@ -17,13 +17,17 @@ sample, liveliness tokens: :mod:`ftcal.live.rmw_zenoh`); diagnostics and queryab
   state is not static, so the bias never takes up a pose that is out of date). Without either the
   sensor is taken as still in a fixed pose with gravity along its −z axis.
 * publishes: ``PREFIX/calibrated`` and ``PREFIX/compensated`` (``WrenchStamped``, the input's header),
-  and ``PREFIX/diagnostics`` (JSON: flags with their reasons, bias ± std, tool, counters) when a flag
-  changes and once a second.
+  and ``PREFIX/diagnostics`` (JSON: flags with their reasons, the flags raised since the previous message, bias ±
+  std, tool, counters) as ROS's ``diagnostic_updater`` does: every :data:`~ftcal.core.limits.LIVE_DIAGNOSTICS_PERIOD_S`
+  (1 s) and at once when a flag changes, but no sooner than
+  :data:`~ftcal.core.limits.LIVE_DIAGNOSTICS_MIN_INTERVAL_S` after the previous message.
 * queryables (Zenoh-native, JSON replies; not ROS services): ``PREFIX/retare``,
   ``PREFIX/switch_tool`` (payload: the tool's name), ``PREFIX/identify_tool`` (payload
   ``start NAME`` or ``finish``), ``PREFIX/status``.
 
-Each wrench is processed as it arrives, in Zenoh's subscriber callback: decoded with
+Each wrench is processed as it arrives, in Zenoh's subscriber callback (zenoh-python's own callback thread: running
+it on Zenoh's network thread instead, ``indirect=False``, saved no CPU, and with the low-latency transport stalled
+Zenoh's receive path; docs/live.md): decoded with
 :mod:`ftcal.live.cdr` (no message objects), one :meth:`~ftcal.live.LiveCalibrator.step` (plain
 floats), the two answers encoded with the input's header and put. Handing samples to another
 thread through a queue cost a wake-up and a GIL hand-over per message (p99 12.9 ms at 2 kHz); the
@@ -47,9 +51,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..core.limits import LIVE_DIAGNOSTICS_MIN_INTERVAL_S, LIVE_DIAGNOSTICS_PERIOD_S
 from ..runtime.errors import FtcalError
 from .cdr import IMU_DOUBLES, WRENCH_DOUBLES, decode_stamped, encode_like
-from .health import BIT
+from .health import BIT, names_of
 
 WRENCH_TYPE = "geometry_msgs/msg/WrenchStamped"
 IMU_TYPE = "sensor_msgs/msg/Imu"
@@ -60,7 +65,6 @@ MAX_JOINT_LISTS = 16
 # the bias must not take up a tool wrench computed for another pose); counted in the diagnostics.
 JOINT_MAX_AGE_S = 0.02
 DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
-DIAGNOSTICS_PERIOD_S = 1.0
 # The main thread wakes this often to check for silence (and at once when a flag changes).
 WATCH_PERIOD_S = 0.05
 # Publisher settings (zenoh.Session.declare_publisher keywords; names resolved when zenoh is imported). A late
@@ -68,6 +72,11 @@ WATCH_PERIOD_S = 0.05
 # measured at 2 kHz, express=True lost 36-407 of 16,000 answers (each message then takes one of the link's two
 # queued batches) for no lower p99 (docs/live.md).
 PUBLISHER_SETTINGS = {"congestion_control": "DROP"}
+# Zenoh's low-latency unicast transport (its DEFAULT_CONFIG.json5: no transmission queue and no batching, each message
+# written to the link by the thread that puts it; it cannot keep QoS priorities, so qos must be off). It is negotiated:
+# a peer that does not ask for it gets the ordinary transport (tested). Measured at 2 kHz: the queue's tx thread,
+# 46 µs of the node's CPU per message, is gone, and the median latency fell (docs/live.md).
+TRANSPORT_SETTINGS = {"transport/unicast/lowlatency": True, "transport/unicast/qos/enabled": False}
 
 
 def topic_key(topic: str) -> str:
@@ -93,11 +102,12 @@ class ZenohOptions:
     keys: str = "bridge"  # or "rmw_zenoh"
     domain_id: int = 0
     rt_priority: int | None = None  # SCHED_FIFO priority of the node's threads
+    low_latency: bool = True  # ask for Zenoh's low-latency transport (TRANSPORT_SETTINGS)
 
 
-def zenoh_config(listen=(), connect=()):
-    """A peer configuration with multicast scouting off and explicit endpoints (listen on
-    :data:`DEFAULT_ENDPOINT` when none is given)."""
+def zenoh_config(listen=(), connect=(), low_latency: bool = True):
+    """A peer configuration with multicast scouting off, explicit endpoints (listen on :data:`DEFAULT_ENDPOINT` when
+    none is given) and, with ``low_latency``, :data:`TRANSPORT_SETTINGS` (else Zenoh's queued transport)."""
     import zenoh
 
     config = zenoh.Config()
@@ -108,6 +118,8 @@ def zenoh_config(listen=(), connect=()):
         listen = (DEFAULT_ENDPOINT,)
     config.insert_json5("listen/endpoints", json.dumps(list(listen)))
     config.insert_json5("connect/endpoints", json.dumps(list(connect)))
+    for key, value in TRANSPORT_SETTINGS.items() if low_latency else ():
+        config.insert_json5(key, json.dumps(value))
     return config
 
 
@@ -161,6 +173,7 @@ class LiveNode:
         self.stale_joints = 0
         self.bad_messages = 0
         self.stale_samples = 0
+        self.raised = 0  # flag bits raised since the last diagnostics message (a contact may last one sample)
         self.last_message = time.monotonic()
         self.topics = {"wrench": (options.wrench_topic, WRENCH_TYPE), "imu": (options.imu_topic, IMU_TYPE),
                        "joints": (options.joints_topic, JOINT_STATE_TYPE),
@@ -216,6 +229,8 @@ class LiveNode:
                 self.bad_messages += 1
                 return
             after = self.live.flags_now
+            if after != before:
+                self.raised |= after & ~before
         if self.attachments:
             now = time.time_ns()
             self.publishers["calibrated"].put(encode_like(msg, result.calibrated.tolist()),
@@ -300,7 +315,7 @@ class LiveNode:
 
         if self.options.rt_priority is not None:
             self._realtime(self.options.rt_priority)
-        session = zenoh.open(zenoh_config(self.options.listen, self.options.connect))
+        session = zenoh.open(zenoh_config(self.options.listen, self.options.connect, self.options.low_latency))
         entities = []
         try:
             # Publishers first: a subscriber callback may run as soon as it is declared.
@@ -376,29 +391,41 @@ class LiveNode:
     def _loop(self) -> None:
         started = time.monotonic()
         self.last_message = started
-        last_diagnostics = 0.0
+        last_diagnostics = -math.inf
         flags_sent = -1
         while self.options.duration is None or time.monotonic() - started < self.options.duration:
-            self.wake.wait(timeout=min(WATCH_PERIOD_S, self.options.silence))
-            self.wake.clear()
             now = time.monotonic()
             if now - self.last_message > self.options.silence and not self.live.flags_now & BIT["silent"]:
                 reason = f"no message on {self.keys['wrench']} for {self.options.silence:g} s"
                 with self.lock:
                     self.live.set_silent(True, reason)
                 self.echo(f"ftcal live: {reason}", file=sys.stderr, flush=True)
-            if self.live.flags_now != flags_sent or now - last_diagnostics > DIAGNOSTICS_PERIOD_S:
+            changed = self.live.flags_now != flags_sent or self.raised
+            due = last_diagnostics + (LIVE_DIAGNOSTICS_MIN_INTERVAL_S if changed else LIVE_DIAGNOSTICS_PERIOD_S)
+            if now >= due:
                 flags_sent, last_diagnostics = self._diagnostics(), now
+                due = now + LIVE_DIAGNOSTICS_PERIOD_S
+            self.wake.wait(timeout=max(0.0, min(WATCH_PERIOD_S, self.options.silence, due - now)))
+            self.wake.clear()
 
     def _diagnostics(self) -> int:
+        """Publish the diagnostics message; returns the flag bits it reported."""
         with self.lock:
-            status = self.live.status()
             flags = self.live.flags_now
-            status["reasons"] = {name: self.live.reason_of(name) for name in status["flags"]}
+            message = self._diagnostics_message()
+        self.publishers["diagnostics"].put(message)
+        return flags
+
+    def _diagnostics_message(self) -> str:
+        """The diagnostics as JSON: the calibrator's status, the reasons of its flags, the flags raised since the
+        previous message with their reasons (``raised``), and the node's counters; starts a new ``raised``."""
+        status = self.live.status()
+        status["reasons"] = {name: self.live.reason_of(name) for name in status["flags"]}
+        raised, self.raised = self.raised, 0
+        status["raised"] = {name: self.live.reason_of(name) for name in names_of(raised)}
         status["bad_messages"], status["stale_samples"] = self.bad_messages, self.stale_samples
         status["waiting_for_joints"], status["stale_joints"] = self.waiting_for_joints, self.stale_joints
-        self.publishers["diagnostics"].put(json.dumps(status))
-        return flags
+        return json.dumps(status)
 
 
 def _payload_text(query) -> str:
