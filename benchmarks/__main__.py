@@ -503,7 +503,8 @@ def cluster_section(sizes: dict) -> list[str]:
                         f"{c['worker_page_faults']:,.0f} | {fmt_s(c['worker_system_s'])} | "
                         f"{r['ratios'][name]['wall_s']:.2f}× | {r['ratios'][name]['cpu_s']:.2f}× | "
                         f"{'equal' if r['same_coefficients'] else 'DIFFERENT'} |")
-    t = run_case("task_threads", rows=max(n_rows for _, n_rows in sizes["cluster"]), rounds=max(3, sizes["cluster_pairs"]))
+    t = run_case("task_threads", rows=max(n_rows for _, n_rows in sizes["cluster"]),
+                 rounds=max(3, sizes["cluster_pairs"]))
     load.extend(t["load_average"])
     HEADLINE["cluster"] = ("`ftcal fit --degree 4 --scheduler local:2` / one process, whole command: " + "; ".join(heads)
                            + " (targets ≤ 1.1× on 4 files, < 1× on 16)")

@@ -1,6 +1,7 @@
 """A local Dask cluster that costs what its work costs (issue 32): a fit's statistics tasks in threads of the command
 (no start-up), worker processes without Dask's per-process housekeeping (stack sampling every 10 ms, memory checks
-every 100 ms) for the rest, and the start-up said once, with its seconds. Results are checked against the single-process run (the same sums in the same order: bit-identical).
+every 100 ms) for the rest, and the start-up said once, with its seconds. Results are checked against the
+single-process run (the same sums in the same order: bit-identical).
 """
 
 import json

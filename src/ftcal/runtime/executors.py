@@ -80,7 +80,7 @@ LOCAL_CLUSTER_CONFIG = {
 # passes read is read once there too.
 KEEP_FILES_ENV = "FTCAL_WORKER_KEEPS_FILES"
 DEFERRED_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
-TASKS_AHEAD_PER_THREAD = 2  # local:N threads: tasks submitted ahead of the one awaited, per thread (bounds held results)
+TASKS_AHEAD_PER_THREAD = 2  # local:N threads: tasks submitted ahead of the one awaited, per thread (held results)
 _RELEASES_GIL: set = set()  # task functions that local:N runs in threads (see releases_gil)
 
 
