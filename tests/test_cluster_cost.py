@@ -193,3 +193,35 @@ def test_local_workers_allocate_large_temporaries_from_a_heap_they_keep():
     for behaviour in seen.values():
         assert behaviour["mapped"] == 0
         assert behaviour["trimmed"] == 0  # freed to the heap, which keeps it: the next chunk reuses the pages
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("delay", [0.5, 1.5, 3.0])
+def test_ctrl_c_during_a_fit_in_threads_stops_it_in_one_line_and_writes_nothing(tmp_path, delay):
+    """local:2's threads run the statistics pass of a static fit; a Ctrl-C then ends the command as it ends one
+    process: exit 130, one line, no model (or, if the fit ended first, a clean run with its model)."""
+    import signal
+    import time
+
+    rng = np.random.default_rng(17)
+    paths = []
+    for index in range(4):
+        u, y = sensor_like_data(rng, 300_000)
+        path = tmp_path / f"part{index}.parquet"
+        pd.DataFrame(np.c_[u, y], columns=[*INPUTS, *DEFAULT_OUTPUTS]).to_parquet(path)
+        paths.append(str(path))
+    out = tmp_path / "model.json"
+    proc = subprocess.Popen([FTCAL, "fit", *paths, "--degree", "4", "-o", str(out), "--scheduler", "local:2"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                            env=dict(os.environ, FTCAL_PROGRESS="0"))
+    time.sleep(delay)
+    sent = proc.poll() is None
+    if sent:
+        proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=600)
+    assert "Traceback" not in err, err
+    if sent and proc.returncode == 130:
+        assert err.strip().splitlines()[-1] in ("ftcal fit: interrupted", "ftcal: interrupted"), err
+        assert not out.exists() and sorted(os.listdir(tmp_path)) == sorted(os.path.basename(p) for p in paths)
+    else:  # the fit ended before the signal could stop it
+        assert proc.returncode == 0 and out.exists(), err
