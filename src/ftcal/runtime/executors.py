@@ -391,9 +391,9 @@ class LocalWorkers:
                 pending.append(pool.submit(contextvars.copy_context().run, function, *task, *args))
 
         try:
-            # BLAS held to one thread from here, for the whole map: the tasks' own limits then nest inside this
-            # one, and the count is restored here, once (limits entered and left by the threads in turn
-            # restored one thread, and the solve after the map then ran with one: other bits than one process).
+            # BLAS held to one thread from this thread, for the whole map: the tasks' own limits nest inside it
+            # and the count is restored here. Left to the task threads, the last one out restored it, and
+            # OpenBLAS (0.3.31) kept one thread: the solve after the map rounded otherwise than one process.
             with single_threaded_blas(), progress_bar(description, len(tasks)) as advance:
                 for _ in range(TASKS_AHEAD_PER_THREAD * self.workers):
                     submit()
@@ -403,7 +403,7 @@ class LocalWorkers:
                     yield result
                     advance(1)
         finally:
-            # On an error or Ctrl-C: queued tasks are dropped; running ones end with the file they read.
+            # On an error or Ctrl-C: queued tasks are dropped; running ones finish their file.
             pool.shutdown(wait=False, cancel_futures=True)
 
     def report(self) -> str | None:
