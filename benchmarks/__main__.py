@@ -503,19 +503,33 @@ def cluster_section(sizes: dict) -> list[str]:
                         f"{c['worker_page_faults']:,.0f} | {fmt_s(c['worker_system_s'])} | "
                         f"{r['ratios'][name]['wall_s']:.2f}× | {r['ratios'][name]['cpu_s']:.2f}× | "
                         f"{'equal' if r['same_coefficients'] else 'DIFFERENT'} |")
+    t = run_case("task_threads", rows=max(n_rows for _, n_rows in sizes["cluster"]),
+                 rounds=max(3, sizes["cluster_pairs"]))
+    load.extend(t["load_average"])
     HEADLINE["cluster"] = ("`ftcal fit --degree 4 --scheduler local:2` / one process, whole command: " + "; ".join(heads)
                            + " (targets ≤ 1.1× on 4 files, < 1× on 16)")
+    threads = ["Why `local:N` runs a fit's statistics tasks in threads of the command (issue 32): two files of "
+               f"{t['rows']:,} rows, their task (`file_summary_statistics_and_poses`) one after the other: "
+               f"{fmt_s(t['sequential']['wall_s'])} wall, {fmt_s(t['sequential']['cpu_s'])} CPU; in two threads of "
+               f"one process: {fmt_s(t['threads']['wall_s'])} wall, {fmt_s(t['threads']['cpu_s'])} CPU "
+               f"({t['ratio']['wall_s']:.2f}× the wall, {t['ratio']['cpu_s']:.2f}× the CPU; medians of "
+               f"{t['rounds']} alternated rounds). The reads, numpy on whole chunks and the compiled kernel run "
+               "without the GIL, so threads overlap them with no start-up, where each Dask worker process "
+               "costs ~1.5 CPU s of imports and the client ~1 s for `import distributed`. Tasks not marked "
+               "`releases_gil` (ARX, `--degree auto`'s folds, evaluate, predict) still start worker processes.", ""]
     return ["## Dask `local:2` against one process: whole `ftcal fit FILES --degree 4`", "",
             "Each run is one whole process (start-up, the cluster's start and stop, the passes, writing); CPU = "
             "user + system of the command and every worker it waited for; memory: the command's peak + its largest "
             "worker's; the workers' page faults and kernel seconds (what their allocator settings change). The "
             f"variants alternate; medians of {sizes['cluster_pairs']} rounds, ratios to the one-process run of the "
-            "same round, median. Start-up: the seconds the command printed (`Dask local:2: 2 worker processes "
-            f"started in X s`, one line). 1-minute load average during the runs: {min(load):.1f}–{max(load):.1f} "
+            "same round, median. `local:2` is this tree: the fit's tasks in 2 threads of the command (no worker "
+            "process; it says so in one line); `local:2, code before` (when run) is the tree in FTCAL_BASELINE_SRC: a "
+            "Dask LocalCluster of 2 worker processes (start-up: the seconds it printed, `Dask local:2: 2 worker "
+            f"processes started in X s`). 1-minute load average during the runs: {min(load):.1f}–{max(load):.1f} "
             f"on {os.cpu_count()} cores.", "",
             "| files × rows | run | wall | CPU | peak memory | start-up | worker page faults | worker kernel | "
             "wall ratio | CPU ratio | coefficients |", "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|",
-            *rows, ""]
+            *rows, "", *threads]
 
 
 def payload_cli_section(sizes: dict) -> list[str]:

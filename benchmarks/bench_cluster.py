@@ -9,7 +9,11 @@ change), and the start-up seconds the command printed. The runs alternate (one p
 drifts moves them all; the figures are medians, the ratios medians of the pairs' cluster / one process.
 The models are compared (their coefficients must be equal: the sums run in the same order).
 
-Run: ``python -m benchmarks.bench_cluster N_FILES ROWS [WORKERS [PAIRS [BASELINE_SRC]]]``.
+``task_threads`` measures why ``local:N`` runs these tasks in threads: two files' task one after the other
+against the same two in two threads of one process.
+
+Run: ``python -m benchmarks.bench_cluster N_FILES ROWS [WORKERS [PAIRS [BASELINE_SRC]]]``, or
+``python -m benchmarks.bench_cluster threads ROWS [ROUNDS]``.
 """
 
 from __future__ import annotations
@@ -51,10 +55,11 @@ def run_fit(argv: list[str], src: str | None = None) -> dict:
         raise RuntimeError(stderr[-2000:])
     report = re.search(r"^VmHWM ([0-9.]+) workers ([0-9.]+) ([0-9]+) ([0-9.]+)", stderr, re.M)
     started = re.search(r"started in ([0-9.]+) s", stderr)
+    startup_lines = len(re.findall(r"^(?:Dask )?local:[0-9]+: ", stderr, re.M))
     return {"wall_s": wall, "cpu_s": usage.ru_utime + usage.ru_stime, "peak_rss_mb": float(report.group(1)),
             "worker_peak_rss_mb": float(report.group(2)), "worker_page_faults": float(report.group(3)),
             "worker_system_s": float(report.group(4)),
-            "startup_s": float(started.group(1)) if started else 0.0, "startup_lines": stderr.count(" started in ")}
+            "startup_s": float(started.group(1)) if started else 0.0, "startup_lines": startup_lines}
 
 
 def cluster_fit(n_files: int, rows: int, workers: int = 2, pairs: int = 2, degree: int = 4,
@@ -93,8 +98,51 @@ def cluster_fit(n_files: int, rows: int, workers: int = 2, pairs: int = 2, degre
             "peak_rss_mb": summary["cluster"]["peak_rss_mb"] + summary["cluster"]["worker_peak_rss_mb"]}
 
 
-CASES = {f.__name__: f for f in (cluster_fit,)}
+def task_threads(rows: int = 1_000_000, rounds: int = 3, degree: int = 4) -> dict:
+    """How much of a fit's file task holds the GIL: two files' task (``file_summary_statistics_and_poses``,
+    the one-read ranges + statistics pass) one after the other, against the same two in two threads of one
+    process (``LocalWorkers``' path). Rounds alternate; CPU is this process's (all its threads)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from benchmarks.bench_scale import INPUTS, OUTPUTS, write_files
+    from ftcal.core.features import MonomialBasis
+    from ftcal.core.normalization import normalization_from_range
+    from ftcal.data.streaming import file_summary_statistics_and_poses
+
+    # the generator's input ranges (benchmarks.load_cases.make_data), as bench_scale uses them
+    scale = np.array([120.0, 120.0, 110.0, 25.0, 25.0, 12.0, 0.0])
+    low, high = np.r_[-scale[:6], 25.0], np.r_[scale[:6], 44.0]
+    args = (INPUTS, OUTPUTS, None, None, MonomialBasis(len(INPUTS), degree), normalization_from_range(low, high),
+            np.c_[low, high])
+    load = [os.getloadavg()[0]]
+    with tempfile.TemporaryDirectory(prefix="ftcal-bench-threads-") as tmp:
+        paths = write_files(Path(tmp), 2, rows)
+        file_summary_statistics_and_poses(paths[0], *args)  # imports and the moment plan, outside the timing
+        runs = {"sequential": [], "threads": []}
+        for _ in range(rounds):
+            for name in runs:
+                wall, cpu = time.perf_counter(), time.process_time()
+                if name == "sequential":
+                    results = [file_summary_statistics_and_poses(path, *args) for path in paths]
+                else:
+                    with ThreadPoolExecutor(2) as pool:
+                        results = list(pool.map(lambda path: file_summary_statistics_and_poses(path, *args), paths))
+                runs[name].append({"wall_s": time.perf_counter() - wall, "cpu_s": time.process_time() - cpu})
+                load.append(os.getloadavg()[0])
+        del results
+    median = {name: {key: float(np.median([r[key] for r in rs])) for key in ("wall_s", "cpu_s")}
+              for name, rs in runs.items()}
+    ratio = {key: float(np.median([t[key] / s[key] for s, t in zip(runs["sequential"], runs["threads"])]))
+             for key in ("wall_s", "cpu_s")}
+    return {"rows": rows, "rounds": rounds, **median, "ratio": ratio, "load_average": [min(load), max(load)],
+            "seconds": median["threads"]["wall_s"]}
+
+
+CASES = {f.__name__: f for f in (cluster_fit, task_threads)}
 
 
 if __name__ == "__main__":
-    print(json.dumps(cluster_fit(*map(int, sys.argv[1:5]), baseline_src=(sys.argv[5:] or [None])[0])))
+    if sys.argv[1] == "threads":
+        print(json.dumps(task_threads(*map(int, sys.argv[2:4]))))
+    else:
+        print(json.dumps(cluster_fit(*map(int, sys.argv[1:5]), baseline_src=(sys.argv[5:] or [None])[0])))

@@ -52,6 +52,14 @@ def write_files(folder: Path, n_files: int, rows: int) -> list[str]:
     return paths
 
 
+def statistics_on_a_worker(path: str, *args):
+    """``file_statistics``, not marked ``releases_gil``: ``local:N`` runs it in its worker processes (the marked
+    function runs in threads of this process, see bench_cluster)."""
+    from ftcal.data.streaming import file_statistics
+
+    return file_statistics(path, *args)
+
+
 def statistics_rows(paths: list[str], rows: int, degree: int) -> tuple[list[dict], int]:
     from ftcal.core.features import MonomialBasis
     from ftcal.core.normalization import normalization_from_range
@@ -71,9 +79,10 @@ def statistics_rows(paths: list[str], rows: int, degree: int) -> tuple[list[dict
     for workers in (1, 2):
         with open_executor(f"local:{workers}") as executor:
             # imports on the workers happen before the clock, as on a long-lived cluster
-            executor.map(file_statistics, paths[:workers], basis, norm, INPUTS, OUTPUTS)
+            executor.map(statistics_on_a_worker, paths[:workers], basis, norm, INPUTS, OUTPUTS)
             start = time.perf_counter()
-            total = executor.map_reduce(file_statistics, paths, basis, norm, INPUTS, OUTPUTS, combine=add_statistics)
+            total = executor.map_reduce(statistics_on_a_worker, paths, basis, norm, INPUTS, OUTPUTS,
+                                        combine=add_statistics)
             seconds = time.perf_counter() - start
         assert np.array_equal(total.gram, local.gram) and np.array_equal(total.cross, local.cross)
         out.append({"method": f"Dask local:{workers} ({workers} worker process{'es' if workers > 1 else ''})",

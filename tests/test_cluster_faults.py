@@ -161,16 +161,28 @@ def still_running(pids) -> list:
 @pytest.mark.slow
 @pytest.mark.parametrize("ending", ["normal", "error", "SIGINT at start", "SIGINT", "SIGTERM"])
 def test_no_process_outlives_the_command(tmp_path, ending):
+    # evaluate: its tasks run on local:2's worker processes (a fit's statistics passes run in threads of the
+    # command, and a fit whose file is bad fails before any process starts).
     paths = write_small_files(tmp_path, 300, 8)
+    model = tmp_path / "model.json"
+    subprocess.run([FTCAL, "fit", *paths[:20], "--degree", "2", "-o", str(model)], env=ENV, check=True,
+                   capture_output=True)
     if ending == "error":
         Path(paths[150]).write_text("u1,u2\n1,2\n")  # a file without the model's columns, on a worker
-    out = tmp_path / "model.json"
-    proc = subprocess.Popen([FTCAL, "fit", *paths, "--degree", "2", "-o", str(out), "--scheduler", "local:2"],
-                            stderr=subprocess.PIPE, text=True, env=ENV)
+    proc = subprocess.Popen([FTCAL, "evaluate", str(model), *paths, "--json", "--scheduler", "local:2"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV)
     errors: list = []
+    printed: list = []
+
     def read():
         with proc.stderr:
             errors.append(proc.stderr.read())
+
+    def read_out():
+        with proc.stdout:
+            printed.append(proc.stdout.read())
+
+    threading.Thread(target=read_out).start()
 
     reader = threading.Thread(target=read)
     reader.start()
@@ -186,7 +198,10 @@ def test_no_process_outlives_the_command(tmp_path, ending):
     seen = descendants_while_running(proc, maybe_signal)
     proc.wait(timeout=600)
     reader.join(timeout=60)
-    err = errors[0]
+    deadline = time.monotonic() + 60
+    while not printed and time.monotonic() < deadline:
+        time.sleep(0.05)
+    err, out = errors[0], printed[0]
     assert seen, "the command started no worker process"
     deadline = time.monotonic() + 60  # generous: worker processes need a moment to exit
     while still_running(seen) and time.monotonic() < deadline:
@@ -194,15 +209,15 @@ def test_no_process_outlives_the_command(tmp_path, ending):
     assert not still_running(seen), [psutil.Process(p).cmdline() for p in still_running(seen)]
     assert "Traceback" not in err, err
     if ending == "normal":
-        assert proc.returncode == 0 and out.exists(), err
+        assert proc.returncode == 0 and json.loads(out)["n_samples"] == 300 * 8, err
         return
-    assert not out.exists()
     if ending == "error":
-        assert proc.returncode == 2 and err.count("\n") == 1 and "f00150.csv" in err, err
+        assert proc.returncode == 2 and err.count("\n") == 1 and "f00150.csv" in err and out == "", err
     elif sent:  # the run may, rarely, have ended before the signal: then it must have ended cleanly above
-        assert proc.returncode == 128 + signum, err
+        assert proc.returncode == 128 + signum and out == "", err
         last = err.strip().splitlines()[-1]
-        assert last in ("ftcal fit: interrupted", "ftcal: interrupted", "ftcal fit: terminated by SIGTERM"), err
+        assert last in ("ftcal evaluate: interrupted", "ftcal: interrupted",
+                        "ftcal evaluate: terminated by SIGTERM"), err
 
 
 def medium_files(folder: Path) -> list[str]:

@@ -88,8 +88,10 @@ def default_inputs(paths: Sequence[str]) -> tuple[str, ...]:
 def add_scheduler_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scheduler", metavar="ADDRESS",
                         help="run the per-file work on a Dask cluster: tcp://host:8786 (an existing scheduler; "
-                             "the files must be visible to every worker at the same path) or local:N (N worker "
-                             "processes on this machine, ended with the command, Ctrl-C included); many files "
+                             "the files must be visible to every worker at the same path) or local:N (N workers on "
+                             "this machine: a static fit's statistics passes run in N threads of the command, "
+                             "with no start-up; other tasks in N worker processes, started when first needed and "
+                             "ended with the command, Ctrl-C included); many files "
                              "travel as a few tasks per worker, and the sums equal a run without Dask; default: "
                              "this process, without Dask")
 

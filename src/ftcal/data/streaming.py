@@ -26,10 +26,12 @@ from ..core.normalization import Normalization
 from ..core.ranges import RangeSums, column_extremes, span_of
 from ..core.statistics import CHUNK_SAMPLES, StatisticsAccumulator, SufficientStatistics, sum_statistics
 from ..runtime.errors import FtcalError
+from ..runtime.executors import releases_gil
 from ..runtime.threads import map_ranges
 from .table_chunks import iter_table_chunks, table_has_columns
 
 
+@releases_gil
 def file_statistics(path: str, basis: MonomialBasis, normalization: Normalization, inputs: Sequence[str],
                     outputs: Sequence[str]) -> SufficientStatistics:
     """Sufficient statistics of a static model over one file, chunk by chunk.
@@ -92,6 +94,7 @@ class FileSummary:
                            ranges)
 
 
+@releases_gil
 def file_summary(path: str, inputs: Sequence[str], outputs: Sequence[str], segment_by: str | None = None,
                  group_by: str | None = None) -> FileSummary:
     """The :class:`FileSummary` of one file, chunk by chunk (a new segment wherever ``segment_by`` changes).
@@ -322,6 +325,7 @@ def file_layout_statistics(path: str, layout: RegressorLayout, in_norm: Normaliz
                               in_norm, out_norm)
 
 
+@releases_gil
 def file_statistics_and_poses(path: str, basis: MonomialBasis, normalization: Normalization,
                               inputs: Sequence[str], outputs: Sequence[str],
                               input_range: np.ndarray) -> tuple[list[SufficientStatistics], frozenset]:
@@ -346,6 +350,7 @@ def file_statistics_and_poses(path: str, basis: MonomialBasis, normalization: No
     return [total.statistics()], frozenset(cells)
 
 
+@releases_gil
 def file_summary_statistics_and_poses(path: str, inputs: Sequence[str], outputs: Sequence[str],
                                       segment_by: str | None, group_by: str | None, basis: MonomialBasis,
                                       normalization: Normalization, input_range: np.ndarray) -> tuple:

@@ -9,9 +9,16 @@ task and hand the list to an executor. A task is a path, run as
 - :class:`LocalExecutor` runs them here, one after another (Dask is never
   imported);
 - :class:`DaskExecutor` submits them to a Dask distributed scheduler, either an
-  existing cluster (``tcp://host:8786``) or a local one (``local:N``: N worker
-  processes on this machine). Workers read the files themselves, so the paths
-  must be visible to every worker at the same place (a shared file system).
+  existing cluster (``tcp://host:8786``) or a local one. Workers read the files
+  themselves, so the paths must be visible to every worker at the same place (a
+  shared file system);
+- :class:`LocalWorkers` is ``local:N``, N workers on this machine: tasks marked
+  :func:`releases_gil` (the statistics passes of a fit: Parquet and CSV reads,
+  numpy on whole chunks and the compiled kernel all run without the GIL) run in N
+  threads of this process, with no start-up at all; any other task starts a Dask
+  LocalCluster of N worker processes the first time one is mapped. On two cores,
+  a cluster's start-up (~1 CPU s to import distributed here, ~3 more in the
+  workers) cost more than its processes ever won back (issue 32).
 
 On a cluster, tasks travel in batches (:func:`batch_size`): thousands of small
 files become a few Dask tasks per worker, each running its files one after
@@ -34,11 +41,12 @@ import signal
 import threading
 import uuid
 from collections.abc import Callable, Iterable, Iterator, Sequence
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from typing import Any, TypeVar, Union
 
 from .errors import FtcalError
 from .progress import progress_bar
+from .threads import single_threaded_blas
 
 T = TypeVar("T")
 Task = Union[str, os.PathLike, tuple]
@@ -72,6 +80,21 @@ LOCAL_CLUSTER_CONFIG = {
 # passes read is read once there too.
 KEEP_FILES_ENV = "FTCAL_WORKER_KEEPS_FILES"
 DEFERRED_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
+TASKS_AHEAD_PER_THREAD = 2  # local:N threads: tasks submitted ahead of the one awaited, per thread (held results)
+_RELEASES_GIL: set = set()  # task functions that local:N runs in threads (see releases_gil)
+
+
+def releases_gil(function: Callable[..., T]) -> Callable[..., T]:
+    """Mark a per-file task function whose work runs almost all without the GIL; returns it unchanged.
+
+    ``local:N`` (:class:`LocalWorkers`) runs such tasks in N threads of this process instead of
+    worker processes. Mark only functions measured to gain from threads (two files in two threads
+    against one after the other: ``benchmarks.bench_cluster.task_threads``) and safe to run
+    concurrently on different files. A task so marked that runs out of memory takes the command
+    with it (a worker process would be retried, then reported).
+    """
+    _RELEASES_GIL.add(function)
+    return function
 
 
 def tree_reduce(parts: Iterable[T], combine: Callable[[T, T], T]) -> T:
@@ -301,6 +324,103 @@ def _run_on_worker(function, task: tuple, args: tuple):
     return function(*task, *args)
 
 
+class LocalWorkers:
+    """``local:N``: tasks marked :func:`releases_gil` in N threads of this process, the others on a Dask
+    LocalCluster of N worker processes, started the first time such a task is mapped.
+
+    Results are combined here in the order of the tasks, with :func:`tree_reduce`, as
+    :class:`LocalExecutor` does: each task's result is the same wherever it runs (threads split
+    a chunk as this process does), so the sums are bit-identical to a run without ``--scheduler``.
+
+    Parameters
+    ----------
+    scheduler : ``local:N``, checked by :func:`parse_scheduler`
+    connect_timeout : seconds to wait for the local scheduler to answer
+    """
+
+    def __init__(self, scheduler: str, connect_timeout: float = CONNECT_TIMEOUT_S):
+        self.scheduler = scheduler
+        self.workers = int(scheduler[len(LOCAL_PREFIX):])
+        self.connect_timeout = connect_timeout
+        self.startup_s: float | None = None  # seconds the worker processes took to start, once started
+        self.threaded = False  # whether a task ran in this process's threads
+        self._cleanup = ExitStack()
+        self._dask: DaskExecutor | None = None
+
+    @property
+    def client(self):
+        """The Dask client of the worker processes (started now if they are not yet)."""
+        return self._cluster().client
+
+    def _cluster(self) -> DaskExecutor:
+        if self._dask is None:
+            client, self.startup_s = _open_dask(self.scheduler, self.connect_timeout, self._cleanup,
+                                                n_workers=self.workers)
+            self._dask = DaskExecutor(client)
+        return self._dask
+
+    def map(self, function: Callable[..., T], tasks: Sequence[Task], *args: Any,
+            description: str = "tasks") -> list[T]:
+        """Like :meth:`LocalExecutor.map`."""
+        if function in _RELEASES_GIL:
+            return list(self._thread_results(function, tasks, args, description))
+        return self._cluster().map(function, tasks, *args, description=description)
+
+    def map_reduce(self, function: Callable[..., T], tasks: Sequence[Task], *args: Any,
+                   combine: Callable[[T, T], T], description: str = "tasks") -> T:
+        """Like :meth:`LocalExecutor.map_reduce`: the same order of additions."""
+        if function in _RELEASES_GIL:
+            return tree_reduce(self._thread_results(function, tasks, args, description), combine)
+        return self._cluster().map_reduce(function, tasks, *args, combine=combine, description=description)
+
+    def _thread_results(self, function, tasks, args, description) -> Iterator:
+        """The tasks' results in their order, run by N threads, a few tasks ahead of the one awaited."""
+        import contextvars
+        from collections import deque
+        from concurrent.futures import ThreadPoolExecutor
+
+        self.threaded = True
+        queued = iter([_task_arguments(task) for task in tasks])
+        pending: deque = deque()
+        # Each task runs in a copy of the caller's context (np.errstate lives there), as map_ranges does.
+        pool = ThreadPoolExecutor(self.workers, thread_name_prefix="ftcal-task")
+
+        def submit() -> None:
+            task = next(queued, None)
+            if task is not None:
+                pending.append(pool.submit(contextvars.copy_context().run, function, *task, *args))
+
+        try:
+            # BLAS held to one thread from this thread, for the whole map: the tasks' own limits nest inside it
+            # and the count is restored here. Left to the task threads, the last one out restored it, and
+            # OpenBLAS (0.3.31) kept one thread: the solve after the map rounded otherwise than one process.
+            with single_threaded_blas(), progress_bar(description, len(tasks)) as advance:
+                for _ in range(TASKS_AHEAD_PER_THREAD * self.workers):
+                    submit()
+                while pending:
+                    result = pending.popleft().result()  # a task's own error (an FtcalError) as it raised it
+                    submit()
+                    yield result
+                    advance(1)
+        finally:
+            # On an error or Ctrl-C: queued tasks are dropped; running ones finish their file.
+            pool.shutdown(wait=False, cancel_futures=True)
+
+    def report(self) -> str | None:
+        """The start-up line, said once after a run that succeeded (a failed run's stderr is its one error)."""
+        processes = f"{self.workers} worker process{'es' if self.workers > 1 else ''}"
+        if self.startup_s is not None:
+            return f"Dask {self.scheduler}: {processes} started in {self.startup_s:.1f} s"
+        if self.threaded:
+            return (f"{self.scheduler}: {self.workers} thread{'s' if self.workers > 1 else ''} of this process "
+                    "ran the tasks (0.0 s start-up: no worker process was needed)")
+        return None
+
+    def close(self) -> None:
+        """Stop the worker processes, if any started; no process started here outlives this call."""
+        self._cleanup.close()
+
+
 def parse_scheduler(text: str) -> str:
     """Check a ``--scheduler`` value: ``tcp://host:port`` (or another Dask protocol) or ``local:N``.
 
@@ -321,8 +441,8 @@ def parse_scheduler(text: str) -> str:
 
 
 @contextmanager
-def open_executor(scheduler: str | None, *,
-                  connect_timeout: float = CONNECT_TIMEOUT_S) -> Iterator[LocalExecutor | DaskExecutor]:
+def open_executor(scheduler: str | None, *, connect_timeout: float = CONNECT_TIMEOUT_S
+                  ) -> Iterator[LocalExecutor | LocalWorkers | DaskExecutor]:
     """The executor for a ``--scheduler`` value (None: this process).
 
     Parameters
@@ -332,7 +452,7 @@ def open_executor(scheduler: str | None, *,
 
     Yields
     ------
-    LocalExecutor or DaskExecutor; a local cluster is shut down on exit.
+    LocalExecutor, LocalWorkers (``local:N``) or DaskExecutor; a local cluster is shut down on exit.
 
     Raises
     ------
@@ -344,12 +464,33 @@ def open_executor(scheduler: str | None, *,
         yield LocalExecutor()
         return
     scheduler = parse_scheduler(scheduler)
+    if scheduler.startswith(LOCAL_PREFIX):
+        workers = LocalWorkers(scheduler, connect_timeout)
+        try:
+            yield workers
+            line = workers.report()
+            if line is not None:
+                import sys
+
+                print(line, file=sys.stderr)
+        finally:
+            workers.close()
+        return
+    with ExitStack() as cleanup:
+        client, _ = _open_dask(scheduler, connect_timeout, cleanup)
+        yield DaskExecutor(client)
+
+
+def _open_dask(scheduler: str, connect_timeout: float, cleanup: ExitStack, n_workers: int | None = None):
+    """A checked Dask client on ``scheduler``, or on a LocalCluster of ``n_workers`` processes, and its start-up s.
+
+    Closing ``cleanup`` closes the client, then the cluster, then ends every process started here that is still
+    alive (Ctrl-C, SIGTERM and SIGHUP deferred while each step runs).
+    """
     import logging
-    import sys
     import time
 
     started = time.perf_counter()
-
     try:
         import dask
         from distributed import LocalCluster
@@ -363,51 +504,41 @@ def open_executor(scheduler: str | None, *,
     # maps and unmaps every large temporary of a statistics pass (2.5 M page faults, 6 s of kernel time on
     # 4 x 1e6 rows); a heap that keeps them makes local:2 as fast as one process (issue 32).
     environ = dict(dask.config.get("distributed.nanny.pre-spawn-environ", {}) or {}, **WORKER_MALLOC)
-    local = scheduler.startswith(LOCAL_PREFIX)
-    with dask.config.set({"distributed.comm.timeouts.connect": f"{connect_timeout}s",
-                          "distributed.scheduler.allowed-failures": TASK_RETRIES,
-                          "distributed.scheduler.worker-saturation": 1.0,
-                          "distributed.nanny.pre-spawn-environ": environ,
-                          **({**LOCAL_CLUSTER_CONFIG, "distributed.nanny.environ": dict(
-                              dask.config.get("distributed.nanny.environ", {}) or {}, **{KEEP_FILES_ENV: "1"})}
-                             if local else {})}):
-        import multiprocessing
+    local = n_workers is not None
+    cleanup.enter_context(dask.config.set({
+        "distributed.comm.timeouts.connect": f"{connect_timeout}s",
+        "distributed.scheduler.allowed-failures": TASK_RETRIES,
+        "distributed.scheduler.worker-saturation": 1.0,
+        "distributed.nanny.pre-spawn-environ": environ,
+        **({**LOCAL_CLUSTER_CONFIG, "distributed.nanny.environ": dict(
+            dask.config.get("distributed.nanny.environ", {}) or {}, **{KEEP_FILES_ENV: "1"})} if local else {})}))
+    import multiprocessing
 
-        before = set(multiprocessing.active_children())
-        cluster = None
-        try:
-            with signals_deferred():  # a cluster half started by Ctrl-C would be left running
-                if scheduler.startswith(LOCAL_PREFIX):
-                    try:
-                        cluster = LocalCluster(n_workers=int(scheduler[len(LOCAL_PREFIX):]), threads_per_worker=1,
-                                               processes=True, dashboard_address=":0",
-                                               silence_logs=logging.CRITICAL)
-                    except Exception as exc:  # noqa: BLE001 - e.g. a worker process that could not start
-                        detail = str(exc).splitlines()[0] if str(exc) else "no detail"
-                        raise FtcalError(f"--scheduler {scheduler}: the local Dask cluster did not start "
-                                         f"({type(exc).__name__}: {detail}); nothing was written.") from None
-                client = _connect(cluster if cluster is not None else scheduler, scheduler, connect_timeout)
+    before = set(multiprocessing.active_children())
+    cleanup.callback(_deferred, lambda: _end_processes(set(multiprocessing.active_children()) - before))
+    cluster = None
+    with signals_deferred():  # a cluster half started by Ctrl-C would be left running
+        if local:
             try:
-                check_versions(client, scheduler)
-                startup = None
-                if cluster is not None:
-                    client.register_plugin(_ignore_interrupts_plugin())
-                    startup = time.perf_counter() - started
-                yield DaskExecutor(client)
-                if startup is not None:
-                    # The fixed cost of a local cluster, said once, after a run that succeeded (a failed
-                    # run's stderr is its one-line error).
-                    workers = int(scheduler[len(LOCAL_PREFIX):])
-                    print(f"Dask {scheduler}: {workers} worker process{'es' if workers > 1 else ''} started in "
-                          f"{startup:.1f} s", file=sys.stderr)
-            finally:
-                with signals_deferred():
-                    client.close()
-        finally:
-            with signals_deferred():
-                if cluster is not None:
-                    _close_quietly(cluster)
-                _end_processes(set(multiprocessing.active_children()) - before)
+                cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
+                                       dashboard_address=":0", silence_logs=logging.CRITICAL)
+            except Exception as exc:  # noqa: BLE001 - e.g. a worker process that could not start
+                detail = str(exc).splitlines()[0] if str(exc) else "no detail"
+                raise FtcalError(f"--scheduler {scheduler}: the local Dask cluster did not start "
+                                 f"({type(exc).__name__}: {detail}); nothing was written.") from None
+            cleanup.callback(_deferred, _close_quietly, cluster)
+        client = _connect(cluster if cluster is not None else scheduler, scheduler, connect_timeout)
+        cleanup.callback(_deferred, client.close)
+    check_versions(client, scheduler)
+    if local:
+        client.register_plugin(_ignore_interrupts_plugin())
+    return client, time.perf_counter() - started
+
+
+def _deferred(function, *args) -> None:
+    """``function(*args)`` with Ctrl-C, SIGTERM and SIGHUP deferred until it returns."""
+    with signals_deferred():
+        function(*args)
 
 
 def _connect(address, scheduler: str, connect_timeout: float):
