@@ -563,13 +563,15 @@ class _Fit:
         o = self.o
         opened = nullcontext(self.executor) if self.executor is not None else open_executor(o.scheduler)
         paths = self.paths
+        # A static fit of a given degree takes the inputs' spread from its statistics' moments, not pass 1.
+        static_fit = o.degree != "auto" and not (o.na or o.nb)
         with opened as executor, keep_in_memory():
             early = self._one_pass_statistics(executor, template, inputs, outputs)
             summary = early[0] if early is not None else executor.map_reduce(
-                file_summary, paths, inputs, outputs, o.segment_by, o.group_by, combine=add_statistics,
-                description="ranges")
+                file_summary, paths, inputs, outputs, o.segment_by, o.group_by, not static_fit,
+                combine=add_statistics, description="ranges")
             n_in = len(inputs)
-            self._report_excitation(summary.spread.take(slice(n_in, None)), outputs)
+            self._report_excitation(summary.output_spread, outputs)
             self._read_note(sum(summary.segment_lengths), inputs, outputs)
             self._dropped_note(dropped)
             cells = None
@@ -600,7 +602,8 @@ class _Fit:
                                                 description="statistics")
                 stats = sum_statistics(parts)
                 model.fit_statistics(frame, stats)
-            model.input_spread_ = summary.spread.take(slice(0, n_in))
+            model.input_spread_ = summary.input_spread if summary.input_spread is not None else \
+                self._input_spread(executor, frame, stats, inputs)
             from_statistics = None if cells is None else training_error_from_statistics(model, frame, stats)
             if from_statistics is not None:
                 model.training_metrics_ = from_statistics
@@ -617,6 +620,18 @@ class _Fit:
             model.training_metrics_["free_run"] = other.summary(outputs)
             del model.training_metrics_["free_run"]["n_out_of_range"]
         return model, dict(sources=self.sources, training_segments=summary.fingerprints)
+
+    def _input_spread(self, executor, frame, stats, inputs):
+        """The inputs' Spread of a static fit: from its statistics' moments, or (when they would cancel
+        digits, :func:`ftcal.core.statistics.input_spread`) a pass over the inputs."""
+        from ..core.statistics import input_spread
+        from ..data.streaming import add_statistics, file_input_spread
+
+        spread = input_spread(stats, frame.layout.basis, frame.solve_input_normalization)
+        if spread is not None:
+            return spread
+        return executor.map_reduce(file_input_spread, self.paths, inputs, combine=add_statistics,
+                                   description="input spread")
 
     def _one_pass_statistics(self, executor, template, inputs, outputs):
         """The ranges pass and the statistics pass of a static fit of a given degree in one read, or None.
@@ -651,7 +666,7 @@ class _Fit:
         summary, statistics = executor.map_reduce(
             file_summary_statistics_and_poses, self.paths, inputs, outputs, o.segment_by, o.group_by,
             frame.layout.basis, frame.solve_input_normalization, frame.input_range,
-            combine=add_summary_statistics_and_poses, description="ranges and statistics")
+            False, combine=add_summary_statistics_and_poses, description="ranges and statistics")
         return summary, frame, statistics
 
     # ------------------------------------------------------------------ selection
