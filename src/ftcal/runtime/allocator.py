@@ -1,4 +1,4 @@
-"""The allocator settings of a command that streams large tables through numpy.
+"""The allocator settings of a command that streams large tables through numpy and pyarrow.
 
 Each chunk of a streamed pass makes temporaries of a few MB (normalized inputs, the
 fingerprint's row-major copy, column conversions). glibc serves blocks that size with a
@@ -10,7 +10,8 @@ page faults and 0.64 s of kernel time by default, 22,000 and 0.23 s with the set
 
 These are the settings ``local:N`` cluster workers get (:data:`ftcal.runtime.executors.WORKER_MALLOC`),
 applied to the running process by ``mallopt`` (the environment variables are read only at a
-process's start). The ``ftcal`` command applies them; a program calling the library keeps its own.
+process's start). pyarrow's record batches get the same treatment from its jemalloc pool. The
+``ftcal fit`` command applies them; a program calling the library keeps its own.
 """
 
 from __future__ import annotations
@@ -26,12 +27,13 @@ _M_MMAP_THRESHOLD = -3
 
 
 def keep_freed_memory() -> bool:
-    """Set glibc's mmap and trim thresholds of this process to :data:`WORKER_MALLOC`'s.
+    """Set glibc's mmap and trim thresholds of this process to :data:`WORKER_MALLOC`'s, and pyarrow's
+    buffers to a pool that keeps freed pages for reuse.
 
     Returns
     -------
     bool
-        Whether they were set (False where the C library is not glibc).
+        Whether they were set (False where the C library is not glibc: nothing is changed).
     """
     if not sys.platform.startswith("linux"):
         return False
@@ -40,5 +42,17 @@ def keep_freed_memory() -> bool:
     except (OSError, AttributeError):  # musl and others: no mallopt
         return False
     mallopt.argtypes, mallopt.restype = (ctypes.c_int, ctypes.c_int), ctypes.c_int
-    return bool(mallopt(_M_MMAP_THRESHOLD, WORKER_MALLOC["MALLOC_MMAP_THRESHOLD_"])
-                and mallopt(_M_TRIM_THRESHOLD, WORKER_MALLOC["MALLOC_TRIM_THRESHOLD_"]))
+    if not (mallopt(_M_MMAP_THRESHOLD, WORKER_MALLOC["MALLOC_MMAP_THRESHOLD_"])
+            and mallopt(_M_TRIM_THRESHOLD, WORKER_MALLOC["MALLOC_TRIM_THRESHOLD_"])):
+        return False
+    import pyarrow
+
+    # pyarrow's default pool (mimalloc) returns pages freed 10 ms ago to the system: between two record
+    # batches the statistics take longer than that, so each batch's buffers were faulted in afresh.
+    # jemalloc's (decay 1 s) keeps them; glibc's heap, set as above, where pyarrow was built without it.
+    try:
+        pool = pyarrow.jemalloc_memory_pool()
+    except NotImplementedError:
+        pool = pyarrow.system_memory_pool()
+    pyarrow.set_memory_pool(pool)
+    return True
