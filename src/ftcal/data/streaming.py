@@ -89,6 +89,7 @@ class FileSummary:
             ranges = dict(self.group_output_ranges)
             for label, r in other.group_output_ranges.items():
                 ranges[label] = r if label not in ranges else widen(ranges[label], r)
+
         def add(a, b):
             return None if a is None or b is None else a + b
 
@@ -350,10 +351,11 @@ def file_statistics_and_poses(path: str, basis: MonomialBasis, normalization: No
 
     total = StatisticsAccumulator(RegressorLayout(basis, len(outputs)), normalization)
     cells: set = set()
-    for chunk in iter_table_chunks(path, inputs, outputs):
-        if len(cells) < POSE_CELL_CAP:
-            cells |= pose_cells(chunk.inputs, input_range)
-        total.add(chunk.inputs, chunk.outputs)
+    with single_threaded_blas():  # the pose cells' small products: no BLAS threads to wake per chunk
+        for chunk in iter_table_chunks(path, inputs, outputs):
+            if len(cells) < POSE_CELL_CAP:
+                cells |= pose_cells(chunk.inputs, input_range)
+            total.add(chunk.inputs, chunk.outputs)
     return [total.statistics()], frozenset(cells)
 
 
