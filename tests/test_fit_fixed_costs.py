@@ -5,6 +5,7 @@ References: numpy's mean and ``np.cov(bias=True)`` over the raw inputs as pandas
 direct two-pass computation), and glibc's own account of its heap (``mallinfo2``) in a fresh process.
 """
 
+import os
 import subprocess
 import sys
 import textwrap
@@ -130,9 +131,12 @@ def test_the_fit_command_keeps_large_temporaries_on_a_heap_it_keeps():
     """In a fresh process, glibc maps a 16 MiB block for itself and unmaps it when freed (every statistics
     chunk would fault its pages in again); after keep_freed_memory() it comes from the heap, which keeps it,
     and pyarrow's buffers leave mimalloc (which returns freed pages to the system after 10 ms)."""
+    # glibc's defaults: a local Dask cluster started earlier in this process leaves its workers' MALLOC_* here
+    fresh = {k: v for k, v in os.environ.items() if not k.startswith("MALLOC_")}
+
     def probe(mode):
         done = subprocess.run([sys.executable, "-c", ALLOCATOR_PROBE, mode], capture_output=True, text=True,
-                              check=True)
+                              check=True, env=fresh)
         mapped, trimmed, pool = done.stdout.split()
         return int(mapped), int(trimmed), pool
 

@@ -16,7 +16,7 @@ import os
 import time
 import warnings
 from collections.abc import Sequence
-from contextlib import nullcontext
+from contextlib import ExitStack, nullcontext
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Callable
@@ -545,7 +545,8 @@ class _Fit:
         degree-8 moments of raw ADC counts lose every digit to cancellation). A static fit of a
         given degree takes its training errors from those statistics; ARX fits and selections
         score the training data in a third pass (additive error sums, as ``evaluate``). Run here,
-        the passes parse each small file once (:func:`ftcal.data.table_chunks.keep_in_memory`).
+        the passes parse each small file once (:func:`ftcal.data.table_chunks.keep_in_memory`); a
+        fit that reads its files once (:meth:`_one_pass_statistics`) keeps nothing.
         """
         from ..core.statistics import sum_statistics
         from ..data.streaming import (
@@ -565,8 +566,11 @@ class _Fit:
         paths = self.paths
         # A static fit of a given degree takes the inputs' spread from its statistics' moments, not pass 1.
         static_fit = o.degree != "auto" and not (o.na or o.nb)
-        with opened as executor, keep_in_memory():
+        with opened as executor, ExitStack() as kept:
             early = self._one_pass_statistics(executor, template, inputs, outputs)
+            # The one read needs no second: its chunks are kept only for the passes that follow a first one
+            # (holding up to KEEP_IN_MEMORY_BYTES of a large file's chunks for none cost 10,000 page faults).
+            kept.enter_context(keep_in_memory())
             summary = early[0] if early is not None else executor.map_reduce(
                 file_summary, paths, inputs, outputs, o.segment_by, o.group_by, not static_fit,
                 combine=add_statistics, description="ranges")
