@@ -30,6 +30,10 @@ from .sources import default_label_columns, tables_of
 
 # Rows × weights below which the MLP's default max_iter is 2000 instead of 400 (a few seconds either way).
 SMALL_MLP_WORK = 2_000_000
+# A streamed fit with at most this many regressor columns solves and scores with BLAS on one thread: its
+# factorizations take milliseconds, and the second BLAS thread spun for longer than it helped (degree 4,
+# p = 330: 0.13 CPU s less and no slower).
+SINGLE_THREAD_SOLVE_FEATURES = 1000
 
 # The --degree auto search's options and their defaults: refused (not ignored) by a fit of a given degree.
 SEARCH_DEFAULTS = {"folds": 5, "penalties": ("lasso", "ridge"), "lambdas": None, "select_per": "block",
@@ -605,10 +609,14 @@ class _Fit:
                                                 inputs, outputs, o.segment_by, combine=add_statistics,
                                                 description="statistics")
                 stats = sum_statistics(parts)
-                model.fit_statistics(frame, stats)
+                with _small_solve_blas(frame):
+                    model.fit_statistics(frame, stats)
             model.input_spread_ = summary.input_spread if summary.input_spread is not None else \
                 self._input_spread(executor, frame, stats, inputs)
-            from_statistics = None if cells is None else training_error_from_statistics(model, frame, stats)
+            from_statistics = None
+            if cells is not None:
+                with _small_solve_blas(frame):
+                    from_statistics = training_error_from_statistics(model, frame, stats)
             if from_statistics is not None:
                 model.training_metrics_ = from_statistics
                 check_saturation(model, lambda: len(cells), len(summary.group_sizes))
@@ -871,6 +879,13 @@ def error_norm_text(metrics: dict) -> str:
                                                                                  "N·m"))
              if metrics.get(key) is not None]
     return ", ".join(parts)
+
+
+def _small_solve_blas(frame):
+    """BLAS on one thread for the solve of a fit of at most :data:`SINGLE_THREAD_SOLVE_FEATURES` columns."""
+    from ..runtime.threads import single_threaded_blas
+
+    return single_threaded_blas() if frame.layout.n_features <= SINGLE_THREAD_SOLVE_FEATURES else nullcontext()
 
 
 def _same_basis(provisional, frame) -> bool:
