@@ -144,3 +144,26 @@ def test_the_fit_command_keeps_large_temporaries_on_a_heap_it_keeps():
     assert mapped >= 16 << 20 and pool == "mimalloc"
     mapped, trimmed, pool = probe("set")
     assert mapped == 0 and trimmed == 0 and pool in ("jemalloc", "system")
+
+
+def test_the_fit_command_collects_cycles_less_often_but_still_collects_them():
+    """collect_less() in a fresh process: a later cycle of garbage is still freed (by a full collection, or
+    by the raised threshold's own), and what was loaded before is in the permanent generation."""
+    code = textwrap.dedent("""
+        import gc, weakref
+        from ftcal.runtime.allocator import COMMAND_GC_THRESHOLD, collect_less
+        collect_less()
+        assert gc.get_freeze_count() > 0 and gc.get_threshold()[0] == COMMAND_GC_THRESHOLD
+
+        class Node:
+            pass
+
+        a, b = Node(), Node()
+        a.other, b.other = b, a
+        gone = weakref.ref(a)
+        del a, b
+        alive = [[] for _ in range(2 * COMMAND_GC_THRESHOLD)]  # containers kept: the youngest generation's count
+        print(gone() is None)
+    """)
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert done.stdout.split() == ["True"]

@@ -17,10 +17,13 @@ process's start). pyarrow's record batches get the same treatment from its jemal
 from __future__ import annotations
 
 import ctypes
+import gc
 import sys
 
 from .executors import WORKER_MALLOC
 
+# Allocations between two collections of the youngest generation in a command that runs once (Python's: 700).
+COMMAND_GC_THRESHOLD = 50_000
 # glibc's mallopt parameters (malloc.h)
 _M_TRIM_THRESHOLD = -1
 _M_MMAP_THRESHOLD = -3
@@ -56,3 +59,16 @@ def keep_freed_memory() -> bool:
         pool = pyarrow.system_memory_pool()
     pyarrow.set_memory_pool(pool)
     return True
+
+
+def collect_less() -> None:
+    """Collect cycles less often in a command that runs once and exits.
+
+    The objects loaded so far (modules, classes, functions) move to the collector's permanent
+    generation (``gc.freeze``) and the youngest generation is collected every
+    :data:`COMMAND_GC_THRESHOLD` allocations: ``ftcal fit`` of a 200,000-row CSV spent ~0.05 of
+    its 1.15 CPU s in collections that walked them again and again.
+    """
+    gc.freeze()
+    _, second, third = gc.get_threshold()
+    gc.set_threshold(COMMAND_GC_THRESHOLD, second, third)
