@@ -470,46 +470,60 @@ def _csv(folder: str, n: int) -> str:
     return path
 
 
-def _timed_process(argv: list[str]) -> tuple[float, float]:
-    """Wall time (s) and peak RSS (MB) of one child process, from its own rusage (os.wait4)."""
+def _timed_process(argv: list[str], env: dict | None = None) -> tuple[float, float, float]:
+    """Wall time (s), peak RSS (MB) and CPU (user + system, s) of one child process, from its own rusage
+    (os.wait4)."""
     import subprocess
 
     start = time.perf_counter()
-    child = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    child = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env)
     stderr = child.stderr.read()
     _, status, usage = os.wait4(child.pid, 0)
     seconds = time.perf_counter() - start
     child.returncode = os.waitstatus_to_exitcode(status)
     if child.returncode != 0:
         raise RuntimeError(stderr[-2000:])
-    return seconds, usage.ru_maxrss / 1024.0
+    return seconds, usage.ru_maxrss / 1024.0, usage.ru_utime + usage.ru_stime
 
 
-def cli_fit_pair(n: int, degree: int, repeats: int = 5) -> dict:
+def cli_fit_pair(n: int, degree: int, repeats: int = 5, baseline_src: str | None = None) -> dict:
     """`ftcal fit data.csv --degree D` and the paper's recipe as a script, on the same CSV, alternately.
 
     Each runs ``repeats`` times, interleaved so that a change of machine load
-    hits both; the medians are reported (with min and max), and each child's
-    own peak RSS.
+    hits both; the medians are reported (with min and max, and the median of the
+    per-round ratios recipe / ftcal), each child's CPU (user + system) and its own
+    peak RSS, and the load average before and after. ``baseline_src``: the same
+    ftcal command on that source tree in each round too (the code before a change).
     """
     import statistics
     import tempfile
     from pathlib import Path
 
+    load_before = os.getloadavg()[0]
     with tempfile.TemporaryDirectory() as folder:
         data = _csv(folder, n)
         ftcal = str(Path(sys.executable).with_name("ftcal"))
-        commands = {"ftcal": [ftcal, "fit", data, "--degree", str(degree), "-o", f"{folder}/m.json"],
-                    "paper": [sys.executable, "-c", PAPER_RECIPE_SCRIPT, data, str(degree)]}
+        commands = {"ftcal": ([ftcal, "fit", data, "--degree", str(degree), "-o", f"{folder}/m.json"], None),
+                    "paper": ([sys.executable, "-c", PAPER_RECIPE_SCRIPT, data, str(degree)], None)}
+        if baseline_src:
+            path = os.pathsep.join([baseline_src, *os.environ.get("PYTHONPATH", "").split(os.pathsep)[1:]])
+            commands["baseline"] = ([ftcal, "fit", data, "--degree", str(degree), "-o", f"{folder}/b.json"],
+                                    dict(os.environ, PYTHONPATH=path))
         runs = {name: [] for name in commands}
         for _ in range(repeats):
-            for name, argv in commands.items():
-                runs[name].append(_timed_process(argv))
+            for name, (argv, env) in commands.items():
+                runs[name].append(_timed_process(argv, env))
     result = {}
-    for name, pairs in runs.items():
-        times = [t for t, _ in pairs]
+    for name, rows in runs.items():
+        times = [t for t, _, _ in rows]
         result[name] = {"seconds": statistics.median(times), "min_seconds": min(times), "max_seconds": max(times),
-                        "child_peak_rss_mb": max(m for _, m in pairs), "repeats": repeats}
+                        "cpu_seconds": statistics.median(c for _, _, c in rows),
+                        "child_peak_rss_mb": max(m for _, m, _ in rows), "repeats": repeats}
+    result["ratio"] = statistics.median(p[0] / f[0] for p, f in zip(runs["paper"], runs["ftcal"]))
+    result["cpu_ratio"] = statistics.median(p[2] / f[2] for p, f in zip(runs["paper"], runs["ftcal"]))
+    if baseline_src:
+        result["baseline"]["src"] = baseline_src
+    result["load_average"] = [load_before, os.getloadavg()[0]]
     result["seconds"] = result["ftcal"]["seconds"]
     return result
 

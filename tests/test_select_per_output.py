@@ -229,7 +229,8 @@ def test_cli_refuses_contradictory_selection_options(tmp_path, capsys):
     assert "--max-degree" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("n_inputs", [7, 16])  # integer cell keys (20**7 cells), bytes keys (20**16 ≥ 2**63)
+# float64 cell keys (20**7 cells < 2**53), integer keys (20**13 < 2**63), bytes keys (20**16 ≥ 2**63)
+@pytest.mark.parametrize("n_inputs", [7, 13, 16])
 def test_pose_cells_count_the_distinct_grid_cells(n_inputs):
     """Against numpy's unique rows of the grid indices, computed here by hand; chunks unite."""
     from ftcal.core.select import pose_cells

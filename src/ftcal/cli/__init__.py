@@ -52,13 +52,15 @@ class OneLineParser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message} (see '{self.prog} --help').\n")
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The ``ftcal`` parser: every command's, or only ``command``'s (a command line naming one, which
+    needs no other: importing and registering all of them costs ~50 ms of every run)."""
     parser = OneLineParser(
         prog="ftcal", epilog=ENVIRONMENT, formatter_class=argparse.RawDescriptionHelpFormatter,
         description=PIPELINE)
     parser.add_argument("--version", action="store_true", help="print the version and exit")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for name in COMMAND_MODULES:
+    for name in (command,) if command in COMMAND_MODULES else COMMAND_MODULES:
         try:
             module = importlib.import_module(f"ftcal.cli.cmd_{name}")
         except ModuleNotFoundError as exc:
@@ -291,7 +293,8 @@ def run(argv: list[str] | None) -> int:
     # count), at this call when main() runs inside another program (a test, a notebook), whose earlier CPU
     # must not eat into --budget.
     cpu_start = 0.0 if _command_starting() else time.process_time()
-    parser = build_parser()
+    words = sys.argv[1:] if argv is None else argv
+    parser = build_parser(words[0] if words else None)
     args = parser.parse_args(argv)
     args.cpu_start = cpu_start
     if args.version:

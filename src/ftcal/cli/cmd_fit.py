@@ -152,9 +152,12 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    from ..runtime.allocator import collect_less, keep_freed_memory
     from ..workflow.fitting import fit
 
     require_suffix(args.output, (".json",), "-o")
+    keep_freed_memory()  # chunk temporaries reuse the heap instead of faulting fresh pages in each time
+    collect_less()
     result = fit(args.data, inputs=args.inputs, outputs=args.outputs, degree=args.degree, lasso=args.lasso,
                  ridge=args.ridge, na=args.na, nb=args.nb, solver=args.solver, normalization=args.normalization,
                  folds=args.folds, penalties=args.penalties, lambdas=args.lambdas, select_per=args.select_per,

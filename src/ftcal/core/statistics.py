@@ -31,11 +31,15 @@ from functools import cache, cached_property
 import numpy as np
 
 from ..runtime.threads import map_ranges
+from .excitation import Spread
 from .features import MonomialBasis, RegressorLayout
 from .kernels import compiled, step_table
 from .normalization import Normalization
 
 CHUNK_SAMPLES = 1024  # numpy kernel: terms × samples chunks of this width; more calls cost more than cache misses
+# input_spread refuses inputs whose squared normalized mean exceeds this many variances: the moments' rounding
+# (about 1e-16 of the mean square) would then exceed 1e-10 of the variance.
+SPREAD_MAX_CANCELLATION = 1e6
 
 
 @dataclass
@@ -457,3 +461,50 @@ def dataset_statistics(data, layout: RegressorLayout, in_norm: Normalization, ou
     accumulator = StatisticsAccumulator(layout, in_norm, out_norm)
     accumulator.add(data.inputs, data.outputs, None if layout.is_static else data.segment_bounds(), advance)
     return accumulator.statistics()
+
+
+def input_spread(stats: SufficientStatistics, basis: MonomialBasis, normalization: Normalization) -> Spread | None:
+    """The :class:`~ftcal.core.excitation.Spread` of the raw inputs, from a static model's statistics.
+
+    The input means and centred cross-products are moments of degree ≤ 2, which the Gram of
+    any static basis holds: Σ u_k (offset row × degree-1 column), Σ u_k u_l (degree-1 block),
+    N (offset × offset). They are in the normalized basis ``u_norm = (u − offset) / scale``
+    the statistics were taken in, where Σ (u − ū)(u − ū)ᵀ = S Σ (u_n − ū_n)(u_n − ū_n)ᵀ S.
+    Subtracting N ū_n ū_nᵀ from Σ u_n u_nᵀ cancels digits as ū_n² exceeds the variance: a
+    centred basis (inputs spanning [-1, 1]) keeps that within N (one sample at a range end, the
+    rest at the other); a basis that does not centre may not, so beyond
+    :data:`SPREAD_MAX_CANCELLATION` this returns None and the caller computes the spread
+    from the data.
+
+    Parameters
+    ----------
+    stats : SufficientStatistics of ``basis`` (static: the offset is the last column)
+    basis : MonomialBasis, its first ``n_inputs`` columns the inputs themselves
+    normalization : Normalization the statistics' inputs were normalized with
+
+    Returns
+    -------
+    Spread of shape n_inputs, or None (cancellation, or no samples)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from ftcal.core.normalization import normalization_from_range
+    >>> u = np.random.default_rng(0).uniform(3.0, 5.0, (200, 2))
+    >>> norm = normalization_from_range(u.min(axis=0), u.max(axis=0))
+    >>> stats = static_statistics(MonomialBasis(2, 2), norm.apply(u), u[:, :1])
+    >>> spread = input_spread(stats, MonomialBasis(2, 2), norm)
+    >>> bool(np.allclose(spread.m2, Spread.of(u).m2, rtol=1e-12, atol=0))
+    True
+    """
+    k, n = basis.n_inputs, stats.n_samples
+    if n == 0:
+        return None
+    sums = stats.gram[-1, :k]
+    centred = stats.gram[:k, :k] - np.outer(sums, sums) / n
+    centred = (centred + centred.T) / 2.0  # the moments are symmetric; their difference may round apart
+    mean, squares = sums / n, np.diag(centred)
+    if np.any(mean * mean * n > SPREAD_MAX_CANCELLATION * np.maximum(squares, 0.0)) or np.any(squares < 0):
+        return None
+    scale = normalization.scale
+    return Spread(n, normalization.offset + scale * mean, centred * np.outer(scale, scale))

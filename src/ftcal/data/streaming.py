@@ -27,7 +27,7 @@ from ..core.ranges import RangeSums, column_extremes, span_of
 from ..core.statistics import CHUNK_SAMPLES, StatisticsAccumulator, SufficientStatistics, sum_statistics
 from ..runtime.errors import FtcalError
 from ..runtime.executors import releases_gil
-from ..runtime.threads import map_ranges
+from ..runtime.threads import map_ranges, single_threaded_blas
 from .table_chunks import iter_table_chunks, table_has_columns
 
 
@@ -63,7 +63,9 @@ class FileSummary:
     segment_lengths : list of int, samples per segment, in file order
     fingerprints : list of dict, :func:`ftcal.core.fingerprint.segment_fingerprints` of those segments
     group_sizes : dict of group label (str) -> samples (a file without group column is one group, its path)
-    spread : Spread of the inputs then the outputs (mean, covariance: the excitation and span checks)
+    output_spread : Spread of the outputs (mean, covariance: the excitation check)
+    input_spread : Spread of the inputs (the span check), or None when not taken (a static fit takes it from
+        its statistics' moments, :func:`ftcal.core.statistics.input_spread`)
     group_output_ranges : dict of group label -> ndarray (n_outputs, 2), min and max of each output in
         the group (what grouped cross-validation's folds held out)
     """
@@ -73,7 +75,8 @@ class FileSummary:
     segment_lengths: list
     fingerprints: list
     group_sizes: dict
-    spread: Spread | None = None
+    output_spread: Spread | None = None
+    input_spread: Spread | None = None
     group_output_ranges: dict | None = None
 
     def __add__(self, other: "FileSummary") -> "FileSummary":
@@ -88,15 +91,19 @@ class FileSummary:
             ranges = dict(self.group_output_ranges)
             for label, r in other.group_output_ranges.items():
                 ranges[label] = r if label not in ranges else widen(ranges[label], r)
+
+        def add(a, b):
+            return None if a is None or b is None else a + b
+
         return FileSummary(widen(self.input_range, other.input_range), widen(self.output_range, other.output_range),
                            self.segment_lengths + other.segment_lengths, self.fingerprints + other.fingerprints,
-                           sizes, None if self.spread is None or other.spread is None else self.spread + other.spread,
-                           ranges)
+                           sizes, add(self.output_spread, other.output_spread),
+                           add(self.input_spread, other.input_spread), ranges)
 
 
 @releases_gil
 def file_summary(path: str, inputs: Sequence[str], outputs: Sequence[str], segment_by: str | None = None,
-                 group_by: str | None = None) -> FileSummary:
+                 group_by: str | None = None, input_spread: bool = True) -> FileSummary:
     """The :class:`FileSummary` of one file, chunk by chunk (a new segment wherever ``segment_by`` changes).
 
     Parameters
@@ -105,14 +112,16 @@ def file_summary(path: str, inputs: Sequence[str], outputs: Sequence[str], segme
     inputs, outputs : column names
     segment_by : label column separating segments, or None (the file is one segment)
     group_by : group label column, checked (present, no empty cell) as a whole-table read does
+    input_spread : whether to take the inputs' Spread (False: a static fit takes it from its statistics)
 
     Returns
     -------
     FileSummary, whose fingerprints equal those of the file read whole.
     """
-    summary = _SummaryAccumulator(path, inputs, outputs, segment_by, group_by)
-    for chunk in iter_table_chunks(path, inputs, outputs, labels=summary.labels):
-        summary.add(chunk)
+    summary = _SummaryAccumulator(path, inputs, outputs, segment_by, group_by, input_spread)
+    with single_threaded_blas():  # the spreads' small products: no BLAS threads to wake per chunk
+        for chunk in iter_table_chunks(path, inputs, outputs, labels=summary.labels):
+            summary.add(chunk)
     return summary.summary()
 
 
@@ -120,11 +129,12 @@ class _SummaryAccumulator:
     """:func:`file_summary` of the chunks of one file, added in file order."""
 
     def __init__(self, path: str, inputs: Sequence[str], outputs: Sequence[str], segment_by: str | None,
-                 group_by: str | None):
+                 group_by: str | None, input_spread: bool = True):
         self.path, self.n_inputs, self.segment_by, self.group_by = path, len(inputs), segment_by, group_by
         self.labels = {column: role for column, role in ((group_by, "group"), (segment_by, "segment")) if column}
         self.ranges = None
-        self.spread = Spread.of(np.zeros((0, len(inputs) + len(outputs))))
+        self.output_spread = Spread.of(np.zeros((0, len(outputs))))
+        self.input_spread = Spread.of(np.zeros((0, len(inputs)))) if input_spread else None
         self.lengths, self.fingerprints, self.sizes, self.group_ranges = [], [], {}, {}
         self.digest, self.last_label = None, None
 
@@ -146,7 +156,9 @@ class _SummaryAccumulator:
             old = self.group_ranges.get(label)
             self.group_ranges[label] = here if old is None else np.c_[np.minimum(old[:, 0], here[:, 0]),
                                                                       np.maximum(old[:, 1], here[:, 1])]
-        self.spread = self.spread + Spread.of(values)
+        self.output_spread = self.output_spread + Spread.of(chunk.outputs)
+        if self.input_spread is not None:
+            self.input_spread = self.input_spread + Spread.of(chunk.inputs)
         ranges = self.ranges
         self.ranges = np.c_[low, high] if ranges is None else np.c_[np.minimum(ranges[:, 0], low),
                                                                     np.maximum(ranges[:, 1], high)]
@@ -175,8 +187,8 @@ class _SummaryAccumulator:
         for fingerprint, rows in zip(self.fingerprints, self.lengths):
             fingerprint["rows"] = rows
         n_in, ranges = self.n_inputs, self.ranges
-        return FileSummary(ranges[:n_in], ranges[n_in:], self.lengths, self.fingerprints, self.sizes, self.spread,
-                           self.group_ranges)
+        return FileSummary(ranges[:n_in], ranges[n_in:], self.lengths, self.fingerprints, self.sizes,
+                           self.output_spread, self.input_spread, self.group_ranges)
 
 
 def _group_rows(path: str, chunk, group_by: str | None) -> dict:
@@ -343,23 +355,26 @@ def file_statistics_and_poses(path: str, basis: MonomialBasis, normalization: No
 
     total = StatisticsAccumulator(RegressorLayout(basis, len(outputs)), normalization)
     cells: set = set()
-    for chunk in iter_table_chunks(path, inputs, outputs):
-        if len(cells) < POSE_CELL_CAP:
-            cells |= pose_cells(chunk.inputs, input_range)
-        total.add(chunk.inputs, chunk.outputs)
+    with single_threaded_blas():  # the pose cells' small products: no BLAS threads to wake per chunk
+        for chunk in iter_table_chunks(path, inputs, outputs):
+            if len(cells) < POSE_CELL_CAP:
+                cells |= pose_cells(chunk.inputs, input_range)
+            total.add(chunk.inputs, chunk.outputs)
     return [total.statistics()], frozenset(cells)
 
 
 @releases_gil
 def file_summary_statistics_and_poses(path: str, inputs: Sequence[str], outputs: Sequence[str],
                                       segment_by: str | None, group_by: str | None, basis: MonomialBasis,
-                                      normalization: Normalization, input_range: np.ndarray) -> tuple:
+                                      normalization: Normalization, input_range: np.ndarray,
+                                      input_spread: bool = True) -> tuple:
     """:func:`file_summary` and :func:`file_statistics_and_poses` in one read of the file.
 
     For a fit whose normalization is known before the data are read (from the Parquet footers,
     :func:`ftcal.data.parquet_checks.footer_ranges`): the caller keeps the statistics only when
     the summary's ranges give the same normalization, and reads the files again otherwise. The
     chunks are those of the two passes, so the sums are the same to the last bit.
+    ``input_spread``: as :func:`file_summary`.
 
     Returns
     -------
@@ -368,15 +383,30 @@ def file_summary_statistics_and_poses(path: str, inputs: Sequence[str], outputs:
     """
     from ..core.select import pose_cells
 
-    summary = _SummaryAccumulator(path, inputs, outputs, segment_by, group_by)
+    summary = _SummaryAccumulator(path, inputs, outputs, segment_by, group_by, input_spread)
     total = StatisticsAccumulator(RegressorLayout(basis, len(outputs)), normalization)
     cells: set = set()
-    for chunk in iter_table_chunks(path, inputs, outputs, labels=summary.labels):
-        summary.add(chunk)
-        if len(cells) < POSE_CELL_CAP:
-            cells |= pose_cells(chunk.inputs, input_range)
-        total.add(chunk.inputs, chunk.outputs)
+    with single_threaded_blas():  # as file_summary
+        for chunk in iter_table_chunks(path, inputs, outputs, labels=summary.labels):
+            summary.add(chunk)
+            if len(cells) < POSE_CELL_CAP:
+                cells |= pose_cells(chunk.inputs, input_range)
+            total.add(chunk.inputs, chunk.outputs)
     return summary.summary(), ([total.statistics()], frozenset(cells))
+
+
+def file_input_spread(path: str, inputs: Sequence[str]) -> Spread:
+    """The :class:`~ftcal.core.excitation.Spread` of one file's inputs, chunk by chunk; combine with
+    :func:`add_statistics`.
+
+    For a static fit whose statistics cannot give it to 1e-10
+    (:func:`ftcal.core.statistics.input_spread` returned None).
+    """
+    spread = Spread.of(np.zeros((0, len(inputs))))
+    with single_threaded_blas():
+        for chunk in iter_table_chunks(path, inputs):
+            spread = spread + Spread.of(chunk.inputs)
+    return spread
 
 
 def add_summary_statistics_and_poses(a: tuple, b: tuple) -> tuple:

@@ -27,6 +27,9 @@ from .tables import arrow_numbers, complete_rows, table_columns, table_label_col
 CHUNK_ROWS = 1 << 16  # rows per chunk: ~4 MB of float64 inputs and outputs
 CSV_BLOCK_BYTES = 1 << 22  # CSV bytes parsed per block (~CHUNK_ROWS rows of 13 numbers)
 CSV_READ_WHOLE_BYTES = 1 << 27  # smaller CSV files are parsed whole, in parallel, then served in chunks
+# Block size of those whole reads: a block that fits the core's cache parses faster, and the threads share
+# more blocks evenly (a 49 MB file, 1 MiB against 4 MiB blocks: 0.30 against 0.34 CPU s, 0.33 against 0.51 s).
+CSV_WHOLE_BLOCK_BYTES = 1 << 20
 KEEP_IN_MEMORY_BYTES = 1 << 26  # files whose chunks total at most this stay in memory (see keep_in_memory)
 
 
@@ -225,7 +228,8 @@ def _batches(path: Path, columns: list[str], roles: dict[str, str], chunk_rows: 
             if path.stat().st_size <= CSV_READ_WHOLE_BYTES:
                 # Parsed in parallel blocks (faster than the streaming reader, which parses one at a
                 # time), then served in chunks of chunk_rows: a 4 MB block holds only ~17k rows.
-                table = pv.read_csv(path, **options)
+                whole = pv.ReadOptions(block_size=CSV_WHOLE_BLOCK_BYTES)
+                table = pv.read_csv(path, **dict(options, read_options=whole))
                 for start in range(0, table.num_rows, chunk_rows):
                     yield table.slice(start, chunk_rows)  # no copy: the rows stay in their parsed blocks
                 return

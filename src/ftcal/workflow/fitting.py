@@ -16,7 +16,7 @@ import os
 import time
 import warnings
 from collections.abc import Sequence
-from contextlib import nullcontext
+from contextlib import ExitStack, nullcontext
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Callable
@@ -30,6 +30,10 @@ from .sources import default_label_columns, tables_of
 
 # Rows × weights below which the MLP's default max_iter is 2000 instead of 400 (a few seconds either way).
 SMALL_MLP_WORK = 2_000_000
+# A streamed fit with at most this many regressor columns solves and scores with BLAS on one thread: its
+# factorizations take milliseconds, and the second BLAS thread spun for longer than it helped (degree 4,
+# p = 330: 0.13 CPU s less and no slower).
+SINGLE_THREAD_SOLVE_FEATURES = 1000
 
 # The --degree auto search's options and their defaults: refused (not ignored) by a fit of a given degree.
 SEARCH_DEFAULTS = {"folds": 5, "penalties": ("lasso", "ridge"), "lambdas": None, "select_per": "block",
@@ -545,7 +549,8 @@ class _Fit:
         degree-8 moments of raw ADC counts lose every digit to cancellation). A static fit of a
         given degree takes its training errors from those statistics; ARX fits and selections
         score the training data in a third pass (additive error sums, as ``evaluate``). Run here,
-        the passes parse each small file once (:func:`ftcal.data.table_chunks.keep_in_memory`).
+        the passes parse each small file once (:func:`ftcal.data.table_chunks.keep_in_memory`); a
+        fit that reads its files once (:meth:`_one_pass_statistics`) keeps nothing.
         """
         from ..core.statistics import sum_statistics
         from ..data.streaming import (
@@ -563,13 +568,18 @@ class _Fit:
         o = self.o
         opened = nullcontext(self.executor) if self.executor is not None else open_executor(o.scheduler)
         paths = self.paths
-        with opened as executor, keep_in_memory():
+        # A static fit of a given degree takes the inputs' spread from its statistics' moments, not pass 1.
+        static_fit = o.degree != "auto" and not (o.na or o.nb)
+        with opened as executor, ExitStack() as kept:
             early = self._one_pass_statistics(executor, template, inputs, outputs)
+            # The one read needs no second: its chunks are kept only for the passes that follow a first one
+            # (holding up to KEEP_IN_MEMORY_BYTES of a large file's chunks for none cost 10,000 page faults).
+            kept.enter_context(keep_in_memory())
             summary = early[0] if early is not None else executor.map_reduce(
-                file_summary, paths, inputs, outputs, o.segment_by, o.group_by, combine=add_statistics,
-                description="ranges")
+                file_summary, paths, inputs, outputs, o.segment_by, o.group_by, not static_fit,
+                combine=add_statistics, description="ranges")
             n_in = len(inputs)
-            self._report_excitation(summary.spread.take(slice(n_in, None)), outputs)
+            self._report_excitation(summary.output_spread, outputs)
             self._read_note(sum(summary.segment_lengths), inputs, outputs)
             self._dropped_note(dropped)
             cells = None
@@ -599,9 +609,14 @@ class _Fit:
                                                 inputs, outputs, o.segment_by, combine=add_statistics,
                                                 description="statistics")
                 stats = sum_statistics(parts)
-                model.fit_statistics(frame, stats)
-            model.input_spread_ = summary.spread.take(slice(0, n_in))
-            from_statistics = None if cells is None else training_error_from_statistics(model, frame, stats)
+                with _small_solve_blas(frame):
+                    model.fit_statistics(frame, stats)
+            model.input_spread_ = summary.input_spread if summary.input_spread is not None else \
+                self._input_spread(executor, frame, stats, inputs)
+            from_statistics = None
+            if cells is not None:
+                with _small_solve_blas(frame):
+                    from_statistics = training_error_from_statistics(model, frame, stats)
             if from_statistics is not None:
                 model.training_metrics_ = from_statistics
                 check_saturation(model, lambda: len(cells), len(summary.group_sizes))
@@ -617,6 +632,18 @@ class _Fit:
             model.training_metrics_["free_run"] = other.summary(outputs)
             del model.training_metrics_["free_run"]["n_out_of_range"]
         return model, dict(sources=self.sources, training_segments=summary.fingerprints)
+
+    def _input_spread(self, executor, frame, stats, inputs):
+        """The inputs' Spread of a static fit: from its statistics' moments, or (when they would cancel
+        digits, :func:`ftcal.core.statistics.input_spread`) a pass over the inputs."""
+        from ..core.statistics import input_spread
+        from ..data.streaming import add_statistics, file_input_spread
+
+        spread = input_spread(stats, frame.layout.basis, frame.solve_input_normalization)
+        if spread is not None:
+            return spread
+        return executor.map_reduce(file_input_spread, self.paths, inputs, combine=add_statistics,
+                                   description="input spread")
 
     def _one_pass_statistics(self, executor, template, inputs, outputs):
         """The ranges pass and the statistics pass of a static fit of a given degree in one read, or None.
@@ -651,7 +678,7 @@ class _Fit:
         summary, statistics = executor.map_reduce(
             file_summary_statistics_and_poses, self.paths, inputs, outputs, o.segment_by, o.group_by,
             frame.layout.basis, frame.solve_input_normalization, frame.input_range,
-            combine=add_summary_statistics_and_poses, description="ranges and statistics")
+            False, combine=add_summary_statistics_and_poses, description="ranges and statistics")
         return summary, frame, statistics
 
     # ------------------------------------------------------------------ selection
@@ -852,6 +879,13 @@ def error_norm_text(metrics: dict) -> str:
                                                                                  "N·m"))
              if metrics.get(key) is not None]
     return ", ".join(parts)
+
+
+def _small_solve_blas(frame):
+    """BLAS on one thread for the solve of a fit of at most :data:`SINGLE_THREAD_SOLVE_FEATURES` columns."""
+    from ..runtime.threads import single_threaded_blas
+
+    return single_threaded_blas() if frame.layout.n_features <= SINGLE_THREAD_SOLVE_FEATURES else nullcontext()
 
 
 def _same_basis(provisional, frame) -> bool:

@@ -38,7 +38,17 @@ def pose_cells(u: np.ndarray, input_range: np.ndarray, bins: int = POSE_BINS) ->
     2
     """
     low, span = input_range[:, 0], np.maximum(input_range[:, 1] - input_range[:, 0], np.finfo(float).tiny)
-    cells = np.clip(np.floor((np.asarray(u) - low) / span * bins), 0, bins - 1).astype(np.int64)
+    cells = np.asarray(u, dtype=np.float64) - low  # (u - low) / span * bins, in place
+    cells /= span
+    cells *= bins
+    np.floor(cells, out=cells)
+    np.clip(cells, 0, bins - 1, out=cells)
+    if float(bins) ** cells.shape[1] < 2.0**53:
+        # One float64 per cell, exact below 2⁵³: a BLAS product, and the distinct codes found by sorting
+        # before they become Python ints (a static load case is thousands of samples in a few cells).
+        codes = np.unique(cells @ (float(bins) ** np.arange(cells.shape[1])))
+        return set(codes.astype(np.int64).tolist())
+    cells = cells.astype(np.int64)
     if float(bins) ** cells.shape[1] < 2.0**63:  # one integer per cell: far faster to make unique than bytes
         return set((cells @ (bins ** np.arange(cells.shape[1], dtype=np.int64))).tolist())
     rows = np.ascontiguousarray(cells.astype(np.uint8)).view(np.dtype((np.void, cells.shape[1])))
