@@ -225,3 +225,26 @@ def test_ctrl_c_during_a_fit_in_threads_stops_it_in_one_line_and_writes_nothing(
         assert not out.exists() and sorted(os.listdir(tmp_path)) == sorted(os.path.basename(p) for p in paths)
     else:  # the fit ended before the signal could stop it
         assert proc.returncode == 0 and out.exists(), err
+
+
+def _environment(keys) -> dict:
+    return {key: os.environ.get(key) for key in keys}
+
+
+def test_local_workers_leave_this_processs_environment_as_they_found_it(monkeypatch):
+    # Dask's nanny writes its pre-spawn variables into the spawning process's os.environ; a library caller's
+    # later subprocesses would inherit one BLAS thread and the workers' allocator settings.
+    keys = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS",
+            "MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_")
+    for key in keys:
+        monkeypatch.delenv(key, raising=False)
+    monkeypatch.setenv("OMP_NUM_THREADS", "3")  # one that was set: it must come back as it was, not vanish
+    before = _environment(keys)
+    with open_executor("local:1") as executor:
+        seen = executor.client.run(_environment, keys)
+        assert _environment(keys) == before
+    assert _environment(keys) == before
+    (worker,) = seen.values()
+    # The worker itself still got them (the test of the heap above checks glibc reads the MALLOC_* ones).
+    assert worker["OPENBLAS_NUM_THREADS"] == "1"
+    assert worker["MALLOC_MMAP_THRESHOLD_"] is not None

@@ -514,6 +514,11 @@ def _open_dask(scheduler: str, connect_timeout: float, cleanup: ExitStack, n_wor
             dask.config.get("distributed.nanny.environ", {}) or {}, **{KEEP_FILES_ENV: "1"})} if local else {})}))
     import multiprocessing
 
+    # Dask's nanny puts pre-spawn-environ into this process's os.environ to hand it to the workers it
+    # spawns (and re-spawns): OPENBLAS_NUM_THREADS=1 and the MALLOC_* settings would then reach every
+    # later subprocess of the caller. Put back what this process had once the workers are started, and at close.
+    before_environ = {key: os.environ.get(key) for key in environ}
+    cleanup.callback(_restore_environment, before_environ)
     before = set(multiprocessing.active_children())
     cleanup.callback(_deferred, lambda: _end_processes(set(multiprocessing.active_children()) - before))
     cluster = None
@@ -527,12 +532,22 @@ def _open_dask(scheduler: str, connect_timeout: float, cleanup: ExitStack, n_wor
                 raise FtcalError(f"--scheduler {scheduler}: the local Dask cluster did not start "
                                  f"({type(exc).__name__}: {detail}); nothing was written.") from None
             cleanup.callback(_deferred, _close_quietly, cluster)
+            _restore_environment(before_environ)
         client = _connect(cluster if cluster is not None else scheduler, scheduler, connect_timeout)
         cleanup.callback(_deferred, client.close)
     check_versions(client, scheduler)
     if local:
         client.register_plugin(_ignore_interrupts_plugin())
     return client, time.perf_counter() - started
+
+
+def _restore_environment(values: dict) -> None:
+    """Set each variable back to its value in ``values`` (None: it was not set)."""
+    for key, value in values.items():
+        if value is None:
+            os.environ.pop(key, None)
+        else:
+            os.environ[key] = value
 
 
 def _deferred(function, *args) -> None:
