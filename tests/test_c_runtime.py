@@ -33,6 +33,20 @@ pytestmark = pytest.mark.skipif(CC is None, reason="no C compiler `cc`")
 NOISE = np.r_[np.full(3, 0.05), np.full(3, 0.004)]
 FIELDS = 27  # per sample: calibrated, compensated, bias, bias_std (6 each), chi2, static + 2 updated, flags
 
+# The driver lines that step one sample and store its FIELDS outputs (every replay driver shares them).
+STEP_AND_STORE = r"""
+        if (rt_step(&s, t[k], u + RT_N_INPUTS * k, g + 3 * k, override[k], &o)) return -1 - k;
+        for (j = 0; j < 6; ++j) {
+            out[27 * k + j] = o.calibrated[j];
+            out[27 * k + 6 + j] = o.compensated[j];
+            out[27 * k + 12 + j] = o.bias[j];
+            out[27 * k + 18 + j] = o.bias_std[j];
+        }
+        out[27 * k + 24] = o.chi2;
+        out[27 * k + 25] = o.is_static + 2 * o.updated;
+        out[27 * k + 26] = o.flags;
+"""
+
 DRIVER = r"""
 #include "rt.h"
 /* action[k]: 0 nothing, -1 re-tare, t > 0 mount tool t, before sample k */
@@ -46,17 +60,7 @@ int replay(int n, const double *t, const double *u, const double *g, const int *
     for (k = 0; k < n; ++k) {
         if (action[k] == -1) rt_retare(&s);
         else if (action[k] > 0 && rt_set_tool(&s, action[k])) return -3;
-        if (rt_step(&s, t[k], u + RT_N_INPUTS * k, g + 3 * k, override[k], &o)) return -1 - k;
-        for (j = 0; j < 6; ++j) {
-            out[27 * k + j] = o.calibrated[j];
-            out[27 * k + 6 + j] = o.compensated[j];
-            out[27 * k + 12 + j] = o.bias[j];
-            out[27 * k + 18 + j] = o.bias_std[j];
-        }
-        out[27 * k + 24] = o.chi2;
-        out[27 * k + 25] = o.is_static + 2 * o.updated;
-        out[27 * k + 26] = o.flags;
-    }
+""" + STEP_AND_STORE + r"""    }
     return 0;
 }
 

@@ -25,7 +25,7 @@ from ftcal.payload.identify import identify_payload
 from ftcal.runtime.errors import FtcalError, UndeterminedWarning
 from ftcal.sim.live_scenario import LiveScenario, Tool, simulate_live
 
-from test_c_runtime import CC, FIELDS, compare, gauge_model, pointer, python_replay
+from test_c_runtime import CC, FIELDS, STEP_AND_STORE, compare, gauge_model, pointer, python_replay
 
 pytestmark = pytest.mark.skipif(CC is None, reason="no C compiler `cc`")
 FIT = 44  # per finish: mass, com 3, bias 6, se (mass, com 3, bias 6), rms 6, vif 10, 8 counts
@@ -76,17 +76,7 @@ int replay(int n, const double *t, const double *u, const double *g, const int *
             x[43] = f.held;
             done += 1;
         }
-        if (rt_step(&s, t[k], u + RT_N_INPUTS * k, g + 3 * k, override[k], &o)) return -1 - k;
-        for (j = 0; j < 6; ++j) {
-            out[27 * k + j] = o.calibrated[j];
-            out[27 * k + 6 + j] = o.compensated[j];
-            out[27 * k + 12 + j] = o.bias[j];
-            out[27 * k + 18 + j] = o.bias_std[j];
-        }
-        out[27 * k + 24] = o.chi2;
-        out[27 * k + 25] = o.is_static + 2 * o.updated;
-        out[27 * k + 26] = o.flags;
-    }
+""" + STEP_AND_STORE + r"""    }
     return s.tool;
 }
 

@@ -26,7 +26,7 @@ from ftcal.payload.parameters import PayloadParameters
 from ftcal.runtime.errors import FtcalError
 from ftcal.sim.live_scenario import LiveScenario, Tool, simulate_live
 
-from test_c_runtime import CC, FIELDS, compare, gauge_model, pointer, python_replay, tool_payload
+from test_c_runtime import CC, FIELDS, STEP_AND_STORE, compare, gauge_model, pointer, python_replay, tool_payload
 
 pytestmark = pytest.mark.skipif(CC is None, reason="no C compiler `cc`")
 DRILL = Tool(2.1, (0.02, 0.01, 0.09))
@@ -65,17 +65,7 @@ int replay(int n, const double *t, const double *u, const double *g, const int *
             code[1] = rt_find_tool(&s, name[k]);
             code[0] = rt_set_tool(&s, code[1]);
         } else if (action[k] == 5) rt_retare(&s);
-        if (rt_step(&s, t[k], u + RT_N_INPUTS * k, g + 3 * k, override[k], &o)) return -1 - k;
-        for (j = 0; j < 6; ++j) {
-            out[27 * k + j] = o.calibrated[j];
-            out[27 * k + 6 + j] = o.compensated[j];
-            out[27 * k + 12 + j] = o.bias[j];
-            out[27 * k + 18 + j] = o.bias_std[j];
-        }
-        out[27 * k + 24] = o.chi2;
-        out[27 * k + 25] = o.is_static + 2 * o.updated;
-        out[27 * k + 26] = o.flags;
-        if (o.flags != previous && o.flags) {
+""" + STEP_AND_STORE + r"""        if (o.flags != previous && o.flags) {
             char head[32];
             size_t need;
             int m = snprintf(head, sizeof head, "%d\t", k);
