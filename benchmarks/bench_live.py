@@ -115,7 +115,8 @@ def live_table_replay(minutes: float) -> dict:
 
 
 def live_zenoh(rate: float, seconds: float, path: str = "ftcal", warmup: float = 1.0,
-               rt_priority: int | None = None, transport: str = "lowlatency") -> dict:
+               rt_priority: int | None = None, transport: str = "queued",
+               harness_rt_priority: int | None = None) -> dict:
     """Latency publish → compensated wrench back, two processes on loopback Zenoh.
 
     This process plays the robot and the consumer at once: it publishes CDR WrenchStamped on ``ft/raw`` at ``rate``
@@ -126,8 +127,10 @@ def live_zenoh(rate: float, seconds: float, path: str = "ftcal", warmup: float =
     use the node's peer configuration (:func:`ftcal.live.zenoh_node.zenoh_config`). The forces carry 0.05 N of
     noise and the torques 0.004 N·m, what the node is told (``--noise-std``), so the χ² gate passes as on a
     sensor whose noise is known. ``rt_priority``: the node runs under SCHED_FIFO (``ftcal live --rt-priority``).
-    ``transport="queued"``: both ends use Zenoh's queued transport instead of the low-latency one (the node then runs
-    from :mod:`benchmarks.zenoh_peers`, ``path="ftcal"`` the same calibrator and node as ``ftcal live --zenoh``).
+    ``transport="lowlatency"``: both ends ask for Zenoh's low-latency transport instead of the queued one (the node
+    then runs from :mod:`benchmarks.zenoh_peers`, ``path="ftcal"`` the same calibrator and node as ``ftcal live
+    --zenoh`` with ``ZenohOptions(low_latency=True)``). ``harness_rt_priority``: this process's Zenoh threads (its
+    receiving callback among them) run under SCHED_FIFO as well; its publishing loop stays at normal priority.
     """
     import signal
     import socket
@@ -144,20 +147,26 @@ def live_zenoh(rate: float, seconds: float, path: str = "ftcal", warmup: float =
         port = s.getsockname()[1]
     endpoint = f"tcp/127.0.0.1:{port}"
     low_latency = transport == "lowlatency"
-    if path == "ftcal" and low_latency:
+    if path == "ftcal" and not low_latency:
         argv = [str(Path(sys.executable).with_name("ftcal")), "live", "--zenoh", "--listen", endpoint,
                 "--noise-std", "0.05,0.004", *(["--rt-priority", str(rt_priority)] if rt_priority else [])]
     else:
         if rt_priority:
             raise ValueError("rt_priority is for ftcal live --zenoh")
         argv = [sys.executable, "-m", "benchmarks.zenoh_peers", "node" if path == "ftcal" else "relay", endpoint,
-                *([] if low_latency else ["queued"])]
+                *(["lowlatency"] if low_latency else [])]
     root = str(Path(__file__).resolve().parent.parent)
     node = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=root)
     node.stdout.readline()
     arrival: list = []
     processed: list = []  # the node's sample counter, from its diagnostics: messages lost before or after the node
-    session = zenoh.open(zenoh_config(connect=(endpoint,), low_latency=low_latency))
+    if harness_rt_priority:  # the robot's driver and controller side under SCHED_FIFO too (Zenoh's threads inherit it)
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(harness_rt_priority))
+    try:
+        session = zenoh.open(zenoh_config(connect=(endpoint,), low_latency=low_latency))
+    finally:
+        if harness_rt_priority:
+            os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
 
     def on(sample):  # the stamp only, read with ftcal's codec (tests check it against rosbags)
         now = time.monotonic_ns()
@@ -324,17 +333,20 @@ def live_section(run_case, sizes: dict) -> tuple[list[str], str]:
     rounds = 3 if seconds >= 5 else 1
     callback = run_case("live_callback", rate=2000.0, seconds=seconds)
     # Interleaved rounds, so that every path meets the same load; each row is the median over the rounds.
-    cases = {"relay": dict(path="relay"), "ftcal": dict(), "queued": dict(transport="queued"),
-             "rt": dict(rt_priority=10)}
+    cases = {"relay": dict(path="relay"), "ftcal": dict(), "lowlatency": dict(transport="lowlatency"),
+             "rt": dict(rt_priority=10), "rt_both": dict(rt_priority=10, harness_rt_priority=10)}
     runs: dict = {name: [] for name in cases}
     for _ in range(rounds):
         for name, kwargs in cases.items():
             runs[name].append(run_case("live_zenoh", rate=2000.0, seconds=seconds, **kwargs))
     one_khz = [run_case("live_zenoh", rate=1000.0, seconds=seconds)]
     labels = {"relay": "Zenoh + a Python callback that republishes the bytes, no ftcal (relay)",
-              "queued": "ftcal's node, Zenoh's queued transport (before)",
-              "ftcal": "`ftcal live --zenoh` (low-latency transport)",
-              "rt": "`ftcal live --zenoh --rt-priority 10` (SCHED_FIFO)"}
+              "ftcal": "`ftcal live --zenoh` (Zenoh's queued transport, the default)",
+              "lowlatency": "ftcal's node, Zenoh's low-latency transport on both sides (opt-in: a frozen consumer "
+                            "stalls it)",
+              "rt": "`ftcal live --zenoh --rt-priority 10` (SCHED_FIFO)",
+              "rt_both": "`ftcal live --zenoh --rt-priority 10`, and this process's Zenoh threads under SCHED_FIFO "
+                         "too (as a robot's driver and controller run)"}
     out += ["", "| Latency, publish → compensated wrench back (2 processes, loopback Zenoh) | rate | rounds | sent | lost | "
             "p50 | p90 | p99 | p99.9 | max | p99 per round | node CPU per message | node run-queue wait per message | "
             "harness CPU per message | load average |",
@@ -344,7 +356,7 @@ def live_section(run_case, sizes: dict) -> tuple[list[str], str]:
                f"{r['sent']:,} | 0 | {r['p50_ms']:.2f} ms | {r['p90_ms']:.2f} ms | {r['p99_ms']:.2f} ms | "
                f"{r['p99.9_ms']:.2f} ms | {r['max_ms']:.2f} ms | | {r['node_cpu_us_per_message']:.0f} µs (with the "
                f"harness) | | | {r['load_average']:.1f} |")
-    rows = [(name, runs[name]) for name in ("relay", "queued", "ftcal", "rt")] + [("ftcal", one_khz)]
+    rows = [(name, runs[name]) for name in cases] + [("ftcal", one_khz)]
     for name, rs in rows:
         med = {k: float(np.median([r[k] for r in rs])) for k in
                ("p50_ms", "p90_ms", "p99_ms", "p99.9_ms", "max_ms", "node_cpu_us_per_message",
@@ -356,7 +368,7 @@ def live_section(run_case, sizes: dict) -> tuple[list[str], str]:
                    f"{', '.join(format(r['p99_ms'], '.2f') for r in rs)} ms | {med['node_cpu_us_per_message']:.0f} µs | "
                    f"{med['node_runqueue_wait_us_per_message']:.0f} µs | {med['harness_cpu_us_per_message']:.0f} µs | {min(loads):.1f}–{max(loads):.1f} |")
     threads = {}
-    for name in ("queued", "ftcal"):
+    for name in ("ftcal", "lowlatency"):
         median_run = sorted(runs[name], key=lambda r: r["p99_ms"])[len(runs[name]) // 2]
         merged: dict = {}
         for thread, us in median_run["node_threads_us_per_message"].items():
@@ -369,7 +381,7 @@ def live_section(run_case, sizes: dict) -> tuple[list[str], str]:
     out += ["", "This process publishes each wrench stamped with CLOCK_MONOTONIC as it sends it and receives the "
             "answers, reading arrival − stamp on the same clock (the first second left out); the node is the other "
             "process. Rows are medians over interleaved rounds (the p99 of each round beside them). Node CPU by thread "
-            f"(the median round): queued transport {threads['queued']}; low-latency {threads['ftcal']} (Python: the "
+            f"(the median round): queued transport {threads['ftcal']}; low-latency {threads['lowlatency']} (Python: the "
             "callback thread and the main thread; rx, tx, acc: Zenoh's runtime threads). The callback row is "
             "ftcal's own share; the relay row is the floor that Zenoh and a Python callback set on this machine. Both "
             "processes share the 2 cores with whatever else runs (load average: the machine's, sampled each second).",
@@ -378,11 +390,13 @@ def live_section(run_case, sizes: dict) -> tuple[list[str], str]:
     z99 = float(np.median([r["p99_ms"] for r in zen]))
     relay99 = float(np.median([r["p99_ms"] for r in runs["relay"]]))
     rt99 = float(np.median([r["p99_ms"] for r in runs["rt"]]))
+    rt_both99 = float(np.median([r["p99_ms"] for r in runs["rt_both"]]))
     headline = (f"replay {blocks['samples_per_cpu_s']:,.0f} samples per CPU second in blocks (target ≥ 200,000/s), "
                 f"{steps['samples_per_cpu_s']:,.0f} one step at a time ({ratio:.2f}x; target ≥ 20,000); peak memory {memory[0][1]['peak_rss_mb']:,.0f} "
                 f"MB for {memory[0][0]:g} min and {memory[-1][1]['peak_rss_mb']:,.0f} MB for {memory[-1][0]:g} min; "
                 f"Zenoh 2,000 Hz: {sum(r['sent'] - r['lost'] for r in zen):,} of {sum(r['sent'] for r in zen):,} back, "
-                f"p99 {z99:.1f} ms, median of {len(zen)} (target ≤ 2 ms; with --rt-priority 10 {rt99:.1f} ms; "
+                f"p99 {z99:.1f} ms, median of {len(zen)} (target ≤ 2 ms; with --rt-priority 10 {rt99:.1f} ms, "
+                f"{rt_both99:.1f} ms with both ends under SCHED_FIFO; "
                 f"Zenoh + Python alone {relay99:.1f} ms, "
                 f"ftcal's callback {callback['p99_ms']:.2f} ms; load {min(r['load_average'] for r in zen):.1f}–"
                 f"{max(r['load_average'] for r in zen):.1f})")

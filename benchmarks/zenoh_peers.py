@@ -1,5 +1,5 @@
 """Nodes of the Zenoh latency benchmark other than ``ftcal live --zenoh``, each its own process (as a node is):
-``python -m benchmarks.zenoh_peers relay|node ENDPOINT [queued]``.
+``python -m benchmarks.zenoh_peers relay|node ENDPOINT [lowlatency]``.
 
 * ``relay``: Zenoh and a Python callback without ftcal: republishes every ``ft/raw`` payload unchanged on
   ``ft/compensated`` (the floor under ``ftcal live --zenoh``'s own work).
@@ -7,7 +7,7 @@
 
 Both use the node's publisher settings (:func:`ftcal.live.zenoh_node.publisher_settings`) and peer configuration
 (:func:`ftcal.live.zenoh_node.zenoh_config`: multicast scouting off, explicit tcp/127.0.0.1 endpoints, the
-low-latency transport, or with ``queued`` Zenoh's queued transport, to measure the difference). The publishing and
+queued transport, or with ``lowlatency`` Zenoh's low-latency one, to measure the difference). The publishing and
 measuring side is :func:`benchmarks.bench_live.live_zenoh` itself.
 """
 
@@ -16,7 +16,7 @@ from __future__ import annotations
 import sys
 
 
-def relay(endpoint: str, low_latency: bool = True) -> None:
+def relay(endpoint: str, low_latency: bool = False) -> None:
     import signal
     import threading
 
@@ -35,7 +35,7 @@ def relay(endpoint: str, low_latency: bool = True) -> None:
     session.close()
 
 
-def node(endpoint: str, low_latency: bool = True) -> None:
+def node(endpoint: str, low_latency: bool = False) -> None:
     import signal
 
     from ftcal.live import LiveCalibrator
@@ -53,6 +53,6 @@ def node(endpoint: str, low_latency: bool = True) -> None:
 
 
 if __name__ == "__main__":
-    if sys.argv[1:2] not in (["relay"], ["node"]) or len(sys.argv) not in (3, 4) or sys.argv[3:] not in ([], ["queued"]):
-        sys.exit("usage: python -m benchmarks.zenoh_peers relay|node ENDPOINT [queued]")
-    (relay if sys.argv[1] == "relay" else node)(sys.argv[2], low_latency=sys.argv[3:] != ["queued"])
+    if sys.argv[1:2] not in (["relay"], ["node"]) or len(sys.argv) not in (3, 4) or sys.argv[3:] not in ([], ["lowlatency"]):
+        sys.exit("usage: python -m benchmarks.zenoh_peers relay|node ENDPOINT [lowlatency]")
+    (relay if sys.argv[1] == "relay" else node)(sys.argv[2], low_latency=sys.argv[3:] == ["lowlatency"])

@@ -23,6 +23,7 @@ import pytest
 import zenoh  # the test extra installs eclipse-zenoh: a missing one is a failure, not a skip
 
 from ftcal.files.payload_json import save_payload  # noqa: E402
+from ftcal.live.cdr import WRENCH_DOUBLES, decode_stamped, encode_stamped  # noqa: E402
 from ftcal.live.zenoh_node import IMU_TYPE, topic_key, typestore, wrench_message, zenoh_config  # noqa: E402
 from ftcal.payload.parameters import PayloadParameters  # noqa: E402
 from ftcal.sim.live_scenario import LiveScenario, simulate_live  # noqa: E402
@@ -187,3 +188,66 @@ def test_a_peer_with_zenohs_default_transport_talks_to_the_node(tmp_path):
     assert len(got) == n
     stamps = sorted(store.deserialize_cdr(g, "geometry_msgs/msg/WrenchStamped").header.stamp.nanosec for g in got)
     assert stamps == [k * 1_000_000 for k in range(n)]
+
+
+
+FROZEN_CONSUMER = """
+import sys, time
+import zenoh
+from ftcal.live.zenoh_node import zenoh_config
+config = zenoh_config(connect=(sys.argv[1],), low_latency=True)  # it asks for the transport without a queue
+config.insert_json5("transport/link/tcp/so_rcvbuf", "4096")  # its socket fills as soon as it stops reading
+session = zenoh.open(config)
+subscriber = session.declare_subscriber("ft/**", lambda sample: None)
+print("ready", flush=True)
+time.sleep(600)
+"""
+
+
+def test_a_consumer_that_stops_reading_never_stalls_the_node(tmp_path):
+    """A consumer frozen by SIGSTOP (a debugger, a stopped GUI) with a 4 kB receive buffer must not hold up the
+    answers to another consumer: with the low-latency transport on both sides the node's puts blocked and every answer
+    stopped after about 8 s at 2 kHz; on the node's default, Zenoh's queued transport, that consumer's answers are
+    dropped instead. Every wrench is answered and no 2 s window is short; SIGTERM while wrenches still arrive ends the
+    node without a traceback (callbacks in flight once the publishers are gone)."""
+    port = free_port()
+    endpoint = f"tcp/127.0.0.1:{port}"
+    node = subprocess.Popen([FTCAL, "live", "--zenoh", "--listen", endpoint, "--noise-std", "0.05,0.004"],
+                            cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    frozen = None
+    rate, seconds = 2000, 14
+    try:
+        assert "listening on ft/raw" in node.stdout.readline()
+        frozen = subprocess.Popen([sys.executable, "-c", FROZEN_CONSUMER, endpoint], stdout=subprocess.PIPE, text=True)
+        assert frozen.stdout.readline().strip() == "ready"
+        session = zenoh.open(zenoh_config(connect=(endpoint,)))
+        arrivals = []
+        sub = session.declare_subscriber(
+            "ft/compensated", lambda sample: arrivals.append((decode_stamped(sample.payload.to_bytes(),
+                                                                            WRENCH_DOUBLES).stamp_ns, time.monotonic())))
+        pub = session.declare_publisher("ft/raw")
+        time.sleep(1.0)  # routes established
+        frozen.send_signal(signal.SIGSTOP)
+        start = time.monotonic()
+        for k in range(rate * (seconds + 1)):  # ftcal's encoder: bytes equal to rosbags' (tests/test_live_cdr.py)
+            pub.put(encode_stamped(1_000_000_000 + k * 500_000, "ft", [0.0, 0.0, -11.8, 0.0, 0.0, 0.0]))
+            if k == rate * seconds + rate // 2:
+                node.send_signal(signal.SIGTERM)  # half a second before the stream ends
+            ahead = (k + 1) / rate - (time.monotonic() - start)
+            if ahead > 0:
+                time.sleep(ahead)
+        time.sleep(0.5)
+        sub.undeclare()
+        session.close()
+    finally:
+        if frozen is not None:
+            frozen.kill()
+            frozen.communicate()
+        node.send_signal(signal.SIGTERM)
+        _, err = node.communicate(timeout=60)
+    answered = np.array([t for stamp, t in arrivals if stamp < 1_000_000_000 + rate * seconds * 500_000])
+    windows = np.histogram(answered - start, bins=np.arange(0, seconds + 1, 2))[0]
+    # each 2 s window holds its 4,000 answers give or take the few that cross a window's edge
+    assert windows.min() > 0.9 * 2 * rate, windows
+    assert len(answered) == rate * seconds
+    assert node.returncode == 143 and "Traceback" not in err and "callback error" not in err, err[-2000:]  # 128 + SIGTERM

@@ -36,7 +36,8 @@ its 5 ms: at 0.2 ms, 4 of 8 runs at 2 kHz under load stalled to a p99 of 68 ms-2
 5 ms; docs/live.md). A lock serialises the
 calibrator between the callback, the queryables and the diagnostics. No message for ``silence`` s
 raises the ``silent`` flag with a one-line message; Ctrl-C and SIGTERM end the loop and the state
-is saved.
+is saved. Links use Zenoh's queued transport, whose ``DROP`` loses a stalled consumer's answers rather than blocking
+the node (:data:`TRANSPORT_SETTINGS` says why the low-latency one is opt-in).
 """
 
 from __future__ import annotations
@@ -73,9 +74,11 @@ WATCH_PERIOD_S = 0.05
 # queued batches) for no lower p99 (docs/live.md).
 PUBLISHER_SETTINGS = {"congestion_control": "DROP"}
 # Zenoh's low-latency unicast transport (its DEFAULT_CONFIG.json5: no transmission queue and no batching, each message
-# written to the link by the thread that puts it; it cannot keep QoS priorities, so qos must be off). It is negotiated:
-# a peer that does not ask for it gets the ordinary transport (tested). Measured at 2 kHz: the queue's tx thread,
-# 46 µs of the node's CPU per message, is gone, and the median latency fell (docs/live.md).
+# written to the link by the thread that puts it; it cannot keep QoS priorities, so qos must be off). Not the default:
+# without a queue there is nothing to drop, so a consumer that stops reading (SIGSTOP, a debugger, a frozen GUI) fills
+# its socket and the node's put then blocks: at 2 kHz every answer to every other consumer stopped after about 8 s
+# (tested with the queued transport, which drops that consumer's answers instead). Opt in with
+# ``ZenohOptions(low_latency=True)`` only where every consumer is trusted to keep reading (docs/live.md).
 TRANSPORT_SETTINGS = {"transport/unicast/lowlatency": True, "transport/unicast/qos/enabled": False}
 
 
@@ -102,10 +105,10 @@ class ZenohOptions:
     keys: str = "bridge"  # or "rmw_zenoh"
     domain_id: int = 0
     rt_priority: int | None = None  # SCHED_FIFO priority of the node's threads
-    low_latency: bool = True  # ask for Zenoh's low-latency transport (TRANSPORT_SETTINGS)
+    low_latency: bool = False  # ask for Zenoh's low-latency transport (TRANSPORT_SETTINGS; a frozen consumer stalls it)
 
 
-def zenoh_config(listen=(), connect=(), low_latency: bool = True):
+def zenoh_config(listen=(), connect=(), low_latency: bool = False):
     """A peer configuration with multicast scouting off, explicit endpoints (listen on :data:`DEFAULT_ENDPOINT` when
     none is given) and, with ``low_latency``, :data:`TRANSPORT_SETTINGS` (else Zenoh's queued transport)."""
     import zenoh
@@ -174,6 +177,7 @@ class LiveNode:
         self.bad_messages = 0
         self.stale_samples = 0
         self.raised = 0  # flag bits raised since the last diagnostics message (a contact may last one sample)
+        self.closing = False  # set when the node shuts down: callbacks still in flight stop publishing
         self.last_message = time.monotonic()
         self.topics = {"wrench": (options.wrench_topic, WRENCH_TYPE), "imu": (options.imu_topic, IMU_TYPE),
                        "joints": (options.joints_topic, JOINT_STATE_TYPE),
@@ -231,15 +235,20 @@ class LiveNode:
             after = self.live.flags_now
             if after != before:
                 self.raised |= after & ~before
-        if self.attachments:
-            now = time.time_ns()
-            self.publishers["calibrated"].put(encode_like(msg, result.calibrated.tolist()),
-                                              attachment=self.attachments["calibrated"].next(now))
-            self.publishers["compensated"].put(encode_like(msg, result.compensated.tolist()),
-                                               attachment=self.attachments["compensated"].next(now))
-        else:
-            self.publishers["calibrated"].put(encode_like(msg, result.calibrated.tolist()))
-            self.publishers["compensated"].put(encode_like(msg, result.compensated.tolist()))
+        try:
+            if self.attachments:
+                now = time.time_ns()
+                self.publishers["calibrated"].put(encode_like(msg, result.calibrated.tolist()),
+                                                  attachment=self.attachments["calibrated"].next(now))
+                self.publishers["compensated"].put(encode_like(msg, result.compensated.tolist()),
+                                                   attachment=self.attachments["compensated"].next(now))
+            else:
+                self.publishers["calibrated"].put(encode_like(msg, result.calibrated.tolist()))
+                self.publishers["compensated"].put(encode_like(msg, result.compensated.tolist()))
+        except Exception:  # zenoh.ZError once the publishers are undeclared on the way out: the step is done and
+            if self.closing:  # saved with the state, only its answer is not sent
+                return
+            raise
         if after != before:
             self.wake.set()
             for flag, reason in result.flags.items():  # contacts come and go: diagnostics carry them
@@ -346,7 +355,8 @@ class LiveNode:
             self.settle()
             self._loop()
         finally:
-            for entity in entities:
+            self.closing = True  # a callback already running when its subscriber goes may not put any more
+            for entity in reversed(entities):  # subscribers and queryables before the publishers they use
                 try:
                     entity.undeclare()
                 except Exception:  # the session may already be closing
