@@ -44,7 +44,8 @@ import numpy as np
 
 from ..check.accept import Thresholds
 from ..core.excitation import SPAN_RELATIVE_FLOOR, span_limit
-from ..core.limits import C_RUNTIME_MAX_HOLDS, C_RUNTIME_MAX_TOOL_NAME, C_RUNTIME_MAX_TOOLS, LIVE_MIN_HOLDS
+from ..core.limits import (C_RUNTIME_MAX_EVENTS, C_RUNTIME_MAX_HOLDS, C_RUNTIME_MAX_TOOL_NAME, C_RUNTIME_MAX_TOOLS,
+                           LIVE_MIN_HOLDS)
 from ..core.ranges import RANGE_TOLERANCE
 from ..data.holds import HOLD_WINDOW_S, MIN_ANGULAR_RATE, MIN_HOLD_S
 from ..data.signals import SATURATION_RUN, STUCK_RUN
@@ -54,11 +55,12 @@ from ..files.model_json import ModelFile, ftcal_version
 from ..files.targets import ConvertOptions, Written
 from ..runtime.atomic import write_text_atomic
 from ..runtime.errors import FtcalError
-from .c_health import describe_text, note_text, reason_fields
+from .c_events import describe_event_text, event_fields, event_types, log_text
+from .c_health import describe_text, flag_events_text, reason_fields
 from .c_identify import TOOL_STATUS, _array, _num, collect_text, finish_text, state_fields
 from .calibrator import (DEFAULT_NOISE_FRACTION, DEFAULT_WALK_FRACTION, GATE_PROBABILITY, NO_TOOL, RETARE_VARIANCE,
                          SECONDS_PER_HOUR, UNEXPLAINED_SECONDS, UNEXPLAINED_SIGMA, _walk_from_knots)
-from .health import BIT, DEAD_RUN
+from .health import BIT, DEAD_RUN, FLAGS
 
 DEFAULT_NAME = "ftcal_runtime"
 HISTORY = 1024
@@ -196,6 +198,12 @@ def generate_c_runtime(model, tools: dict, *, name: str = DEFAULT_NAME, sha256: 
 extern "C" {{
 #endif
 
+#if defined(__GNUC__)
+#define {macro}_RARE __attribute__((noinline, cold))   /* off the step's path: run on transitions only */
+#else
+#define {macro}_RARE
+#endif
+
 #define {macro}_N_INPUTS {nu}
 #define {macro}_N_TOOLS {len(names)}
 #define {macro}_N_CHANNELS {nc}
@@ -209,6 +217,7 @@ extern "C" {{
 #define {macro}_HISTORY {HISTORY}
 #endif
 {bits}
+#define {macro}_N_FLAGS {len(FLAGS)}
 
 static inline const char *{name}_input_name(int input)
 {{
@@ -224,6 +233,7 @@ static const int {name}_channels[{macro}_N_CHANNELS] = {{{', '.join(map(str, cha
 /* the channels' training range: beyond it, flat for {SATURATION_RUN} samples, a channel is saturated */
 static const double {name}_channel_range[{macro}_N_CHANNELS][2] = {{{', '.join(_array(rng[c]) for c in channels)}}};
 
+{event_types(macro, name, C_RUNTIME_MAX_EVENTS)}
 typedef struct {{
     /* configuration: NAME_init sets the generated defaults; change them after init if needed */
     double noise_variance[6];    /* r: per-sample noise variance of the calibrated wrench */
@@ -253,7 +263,8 @@ typedef struct {{
     unsigned flags;
     unsigned long samples, updates, contacts, retares, switches;
 {state_fields(macro)}
-{reason_fields(macro)}
+{reason_fields(macro, name)}
+{event_fields(macro, name)}
 }} {name}_state;
 
 typedef struct {{
@@ -305,7 +316,7 @@ static inline int {name}_init({name}_state *s, int tool)
     }}
     return 0;
 }}
-
+{log_text(name, macro)}
 /* The name of tool `tool`: 0 is "none", then the payload files' in the order given, then the tools identified in
    place (in the order they were first added); 0 (a null pointer) for an index not in the library. */
 static inline const char *{name}_tool_name(const {name}_state *s, int tool)
@@ -341,7 +352,10 @@ static inline int {name}_check_new_tool(const {name}_state *s, const char *tool_
    kept. Returns 0, or -1 for an index not in the library (0 .. s->n_tools - 1). */
 static inline int {name}_set_tool({name}_state *s, int tool)
 {{
+    {name}_event ev;
     if (tool < 0 || tool >= s->n_tools) return -1;
+    {name}_call_event(s, {macro}_EVENT_TOOL_SWITCHED, s->tool, tool, &ev);
+    {name}_log_event(s, &ev);
     s->tool = tool;
     s->switches += 1;
     return 0;
@@ -350,7 +364,10 @@ static inline int {name}_set_tool({name}_state *s, int tool)
 /* Re-tare, tool kept, in any pose: the bias forgets its value; the next static samples set it. */
 static inline void {name}_retare({name}_state *s)
 {{
+    {name}_event ev;
     int j;
+    {name}_call_event(s, {macro}_EVENT_RETARE, s->tool, s->tool, &ev);
+    {name}_log_event(s, &ev);
     for (j = 0; j < 6; ++j)
         if (s->variance[j] < {_num(RETARE_VARIANCE)} * s->noise_variance[j])
             s->variance[j] = {_num(RETARE_VARIANCE)} * s->noise_variance[j];
@@ -391,7 +408,7 @@ static inline void {name}_motion({name}_state *s, double time, const double *dir
     *still = *still && (time - s->last_moving >= s->min_hold);
 }}
 
-{collect_text(name, macro)}{note_text(name, macro, t_col)}
+{collect_text(name, macro)}{flag_events_text(name, macro, t_col)}
 /* One sample: time in s (strictly increasing), u[N_INPUTS] the raw channels, gravity[3] in sensor axes
    (m/s^2, any nonzero length for the direction), static_override -1 (motion test), 0 or 1.
    Returns 0, or -1 (state untouched, out not written) for non-finite input, time that does not
@@ -492,7 +509,7 @@ static inline int {name}_step({name}_state *s, double time, const double *u, con
     }} else {{
         s->exceeding = 0;
     }}
-    if (flags & ~s->flags) {name}_note_reasons(s, flags & ~s->flags, time - s->exceed_start, u, e, chi2, moving);
+    if (flags != s->flags) {name}_flag_events(s, flags, time, time - s->exceed_start, u, e, chi2, moving);
     if ((flags & {macro}_FLAG_CONTACT) && !(s->flags & {macro}_FLAG_CONTACT)) s->contacts += 1;
     s->flags = flags;
     s->updates += (unsigned long)gate;
@@ -507,7 +524,7 @@ static inline int {name}_step({name}_state *s, double time, const double *u, con
 }}
 
 {finish_text(name, macro, max_holds)}{describe_text(name, macro, [repr(t) for t in names],
-                                             None if t_col is None else tuple(rng[t_col]))}
+                                             None if t_col is None else tuple(rng[t_col]))}{describe_event_text(name, macro)}
 #ifdef __cplusplus
 }}
 #endif
