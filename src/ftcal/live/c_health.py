@@ -5,7 +5,8 @@ reasons :class:`ftcal.live.LiveCalibrator` gives for the same flags (``LiveSampl
 ``raised`` events): the reason a flag was last raised with, its numbers (channels, run lengths,
 temperature, χ², the tool, the innovation) taken when it was raised, as Python keeps them
 (``reason_of``), joined by ``"; "`` in bit order; a flag never raised is its name. The step stores
-those numbers only on a sample that raises a flag, so the usual sample pays one test.
+those numbers only on a sample whose flags change, as the flag's ``raised`` event (logged, and kept as the
+flag's last raised; :mod:`ftcal.live.c_events`), so the usual sample pays one test.
 
 The reasons' fixed words are written here after the Python templates of :mod:`ftcal.live.calibrator`
 (``tests/test_c_runtime_library.py`` holds the two texts equal); names from files reach the C only

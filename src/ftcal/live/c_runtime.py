@@ -24,9 +24,11 @@ name given to ``NAME_start_identification`` (copied into a fixed slot of at most
 :data:`~ftcal.core.limits.C_RUNTIME_MAX_TOOL_NAME` bytes; :data:`~ftcal.core.limits.C_RUNTIME_MAX_TOOLS`
 slots), replacing a tool of that name (same index) or taking the next index, so indices follow
 Python's ``list(live.tools)``; ``NAME_find_tool`` looks a name up. Flags have names and Python's
-reasons as text (:mod:`ftcal.live.c_health`).
+reasons as text (:mod:`ftcal.live.c_health`). Tool switches, identifications, re-tares and flags raised or
+cleared go into an event log, a ring of ``NAME_MAX_EVENTS`` events with Python's texts
+(:mod:`ftcal.live.c_events`).
 
-What the C does not do (the Python calibrator does): warnings as text and an event log, the ``silent``
+What the C does not do (the Python calibrator does): warnings as text, the ``silent``
 flag (a transport's), a separate temperature input (the model's temperature input is used),
 quaternion or joint motion signals (the gravity direction is the motion signal, as with
 ``gravity=``), state files. The motion history holds the newest
@@ -572,4 +574,5 @@ def write_c_runtime(source: ModelFile, output: Path, options: ConvertOptions) ->
                "1 tool (none); add tools with --payload-file")
     return Written((output,), (f"{name}_init / {name}_step / {name}_set_tool / {name}_find_tool / {name}_retare / "
                                f"{name}_start_identification / {name}_finish_identification / "
-                               f"{name}_describe_flags; {library}",))
+                               f"{name}_describe_flags / {name}_event_count / {name}_get_event / "
+                               f"{name}_describe_event / {name}_clear_events; {library}",))
