@@ -84,11 +84,11 @@ def collect_text(name: str, macro: str) -> str:
    and {macro}_MAX_ADDED_TOOLS tools added already). */
 static inline int {name}_start_identification({name}_state *s, const char *tool_name)
 {{
-    int status = {name}_check_new_tool(s, tool_name);
+    int status = {name}_check_new_tool(s, tool_name), index;
     {name}_event ev;
     if (status) return status;
-    {name}_call_event(s, {macro}_EVENT_TOOL_IDENTIFYING, -1, {name}_find_tool(s, tool_name), &ev);
-    ev.tool_from = ev.tool_to;
+    index = {name}_find_tool(s, tool_name);   /* -1 for a new name */
+    {name}_call_event(s, {macro}_EVENT_TOOL_IDENTIFYING, index, index, &ev);
     memcpy(ev.tool_name, tool_name, strlen(tool_name) + 1);
     {name}_log_event(s, &ev);
     memcpy(s->identifying_name, tool_name, strlen(tool_name) + 1);
