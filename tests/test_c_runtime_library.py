@@ -151,21 +151,48 @@ long describe(unsigned mask, char *buf, long len)
 }
 
 const char *flag_name(unsigned bit) { return rt_flag_name(bit); }
+
+/* The event log `replay` (or `fill`) left: event i (0 = the oldest kept), its text, the count, the dropped. */
+int event_count(void) { return rt_event_count(&last); }
+unsigned long events_dropped(void) { return rt_events_dropped(&last); }
+void clear_events(void) { rt_clear_events(&last); }
+const char *event_kind_name(int kind) { return rt_event_kind_name(kind); }
+int get_event(int i, double *time, long *fields)   /* fields: sample, kind, flag, tool_from, tool_to */
+{
+    rt_event ev;
+    if (rt_get_event(&last, i, &ev)) return -1;
+    *time = ev.time;
+    fields[0] = (long)ev.sample;
+    fields[1] = ev.kind;
+    fields[2] = (long)ev.flag;
+    fields[3] = ev.tool_from;
+    fields[4] = ev.tool_to;
+    return 0;
+}
+long describe_event(int i, char *buf, long len)
+{
+    rt_event ev;
+    if (rt_get_event(&last, i, &ev)) return -1;
+    return (long)rt_describe_event(&last, &ev, buf, (size_t)len);
+}
 """
 
 
-def build(tmp_path, header: str):
+def build(tmp_path, header: str, defines=()):
+    """Compile the driver against ``header`` (``defines``: ``-D`` options, e.g. ``RT_MAX_EVENTS=5``)."""
     (tmp_path / "rt.h").write_text(header)
     (tmp_path / "driver.c").write_text("#include <stdio.h>\n" + DRIVER)
     library = tmp_path / "driver.so"
     done = subprocess.run([CC, "-O2", "-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-shared", "-fPIC",
-                           "driver.c", "-o", str(library), "-lm"], cwd=tmp_path, capture_output=True, text=True)
+                           *(f"-D{d}" for d in defines), "driver.c", "-o", str(library), "-lm"], cwd=tmp_path,
+                          capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     lib = ctypes.CDLL(str(library))
-    for f in ("replay", "n_tools", "find_tool", "quoted", "fill", "start_code"):
+    for f in ("replay", "n_tools", "find_tool", "quoted", "fill", "start_code", "event_count", "get_event"):
         getattr(lib, f).restype = ctypes.c_int
-    lib.describe.restype = ctypes.c_long
-    lib.tool_name.restype = lib.flag_name.restype = ctypes.c_char_p
+    lib.describe.restype = lib.describe_event.restype = ctypes.c_long
+    lib.events_dropped.restype = ctypes.c_ulong
+    lib.tool_name.restype = lib.flag_name.restype = lib.event_kind_name.restype = ctypes.c_char_p
     return lib
 
 

@@ -263,6 +263,11 @@ C_RUNTIME_MAX_TOOL_NAME = 63
 """Longest tool name, in bytes (UTF-8, without the terminating NUL), the generated C runtime copies into a slot at
 run time; a longer or empty name is refused."""
 
+C_RUNTIME_MAX_EVENTS = 64
+"""Events (tool switched, identifying, identified, re-tare, flag raised or cleared) the generated C runtime's state
+keeps in a ring (fixed size, no allocation): past it the oldest is overwritten and counted; a user may ``#define
+NAME_MAX_EVENTS`` before including the header to keep another number."""
+
 LIVE_KEY_CONVENTIONS = ("bridge", "rmw_zenoh")
 """Zenoh key expressions of ``ftcal live --zenoh``'s ROS topics: zenoh-bridge-ros2dds's (topic ``/ft/raw`` is key
 ``ft/raw``) or rmw_zenoh's (``<domain>/<topic>/<DDS type>/<RIHS01 type hash>``, with attachments and liveliness)."""

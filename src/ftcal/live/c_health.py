@@ -5,7 +5,8 @@ reasons :class:`ftcal.live.LiveCalibrator` gives for the same flags (``LiveSampl
 ``raised`` events): the reason a flag was last raised with, its numbers (channels, run lengths,
 temperature, χ², the tool, the innovation) taken when it was raised, as Python keeps them
 (``reason_of``), joined by ``"; "`` in bit order; a flag never raised is its name. The step stores
-those numbers only on a sample that raises a flag, so the usual sample pays one test.
+those numbers only on a sample whose flags change, as the flag's ``raised`` event (logged, and kept as the
+flag's last raised; :mod:`ftcal.live.c_events`), so the usual sample pays one test.
 
 The reasons' fixed words are written here after the Python templates of :mod:`ftcal.live.calibrator`
 (``tests/test_c_runtime_library.py`` holds the two texts equal); names from files reach the C only
@@ -24,72 +25,70 @@ from .calibrator import OUT_OF_RANGE_TEXT
 from .health import DEAD_RUN, FLAGS
 
 
-def reason_fields(macro: str) -> str:
-    """The state struct's fields that keep each flag's numbers as last raised."""
-    return f"""    /* each flag's numbers as it was last raised (NAME_describe_flags) */
+def reason_fields(macro: str, name: str) -> str:
+    """The state struct's fields that keep each flag's event as last raised."""
+    return f"""    /* each flag's event as it was last raised (NAME_describe_flags) */
     unsigned raised_ever;        /* flags raised at least once */
-    unsigned char why_saturated[{macro}_N_CHANNELS], why_stuck[{macro}_N_CHANNELS], why_dead[{macro}_N_CHANNELS];
-    long why_stuck_run, why_dead_run;
-    int why_adc;
-    double why_adc_low, why_adc_high, why_temperature;
-    int why_tool;
-    double why_chi2, why_gate, why_sigma, why_seconds, why_duration, why_innovation[6];"""
+    {name}_event last_raised[{macro}_N_FLAGS];"""
 
 
-def note_text(name: str, macro: str, t_col: int | None) -> str:
-    """``NAME_note_reasons``: the step calls it on a sample that raises a flag (before NAME_step)."""
+def flag_events_text(name: str, macro: str, t_col: int | None) -> str:
+    """``NAME_flag_events``: the step calls it on a sample whose flags change (before NAME_step)."""
     temperature = "0.0" if t_col is None else f"u[{t_col}]"
     return f"""
-/* The numbers of the flags `raised` on this sample, kept for NAME_describe_flags (called by NAME_step, after the run
-   lengths are updated; the flagged channels are found again here, so that the usual sample stores nothing). */
-#if defined(__GNUC__)
-#define {macro}_RARE __attribute__((noinline, cold))   /* off the step's path: called on the samples raising a flag */
-#else
-#define {macro}_RARE
-#endif
-static {macro}_RARE void {name}_note_reasons({name}_state *s, unsigned raised, double duration, const double *u,
-                                            const double *e, double chi2, int moving)
+/* The events of a sample whose flags change, in bit order (LiveCalibrator's order): a cleared flag, or a raised one
+   with the numbers of its reason (kept as the flag's last raised, for NAME_describe_flags, and logged). Called by
+   NAME_step after the run lengths are updated; the flagged channels are found again here, so that the usual sample
+   stores nothing. */
+static {macro}_RARE void {name}_flag_events({name}_state *s, unsigned flags, double time, double duration,
+                                           const double *u, const double *e, double chi2, int moving)
 {{
-    int j, k;
-    s->raised_ever |= raised;
-    if (raised & {macro}_FLAG_SATURATED) {{
-        for (j = 0; j < {macro}_N_CHANNELS; ++j) {{
-            double x = u[{name}_channels[j]];
-            s->why_saturated[j] = s->use_adc_limits ? x <= s->adc_low || x >= s->adc_high
-                : (x < {name}_channel_range[j][0] || x > {name}_channel_range[j][1]) && s->run[j] >= {SATURATION_RUN};
-        }}
-        s->why_adc = s->use_adc_limits;
-        s->why_adc_low = s->adc_low;
-        s->why_adc_high = s->adc_high;
-    }}
-    if (raised & ({macro}_FLAG_STUCK | {macro}_FLAG_DEAD)) {{
-        if (raised & {macro}_FLAG_STUCK) s->why_stuck_run = 0;
-        if (raised & {macro}_FLAG_DEAD) s->why_dead_run = 0;
-        for (j = 0; j < {macro}_N_CHANNELS; ++j) {{
-            int other = 0, stuck;
-            for (k = 0; k < {macro}_N_CHANNELS; ++k) if (k != j && s->run[k] == 1) other = 1;   /* k changed */
-            stuck = s->run[j] >= {STUCK_RUN} && (other || moving);
-            if (raised & {macro}_FLAG_DEAD) {{
-                s->why_dead[j] = stuck && s->run[j] >= {DEAD_RUN};
-                if (s->why_dead[j] && s->run[j] > s->why_dead_run) s->why_dead_run = s->run[j];
+    unsigned changed = flags ^ s->flags;
+    int i, j, k;
+    for (i = 0; i < {macro}_N_FLAGS; ++i) {{
+        unsigned bit = 1u << i;
+        {name}_event ev;
+        if (!(changed & bit)) continue;
+        memset(&ev, 0, sizeof ev);
+        ev.time = time;
+        ev.sample = s->samples;
+        ev.flag = bit;
+        ev.tool_from = ev.tool_to = s->tool;
+        ev.kind = flags & bit ? {macro}_EVENT_FLAG_RAISED : {macro}_EVENT_FLAG_CLEARED;
+        if (bit == {macro}_FLAG_SATURATED && (flags & bit)) {{
+            for (j = 0; j < {macro}_N_CHANNELS; ++j) {{
+                double x = u[{name}_channels[j]];
+                ev.channels[j] = s->use_adc_limits ? x <= s->adc_low || x >= s->adc_high
+                    : (x < {name}_channel_range[j][0] || x > {name}_channel_range[j][1]) && s->run[j] >= {SATURATION_RUN};
             }}
-            if (raised & {macro}_FLAG_STUCK) {{
-                s->why_stuck[j] = stuck && s->run[j] < {DEAD_RUN};
-                if (s->why_stuck[j] && s->run[j] > s->why_stuck_run) s->why_stuck_run = s->run[j];
+            ev.value[0] = s->use_adc_limits;
+            ev.value[1] = s->adc_low;
+            ev.value[2] = s->adc_high;
+        }} else if ((bit == {macro}_FLAG_STUCK || bit == {macro}_FLAG_DEAD) && (flags & bit)) {{
+            for (j = 0; j < {macro}_N_CHANNELS; ++j) {{
+                int other = 0, stuck;
+                for (k = 0; k < {macro}_N_CHANNELS; ++k) if (k != j && s->run[k] == 1) other = 1;   /* k changed */
+                stuck = s->run[j] >= {STUCK_RUN} && (other || moving);
+                ev.channels[j] = bit == {macro}_FLAG_DEAD ? stuck && s->run[j] >= {DEAD_RUN}
+                                                          : stuck && s->run[j] < {DEAD_RUN};
+                if (ev.channels[j] && s->run[j] > ev.count) ev.count = s->run[j];
             }}
+        }} else if (bit == {macro}_FLAG_TEMPERATURE) {{
+            ev.value[0] = {temperature};
+        }} else if (bit == {macro}_FLAG_CONTACT) {{
+            ev.value[0] = chi2;
+            ev.value[1] = s->gate_chi2;
+        }} else if (bit == {macro}_FLAG_UNEXPLAINED) {{
+            ev.value[0] = s->unexplained_sigma;
+            ev.value[1] = s->unexplained_seconds;
+            ev.value[2] = duration;
+            for (j = 0; j < 6; ++j) ev.value[3 + j] = e[j];
         }}
-    }}
-    if (raised & {macro}_FLAG_TEMPERATURE) s->why_temperature = {temperature};
-    if (raised & {macro}_FLAG_CONTACT) {{
-        s->why_tool = s->tool;
-        s->why_chi2 = chi2;
-        s->why_gate = s->gate_chi2;
-    }}
-    if (raised & {macro}_FLAG_UNEXPLAINED) {{
-        s->why_duration = duration;
-        s->why_sigma = s->unexplained_sigma;
-        s->why_seconds = s->unexplained_seconds;
-        for (j = 0; j < 6; ++j) s->why_innovation[j] = e[j];
+        if (flags & bit) {{
+            s->raised_ever |= bit;
+            s->last_raised[i] = ev;
+        }}
+        {name}_log_event(s, &ev);
     }}
 }}
 """
@@ -147,18 +146,12 @@ static inline void {name}_text_long(char *buf, size_t len, size_t *at, long x)
     {name}_text_put(buf, len, at, t, n > 0 ? (size_t)n : 0);
 }}
 
-/* A tool's name quoted as Python's repr quotes a str: compiled-in tools from Python itself, run-time names here. */
-static inline void {name}_text_tool(const {name}_state *s, char *buf, size_t len, size_t *at, int tool)
+/* A name given at run time quoted as Python's repr quotes a str (nothing for a null pointer). */
+static inline void {name}_text_quoted(char *buf, size_t len, size_t *at, const char *tool_name)
 {{
-    static const char *const reprs[{macro}_N_TOOLS] = {{{', '.join(c_string(r) for r in tool_reprs)}}};
-    const unsigned char *p;
+    const unsigned char *p = (const unsigned char *)tool_name;
     char quote, t[8];
     int single = 0, double_quote = 0;
-    if (tool >= 0 && tool < {macro}_N_TOOLS) {{
-        {name}_text_str(buf, len, at, reprs[tool]);
-        return;
-    }}
-    p = (const unsigned char *){name}_tool_name(s, tool);
     if (!p) return;
     for (; *p; ++p) {{
         if (*p == '\\'') single = 1;
@@ -166,7 +159,7 @@ static inline void {name}_text_tool(const {name}_state *s, char *buf, size_t len
     }}
     quote = single && !double_quote ? '"' : '\\'';
     {name}_text_put(buf, len, at, &quote, 1);
-    for (p = (const unsigned char *){name}_tool_name(s, tool); *p; ++p) {{
+    for (p = (const unsigned char *)tool_name; *p; ++p) {{
         unsigned c = *p;
         if (c == (unsigned char)quote || c == '\\\\') {{
             t[0] = '\\\\';
@@ -190,6 +183,14 @@ static inline void {name}_text_tool(const {name}_state *s, char *buf, size_t len
     {name}_text_put(buf, len, at, &quote, 1);
 }}
 
+/* A tool's name quoted as Python's repr quotes a str: compiled-in tools from Python itself, run-time names here. */
+static inline void {name}_text_tool(const {name}_state *s, char *buf, size_t len, size_t *at, int tool)
+{{
+    static const char *const reprs[{macro}_N_TOOLS] = {{{', '.join(c_string(r) for r in tool_reprs)}}};
+    if (tool >= 0 && tool < {macro}_N_TOOLS) {name}_text_str(buf, len, at, reprs[tool]);
+    else {name}_text_quoted(buf, len, at, {name}_tool_name(s, tool));
+}}
+
 static inline void {name}_text_channels(char *buf, size_t len, size_t *at, const unsigned char *hit)
 {{
     int j, first = 1;
@@ -201,6 +202,72 @@ static inline void {name}_text_channels(char *buf, size_t len, size_t *at, const
         }}
 }}
 
+/* The reason of a flag's `raised` event, as LiveCalibrator words it with the numbers the event keeps. */
+static inline void {name}_text_reason(const {name}_state *s, const {name}_event *ev, char *buf, size_t len,
+                                      size_t *at)
+{{
+    unsigned bit = ev->flag;
+    int j;
+    if (bit == {macro}_FLAG_SATURATED) {{
+        {name}_text_str(buf, len, at, "channel ");
+        {name}_text_channels(buf, len, at, ev->channels);
+        if (ev->value[0] != 0.0) {{
+            {name}_text_str(buf, len, at, " saturated (at the ADC limits ");
+            {name}_text_num(buf, len, at, "%g", ev->value[1]);
+            {name}_text_str(buf, len, at, "/");
+            {name}_text_num(buf, len, at, "%g", ev->value[2]);
+            {name}_text_str(buf, len, at, ")");
+        }} else {{
+            {name}_text_str(buf, len, at,
+                            " saturated (flat for >= {SATURATION_RUN} samples outside the calibration's range)");
+        }}
+    }} else if (bit == {macro}_FLAG_STUCK) {{
+        {name}_text_str(buf, len, at, "channel ");
+        {name}_text_channels(buf, len, at, ev->channels);
+        {name}_text_str(buf, len, at, " stuck: one value for ");
+        {name}_text_long(buf, len, at, ev->count);
+        {name}_text_str(buf, len, at, " samples while the sensor or other channels move");
+    }} else if (bit == {macro}_FLAG_DEAD) {{
+        {name}_text_str(buf, len, at, "channel ");
+        {name}_text_channels(buf, len, at, ev->channels);
+        {name}_text_str(buf, len, at, " dead: one value for ");
+        {name}_text_long(buf, len, at, ev->count);
+        {name}_text_str(buf, len, at, " samples");
+    }} else if (bit == {macro}_FLAG_OUT_OF_RANGE) {{
+        {name}_text_str(buf, len, at, {c_string(OUT_OF_RANGE_TEXT)});
+    }} else if (bit == {macro}_FLAG_TEMPERATURE) {{
+        {name}_text_str(buf, len, at, "temperature ");
+        {name}_text_num(buf, len, at, "%.4g", ev->value[0]);
+        {name}_text_str(buf, len, at, " outside the calibration's ");
+        {name}_text_num(buf, len, at, "%.4g", {low});
+        {name}_text_str(buf, len, at, " to ");
+        {name}_text_num(buf, len, at, "%.4g", {high});
+    }} else if (bit == {macro}_FLAG_CONTACT) {{
+        {name}_text_str(buf, len, at, "wrench the tool ");
+        {name}_text_tool(s, buf, len, at, ev->tool_from);
+        {name}_text_str(buf, len, at, " and the bias do not explain (chi2 ");
+        {name}_text_num(buf, len, at, "%.3g", ev->value[0]);
+        {name}_text_str(buf, len, at, " > ");
+        {name}_text_num(buf, len, at, "%.3g", ev->value[1]);
+        {name}_text_str(buf, len, at, ", 6 dof); the bias is not updated");
+    }} else if (bit == {macro}_FLAG_UNEXPLAINED) {{
+        {name}_text_str(buf, len, at, "innovation beyond ");
+        {name}_text_num(buf, len, at, "%g", ev->value[0]);
+        {name}_text_str(buf, len, at, " sigma and the acceptance thresholds for ");
+        {name}_text_num(buf, len, at, "%.3g", ev->value[2]);
+        {name}_text_str(buf, len, at, " s (> ");
+        {name}_text_num(buf, len, at, "%g", ev->value[1]);
+        {name}_text_str(buf, len, at, " s): |compensated| = ");
+        for (j = 0; j < 6; ++j) {{
+            if (j) {name}_text_str(buf, len, at, ", ");
+            {name}_text_num(buf, len, at, "%.3g", fabs(ev->value[3 + j]));
+        }}
+    }} else {{
+        const char *flag = {name}_flag_name(bit);
+        if (flag) {name}_text_str(buf, len, at, flag);
+    }}
+}}
+
 /* The one-line reasons of the flags in `mask` (LiveCalibrator's, with the numbers of the sample that last raised
    each), joined by "; " in bit order; a flag never raised is its name, bits that are no flag are skipped.
    snprintf-style: writes at most len - 1 bytes and a NUL (nothing when len is 0; buf may then be 0) and returns
@@ -209,72 +276,15 @@ static inline size_t {name}_describe_flags(const {name}_state *s, unsigned mask,
 {{
     size_t at = 0;
     unsigned i;
-    int j, first = 1;
+    int first = 1;
     for (i = 0; i < 32; ++i) {{
         unsigned bit = 1u << i;
         const char *flag = {name}_flag_name(bit);
         if (!(mask & bit) || !flag) continue;
         if (!first) {name}_text_str(buf, len, &at, "; ");
         first = 0;
-        if (!(s->raised_ever & bit)) {{
-            {name}_text_str(buf, len, &at, flag);
-        }} else if (bit == {macro}_FLAG_SATURATED) {{
-            {name}_text_str(buf, len, &at, "channel ");
-            {name}_text_channels(buf, len, &at, s->why_saturated);
-            if (s->why_adc) {{
-                {name}_text_str(buf, len, &at, " saturated (at the ADC limits ");
-                {name}_text_num(buf, len, &at, "%g", s->why_adc_low);
-                {name}_text_str(buf, len, &at, "/");
-                {name}_text_num(buf, len, &at, "%g", s->why_adc_high);
-                {name}_text_str(buf, len, &at, ")");
-            }} else {{
-                {name}_text_str(buf, len, &at,
-                                " saturated (flat for >= {SATURATION_RUN} samples outside the calibration's range)");
-            }}
-        }} else if (bit == {macro}_FLAG_STUCK) {{
-            {name}_text_str(buf, len, &at, "channel ");
-            {name}_text_channels(buf, len, &at, s->why_stuck);
-            {name}_text_str(buf, len, &at, " stuck: one value for ");
-            {name}_text_long(buf, len, &at, s->why_stuck_run);
-            {name}_text_str(buf, len, &at, " samples while the sensor or other channels move");
-        }} else if (bit == {macro}_FLAG_DEAD) {{
-            {name}_text_str(buf, len, &at, "channel ");
-            {name}_text_channels(buf, len, &at, s->why_dead);
-            {name}_text_str(buf, len, &at, " dead: one value for ");
-            {name}_text_long(buf, len, &at, s->why_dead_run);
-            {name}_text_str(buf, len, &at, " samples");
-        }} else if (bit == {macro}_FLAG_OUT_OF_RANGE) {{
-            {name}_text_str(buf, len, &at, {c_string(OUT_OF_RANGE_TEXT)});
-        }} else if (bit == {macro}_FLAG_TEMPERATURE) {{
-            {name}_text_str(buf, len, &at, "temperature ");
-            {name}_text_num(buf, len, &at, "%.4g", s->why_temperature);
-            {name}_text_str(buf, len, &at, " outside the calibration's ");
-            {name}_text_num(buf, len, &at, "%.4g", {low});
-            {name}_text_str(buf, len, &at, " to ");
-            {name}_text_num(buf, len, &at, "%.4g", {high});
-        }} else if (bit == {macro}_FLAG_CONTACT) {{
-            {name}_text_str(buf, len, &at, "wrench the tool ");
-            {name}_text_tool(s, buf, len, &at, s->why_tool);
-            {name}_text_str(buf, len, &at, " and the bias do not explain (chi2 ");
-            {name}_text_num(buf, len, &at, "%.3g", s->why_chi2);
-            {name}_text_str(buf, len, &at, " > ");
-            {name}_text_num(buf, len, &at, "%.3g", s->why_gate);
-            {name}_text_str(buf, len, &at, ", 6 dof); the bias is not updated");
-        }} else if (bit == {macro}_FLAG_UNEXPLAINED) {{
-            {name}_text_str(buf, len, &at, "innovation beyond ");
-            {name}_text_num(buf, len, &at, "%g", s->why_sigma);
-            {name}_text_str(buf, len, &at, " sigma and the acceptance thresholds for ");
-            {name}_text_num(buf, len, &at, "%.3g", s->why_duration);
-            {name}_text_str(buf, len, &at, " s (> ");
-            {name}_text_num(buf, len, &at, "%g", s->why_seconds);
-            {name}_text_str(buf, len, &at, " s): |compensated| = ");
-            for (j = 0; j < 6; ++j) {{
-                if (j) {name}_text_str(buf, len, &at, ", ");
-                {name}_text_num(buf, len, &at, "%.3g", fabs(s->why_innovation[j]));
-            }}
-        }} else {{
-            {name}_text_str(buf, len, &at, flag);
-        }}
+        if (!(s->raised_ever & bit)) {name}_text_str(buf, len, &at, flag);
+        else {name}_text_reason(s, &s->last_raised[i], buf, len, &at);
     }}
     if (len > 0) buf[at < len ? at : len - 1] = '\\0';
     return at;

@@ -84,8 +84,13 @@ def collect_text(name: str, macro: str) -> str:
    and {macro}_MAX_ADDED_TOOLS tools added already). */
 static inline int {name}_start_identification({name}_state *s, const char *tool_name)
 {{
-    int status = {name}_check_new_tool(s, tool_name);
+    int status = {name}_check_new_tool(s, tool_name), index;
+    {name}_event ev;
     if (status) return status;
+    index = {name}_find_tool(s, tool_name);   /* -1 for a new name */
+    {name}_call_event(s, {macro}_EVENT_TOOL_IDENTIFYING, index, index, &ev);
+    memcpy(ev.tool_name, tool_name, strlen(tool_name) + 1);
+    {name}_log_event(s, &ev);
     memcpy(s->identifying_name, tool_name, strlen(tool_name) + 1);
     s->identifying = 1;
     s->in_hold = 0;
@@ -386,6 +391,7 @@ static inline int {name}_add_identified({name}_state *s, const char *tool_name, 
                                         const {name}_tool_se *se, int mount)
 {{
     int j, index, finite = isfinite(tool->mass) && tool->mass != 0.0, status = {name}_check_new_tool(s, tool_name);
+    {name}_event ev;
     for (j = 0; j < 3; ++j) finite = finite && isfinite(tool->com[j]) && isfinite(tool->mass * tool->com[j]);
     for (j = 0; j < 6; ++j) finite = finite && isfinite(tool->bias[j]) && !isinf(se->bias[j] * se->bias[j]);
     if (!finite) return -1;
@@ -401,7 +407,15 @@ static inline int {name}_add_identified({name}_state *s, const char *tool_name, 
     s->tool_mass[index] = tool->mass;
     for (j = 0; j < 3; ++j) s->tool_mc[index][j] = tool->mass * tool->com[j];
     s->tool_sign[index] = 1.0;   /* identified from the readings themselves (reaction=False) */
+    {name}_call_event(s, {macro}_EVENT_TOOL_IDENTIFIED, index, index, &ev);
+    ev.count = tool->n_holds;
+    ev.value[0] = tool->mass;
+    ev.value[1] = se->mass;
+    memcpy(ev.tool_name, tool_name, strlen(tool_name) + 1);
+    {name}_log_event(s, &ev);
     if (mount) {{
+        {name}_call_event(s, {macro}_EVENT_TOOL_SWITCHED, s->tool, index, &ev);
+        {name}_log_event(s, &ev);
         s->tool = index;
         s->switches += 1;
         for (j = 0; j < 6; ++j) {{

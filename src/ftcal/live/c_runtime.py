@@ -24,9 +24,11 @@ name given to ``NAME_start_identification`` (copied into a fixed slot of at most
 :data:`~ftcal.core.limits.C_RUNTIME_MAX_TOOL_NAME` bytes; :data:`~ftcal.core.limits.C_RUNTIME_MAX_TOOLS`
 slots), replacing a tool of that name (same index) or taking the next index, so indices follow
 Python's ``list(live.tools)``; ``NAME_find_tool`` looks a name up. Flags have names and Python's
-reasons as text (:mod:`ftcal.live.c_health`).
+reasons as text (:mod:`ftcal.live.c_health`). Tool switches, identifications, re-tares and flags raised or
+cleared go into an event log, a ring of ``NAME_MAX_EVENTS`` events with Python's texts
+(:mod:`ftcal.live.c_events`).
 
-What the C does not do (the Python calibrator does): warnings as text and an event log, the ``silent``
+What the C does not do (the Python calibrator does): warnings as text, the ``silent``
 flag (a transport's), a separate temperature input (the model's temperature input is used),
 quaternion or joint motion signals (the gravity direction is the motion signal, as with
 ``gravity=``), state files. The motion history holds the newest
@@ -44,7 +46,8 @@ import numpy as np
 
 from ..check.accept import Thresholds
 from ..core.excitation import SPAN_RELATIVE_FLOOR, span_limit
-from ..core.limits import C_RUNTIME_MAX_HOLDS, C_RUNTIME_MAX_TOOL_NAME, C_RUNTIME_MAX_TOOLS, LIVE_MIN_HOLDS
+from ..core.limits import (C_RUNTIME_MAX_EVENTS, C_RUNTIME_MAX_HOLDS, C_RUNTIME_MAX_TOOL_NAME, C_RUNTIME_MAX_TOOLS,
+                           LIVE_MIN_HOLDS)
 from ..core.ranges import RANGE_TOLERANCE
 from ..data.holds import HOLD_WINDOW_S, MIN_ANGULAR_RATE, MIN_HOLD_S
 from ..data.signals import SATURATION_RUN, STUCK_RUN
@@ -54,11 +57,12 @@ from ..files.model_json import ModelFile, ftcal_version
 from ..files.targets import ConvertOptions, Written
 from ..runtime.atomic import write_text_atomic
 from ..runtime.errors import FtcalError
-from .c_health import describe_text, note_text, reason_fields
+from .c_events import describe_event_text, event_fields, event_types, log_text
+from .c_health import describe_text, flag_events_text, reason_fields
 from .c_identify import TOOL_STATUS, _array, _num, collect_text, finish_text, state_fields
 from .calibrator import (DEFAULT_NOISE_FRACTION, DEFAULT_WALK_FRACTION, GATE_PROBABILITY, NO_TOOL, RETARE_VARIANCE,
                          SECONDS_PER_HOUR, UNEXPLAINED_SECONDS, UNEXPLAINED_SIGMA, _walk_from_knots)
-from .health import BIT, DEAD_RUN
+from .health import BIT, DEAD_RUN, FLAGS
 
 DEFAULT_NAME = "ftcal_runtime"
 HISTORY = 1024
@@ -196,6 +200,12 @@ def generate_c_runtime(model, tools: dict, *, name: str = DEFAULT_NAME, sha256: 
 extern "C" {{
 #endif
 
+#if defined(__GNUC__)
+#define {macro}_RARE __attribute__((noinline, cold))   /* off the step's path: run on transitions only */
+#else
+#define {macro}_RARE
+#endif
+
 #define {macro}_N_INPUTS {nu}
 #define {macro}_N_TOOLS {len(names)}
 #define {macro}_N_CHANNELS {nc}
@@ -209,6 +219,7 @@ extern "C" {{
 #define {macro}_HISTORY {HISTORY}
 #endif
 {bits}
+#define {macro}_N_FLAGS {len(FLAGS)}
 
 static inline const char *{name}_input_name(int input)
 {{
@@ -224,6 +235,7 @@ static const int {name}_channels[{macro}_N_CHANNELS] = {{{', '.join(map(str, cha
 /* the channels' training range: beyond it, flat for {SATURATION_RUN} samples, a channel is saturated */
 static const double {name}_channel_range[{macro}_N_CHANNELS][2] = {{{', '.join(_array(rng[c]) for c in channels)}}};
 
+{event_types(macro, name, C_RUNTIME_MAX_EVENTS)}
 typedef struct {{
     /* configuration: NAME_init sets the generated defaults; change them after init if needed */
     double noise_variance[6];    /* r: per-sample noise variance of the calibrated wrench */
@@ -253,7 +265,8 @@ typedef struct {{
     unsigned flags;
     unsigned long samples, updates, contacts, retares, switches;
 {state_fields(macro)}
-{reason_fields(macro)}
+{reason_fields(macro, name)}
+{event_fields(macro, name)}
 }} {name}_state;
 
 typedef struct {{
@@ -305,7 +318,7 @@ static inline int {name}_init({name}_state *s, int tool)
     }}
     return 0;
 }}
-
+{log_text(name, macro)}
 /* The name of tool `tool`: 0 is "none", then the payload files' in the order given, then the tools identified in
    place (in the order they were first added); 0 (a null pointer) for an index not in the library. */
 static inline const char *{name}_tool_name(const {name}_state *s, int tool)
@@ -341,7 +354,10 @@ static inline int {name}_check_new_tool(const {name}_state *s, const char *tool_
    kept. Returns 0, or -1 for an index not in the library (0 .. s->n_tools - 1). */
 static inline int {name}_set_tool({name}_state *s, int tool)
 {{
+    {name}_event ev;
     if (tool < 0 || tool >= s->n_tools) return -1;
+    {name}_call_event(s, {macro}_EVENT_TOOL_SWITCHED, s->tool, tool, &ev);
+    {name}_log_event(s, &ev);
     s->tool = tool;
     s->switches += 1;
     return 0;
@@ -350,7 +366,10 @@ static inline int {name}_set_tool({name}_state *s, int tool)
 /* Re-tare, tool kept, in any pose: the bias forgets its value; the next static samples set it. */
 static inline void {name}_retare({name}_state *s)
 {{
+    {name}_event ev;
     int j;
+    {name}_call_event(s, {macro}_EVENT_RETARE, s->tool, s->tool, &ev);
+    {name}_log_event(s, &ev);
     for (j = 0; j < 6; ++j)
         if (s->variance[j] < {_num(RETARE_VARIANCE)} * s->noise_variance[j])
             s->variance[j] = {_num(RETARE_VARIANCE)} * s->noise_variance[j];
@@ -391,7 +410,7 @@ static inline void {name}_motion({name}_state *s, double time, const double *dir
     *still = *still && (time - s->last_moving >= s->min_hold);
 }}
 
-{collect_text(name, macro)}{note_text(name, macro, t_col)}
+{collect_text(name, macro)}{flag_events_text(name, macro, t_col)}
 /* One sample: time in s (strictly increasing), u[N_INPUTS] the raw channels, gravity[3] in sensor axes
    (m/s^2, any nonzero length for the direction), static_override -1 (motion test), 0 or 1.
    Returns 0, or -1 (state untouched, out not written) for non-finite input, time that does not
@@ -492,7 +511,7 @@ static inline int {name}_step({name}_state *s, double time, const double *u, con
     }} else {{
         s->exceeding = 0;
     }}
-    if (flags & ~s->flags) {name}_note_reasons(s, flags & ~s->flags, time - s->exceed_start, u, e, chi2, moving);
+    if (flags != s->flags) {name}_flag_events(s, flags, time, time - s->exceed_start, u, e, chi2, moving);
     if ((flags & {macro}_FLAG_CONTACT) && !(s->flags & {macro}_FLAG_CONTACT)) s->contacts += 1;
     s->flags = flags;
     s->updates += (unsigned long)gate;
@@ -507,7 +526,7 @@ static inline int {name}_step({name}_state *s, double time, const double *u, con
 }}
 
 {finish_text(name, macro, max_holds)}{describe_text(name, macro, [repr(t) for t in names],
-                                             None if t_col is None else tuple(rng[t_col]))}
+                                             None if t_col is None else tuple(rng[t_col]))}{describe_event_text(name, macro)}
 #ifdef __cplusplus
 }}
 #endif
@@ -555,4 +574,5 @@ def write_c_runtime(source: ModelFile, output: Path, options: ConvertOptions) ->
                "1 tool (none); add tools with --payload-file")
     return Written((output,), (f"{name}_init / {name}_step / {name}_set_tool / {name}_find_tool / {name}_retare / "
                                f"{name}_start_identification / {name}_finish_identification / "
-                               f"{name}_describe_flags; {library}",))
+                               f"{name}_describe_flags / {name}_event_count / {name}_get_event / "
+                               f"{name}_describe_event / {name}_clear_events; {library}",))
