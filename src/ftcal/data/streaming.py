@@ -717,7 +717,9 @@ def _part_writer(part: str, schema):
         return pv.CSVWriter(part, schema)
     import pyarrow.parquet as pq
 
-    return pq.ParquetWriter(part, schema, write_page_checksum=True)
+    from .tables import parquet_write_options
+
+    return pq.ParquetWriter(part, schema, **parquet_write_options(schema))
 
 
 def join_parts(parts: Sequence[str], target: Path) -> None:
@@ -737,12 +739,15 @@ def join_parts(parts: Sequence[str], target: Path) -> None:
             return
         import pyarrow.parquet as pq
 
+        from .tables import parquet_write_options
+
         writer = None
         try:
             for part in parts:
                 with pq.ParquetFile(part, page_checksum_verification=True) as parquet:
                     for batch in parquet.iter_batches():
-                        writer = writer or pq.ParquetWriter(os.fspath(tmp), batch.schema, write_page_checksum=True)
+                        writer = writer or pq.ParquetWriter(os.fspath(tmp), batch.schema,
+                                                            **parquet_write_options(batch.schema))
                         writer.write_batch(batch)
         finally:
             if writer is not None:

@@ -498,6 +498,30 @@ def check_finite_output(frame, path: Path) -> None:
                                  "Inputs far outside the training range can overflow a high-degree model.")
 
 
+def parquet_write_options(schema) -> dict:
+    """Keyword arguments for every Parquet file ftcal writes (``pyarrow.parquet.ParquetWriter``, ``write_table``).
+
+    Page checksums on (ftcal's readers verify every page), and dictionary encoding for text columns only: on float
+    columns, whose values rarely repeat, pyarrow's default tried it on every page and gave up, which cost 4.4x the
+    write's CPU (0.76 against 0.17 CPU s for 360,000 rows of 29 columns) for a 25 % larger file.
+
+    Parameters
+    ----------
+    schema : pyarrow.Schema
+        The table's schema.
+
+    Returns
+    -------
+    dict
+        ``write_page_checksum`` and ``use_dictionary`` (the text columns' names).
+    """
+    import pyarrow as pa
+
+    text = [f.name for f in schema if pa.types.is_string(f.type) or pa.types.is_large_string(f.type)
+            or pa.types.is_dictionary(f.type)]
+    return {"write_page_checksum": True, "use_dictionary": text}
+
+
 def write_table(frame, path: str | os.PathLike) -> None:
     """Write a DataFrame as CSV or Parquet (by suffix), atomically."""
     path = Path(path)
@@ -509,4 +533,6 @@ def write_table(frame, path: str | os.PathLike) -> None:
         if suffix == ".csv":
             frame.to_csv(tmp, index=False, float_format="%.17g")
         else:
-            frame.to_parquet(tmp, index=False, write_page_checksum=True)  # readers verify every page
+            import pyarrow as pa
+
+            frame.to_parquet(tmp, index=False, **parquet_write_options(pa.Schema.from_pandas(frame, preserve_index=False)))

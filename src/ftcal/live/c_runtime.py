@@ -63,6 +63,7 @@ from .c_identify import TOOL_STATUS, _array, _num, collect_text, finish_text, st
 from .calibrator import (DEFAULT_NOISE_FRACTION, DEFAULT_WALK_FRACTION, GATE_PROBABILITY, NO_TOOL, RETARE_VARIANCE,
                          SECONDS_PER_HOUR, UNEXPLAINED_SECONDS, UNEXPLAINED_SIGMA, _walk_from_knots)
 from .health import BIT, DEAD_RUN, FLAGS
+from .tracker import gate_chi2
 
 DEFAULT_NAME = "ftcal_runtime"
 HISTORY = 1024
@@ -80,8 +81,6 @@ def runtime_parameters(tools: dict) -> dict:
     dict with ``noise_variance``, ``walk_variance`` (per s), ``accept_limit`` (ndarrays of shape (6,))
     and ``gate_chi2`` (float)
     """
-    from scipy.stats import chi2
-
     thresholds = Thresholds()
     scale = np.repeat([thresholds.force, thresholds.torque], 3)
     files = list(tools.values())
@@ -91,7 +90,7 @@ def runtime_parameters(tools: dict) -> dict:
     walk = next((w for w in map(_walk_from_knots, files) if w is not None),
                 (DEFAULT_WALK_FRACTION * scale) ** 2 / SECONDS_PER_HOUR)
     return {"noise_variance": noise ** 2, "walk_variance": np.asarray(walk, float), "accept_limit": scale,
-            "gate_chi2": float(chi2.ppf(GATE_PROBABILITY, 6))}
+            "gate_chi2": gate_chi2(GATE_PROBABILITY)}
 
 
 def _span(model) -> list[str]:

@@ -34,7 +34,7 @@ from ..payload.parameters import PayloadParameters
 from ..runtime.errors import FtcalError
 from .health import BIT, DEAD_RUN, FLAGS, ExceedanceTimer, RunCounter, names_of
 from .motion import MotionDetector
-from .tracker import track_block
+from .tracker import gate_chi2, track_block
 
 NO_TOOL = "none"
 STATE_FORMAT = "ftcal-live-state"
@@ -212,8 +212,6 @@ class LiveCalibrator:
                  motion_window: float = HOLD_WINDOW_S, min_rate: float = MIN_ANGULAR_RATE,
                  min_hold: float = MIN_HOLD_S, gravity_magnitude: float = STANDARD_GRAVITY,
                  state_path: str | Path | None = None, robot=None) -> None:
-        from scipy.stats import chi2
-
         if model is not None:
             if not getattr(model, "is_static", True):
                 raise FtcalError("the live calibrator takes static models (no ARX lags).")
@@ -249,7 +247,7 @@ class LiveCalibrator:
             walk_variance = next((w for w in [*map(_walk_from_file, files), *map(_walk_from_knots, files)]
                                   if w is not None), (DEFAULT_WALK_FRACTION * scale) ** 2 / SECONDS_PER_HOUR)
         self.walk_variance = walk_variance  # per second
-        self.threshold = float(chi2.ppf(gate_probability, 6))
+        self.threshold = gate_chi2(gate_probability)
         self.unexplained_sigma, self.unexplained_seconds = float(unexplained_sigma), float(unexplained_seconds)
         self.adc_limits = adc_limits
         model_temperature = self._model_temperature()

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..data.tables import parquet_write_options
 from ..runtime.errors import FtcalError
 from .calibrator import LiveCalibrator, LiveResult
 from .health import names_of
@@ -95,8 +96,8 @@ def result_columns(result: LiveResult) -> dict[str, np.ndarray]:
     cols.update({f"bias_std_{a}": result.bias_std[:, j] for j, a in enumerate(AXES)})
     cols["static"], cols["updated"], cols["chi2"] = result.static, result.updated, result.chi2
     cols["flags"] = result.flags.astype(np.int32)
-    unique = {int(f): ";".join(names_of(int(f))) for f in np.unique(result.flags)}
-    cols["flag_names"] = np.array([unique[int(f)] for f in result.flags], dtype=object)
+    masks, which = np.unique(result.flags, return_inverse=True)  # a handful of distinct masks: name each once
+    cols["flag_names"] = np.array([";".join(names_of(int(m))) for m in masks], dtype=object)[which.ravel()]
     cols["tool"] = np.full(result.time.size, result.tool, dtype=object)
     return cols
 
@@ -120,7 +121,7 @@ class _Writer:
 
             table = pa.Table.from_pandas(frame, preserve_index=False)
             if self.parquet is None:
-                self.parquet = pq.ParquetWriter(self.path, table.schema, write_page_checksum=True)
+                self.parquet = pq.ParquetWriter(self.path, table.schema, **parquet_write_options(table.schema))
             self.parquet.write_table(table)
         self.first = False
 

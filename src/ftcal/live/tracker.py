@@ -85,6 +85,27 @@ def mobius_scan(alpha: np.ndarray, beta: np.ndarray, gamma: np.ndarray, delta: n
     return (a * x0 + b) / (c * x0 + d)
 
 
+
+def gate_chi2(probability: float, dof: int = 6) -> float:
+    """The innovation gate: the ``probability`` quantile of χ² with ``dof`` degrees of freedom.
+
+    Parameters
+    ----------
+    probability : float
+        Probability that a sample the model explains passes the gate (e.g. 0.999).
+    dof : int, optional
+        Degrees of freedom (6: the wrench's components).
+
+    Returns
+    -------
+    float
+        The threshold on the squared Mahalanobis norm of the innovation.
+    """
+    from scipy.special import chdtri  # what scipy.stats.chi2.ppf calls, without scipy.stats' 2 s of imports
+
+    return float(chdtri(dof, 1.0 - probability))
+
+
 @dataclass
 class TrackedBlock:
     """What the tracker did on each sample of a block.

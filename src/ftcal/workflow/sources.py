@@ -239,6 +239,8 @@ class tables_of:
     def _write(self, frames: dict):
         import tempfile
 
+        from ..data.tables import parquet_write_options
+
         self.folder = tempfile.TemporaryDirectory(prefix="ftcal-frame-")
         paths = []
         for k, (name, frame) in enumerate(frames.items()):
@@ -252,7 +254,10 @@ class tables_of:
             stem = "".join("_" if c in "/\\\0" else c for c in name).strip(" .") or "table"
             path = os.path.join(folder, f"{stem}.parquet")
             try:
-                frame.to_parquet(path, index=False)
+                import pyarrow as pa
+
+                schema = pa.Schema.from_pandas(frame, preserve_index=False)  # text columns dictionary-encoded only
+                frame.to_parquet(path, index=False, **parquet_write_options(schema))
             except (TypeError, ValueError, ImportError) as error:  # e.g. non-string column names
                 first = str(error).splitlines()[0] if str(error) else type(error).__name__
                 raise FtcalError(f"{self.role} {name}: cannot be written as a table: {first}.") from None
