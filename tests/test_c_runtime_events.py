@@ -25,7 +25,7 @@ from ftcal.payload.parameters import PayloadParameters
 from ftcal.sim.live_scenario import LiveScenario, simulate_live
 
 from test_c_runtime import CC, compare, gauge_model, pointer, python_replay, tool_payload
-from test_c_runtime_library import DRILL, HOSTILE, build, c_replay
+from test_c_runtime_library import DRILL, HOSTILE, LIBRARY_SCRIPT, build, c_replay
 
 pytestmark = pytest.mark.skipif(CC is None, reason="no C compiler `cc`")
 BY_CODE = {code: (flag, kind) for code, flag, kind in EVENT_KINDS.values()}
@@ -46,19 +46,10 @@ def replay():
                               fit={"residual_rms": np.r_[np.full(3, 0.05), np.full(3, 0.004)]})
     tools = {"gripper": tool_payload(LiveScenario().tools["gripper"]), "drill": wrong}
     header = generate_c_runtime(model, tools, name="rt")
-    at = {when: int(np.searchsorted(rec.time, when)) for when in (0.0, 0.5, 14.5, 14.6, 29.5, 30.2, 30.4, 33.2,
-                                                                 33.4, 36.2, 43.0, 43.1)}
-    script = [(0.0, (5, None), lambda c: c.retare()),  # before the first sample: no time yet (NaN)
-              (0.5, (1, HOSTILE), lambda c: c.start_identification(HOSTILE)),
-              (14.5, (2, None), lambda c: c.finish_identification(mount=True)),
-              (14.6, (1, "drill"), lambda c: c.start_identification("drill")),
-              (29.5, (3, None), lambda c: c.finish_identification(mount=False)),
-              (30.2, (4, "none"), lambda c: c.switch_tool("none")),
-              (30.4, (5, None), lambda c: c.retare()),
-              (33.2, (4, "drill"), lambda c: c.switch_tool("drill")),
-              (33.4, (5, None), lambda c: c.retare()),
-              (36.2, (4, HOSTILE), lambda c: c.switch_tool(HOSTILE))]
+    # a re-tare before the first sample (no time yet: NaN), then the tool library's script
+    script = [(0.0, (5, None), lambda c: c.retare()), *LIBRARY_SCRIPT]
     python_only = [(43.0, lambda c: c.add_tool("spare", wrong)), (43.1, lambda c: c.set_silent(True, "no data"))]
+    at = {when: int(np.searchsorted(rec.time, when)) for when in [w for w, _, _ in script] + [w for w, _ in python_only]}
     live = LiveCalibrator(model, tools=tools, tool="drill")
     ref = python_replay(live, rec.time, u, rec.gravity, None,
                         {at[w]: f for w, _, f in script} | {at[w]: f for w, f in python_only})

@@ -32,6 +32,17 @@ pytestmark = pytest.mark.skipif(CC is None, reason="no C compiler `cc`")
 DRILL = Tool(2.1, (0.02, 0.01, 0.09))
 # Quotes, a backslash, a comment's end and start, a newline, trigraphs (??= is #, ??/ a backslash), a tab.
 HOSTILE = 'x"*/ int evil; /*??/\n??=define ??( \\ \'q\'\t'
+# (time, C action (code, name), Python action): identify a tool in place under a hostile name and mount it, identify
+# "drill" again under a compiled-in name, switch by name, re-tare with the tool kept.
+LIBRARY_SCRIPT = [(0.5, (1, HOSTILE), lambda c: c.start_identification(HOSTILE)),
+                  (14.5, (2, None), lambda c: c.finish_identification(mount=True)),
+                  (14.6, (1, "drill"), lambda c: c.start_identification("drill")),
+                  (29.5, (3, None), lambda c: c.finish_identification(mount=False)),
+                  (30.2, (4, "none"), lambda c: c.switch_tool("none")),
+                  (30.4, (5, None), lambda c: c.retare()),
+                  (33.2, (4, "drill"), lambda c: c.switch_tool("drill")),
+                  (33.4, (5, None), lambda c: c.retare()),
+                  (36.2, (4, HOSTILE), lambda c: c.switch_tool(HOSTILE))]
 TEXT = 1 << 20
 
 DRIVER = r"""
@@ -255,17 +266,8 @@ def test_a_library_grown_at_run_time_replays_as_python(tmp_path):
                               fit={"residual_rms": np.r_[np.full(3, 0.05), np.full(3, 0.004)]})
     tools = {"gripper": tool_payload(LiveScenario().tools["gripper"]), "drill": wrong}
     lib = build(tmp_path, generate_c_runtime(model, tools, name="rt"))
-    at = {when: int(np.searchsorted(rec.time, when)) for when in (0.5, 14.5, 14.6, 29.5, 30.2, 30.4, 33.2, 33.4,
-                                                                 36.2)}
-    script = [(0.5, (1, HOSTILE), lambda c: c.start_identification(HOSTILE)),
-              (14.5, (2, None), lambda c: c.finish_identification(mount=True)),
-              (14.6, (1, "drill"), lambda c: c.start_identification("drill")),
-              (29.5, (3, None), lambda c: c.finish_identification(mount=False)),
-              (30.2, (4, "none"), lambda c: c.switch_tool("none")),
-              (30.4, (5, None), lambda c: c.retare()),
-              (33.2, (4, "drill"), lambda c: c.switch_tool("drill")),
-              (33.4, (5, None), lambda c: c.retare()),
-              (36.2, (4, HOSTILE), lambda c: c.switch_tool(HOSTILE))]
+    script = LIBRARY_SCRIPT
+    at = {when: int(np.searchsorted(rec.time, when)) for when, _, _ in script}
     out, codes, c_texts, tool = c_replay(lib, rec.time, u, rec.gravity, {at[w]: a for w, a, _ in script}, 2)
     live = LiveCalibrator(model, tools=tools, tool="drill")
     ref = python_replay(live, rec.time, u, rec.gravity, None, {at[w]: f for w, _, f in script})

@@ -85,7 +85,6 @@ def mobius_scan(alpha: np.ndarray, beta: np.ndarray, gamma: np.ndarray, delta: n
     return (a * x0 + b) / (c * x0 + d)
 
 
-
 def gate_chi2(probability: float, dof: int = 6) -> float:
     """The innovation gate: the ``probability`` quantile of χ² with ``dof`` degrees of freedom.
 
