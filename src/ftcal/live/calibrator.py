@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from ..check.accept import Thresholds
-from ..core.limits import LIVE_MIN_HOLDS
+from ..core.limits import LIVE_MIN_HOLDS, MAX_CELL_MAGNITUDE
 from ..data.holds import HOLD_WINDOW_S, MIN_ANGULAR_RATE, MIN_HOLD_S
 from ..data.signals import SATURATION_RUN, STUCK_RUN
 from ..payload.kinematics import QUATERNION_NORM_TOLERANCE, STANDARD_GRAVITY, gravity_from_quaternions
@@ -504,8 +504,9 @@ class LiveCalibrator:
                 raise FtcalError(f"raw has {u.shape[1]} channels; the model takes {len(self.model.input_names_)} "
                                  f"({', '.join(self.model.input_names_)}).")
             _finite(u, "raw")
-            w = self.model.predict(u, warn_out_of_range=False) if n else np.empty((0, 6))
-            return u, np.asarray(w, dtype=float)
+            w = np.asarray(self.model.predict(u, warn_out_of_range=False) if n else np.empty((0, 6)), dtype=float)
+            _finite(w, "the calibration model's wrench (from raw)")  # a polynomial far outside its range overflows
+            return u, w
         w = np.asarray(wrench, dtype=float)
         if w.shape != (n, 6):
             raise FtcalError(f"wrench must have shape ({n}, 6); got {w.shape}.")
@@ -673,7 +674,9 @@ class LiveCalibrator:
                 u = _plain(raw, len(self.model.input_names_))
                 if u is None:
                     return None
-                w = self._row_predict()(u).tolist()
+                w = _plain(self._row_predict()(u).tolist(), 6)
+                if w is None:
+                    return None
             else:
                 u = w = _plain(wrench, 6)
                 if w is None:
@@ -886,7 +889,8 @@ class LiveCalibrator:
         doc = {"format": STATE_FORMAT, "format_version": STATE_VERSION, "time": self.last_time,
                "tool": self.tool, "bias": self.bias.tolist(), "variance": self.variance.tolist(),
                "counters": dict(self.counters), "flags": names_of(self.flags_now),
-               "tools": {name: payload_document(self.tools[name]) for name in self.identified}}
+               "tools": {name: payload_document(self.tools[name]) for name in self.identified},
+               "model": self.model_fingerprint()}
         if not all(np.isfinite(doc["bias"])) or not all(np.isfinite(doc["variance"])):
             raise FtcalError("the live state has non-finite values; refusing to save it.")
         return doc
@@ -902,35 +906,103 @@ class LiveCalibrator:
         return target
 
     def load_state(self, path: str | Path) -> None:
-        """Resume from a state file: bias, covariance, tool (and the tools it carries), counters, time."""
+        """Resume from a state file: bias, covariance, tool (and the tools it carries), counters, time.
+
+        Every field is checked before anything changes: a state that is not what :meth:`save_state` writes
+        (wrong types or shapes, non-finite, negative or overflowing numbers, a tool not in the library, a
+        state written for another calibration model) is refused in one line naming the file and the field.
+
+        Raises
+        ------
+        FtcalError
+        """
+        from ..core.limits import LIVE_MAX_STATE_BYTES, MAX_CELL_MAGNITUDE
         from ..files.payload_json import parse_payload
 
         path = Path(path)
         try:
+            if path.stat().st_size > LIVE_MAX_STATE_BYTES:
+                raise FtcalError(f"{path}: {path.stat().st_size} bytes, not a live state file (at most "
+                                 f"{LIVE_MAX_STATE_BYTES} bytes).")
             doc = json.loads(path.read_text(encoding="utf-8"))
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise FtcalError(f"{path}: cannot read the live state ({exc}).") from None
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
+            why = "nested too deeply" if isinstance(exc, RecursionError) else exc
+            raise FtcalError(f"{path}: cannot read the live state ({why}).") from None
         if not isinstance(doc, dict) or doc.get("format") != STATE_FORMAT or doc.get("format_version") != STATE_VERSION:
             raise FtcalError(f"{path}: not a live state file ({STATE_FORMAT} {STATE_VERSION}).")
-        try:
-            bias = np.asarray(doc["bias"], dtype=float).reshape(6)
-            variance = np.asarray(doc["variance"], dtype=float).reshape(6)
-            time = doc["time"]
-            tools = {name: parse_payload(json.dumps(d), f"{path}: tool {name!r}") for name, d in doc["tools"].items()}
-            counters = {k: int(doc["counters"][k]) for k in self.counters}
-            tool = str(doc["tool"])
-        except (KeyError, TypeError, ValueError) as exc:
-            raise FtcalError(f"{path}: the live state is malformed ({exc}).") from None
-        if not (np.all(np.isfinite(bias)) and np.all(np.isfinite(variance)) and np.all(variance >= 0)):
-            raise FtcalError(f"{path}: the live state has non-finite bias or variance.")
+
+        def bad(field: str, what: str):
+            return FtcalError(f"{path}: the live state's {field!r} {what}.")
+
+        def number(value, field: str) -> float:
+            # JSON true/false are not numbers; NaN and Infinity are what json.loads makes of NaN/Infinity tokens.
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise bad(field, f"must be a number; got {type(value).__name__}")
+            x = float(value)
+            if not abs(x) <= MAX_CELL_MAGNITUDE:
+                raise bad(field, f"must be finite and at most {MAX_CELL_MAGNITUDE:g} in magnitude; got {value!r}")
+            return x
+
+        def six(field: str) -> np.ndarray:
+            value = doc.get(field)
+            if not isinstance(value, list) or len(value) != 6:
+                raise bad(field, "must be a list of 6 numbers (one per axis)")
+            return np.array([number(v, field) for v in value])
+
+        for key in ("time", "tool", "bias", "variance", "counters", "tools"):
+            if key not in doc:
+                raise bad(key, "is missing")
+        bias, variance = six("bias"), six("variance")
+        if np.any(variance < 0):
+            raise bad("variance", "must be >= 0 (a variance per axis; the state keeps no cross-covariance)")
+        time = None if doc["time"] is None else number(doc["time"], "time")
+        counters_doc = doc["counters"]
+        if not isinstance(counters_doc, dict):
+            raise bad("counters", "must be an object")
+        counters = {}
+        for key in self.counters:
+            value = counters_doc.get(key)
+            if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value < 2 ** 63:
+                raise bad("counters", f"must hold {key!r} as an integer in [0, 2**63); got {value!r}")
+            counters[key] = value
+        if not isinstance(doc["tool"], str):
+            raise bad("tool", f"must be a tool name; got {doc['tool']!r}")
+        tool = doc["tool"]
+        if not isinstance(doc["tools"], dict):
+            raise bad("tools", "must be an object of tool name -> payload document")
+        tools = {}
+        for name, d in doc["tools"].items():
+            if not name or name == NO_TOOL:
+                raise bad("tools", f"names a tool {name!r}; a tool needs a name other than {NO_TOOL!r}")
+            try:
+                tools[name] = parse_payload(json.dumps(d), f"{path}: tool {name!r}")
+            except (TypeError, ValueError, RecursionError) as exc:
+                raise bad("tools", f"holds tool {name!r} that is not a payload document ({exc})") from None
+        fingerprint = self.model_fingerprint()
+        if doc.get("model", fingerprint) != fingerprint:
+            raise FtcalError(f"{path}: the live state was written for another calibration model "
+                             f"({'none' if doc.get('model') is None else 'sha256 ' + str(doc.get('model'))[:12]}, "
+                             f"now {'none' if fingerprint is None else 'sha256 ' + fingerprint[:12]}); its bias is "
+                             "that model's. Give that model, or another state file to start afresh.")
+        if tool not in self.tools and tool not in tools:
+            raise FtcalError(f"{path}: tool {tool!r} is not in the library ({', '.join([*self.tools, *tools])}).")
         for name, payload in tools.items():
             self.tools.setdefault(name, payload)
             self.identified.add(name)
-        if tool not in self.tools:
-            raise FtcalError(f"{path}: tool {tool!r} is not in the library.")
         self.bias, self.variance, self.tool, self.counters = bias, variance, tool, counters
-        self.last_time = None if time is None else float(time)
+        self.last_time = time
         self._event("state", "resumed", f"resumed from {path} at t={self.last_time}")
+
+    def model_fingerprint(self) -> str | None:
+        """sha256 of the calibration model's inputs, outputs and model-file fields (None without a model): the state
+        file records it, so that a state is never resumed with a bias that belongs to another model."""
+        if self.model is None:
+            return None
+        import hashlib
+
+        content = {"inputs": list(self.model.input_names_), "outputs": list(self.model.output_names_),
+                   "model": self.model.to_document()}
+        return hashlib.sha256(json.dumps(content, sort_keys=True, default=repr).encode("utf-8")).hexdigest()
 
 
 AXES = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
@@ -962,17 +1034,23 @@ def _plain(values, size: int | None) -> list | None:
             out = [*map(float, out)]
     else:
         out = [*map(float, values)]
-    # A sum is finite only if every term is (an overflowing sum sends a finite sample to run(): slower, same result).
-    if (size is not None and len(out) != size) or not math.isfinite(sum(out)):
+    # A sum is finite only if every term is (an overflowing sum sends a finite sample to run(): slower, same result);
+    # beyond MAX_CELL_MAGNITUDE squares overflow (run() says which input).
+    if (size is not None and len(out) != size) or not math.isfinite(sum(out)) or (
+            out and (max(out) > MAX_CELL_MAGNITUDE or min(out) < -MAX_CELL_MAGNITUDE)):
         return None
     return out
 
 
 def _finite(x: np.ndarray, name: str) -> None:
-
-    if not np.all(np.isfinite(x)):
-        row = int(np.flatnonzero(~np.all(np.isfinite(x), axis=1))[0])
-        raise FtcalError(f"{name} has a non-finite value at sample {row}.")
+    """Refuse a non-finite value, or one beyond :data:`~ftcal.core.limits.MAX_CELL_MAGNITUDE` (its square, and so the
+    χ² gate, would overflow: no sensor reads that), naming the sample."""
+    ok = np.abs(x) <= MAX_CELL_MAGNITUDE  # NaN fails too
+    if not np.all(ok):
+        row = int(np.flatnonzero(~np.all(ok.reshape(x.shape[0], -1), axis=1))[0])
+        value = x.reshape(x.shape[0], -1)[row][~ok.reshape(x.shape[0], -1)[row]][0]
+        what = "a non-finite value" if not np.isfinite(value) else f"{value:g}, beyond {MAX_CELL_MAGNITUDE:g} in magnitude,"
+        raise FtcalError(f"{name} has {what} at sample {row}.")
 
 
 class _Identification:
