@@ -293,3 +293,7 @@ confirms the new time line (a lone far-future stamp would otherwise make every l
 LIVE_MAX_QUERY_BYTES = 4096
 """Longest payload of a ``ftcal live --zenoh`` queryable request (a tool name, ``start NAME``); longer ones are
 answered with an error."""
+
+LIVE_CLOCK_RESTART_MESSAGES = 100
+"""``ftcal live --zenoh``: this many wrenches in a row stamped before the last one processed, in their own order, mean
+the publisher's clock restarted (e.g. simulated time): the calibrator's clock restarts on them (said in one line)."""

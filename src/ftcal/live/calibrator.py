@@ -325,12 +325,34 @@ class LiveCalibrator:
         self.counters["switches"] += 1
         self._event("tool", "switched", f"tool {old!r} -> {name!r}")
 
-    def retare(self) -> None:
+    def retare(self) -> str | None:
         """Re-estimate the bias only, tool kept, in any pose: the bias forgets its value, and the next static
-        samples (the sensor must be free of contact) set it."""
+        samples (the sensor must be free of contact) set it.
+
+        Returns
+        -------
+        str or None
+            A warning when the re-tare comes while ``contact`` or ``unexplained`` is raised: if a contact
+            caused it, the next static samples take it into the bias (nothing can tell it from a bias
+            the calibrator has just forgotten); it is also in the event's text.
+        """
         self.variance = np.maximum(self.variance, RETARE_VARIANCE * self.noise_std ** 2)
         self.counters["retares"] += 1
-        self._event("bias", "retare", f"re-tare with tool {self.tool!r} kept: the next static samples set the bias")
+        raised = [name for name in ("contact", "unexplained") if self.flags_now & BIT[name]]
+        warning = (f"re-tare while {' and '.join(raised)} is raised: if a contact caused it, it becomes the bias "
+                   "(re-tare again free of contact)") if raised else None
+        self._event("bias", "retare", f"re-tare with tool {self.tool!r} kept: the next static samples set the bias"
+                    + (f"; {warning}" if warning else ""))
+        return warning
+
+    def restart_clock(self, reason: str) -> None:
+        """Take the next sample at any time, as after a restart: the motion test starts without history (0.3 s of
+        "moving"), the unexplained-wrench timer restarts; bias, variance, tool and counters are kept (a
+        transport calls this when its publisher's clock restarted)."""
+        self.motion = MotionDetector(self.motion.window, self.motion.min_rate, self.motion.min_hold)
+        self.unexplained_timer = ExceedanceTimer()
+        self.last_time = None
+        self._event("clock", "restarted", reason)
 
     # ----- identification in place ----------------------------------------------------------------
     def start_identification(self, name: str) -> None:

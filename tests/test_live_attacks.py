@@ -1,0 +1,360 @@
+"""Hostile input to the live calibrator, found by attacking it: poisoned state files, inputs whose squares overflow,
+replays that cannot resume, malformed and mistimed Zenoh messages, hostile queryable requests, and a re-tare during
+a contact. Each case says what the input is and what must happen (refused in one line, or counted and run on)."""
+
+from __future__ import annotations
+
+import json
+import math
+import struct
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from ftcal.core.limits import (C_RUNTIME_MAX_TOOL_NAME, LIVE_CLOCK_RESTART_MESSAGES, LIVE_MAX_QUERY_BYTES,
+                               LIVE_MAX_STAMP_JUMP_S)
+from ftcal.files.payload_json import payload_document, save_payload
+from ftcal.live import LiveCalibrator
+from ftcal.live.cdr import IMU_DOUBLES, decode_stamped, encode_stamped
+from ftcal.live.health import BIT
+from ftcal.live.zenoh_node import LiveNode, ZenohOptions
+from ftcal.payload.parameters import PayloadParameters
+from ftcal.runtime.errors import FtcalError
+
+FTCAL = str(Path(sys.executable).with_name("ftcal"))
+NOISE = np.r_[np.full(3, 0.05), np.full(3, 0.004)]
+DOWN = [0.0, 0.0, -9.81]
+GRIPPER = PayloadParameters(1.2, np.array([0.004, -0.003, 0.06]), np.zeros(3), np.zeros(3), 9.81,
+                            stderr={"mass": 1e-3, "com": np.full(3, 1e-4), "force_bias": np.full(3, .01),
+                                    "torque_bias": np.full(3, 1e-3)},
+                            fit={"n_samples": 100, "residual_rms": NOISE, "condition_number": 1.0,
+                                 "wrench_columns": ["Fx", "Fy", "Fz", "Tx", "Ty", "Tz"]})
+
+
+def still_block(live: LiveCalibrator, t0: float, seconds: float, offset=(0.0,) * 6, rate=500.0, seed=0):
+    """A still sensor, gripper mounted, gravity -z: the readings are the gripper's gravity wrench + offset + noise."""
+    rng = np.random.default_rng(seed)
+    t = t0 + np.arange(int(seconds * rate)) / rate
+    m, c = GRIPPER.mass, GRIPPER.com
+    tool = np.r_[m * np.array(DOWN), m * np.cross(c, DOWN)]  # F = m g, T = (m c) x g
+    w = tool + np.asarray(offset) + rng.normal(size=(t.size, 6)) * NOISE
+    return live.run(t, wrench=w, gravity=np.tile(DOWN, (t.size, 1))), t, w
+
+
+# ----- the state file -------------------------------------------------------------------------------------------
+@pytest.fixture()
+def saved_state(tmp_path):
+    live = LiveCalibrator(tools={"gripper": GRIPPER}, tool="gripper", noise_std=NOISE)
+    still_block(live, 0.0, 2.0, offset=(0.5, 0, 0, 0, 0, 0))
+    path = live.save_state(tmp_path / "state.json")
+    return path, json.loads(path.read_text())
+
+
+def poisoned(doc: dict, **fields) -> str:
+    out = json.loads(json.dumps(doc))
+    out.update(fields)
+    return json.dumps(out)
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda d: '{"format": "ftcal-live-state", "form', "cannot read"),
+    (lambda d: "[" * 100_000 + "]" * 100_000, "nested too deeply"),
+    (lambda d: json.dumps(d).replace(json.dumps(d["variance"]), "[NaN, 1, 1, 1, 1, 1]"), "'variance' must be finite"),
+    (lambda d: json.dumps(d).replace(json.dumps(d["bias"]), "[Infinity, 0, 0, 0, 0, 0]"), "'bias' must be finite"),
+    (lambda d: poisoned(d, bias=[1e308] * 6), "'bias' must be finite and at most 1e+100"),
+    (lambda d: poisoned(d, variance=[-1.0, 1, 1, 1, 1, 1]), "'variance' must be >= 0"),
+    (lambda d: poisoned(d, variance=np.eye(6).tolist()), "'variance' must be a number; got list"),  # a matrix
+    (lambda d: poisoned(d, bias=[[1, 2, 3], [4, 5, 6]]), "'bias' must be a list of 6 numbers"),
+    (lambda d: poisoned(d, variance=[True] * 6), "'variance' must be a number; got bool"),
+    (lambda d: poisoned(d, time="abc"), "'time' must be a number; got str"),
+    (lambda d: poisoned(d, time=[1.0]), "'time' must be a number; got list"),
+    (lambda d: json.dumps(d).replace(f'"time": {d["time"]}', '"time": NaN'), "'time' must be finite"),
+    (lambda d: poisoned(d, counters={**d["counters"], "samples": 1.7}), "'counters' must hold 'samples'"),
+    (lambda d: poisoned(d, counters={**d["counters"], "updates": -5}), "'counters' must hold 'updates'"),
+    (lambda d: poisoned(d, counters={**d["counters"], "retares": True}), "'counters' must hold 'retares'"),
+    (lambda d: poisoned(d, counters=[1, 2]), "'counters' must be an object"),
+    (lambda d: poisoned(d, tools=[1]), "'tools' must be an object"),
+    (lambda d: poisoned(d, tools={"none": payload_document(GRIPPER)}), "a tool needs a name other than 'none'"),
+    (lambda d: poisoned(d, tools={"": payload_document(GRIPPER)}), "a tool needs a name other than 'none'"),
+    (lambda d: poisoned(d, tool="hammer"), "tool 'hammer' is not in the library"),
+    (lambda d: poisoned(d, tool=5), "'tool' must be a tool name"),
+    (lambda d: {k: v for k, v in d.items() if k != "time"} and json.dumps({k: v for k, v in d.items() if k != "time"}),
+     "'time' is missing"),
+])
+def test_a_poisoned_state_is_refused_in_one_line_naming_the_file_and_field(saved_state, edit, message):
+    path, doc = saved_state
+    path.write_text(edit(doc))
+    with pytest.raises(FtcalError, match=None) as caught:
+        LiveCalibrator(tools={"gripper": GRIPPER}, tool="gripper", noise_std=NOISE, state_path=path)
+    text = str(caught.value)
+    assert message in text and str(path) in text and "\n" not in text, text
+
+
+def test_a_good_state_resumes_and_a_state_for_another_model_is_refused(saved_state, tmp_path):
+    from ftcal.core.dataset import Dataset
+    from ftcal.core.model import CalibrationModel
+
+    path, doc = saved_state
+    live = LiveCalibrator(tools={"gripper": GRIPPER}, tool="gripper", noise_std=NOISE, state_path=path)
+    assert live.tool == "gripper" and live.counters == doc["counters"] and live.last_time == doc["time"]
+    np.testing.assert_array_equal(live.bias, doc["bias"])
+    # A state written for one calibration model is refused with another (its bias is in that model's wrench).
+    rng = np.random.default_rng(0)
+    raw = rng.uniform(-20, 20, size=(500, 6))
+    one = CalibrationModel(degree=1).fit(Dataset.from_arrays(raw, raw))
+    other = CalibrationModel(degree=1).fit(Dataset.from_arrays(raw, 2.0 * raw))
+    first = LiveCalibrator(one, noise_std=NOISE)
+    first.step(1.0, raw=[0.0] * 6, gravity=DOWN)
+    first.save_state(tmp_path / "one.json")
+    assert LiveCalibrator(one, noise_std=NOISE, state_path=tmp_path / "one.json").last_time == 1.0
+    with pytest.raises(FtcalError, match="written for another calibration model"):
+        LiveCalibrator(other, noise_std=NOISE, state_path=tmp_path / "one.json")
+    with pytest.raises(FtcalError, match="written for another calibration model"):
+        LiveCalibrator(noise_std=NOISE, state_path=tmp_path / "one.json")  # and without a model
+
+
+# ----- inputs whose squares overflow ------------------------------------------------------------------------------
+@pytest.mark.parametrize("value", [1e101, 1e200, -1e308])
+def test_inputs_beyond_1e100_are_refused_by_step_and_run_so_chi2_stays_finite(value):
+    live = LiveCalibrator(noise_std=NOISE)
+    with pytest.raises(FtcalError, match="beyond 1e\\+100 in magnitude, at sample 0"):
+        live.step(1.0, wrench=[value, 0, 0, 0, 0, 0], gravity=DOWN)
+    with pytest.raises(FtcalError, match="gravity has .* at sample 1"):
+        live.run(np.array([1.0, 1.1]), wrench=np.zeros((2, 6)), gravity=np.array([DOWN, [value, 0.0, 0.0]]))
+    assert live.last_time is None and live.counters["samples"] == 0  # nothing changed
+    r = live.run(np.array([2.0]), wrench=np.array([[1e99, 0, 0, 0, 0, 0]]), gravity=np.array([DOWN]))
+    assert np.isfinite(r.chi2).all() and np.isfinite(r.compensated).all()  # (1e99)^2 / noise^2 is finite
+
+
+# ----- replay -----------------------------------------------------------------------------------------------------
+def still_table(path: Path, seconds=6.0, rate=200.0, seed=1):
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(seconds * rate)) / rate
+    m, c = GRIPPER.mass, GRIPPER.com
+    w = np.r_[m * np.array(DOWN), m * np.cross(c, DOWN)] + rng.normal(size=(t.size, 6)) * NOISE
+    frame = pd.DataFrame({"time": t, "gx": 0.0, "gy": 0.0, "gz": -9.81,
+                          **{a: w[:, j] for j, a in enumerate(("Fx", "Fy", "Fz", "Tx", "Ty", "Tz"))}})
+    frame.to_parquet(path)
+    return frame
+
+
+def test_replay_of_a_recording_older_than_the_resumed_state_is_one_line(tmp_path):
+    still_table(tmp_path / "rec.parquet")
+    save_payload(GRIPPER, tmp_path / "gripper.json")
+    args = [FTCAL, "live", "--replay", "rec.parquet", "--gravity-columns", "gx,gy,gz", "--inputs", "Fx,Fy,Fz,Tx,Ty,Tz",
+            "--tool", "gripper=gripper.json", "--state", "state.json"]
+    first = subprocess.run([*args, "-o", "a.parquet"], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert first.returncode == 0, first.stderr
+    again = subprocess.run([*args, "-o", "b.parquet"], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert again.returncode == 2 and len(again.stderr.strip().splitlines()) == 1, again.stderr
+    assert "rec.parquet: row 0 is at t=0 s, not after the calibrator's last sample (t=5.995 s, from state.json)" \
+        in again.stderr
+    assert not (tmp_path / "b.parquet").exists() and not list(tmp_path.glob(".*tmp*"))
+
+
+def test_many_scripted_events_give_the_table_the_library_computes_block_by_block(tmp_path):
+    """Scripted re-tares split the replay into short blocks, gathered before they are written: the table is what
+    the library computes with the same re-tares applied by hand between blocks."""
+    from ftcal.live.replay import ReplayColumns, ScriptedEvent, replay_table
+
+    frame = still_table(tmp_path / "rec.parquet")
+    times = np.round(np.arange(0.25, 5.5, 0.05), 6)  # 105 re-tares, every 10 samples
+    columns = ReplayColumns("time", ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz"), False, "gravity", ("gx", "gy", "gz"))
+    replay_table(tmp_path / "rec.parquet", LiveCalibrator(tools={"gripper": GRIPPER}, tool="gripper", noise_std=NOISE),
+                 columns, tmp_path / "out.parquet", events=[ScriptedEvent(float(x), "retare") for x in times],
+                 chunk_rows=500)
+    out = pd.read_parquet(tmp_path / "out.parquet")
+    by_hand = LiveCalibrator(tools={"gripper": GRIPPER}, tool="gripper", noise_std=NOISE)
+    t = frame["time"].to_numpy()
+    cuts = [0, *np.searchsorted(t, times), t.size]
+    bias = []
+    for a, b in zip(cuts[:-1], cuts[1:]):
+        if a > 0:
+            by_hand.retare()
+        rows = frame.iloc[a:b]
+        bias.append(by_hand.run(rows["time"].to_numpy(), wrench=rows[["Fx", "Fy", "Fz", "Tx", "Ty", "Tz"]].to_numpy(),
+                                gravity=rows[["gx", "gy", "gz"]].to_numpy()).bias)
+    assert len(out) == t.size
+    np.testing.assert_array_equal(out[["bias_Fx", "bias_Fy", "bias_Fz", "bias_Tx", "bias_Ty", "bias_Tz"]].to_numpy(),
+                                  np.vstack(bias))
+    assert by_hand.counters["retares"] == times.size
+
+
+# ----- the Zenoh node's inbound messages (its callbacks, without a network) -----------------------------------
+class Sample:
+    def __init__(self, data: bytes) -> None:
+        self.payload, self.data = self, data
+
+    def to_bytes(self) -> bytes:
+        return self.data
+
+
+class Sink:
+    def __init__(self) -> None:
+        self.messages: list = []
+
+    def put(self, payload, **_) -> None:
+        self.messages.append(payload)
+
+
+def node(**options) -> LiveNode:
+    n = LiveNode(LiveCalibrator(tools={"gripper": GRIPPER}, tool="gripper", noise_std=NOISE), ZenohOptions(**options),
+                 echo=lambda *a, **k: None)
+    n.publishers = {name: Sink() for name in ("calibrated", "compensated", "diagnostics")}
+    return n
+
+
+def reading(rng) -> list:
+    m, c = GRIPPER.mass, GRIPPER.com
+    return (np.r_[m * np.array(DOWN), m * np.cross(c, DOWN)] + rng.normal(size=6) * NOISE).tolist()
+
+
+def feed(n: LiveNode, stamps_s, rng) -> None:
+    for s in stamps_s:
+        n._on_wrench(Sample(encode_stamped(int(round(s * 1e9)), "ft", reading(rng))))
+
+
+def published_finite(n: LiveNode) -> bool:
+    return all(all(map(math.isfinite, decode_stamped(m, 6).values))
+               for key in ("calibrated", "compensated") for m in n.publishers[key].messages)
+
+
+def hostile_wrenches(good: bytes) -> list[bytes]:
+    stamp = good[4:12]
+    return [b"", good[:10], good[:-1], b"\x07\x07" + good[2:], b"\x00\x02" + good[2:],
+            good[:12] + struct.pack("<I", 0xFFFFFFFF) + good[16:],  # frame id length beyond the message
+            good[:12] + struct.pack("<I", 0) + good[16:],  # no room for the NUL
+            good[:16] + b"ft_" + good[19:],  # frame id not NUL-terminated
+            good[:16] + b"\xff\x00\x00" + good[19:],  # frame id not UTF-8
+            good[:4] + struct.pack("<iI", struct.unpack("<i", stamp[:4])[0], 1_000_000_000) + good[12:],  # nanosec
+            *(encode_stamped(struct.unpack("<i", stamp[:4])[0] * 10 ** 9 + 999_000_000, "ft", [v, 0, 0, 0, 0, 0])
+              for v in (math.nan, math.inf, -math.inf, 1e308, 1e101))]
+
+
+def test_malformed_wrench_messages_are_counted_and_the_stream_goes_on():
+    n, rng = node(), np.random.default_rng(4)
+    feed(n, 1.0 + np.arange(600) / 500, rng)
+    good = encode_stamped(2_300_000_000, "ft", [0.0] * 6)
+    bad = hostile_wrenches(good)
+    for data in bad:
+        n._on_wrench(Sample(data))
+    feed(n, 2.4 + np.arange(100) / 500, rng)
+    status = json.loads(n._diagnostics_message())
+    assert status["bad_messages"] == len(bad) and status["counters"]["samples"] == 700
+    assert len(n.publishers["compensated"].messages) == 700 and published_finite(n)
+
+
+def test_a_lone_far_future_stamp_is_held_back_and_a_confirmed_jump_is_taken():
+    n, rng = node(), np.random.default_rng(5)
+    feed(n, 1.0 + np.arange(300) / 500, rng)
+    far = 1.6 + 10 * LIVE_MAX_STAMP_JUMP_S
+    feed(n, [far], rng)  # alone: the stream must not go stale after it
+    feed(n, 1.6 + np.arange(1, 101) / 500, rng)
+    assert n.live.counters["samples"] == 400 and n.stamp_jumps == 1 and n.stale_samples == 0
+    feed(n, far + np.arange(50) / 500, rng)  # a real gap: the second message after it confirms the new time line
+    assert n.live.counters["samples"] == 449 and n.stamp_jumps == 2
+    assert json.loads(n._diagnostics_message())["stamp_jumps"] == 2 and published_finite(n)
+
+
+def test_a_publisher_clock_that_restarts_restarts_the_calibrators_clock():
+    n, rng = node(), np.random.default_rng(6)
+    feed(n, 100.0 + np.arange(500) / 500, rng)
+    bias = n.live.bias.copy()
+    feed(n, [50.0], rng)  # one stale message is dropped
+    feed(n, 1.0 + np.arange(LIVE_CLOCK_RESTART_MESSAGES + 50) / 500, rng)  # the clock went back for good
+    assert n.stale_samples == 1 + LIVE_CLOCK_RESTART_MESSAGES - 1  # the lone one and the run before the restart
+    assert n.live.counters["samples"] == 500 + 51 and n.live.last_time == pytest.approx(1.0 + 149 / 500)
+    assert any(e[1] == "clock" and e[2] == "restarted" for e in n.live.events)
+    np.testing.assert_allclose(n.live.bias, bias, atol=0.05)  # the sensor's bias is kept across the restart
+
+
+def test_a_broken_imu_message_is_counted_and_keeps_the_pose():
+    n = node(imu_topic="/imu")
+    level = [0.0, 0.0, 0.0, 1.0] + [0.0] * 33
+    n._on_imu(Sample(encode_stamped(1, "imu", level)))
+    assert n.quaternion == (0.0, 0.0, 0.0, 1.0)
+    no_orientation = [0.0] * 4 + [-1.0] + [0.0] * 32
+    for acceleration in ([math.nan, 0, 9.81], [0.0, 0.0, 0.0], [0.0, 0.0, 1e308], [0.0, 0.0, 1e150]):
+        message = no_orientation[:25] + acceleration + no_orientation[28:]
+        n._on_imu(Sample(encode_stamped(2, "imu", message)))
+    n._on_imu(Sample(encode_stamped(3, "imu", [math.nan] * IMU_DOUBLES)))
+    assert n.bad_messages == 5 and n.quaternion == (0.0, 0.0, 0.0, 1.0) and n.gravity == (0.0, 0.0, -9.81)
+
+
+# ----- hostile queryable requests ----------------------------------------------------------------------------
+class Query:
+    key_expr = "ft/test"
+
+    def __init__(self, data: bytes | None) -> None:
+        self.payload = None if data is None else Sample(data)
+        self.replies: list = []
+
+    def reply(self, key, text) -> None:
+        self.replies.append(json.loads(text))
+
+
+def ask(n: LiveNode, action, data: bytes | None) -> dict:
+    q = Query(data)
+    n._command(q, action)
+    assert len(q.replies) == 1  # every request is answered once
+    return q.replies[0]
+
+
+@pytest.mark.parametrize("data, message", [
+    (b"start " + "x".encode() * (C_RUNTIME_MAX_TOOL_NAME + 1), f"at most {C_RUNTIME_MAX_TOOL_NAME}"),
+    (b"start " + "\u00e9".encode() * 40, f"at most {C_RUNTIME_MAX_TOOL_NAME}"),  # 80 bytes in 40 characters
+    ("start evil\u202etxt".encode(), "U+202E"),
+    (b"start a\x01b", "U+0001"),
+    (b"start none", "other than 'none'"),
+    (b"start", "'start NAME' or 'finish'"),
+    (b"finish", "no identification in progress"),
+    (b"start a b", "'start NAME' or 'finish'"),
+    (b"\xff\xfe", "not UTF-8"),
+    (b"x" * (LIVE_MAX_QUERY_BYTES + 1), f"at most {LIVE_MAX_QUERY_BYTES}"),
+    (b'{"start": ' * 300, "'start NAME' or 'finish'"),  # deep JSON is not JSON here: plain text
+])
+def test_hostile_identify_requests_get_an_error_reply_naming_the_problem(data, message):
+    n = node()
+    reply = ask(n, n._identify, data)
+    assert reply["ok"] is False and message in reply["error"], reply
+    assert n.live.identifying is None and list(n.live.tools) == ["none", "gripper"]
+
+
+def test_switch_and_status_requests_with_hostile_payloads_and_an_unexpected_failure_are_answered():
+    n = node()
+    switch = lambda name: n.live.switch_tool(name.strip())  # noqa: E731  (the node's queryable)
+    for data in (b"hammer", b"", b"\x00", "\u202e".encode(), b"x" * 10_000):
+        reply = ask(n, switch, data)
+        assert reply["ok"] is False and reply["error"]
+    assert n.live.tool == "gripper"
+    assert ask(n, switch, b" none \n")["status"]["tool"] == "none"
+
+    def broken(_):
+        raise ZeroDivisionError("a bug")
+
+    reply = ask(n, broken, b"")
+    assert reply == {"ok": False, "error": "ft/test: ZeroDivisionError: a bug"}
+
+
+# ----- physics: a re-tare during a contact --------------------------------------------------------------------
+def test_a_retare_during_a_held_contact_warns_and_the_release_is_flagged():
+    """Re-tare says "nothing touches the sensor now"; during a 10 N contact the contact becomes the bias (no
+    gate can tell a contact from a bias just forgotten). The calibrator says so when asked during a flagged
+    contact, and when the contact is released the compensated wrench shows -10 N, flagged unexplained."""
+    live = LiveCalibrator(tools={"gripper": GRIPPER}, tool="gripper", noise_std=NOISE)
+    still_block(live, 0.0, 3.0, seed=1)
+    pressed, _, _ = still_block(live, 3.0, 2.0, offset=(10.0, 0, 0, 0, 0, 0), seed=2)
+    assert pressed.flags[-1] & BIT["unexplained"] and abs(pressed.bias[-1, 0]) < 0.1  # flagged, not absorbed
+    warning = live.retare()
+    assert "re-tare while contact" in warning or "re-tare while unexplained" in warning
+    assert any(e[2] == "retare" and "becomes the bias" in e[3] for e in live.events)
+    held, _, _ = still_block(live, 5.0, 2.0, offset=(10.0, 0, 0, 0, 0, 0), seed=3)
+    assert abs(held.bias[-1, 0] - 10.0) < 0.1  # absorbed, as documented
+    released, t, _ = still_block(live, 7.0, 2.0, seed=4)
+    assert np.all(np.abs(released.compensated[t > 7.1, 0] + 10.0) < 0.5)
+    assert released.flags[-1] & BIT["unexplained"]
+    assert LiveCalibrator(noise_std=NOISE).retare() is None  # no flag raised: no warning
