@@ -358,3 +358,72 @@ def test_a_retare_during_a_held_contact_warns_and_the_release_is_flagged():
     assert np.all(np.abs(released.compensated[t > 7.1, 0] + 10.0) < 0.5)
     assert released.flags[-1] & BIT["unexplained"]
     assert LiveCalibrator(noise_std=NOISE).retare() is None  # no flag raised: no warning
+
+
+# ----- replay of ROS bags -----------------------------------------------------------------------------------------
+def still_bag(tmp_path: Path, name: str, huge_at: int | None = None, repeat_stamp_at: int | None = None) -> Path:
+    """A still sensor (gripper, level) as an MCAP bag: WrenchStamped on /ft and a level Imu on /imu at 200 Hz.
+    ``huge_at``: that sample's Fx is 1e308; ``repeat_stamp_at``: that message's header stamp repeats the previous
+    one (its receive time still increases)."""
+    from bag_data import Bag
+
+    rng = np.random.default_rng(2)
+    bag, t0 = Bag("mcap-file"), 1_700_000_000 * 10 ** 9
+    for k in range(400):
+        receive = t0 + k * 5_000_000
+        values = reading(rng)
+        if k == huge_at:
+            values[0] = 1e308
+        stamp = receive - 5_000_000 if k == repeat_stamp_at else receive
+        bag.wrench("/ft", receive, values, stamp_ns=stamp)
+        bag.imu("/imu", receive, [0.0, 0.0, 0.0, 1.0], [0.0, 0.0, 0.0], [0.0, 0.0, 9.81])
+    return bag.write(tmp_path / name)
+
+
+def live_bag(tmp_path: Path, bag: Path, *extra: str):
+    save_payload(GRIPPER, tmp_path / "gripper.json")
+    return subprocess.run([FTCAL, "live", "--replay", str(bag), "--wrench-topic", "/ft", "--imu-topic", "/imu",
+                           "--tool", "gripper=gripper.json", *extra, "-o", "out.parquet"], cwd=tmp_path,
+                          capture_output=True, text=True, timeout=300)
+
+
+def test_a_huge_value_in_a_bag_names_the_bag_topic_and_time_not_a_temporary_table(tmp_path):
+    bag = still_bag(tmp_path, "huge", huge_at=100)
+    done = live_bag(tmp_path, bag)
+    assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1, done.stderr
+    assert f"{bag}: the wrench on /ft (Fx) holds 1e+308 at t=1700000000.500000 s" in done.stderr
+    assert "ftcal-live-bag" not in done.stderr and not (tmp_path / "out.parquet").exists()
+
+
+def test_receive_time_replays_a_bag_whose_stamps_repeat_as_the_error_suggests(tmp_path):
+    bag = still_bag(tmp_path, "repeat", repeat_stamp_at=200)
+    refused = live_bag(tmp_path, bag)
+    assert refused.returncode == 2 and "--receive-time" in refused.stderr
+    done = live_bag(tmp_path, bag, "--receive-time")
+    assert done.returncode == 0, done.stderr
+    out = pd.read_parquet(tmp_path / "out.parquet")
+    assert len(out) == 400 and np.all(np.diff(out["time"].to_numpy()) > 0)
+    table = subprocess.run([FTCAL, "live", "--replay", "out.parquet", "--gravity-columns", "Fx,Fy,Fz",
+                            "--receive-time", "-o", "x.parquet"], cwd=tmp_path, capture_output=True, text=True,
+                           timeout=300)
+    assert table.returncode == 2 and "--receive-time applies to ROS bags" in table.stderr
+
+
+# ----- generated C: compiled-in tool names ------------------------------------------------------------------------
+def test_a_compiled_in_tool_name_longer_than_a_run_time_one_is_refused(tmp_path):
+    """A 5000-byte name made a string literal C99 compilers need not accept (4095 bytes; cc -pedantic -Werror
+    refused the header); compiled-in names now have the run-time limit."""
+    from ftcal.core.dataset import Dataset
+    from ftcal.core.model import CalibrationModel
+    from ftcal.files.model_files import save_model
+
+    raw = np.random.default_rng(0).uniform(-20, 20, size=(500, 6))
+    save_model(CalibrationModel(degree=1).fit(Dataset.from_arrays(raw, raw)), tmp_path / "model.json")
+    save_payload(GRIPPER, tmp_path / "gripper.json")
+    name = "x" * (C_RUNTIME_MAX_TOOL_NAME + 1)
+    done = subprocess.run([FTCAL, "convert", "model.json", "--to", "c-runtime", "--payload-file",
+                           f"{name}=gripper.json", "-o", "rt.h"], cwd=tmp_path, capture_output=True, text=True,
+                          timeout=300)
+    assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1, done.stderr
+    assert f"a name of {C_RUNTIME_MAX_TOOL_NAME + 1} bytes; at most {C_RUNTIME_MAX_TOOL_NAME}" in done.stderr
+    assert not (tmp_path / "rt.h").exists()

@@ -164,6 +164,10 @@ def generate_c_runtime(model, tools: dict, *, name: str = DEFAULT_NAME, sha256: 
         if not isinstance(tool, str) or not tool or tool == NO_TOOL or "\0" in tool:
             raise FtcalError(f"--to c-runtime: tool {printable_ascii(repr(tool))[:80]} needs a name other than "
                              f"{NO_TOOL!r}, without NUL characters.")
+        size = len(tool.encode("utf-8", "surrogatepass"))
+        if size > C_RUNTIME_MAX_TOOL_NAME:  # a longer literal may not compile (C99 guarantees 4095 bytes)
+            raise FtcalError(f"--to c-runtime: tool {printable_ascii(repr(tool))[:80]} has a name of {size} bytes; at "
+                             f"most {C_RUNTIME_MAX_TOOL_NAME} (UTF-8), as for a name given at run time.")
     mass = [0.0] + [float(p.mass) for p in tools.values()]
     mc = [[0.0] * 3] + [list(p.mass * np.asarray(p.com, dtype=float)) for p in tools.values()]
     sign = [1.0] + [-1.0 if p.reaction else 1.0 for p in tools.values()]
