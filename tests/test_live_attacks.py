@@ -427,3 +427,64 @@ def test_a_compiled_in_tool_name_longer_than_a_run_time_one_is_refused(tmp_path)
     assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1, done.stderr
     assert f"a name of {C_RUNTIME_MAX_TOOL_NAME + 1} bytes; at most {C_RUNTIME_MAX_TOOL_NAME}" in done.stderr
     assert not (tmp_path / "rt.h").exists()
+
+
+# ----- physics: a contact that builds up slowly ------------------------------------------------------------------
+WALK = [3.0, 3.0, 3.0, 0.3, 0.3, 0.3]  # N/√h, N·m/√h: the UR wrist sensor's drift (0 → 4 N in 5 minutes)
+
+
+def ramp_recording(ramp_n_per_s: float, seconds=40.0, rate=500.0, seed=1):
+    """A still, level sensor with the gripper; from 10 s a contact along x grows at ``ramp_n_per_s`` up to 10 N."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, seconds, 1.0 / rate)
+    contact = np.clip((t - 10.0) * ramp_n_per_s, 0.0, 10.0)
+    bias = np.array([0.3, -0.2, 0.1, 0.01, 0.0, -0.01])
+    m, c = GRIPPER.mass, GRIPPER.com
+    w = np.r_[m * np.array(DOWN), m * np.cross(c, DOWN)] + bias + rng.normal(size=(t.size, 6)) * NOISE
+    w[:, 0] += contact
+    return t, w, contact, bias
+
+
+@pytest.mark.parametrize("ramp", [1.0, 0.3])
+def test_a_slow_ramp_contact_is_not_absorbed_into_the_bias(ramp):
+    """The per-sample χ² gate alone let a 1 N/s ramp to 10 N through (the filter follows it with a lag of a few σ:
+    the bias took all 10 N, nothing flagged). The drift test sends the bias back once it moved faster than the
+    walk allows: the bias ends within 10 % of the contact of its true value and the held contact is flagged."""
+    t, w, contact, bias = ramp_recording(ramp, seconds=10.0 + 10.0 / ramp + 15.0)
+    live = LiveCalibrator(tools={"gripper": GRIPPER}, tool="gripper", noise_std=NOISE, walk_std=WALK)
+    r = live.run(t, wrench=w, gravity=np.tile(DOWN, (t.size, 1)))
+    held = contact >= 10.0
+    assert np.all(np.abs(r.bias[held, 0] - bias[0]) < 1.0)  # < 10 % of the 10 N contact
+    np.testing.assert_allclose(r.compensated[held, 0], 10.0, atol=0.4)  # the contact, reported
+    assert np.all(r.flags[held][t[held] > t[held][0] + 0.5] & BIT["unexplained"])
+    assert any(e[2] == "rollback" and e[0] > 10.0 for e in live.events)
+
+
+def test_single_samples_roll_the_bias_back_where_blocks_do():
+    t, w, _, _ = ramp_recording(1.0, seconds=16.0)
+    g = np.tile(DOWN, (t.size, 1))
+    block = LiveCalibrator(tools={"gripper": GRIPPER}, tool="gripper", noise_std=NOISE, walk_std=WALK)
+    r = block.run(t, wrench=w, gravity=g)
+    one = LiveCalibrator(tools={"gripper": GRIPPER}, tool="gripper", noise_std=NOISE, walk_std=WALK)
+    steps = [one.step(t[k], wrench=w[k], gravity=g[k]) for k in range(t.size)]
+    np.testing.assert_allclose(np.array([s.bias for s in steps]), r.bias, rtol=1e-9, atol=1e-9)
+    np.testing.assert_array_equal([s.updated for s in steps], r.updated)
+    rollbacks = [e[0] for e in block.events if e[2] == "rollback"]
+    assert rollbacks and rollbacks == [e[0] for e in one.events if e[2] == "rollback"]
+
+
+def test_a_bias_that_follows_the_walk_is_never_sent_back():
+    """Drift as the model says (a random walk of the filter's own q, 3 N/√h, well beyond the acceptance threshold
+    over 10 minutes) and a still sensor: no rollback, and the bias tracks the truth."""
+    rng = np.random.default_rng(8)
+    rate, seconds = 100.0, 600.0
+    t = np.arange(0.0, seconds, 1.0 / rate)
+    q = (np.asarray(WALK) ** 2) / 3600.0
+    truth = np.cumsum(rng.normal(size=(t.size, 6)) * np.sqrt(q / rate), axis=0)
+    m, c = GRIPPER.mass, GRIPPER.com
+    w = np.r_[m * np.array(DOWN), m * np.cross(c, DOWN)] + truth + rng.normal(size=(t.size, 6)) * NOISE
+    live = LiveCalibrator(tools={"gripper": GRIPPER}, tool="gripper", noise_std=NOISE, walk_std=WALK)
+    r = live.run(t, wrench=w, gravity=np.tile(DOWN, (t.size, 1)))
+    assert not any(e[2] == "rollback" for e in live.events)
+    settled = t > 2.0
+    assert np.sqrt(np.mean((r.bias[settled, :3] - truth[settled, :3]) ** 2)) < 0.1

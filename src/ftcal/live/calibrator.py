@@ -34,7 +34,8 @@ from ..payload.parameters import PayloadParameters
 from ..runtime.errors import FtcalError
 from .health import BIT, DEAD_RUN, FLAGS, ExceedanceTimer, RunCounter, names_of
 from .motion import MotionDetector
-from .tracker import track_block
+from .drift import FALSE_ALARM, DriftCheck
+from .tracker import TrackedBlock, track_block
 
 NO_TOOL = "none"
 STATE_FORMAT = "ftcal-live-state"
@@ -250,6 +251,7 @@ class LiveCalibrator:
                                   if w is not None), (DEFAULT_WALK_FRACTION * scale) ** 2 / SECONDS_PER_HOUR)
         self.walk_variance = walk_variance  # per second
         self.threshold = float(chi2.ppf(gate_probability, 6))
+        self.drift = DriftCheck(float(chi2.ppf(1.0 - FALSE_ALARM, 6)))  # the bias moving faster than the walk
         self.unexplained_sigma, self.unexplained_seconds = float(unexplained_sigma), float(unexplained_seconds)
         self.adc_limits = adc_limits
         model_temperature = self._model_temperature()
@@ -337,6 +339,7 @@ class LiveCalibrator:
             the calibrator has just forgotten); it is also in the event's text.
         """
         self.variance = np.maximum(self.variance, RETARE_VARIANCE * self.noise_std ** 2)
+        self.drift.reset()
         self.counters["retares"] += 1
         raised = [name for name in ("contact", "unexplained") if self.flags_now & BIT[name]]
         warning = (f"re-tare while {' and '.join(raised)} is raised: if a contact caused it, it becomes the bias "
@@ -352,6 +355,7 @@ class LiveCalibrator:
         self.motion = MotionDetector(self.motion.window, self.motion.min_rate, self.motion.min_hold)
         self.unexplained_timer = ExceedanceTimer()
         self.last_time = None
+        self.drift.reset()
         self._event("clock", "restarted", reason)
 
     # ----- identification in place ----------------------------------------------------------------
@@ -415,6 +419,7 @@ class LiveCalibrator:
             self.bias = payload.bias.astype(float)
             se = np.r_[payload.stderr["force_bias"], payload.stderr["torque_bias"]]
             self.variance = np.maximum(np.nan_to_num(se ** 2, nan=0.0), self.noise_std ** 2)
+            self.drift.reset()
         return payload
 
     # ----- one sample, a block --------------------------------------------------------------------
@@ -496,8 +501,7 @@ class LiveCalibrator:
         dt[0] = 0.0 if self.last_time is None else t[0] - self.last_time
         dt[1:] = t[1:] - t[:-1]
         gate_static = still & (self.identifying is None)
-        tracked = track_block(z, dt, gate_static, self.bias, self.variance, self.walk_variance, self.noise_std ** 2,
-                              self.threshold)
+        tracked = self._track(t, z, dt, gate_static)
         if self.identifying is not None:
             self.identifying.add(w, g, still)
         flags, reasons = self._health(t, u, w, temperature, still, moving, tracked)
@@ -509,6 +513,38 @@ class LiveCalibrator:
         self.counters["contacts"] += sum(1 for e in events if e[1] == "contact" and e[2] == "raised")
         return LiveResult(t, w, tracked.innovation, tracked.bias, np.sqrt(tracked.variance), still, tracked.updated,
                           tracked.chi2, flags, self.tool, events)
+
+    def _track(self, t, z, dt, gate_static) -> TrackedBlock:
+        """:func:`~ftcal.live.tracker.track_block` with the drift test (:mod:`ftcal.live.drift`) at its snapshot
+        times: where the bias goes back, the rest of the block is tracked again from there."""
+        n, start, parts = t.size, 0, []
+        bias, variance, walk, limit = self.bias, self.variance, self.walk_variance.tolist(), self._accept_limit.tolist()
+        while start < n:
+            part = track_block(z[start:], dt[start:], gate_static[start:], bias, variance, self.walk_variance,
+                               self.noise_std ** 2, self.threshold)
+            times = t[start:]
+            k = int(np.searchsorted(times, self.drift.next_due)) if times[0] < self.drift.next_due else 0
+            back = None
+            while k < times.size:
+                back = self.drift.check(float(times[k]), part.bias[k].tolist(), part.variance[k].tolist(), walk,
+                                        limit)
+                if back is not None:
+                    break
+                k = int(np.searchsorted(times, self.drift.next_due))
+            if back is None:
+                parts.append(part)
+                break
+            part.bias[k], part.variance[k] = back[0], back[1]
+            self._log([(float(times[k]), "bias", "rollback", _rollback_text(back))])
+            parts.append(TrackedBlock(*(getattr(part, f)[:k + 1] for f in ("bias", "variance", "innovation",
+                                                                             "innovation_variance", "chi2",
+                                                                             "updated")), part.passes))
+            bias, variance, start = part.bias[k].copy(), part.variance[k].copy(), start + k + 1
+        if len(parts) == 1:
+            return parts[0]
+        return TrackedBlock(*(np.concatenate([getattr(p, f) for p in parts]) for f in
+                              ("bias", "variance", "innovation", "innovation_variance", "chi2", "updated")),
+                            sum(p.passes for p in parts))
 
     def _empty(self) -> LiveResult:
         z6 = np.empty((0, 6))
@@ -767,6 +803,11 @@ class LiveCalibrator:
             variance = [p * r / v for p, r, v in zip(predicted, noise, innovation_var)]
         else:
             variance = predicted
+        if t >= self.drift.next_due:
+            back = self.drift.check(t, bias, variance, walk, limit)
+            if back is not None:
+                bias, variance = back[0], back[1]
+                self._log([(t, "bias", "rollback", _rollback_text(back))])
         # ----- health -----
         t_col = self._temperature_input
         x = u if t_col is None else [v for j, v in enumerate(u) if j != t_col]
@@ -1013,6 +1054,7 @@ class LiveCalibrator:
             self.identified.add(name)
         self.bias, self.variance, self.tool, self.counters = bias, variance, tool, counters
         self.last_time = time
+        self.drift.reset()
         self._event("state", "resumed", f"resumed from {path} at t={self.last_time}")
 
     def model_fingerprint(self) -> str | None:
@@ -1029,6 +1071,12 @@ class LiveCalibrator:
 
 AXES = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
 OUT_OF_RANGE_TEXT = "inputs outside the calibration's training range or span"
+
+
+def _rollback_text(back: tuple) -> str:
+    _, _, lag, chi2, moved = back
+    return (f"the bias moved up to {moved:.3g} in {lag:.3g} s, more than the random walk allows (chi2 {chi2:.3g}, 6 dof): "
+            "a slow contact or a faster drift; bias and variance back to their values then, predicted since")
 
 
 def _saturated_text(channels: str, why: str) -> str:
