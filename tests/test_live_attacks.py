@@ -488,3 +488,73 @@ def test_a_bias_that_follows_the_walk_is_never_sent_back():
     assert not any(e[2] == "rollback" for e in live.events)
     settled = t > 2.0
     assert np.sqrt(np.mean((r.bias[settled, :3] - truth[settled, :3]) ** 2)) < 0.1
+
+
+# ----- the same over real Zenoh peers (loopback, multicast scouting off) ----------------------------------------
+def test_a_real_node_survives_hostile_messages_and_requests(tmp_path):
+    """``ftcal live --zenoh`` on 127.0.0.1: hostile wrench payloads, a far-future stamp and hostile queryable requests
+    between good messages; every good message is answered with finite numbers, every request with one reply, and
+    SIGTERM ends the node with its state saved."""
+    import signal
+    import socket
+    import threading
+    import time
+
+    import zenoh
+
+    from ftcal.live.zenoh_node import zenoh_config
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    save_payload(GRIPPER, tmp_path / "gripper.json")
+    node = subprocess.Popen([FTCAL, "live", "--zenoh", "--listen", f"tcp/127.0.0.1:{port}", "--tool",
+                             "gripper=gripper.json", "--state", "state.json"], cwd=tmp_path,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    rng = np.random.default_rng(9)
+    try:
+        assert "listening on ft/raw" in node.stdout.readline()
+        session = zenoh.open(zenoh_config(connect=(f"tcp/127.0.0.1:{port}",), listen=()))
+        got, lock = [], threading.Lock()
+
+        def on(sample):
+            with lock:
+                got.append(decode_stamped(bytes(sample.payload.to_bytes()), 6))
+
+        sub = session.declare_subscriber("ft/compensated", on)
+        pub = session.declare_publisher("ft/raw")
+        time.sleep(1.0)  # routes established
+
+        def ask(key, payload=None):
+            replies = list(session.get(key, payload=payload, timeout=10.0))
+            assert len(replies) == 1
+            return json.loads(bytes(replies[0].ok.payload.to_bytes()))
+
+        good = 0
+        for k in range(400):
+            stamp = 1_000_000_000 + k * 2_000_000
+            pub.put(encode_stamped(stamp, "ft", reading(rng)))
+            good += 1
+            if k == 200:
+                for data in hostile_wrenches(encode_stamped(stamp, "ft", [0.0] * 6)):
+                    pub.put(data)
+                pub.put(encode_stamped(stamp + int(1e12), "ft", reading(rng)))  # 1000 s ahead, alone
+            time.sleep(0.002)
+        replies = [ask("ft/identify_tool", data) for data in
+                   ("start " + "x" * 100, "start evil\u202etxt", "start", "finish", b"\xff\xfe", "x" * 5000)]
+        switched = ask("ft/switch_tool", "hammer")
+        status = ask("ft/status")
+        time.sleep(0.5)
+        sub.undeclare()
+        session.close()
+    finally:
+        node.send_signal(signal.SIGTERM)
+        out, err = node.communicate(timeout=60)
+    assert node.returncode == 143, err
+    assert all(r["ok"] is False and r["error"] for r in replies) and not switched["ok"]
+    assert status["status"]["counters"]["samples"] >= 0.95 * good and status["status"]["tools"] == ["none", "gripper"]
+    assert len(got) >= 0.95 * good and all(all(map(math.isfinite, m.values)) for m in got)
+    assert max(m.stamp_ns for m in got) < 2_000_000_000  # the far-future message was not answered
+    state = json.loads((tmp_path / "state.json").read_text())
+    assert state["counters"]["samples"] == status["status"]["counters"]["samples"]
+    assert state["time"] < 2.0  # the lone far-future stamp did not become the calibrator's time
