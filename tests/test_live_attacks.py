@@ -558,3 +558,23 @@ def test_a_real_node_survives_hostile_messages_and_requests(tmp_path):
     state = json.loads((tmp_path / "state.json").read_text())
     assert state["counters"]["samples"] == status["status"]["counters"]["samples"]
     assert state["time"] < 2.0  # the lone far-future stamp did not become the calibrator's time
+
+
+def test_a_tool_identified_in_place_keeps_replacing_its_file_namesake_after_a_resume(tmp_path):
+    """Identified in place under the name of a library tool, the new tool replaced it; the state carries it, and a
+    resume with the old file under that name still mounts the identified tool (its gravity wrench is what the
+    saved bias was tracked with)."""
+    heavier = PayloadParameters(2.0, np.array([0.01, 0.0, 0.08]), np.zeros(3), np.zeros(3), 9.81,
+                                stderr=GRIPPER.stderr, fit=GRIPPER.fit)
+    live = LiveCalibrator(tools={"gripper": GRIPPER}, tool="gripper", noise_std=NOISE)
+    live.add_tool("gripper", heavier)  # as finish_identification does for a name the library has
+    live.identified.add("gripper")
+    live.step(1.0, wrench=[0.0] * 6, gravity=DOWN)
+    live.save_state(tmp_path / "state.json")
+    resumed = LiveCalibrator(tools={"gripper": GRIPPER}, tool="gripper", noise_std=NOISE,
+                             state_path=tmp_path / "state.json")
+    assert resumed.tools["gripper"].mass == pytest.approx(2.0)
+    before = resumed.bias.copy()
+    sample = resumed.step(2.0, wrench=[0.0] * 6, gravity=DOWN)  # compensated = (w - m g) - bias, m = 2 kg
+    assert sample.compensated[2] == pytest.approx(0.0 - 2.0 * DOWN[2] - before[2], abs=1e-9)
+    assert any(e[2] == "replaced" for e in resumed.events)

@@ -1050,7 +1050,11 @@ class LiveCalibrator:
         if tool not in self.tools and tool not in tools:
             raise FtcalError(f"{path}: tool {tool!r} is not in the library ({', '.join([*self.tools, *tools])}).")
         for name, payload in tools.items():
-            self.tools.setdefault(name, payload)
+            # Identified in place, it replaced any tool of that name before the state was saved: it still does.
+            if self.tools.get(name) is not None:
+                self._event("tool", "replaced", f"tool {name!r} as identified in place (from {path}), not as its file")
+            self.tools[name] = payload
+            self._tool_terms.pop(name, None)
             self.identified.add(name)
         self.bias, self.variance, self.tool, self.counters = bias, variance, tool, counters
         self.last_time = time
