@@ -578,3 +578,40 @@ def test_a_tool_identified_in_place_keeps_replacing_its_file_namesake_after_a_re
     sample = resumed.step(2.0, wrench=[0.0] * 6, gravity=DOWN)  # compensated = (w - m g) - bias, m = 2 kg
     assert sample.compensated[2] == pytest.approx(0.0 - 2.0 * DOWN[2] - before[2], abs=1e-9)
     assert any(e[2] == "replaced" for e in resumed.events)
+
+
+# ----- the library's own arguments ----------------------------------------------------------------------------
+@pytest.mark.parametrize("settings, message", [
+    ({"walk_std": 1e200}, "walk_std must be six finite numbers >= 0 and at most 1e+100"),  # its square is inf
+    ({"noise_std": 1e160}, "noise_std must be six finite numbers"),
+    ({"initial_bias": 1e300}, "initial_bias must be six finite numbers of at most 1e+100"),
+    ({"initial_bias": 0.0, "initial_bias_std": 1e200}, "initial_bias_std must be six finite numbers"),
+    ({"unexplained_sigma": math.nan}, "unexplained_sigma must be a finite number > 0"),
+    ({"unexplained_seconds": -1.0}, "unexplained_seconds must be a finite number >= 0"),
+    ({"adc_limits": (5.0, -5.0)}, "adc_limits must be (low, high)"),
+    ({"adc_limits": (math.nan, 1.0)}, "adc_limits must be (low, high)"),
+    ({"temperature_range": (40.0, 20.0)}, "temperature_range must be (low, high)"),
+    ({"motion_window": 0.0}, "motion_window must be a finite number > 0"),
+    ({"min_hold": math.nan}, "min_hold must be a finite number >= 0"),
+    ({"gravity_magnitude": 0.0}, "gravity_magnitude must be a finite number > 0"),
+    ({"tools": {"a": 5}}, "tool 'a': give a payload"),
+])
+def test_settings_that_would_run_and_mean_nothing_are_refused(settings, message):
+    with pytest.raises(FtcalError, match=None) as caught:
+        LiveCalibrator(**settings)
+    assert message in str(caught.value)
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"time": "abc"}, "time must be numbers"),
+    ({"time": None}, "time must be finite"),
+    ({"wrench": ["a"] * 6}, "wrench must be numbers"),
+    ({"temperature": "hot"}, "temperature must be numbers"),
+])
+def test_a_single_sample_that_is_not_numbers_is_one_error(kwargs, message):
+    live = LiveCalibrator(noise_std=NOISE)
+    arguments = {"time": 1.0, "wrench": [0.0] * 6, "gravity": DOWN, **kwargs}
+    with pytest.raises(FtcalError, match=message):
+        live.step(arguments.pop("time"), **arguments)
+    with pytest.raises(FtcalError, match="temperature has 3 values for 2 samples"):
+        live.run(np.array([1.0, 2.0]), wrench=np.zeros((2, 6)), gravity=np.tile(DOWN, (2, 1)), temperature=np.ones(3))

@@ -222,6 +222,9 @@ class LiveCalibrator:
                 raise FtcalError(f"the calibration model has {len(model.output_names_)} outputs; a wrench needs 6.")
         if not 0.5 < gate_probability < 1.0:
             raise FtcalError(f"gate_probability must be in (0.5, 1); got {gate_probability}.")
+        self._check_settings(unexplained_sigma=unexplained_sigma, unexplained_seconds=unexplained_seconds,
+                             adc_limits=adc_limits, temperature_range=temperature_range, motion_window=motion_window,
+                             min_rate=min_rate, min_hold=min_hold, gravity_magnitude=gravity_magnitude)
         self.model = model
         self.robot = robot
         self._reasons: dict[str, str] = {}  # flag -> the reason it was last raised with (outlives the event log)
@@ -273,10 +276,40 @@ class LiveCalibrator:
     # ----- set-up helpers -------------------------------------------------------------------------
     @staticmethod
     def _vector(value, name: str) -> np.ndarray:
-        v = np.broadcast_to(np.asarray(value, dtype=float), (6,)).copy()
-        if not np.all(np.isfinite(v)) or np.any(v < 0):
-            raise FtcalError(f"{name} must be six finite numbers >= 0; got {value!r}.")
+        try:
+            v = np.broadcast_to(np.asarray(value, dtype=float), (6,)).copy()
+        except (TypeError, ValueError):
+            v = np.full(6, np.nan)
+        if not np.all(v <= MAX_CELL_MAGNITUDE) or np.any(v < 0):  # NaN fails too; beyond it squares overflow
+            raise FtcalError(f"{name} must be six finite numbers >= 0 and at most {MAX_CELL_MAGNITUDE:g}; got "
+                             f"{value!r}.")
         return v
+
+    @staticmethod
+    def _check_settings(**settings) -> None:
+        """The scalar settings: each a finite number in its range (a NaN window or an inverted ADC range would
+        run without complaint and mean nothing)."""
+        positive = ("unexplained_sigma", "motion_window", "min_rate", "gravity_magnitude")
+        for name, value in settings.items():
+            if name in ("adc_limits", "temperature_range"):
+                if value is None:
+                    continue
+                try:
+                    low, high = (float(v) for v in value)
+                except (TypeError, ValueError):
+                    low = high = math.nan
+                if not (math.isfinite(low) and math.isfinite(high) and (low < high or name == "temperature_range"
+                                                                        and low == high)):
+                    raise FtcalError(f"{name} must be (low, high), two finite numbers with low "
+                                     f"{'<=' if name == 'temperature_range' else '<'} high; got {value!r}.")
+                continue
+            try:
+                x = float(value)
+            except (TypeError, ValueError):
+                x = math.nan
+            if not (math.isfinite(x) and (x > 0 if name in positive else x >= 0)):
+                raise FtcalError(f"{name} must be a finite number {'> 0' if name in positive else '>= 0'}; "
+                                 f"got {value!r}.")
 
     def _model_temperature(self):
         """The model's temperature input range (and remember which input it is)."""
@@ -297,8 +330,8 @@ class LiveCalibrator:
         """
         if bias is not None:
             self.bias = np.broadcast_to(np.asarray(bias, float), (6,)).copy()
-            if not np.all(np.isfinite(self.bias)):
-                raise FtcalError("initial_bias must be six finite numbers.")
+            if not np.all(np.abs(self.bias) <= MAX_CELL_MAGNITUDE):
+                raise FtcalError(f"initial_bias must be six finite numbers of at most {MAX_CELL_MAGNITUDE:g}.")
             self.variance = (self._vector(std, "initial_bias_std") ** 2 if std is not None
                              else self.noise_std ** 2)
         else:
@@ -310,6 +343,9 @@ class LiveCalibrator:
         """Add (or replace) a tool in the library: a payload or a payload file's path."""
         if not isinstance(name, str) or not name or name == NO_TOOL:
             raise FtcalError(f"a tool needs a name other than {NO_TOOL!r}; got {name!r}.")
+        if not isinstance(payload, (PayloadParameters, str, Path)):
+            raise FtcalError(f"tool {name!r}: give a payload (PayloadParameters) or a payload file's path; got "
+                             f"{type(payload).__name__}.")
         if not isinstance(payload, PayloadParameters):
             from ..files.payload_json import load_payload
 
@@ -440,12 +476,16 @@ class LiveCalibrator:
         if sample is not None:
             return sample
 
-        def one(x):
-            return None if x is None else np.asarray(x, dtype=float).reshape(1, -1)
+        def one(x, name):
+            try:
+                return None if x is None else np.asarray(x, dtype=float).reshape(1, -1)
+            except (TypeError, ValueError):
+                raise FtcalError(f"{name} must be numbers; got {str(x)[:80]!r}.") from None
 
-        r = self.run(np.array([float(time)]), raw=one(raw), wrench=one(wrench), gravity=one(gravity),
-                     quaternion=one(quaternion), imu=one(imu), joints=one(joints),
-                     temperature=None if temperature is None else np.array([float(temperature)]),
+        r = self.run(one(time, "time").reshape(-1)[:1] if time is not None else one(math.nan, "time")[0],
+                     raw=one(raw, "raw"), wrench=one(wrench, "wrench"), gravity=one(gravity, "gravity"),
+                     quaternion=one(quaternion, "quaternion"), imu=one(imu, "imu"), joints=one(joints, "joints"),
+                     temperature=None if temperature is None else one(temperature, "temperature").reshape(-1)[:1],
                      static=None if static is None else np.array([bool(static)]))
         bits = int(r.flags[0])
         reasons = {e[1]: e[3] for e in r.events if e[2] == "raised"}
@@ -644,6 +684,8 @@ class LiveCalibrator:
         temp = None
         if temperature is not None:
             temp = np.asarray(temperature, dtype=float).reshape(-1)
+            if temp.size != n:
+                raise FtcalError(f"temperature has {temp.size} values for {n} samples.")
         elif t_col is not None:
             temp = u[:, t_col]
         if temp is not None and self.temperature_range is not None:
