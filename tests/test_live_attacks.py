@@ -615,3 +615,16 @@ def test_a_single_sample_that_is_not_numbers_is_one_error(kwargs, message):
         live.step(arguments.pop("time"), **arguments)
     with pytest.raises(FtcalError, match="temperature has 3 values for 2 samples"):
         live.run(np.array([1.0, 2.0]), wrench=np.zeros((2, 6)), gravity=np.tile(DOWN, (2, 1)), temperature=np.ones(3))
+
+
+def test_a_state_that_cannot_be_written_leaves_no_replay_output(tmp_path):
+    """The replay's table used to be renamed into place before the state was saved: a --state whose parent is a
+    file failed the command (exit 2) and left the table behind."""
+    still_table(tmp_path / "rec.parquet")
+    (tmp_path / "afile").write_text("")
+    done = subprocess.run([FTCAL, "live", "--replay", "rec.parquet", "--gravity-columns", "gx,gy,gz", "--inputs",
+                           "Fx,Fy,Fz,Tx,Ty,Tz", "--state", "afile/state.json", "-o", "out.parquet"], cwd=tmp_path,
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1, done.stderr
+    assert "afile/state.json: cannot create the output file (afile is a file, not a directory)" in done.stderr
+    assert not (tmp_path / "out.parquet").exists() and not list(tmp_path.glob(".*tmp*"))

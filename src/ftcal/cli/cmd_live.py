@@ -232,15 +232,15 @@ def _replay(args, live, table, columns, events):
     from ..runtime.errors import FtcalError
 
     try:
-        summary = replay_table(table, live, columns, args.output, events=events, realtime=args.realtime)
+        # The state is saved before the output is renamed into place: a state that cannot be written leaves no output.
+        summary = replay_table(table, live, columns, args.output, events=events, realtime=args.realtime,
+                               before_commit=live.save_state if args.state else None)
     except FtcalError:
         raise  # bad input: no output, and the state file is left as it was
     except BaseException:  # Ctrl-C, SIGTERM: keep what was processed
         if args.state and live.last_time is not None:
             live.save_state()
         raise
-    if args.state:
-        live.save_state()
     return summary
 
 

@@ -150,7 +150,8 @@ class _Writer:
 
 def replay_table(path: str | os.PathLike, live: LiveCalibrator, columns: ReplayColumns, output: str | os.PathLike,
                  *, events: Sequence[ScriptedEvent] = (), realtime: bool = False,
-                 on_block: Callable[[LiveResult], None] | None = None, chunk_rows: int | None = None) -> ReplaySummary:
+                 on_block: Callable[[LiveResult], None] | None = None, chunk_rows: int | None = None,
+                 before_commit: Callable[[], None] | None = None) -> ReplaySummary:
     """Run ``live`` over a CSV or Parquet table and write its results to ``output`` (atomically).
 
     Parameters
@@ -164,6 +165,8 @@ def replay_table(path: str | os.PathLike, live: LiveCalibrator, columns: ReplayC
     on_block : called with each block's result (e.g. to print events)
     chunk_rows : rows read and run at a time (default :data:`ftcal.data.table_chunks.CHUNK_ROWS`); memory
         follows it, not the recording's length
+    before_commit : called once the output is written, before it is renamed into place (e.g. saving the state):
+        if it raises, no output is left behind
 
     Returns
     -------
@@ -241,6 +244,8 @@ def replay_table(path: str | os.PathLike, live: LiveCalibrator, columns: ReplayC
             writer.close()
         if summary.n_samples == 0:
             raise FtcalError(f"{path}: no samples to replay.")
+        if before_commit is not None:
+            before_commit()
     summary.seconds = wallclock.perf_counter() - wall0
     summary.cpu_seconds = wallclock.process_time() - cpu0
     return summary
