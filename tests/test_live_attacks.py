@@ -628,3 +628,29 @@ def test_a_state_that_cannot_be_written_leaves_no_replay_output(tmp_path):
     assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1, done.stderr
     assert "afile/state.json: cannot create the output file (afile is a file, not a directory)" in done.stderr
     assert not (tmp_path / "out.parquet").exists() and not list(tmp_path.glob(".*tmp*"))
+
+
+def test_drop_incomplete_replays_a_table_with_nan_samples_as_the_table_without_them(tmp_path):
+    """A NaN sample mid-stream refuses the replay in one line naming column and row; with --drop-incomplete the
+    stream goes on: the output is the replay of the same table with those rows removed (by pandas), all finite."""
+    frame = still_table(tmp_path / "rec.parquet")
+    frame.loc[300, "Fx"] = np.nan
+    frame.loc[700, "gz"] = np.nan
+    frame.to_parquet(tmp_path / "holes.parquet")
+    frame.dropna().to_parquet(tmp_path / "complete.parquet")
+    save_payload(GRIPPER, tmp_path / "gripper.json")
+    args = ["live", "--gravity-columns", "gx,gy,gz", "--inputs", "Fx,Fy,Fz,Tx,Ty,Tz", "--tool", "gripper=gripper.json"]
+
+    def replay(*more):
+        return subprocess.run([FTCAL, *args, *more], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+
+    refused = replay("--replay", "holes.parquet", "-o", "a.parquet")
+    assert refused.returncode == 2 and "column 'Fx' has 1 empty, NaN or infinite cell(s), first at row 300" \
+        in refused.stderr and not (tmp_path / "a.parquet").exists()
+    dropped = replay("--replay", "holes.parquet", "--drop-incomplete", "-o", "b.parquet")
+    assert dropped.returncode == 0 and "; 2 incomplete row(s) dropped" in dropped.stdout, dropped.stderr
+    assert replay("--replay", "complete.parquet", "-o", "c.parquet").returncode == 0
+    b, c = pd.read_parquet(tmp_path / "b.parquet"), pd.read_parquet(tmp_path / "c.parquet")
+    assert len(b) == len(frame) - 2
+    pd.testing.assert_frame_equal(b, c)
+    assert np.isfinite(b.select_dtypes("number").to_numpy(float)).all()

@@ -79,6 +79,9 @@ def register(sub) -> None:
     p.add_argument("--state", metavar="STATE.json",
                    help="state file: resumed from when it exists, saved (atomically) at the end and on Ctrl-C")
     p.add_argument("--realtime", action="store_true", help="--replay at the recording's speed")
+    p.add_argument("--drop-incomplete", action="store_true",
+                   help="--replay of a table: skip rows with an empty or NaN cell in the columns used (counted; the "
+                        "next row's time step spans the gap) instead of refusing the table")
     add_robot_source_options(p, named_models=False)
     zenoh = p.add_argument_group("Zenoh and ROS bags (Zenoh keys follow zenoh-bridge-ros2dds: topic /ft/raw is "
                                  "key ft/raw; rmw_zenoh's with --keys rmw_zenoh)")
@@ -215,7 +218,7 @@ def run_replay(args) -> int:
         live = build_calibrator(args, robot)
         columns = replay_columns(args, live, default_signal)
         summary = _replay(args, live, table, columns, events)
-    print(summary.line())
+    print(summary.line() + (f"; {summary.dropped} incomplete row(s) dropped" if summary.dropped else ""))
     for when, flag, _, reason in summary.events[:10]:
         print(f"  t={when:.3f} s  {flag}: {reason}")
     if len(summary.events) > 10:
@@ -228,13 +231,18 @@ def run_replay(args) -> int:
 
 
 def _replay(args, live, table, columns, events):
+    from contextlib import nullcontext
+
+    from ..data.tables import drop_incomplete
     from ..live.replay import replay_table
     from ..runtime.errors import FtcalError
 
     try:
         # The state is saved before the output is renamed into place: a state that cannot be written leaves no output.
-        summary = replay_table(table, live, columns, args.output, events=events, realtime=args.realtime,
-                               before_commit=live.save_state if args.state else None)
+        with drop_incomplete() if args.drop_incomplete else nullcontext() as dropped:
+            summary = replay_table(table, live, columns, args.output, events=events, realtime=args.realtime,
+                                   before_commit=live.save_state if args.state else None)
+        summary.dropped = sum(dropped.values()) if dropped else 0
     except FtcalError:
         raise  # bad input: no output, and the state file is left as it was
     except BaseException:  # Ctrl-C, SIGTERM: keep what was processed
@@ -277,6 +285,9 @@ class _replay_source:
         if args.model is not None:
             raise FtcalError("--model with a bag: the bag's wrench topic is the wrench; replay a table of raw "
                              "channels with --model instead.")
+        if args.drop_incomplete:
+            raise FtcalError("--drop-incomplete applies to tables; a bag's reader refuses its NaN stretches, naming "
+                             "them.")
         topics = BagTopics(wrench=args.wrench_topic, joints=args.joints_topic, imu=args.imu_topic, tf=args.tf,
                            receive_time=args.receive_time)
         table = build_bag_table([path], topics, options=InsituOptions(savgol_frame=None, temperature=False,
@@ -357,9 +368,10 @@ def run_zenoh(args) -> int:
     from ..live.zenoh_node import ZenohOptions, serve
     from ..runtime.errors import FtcalError
 
-    if args.output or args.retare_at or args.switch_tool or args.realtime or args.tf or args.receive_time:
-        raise FtcalError("-o, --retare-at, --switch-tool, --realtime, --tf and --receive-time go with --replay; live, "
-                         "use the queryables (see docs/live.md).")
+    if (args.output or args.retare_at or args.switch_tool or args.realtime or args.tf or args.receive_time
+            or args.drop_incomplete):
+        raise FtcalError("-o, --retare-at, --switch-tool, --realtime, --tf, --receive-time and --drop-incomplete go "
+                         "with --replay; live, use the queryables (see docs/live.md).")
     if (args.joints_topic is None) != (args.robot_urdf is None):
         raise FtcalError("--joints-topic and --urdf go together: gravity from the joint states and the robot model.")
     if args.joints_topic and args.imu_topic:

@@ -71,6 +71,7 @@ class ReplaySummary:
     cpu_seconds: float = 0.0
     flag_samples: dict = field(default_factory=dict)  # flag -> samples flagged
     events: list = field(default_factory=list)  # (time, flag, kind, reason), the first MAX_LISTED
+    dropped: int = 0  # incomplete rows skipped (the caller's drop_incomplete)
 
     def line(self) -> str:
         flagged = ", ".join(f"{k} {v}" for k, v in self.flag_samples.items() if v) or "none"
