@@ -654,3 +654,45 @@ def test_drop_incomplete_replays_a_table_with_nan_samples_as_the_table_without_t
     assert len(b) == len(frame) - 2
     pd.testing.assert_frame_equal(b, c)
     assert np.isfinite(b.select_dtypes("number").to_numpy(float)).all()
+
+
+def test_the_c_step_refuses_inputs_beyond_1e100_as_python_does(tmp_path):
+    """The C step took a 1e200 gauge value and answered chi2 = inf; it now returns -1 and changes nothing, as
+    Python refuses the sample."""
+    import shutil
+
+    from ftcal.core.dataset import Dataset
+    from ftcal.core.model import CalibrationModel
+    from ftcal.live.c_runtime import generate_c_runtime
+
+    cc = shutil.which("cc")
+    assert cc is not None
+    raw = np.random.default_rng(0).uniform(-20, 20, size=(500, 6))
+    model = CalibrationModel(degree=1).fit(Dataset.from_arrays(raw, raw))
+    (tmp_path / "rt.h").write_text(generate_c_runtime(model, {"gripper": GRIPPER}, name="rt"))
+    (tmp_path / "main.c").write_text("""
+#include <stdio.h>
+#include "rt.h"
+static rt_state s;
+int main(void) {
+    rt_output out; double u[6] = {0, 0, 0, 0, 0, 0}, g[3] = {0, 0, -9.81}; double big[3] = {1e101, 1e200, -1e308};
+    int k, i;
+    rt_init(&s, 1);
+    for (k = 0; k < 100; ++k) if (rt_step(&s, k * 0.01, u, g, -1, &out)) return 1;
+    for (i = 0; i < 3; ++i) {
+        u[0] = big[i]; printf("%d ", rt_step(&s, 2.0, u, g, -1, &out)); u[0] = 0;
+        g[1] = big[i]; printf("%d ", rt_step(&s, 2.0, u, g, -1, &out)); g[1] = 0;
+    }
+    printf("%d\\n", rt_step(&s, 2.0, u, g, -1, &out));  /* the state is untouched: time 2.0 is still new */
+    return 0;
+}
+""")
+    built = subprocess.run([cc, "-O2", "-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "main.c", "-o", "main",
+                            "-lm"], cwd=tmp_path, capture_output=True, text=True)
+    assert built.returncode == 0, built.stderr
+    ran = subprocess.run([str(tmp_path / "main")], capture_output=True, text=True)
+    assert ran.stdout.split() == ["-1"] * 6 + ["0"]
+    live = LiveCalibrator(model, tools={"gripper": GRIPPER}, tool="gripper")
+    for value in (1e101, 1e200, -1e308):
+        with pytest.raises(FtcalError, match="beyond 1e\\+100"):
+            live.step(2.0, raw=[value, 0, 0, 0, 0, 0], gravity=DOWN)
