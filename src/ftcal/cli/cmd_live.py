@@ -79,6 +79,9 @@ def register(sub) -> None:
     p.add_argument("--state", metavar="STATE.json",
                    help="state file: resumed from when it exists, saved (atomically) at the end and on Ctrl-C")
     p.add_argument("--realtime", action="store_true", help="--replay at the recording's speed")
+    p.add_argument("--drop-incomplete", action="store_true",
+                   help="--replay of a table: skip rows with an empty or NaN cell in the columns used (counted; the "
+                        "next row's time step spans the gap) instead of refusing the table")
     add_robot_source_options(p, named_models=False)
     zenoh = p.add_argument_group("Zenoh and ROS bags (Zenoh keys follow zenoh-bridge-ros2dds: topic /ft/raw is "
                                  "key ft/raw; rmw_zenoh's with --keys rmw_zenoh)")
@@ -95,6 +98,9 @@ def register(sub) -> None:
     zenoh.add_argument("--tf", metavar="BASE[:SENSOR_FRAME]", type=frame_pair,
                        help="--replay of a bag: the sensor's orientation from /tf and /tf_static (BASE gravity-"
                             "aligned, z up)")
+    zenoh.add_argument("--receive-time", action="store_true",
+                       help="--replay of a bag: time the messages by the bag's receive time, not their header stamps "
+                            "(as ftcal dataset --receive-time: for stamps that repeat or go back)")
     zenoh.add_argument("--prefix", default="/ft", metavar="TOPIC",
                        help="outputs: PREFIX/calibrated, PREFIX/compensated (WrenchStamped), PREFIX/diagnostics "
                             "(JSON); queryables PREFIX/retare, /switch_tool, /identify_tool, /status "
@@ -212,7 +218,7 @@ def run_replay(args) -> int:
         live = build_calibrator(args, robot)
         columns = replay_columns(args, live, default_signal)
         summary = _replay(args, live, table, columns, events)
-    print(summary.line())
+    print(summary.line() + (f"; {summary.dropped} incomplete row(s) dropped" if summary.dropped else ""))
     for when, flag, _, reason in summary.events[:10]:
         print(f"  t={when:.3f} s  {flag}: {reason}")
     if len(summary.events) > 10:
@@ -225,19 +231,24 @@ def run_replay(args) -> int:
 
 
 def _replay(args, live, table, columns, events):
+    from contextlib import nullcontext
+
+    from ..data.tables import drop_incomplete
     from ..live.replay import replay_table
     from ..runtime.errors import FtcalError
 
     try:
-        summary = replay_table(table, live, columns, args.output, events=events, realtime=args.realtime)
+        # The state is saved before the output is renamed into place: a state that cannot be written leaves no output.
+        with drop_incomplete() if args.drop_incomplete else nullcontext() as dropped:
+            summary = replay_table(table, live, columns, args.output, events=events, realtime=args.realtime,
+                                   before_commit=live.save_state if args.state else None)
+        summary.dropped = sum(dropped.values()) if dropped else 0
     except FtcalError:
         raise  # bad input: no output, and the state file is left as it was
     except BaseException:  # Ctrl-C, SIGTERM: keep what was processed
         if args.state and live.last_time is not None:
             live.save_state()
         raise
-    if args.state:
-        live.save_state()
     return summary
 
 
@@ -263,6 +274,9 @@ class _replay_source:
                 if getattr(args, option) is not None:
                     raise FtcalError(f"--{option.replace('_', '-')} applies to --zenoh and to ROS bags; "
                                      f"{args.replay} is a table (give its columns).")
+            if args.receive_time:
+                raise FtcalError(f"--receive-time applies to ROS bags; {args.replay} is a table (its --time column "
+                                 "is the time).")
             return args.replay, None, table_columns(args.replay)
         from ..data.bags import BagTopics
         from ..insitu.bags import build_bag_table, write_bag_table
@@ -271,9 +285,14 @@ class _replay_source:
         if args.model is not None:
             raise FtcalError("--model with a bag: the bag's wrench topic is the wrench; replay a table of raw "
                              "channels with --model instead.")
-        topics = BagTopics(wrench=args.wrench_topic, joints=args.joints_topic, imu=args.imu_topic, tf=args.tf)
+        if args.drop_incomplete:
+            raise FtcalError("--drop-incomplete applies to tables; a bag's reader refuses its NaN stretches, naming "
+                             "them.")
+        topics = BagTopics(wrench=args.wrench_topic, joints=args.joints_topic, imu=args.imu_topic, tf=args.tf,
+                           receive_time=args.receive_time)
         table = build_bag_table([path], topics, options=InsituOptions(savgol_frame=None, temperature=False,
                                                                       base=args.base))
+        _check_magnitudes(args, table)
         self.tmp = tempfile.TemporaryDirectory(prefix="ftcal-live-bag-")
         out = Path(self.tmp.name) / "bag.parquet"
         write_bag_table(table, out)
@@ -286,6 +305,28 @@ class _replay_source:
     def __exit__(self, *exc) -> None:
         if self.tmp is not None:
             self.tmp.cleanup()
+
+
+def _check_magnitudes(args, table) -> None:
+    """Refuse a bag value beyond :data:`~ftcal.core.limits.MAX_CELL_MAGNITUDE` naming the bag, its topic and time
+    (the temporary table the bag becomes would name itself instead)."""
+    import numpy as np
+
+    from ..core.limits import MAX_CELL_MAGNITUDE
+    from ..runtime.errors import FtcalError
+
+    wrench = {f"u{j + 1}": axis for j, axis in enumerate(("Fx", "Fy", "Fz", "Tx", "Ty", "Tz"))}
+    for column, values in table.columns.items():
+        values = np.asarray(values)
+        if values.dtype.kind != "f":
+            continue
+        huge = np.abs(values) > MAX_CELL_MAGNITUDE
+        if huge.any():
+            k = int(np.flatnonzero(huge)[0])
+            what = (f"the wrench on {args.wrench_topic} ({wrench[column]})" if column in wrench else
+                    f"{column!r} (from {args.imu_topic or args.joints_topic or '/tf'})")
+            raise FtcalError(f"{args.replay}: {what} holds {values[k]:g} at t={table.columns['time'][k]:.6f} s, beyond "
+                             f"{MAX_CELL_MAGNITUDE:g} in magnitude: no sensor reads that.")
 
 
 def replay_columns(args, live, default_signal=None):
@@ -327,9 +368,10 @@ def run_zenoh(args) -> int:
     from ..live.zenoh_node import ZenohOptions, serve
     from ..runtime.errors import FtcalError
 
-    if args.output or args.retare_at or args.switch_tool or args.realtime or args.tf:
-        raise FtcalError("-o, --retare-at, --switch-tool, --realtime and --tf go with --replay; live, use the "
-                         "queryables (see docs/live.md).")
+    if (args.output or args.retare_at or args.switch_tool or args.realtime or args.tf or args.receive_time
+            or args.drop_incomplete):
+        raise FtcalError("-o, --retare-at, --switch-tool, --realtime, --tf, --receive-time and --drop-incomplete go "
+                         "with --replay; live, use the queryables (see docs/live.md).")
     if (args.joints_topic is None) != (args.robot_urdf is None):
         raise FtcalError("--joints-topic and --urdf go together: gravity from the joint states and the robot model.")
     if args.joints_topic and args.imu_topic:

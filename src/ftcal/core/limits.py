@@ -286,3 +286,19 @@ also when a flag changes (as ``diagnostic_updater::Updater::force_update``), but
 LIVE_DIAGNOSTICS_MIN_INTERVAL_S = 0.05
 """Least time between two diagnostics messages of ``ftcal live --zenoh`` (at most 20 a second however often flags
 change: a flag that comes and goes between two messages is still reported, in the next message's ``raised``)."""
+
+LIVE_MAX_STATE_BYTES = 64 * 1024 * 1024
+"""Largest live state file (``ftcal live --state``) read back: the state is a few kB plus the payload documents of the
+tools identified in place; anything much larger is not a state file."""
+
+LIVE_MAX_STAMP_JUMP_S = 60.0
+"""``ftcal live --zenoh``: a wrench stamped this much later than the previous one is held back until the next message
+confirms the new time line (a lone far-future stamp would otherwise make every later message look old)."""
+
+LIVE_MAX_QUERY_BYTES = 4096
+"""Longest payload of a ``ftcal live --zenoh`` queryable request (a tool name, ``start NAME``); longer ones are
+answered with an error."""
+
+LIVE_CLOCK_RESTART_MESSAGES = 100
+"""``ftcal live --zenoh``: this many wrenches in a row stamped before the last one processed, in their own order, mean
+the publisher's clock restarted (e.g. simulated time): the calibrator's clock restarts on them (said in one line)."""

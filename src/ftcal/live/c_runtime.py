@@ -47,7 +47,7 @@ import numpy as np
 from ..check.accept import Thresholds
 from ..core.excitation import SPAN_RELATIVE_FLOOR, span_limit
 from ..core.limits import (C_RUNTIME_MAX_EVENTS, C_RUNTIME_MAX_HOLDS, C_RUNTIME_MAX_TOOL_NAME, C_RUNTIME_MAX_TOOLS,
-                           LIVE_MIN_HOLDS)
+                           LIVE_MIN_HOLDS, MAX_CELL_MAGNITUDE)
 from ..core.ranges import RANGE_TOLERANCE
 from ..data.holds import HOLD_WINDOW_S, MIN_ANGULAR_RATE, MIN_HOLD_S
 from ..data.signals import SATURATION_RUN, STUCK_RUN
@@ -167,6 +167,10 @@ def generate_c_runtime(model, tools: dict, *, name: str = DEFAULT_NAME, sha256: 
         if not isinstance(tool, str) or not tool or tool == NO_TOOL or "\0" in tool:
             raise FtcalError(f"--to c-runtime: tool {printable_ascii(repr(tool))[:80]} needs a name other than "
                              f"{NO_TOOL!r}, without NUL characters.")
+        size = len(tool.encode("utf-8", "surrogatepass"))
+        if size > C_RUNTIME_MAX_TOOL_NAME:  # a longer literal may not compile (C99 guarantees 4095 bytes)
+            raise FtcalError(f"--to c-runtime: tool {printable_ascii(repr(tool))[:80]} has a name of {size} bytes; at "
+                             f"most {C_RUNTIME_MAX_TOOL_NAME} (UTF-8), as for a name given at run time.")
     mass = [0.0] + [float(p.mass) for p in tools.values()]
     mc = [[0.0] * 3] + [list(p.mass * np.asarray(p.com, dtype=float)) for p in tools.values()]
     sign = [1.0] + [-1.0 if p.reaction else 1.0 for p in tools.values()]
@@ -213,6 +217,7 @@ extern "C" {{
 #define {macro}_MAX_ADDED_TOOLS {C_RUNTIME_MAX_TOOLS}   /* tools identified in place under new names */
 #define {macro}_MAX_TOOLS ({macro}_N_TOOLS + {macro}_MAX_ADDED_TOOLS)
 #define {macro}_MAX_TOOL_NAME {C_RUNTIME_MAX_TOOL_NAME}   /* bytes of a run-time tool name, without the NUL */
+#define {macro}_MAX_MAGNITUDE {MAX_CELL_MAGNITUDE!r}   /* larger inputs are refused, as in Python: squares overflow */
 {tool_status}
 #ifndef {macro}_HISTORY
 #define {macro}_HISTORY {HISTORY}
@@ -412,8 +417,8 @@ static inline void {name}_motion({name}_state *s, double time, const double *dir
 {collect_text(name, macro)}{flag_events_text(name, macro, t_col)}
 /* One sample: time in s (strictly increasing), u[N_INPUTS] the raw channels, gravity[3] in sensor axes
    (m/s^2, any nonzero length for the direction), static_override -1 (motion test), 0 or 1.
-   Returns 0, or -1 (state untouched, out not written) for non-finite input, time that does not
-   increase or a zero gravity vector. */
+   Returns 0, or -1 (state untouched, out not written) for input that is not finite or beyond
+   MAX_MAGNITUDE (a calibrated wrench too), time that does not increase or a zero gravity vector. */
 static inline int {name}_step({name}_state *s, double time, const double *u, const double *gravity, int static_override,
                        {name}_output *out)
 {{
@@ -423,11 +428,12 @@ static inline int {name}_step({name}_state *s, double time, const double *u, con
     int j, still, moving, gate, beyond = 0, other;
     unsigned flags = 0;
     if (!isfinite(time) || (s->has_time && !(time > s->last_time))) return -1;
-    for (j = 0; j < {macro}_N_INPUTS; ++j) if (!isfinite(u[j])) return -1;
-    for (j = 0; j < 3; ++j) if (!isfinite(gravity[j])) return -1;
+    for (j = 0; j < {macro}_N_INPUTS; ++j) if (!(fabs(u[j]) <= {macro}_MAX_MAGNITUDE)) return -1;
+    for (j = 0; j < 3; ++j) if (!(fabs(gravity[j]) <= {macro}_MAX_MAGNITUDE)) return -1;
     norm = sqrt(gravity[0] * gravity[0] + gravity[1] * gravity[1] + gravity[2] * gravity[2]);
     if (norm == 0.0) return -1;
     {name}_calibrate(u, w);
+    for (j = 0; j < 6; ++j) if (!(fabs(w[j]) <= {macro}_MAX_MAGNITUDE)) return -1;
     for (j = 0; j < 3; ++j) direction[j] = gravity[j] / norm;
     if (static_override >= 0) {{
         still = static_override != 0;

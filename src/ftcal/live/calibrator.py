@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from ..check.accept import Thresholds
-from ..core.limits import LIVE_MIN_HOLDS
+from ..core.limits import LIVE_MIN_HOLDS, MAX_CELL_MAGNITUDE
 from ..data.holds import HOLD_WINDOW_S, MIN_ANGULAR_RATE, MIN_HOLD_S
 from ..data.signals import SATURATION_RUN, STUCK_RUN
 from ..payload.kinematics import QUATERNION_NORM_TOLERANCE, STANDARD_GRAVITY, gravity_from_quaternions
@@ -34,7 +34,8 @@ from ..payload.parameters import PayloadParameters
 from ..runtime.errors import FtcalError
 from .health import BIT, DEAD_RUN, FLAGS, ExceedanceTimer, RunCounter, names_of
 from .motion import MotionDetector
-from .tracker import gate_chi2, track_block
+from .drift import FALSE_ALARM, DriftCheck
+from .tracker import TrackedBlock, gate_chi2, track_block
 
 NO_TOOL = "none"
 STATE_FORMAT = "ftcal-live-state"
@@ -219,6 +220,9 @@ class LiveCalibrator:
                 raise FtcalError(f"the calibration model has {len(model.output_names_)} outputs; a wrench needs 6.")
         if not 0.5 < gate_probability < 1.0:
             raise FtcalError(f"gate_probability must be in (0.5, 1); got {gate_probability}.")
+        self._check_settings(unexplained_sigma=unexplained_sigma, unexplained_seconds=unexplained_seconds,
+                             adc_limits=adc_limits, temperature_range=temperature_range, motion_window=motion_window,
+                             min_rate=min_rate, min_hold=min_hold, gravity_magnitude=gravity_magnitude)
         self.model = model
         self.robot = robot
         self._reasons: dict[str, str] = {}  # flag -> the reason it was last raised with (outlives the event log)
@@ -248,6 +252,7 @@ class LiveCalibrator:
                                   if w is not None), (DEFAULT_WALK_FRACTION * scale) ** 2 / SECONDS_PER_HOUR)
         self.walk_variance = walk_variance  # per second
         self.threshold = gate_chi2(gate_probability)
+        self.drift = DriftCheck(gate_chi2(1.0 - FALSE_ALARM))  # the bias moving faster than the walk
         self.unexplained_sigma, self.unexplained_seconds = float(unexplained_sigma), float(unexplained_seconds)
         self.adc_limits = adc_limits
         model_temperature = self._model_temperature()
@@ -269,10 +274,40 @@ class LiveCalibrator:
     # ----- set-up helpers -------------------------------------------------------------------------
     @staticmethod
     def _vector(value, name: str) -> np.ndarray:
-        v = np.broadcast_to(np.asarray(value, dtype=float), (6,)).copy()
-        if not np.all(np.isfinite(v)) or np.any(v < 0):
-            raise FtcalError(f"{name} must be six finite numbers >= 0; got {value!r}.")
+        try:
+            v = np.broadcast_to(np.asarray(value, dtype=float), (6,)).copy()
+        except (TypeError, ValueError):
+            v = np.full(6, np.nan)
+        if not np.all(v <= MAX_CELL_MAGNITUDE) or np.any(v < 0):  # NaN fails too; beyond it squares overflow
+            raise FtcalError(f"{name} must be six finite numbers >= 0 and at most {MAX_CELL_MAGNITUDE:g}; got "
+                             f"{value!r}.")
         return v
+
+    @staticmethod
+    def _check_settings(**settings) -> None:
+        """The scalar settings: each a finite number in its range (a NaN window or an inverted ADC range would
+        run without complaint and mean nothing)."""
+        positive = ("unexplained_sigma", "motion_window", "min_rate", "gravity_magnitude")
+        for name, value in settings.items():
+            if name in ("adc_limits", "temperature_range"):
+                if value is None:
+                    continue
+                try:
+                    low, high = (float(v) for v in value)
+                except (TypeError, ValueError):
+                    low = high = math.nan
+                if not (math.isfinite(low) and math.isfinite(high) and (low < high or name == "temperature_range"
+                                                                        and low == high)):
+                    raise FtcalError(f"{name} must be (low, high), two finite numbers with low "
+                                     f"{'<=' if name == 'temperature_range' else '<'} high; got {value!r}.")
+                continue
+            try:
+                x = float(value)
+            except (TypeError, ValueError):
+                x = math.nan
+            if not (math.isfinite(x) and (x > 0 if name in positive else x >= 0)):
+                raise FtcalError(f"{name} must be a finite number {'> 0' if name in positive else '>= 0'}; "
+                                 f"got {value!r}.")
 
     def _model_temperature(self):
         """The model's temperature input range (and remember which input it is)."""
@@ -293,8 +328,8 @@ class LiveCalibrator:
         """
         if bias is not None:
             self.bias = np.broadcast_to(np.asarray(bias, float), (6,)).copy()
-            if not np.all(np.isfinite(self.bias)):
-                raise FtcalError("initial_bias must be six finite numbers.")
+            if not np.all(np.abs(self.bias) <= MAX_CELL_MAGNITUDE):
+                raise FtcalError(f"initial_bias must be six finite numbers of at most {MAX_CELL_MAGNITUDE:g}.")
             self.variance = (self._vector(std, "initial_bias_std") ** 2 if std is not None
                              else self.noise_std ** 2)
         else:
@@ -306,6 +341,9 @@ class LiveCalibrator:
         """Add (or replace) a tool in the library: a payload or a payload file's path."""
         if not isinstance(name, str) or not name or name == NO_TOOL:
             raise FtcalError(f"a tool needs a name other than {NO_TOOL!r}; got {name!r}.")
+        if not isinstance(payload, (PayloadParameters, str, Path)):
+            raise FtcalError(f"tool {name!r}: give a payload (PayloadParameters) or a payload file's path; got "
+                             f"{type(payload).__name__}.")
         if not isinstance(payload, PayloadParameters):
             from ..files.payload_json import load_payload
 
@@ -323,12 +361,36 @@ class LiveCalibrator:
         self.counters["switches"] += 1
         self._event("tool", "switched", f"tool {old!r} -> {name!r}")
 
-    def retare(self) -> None:
+    def retare(self) -> str | None:
         """Re-estimate the bias only, tool kept, in any pose: the bias forgets its value, and the next static
-        samples (the sensor must be free of contact) set it."""
+        samples (the sensor must be free of contact) set it.
+
+        Returns
+        -------
+        str or None
+            A warning when the re-tare comes while ``contact`` or ``unexplained`` is raised: if a contact
+            caused it, the next static samples take it into the bias (nothing can tell it from a bias
+            the calibrator has just forgotten); it is also in the event's text.
+        """
         self.variance = np.maximum(self.variance, RETARE_VARIANCE * self.noise_std ** 2)
+        self.drift.reset()
         self.counters["retares"] += 1
-        self._event("bias", "retare", f"re-tare with tool {self.tool!r} kept: the next static samples set the bias")
+        raised = [name for name in ("contact", "unexplained") if self.flags_now & BIT[name]]
+        warning = (f"re-tare while {' and '.join(raised)} is raised: if a contact caused it, it becomes the bias "
+                   "(re-tare again free of contact)") if raised else None
+        self._event("bias", "retare", f"re-tare with tool {self.tool!r} kept: the next static samples set the bias"
+                    + (f"; {warning}" if warning else ""))
+        return warning
+
+    def restart_clock(self, reason: str) -> None:
+        """Take the next sample at any time, as after a restart: the motion test starts without history (0.3 s of
+        "moving"), the unexplained-wrench timer restarts; bias, variance, tool and counters are kept (a
+        transport calls this when its publisher's clock restarted)."""
+        self.motion = MotionDetector(self.motion.window, self.motion.min_rate, self.motion.min_hold)
+        self.unexplained_timer = ExceedanceTimer()
+        self.last_time = None
+        self.drift.reset()
+        self._event("clock", "restarted", reason)
 
     # ----- identification in place ----------------------------------------------------------------
     def start_identification(self, name: str) -> None:
@@ -391,6 +453,7 @@ class LiveCalibrator:
             self.bias = payload.bias.astype(float)
             se = np.r_[payload.stderr["force_bias"], payload.stderr["torque_bias"]]
             self.variance = np.maximum(np.nan_to_num(se ** 2, nan=0.0), self.noise_std ** 2)
+            self.drift.reset()
         return payload
 
     # ----- one sample, a block --------------------------------------------------------------------
@@ -411,12 +474,16 @@ class LiveCalibrator:
         if sample is not None:
             return sample
 
-        def one(x):
-            return None if x is None else np.asarray(x, dtype=float).reshape(1, -1)
+        def one(x, name):
+            try:
+                return None if x is None else np.asarray(x, dtype=float).reshape(1, -1)
+            except (TypeError, ValueError):
+                raise FtcalError(f"{name} must be numbers; got {str(x)[:80]!r}.") from None
 
-        r = self.run(np.array([float(time)]), raw=one(raw), wrench=one(wrench), gravity=one(gravity),
-                     quaternion=one(quaternion), imu=one(imu), joints=one(joints),
-                     temperature=None if temperature is None else np.array([float(temperature)]),
+        r = self.run(one(time, "time").reshape(-1)[:1] if time is not None else one(math.nan, "time")[0],
+                     raw=one(raw, "raw"), wrench=one(wrench, "wrench"), gravity=one(gravity, "gravity"),
+                     quaternion=one(quaternion, "quaternion"), imu=one(imu, "imu"), joints=one(joints, "joints"),
+                     temperature=None if temperature is None else one(temperature, "temperature").reshape(-1)[:1],
                      static=None if static is None else np.array([bool(static)]))
         bits = int(r.flags[0])
         reasons = {e[1]: e[3] for e in r.events if e[2] == "raised"}
@@ -472,8 +539,7 @@ class LiveCalibrator:
         dt[0] = 0.0 if self.last_time is None else t[0] - self.last_time
         dt[1:] = t[1:] - t[:-1]
         gate_static = still & (self.identifying is None)
-        tracked = track_block(z, dt, gate_static, self.bias, self.variance, self.walk_variance, self.noise_std ** 2,
-                              self.threshold)
+        tracked = self._track(t, z, dt, gate_static)
         if self.identifying is not None:
             self.identifying.add(w, g, still)
         flags, reasons = self._health(t, u, w, temperature, still, moving, tracked)
@@ -485,6 +551,38 @@ class LiveCalibrator:
         self.counters["contacts"] += sum(1 for e in events if e[1] == "contact" and e[2] == "raised")
         return LiveResult(t, w, tracked.innovation, tracked.bias, np.sqrt(tracked.variance), still, tracked.updated,
                           tracked.chi2, flags, self.tool, events)
+
+    def _track(self, t, z, dt, gate_static) -> TrackedBlock:
+        """:func:`~ftcal.live.tracker.track_block` with the drift test (:mod:`ftcal.live.drift`) at its snapshot
+        times: where the bias goes back, the rest of the block is tracked again from there."""
+        n, start, parts = t.size, 0, []
+        bias, variance, walk, limit = self.bias, self.variance, self.walk_variance.tolist(), self._accept_limit.tolist()
+        while start < n:
+            part = track_block(z[start:], dt[start:], gate_static[start:], bias, variance, self.walk_variance,
+                               self.noise_std ** 2, self.threshold)
+            times = t[start:]
+            k = int(np.searchsorted(times, self.drift.next_due)) if times[0] < self.drift.next_due else 0
+            back = None
+            while k < times.size:
+                back = self.drift.check(float(times[k]), part.bias[k].tolist(), part.variance[k].tolist(), walk,
+                                        limit)
+                if back is not None:
+                    break
+                k = int(np.searchsorted(times, self.drift.next_due))
+            if back is None:
+                parts.append(part)
+                break
+            part.bias[k], part.variance[k] = back[0], back[1]
+            self._log([(float(times[k]), "bias", "rollback", _rollback_text(back))])
+            parts.append(TrackedBlock(*(getattr(part, f)[:k + 1] for f in ("bias", "variance", "innovation",
+                                                                             "innovation_variance", "chi2",
+                                                                             "updated")), part.passes))
+            bias, variance, start = part.bias[k].copy(), part.variance[k].copy(), start + k + 1
+        if len(parts) == 1:
+            return parts[0]
+        return TrackedBlock(*(np.concatenate([getattr(p, f) for p in parts]) for f in
+                              ("bias", "variance", "innovation", "innovation_variance", "chi2", "updated")),
+                            sum(p.passes for p in parts))
 
     def _empty(self) -> LiveResult:
         z6 = np.empty((0, 6))
@@ -502,8 +600,9 @@ class LiveCalibrator:
                 raise FtcalError(f"raw has {u.shape[1]} channels; the model takes {len(self.model.input_names_)} "
                                  f"({', '.join(self.model.input_names_)}).")
             _finite(u, "raw")
-            w = self.model.predict(u, warn_out_of_range=False) if n else np.empty((0, 6))
-            return u, np.asarray(w, dtype=float)
+            w = np.asarray(self.model.predict(u, warn_out_of_range=False) if n else np.empty((0, 6)), dtype=float)
+            _finite(w, "the calibration model's wrench (from raw)")  # a polynomial far outside its range overflows
+            return u, w
         w = np.asarray(wrench, dtype=float)
         if w.shape != (n, 6):
             raise FtcalError(f"wrench must have shape ({n}, 6); got {w.shape}.")
@@ -583,6 +682,8 @@ class LiveCalibrator:
         temp = None
         if temperature is not None:
             temp = np.asarray(temperature, dtype=float).reshape(-1)
+            if temp.size != n:
+                raise FtcalError(f"temperature has {temp.size} values for {n} samples.")
         elif t_col is not None:
             temp = u[:, t_col]
         if temp is not None and self.temperature_range is not None:
@@ -671,7 +772,9 @@ class LiveCalibrator:
                 u = _plain(raw, len(self.model.input_names_))
                 if u is None:
                     return None
-                w = self._row_predict()(u).tolist()
+                w = _plain(self._row_predict()(u).tolist(), 6)
+                if w is None:
+                    return None
             else:
                 u = w = _plain(wrench, 6)
                 if w is None:
@@ -740,6 +843,11 @@ class LiveCalibrator:
             variance = [p * r / v for p, r, v in zip(predicted, noise, innovation_var)]
         else:
             variance = predicted
+        if t >= self.drift.next_due:
+            back = self.drift.check(t, bias, variance, walk, limit)
+            if back is not None:
+                bias, variance = back[0], back[1]
+                self._log([(t, "bias", "rollback", _rollback_text(back))])
         # ----- health -----
         t_col = self._temperature_input
         x = u if t_col is None else [v for j, v in enumerate(u) if j != t_col]
@@ -884,7 +992,8 @@ class LiveCalibrator:
         doc = {"format": STATE_FORMAT, "format_version": STATE_VERSION, "time": self.last_time,
                "tool": self.tool, "bias": self.bias.tolist(), "variance": self.variance.tolist(),
                "counters": dict(self.counters), "flags": names_of(self.flags_now),
-               "tools": {name: payload_document(self.tools[name]) for name in self.identified}}
+               "tools": {name: payload_document(self.tools[name]) for name in self.identified},
+               "model": self.model_fingerprint()}
         if not all(np.isfinite(doc["bias"])) or not all(np.isfinite(doc["variance"])):
             raise FtcalError("the live state has non-finite values; refusing to save it.")
         return doc
@@ -900,39 +1009,118 @@ class LiveCalibrator:
         return target
 
     def load_state(self, path: str | Path) -> None:
-        """Resume from a state file: bias, covariance, tool (and the tools it carries), counters, time."""
+        """Resume from a state file: bias, covariance, tool (and the tools it carries), counters, time.
+
+        Every field is checked before anything changes: a state that is not what :meth:`save_state` writes
+        (wrong types or shapes, non-finite, negative or overflowing numbers, a tool not in the library, a
+        state written for another calibration model) is refused in one line naming the file and the field.
+
+        Raises
+        ------
+        FtcalError
+        """
+        from ..core.limits import LIVE_MAX_STATE_BYTES, MAX_CELL_MAGNITUDE
         from ..files.payload_json import parse_payload
 
         path = Path(path)
         try:
+            if path.stat().st_size > LIVE_MAX_STATE_BYTES:
+                raise FtcalError(f"{path}: {path.stat().st_size} bytes, not a live state file (at most "
+                                 f"{LIVE_MAX_STATE_BYTES} bytes).")
             doc = json.loads(path.read_text(encoding="utf-8"))
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise FtcalError(f"{path}: cannot read the live state ({exc}).") from None
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
+            why = "nested too deeply" if isinstance(exc, RecursionError) else exc
+            raise FtcalError(f"{path}: cannot read the live state ({why}).") from None
         if not isinstance(doc, dict) or doc.get("format") != STATE_FORMAT or doc.get("format_version") != STATE_VERSION:
             raise FtcalError(f"{path}: not a live state file ({STATE_FORMAT} {STATE_VERSION}).")
-        try:
-            bias = np.asarray(doc["bias"], dtype=float).reshape(6)
-            variance = np.asarray(doc["variance"], dtype=float).reshape(6)
-            time = doc["time"]
-            tools = {name: parse_payload(json.dumps(d), f"{path}: tool {name!r}") for name, d in doc["tools"].items()}
-            counters = {k: int(doc["counters"][k]) for k in self.counters}
-            tool = str(doc["tool"])
-        except (KeyError, TypeError, ValueError) as exc:
-            raise FtcalError(f"{path}: the live state is malformed ({exc}).") from None
-        if not (np.all(np.isfinite(bias)) and np.all(np.isfinite(variance)) and np.all(variance >= 0)):
-            raise FtcalError(f"{path}: the live state has non-finite bias or variance.")
+
+        def bad(field: str, what: str):
+            return FtcalError(f"{path}: the live state's {field!r} {what}.")
+
+        def number(value, field: str) -> float:
+            # JSON true/false are not numbers; NaN and Infinity are what json.loads makes of NaN/Infinity tokens.
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise bad(field, f"must be a number; got {type(value).__name__}")
+            x = float(value)
+            if not abs(x) <= MAX_CELL_MAGNITUDE:
+                raise bad(field, f"must be finite and at most {MAX_CELL_MAGNITUDE:g} in magnitude; got {value!r}")
+            return x
+
+        def six(field: str) -> np.ndarray:
+            value = doc.get(field)
+            if not isinstance(value, list) or len(value) != 6:
+                raise bad(field, "must be a list of 6 numbers (one per axis)")
+            return np.array([number(v, field) for v in value])
+
+        for key in ("time", "tool", "bias", "variance", "counters", "tools"):
+            if key not in doc:
+                raise bad(key, "is missing")
+        bias, variance = six("bias"), six("variance")
+        if np.any(variance < 0):
+            raise bad("variance", "must be >= 0 (a variance per axis; the state keeps no cross-covariance)")
+        time = None if doc["time"] is None else number(doc["time"], "time")
+        counters_doc = doc["counters"]
+        if not isinstance(counters_doc, dict):
+            raise bad("counters", "must be an object")
+        counters = {}
+        for key in self.counters:
+            value = counters_doc.get(key)
+            if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value < 2 ** 63:
+                raise bad("counters", f"must hold {key!r} as an integer in [0, 2**63); got {value!r}")
+            counters[key] = value
+        if not isinstance(doc["tool"], str):
+            raise bad("tool", f"must be a tool name; got {doc['tool']!r}")
+        tool = doc["tool"]
+        if not isinstance(doc["tools"], dict):
+            raise bad("tools", "must be an object of tool name -> payload document")
+        tools = {}
+        for name, d in doc["tools"].items():
+            if not name or name == NO_TOOL:
+                raise bad("tools", f"names a tool {name!r}; a tool needs a name other than {NO_TOOL!r}")
+            try:
+                tools[name] = parse_payload(json.dumps(d), f"{path}: tool {name!r}")
+            except (TypeError, ValueError, RecursionError) as exc:
+                raise bad("tools", f"holds tool {name!r} that is not a payload document ({exc})") from None
+        fingerprint = self.model_fingerprint()
+        if doc.get("model", fingerprint) != fingerprint:
+            raise FtcalError(f"{path}: the live state was written for another calibration model "
+                             f"({'none' if doc.get('model') is None else 'sha256 ' + str(doc.get('model'))[:12]}, "
+                             f"now {'none' if fingerprint is None else 'sha256 ' + fingerprint[:12]}); its bias is "
+                             "that model's. Give that model, or another state file to start afresh.")
+        if tool not in self.tools and tool not in tools:
+            raise FtcalError(f"{path}: tool {tool!r} is not in the library ({', '.join([*self.tools, *tools])}).")
         for name, payload in tools.items():
-            self.tools.setdefault(name, payload)
+            # Identified in place, it replaced any tool of that name before the state was saved: it still does.
+            if self.tools.get(name) is not None:
+                self._event("tool", "replaced", f"tool {name!r} as identified in place (from {path}), not as its file")
+            self.tools[name] = payload
+            self._tool_terms.pop(name, None)
             self.identified.add(name)
-        if tool not in self.tools:
-            raise FtcalError(f"{path}: tool {tool!r} is not in the library.")
         self.bias, self.variance, self.tool, self.counters = bias, variance, tool, counters
-        self.last_time = None if time is None else float(time)
+        self.last_time = time
+        self.drift.reset()
         self._event("state", "resumed", f"resumed from {path} at t={self.last_time}")
+
+    def model_fingerprint(self) -> str | None:
+        """sha256 of the calibration model's inputs, outputs and model-file fields (None without a model): the state
+        file records it, so that a state is never resumed with a bias that belongs to another model."""
+        if self.model is None:
+            return None
+        import hashlib
+
+        content = {"inputs": list(self.model.input_names_), "outputs": list(self.model.output_names_),
+                   "model": self.model.to_document()}
+        return hashlib.sha256(json.dumps(content, sort_keys=True, default=repr).encode("utf-8")).hexdigest()
 
 
 AXES = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
 OUT_OF_RANGE_TEXT = "inputs outside the calibration's training range or span"
+
+
+def _rollback_text(back: tuple) -> str:
+    _, _, lag, chi2, moved = back
+    return (f"the bias moved up to {moved:.3g} in {lag:.3g} s, more than the random walk allows (chi2 {chi2:.3g}, 6 dof): "
+            "a slow contact or a faster drift; bias and variance back to their values then, predicted since")
 
 
 def _saturated_text(channels: str, why: str) -> str:
@@ -960,17 +1148,23 @@ def _plain(values, size: int | None) -> list | None:
             out = [*map(float, out)]
     else:
         out = [*map(float, values)]
-    # A sum is finite only if every term is (an overflowing sum sends a finite sample to run(): slower, same result).
-    if (size is not None and len(out) != size) or not math.isfinite(sum(out)):
+    # A sum is finite only if every term is (an overflowing sum sends a finite sample to run(): slower, same result);
+    # beyond MAX_CELL_MAGNITUDE squares overflow (run() says which input).
+    if (size is not None and len(out) != size) or not math.isfinite(sum(out)) or (
+            out and (max(out) > MAX_CELL_MAGNITUDE or min(out) < -MAX_CELL_MAGNITUDE)):
         return None
     return out
 
 
 def _finite(x: np.ndarray, name: str) -> None:
-
-    if not np.all(np.isfinite(x)):
-        row = int(np.flatnonzero(~np.all(np.isfinite(x), axis=1))[0])
-        raise FtcalError(f"{name} has a non-finite value at sample {row}.")
+    """Refuse a non-finite value, or one beyond :data:`~ftcal.core.limits.MAX_CELL_MAGNITUDE` (its square, and so the
+    χ² gate, would overflow: no sensor reads that), naming the sample."""
+    ok = np.abs(x) <= MAX_CELL_MAGNITUDE  # NaN fails too
+    if not np.all(ok):
+        row = int(np.flatnonzero(~np.all(ok.reshape(x.shape[0], -1), axis=1))[0])
+        value = x.reshape(x.shape[0], -1)[row][~ok.reshape(x.shape[0], -1)[row]][0]
+        what = "a non-finite value" if not np.isfinite(value) else f"{value:g}, beyond {MAX_CELL_MAGNITUDE:g} in magnitude,"
+        raise FtcalError(f"{name} has {what} at sample {row}.")
 
 
 class _Identification:

@@ -59,12 +59,15 @@ def decode_stamped(data: bytes, count: int) -> StampedDoubles:
     Raises
     ------
     ValueError
-        Truncated data, an unknown encapsulation, or a frame id that is not a NUL-terminated UTF-8 string.
+        Truncated data, an unknown encapsulation, a stamp whose nanoseconds reach a second, or a frame id that is
+        not a NUL-terminated UTF-8 string.
     """
     if len(data) < ENCAPSULATION_HEADER + 12 or data[0] != 0 or data[1] not in (0, 1):
         raise ValueError("not a CDR message (too short, or an unknown encapsulation header)")
     endian = "<" if data[1] == 1 else ">"
     sec, nanosec, length = _STAMP[endian].unpack_from(data, ENCAPSULATION_HEADER)
+    if nanosec >= 1_000_000_000:  # builtin_interfaces/msg/Time: nanosec in [0, 1e9)
+        raise ValueError(f"the header's stamp has nanosec {nanosec}, not below 1e9")
     text_end = ENCAPSULATION_HEADER + 12 + length
     if length < 1 or text_end > len(data) or data[text_end - 1] != 0:
         raise ValueError("the header's frame id is not a NUL-terminated string inside the message")

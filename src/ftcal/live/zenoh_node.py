@@ -52,7 +52,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.limits import LIVE_DIAGNOSTICS_MIN_INTERVAL_S, LIVE_DIAGNOSTICS_PERIOD_S
+from ..core.limits import (C_RUNTIME_MAX_TOOL_NAME, LIVE_CLOCK_RESTART_MESSAGES, LIVE_DIAGNOSTICS_MIN_INTERVAL_S,
+                           LIVE_DIAGNOSTICS_PERIOD_S, LIVE_MAX_QUERY_BYTES, LIVE_MAX_STAMP_JUMP_S, MAX_CELL_MAGNITUDE)
 from ..runtime.errors import FtcalError
 from .cdr import IMU_DOUBLES, WRENCH_DOUBLES, decode_stamped, encode_like
 from .health import BIT, names_of
@@ -176,6 +177,9 @@ class LiveNode:
         self.stale_joints = 0
         self.bad_messages = 0
         self.stale_samples = 0
+        self.stamp_jumps = 0  # wrenches held back: stamped more than LIVE_MAX_STAMP_JUMP_S after the last one
+        self.held_stamp: float | None = None  # the last of them, confirmed by a next message that follows it
+        self.stale_run: tuple | None = None  # (count, stamp) of the stale messages in a row that keep their order
         self.raised = 0  # flag bits raised since the last diagnostics message (a contact may last one sample)
         self.closing = False  # set when the node shuts down: callbacks still in flight stop publishing
         self.last_message = time.monotonic()
@@ -220,8 +224,7 @@ class LiveNode:
         else:
             source = {"gravity": self.gravity}
         with self.lock:
-            if self.live.last_time is not None and t <= self.live.last_time:
-                self.stale_samples += 1
+            if not self._in_time(t):
                 return
             before = self.live.flags_now
             if before & BIT["silent"]:
@@ -255,6 +258,34 @@ class LiveNode:
                 if flag != "contact" and not before & BIT[flag]:
                     self.echo(f"ftcal live: t={t:.3f} s {flag}: {reason}", file=sys.stderr, flush=True)
 
+    def _in_time(self, t: float) -> bool:
+        """Whether a wrench stamped ``t`` goes to the calibrator (under the lock); counts those that do not.
+
+        Older than the last sample: stale. Later than it by more than :data:`LIVE_MAX_STAMP_JUMP_S`: held back
+        (``stamp_jumps``) until the next message confirms the new time line, so that one far-future stamp cannot
+        make every later message stale. After :data:`LIVE_CLOCK_RESTART_MESSAGES` − 1 stale messages in a row that keep
+        their own order (the publisher's clock restarted), the next one restarts the calibrator's clock.
+        """
+        last = self.live.last_time
+        if last is not None and t <= last:
+            run = self.stale_run
+            self.stale_run = (run[0] + 1, t) if run and t > run[1] else (1, t)
+            if self.stale_run[0] < LIVE_CLOCK_RESTART_MESSAGES:
+                self.stale_samples += 1
+                return False
+            reason = (f"stamps on {self.keys['wrench']} went back from t={last:.9g} s to t={t:.9g} s for "
+                      f"{LIVE_CLOCK_RESTART_MESSAGES} messages: the clock restarts there")
+            self.live.restart_clock(reason)
+            self.echo(f"ftcal live: {reason}", file=sys.stderr, flush=True)
+        self.stale_run = None
+        if last is not None and t - last > LIVE_MAX_STAMP_JUMP_S:
+            held, self.held_stamp = self.held_stamp, t
+            if held is None or not 0.0 < t - held <= LIVE_MAX_STAMP_JUMP_S:
+                self.stamp_jumps += 1
+                return False
+        self.held_stamp = None
+        return True
+
     def _on_imu(self, sample) -> None:
         try:
             values = decode_stamped(sample.payload.to_bytes(), IMU_DOUBLES).values
@@ -262,10 +293,12 @@ class LiveNode:
             self.bad_messages += 1
             return
         q, orientation_covariance, acceleration = values[0:4], values[4], values[25:28]
-        # An orientation covariance starting with -1 means "no orientation" (sensor_msgs/msg/Imu's convention).
+        # An orientation covariance starting with -1 means "no orientation" (sensor_msgs/msg/Imu's convention). A
+        # non-finite, zero or overflowing one is a bad message: the pose from the previous message is kept.
+        norm_a = math.sqrt(sum(a * a for a in acceleration)) if all(map(math.isfinite, acceleration)) else math.nan
         if orientation_covariance != -1.0 and abs(math.sqrt(sum(v * v for v in q)) - 1.0) < 1e-3:
             self.quaternion = q
-        elif any(acceleration):
+        elif 0.0 < norm_a <= MAX_CELL_MAGNITUDE:
             self.quaternion, self.gravity = None, tuple(-a for a in acceleration)
         else:
             self.bad_messages += 1
@@ -300,17 +333,22 @@ class LiveNode:
         query.reply(query.key_expr, json.dumps(doc))
 
     def _command(self, query, action) -> None:
+        """Run a queryable's action on the request's text and answer it: every request gets one reply (an error
+        naming what is wrong for bad input; an unexpected failure is answered too, never left to time out)."""
         try:
+            text = _payload_text(query)
             with self.lock:
-                result = action(_payload_text(query))
+                result = action(text)
             self._reply(query, {"ok": True, **(result or {}), "status": self.live.status()})
         except FtcalError as exc:
             self._reply(query, {"ok": False, "error": str(exc)})
+        except Exception as exc:  # a bug must not leave the caller waiting: answer, and the node runs on
+            self._reply(query, {"ok": False, "error": f"{query.key_expr}: {type(exc).__name__}: {exc}"})
 
     def _identify(self, text: str) -> dict:
         words = text.split()
         if len(words) == 2 and words[0] == "start":
-            self.live.start_identification(words[1])
+            self.live.start_identification(_tool_name(words[1]))
             return {}
         if words == ["finish"]:
             payload = self.live.finish_identification()
@@ -340,7 +378,7 @@ class LiveNode:
                 entities.append(session.declare_subscriber(self.keys["joints"], self._on_joints))
             entities.append(session.declare_subscriber(self.keys["wrench"], self._on_wrench))
             entities.append(session.declare_queryable(
-                self.keys["retare"], lambda q: self._command(q, lambda _: self.live.retare())))
+                self.keys["retare"], lambda q: self._command(q, lambda _: _warned(self.live.retare()))))
             entities.append(session.declare_queryable(
                 self.keys["switch_tool"], lambda q: self._command(q, lambda name: self.live.switch_tool(name.strip()))))
             entities.append(session.declare_queryable(
@@ -434,13 +472,41 @@ class LiveNode:
         raised, self.raised = self.raised, 0
         status["raised"] = {name: self.live.reason_of(name) for name in names_of(raised)}
         status["bad_messages"], status["stale_samples"] = self.bad_messages, self.stale_samples
+        status["stamp_jumps"] = self.stamp_jumps
         status["waiting_for_joints"], status["stale_joints"] = self.waiting_for_joints, self.stale_joints
         return json.dumps(status)
 
 
+def _warned(warning: str | None) -> dict | None:
+    return None if warning is None else {"warning": warning}
+
+
 def _payload_text(query) -> str:
+    """The request's payload as text: UTF-8, at most :data:`LIVE_MAX_QUERY_BYTES` bytes."""
     payload = query.payload
-    return "" if payload is None else bytes(payload.to_bytes()).decode("utf-8", "replace")
+    data = b"" if payload is None else bytes(payload.to_bytes())
+    if len(data) > LIVE_MAX_QUERY_BYTES:
+        raise FtcalError(f"the request's payload has {len(data)} bytes; at most {LIVE_MAX_QUERY_BYTES}.")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise FtcalError(f"the request's payload is not UTF-8 text (byte {exc.start}).") from None
+
+
+def _tool_name(name: str) -> str:
+    """A tool name from the network: at most :data:`~ftcal.core.limits.C_RUNTIME_MAX_TOOL_NAME` UTF-8 bytes (what the
+    C runtime's slots hold) and no control, format (e.g. U+202E, right-to-left override) or separator characters
+    that would hide or reorder text in logs and terminals."""
+    import unicodedata
+
+    size = len(name.encode("utf-8"))
+    if size > C_RUNTIME_MAX_TOOL_NAME:
+        raise FtcalError(f"tool name of {size} bytes; at most {C_RUNTIME_MAX_TOOL_NAME} (UTF-8).")
+    odd = next((c for c in name if unicodedata.category(c)[0] == "C" or unicodedata.category(c) in ("Zl", "Zp")), None)
+    if odd is not None:
+        raise FtcalError(f"tool name {name!r} has the character U+{ord(odd):04X} ({unicodedata.category(odd)}); "
+                         "give letters, digits and punctuation.")
+    return name
 
 
 def serve(live, options: ZenohOptions, robot=None) -> int:

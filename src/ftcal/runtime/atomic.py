@@ -77,7 +77,10 @@ def _temporary(target: Path) -> Iterator[Path]:
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise FtcalError(f"{target}: cannot create the output file ({exc.strerror or exc}).") from None
+        # mkdir says "File exists" when a parent is a file: name that parent instead.
+        blocking = next((p for p in target.parents if p.exists() and not p.is_dir()), None)
+        why = f"{blocking} is a file, not a directory" if blocking is not None else exc.strerror or exc
+        raise FtcalError(f"{target}: cannot create the output file ({why}).") from None
     # The name is chosen before the file exists, so the clean-up below owns the file from
     # the instant it is created: a signal arriving at any point cannot orphan it.
     tmp_path = None
