@@ -16,6 +16,7 @@ time), the ``silent`` flag's (a transport's) and ``("state", "resumed")`` (state
 from __future__ import annotations
 
 from ..files.c_text import c_string
+from .calibrator import RETARE_WARNING
 
 # name of the C constant NAME_EVENT_<name> → (its value, Python's ``flag`` field or None for the flag's name,
 # Python's ``kind``)
@@ -169,6 +170,14 @@ static inline size_t {name}_describe_event(const {name}_state *s, const {name}_e
         {name}_text_str(buf, len, &at, "re-tare with tool ");
         {name}_text_tool(s, buf, len, &at, ev->tool_from);
         {name}_text_str(buf, len, &at, " kept: the next static samples set the bias");
+        if (ev->flag & ({macro}_FLAG_CONTACT | {macro}_FLAG_UNEXPLAINED)) {{  /* the flags raised at the re-tare */
+            {name}_text_str(buf, len, &at, "; re-tare while ");
+            if (ev->flag & {macro}_FLAG_CONTACT) {name}_text_str(buf, len, &at, "contact");
+            if ((ev->flag & {macro}_FLAG_CONTACT) && (ev->flag & {macro}_FLAG_UNEXPLAINED))
+                {name}_text_str(buf, len, &at, " and ");
+            if (ev->flag & {macro}_FLAG_UNEXPLAINED) {name}_text_str(buf, len, &at, "unexplained");
+            {name}_text_str(buf, len, &at, {c_string(" is raised: " + RETARE_WARNING)});
+        }}
         break;
     case {macro}_EVENT_FLAG_RAISED:
         if (flag) {name}_text_reason(s, ev, buf, len, &at);

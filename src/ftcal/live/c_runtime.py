@@ -367,17 +367,21 @@ static inline int {name}_set_tool({name}_state *s, int tool)
     return 0;
 }}
 
-/* Re-tare, tool kept, in any pose: the bias forgets its value; the next static samples set it. */
-static inline void {name}_retare({name}_state *s)
+/* Re-tare, tool kept, in any pose: the bias forgets its value; the next static samples set it.
+   Returns the flags of {macro}_FLAG_CONTACT and {macro}_FLAG_UNEXPLAINED raised now, 0 if none: if a contact
+   raised them, the next static samples take it into the bias (the event's text warns, as LiveCalibrator.retare). */
+static inline int {name}_retare({name}_state *s)
 {{
     {name}_event ev;
     int j;
     {name}_call_event(s, {macro}_EVENT_RETARE, s->tool, s->tool, &ev);
+    ev.flag = s->flags & ({macro}_FLAG_CONTACT | {macro}_FLAG_UNEXPLAINED);
     {name}_log_event(s, &ev);
     for (j = 0; j < 6; ++j)
         if (s->variance[j] < {_num(RETARE_VARIANCE)} * s->noise_variance[j])
             s->variance[j] = {_num(RETARE_VARIANCE)} * s->noise_variance[j];
     s->retares += 1;
+    return ev.flag;
 }}
 
 /* Motion test on the gravity direction: sets *still and *moving (ftcal.live.motion). */

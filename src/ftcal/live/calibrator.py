@@ -38,6 +38,8 @@ from .drift import FALSE_ALARM, DriftCheck
 from .tracker import TrackedBlock, gate_chi2, track_block
 
 NO_TOOL = "none"
+# What a re-tare while contact or unexplained is raised risks (its event's text and retare()'s warning; the C says it too).
+RETARE_WARNING = "if a contact caused it, it becomes the bias (re-tare again free of contact)"
 STATE_FORMAT = "ftcal-live-state"
 STATE_VERSION = "1.0"
 # Gate: a static sample whose innovation has a χ² (6 dof) beyond this quantile is a contact.
@@ -376,8 +378,7 @@ class LiveCalibrator:
         self.drift.reset()
         self.counters["retares"] += 1
         raised = [name for name in ("contact", "unexplained") if self.flags_now & BIT[name]]
-        warning = (f"re-tare while {' and '.join(raised)} is raised: if a contact caused it, it becomes the bias "
-                   "(re-tare again free of contact)") if raised else None
+        warning = f"re-tare while {' and '.join(raised)} is raised: {RETARE_WARNING}" if raised else None
         self._event("bias", "retare", f"re-tare with tool {self.tool!r} kept: the next static samples set the bias"
                     + (f"; {warning}" if warning else ""))
         return warning
