@@ -251,3 +251,27 @@ def test_a_consumer_that_stops_reading_never_stalls_the_node(tmp_path):
     assert windows.min() > 0.9 * 2 * rate, windows
     assert len(answered) == rate * seconds
     assert node.returncode == 143 and "Traceback" not in err and "callback error" not in err, err[-2000:]  # 128 + SIGTERM
+
+
+def test_a_second_sigterm_while_the_node_winds_down_keeps_its_exit_code(tmp_path):
+    """systemd and ros2 launch may signal twice: once the node says it was terminated, a second SIGTERM (here sent
+    as soon as that line is out, while Zenoh's threads wind down) neither kills it by the signal nor changes 143."""
+    port = free_port()
+    node = subprocess.Popen([FTCAL, "live", "--zenoh", "--listen", f"tcp/127.0.0.1:{port}", "--noise-std", "0.05,0.004",
+                             "--state", str(tmp_path / "state.json")],
+                            cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert "listening on ft/raw" in node.stdout.readline()
+        node.send_signal(signal.SIGTERM)
+        lines = []
+        for line in node.stderr:
+            lines.append(line)
+            if "terminated by SIGTERM" in line:
+                node.send_signal(signal.SIGTERM)
+                break
+        rest = node.stderr.read()
+        node.wait(timeout=60)
+    finally:
+        node.kill()
+        node.communicate()
+    assert node.returncode == 143, "".join(lines) + rest

@@ -362,6 +362,9 @@ def run(argv: list[str] | None) -> int:
         print(f"ftcal {args.command}: interrupted", file=sys.stderr)
         return 130
     except Terminated as exc:
+        if threading.current_thread() is threading.main_thread():  # the process is on its way out: a second
+            for sig in TERMINATING_SIGNALS:  # SIGTERM while Zenoh's or Dask's threads wind down must not kill it
+                signal.signal(sig, signal.SIG_IGN)  # by the signal and lose the exit code
         print(f"ftcal {args.command}: terminated by {signal.Signals(exc.signum).name}", file=sys.stderr)
         return 128 + exc.signum
     finally:
