@@ -2,7 +2,8 @@
 
 One header, generated with the model and the tool library: the calibration (the evaluator of
 :func:`ftcal.files.c_code.static_predict_function`), the tool's gravity wrench, the gated
-random-walk bias filter of :mod:`ftcal.live.tracker` and the health flags of
+random-walk bias filter of :mod:`ftcal.live.tracker` with the drift test of :mod:`ftcal.live.drift`
+(a fixed ring of :data:`DRIFT_SNAPSHOTS` snapshots) and the health flags of
 :mod:`ftcal.live.health`, with the semantics of :class:`ftcal.live.LiveCalibrator` fed one sample
 at a time with ``raw=`` and ``gravity=`` (the motion test on the gravity direction, or the
 caller's ``static``). Its numbers are those of the Python calibrator built from the same model
