@@ -423,6 +423,7 @@ static inline int {name}_add_identified({name}_state *s, const char *tool_name, 
             s->bias[j] = tool->bias[j];
             s->variance[j] = v > s->noise_variance[j] ? v : s->noise_variance[j];
         }}
+        {name}_drift_reset(s);   /* the bias was set on purpose: the drift test starts again */
     }}
     return 0;
 }}

@@ -2,7 +2,8 @@
 
 One header, generated with the model and the tool library: the calibration (the evaluator of
 :func:`ftcal.files.c_code.static_predict_function`), the tool's gravity wrench, the gated
-random-walk bias filter of :mod:`ftcal.live.tracker` and the health flags of
+random-walk bias filter of :mod:`ftcal.live.tracker` with the drift test of :mod:`ftcal.live.drift`
+(a fixed ring of :data:`DRIFT_SNAPSHOTS` snapshots) and the health flags of
 :mod:`ftcal.live.health`, with the semantics of :class:`ftcal.live.LiveCalibrator` fed one sample
 at a time with ``raw=`` and ``gravity=`` (the motion test on the gravity direction, or the
 caller's ``static``). Its numbers are those of the Python calibrator built from the same model
@@ -62,11 +63,15 @@ from .c_health import describe_text, flag_events_text, reason_fields
 from .c_identify import TOOL_STATUS, _array, _num, collect_text, finish_text, state_fields
 from .calibrator import (DEFAULT_NOISE_FRACTION, DEFAULT_WALK_FRACTION, GATE_PROBABILITY, NO_TOOL, RETARE_VARIANCE,
                          SECONDS_PER_HOUR, UNEXPLAINED_SECONDS, UNEXPLAINED_SIGMA, _walk_from_knots)
+from .drift import FALSE_ALARM, LAGS_S, SNAPSHOT_S
 from .health import BIT, DEAD_RUN, FLAGS
 from .tracker import gate_chi2
 
 DEFAULT_NAME = "ftcal_runtime"
 HISTORY = 1024
+# Snapshots the drift test's ring holds: snapshots are at least SNAPSHOT_S apart, so once the ring holds this many,
+# its second oldest is more than max(LAGS_S) old and the oldest can never be the newest one a lag needs.
+DRIFT_SNAPSHOTS = math.ceil(max(LAGS_S) / SNAPSHOT_S) + 2
 
 
 def runtime_parameters(tools: dict) -> dict:
@@ -79,7 +84,7 @@ def runtime_parameters(tools: dict) -> dict:
     Returns
     -------
     dict with ``noise_variance``, ``walk_variance`` (per s), ``accept_limit`` (ndarrays of shape (6,))
-    and ``gate_chi2`` (float)
+    and ``gate_chi2``, ``drift_chi2`` (floats: the contact gate and the drift test's threshold)
     """
     thresholds = Thresholds()
     scale = np.repeat([thresholds.force, thresholds.torque], 3)
@@ -90,7 +95,7 @@ def runtime_parameters(tools: dict) -> dict:
     walk = next((w for w in map(_walk_from_knots, files) if w is not None),
                 (DEFAULT_WALK_FRACTION * scale) ** 2 / SECONDS_PER_HOUR)
     return {"noise_variance": noise ** 2, "walk_variance": np.asarray(walk, float), "accept_limit": scale,
-            "gate_chi2": gate_chi2(GATE_PROBABILITY)}
+            "gate_chi2": gate_chi2(GATE_PROBABILITY), "drift_chi2": gate_chi2(1.0 - FALSE_ALARM)}
 
 
 def _span(model) -> list[str]:
@@ -222,6 +227,8 @@ extern "C" {{
 #ifndef {macro}_HISTORY
 #define {macro}_HISTORY {HISTORY}
 #endif
+#define {macro}_DRIFT_SNAPSHOTS {DRIFT_SNAPSHOTS}   /* the drift test's ring: {_num(max(LAGS_S))} s of snapshots {_num(SNAPSHOT_S)} s apart */
+#define {macro}_DRIFT_LAGS {len(LAGS_S)}
 {bits}
 #define {macro}_N_FLAGS {len(FLAGS)}
 
@@ -245,6 +252,7 @@ typedef struct {{
     double noise_variance[6];    /* r: per-sample noise variance of the calibrated wrench */
     double walk_variance[6];     /* q: bias random-walk variance per second */
     double gate_chi2;            /* contact gate, chi2 quantile with 6 dof */
+    double drift_chi2;           /* drift test: chi2 (6 dof) beyond which the bias moved faster than the walk */
     double accept_limit[6];      /* check --accept thresholds, N and N m */
     double unexplained_sigma, unexplained_seconds;
     double motion_window, min_rate, min_hold;   /* s, rad/s, s */
@@ -268,6 +276,13 @@ typedef struct {{
     double exceed_start;
     unsigned flags;
     unsigned long samples, updates, contacts, retares, switches;
+    /* the drift test (ftcal.live.drift): snapshots of bias and variance, oldest at drift_start, times increasing */
+    double drift_due;            /* the next snapshot is taken at the first sample at or after this time */
+    int drift_start, drift_count;
+    double drift_time[{macro}_DRIFT_SNAPSHOTS], drift_bias[{macro}_DRIFT_SNAPSHOTS][6];
+    double drift_variance[{macro}_DRIFT_SNAPSHOTS][6];
+    unsigned long rollbacks;     /* the bias sent back by the drift test (Python's "rollback" events) */
+    double rollback_time, rollback_lag, rollback_chi2, rollback_moved;   /* the last one: the event's numbers */
 {state_fields(macro)}
 {reason_fields(macro, name)}
 {event_fields(macro, name)}
@@ -307,6 +322,8 @@ static inline int {name}_init({name}_state *s, int tool)
         s->variance[j] = {_num(RETARE_VARIANCE)} * noise[j];
     }}
     s->gate_chi2 = {_num(params['gate_chi2'])};
+    s->drift_chi2 = {_num(params['drift_chi2'])};
+    s->drift_due = -HUGE_VAL;
     s->unexplained_sigma = {_num(UNEXPLAINED_SIGMA)};
     s->unexplained_seconds = {_num(UNEXPLAINED_SECONDS)};
     s->motion_window = {_num(HOLD_WINDOW_S)};
@@ -367,6 +384,73 @@ static inline int {name}_set_tool({name}_state *s, int tool)
     return 0;
 }}
 
+/* Forget the drift test's snapshots (the bias was set on purpose: a re-tare, a tool identified and mounted). */
+static inline void {name}_drift_reset({name}_state *s)
+{{
+    s->drift_start = 0;
+    s->drift_count = 0;
+    s->drift_due = -HUGE_VAL;
+}}
+
+/* The drift test after the sample at `time` (ftcal.live.drift.DriftCheck.check, same order and arithmetic): compare
+   the bias with the newest snapshot at least 64, 16, 4, 1 s old; on the first lag whose chi2 is beyond drift_chi2
+   with some axis moved beyond accept_limit, bias and variance go back to that snapshot's, predicted since, and the
+   snapshots restart from there (returns 1); else the state is a new snapshot (returns 0). */
+static inline int {name}_drift_check({name}_state *s, double time)
+{{
+    static const double lags[{macro}_DRIFT_LAGS] = {_array(LAGS_S)};
+    int i, j, low, high, middle, slot;
+    s->drift_due = time + {_num(SNAPSHOT_S)};
+    for (i = 0; i < {macro}_DRIFT_LAGS; ++i) {{
+        double cutoff = time - lags[i], span, chi2 = 0.0, moved = 0.0;
+        const double *b0, *p0;
+        int beyond = 0;
+        low = 0;   /* bisect_right: low = the snapshots at or before cutoff */
+        high = s->drift_count;
+        while (low < high) {{
+            middle = (low + high) / 2;
+            if (cutoff < s->drift_time[(s->drift_start + middle) % {macro}_DRIFT_SNAPSHOTS]) high = middle;
+            else low = middle + 1;
+        }}
+        if (low == 0) continue;
+        slot = (s->drift_start + low - 1) % {macro}_DRIFT_SNAPSHOTS;
+        b0 = s->drift_bias[slot];
+        p0 = s->drift_variance[slot];
+        span = time - s->drift_time[slot];
+        for (j = 0; j < 6; ++j)
+            chi2 += (s->bias[j] - b0[j]) * (s->bias[j] - b0[j]) / (s->walk_variance[j] * span + s->variance[j] + p0[j]);
+        if (!(chi2 > s->drift_chi2)) continue;
+        for (j = 0; j < 6; ++j) if (fabs(s->bias[j] - b0[j]) > s->accept_limit[j]) beyond = 1;
+        if (!beyond) continue;
+        for (j = 0; j < 6; ++j) if (fabs(s->bias[j] - b0[j]) > moved) moved = fabs(s->bias[j] - b0[j]);
+        for (j = 0; j < 6; ++j) {{   /* back to the snapshot, its variance predicted since; it is the only one left */
+            s->bias[j] = b0[j];
+            s->variance[j] = p0[j] + s->walk_variance[j] * span;
+        }}
+        s->drift_start = 0;
+        s->drift_count = 1;
+        s->drift_time[0] = time;
+        memcpy(s->drift_bias[0], s->bias, sizeof s->bias);
+        memcpy(s->drift_variance[0], s->variance, sizeof s->variance);
+        s->rollbacks += 1;
+        s->rollback_time = time;
+        s->rollback_lag = span;
+        s->rollback_chi2 = chi2;
+        s->rollback_moved = moved;
+        return 1;
+    }}
+    if (s->drift_count == {macro}_DRIFT_SNAPSHOTS) {{   /* full: the oldest is never needed again */
+        s->drift_start = (s->drift_start + 1) % {macro}_DRIFT_SNAPSHOTS;
+        s->drift_count -= 1;
+    }}
+    slot = (s->drift_start + s->drift_count) % {macro}_DRIFT_SNAPSHOTS;
+    s->drift_time[slot] = time;
+    memcpy(s->drift_bias[slot], s->bias, sizeof s->bias);
+    memcpy(s->drift_variance[slot], s->variance, sizeof s->variance);
+    s->drift_count += 1;
+    return 0;
+}}
+
 /* Re-tare, tool kept, in any pose: the bias forgets its value; the next static samples set it.
    Returns the flags of {macro}_FLAG_CONTACT and {macro}_FLAG_UNEXPLAINED raised now, 0 if none: if a contact
    raised them, the next static samples take it into the bias (the event's text warns, as LiveCalibrator.retare). */
@@ -380,6 +464,7 @@ static inline int {name}_retare({name}_state *s)
     for (j = 0; j < 6; ++j)
         if (s->variance[j] < {_num(RETARE_VARIANCE)} * s->noise_variance[j])
             s->variance[j] = {_num(RETARE_VARIANCE)} * s->noise_variance[j];
+    {name}_drift_reset(s);
     s->retares += 1;
     return ev.flag;
 }}
@@ -472,10 +557,13 @@ static inline int {name}_step({name}_state *s, double time, const double *u, con
         }} else {{     /* prediction only: a contact is never absorbed */
             s->variance[j] = predicted[j];
         }}
-        out->bias[j] = s->bias[j];
-        out->bias_std[j] = sqrt(s->variance[j]);
         if (!s->identifying
             && fabs(e[j]) > fmax(s->unexplained_sigma * sqrt(innovation_var[j]), s->accept_limit[j])) beyond = 1;
+    }}
+    if (time >= s->drift_due) {name}_drift_check(s, time);   /* a slow contact the gate let through goes back */
+    for (j = 0; j < 6; ++j) {{
+        out->bias[j] = s->bias[j];
+        out->bias_std[j] = sqrt(s->variance[j]);
     }}
     /* health: run lengths of identical values per channel (temperature excluded) */
     for (j = 0; j < {macro}_N_CHANNELS; ++j) {{

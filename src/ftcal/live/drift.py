@@ -9,13 +9,13 @@ the bias ``L`` s before (``L`` in :data:`LAGS_S`, the newest snapshot at least t
     χ²_drift = Σ_j (b_j(t) − b_j(t − L))² / (q_j L + P_j(t) + P_j(t − L))
 
 (the two estimates' variances added: their positive correlation only makes the test more
-cautious). Beyond the 1 − :data:`FALSE_ALARM` quantile of χ² with 6 degrees of freedom (41.4 at
+cautious). Beyond the 1 − :data:`FALSE_ALARM` quantile of χ² with 6 degrees of freedom (38.3 at
 1e-6), *and* with some axis moved beyond ``check --accept``'s threshold (1 N, 0.1 N·m: as for the
 ``unexplained`` flag, a move the user accepts as calibration error is not worth undoing, and a walk
 the filter underestimates must not keep rolling the bias back), the bias and its variance go back to
 that snapshot's, predicted since (``P + q L``), as if no sample in between had updated them; from
 there the χ² gate sees the contact again and flags it. A ramp slower than about
-max(6.4 √(q L), threshold) / L for the longest lag stays within the walk (docs/live.md).
+max(6.19 √(q L), threshold) / L for the longest lag stays within the walk (docs/live.md).
 """
 
 from __future__ import annotations
