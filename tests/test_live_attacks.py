@@ -25,6 +25,8 @@ from ftcal.live.zenoh_node import LiveNode, ZenohOptions
 from ftcal.payload.parameters import PayloadParameters
 from ftcal.runtime.errors import FtcalError
 
+from test_live_zenoh_node import Sample, Sink  # a Zenoh sample and publisher, without a network
+
 FTCAL = str(Path(sys.executable).with_name("ftcal"))
 NOISE = np.r_[np.full(3, 0.05), np.full(3, 0.004)]
 DOWN = [0.0, 0.0, -9.81]
@@ -185,21 +187,6 @@ def test_many_scripted_events_give_the_table_the_library_computes_block_by_block
 
 
 # ----- the Zenoh node's inbound messages (its callbacks, without a network) -----------------------------------
-class Sample:
-    def __init__(self, data: bytes) -> None:
-        self.payload, self.data = self, data
-
-    def to_bytes(self) -> bytes:
-        return self.data
-
-
-class Sink:
-    def __init__(self) -> None:
-        self.messages: list = []
-
-    def put(self, payload, **_) -> None:
-        self.messages.append(payload)
-
 
 def node(**options) -> LiveNode:
     n = LiveNode(LiveCalibrator(tools={"gripper": GRIPPER}, tool="gripper", noise_std=NOISE), ZenohOptions(**options),

@@ -104,15 +104,20 @@ def open_bag(path: str | Path) -> Iterator:
         check_bag_metadata(path / "metadata.yaml")
     for database in sorted(path.glob("*.db3")) if path.is_dir() else [path] if path.suffix == ".db3" else []:
         check_sqlite_bag(database)
+    # What a damaged bag makes rosbags raise, opening (its index, in the file's summary) or reading: a flipped size
+    # or offset gives ValueError, KeyError or struct.error ("unpack requires a buffer of 10 bytes", an MCAP record cut
+    # short), which AnyReader passes through unwrapped.
+    broken = (AnyReaderError, Ros1ReaderError, Ros2ReaderError, TypesysError, struct.error, MemoryError,
+              *_storage_errors())
     try:
         reader = AnyReader([path], default_typestore=get_typestore(Stores.LATEST))
         reader.open()
-    except (AnyReaderError, TypesysError, OSError, KeyError, ValueError, MemoryError) as exc:  # a flipped size
+    except (*broken, OSError, KeyError, ValueError) as exc:
         raise FtcalError(f"Bag {path}: cannot open it as a ROS 1 .bag, ROS 2 bag folder, .db3 or .mcap "
                          f"({type(exc).__name__}: {_one_line(exc)}).") from None
     try:
         yield reader
-    except (AnyReaderError, Ros1ReaderError, Ros2ReaderError, struct.error, MemoryError, *_storage_errors()) as exc:
+    except broken as exc:
         raise FtcalError(f"Bag {path}: cannot read it; it may be truncated or corrupt "
                          f"({type(exc).__name__}: {_one_line(exc)}).") from None
     finally:
