@@ -106,14 +106,20 @@ def gauge_model(degree: int, seed: int = 21):
     return model, mix
 
 
-def build(tmp_path, header: str):
+def compile_driver(tmp_path, header: str, driver: str):
+    """The generated header as rt.h and ``driver`` as driver.c, built by ``cc`` (-O2, C99, every warning an error)
+    into a shared library, loaded."""
     (tmp_path / "rt.h").write_text(header)
-    (tmp_path / "driver.c").write_text(DRIVER)
+    (tmp_path / "driver.c").write_text(driver)
     library = tmp_path / "driver.so"
     done = subprocess.run([CC, "-O2", "-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-shared", "-fPIC",
                            "driver.c", "-o", str(library), "-lm"], cwd=tmp_path, capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
-    lib = ctypes.CDLL(str(library))
+    return ctypes.CDLL(str(library))
+
+
+def build(tmp_path, header: str):
+    lib = compile_driver(tmp_path, header, DRIVER)
     lib.replay.restype = lib.refuses.restype = ctypes.c_int
     return lib
 

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import ctypes
 import re
-import subprocess
 
 import numpy as np
 import pytest
@@ -25,7 +24,8 @@ from ftcal.live.drift import LAGS_S, SNAPSHOT_S
 from ftcal.live.health import BIT
 from ftcal.sim.live_scenario import LiveScenario
 
-from test_c_runtime import CC, FIELDS, NOISE, STEP_AND_STORE, compare, gauge_model, pointer, python_replay, tool_payload
+from test_c_runtime import (CC, FIELDS, NOISE, STEP_AND_STORE, compare, compile_driver, gauge_model, pointer,
+                            python_replay, tool_payload)
 
 pytestmark = pytest.mark.skipif(CC is None, reason="no C compiler `cc`")
 DOWN = np.array([0.0, 0.0, -9.81])
@@ -81,13 +81,7 @@ def ramp_recording(seed=3):
 
 
 def build(tmp_path, header: str):
-    (tmp_path / "rt.h").write_text(header)
-    (tmp_path / "driver.c").write_text(DRIVER)
-    library = tmp_path / "driver.so"
-    done = subprocess.run([CC, "-O2", "-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-shared", "-fPIC",
-                           "driver.c", "-o", str(library), "-lm"], cwd=tmp_path, capture_output=True, text=True)
-    assert done.returncode == 0, done.stderr
-    lib = ctypes.CDLL(str(library))
+    lib = compile_driver(tmp_path, header, DRIVER)
     lib.replay.restype = ctypes.c_int
     return lib
 

@@ -12,7 +12,6 @@ refused where hand computation says the regressor loses rank.
 from __future__ import annotations
 
 import ctypes
-import subprocess
 import warnings
 
 import numpy as np
@@ -25,7 +24,7 @@ from ftcal.payload.identify import identify_payload
 from ftcal.runtime.errors import FtcalError, UndeterminedWarning
 from ftcal.sim.live_scenario import LiveScenario, Tool, simulate_live
 
-from test_c_runtime import CC, FIELDS, STEP_AND_STORE, compare, gauge_model, pointer, python_replay
+from test_c_runtime import CC, FIELDS, STEP_AND_STORE, compare, compile_driver, gauge_model, pointer, python_replay
 
 pytestmark = pytest.mark.skipif(CC is None, reason="no C compiler `cc`")
 FIT = 44  # per finish: mass, com 3, bias 6, se (mass, com 3, bias 6), rms 6, vif 10, 8 counts
@@ -106,13 +105,7 @@ int adopt_refuses(void)
 
 
 def build(tmp_path, header: str):
-    (tmp_path / "rt.h").write_text(header)
-    (tmp_path / "driver.c").write_text(DRIVER)
-    library = tmp_path / "driver.so"
-    done = subprocess.run([CC, "-O2", "-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-shared", "-fPIC",
-                           "driver.c", "-o", str(library), "-lm"], cwd=tmp_path, capture_output=True, text=True)
-    assert done.returncode == 0, done.stderr
-    lib = ctypes.CDLL(str(library))
+    lib = compile_driver(tmp_path, header, DRIVER)
     lib.replay.restype = lib.adopt_refuses.restype = ctypes.c_int
     return lib
 
