@@ -133,7 +133,8 @@ def test_limits_module_imports_nothing_heavy():
 DOCTEST_MODULES = ["ftcal.core.features", "ftcal.core.statistics", "ftcal.core.solvers.base", "ftcal.core.solvers.least_squares",
                    "ftcal.core.solvers.lasso", "ftcal.core.model.state", "ftcal.core.model.basis", "ftcal.core.metrics", "ftcal.core.select.candidates",
                    "ftcal.core.select.folds", "ftcal.core.select.poses", "ftcal.core.dataset",
-                   "ftcal.core.normalization", "ftcal.core.directions", "ftcal.core.estimator"]
+                   "ftcal.core.normalization", "ftcal.core.directions", "ftcal.core.estimator",
+                   "ftcal.core.precision"]
 
 
 @pytest.mark.parametrize("name", DOCTEST_MODULES)

@@ -8,12 +8,16 @@ about a direction goes through these rules:
 - **sign**: the first component whose magnitude is at least :data:`CANONICAL_TIE`
   of the largest is positive (so ``(−0.71, 0, 0.71)`` reads ``(0.71, 0, −0.71)``);
 - **order by size**: magnitudes that agree to :data:`CANONICAL_TIE` (relative) are
-  a tie, broken by the index, never by rounding.
+  a tie, broken by the index, never by rounding;
+- **precision**: components are stated to :data:`ftcal.core.precision.DIRECTION` of the
+  largest (:func:`ftcal.core.precision.settle`), so one that is 0 in exact arithmetic is 0.
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+from .precision import DIRECTION, settle
 
 CANONICAL_TIE = 1e-6
 """Relative difference under which two magnitudes are taken as equal (rounding differs between
@@ -21,7 +25,7 @@ BLAS kernels by ~1e-15 relative; a real difference a user should see is far abov
 
 
 def canonical_sign(vector: np.ndarray) -> np.ndarray:
-    """``vector`` with the sign that makes its first sizeable component positive.
+    """``vector`` with the sign that makes its first sizeable component positive, to :data:`DIRECTION`.
 
     Parameters
     ----------
@@ -30,19 +34,20 @@ def canonical_sign(vector: np.ndarray) -> np.ndarray:
     Returns
     -------
     ndarray of shape (n,)
-        ``vector`` or ``-vector``; a zero vector is returned unchanged.
+        ``vector`` or ``-vector``, settled to :data:`DIRECTION` of its largest component; a zero
+        vector is returned as zeros.
 
     Examples
     --------
-    >>> canonical_sign(np.array([-0.5, 0.0, 0.5])).tolist()
-    [0.5, -0.0, -0.5]
+    >>> canonical_sign(np.array([-0.5, 1e-17, 0.5])).tolist()
+    [0.5, 0.0, -0.5]
     """
     v = np.asarray(vector, dtype=np.float64)
     size = np.abs(v)
     if not size.any():
-        return v
+        return v + 0.0
     first = int(np.flatnonzero(size >= size.max() * CANONICAL_TIE)[0])
-    return -v if v[first] < 0 else v
+    return settle(-v if v[first] < 0 else v, DIRECTION)
 
 
 def order_by_size(values: np.ndarray) -> np.ndarray:

@@ -29,6 +29,7 @@ import numpy as np
 from ..runtime.errors import FtcalError
 from .directions import order_by_size
 from .limits import ZERO_REFERENCE_WRENCH
+from .precision import SPECTRUM, settle
 
 # Relative singular values below these: the direction is not excited / hardly excited.
 UNEXCITED = 1e-3
@@ -96,7 +97,7 @@ class OutputExcitation:
 
     Attributes
     ----------
-    singular_values : ndarray, relative to the largest, descending
+    singular_values : ndarray, relative to the largest, descending, to :data:`~ftcal.core.precision.SPECTRUM`
     n_excited : int, directions at or above :data:`UNEXCITED`
     missing : tuple of str, the directions not excited (named)
     weak : tuple of str, the directions hardly excited (named)
@@ -177,7 +178,8 @@ def output_excitation(spread: Spread, names: Sequence[str]) -> OutputExcitation:
     values, vectors = np.linalg.eigh(0.5 * (scaled + scaled.T))
     order = np.argsort(values)[::-1]
     values, vectors = np.maximum(values[order], 0.0), vectors[:, order]
-    singular = np.sqrt(values / values[0])
+    # Stated to their precision: a direction zero in exact arithmetic is 0 on every machine.
+    singular = settle(np.sqrt(values / values[0]), SPECTRUM, 1.0)
     missing, weak, hints = [], [], []
     for found, chosen in ((missing, singular < UNEXCITED), (weak, (singular >= UNEXCITED) & (singular < WEAK))):
         for direction in _readable_basis(vectors[:, chosen]):
@@ -246,14 +248,14 @@ def regressor_excitation(gram: np.ndarray) -> tuple[np.ndarray, int]:
 
     Returns
     -------
-    (ndarray of shape (p,), descending, relative to the largest; int, how many are at or above
-    :data:`UNEXCITED`)
+    (ndarray of shape (p,), descending, relative to the largest, to :data:`~ftcal.core.precision.SPECTRUM`
+    (:func:`~ftcal.core.precision.settle`); int, how many are at or above :data:`UNEXCITED`)
     """
     diagonal = np.sqrt(np.maximum(np.diag(gram), 0.0))
     unit = np.where(diagonal > 0, diagonal, 1.0)
     scaled = gram / unit[:, None] / unit[None, :]
     values = np.clip(np.linalg.eigvalsh(0.5 * (scaled + scaled.T))[::-1], 0.0, None)
-    singular = np.sqrt(values / values[0]) if values[0] > 0 else np.zeros_like(values)
+    singular = settle(np.sqrt(values / values[0]), SPECTRUM, 1.0) if values[0] > 0 else np.zeros_like(values)
     return singular, int(np.sum(singular >= UNEXCITED))
 
 

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.precision import DIRECTION, settle
 from ..payload.drift import BiasDrift
 from ..payload.identify import Undetermined, undetermined_fields
 from ..payload.parameters import PayloadParameters
@@ -118,7 +119,9 @@ def undetermined_document(undetermined: Undetermined) -> dict:
     """The ``undetermined`` field of a payload file."""
     return {"parameter_names": list(undetermined.names), "parameters": list(undetermined.parameters),
             "held_at_zero": list(undetermined.held), "rank": int(undetermined.rank),
-            "directions": jsonable(np.asarray(undetermined.directions).T), "message": undetermined.message}
+            # A null space: stated to its precision, each direction relative to its largest component.
+            "directions": [jsonable(settle(d, DIRECTION)) for d in np.asarray(undetermined.directions).T],
+            "message": undetermined.message}
 
 
 def _parse_undetermined(doc: dict, source: str) -> Undetermined:

@@ -18,6 +18,7 @@ import numpy as np
 
 from ...runtime.errors import FtcalError
 from ...runtime.threads import single_threaded_blas
+from ..precision import settle
 from ..statistics import SufficientStatistics
 
 
@@ -178,7 +179,10 @@ class Spectrum:
     @property
     def condition_number(self) -> float:
         """Condition number of the equilibrated regressor A (square root of the Gram's)."""
-        smallest = max(self.values[0], 0.0)
+        # The eigenvalues are known to the rank threshold: the smallest stated to it (core.precision's rule),
+        # so a rank-deficient Gram's condition is inf on every machine, not its rounding noise.
+        top = self.values[-1]
+        smallest = settle(self.values[0], self.rank_threshold() / top, top) if top > 0 else 0.0
         return float(np.sqrt(self.values[-1] / smallest)) if smallest > 0 else float("inf")
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
