@@ -27,6 +27,10 @@ halves the digits: a Gram summed over 10⁶ samples to ~1e-10 gives singular val
 DIRECTION = 1e-6
 """Components of a unit direction (an eigenvector, a null-space vector): as :data:`ftcal.core.directions.CANONICAL_TIE`."""
 
+SCORE = 1e-6
+"""Cross-validated scores and their differences, relative to the largest score compared (a score summed
+from sufficient statistics, θᵀGθ − 2θᵀc + ‖y‖², cancels: a residual 1e-4 of the signal keeps ~1e-8 of it)."""
+
 SOLUTION = 1e-9
 """Least-squares results, residuals and figures derived from them, relative to their vector's scale
 (conditioning of the fits ftcal accepts stays below 1e6: 1e-16 × 1e6 × margin)."""

@@ -957,13 +957,14 @@ def mlp_cross_validation_table(model, affine_folds) -> str:
     """The MLP's held-out scores beside affine least squares on the same grouped folds."""
     import numpy as np
 
+    from ..core.select import AFFINE, Comparison
+
     cv = model.cv_
     mlp_folds = np.asarray(cv["fold_scores"])
-    difference = np.asarray(affine_folds) - mlp_folds
-    spread = float(np.std(difference, ddof=1)) if difference.size > 1 else 0.0
+    versus = Comparison.of(AFFINE, affine_folds, mlp_folds)  # stated to the scores' precision
     lines = [f"{'model':<24} {'validation':>11}   ({cv['metric']}, {cv['n_folds']} grouped folds)",
              f" {'np1':<23} {np.mean(affine_folds):>11.4f}",
              f"*{model.label():<23} {mlp_folds.mean():>11.4f}   (early stop at {cv['iterations']} iterations)",
-             f"mlp margin over np1 {difference.mean():+.3g} on average over {cv['n_folds']} folds "
-             f"(fold-to-fold spread {spread:.3g}, standard error {spread / np.sqrt(difference.size):.3g})"]
+             f"mlp margin over np1 {versus.margin:+.3g} on average over {cv['n_folds']} folds "
+             f"(fold-to-fold spread {versus.spread:.3g}, standard error {versus.standard_error:.3g})"]
     return "\n".join(lines)

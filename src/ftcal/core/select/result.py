@@ -7,6 +7,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 import numpy as np
 
+from ..precision import SCORE, settle
 from .candidates import AFFINE, Candidate
 from .scoring import UNITS, CandidateScore, Comparison, Scorer
 
@@ -136,7 +137,9 @@ class CrossValidationResult:
         head = "".join(f" {('val ' + name + ' ' + unit).strip():>16}" for name, unit, _ in columns)
         lines = [f"grouped cross-validation, {self.n_folds} folds, {len(self.scores)} candidates; best of each "
                  f"degree by {self.metric}:", f"  {'degree':<7}{'best candidate':<28}{head}"]
-        ranked = sorted(self.scores, key=lambda s: s.score)
+        # Ranked by scores stated to their precision: candidates tied to rounding keep their search order.
+        floor = min((s.score for s in self.scores if np.isfinite(s.score)), default=0.0)
+        ranked = sorted(self.scores, key=lambda s: settle(s.score, SCORE, floor))
         for degree in sorted({s.candidate.degree for s in self.scores}):
             best = min((s for s in self.scores if s.candidate.degree == degree), key=lambda s: s.score)
             values = "".join(f" {v:>16.4g}" for v in self._block_values(best.fold_mse))
@@ -145,7 +148,7 @@ class CrossValidationResult:
             winner = self.score_of(self.best)
             runner = next(s for s in ranked if s.candidate != self.best)
             lines.append(f"best single model {self.best.label}; runner-up {runner.candidate.label} "
-                         f"({runner.score - winner.score:+.3g} on the objective)")
+                         f"({settle(runner.score - winner.score, SCORE, winner.score):+.3g} on the objective)")
         return "\n".join(lines + self._closing_lines())
 
     def _closing_lines(self) -> list[str]:

@@ -18,6 +18,7 @@ from ...runtime.checks import check_choice
 from ...runtime.errors import FtcalError
 from .. import metrics
 from ..limits import OBJECTIVES, SELECT_PER
+from ..precision import SCORE, settle
 from ..statistics import SufficientStatistics
 from .candidates import AFFINE, Candidate
 
@@ -203,11 +204,15 @@ class Comparison:
         reference_folds, folds = np.asarray(reference_folds, dtype=float), np.asarray(folds, dtype=float)
         difference = reference_folds - folds
         n = difference.size
-        spread = float(np.std(difference, ddof=1)) if n > 1 else 0.0
+        # Stated to the scores' precision (core.precision): two candidates that predict alike to rounding
+        # (a tiny ridge λ and least squares) differ by exactly 0, so their verdict is the same on every CPU.
+        scale = float(np.abs(np.r_[reference_folds, folds]).max(initial=0.0))
+        difference = settle(difference, SCORE, scale)
+        spread = settle(float(np.std(difference, ddof=1)), SCORE, scale) if n > 1 else 0.0
         log_margin = log_se = None
         if n > 1 and np.all(reference_folds > 0) and np.all(folds > 0):
-            ratio = np.log(reference_folds / folds)
-            log_margin, log_se = float(ratio.mean()), float(np.std(ratio, ddof=1) / np.sqrt(n))
+            ratio = settle(np.log(reference_folds / folds), SCORE, 1.0)
+            log_margin, log_se = float(ratio.mean()), settle(float(np.std(ratio, ddof=1) / np.sqrt(n)), SCORE, 1.0)
         return cls(reference, float(difference.mean()), spread, spread / np.sqrt(n), n, searched, log_margin, log_se)
 
 
