@@ -155,6 +155,21 @@ def test_a_stream_zeroed_with_the_tool_on_is_found():
     assert f.kind == "zeroed" and "hold 3" in f.message
 
 
+def test_a_sensor_that_reads_nothing_is_a_finding_not_a_pass(capsys, tmp_path):
+    # An unpowered sensor or a driver publishing a default message: all zeros, or one value, in every sample.
+    # Before: "no finding" and exit 0 for all zeros (the mass test only said "too noisy").
+    _, rotation, _ = recording(12)
+    for reading in (np.zeros(6), np.array([1.5, -2.0, 3.0, 0.0, 0.0, 0.0])):
+        (f,) = findings(np.tile(reading, (len(rotation), 1)), rotation)
+        assert f.kind == "no-signal" and "not measuring" in f.message
+        code, out, _ = check(capsys, write(tmp_path, np.tile(reading, (len(rotation), 1)), rotation))
+        assert code == 1 and "no-signal" in out and "no finding" not in out
+    # a live force stream with dead torque channels (a force-only sensor's zero columns) is no such finding
+    wrench, rotation, _ = recording(12)
+    wrench[:, 3:] = 0.0
+    assert all(f.kind != "no-signal" for f in findings(wrench, rotation))
+
+
 def test_torques_about_another_point_give_an_implausible_com():
     wrench, rotation, _ = recording(11)
     point = np.array([0.0, 0.0, 0.5])  # e.g. a tool centre point 0.5 m out

@@ -48,6 +48,8 @@ BASE_FRAME_RSS_RATIO = 4.0
 # A hold reads "zero" within this many standard errors of its mean and this fraction of m·g.
 ZERO_STDERR = 5.0
 ZERO_WEIGHT_FRACTION = 0.02
+# A channel whose hold means and hold noise stay below this fraction of its size never changed (rounding only).
+CONSTANT_RELATIVE = 1e-12
 
 
 @dataclass(frozen=True)
@@ -57,7 +59,7 @@ class Finding:
     Attributes
     ----------
     kind : str
-        ``sign``, ``handedness``, ``permutation``, ``rotation``, ``base-frame``,
+        ``no-signal``, ``sign``, ``handedness``, ``permutation``, ``rotation``, ``base-frame``,
         ``compensated``, ``zeroed`` or ``lever``.
     message : what the data show
     fix : the exact change (flag, columns, rotation)
@@ -254,6 +256,10 @@ def check_conventions(holds: HoldAverages, *, wrench_columns=AXES, max_com_dista
     declared_residual = static_fit(holds.wrench, holds.gravity)[1]
     declared = residual_rms(declared_residual)
     findings: list[Finding] = []
+    silent = _no_signal(holds, wrench_columns, declared)
+    if silent is not None:  # nothing else can be tested on a stream that never changes
+        return ConventionReport(holds, [silent], np.eye(3), 0.0, math.inf, declared, declared_residual,
+                                declared_residual, notes)
     data = holds
 
     def sigma2(fit: _Procrustes) -> float:
@@ -416,6 +422,31 @@ def _map_finding(holds: HoldAverages, fit: _Procrustes, sigma2: float, columns,
     return sign, proper, Finding(
         "rotation", f"the wrench is in a frame turned by {kind} rotation from the declared sensor frame "
                     f"(fitted angle {angle:.2f}°)", rotate, confidence, declared, after, rpy=rpy)
+
+
+def _no_signal(holds: HoldAverages, columns, declared) -> Finding | None:
+    """A finding when the force channels read one value in every sample of every hold (no noise, no change
+    with the orientation): a sensor that is not measuring (unpowered, disconnected, a driver sending a
+    default message), whatever the tool. A real gauge's reading always varies between tilted holds."""
+    def constant(block: slice) -> bool:
+        size = float(np.abs(holds.wrench[:, block]).max(initial=0.0))
+        return bool(holds.noise[:, block].max() <= CONSTANT_RELATIVE * size
+                    and np.ptp(holds.wrench[:, block], axis=0).max() <= CONSTANT_RELATIVE * size)
+
+    if not constant(slice(0, 3)):
+        return None
+    force = holds.wrench[0, :3]
+    value = "exactly 0" if not force.any() else "one value (" + ", ".join(f"{v:.6g}" for v in force) + " N)"
+    return Finding(
+        "no-signal",
+        f"the force channels {', '.join(map(str, columns[:3]))} read {value} in every sample of all "
+        f"{holds.n_holds} holds, with no noise and no change with the orientation"
+        + (" (the torque channels too)" if constant(slice(3, 6)) else "")
+        + ": the sensor is not measuring (unpowered, disconnected, not started, or a driver publishing a "
+        "default message)",
+        "check the sensor's power, cable and driver (the raw stream must vary, at least by its noise), then record "
+        "the holds again",
+        1.0, declared, declared)
 
 
 def _zeroed(holds: HoldAverages, theta: np.ndarray, after) -> list[Finding]:

@@ -163,6 +163,17 @@ def check_sensor(data, *, accept=None, inputs: Sequence[str] = DEFAULT_WRENCH, g
                        serial=serial, history_dir=history_dir)
 
 
+def _residual_precision(wrench):
+    """(force RMS, torque RMS) -> the same stated to :data:`~ftcal.core.precision.SOLUTION` of the readings'
+    RMS per block: a fit of exactly zero torques leaves 0 N·m, not 5.8e-21."""
+    import numpy as np
+
+    from ..core.precision import SOLUTION, settle
+
+    scales = [float(np.sqrt(np.mean(wrench[:, block] ** 2))) for block in (slice(0, 3), slice(3, 6))]
+    return lambda pair: tuple(settle(v, SOLUTION, scale) for v, scale in zip(pair, scales))
+
+
 def _conventions(tables, options, *, wrench, group_by, rate, reaction, max_com_distance, html) -> CheckResult:
     from ..check.conventions import check_conventions, read_holds
 
@@ -171,7 +182,8 @@ def _conventions(tables, options, *, wrench, group_by, rate, reaction, max_com_d
                        time=options["time"], rate=rate)
     report = check_conventions(holds, wrench_columns=tuple(wrench), max_com_distance=max_com_distance,
                                source=", ".join(names))
-    force, torque = report.residual
+    stated = _residual_precision(holds.wrench)
+    force, torque = stated(report.residual)
     lines = [f"{holds.n_holds} static holds; payload-fit residual RMS as declared {force:.4g} N, {torque:.4g} N·m; "
              f"tool mass {report.mass:.4g} ± {report.mass_stderr:.2g} kg (with the fixes below; a constant bias: "
              "if the bias drifts, `ftcal payload --time COL --bias-drift auto` compares bias models and says which "
@@ -182,8 +194,9 @@ def _conventions(tables, options, *, wrench, group_by, rate, reaction, max_com_d
             fix = fix.replace("--reaction", "leave out --reaction", 1)
         lines.append(f"finding {k}: {f.kind} (confidence {100 * f.confidence:.2f} %): {f.message}")
         lines.append(f"  fix: {fix}")
-        lines.append(f"  residual RMS before {f.before[0]:.4g} N, {f.before[1]:.4g} N·m; after {f.after[0]:.4g} N, "
-                     f"{f.after[1]:.4g} N·m")
+        before, after = stated(f.before), stated(f.after)
+        lines.append(f"  residual RMS before {before[0]:.4g} N, {before[1]:.4g} N·m; after {after[0]:.4g} N, "
+                     f"{after[1]:.4g} N·m")
     lines += [f"note: {tables.named(note)}" for note in report.notes]
     if not report.findings:
         lines.append("no finding: sign, axes, frame, zeroing and torque reference look as declared")
