@@ -98,7 +98,7 @@ def run(args: argparse.Namespace) -> int:
 
     from ..robot import parse_payload_spec
     from ..runtime.errors import FtcalError
-    from ..sim.robot_recording import SimulationConfig, read_waypoints, simulate_session
+    from ..sim.robot_recording import SimulationConfig, check_session_size, read_waypoints, simulate_session
     from ..sim.sensor_model import SensorSpec, spec_from_json
     from ._common import output_folder
 
@@ -146,6 +146,7 @@ def run(args: argparse.Namespace) -> int:
                               temperature_start=args.temperature[0], temperature_end=args.temperature[1],
                               channels=args.channels, seed=args.seed,
                               formats=("bag", "table") if args.format == "both" else (args.format,))
+    check_session_size(robot, waypoints, config)  # before -o's folder is made
     session = simulate_session(robot, sensor_name, waypoints, sensor, output_folder(args.output, "-o"), loads=loads,
                                base=args.base, config=config)
     truth = session.truth

@@ -44,6 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.limits import MAX_SIMULATED_SAMPLES
 from ..core.limits import SIMULATE_FORMATS as FORMATS
 from ..robot.model import RobotModel
 from ..robot.payloads import Payload
@@ -234,6 +235,24 @@ class Motion:
         return self.q[k] + s[:, None] * delta, ds[:, None] * delta, dds[:, None] * delta
 
 
+def check_session_size(robot: RobotModel, waypoints: Waypoints, config: SimulationConfig) -> int:
+    """The session's number of F/T samples; FtcalError when it exceeds :data:`~ftcal.core.limits.MAX_SIMULATED_SAMPLES`.
+
+    Cheap (the motions' durations only), so callers check before they make any folder.
+    """
+    _, velocity = joint_bounds(robot)
+    motions = [Motion(waypoints.q[a:b], config.speed * velocity, config.hold_s, config.min_move_s)
+               for a, b, _ in _runs(waypoints.load)]
+    duration = sum(m.duration for m in motions)
+    samples = sum(int(math.floor(m.duration * config.rate)) + 1 for m in motions)
+    if samples > MAX_SIMULATED_SAMPLES:
+        raise FtcalError(f"rate {config.rate:g} Hz over {duration:.3g} s of motion makes {samples:.3g} F/T samples, "
+                         f"more than the {MAX_SIMULATED_SAMPLES:,} a session may hold in memory (about 1.5 kB "
+                         f"each); lower the rate (at most {MAX_SIMULATED_SAMPLES / duration:.4g} Hz here), "
+                         "the hold time or the number of poses.")
+    return samples
+
+
 def simulate_session(robot: RobotModel, sensor_name: str, waypoints: Waypoints, sensor: SensorModel,
                      out_dir: str | Path, *, loads: Sequence[Payload | None] = (None,),
                      base: str | None = None, config: SimulationConfig = SimulationConfig()) -> Session:
@@ -252,11 +271,18 @@ def simulate_session(robot: RobotModel, sensor_name: str, waypoints: Waypoints, 
     Returns
     -------
     Session
+
+    Raises
+    ------
+    FtcalError
+        Waypoints beyond the URDF's limits, or a session of more than
+        :data:`~ftcal.core.limits.MAX_SIMULATED_SAMPLES` F/T samples (before anything is written).
     """
     ft = robot.sensor(sensor_name)
     _, base_name = robot.base_frame(base)
     position, velocity = joint_bounds(robot)
     check_within_limits(waypoints, robot, position)
+    check_session_size(robot, waypoints, config)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     # Everything is written into a hidden staging folder first and moved in at the end, so that a failure
