@@ -231,3 +231,28 @@ def test_cli_expected_with_declared_sensor(tmp_path):
     rotation, _ = ur5_chain_rotation(q, "ee_link")
     force = out[[f"ee_fixed_joint_{a}" for a in ("Fx", "Fy", "Fz")]].to_numpy()[0]
     np.testing.assert_allclose(force, 3.0 * rotation.T @ G_BASE, atol=1e-6)
+
+
+SLIDER_ARM = """<robot name="slider">
+  <link name="base"><inertial><mass value="1"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <link name="slider"><inertial><mass value="1"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <link name="hand"><inertial><mass value="1.5"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <joint name="glide" type="{kind}"><parent link="base"/><child link="slider"/><axis xyz="0 0 1"/>
+    <limit lower="-1" upper="1" effort="10" velocity="1"/></joint>
+  <joint name="wrist_ft" type="fixed"><parent link="slider"/><child link="hand"/><origin xyz="0 0 -0.3"/></joint>
+</robot>"""
+
+
+@pytest.mark.parametrize("kind, way", [("planar", "two prismatic joints and a revolute one"),
+                                       ("floating", "so that 'slider' is the root link")])
+def test_a_planar_or_floating_joint_is_named_not_taken_for_a_missing_sensor(tmp_path, kind, way):
+    # Before: iDynTree dropped the whole model, and --ft-joint wrist_ft got "has no six-axis F/T sensor".
+    urdf = tmp_path / f"{kind}.urdf"
+    urdf.write_text(SLIDER_ARM.format(kind=kind))
+    done = run_cli("sensors", "--urdf", str(urdf), "--ft-joint", "wrist_ft")
+    assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1
+    assert f"joint 'glide' (from link 'base' to 'slider') has type '{kind}'" in done.stderr and way in done.stderr
+    assert "no six-axis F/T sensor" not in done.stderr
+    # the same chain with a joint iDynTree models has the declared sensor
+    assert RobotModel.from_text(SLIDER_ARM.format(kind="prismatic"), declared=[SensorDeclaration("wrist_ft")]) \
+        .sensor("wrist_ft").child_link == "hand"

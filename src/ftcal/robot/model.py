@@ -75,7 +75,8 @@ class RobotModel:
         parsed_text = prepare_urdf(urdf_text, source, self.declared)
         with captured_stderr() as chatter:
             ok = loader.loadModelFromString(parsed_text)
-        if not ok:
+        # iDynTree can report success with an empty model after its own errors (e.g. an unsupported element).
+        if not ok or loader.model().getNrOfLinks() == 0:
             detail = next((line for line in chatter if "ERROR" in line), chatter[0] if chatter else "")
             raise FtcalError(f"URDF {source} does not parse"
                              + (f": {detail.replace('[ERROR] ', '')}" if detail else "."))

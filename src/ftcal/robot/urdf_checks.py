@@ -6,6 +6,10 @@ A URDF is a file from someone else (a vendor, a colleague): it is not trusted.
   chain of joints that comes back to where it started (a kinematic loop), is
   refused naming the joints and links; otherwise the parser would pick one
   parent silently, or walk the loop.
+* Joints: iDynTree (ftcal's kinematics) models fixed, revolute, continuous and
+  prismatic joints only; a planar or floating joint is refused naming it, with
+  the way round (it used to load as an empty model: "no F/T sensor" for a
+  sensor declared with ``--ft-joint``).
 * Physics: a mass or inertia entry that is not a finite number, a negative
   mass, or a negative diagonal moment is refused naming the link (the
   expected wrenches would be meaningless); an inertia tensor that is not
@@ -44,7 +48,7 @@ def check_urdf(text: str, source: str) -> None:
     Raises
     ------
     FtcalError
-        Not XML, a link with two parent joints, a kinematic loop, or a mass or
+        Not XML, a link with two parent joints, a kinematic loop, a planar or floating joint, or a mass or
         inertia that is not a finite number (or a negative mass or moment).
     """
     try:
@@ -60,6 +64,7 @@ def check_urdf(text: str, source: str) -> None:
             if not element.get("name"):
                 raise FtcalError(f"URDF {source}: a <{tag}> element has no name attribute.")
     _check_tree(root, source)
+    _check_joint_types(root, source)
     for link in root.findall("link"):
         _check_inertial(link, source)
 
@@ -83,6 +88,30 @@ def _check_tree(root: ET.Element, source: str) -> None:
                 raise FtcalError(f"URDF {source}: the joints form a kinematic loop through links "
                                  f"{' -> '.join(loop)}; a URDF is a tree.")
             chain.append(step[0])
+
+
+JOINT_TYPES = ("fixed", "revolute", "continuous", "prismatic")
+
+
+def _check_joint_types(root: ET.Element, source: str) -> None:
+    for joint in root.findall("joint"):
+        kind = joint.get("type")
+        if kind in JOINT_TYPES:
+            continue
+        name = joint.get("name")
+        parent, child = (joint.find(t) for t in ("parent", "child"))
+        parent, child = (None if e is None else e.get("link") for e in (parent, child))
+        if kind == "floating":
+            way = (f"a floating joint is a floating base: remove it and link {parent!r}, so that {child!r} is the "
+                   "root link (its motion is then the base's: give the IMU data)")
+        elif kind == "planar":
+            way = ("write the planar joint as two prismatic joints and a revolute one through intermediate links, "
+                   "or fix it (type fixed) if it does not move in the recordings")
+        else:
+            way = f"use one of {', '.join(JOINT_TYPES)}"
+        raise FtcalError(f"URDF {source}: joint {name!r} (from link {parent!r} to {child!r}) has type {kind!r}, "
+                         f"which ftcal's kinematics (iDynTree) do not model: only {', '.join(JOINT_TYPES)} "
+                         f"joints; {way}.")
 
 
 def _number(element: ET.Element, key: str, what: str, link: str, source: str) -> float:
