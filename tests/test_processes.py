@@ -13,6 +13,7 @@ import sys
 import textwrap
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from ftcal.runtime.errors import FtcalError
@@ -76,3 +77,37 @@ def test_an_interrupt_while_workers_send_large_results_stops_them(tmp_path):
     for pid in pids:
         stat = Path(f"/proc/{pid}/stat")
         assert not stat.exists() or stat.read_text().split()[2] == "Z"
+
+
+PIPELINE = """
+import sys
+sys.path.insert(0, {src!r})
+import numpy as np
+from ftcal.robot import RobotModel
+from ftcal.robot.expected import PARALLEL_MIN_SAMPLES, expected_wrenches
+from ftcal.sim.plan_arm import ARM_URDF
+{guard}
+{indent}robot = RobotModel.from_text(ARM_URDF, "arm.urdf")
+{indent}q = np.random.default_rng(0).uniform(-1, 1, (PARALLEL_MIN_SAMPLES + 10, len(robot.joint_names)))
+{indent}wrench = expected_wrenches(robot, q, workers=2, description="")
+{indent}np.save({out!r}, wrench)
+"""
+
+
+def test_a_script_without_the_main_guard_runs_in_process_with_one_warning(tmp_path):
+    # README's Python pipeline saved as a file and run: the spawned workers imported the script again and
+    # each tried to spawn its own (three tracebacks). Now the work runs in this process, with one warning;
+    # with the guard, the same numbers come from two worker processes.
+    runs = {}
+    for name, guard in (("bare", ""), ("guarded", 'if __name__ == "__main__":')):
+        script = tmp_path / f"{name}.py"
+        script.write_text(PIPELINE.format(src=SRC, guard=guard, indent="    " if guard else "",
+                                          out=str(tmp_path / f"{name}.npy")))
+        done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=300,
+                              cwd=tmp_path)
+        assert done.returncode == 0 and "Traceback" not in done.stderr, done.stderr
+        runs[name] = done
+    bare, guarded = runs["bare"], runs["guarded"]
+    assert f"{tmp_path / 'bare.py'} calls ftcal at its top level without 'if __name__ == \"__main__\":'" in bare.stderr
+    assert bare.stderr.count("FtcalWarning") == 1 and "FtcalWarning" not in guarded.stderr
+    np.testing.assert_array_equal(np.load(tmp_path / "bare.npy"), np.load(tmp_path / "guarded.npy"))

@@ -160,8 +160,9 @@ def expected_wrenches(robot: RobotModel, q: np.ndarray, *, dq: np.ndarray | None
     Sensors are in the order of ``robot.ft_sensors``. ``q``/``dq``/``ddq`` are
     ndarrays of shape (n_samples, n_dofs) in the order of ``robot.joint_names``.
     Inputs of ``PARALLEL_MIN_SAMPLES`` or more are split across ``workers``
-    processes (started with ``spawn``, so a calling script needs the usual
-    ``if __name__ == "__main__":`` guard); a progress bar shows the samples done.
+    processes (started with ``spawn``: a script that calls this at its top level without the usual
+    ``if __name__ == "__main__":`` guard gets the work done in its own process, with a warning saying
+    so, :func:`ftcal.runtime.processes.spawn_reruns_main`); a progress bar shows the samples done.
     """
     workers = check_int(workers, "workers", "expected_wrenches", 1, 64)
     q = check_joints(robot, q, "joint positions")

@@ -6,19 +6,30 @@ reading it, and ``terminate`` then waits for that lock forever (seen with
 ``ftcal expected --workers 2`` interrupted mid-run). Here each worker has a pipe of
 its own and at most one job in flight, nothing is shared between workers, and
 stopping on an error or a signal kills the workers outright.
+
+Workers are spawned, so each one imports the calling script again as ``__mp_main__``. A script
+that calls ftcal at its top level without ``if __name__ == "__main__":`` would then run its
+calls again in every worker (which fail as they try to spawn their own: three tracebacks for
+README's pipeline saved as a file). :func:`spawn_reruns_main` detects that case from the
+script's source, and :class:`WorkerProcesses` then does the jobs in this process, with one
+warning saying what to add to use the workers.
 """
 
 from __future__ import annotations
 
+import ast
 import multiprocessing
+import os
 import pickle
 import signal
+import sys
 import threading
+import warnings
 from collections.abc import Callable, Iterable, Iterator
 from multiprocessing.connection import wait
 from typing import Any
 
-from .errors import FtcalError
+from .errors import FtcalError, FtcalWarning
 
 STOP_TIMEOUT_S = 10.0  # a worker told to stop after a clean run gets this long before it is killed
 
@@ -48,8 +59,18 @@ class WorkerProcesses:
         self.workers, self.initializer, self.initargs = workers, initializer, initargs
         self._processes: list = []
         self._connections: list = []
+        self._inline = False
 
     def __enter__(self) -> "WorkerProcesses":
+        script = spawn_reruns_main()
+        self._inline = script is not None
+        if self._inline:
+            warnings.warn(f"{script} calls ftcal at its top level without 'if __name__ == \"__main__\":', so "
+                          f"{self.workers} worker processes would each run the script again: the work runs in this "
+                          "process instead; put the calls under that guard to use the workers.",
+                          FtcalWarning, stacklevel=2)
+            self.initializer(*self.initargs)
+            return self
         context = multiprocessing.get_context("spawn")  # not fork: the parent may run threads
         # An ignored SIGINT survives the exec of a spawned worker: a terminal's Ctrl-C (sent to the
         # whole process group) then reaches only the parent, which stops the workers itself.
@@ -73,6 +94,8 @@ class WorkerProcesses:
         return self
 
     def __exit__(self, kind, value, traceback) -> None:
+        if self._inline:
+            return
         if kind is None:
             self._stop()
         else:
@@ -87,6 +110,9 @@ class WorkerProcesses:
             The first error a worker raised (re-raised here), or FtcalError when a
             worker process died.
         """
+        if self._inline:
+            yield from (function(job) for job in jobs)
+            return
         pending = iter(enumerate(jobs))
         busy: dict[Any, int] = {}  # connection -> index of its job in flight
         done: dict[int, Any] = {}
@@ -138,6 +164,46 @@ class WorkerProcesses:
         for connection in self._connections:
             connection.close()
         self._processes, self._connections = [], []
+
+
+def spawn_reruns_main() -> str | None:
+    """The script's path when a spawned worker would run this call again, else None.
+
+    That is when the main module is a file (``python script.py``, ``python -m module``) and this call
+    comes from its top-level code outside an ``if __name__ == "__main__":`` block. An interactive
+    session, ``python -c`` and notebooks have no file to import again: None.
+    """
+    main = sys.modules.get("__main__")
+    path = getattr(main, "__file__", None)
+    if main is None or path is None or multiprocessing.parent_process() is not None:
+        return None
+    # What multiprocessing.spawn itself never runs again: a package's __main__.py (python -m ftcal), ipython.
+    module = getattr(getattr(main, "__spec__", None), "name", None) or ""
+    if module == "__main__" or module.endswith(".__main__") or os.path.basename(path).split(".")[0] == "ipython":
+        return None
+    frame, line = sys._getframe(1), None
+    while frame is not None:  # the outermost frame of the script's own top-level code
+        if frame.f_globals is vars(main) and frame.f_code.co_name == "<module>":
+            line = frame.f_lineno
+        frame = frame.f_back
+    if line is None:
+        return None
+    try:
+        with open(path, encoding="utf-8") as file:
+            tree = ast.parse(file.read())
+    except (OSError, SyntaxError, ValueError):
+        return None  # cannot tell: spawn, as before
+    guarded = any(isinstance(node, ast.If) and _is_main_test(node.test) and node.lineno <= line <= node.end_lineno
+                  for node in tree.body)
+    return None if guarded else str(path)
+
+
+def _is_main_test(test: ast.expr) -> bool:
+    """``__name__ == "__main__"`` (either way round)."""
+    if not (isinstance(test, ast.Compare) and len(test.ops) == 1 and isinstance(test.ops[0], ast.Eq)):
+        return False
+    sides = {ast.dump(test.left), ast.dump(test.comparators[0])}
+    return sides == {ast.dump(ast.Name("__name__", ast.Load())), ast.dump(ast.Constant("__main__"))}
 
 
 def _serve(connection, initializer: Callable[..., Any], initargs: tuple) -> None:
