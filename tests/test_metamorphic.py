@@ -73,18 +73,22 @@ def calibration_table(n_groups: int, per_group: int, seed: int) -> pd.DataFrame:
     return frame
 
 
-def payload_table(undetermined: bool) -> pd.DataFrame:
-    """A tool held in still poses; ``undetermined``: tool down and on its side only (one null direction)."""
+def payload_table(case: str) -> pd.DataFrame:
+    """A tool held in still poses. ``undetermined``: tool down and on its side only (one null direction);
+    ``noiseless``: exact readings of a 2 kg tool on the sensor's z axis, no bias (most estimates exactly 0)."""
     rng = np.random.default_rng(5)
     mass, com, bias = 1.3, np.array([0.012, -0.025, 0.071]), np.array([3.0, -2.0, 5.0, 0.1, -0.2, 0.05])
-    if undetermined:
+    noise = np.array([0.3, 0.3, 0.3, 0.01, 0.01, 0.01])
+    if case == "undetermined":
         turns = Rotation.from_euler("y", np.tile([0.0, 90.0], 5)[:, None], degrees=True)
     else:
         turns = Rotation.random(10, random_state=3)
+    if case == "noiseless":
+        mass, com, bias, noise = 2.0, np.array([0.0, 0.0, 0.05]), np.zeros(6), np.zeros(6)
     rotations = Rotation.from_quat(np.repeat(turns.as_quat(), 30, axis=0))
     gravity = rotations.inv().apply([0.0, 0.0, -9.81])
     wrench = np.c_[mass * gravity, np.cross(com, mass * gravity)] + bias
-    wrench += rng.normal(size=wrench.shape) * [0.3, 0.3, 0.3, 0.01, 0.01, 0.01]
+    wrench += rng.normal(size=wrench.shape) * noise
     frame = pd.DataFrame(np.c_[rotations.as_quat(), wrench], columns=["qx", "qy", "qz", "qw", *CHANNELS])
     frame["pose"] = np.repeat(np.arange(10), 30)
     return frame
@@ -190,14 +194,20 @@ def check_metamorphic(tmp: Path, name: str, frame: pd.DataFrame, argv, *, group:
         assert_same(baseline, chunks, f"{name}, chunks of {CHUNK_ROWS} rows")
 
 
-@pytest.mark.parametrize("undetermined", [True, False], ids=["undetermined", "determined"])
-def test_payload_text_and_file_hold_under_rounding_changes(tmp_path, undetermined):
-    frame = payload_table(undetermined)
+@pytest.mark.parametrize("case", ["undetermined", "determined", "noiseless"])
+def test_payload_text_and_file_hold_under_rounding_changes(tmp_path, case):
+    frame = payload_table(case)
     argv = lambda table: ["payload", str(table), "--orientation", "qx,qy,qz,qw", "--group-by", "pose",  # noqa: E731
                           "-o", "{dir}/payload.json"]
     # Not reordered: the standard errors come from a jackknife over contiguous blocks of the recording, so
     # row order is its time order (serial correlation, drift). payload reads each table whole: no chunks.
     check_metamorphic(tmp_path, "payload", frame, argv, group=None, chunked=False)
+    if case == "noiseless":  # what is 0 in exact arithmetic prints 0 (was ±1e-16 here, other noise elsewhere)
+        text = run(tmp_path, "payload-truth", argv(tmp_path / "payload-table0" / "payload.csv"))[0]
+        for name in ("com x", "com y", *(f"{kind} bias {a}" for kind in ("force", "torque") for a in "xyz")):
+            assert re.search(rf"^  {name}\s+0 ± 0 ", text, re.M), name
+        assert re.search(r"^  mass\s+2 ± 0 kg", text, re.M) and re.search(r"^  com z\s+0.05 ± 0 m", text, re.M)
+        assert "residual RMS: Fx 0  Fy 0  Fz 0  Tx 0  Ty 0  Tz 0" in text
 
 
 def test_fit_of_a_fixed_degree_holds_under_rounding_changes(tmp_path):

@@ -28,8 +28,9 @@ DIRECTION = 1e-6
 """Components of a unit direction (an eigenvector, a null-space vector): as :data:`ftcal.core.directions.CANONICAL_TIE`."""
 
 SCORE = 1e-6
-"""Cross-validated scores and their differences, relative to the largest score compared (a score summed
-from sufficient statistics, θᵀGθ − 2θᵀc + ‖y‖², cancels: a residual 1e-4 of the signal keeps ~1e-8 of it)."""
+"""Figures taken from sums of squares that cancel (θᵀGθ − 2θᵀc + ‖y‖²): cross-validated scores and their
+differences relative to the largest score compared, residual RMS relative to the readings' RMS (a residual
+1e-4 of the signal keeps ~1e-8 of its mean square; its square root ~1e-7 of the readings)."""
 
 SOLUTION = 1e-9
 """Least-squares results, residuals and figures derived from them, relative to their vector's scale

@@ -50,6 +50,7 @@ import numpy as np
 from ..core.directions import CANONICAL_TIE, canonical_sign
 from ..core.jackknife import jackknife_covariance
 from ..core.limits import PAYLOAD_WEIGHTINGS
+from ..core.precision import SCORE, settle
 from ..core.solvers.base import Conditioning
 from ..core.statistics import SufficientStatistics
 from ..runtime.errors import FtcalError, IllPosedFitWarning, UndeterminedWarning
@@ -496,14 +497,20 @@ def _choose_weighting(folds: list[AxisStatistics], total: AxisStatistics, p: int
         wtheta = _refit(train.gram(weights), train.cross(weights))
         if wtheta is None:
             continue
-        sse["ols"] += fold.residual_sum_of_squares(theta)
-        sse["wls"] += fold.residual_sum_of_squares(wtheta)
+        # RMS stated to SCORE of the fold's readings' RMS per block (core.precision; SCORE² on squares): an
+        # exact fit's held-out error is 0 on every CPU, not rounding noise that picks the weighting
+        squares = np.array([a.target_sq[0] for a in fold.axes])
+        readings = np.repeat([squares[:3].mean(), squares[3:].mean()], 3)
+        readings = np.maximum(readings, max(SCORE * squares.mean(), np.finfo(float).tiny))
+        for name, estimate in (("ols", theta), ("wls", wtheta)):
+            sse[name] += settle(fold.residual_sum_of_squares(estimate) / readings, SCORE ** 2, 1.0) * readings
         scored += 1
     if scored < 2:
         return "ols", "too few identifiable held-out blocks: plain least squares"
     # Each axis' held-out error relative to OLS's, averaged over the force and over the torque axes
     # (a raw sum would be decided by the noisiest axis alone).
-    per_axis = sse["wls"] / np.maximum(sse["ols"], 1e-300)
+    with np.errstate(divide="ignore", invalid="ignore"):  # both 0 (exact fits): a tie
+        per_axis = np.where(sse["ols"] > 0, sse["wls"] / sse["ols"], np.where(sse["wls"] > 0, np.inf, 1.0))
     ratio = [float(np.mean(per_axis[:3])), float(np.mean(per_axis[3:]))]
     text = (f"held-out error of per-axis weighting vs plain least squares over {scored} blocks: "
             f"forces {ratio[0]:.3f}x, torques {ratio[1]:.3f}x")

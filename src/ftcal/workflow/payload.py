@@ -159,6 +159,7 @@ class PayloadResult(StepResult):
     excitation: str
     notes: list[str] = field(default_factory=list)
     sources: list[str] = field(default_factory=list)
+    scale: tuple[float, float] | None = None  # RMS of the force and torque readings: what the figures are stated to
 
     @property
     def mass(self) -> float:
@@ -171,7 +172,7 @@ class PayloadResult(StepResult):
         return np.asarray(self.fit.com)
 
     def summary(self) -> str:
-        return "\n".join([*self.notes, *_fit_lines(self.fit, self.drift.n_groups, self.payload.gravity),
+        return "\n".join([*self.notes, *_fit_lines(self.fit, self.drift.n_groups, self.payload.gravity, self.scale),
                           *_drift_lines(self.drift), self.excitation])
 
     def to_dict(self) -> dict:
@@ -301,48 +302,78 @@ def identify_payload(data, *, inputs: Sequence[str] = DEFAULT_WRENCH, group_by: 
     excitation = payload_excitation(group_statistics(recording, dynamic=dynamic))
     payload = PayloadParameters.from_fit(fit, gravity=options["g"], frame=frame, reaction=reaction,
                                          wrench_columns=tuple(wrench), drift=result.drift)
-    out = PayloadResult(payload, fit, result, excitation, notes, names)
+    measured = np.asarray(recording.measured, dtype=float)
+    scale = tuple(float(np.sqrt(np.mean(measured[:, block] ** 2))) for block in (slice(0, 3), slice(3, 6)))
+    # the file states the residual RMS as the text does
+    payload = replace(payload, fit={**payload.fit, "residual_rms": stated_rms(payload.fit["residual_rms"], scale)})
+    out = PayloadResult(payload, fit, result, excitation, notes, names, scale)
     if output is not None:
         save_payload(payload, output, sources=names)
     return out
 
 
-def _fit_lines(fit, n_groups: int, g: float) -> list[str]:
+def stated_rms(values, scale: tuple[float, float] | None) -> np.ndarray:
+    """Residual RMS per axis (6,) stated to :data:`~ftcal.core.precision.SCORE` of ``scale``, the RMS of the
+    force and of the torque readings: figures from sums of squares that cancel (a noiseless fit's Fx 1.9e-07
+    is 0); unchanged when ``scale`` is None."""
+    from ..core.precision import SCORE, settle
+
+    values = np.asarray(values, dtype=float)
+    if scale is None:
+        return values
+    return np.array([settle(v, SCORE, b) for v, b in zip(values, np.repeat(scale, 3))])
+
+
+def _fit_lines(fit, n_groups: int, g: float, scale: tuple[float, float] | None = None) -> list[str]:
+    from ..core.precision import SOLUTION, settle
     from ..payload.identify import AXES
 
     unit = {"mass": "kg", "com": "m", "force_bias": "N", "torque_bias": "N·m", "inertia": "kg·m²"}
     kind = "dynamic (inertia included)" if fit.dynamic else "static"
     lines = [f"payload from {fit.n_samples} samples in {n_groups} group(s), {kind} model, gravity {g:g} m/s²"]
+    # Each estimate stated to SOLUTION of what it explains of the readings (forces RMS, torques RMS), so a
+    # component that is 0 in exact arithmetic (noiseless data, a tool on the axis) prints 0 on every CPU.
+    force, torque = scale if scale is not None else (None, None)
+    of = {"mass": None if force is None else force / g,
+          "com": None if torque is None else torque / max(abs(fit.mass) * g, 1e-300),
+          "force_bias": force, "torque_bias": torque, "inertia": None}
 
-    def line(name, value, se, unit_name):
+    def line(name, value, se, unit_name, key):
         if np.isnan(se):  # the poses do not determine it: the file holds a convention, not an estimate
-            return f"  {name:<14}{'undetermined':>14} (file: {value:.6g} {unit_name} by convention)"
+            return f"  {name:<14}{'undetermined':>14} (file: {settle(value, SOLUTION, of[key]):.6g} {unit_name} by convention)"
+        value, se = settle(value, SOLUTION, of[key]), settle(se, SOLUTION, of[key])
         return f"  {name:<14}{value:>14.6g} ± {se:.2g} {unit_name}"
 
-    lines.append(line("mass", fit.mass, fit.stderr["mass"], unit["mass"]))
+    lines.append(line("mass", fit.mass, fit.stderr["mass"], unit["mass"], "mass"))
     for key in ("com", "force_bias", "torque_bias"):
         for axis, value, se in zip("xyz", getattr(fit, key), fit.stderr[key]):
-            lines.append(line(key.replace("_", " ") + " " + axis, value, se, unit[key]))
+            lines.append(line(key.replace("_", " ") + " " + axis, value, se, unit[key], key))
     if fit.dynamic:
         for (i, j) in ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)):
             name = "I" + "xyz"[i] + "xyz"[j] + " (com)"
-            lines.append(line(name, fit.inertia[i, j], fit.stderr["inertia"][i, j], unit["inertia"]))
+            lines.append(line(name, fit.inertia[i, j], fit.stderr["inertia"][i, j], unit["inertia"], "inertia"))
     if fit.undetermined is not None:
         lines.append(f"undetermined: {fit.undetermined.message}")
-    lines.append("residual RMS: " + "  ".join(f"{a} {v:.4g}" for a, v in zip(AXES, fit.residual_rms)) + "  (N, N·m)")
+    def rms(values) -> np.ndarray:
+        return stated_rms(values, scale)
+
+    residual = rms(fit.residual_rms)
+    lines.append("residual RMS: " + "  ".join(f"{a} {v:.4g}" for a, v in zip(AXES, residual)) + "  (N, N·m)")
     if fit.cross_validation:
         scored = [g for g in fit.cross_validation if g.rms is not None]
         if scored:
             pooled = np.sqrt(sum(g.n_samples * g.rms ** 2 for g in scored) / sum(g.n_samples for g in scored))
             lines.append("cross-validated residual RMS (each group left out of the fit in turn): "
-                         + "  ".join(f"{a} {v:.4g}" for a, v in zip(AXES, pooled)))
-        # The groups that fit worst when left out come first: they are the suspicious poses.
-        with np.errstate(over="ignore"):  # an axis fitted exactly (residual 0) ranks its groups first: inf
+                         + "  ".join(f"{a} {v:.4g}" for a, v in zip(AXES, rms(pooled))))
+        # The groups that fit worst when left out come first: they are the suspicious poses (ranked by the
+        # stated figures, so rounding noise on an exactly fitted axis orders nothing).
+        held = {id(g): None if g.rms is None else rms(g.rms) for g in fit.cross_validation}
+        with np.errstate(over="ignore", invalid="ignore"):  # an axis fitted exactly (residual 0): inf, 0/0 ignored
             ranked = sorted(fit.cross_validation, key=lambda g: -np.inf if g.rms is None else -float(
-                np.sum((g.rms / np.maximum(fit.residual_rms, 1e-300)) ** 2)))
+                np.nansum((held[id(g)] / np.maximum(residual, 1e-300)) ** 2)))
         for g in ranked[:MAX_GROUPS_PRINTED]:
             text = ("not identifiable without this group" if g.rms is None
-                    else "  ".join(f"{a} {v:.4g}" for a, v in zip(AXES, g.rms)))
+                    else "  ".join(f"{a} {v:.4g}" for a, v in zip(AXES, held[id(g)])))
             lines.append(f"  {g.group} ({g.n_samples} samples): {text}")
         if len(ranked) > MAX_GROUPS_PRINTED:
             lines.append(f"  ... {len(ranked) - MAX_GROUPS_PRINTED} more group(s) fit better")
