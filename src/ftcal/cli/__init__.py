@@ -366,7 +366,9 @@ def run(argv: list[str] | None) -> int:
                     check_not_an_input(getattr(args, option), f"--{option}")
             return int(args.func(args) or 0)
     except FtcalError as exc:
-        print(f"ftcal {args.command}: error: {one_line(exc)}", file=sys.stderr)
+        from ._common import cli_message
+
+        print(f"ftcal {args.command}: error: {one_line(cli_message(exc))}", file=sys.stderr)
         return 2
     except (ArithmeticError, MemoryError, RecursionError, UnicodeError) as exc:
         print(f"ftcal {args.command}: error: {numerical_failure(exc, args)}", file=sys.stderr)
