@@ -7,7 +7,7 @@ import re
 
 import numpy as np
 
-from .errors import FtcalError
+from .errors import FtcalError, ParameterError
 
 
 def check_int(value: object, name: str, owner: str, low: int, high: int | None = None) -> int:
@@ -16,7 +16,7 @@ def check_int(value: object, name: str, owner: str, low: int, high: int | None =
     if ok and value >= low and (high is None or value <= high):
         return int(value)
     bound = f"[{low}, {high}]" if high is not None else f">= {low}"
-    raise FtcalError(
+    raise ParameterError(name,
         f"The '{name}' parameter of {owner} must be an int in {bound}. Got {value!r} instead."
     )
 
@@ -28,7 +28,7 @@ def check_float(value: object, name: str, owner: str, low: float = 0.0,
     if ok and (value >= low if low_inclusive else value > low):
         return float(value)
     op = ">=" if low_inclusive else ">"
-    raise FtcalError(
+    raise ParameterError(name,
         f"The '{name}' parameter of {owner} must be a finite number {op} {low}. Got {value!r} instead."
     )
 
@@ -37,7 +37,7 @@ def check_choice(value: object, name: str, owner: str, choices: tuple[str, ...])
     """Return ``value`` if it is one of ``choices`` or raise."""
     if value in choices:
         return str(value)
-    raise FtcalError(
+    raise ParameterError(name,
         f"The '{name}' parameter of {owner} must be one of {', '.join(map(repr, choices))}. "
         f"Got {value!r} instead."
     )

@@ -63,20 +63,6 @@ class ParameterError(FtcalError):
         return type(self), (self.parameters, self.template)
 
 
-def check_choice(parameter: str, value, choices) -> None:
-    """Refuse ``value`` unless it is one of ``choices``, naming ``parameter`` (:class:`ParameterError`)."""
-    if not isinstance(value, str) or value not in choices:
-        raise ParameterError(parameter, f"{{{parameter}}} must be one of {', '.join(map(repr, choices))}; "
-                                        f"got {value!r}.")
-
-
-def check_type(parameter: str, value, kinds, what: str) -> None:
-    """Refuse ``value`` unless it is an instance of ``kinds`` (bool is no number), naming ``parameter``."""
-    if not isinstance(value, kinds) or (isinstance(value, bool) and bool not in (kinds if isinstance(kinds, tuple)
-                                                                              else (kinds,))):
-        raise ParameterError(parameter, f"{{{parameter}}} must be {what}; got {type(value).__name__} {value!r:.60}.")
-
-
 class NotFittedError(FtcalError):
     """A model method that needs fitted state was called before ``fit``."""
 

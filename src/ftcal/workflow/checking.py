@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .arguments import CHECK, check_arguments
 from ..core.limits import HOLD_SAMPLE_RATE, MAX_COM_DISTANCE, MAX_FORCE_ERROR, MAX_TORQUE_ERROR
 from ..runtime.deprecation import renamed_keyword
 from ..runtime.errors import FtcalError, ParameterError
@@ -129,6 +130,7 @@ def check_sensor(data, *, accept=None, inputs: Sequence[str] = DEFAULT_WRENCH, g
     >>> result.passed, round(result.report.mass, 3)
     (True, 1.2)
     """
+    check_arguments(CHECK, locals(), "ftcal.check_sensor")
     wrench = renamed_keyword(source, "wrench", "inputs", inputs, DEFAULT_WRENCH)
     options = source_options(source, "check")
     if html is not None:

@@ -6,6 +6,7 @@ import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
+from .arguments import COMPENSATE, check_arguments
 from ..runtime.deprecation import renamed_keyword
 from ..runtime.errors import FtcalError, ParameterError
 from .result import StepResult
@@ -104,6 +105,7 @@ def compensate(payload, data, *, calibration=None, inputs: Sequence[str] | None 
     >>> bool(np.abs(result.contact).max() < 1e-9)   # no contact: weight and bias removed
     True
     """
+    check_arguments(COMPENSATE, locals(), "ftcal.compensate")
     import pandas as pd
 
     from ..files.model_files import load_model

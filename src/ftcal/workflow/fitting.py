@@ -21,6 +21,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Callable
 
+from .arguments import FIT, check_arguments
 from ..core.columns import DEFAULT_OUTPUTS, LOAD_COLUMN
 from ..core.limits import (MAX_DEGREE, MAX_LAG, MLP_EQUATIONS_PER_WEIGHT, MLP_MAX_ITER, MLP_MAX_LAYERS,
                            MLP_MAX_UNITS, PAPER_LAMBDAS, SELECTION_BUDGET_SECONDS)
@@ -164,6 +165,7 @@ def fit(data, *, inputs: Sequence[str] | None = None, outputs: Sequence[str] | N
     >>> round(float(result.model.predict(np.array([[0.5]]))[0, 0]), 2)
     2.5
     """
+    check_arguments(FIT, locals(), "ftcal.fit")
     cpu_start = time.process_time() if cpu_start is None else cpu_start
     output = None if output is None else str(output)
     if output is not None and not output.lower().endswith(".json"):

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from .arguments import PAYLOAD, REBIAS, check_arguments
 from ..runtime.deprecation import renamed_keyword
 from ..runtime.errors import FtcalError, ParameterError
 from .result import StepResult
@@ -251,6 +252,7 @@ def identify_payload(data, *, inputs: Sequence[str] = DEFAULT_WRENCH, group_by: 
     >>> round(result.mass, 6)
     2.0
     """
+    check_arguments(PAYLOAD, locals(), "ftcal.identify_payload")
     from ..check.conventions import ConventionWarning, HoldCollector, payload_warning
     from ..core.limits import BIAS_DRIFTS
     from ..files.payload_json import save_payload
@@ -456,6 +458,7 @@ def rebias_payload(data, payload, *, inputs: Sequence[str] = DEFAULT_WRENCH, kee
     FtcalError
         Bad input, or a sign convention or temperature column that differs from the file's.
     """
+    check_arguments(REBIAS, locals(), "ftcal.workflow.rebias_payload")
     from ..files.payload_json import load_payload, save_payload
     from ..payload.drift import BiasDrift
     from ..payload.tables import read_payload_tables, rebias

@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
+from .arguments import PLAN, check_arguments
 from ..core.limits import MAX_DEGREE, PLAN_DEFAULTS
 from ..runtime.errors import FtcalError, ParameterError
 from .result import StepResult
@@ -103,6 +104,7 @@ def plan_experiment(poses: int, *, urdf=None, robot: str | None = None, ft_joint
     >>> int((result.table["reference"] == 0).sum())                # the designed poses
     6
     """
+    check_arguments(PLAN, locals(), "ftcal.plan_experiment")
     from ..plan import PlanRequest
     from ..plan import plan_experiment as design
     from ..plan.recorded import plan_frame, read_recorded
