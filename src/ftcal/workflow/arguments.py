@@ -14,7 +14,6 @@ from collections.abc import Callable, Mapping
 from ..core.limits import (
     ARX_WARMUP,
     FREE_RUN_STARTS,
-    MAX_LAG,
     NORMALIZATIONS,
     OBJECTIVES,
     PENALTIES,
@@ -96,7 +95,7 @@ def _refuse(name: str, owner: str, what: str, value) -> None:
                                f"Got {type(value).__name__} {shown} instead.")
 
 
-FIT = dict(inputs=names, outputs=names, lasso=number(), ridge=number(), na=whole(0, MAX_LAG), nb=whole(0, MAX_LAG),
+FIT = dict(inputs=names, outputs=names, lasso=number(), ridge=number(), na=whole(0), nb=whole(0),
            solver=choice(SOLVERS), normalization=choice(NORMALIZATIONS, optional=True), folds=integer,
            penalties=penalties, select_per=choice(SELECT_PER), objective=choice(OBJECTIVES),
            max_degree=integer, budget=number(), verbose=flag, drop_incomplete=flag,
