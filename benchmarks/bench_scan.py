@@ -123,8 +123,9 @@ def run_child_case(which: str, paths: list[str], degree: int) -> dict:
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
-def info_cpu(repeats: int = 5) -> dict:
-    """``ftcal info MODEL``: median CPU (user + system, wait4) and wall of a fresh process, and a bare interpreter's."""
+def info_cpu(repeats: int = 5, baseline_src: str | None = None) -> dict:
+    """``ftcal info MODEL``: median CPU (user + system, wait4) and wall of a fresh process, a bare interpreter's,
+    and with ``baseline_src`` the same command on that source tree, runs alternating."""
     import time
 
     from ftcal.core.dataset import Dataset
@@ -138,9 +139,9 @@ def info_cpu(repeats: int = 5) -> dict:
     u, y = make_data(5_000)
     save_model(CalibrationModel(3).fit(Dataset.from_arrays(u, y, input_names=INPUTS, output_names=OUTPUTS)),
                model_path)
-    env = dict(os.environ, FTCAL_PROGRESS="0", PYTHONPATH=str(ROOT / "src"))
 
-    def timed(argv):
+    def timed(argv, src):
+        env = dict(os.environ, FTCAL_PROGRESS="0", PYTHONPATH=src)
         began = time.perf_counter()
         proc = subprocess.Popen(argv, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         _, status, usage = os.wait4(proc.pid, 0)
@@ -148,10 +149,18 @@ def info_cpu(repeats: int = 5) -> dict:
             raise RuntimeError(f"{argv} failed")
         return usage.ru_utime + usage.ru_stime, time.perf_counter() - began
 
-    info = [timed([sys.executable, "-m", "ftcal", "info", model_path]) for _ in range(repeats)]
-    bare = [timed([sys.executable, "-c", "pass"]) for _ in range(repeats)]
-    return {"cpu_s": statistics.median(c for c, _ in info), "wall_s": statistics.median(w for _, w in info),
-            "bare_cpu_s": statistics.median(c for c, _ in bare)}
+    runs: dict[str, list] = {"info": [], "baseline": [], "bare": []}
+    for _ in range(repeats):
+        runs["info"].append(timed([sys.executable, "-m", "ftcal", "info", model_path], str(ROOT / "src")))
+        if baseline_src:
+            runs["baseline"].append(timed([sys.executable, "-m", "ftcal", "info", model_path], baseline_src))
+        runs["bare"].append(timed([sys.executable, "-c", "pass"], str(ROOT / "src")))
+    out = {"cpu_s": statistics.median(c for c, _ in runs["info"]),
+           "wall_s": statistics.median(w for _, w in runs["info"]), "bare_cpu_s": statistics.median(c for c, _ in runs["bare"])}
+    if baseline_src:
+        out["baseline_cpu_s"] = statistics.median(c for c, _ in runs["baseline"])
+        out["baseline_wall_s"] = statistics.median(w for _, w in runs["baseline"])
+    return out
 
 
 def scan_section(n: int, files: int, pairs: int, degree: int = 4) -> tuple[list[str], str]:
@@ -188,14 +197,24 @@ def scan_section(n: int, files: int, pairs: int, degree: int = 4) -> tuple[list[
 
 
 def info_section(repeats: int = 5) -> tuple[list[str], str]:
-    r = info_cpu(repeats)
+    baseline = os.environ.get("FTCAL_BASELINE_SRC")
+    r = info_cpu(repeats, baseline)
     rows = ["## Light commands: `ftcal info MODEL`", "",
-            f"A fresh process, median of {repeats}: CPU = user + system of the child (wait4).", "",
+            f"A fresh process, median of {repeats}: CPU = user + system of the child (wait4); with "
+            "`FTCAL_BASELINE_SRC` the same command on that source tree, runs alternating. Load average "
+            f"{os.getloadavg()[0]:.1f} (2 cores): under load every CPU figure here is inflated alike.", "",
             "| command | CPU s | wall | vs bare interpreter (CPU) |", "|---|---:|---:|---:|",
             f"| `ftcal info MODEL` (degree 3) | {r['cpu_s']:.2f} | {r['wall_s']:.2f} s | "
-            f"{r['cpu_s'] / r['bare_cpu_s']:.1f}× |",
-            f"| `python -c pass` | {r['bare_cpu_s']:.3f} | | 1.0× |", ""]
-    return rows, f"`ftcal info MODEL`: {r['cpu_s']:.2f} CPU s (target ≤ 0.25 s), {r['cpu_s'] / r['bare_cpu_s']:.1f}× a bare interpreter"
+            f"{r['cpu_s'] / r['bare_cpu_s']:.1f}× |"]
+    if baseline:
+        rows.append(f"| the same on {baseline} (before) | {r['baseline_cpu_s']:.2f} | {r['baseline_wall_s']:.2f} s | "
+                    f"{r['baseline_cpu_s'] / r['bare_cpu_s']:.1f}× |")
+    rows += [f"| `python -c pass` | {r['bare_cpu_s']:.3f} | | 1.0× |", ""]
+    head = (f"`ftcal info MODEL`: {r['cpu_s']:.2f} CPU s (target ≤ 0.25 s), "
+            f"{r['cpu_s'] / r['bare_cpu_s']:.1f}× a bare interpreter")
+    if baseline:
+        head += f"; before {r['baseline_cpu_s']:.2f} s in the same run"
+    return rows, head
 
 
 if __name__ == "__main__":
