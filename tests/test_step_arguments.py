@@ -51,7 +51,9 @@ WRONG = [
     ("identify_payload", "reaction", 0), ("identify_payload", "inputs", ("Fx", "Fy", "Fx")),
     ("check_sensor", "rate", -5.0), ("check_sensor", "max_force_error", "2 N"), ("check_sensor", "reaction", None),
     ("plan_experiment", "poses", 0), ("plan_experiment", "objective", "speed"), ("plan_experiment", "degree", "4"),
-    ("plan_experiment", "seed", -1), ("convert", "single_precision", "no"),
+    ("plan_experiment", "seed", -1), ("convert", "single_precision", "no"), ("convert", "model", 42),
+    ("compensate", "payload", 42), ("check_sensor", "accept", 42), ("fit", "output", "model.txt"),
+    ("predict", "output", "out.json"),
 ]
 
 
@@ -59,9 +61,9 @@ def call(step, keyword, value, frame, model):
     """The step with one wrong keyword and otherwise valid (or harmless) positional arguments."""
     first = {"fit": (frame,), "evaluate": (model, frame), "predict": (model, frame),
              "identify_payload": (frame,), "check_sensor": (frame,), "plan_experiment": (10,),
-             "convert": (model, "json", "unused.json")}[step]
-    if step == "plan_experiment" and keyword == "poses":
-        return ftcal.plan_experiment(value)
+             "convert": ("model.json", "json", "unused.json"), "compensate": ("payload.json", frame)}[step]
+    if (step, keyword) in (("plan_experiment", "poses"), ("convert", "model"), ("compensate", "payload")):
+        return getattr(ftcal, step)(value, *first[1:])
     return getattr(ftcal, step)(*first, **{keyword: value})
 
 
@@ -92,6 +94,15 @@ def test_any_value_outside_a_choice_is_refused_by_name(which, value, frame, mode
     assert caught.value.parameter == keyword and keyword in str(caught.value)
 
 
+@pytest.mark.parametrize("call", [lambda: ftcal.load_model(42), lambda: ftcal.load_dataset(["a.csv", 7]),
+                                  lambda: ftcal.save_model(ftcal.CalibrationModel(1), None),
+                                  lambda: ftcal.Dataset.from_arrays(1.0, 2.0)])
+def test_the_core_api_refuses_wrong_types_by_name(call):
+    with pytest.raises(ParameterError) as caught:
+        call()
+    assert caught.value.parameter in str(caught.value)
+
+
 @pytest.mark.parametrize("args", [(7, -1), (0, 2), (7, 2, 0), (7, 2, 6, -1), (7, 2.0), (7, True)])
 def test_n_coefficients_refuses_impossible_counts(args):
     with pytest.raises(ParameterError):
@@ -110,7 +121,7 @@ def raised_strings(path):
 
 def test_no_message_raised_in_workflow_names_a_flag():
     found = [f"{path.name}:{line}: {text!r}" for path in sorted(WORKFLOW.glob("*.py"))
-             for line, text in raised_strings(path) if re.search(r"(^|[\s(\"'/])--[a-z]", text)]
+             for line, text in raised_strings(path) if re.search(r"(^|[\s(\"'/])--[a-z]|^-o ", text)]
     assert found == []
 
 

@@ -16,6 +16,7 @@ from ..runtime.errors import FtcalError, ParameterError
 # The one table from a library parameter to the flag that sets it, where the flag is not the rule
 # ``--`` + the name with ``-`` for ``_`` (degree -> --degree, max_degree -> --max-degree).
 FLAGS = {
+    "output": "-o",  # every command's output file
     "robot": "--model",  # the robot description (a URDF or a robot_descriptions name)
     "recorded": "--from",  # ftcal plan: tables of poses already recorded
 }

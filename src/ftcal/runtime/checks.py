@@ -33,6 +33,15 @@ def check_float(value: object, name: str, owner: str, low: float = 0.0,
     )
 
 
+def check_path(value: object, name: str, owner: str) -> None:
+    """Refuse ``value`` unless it is a file name (str or os.PathLike), naming the parameter."""
+    import os
+
+    if not isinstance(value, (str, os.PathLike)) or not os.fspath(value):
+        raise ParameterError(name, f"The '{name}' parameter of {owner} must be a file name (str or Path). "
+                                   f"Got {type(value).__name__} {value!r:.60} instead.")
+
+
 def check_choice(value: object, name: str, owner: str, choices: tuple[str, ...]) -> str:
     """Return ``value`` if it is one of ``choices`` or raise."""
     if value in choices:

@@ -22,7 +22,7 @@ from ..core.limits import (
     SELECT_PER,
     SOLVERS,
 )
-from ..runtime.checks import check_choice, check_float, check_int
+from ..runtime.checks import check_choice, check_float, check_int, check_path
 from ..runtime.errors import ParameterError
 
 Check = Callable[[object, str, str], None]
@@ -56,6 +56,13 @@ def number(low: float = 0.0, strict: bool = True, optional: bool = True) -> Chec
     def check(value, name, owner):
         if not (optional and value is None):
             check_float(value, name, owner, low, low_inclusive=not strict)
+    return check
+
+
+def path(optional: bool = False) -> Check:
+    def check(value, name, owner):
+        if not (optional and value is None):
+            check_path(value, name, owner)
     return check
 
 
@@ -106,13 +113,13 @@ PREDICT = dict(mode=choice(PREDICTION_MODES), start=choice(FREE_RUN_STARTS), seg
 PAYLOAD = dict(inputs=names, group_by=text, keep_moving=flag, reaction=flag, frame=text,
                temperature=text)  # bias_drift: checked by the step in its own words
 REBIAS = dict(inputs=names, keep_moving=flag, reaction=flag, temperature=text)
-COMPENSATE = dict(inputs=names)
-CHECK = dict(inputs=names, group_by=text, rate=number(), reaction=flag, max_com_distance=number(),
+COMPENSATE = dict(payload=path(), inputs=names)
+CHECK = dict(accept=path(optional=True), inputs=names, group_by=text, rate=number(), reaction=flag, max_com_distance=number(),
              max_force_error=number(), max_torque_error=number(), max_error_percent=number(), rated_force=number(),
              rated_torque=number(), serial=text)
 PLAN = dict(poses=whole(1), objective=choice(PLAN_OBJECTIVES), degree=integer, candidates=whole(1),
             reference_every=whole(0), seed=whole(0, 2**32 - 1))
-CONVERT = dict(to=text, single_precision=flag, serial=text, sensor=text, name=text)
+CONVERT = dict(model=path(), to=text, single_precision=flag, serial=text, sensor=text, name=text)
 
 
 def check_arguments(spec: Mapping[str, Check], values: Mapping[str, object], owner: str) -> None:

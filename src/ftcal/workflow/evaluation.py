@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from .arguments import EVALUATE, PREDICT, check_arguments
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, ParameterError
 from .result import StepResult
 from .sources import default_label_columns, tables_of
 
@@ -378,7 +378,7 @@ def predict(model, data, *, output: str | os.PathLike | None = None, mode: str =
     if output is not None:
         output = str(output)
         if not output.lower().endswith((".csv", ".parquet")):
-            raise FtcalError(f"-o {output}: must end in .csv or .parquet.")
+            raise ParameterError("output", f"{{output}} {output}: must end in .csv or .parquet.")
     with tables_of(data) as (paths, dataset, _):
         segment_by, _ = default_label_columns(paths, segment_by, notes)
         if output is None or dataset is not None:

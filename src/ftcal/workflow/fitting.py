@@ -169,7 +169,7 @@ def fit(data, *, inputs: Sequence[str] | None = None, outputs: Sequence[str] | N
     cpu_start = time.process_time() if cpu_start is None else cpu_start
     output = None if output is None else str(output)
     if output is not None and not output.lower().endswith(".json"):
-        raise FtcalError(f"-o {output}: must end in .json.")
+        raise ParameterError("output", f"{{output}} {output}: must end in .json.")
     options = _Options(degree=degree, lasso=lasso, ridge=ridge, na=na, nb=nb, solver=solver,
                        normalization=normalization, folds=folds, penalties=tuple(penalties),
                        lambdas=None if lambdas is None else tuple(lambdas), select_per=select_per,
@@ -281,7 +281,7 @@ def _streams(o: _Options) -> bool:
 def hidden_sizes(text) -> tuple[int, ...]:
     """``"32,32"`` (or a sequence) → (32, 32); one-line FtcalError unless 1 to MLP_MAX_LAYERS layers of
     1 to MLP_MAX_UNITS units."""
-    parts = text.split(",") if isinstance(text, str) else list(text)
+    parts = text.split(",") if isinstance(text, str) else list(text) if isinstance(text, (list, tuple)) else [text]
     try:
         sizes = tuple(int(part) for part in parts)
     except (TypeError, ValueError):
