@@ -434,6 +434,22 @@ def floor_section(sizes: dict) -> list[str]:
     return rows
 
 
+def scan_section(sizes: dict) -> list[str]:
+    """A streamed fit's passes through one scan against the per-file functions before it (issue 43)."""
+    from benchmarks.bench_scan import scan_section as section
+
+    rows, HEADLINE["scan"] = section(*sizes["scan"])
+    return rows
+
+
+def info_section(sizes: dict) -> list[str]:
+    """``ftcal info MODEL``'s CPU as a user runs it (issue 43: at most 0.25 s)."""
+    from benchmarks.bench_scan import info_section as section
+
+    rows, HEADLINE["info"] = section(sizes["info_repeats"])
+    return rows
+
+
 def cost_section(sizes: dict) -> list[str]:
     """``--degree auto``: printed estimate against the whole command's CPU, the budget kept, BLAS threads."""
     from benchmarks.bench_cost import DEMO_TABLE
@@ -571,14 +587,15 @@ SECTIONS = (fit_section, cli_section, lasso_section, predict_section, selection_
             mlp_section, plan_section, closed_loop_section,
             c_section, c_batch_section,
             scaling_section, expected_section, payload_section, payload_cli_section, bag_section, scale_section,
-            cluster_section, threads_section, live_section, floor_section)
+            cluster_section, threads_section, live_section, floor_section, scan_section, info_section)
 LABELS = {"fit": "Fit", "cli": "Whole-process fit", "lasso": "LASSO", "predict": "Prediction", "select": "Model selection",
           "cost": "Cost of --degree auto", "closed_loop": "Closed loop",
           "mlp": "MLP family", "plan": "Experiment design",
           "c": "Generated C", "expected": "Expected wrenches", "payload": "Payload identification",
           "bags": "Bag reading", "scale": "Streaming and Dask", "live": "Live calibrator",
           "payload_cli": "Payload, whole command", "cluster": "Dask local:2, whole fit",
-          "threads": "No oversubscription", "c_batch": "C live step", "floor": "Whole-process fit vs flop floor"}
+          "threads": "No oversubscription", "c_batch": "C live step", "floor": "Whole-process fit vs flop floor",
+          "scan": "One scan", "info": "Light commands"}
 
 FULL = {"fit_big": 1_000_000, "fit_mid": 100_000, "scaling_n": (10_000, 100_000, 1_000_000), "dense_max_n": 100_000,
         "degree_n": 100_000, "lasso_n": 200_000, "paper_lasso_n": 10_000, "predict_n": 2_000_000,
@@ -590,7 +607,7 @@ FULL = {"fit_big": 1_000_000, "fit_mid": 100_000, "scaling_n": (10_000, 100_000,
         "live_zenoh_s": 10.0, "closed_loop_seeds": (0, 1, 2), "closed_loop_quick": False,
         "payload_cli_n": 1_000_000, "cluster": ((4, 1_000_000), (16, 250_000)), "cluster_pairs": 3,
         "threads_pairs": 2, "c_batch_evals": 2_000_000, "c_runtime_n": 200_000, "floor_n": 1_000_000,
-        "floor_pairs": 5}
+        "floor_pairs": 5, "scan": (500_000, 4, 3), "info_repeats": 5}
 QUICK = {"fit_big": 20_000, "fit_mid": 5_000, "scaling_n": (2_000, 10_000), "dense_max_n": 10_000,
          "degree_n": 5_000, "lasso_n": 5_000, "paper_lasso_n": 1_000, "predict_n": 100_000,
          "expected_n": 2_000, "expected_baseline_n": 500, "c_evals": 100_000, "python_calls": 200,
@@ -600,7 +617,7 @@ QUICK = {"fit_big": 20_000, "fit_mid": 5_000, "scaling_n": (2_000, 10_000), "den
          "live_steps_n": 500, "live_minutes": (1, 2), "live_zenoh_s": 2.0, "closed_loop_seeds": (0,),
          "closed_loop_quick": True, "payload_cli_n": 100_000, "cluster": ((2, 20_000),), "cluster_pairs": 1,
          "threads_pairs": 1, "c_batch_evals": 100_000, "c_runtime_n": 20_000, "floor_n": 50_000,
-         "floor_pairs": 1}
+         "floor_pairs": 1, "scan": (20_000, 2, 1), "info_repeats": 1}
 
 
 def main(argv: list[str] | None = None) -> int:

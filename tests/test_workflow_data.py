@@ -196,5 +196,5 @@ def test_bad_data_is_one_line_naming_what_was_given(bag_dataset):
         check_sensor(42, orientation=QUATERNION)
     with pytest.raises(ftcal.FtcalError, match="LOG: a Dataset is already built"):
         build_dataset(ftcal.Dataset.from_arrays(np.zeros((2, 7)), np.zeros((2, 6))))
-    with pytest.raises(ftcal.FtcalError, match="--joints: one joint table, not 2"):
+    with pytest.raises(ftcal.FtcalError, match="^joints: one joint table, not 2"):
         expected([table, table], robot="iCubGenova11")

@@ -157,7 +157,7 @@ def test_results_explain_themselves_and_the_steps_are_public(files):
 
 
 def test_bad_input_is_one_ftcal_error(files, tmp_path):
-    with pytest.raises(ftcal.FtcalError, match="--folds goes with --degree auto"):
+    with pytest.raises(ftcal.FtcalError, match="^folds goes with degree auto"):
         ftcal.fit(files, degree=2, folds=3)
     with pytest.raises(ftcal.FtcalError, match="must end in .json"):
         ftcal.fit(files, output=tmp_path / "model.txt")

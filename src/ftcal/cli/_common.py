@@ -11,7 +11,25 @@ from collections.abc import Sequence
 from ..core.columns import DEFAULT_INPUTS, DEFAULT_OUTPUTS
 from ..core.limits import MAX_OPTION_MAGNITUDE
 from ..runtime.errors import single_line  # noqa: F401  (the commands import it from here)
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, ParameterError
+
+# The one table from a library parameter to the flag that sets it, where the flag is not the rule
+# ``--`` + the name with ``-`` for ``_`` (degree -> --degree, max_degree -> --max-degree).
+FLAGS = {
+    "output": "-o",  # every command's output file
+    "robot": "--model",  # the robot description (a URDF or a robot_descriptions name)
+    "recorded": "--from",  # ftcal plan: tables of poses already recorded
+}
+
+
+def flag_of(parameter: str) -> str:
+    """The command-line flag of a library parameter (:data:`FLAGS`, else ``--`` + name with dashes)."""
+    return FLAGS.get(parameter, "--" + parameter.replace("_", "-"))
+
+
+def cli_message(error: FtcalError) -> str:
+    """What the command prints for ``error``: a :class:`ParameterError` names the flags, not the Python names."""
+    return error.render(flag_of) if isinstance(error, ParameterError) else str(error)
 
 
 def column_list(text: str) -> tuple[str, ...]:

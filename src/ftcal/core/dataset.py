@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..runtime.checks import check_finite_matrix
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, ParameterError
 from .columns import DEFAULT_INPUTS, DEFAULT_OUTPUTS
 
 
@@ -97,6 +97,9 @@ class Dataset:
         u = np.asarray(inputs, dtype=np.float64)
         if u.ndim == 1:
             u = u[:, None]
+        if u.ndim != 2:
+            raise ParameterError("inputs", f"The 'inputs' parameter of Dataset.from_arrays must be an array of "
+                                           f"shape (n_samples, n_inputs); got shape {u.shape}.")
         names_in = tuple(input_names) if input_names is not None else default_names(DEFAULT_INPUTS, "u", u.shape[1])
         u = check_finite_matrix(u, "inputs", len(names_in), names_in)
         y = None

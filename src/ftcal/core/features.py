@@ -40,6 +40,9 @@ def n_coefficients(n_inputs: int, degree: int, n_outputs: int = 1, na: int = 0, 
     >>> [n_coefficients(7, d, 6) for d in range(1, 6)]
     [48, 216, 720, 1980, 4752]
     """
+    for name, value, low in (("n_inputs", n_inputs, 1), ("degree", degree, 0), ("n_outputs", n_outputs, 1),
+                             ("na", na, 0), ("nb", nb, 0)):
+        check_int(value, name, "n_coefficients", low)
     per_output = n_outputs * na + 1 + sum((nb + 1) * n_monomials(n_inputs, p)
                                           for p in range(1, degree + 1))
     return n_outputs * per_output

@@ -1,16 +1,22 @@
-"""Per-file tasks that stream a table chunk by chunk, for :mod:`ftcal.runtime.executors`.
+"""One scan per file: :func:`scan` reads a table chunk by chunk, once, and feeds accumulators.
 
-Each task reads one file itself (so it can run on a Dask worker) and keeps one
-chunk in memory: :func:`file_summary` (ranges, segment lengths and fingerprints,
-the first pass of ``fit``), :func:`file_statistics` and :func:`file_layout_statistics`
-(sufficient statistics, its second pass), :func:`file_error_sums` (additive
-:class:`ErrorSums` for ``evaluate`` and ``fit``'s training metrics) and
-:func:`predict_part` (``predict`` into a part file). ARX models carry history
-across rows and are read a whole file at a time.
+An accumulator is one quantity a pass computes (:class:`Summary`: ranges, segments and
+fingerprints; :class:`Statistics` and :class:`GroupStatistics`, :class:`FoldStatistics`:
+sufficient statistics; :class:`PoseCells`, :class:`InputSpread`; :class:`Errors`: additive
+:class:`ErrorSums` for ``evaluate`` and ``fit``'s training metrics). The partial results of
+two files merge with ``+`` (``b``'s rows after ``a``'s), so the executor maps :func:`scan`
+over the files and adds the results (:func:`add_scans`) in a tree that keeps their order.
+Fusing two passes is putting their accumulators in one scan. ARX models carry history
+across rows: their accumulators take the file whole (one :class:`~ftcal.core.dataset.Dataset`).
+
+The per-file functions of earlier releases (:func:`file_summary`, :func:`file_statistics`, ...)
+are scans of fixed accumulators, kept with their signatures and results; :func:`predict_part`
+writes a part file and is not a scan.
 """
 
 from __future__ import annotations
 
+import copy
 import functools
 import os
 from collections.abc import Sequence
@@ -28,13 +34,419 @@ from ..core.statistics import CHUNK_SAMPLES, StatisticsAccumulator, SufficientSt
 from ..runtime.errors import FtcalError
 from ..runtime.executors import releases_gil
 from ..runtime.threads import map_ranges, single_threaded_blas
-from .table_chunks import iter_table_chunks, table_has_columns
+from .table_chunks import TableChunk, iter_table_chunks, table_has_columns
+
+POSE_CELL_CAP = 100_000  # beyond this many distinct poses no polynomial ftcal fits is near saturation
+
+
+# ---------------------------------------------------------------------------------------------- the scan
+class Accumulator:
+    """One quantity computed from a file's rows; a subclass says what it reads and how it adds up.
+
+    An instance built by the caller is a recipe: :func:`scan` takes a fresh copy per file
+    (:meth:`start`), feeds it the chunks (:meth:`add`, or :meth:`add_dataset` for a whole-file
+    accumulator), then :meth:`finish` leaves only :attr:`value`. Finished accumulators of
+    consecutive files merge with ``+``.
+
+    Attributes
+    ----------
+    inputs, outputs : column names read (outputs None: none); accumulators of one scan read the same inputs
+    labels : dict of label column -> role in messages ("group", "segment")
+    whole_file : bool, take the file as one Dataset (``segment_by``, ``group_by``) instead of chunks
+    small_products : bool, the work per chunk is small products: BLAS limited to one thread during the scan
+    value : the result, once finished
+    """
+
+    inputs: tuple = ()
+    outputs: tuple | None = None
+    labels: dict = {}
+    whole_file = False
+    small_products = False
+    segment_by: str | None = None
+    group_by: str | None = None
+    value = None
+
+    def start(self, path: str) -> "Accumulator":
+        """A fresh copy for one file, nothing added yet."""
+        fresh = copy.copy(self)
+        fresh.path = path
+        fresh._begin()
+        return fresh
+
+    def _begin(self) -> None:
+        """Set up the working state of one file (subclasses)."""
+
+    def add(self, chunk: TableChunk) -> None:
+        """Add the next chunk of rows."""
+        raise NotImplementedError
+
+    def add_dataset(self, data) -> None:
+        """Add the whole file (whole-file accumulators)."""
+        raise NotImplementedError
+
+    def finish(self) -> "Accumulator":
+        """Set :attr:`value` from the working state and drop that state; returns self."""
+        self.value = self._finish()
+        self._drop()
+        return self
+
+    def _finish(self):
+        return self.value
+
+    def _drop(self) -> None:
+        """Forget what need not travel back from a worker with the value (subclasses)."""
+
+    def __add__(self, other: "Accumulator") -> "Accumulator":
+        merged = copy.copy(self)
+        merged.value = self._merge(self.value, other.value)
+        return merged
+
+    @staticmethod
+    def _merge(a, b):
+        return a + b
+
+
+def scan(path: str, accumulators: Sequence[Accumulator]) -> tuple[Accumulator, ...]:
+    """Read one file once and feed every accumulator; the finished accumulators, in order.
+
+    Parameters
+    ----------
+    path : CSV or Parquet file
+    accumulators : recipes (not changed); chunked ones must read the same inputs
+
+    Returns
+    -------
+    tuple of finished accumulators (their ``value``); the tuples of consecutive files add with :func:`add_scans`.
+
+    Not marked :func:`~ftcal.runtime.executors.releases_gil`: the per-file functions below that are
+    measured to gain from threads are, and keep their mark.
+    """
+    parts = [accumulator.start(path) for accumulator in accumulators]
+    chunked = [a for a in parts if not a.whole_file]
+    whole = [a for a in parts if a.whole_file]
+    inputs = {a.inputs for a in chunked}
+    if len(inputs) > 1:
+        raise ValueError(f"one scan reads one set of inputs; got {sorted(inputs)}")
+    with single_threaded_blas() if any(a.small_products for a in parts) else _nothing():
+        datasets: dict = {}
+        for accumulator in whole:
+            key = (accumulator.inputs, accumulator.outputs, accumulator.segment_by, accumulator.group_by)
+            if key not in datasets:
+                from .tables import load_dataset
+
+                datasets[key] = load_dataset([path], inputs=list(key[0]), outputs=key[1] and list(key[1]),
+                                             segment_by=key[2], group_by=key[3])
+            accumulator.add_dataset(datasets[key])
+        if chunked:
+            outputs = next((a.outputs for a in chunked if a.outputs is not None), None)
+            labels = {column: role for a in chunked for column, role in a.labels.items()}
+            data = next((d for (i, o, _, _), d in datasets.items() if i == next(iter(inputs))
+                         and (outputs is None or o == outputs)), None)
+            # Chunked accumulators beside whole-file ones take the file read already as one chunk.
+            chunks = [TableChunk(0, data.inputs, data.outputs)] if data is not None and not labels else \
+                iter_table_chunks(path, next(iter(inputs)), outputs, labels=labels)
+            for chunk in chunks:
+                for accumulator in chunked:
+                    accumulator.add(chunk)
+    return tuple(accumulator.finish() for accumulator in parts)
+
+
+class _nothing:
+    def __enter__(self):
+        return None
+
+    def __exit__(self, *exc):
+        return False
+
+
+def add_scans(a: tuple, b: tuple) -> tuple:
+    """Two files' :func:`scan` results, ``b``'s after ``a``'s (the combine of the tree reduction)."""
+    return tuple(x + y for x, y in zip(a, b))
+
+
+def _capped_union(a: frozenset, b: frozenset) -> frozenset:
+    """Pose cells of two blocks, stopped growing at ``POSE_CELL_CAP``."""
+    return a | b if len(a) < POSE_CELL_CAP else a
+
+
+class Summary(Accumulator):
+    """:class:`FileSummary`: ranges, segment lengths and fingerprints, group sizes, spreads (a fit's first pass).
+
+    Parameters
+    ----------
+    inputs, outputs : column names
+    segment_by : label column separating segments, or None (the file is one segment)
+    group_by : group label column, checked (present, no empty cell) as a whole-table read does
+    input_spread : whether to take the inputs' Spread (False: a static fit takes it from its statistics)
+    """
+
+    small_products = True  # the spreads' small products: no BLAS threads to wake per chunk
+
+    def __init__(self, inputs: Sequence[str], outputs: Sequence[str], segment_by: str | None = None,
+                 group_by: str | None = None, input_spread: bool = True):
+        self.inputs, self.outputs = tuple(inputs), tuple(outputs)
+        self.segment_by, self.group_by, self.input_spread = segment_by, group_by, input_spread
+        self.labels = {column: role for column, role in ((group_by, "group"), (segment_by, "segment")) if column}
+
+    def _begin(self) -> None:
+        self._sums = _SummaryAccumulator(self.path, self.inputs, self.outputs, self.segment_by, self.group_by,
+                                         self.input_spread)
+
+    def add(self, chunk: TableChunk) -> None:
+        self._sums.add(chunk)
+
+    def _finish(self) -> "FileSummary":
+        return self._sums.summary()
+
+    def _drop(self) -> None:
+        del self._sums
+
+
+class Statistics(Accumulator):
+    """Sufficient statistics of one layout in the basis ``in_norm``/``out_norm``: a list, in row order.
+
+    Static layouts take the file chunk by chunk (one entry). ARX layouts take it whole and give
+    one entry per segment (lags stay inside a segment), so that the lists of all files, concatenated
+    by ``+`` and summed left to right, add in exactly the order of the in-memory fit: ARX normal
+    equations are often ill-conditioned enough (κ² ~ 1e7) that another order shows in the 10th digit.
+    """
+
+    def __init__(self, layout: RegressorLayout, in_norm: Normalization, out_norm: Normalization | None,
+                 inputs: Sequence[str], outputs: Sequence[str], segment_by: str | None = None):
+        self.layout, self.in_norm, self.out_norm = layout, in_norm, out_norm
+        self.inputs, self.outputs, self.segment_by = tuple(inputs), tuple(outputs), segment_by
+        self.whole_file = not layout.is_static
+
+    def _begin(self) -> None:
+        if self.layout.is_static:
+            self._total = StatisticsAccumulator(RegressorLayout(self.layout.basis, len(self.outputs)), self.in_norm)
+
+    def add(self, chunk: TableChunk) -> None:
+        self._total.add(chunk.inputs, chunk.outputs)
+
+    def add_dataset(self, data) -> None:
+        self.value = segment_statistics(data, self.layout, self.in_norm, self.out_norm)
+
+    def _finish(self) -> list:
+        return [self._total.statistics()] if self.layout.is_static else self.value
+
+    def _drop(self) -> None:
+        self.__dict__.pop("_total", None)
+
+
+class GroupStatistics(Accumulator):
+    """Sufficient statistics of a static model per group label (or per fold): dict label -> statistics.
+
+    Parameters
+    ----------
+    basis, normalization, inputs, outputs : as :class:`Statistics`
+    group_by : group label column, or None (the whole file is the group named by its path)
+    fold_of : dict of group label -> fold, optional
+        Accumulate per fold instead of per group: memory per task is then one p × p
+        Gram per fold, not per group (60 load cases at degree 5 over 8 inputs is 0.8 GB).
+    """
+
+    def __init__(self, basis: MonomialBasis, normalization: Normalization, inputs: Sequence[str],
+                 outputs: Sequence[str], group_by: str | None = None, fold_of: dict[str, int] | None = None):
+        self.layout, self.normalization = RegressorLayout(basis, len(outputs)), normalization
+        self.inputs, self.outputs, self.group_by, self.fold_of = tuple(inputs), tuple(outputs), group_by, fold_of
+        self.labels = {group_by: "group"} if group_by else {}
+
+    def _begin(self) -> None:
+        self._totals: dict = {}
+
+    def add(self, chunk: TableChunk) -> None:
+        rows = _group_rows(self.path, chunk, self.group_by)
+        if self.fold_of is not None:  # one selection per fold: the union of its groups' rows
+            fold_of, folds = self.fold_of, {}
+            for label, selection in rows.items():
+                mask = np.zeros(chunk.n_rows, dtype=bool)
+                mask[selection] = True
+                folds[fold_of[label]] = folds[fold_of[label]] | mask if fold_of[label] in folds else mask
+            rows = folds
+        for label, selection in rows.items():
+            if label not in self._totals:
+                self._totals[label] = StatisticsAccumulator(self.layout, self.normalization)
+            self._totals[label].add(chunk.inputs[selection], chunk.outputs[selection])
+
+    def _finish(self) -> dict:
+        return {label: total.statistics() for label, total in self._totals.items()}
+
+    def _drop(self) -> None:
+        del self._totals
+
+    @staticmethod
+    def _merge(a, b):
+        return add_group_statistics(a, b)
+
+
+class FoldStatistics(Accumulator):
+    """Per cross-validation fold, the per-segment statistics of an ARX layout (the file whole).
+
+    A fold's rows are those of its groups (``fold_of``: group label -> fold), taken as
+    :meth:`ftcal.core.dataset.Dataset.subset` takes them in memory, so that the lists of all files
+    concatenated and summed give the in-memory fold statistics in the same order. Value: a list of
+    ``n_folds`` lists of SufficientStatistics (empty for a fold without rows here).
+    """
+
+    whole_file = True
+
+    def __init__(self, layout: RegressorLayout, in_norm: Normalization, out_norm: Normalization,
+                 inputs: Sequence[str], outputs: Sequence[str], fold_of: dict[str, int], n_folds: int,
+                 segment_by: str | None = None, group_by: str | None = None):
+        self.layout, self.in_norm, self.out_norm = layout, in_norm, out_norm
+        self.inputs, self.outputs, self.fold_of, self.n_folds = tuple(inputs), tuple(outputs), fold_of, n_folds
+        self.segment_by, self.group_by = segment_by, group_by
+
+    def add_dataset(self, data) -> None:
+        sample_fold = np.array([self.fold_of[g] for g in np.asarray(data.groups, dtype=str)])
+        self.value = [segment_statistics(data.subset(sample_fold == f), self.layout, self.in_norm, self.out_norm)
+                      if np.any(sample_fold == f) else [] for f in range(self.n_folds)]
+
+    @staticmethod
+    def _merge(a, b):
+        return add_fold_parts(a, b)
+
+
+class PoseCells(Accumulator):
+    """The cells of the pose grid over ``input_range`` that the rows occupy (:func:`ftcal.core.select.pose_cells`,
+    at most ``POSE_CELL_CAP``): a frozenset, for ``fit``'s saturation warning."""
+
+    small_products = True
+
+    def __init__(self, inputs: Sequence[str], input_range: np.ndarray):
+        self.inputs, self.input_range = tuple(inputs), input_range
+
+    def _begin(self) -> None:
+        self._cells: set = set()
+
+    def add(self, chunk: TableChunk) -> None:
+        from ..core.select import pose_cells
+
+        if len(self._cells) < POSE_CELL_CAP:
+            self._cells |= pose_cells(chunk.inputs, self.input_range)
+
+    def _finish(self) -> frozenset:
+        return frozenset(self._cells)
+
+    def _drop(self) -> None:
+        del self._cells
+
+    _merge = staticmethod(_capped_union)
+
+
+class InputSpread(Accumulator):
+    """The :class:`~ftcal.core.excitation.Spread` of the inputs (a static fit whose statistics cannot give it
+    to 1e-10, :func:`ftcal.core.statistics.input_spread`)."""
+
+    small_products = True
+
+    def __init__(self, inputs: Sequence[str]):
+        self.inputs = tuple(inputs)
+
+    def _begin(self) -> None:
+        self.value = Spread.of(np.zeros((0, len(self.inputs))))
+
+    def add(self, chunk: TableChunk) -> None:
+        self.value = self.value + Spread.of(chunk.inputs)
+
+
+class Errors(Accumulator):
+    """:class:`ErrorSums` of ``model`` on rows with reference outputs (``evaluate``, ``fit``'s training metrics).
+
+    Static models take the file chunk by chunk. ARX models take it whole and give a pair: the sums
+    for ``mode`` and for the other prediction mode, without the first max(na, nb) rows of each
+    segment when ``warmup`` is ``"drop"`` (as :meth:`CalibrationModel.metrics`); None when no row
+    is left. ``fingerprints`` (the model file's training segments) found whole inside the file are
+    reported in ``training_segments``. Merged with :func:`add_error_sums`.
+    """
+
+    def __init__(self, model, fingerprints: Sequence[dict] = (), mode: str = "one-step", start: str = "zeros",
+                 warmup: str = "drop", segment_by: str | None = None):
+        self.model, self.fingerprints = model, list(fingerprints)
+        self.mode, self.start_from, self.warmup, self.segment_by = mode, start, warmup, segment_by
+        self.inputs, self.outputs = tuple(model.input_names_), tuple(model.output_names_)
+        self.whole_file = not model.is_static
+
+    def _begin(self) -> None:
+        self._finder = SegmentFinder(self.fingerprints)
+
+    def add(self, chunk: TableChunk) -> None:
+        import warnings
+
+        from ..runtime.errors import OutOfRangeWarning
+
+        model = self.model
+
+        def rows_sums(begin: int, end: int) -> ErrorSums:
+            inputs, outputs = chunk.inputs[begin:end], chunk.outputs[begin:end]
+            prediction = model.predict(inputs, warn_out_of_range=False)
+            ranges = RangeSums.of(inputs, model.input_range_, outputs, prediction, model.output_names_,
+                                  outside_span=span_of(model, inputs), loads=outputs,
+                                  output_range=getattr(model, "output_range_", None))
+            # outside the range or its span: CalibrationModel.metrics' n_out_of_range
+            return ErrorSums.of(outputs, prediction, model.output_names_, ranges.n_out + ranges.n_span, ranges)
+
+        # Overflowing predictions give inf/NaN metrics, which the command refuses in one line.
+        with warnings.catch_warnings(), np.errstate(over="ignore", invalid="ignore"):
+            warnings.simplefilter("ignore", OutOfRangeWarning)  # counted instead
+            # Row ranges in parallel threads; their sums combine in row order.
+            part = functools.reduce(add_error_sums, map_ranges(rows_sums, chunk.n_rows, CHUNK_SAMPLES))
+        if self.fingerprints:
+            self._finder.feed(np.concatenate([chunk.inputs, chunk.outputs], axis=1))
+        self.value = part if self.value is None else self.value + part
+
+    def add_dataset(self, data) -> None:
+        model = self.model
+        rows = np.ones(data.n_samples, dtype=bool)
+        if self.warmup == "drop":
+            for a, b in data.segment_bounds():
+                rows[a:a + model.layout_.max_lag] = False
+        if not rows.any():
+            return
+        self._finder.feed(np.concatenate([data.inputs, data.outputs], axis=1))
+        n_out = int(model.out_of_range(data.inputs).sum())
+        pair = []
+        for which in (self.mode, "free-run" if self.mode == "one-step" else "one-step"):
+            with np.errstate(over="ignore", invalid="ignore"):
+                prediction = model.predict(data, mode=which, start=self.start_from, warn_out_of_range=False)
+                ranges = RangeSums.of(data.inputs, model.input_range_, data.outputs, prediction, model.output_names_,
+                                      scored=rows, outside_span=span_of(model, data.inputs), loads=data.outputs,
+                                      output_range=getattr(model, "output_range_", None))
+                pair.append(ErrorSums.of(data.outputs[rows], prediction[rows], model.output_names_, n_out, ranges))
+        self.value = (pair[0], pair[1])
+
+    def _finish(self):
+        if self.value is not None:
+            (self.value[0] if isinstance(self.value, tuple) else self.value).training_segments = \
+                frozenset(self._finder.found)
+        return self.value
+
+    def _drop(self) -> None:
+        self.model, self._finder = None, None  # the model stays with the caller: only the sums travel back
+
+    @staticmethod
+    def _merge(a, b):
+        return add_error_sums(a, b)
+
+
+# ---------------------------------------------------------------------------------------------- the passes
+@releases_gil
+def file_summary(path: str, inputs: Sequence[str], outputs: Sequence[str], segment_by: str | None = None,
+                 group_by: str | None = None, input_spread: bool = True) -> FileSummary:
+    """The :class:`FileSummary` of one file: a :func:`scan` with :class:`Summary`.
+
+    Returns
+    -------
+    FileSummary, whose fingerprints equal those of the file read whole.
+    """
+    return scan(path, [Summary(inputs, outputs, segment_by, group_by, input_spread)])[0].value
 
 
 @releases_gil
 def file_statistics(path: str, basis: MonomialBasis, normalization: Normalization, inputs: Sequence[str],
                     outputs: Sequence[str]) -> SufficientStatistics:
-    """Sufficient statistics of a static model over one file, chunk by chunk.
+    """Sufficient statistics of a static model over one file: a :func:`scan` with :class:`Statistics`.
 
     Parameters
     ----------
@@ -47,10 +459,135 @@ def file_statistics(path: str, basis: MonomialBasis, normalization: Normalizatio
     -------
     SufficientStatistics with p = basis.n_terms features and len(outputs) targets.
     """
-    total = StatisticsAccumulator(RegressorLayout(basis, len(outputs)), normalization)
-    for chunk in iter_table_chunks(path, inputs, outputs):
-        total.add(chunk.inputs, chunk.outputs)
-    return total.statistics()
+    layout = RegressorLayout(basis, len(outputs))
+    return scan(path, [Statistics(layout, normalization, None, inputs, outputs)])[0].value[0]
+
+
+def file_group_statistics(path: str, basis: MonomialBasis, normalization: Normalization, inputs: Sequence[str],
+                          outputs: Sequence[str], group_by: str | None = None,
+                          fold_of: dict[str, int] | None = None) -> dict:
+    """:class:`GroupStatistics` of one file: dict of group label (str), or fold (int) with ``fold_of``,
+    -> SufficientStatistics."""
+    return scan(path, [GroupStatistics(basis, normalization, inputs, outputs, group_by, fold_of)])[0].value
+
+
+def file_layout_statistics(path: str, layout: RegressorLayout, in_norm: Normalization, out_norm: Normalization,
+                           inputs: Sequence[str], outputs: Sequence[str],
+                           segment_by: str | None = None) -> list[SufficientStatistics]:
+    """:class:`Statistics` of one file for any layout: a list in row order; lists of files concatenate with ``+``."""
+    return scan(path, [Statistics(layout, in_norm, out_norm, inputs, outputs, segment_by)])[0].value
+
+
+@releases_gil
+def file_statistics_and_poses(path: str, basis: MonomialBasis, normalization: Normalization,
+                              inputs: Sequence[str], outputs: Sequence[str],
+                              input_range: np.ndarray) -> tuple[list[SufficientStatistics], frozenset]:
+    """:func:`file_statistics` of a static model and its :class:`PoseCells`, in one scan, so that a static fit,
+    whose training errors come from the statistics, needs no pass after this one.
+
+    Returns
+    -------
+    ([SufficientStatistics], frozenset of cells); combine with :func:`add_statistics_and_poses`.
+    """
+    statistics, cells = scan(path, [Statistics(RegressorLayout(basis, len(outputs)), normalization, None, inputs,
+                                               outputs), PoseCells(inputs, input_range)])
+    return statistics.value, cells.value
+
+
+@releases_gil
+def file_summary_statistics_and_poses(path: str, inputs: Sequence[str], outputs: Sequence[str],
+                                      segment_by: str | None, group_by: str | None, basis: MonomialBasis,
+                                      normalization: Normalization, input_range: np.ndarray,
+                                      input_spread: bool = True) -> tuple:
+    """:func:`file_summary` and :func:`file_statistics_and_poses` in one scan of the file.
+
+    For a fit whose normalization is known before the data are read (from the Parquet footers,
+    :func:`ftcal.data.parquet_checks.footer_ranges`): the caller keeps the statistics only when
+    the summary's ranges give the same normalization, and reads the files again otherwise. The
+    chunks are those of the two passes, so the sums are the same to the last bit.
+
+    Returns
+    -------
+    (FileSummary, ([SufficientStatistics], frozenset of cells)); combine with
+    :func:`add_summary_statistics_and_poses`.
+    """
+    summary, statistics, cells = scan(path, [
+        Summary(inputs, outputs, segment_by, group_by, input_spread),
+        Statistics(RegressorLayout(basis, len(outputs)), normalization, None, inputs, outputs),
+        PoseCells(inputs, input_range)])
+    return summary.value, (statistics.value, cells.value)
+
+
+def file_input_spread(path: str, inputs: Sequence[str]) -> Spread:
+    """The :class:`InputSpread` of one file; combine with :func:`add_statistics`."""
+    return scan(path, [InputSpread(inputs)])[0].value
+
+
+def file_fold_statistics(path: str, layout: RegressorLayout, in_norm: Normalization, out_norm: Normalization,
+                         inputs: Sequence[str], outputs: Sequence[str], fold_of: dict[str, int], n_folds: int,
+                         segment_by: str | None = None, group_by: str | None = None) -> list[list]:
+    """:class:`FoldStatistics` of one file; combine with :func:`add_fold_parts`."""
+    return scan(path, [FoldStatistics(layout, in_norm, out_norm, inputs, outputs, fold_of, n_folds, segment_by,
+                                      group_by)])[0].value
+
+
+def file_error_sums(path: str, model, fingerprints: Sequence[dict] = (), mode: str = "one-step",
+                    start: str = "zeros", warmup: str = "drop", segment_by: str | None = None,
+                    count_poses: bool = False):
+    """:class:`Errors` of ``model`` on one file with reference outputs (an :class:`ErrorSums`, or for ARX
+    models a pair or None); with ``count_poses`` its :class:`PoseCells` too, in the same scan, in
+    ``pose_cells`` (for ``fit``'s saturation warning, without another pass)."""
+    wanted = [Errors(model, fingerprints, mode, start, warmup, segment_by)]
+    if count_poses:
+        wanted.append(PoseCells(model.input_names_, model.input_range_))
+    errors, *cells = scan(path, wanted)
+    sums = errors.value
+    if sums is not None and (cells or model.is_static):
+        (sums[0] if isinstance(sums, tuple) else sums).pose_cells = cells[0].value if cells else frozenset()
+    return sums
+
+
+# The combiners of the per-file functions above (tree-reduction tasks), each the ``+`` of its accumulator.
+def add_statistics(a: SufficientStatistics, b: SufficientStatistics) -> SufficientStatistics:
+    """``a + b`` as a plain function (a task for the tree reduction; also for lists and :class:`FileSummary`)."""
+    return a + b
+
+
+def add_group_statistics(a: dict[str, SufficientStatistics],
+                         b: dict[str, SufficientStatistics]) -> dict[str, SufficientStatistics]:
+    """Per-group statistics of two sets of files together (a task for the tree reduction)."""
+    total = dict(a)
+    for label, stats in b.items():
+        total[label] = stats if label not in total else total[label] + stats
+    return total
+
+
+def add_fold_parts(a: list[list], b: list[list]) -> list[list]:
+    """Per-fold lists of two sets of files, ``b``'s after ``a``'s (a task for the tree reduction)."""
+    return [x + y for x, y in zip(a, b)]
+
+
+def add_statistics_and_poses(a: tuple[list, frozenset], b: tuple[list, frozenset]) -> tuple[list, frozenset]:
+    """Two files' :func:`file_statistics_and_poses`, ``b``'s after ``a``'s (the lists keep the row order)."""
+    return a[0] + b[0], _capped_union(a[1], b[1])
+
+
+def add_summary_statistics_and_poses(a: tuple, b: tuple) -> tuple:
+    """Two files' :func:`file_summary_statistics_and_poses`, ``b``'s after ``a``'s."""
+    return a[0] + b[0], add_statistics_and_poses(a[1], b[1])
+
+
+def add_error_sums(a, b):
+    """``a + b`` as a plain function (a task for the tree reduction).
+
+    Also adds the (mode, other mode) pairs of ARX models, and skips None (a
+    file whose segments are all shorter than the ARX warm-up).
+    """
+    if a is None or b is None:
+        return b if a is None else a
+    if isinstance(a, tuple):
+        return tuple(x + y for x, y in zip(a, b))
+    return a + b
 
 
 @dataclass
@@ -100,29 +637,6 @@ class FileSummary:
                            sizes, add(self.output_spread, other.output_spread),
                            add(self.input_spread, other.input_spread), ranges)
 
-
-@releases_gil
-def file_summary(path: str, inputs: Sequence[str], outputs: Sequence[str], segment_by: str | None = None,
-                 group_by: str | None = None, input_spread: bool = True) -> FileSummary:
-    """The :class:`FileSummary` of one file, chunk by chunk (a new segment wherever ``segment_by`` changes).
-
-    Parameters
-    ----------
-    path : CSV or Parquet file
-    inputs, outputs : column names
-    segment_by : label column separating segments, or None (the file is one segment)
-    group_by : group label column, checked (present, no empty cell) as a whole-table read does
-    input_spread : whether to take the inputs' Spread (False: a static fit takes it from its statistics)
-
-    Returns
-    -------
-    FileSummary, whose fingerprints equal those of the file read whole.
-    """
-    summary = _SummaryAccumulator(path, inputs, outputs, segment_by, group_by, input_spread)
-    with single_threaded_blas():  # the spreads' small products: no BLAS threads to wake per chunk
-        for chunk in iter_table_chunks(path, inputs, outputs, labels=summary.labels):
-            summary.add(chunk)
-    return summary.summary()
 
 
 class _SummaryAccumulator:
@@ -207,63 +721,12 @@ def _group_counts(path: str, chunk, group_by: str | None) -> dict[str, int]:
     return dict(zip(labels.tolist(), counts.tolist()))
 
 
-def file_group_statistics(path: str, basis: MonomialBasis, normalization: Normalization, inputs: Sequence[str],
-                          outputs: Sequence[str], group_by: str | None = None,
-                          fold_of: dict[str, int] | None = None) -> dict:
-    """Sufficient statistics of a static model over one file, per group label (or per fold), chunk by chunk.
-
-    Parameters
-    ----------
-    path : CSV or Parquet file
-    basis, normalization, inputs, outputs : as :func:`file_statistics`
-    group_by : group label column, or None (the whole file is the group named by its path)
-    fold_of : dict of group label -> fold, optional
-        Accumulate per fold instead of per group: memory per task is then one p × p
-        Gram per fold, not per group (60 load cases at degree 5 over 8 inputs is 0.8 GB).
-
-    Returns
-    -------
-    dict of group label (str), or fold (int) with ``fold_of``, -> SufficientStatistics
-    """
-    totals: dict = {}
-    layout = RegressorLayout(basis, len(outputs))
-    for chunk in iter_table_chunks(path, inputs, outputs, labels={group_by: "group"} if group_by else ()):
-        if group_by is None:
-            rows = {str(Path(path)): slice(None)}
-        else:
-            labels = chunk.labels[group_by].astype(str)
-            rows = {label: labels == label for label in np.unique(labels).tolist()}
-        if fold_of is not None:  # one selection per fold: the union of its groups' rows
-            folds: dict = {}
-            for label, selection in rows.items():
-                mask = np.zeros(chunk.n_rows, dtype=bool)
-                mask[selection] = True
-                folds[fold_of[label]] = folds[fold_of[label]] | mask if fold_of[label] in folds else mask
-            rows = folds
-        for label, selection in rows.items():
-            if label not in totals:
-                totals[label] = StatisticsAccumulator(layout, normalization)
-            totals[label].add(chunk.inputs[selection], chunk.outputs[selection])
-    return {label: total.statistics() for label, total in totals.items()}
-
-
-def add_group_statistics(a: dict[str, SufficientStatistics],
-                         b: dict[str, SufficientStatistics]) -> dict[str, SufficientStatistics]:
-    """Per-group statistics of two sets of files together (a task for the tree reduction)."""
-    total = dict(a)
-    for label, stats in b.items():
-        total[label] = stats if label not in total else total[label] + stats
-    return total
-
-
-POSE_CELL_CAP = 100_000  # beyond this many distinct poses no polynomial ftcal fits is near saturation
-
 
 class StreamedStatistics:
-    """:class:`ftcal.core.select.GroupedStatistics` of files streamed by per-file tasks (static models).
+    """:class:`ftcal.core.select.GroupedStatistics` of files streamed by :func:`scan`.
 
-    Each (degree, basis) the search asks for is one statistics pass over the
-    files, per group; a fold's statistics are the sum of its groups'.
+    Each (degree, basis) the search asks for is one scan of the files with one accumulator
+    (:class:`GroupStatistics` per fold, :class:`FoldStatistics` for ARX, :class:`Statistics`).
 
     Parameters
     ----------
@@ -292,131 +755,26 @@ class StreamedStatistics:
                                        self.output_names, self.summary.segment_lengths)
 
     def fold_statistics(self, frame, fold_of: dict[str, int], n_folds: int) -> list[SufficientStatistics]:
+        description = f"statistics, degree {frame.layout.basis.degree}"
         if not frame.layout.is_static:
-            folds = self.executor.map_reduce(file_fold_statistics, self.paths, frame.layout,
-                                             frame.solve_input_normalization, frame.solve_output_normalization,
-                                             self.inputs, self.output_names, fold_of, n_folds, self.segment_by,
-                                             self.group_by, combine=add_fold_parts,
-                                             description=f"statistics, degree {frame.layout.basis.degree}")
-            return [sum_statistics(parts) for parts in folds]
-        folds = self.executor.map_reduce(file_group_statistics, self.paths, frame.layout.basis,
-                                         frame.solve_input_normalization, self.inputs, self.output_names,
-                                         self.group_by, fold_of, combine=add_group_statistics,
-                                         description=f"statistics, degree {frame.layout.basis.degree}")
+            wanted = FoldStatistics(frame.layout, frame.solve_input_normalization, frame.solve_output_normalization,
+                                    self.inputs, self.output_names, fold_of, n_folds, self.segment_by,
+                                    self.group_by)
+            return [sum_statistics(parts) for parts in self._scan(wanted, description)]
+        wanted = GroupStatistics(frame.layout.basis, frame.solve_input_normalization, self.inputs, self.output_names,
+                                 self.group_by, fold_of)
+        folds = self._scan(wanted, description)
         return [folds[f] for f in range(n_folds)]
 
     def full_statistics(self, frame) -> SufficientStatistics:
-        parts = self.executor.map_reduce(file_layout_statistics, self.paths, frame.layout,
-                                         frame.solve_input_normalization, frame.solve_output_normalization,
-                                         self.inputs, self.output_names, self.segment_by, combine=add_statistics,
-                                         description="statistics")
-        return sum_statistics(parts)
+        wanted = Statistics(frame.layout, frame.solve_input_normalization, frame.solve_output_normalization,
+                            self.inputs, self.output_names, self.segment_by)
+        return sum_statistics(self._scan(wanted, "statistics"))
 
-
-def file_layout_statistics(path: str, layout: RegressorLayout, in_norm: Normalization, out_norm: Normalization,
-                           inputs: Sequence[str], outputs: Sequence[str],
-                           segment_by: str | None = None) -> list[SufficientStatistics]:
-    """Sufficient statistics of one file for any layout, in the basis ``in_norm``/``out_norm``.
-
-    Static layouts stream the file chunk by chunk (:func:`file_statistics`) and
-    give one entry. ARX layouts read it whole and give one entry per segment
-    (lags stay inside a segment), so that the caller, summing the entries of
-    all files left to right, adds them in exactly the order of the in-memory fit:
-    ARX normal equations are often ill-conditioned enough (κ² ~ 1e7) that
-    another summation order shows in the 10th digit of the coefficients.
-
-    Returns
-    -------
-    list of SufficientStatistics, in row order; lists of files concatenate with ``+``.
-    """
-    if layout.is_static:
-        return [file_statistics(path, layout.basis, in_norm, inputs, outputs)]
-    from .tables import load_dataset
-
-    return segment_statistics(load_dataset([path], inputs=inputs, outputs=outputs, segment_by=segment_by), layout,
-                              in_norm, out_norm)
-
-
-@releases_gil
-def file_statistics_and_poses(path: str, basis: MonomialBasis, normalization: Normalization,
-                              inputs: Sequence[str], outputs: Sequence[str],
-                              input_range: np.ndarray) -> tuple[list[SufficientStatistics], frozenset]:
-    """:func:`file_statistics` of a static model, and the pose-grid cells its samples occupy, in one read.
-
-    The cells (:func:`ftcal.core.select.pose_cells` over ``input_range``, at most
-    ``POSE_CELL_CAP``) are for ``fit``'s saturation warning, so that a static fit, whose
-    training errors come from the statistics, needs no pass after this one.
-
-    Returns
-    -------
-    ([SufficientStatistics], frozenset of cells); combine with :func:`add_statistics_and_poses`.
-    """
-    from ..core.select import pose_cells
-
-    total = StatisticsAccumulator(RegressorLayout(basis, len(outputs)), normalization)
-    cells: set = set()
-    with single_threaded_blas():  # the pose cells' small products: no BLAS threads to wake per chunk
-        for chunk in iter_table_chunks(path, inputs, outputs):
-            if len(cells) < POSE_CELL_CAP:
-                cells |= pose_cells(chunk.inputs, input_range)
-            total.add(chunk.inputs, chunk.outputs)
-    return [total.statistics()], frozenset(cells)
-
-
-@releases_gil
-def file_summary_statistics_and_poses(path: str, inputs: Sequence[str], outputs: Sequence[str],
-                                      segment_by: str | None, group_by: str | None, basis: MonomialBasis,
-                                      normalization: Normalization, input_range: np.ndarray,
-                                      input_spread: bool = True) -> tuple:
-    """:func:`file_summary` and :func:`file_statistics_and_poses` in one read of the file.
-
-    For a fit whose normalization is known before the data are read (from the Parquet footers,
-    :func:`ftcal.data.parquet_checks.footer_ranges`): the caller keeps the statistics only when
-    the summary's ranges give the same normalization, and reads the files again otherwise. The
-    chunks are those of the two passes, so the sums are the same to the last bit.
-    ``input_spread``: as :func:`file_summary`.
-
-    Returns
-    -------
-    (FileSummary, ([SufficientStatistics], frozenset of cells)); combine with
-    :func:`add_summary_statistics_and_poses`.
-    """
-    from ..core.select import pose_cells
-
-    summary = _SummaryAccumulator(path, inputs, outputs, segment_by, group_by, input_spread)
-    total = StatisticsAccumulator(RegressorLayout(basis, len(outputs)), normalization)
-    cells: set = set()
-    with single_threaded_blas():  # as file_summary
-        for chunk in iter_table_chunks(path, inputs, outputs, labels=summary.labels):
-            summary.add(chunk)
-            if len(cells) < POSE_CELL_CAP:
-                cells |= pose_cells(chunk.inputs, input_range)
-            total.add(chunk.inputs, chunk.outputs)
-    return summary.summary(), ([total.statistics()], frozenset(cells))
-
-
-def file_input_spread(path: str, inputs: Sequence[str]) -> Spread:
-    """The :class:`~ftcal.core.excitation.Spread` of one file's inputs, chunk by chunk; combine with
-    :func:`add_statistics`.
-
-    For a static fit whose statistics cannot give it to 1e-10
-    (:func:`ftcal.core.statistics.input_spread` returned None).
-    """
-    spread = Spread.of(np.zeros((0, len(inputs))))
-    with single_threaded_blas():
-        for chunk in iter_table_chunks(path, inputs):
-            spread = spread + Spread.of(chunk.inputs)
-    return spread
-
-
-def add_summary_statistics_and_poses(a: tuple, b: tuple) -> tuple:
-    """Two files' :func:`file_summary_statistics_and_poses`, ``b``'s after ``a``'s."""
-    return a[0] + b[0], add_statistics_and_poses(a[1], b[1])
-
-
-def add_statistics_and_poses(a: tuple[list, frozenset], b: tuple[list, frozenset]) -> tuple[list, frozenset]:
-    """Two files' :func:`file_statistics_and_poses`, ``b``'s after ``a``'s (the lists keep the row order)."""
-    return a[0] + b[0], (a[1] | b[1] if len(a[1]) < POSE_CELL_CAP else a[1])
+    def _scan(self, accumulator: Accumulator, description: str):
+        """The value of one accumulator over all the files (a scan per file, merged in file order)."""
+        return self.executor.map_reduce(scan, self.paths, [accumulator], combine=add_scans,
+                                        description=description)[0].value
 
 
 def segment_statistics(data, layout: RegressorLayout, in_norm: Normalization,
@@ -431,36 +789,6 @@ def segment_statistics(data, layout: RegressorLayout, in_norm: Normalization,
     return accumulator.parts()
 
 
-def file_fold_statistics(path: str, layout: RegressorLayout, in_norm: Normalization, out_norm: Normalization,
-                         inputs: Sequence[str], outputs: Sequence[str], fold_of: dict[str, int], n_folds: int,
-                         segment_by: str | None = None, group_by: str | None = None) -> list[list]:
-    """Per cross-validation fold, the per-segment statistics of an ARX layout over one file (read whole).
-
-    A fold's rows are those of its groups (``fold_of``: group label -> fold), taken
-    as :meth:`ftcal.core.dataset.Dataset.subset` takes them in memory, so that the lists
-    of all files concatenated (:func:`add_fold_parts`) and summed give the in-memory
-    fold statistics in the same order.
-
-    Returns
-    -------
-    list of ``n_folds`` lists of SufficientStatistics (empty for a fold without rows here)
-    """
-    from .tables import load_dataset
-
-    data = load_dataset([path], inputs=inputs, outputs=outputs, segment_by=segment_by, group_by=group_by)
-    sample_fold = np.array([fold_of[g] for g in np.asarray(data.groups, dtype=str)])
-    return [segment_statistics(data.subset(sample_fold == f), layout, in_norm, out_norm)
-            if np.any(sample_fold == f) else [] for f in range(n_folds)]
-
-
-def add_fold_parts(a: list[list], b: list[list]) -> list[list]:
-    """Per-fold lists of two sets of files, ``b``'s after ``a``'s (a task for the tree reduction)."""
-    return [x + y for x, y in zip(a, b)]
-
-
-def add_statistics(a: SufficientStatistics, b: SufficientStatistics) -> SufficientStatistics:
-    """``a + b`` as a plain function (a task for the tree reduction; also for lists and :class:`FileSummary`)."""
-    return a + b
 
 
 @dataclass
@@ -503,99 +831,6 @@ class ErrorSums(metrics.ErrorSums):
         return {**super().summary(output_names), "n_out_of_range": self.n_out_of_range}
 
 
-def add_error_sums(a, b):
-    """``a + b`` as a plain function (a task for the tree reduction).
-
-    Also adds the (mode, other mode) pairs of ARX models, and skips None (a
-    file whose segments are all shorter than the ARX warm-up).
-    """
-    if a is None or b is None:
-        return b if a is None else a
-    if isinstance(a, tuple):
-        return tuple(x + y for x, y in zip(a, b))
-    return a + b
-
-
-def file_error_sums(path: str, model, fingerprints: Sequence[dict] = (), mode: str = "one-step",
-                    start: str = "zeros", warmup: str = "drop", segment_by: str | None = None,
-                    count_poses: bool = False):
-    """:class:`ErrorSums` of ``model`` on one file with reference outputs.
-
-    With ``count_poses``, ``pose_cells`` holds the cells of the pose grid over the model's
-    input ranges that the file's samples occupy (:func:`ftcal.core.select.pose_cells`; at
-    most ``POSE_CELL_CAP``), for ``fit``'s saturation warning, without another pass.
-
-    Static models read the file chunk by chunk. ARX models read it whole and
-    give a pair: the sums for ``mode`` and for the other prediction mode,
-    without the first max(na, nb) rows of each segment when ``warmup`` is
-    ``"drop"`` (as :meth:`CalibrationModel.metrics`); None when no row is left.
-    ``fingerprints`` (the model file's training segments) found whole inside
-    this file are reported in ``training_segments``.
-    """
-    import warnings
-
-    from ..runtime.errors import OutOfRangeWarning
-
-    from ..core.select import pose_cells
-
-    if not model.is_static:
-        return _arx_error_sums(path, model, fingerprints, mode, start, warmup, segment_by, count_poses)
-    total = None
-    cells: set = set()
-    finder = SegmentFinder(fingerprints)
-    for chunk in iter_table_chunks(path, model.input_names_, model.output_names_):
-        if count_poses and len(cells) < POSE_CELL_CAP:
-            cells |= pose_cells(chunk.inputs, model.input_range_)
-        def rows_sums(begin: int, end: int) -> ErrorSums:
-            inputs, outputs = chunk.inputs[begin:end], chunk.outputs[begin:end]
-            prediction = model.predict(inputs, warn_out_of_range=False)
-            ranges = RangeSums.of(inputs, model.input_range_, outputs, prediction, model.output_names_,
-                                  outside_span=span_of(model, inputs), loads=outputs,
-                                  output_range=getattr(model, "output_range_", None))
-            # outside the range or its span: CalibrationModel.metrics' n_out_of_range
-            return ErrorSums.of(outputs, prediction, model.output_names_, ranges.n_out + ranges.n_span, ranges)
-
-        # Overflowing predictions give inf/NaN metrics, which the command refuses in one line.
-        with warnings.catch_warnings(), np.errstate(over="ignore", invalid="ignore"):
-            warnings.simplefilter("ignore", OutOfRangeWarning)  # counted instead
-            # Row ranges in parallel threads; their sums combine in row order.
-            part = functools.reduce(add_error_sums, map_ranges(rows_sums, chunk.n_rows, CHUNK_SAMPLES))
-        if fingerprints:
-            finder.feed(np.concatenate([chunk.inputs, chunk.outputs], axis=1))
-        total = part if total is None else total + part
-    total.training_segments = frozenset(finder.found)
-    total.pose_cells = frozenset(cells)
-    return total
-
-
-def _arx_error_sums(path: str, model, fingerprints: Sequence[dict], mode: str, start: str, warmup: str,
-                    segment_by: str | None, count_poses: bool = False) -> tuple[ErrorSums, ErrorSums] | None:
-    from .tables import load_dataset
-
-    data = load_dataset([path], inputs=model.input_names_, outputs=model.output_names_, segment_by=segment_by)
-    rows = np.ones(data.n_samples, dtype=bool)
-    if warmup == "drop":
-        for a, b in data.segment_bounds():
-            rows[a:a + model.layout_.max_lag] = False
-    if not rows.any():
-        return None
-    finder = SegmentFinder(fingerprints)
-    finder.feed(np.concatenate([data.inputs, data.outputs], axis=1))
-    n_out = int(model.out_of_range(data.inputs).sum())
-    pair = []
-    for which in (mode, "free-run" if mode == "one-step" else "one-step"):
-        with np.errstate(over="ignore", invalid="ignore"):
-            prediction = model.predict(data, mode=which, start=start, warn_out_of_range=False)
-            ranges = RangeSums.of(data.inputs, model.input_range_, data.outputs, prediction, model.output_names_,
-                                  scored=rows, outside_span=span_of(model, data.inputs), loads=data.outputs,
-                                  output_range=getattr(model, "output_range_", None))
-            pair.append(ErrorSums.of(data.outputs[rows], prediction[rows], model.output_names_, n_out, ranges))
-    pair[0].training_segments = frozenset(finder.found)
-    if count_poses:
-        from ..core.select import pose_cells
-
-        pair[0].pose_cells = frozenset(pose_cells(data.inputs, model.input_range_))
-    return pair[0], pair[1]
 
 
 class SegmentFinder:

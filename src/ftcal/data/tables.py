@@ -19,6 +19,7 @@ from ..core.columns import LOAD_COLUMN, OLD_LOAD_COLUMN
 from ..core.dataset import DEFAULT_INPUTS, DEFAULT_OUTPUTS, Dataset, concatenate
 from ..core.limits import MAX_CELL_MAGNITUDE, MAX_HEADER_BYTES, MAX_TABLE_COLUMNS
 from ..runtime.atomic import atomic_path
+from ..runtime.checks import check_path
 from ..runtime.deprecation import deprecated_alias, old_spelling
 from ..runtime.errors import FtcalError
 from ..runtime.inputs import check_input_file
@@ -467,6 +468,8 @@ def load_dataset(path: str | os.PathLike | Sequence[str | os.PathLike], *, input
     paths = [path] if isinstance(path, (str, os.PathLike)) or not isinstance(path, Sequence) else list(path)
     if not paths:
         raise FtcalError("No data files given.")
+    for item in paths:
+        check_path(item, "path", "ftcal.load_dataset")
     return _read_tables(paths, inputs or default_inputs(paths), outputs, segment_by=segment_by, group_by=group_by,
                         require_outputs=require_outputs)
 

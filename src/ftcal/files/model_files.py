@@ -14,7 +14,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from ..core.families import ModelFamily, check_export
-from ..runtime.checks import check_choice
+from ..runtime.checks import check_choice, check_path
 from ..runtime.deprecation import deprecated_alias
 from ..runtime.errors import FtcalError
 from .firmware import firmware_filename, write_firmware_matrix
@@ -62,6 +62,7 @@ def load_model(path: str | Path) -> ModelFamily:
 
 def load_model_file(path: str | Path) -> ModelFile:
     """Like :func:`load_model`, with units and sources (empty for paper XML, which has none)."""
+    check_path(path, "path", "ftcal.load_model")
     path = Path(path)
     check_model_size(path)
     try:
@@ -125,6 +126,7 @@ def save_model(model: ModelFamily, path: str | Path, fmt: str = "json", *, sourc
     check_choice(fmt, "fmt", "save_model", WRITE_FORMATS)
     check_export(model, fmt)
     folder = str(path).endswith(("/", os.sep))  # "-o firmware/": a folder, made if missing
+    check_path(path, "path", "ftcal.save_model")
     path = Path(path)
     if path.is_dir() and fmt != "icub-firmware":
         raise FtcalError(f"{path} is a directory; give the path of the {fmt} file to write.")

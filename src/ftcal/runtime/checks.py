@@ -7,7 +7,7 @@ import re
 
 import numpy as np
 
-from .errors import FtcalError
+from .errors import FtcalError, ParameterError
 
 
 def check_int(value: object, name: str, owner: str, low: int, high: int | None = None) -> int:
@@ -16,7 +16,7 @@ def check_int(value: object, name: str, owner: str, low: int, high: int | None =
     if ok and value >= low and (high is None or value <= high):
         return int(value)
     bound = f"[{low}, {high}]" if high is not None else f">= {low}"
-    raise FtcalError(
+    raise ParameterError(name,
         f"The '{name}' parameter of {owner} must be an int in {bound}. Got {value!r} instead."
     )
 
@@ -28,16 +28,25 @@ def check_float(value: object, name: str, owner: str, low: float = 0.0,
     if ok and (value >= low if low_inclusive else value > low):
         return float(value)
     op = ">=" if low_inclusive else ">"
-    raise FtcalError(
+    raise ParameterError(name,
         f"The '{name}' parameter of {owner} must be a finite number {op} {low}. Got {value!r} instead."
     )
+
+
+def check_path(value: object, name: str, owner: str) -> None:
+    """Refuse ``value`` unless it is a file name (str or os.PathLike), naming the parameter."""
+    import os
+
+    if not isinstance(value, (str, os.PathLike)) or not os.fspath(value):
+        raise ParameterError(name, f"The '{name}' parameter of {owner} must be a file name (str or Path). "
+                                   f"Got {type(value).__name__} {value!r:.60} instead.")
 
 
 def check_choice(value: object, name: str, owner: str, choices: tuple[str, ...]) -> str:
     """Return ``value`` if it is one of ``choices`` or raise."""
     if value in choices:
         return str(value)
-    raise FtcalError(
+    raise ParameterError(name,
         f"The '{name}' parameter of {owner} must be one of {', '.join(map(repr, choices))}. "
         f"Got {value!r} instead."
     )

@@ -22,6 +22,47 @@ class FtcalError(ValueError):
     """
 
 
+class ParameterError(FtcalError):
+    """A parameter of a library call is wrong; the message names it by its Python name.
+
+    ``message`` writes each parameter it names as ``{name}`` (``"{degree} must be in 1..10"``):
+    ``str(error)`` shows the Python names (``degree must be in 1..10``), and the command line
+    shows its flags instead (:meth:`render` with ``ftcal.cli._common.flag_of``), so one
+    message serves both.
+
+    Parameters
+    ----------
+    parameter : str or sequence of str
+        The parameter(s) at fault, the first the main one (:attr:`parameter`).
+    message : str
+        The sentence, with ``{name}`` for each of them.
+
+    Examples
+    --------
+    >>> error = ParameterError("degree", "{degree} must be in 1..10; got 0.")
+    >>> str(error), error.parameter
+    ('degree must be in 1..10; got 0.', 'degree')
+    >>> error.render(lambda name: "--" + name)
+    '--degree must be in 1..10; got 0.'
+    """
+
+    def __init__(self, parameter, message: str):
+        self.parameters = (parameter,) if isinstance(parameter, str) else tuple(parameter)
+        self.parameter = self.parameters[0]
+        self.template = message
+        super().__init__(self.render(lambda name: name))
+
+    def render(self, name_of) -> str:
+        """The message with each ``{parameter}`` written as ``name_of(parameter)``."""
+        text = self.template
+        for name in self.parameters:
+            text = text.replace("{" + name + "}", name_of(name))
+        return text
+
+    def __reduce__(self):  # pickled across processes (Dask workers) with both arguments
+        return type(self), (self.parameters, self.template)
+
+
 class NotFittedError(FtcalError):
     """A model method that needs fitted state was called before ``fit``."""
 

@@ -14,9 +14,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .arguments import CHECK, check_arguments
 from ..core.limits import HOLD_SAMPLE_RATE, MAX_COM_DISTANCE, MAX_FORCE_ERROR, MAX_TORQUE_ERROR
 from ..runtime.deprecation import renamed_keyword
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, ParameterError
 from .result import StepResult
 from .sources import DEFAULT_WRENCH, gravity_source, reads_tables, source_options
 
@@ -129,6 +130,7 @@ def check_sensor(data, *, accept=None, inputs: Sequence[str] = DEFAULT_WRENCH, g
     >>> result.passed, round(result.report.mass, 3)
     (True, 1.2)
     """
+    check_arguments(CHECK, locals(), "ftcal.check_sensor")
     wrench = renamed_keyword(source, "wrench", "inputs", inputs, DEFAULT_WRENCH)
     options = source_options(source, "check")
     if html is not None:
@@ -141,23 +143,24 @@ def check_sensor(data, *, accept=None, inputs: Sequence[str] = DEFAULT_WRENCH, g
                               ("max_error_percent", max_error_percent), ("rated_force", rated_force),
                               ("rated_torque", rated_torque), ("history_dir", history_dir)):
             if value is not None:
-                raise FtcalError(f"--{option.replace('_', '-')} goes with --accept MODEL.")
+                raise ParameterError((option, 'accept'), f"{{{option}}} goes with {{accept}} MODEL.")
         return _conventions(data, options, wrench=wrench, group_by=group_by, rate=rate, reaction=reaction,
                             max_com_distance=max_com_distance, html=html)
     # Options of the conventions mode that an acceptance test does not use are refused, not ignored.
-    for option, given in (("--inputs", tuple(wrench) != DEFAULT_WRENCH), ("--reaction", reaction),
-                          ("--max-com-distance", max_com_distance != MAX_COM_DISTANCE),
-                          ("--rate", rate != HOLD_SAMPLE_RATE)):
+    for option, given in (("inputs", tuple(wrench) != DEFAULT_WRENCH), ("reaction", reaction),
+                          ("max_com_distance", max_com_distance != MAX_COM_DISTANCE),
+                          ("rate", rate != HOLD_SAMPLE_RATE)):
         if given:
-            raise FtcalError(f"{option} is for the conventions check (ftcal check DATA); --accept reads the "
-                             "model's input columns and does not use it.")
+            raise ParameterError((option, "accept"), f"{{{option}}} is for the conventions check (ftcal check DATA); "
+                                 "{accept} reads the model's input columns and does not use it.")
     if payload_json is None:
-        for option, given in (("--orientation", options["orientation"]),
-                              ("--gravity-columns", options["gravity_columns"]), ("--urdf", options["urdf"]),
-                              ("--model", options["robot"]), ("--dynamic", options["dynamic"] or None)):
+        for option, given in (("orientation", options["orientation"]),
+                              ("gravity_columns", options["gravity_columns"]), ("urdf", options["urdf"]),
+                              ("robot", options["robot"]), ("dynamic", options["dynamic"] or None)):
             if given is not None:
-                raise FtcalError(f"{option} goes with --payload-json (the reference from a payload file); without "
-                                 "it the reference is DATA's output columns.")
+                raise ParameterError((option, "payload_json"),
+                                     f"{{{option}}} goes with {{payload_json}} (the reference "
+                                     "from a payload file); without it the reference is DATA's output columns.")
     return _acceptance(data, accept, options, group_by=group_by, html=html, payload_json=payload_json,
                        limits=(max_force_error, max_torque_error, max_error_percent, rated_force, rated_torque),
                        serial=serial, history_dir=history_dir)
@@ -219,7 +222,8 @@ def thresholds_for(model, model_name: str, limits):
     max_force_error, max_torque_error, max_error_percent, rated_force, rated_torque = limits
     if max_error_percent is not None:
         if max_force_error is not None or max_torque_error is not None:
-            raise FtcalError("--max-error-percent replaces --max-force-error/--max-torque-error; give one kind.")
+            raise ParameterError(('max_error_percent', 'max_force_error', 'max_torque_error'),
+                                 "{max_error_percent} replaces {max_force_error}/{max_torque_error}; give one kind.")
         force, torque = rated_ranges(model)
         origin = "the model's training range"
         if rated_force is not None or rated_torque is not None:
@@ -229,12 +233,14 @@ def thresholds_for(model, model_name: str, limits):
         # A model without a training range (paper XML, null ranges) must not make the threshold infinite.
         for value, option in ((force, "--rated-force N"), (torque, "--rated-torque NM")):
             if not (math.isfinite(value) and value > 0):
-                raise FtcalError(f"--max-error-percent: {model_name} has no finite training output range to take "
-                                 f"the percentage of; give {option} (or absolute --max-force-error/"
-                                 "--max-torque-error).")
+                raise ParameterError(('max_error_percent', 'max_force_error', 'max_torque_error'),
+                                     f"{{max_error_percent}}: {model_name} has no finite training output range to take "
+                                 f"the percentage of; give {option} (or absolute {{max_force_error}}/"
+                                 "{max_torque_error}).")
         return Thresholds.from_percent(max_error_percent, force, torque, origin)
     if rated_force is not None or rated_torque is not None:
-        raise FtcalError("--rated-force/--rated-torque go with --max-error-percent.")
+        raise ParameterError(('rated_force', 'rated_torque', 'max_error_percent'),
+                             "{rated_force}/{rated_torque} go with {max_error_percent}.")
     given = max_force_error is not None or max_torque_error is not None
     return Thresholds(max_force_error or MAX_FORCE_ERROR, max_torque_error or MAX_TORQUE_ERROR,
                       "given" if given else "defaults")
@@ -247,7 +253,8 @@ def _acceptance(tables, accept, options, *, group_by, html, payload_json, limits
     from ..runtime.atomic import write_text_atomic
 
     if history_dir is not None and serial is None:
-        raise FtcalError("--history-dir needs --serial SERIAL (the sensor the result belongs to).")
+        raise ParameterError(('history_dir', 'serial'),
+                             "{history_dir} needs {serial} SERIAL (the sensor the result belongs to).")
     paths, names = tables.paths, tables.sources
     model_name = str(accept)
     model = load_model_file(accept).model
@@ -360,14 +367,15 @@ def sensor_history(serial: str, history_dir=None) -> CheckResult:
 
     folder = Path(history_dir or default_history_dir())
     if not os.path.lexists(folder / DATABASE_NAME):
-        raise FtcalError(f"--history-dir {folder}: no history database ({DATABASE_NAME}) there; record one with "
-                         "ftcal check --accept MODEL DATA --serial SERIAL.")
+        raise ParameterError(('history_dir', 'accept', 'serial'),
+                             f"{{history_dir}} {folder}: no history database ({DATABASE_NAME}) "
+                             "there; an acceptance test ({accept} MODEL with {serial} SERIAL) records one.")
     with History(folder, read_only=True) as history:  # reading never writes (nor waits long for a writer)
         records = history.calibrations(serial)
         results = history.acceptances(serial)
         if not records and not results:
             known = history.serials()
-            raise FtcalError(f"--history {serial}: no record in {history.path}"
+            raise ParameterError('history', f"{{history}} {serial}: no record in {history.path}"
                              + (f"; sensors recorded: {', '.join(known)}." if known else " (empty history)."))
     lines = [f"sensor {serial}: {len(records)} calibration(s), {len(results)} acceptance test(s)",
              f"{'recorded (UTC)':<28}{'model sha256':<14}{'|force bias| N':>15}{'|torque bias| N·m':>19}"

@@ -6,8 +6,9 @@ import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
+from .arguments import COMPENSATE, check_arguments
 from ..runtime.deprecation import renamed_keyword
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, ParameterError
 from .result import StepResult
 from .sources import gravity_source, reads_tables, source_options
 
@@ -104,6 +105,7 @@ def compensate(payload, data, *, calibration=None, inputs: Sequence[str] | None 
     >>> bool(np.abs(result.contact).max() < 1e-9)   # no contact: weight and bias removed
     True
     """
+    check_arguments(COMPENSATE, locals(), "ftcal.compensate")
     import pandas as pd
 
     from ..files.model_files import load_model
@@ -116,13 +118,14 @@ def compensate(payload, data, *, calibration=None, inputs: Sequence[str] | None 
     options = source_options(source, "compensate")
     tool = load_payload(payload)
     if options["dynamic"] and tool.inertia is None:
-        raise FtcalError(f"{payload}: has no inertia (identified without --dynamic); "
-                         "compensate without --dynamic or re-identify with it.")
+        raise ParameterError('dynamic', f"{payload}: has no inertia (identified without {{dynamic}}); "
+                         "compensate without {dynamic} or re-identify with it.")
     if source.get("g") is None:
         options["g"] = tool.gravity
     elif abs(options["g"] - tool.gravity) > 1e-9 * tool.gravity:
-        raise FtcalError(f"--g {options['g']:g}: {payload} was identified with g = {tool.gravity:g} m/s² (its "
-                         "mass times g is what the data determined); leave --g out.")
+        raise ParameterError('g',
+                             f"{{g}} {options['g']:g}: {payload} was identified with g = {tool.gravity:g} m/s² (its "
+                         "mass times g is what the data determined); leave {g} out.")
     gravity_from = gravity_source(options)
     model = load_model(calibration) if calibration is not None else None
     parts = [compensate_table(path, tool, gravity_from, wrench=wrench, model=model, time_column=options["time"],

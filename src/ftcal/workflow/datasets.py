@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..runtime.errors import single_line
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, ParameterError
 from .result import StepResult
 from .sources import reads_tables, robot_model
 
@@ -141,9 +141,10 @@ def build_dataset(logs, *, urdf=None, robot: str | None = None, sensor: str | No
         if named:
             raise FtcalError(f"{named[0]} applies to ROS bags only; {paths[0]} is not a bag.")
         if urdf is None and robot is None:
-            raise FtcalError("--urdf or --model is required for .mat/.csv/.parquet logs.")
+            raise ParameterError(('urdf', 'robot'), "{urdf} or {robot} is required for .mat/.csv/.parquet logs.")
     if any(is_bag) and estimate_payload:
-        raise FtcalError("--estimate-payload applies to .mat/.csv/.parquet logs; for a bag, identify "
+        raise ParameterError('estimate_payload',
+                             "{estimate_payload} applies to .mat/.csv/.parquet logs; for a bag, identify "
                          "the tool with `ftcal payload` on the bag's dataset.")
     model = (robot_model(urdf=urdf, robot=robot, ft_joint=ft_joint, ft_frame=ft_frame)
              if urdf is not None or robot is not None else None)
@@ -151,9 +152,9 @@ def build_dataset(logs, *, urdf=None, robot: str | None = None, sensor: str | No
     if model is not None and sensor is None:
         sensors = model.ft_sensors
         if len(sensors) != 1:
-            raise FtcalError("--sensor is required: the robot model has "
+            raise ParameterError(('sensor', 'ft_joint'), "{sensor} is required: the robot model has "
                              + (f"{len(sensors)} F/T sensors ({', '.join(s.name for s in sensors)})."
-                                if sensors else "no F/T sensor (declare one with --ft-joint JOINT)."))
+                                if sensors else "no F/T sensor (declare one with {ft_joint} JOINT)."))
         sensor = sensors[0].name
         notes.append(f"sensor: {single_line(sensor)}, the robot model's only F/T sensor")
     payloads = [parse_payload_spec(spec) for spec in payload]
@@ -169,7 +170,7 @@ def build_dataset(logs, *, urdf=None, robot: str | None = None, sensor: str | No
         from ..insitu.bags import build_bag_table
 
         if wrench_topic is None:
-            raise FtcalError(f"Bag {paths[0]}: --wrench-topic is required (list the topics with "
+            raise ParameterError('wrench_topic', f"Bag {paths[0]}: {{wrench_topic}} is required (list the topics with "
                              f"'ftcal topics {paths[0]}').")
         topics = BagTopics(wrench_topic, joints_topic, temperature_topic, imu_topic, tf, receive_time=receive_time)
         table = build_bag_table(paths, topics, robot=model, sensor=sensor, payloads=payloads, load_cases=config,
@@ -247,7 +248,7 @@ def expected(joints, *, urdf=None, robot: str | None = None, ft_joint: str | Non
     import pandas as pd
 
     if len(joints.paths) != 1:
-        raise FtcalError(f"--joints: one joint table, not {len(joints.paths)}.")
+        raise ParameterError('joints', f"{{joints}}: one joint table, not {len(joints.paths)}.")
     [path] = joints.paths
     model = robot_model(urdf=urdf, robot=robot, ft_joint=ft_joint, ft_frame=ft_frame, payload=payload)
     names = [sensor] if isinstance(sensor, str) else list(sensor)
@@ -257,7 +258,8 @@ def expected(joints, *, urdf=None, robot: str | None = None, ft_joint: str | Non
     from ..core.limits import MISSING_JOINTS
 
     if missing_joints not in MISSING_JOINTS:
-        raise FtcalError(f"--missing-joints {missing_joints!r}: must be one of {', '.join(MISSING_JOINTS)}.")
+        raise ParameterError('missing_joints',
+                             f"{{missing_joints}} {missing_joints!r}: must be one of {', '.join(MISSING_JOINTS)}.")
     settings = (base_frame, tuple(gravity), degrees, not no_cache, cache_dir, tuple(s.name for s in sensors),
                 missing_joints)
     if executor is not None:

@@ -16,7 +16,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..runtime.errors import FtcalError
+from .arguments import EVALUATE, PREDICT, check_arguments
+from ..runtime.errors import FtcalError, ParameterError
 from .result import StepResult
 from .sources import default_label_columns, tables_of
 
@@ -201,6 +202,7 @@ def evaluate(model, data, *, mode: str = "one-step", start: str = "zeros", warmu
     >>> result.metrics["n_samples"], round(result.metrics["rmse"][0], 4) == round(model.training_metrics_["rmse"][0], 4)
     (40, True)
     """
+    check_arguments(EVALUATE, locals(), "ftcal.evaluate")
     from ..core.metrics import EVALUATION_KEYS
 
     model, training_segments, name = _model_and_segments(model)
@@ -364,6 +366,7 @@ def predict(model, data, *, output: str | os.PathLike | None = None, mode: str =
     >>> result.n_rows, round(float(result.predictions["Fx"][0]), 1)
     (1, 0.5)
     """
+    check_arguments(PREDICT, locals(), "ftcal.predict")
     from ..core.ranges import describe, loads_text
     from ..runtime.errors import OutOfRangeWarning
 
@@ -375,7 +378,7 @@ def predict(model, data, *, output: str | os.PathLike | None = None, mode: str =
     if output is not None:
         output = str(output)
         if not output.lower().endswith((".csv", ".parquet")):
-            raise FtcalError(f"-o {output}: must end in .csv or .parquet.")
+            raise ParameterError("output", f"{{output}} {output}: must end in .csv or .parquet.")
     with tables_of(data) as (paths, dataset, _):
         segment_by, _ = default_label_columns(paths, segment_by, notes)
         if output is None or dataset is not None:

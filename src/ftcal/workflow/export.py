@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from .arguments import CONVERT, check_arguments
 from .result import StepResult
 
 
@@ -65,6 +66,7 @@ def convert(model, to: str, output, *, serial: str | None = None, sensor: str | 
     >>> result.paths == [os.path.join(folder, "m.xml")]
     True
     """
+    check_arguments(CONVERT, locals(), "ftcal.convert")
     from ..files.targets import convert as write
 
     written = write(model, to, output, {"serial": serial, "sensor": sensor, "name": name,

@@ -21,10 +21,11 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Callable
 
+from .arguments import FIT, check_arguments
 from ..core.columns import DEFAULT_OUTPUTS, LOAD_COLUMN
 from ..core.limits import (MAX_DEGREE, MAX_LAG, MLP_EQUATIONS_PER_WEIGHT, MLP_MAX_ITER, MLP_MAX_LAYERS,
                            MLP_MAX_UNITS, PAPER_LAMBDAS, SELECTION_BUDGET_SECONDS)
-from ..runtime.errors import FtcalError, FtcalWarning
+from ..runtime.errors import FtcalError, FtcalWarning, ParameterError
 from .result import StepResult
 from .sources import default_label_columns, tables_of
 
@@ -164,10 +165,11 @@ def fit(data, *, inputs: Sequence[str] | None = None, outputs: Sequence[str] | N
     >>> round(float(result.model.predict(np.array([[0.5]]))[0, 0]), 2)
     2.5
     """
+    check_arguments(FIT, locals(), "ftcal.fit")
     cpu_start = time.process_time() if cpu_start is None else cpu_start
     output = None if output is None else str(output)
     if output is not None and not output.lower().endswith(".json"):
-        raise FtcalError(f"-o {output}: must end in .json.")
+        raise ParameterError("output", f"{{output}} {output}: must end in .json.")
     options = _Options(degree=degree, lasso=lasso, ridge=ridge, na=na, nb=nb, solver=solver,
                        normalization=normalization, folds=folds, penalties=tuple(penalties),
                        lambdas=None if lambdas is None else tuple(lambdas), select_per=select_per,
@@ -222,12 +224,14 @@ class _Options:
 def check_options(o: _Options) -> None:
     """Option combinations that cannot work, refused before any data is read (named as ``ftcal fit``'s flags)."""
     if o.solver == "osqp" and o.ridge:
-        raise FtcalError("--solver osqp implements the paper's least-squares and LASSO programs, not --ridge.")
+        raise ParameterError(('solver', 'ridge'),
+                             "{solver} osqp implements the paper's least-squares and LASSO programs, not {ridge}.")
     if o.degree == "auto" and o.solver == "osqp":
-        raise FtcalError("--degree auto uses the streaming solvers; drop --solver osqp.")
+        raise ParameterError(('degree', 'solver'), "{degree} auto uses the streaming solvers; drop {solver} osqp.")
     if o.prior is not None and o.degree != "auto" and not (o.lasso or o.ridge):
-        raise FtcalError("--prior shrinks a penalized fit toward another model; add --ridge or --lasso "
-                         "(or --degree auto).")
+        raise ParameterError(('prior', 'ridge', 'lasso', 'degree'),
+                             "{prior} shrinks a penalized fit toward another model; add {ridge} or {lasso} "
+                         "(or {degree} auto).")
     if o.degree is None:
         if o.lasso or o.ridge:
             warnings.warn(f"--{'lasso' if o.lasso else 'ridge'} without --degree fits degree 1 (affine); "
@@ -235,34 +239,38 @@ def check_options(o: _Options) -> None:
         o.degree = 1
     if o.degree != "auto" and (isinstance(o.degree, bool) or not isinstance(o.degree, int)
                                or not 1 <= o.degree <= MAX_DEGREE):
-        raise FtcalError(f"--degree must be in 1..{MAX_DEGREE} or 'auto'; got {o.degree!r}.")
+        raise ParameterError('degree', f"{{degree}} must be in 1..{MAX_DEGREE} or 'auto'; got {o.degree!r}.")
     if o.folds < 2:
-        raise FtcalError(f"--folds must be at least 2; got {o.folds}.")
+        raise ParameterError('folds', f"{{folds}} must be at least 2; got {o.folds}.")
     if o.degree != "auto":
         for name, default in SEARCH_DEFAULTS.items():
             if getattr(o, name) != default:
-                raise FtcalError(f"--{name.replace('_', '-')} goes with --degree auto (the search); a fit of "
-                                 f"--degree {o.degree} does not use it.")
+                raise ParameterError((name, 'degree'), f"{{{name}}} goes with {{degree}} auto (the search); a fit of "
+                                 f"{{degree}} {o.degree} does not use it.")
     elif o.lasso or o.ridge:
         for name in ("penalties", "lambdas"):
             if getattr(o, name) != SEARCH_DEFAULTS[name]:
-                raise FtcalError(f"--{name}: the search's penalty is fixed by --{'lasso' if o.lasso else 'ridge'} "
-                                 "λ; give one or the other.")
+                penalty = "lasso" if o.lasso else "ridge"
+                raise ParameterError((name, penalty), f"{{{name}}}: the search's penalty is fixed by {{{penalty}}} "
+                                     "λ; give one or the other.")
     for flag in ("na", "nb"):
         if getattr(o, flag) > MAX_LAG:
-            raise FtcalError(f"--{flag} must be at most {MAX_LAG}; got {getattr(o, flag)}.")
+            raise ParameterError(flag, f"{{{flag}}} must be at most {MAX_LAG}; got {getattr(o, flag)}.")
     if not 1 <= o.max_degree <= MAX_DEGREE:
-        raise FtcalError(f"--max-degree must be in 1..{MAX_DEGREE}; got {o.max_degree}.")
+        raise ParameterError('max_degree', f"{{max_degree}} must be in 1..{MAX_DEGREE}; got {o.max_degree}.")
     if o.objective != "both" and o.select_per != "model":
-        raise FtcalError(f"--objective {o.objective} ranks one model for all outputs; add --select-per model "
-                         f"(with --select-per {o.select_per} each part is ranked by its own error).")
+        raise ParameterError(('objective', 'select_per'),
+                             f"{{objective}} {o.objective} ranks one model for all outputs; add {{select_per}} model "
+                         f"(with {{select_per}} {o.select_per} each part is ranked by its own error).")
     if o.drop_incomplete and o.scheduler:
-        raise FtcalError("--drop-incomplete filters rows in this process; drop --scheduler to use it.")
+        raise ParameterError(('drop_incomplete', 'scheduler'),
+                             "{drop_incomplete} filters rows in this process; drop {scheduler} to use it.")
     if o.scheduler and not _streams(o):
-        raise FtcalError("--scheduler runs fits with the streaming solvers; it does not run --estimate-payload "
-                         "or --solver osqp (drop --scheduler for those).")
+        raise ParameterError(('scheduler', 'estimate_payload', 'solver'),
+                             "{scheduler} runs fits with the streaming solvers; it does not run {estimate_payload} "
+                         "or {solver} osqp (drop {scheduler} for those).")
     if o.payload_mass is not None and o.estimate_payload is None:
-        raise FtcalError("--payload-mass goes with --estimate-payload LINK.")
+        raise ParameterError(('payload_mass', 'estimate_payload'), "{payload_mass} goes with {estimate_payload} LINK.")
 
 
 def _streams(o: _Options) -> bool:
@@ -273,14 +281,15 @@ def _streams(o: _Options) -> bool:
 def hidden_sizes(text) -> tuple[int, ...]:
     """``"32,32"`` (or a sequence) → (32, 32); one-line FtcalError unless 1 to MLP_MAX_LAYERS layers of
     1 to MLP_MAX_UNITS units."""
-    parts = text.split(",") if isinstance(text, str) else list(text)
+    parts = text.split(",") if isinstance(text, str) else list(text) if isinstance(text, (list, tuple)) else [text]
     try:
         sizes = tuple(int(part) for part in parts)
     except (TypeError, ValueError):
         sizes = ()
     if not 1 <= len(sizes) <= MLP_MAX_LAYERS or not all(1 <= s <= MLP_MAX_UNITS for s in sizes):
         shown = text if isinstance(text, str) else ",".join(map(str, parts))
-        raise FtcalError(f"--hidden {shown}: expected 1 to {MLP_MAX_LAYERS} comma-separated layer sizes of 1 to "
+        raise ParameterError('hidden',
+                             f"{{hidden}} {shown}: expected 1 to {MLP_MAX_LAYERS} comma-separated layer sizes of 1 to "
                          f"{MLP_MAX_UNITS} units, such as 32,32.")
     return sizes
 
@@ -292,7 +301,8 @@ def weight_decay_value(text) -> float:
     except (TypeError, ValueError):
         value = math.nan
     if not math.isfinite(value) or value < 0:
-        raise FtcalError(f"--weight-decay {text}: must be a finite number >= 0 (0 turns the penalty off).")
+        raise ParameterError('weight_decay',
+                             f"{{weight_decay}} {text}: must be a finite number >= 0 (0 turns the penalty off).")
     return value
 
 
@@ -314,7 +324,7 @@ def check_family_options(o: _Options) -> None:
     if o.family != "mlp":
         given = [flag for flag, value in own.items() if value is not None]
         if given:
-            raise FtcalError(f"{', '.join(given)} go with --family mlp.")
+            raise ParameterError('family', f"{', '.join(given)} go with {{family}} mlp.")
         return
     o.hidden = None if o.hidden is None else hidden_sizes(o.hidden)  # None: sized to the data
     o.activation = o.activation or "tanh"
@@ -328,10 +338,11 @@ def check_family_options(o: _Options) -> None:
                                    ("--solver osqp", o.solver == "osqp"), ("--scheduler", o.scheduler),
                                    ("--normalization", o.normalization)) if on]
     if given:
-        raise FtcalError(f"--family mlp does not take {', '.join(given)} (polynomial options); its own are "
-                         "--hidden, --activation, --weight-decay, --max-iter and --seed.")
+        raise ParameterError(('family', 'hidden', 'activation', 'weight_decay', 'max_iter', 'seed'),
+                             f"{{family}} mlp does not take {', '.join(given)} (polynomial options); its own are "
+                         "{hidden}, {activation}, {weight_decay}, {max_iter} and {seed}.")
     if o.folds < 2:
-        raise FtcalError(f"--folds must be at least 2; got {o.folds}.")
+        raise ParameterError('folds', f"{{folds}} must be at least 2; got {o.folds}.")
 
 
 def make_solver(o: _Options):
@@ -521,14 +532,16 @@ class _Fit:
         o = self.o
         link = o.estimate_payload
         if not self.paths:
-            raise FtcalError("--estimate-payload reads the payload regressor columns from the files; give files.")
+            raise ParameterError('estimate_payload',
+                                 "{estimate_payload} reads the payload regressor columns from the files; give files.")
         header = set(read_table(self.paths[0]).columns)
         k = len(INERTIAL_PARAMETERS) if payload_column(link, outputs[0], "Ixx") in header else 4
         columns = tuple(payload_column(link, name, p) for name in outputs for p in INERTIAL_PARAMETERS[:k])
         missing = [c for c in columns if c not in header]
         if missing:
-            raise FtcalError(f"{self.paths[0]}: no column {missing[0]!r}; write the dataset with "
-                             f"'ftcal dataset ... --estimate-payload {link}'.")
+            raise ParameterError('estimate_payload',
+                                 f"{self.paths[0]}: no column {missing[0]!r}; write the dataset with "
+                             f"'ftcal dataset ... {{estimate_payload}} {link}'.")
         data = load_dataset(self.paths, inputs=inputs, outputs=(*outputs, *columns), segment_by=o.segment_by,
                             group_by=o.group_by)
         self._read_note(data.n_samples, inputs, outputs, f" + payload on {link} ({k} parameters)")

@@ -14,8 +14,9 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from .arguments import PAYLOAD, REBIAS, check_arguments
 from ..runtime.deprecation import renamed_keyword
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, ParameterError
 from .result import StepResult
 from .sources import DEFAULT_WRENCH, gravity_source, reads_tables, source_options
 
@@ -67,7 +68,8 @@ class StaticRows:
                 raise FtcalError(f"{path}: column 'static' must hold 1 (still) or 0 (moving).")
             static = marks == 1
             if not static.any():
-                raise FtcalError(f"{path}: column 'static' marks no sample still; give --keep-moving to use "
+                raise ParameterError('keep_moving',
+                                     f"{path}: column 'static' marks no sample still; give {{keep_moving}} to use "
                                  "every sample.")
             moving = int(static.size - np.count_nonzero(static))
             self.notes.append(f"{path}: no time column {time_column!r}: its 'static' column marks {moving} of "
@@ -91,8 +93,9 @@ class StaticRows:
             signal["gravity"] = kinematics.gravity
         holds = find_holds(time, segments=segments, where=path, time_column=time_column, **signal)
         if not holds.static.any():
-            raise FtcalError(f"{path}: no static hold of {MIN_HOLD_S:g} s or more (every sample moves, from the "
-                             f"{holds.signal}); record still poses, or give --keep-moving to use every sample.")
+            raise ParameterError('keep_moving',
+                                 f"{path}: no static hold of {MIN_HOLD_S:g} s or more (every sample moves, from the "
+                             f"{holds.signal}); record still poses, or give {{keep_moving}} to use every sample.")
         self.notes.append(f"{path}: {holds.describe(time)}; "
                           + ("excluded" if holds.n_moving else "all used") + " (--keep-moving keeps them)")
         return holds.static
@@ -250,6 +253,7 @@ def identify_payload(data, *, inputs: Sequence[str] = DEFAULT_WRENCH, group_by: 
     >>> round(result.mass, 6)
     2.0
     """
+    check_arguments(PAYLOAD, locals(), "ftcal.identify_payload")
     from ..check.conventions import ConventionWarning, HoldCollector, payload_warning
     from ..core.limits import BIAS_DRIFTS
     from ..files.payload_json import save_payload
@@ -268,12 +272,14 @@ def identify_payload(data, *, inputs: Sequence[str] = DEFAULT_WRENCH, group_by: 
 
         # As --time's help says: the column 'time' where every table has one.
         if not all(table_has_columns(path, ["time"]) for path in paths):
-            raise FtcalError(f"--bias-drift {bias_drift} needs the time column and {', '.join(paths)} "
-                             "has none named 'time': give --time COL.")
+            raise ParameterError(('bias_drift', 'time'),
+                                 f"{{bias_drift}} {bias_drift} needs the time column and {', '.join(paths)} "
+                             "has none named 'time': give {time} COL.")
         time = options["time"] = "time"
     if dynamic and bias_drift in ("linear", "random-walk"):
-        raise FtcalError(f"--bias-drift {bias_drift} works with static poses only; leave out --dynamic "
-                         "or use --bias-drift none.")
+        raise ParameterError(('bias_drift', 'dynamic'),
+                             f"{{bias_drift}} {bias_drift} works with static poses only; leave out {{dynamic}} "
+                         "or use {bias_drift} none.")
     gravity_from = gravity_source(options)
     static = None if dynamic or keep_moving else StaticRows(
         gravity_from, time=time, orientation=options["orientation"],
@@ -483,6 +489,7 @@ def rebias_payload(data, payload, *, inputs: Sequence[str] = DEFAULT_WRENCH, kee
     FtcalError
         Bad input, or a sign convention or temperature column that differs from the file's.
     """
+    check_arguments(REBIAS, locals(), "ftcal.workflow.rebias_payload")
     from ..files.payload_json import load_payload, save_payload
     from ..payload.drift import BiasDrift
     from ..payload.tables import read_payload_tables, rebias
@@ -493,13 +500,14 @@ def rebias_payload(data, payload, *, inputs: Sequence[str] = DEFAULT_WRENCH, kee
     name = str(payload)
     identified = load_payload(payload)
     if reaction != identified.reaction:
-        raise FtcalError(f"--reaction: {name} was identified {'with' if identified.reaction else 'without'} "
-                         "--reaction; give the same sign convention.")
+        raise ParameterError('reaction',
+                             f"{{reaction}}: {name} was identified {'with' if identified.reaction else 'without'} "
+                         "{reaction}; give the same sign convention.")
     own_temperature = identified.drift.temperature_column if identified.needs_temperature else None
     if temperature is not None and temperature != own_temperature:
-        raise FtcalError(f"--temperature {temperature}: {name} has "
+        raise ParameterError(('temperature', 'rebias'), f"{{temperature}} {temperature}: {name} has "
                          + (f"its temperature term on column {own_temperature!r}" if own_temperature
-                            else "no temperature term") + "; --rebias uses the file's; leave it out.")
+                            else "no temperature term") + "; {rebias} uses the file's; leave it out.")
     gravity_from = gravity_source(options)
     # Like the identification: only the still samples (moving ones carry inertial forces the model lacks).
     static = None if keep_moving else StaticRows(

@@ -5,8 +5,9 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
+from .arguments import PLAN, check_arguments
 from ..core.limits import MAX_DEGREE, PLAN_DEFAULTS
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, ParameterError
 from .result import StepResult
 from .sources import robot_model
 
@@ -103,27 +104,29 @@ def plan_experiment(poses: int, *, urdf=None, robot: str | None = None, ft_joint
     >>> int((result.table["reference"] == 0).sum())                # the designed poses
     6
     """
+    check_arguments(PLAN, locals(), "ftcal.plan_experiment")
     from ..plan import PlanRequest
     from ..plan import plan_experiment as design
     from ..plan.recorded import plan_frame, read_recorded
     from ..robot import parse_payload_spec
 
     if not 1 <= degree <= MAX_DEGREE:
-        raise FtcalError(f"--degree {degree}: must be 1..{MAX_DEGREE}.")
+        raise ParameterError('degree', f"{{degree}} {degree}: must be 1..{MAX_DEGREE}.")
     model = robot_model(urdf=urdf, robot=robot, ft_joint=ft_joint, ft_frame=ft_frame, payload=payload)
     loads = tuple(None if spec.strip().lower() == "none" else parse_payload_spec(spec)
                   for spec in (list(load) or ["none"]))
     ranges: dict[str, tuple[float, float]] = {}
     for name, low, high in joint_range:
         if name in ranges:
-            raise FtcalError(f"--joint-range {name}: given more than once.")
+            raise ParameterError('joint_range', f"{{joint_range}} {name}: given more than once.")
         if not low < high:
-            raise FtcalError(f"--joint-range {name}:{low:g}:{high:g}: empty range (LOW must be below HIGH).")
+            raise ParameterError('joint_range',
+                                 f"{{joint_range}} {name}:{low:g}:{high:g}: empty range (LOW must be below HIGH).")
         ranges[name] = (low, high)
     pins: dict[str, float] = {}
     for name, value in (fixed.items() if isinstance(fixed, Mapping) else fixed):
         if name in pins:
-            raise FtcalError(f"--fixed {name}: given more than once.")
+            raise ParameterError('fixed', f"{{fixed}} {name}: given more than once.")
         pins[name] = value
     sensor = model.sensor(sensor).name if sensor else None
     request = PlanRequest(loads, poses, objective=objective, degree=degree, sensor=sensor, base=base,
@@ -134,7 +137,8 @@ def plan_experiment(poses: int, *, urdf=None, robot: str | None = None, ft_joint
         model.require_ft_sensors()
         which = sensor or (model.ft_sensors[0].name if len(model.ft_sensors) == 1 else None)
         if which is None:
-            raise FtcalError("--from needs --sensor: the robot has more than one F/T sensor.")
+            raise ParameterError(('recorded', 'sensor'),
+                                 "{recorded} needs {sensor}: the robot has more than one F/T sensor.")
         tables = [read_recorded(path, model, which, base=base) for path in recorded]
     designed = design(model, request, tables)
     result = PlanResult(designed, plan_frame(designed), tables)

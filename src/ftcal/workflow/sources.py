@@ -12,7 +12,7 @@ import os
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, ParameterError
 
 DEFAULT_WRENCH = ("u1", "u2", "u3", "u4", "u5", "u6")
 
@@ -118,7 +118,8 @@ def robot_model(*, urdf=None, robot: str | None = None, ft_joint: str | None = N
     from ..robot import RobotModel, SensorDeclaration, parse_payload_spec
 
     if ft_joint is None and ft_frame is not None:
-        raise FtcalError("--ft-frame needs --ft-joint (the fixed joint the sensor sits on).")
+        raise ParameterError(('ft_frame', 'ft_joint'),
+                             "{ft_frame} needs {ft_joint} (the fixed joint the sensor sits on).")
     declared = () if ft_joint is None else (SensorDeclaration(ft_joint, ft_frame),)
     model = RobotModel.load(urdf=None if urdf is None else str(urdf), name=robot, declared=declared)
     payloads = [parse_payload_spec(spec) for spec in payload]

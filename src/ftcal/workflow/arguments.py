@@ -1,0 +1,128 @@
+"""The public steps' arguments, checked at each step's entry: one table per step, one line per argument.
+
+A wrong type or value is a :class:`~ftcal.runtime.errors.ParameterError` naming the argument by its
+Python name (the CLI prints its flag), raised before any file is read, instead of a ``TypeError``
+or ``AttributeError`` from deep inside. Only what no later check of the step covers is listed:
+ranges the step checks itself (``degree``, ``folds``, ``max_degree``, ...) keep their own messages.
+The checks are those of :mod:`ftcal.runtime.checks`, in its style.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+
+from ..core.limits import (
+    ARX_WARMUP,
+    FREE_RUN_STARTS,
+    NORMALIZATIONS,
+    OBJECTIVES,
+    PENALTIES,
+    PLAN_OBJECTIVES,
+    PREDICTION_MODES,
+    SELECT_PER,
+    SOLVERS,
+)
+from ..runtime.checks import check_choice, check_float, check_int, check_path
+from ..runtime.errors import ParameterError
+
+Check = Callable[[object, str, str], None]
+
+
+def choice(options, optional: bool = False) -> Check:
+    def check(value, name, owner):
+        if optional and value is None:
+            return
+        if not isinstance(value, str):
+            _refuse(name, owner, f"one of {', '.join(map(repr, options))}", value)
+        check_choice(value, name, owner, tuple(options))
+    return check
+
+
+def whole(low: int, high: int | None = None, optional: bool = False) -> Check:
+    def check(value, name, owner):
+        if not (optional and value is None):
+            check_int(value, name, owner, low, high)
+    return check
+
+
+def integer(value, name, owner) -> None:
+    """An int of any value (the step checks the range itself, in its own words); bool is none."""
+    if isinstance(value, bool) or not isinstance(value, int):
+        _refuse(name, owner, "an int", value)
+
+
+def number(low: float = 0.0, strict: bool = True, optional: bool = True) -> Check:
+    """A finite real number above ``low`` (at least ``low`` when not ``strict``); bool is none."""
+    def check(value, name, owner):
+        if not (optional and value is None):
+            check_float(value, name, owner, low, low_inclusive=not strict)
+    return check
+
+
+def path(optional: bool = False) -> Check:
+    def check(value, name, owner):
+        if not (optional and value is None):
+            check_path(value, name, owner)
+    return check
+
+
+def flag(value, name, owner) -> None:
+    if not isinstance(value, bool):
+        _refuse(name, owner, "True or False", value)
+
+
+def text(value, name, owner) -> None:
+    """None or a non-empty str (a column, a frame, a scheduler address)."""
+    if value is not None and (not isinstance(value, str) or not value):
+        _refuse(name, owner, "None or a non-empty str", value)
+
+
+def names(value, name, owner) -> None:
+    """None or a list/tuple of distinct non-empty column names (a bare str is refused: it is not a list)."""
+    if value is None:
+        return
+    if isinstance(value, str) or not isinstance(value, (list, tuple)) or not value \
+            or not all(isinstance(v, str) and v for v in value):
+        _refuse(name, owner, "a non-empty list of column names (str)", value)
+    repeated = sorted({v for v in value if list(value).count(v) > 1})
+    if repeated:
+        raise ParameterError(name, f"The '{name}' parameter of {owner} names {', '.join(map(repr, repeated))} "
+                                   "more than once; each column can be used once.")
+
+
+def penalties(value, name, owner) -> None:
+    if isinstance(value, str) or not isinstance(value, (list, tuple)) or not all(v in PENALTIES for v in value):
+        _refuse(name, owner, f"a list of penalties from {', '.join(map(repr, PENALTIES))}", value)
+
+
+def _refuse(name: str, owner: str, what: str, value) -> None:
+    shown = repr(value)
+    shown = shown if len(shown) <= 60 else shown[:57] + "..."
+    raise ParameterError(name, f"The '{name}' parameter of {owner} must be {what}. "
+                               f"Got {type(value).__name__} {shown} instead.")
+
+
+FIT = dict(inputs=names, outputs=names, lasso=number(), ridge=number(), na=whole(0), nb=whole(0),
+           solver=choice(SOLVERS), normalization=choice(NORMALIZATIONS, optional=True), folds=integer,
+           penalties=penalties, select_per=choice(SELECT_PER), objective=choice(OBJECTIVES),
+           max_degree=integer, budget=number(), verbose=flag, drop_incomplete=flag,
+           family=choice(("polynomial", "mlp")), segment_by=text, group_by=text, scheduler=text)
+EVALUATE = dict(mode=choice(PREDICTION_MODES), start=choice(FREE_RUN_STARTS), warmup=choice(ARX_WARMUP),
+                segment_by=text, group_by=text, scheduler=text)
+PREDICT = dict(mode=choice(PREDICTION_MODES), start=choice(FREE_RUN_STARTS), segment_by=text, scheduler=text)
+PAYLOAD = dict(inputs=names, group_by=text, keep_moving=flag, reaction=flag, frame=text,
+               temperature=text)  # bias_drift: checked by the step in its own words
+REBIAS = dict(inputs=names, keep_moving=flag, reaction=flag, temperature=text)
+COMPENSATE = dict(payload=path(), inputs=names)
+CHECK = dict(accept=path(optional=True), inputs=names, group_by=text, rate=number(), reaction=flag, max_com_distance=number(),
+             max_force_error=number(), max_torque_error=number(), max_error_percent=number(), rated_force=number(),
+             rated_torque=number(), serial=text)
+PLAN = dict(poses=whole(1), objective=choice(PLAN_OBJECTIVES), degree=integer, candidates=whole(1),
+            reference_every=whole(0), seed=whole(0, 2**32 - 1))
+CONVERT = dict(model=path(), to=text, single_precision=flag, serial=text, sensor=text, name=text)
+
+
+def check_arguments(spec: Mapping[str, Check], values: Mapping[str, object], owner: str) -> None:
+    """Check the ``values`` of a step's arguments (its ``locals()`` at entry) against ``spec``."""
+    for name, check in spec.items():
+        check(values[name], name, owner)
