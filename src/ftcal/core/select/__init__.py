@@ -28,7 +28,7 @@ decades, and ridge λ relative to λ_ref = trace(AᵀA)/p (the mean eigenvalue o
 the Gram matrix), from 1 down six decades; both scale with N, so 10⁻² λ_max
 is the same penalty for 1 000 or 100 000 samples. Grids are extended when the
 best λ sits at an edge. Degrees are tried in increasing order and the search
-stops at the first degree that improves no output (or block) it selects for.
+stops after two degrees in a row that improve no output (or block) it selects for.
 :func:`estimate_cost` predicts the work before it starts.
 
 One module per job:
