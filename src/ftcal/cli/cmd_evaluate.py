@@ -2,8 +2,7 @@
 
 from __future__ import annotations
 
-from ..core.limits import ARX_WARMUP, FREE_RUN_STARTS, PREDICTION_MODES
-from ..data.tare import TARE_MODES
+from ..core.limits import ARX_WARMUP, FREE_RUN_STARTS, PREDICTION_MODES, TARE_MODES
 from ._common import add_scheduler_option, print_json
 from ._examples import epilog
 

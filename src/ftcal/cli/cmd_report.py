@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ..data.tare import TARE_MODES
+from ..core.limits import TARE_MODES
 from ._common import column_list
 from ._examples import epilog
 

@@ -20,9 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..core.limits import TARE_MODES
 from ..runtime.errors import FtcalError
-
-TARE_MODES = ("none", "first-hold", "per-file")
 
 
 def check_tare(tare: str, where: str = "tare") -> str:
