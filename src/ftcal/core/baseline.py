@@ -116,6 +116,26 @@ def fold_rmse(error: np.ndarray, folds: np.ndarray) -> tuple[list, np.ndarray]:
     return [labels[first[i]] for i in order], np.sqrt(squares / sizes[:, None])
 
 
+def paired_verdict(scores, reference_scores) -> tuple[str, float | None, float | None]:
+    """(verdict, margin, noise) of paired errors (folds, seeds): ``better`` when the mean log ratio
+    log(reference / score) exceeds t x its standard error, ``worse`` below minus that, else ``ties``
+    (inclusive: identical scores tie); ``ties`` with no spread to judge by (fewer than two pairs, a zero
+    error): margin and noise are then None.
+
+    Examples
+    --------
+    >>> paired_verdict([1.0, 1.1, 0.9], [2.0, 2.1, 1.9])[0], paired_verdict([1.0, 2.0], [2.0, 1.0])[0]
+    ('better', 'ties')
+    """
+    from .select import Comparison
+
+    comparison = Comparison.of(None, np.asarray(reference_scores, float), np.asarray(scores, float))
+    if comparison.n_folds < 2 or comparison.log_standard_error is None:
+        return "ties", None, None
+    margin, noise = comparison.log_margin, comparison.quantile * comparison.log_standard_error
+    return ("better" if margin > noise else ("worse" if margin < -noise else "ties")), margin, noise
+
+
 def compare_to_baseline(model_error: np.ndarray, baseline_error: np.ndarray, folds: np.ndarray,
                         outputs: Sequence[str], baseline: str, tare: str = "none") -> BaselineComparison:
     """Per-axis and error-norm comparison of two predictions' errors on the same samples, fold by fold.
@@ -140,8 +160,6 @@ def compare_to_baseline(model_error: np.ndarray, baseline_error: np.ndarray, fol
     >>> round(c.rows[0].ratio, 3), c.rows[0].verdict
     (0.5, 'better')
     """
-    from .select import Comparison
-
     model_error, baseline_error = np.asarray(model_error, float), np.asarray(baseline_error, float)
     names = list(outputs)
     units = output_units(names)
@@ -159,13 +177,7 @@ def compare_to_baseline(model_error: np.ndarray, baseline_error: np.ndarray, fol
         _, m_folds = fold_rmse(m, folds)
         _, b_folds = fold_rmse(b, folds)
         m_folds, b_folds = m_folds[:, 0], b_folds[:, 0]
-        comparison = Comparison.of(baseline, b_folds, m_folds)
-        if comparison.n_folds < 2 or comparison.log_standard_error is None:
-            verdict, margin, noise = "ties", None, None
-        else:
-            margin, noise = comparison.log_margin, comparison.quantile * comparison.log_standard_error
-            # within the spread, inclusive: two identical predictions tie (margin 0, spread 0)
-            verdict = "better" if margin > noise else ("worse" if margin < -noise else "ties")
+        verdict, margin, noise = paired_verdict(m_folds, b_folds)
         rows.append(AxisVerdict(name, unit, float(np.sqrt(np.mean(m ** 2))), float(np.sqrt(np.mean(b ** 2))),
                                 m_folds, b_folds, verdict, margin, noise))
     return BaselineComparison(baseline, tare, tuple(str(f) for f in fold_names), tuple(rows))
