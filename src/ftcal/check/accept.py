@@ -318,7 +318,7 @@ def sensor_problems(inputs: np.ndarray, names: Sequence[str], reference: np.ndar
 
 
 def read_test_data(paths: Sequence[str | os.PathLike], model, *, payload=None, source=None,
-                   group_by: str | None = None, time_column: str = "time"):
+                   group_by: str | None = None, time_column: str = "time", rows: dict | None = None):
     """Model errors on test tables, their pose labels and the input-channel issues.
 
     Parameters
@@ -330,6 +330,8 @@ def read_test_data(paths: Sequence[str | os.PathLike], model, *, payload=None, s
     source : KinematicsSource, needed with ``payload``
     group_by : column naming the poses; default one pose per file
     time_column : seconds, for messages (row numbers when absent)
+    rows : a dict that, when given, receives ``file`` (each sample's table) and ``time`` (seconds, or None
+        when a table has no time column), for :func:`retare_verdict`
 
     Returns
     -------
@@ -351,7 +353,7 @@ def read_test_data(paths: Sequence[str | os.PathLike], model, *, payload=None, s
         raise FtcalError(f"the calibration model has {len(model.output_names_)} outputs; a wrench needs 6.")
     if payload is not None and source is None:
         raise FtcalError("--payload needs the sensor's orientation (--orientation, --gravity-columns or --urdf).")
-    errors, references, labels, issues, inputs = [], [], [], [], []
+    errors, references, labels, issues, inputs, files, times = [], [], [], [], [], [], []
     for path in paths:
         path = Path(path)
         frame = read_table(path)
@@ -374,11 +376,16 @@ def read_test_data(paths: Sequence[str | os.PathLike], model, *, payload=None, s
         time = (numeric_columns(frame, (time_column,), path, "time")[:, 0] if time_column in frame.columns
                 else np.arange(len(frame), dtype=float))
         issues += input_channel_issues(u, model.input_names_, time, str(path), reference, label)
+        files.append(np.full(len(frame), str(path), dtype=object))
+        times.append(time if time_column in frame.columns else None)
         errors.append(error)
         references.append(reference)
         labels.append(label)
         inputs.append(u)
     reference, label = np.concatenate(references), np.concatenate(labels)
+    if rows is not None:
+        rows["file"] = np.concatenate(files)
+        rows["time"] = None if any(t is None for t in times) else np.concatenate(times)
     problems = sensor_problems(np.concatenate(inputs), model.input_names_, reference, label, payload is not None)
     return np.concatenate(errors), reference, label, issues, problems
 
@@ -391,3 +398,39 @@ def rated_ranges(model) -> tuple[float, float]:
                          "torques.")
     extent = np.abs(model.output_range_).max(axis=1)  # output_range_ is (n_outputs, 2): min, max
     return float(extent[forces].max()), float(extent[torques].max())
+
+
+def retare_verdict(result: Acceptance, files: np.ndarray, time: np.ndarray | None = None) -> str | None:
+    """One line for a failed test: is the failure an offset alone, and what would a re-tare give?
+
+    The errors are re-tared as a user re-tares before a test: each file's offset read at its first static
+    hold (:func:`ftcal.data.tare.tare_offsets`, ``per-file``; holds from the reference's direction) and
+    removed from every sample of the file; the test is then judged again on the same poses and thresholds.
+
+    Parameters
+    ----------
+    result : the failed :class:`Acceptance` (its error, reference and labels)
+    files : ndarray of shape (n_samples,), the table of each sample
+    time : s, or None (rows at the hold sample rate)
+
+    Returns
+    -------
+    str, or None when the test passed, or cannot pass for another reason (a channel issue, a problem)
+    """
+    from ..data.tare import tare_offsets
+
+    if result.passed or result.problems or result.channel_issues or result.reference is None:
+        return None
+    notes: list[str] = []
+    offset = tare_offsets([result.error], result.reference, files, files, "per-file", time=time, notes=notes)[0]
+    if not np.any(offset):
+        return "re-tare: no static hold in the test recording(s) to re-tare at; cannot tell an offset from a " \
+               "calibration error"
+    tared = acceptance_test(result.error - offset, result.labels, result.outputs, result.thresholds)
+    removed = "  ".join(f"{a} {v:+.3g}" for a, v in zip(result.outputs, offset[np.flatnonzero(np.any(offset, axis=1))[0]]))
+    rms = "  ".join(f"{a} {v:.4g}" for a, v in zip(result.outputs, tared.rmse))
+    if tared.passed:
+        return (f"the failure is an offset alone: re-tared at each file's first static hold (offset removed: "
+                f"{removed}), every pose passes: RMS {rms}")
+    return (f"not an offset alone: re-tared at each file's first static hold (offset removed: {removed}), "
+            f"{len(tared.failed_poses)} of {len(tared.poses)} pose(s) still fail: RMS {rms}")

@@ -92,6 +92,8 @@ EXAMPLES = {
   ftcal evaluate ftcal-demo/models/np4-lasso50.json ftcal-demo/validation.parquet
   # the same as one JSON object (keys: docs/metrics.md)
   ftcal evaluate ftcal-demo/models/np4-lasso50.json ftcal-demo/validation.parquet --json
+  # against the vendor's matrix (the inputs already are a wrench), both re-tared at each recording's first hold
+  ftcal evaluate ftcal-demo/models/np4-lasso50.json ftcal-demo/validation.parquet --baseline identity --tare first-hold
   # an ARX model: one-step by default (the paper's evaluation), or free-run as on the robot
   ftcal fit ftcal-demo/train.parquet --na 1 --nb 1 --segment-by segment -o ftcal-demo/arx.json
   ftcal evaluate ftcal-demo/arx.json ftcal-demo/validation.parquet --segment-by segment --mode free-run""",

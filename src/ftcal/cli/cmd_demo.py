@@ -24,6 +24,13 @@ def register(sub) -> None:
                         "ftcal-closed-loop-demo/ for --scenario closed-loop)")
     p.add_argument("--seed", type=nonnegative_int, default=0, help="simulation seed, >= 0 (default 0)")
     p.add_argument("--quick", action="store_true", help="a smaller experiment (a few recordings; arm: 8 poses)")
+    p.add_argument("--variant", default="standard", metavar="NAME",
+                   help="closed-loop only: standard (one 40 s task, default), high-loads (forces near the sensor's "
+                        "range), long-task (32 contacts over 10 min with a warm-up drift and a temperature change) "
+                        "or tool-change (a gripper swapped in halfway)")
+    p.add_argument("--seeds", type=nonnegative_int, default=1, metavar="N",
+                   help="closed-loop only: run seeds SEED .. SEED+N-1 and say which conditions tie within their "
+                        "spread (default 1)")
     p.set_defaults(func=run)
 
 
@@ -42,6 +49,8 @@ def run(args) -> int:
         return run_live(args)
     if args.scenario == "closed-loop":
         return run_closed_loop(args)
+    if args.variant != "standard" or args.seeds != 1:
+        raise FtcalError("--variant and --seeds go with --scenario closed-loop.")
     out = output_folder(args.out or "ftcal-demo")
     summary = run_demo(DemoConfig(out_dir=out, seed=args.seed, quick=args.quick))
     print(format_tables(summary))
@@ -92,10 +101,15 @@ def run_live(args) -> int:
 def run_closed_loop(args) -> int:
     import dataclasses
 
+    from ..runtime.errors import FtcalError
     from ..sim.closed_loop import CLOSED_LOOP_QUICK, ClosedLoopConfig, format_closed_loop, run_closed_loop
 
-    config = ClosedLoopConfig(out_dir=output_folder(args.out or "ftcal-closed-loop-demo"), seed=args.seed)
-    summary = run_closed_loop(dataclasses.replace(config, **(CLOSED_LOOP_QUICK if args.quick else {})))
+    if args.seeds < 1:
+        raise FtcalError(f"--seeds {args.seeds}: must be at least 1.")
+    config = ClosedLoopConfig.of_variant(args.variant, out_dir=output_folder(args.out or "ftcal-closed-loop-demo"),
+                                         seed=args.seed)
+    summary = run_closed_loop(dataclasses.replace(config, **(CLOSED_LOOP_QUICK if args.quick else {})),
+                              seeds=tuple(range(args.seed, args.seed + args.seeds)))
     print(format_closed_loop(summary))
     print(f"\ndone in {summary['elapsed_s']:.0f} s ({summary['cpu_s']:.0f} s CPU)")
     print("wrote " + ", ".join(summary["files"]))

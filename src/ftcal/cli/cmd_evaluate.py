@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ..core.limits import ARX_WARMUP, FREE_RUN_STARTS, PREDICTION_MODES
+from ..core.limits import ARX_WARMUP, FREE_RUN_STARTS, PREDICTION_MODES, TARE_MODES
 from ._common import add_scheduler_option, print_json
 from ._examples import epilog
 
@@ -25,7 +25,17 @@ def register(sub) -> None:
                         "of each segment")
     p.add_argument("--segment-by", metavar="COL", help="column separating segments (ARX; default: the 'segment' "
                                                        "column ftcal dataset writes when every file has one)")
-    p.add_argument("--group-by", metavar="COL", help="accepted for symmetry with fit; unused")
+    p.add_argument("--group-by", metavar="COL",
+                   help="groups of the baseline comparison, one fold each (default: the 'load' column ftcal "
+                        "dataset writes when every file has one, else one per file)")
+    p.add_argument("--baseline", metavar="identity|MODEL",
+                   help="compare with a baseline on the same samples: 'identity' (the model's first six inputs "
+                        "already are the wrench: the vendor's matrix) or another model file; prints each "
+                        "axis' ratio to it and the verdict of the grouped folds (better, ties, worse)")
+    p.add_argument("--tare", choices=TARE_MODES, default="none",
+                   help="remove each recording's offset at its first static hold from the model and the baseline "
+                        "alike, as users re-tare: first-hold (each recording), per-file (once per file) or none "
+                        "(default)")
     add_scheduler_option(p)
     p.set_defaults(func=run)
 
@@ -34,7 +44,8 @@ def run(args) -> int:
     from ..workflow.evaluation import evaluate
 
     result = evaluate(args.model, args.data, mode=args.mode, start=args.start, warmup=args.warmup,
-                      segment_by=args.segment_by, group_by=args.group_by, scheduler=args.scheduler)
+                      segment_by=args.segment_by, group_by=args.group_by, scheduler=args.scheduler,
+                      baseline=args.baseline, tare=args.tare)
     if args.json:
         print_json(result.to_dict())
     else:

@@ -35,6 +35,9 @@ def register(sub) -> None:
     p.add_argument("--reaction", action="store_true",
                    help="the sensor reports the wrench it applies on the tool (opposite sign): negate readings")
     p.add_argument("--frame", metavar="NAME", help="name of the sensor frame, stored in the file (e.g. ft_sensor)")
+    p.add_argument("--calibration", metavar="CAL.json",
+                   help="identify on the calibrated wrench: apply this model (ftcal fit -o) to its input columns "
+                        "(the raw channels) first, in the same command (--inputs then does not apply)")
     drift = p.add_argument_group("a bias that drifts (needs --time for the time models)")
     drift.add_argument("--bias-drift", choices=BIAS_DRIFTS, default="auto",
                        help="bias over the recording: constant, affine in time, a random walk (state-space model), "
@@ -55,11 +58,17 @@ def run(args) -> int:
 
     require_suffix(args.output, (".json",), "-o")
     check_not_input(args.output, args.data + ([args.rebias] if args.rebias else []))
-    inputs = inputs_of(args, DEFAULT_WRENCH)
+    inputs = inputs_of(args, None)
+    if args.calibration is not None:
+        check_not_input(args.output, [args.calibration])
+        if inputs is not None:
+            raise FtcalError("--inputs does not go with --calibration: the model names its input columns.")
+    inputs = inputs or DEFAULT_WRENCH
     if args.rebias:
         # Options that change nothing in a re-tare are refused rather than silently ignored.
         for option, given in (("--dynamic", args.dynamic), ("--bias-drift", args.bias_drift != "auto"),
-                              ("--group-by", args.group_by is not None), ("--frame", args.frame is not None)):
+                              ("--group-by", args.group_by is not None), ("--frame", args.frame is not None),
+                              ("--calibration", args.calibration is not None)):
             if given:
                 raise FtcalError(f"{option} does not apply to --rebias (the re-tare keeps {args.rebias}'s model and "
                                  "estimates one constant bias); leave it out.")
@@ -68,7 +77,8 @@ def run(args) -> int:
     else:
         result = identify_payload(args.data, inputs=inputs, group_by=args.group_by,
                                   keep_moving=args.keep_moving, reaction=args.reaction, frame=args.frame,
-                                  bias_drift=args.bias_drift, temperature=args.temperature, **source_keywords(args))
+                                  bias_drift=args.bias_drift, temperature=args.temperature,
+                                  calibration=args.calibration, **source_keywords(args))
     print(result.summary())
     result.save(args.output)
     print(f"wrote {args.output}", file=sys.stderr)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from ..core.limits import TARE_MODES
 from ._common import column_list
 from ._examples import epilog
 
@@ -36,6 +37,12 @@ def register(sub) -> None:
                    help="column naming groups, e.g. the load case (default: the 'load' column ftcal dataset "
                         "writes when every file has one, else one per file)")
     p.add_argument("--title", default="ftcal calibration report", help="page title")
+    p.add_argument("--baseline", metavar="identity|MODEL",
+                   help="add a section comparing every model with a baseline, as ftcal evaluate --baseline: "
+                        "'identity' (the inputs already are the wrench: the vendor's matrix) or a model file")
+    p.add_argument("--tare", choices=TARE_MODES, default="none",
+                   help="remove each recording's offset at its first static hold from the models and the baseline "
+                        "alike (first-hold; per-file: once per file; none, the default), as ftcal evaluate --tare")
     p.set_defaults(func=run)
 
 
@@ -72,6 +79,7 @@ def run(args: argparse.Namespace) -> int:
         if Path(name).suffix.lower() not in DATA_SUFFIXES:
             raise FtcalError(f"--train {name}: data files end in {', '.join(DATA_SUFFIXES)}.")
     result = report(model_paths, data_paths, out, train=args.train, inputs=args.inputs, outputs=args.outputs,
-                    segment_by=args.segment_by, group_by=args.group_by, title=args.title)
+                    segment_by=args.segment_by, group_by=args.group_by, title=args.title,
+                    baseline=args.baseline, tare=args.tare)
     print(result.summary())
     return 0

@@ -26,6 +26,10 @@ SOLVERS = ("lstsq", "osqp")
 PREDICTION_MODES = ("one-step", "free-run")
 """ARX prediction: measured past outputs (the paper's evaluation, default) or fed-back predictions."""
 
+TARE_MODES = ("none", "first-hold", "per-file")
+"""How evaluate/report re-tare held-out recordings (:mod:`ftcal.data.tare`): not, each recording at its first
+static hold, or once per file."""
+
 FREE_RUN_STARTS = ("zeros", "measured")
 """Free-run history before the first sample: zeros (the paper's code) or the first measured output."""
 

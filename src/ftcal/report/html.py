@@ -300,7 +300,8 @@ def render_page(title: str, meta: Sequence[str], sections: Sequence[tuple[str, s
 
 def build_report(runs: Sequence[ModelRun], validation: Dataset, out_path: str | os.PathLike, *,
                  train: Dataset | None = None, title: str = "ftcal calibration report",
-                 cv: CrossValidationResult | None = None, notes: Sequence[str] = ()) -> Path:
+                 cv: CrossValidationResult | None = None, notes: Sequence[str] = (),
+                 comparisons: Sequence[tuple] = ()) -> Path:
     """Write a self-contained HTML report comparing ``runs`` on ``validation``.
 
     Parameters
@@ -311,6 +312,8 @@ def build_report(runs: Sequence[ModelRun], validation: Dataset, out_path: str | 
     train : the training data, for the data-coverage figures and tables
     cv : a cross-validation result to plot and tabulate
     notes : free text shown at the end of the page
+    comparisons : (model name, :class:`~ftcal.core.baseline.BaselineComparison`) pairs: a section
+        "Against the baseline" after the models' table
 
     Returns
     -------
@@ -322,6 +325,8 @@ def build_report(runs: Sequence[ModelRun], validation: Dataset, out_path: str | 
     _check(runs, validation)
     with rc_context(STYLE):
         sections = _gather_skipped(_sections(runs, validation, train, cv))
+    if comparisons:
+        sections.insert(1, _Section("baseline", "Against the baseline", [tables.baseline_table(list(comparisons))]))
     if notes:
         sections.append(_Section("notes", "Notes", ['<ul class="notes">' + "".join(
             f"<li>{html.escape(str(n))}</li>" for n in notes) + "</ul>"]))

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import html
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -17,6 +18,9 @@ from ..core.dataset import Dataset
 from ..core.metrics import output_units
 from ..core.select import CrossValidationResult
 from .runs import ModelRun, natural_key, temperature_column
+
+if TYPE_CHECKING:
+    from ..core.baseline import BaselineComparison
 
 MISSING = "–"
 
@@ -175,3 +179,22 @@ def cv_table(cv: CrossValidationResult) -> str:
             bold.append((r, 5))
     return html_table(header, rows, bold=bold, cls="cv",
                       caption=f"Grouped {cv.n_folds}-fold cross-validation (selected: {cv.best.label}).")
+
+
+def baseline_table(comparisons: Sequence[tuple[str, "BaselineComparison"]]) -> str:
+    """One row per (model, axis): both RMSEs, their ratio, the fold ratios' range and the grouped verdict."""
+    header = ["model", "output", "model RMSE", "baseline RMSE", "ratio", "fold ratios", "verdict", "unit"]
+    rows = []
+    for name, comparison in comparisons:
+        for row in comparison.rows:
+            ratios = [m / b for m, b in zip(row.model_folds, row.baseline_folds) if b > 0]
+            rows.append([name, row.name, format_metric(row.model_rmse), format_metric(row.baseline_rmse),
+                         MISSING if row.ratio is None else f"{row.ratio:.3g}",
+                         f"{min(ratios):.3g}–{max(ratios):.3g}" if len(ratios) > 1 else MISSING, row.verdict,
+                         row.unit])
+    first = comparisons[0][1]
+    tare = "" if first.tare == "none" else f", both tared ({first.tare})"
+    caption = (f"Against baseline {first.baseline}{tare}, on {len(first.folds)} fold(s) (the groups "
+               f"{', '.join(first.folds)}): better or worse when the fold-by-fold log ratio's mean exceeds t × "
+               "its standard error, ties within it.")
+    return html_table(header, rows, caption=caption)

@@ -248,7 +248,7 @@ def thresholds_for(model, model_name: str, limits):
 
 def _acceptance(tables, accept, options, *, group_by, html, payload_json, limits, serial,
                 history_dir) -> CheckResult:
-    from ..check.accept import acceptance_test, axis_limits, read_test_data
+    from ..check.accept import acceptance_test, axis_limits, read_test_data, retare_verdict
     from ..files.model_files import load_model_file
     from ..runtime.atomic import write_text_atomic
 
@@ -265,8 +265,10 @@ def _acceptance(tables, accept, options, *, group_by, html, payload_json, limits
 
         payload = load_payload(payload_json)
         source = gravity_source(options)
+    rows: dict = {}
     error, reference, labels, issues, problems = read_test_data(
-        paths, model, payload=payload, source=source, group_by=group_by, time_column=options["time"] or "time")
+        paths, model, payload=payload, source=source, group_by=group_by, time_column=options["time"] or "time",
+        rows=rows)
     labels, issues, problems = tables.named_labels(labels), tables.named(issues), tables.named(problems)
     result = acceptance_test(error, labels, model.output_names_, thresholds, issues, reference, problems)
     limits_per_axis = axis_limits(result.outputs, thresholds)
@@ -283,6 +285,9 @@ def _acceptance(tables, accept, options, *, group_by, html, payload_json, limits
         lines.append(f"... {len(failed) - MAX_POSES_PRINTED} more failing pose(s)")
     lines += [f"channel: {issue}" for issue in result.channel_issues]
     lines += [f"unusable: {problem}" for problem in result.problems]
+    retare = retare_verdict(result, rows["file"], rows["time"])
+    if retare is not None:
+        lines.append(retare)
     lines.append("PASS" if result.passed else f"FAIL ({len(failed)} of {len(result.poses)} pose(s) over threshold, "
                                               f"{len(result.channel_issues)} channel issue(s)"
                  + (f", {len(result.problems)} reason(s) the test cannot pass" if result.problems else "") + ")")

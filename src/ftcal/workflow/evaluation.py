@@ -34,6 +34,9 @@ class EvaluationResult(StepResult):
         outside the training range and span, ``out_of_range``, and the other ARX mode's metrics).
     mode, start, warmup : the ARX prediction the metrics score
     notes : list of str, the defaults taken (printed first)
+    comparison : :class:`~ftcal.core.baseline.BaselineComparison` or None
+        Against ``baseline`` (after ``tare``): per-axis ratios and the grouped folds' verdict (printed last;
+        ``metrics["baseline"]`` in the JSON).
 
     Examples
     --------
@@ -52,6 +55,7 @@ class EvaluationResult(StepResult):
     start: str = "zeros"
     warmup: str = "drop"
     notes: list[str] = field(default_factory=list)
+    comparison: Any = None
 
     def to_dict(self) -> dict:
         from .result import plain
@@ -104,6 +108,8 @@ class EvaluationResult(StepResult):
             if other in summary and summary[other]["force_norm_rmse"] is not None:
                 lines.append(f"{label} {format_metric('force_norm_rmse', summary[other]['force_norm_rmse'])}")
         lines.extend(f"  {note}" for note in METRIC_NOTES)
+        if self.comparison is not None:
+            lines.extend(self.comparison.lines())
         return "\n".join(lines)
 
 
@@ -165,7 +171,7 @@ def _model_and_segments(model) -> tuple[Any, tuple, str]:
 
 def evaluate(model, data, *, mode: str = "one-step", start: str = "zeros", warmup: str = "drop",
              segment_by: str | None = None, group_by: str | None = None, scheduler: str | None = None,
-             executor=None) -> EvaluationResult:
+             executor=None, baseline=None, tare: str = "none") -> EvaluationResult:
     """Metrics of a model on data with reference outputs, as ``ftcal evaluate`` gives them.
 
     Parameters
@@ -178,9 +184,17 @@ def evaluate(model, data, *, mode: str = "one-step", start: str = "zeros", warmu
     start : ``"zeros"`` or ``"measured"``: ARX free-run history at each segment start
     warmup : ``"drop"`` or ``"keep"`` the first max(na, nb) rows of each segment (ARX)
     segment_by : column separating segments (ARX; default: the 'segment' column ftcal dataset writes, when
-        every table has one, as fit's); group_by : accepted for symmetry with fit, unused
+        every table has one, as fit's); group_by : the folds of the baseline comparison (default: the 'load'
+        column ftcal dataset writes, when every table has one, else one per file)
     scheduler : str, optional
         ``local:N`` or a Dask address; ``executor``: an executor already open (wins over it).
+    baseline : ``"identity"``, a model file or a fitted model, optional
+        What the model is compared with on the same samples: ``identity`` reads the model's first six inputs
+        as its outputs (the channels already are a wrench: the vendor's matrix); a model file predicts
+        from its own inputs. Static models only.
+    tare : ``"none"``, ``"first-hold"`` or ``"per-file"``
+        Remove each recording's offset (or each file's) at its first static hold, from the model and the
+        baseline alike, as users re-tare (:mod:`ftcal.data.tare`); the comparison is then of tared errors.
 
     Returns
     -------
@@ -228,7 +242,118 @@ def evaluate(model, data, *, mode: str = "one-step", start: str = "zeros", warmu
     for other in ("one_step", "free_run"):
         if other in summary:
             metrics[other] = {k: summary[other][k] for k in EVALUATION_KEYS if k in summary[other]}
-    return EvaluationResult(model, metrics, mode, start, warmup, notes)
+    comparison = None
+    if baseline is not None or tare != "none":
+        with tables_of(data) as (paths, dataset, _):
+            comparison = compare_with_baseline(model, paths, dataset, baseline, tare, segment_by, group_by, notes)
+        metrics["baseline"] = comparison.as_dict()
+    return EvaluationResult(model, metrics, mode, start, warmup, notes, comparison)
+
+
+IDENTITY = "identity"
+
+
+def baseline_predictor(baseline, model) -> tuple[Any, tuple[str, ...], str]:
+    """(predict(inputs) -> outputs in the model's order, its input columns, its name) of a baseline.
+
+    ``identity``: the model's first len(outputs) inputs read as its outputs (the channels already are a
+    wrench); a model file or fitted model: its prediction, its columns reordered as the model's outputs.
+    """
+    import numpy as np
+
+    outputs = tuple(model.output_names_)
+    if isinstance(baseline, str) and baseline == IDENTITY:
+        inputs = tuple(model.input_names_[:len(outputs)])
+        if len(inputs) < len(outputs):
+            raise FtcalError(f"baseline identity: the model has {len(inputs)} inputs for {len(outputs)} outputs; "
+                             "identity reads its first inputs as the wrench.")
+        return (lambda u: np.asarray(u, float)), inputs, f"identity ({','.join(inputs)} read as "\
+                                                       f"{','.join(outputs)})"
+    other, _, name = _model_and_segments(baseline)
+    if not other.is_static:
+        raise FtcalError(f"baseline {name}: an ARX model; baselines are static models (or identity).")
+    missing = [n for n in outputs if n not in other.output_names_]
+    if missing:
+        raise FtcalError(f"baseline {name}: has no output(s) {', '.join(missing)} of the model.")
+    order = [list(other.output_names_).index(n) for n in outputs]
+    return (lambda u: other.predict(u, warn_out_of_range=False)[:, order]), tuple(other.input_names_), name
+
+
+def compare_with_baseline(model, paths, dataset, baseline, tare: str, segment_by, group_by, notes: list[str]):
+    """The model's and the baseline's errors on the data read whole, tared alike, compared fold by fold.
+
+    Returns
+    -------
+    :class:`~ftcal.core.baseline.BaselineComparison`
+    """
+    import numpy as np
+
+    from ..core.baseline import compare_to_baseline
+    from ..data.tare import check_tare, tare_offsets
+
+    check_tare(tare, "tare")
+    if not model.is_static:
+        raise FtcalError("baseline/tare: the comparison takes static models (no ARX lags).")
+    outputs = tuple(model.output_names_)
+    if baseline is None:  # a tare alone: the model tared against itself untared (what the re-tare gives)
+        predict, base_inputs, base_name = None, tuple(model.input_names_), "the model without tare"
+    else:
+        predict, base_inputs, base_name = baseline_predictor(baseline, model)
+    parts = _comparison_parts(paths, dataset, model, base_inputs, outputs, segment_by, group_by, notes)
+    u, ub, y, recordings, folds, files, time, hold = (np.concatenate([p[k] for p in parts]) if parts[0][k] is not None
+                                                      else None for k in range(8))
+    model_error = model.predict(u, warn_out_of_range=False) - y
+    base_error = model_error if predict is None else predict(ub) - y
+    offsets = tare_offsets([model_error, base_error], y, recordings, files, tare, time=time, hold=hold,
+                           notes=notes)
+    if predict is None:
+        return compare_to_baseline(model_error - offsets[0], base_error, folds, outputs, base_name, f"{tare}, "
+                                   "the model only")
+    return compare_to_baseline(model_error - offsets[0], base_error - offsets[1], folds, outputs, base_name, tare)
+
+
+def _comparison_parts(paths, dataset, model, base_inputs, outputs, segment_by, group_by, notes) -> list[tuple]:
+    """Per table: (model inputs, baseline inputs, reference, recording, fold, file, time or None, hold or None)."""
+    import numpy as np
+
+    from ..data.tables import numeric_columns, read_table, table_label_column
+
+    if dataset is not None:
+        def columns(names):
+            missing = [n for n in names if n not in dataset.input_names]
+            if missing:
+                raise FtcalError(f"data: no input column(s) {', '.join(missing)}.")
+            return dataset.select_inputs(names)
+
+        y = dataset.outputs[:, [dataset.output_names.index(n) for n in outputs]]
+        return [(columns(model.input_names_), columns(base_inputs), y, dataset.segments, dataset.groups,
+                 np.zeros(dataset.n_samples, dtype=int), None, None)]
+    if group_by is None:
+        _, group_by = default_label_columns(list(paths), "", notes, groups=True)
+    parts = []
+    for path in paths:
+        frame = read_table(path)
+        where = Path(path)
+        n = len(frame)
+        fold_column = table_label_column(list(frame.columns), group_by)
+        if fold_column is not None and fold_column not in frame.columns:
+            raise FtcalError(f"{path}: no group column {fold_column!r} (--group-by).")
+        if segment_by is not None and segment_by not in frame.columns:
+            raise FtcalError(f"{path}: no segment column {segment_by!r} (--segment-by).")
+        parts.append((numeric_columns(frame, model.input_names_, where, "input"),
+                      numeric_columns(frame, base_inputs, where, "baseline input"),
+                      numeric_columns(frame, outputs, where, "reference output"),
+                      frame[segment_by].astype(str).to_numpy(dtype=object) if segment_by
+                      else np.full(n, "", dtype=object),
+                      frame[fold_column].astype(str).to_numpy(dtype=object) if fold_column
+                      else np.full(n, str(path), dtype=object),
+                      np.full(n, str(path), dtype=object),
+                      numeric_columns(frame, ("time",), where, "time")[:, 0] if "time" in frame.columns else None,
+                      numeric_columns(frame, ("hold",), where, "hold")[:, 0] if "hold" in frame.columns else None))
+    if len({p[6] is None for p in parts}) > 1 or len({p[7] is None for p in parts}) > 1:
+        # one clock for all or none: rows at the hold sample rate where a table has no time column
+        raise FtcalError("data: some tables have a 'time' (or 'hold') column and others not; give tables alike.")
+    return parts
 
 
 def _evaluate_whole(paths, dataset, model, training_segments, name, mode, start, warmup, segment_by) -> dict:
@@ -515,7 +640,7 @@ def _union(name_lists) -> tuple[str, ...]:
 def report(models: Sequence[str], data: Sequence[str], output: str | os.PathLike, *, train: Sequence[str] = (),
            inputs: Sequence[str] | None = None, outputs: Sequence[str] | None = None,
            segment_by: str | None = None, group_by: str | None = None,
-           title: str = "ftcal calibration report") -> ReportResult:
+           title: str = "ftcal calibration report", baseline=None, tare: str = "none") -> ReportResult:
     """Evaluate model files on data files and write one self-contained HTML page, as ``ftcal report`` does.
 
     Parameters
@@ -528,6 +653,8 @@ def report(models: Sequence[str], data: Sequence[str], output: str | os.PathLike
     segment_by, group_by : columns naming segments and groups (default: the 'segment' and 'load' columns
         ftcal dataset writes, when every table has them, else one per file)
     title : the page's title
+    baseline, tare : as :func:`evaluate`'s: a section compares every model with the baseline (identity: the
+        inputs read as the wrench, or a model file), tared alike, fold by fold over the groups
 
     Returns
     -------
@@ -560,5 +687,11 @@ def report(models: Sequence[str], data: Sequence[str], output: str | os.PathLike
     notes = [f"Model files: {', '.join(model_paths)}.", f"Validation data files: {', '.join(data_paths)}."]
     if train_paths:
         notes.append(f"Training data files: {', '.join(train_paths)}.")
-    path = build_report(runs, validation, Path(output), train=training, title=title, notes=notes)
+    comparisons = []
+    if baseline is not None or tare != "none":
+        comparisons = [(name, compare_with_baseline(model, data_paths, None, baseline, tare, segment_by, group_by,
+                                                    defaults))
+                       for model, name in zip(fitted, run_names(model_paths))]
+    path = build_report(runs, validation, Path(output), train=training, title=title, notes=notes,
+                        comparisons=comparisons)
     return ReportResult(path, len(runs), validation.n_samples, path.stat().st_size / 1e6, defaults)

@@ -176,7 +176,8 @@ class PayloadResult(StepResult):
 
     def summary(self) -> str:
         return "\n".join([*self.notes, *_fit_lines(self.fit, self.drift.n_groups, self.payload.gravity, self.scale),
-                          *_drift_lines(self.drift), self.excitation])
+                          gain_note(self.fit.mass, self.fit.stderr["mass"]), *_drift_lines(self.drift),
+                          self.excitation])
 
     def to_dict(self) -> dict:
         from .result import plain
@@ -197,11 +198,63 @@ class PayloadResult(StepResult):
         save_payload(self.payload, path, sources=self.sources)
 
 
+# The relative gain error the printout converts into a mass shift (1 %: a gain a workbench calibration can miss).
+GAIN_EXAMPLE = 0.01
+
+
+def gain_note(mass: float, mass_se: float) -> str:
+    """One line: the standard errors assume a right gain, and how a relative gain error e moves the mass.
+
+    A wrench read (1 + e) times too large is fitted by (1 + e) times the mass, bias and first moment
+    (the model is linear in them), so the mass moves by e·m, the centre of mass not at all when forces and
+    torques share the error; no standard error computed from the residuals can see it.
+    """
+    shift = GAIN_EXAMPLE * mass
+    ratio = f", {shift / mass_se:.2g} of its standard errors" if np.isfinite(mass_se) and mass_se > 0 else ""
+    return (f"gain: the standard errors assume the sensor's gain is right; a relative gain error e moves the mass "
+            f"by about e·m = {mass:.4g} kg × e ({100 * GAIN_EXAMPLE:g} %: {shift:.2g} kg{ratio}) and the bias by "
+            "e × the bias; the centre of mass does not move when forces and torques share the error")
+
+
+def _with_gain_note(payload):
+    """The payload file's ``fit.standard_errors`` with the gain assumption said (the file says it too)."""
+    fit = dict(payload.fit)
+    fit["standard_errors"] = (f"{fit.get('standard_errors') or 'classical'}; assume the sensor's gain is right: a "
+                              f"relative gain error e moves the mass by about e*m = {payload.mass:.4g} kg * e")
+    return replace(payload, fit=fit)
+
+
+def calibrated_tables(data, calibration, notes: list[str]) -> tuple[dict, tuple[str, ...]]:
+    """The tables with the calibrated wrench added: ({name: DataFrame}, the six calibrated columns).
+
+    ``calibration`` (a model file or fitted static model with six outputs) is applied to its input
+    columns of each table; the result is stored as ``<output>_calibrated`` beside the raw columns.
+    """
+    from ..data.tables import numeric_columns, read_table
+    from .evaluation import _model_and_segments
+
+    model, _, name = _model_and_segments(calibration)
+    if not model.is_static or len(model.output_names_) != 6:
+        raise FtcalError(f"--calibration {name}: needs a static model with six outputs (a wrench); it has "
+                         f"{len(model.output_names_)} output(s)" + ("" if model.is_static else " and ARX lags") + ".")
+    columns = tuple(f"{o}_calibrated" for o in model.output_names_)
+    frames = {}
+    for path, source in zip(data.paths, data.sources):
+        from pathlib import Path
+
+        frame = read_table(path)
+        u = numeric_columns(frame, model.input_names_, Path(source), "calibration input")
+        wrench = model.predict(u, warn_out_of_range=False)
+        frames[source] = frame.assign(**{c: wrench[:, j] for j, c in enumerate(columns)})
+    notes.append(f"wrench: {name} applied to {','.join(model.input_names_)} (columns {','.join(columns)})")
+    return frames, columns
+
+
 @reads_tables()
 def identify_payload(data, *, inputs: Sequence[str] = DEFAULT_WRENCH, group_by: str | None = None,
                      keep_moving: bool = False, reaction: bool = False, frame: str | None = None,
                      bias_drift: str = "auto", temperature: str | None = None, output=None,
-                     **source) -> PayloadResult:
+                     calibration=None, **source) -> PayloadResult:
     """Identify the sensor bias and the tool's mass, centre of mass (and inertia): ``ftcal payload``.
 
     Parameters
@@ -223,6 +276,9 @@ def identify_payload(data, *, inputs: Sequence[str] = DEFAULT_WRENCH, group_by: 
     bias_drift : {"auto", "none", "linear", "random-walk"}
     temperature : column the bias is also affine in
     output : path or None; when given, the payload file is written there
+    calibration : model file or fitted static model, optional
+        Identify on the calibrated wrench: the model is applied to its input columns (the raw channels)
+        first, and ``inputs`` is not used.
     **source
         The gravity source: ``orientation``, ``gravity_columns``, ``g``, ``urdf``, ``robot``, ``sensor``,
         ``ft_joint``, ``ft_frame``, ``base``, ``degrees``, ``dynamic``, ``angular_velocity``,
@@ -262,6 +318,16 @@ def identify_payload(data, *, inputs: Sequence[str] = DEFAULT_WRENCH, group_by: 
     from ..payload.tables import group_statistics, identify_recording, read_payload_tables
 
     wrench = renamed_keyword(source, "wrench", "inputs", inputs, DEFAULT_WRENCH)
+    if calibration is not None:
+        if tuple(wrench) != DEFAULT_WRENCH:
+            raise FtcalError("--inputs does not go with --calibration: the model names its input columns.")
+        calibrated: list[str] = []
+        frames, columns = calibrated_tables(data, calibration, calibrated)
+        result = identify_payload(frames, inputs=columns, group_by=group_by, keep_moving=keep_moving,
+                                  reaction=reaction, frame=frame, bias_drift=bias_drift, temperature=temperature,
+                                  output=output, **source)
+        result.notes[:0] = calibrated
+        return result
     paths, names = data.paths, data.sources
     options = source_options(source, "identify_payload")
     if bias_drift not in BIAS_DRIFTS:
@@ -306,8 +372,8 @@ def identify_payload(data, *, inputs: Sequence[str] = DEFAULT_WRENCH, group_by: 
         warnings.warn(message, ConventionWarning, stacklevel=2)
     check_mass_sign(fit)
     excitation = payload_excitation(group_statistics(recording, dynamic=dynamic))
-    payload = PayloadParameters.from_fit(fit, gravity=options["g"], frame=frame, reaction=reaction,
-                                         wrench_columns=tuple(wrench), drift=result.drift)
+    payload = _with_gain_note(PayloadParameters.from_fit(fit, gravity=options["g"], frame=frame, reaction=reaction,
+                                                         wrench_columns=tuple(wrench), drift=result.drift))
     measured = np.asarray(recording.measured, dtype=float)
     scale = tuple(float(np.sqrt(np.mean(measured[:, block] ** 2))) for block in (slice(0, 3), slice(3, 6)))
     # the file states the residual RMS as the text does
