@@ -61,8 +61,8 @@ from ..runtime.errors import FtcalError
 from .c_events import describe_event_text, event_fields, event_types, log_text
 from .c_health import describe_text, flag_events_text, reason_fields
 from .c_identify import TOOL_STATUS, _array, _num, collect_text, finish_text, state_fields
-from .calibrator import (DEFAULT_NOISE_FRACTION, DEFAULT_WALK_FRACTION, GATE_PROBABILITY, NO_TOOL, RETARE_VARIANCE,
-                         SECONDS_PER_HOUR, UNEXPLAINED_SECONDS, UNEXPLAINED_SIGMA, _walk_from_knots)
+from .calibrator import (GATE_PROBABILITY, NO_TOOL, RETARE_VARIANCE, UNEXPLAINED_SECONDS, UNEXPLAINED_SIGMA,
+                         tracker_defaults)
 from .drift import FALSE_ALARM, LAGS_S, SNAPSHOT_S
 from .health import BIT, DEAD_RUN, FLAGS
 from .tracker import gate_chi2
@@ -88,13 +88,8 @@ def runtime_parameters(tools: dict) -> dict:
     """
     thresholds = Thresholds()
     scale = np.repeat([thresholds.force, thresholds.torque], 3)
-    files = list(tools.values())
-    noise = next((np.asarray(p.fit["residual_rms"], float) for p in files if "residual_rms" in p.fit),
-                 DEFAULT_NOISE_FRACTION * scale)
-    noise = np.maximum(noise, 1e-12)
-    walk = next((w for w in map(_walk_from_knots, files) if w is not None),
-                (DEFAULT_WALK_FRACTION * scale) ** 2 / SECONDS_PER_HOUR)
-    return {"noise_variance": noise ** 2, "walk_variance": np.asarray(walk, float), "accept_limit": scale,
+    noise, walk = tracker_defaults(tools.values(), thresholds)  # the one rule LiveCalibrator uses
+    return {"noise_variance": np.sqrt(noise) ** 2, "walk_variance": walk, "accept_limit": scale,
             "gate_chi2": gate_chi2(GATE_PROBABILITY), "drift_chi2": gate_chi2(1.0 - FALSE_ALARM)}
 
 

@@ -144,11 +144,52 @@ def _walk_from_file(payload: PayloadParameters) -> np.ndarray | None:
 
 
 def _noise_from_file(payload: PayloadParameters) -> np.ndarray | None:
-    """Per-sample noise standard deviation that ``payload --bias-drift random-walk`` identified, else None."""
+    """Per-sample noise variance the tracker sees, from what ``payload --bias-drift random-walk`` stored, else None.
+
+    ``sample_variance`` when the file has it: white noise plus the wander, fitted to the within-hold
+    variogram at the sample rate (:func:`ftcal.payload.drift.within_hold_noise`). The block-mean noise
+    times the block's sample count is exact for white noise only: a wander slower than a sample makes it
+    too small when the blocks follow the wander (a real sensor: 5-17x below the residual) and too large
+    when they average it (a 0.25 N wander of τ 2 s in 1-s blocks: up to 0.6 N). Files written before
+    ``sample_variance``: the larger of it and the fit's residual RMS² (which holds the wander too).
+    """
     drift = payload.drift
     if drift is None or drift.model != "random-walk" or drift.noise_variance is None:
         return None
-    return np.sqrt(np.asarray(drift.noise_variance, dtype=float))
+    if drift.sample_variance is not None:
+        return np.asarray(drift.sample_variance, dtype=float)
+    shown = np.asarray(payload.fit["residual_rms"], float) ** 2 if "residual_rms" in payload.fit else np.zeros(6)
+    return np.maximum(np.asarray(drift.noise_variance, dtype=float), shown)
+
+
+def tracker_defaults(payloads, thresholds: Thresholds | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The bias tracker's default noise variance r (per sample) and walk variance q (per s): the one rule every
+    path uses (:class:`LiveCalibrator` and ``convert --to c-runtime``, :func:`ftcal.live.c_runtime.runtime_parameters`).
+
+    r: from the first payload whose random-walk drift stores a noise (:func:`_noise_from_file`: the
+    per-sample variance the data show within the holds), else the first one's ``fit.residual_rms``², else
+    (:data:`DEFAULT_NOISE_FRACTION` × the acceptance thresholds)². q: the first stored walk variance, else an
+    older random-walk file's knot trajectory, else (:data:`DEFAULT_WALK_FRACTION` × the thresholds)² per h.
+
+    Parameters
+    ----------
+    payloads : iterable of PayloadParameters (None entries are skipped), in library order
+    thresholds : ``check --accept``'s (default 1 N, 0.1 N·m)
+
+    Returns
+    -------
+    (noise variance (6,), walk variance per s (6,))
+    """
+    thresholds = thresholds or Thresholds()
+    scale = np.repeat([thresholds.force, thresholds.torque], 3)
+    files = [p for p in payloads if p is not None]
+    noise = next((v for v in map(_noise_from_file, files) if v is not None), None)
+    if noise is None:
+        noise = next((np.asarray(p.fit["residual_rms"], float) ** 2 for p in files if "residual_rms" in p.fit),
+                     (DEFAULT_NOISE_FRACTION * scale) ** 2)
+    walk = next((w for w in [*map(_walk_from_file, files), *map(_walk_from_knots, files)] if w is not None),
+                (DEFAULT_WALK_FRACTION * scale) ** 2 / SECONDS_PER_HOUR)
+    return np.maximum(np.asarray(noise, float), 1e-24), np.asarray(walk, float)
 
 
 def _walk_from_knots(payload: PayloadParameters) -> np.ndarray | None:
@@ -240,19 +281,11 @@ class LiveCalibrator:
         self.thresholds = thresholds or Thresholds()
         scale = np.repeat([self.thresholds.force, self.thresholds.torque], 3)
         self._accept_limit = scale
-        files = [p for p in self.tools.values() if p is not None]
-        self.noise_std = self._vector(noise_std, "noise_std") if noise_std is not None else next(
-            (v for v in map(_noise_from_file, files) if v is not None), None)
-        if self.noise_std is None:
-            self.noise_std = next((np.asarray(p.fit["residual_rms"], float) for p in files if "residual_rms" in p.fit),
-                                  DEFAULT_NOISE_FRACTION * scale)
-        self.noise_std = np.maximum(self.noise_std, 1e-12)
-        if walk_std is not None:
-            walk_variance = self._vector(walk_std, "walk_std") ** 2 / SECONDS_PER_HOUR
-        else:
-            walk_variance = next((w for w in [*map(_walk_from_file, files), *map(_walk_from_knots, files)]
-                                  if w is not None), (DEFAULT_WALK_FRACTION * scale) ** 2 / SECONDS_PER_HOUR)
-        self.walk_variance = walk_variance  # per second
+        noise_default, walk_default = tracker_defaults(self.tools.values(), self.thresholds)
+        self.noise_std = (np.maximum(self._vector(noise_std, "noise_std"), 1e-12) if noise_std is not None
+                          else np.sqrt(noise_default))
+        self.walk_variance = (self._vector(walk_std, "walk_std") ** 2 / SECONDS_PER_HOUR if walk_std is not None
+                              else walk_default)  # per second
         self.threshold = gate_chi2(gate_probability)
         self.drift = DriftCheck(gate_chi2(1.0 - FALSE_ALARM))  # the bias moving faster than the walk
         self.unexplained_sigma, self.unexplained_seconds = float(unexplained_sigma), float(unexplained_seconds)
