@@ -91,5 +91,8 @@ def test_the_c_runtime_starts_from_the_same_noise_and_walk(identified):
         params = runtime_parameters(tools)
         np.testing.assert_array_equal(params["noise_variance"], live.noise_std ** 2)
         np.testing.assert_array_equal(params["walk_variance"], live.walk_variance)
-    params = runtime_parameters({"tool": identified})
-    np.testing.assert_allclose(params["walk_variance"], identified.drift.walk_variance / 3600.0, rtol=1e-15)
+    # The wander looks like a walk to the 1-s blocks (the stored walk is far above the true 0.5 N/√h); the tracker
+    # takes out the share a Gauss-Markov wander explains (else it walks with the wander and takes touches in).
+    stored = np.sqrt(identified.drift.walk_variance[:3])
+    tracked = np.sqrt(runtime_parameters({"tool": identified})["walk_variance"][:3] * 3600.0)
+    assert np.all(stored > 3 * 0.5) and np.all(tracked < 0.5 * stored), (stored, tracked)

@@ -34,6 +34,7 @@ from ..payload.parameters import PayloadParameters
 from ..runtime.errors import FtcalError
 from .health import BIT, DEAD_RUN, FLAGS, ExceedanceTimer, RunCounter, names_of
 from .motion import MotionDetector
+from .consistency import SelfCheck
 from .drift import FALSE_ALARM, DriftCheck
 from .tracker import TrackedBlock, gate_chi2, track_block
 
@@ -136,11 +137,28 @@ def tool_wrench(payload: PayloadParameters | None, gravity: np.ndarray) -> np.nd
 
 def _walk_from_file(payload: PayloadParameters) -> np.ndarray | None:
     """Walk variance per second that ``payload --bias-drift random-walk`` identified (the file's
-    ``drift.random_walk``), else None."""
+    ``drift.random_walk``), else None.
+
+    When the file stores a wander (``wander_variance``, ``wander_tau``, ``block_seconds``) larger than its white
+    noise, the share of the block-level walk that wander explains is taken out: over blocks of B s a Gauss-Markov wander of variance s²
+    moves the block means as a walk of about 2 s² (1 − exp(−B/τ)) / B per s would, and the tracker's r holds it
+    already (a tracker that walks with the wander takes a touch into the bias). Floored at a hundredth of the
+    identified walk: a walk faster than that is the self-check's to find (:mod:`ftcal.live.consistency`).
+    """
     drift = payload.drift
     if drift is None or drift.model != "random-walk" or drift.walk_variance is None:
         return None
-    return np.asarray(drift.walk_variance, dtype=float) / SECONDS_PER_HOUR
+    walk = np.asarray(drift.walk_variance, dtype=float) / SECONDS_PER_HOUR
+    if drift.wander_variance is not None and drift.wander_tau is not None and drift.block_seconds:
+        tau = np.asarray(drift.wander_tau, float)
+        block = float(drift.block_seconds)
+        wander = np.asarray(drift.wander_variance, float)
+        white = np.asarray(drift.sample_variance, float) - wander if drift.sample_variance is not None else wander
+        # only where the wander dominates the white noise (a white-noise recording's fit finds a little of it)
+        apparent = np.where((tau > 0) & (wander > white), 2.0 * wander
+                            * -np.expm1(-block / np.where(tau > 0, tau, 1.0)) / block, 0.0)
+        walk = np.maximum(walk - apparent, 0.01 * walk)
+    return walk
 
 
 def _noise_from_file(payload: PayloadParameters) -> np.ndarray | None:
@@ -234,6 +252,10 @@ class LiveCalibrator:
     motion_window, min_rate, min_hold : the static test (:mod:`ftcal.live.motion`)
     gravity_magnitude : m/s², for quaternions
     state_path : JSON file the state is saved to (atomically) and resumed from when it exists
+    self_check : the tracker checks itself (:mod:`ftcal.live.consistency`): r by covariance matching within
+        [r₀, 25 r₀], a lock-out said in an event, and the bias re-acquired (q raised within [q₀, 100 q₀]) when
+        holds in two orientations show the same residual. Default False: the C runtime has no self-check yet, and
+        the default step is the one both run (parity to 1e-9)
     robot : gravity from joint positions, e.g. :class:`ftcal.robot.kinematics.SensorGravity` (a URDF, the
         F/T sensor, the joints given); then ``joints`` alone gives gravity (and the motion signal)
 
@@ -255,7 +277,7 @@ class LiveCalibrator:
                  adc_limits: tuple[float, float] | None = None, temperature_range: tuple[float, float] | None = None,
                  motion_window: float = HOLD_WINDOW_S, min_rate: float = MIN_ANGULAR_RATE,
                  min_hold: float = MIN_HOLD_S, gravity_magnitude: float = STANDARD_GRAVITY,
-                 state_path: str | Path | None = None, robot=None) -> None:
+                 state_path: str | Path | None = None, robot=None, self_check: bool = False) -> None:
         if model is not None:
             if not getattr(model, "is_static", True):
                 raise FtcalError("the live calibrator takes static models (no ARX lags).")
@@ -287,6 +309,8 @@ class LiveCalibrator:
         self.walk_variance = (self._vector(walk_std, "walk_std") ** 2 / SECONDS_PER_HOUR if walk_std is not None
                               else walk_default)  # per second
         self.threshold = gate_chi2(gate_probability)
+        self.self_check = SelfCheck((self.noise_std ** 2).tolist(), self.walk_variance.tolist(), self.threshold,
+                                    gate_probability) if self_check else None
         self.drift = DriftCheck(gate_chi2(1.0 - FALSE_ALARM))  # the bias moving faster than the walk
         self.unexplained_sigma, self.unexplained_seconds = float(unexplained_sigma), float(unexplained_seconds)
         self.adc_limits = adc_limits
@@ -408,7 +432,7 @@ class LiveCalibrator:
             the calibrator has just forgotten); it is also in the event's text.
         """
         self.variance = np.maximum(self.variance, RETARE_VARIANCE * self.noise_std ** 2)
-        self.drift.reset()
+        self._restart_checks()
         self.counters["retares"] += 1
         raised = [name for name in ("contact", "unexplained") if self.flags_now & BIT[name]]
         warning = f"re-tare while {' and '.join(raised)} is raised: {RETARE_WARNING}" if raised else None
@@ -423,8 +447,30 @@ class LiveCalibrator:
         self.motion = MotionDetector(self.motion.window, self.motion.min_rate, self.motion.min_hold)
         self.unexplained_timer = ExceedanceTimer()
         self.last_time = None
-        self.drift.reset()
+        self._restart_checks()
         self._event("clock", "restarted", reason)
+
+    def _restart_checks(self) -> None:
+        """The bias was set on purpose (or the clock restarted): the drift test and the self-check start afresh."""
+        self.drift.reset()
+        if self.self_check is not None:
+            self.self_check.reset(self.last_time)
+
+    def _apply_self_check(self, t: float, bias: list, variance: list) -> tuple[list, list, bool]:
+        """The self-check at a snapshot time: events logged, r and q replaced, the bias re-acquired; returns the
+        (bias, variance) to go on with and whether anything changed."""
+        events, noise, walk, acquired = self.self_check.check(t, bias, (self.noise_std ** 2).tolist(),
+                                                              self.walk_variance.tolist())
+        if events:
+            self._log([(t, "tracker", kind, text) for kind, text in events])
+        if noise is not None:
+            self.noise_std = np.sqrt(np.asarray(noise, float))
+        if walk is not None:
+            self.walk_variance = np.asarray(walk, float)
+        if acquired is not None:
+            bias, variance = list(acquired[0]), list(acquired[1])
+            self.drift.reset()
+        return bias, variance, noise is not None or walk is not None or acquired is not None
 
     # ----- identification in place ----------------------------------------------------------------
     def start_identification(self, name: str) -> None:
@@ -487,7 +533,7 @@ class LiveCalibrator:
             self.bias = payload.bias.astype(float)
             se = np.r_[payload.stderr["force_bias"], payload.stderr["torque_bias"]]
             self.variance = np.maximum(np.nan_to_num(se ** 2, nan=0.0), self.noise_std ** 2)
-            self.drift.reset()
+            self._restart_checks()
         return payload
 
     # ----- one sample, a block --------------------------------------------------------------------
@@ -573,7 +619,7 @@ class LiveCalibrator:
         dt[0] = 0.0 if self.last_time is None else t[0] - self.last_time
         dt[1:] = t[1:] - t[:-1]
         gate_static = still & (self.identifying is None)
-        tracked = self._track(t, z, dt, gate_static)
+        tracked = self._track(t, z, dt, gate_static, g)
         if self.identifying is not None:
             self.identifying.add(w, g, still)
         flags, reasons = self._health(t, u, w, temperature, still, moving, tracked)
@@ -586,28 +632,44 @@ class LiveCalibrator:
         return LiveResult(t, w, tracked.innovation, tracked.bias, np.sqrt(tracked.variance), still, tracked.updated,
                           tracked.chi2, flags, self.tool, events)
 
-    def _track(self, t, z, dt, gate_static) -> TrackedBlock:
-        """:func:`~ftcal.live.tracker.track_block` with the drift test (:mod:`ftcal.live.drift`) at its snapshot
-        times: where the bias goes back, the rest of the block is tracked again from there."""
+    def _track(self, t, z, dt, gate_static, g) -> TrackedBlock:
+        """:func:`~ftcal.live.tracker.track_block` with the drift test (:mod:`ftcal.live.drift`) and the self-check
+        (:mod:`ftcal.live.consistency`) at the snapshot times: where the bias goes back, is re-acquired, or q or r
+        change, the rest of the block is tracked again from there."""
         n, start, parts = t.size, 0, []
-        bias, variance, walk, limit = self.bias, self.variance, self.walk_variance.tolist(), self._accept_limit.tolist()
+        bias, variance, limit = self.bias, self.variance, self._accept_limit.tolist()
+        direction = g / np.linalg.norm(g, axis=1, keepdims=True) if self.self_check is not None else None
         while start < n:
+            walk, noise = self.walk_variance.tolist(), self.noise_std ** 2
             part = track_block(z[start:], dt[start:], gate_static[start:], bias, variance, self.walk_variance,
-                               self.noise_std ** 2, self.threshold)
+                               noise, self.threshold)
             times = t[start:]
             k = int(np.searchsorted(times, self.drift.next_due)) if times[0] < self.drift.next_due else 0
-            back = None
+            seen, cut = 0, None
             while k < times.size:
-                back = self.drift.check(float(times[k]), part.bias[k].tolist(), part.variance[k].tolist(), walk,
-                                        limit)
+                b, p = part.bias[k].tolist(), part.variance[k].tolist()
+                back = self.drift.check(float(times[k]), b, p, walk, limit)
                 if back is not None:
+                    b, p = back[0], back[1]
+                    self._log([(float(times[k]), "bias", "rollback", _rollback_text(back))])
+                changed = back is not None
+                if self.self_check is not None:
+                    self._observe(part, times, gate_static[start:], z[start:], direction[start:], noise, seen, k + 1)
+                    seen = k + 1
+                    b, p, adapted = self._apply_self_check(float(times[k]), b, p)
+                    changed = changed or adapted
+                if changed:
+                    cut = (k, b, p)
                     break
                 k = int(np.searchsorted(times, self.drift.next_due))
-            if back is None:
+            if cut is None:
+                if self.self_check is not None:
+                    self._observe(part, times, gate_static[start:], z[start:], direction[start:], noise, seen,
+                                  times.size)
                 parts.append(part)
                 break
-            part.bias[k], part.variance[k] = back[0], back[1]
-            self._log([(float(times[k]), "bias", "rollback", _rollback_text(back))])
+            k, b, p = cut
+            part.bias[k], part.variance[k] = b, p
             parts.append(TrackedBlock(*(getattr(part, f)[:k + 1] for f in ("bias", "variance", "innovation",
                                                                              "innovation_variance", "chi2",
                                                                              "updated")), part.passes))
@@ -617,6 +679,15 @@ class LiveCalibrator:
         return TrackedBlock(*(np.concatenate([getattr(p, f) for p in parts]) for f in
                               ("bias", "variance", "innovation", "innovation_variance", "chi2", "updated")),
                             sum(p.passes for p in parts))
+
+    def _observe(self, part, times, still, z, direction, noise, a, b) -> None:
+        """Samples a:b of a tracked part into the self-check's sums."""
+        if b <= a:
+            return
+        s = part.innovation_variance[a:b]
+        gated = ~part.updated[a:b] & (part.chi2[a:b] >= self.threshold)
+        self.self_check.observe_block(times[a:b], still[a:b], part.updated[a:b], gated, z[a:b], part.innovation[a:b],
+                                      s - noise, s, direction[a:b])
 
     def _empty(self) -> LiveResult:
         z6 = np.empty((0, 6))
@@ -877,11 +948,18 @@ class LiveCalibrator:
             variance = [p * r / v for p, r, v in zip(predicted, noise, innovation_var)]
         else:
             variance = predicted
-        if t >= self.drift.next_due:
+        due = t >= self.drift.next_due
+        if due:
             back = self.drift.check(t, bias, variance, walk, limit)
             if back is not None:
                 bias, variance = back[0], back[1]
                 self._log([(t, "bias", "rollback", _rollback_text(back))])
+        if self.self_check is not None:
+            size = math.sqrt(gx * gx + gy * gy + gz * gz)
+            self.self_check.observe_one(t, still, updated, still and not updated and chi2 >= self.threshold, z,
+                                        innovation, predicted, innovation_var, (gx / size, gy / size, gz / size))
+            if due:
+                bias, variance, _ = self._apply_self_check(t, bias, variance)
         # ----- health -----
         t_col = self._temperature_input
         x = u if t_col is None else [v for j, v in enumerate(u) if j != t_col]
@@ -1132,7 +1210,7 @@ class LiveCalibrator:
             self.identified.add(name)
         self.bias, self.variance, self.tool, self.counters = bias, variance, tool, counters
         self.last_time = time
-        self.drift.reset()
+        self._restart_checks()
         self._event("state", "resumed", f"resumed from {path} at t={self.last_time}")
 
     def model_fingerprint(self) -> str | None:
