@@ -40,6 +40,8 @@ LOCK_S = 2.0
 MIN_HOLD_S = 1.0
 # Two holds must differ by at least this in gravity direction (degrees) for their means to tell bias from contact.
 MIN_TURN_DEG = 20.0
+# Locked holds kept to compare a new one with (a contact hold between two bias holds does not hide them).
+KEEP_HOLDS = 4
 # A bias may change between the holds by at most this share of what a world-fixed contact of its size would.
 TURN_SHARE = 0.5
 # A hold mean's variance is r / n for white noise; a wander correlated over this long (s) counts once per this.
@@ -80,7 +82,7 @@ class SelfCheck:
         self.last_update = time
         self.locked_announced = False
         self.hold = None  # [n, Σz (6), Σ direction (3), start time, last time]
-        self.previous = None  # (mean z, unit direction, n, seconds, end time) of the last locked hold
+        self.previous = []  # (mean z, unit direction, n, seconds, end time) of the last locked holds, newest last
 
     # ----- per sample, and a block's samples between two checks ------------------------------------------------
     def observe_one(self, t, still, updated, gated, z, e, predicted, s, direction) -> None:
@@ -153,9 +155,32 @@ class SelfCheck:
         locked = 2 * missed > n  # most of its samples did not update the bias
         if locked and end - start >= MIN_HOLD_S:
             norm = math.sqrt(sum(d * d for d in sd)) or 1.0
-            self.previous = ([v / n for v in sz], [d / norm for d in sd], n, end - start, end)
+            self.previous = [*self.previous[1 - KEEP_HOLDS:], ([v / n for v in sz], [d / norm for d in sd], n,
+                                                               end - start, end)]
         elif not locked:
-            self.previous = None
+            self.previous = []
+
+    def _alike(self, p, mean, direction, n, seconds, time, bias, noise, walk):
+        """(turn in degrees, change over offset) when the locked hold ``p`` and the current one show the same
+        residual in two orientations, else None (module docstring)."""
+        turn = math.degrees(math.acos(max(-1.0, min(1.0, sum(a * b for a, b in zip(p[1], direction))))))
+        if turn < MIN_TURN_DEG:
+            return None
+        gap = time - p[4]
+        spread = [r * (max(1.0 / n, CORRELATION_S / seconds) + max(1.0 / p[2], CORRELATION_S / p[3])) + q * gap
+                  for r, q in zip(noise, walk)]
+        # A contact fixed in the world turns with the tool: over a turn θ its sensor-frame change is 2 |F| sin(θ/2)
+        # at least (the rotation is at least the gravity direction's). Bias: the change is at most a share of that
+        # for an offset of its size, or within the noise of the two means (3 σ), force and torque apart.
+        limit = 2.0 * math.sin(math.radians(turn) / 2.0) * TURN_SHARE
+        ratio = 0.0
+        for axes in ((0, 1, 2), (3, 4, 5)):
+            change = math.sqrt(sum((mean[j] - p[0][j]) ** 2 for j in axes))
+            offset = math.sqrt(sum((mean[j] - bias[j]) ** 2 for j in axes))
+            if change > max(limit * offset, 3.0 * math.sqrt(sum(spread[j] for j in axes))):
+                return None
+            ratio = max(ratio, change / max(offset, 1e-300))
+        return turn, ratio
 
     # ----- at a snapshot time --------------------------------------------------------------------------------
     def check(self, time: float, bias: list, noise: list, walk: list) -> tuple:
@@ -204,34 +229,24 @@ class SelfCheck:
                 f"no bias update for {idle:.3g} s of static samples: a held contact, or a bias that moved faster "
                 "than the walk allows; re-acquired when a hold in another orientation shows the same residual")))
         n, sz, sd, start, _, missed = h
-        p = self.previous
-        if p is None or time - start < MIN_HOLD_S or 2 * missed <= n:
+        if not self.previous or time - start < MIN_HOLD_S or 2 * missed <= n:
             return events, new_noise, new_walk, None
         norm = math.sqrt(sum(d * d for d in sd)) or 1.0
-        turn = math.degrees(math.acos(max(-1.0, min(1.0, sum(a * b / norm for a, b in zip(p[1], sd))))))
-        if turn < MIN_TURN_DEG:
-            return events, new_noise, new_walk, None
         mean = [v / n for v in sz]
         seconds = time - start
-        gap = time - p[4]
-        spread = [r * (max(1.0 / n, CORRELATION_S / seconds) + max(1.0 / p[2], CORRELATION_S / p[3])) + q * gap
-                  for r, q in zip(noise, walk)]
-        # A contact fixed in the world turns with the tool: over a turn θ its sensor-frame change is 2 |F| sin(θ/2)
-        # at least (the rotation is at least the gravity direction's). Bias: the change is at most half of that
-        # for an offset of its size, beyond the noise of the two means (3 σ), force and torque apart.
-        limit = 2.0 * math.sin(math.radians(turn) / 2.0) * TURN_SHARE
-        ratio = 0.0
-        for axes in ((0, 1, 2), (3, 4, 5)):
-            change = math.sqrt(sum((mean[j] - p[0][j]) ** 2 for j in axes))
-            offset = math.sqrt(sum((mean[j] - bias[j]) ** 2 for j in axes))
-            noise3 = 3.0 * math.sqrt(sum(spread[j] for j in axes))
-            if change > max(limit * offset, noise3):
-                return events, new_noise, new_walk, None
-            ratio = max(ratio, change / max(offset, 1e-300))
+        for p in reversed(self.previous):
+            found = self._alike(p, mean, [d / norm for d in sd], n, seconds, time, bias, noise, walk)
+            if found is not None:
+                break
+        else:
+            return events, new_noise, new_walk, None
+        turn, ratio = found
         variance = [r * max(1.0 / n, CORRELATION_S / seconds) for r in noise]
         moved = [a - b for a, b in zip(mean, bias)]
-        proposal = [min(max(q, m * m / max(idle + seconds, 1e-9)), Q_MAX * q0)
-                    for q, m, q0 in zip(walk, moved, self.walk0)]
+        # the walk it missed, alike on the three force (and the three torque) axes: one move is a poor per-axis sample
+        share = [sum(m * m for m in moved[:3]) / 3.0] * 3 + [sum(m * m for m in moved[3:]) / 3.0] * 3
+        proposal = [min(max(q, m2 / max(idle + seconds, 1e-9)), Q_MAX * q0)
+                    for q, m2, q0 in zip(walk, share, self.walk0)]
         if any(abs(a - b) > 1e-3 * b for a, b in zip(proposal, walk)):
             new_walk = proposal
         new_bias = (mean, variance)
@@ -241,6 +256,6 @@ class SelfCheck:
             + ", ".join(f"{math.sqrt(q * 3600.0):.3g}" for q in (new_walk or walk)) + " per sqrt(h)")))
         self.last_update = time
         self.locked_announced = False
-        self.previous = None
+        self.previous = []
         self.hold = [0, [0.0] * 6, [0.0] * 3, time, time, 0]
         return events, new_noise, new_walk, new_bias
