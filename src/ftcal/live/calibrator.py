@@ -550,6 +550,8 @@ class LiveCalibrator:
         -------
         LiveSample
         """
+        if static is not None and not isinstance(static, (bool, np.bool_)):
+            raise FtcalError(f"static must be True, False or None; got {static!r} ({type(static).__name__}).")
         sample = self._step_one(time, raw, wrench, gravity, quaternion, imu, joints, temperature, static)
         if sample is not None:
             return sample
@@ -607,7 +609,11 @@ class LiveCalibrator:
         if n == 0:
             return self._empty()
         if static is not None:
-            still = np.asarray(static, dtype=bool).reshape(-1)
+            given = np.asarray(static)
+            # bool, or 0/1 integers; never text ('False' is a non-empty string, true as a bool)
+            if given.dtype.kind not in "bui" or (given.dtype.kind != "b" and np.any((given != 0) & (given != 1))):
+                raise FtcalError(f"static must be booleans (or 0/1); got {given.dtype} values.")
+            still = given.astype(bool).reshape(-1)
             if still.size != n:
                 raise FtcalError(f"static has {still.size} values for {n} samples.")
             moving = ~still
@@ -1134,13 +1140,18 @@ class LiveCalibrator:
         from ..core.limits import LIVE_MAX_STATE_BYTES, MAX_CELL_MAGNITUDE
         from ..files.payload_json import parse_payload
 
-        path = Path(path)
+        from ..runtime.inputs import check_input_file
+
+        # a FIFO would block forever and /dev/zero fill the memory: a regular file of bounded size, as the CLI checks
+        path = check_input_file(path, "live state file", max_bytes=LIVE_MAX_STATE_BYTES)
         try:
-            if path.stat().st_size > LIVE_MAX_STATE_BYTES:
-                raise FtcalError(f"{path}: {path.stat().st_size} bytes, not a live state file (at most "
-                                 f"{LIVE_MAX_STATE_BYTES} bytes).")
-            doc = json.loads(path.read_text(encoding="utf-8"))
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
+            with open(path, "rb") as stream:
+                raw = stream.read(LIVE_MAX_STATE_BYTES + 1)
+            if len(raw) > LIVE_MAX_STATE_BYTES:
+                raise FtcalError(f"{path}: more than {LIVE_MAX_STATE_BYTES} bytes, not a live state file.")
+            doc = json.loads(raw.decode("utf-8"))
+        except (OSError, UnicodeDecodeError, ValueError, RecursionError) as exc:
+            # ValueError: JSONDecodeError, and an integer beyond Python's 4300 digits
             why = "nested too deeply" if isinstance(exc, RecursionError) else exc
             raise FtcalError(f"{path}: cannot read the live state ({why}).") from None
         if not isinstance(doc, dict) or doc.get("format") != STATE_FORMAT or doc.get("format_version") != STATE_VERSION:
