@@ -64,7 +64,7 @@ from .c_identify import TOOL_STATUS, _array, _num, collect_text, finish_text, st
 from .calibrator import (GATE_PROBABILITY, NO_TOOL, RETARE_VARIANCE, UNEXPLAINED_SECONDS, UNEXPLAINED_SIGMA,
                          tracker_defaults)
 from .drift import FALSE_ALARM, LAGS_S, SNAPSHOT_S
-from .health import BIT, DEAD_RUN, FLAGS
+from .health import BIT, DEAD_RUN, FLAGS, LOAD_STEPS
 from .tracker import gate_chi2
 
 DEFAULT_NAME = "ftcal_runtime"
@@ -267,6 +267,10 @@ typedef struct {{
     int has_last;
     double last_raw[{macro}_N_CHANNELS];
     long run[{macro}_N_CHANNELS];
+    /* a load change since each channel's run began (ftcal.live.health.LoadChange): another channel moved by more
+       than {LOAD_STEPS:g} of its quantisation steps (its smallest change seen, HUGE_VAL before one) */
+    double channel_step[{macro}_N_CHANNELS], channel_ref[{macro}_N_CHANNELS][{macro}_N_CHANNELS];
+    int channel_moved[{macro}_N_CHANNELS];
     int exceeding;
     double exceed_start;
     unsigned flags;
@@ -509,7 +513,7 @@ static inline int {name}_step({name}_state *s, double time, const double *u, con
     double w[6], z[6], e[6], tool[6], direction[3], norm, dt, chi2 = 0.0, predicted[6], innovation_var[6];
     const double *mc = s->tool_mc[s->tool];
     double m = s->tool_mass[s->tool], sign = s->tool_sign[s->tool];
-    int j, still, moving, gate, beyond = 0, other;
+    int j, still, moving, gate, beyond = 0;
     unsigned flags = 0;
     if (!isfinite(time) || (s->has_time && !(time > s->last_time))) return -1;
     for (j = 0; j < {macro}_N_INPUTS; ++j) if (!(fabs(u[j]) <= {macro}_MAX_MAGNITUDE)) return -1;
@@ -564,14 +568,24 @@ static inline int {name}_step({name}_state *s, double time, const double *u, con
     for (j = 0; j < {macro}_N_CHANNELS; ++j) {{
         double x = u[{name}_channels[j]];
         s->run[j] = (s->has_last && x == s->last_raw[j]) ? s->run[j] + 1 : 1;
+        if (!s->has_last) s->channel_step[j] = HUGE_VAL;
+        else if (x != s->last_raw[j] && fabs(x - s->last_raw[j]) < s->channel_step[j]) s->channel_step[j] = fabs(x - s->last_raw[j]);
+    }}
+    for (j = 0; j < {macro}_N_CHANNELS; ++j) {{
+        int k;
+        if (s->run[j] == 1) {{   /* the value changed: a new run, measured from here */
+            for (k = 0; k < {macro}_N_CHANNELS; ++k) s->channel_ref[j][k] = u[{name}_channels[k]];
+            s->channel_moved[j] = 0;
+        }} else if (!s->channel_moved[j]) {{
+            for (k = 0; k < {macro}_N_CHANNELS; ++k)
+                if (k != j && fabs(u[{name}_channels[k]] - s->channel_ref[j][k]) > {_num(LOAD_STEPS)} * s->channel_step[k])
+                    s->channel_moved[j] = 1;
+        }}
     }}
     for (j = 0; j < {macro}_N_CHANNELS; ++j) {{
         double x = u[{name}_channels[j]], low, high;
-        int k, stuck, outside;
-        other = 0;
-        for (k = 0; k < {macro}_N_CHANNELS; ++k)
-            if (k != j && !(s->has_last && u[{name}_channels[k]] == s->last_raw[k])) other = 1;
-        stuck = s->run[j] >= {STUCK_RUN} && (other || moving);
+        int stuck, outside;
+        stuck = s->run[j] >= {STUCK_RUN} && s->channel_moved[j];
         if (stuck && s->run[j] >= {DEAD_RUN}) flags |= {macro}_FLAG_DEAD;
         else if (stuck) flags |= {macro}_FLAG_STUCK;
         if (s->use_adc_limits) {{

@@ -32,7 +32,7 @@ from ..data.signals import SATURATION_RUN, STUCK_RUN
 from ..payload.kinematics import QUATERNION_NORM_TOLERANCE, STANDARD_GRAVITY, gravity_from_quaternions
 from ..payload.parameters import PayloadParameters
 from ..runtime.errors import FtcalError
-from .health import BIT, DEAD_RUN, FLAGS, ExceedanceTimer, RunCounter, names_of
+from .health import BIT, DEAD_RUN, FLAGS, ExceedanceTimer, LoadChange, RunCounter, names_of
 from .motion import MotionDetector
 from .consistency import SelfCheck
 from .drift import FALSE_ALARM, DriftCheck
@@ -319,6 +319,7 @@ class LiveCalibrator:
         self.gravity_magnitude = gravity_magnitude
         self.motion = MotionDetector(motion_window, min_rate, min_hold)
         self.runs = RunCounter()
+        self.loads = LoadChange()  # a load change that should have moved a channel (quantisation-aware)
         self.unexplained_timer = ExceedanceTimer()
         self.flags_now = 0
         self.events: deque = deque(maxlen=MAX_EVENTS)
@@ -761,8 +762,7 @@ class LiveCalibrator:
         channels = [j for j in range(u.shape[1]) if j != t_col]
         x = u[:, channels]
         run, changed = self.runs.update(x)
-        other_changed = (changed.sum(axis=1, keepdims=True) - changed) > 0
-        stuck = (run >= STUCK_RUN) & (other_changed | moving[:, None])
+        stuck = (run >= STUCK_RUN) & self.loads.update(x, changed)
         dead = stuck & (run >= DEAD_RUN)
 
         def set_flag(name, mask_by_channel, text):
@@ -970,8 +970,7 @@ class LiveCalibrator:
         t_col = self._temperature_input
         x = u if t_col is None else [v for j, v in enumerate(u) if j != t_col]
         run, changed = self.runs.update_one(x)
-        n_changed = sum(changed)
-        stuck = [r >= STUCK_RUN and (moving or n_changed - c > 0) for r, c in zip(run, changed)]
+        stuck = [r >= STUCK_RUN and m for r, m in zip(run, self.loads.update_one(x, changed))]
         bits = 0
         texts = {}
         if self.adc_limits is not None:
