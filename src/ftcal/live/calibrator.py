@@ -139,8 +139,8 @@ def _walk_from_file(payload: PayloadParameters) -> np.ndarray | None:
     """Walk variance per second that ``payload --bias-drift random-walk`` identified (the file's
     ``drift.random_walk``), else None.
 
-    When the file stores a wander (``wander_variance``, ``wander_tau``, ``block_seconds``) larger than its white
-    noise, the share of the block-level walk that wander explains is taken out: over blocks of B s a Gauss-Markov wander of variance s²
+    When the file stores a wander (``wander_variance``, ``wander_tau``, ``block_seconds``), the share of the
+    block-level walk that wander explains is taken out: over blocks of B s a Gauss-Markov wander of variance s²
     moves the block means as a walk of about 2 s² (1 − exp(−B/τ)) / B per s would, and the tracker's r holds it
     already (a tracker that walks with the wander takes a touch into the bias). Floored at a hundredth of the
     identified walk: a walk faster than that is the self-check's to find (:mod:`ftcal.live.consistency`).
@@ -153,10 +153,7 @@ def _walk_from_file(payload: PayloadParameters) -> np.ndarray | None:
         tau = np.asarray(drift.wander_tau, float)
         block = float(drift.block_seconds)
         wander = np.asarray(drift.wander_variance, float)
-        white = np.asarray(drift.sample_variance, float) - wander if drift.sample_variance is not None else wander
-        # only where the wander dominates the white noise (a white-noise recording's fit finds a little of it)
-        apparent = np.where((tau > 0) & (wander > white), 2.0 * wander
-                            * -np.expm1(-block / np.where(tau > 0, tau, 1.0)) / block, 0.0)
+        apparent = np.where(tau > 0, 2.0 * wander * -np.expm1(-block / np.where(tau > 0, tau, 1.0)) / block, 0.0)
         walk = np.maximum(walk - apparent, 0.01 * walk)
     return walk
 

@@ -278,6 +278,7 @@ class HoldNoise:
     tau : (6,) its time constant, s
     walk : (6,) walk variance per hour seen within the holds
     hold_seconds : mean length of the holds, s
+    spread : (6,) variance about each hold's mean (walk and wander within the hold included)
     """
 
     white: np.ndarray
@@ -285,11 +286,16 @@ class HoldNoise:
     tau: np.ndarray
     walk: np.ndarray
     hold_seconds: float
+    spread: np.ndarray
 
     @property
     def sample_variance(self) -> np.ndarray:
-        """What the live tracker's innovations see per sample about the bias: white + wander."""
-        return self.white + self.wander
+        """What the live tracker's innovations see per sample about the bias: white + wander; where the wander
+        dominates, never less than the plain variance about the holds' means (a hold a few τ long hides part of
+        the wander's plateau from the variogram, whose fit then gives it to the walk). Not where white noise
+        dominates: there the spread holds the walk within a hold, and an r that large makes the tracker lag."""
+        return np.where(self.wander > self.white, np.maximum(self.white + self.wander, self.spread),
+                        self.white + self.wander)
 
 
 def within_hold_noise(residual: np.ndarray, time_s: np.ndarray, blocks: Blocks) -> HoldNoise | None:
@@ -332,6 +338,12 @@ def within_hold_noise(residual: np.ndarray, time_s: np.ndarray, blocks: Blocks) 
         holds += [(c, d) for c, d in zip(cuts[:-1], cuts[1:]) if d - c >= 8]
     if not holds or not step > 0:
         return None
+    squares, dof = np.zeros(6), 0
+    for c, d in holds:  # the plain within-hold variance about each hold's mean: what the data show at least
+        part = residual[c:d] - residual[c:d].mean(axis=0)
+        squares += np.einsum("ij,ij->j", part, part)
+        dof += d - c - 1
+    spread = squares / dof
     lengths = np.array([d - c for c, d in holds])
     longest = int(np.median(lengths)) // 2
     lags = 2 ** np.arange(int(np.log2(max(longest, 1))) + 1)
@@ -357,7 +369,7 @@ def within_hold_noise(residual: np.ndarray, time_s: np.ndarray, blocks: Blocks) 
     wander = np.array([b[1][1] for b in best])
     tau = np.array([b[2] if b[1][1] > 0 else 0.0 for b in best])
     walk = np.array([b[1][2] for b in best]) * SECONDS_PER_HOUR
-    return HoldNoise(white, wander, tau, walk, float(np.mean(lengths)) * step)
+    return HoldNoise(white, wander, tau, walk, float(np.mean(lengths)) * step, spread)
 
 
 def _design(blocks: Blocks, slope: bool, temperature: bool) -> np.ndarray:
