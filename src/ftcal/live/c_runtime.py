@@ -58,6 +58,7 @@ from ..files.model_json import ModelFile, ftcal_version
 from ..files.targets import ConvertOptions, Written
 from ..runtime.atomic import write_text_atomic
 from ..runtime.errors import FtcalError
+from .c_consistency import selfcheck_fields, selfcheck_text
 from .c_events import describe_event_text, event_fields, event_types, log_text
 from .c_health import describe_text, flag_events_text, reason_fields
 from .c_identify import TOOL_STATUS, _array, _num, collect_text, finish_text, state_fields
@@ -282,6 +283,7 @@ typedef struct {{
     double drift_variance[{macro}_DRIFT_SNAPSHOTS][6];
     unsigned long rollbacks;     /* the bias sent back by the drift test (Python's "rollback" events) */
     double rollback_time, rollback_lag, rollback_chi2, rollback_moved;   /* the last one: the event's numbers */
+{selfcheck_fields(macro)}
 {state_fields(macro)}
 {reason_fields(macro, name)}
 {event_fields(macro, name)}
@@ -450,6 +452,7 @@ static inline int {name}_drift_check({name}_state *s, double time)
     return 0;
 }}
 
+{selfcheck_text(name, macro)}
 /* Re-tare, tool kept, in any pose: the bias forgets its value; the next static samples set it.
    Returns the flags of {macro}_FLAG_CONTACT and {macro}_FLAG_UNEXPLAINED raised now, 0 if none: if a contact
    raised them, the next static samples take it into the bias (the event's text warns, as LiveCalibrator.retare). */
@@ -464,6 +467,7 @@ static inline int {name}_retare({name}_state *s)
         if (s->variance[j] < {_num(RETARE_VARIANCE)} * s->noise_variance[j])
             s->variance[j] = {_num(RETARE_VARIANCE)} * s->noise_variance[j];
     {name}_drift_reset(s);
+    {name}_sc_reset(s);
     s->retares += 1;
     return ev.flag;
 }}
@@ -559,7 +563,15 @@ static inline int {name}_step({name}_state *s, double time, const double *u, con
         if (!s->identifying
             && fabs(e[j]) > fmax(s->unexplained_sigma * sqrt(innovation_var[j]), s->accept_limit[j])) beyond = 1;
     }}
-    if (time >= s->drift_due) {name}_drift_check(s, time);   /* a slow contact the gate let through goes back */
+    {{
+        int due = time >= s->drift_due, still_now = still && !s->identifying;
+        if (due) {name}_drift_check(s, time);   /* a slow contact the gate let through goes back */
+        if (s->self_check) {{   /* ftcal.live.consistency, at the drift test's snapshot times */
+            {name}_sc_observe(s, time, still_now, gate, still_now && !gate && chi2 >= s->gate_chi2, z, e, predicted,
+                              innovation_var, direction);
+            if (due) {name}_sc_check(s, time);
+        }}
+    }}
     for (j = 0; j < 6; ++j) {{
         out->bias[j] = s->bias[j];
         out->bias_std[j] = sqrt(s->variance[j]);
