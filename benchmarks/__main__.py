@@ -387,6 +387,13 @@ def live_section(sizes: dict) -> list[str]:
     return rows
 
 
+def live_tracker_section(sizes: dict) -> list[str]:
+    from benchmarks.bench_live import tracker_section
+
+    rows, HEADLINE["live_tracker"] = tracker_section(run_case)
+    return rows
+
+
 def scale_section(sizes: dict) -> list[str]:
     # In its own process: it starts Dask clusters and fresh processes for the memory figures.
     n_files, rows, degree = sizes["scale"]
@@ -597,12 +604,14 @@ SECTIONS = (fit_section, cli_section, lasso_section, predict_section, selection_
             mlp_section, plan_section, closed_loop_section,
             c_section, c_batch_section,
             scaling_section, expected_section, payload_section, payload_cli_section, bag_section, scale_section,
-            cluster_section, threads_section, live_section, floor_section, scan_section, info_section)
+            cluster_section, threads_section, live_section, live_tracker_section, floor_section, scan_section,
+            info_section)
 LABELS = {"fit": "Fit", "cli": "Whole-process fit", "lasso": "LASSO", "predict": "Prediction", "select": "Model selection",
           "cost": "Cost of --degree auto", "closed_loop": "Closed loop",
           "mlp": "MLP family", "plan": "Experiment design",
           "c": "Generated C", "expected": "Expected wrenches", "payload": "Payload identification",
           "bags": "Bag reading", "scale": "Streaming and Dask", "live": "Live calibrator",
+          "live_tracker": "Live tracker, issue 40's cases",
           "payload_cli": "Payload, whole command", "cluster": "Dask local:2, whole fit",
           "threads": "No oversubscription", "c_batch": "C live step", "floor": "Whole-process fit vs flop floor",
           "scan": "One scan", "info": "Light commands"}

@@ -86,6 +86,9 @@ def poisoned(doc: dict, **fields) -> str:
     (lambda d: poisoned(d, tool=5), "'tool' must be a tool name"),
     (lambda d: {k: v for k, v in d.items() if k != "time"} and json.dumps({k: v for k, v in d.items() if k != "time"}),
      "'time' is missing"),
+    # a 5,000-digit integer: Python's int() refuses more than 4,300 digits with a ValueError (it was a traceback)
+    (lambda d: json.dumps(d).replace(f'"samples": {d["counters"]["samples"]}', '"samples": ' + "9" * 5000),
+     "cannot read the live state"),
 ])
 def test_a_poisoned_state_is_refused_in_one_line_naming_the_file_and_field(saved_state, edit, message):
     path, doc = saved_state
@@ -683,3 +686,30 @@ int main(void) {
     for value in (1e101, 1e200, -1e308):
         with pytest.raises(FtcalError, match="beyond 1e\\+100"):
             live.step(2.0, raw=[value, 0, 0, 0, 0, 0], gravity=DOWN)
+
+
+@pytest.mark.parametrize("kind", ["fifo", "device"])
+def test_a_state_path_that_is_not_a_regular_file_is_refused_not_read(tmp_path, kind):
+    """LiveCalibrator(state_path=FIFO) blocked forever and /dev/zero ran out of memory: the library checks as the CLI."""
+    import os
+
+    if kind == "fifo":
+        path = tmp_path / "state.fifo"
+        os.mkfifo(path)
+    else:
+        path = "/dev/zero"
+    with pytest.raises(FtcalError, match="not a regular file"):
+        LiveCalibrator(noise_std=NOISE, state_path=path)
+
+
+@pytest.mark.parametrize("static", ["False", "yes", 2, 0.5, [True]])
+def test_static_must_be_a_bool(static):
+    """step(static='False') counted as static (a non-empty string is true); run() with text likewise."""
+    live = LiveCalibrator(noise_std=NOISE)
+    with pytest.raises(FtcalError, match="static must be"):
+        live.step(0.0, wrench=np.zeros(6), gravity=DOWN, static=static)
+    with pytest.raises(FtcalError, match="static must be"):
+        live.run([0.0], wrench=np.zeros((1, 6)), gravity=[DOWN], static=np.array([str(static)]))
+    assert live.counters["samples"] == 0
+    assert live.step(0.0, wrench=np.zeros(6), gravity=DOWN, static=np.bool_(False)).static is False
+    assert bool(live.run([0.1, 0.2], wrench=np.zeros((2, 6)), gravity=[DOWN, DOWN], static=[1, 0]).static[0])

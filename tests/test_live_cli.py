@@ -132,3 +132,57 @@ def test_inputs_name_the_wrench_or_with_model_the_raw_channels_and_wrench_is_the
     short = ftcal(*base, "--model", "identity.json", "--inputs", "raw1,raw2", "-o", "short.parquet", cwd=root)
     assert short.returncode == 2 and len(short.stderr.strip().splitlines()) == 1, short.stderr
     assert "name one column for each" in short.stderr and not (root / "short.parquet").exists()
+
+
+def test_resume_from_an_existing_state_goes_on_and_saves_it(files):
+    """The state file is the session's own: a second replay resumes from it and writes it back (it refused to save
+    it, as if it were an input, after replaying everything)."""
+    root, rec = files
+    frame = rec.frame()
+    half = rec.time.size // 2
+    frame.iloc[:half].to_parquet(root / "first.parquet")
+    frame.iloc[half:].to_parquet(root / "second.parquet")
+    run = ("live", "--orientation", "qx,qy,qz,qw", "--tool", "gripper=gripper.json", "--state", "resume.json")
+    first = ftcal(*run, "--replay", "first.parquet", "-o", "first_out.parquet", cwd=root)
+    assert first.returncode == 0, first.stderr
+    second = ftcal(*run, "--replay", "second.parquet", "-o", "second_out.parquet", cwd=root)
+    assert second.returncode == 0, second.stderr
+    state = json.loads((root / "resume.json").read_text())
+    assert state["counters"]["samples"] == rec.time.size and state["time"] == rec.time[-1]
+    whole = ftcal(*run[:-2], "--replay", "rec.parquet", "-o", "whole.parquet", cwd=root)
+    assert whole.returncode == 0, whole.stderr
+    # The resumed session's bias at its end is the one-session replay's (the motion test restarts without history).
+    np.testing.assert_allclose(state["bias"][:3], pd.read_parquet(root / "whole.parquet")[
+        ["bias_Fx", "bias_Fy", "bias_Fz"]].to_numpy()[-1], atol=0.05)
+
+
+def test_a_negative_bias_is_taken(files):
+    root, _ = files
+    done = ftcal(*BASE, "--bias", "-1.5,2,-0.25,0,0,-0.01", "-o", "biased.parquet", cwd=root)
+    assert done.returncode == 0, done.stderr
+    out = pd.read_parquet(root / "biased.parquet")
+    assert out["bias_Fx"].iloc[0] == pytest.approx(-1.5, abs=0.2)
+
+
+@pytest.mark.parametrize("args, message", [
+    (("--listen", "tcp/127.0.0.1:7447"), "--listen go with --zenoh"),
+    (("--duration", "3"), "--duration go with --zenoh"),
+    (("--keys", "rmw_zenoh", "--domain-id", "3"), "--keys, --domain-id go with --zenoh"),
+    (("--imu-topic", "/imu"), "--imu-topic applies to --zenoh and to ROS bags"),
+])
+def test_replay_refuses_what_only_zenoh_reads(files, args, message):
+    root, _ = files
+    done = ftcal(*BASE, *args, "-o", "zenoh_only.parquet", cwd=root)
+    assert done.returncode == 2 and message in done.stderr and len(done.stderr.strip().splitlines()) == 1, done.stderr
+    assert not (root / "zenoh_only.parquet").exists()
+
+
+def test_a_time_column_in_nanoseconds_is_refused(files):
+    root, rec = files
+    frame = rec.frame()
+    frame["time"] = (frame["time"] * 1e9).round()
+    frame.to_parquet(root / "ns.parquet")
+    done = ftcal("live", "--replay", "ns.parquet", "--orientation", "qx,qy,qz,qw", "--tool", "gripper=gripper.json",
+                 "-o", "ns_out.parquet", cwd=root)
+    assert done.returncode == 2 and "looks like nanoseconds" in done.stderr, done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1

@@ -275,3 +275,43 @@ def test_a_second_sigterm_while_the_node_winds_down_keeps_its_exit_code(tmp_path
         node.kill()
         node.communicate()
     assert node.returncode == 143, "".join(lines) + rest
+
+
+def test_a_second_session_resumes_from_the_state_and_saves_it_back(tmp_path):
+    """``live --zenoh --state S`` with an existing S: it resumes from S and writes S back at the end (before, the
+    node ran and then refused to save S as 'an input of this command')."""
+    rng = np.random.default_rng(4)
+
+    def session(first_stamp_s: float, n: int) -> tuple[int, str]:
+        port = free_port()
+        node = subprocess.Popen([FTCAL, "live", "--zenoh", "--listen", f"tcp/127.0.0.1:{port}", "--noise-std",
+                                 "0.05,0.004", "--state", "state.json"], cwd=tmp_path, stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, text=True)
+        try:
+            assert "listening on ft/raw" in node.stdout.readline()
+            peer = zenoh.open(zenoh_config(connect=(f"tcp/127.0.0.1:{port}",), listen=()))
+            store = typestore()
+            publisher = peer.declare_publisher("ft/raw")
+            time.sleep(1.0)  # routes established
+            for k in range(n):
+                stamp = int(round((first_stamp_s + k / 200.0) * 1e9))
+                publisher.put(wrench_message(store, stamp, "ft", np.r_[1.0, -2.0, 0.5, 0, 0, 0]
+                                             + rng.normal(size=6) * NOISE))
+                time.sleep(1 / 200.0)
+            reply = next(iter(peer.get("ft/status", timeout=10.0))).ok.payload.to_bytes()
+            status = json.loads(bytes(reply))["status"]
+            peer.close()
+        finally:
+            node.send_signal(signal.SIGTERM)
+            _, err = node.communicate(timeout=60)
+        assert node.returncode == 143, err
+        return status["counters"]["samples"], err
+
+    first, _ = session(10.0, 300)
+    saved = json.loads((tmp_path / "state.json").read_text())
+    assert saved["counters"]["samples"] == first > 0
+    second, err = session(20.0, 300)
+    assert "is also an input" not in err
+    resumed = json.loads((tmp_path / "state.json").read_text())
+    assert second > first and resumed["counters"]["samples"] == second and resumed["time"] > saved["time"]
+    np.testing.assert_allclose(resumed["bias"][:3], [1.0, -2.0, 0.5], atol=0.05)

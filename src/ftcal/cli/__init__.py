@@ -42,7 +42,9 @@ exit codes: 0 success, 2 bad input (one line on stderr), 130 Ctrl-C, 143 SIGTERM
 (temporary files are removed on every one of them)"""
 
 # Argument names (dest) of output files and folders: never inputs, never equal to one.
-OUTPUT_OPTIONS = ("output", "out", "html")
+# Options naming files a command writes (never its inputs). ``live --state`` is the session's own file: read to
+# resume and written back (docs/live.md), never an input the atomic write must keep.
+OUTPUT_OPTIONS = ("output", "out", "html", "state")
 
 
 class OneLineParser(argparse.ArgumentParser):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import re
 
 from ..core.limits import LIVE_KEY_CONVENTIONS
 from ._common import column_list, finite_float, float_list, frame_pair, nonnegative_int, positive_float, require_suffix
@@ -17,6 +18,11 @@ def tool_spec(text: str) -> tuple[str, str]:
     if not sep or not name or not path:
         raise argparse.ArgumentTypeError(f"expected NAME=PAYLOAD.json, got {text!r}")
     return name, path
+
+
+def signed_list(text: str) -> tuple[float, ...]:
+    """Comma-separated finite numbers of either sign (a bias)."""
+    return tuple(finite_float(part) for part in text.split(","))
 
 
 def switch_spec(text: str) -> tuple[float, str]:
@@ -74,8 +80,11 @@ def register(sub) -> None:
                    help="per-sample noise std, force and torque, or six values (default: the noise the "
                         "random-walk identification stored, else the first tool's residual RMS, else 0.1 N, "
                         "0.01 N·m)")
-    p.add_argument("--bias", type=float_list, metavar="B1,...,B6",
-                   help="initial bias (default unknown: the first static, contact-free samples set it)")
+    # argparse takes "-1.5" for a value but "-1.5,2,..." for an option: let a list of signed numbers be a value
+    p._negative_number_matcher = re.compile(r"^-\d*\.?\d+([eE][-+]?\d+)?(,[-+]?\d*\.?\d+([eE][-+]?\d+)?)*$")
+    p.add_argument("--bias", type=signed_list, metavar="B1,...,B6",
+                   help="initial bias, N and N·m, either sign (default unknown: the first static, contact-free "
+                        "samples set it)")
     p.add_argument("--state", metavar="STATE.json",
                    help="state file: resumed from when it exists, saved (atomically) at the end and on Ctrl-C")
     p.add_argument("--realtime", action="store_true", help="--replay at the recording's speed")
@@ -252,6 +261,20 @@ def _replay(args, live, table, columns, events):
     return summary
 
 
+# Options only --zenoh reads, and their defaults: --replay refuses them instead of ignoring them.
+_ZENOH_ONLY = {"listen": [], "connect": [], "prefix": "/ft", "silence": 1.0, "duration": None, "keys": "bridge",
+               "domain_id": 0, "rt_priority": None}
+
+
+def _refuse_zenoh_options(args) -> None:
+    from ..runtime.errors import FtcalError
+
+    given = [name for name, default in _ZENOH_ONLY.items() if getattr(args, name, default) != default]
+    if given:
+        raise FtcalError(f"{', '.join('--' + g.replace('_', '-') for g in given)} go with --zenoh; --replay "
+                         f"{args.replay} does not read {'it' if len(given) == 1 else 'them'}.")
+
+
 class _replay_source:
     """The table to replay (a ROS bag becomes a temporary Parquet table through ``ftcal dataset``'s reader,
     unsmoothed), the wrench columns it has by default, and its column names (for the joints)."""
@@ -269,7 +292,11 @@ class _replay_source:
 
         args = self.args
         path = Path(args.replay)
+        _refuse_zenoh_options(args)
         if not READERS.get(log_format(path), "").startswith("ftcal.data.bags:"):
+            if args.wrench_topic != "/ft/raw" or args.imu_topic is not None:
+                raise FtcalError(f"--{'wrench' if args.wrench_topic != '/ft/raw' else 'imu'}-topic applies to --zenoh "
+                                 f"and to ROS bags; {args.replay} is a table (give its columns).")
             for option in ("joints_topic", "tf"):
                 if getattr(args, option) is not None:
                     raise FtcalError(f"--{option.replace('_', '-')} applies to --zenoh and to ROS bags; "

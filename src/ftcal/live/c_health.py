@@ -44,7 +44,8 @@ static {macro}_RARE void {name}_flag_events({name}_state *s, unsigned flags, dou
                                            const double *u, const double *e, double chi2, int moving)
 {{
     unsigned changed = flags ^ s->flags;
-    int i, j, k;
+    int i, j;
+    (void)moving;   /* stuck needs a load change (s->channel_moved), not motion alone */
     for (i = 0; i < {macro}_N_FLAGS; ++i) {{
         unsigned bit = 1u << i;
         {name}_event ev;
@@ -66,9 +67,7 @@ static {macro}_RARE void {name}_flag_events({name}_state *s, unsigned flags, dou
             ev.value[2] = s->adc_high;
         }} else if ((bit == {macro}_FLAG_STUCK || bit == {macro}_FLAG_DEAD) && (flags & bit)) {{
             for (j = 0; j < {macro}_N_CHANNELS; ++j) {{
-                int other = 0, stuck;
-                for (k = 0; k < {macro}_N_CHANNELS; ++k) if (k != j && s->run[k] == 1) other = 1;   /* k changed */
-                stuck = s->run[j] >= {STUCK_RUN} && (other || moving);
+                int stuck = s->run[j] >= {STUCK_RUN} && s->channel_moved[j];   /* a load change since its run began */
                 ev.channels[j] = bit == {macro}_FLAG_DEAD ? stuck && s->run[j] >= {DEAD_RUN}
                                                           : stuck && s->run[j] < {DEAD_RUN};
                 if (ev.channels[j] && s->run[j] > ev.count) ev.count = s->run[j];

@@ -424,6 +424,7 @@ static inline int {name}_add_identified({name}_state *s, const char *tool_name, 
             s->variance[j] = v > s->noise_variance[j] ? v : s->noise_variance[j];
         }}
         {name}_drift_reset(s);   /* the bias was set on purpose: the drift test starts again */
+        {name}_sc_reset(s);      /* and the self-check */
     }}
     return 0;
 }}

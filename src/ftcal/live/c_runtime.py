@@ -58,13 +58,14 @@ from ..files.model_json import ModelFile, ftcal_version
 from ..files.targets import ConvertOptions, Written
 from ..runtime.atomic import write_text_atomic
 from ..runtime.errors import FtcalError
+from .c_consistency import selfcheck_fields, selfcheck_text
 from .c_events import describe_event_text, event_fields, event_types, log_text
 from .c_health import describe_text, flag_events_text, reason_fields
 from .c_identify import TOOL_STATUS, _array, _num, collect_text, finish_text, state_fields
-from .calibrator import (DEFAULT_NOISE_FRACTION, DEFAULT_WALK_FRACTION, GATE_PROBABILITY, NO_TOOL, RETARE_VARIANCE,
-                         SECONDS_PER_HOUR, UNEXPLAINED_SECONDS, UNEXPLAINED_SIGMA, _walk_from_knots)
+from .calibrator import (GATE_PROBABILITY, NO_TOOL, RETARE_VARIANCE, UNEXPLAINED_SECONDS, UNEXPLAINED_SIGMA,
+                         tracker_defaults)
 from .drift import FALSE_ALARM, LAGS_S, SNAPSHOT_S
-from .health import BIT, DEAD_RUN, FLAGS
+from .health import BIT, DEAD_RUN, FLAGS, LOAD_STEPS
 from .tracker import gate_chi2
 
 DEFAULT_NAME = "ftcal_runtime"
@@ -88,13 +89,8 @@ def runtime_parameters(tools: dict) -> dict:
     """
     thresholds = Thresholds()
     scale = np.repeat([thresholds.force, thresholds.torque], 3)
-    files = list(tools.values())
-    noise = next((np.asarray(p.fit["residual_rms"], float) for p in files if "residual_rms" in p.fit),
-                 DEFAULT_NOISE_FRACTION * scale)
-    noise = np.maximum(noise, 1e-12)
-    walk = next((w for w in map(_walk_from_knots, files) if w is not None),
-                (DEFAULT_WALK_FRACTION * scale) ** 2 / SECONDS_PER_HOUR)
-    return {"noise_variance": noise ** 2, "walk_variance": np.asarray(walk, float), "accept_limit": scale,
+    noise, walk = tracker_defaults(tools.values(), thresholds)  # the one rule LiveCalibrator uses
+    return {"noise_variance": np.sqrt(noise) ** 2, "walk_variance": walk, "accept_limit": scale,
             "gate_chi2": gate_chi2(GATE_PROBABILITY), "drift_chi2": gate_chi2(1.0 - FALSE_ALARM)}
 
 
@@ -272,6 +268,10 @@ typedef struct {{
     int has_last;
     double last_raw[{macro}_N_CHANNELS];
     long run[{macro}_N_CHANNELS];
+    /* a load change since each channel's run began (ftcal.live.health.LoadChange): another channel moved by more
+       than {LOAD_STEPS:g} of its quantisation steps (its smallest change seen, HUGE_VAL before one) */
+    double channel_step[{macro}_N_CHANNELS], channel_ref[{macro}_N_CHANNELS][{macro}_N_CHANNELS];
+    int channel_moved[{macro}_N_CHANNELS];
     int exceeding;
     double exceed_start;
     unsigned flags;
@@ -283,6 +283,7 @@ typedef struct {{
     double drift_variance[{macro}_DRIFT_SNAPSHOTS][6];
     unsigned long rollbacks;     /* the bias sent back by the drift test (Python's "rollback" events) */
     double rollback_time, rollback_lag, rollback_chi2, rollback_moved;   /* the last one: the event's numbers */
+{selfcheck_fields(macro)}
 {state_fields(macro)}
 {reason_fields(macro, name)}
 {event_fields(macro, name)}
@@ -451,6 +452,7 @@ static inline int {name}_drift_check({name}_state *s, double time)
     return 0;
 }}
 
+{selfcheck_text(name, macro)}
 /* Re-tare, tool kept, in any pose: the bias forgets its value; the next static samples set it.
    Returns the flags of {macro}_FLAG_CONTACT and {macro}_FLAG_UNEXPLAINED raised now, 0 if none: if a contact
    raised them, the next static samples take it into the bias (the event's text warns, as LiveCalibrator.retare). */
@@ -465,6 +467,7 @@ static inline int {name}_retare({name}_state *s)
         if (s->variance[j] < {_num(RETARE_VARIANCE)} * s->noise_variance[j])
             s->variance[j] = {_num(RETARE_VARIANCE)} * s->noise_variance[j];
     {name}_drift_reset(s);
+    {name}_sc_reset(s);
     s->retares += 1;
     return ev.flag;
 }}
@@ -514,7 +517,7 @@ static inline int {name}_step({name}_state *s, double time, const double *u, con
     double w[6], z[6], e[6], tool[6], direction[3], norm, dt, chi2 = 0.0, predicted[6], innovation_var[6];
     const double *mc = s->tool_mc[s->tool];
     double m = s->tool_mass[s->tool], sign = s->tool_sign[s->tool];
-    int j, still, moving, gate, beyond = 0, other;
+    int j, still, moving, gate, beyond = 0;
     unsigned flags = 0;
     if (!isfinite(time) || (s->has_time && !(time > s->last_time))) return -1;
     for (j = 0; j < {macro}_N_INPUTS; ++j) if (!(fabs(u[j]) <= {macro}_MAX_MAGNITUDE)) return -1;
@@ -560,7 +563,15 @@ static inline int {name}_step({name}_state *s, double time, const double *u, con
         if (!s->identifying
             && fabs(e[j]) > fmax(s->unexplained_sigma * sqrt(innovation_var[j]), s->accept_limit[j])) beyond = 1;
     }}
-    if (time >= s->drift_due) {name}_drift_check(s, time);   /* a slow contact the gate let through goes back */
+    {{
+        int due = time >= s->drift_due, still_now = still && !s->identifying;
+        if (due) {name}_drift_check(s, time);   /* a slow contact the gate let through goes back */
+        if (s->self_check) {{   /* ftcal.live.consistency, at the drift test's snapshot times */
+            {name}_sc_observe(s, time, still_now, gate, still_now && !gate && chi2 >= s->gate_chi2, z, e, predicted,
+                              innovation_var, direction);
+            if (due) {name}_sc_check(s, time);
+        }}
+    }}
     for (j = 0; j < 6; ++j) {{
         out->bias[j] = s->bias[j];
         out->bias_std[j] = sqrt(s->variance[j]);
@@ -569,14 +580,24 @@ static inline int {name}_step({name}_state *s, double time, const double *u, con
     for (j = 0; j < {macro}_N_CHANNELS; ++j) {{
         double x = u[{name}_channels[j]];
         s->run[j] = (s->has_last && x == s->last_raw[j]) ? s->run[j] + 1 : 1;
+        if (!s->has_last) s->channel_step[j] = HUGE_VAL;
+        else if (x != s->last_raw[j] && fabs(x - s->last_raw[j]) < s->channel_step[j]) s->channel_step[j] = fabs(x - s->last_raw[j]);
+    }}
+    for (j = 0; j < {macro}_N_CHANNELS; ++j) {{
+        int k;
+        if (s->run[j] == 1) {{   /* the value changed: a new run, measured from here */
+            for (k = 0; k < {macro}_N_CHANNELS; ++k) s->channel_ref[j][k] = u[{name}_channels[k]];
+            s->channel_moved[j] = 0;
+        }} else if (!s->channel_moved[j]) {{
+            for (k = 0; k < {macro}_N_CHANNELS; ++k)
+                if (k != j && fabs(u[{name}_channels[k]] - s->channel_ref[j][k]) > {_num(LOAD_STEPS)} * s->channel_step[k])
+                    s->channel_moved[j] = 1;
+        }}
     }}
     for (j = 0; j < {macro}_N_CHANNELS; ++j) {{
         double x = u[{name}_channels[j]], low, high;
-        int k, stuck, outside;
-        other = 0;
-        for (k = 0; k < {macro}_N_CHANNELS; ++k)
-            if (k != j && !(s->has_last && u[{name}_channels[k]] == s->last_raw[k])) other = 1;
-        stuck = s->run[j] >= {STUCK_RUN} && (other || moving);
+        int stuck, outside;
+        stuck = s->run[j] >= {STUCK_RUN} && s->channel_moved[j];
         if (stuck && s->run[j] >= {DEAD_RUN}) flags |= {macro}_FLAG_DEAD;
         else if (stuck) flags |= {macro}_FLAG_STUCK;
         if (s->use_adc_limits) {{

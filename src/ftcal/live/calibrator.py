@@ -32,8 +32,9 @@ from ..data.signals import SATURATION_RUN, STUCK_RUN
 from ..payload.kinematics import QUATERNION_NORM_TOLERANCE, STANDARD_GRAVITY, gravity_from_quaternions
 from ..payload.parameters import PayloadParameters
 from ..runtime.errors import FtcalError
-from .health import BIT, DEAD_RUN, FLAGS, ExceedanceTimer, RunCounter, names_of
+from .health import BIT, DEAD_RUN, FLAGS, ExceedanceTimer, LoadChange, RunCounter, names_of
 from .motion import MotionDetector
+from .consistency import SelfCheck
 from .drift import FALSE_ALARM, DriftCheck
 from .tracker import TrackedBlock, gate_chi2, track_block
 
@@ -136,19 +137,74 @@ def tool_wrench(payload: PayloadParameters | None, gravity: np.ndarray) -> np.nd
 
 def _walk_from_file(payload: PayloadParameters) -> np.ndarray | None:
     """Walk variance per second that ``payload --bias-drift random-walk`` identified (the file's
-    ``drift.random_walk``), else None."""
+    ``drift.random_walk``), else None.
+
+    When the file stores a wander (``wander_variance``, ``wander_tau``, ``block_seconds``), the share of the
+    block-level walk that wander explains is taken out: over blocks of B s a Gauss-Markov wander of variance s²
+    moves the block means as a walk of about 2 s² (1 − exp(−B/τ)) / B per s would, and the tracker's r holds it
+    already (a tracker that walks with the wander takes a touch into the bias). Floored at a hundredth of the
+    identified walk: a walk faster than that is the self-check's to find (:mod:`ftcal.live.consistency`).
+    """
     drift = payload.drift
     if drift is None or drift.model != "random-walk" or drift.walk_variance is None:
         return None
-    return np.asarray(drift.walk_variance, dtype=float) / SECONDS_PER_HOUR
+    walk = np.asarray(drift.walk_variance, dtype=float) / SECONDS_PER_HOUR
+    if drift.wander_variance is not None and drift.wander_tau is not None and drift.block_seconds:
+        tau = np.asarray(drift.wander_tau, float)
+        block = float(drift.block_seconds)
+        wander = np.asarray(drift.wander_variance, float)
+        apparent = np.where(tau > 0, 2.0 * wander * -np.expm1(-block / np.where(tau > 0, tau, 1.0)) / block, 0.0)
+        walk = np.maximum(walk - apparent, 0.01 * walk)
+    return walk
 
 
 def _noise_from_file(payload: PayloadParameters) -> np.ndarray | None:
-    """Per-sample noise standard deviation that ``payload --bias-drift random-walk`` identified, else None."""
+    """Per-sample noise variance the tracker sees, from what ``payload --bias-drift random-walk`` stored, else None.
+
+    ``sample_variance`` when the file has it: white noise plus the wander, fitted to the within-hold
+    variogram at the sample rate (:func:`ftcal.payload.drift.within_hold_noise`). The block-mean noise
+    times the block's sample count is exact for white noise only: a wander slower than a sample makes it
+    too small when the blocks follow the wander (a real sensor: 5-17x below the residual) and too large
+    when they average it (a 0.25 N wander of τ 2 s in 1-s blocks: up to 0.6 N). Files written before
+    ``sample_variance``: the larger of it and the fit's residual RMS² (which holds the wander too).
+    """
     drift = payload.drift
     if drift is None or drift.model != "random-walk" or drift.noise_variance is None:
         return None
-    return np.sqrt(np.asarray(drift.noise_variance, dtype=float))
+    if drift.sample_variance is not None:
+        return np.asarray(drift.sample_variance, dtype=float)
+    shown = np.asarray(payload.fit["residual_rms"], float) ** 2 if "residual_rms" in payload.fit else np.zeros(6)
+    return np.maximum(np.asarray(drift.noise_variance, dtype=float), shown)
+
+
+def tracker_defaults(payloads, thresholds: Thresholds | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The bias tracker's default noise variance r (per sample) and walk variance q (per s): the one rule every
+    path uses (:class:`LiveCalibrator` and ``convert --to c-runtime``, :func:`ftcal.live.c_runtime.runtime_parameters`).
+
+    r: from the first payload whose random-walk drift stores a noise (:func:`_noise_from_file`: the
+    per-sample variance the data show within the holds), else the first one's ``fit.residual_rms``², else
+    (:data:`DEFAULT_NOISE_FRACTION` × the acceptance thresholds)². q: the first stored walk variance, else an
+    older random-walk file's knot trajectory, else (:data:`DEFAULT_WALK_FRACTION` × the thresholds)² per h.
+
+    Parameters
+    ----------
+    payloads : iterable of PayloadParameters (None entries are skipped), in library order
+    thresholds : ``check --accept``'s (default 1 N, 0.1 N·m)
+
+    Returns
+    -------
+    (noise variance (6,), walk variance per s (6,))
+    """
+    thresholds = thresholds or Thresholds()
+    scale = np.repeat([thresholds.force, thresholds.torque], 3)
+    files = [p for p in payloads if p is not None]
+    noise = next((v for v in map(_noise_from_file, files) if v is not None), None)
+    if noise is None:
+        noise = next((np.asarray(p.fit["residual_rms"], float) ** 2 for p in files if "residual_rms" in p.fit),
+                     (DEFAULT_NOISE_FRACTION * scale) ** 2)
+    walk = next((w for w in [*map(_walk_from_file, files), *map(_walk_from_knots, files)] if w is not None),
+                (DEFAULT_WALK_FRACTION * scale) ** 2 / SECONDS_PER_HOUR)
+    return np.maximum(np.asarray(noise, float), 1e-24), np.asarray(walk, float)
 
 
 def _walk_from_knots(payload: PayloadParameters) -> np.ndarray | None:
@@ -193,6 +249,10 @@ class LiveCalibrator:
     motion_window, min_rate, min_hold : the static test (:mod:`ftcal.live.motion`)
     gravity_magnitude : m/s², for quaternions
     state_path : JSON file the state is saved to (atomically) and resumed from when it exists
+    self_check : the tracker checks itself (:mod:`ftcal.live.consistency`): r by covariance matching within
+        [r₀, 25 r₀], a lock-out said in an event, and the bias re-acquired (q raised within [q₀, 100 q₀]) when
+        holds in two orientations show the same residual. Default False: the C runtime has no self-check yet, and
+        the default step is the one both run (parity to 1e-9)
     robot : gravity from joint positions, e.g. :class:`ftcal.robot.kinematics.SensorGravity` (a URDF, the
         F/T sensor, the joints given); then ``joints`` alone gives gravity (and the motion signal)
 
@@ -214,7 +274,7 @@ class LiveCalibrator:
                  adc_limits: tuple[float, float] | None = None, temperature_range: tuple[float, float] | None = None,
                  motion_window: float = HOLD_WINDOW_S, min_rate: float = MIN_ANGULAR_RATE,
                  min_hold: float = MIN_HOLD_S, gravity_magnitude: float = STANDARD_GRAVITY,
-                 state_path: str | Path | None = None, robot=None) -> None:
+                 state_path: str | Path | None = None, robot=None, self_check: bool = False) -> None:
         if model is not None:
             if not getattr(model, "is_static", True):
                 raise FtcalError("the live calibrator takes static models (no ARX lags).")
@@ -240,20 +300,14 @@ class LiveCalibrator:
         self.thresholds = thresholds or Thresholds()
         scale = np.repeat([self.thresholds.force, self.thresholds.torque], 3)
         self._accept_limit = scale
-        files = [p for p in self.tools.values() if p is not None]
-        self.noise_std = self._vector(noise_std, "noise_std") if noise_std is not None else next(
-            (v for v in map(_noise_from_file, files) if v is not None), None)
-        if self.noise_std is None:
-            self.noise_std = next((np.asarray(p.fit["residual_rms"], float) for p in files if "residual_rms" in p.fit),
-                                  DEFAULT_NOISE_FRACTION * scale)
-        self.noise_std = np.maximum(self.noise_std, 1e-12)
-        if walk_std is not None:
-            walk_variance = self._vector(walk_std, "walk_std") ** 2 / SECONDS_PER_HOUR
-        else:
-            walk_variance = next((w for w in [*map(_walk_from_file, files), *map(_walk_from_knots, files)]
-                                  if w is not None), (DEFAULT_WALK_FRACTION * scale) ** 2 / SECONDS_PER_HOUR)
-        self.walk_variance = walk_variance  # per second
+        noise_default, walk_default = tracker_defaults(self.tools.values(), self.thresholds)
+        self.noise_std = (np.maximum(self._vector(noise_std, "noise_std"), 1e-12) if noise_std is not None
+                          else np.sqrt(noise_default))
+        self.walk_variance = (self._vector(walk_std, "walk_std") ** 2 / SECONDS_PER_HOUR if walk_std is not None
+                              else walk_default)  # per second
         self.threshold = gate_chi2(gate_probability)
+        self.self_check = SelfCheck((self.noise_std ** 2).tolist(), self.walk_variance.tolist(), self.threshold,
+                                    gate_probability) if self_check else None
         self.drift = DriftCheck(gate_chi2(1.0 - FALSE_ALARM))  # the bias moving faster than the walk
         self.unexplained_sigma, self.unexplained_seconds = float(unexplained_sigma), float(unexplained_seconds)
         self.adc_limits = adc_limits
@@ -262,6 +316,7 @@ class LiveCalibrator:
         self.gravity_magnitude = gravity_magnitude
         self.motion = MotionDetector(motion_window, min_rate, min_hold)
         self.runs = RunCounter()
+        self.loads = LoadChange()  # a load change that should have moved a channel (quantisation-aware)
         self.unexplained_timer = ExceedanceTimer()
         self.flags_now = 0
         self.events: deque = deque(maxlen=MAX_EVENTS)
@@ -375,7 +430,7 @@ class LiveCalibrator:
             the calibrator has just forgotten); it is also in the event's text.
         """
         self.variance = np.maximum(self.variance, RETARE_VARIANCE * self.noise_std ** 2)
-        self.drift.reset()
+        self._restart_checks()
         self.counters["retares"] += 1
         raised = [name for name in ("contact", "unexplained") if self.flags_now & BIT[name]]
         warning = f"re-tare while {' and '.join(raised)} is raised: {RETARE_WARNING}" if raised else None
@@ -390,8 +445,30 @@ class LiveCalibrator:
         self.motion = MotionDetector(self.motion.window, self.motion.min_rate, self.motion.min_hold)
         self.unexplained_timer = ExceedanceTimer()
         self.last_time = None
-        self.drift.reset()
+        self._restart_checks()
         self._event("clock", "restarted", reason)
+
+    def _restart_checks(self) -> None:
+        """The bias was set on purpose (or the clock restarted): the drift test and the self-check start afresh."""
+        self.drift.reset()
+        if self.self_check is not None:
+            self.self_check.reset(self.last_time)
+
+    def _apply_self_check(self, t: float, bias: list, variance: list) -> tuple[list, list, bool]:
+        """The self-check at a snapshot time: events logged, r and q replaced, the bias re-acquired; returns the
+        (bias, variance) to go on with and whether anything changed."""
+        events, noise, walk, acquired = self.self_check.check(t, bias, (self.noise_std ** 2).tolist(),
+                                                              self.walk_variance.tolist())
+        if events:
+            self._log([(t, "tracker", kind, text) for kind, text in events])
+        if noise is not None:
+            self.noise_std = np.sqrt(np.asarray(noise, float))
+        if walk is not None:
+            self.walk_variance = np.asarray(walk, float)
+        if acquired is not None:
+            bias, variance = list(acquired[0]), list(acquired[1])
+            self.drift.reset()
+        return bias, variance, noise is not None or walk is not None or acquired is not None
 
     # ----- identification in place ----------------------------------------------------------------
     def start_identification(self, name: str) -> None:
@@ -454,7 +531,7 @@ class LiveCalibrator:
             self.bias = payload.bias.astype(float)
             se = np.r_[payload.stderr["force_bias"], payload.stderr["torque_bias"]]
             self.variance = np.maximum(np.nan_to_num(se ** 2, nan=0.0), self.noise_std ** 2)
-            self.drift.reset()
+            self._restart_checks()
         return payload
 
     # ----- one sample, a block --------------------------------------------------------------------
@@ -471,6 +548,8 @@ class LiveCalibrator:
         -------
         LiveSample
         """
+        if static is not None and not isinstance(static, (bool, np.bool_)):
+            raise FtcalError(f"static must be True, False or None; got {static!r} ({type(static).__name__}).")
         sample = self._step_one(time, raw, wrench, gravity, quaternion, imu, joints, temperature, static)
         if sample is not None:
             return sample
@@ -528,7 +607,11 @@ class LiveCalibrator:
         if n == 0:
             return self._empty()
         if static is not None:
-            still = np.asarray(static, dtype=bool).reshape(-1)
+            given = np.asarray(static)
+            # bool, or 0/1 integers; never text ('False' is a non-empty string, true as a bool)
+            if given.dtype.kind not in "bui" or (given.dtype.kind != "b" and np.any((given != 0) & (given != 1))):
+                raise FtcalError(f"static must be booleans (or 0/1); got {given.dtype} values.")
+            still = given.astype(bool).reshape(-1)
             if still.size != n:
                 raise FtcalError(f"static has {still.size} values for {n} samples.")
             moving = ~still
@@ -540,7 +623,7 @@ class LiveCalibrator:
         dt[0] = 0.0 if self.last_time is None else t[0] - self.last_time
         dt[1:] = t[1:] - t[:-1]
         gate_static = still & (self.identifying is None)
-        tracked = self._track(t, z, dt, gate_static)
+        tracked = self._track(t, z, dt, gate_static, g)
         if self.identifying is not None:
             self.identifying.add(w, g, still)
         flags, reasons = self._health(t, u, w, temperature, still, moving, tracked)
@@ -553,28 +636,44 @@ class LiveCalibrator:
         return LiveResult(t, w, tracked.innovation, tracked.bias, np.sqrt(tracked.variance), still, tracked.updated,
                           tracked.chi2, flags, self.tool, events)
 
-    def _track(self, t, z, dt, gate_static) -> TrackedBlock:
-        """:func:`~ftcal.live.tracker.track_block` with the drift test (:mod:`ftcal.live.drift`) at its snapshot
-        times: where the bias goes back, the rest of the block is tracked again from there."""
+    def _track(self, t, z, dt, gate_static, g) -> TrackedBlock:
+        """:func:`~ftcal.live.tracker.track_block` with the drift test (:mod:`ftcal.live.drift`) and the self-check
+        (:mod:`ftcal.live.consistency`) at the snapshot times: where the bias goes back, is re-acquired, or q or r
+        change, the rest of the block is tracked again from there."""
         n, start, parts = t.size, 0, []
-        bias, variance, walk, limit = self.bias, self.variance, self.walk_variance.tolist(), self._accept_limit.tolist()
+        bias, variance, limit = self.bias, self.variance, self._accept_limit.tolist()
+        direction = g / np.linalg.norm(g, axis=1, keepdims=True) if self.self_check is not None else None
         while start < n:
+            walk, noise = self.walk_variance.tolist(), self.noise_std ** 2
             part = track_block(z[start:], dt[start:], gate_static[start:], bias, variance, self.walk_variance,
-                               self.noise_std ** 2, self.threshold)
+                               noise, self.threshold)
             times = t[start:]
             k = int(np.searchsorted(times, self.drift.next_due)) if times[0] < self.drift.next_due else 0
-            back = None
+            seen, cut = 0, None
             while k < times.size:
-                back = self.drift.check(float(times[k]), part.bias[k].tolist(), part.variance[k].tolist(), walk,
-                                        limit)
+                b, p = part.bias[k].tolist(), part.variance[k].tolist()
+                back = self.drift.check(float(times[k]), b, p, walk, limit)
                 if back is not None:
+                    b, p = back[0], back[1]
+                    self._log([(float(times[k]), "bias", "rollback", _rollback_text(back))])
+                changed = back is not None
+                if self.self_check is not None:
+                    self._observe(part, times, gate_static[start:], z[start:], direction[start:], noise, seen, k + 1)
+                    seen = k + 1
+                    b, p, adapted = self._apply_self_check(float(times[k]), b, p)
+                    changed = changed or adapted
+                if changed:
+                    cut = (k, b, p)
                     break
                 k = int(np.searchsorted(times, self.drift.next_due))
-            if back is None:
+            if cut is None:
+                if self.self_check is not None:
+                    self._observe(part, times, gate_static[start:], z[start:], direction[start:], noise, seen,
+                                  times.size)
                 parts.append(part)
                 break
-            part.bias[k], part.variance[k] = back[0], back[1]
-            self._log([(float(times[k]), "bias", "rollback", _rollback_text(back))])
+            k, b, p = cut
+            part.bias[k], part.variance[k] = b, p
             parts.append(TrackedBlock(*(getattr(part, f)[:k + 1] for f in ("bias", "variance", "innovation",
                                                                              "innovation_variance", "chi2",
                                                                              "updated")), part.passes))
@@ -584,6 +683,15 @@ class LiveCalibrator:
         return TrackedBlock(*(np.concatenate([getattr(p, f) for p in parts]) for f in
                               ("bias", "variance", "innovation", "innovation_variance", "chi2", "updated")),
                             sum(p.passes for p in parts))
+
+    def _observe(self, part, times, still, z, direction, noise, a, b) -> None:
+        """Samples a:b of a tracked part into the self-check's sums."""
+        if b <= a:
+            return
+        s = part.innovation_variance[a:b]
+        gated = ~part.updated[a:b] & (part.chi2[a:b] >= self.threshold)
+        self.self_check.observe_block(times[a:b], still[a:b], part.updated[a:b], gated, z[a:b], part.innovation[a:b],
+                                      s - noise, s, direction[a:b])
 
     def _empty(self) -> LiveResult:
         z6 = np.empty((0, 6))
@@ -651,8 +759,7 @@ class LiveCalibrator:
         channels = [j for j in range(u.shape[1]) if j != t_col]
         x = u[:, channels]
         run, changed = self.runs.update(x)
-        other_changed = (changed.sum(axis=1, keepdims=True) - changed) > 0
-        stuck = (run >= STUCK_RUN) & (other_changed | moving[:, None])
+        stuck = (run >= STUCK_RUN) & self.loads.update(x, changed)
         dead = stuck & (run >= DEAD_RUN)
 
         def set_flag(name, mask_by_channel, text):
@@ -844,17 +951,23 @@ class LiveCalibrator:
             variance = [p * r / v for p, r, v in zip(predicted, noise, innovation_var)]
         else:
             variance = predicted
-        if t >= self.drift.next_due:
+        due = t >= self.drift.next_due
+        if due:
             back = self.drift.check(t, bias, variance, walk, limit)
             if back is not None:
                 bias, variance = back[0], back[1]
                 self._log([(t, "bias", "rollback", _rollback_text(back))])
+        if self.self_check is not None:
+            size = math.sqrt(gx * gx + gy * gy + gz * gz)
+            self.self_check.observe_one(t, still, updated, still and not updated and chi2 >= self.threshold, z,
+                                        innovation, predicted, innovation_var, (gx / size, gy / size, gz / size))
+            if due:
+                bias, variance, _ = self._apply_self_check(t, bias, variance)
         # ----- health -----
         t_col = self._temperature_input
         x = u if t_col is None else [v for j, v in enumerate(u) if j != t_col]
         run, changed = self.runs.update_one(x)
-        n_changed = sum(changed)
-        stuck = [r >= STUCK_RUN and (moving or n_changed - c > 0) for r, c in zip(run, changed)]
+        stuck = [r >= STUCK_RUN and m for r, m in zip(run, self.loads.update_one(x, changed))]
         bits = 0
         texts = {}
         if self.adc_limits is not None:
@@ -1023,13 +1136,18 @@ class LiveCalibrator:
         from ..core.limits import LIVE_MAX_STATE_BYTES, MAX_CELL_MAGNITUDE
         from ..files.payload_json import parse_payload
 
-        path = Path(path)
+        from ..runtime.inputs import check_input_file
+
+        # a FIFO would block forever and /dev/zero fill the memory: a regular file of bounded size, as the CLI checks
+        path = check_input_file(path, "live state file", max_bytes=LIVE_MAX_STATE_BYTES)
         try:
-            if path.stat().st_size > LIVE_MAX_STATE_BYTES:
-                raise FtcalError(f"{path}: {path.stat().st_size} bytes, not a live state file (at most "
-                                 f"{LIVE_MAX_STATE_BYTES} bytes).")
-            doc = json.loads(path.read_text(encoding="utf-8"))
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
+            with open(path, "rb") as stream:
+                raw = stream.read(LIVE_MAX_STATE_BYTES + 1)
+            if len(raw) > LIVE_MAX_STATE_BYTES:
+                raise FtcalError(f"{path}: more than {LIVE_MAX_STATE_BYTES} bytes, not a live state file.")
+            doc = json.loads(raw.decode("utf-8"))
+        except (OSError, UnicodeDecodeError, ValueError, RecursionError) as exc:
+            # ValueError: JSONDecodeError, and an integer beyond Python's 4300 digits
             why = "nested too deeply" if isinstance(exc, RecursionError) else exc
             raise FtcalError(f"{path}: cannot read the live state ({why}).") from None
         if not isinstance(doc, dict) or doc.get("format") != STATE_FORMAT or doc.get("format_version") != STATE_VERSION:
@@ -1099,7 +1217,7 @@ class LiveCalibrator:
             self.identified.add(name)
         self.bias, self.variance, self.tool, self.counters = bias, variance, tool, counters
         self.last_time = time
-        self.drift.reset()
+        self._restart_checks()
         self._event("state", "resumed", f"resumed from {path} at t={self.last_time}")
 
     def model_fingerprint(self) -> str | None:

@@ -180,6 +180,7 @@ def replay_table(path: str | os.PathLike, live: LiveCalibrator, columns: ReplayC
         Missing columns, non-finite cells, time that does not increase, or an event naming an unknown tool.
     """
     from ..data.table_chunks import CHUNK_ROWS, iter_table_chunks
+    from ..data.holds import check_seconds
     from ..runtime.atomic import atomic_path
     from .health import FLAGS
 
@@ -204,6 +205,7 @@ def replay_table(path: str | os.PathLike, live: LiveCalibrator, columns: ReplayC
             for chunk in iter_table_chunks(path, names, chunk_rows=chunk_rows or CHUNK_ROWS):
                 x = chunk.inputs
                 t = x[:, 0]
+                check_seconds(t, columns.time, str(path))  # as payload checks it: a ns column is refused
                 if np.any(np.diff(t) <= 0):
                     row = chunk.first_row + int(np.flatnonzero(np.diff(t) <= 0)[0]) + 1
                     raise FtcalError(f"{path}: time column {columns.time!r} does not increase at row {row}.")

@@ -86,6 +86,15 @@ class BiasDrift:
         block's mean times the block's mean sample count (exact for white noise).
     block_samples : float or None
         ``random-walk``: the time blocks' mean sample count.
+    sample_variance : ndarray of shape (6,) or None
+        ``random-walk``: the per-sample variance about the bias within the still holds (N², (N·m)²): white
+        noise plus a Gauss-Markov wander fitted to the within-hold variogram (:func:`within_hold_noise`), what
+        the live tracker sees at its update rate. None in files written before it (as are the next four).
+    wander_variance, wander_tau : ndarray of shape (6,) or None
+        ``random-walk``: that wander's variance and time constant (s).
+    block_seconds, hold_seconds : float or None
+        ``random-walk``: the time blocks' mean length, s, and the mean length of the still holds
+        ``sample_variance`` was measured on, s.
     """
 
     model: str = "none"
@@ -101,6 +110,11 @@ class BiasDrift:
     walk_variance: np.ndarray | None = None
     noise_variance: np.ndarray | None = None
     block_samples: float | None = None
+    sample_variance: np.ndarray | None = None
+    wander_variance: np.ndarray | None = None
+    wander_tau: np.ndarray | None = None
+    block_seconds: float | None = None
+    hold_seconds: float | None = None
 
     def bias(self, constant: np.ndarray, time: np.ndarray | None, temperature: np.ndarray | None,
              source: str = "data") -> np.ndarray:
@@ -251,6 +265,111 @@ def block_means(hours: np.ndarray, gravity: np.ndarray, wrench: np.ndarray, temp
     moving[:-1] |= turning[1:]
     return Blocks(mean(hours), count, mean_gravity, mean(wrench), None if temperature is None else mean(temperature),
                   moving, starts)
+
+
+@dataclass(frozen=True)
+class HoldNoise:
+    """The noise within the still holds at the sample rate (:func:`within_hold_noise`), per axis.
+
+    Attributes
+    ----------
+    white : (6,) white (and quantisation) variance per sample
+    wander : (6,) variance of a first-order Gauss-Markov wander
+    tau : (6,) its time constant, s
+    walk : (6,) walk variance per hour seen within the holds
+    hold_seconds : mean length of the holds, s
+    spread : (6,) variance about each hold's mean (walk and wander within the hold included)
+    """
+
+    white: np.ndarray
+    wander: np.ndarray
+    tau: np.ndarray
+    walk: np.ndarray
+    hold_seconds: float
+    spread: np.ndarray
+
+    @property
+    def sample_variance(self) -> np.ndarray:
+        """What the live tracker's innovations see per sample about the bias: white + wander; where the wander
+        dominates, never less than the plain variance about the holds' means (a hold a few τ long hides part of
+        the wander's plateau from the variogram, whose fit then gives it to the walk). Not where white noise
+        dominates: there the spread holds the walk within a hold, and an r that large makes the tracker lag."""
+        return np.where(self.wander > self.white, np.maximum(self.white + self.wander, self.spread),
+                        self.white + self.wander)
+
+
+def within_hold_noise(residual: np.ndarray, time_s: np.ndarray, blocks: Blocks) -> HoldNoise | None:
+    """White noise, a Gauss-Markov wander and a walk fitted to the within-hold variogram.
+
+    A hold is a run of contiguous still blocks (:meth:`Blocks.observed`), split where the time steps
+    by more than twice the median step (a recording of holds only). Within the holds, the empirical
+    semivariogram ``γ(L) = ½ mean (x_(i+L) − x_i)²`` at lags of 1, 2, 4, ... samples (up to half the
+    shortest hold used) is fitted per axis by non-negative least squares (relative errors), over a log
+    grid of time constants τ, with::
+
+        γ(L) = r_white + s² (1 − exp(−L Δ / τ)) + q L Δ / 2
+
+    (white noise, first-order Gauss-Markov wander of variance s², random walk of variance q per s).
+    The block-mean noise of the state-space fit is exact for white noise only; a wander slower than a
+    block looks like walk to it, and one faster than a block but slower than a sample is missed by both
+    -- the live gate sees ``r_white + s²`` per sample.
+
+    Parameters
+    ----------
+    residual : (N, 6) readings minus the identified static wrench (the bias trajectory not removed)
+    time_s : (N,) time, s
+    blocks : the recording's time blocks
+
+    Returns
+    -------
+    HoldNoise, or None when no hold has 8 samples
+    """
+    from scipy.optimize import nnls
+
+    observed = blocks.observed()
+    ends = np.r_[blocks.starts[1:], residual.shape[0]]
+    edges = np.flatnonzero(np.diff(np.r_[0, observed.astype(np.int8), 0]))
+    step = float(np.median(np.diff(time_s))) if len(time_s) > 1 else 0.0
+    holds = []
+    for a, b in zip(edges[::2], edges[1::2]):
+        lo, hi = int(blocks.starts[a]), int(ends[b - 1])
+        gaps = lo + 1 + np.flatnonzero(np.diff(time_s[lo:hi]) > 2.0 * step)
+        cuts = np.r_[lo, gaps, hi]
+        holds += [(c, d) for c, d in zip(cuts[:-1], cuts[1:]) if d - c >= 8]
+    if not holds or not step > 0:
+        return None
+    squares, dof = np.zeros(6), 0
+    for c, d in holds:  # the plain within-hold variance about each hold's mean: what the data show at least
+        part = residual[c:d] - residual[c:d].mean(axis=0)
+        squares += np.einsum("ij,ij->j", part, part)
+        dof += d - c - 1
+    spread = squares / dof
+    lengths = np.array([d - c for c, d in holds])
+    longest = int(np.median(lengths)) // 2
+    lags = 2 ** np.arange(int(np.log2(max(longest, 1))) + 1)
+    gamma = np.zeros((len(lags), 6))
+    for i, lag in enumerate(lags):
+        total, count = np.zeros(6), 0
+        for c, d in holds:
+            if d - c > lag:
+                diff = residual[c + lag:d] - residual[c:d - lag]
+                total += np.einsum("ij,ij->j", diff, diff)
+                count += diff.shape[0]
+        gamma[i] = 0.5 * total / max(count, 1)
+    lag_s = lags * step
+    best = [None] * 6
+    for tau in np.geomspace(step, max(lag_s[-1], 2.0 * step), 25):
+        design = np.column_stack([np.ones(len(lags)), 1.0 - np.exp(-lag_s / tau), lag_s / 2.0])
+        for j in range(6):
+            weight = 1.0 / np.maximum(gamma[:, j], 1e-300)
+            coef, error = nnls(design * weight[:, None], gamma[:, j] * weight)
+            if best[j] is None or error < best[j][0] - 1e-12:
+                best[j] = (error, coef, tau)
+    white = np.array([b[1][0] for b in best])
+    wander = np.array([b[1][1] for b in best])
+    tau = np.array([b[2] if b[1][1] > 0 else 0.0 for b in best])
+    walk = np.array([b[1][2] for b in best]) * SECONDS_PER_HOUR
+    return HoldNoise(white, wander, tau, walk, float(np.mean(lengths)) * step, spread)
 
 
 def _design(blocks: Blocks, slope: bool, temperature: bool) -> np.ndarray:

@@ -274,7 +274,8 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
 
     from ..core.limits import BIAS_DRIFTS, DRIFT_BLOCK_SECONDS
     from ..runtime.errors import UndeterminedWarning
-    from .drift import BiasDrift, block_means, check_temperature, choose, covariates, fit_state_space
+    from .drift import (BiasDrift, block_means, check_temperature, choose, covariates, fit_state_space,
+                        within_hold_noise)
     from .identify import identify_payload
 
     if bias_drift not in BIAS_DRIFTS:
@@ -347,10 +348,11 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
         knot_bias = ss.trajectory[keep]
         covariate_names = ("temperature",) if temperature is not None else ()
         residual = recording.measured - _static_wrench(ss.theta, recording.kinematics.gravity)
-        for j in range(6):
-            residual[:, j] -= np.interp(hours, knot_hours, ss.trajectory[:, j])
         if temperature is not None:
             residual -= np.outer(temperature, ss.theta[10:16])
+        within = within_hold_noise(residual, hours * 3600.0, blocks)  # what the live tracker sees
+        for j in range(6):
+            residual[:, j] -= np.interp(hours, knot_hours, ss.trajectory[:, j])
         rms = np.sqrt(np.einsum("ij,ij->j", residual, residual) / recording.n_samples)
         del residual
         fit = model_fit(ss.names, ss.theta, ss.covariance, residual_rms=rms, n_samples=recording.n_samples,
@@ -375,7 +377,10 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
             block_samples = float(blocks.count.mean())
             variances = {"walk_variance": np.asarray(ss.walk_variance, dtype=float),
                          "noise_variance": np.asarray(ss.noise_variance, dtype=float) * block_samples,
-                         "block_samples": block_samples}
+                         "block_samples": block_samples, "block_seconds": block_samples * float(np.median(np.diff(hours))) * 3600.0}
+            if within is not None:
+                variances.update(sample_variance=within.sample_variance, wander_variance=within.wander,
+                                 wander_tau=within.tau, hold_seconds=within.hold_seconds)
         drift = BiasDrift(kind, time_column if t is not None else None,
                           None if t is None else float(t[0]), None if t is None else float(t[-1]),
                           knot_times, knot_bias, temperature_column if temperature is not None else None,

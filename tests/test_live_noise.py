@@ -1,0 +1,98 @@
+"""The noise the live tracker takes from a payload file is the noise it will see, and every path takes it alike.
+
+Own truth generator (not ftcal's simulation): a sensor held still in twelve orientations, 20 s each at 100 Hz,
+whose reading is the tool's gravity wrench + a constant bias + a slow walk + a first-order Gauss-Markov wander
+(0.25 N, τ 2 s: what real gauges show) + white noise (0.02 N), quantised to 0.02 N. The random-walk identification
+(``payload --bias-drift random-walk``) resolves the bias to 1-s blocks; its block-mean noise, scaled to one sample
+as for white noise, is not what the gate will see per sample; the within-hold variogram is.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+from ftcal.live import LiveCalibrator
+from ftcal.live.c_runtime import runtime_parameters
+from ftcal.payload.kinematics import Kinematics
+from ftcal.payload.parameters import PayloadParameters
+from ftcal.payload.tables import PayloadRecording, identify_recording
+
+RATE, HOLD_S, HOLDS = 100.0, 20.0, 12
+WANDER, TAU, WHITE, LSB = 0.25, 2.0, 0.02, 0.02
+MASS, COM = 1.2, np.array([0.004, -0.003, 0.06])
+
+
+def gauss_markov(rng, n, sigma, tau, dt):
+    """Exact discretisation of a first-order Gauss-Markov process, stationary from the first sample."""
+    phi = np.exp(-dt / tau)
+    x = np.empty((n, 6))
+    x[0] = rng.normal(size=6) * sigma
+    kick = rng.normal(size=(n, 6)) * sigma * np.sqrt(1.0 - phi * phi)
+    for k in range(1, n):
+        x[k] = phi * x[k - 1] + kick[k]
+    return x
+
+
+def still_recording(seed=3):
+    rng = np.random.default_rng(seed)
+    per = int(HOLD_S * RATE)
+    n = per * HOLDS
+    directions = rng.normal(size=(HOLDS, 3))
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    gravity = np.repeat(9.81 * directions, per, axis=0)
+    time = np.arange(n) / RATE + np.repeat(np.arange(HOLDS) * 3.0, per)  # 3 s moves between holds, not recorded
+    wrench = np.zeros((n, 6))
+    wrench[:, :3] = MASS * gravity
+    wrench[:, 3:] = np.cross(MASS * COM, gravity)
+    scale = np.r_[np.ones(3), np.full(3, 0.1)]  # torques a tenth (N·m)
+    walk = np.cumsum(rng.normal(size=(n, 6)) * 0.5 / np.sqrt(3600.0 * RATE), axis=0)  # 0.5 N/√h
+    wrench += np.r_[1.0, -2.0, 0.5, 0.1, 0.05, -0.1] + scale * walk
+    wrench += scale * (gauss_markov(rng, n, WANDER, TAU, 1.0 / RATE) + rng.normal(size=(n, 6)) * WHITE)
+    wrench = np.round(wrench / (LSB * scale)) * (LSB * scale)
+    return time, gravity, wrench
+
+
+@pytest.fixture(scope="module")
+def identified():
+    time, gravity, wrench = still_recording()
+    recording = PayloadRecording(wrench, Kinematics(gravity), np.zeros(len(time), int), time, None)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        fit = identify_recording(recording, bias_drift="random-walk", time_column="time", cross_validate=False)
+    return PayloadParameters.from_fit(fit.fit, gravity=9.81, frame=None, reaction=False,
+                                      wrench_columns=("Fx", "Fy", "Fz", "Tx", "Ty", "Tz"), drift=fit.drift)
+
+
+def test_the_stored_noise_holds_the_wander_within_a_hold(identified):
+    drift = identified.drift
+    truth = WANDER ** 2 + WHITE ** 2 + LSB ** 2 / 12.0  # per-sample variance of the reading about the bias
+    force = np.sqrt(drift.sample_variance[:3])
+    assert np.all(force > np.sqrt(0.6 * truth)) and np.all(force < np.sqrt(1.5 * truth)), force
+    assert np.all((drift.wander_tau[:3] > TAU / 2.5) & (drift.wander_tau[:3] < 2.5 * TAU)), drift.wander_tau
+    # The block-mean noise times the block's samples (exact for white noise; what the tracker used before) is
+    # not the per-sample variance under a wander: 1-s blocks average a τ = 2 s wander only in part.
+    assert np.any(np.abs(np.log(drift.noise_variance[:3] / truth)) > np.log(2.0)), drift.noise_variance
+    assert drift.block_seconds == pytest.approx(1.0, rel=0.05)
+    assert 0.5 * HOLD_S < drift.hold_seconds <= HOLD_S  # the blocks beside a move are left out
+    live = LiveCalibrator(tools={"tool": identified}, tool="tool")
+    np.testing.assert_array_equal(live.noise_std ** 2, drift.sample_variance)
+
+
+def test_the_c_runtime_starts_from_the_same_noise_and_walk(identified):
+    """One rule for both: ``convert --to c-runtime`` used to take the residual RMS and the knots (noise 0.065 vs
+    0.236 N, walk 1.50 vs 2.93 N/√h on a new user's files) while LiveCalibrator took the stored variances."""
+    old_style = PayloadParameters(identified.mass, identified.com, identified.force_bias, identified.torque_bias,
+                                  9.81, fit={"residual_rms": [0.5] * 6})
+    for tools in ({"tool": identified}, {"plain": old_style, "tool": identified}, {"plain": old_style}, {}):
+        live = LiveCalibrator(tools=tools, tool=next(iter(tools), "none"))
+        params = runtime_parameters(tools)
+        np.testing.assert_array_equal(params["noise_variance"], live.noise_std ** 2)
+        np.testing.assert_array_equal(params["walk_variance"], live.walk_variance)
+    # The wander looks like a walk to the 1-s blocks (the stored walk is far above the true 0.5 N/√h); the tracker
+    # takes out the share a Gauss-Markov wander explains (else it walks with the wander and takes touches in).
+    stored = np.sqrt(identified.drift.walk_variance[:3])
+    tracked = np.sqrt(runtime_parameters({"tool": identified})["walk_variance"][:3] * 3600.0)
+    assert np.all(stored > 3 * 0.5) and np.all(tracked < 0.5 * stored), (stored, tracked)
