@@ -274,7 +274,7 @@ def test_a_broken_imu_message_is_counted_and_keeps_the_pose():
 
 # ----- hostile queryable requests ----------------------------------------------------------------------------
 class Query:
-    key_expr = "ft/test"
+    key_expr = "ft/identify_tool"
 
     def __init__(self, data: bytes | None) -> None:
         self.payload = None if data is None else Sample(data)
@@ -286,7 +286,7 @@ class Query:
 
 def ask(n: LiveNode, action, data: bytes | None) -> dict:
     q = Query(data)
-    n._command(q, action)
+    n._command(q, "identify_tool", action)
     assert len(q.replies) == 1  # every request is answered once
     return q.replies[0]
 
@@ -324,7 +324,7 @@ def test_switch_and_status_requests_with_hostile_payloads_and_an_unexpected_fail
         raise ZeroDivisionError("a bug")
 
     reply = ask(n, broken, b"")
-    assert reply == {"ok": False, "error": "ft/test: ZeroDivisionError: a bug"}
+    assert reply == {"ok": False, "error": "ft/identify_tool: ZeroDivisionError: a bug"}
 
 
 # ----- physics: a re-tare during a contact --------------------------------------------------------------------

@@ -86,9 +86,11 @@ def register(sub) -> None:
     zenoh = p.add_argument_group("Zenoh and ROS bags (Zenoh keys follow zenoh-bridge-ros2dds: topic /ft/raw is "
                                  "key ft/raw; rmw_zenoh's with --keys rmw_zenoh)")
     zenoh.add_argument("--listen", action="append", default=[], metavar="ENDPOINT",
-                       help="endpoint to listen on, e.g. tcp/127.0.0.1:7447 (repeatable)")
+                       help="endpoint to listen on (repeatable; default tcp/127.0.0.1:7448, or tcp/127.0.0.1:0 beside "
+                            "--connect)")
     zenoh.add_argument("--connect", action="append", default=[], metavar="ENDPOINT",
-                       help="endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable)")
+                       help="endpoint to connect to, e.g. the Zenoh router of rmw_zenoh (rmw_zenohd) or "
+                            "zenoh-bridge-ros2dds, tcp/127.0.0.1:7447 (repeatable; must answer within 5 s)")
     zenoh.add_argument("--wrench-topic", default="/ft/raw", metavar="TOPIC",
                        help="raw geometry_msgs/msg/WrenchStamped (default /ft/raw)")
     zenoh.add_argument("--imu-topic", metavar="TOPIC", help="sensor_msgs/msg/Imu in the sensor frame: gravity "

@@ -66,7 +66,14 @@ MAX_JOINT_LISTS = 16
 # A wrench stamped this much later than the newest joint state is not static (its pose may be out of date:
 # the bias must not take up a tool wrench computed for another pose); counted in the diagnostics.
 JOINT_MAX_AGE_S = 0.02
-DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
+# Listened on when no endpoint is given: not 7447, the port of the Zenoh router that rmw_zenoh (rmw_zenohd) and
+# zenoh-bridge-ros2dds run, so that the node and a router can run side by side.
+DEFAULT_ENDPOINT = "tcp/127.0.0.1:7448"
+# Listened on beside --connect when no --listen is given (rmw_zenoh's DEFAULT_RMW_ZENOH_SESSION_CONFIG.json5 listens
+# on tcp/localhost:0): behind a router, peers reach each other directly, learnt by gossip (see zenoh_config).
+EPHEMERAL_ENDPOINT = "tcp/127.0.0.1:0"
+# How long the peers given with --connect may take to answer before the node gives up (exit 2, one line).
+CONNECT_TIMEOUT_MS = 5000
 # The main thread wakes this often to check for silence (and at once when a flag changes).
 WATCH_PERIOD_S = 0.05
 # Publisher settings (zenoh.Session.declare_publisher keywords; names resolved when zenoh is imported). A late
@@ -110,21 +117,56 @@ class ZenohOptions:
 
 
 def zenoh_config(listen=(), connect=(), low_latency: bool = False):
-    """A peer configuration with multicast scouting off, explicit endpoints (listen on :data:`DEFAULT_ENDPOINT` when
-    none is given) and, with ``low_latency``, :data:`TRANSPORT_SETTINGS` (else Zenoh's queued transport)."""
+    """A peer configuration: multicast scouting off, explicit endpoints, gossip on (as rmw_zenoh's session config).
+
+    Listens on :data:`DEFAULT_ENDPOINT` when no endpoint is given, and on :data:`EPHEMERAL_ENDPOINT` beside ``connect``
+    when only that is given. Gossip is what makes the node work behind a router (``rmw_zenohd``, zenoh-bridge-ros2dds):
+    in Zenoh's default ``peer_to_peer`` routing a router does not forward between peers; it tells each peer where the
+    others listen (gossip, one hop) and they connect to each other (``autoconnect`` to peers and routers, as rmw_zenoh's
+    DEFAULT_RMW_ZENOH_SESSION_CONFIG.json5 does). With gossip off, a peer behind a router received 0 of 100 messages
+    (on: 100 of 100); with gossip on but neither peer listening, also 0 (tests/test_live_zenoh_router.py). The peers
+    in ``connect`` must answer within :data:`CONNECT_TIMEOUT_MS`, else opening the session fails (:func:`open_session`
+    says so in one line). ``low_latency``: :data:`TRANSPORT_SETTINGS` (else Zenoh's queued transport)."""
     import zenoh
 
     config = zenoh.Config()
     config.insert_json5("mode", json.dumps("peer"))
     config.insert_json5("scouting/multicast/enabled", "false")
-    config.insert_json5("scouting/gossip/enabled", "false")
-    if not listen and not connect:
-        listen = (DEFAULT_ENDPOINT,)
+    config.insert_json5("scouting/gossip/enabled", "true")
+    config.insert_json5("scouting/gossip/multihop", "false")
+    config.insert_json5("scouting/gossip/autoconnect", json.dumps({"router": [], "peer": ["router", "peer"]}))
+    if not listen:
+        listen = (EPHEMERAL_ENDPOINT,) if connect else (DEFAULT_ENDPOINT,)
     config.insert_json5("listen/endpoints", json.dumps(list(listen)))
     config.insert_json5("connect/endpoints", json.dumps(list(connect)))
+    if connect:
+        config.insert_json5("connect/timeout_ms", json.dumps({"router": CONNECT_TIMEOUT_MS, "peer": CONNECT_TIMEOUT_MS,
+                                                              "client": CONNECT_TIMEOUT_MS}))
+        config.insert_json5("connect/exit_on_failure", json.dumps({"router": True, "peer": True, "client": True}))
     for key, value in TRANSPORT_SETTINGS.items() if low_latency else ():
         config.insert_json5(key, json.dumps(value))
     return config
+
+
+def open_session(listen=(), connect=(), low_latency: bool = False):
+    """``zenoh.open`` of :func:`zenoh_config`; a port in use or peers that do not answer raise :class:`FtcalError`
+    in one line naming the endpoint (zenoh's own error is a paragraph with its source paths)."""
+    import zenoh
+
+    try:
+        return zenoh.open(zenoh_config(listen, connect, low_latency))
+    except zenoh.ZError as exc:
+        text = str(exc)
+        if "Address already in use" in text or "Can not create a new" in text:
+            where = next((e for e in listen or (DEFAULT_ENDPOINT,) if e in text), ", ".join(listen) or DEFAULT_ENDPOINT)
+            raise FtcalError(f"--listen {where}: the address is in use (another ftcal live, or a Zenoh router: "
+                             "give --listen tcp/127.0.0.1:PORT with a free port, or --connect to that router).") from None
+        if "Unable to connect" in text:
+            raise FtcalError(f"--connect {', '.join(connect)}: nothing answered within {CONNECT_TIMEOUT_MS / 1000:g} s "
+                             "(start the router first, e.g. ros2 run rmw_zenoh_cpp rmw_zenohd, or check the "
+                             "endpoint).") from None
+        first = text.split(" at /", 1)[0].splitlines()[0] if text else type(exc).__name__
+        raise FtcalError(f"Zenoh could not open the session: {first}") from None
 
 
 def publisher_settings() -> dict:
@@ -329,21 +371,27 @@ class LiveNode:
         q = positions[source[1]]
         self.pose = (source[0].one(q), tuple(q.tolist()), stamp)
 
-    def _reply(self, query, doc: dict) -> None:
-        query.reply(query.key_expr, json.dumps(doc))
+    def _reply(self, query, name: str, doc: dict) -> None:
+        query.reply(self.keys[name], json.dumps(doc))  # its own key: the query's may be a wildcard (ft/**)
 
-    def _command(self, query, action) -> None:
-        """Run a queryable's action on the request's text and answer it: every request gets one reply (an error
-        naming what is wrong for bad input; an unexpected failure is answered too, never left to time out)."""
+    def _command(self, query, name: str, action) -> None:
+        """Run queryable ``name``'s action on the request's text and answer it: every request gets one reply (an error
+        naming what is wrong for bad input; an unexpected failure is answered too, never left to time out).
+
+        An action (every queryable but ``status``) runs only for a query whose key is its own key exactly: a wildcard
+        query (``get ft/**``, what a monitoring tool sends to see what answers) reached every queryable and re-tared
+        the sensor. Such a query gets no reply from an action; ``status`` answers it."""
+        if name != "status" and str(query.key_expr) != self.keys[name]:
+            return
         try:
             text = _payload_text(query)
             with self.lock:
                 result = action(text)
-            self._reply(query, {"ok": True, **(result or {}), "status": self.live.status()})
+            self._reply(query, name, {"ok": True, **(result or {}), "status": self.live.status()})
         except FtcalError as exc:
-            self._reply(query, {"ok": False, "error": str(exc)})
+            self._reply(query, name, {"ok": False, "error": str(exc)})
         except Exception as exc:  # a bug must not leave the caller waiting: answer, and the node runs on
-            self._reply(query, {"ok": False, "error": f"{query.key_expr}: {type(exc).__name__}: {exc}"})
+            self._reply(query, name, {"ok": False, "error": f"{self.keys[name]}: {type(exc).__name__}: {exc}"})
 
     def _identify(self, text: str) -> dict:
         words = text.split()
@@ -362,7 +410,7 @@ class LiveNode:
 
         if self.options.rt_priority is not None:
             self._realtime(self.options.rt_priority)
-        session = zenoh.open(zenoh_config(self.options.listen, self.options.connect, self.options.low_latency))
+        session = open_session(self.options.listen, self.options.connect, self.options.low_latency)
         entities = []
         try:
             # Publishers first: a subscriber callback may run as soon as it is declared.
@@ -377,14 +425,12 @@ class LiveNode:
             if self.keys["joints"]:
                 entities.append(session.declare_subscriber(self.keys["joints"], self._on_joints))
             entities.append(session.declare_subscriber(self.keys["wrench"], self._on_wrench))
-            entities.append(session.declare_queryable(
-                self.keys["retare"], lambda q: self._command(q, lambda _: _warned(self.live.retare()))))
-            entities.append(session.declare_queryable(
-                self.keys["switch_tool"], lambda q: self._command(q, lambda name: self.live.switch_tool(name.strip()))))
-            entities.append(session.declare_queryable(
-                self.keys["identify_tool"], lambda q: self._command(q, self._identify)))
-            entities.append(session.declare_queryable(
-                self.keys["status"], lambda q: self._command(q, lambda _: None)))
+            actions = {"retare": lambda _: _warned(self.live.retare()),
+                       "switch_tool": lambda name: self.live.switch_tool(name.strip()),
+                       "identify_tool": self._identify, "status": lambda _: None}
+            for name, action in actions.items():
+                entities.append(session.declare_queryable(
+                    self.keys[name], lambda q, name=name, action=action: self._command(q, name, action)))
             pose = self.keys["imu"] or self.keys["joints"]
             self.echo(f"ftcal live: listening on {self.keys['wrench']}"
                       + (f" and {pose}" if pose else " (no IMU or joints: fixed pose, gravity -z)")
