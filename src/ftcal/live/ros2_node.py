@@ -3,7 +3,8 @@
 rclpy is imported only here, when the node starts: without a sourced ROS 2 (Humble or later) or the ROS 2 wheels
 (``pip install ros-jazzy-rclpy ...``), :func:`import_rclpy` says so in one line.
 
-* subscribes, with the sensor-data QoS (best effort, keep last 5: a reliable or best-effort publisher both match):
+* subscribes, with the sensor-data QoS (best effort: a reliable or a best-effort publisher matches; keep last
+  :data:`INPUT_DEPTH`):
   ``ft/raw`` (``geometry_msgs/msg/WrenchStamped``), optionally ``sensor_msgs/msg/Imu`` (gravity from its
   orientation, else minus its acceleration), ``sensor_msgs/msg/JointState`` (with a robot model) and
   ``sensor_msgs/msg/Temperature``;
@@ -33,6 +34,10 @@ from .health import names_of
 from .node_core import NodeCore
 
 NODE_NAME = "ftcal_live"
+# The inputs' history: the sensor-data profile's best effort and volatility, but 100 samples deep, not 5: a callback
+# that runs late (the executor's one thread, a slow step) loses none of a burst (with 5, 1 of 200 wrenches at 200 Hz
+# was lost on this 2-core machine under load).
+INPUT_DEPTH = 100
 # Parameter name -> (kind, description). The command line's option of the same name (dashes for underscores) gives
 # the default; a params file or -p overrides it. "tools" is --tool NAME=PAYLOAD.json, "tool" is --mount.
 PARAMETERS = {
@@ -151,12 +156,19 @@ class Ros2Node:
     # ----- parameters --------------------------------------------------------------------------------------
     def _declare(self, settings: dict) -> dict:
         from rcl_interfaces.msg import ParameterDescriptor
+        from rclpy.parameter import Parameter
 
         values = {}
         for name, (kind, description) in PARAMETERS.items():
             descriptor = ParameterDescriptor(description=description, read_only=name not in RUNTIME_PARAMETERS)
-            value = self.node.declare_parameter(name, _ros_value(kind, settings.get(name)), descriptor).value
-            values[name] = _option_value(kind, value)
+            default = _ros_value(kind, settings.get(name))
+            if isinstance(default, list) and not default:  # an empty list has no type of its own (rclpy: bytes)
+                default = Parameter.Type.DOUBLE_ARRAY if kind == "double_array" else Parameter.Type.STRING_ARRAY
+            try:
+                value = self.node.declare_parameter(name, default, descriptor).value
+            except Exception as exc:  # rclpy's InvalidParameterTypeException and kin: a params file's wrong type
+                raise FtcalError(f"parameter {name}: {str(exc).splitlines()[0]}") from None
+            values[name] = _option_value(kind, [] if value is None else value)
         for name in ("silence", "g"):
             if not (math.isfinite(values[name]) and values[name] > 0):
                 raise FtcalError(f"parameter {name}: must be a positive number; got {values[name]!r}.")
@@ -185,11 +197,12 @@ class Ros2Node:
     def _create_interfaces(self) -> None:
         from diagnostic_msgs.msg import DiagnosticArray
         from geometry_msgs.msg import WrenchStamped
-        from rclpy.qos import qos_profile_sensor_data
+        from rclpy.qos import QoSProfile, qos_profile_sensor_data
         from sensor_msgs.msg import Imu, JointState, Temperature
         from std_srvs.srv import Trigger
 
         node, s, prefix = self.node, self.settings, self.settings["prefix"].rstrip("/")
+        sensor_data = QoSProfile(**{**_qos_fields(qos_profile_sensor_data), "depth": INPUT_DEPTH})
         self.publishers = {name: node.create_publisher(WrenchStamped, f"{prefix}/{name}", 10)
                            for name in ("calibrated", "compensated", "bias", "bias_std")}
         self.publishers["diagnostics"] = node.create_publisher(DiagnosticArray, "/diagnostics", 10)
@@ -198,14 +211,14 @@ class Ros2Node:
                              "robot model.")
         if s["joints_topic"] and s["imu_topic"]:
             raise FtcalError("give one gravity source: imu_topic, or joints_topic with urdf.")
-        node.create_subscription(WrenchStamped, s["wrench_topic"], self._on_wrench, qos_profile_sensor_data)
+        node.create_subscription(WrenchStamped, s["wrench_topic"], self._on_wrench, sensor_data)
         if s["imu_topic"]:
-            node.create_subscription(Imu, s["imu_topic"], self._on_imu, qos_profile_sensor_data)
+            node.create_subscription(Imu, s["imu_topic"], self._on_imu, sensor_data)
         if s["joints_topic"]:
-            node.create_subscription(JointState, s["joints_topic"], self._on_joints, qos_profile_sensor_data)
+            node.create_subscription(JointState, s["joints_topic"], self._on_joints, sensor_data)
         if s["temperature_topic"]:
             node.create_subscription(Temperature, s["temperature_topic"],
-                                     lambda m: self.core.take_temperature(m.temperature), qos_profile_sensor_data)
+                                     lambda m: self.core.take_temperature(m.temperature), sensor_data)
         node.create_service(Trigger, f"{prefix}/retare", lambda req, res: self._trigger(res, "retare", ""))
         node.create_service(Trigger, f"{prefix}/identify/start", lambda req, res: self._trigger(
             res, "identify_tool", "start " + str(node.get_parameter("identify_tool_name").value)))
@@ -339,6 +352,10 @@ class Ros2Node:
 
 
 AXES = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
+
+
+def _qos_fields(profile) -> dict:
+    return {"history": profile.history, "reliability": profile.reliability, "durability": profile.durability}
 
 
 def serve(settings: dict, build, ros_args=()) -> int:
