@@ -314,3 +314,62 @@ def test_type_hashes_against_ros2s_type_descriptions():
     for name in TYPES:
         h = hashes[name]
         assert h["generated"] == h["recomputed"] == h["ftcal"], (name, h)
+
+
+# The README's ROS 2 commands (its ```ros2 blocks, which tests/test_readme.py leaves out: they need ROS 2): the node
+# started as written (the tool file made here, a duration added), then every `ros2 service call` and `ros2 param set`
+# it lists done through rclpy (no ros2 command line in the wheels), each answered as the README says.
+README_CALLS = r"""
+import json, sys, time
+import rclpy
+from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+from rcl_interfaces.srv import SetParameters
+from std_srvs.srv import Trigger
+rclpy.init()
+node = rclpy.create_node("readme_peer")
+out = []
+for words in json.loads(sys.argv[1]):
+    if words[:3] == ["ros2", "service", "call"]:
+        client, request = node.create_client(Trigger, words[3]), Trigger.Request()
+    else:  # ros2 param set NODE NAME VALUE
+        client = node.create_client(SetParameters, f"{words[3]}/set_parameters")
+        request = SetParameters.Request(parameters=[Parameter(name=words[4], value=ParameterValue(
+            type=ParameterType.PARAMETER_STRING, string_value=words[5]))])
+    assert client.wait_for_service(timeout_sec=20), words
+    future = client.call_async(request)
+    rclpy.spin_until_future_complete(node, future, timeout_sec=20)
+    r = future.result()
+    out.append(r.success if hasattr(r, "success") else r.results[0].successful)
+print(json.dumps(out))
+"""
+
+
+def test_the_readmes_ros2_commands(tmp_path):
+    import re
+    import shlex
+
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    blocks = [m.group(1) for m in re.finditer(r"^```ros2\n(.*?)^```", text, re.M | re.S)]
+    lines = [shlex.split(line, comments=True) for block in blocks for line in block.splitlines()]
+    lines = [w for w in lines if w]
+    live = [w for w in lines if w[:3] == ["ftcal", "live", "--ros2"]]
+    calls = [w for w in lines if w[:3] == ["ros2", "service", "call"] or w[:3] == ["ros2", "param", "set"]]
+    assert len(live) == 1 and len(calls) >= 3
+    yaml = re.search(r"^```yaml\n# ft.yaml\n(.*?)^```", text, re.M | re.S).group(1)
+    (tmp_path / "ft.yaml").write_text(yaml)
+    tool_file(tmp_path / "payload.json")
+    words = [w.replace("ftcal-demo/payload.json", "payload.json") for w in live[0][1:]]
+    at = words.index("--ros-args")
+    env = ros_env(domain_for("readme"))
+    node = subprocess.Popen([str(FTCAL), *words[:at], "--duration", "60", *words[at:]], cwd=tmp_path, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert "ROS 2 node /ur5/ftcal_live listening on /ur5/ft_sensor/wrench" in node.stdout.readline()
+        answers = run_peer(README_CALLS, env, json.dumps(calls))
+    finally:
+        node.send_signal(signal.SIGTERM)
+        _, err = node.communicate(timeout=60)
+    # re-tare and start succeed; finish without 3 holds is refused (no wrench arrived); the gripper is mounted
+    expected = {"/ur5/ft/retare": True, "/ur5/ft/identify/start": True, "/ur5/ft/identify/finish": False,
+                "/ur5/ftcal_live": True}
+    assert answers == [expected[w[3]] for w in calls], (calls, answers, err[-2000:])
