@@ -277,7 +277,7 @@ def test_a_broken_imu_message_is_counted_and_keeps_the_pose():
 
 # ----- hostile queryable requests ----------------------------------------------------------------------------
 class Query:
-    key_expr = "ft/test"
+    key_expr = "ft/identify_tool"
 
     def __init__(self, data: bytes | None) -> None:
         self.payload = None if data is None else Sample(data)
@@ -287,9 +287,10 @@ class Query:
         self.replies.append(json.loads(text))
 
 
-def ask(n: LiveNode, action, data: bytes | None) -> dict:
+def ask(n: LiveNode, name: str, data: bytes | None) -> dict:
     q = Query(data)
-    n._command(q, action)
+    q.key_expr = f"ft/{name}"
+    n._command(q, name)
     assert len(q.replies) == 1  # every request is answered once
     return q.replies[0]
 
@@ -309,14 +310,14 @@ def ask(n: LiveNode, action, data: bytes | None) -> dict:
 ])
 def test_hostile_identify_requests_get_an_error_reply_naming_the_problem(data, message):
     n = node()
-    reply = ask(n, n._identify, data)
+    reply = ask(n, "identify_tool", data)
     assert reply["ok"] is False and message in reply["error"], reply
     assert n.live.identifying is None and list(n.live.tools) == ["none", "gripper"]
 
 
 def test_switch_and_status_requests_with_hostile_payloads_and_an_unexpected_failure_are_answered():
     n = node()
-    switch = lambda name: n.live.switch_tool(name.strip())  # noqa: E731  (the node's queryable)
+    switch = "switch_tool"
     for data in (b"hammer", b"", b"\x00", "\u202e".encode(), b"x" * 10_000):
         reply = ask(n, switch, data)
         assert reply["ok"] is False and reply["error"]
@@ -326,8 +327,9 @@ def test_switch_and_status_requests_with_hostile_payloads_and_an_unexpected_fail
     def broken(_):
         raise ZeroDivisionError("a bug")
 
-    reply = ask(n, broken, b"")
-    assert reply == {"ok": False, "error": "ft/test: ZeroDivisionError: a bug"}
+    n._identify = broken
+    reply = ask(n, "identify_tool", b"")
+    assert reply == {"ok": False, "error": "identify_tool: ZeroDivisionError: a bug"}
 
 
 # ----- physics: a re-tare during a contact --------------------------------------------------------------------

@@ -96,12 +96,12 @@ class FakeClock:
 def diagnostics_in(seconds: float, flip_every: float | None, monkeypatch) -> int:
     import types
 
-    from ftcal.live import zenoh_node
+    from ftcal.live import node_core
 
     node = node_with_sinks()
     node.options = ZenohOptions(duration=seconds, silence=1e9)
     clock = FakeClock(node, flip_every)
-    monkeypatch.setattr(zenoh_node, "time", types.SimpleNamespace(monotonic=clock.monotonic))
+    monkeypatch.setattr(node_core, "time", types.SimpleNamespace(monotonic=clock.monotonic))
     node.wake = clock
     node._loop()
     return len(node.publishers["diagnostics"].messages)

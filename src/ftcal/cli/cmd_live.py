@@ -50,6 +50,9 @@ def register(sub) -> None:
                                                        "ROS 2 bag folder; with --wrench-topic and --joints-topic "
                                                        "or --tf), to run through the calibrator")
     mode.add_argument("--zenoh", action="store_true", help="run live over Zenoh (see the Zenoh options)")
+    mode.add_argument("--ros2", action="store_true",
+                      help="run live as a ROS 2 node (rclpy: source ROS 2 first); every option is also a ROS "
+                           "parameter, and --ros-args (last) passes remappings, -p and --params-file to ROS")
     p.add_argument("-o", "--output", metavar="OUT.parquet|OUT.csv", help="--replay: the results table")
     p.add_argument("--model", metavar="CAL.json", help="calibration model: its input columns are the raw channels")
     add_inputs_option(p, "--replay's sensor columns: without --model the wrench, 6 columns Fx..Tz (default: the "
@@ -95,25 +98,32 @@ def register(sub) -> None:
     zenoh = p.add_argument_group("Zenoh and ROS bags (Zenoh keys follow zenoh-bridge-ros2dds: topic /ft/raw is "
                                  "key ft/raw; rmw_zenoh's with --keys rmw_zenoh)")
     zenoh.add_argument("--listen", action="append", default=[], metavar="ENDPOINT",
-                       help="endpoint to listen on, e.g. tcp/127.0.0.1:7447 (repeatable)")
+                       help="endpoint to listen on (repeatable; default tcp/127.0.0.1:7448, or tcp/127.0.0.1:0 beside "
+                            "--connect)")
     zenoh.add_argument("--connect", action="append", default=[], metavar="ENDPOINT",
-                       help="endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable)")
-    zenoh.add_argument("--wrench-topic", default="/ft/raw", metavar="TOPIC",
-                       help="raw geometry_msgs/msg/WrenchStamped (default /ft/raw)")
+                       help="endpoint to connect to, e.g. the Zenoh router of rmw_zenoh (rmw_zenohd) or "
+                            "zenoh-bridge-ros2dds, tcp/127.0.0.1:7447 (repeatable; must answer within 5 s)")
+    zenoh.add_argument("--wrench-topic", metavar="TOPIC",
+                       help="raw geometry_msgs/msg/WrenchStamped (default /ft/raw; --ros2: ft/raw, in the node's "
+                            "namespace)")
     zenoh.add_argument("--imu-topic", metavar="TOPIC", help="sensor_msgs/msg/Imu in the sensor frame: gravity "
                                                            "from its orientation (else its acceleration)")
     zenoh.add_argument("--joints-topic", metavar="TOPIC",
                        help="sensor_msgs/msg/JointState (e.g. /joint_states): gravity from the joints and --urdf")
+    zenoh.add_argument("--temperature-topic", metavar="TOPIC",
+                       help="--zenoh, --ros2: sensor_msgs/msg/Temperature, checked against the model's temperature "
+                            "range and fed to a model with a temperature input")
     zenoh.add_argument("--tf", metavar="BASE[:SENSOR_FRAME]", type=frame_pair,
                        help="--replay of a bag: the sensor's orientation from /tf and /tf_static (BASE gravity-"
                             "aligned, z up)")
     zenoh.add_argument("--receive-time", action="store_true",
                        help="--replay of a bag: time the messages by the bag's receive time, not their header stamps "
                             "(as ftcal dataset --receive-time: for stamps that repeat or go back)")
-    zenoh.add_argument("--prefix", default="/ft", metavar="TOPIC",
+    zenoh.add_argument("--prefix", metavar="TOPIC",
                        help="outputs: PREFIX/calibrated, PREFIX/compensated (WrenchStamped), PREFIX/diagnostics "
                             "(JSON); queryables PREFIX/retare, /switch_tool, /identify_tool, /status "
-                            "(default /ft)")
+                            "(default /ft; --ros2: ft, and services PREFIX/retare, PREFIX/identify/start, "
+                            "PREFIX/identify/finish)")
     zenoh.add_argument("--silence", type=positive_float, default=1.0, metavar="S",
                        help="flag the input silent after this many seconds without a message (default 1)")
     zenoh.add_argument("--duration", type=positive_float, metavar="S", help="stop after this many seconds")
@@ -126,6 +136,8 @@ def register(sub) -> None:
     zenoh.add_argument("--rt-priority", type=nonnegative_int, metavar="N",
                        help="--zenoh: run the node under SCHED_FIFO at priority N (1-99; Linux, needs CAP_SYS_NICE "
                             "or an rtprio limit); says in one line when it is not permitted and runs on")
+    p.add_argument("--ros-args", nargs=argparse.REMAINDER, metavar="ROS_ARGS",
+                   help="--ros2, last: the rest goes to ROS (e.g. --ros-args -r __ns:=/robot1 --params-file ft.yaml)")
     p.set_defaults(func=run)
 
 
@@ -199,9 +211,22 @@ def build_calibrator(args, robot=None):
 
 
 def run(args) -> int:
+    from ..runtime.errors import FtcalError
+
     inputs_of(args)  # --wrench, the old spelling, read as --inputs (with a notice)
+    relative = args.ros2  # ROS names without a leading slash live in the node's namespace
+    if args.wrench_topic is None:
+        args.wrench_topic = "ft/raw" if relative else "/ft/raw"
+    if args.prefix is None:
+        args.prefix = "ft" if relative else "/ft"
+    if args.ros_args is not None and not args.ros2:
+        raise FtcalError("--ros-args goes with --ros2.")
+    if args.temperature_topic is not None and args.replay is not None:
+        raise FtcalError("--temperature-topic applies to --zenoh and --ros2; --replay takes --temperature COL.")
     if args.zenoh:
         return run_zenoh(args)
+    if args.ros2:
+        return run_ros2(args)
     return run_replay(args)
 
 
@@ -412,7 +437,45 @@ def run_zenoh(args) -> int:
     robot = robot_gravity(args, None, "--urdf")
     live = build_calibrator(args)
     options = ZenohOptions(listen=tuple(args.listen), connect=tuple(args.connect), wrench_topic=args.wrench_topic,
-                           imu_topic=args.imu_topic, joints_topic=args.joints_topic, prefix=args.prefix,
+                           imu_topic=args.imu_topic, joints_topic=args.joints_topic,
+                           temperature_topic=args.temperature_topic, prefix=args.prefix,
                            silence=args.silence, duration=args.duration, keys=args.keys, domain_id=args.domain_id,
                            rt_priority=args.rt_priority)
     return serve(live, options, robot=robot)
+
+
+# ROS parameter name -> the option's attribute (the others have the parameter's name).
+_ROS2_ATTRIBUTES = {"tool": "mount", "urdf": "robot_urdf"}
+
+
+def run_ros2(args) -> int:
+    """``--ros2``: the options are the node's parameters' defaults; a params file or ``-p`` may override them, so the
+    calibrator is built from the parameters' values (ftcal.live.ros2_node)."""
+    from ..live.ros2_node import PARAMETERS, serve
+    from ..runtime.errors import FtcalError
+
+    if (args.output or args.retare_at or args.switch_tool or args.realtime or args.tf or args.receive_time
+            or args.drop_incomplete or args.listen or args.connect or args.keys != "bridge" or args.domain_id
+            or args.rt_priority is not None):
+        raise FtcalError("-o, --retare-at, --switch-tool, --realtime, --tf, --receive-time, --drop-incomplete, "
+                         "--listen, --connect, --keys, --domain-id and --rt-priority do not apply to --ros2 (ROS picks "
+                         "the transport: RMW_IMPLEMENTATION, ROS_DOMAIN_ID); use its services (docs/live.md).")
+    settings = {name: getattr(args, _ROS2_ATTRIBUTES.get(name, name), None) for name in PARAMETERS}
+    settings["tools"] = [f"{name}={path}" for name, path in args.tool]
+    settings["identify_tool_name"] = "identified_tool"
+    settings["tool"] = args.mount if args.mount is not None else next((name for name, _ in args.tool), "none")
+
+    def build(values: dict):
+        for name, value in values.items():
+            if name == "tools":
+                try:
+                    args.tool = [tool_spec(text) for text in value or ()]
+                except argparse.ArgumentTypeError as exc:
+                    raise FtcalError(f"parameter tools: {exc}") from None
+            elif name in ("walk_std", "noise_std", "bias", "silence", "duration", "g", "degrees", "model", "state",
+                          "sensor", "ft_joint", "ft_frame", "base", "tool", "urdf") or name.endswith("_topic"):
+                setattr(args, _ROS2_ATTRIBUTES.get(name, name), value)
+        robot = robot_gravity(args, None, "--urdf")
+        return build_calibrator(args), robot  # the robot is the node's gravity source, as with --zenoh
+
+    return serve(settings, build, args.ros_args or ())

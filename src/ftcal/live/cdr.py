@@ -1,6 +1,6 @@
 """CDR of the fixed-layout stamped messages the live node handles per sample, without building message objects.
 
-``geometry_msgs/msg/WrenchStamped`` and ``sensor_msgs/msg/Imu`` are a ``std_msgs/msg/Header``
+``geometry_msgs/msg/WrenchStamped``, ``sensor_msgs/msg/Imu`` and ``sensor_msgs/msg/Temperature`` are a ``std_msgs/msg/Header``
 (``int32`` seconds, ``uint32`` nanoseconds, a string frame id) followed by float64 fields only.
 In CDR (the DDS encoding ROS 2 and zenoh-bridge-ros2dds carry) that is: a 4-byte encapsulation
 header (``00 01`` little endian, ``00 00`` big endian, then two option bytes), the stamp, the
@@ -21,6 +21,7 @@ LITTLE_ENDIAN_CDR = b"\x00\x01\x00\x00"
 WRENCH_DOUBLES = 6  # force x y z, torque x y z
 # orientation (4), its covariance (9), angular velocity (3), covariance (9), linear acceleration (3), covariance (9)
 IMU_DOUBLES = 37
+TEMPERATURE_DOUBLES = 2  # sensor_msgs/msg/Temperature: temperature (°C), variance
 
 _STAMP = {"<": struct.Struct("<iII"), ">": struct.Struct(">iII")}
 _DOUBLES: dict = {}
@@ -59,7 +60,7 @@ def decode_stamped(data: bytes, count: int) -> StampedDoubles:
     Raises
     ------
     ValueError
-        Truncated data, an unknown encapsulation, a stamp whose nanoseconds reach a second, or a frame id that is
+        Truncated data or bytes beyond the ``count`` doubles (another type), an unknown encapsulation, a stamp whose nanoseconds reach a second, or a frame id that is
         not a NUL-terminated UTF-8 string.
     """
     if len(data) < ENCAPSULATION_HEADER + 12 or data[0] != 0 or data[1] not in (0, 1):
@@ -76,6 +77,11 @@ def decode_stamped(data: bytes, count: int) -> StampedDoubles:
     body = _doubles(endian, count)
     if start + body.size > len(data):
         raise ValueError(f"the message ends before its {count} float64 fields")
+    # Exactly that long (the encapsulation options' two low bits may declare up to 3 bytes of padding at the end): a
+    # message of another type whose header is followed by more doubles (an Imu on the wrench key) is not this type.
+    if len(data) - (data[3] & 0x03) != start + body.size:
+        raise ValueError(f"the message has {len(data) - start - body.size} byte(s) after its {count} float64 fields: "
+                         "another message type")
     return StampedDoubles(sec * 1_000_000_000 + nanosec, frame, body.unpack_from(data, start), bytes(data[:start]),
                           endian)
 

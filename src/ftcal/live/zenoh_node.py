@@ -8,7 +8,8 @@ DDS carries and the bridge routes unchanged (serialised with ``rosbags``). With 
 ROS topics use rmw_zenoh's keys instead (``<domain>/<topic>/<type>/<RIHS01 type hash>``, an attachment per
 sample, liveliness tokens: :mod:`ftcal.live.rmw_zenoh`); diagnostics and queryables stay plain Zenoh keys.
 
-* subscribes: the raw wrench (``WrenchStamped``) and, optionally, an IMU (``sensor_msgs/msg/Imu``:
+* subscribes: the raw wrench (``WrenchStamped``), optionally a temperature (``sensor_msgs/msg/Temperature``, checked
+  against the model's range and fed to a model with a temperature input) and, optionally, an IMU (``sensor_msgs/msg/Imu``:
   gravity from its orientation, else minus its linear acceleration) or the joint states
   (``sensor_msgs/msg/JointState``, decoded by ``rosbags``; with a robot model,
   :class:`ftcal.robot.kinematics.SensorGravity`, gravity in the sensor frame from the joints named in
@@ -23,7 +24,11 @@ sample, liveliness tokens: :mod:`ftcal.live.rmw_zenoh`); diagnostics and queryab
   :data:`~ftcal.core.limits.LIVE_DIAGNOSTICS_MIN_INTERVAL_S` after the previous message.
 * queryables (Zenoh-native, JSON replies; not ROS services): ``PREFIX/retare``,
   ``PREFIX/switch_tool`` (payload: the tool's name), ``PREFIX/identify_tool`` (payload
-  ``start NAME`` or ``finish``), ``PREFIX/status``.
+  ``start NAME`` or ``finish``), ``PREFIX/status``; all but ``status`` act only on a query for their own key (not a
+  wildcard such as ``ft/**``).
+
+What is not Zenoh (pose sources, stamp checks, commands, diagnostics, the main loop) is :mod:`ftcal.live.node_core`'s,
+shared with the ROS 2 node.
 
 Each wrench is processed as it arrives, in Zenoh's subscriber callback (zenoh-python's own callback thread: running
 it on Zenoh's network thread instead, ``indirect=False``, saved no CPU, and with the low-latency transport stalled
@@ -44,31 +49,29 @@ from __future__ import annotations
 
 import gc
 import json
-import math
 import sys
-import threading
 import time
 from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.limits import (C_RUNTIME_MAX_TOOL_NAME, LIVE_CLOCK_RESTART_MESSAGES, LIVE_DIAGNOSTICS_MIN_INTERVAL_S,
-                           LIVE_DIAGNOSTICS_PERIOD_S, LIVE_MAX_QUERY_BYTES, LIVE_MAX_STAMP_JUMP_S, MAX_CELL_MAGNITUDE)
+from ..core.limits import LIVE_MAX_QUERY_BYTES
 from ..runtime.errors import FtcalError
-from .cdr import IMU_DOUBLES, WRENCH_DOUBLES, decode_stamped, encode_like
-from .health import BIT, names_of
+from .cdr import IMU_DOUBLES, TEMPERATURE_DOUBLES, WRENCH_DOUBLES, decode_stamped, encode_like
+from .node_core import COMMANDS, JOINT_MAX_AGE_S, MAX_JOINT_LISTS, NodeCore, tool_name  # noqa: F401 (re-exported)
 
 WRENCH_TYPE = "geometry_msgs/msg/WrenchStamped"
 IMU_TYPE = "sensor_msgs/msg/Imu"
 JOINT_STATE_TYPE = "sensor_msgs/msg/JointState"
-# Joint-name lists remembered (a JointState publisher keeps one list; a few are plenty).
-MAX_JOINT_LISTS = 16
-# A wrench stamped this much later than the newest joint state is not static (its pose may be out of date:
-# the bias must not take up a tool wrench computed for another pose); counted in the diagnostics.
-JOINT_MAX_AGE_S = 0.02
-DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
-# The main thread wakes this often to check for silence (and at once when a flag changes).
-WATCH_PERIOD_S = 0.05
+TEMPERATURE_TYPE = "sensor_msgs/msg/Temperature"
+# Listened on when no endpoint is given: not 7447, the port of the Zenoh router that rmw_zenoh (rmw_zenohd) and
+# zenoh-bridge-ros2dds run, so that the node and a router can run side by side.
+DEFAULT_ENDPOINT = "tcp/127.0.0.1:7448"
+# Listened on beside --connect when no --listen is given (rmw_zenoh's DEFAULT_RMW_ZENOH_SESSION_CONFIG.json5 listens
+# on tcp/localhost:0): behind a router, peers reach each other directly, learnt by gossip (see zenoh_config).
+EPHEMERAL_ENDPOINT = "tcp/127.0.0.1:0"
+# How long the peers given with --connect may take to answer before the node gives up (exit 2, one line).
+CONNECT_TIMEOUT_MS = 5000
 # Publisher settings (zenoh.Session.declare_publisher keywords; names resolved when zenoh is imported). A late
 # answer is dropped rather than the callback blocked (rmw_zenoh's choice for KEEP_LAST topics). Not express:
 # measured at 2 kHz, express=True lost 36-407 of 16,000 answers (each message then takes one of the link's two
@@ -100,6 +103,7 @@ class ZenohOptions:
     wrench_topic: str = "/ft/raw"
     imu_topic: str | None = None
     joints_topic: str | None = None
+    temperature_topic: str | None = None
     prefix: str = "/ft"
     silence: float = 1.0
     duration: float | None = None
@@ -110,21 +114,56 @@ class ZenohOptions:
 
 
 def zenoh_config(listen=(), connect=(), low_latency: bool = False):
-    """A peer configuration with multicast scouting off, explicit endpoints (listen on :data:`DEFAULT_ENDPOINT` when
-    none is given) and, with ``low_latency``, :data:`TRANSPORT_SETTINGS` (else Zenoh's queued transport)."""
+    """A peer configuration: multicast scouting off, explicit endpoints, gossip on (as rmw_zenoh's session config).
+
+    Listens on :data:`DEFAULT_ENDPOINT` when no endpoint is given, and on :data:`EPHEMERAL_ENDPOINT` beside ``connect``
+    when only that is given. Gossip is what makes the node work behind a router (``rmw_zenohd``, zenoh-bridge-ros2dds):
+    in Zenoh's default ``peer_to_peer`` routing a router does not forward between peers; it tells each peer where the
+    others listen (gossip, one hop) and they connect to each other (``autoconnect`` to peers and routers, as rmw_zenoh's
+    DEFAULT_RMW_ZENOH_SESSION_CONFIG.json5 does). With gossip off, a peer behind a router received 0 of 100 messages
+    (on: 100 of 100); with gossip on but neither peer listening, also 0 (tests/test_live_zenoh_router.py). The peers
+    in ``connect`` must answer within :data:`CONNECT_TIMEOUT_MS`, else opening the session fails (:func:`open_session`
+    says so in one line). ``low_latency``: :data:`TRANSPORT_SETTINGS` (else Zenoh's queued transport)."""
     import zenoh
 
     config = zenoh.Config()
     config.insert_json5("mode", json.dumps("peer"))
     config.insert_json5("scouting/multicast/enabled", "false")
-    config.insert_json5("scouting/gossip/enabled", "false")
-    if not listen and not connect:
-        listen = (DEFAULT_ENDPOINT,)
+    config.insert_json5("scouting/gossip/enabled", "true")
+    config.insert_json5("scouting/gossip/multihop", "false")
+    config.insert_json5("scouting/gossip/autoconnect", json.dumps({"router": [], "peer": ["router", "peer"]}))
+    if not listen:
+        listen = (EPHEMERAL_ENDPOINT,) if connect else (DEFAULT_ENDPOINT,)
     config.insert_json5("listen/endpoints", json.dumps(list(listen)))
     config.insert_json5("connect/endpoints", json.dumps(list(connect)))
+    if connect:
+        config.insert_json5("connect/timeout_ms", json.dumps({"router": CONNECT_TIMEOUT_MS, "peer": CONNECT_TIMEOUT_MS,
+                                                              "client": CONNECT_TIMEOUT_MS}))
+        config.insert_json5("connect/exit_on_failure", json.dumps({"router": True, "peer": True, "client": True}))
     for key, value in TRANSPORT_SETTINGS.items() if low_latency else ():
         config.insert_json5(key, json.dumps(value))
     return config
+
+
+def open_session(listen=(), connect=(), low_latency: bool = False):
+    """``zenoh.open`` of :func:`zenoh_config`; a port in use or peers that do not answer raise :class:`FtcalError`
+    in one line naming the endpoint (zenoh's own error is a paragraph with its source paths)."""
+    import zenoh
+
+    try:
+        return zenoh.open(zenoh_config(listen, connect, low_latency))
+    except zenoh.ZError as exc:
+        text = str(exc)
+        if "Address already in use" in text or "Can not create a new" in text:
+            where = next((e for e in listen or (DEFAULT_ENDPOINT,) if e in text), ", ".join(listen) or DEFAULT_ENDPOINT)
+            raise FtcalError(f"--listen {where}: the address is in use (another ftcal live, or a Zenoh router: "
+                             "give --listen tcp/127.0.0.1:PORT with a free port, or --connect to that router).") from None
+        if "Unable to connect" in text:
+            raise FtcalError(f"--connect {', '.join(connect)}: nothing answered within {CONNECT_TIMEOUT_MS / 1000:g} s "
+                             "(start the router first, e.g. ros2 run rmw_zenoh_cpp rmw_zenohd, or check the "
+                             "endpoint).") from None
+        first = text.split(" at /", 1)[0].splitlines()[0] if text else type(exc).__name__
+        raise FtcalError(f"Zenoh could not open the session: {first}") from None
 
 
 def publisher_settings() -> dict:
@@ -154,37 +193,17 @@ def wrench_message(store, stamp_ns: int, frame: str, w: np.ndarray) -> bytes:
     return bytes(store.serialize_cdr(msg, WRENCH_TYPE))
 
 
-class LiveNode:
+class LiveNode(NodeCore):
     """The calibrator behind Zenoh subscribers, publishers and queryables (see the module docstring)."""
 
     def __init__(self, live, options: ZenohOptions, *, robot=None, echo=print) -> None:
-        if live.model is not None and len(live.model.input_names_) != 6:
-            raise FtcalError(f"--zenoh: the model takes {len(live.model.input_names_)} inputs; a WrenchStamped "
-                             "carries 6 channels.")
-        self.live, self.options, self.echo = live, options, echo
-        self.store = typestore()
-        self.lock = threading.Lock()  # the calibrator: subscriber callbacks, queryables, diagnostics
-        self.wake = threading.Event()  # a flag changed: publish diagnostics now
-        self.gravity: tuple | None = (0.0, 0.0, -live.gravity_magnitude)
-        self.quaternion: tuple | None = None
-        self.signal_key = "raw" if live.model is not None else "wrench"
         if (robot is None) != (options.joints_topic is None):
             raise FtcalError("--joints-topic and a robot model (--urdf) go together.")
-        self.robot = robot
-        self.pose: tuple | None = None  # (gravity, joint positions) from the latest joint state
-        self.joint_sources: dict = {}  # joint-name tuple -> (SensorGravity over them, their indices), or None
-        self.waiting_for_joints = 0
-        self.stale_joints = 0
-        self.bad_messages = 0
-        self.stale_samples = 0
-        self.stamp_jumps = 0  # wrenches held back: stamped more than LIVE_MAX_STAMP_JUMP_S after the last one
-        self.held_stamp: float | None = None  # the last of them, confirmed by a next message that follows it
-        self.stale_run: tuple | None = None  # (count, stamp) of the stale messages in a row that keep their order
-        self.raised = 0  # flag bits raised since the last diagnostics message (a contact may last one sample)
-        self.closing = False  # set when the node shuts down: callbacks still in flight stop publishing
-        self.last_message = time.monotonic()
+        self.options = options
+        self.store = typestore()
         self.topics = {"wrench": (options.wrench_topic, WRENCH_TYPE), "imu": (options.imu_topic, IMU_TYPE),
                        "joints": (options.joints_topic, JOINT_STATE_TYPE),
+                       "temperature": (options.temperature_topic, TEMPERATURE_TYPE),
                        "calibrated": (f"{options.prefix.rstrip('/')}/calibrated", WRENCH_TYPE),
                        "compensated": (f"{options.prefix.rstrip('/')}/compensated", WRENCH_TYPE)}
         if options.keys == "rmw_zenoh":
@@ -198,8 +217,9 @@ class LiveNode:
         self.keys = {name: None if topic is None else ros_key(topic, msgtype)
                      for name, (topic, msgtype) in self.topics.items()}
         self.keys.update({name: f"{topic_key(options.prefix)}/{name}" for name in
-                          ("diagnostics", "retare", "switch_tool", "identify_tool", "status")})
+                          ("diagnostics", *COMMANDS)})
         self.attachments: dict = {}  # rmw_zenoh: the attachment of each ROS publisher
+        super().__init__(live, robot=robot, echo=echo, source=self.keys["wrench"])
 
     # ----- Zenoh callbacks (zenoh's threads) ------------------------------------------------------
     def _on_wrench(self, sample) -> None:
@@ -208,36 +228,10 @@ class LiveNode:
         except (ValueError, UnicodeDecodeError):  # a broken message is counted and reported, never fatal
             self.bad_messages += 1
             return
-        self.last_message = time.monotonic()
-        t = msg.stamp_ns * 1e-9
-        if self.robot is not None:
-            pose = self.pose
-            if pose is None:
-                self.waiting_for_joints += 1
-                return
-            source = {"gravity": pose[0], "joints": pose[1]}
-            if t - pose[2] > JOINT_MAX_AGE_S:
-                source["static"] = False
-                self.stale_joints += 1
-        elif self.quaternion is not None:
-            source = {"quaternion": self.quaternion}
-        else:
-            source = {"gravity": self.gravity}
-        with self.lock:
-            if not self._in_time(t):
-                return
-            before = self.live.flags_now
-            if before & BIT["silent"]:
-                self.live.set_silent(False, "messages again")
-                self.echo(f"ftcal live: messages again on {self.keys['wrench']}", file=sys.stderr, flush=True)
-            try:
-                result = self.live.step(t, **{self.signal_key: msg.values}, **source)
-            except FtcalError:
-                self.bad_messages += 1
-                return
-            after = self.live.flags_now
-            if after != before:
-                self.raised |= after & ~before
+        done = self.process_wrench(msg.stamp_ns, msg.values)
+        if done is None:
+            return
+        result = done[0]
         try:
             if self.attachments:
                 now = time.time_ns()
@@ -252,39 +246,7 @@ class LiveNode:
             if self.closing:  # saved with the state, only its answer is not sent
                 return
             raise
-        if after != before:
-            self.wake.set()
-            for flag, reason in result.flags.items():  # contacts come and go: diagnostics carry them
-                if flag != "contact" and not before & BIT[flag]:
-                    self.echo(f"ftcal live: t={t:.3f} s {flag}: {reason}", file=sys.stderr, flush=True)
-
-    def _in_time(self, t: float) -> bool:
-        """Whether a wrench stamped ``t`` goes to the calibrator (under the lock); counts those that do not.
-
-        Older than the last sample: stale. Later than it by more than :data:`LIVE_MAX_STAMP_JUMP_S`: held back
-        (``stamp_jumps``) until the next message confirms the new time line, so that one far-future stamp cannot
-        make every later message stale. After :data:`LIVE_CLOCK_RESTART_MESSAGES` − 1 stale messages in a row that keep
-        their own order (the publisher's clock restarted), the next one restarts the calibrator's clock.
-        """
-        last = self.live.last_time
-        if last is not None and t <= last:
-            run = self.stale_run
-            self.stale_run = (run[0] + 1, t) if run and t > run[1] else (1, t)
-            if self.stale_run[0] < LIVE_CLOCK_RESTART_MESSAGES:
-                self.stale_samples += 1
-                return False
-            reason = (f"stamps on {self.keys['wrench']} went back from t={last:.9g} s to t={t:.9g} s for "
-                      f"{LIVE_CLOCK_RESTART_MESSAGES} messages: the clock restarts there")
-            self.live.restart_clock(reason)
-            self.echo(f"ftcal live: {reason}", file=sys.stderr, flush=True)
-        self.stale_run = None
-        if last is not None and t - last > LIVE_MAX_STAMP_JUMP_S:
-            held, self.held_stamp = self.held_stamp, t
-            if held is None or not 0.0 < t - held <= LIVE_MAX_STAMP_JUMP_S:
-                self.stamp_jumps += 1
-                return False
-        self.held_stamp = None
-        return True
+        self.announce(msg.stamp_ns * 1e-9, *done)
 
     def _on_imu(self, sample) -> None:
         try:
@@ -292,15 +254,12 @@ class LiveNode:
         except (ValueError, UnicodeDecodeError):
             self.bad_messages += 1
             return
-        q, orientation_covariance, acceleration = values[0:4], values[4], values[25:28]
-        # An orientation covariance starting with -1 means "no orientation" (sensor_msgs/msg/Imu's convention). A
-        # non-finite, zero or overflowing one is a bad message: the pose from the previous message is kept.
-        norm_a = math.sqrt(sum(a * a for a in acceleration)) if all(map(math.isfinite, acceleration)) else math.nan
-        if orientation_covariance != -1.0 and abs(math.sqrt(sum(v * v for v in q)) - 1.0) < 1e-3:
-            self.quaternion = q
-        elif 0.0 < norm_a <= MAX_CELL_MAGNITUDE:
-            self.quaternion, self.gravity = None, tuple(-a for a in acceleration)
-        else:
+        self.take_imu(values[0:4], values[4], values[25:28])
+
+    def _on_temperature(self, sample) -> None:
+        try:
+            self.take_temperature(decode_stamped(sample.payload.to_bytes(), TEMPERATURE_DOUBLES).values[0])
+        except (ValueError, UnicodeDecodeError):
             self.bad_messages += 1
 
     def _on_joints(self, sample) -> None:
@@ -311,49 +270,22 @@ class LiveNode:
         except Exception:  # rosbags raises several kinds on a broken message: counted, never fatal
             self.bad_messages += 1
             return
-        if names not in self.joint_sources:
-            if len(self.joint_sources) >= MAX_JOINT_LISTS:
-                self.joint_sources.clear()
-            known = set(self.robot.robot.joint_names)
-            keep = [i for i, name in enumerate(names) if name in known]
-            try:
-                self.joint_sources[names] = (self.robot.with_joints([names[i] for i in keep], self.keys["joints"]),
-                                             keep)
-            except FtcalError as exc:  # e.g. a joint of the sensor's chain is missing: say so once per list
-                self.joint_sources[names] = None
-                self.echo(f"ftcal live: {exc}", file=sys.stderr, flush=True)
-        source = self.joint_sources[names]
-        if source is None or positions.shape != (len(names),) or not np.all(np.isfinite(positions[source[1]])):
-            self.bad_messages += 1
+        self.take_joints(names, positions, stamp, self.keys["joints"])
+
+    def _command(self, query, name: str) -> None:
+        """Answer a query to queryable ``name`` with :meth:`~NodeCore.command` on the request's text: every request
+        gets one reply.
+
+        An action (every queryable but ``status``) runs only for a query whose key is its own key exactly: a wildcard
+        query (``get ft/**``, what a monitoring tool sends to see what answers) reached every queryable and re-tared
+        the sensor. Such a query gets no reply from an action; ``status`` answers it."""
+        if name != "status" and str(query.key_expr) != self.keys[name]:
             return
-        q = positions[source[1]]
-        self.pose = (source[0].one(q), tuple(q.tolist()), stamp)
-
-    def _reply(self, query, doc: dict) -> None:
-        query.reply(query.key_expr, json.dumps(doc))
-
-    def _command(self, query, action) -> None:
-        """Run a queryable's action on the request's text and answer it: every request gets one reply (an error
-        naming what is wrong for bad input; an unexpected failure is answered too, never left to time out)."""
         try:
-            text = _payload_text(query)
-            with self.lock:
-                result = action(text)
-            self._reply(query, {"ok": True, **(result or {}), "status": self.live.status()})
+            doc = self.command(name, _payload_text(query))
         except FtcalError as exc:
-            self._reply(query, {"ok": False, "error": str(exc)})
-        except Exception as exc:  # a bug must not leave the caller waiting: answer, and the node runs on
-            self._reply(query, {"ok": False, "error": f"{query.key_expr}: {type(exc).__name__}: {exc}"})
-
-    def _identify(self, text: str) -> dict:
-        words = text.split()
-        if len(words) == 2 and words[0] == "start":
-            self.live.start_identification(_tool_name(words[1]))
-            return {}
-        if words == ["finish"]:
-            payload = self.live.finish_identification()
-            return {"mass": payload.mass, "mass_stderr": float(payload.stderr["mass"]), "com": payload.com.tolist()}
-        raise FtcalError("identify_tool takes 'start NAME' or 'finish'.")
+            doc = {"ok": False, "error": str(exc)}
+        query.reply(self.keys[name], json.dumps(doc))  # its own key: the query's may be a wildcard (ft/**)
 
     # ----- the loop -------------------------------------------------------------------------------
     def serve(self) -> int:
@@ -362,7 +294,7 @@ class LiveNode:
 
         if self.options.rt_priority is not None:
             self._realtime(self.options.rt_priority)
-        session = zenoh.open(zenoh_config(self.options.listen, self.options.connect, self.options.low_latency))
+        session = open_session(self.options.listen, self.options.connect, self.options.low_latency)
         entities = []
         try:
             # Publishers first: a subscriber callback may run as soon as it is declared.
@@ -377,14 +309,10 @@ class LiveNode:
             if self.keys["joints"]:
                 entities.append(session.declare_subscriber(self.keys["joints"], self._on_joints))
             entities.append(session.declare_subscriber(self.keys["wrench"], self._on_wrench))
-            entities.append(session.declare_queryable(
-                self.keys["retare"], lambda q: self._command(q, lambda _: _warned(self.live.retare()))))
-            entities.append(session.declare_queryable(
-                self.keys["switch_tool"], lambda q: self._command(q, lambda name: self.live.switch_tool(name.strip()))))
-            entities.append(session.declare_queryable(
-                self.keys["identify_tool"], lambda q: self._command(q, self._identify)))
-            entities.append(session.declare_queryable(
-                self.keys["status"], lambda q: self._command(q, lambda _: None)))
+            if self.keys["temperature"]:
+                entities.append(session.declare_subscriber(self.keys["temperature"], self._on_temperature))
+            for name in COMMANDS:
+                entities.append(session.declare_queryable(self.keys[name], lambda q, name=name: self._command(q, name)))
             pose = self.keys["imu"] or self.keys["joints"]
             self.echo(f"ftcal live: listening on {self.keys['wrench']}"
                       + (f" and {pose}" if pose else " (no IMU or joints: fixed pose, gravity -z)")
@@ -400,8 +328,7 @@ class LiveNode:
                 except Exception:  # the session may already be closing
                     pass
             session.close()
-            if self.live.state_path is not None and self.live.last_time is not None:
-                self.live.save_state()
+            self.save_on_exit()
         return 0
 
     def settle(self) -> None:
@@ -429,7 +356,8 @@ class LiveNode:
         self.attachments = {name: Attachment(self.keys[name], zid) for name in ("calibrated", "compensated")}
         domain = self.options.domain_id
         tokens = [liveliness_token(domain, zid, 0, "NN")]
-        for entity, name in enumerate(("wrench", "imu", "joints", "calibrated", "compensated"), start=1):
+        for entity, name in enumerate(("wrench", "imu", "joints", "calibrated", "compensated", "temperature"),
+                                      start=1):
             topic, msgtype = self.topics[name]
             if topic is not None:
                 kind = "MP" if name in ("calibrated", "compensated") else "MS"
@@ -437,24 +365,7 @@ class LiveNode:
         return [session.liveliness().declare_token(token) for token in tokens]
 
     def _loop(self) -> None:
-        started = time.monotonic()
-        self.last_message = started
-        last_diagnostics = -math.inf
-        flags_sent = -1
-        while self.options.duration is None or time.monotonic() - started < self.options.duration:
-            now = time.monotonic()
-            if now - self.last_message > self.options.silence and not self.live.flags_now & BIT["silent"]:
-                reason = f"no message on {self.keys['wrench']} for {self.options.silence:g} s"
-                with self.lock:
-                    self.live.set_silent(True, reason)
-                self.echo(f"ftcal live: {reason}", file=sys.stderr, flush=True)
-            changed = self.live.flags_now != flags_sent or self.raised
-            due = last_diagnostics + (LIVE_DIAGNOSTICS_MIN_INTERVAL_S if changed else LIVE_DIAGNOSTICS_PERIOD_S)
-            if now >= due:
-                flags_sent, last_diagnostics = self._diagnostics(), now
-                due = now + LIVE_DIAGNOSTICS_PERIOD_S
-            self.wake.wait(timeout=max(0.0, min(WATCH_PERIOD_S, self.options.silence, due - now)))
-            self.wake.clear()
+        self.run_loop(self.options.duration, self.options.silence, self._diagnostics)
 
     def _diagnostics(self) -> int:
         """Publish the diagnostics message; returns the flag bits it reported."""
@@ -465,20 +376,8 @@ class LiveNode:
         return flags
 
     def _diagnostics_message(self) -> str:
-        """The diagnostics as JSON: the calibrator's status, the reasons of its flags, the flags raised since the
-        previous message with their reasons (``raised``), and the node's counters; starts a new ``raised``."""
-        status = self.live.status()
-        status["reasons"] = {name: self.live.reason_of(name) for name in status["flags"]}
-        raised, self.raised = self.raised, 0
-        status["raised"] = {name: self.live.reason_of(name) for name in names_of(raised)}
-        status["bad_messages"], status["stale_samples"] = self.bad_messages, self.stale_samples
-        status["stamp_jumps"] = self.stamp_jumps
-        status["waiting_for_joints"], status["stale_joints"] = self.waiting_for_joints, self.stale_joints
-        return json.dumps(status)
-
-
-def _warned(warning: str | None) -> dict | None:
-    return None if warning is None else {"warning": warning}
+        """The diagnostics as JSON (:meth:`~NodeCore.diagnostics_status`); starts a new ``raised``."""
+        return json.dumps(self.diagnostics_status())
 
 
 def _payload_text(query) -> str:
@@ -491,22 +390,6 @@ def _payload_text(query) -> str:
         return data.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise FtcalError(f"the request's payload is not UTF-8 text (byte {exc.start}).") from None
-
-
-def _tool_name(name: str) -> str:
-    """A tool name from the network: at most :data:`~ftcal.core.limits.C_RUNTIME_MAX_TOOL_NAME` UTF-8 bytes (what the
-    C runtime's slots hold) and no control, format (e.g. U+202E, right-to-left override) or separator characters
-    that would hide or reorder text in logs and terminals."""
-    import unicodedata
-
-    size = len(name.encode("utf-8"))
-    if size > C_RUNTIME_MAX_TOOL_NAME:
-        raise FtcalError(f"tool name of {size} bytes; at most {C_RUNTIME_MAX_TOOL_NAME} (UTF-8).")
-    odd = next((c for c in name if unicodedata.category(c)[0] == "C" or unicodedata.category(c) in ("Zl", "Zp")), None)
-    if odd is not None:
-        raise FtcalError(f"tool name {name!r} has the character U+{ord(odd):04X} ({unicodedata.category(odd)}); "
-                         "give letters, digits and punctuation.")
-    return name
 
 
 def serve(live, options: ZenohOptions, robot=None) -> int:
