@@ -22,7 +22,7 @@ from ftcal import workflow
 from ftcal.cli import build_parser, main
 from ftcal.cli._common import FLAGS, cli_message, flag_of
 from ftcal.core.features import n_coefficients
-from ftcal.runtime.errors import FtcalError, ParameterError
+from ftcal.runtime.errors import FtcalError, ParameterError, ParameterWarning
 
 WORKFLOW = pathlib.Path(workflow.__file__).parent
 COLUMNS = ["u1", "u2", "u3", "u4", "u5", "u6", "T", "Fx", "Fy", "Fz", "Tx", "Ty", "Tz"]
@@ -111,10 +111,13 @@ def test_n_coefficients_refuses_impossible_counts(args):
 
 
 def raised_strings(path):
-    """Every string constant inside every ``raise`` statement of a module (f-string parts included)."""
+    """Every string constant inside every ``raise`` statement and ``warnings.warn`` call of a module
+    (f-string parts included)."""
     for node in ast.walk(ast.parse(path.read_text())):
-        if isinstance(node, ast.Raise) and node.exc is not None:
-            for inner in ast.walk(node.exc):
+        message = node.exc if isinstance(node, ast.Raise) else node if isinstance(node, ast.Call) and \
+            isinstance(node.func, ast.Attribute) and node.func.attr == "warn" else None
+        if message is not None:
+            for inner in ast.walk(message):
                 if isinstance(inner, ast.Constant) and isinstance(inner.value, str):
                     yield node.lineno, inner.value
 
@@ -138,6 +141,13 @@ def test_library_messages_name_the_parameter_and_the_cli_its_flag(keywords, expe
     for name in caught.value.parameters:
         assert flag_of(name) in flags
     assert flags.startswith("--")
+
+
+def test_a_warning_names_the_parameters_too(frame):
+    with pytest.warns(ParameterWarning, match="^lasso without degree fits degree 1") as caught:
+        ftcal.fit(frame, lasso=0.1)
+    warning = next(w.message for w in caught if isinstance(w.message, ParameterWarning))
+    assert cli_message(warning).startswith("--lasso without --degree fits degree 1")
 
 
 def test_the_command_prints_the_flag(tmp_path, capsys):

@@ -346,7 +346,9 @@ def run(argv: list[str] | None) -> int:
         if issubclass(category, OldSpellingWarning):
             print(f"notice: {one_line(message)}", file=sys.stderr)
         elif issubclass(category, FtcalWarning):
-            print(f"warning: {one_line(message)}", file=sys.stderr)
+            from ._common import cli_message
+
+            print(f"warning: {one_line(cli_message(message))}", file=sys.stderr)
         elif issubclass(category, RuntimeWarning):  # numpy's floating-point warnings, in ftcal's words
             print(f"warning: numerical {one_line(message)} (values near the limits of float64 in an input file?)",
                   file=sys.stderr)

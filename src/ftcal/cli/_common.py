@@ -11,7 +11,7 @@ from collections.abc import Sequence
 from ..core.columns import DEFAULT_INPUTS, DEFAULT_OUTPUTS
 from ..core.limits import MAX_OPTION_MAGNITUDE
 from ..runtime.errors import single_line  # noqa: F401  (the commands import it from here)
-from ..runtime.errors import FtcalError, ParameterError
+from ..runtime.errors import FtcalError, ParameterError, ParameterWarning
 
 # The one table from a library parameter to the flag that sets it, where the flag is not the rule
 # ``--`` + the name with ``-`` for ``_`` (degree -> --degree, max_degree -> --max-degree).
@@ -27,9 +27,10 @@ def flag_of(parameter: str) -> str:
     return FLAGS.get(parameter, "--" + parameter.replace("_", "-"))
 
 
-def cli_message(error: FtcalError) -> str:
-    """What the command prints for ``error``: a :class:`ParameterError` names the flags, not the Python names."""
-    return error.render(flag_of) if isinstance(error, ParameterError) else str(error)
+def cli_message(error: FtcalError | Warning) -> str:
+    """What the command prints for ``error`` (or a warning): a :class:`ParameterError` or
+    :class:`ParameterWarning` names the flags, not the Python names."""
+    return error.render(flag_of) if isinstance(error, (ParameterError, ParameterWarning)) else str(error)
 
 
 def column_list(text: str) -> tuple[str, ...]:

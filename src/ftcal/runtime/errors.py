@@ -22,7 +22,27 @@ class FtcalError(ValueError):
     """
 
 
-class ParameterError(FtcalError):
+class _NamesParameters:
+    """A message that names parameters as ``{name}``: Python names in ``str()``, flags in the CLI (:meth:`render`)."""
+
+    def __init__(self, parameter, message: str):
+        self.parameters = (parameter,) if isinstance(parameter, str) else tuple(parameter)
+        self.parameter = self.parameters[0]
+        self.template = message
+        super().__init__(self.render(lambda name: name))
+
+    def render(self, name_of) -> str:
+        """The message with each ``{parameter}`` written as ``name_of(parameter)``."""
+        text = self.template
+        for name in self.parameters:
+            text = text.replace("{" + name + "}", name_of(name))
+        return text
+
+    def __reduce__(self):  # pickled across processes (Dask workers) with both arguments
+        return type(self), (self.parameters, self.template)
+
+
+class ParameterError(_NamesParameters, FtcalError):
     """A parameter of a library call is wrong; the message names it by its Python name.
 
     ``message`` writes each parameter it names as ``{name}`` (``"{degree} must be in 1..10"``):
@@ -46,22 +66,6 @@ class ParameterError(FtcalError):
     '--degree must be in 1..10; got 0.'
     """
 
-    def __init__(self, parameter, message: str):
-        self.parameters = (parameter,) if isinstance(parameter, str) else tuple(parameter)
-        self.parameter = self.parameters[0]
-        self.template = message
-        super().__init__(self.render(lambda name: name))
-
-    def render(self, name_of) -> str:
-        """The message with each ``{parameter}`` written as ``name_of(parameter)``."""
-        text = self.template
-        for name in self.parameters:
-            text = text.replace("{" + name + "}", name_of(name))
-        return text
-
-    def __reduce__(self):  # pickled across processes (Dask workers) with both arguments
-        return type(self), (self.parameters, self.template)
-
 
 class NotFittedError(FtcalError):
     """A model method that needs fitted state was called before ``fit``."""
@@ -82,6 +86,10 @@ class FtcalWarning(UserWarning):
     >>> any(issubclass(w.category, FtcalWarning) for w in caught)
     True
     """
+
+
+class ParameterWarning(_NamesParameters, FtcalWarning):
+    """A warning about a parameter, named as :class:`ParameterError` names it (``{name}`` in the message)."""
 
 
 class IllPosedFitWarning(FtcalWarning):

@@ -25,7 +25,7 @@ from .arguments import FIT, check_arguments
 from ..core.columns import DEFAULT_OUTPUTS, LOAD_COLUMN
 from ..core.limits import (MAX_DEGREE, MAX_LAG, MLP_EQUATIONS_PER_WEIGHT, MLP_MAX_ITER, MLP_MAX_LAYERS,
                            MLP_MAX_UNITS, PAPER_LAMBDAS, SELECTION_BUDGET_SECONDS)
-from ..runtime.errors import FtcalError, FtcalWarning, ParameterError
+from ..runtime.errors import FtcalError, FtcalWarning, ParameterError, ParameterWarning
 from .result import StepResult
 from .sources import default_label_columns, tables_of
 
@@ -234,8 +234,10 @@ def check_options(o: _Options) -> None:
                          "(or {degree} auto).")
     if o.degree is None:
         if o.lasso or o.ridge:
-            warnings.warn(f"--{'lasso' if o.lasso else 'ridge'} without --degree fits degree 1 (affine); "
-                          "give --degree (the paper's LASSO models are degree 4).", FtcalWarning, stacklevel=3)
+            penalty = "lasso" if o.lasso else "ridge"
+            warnings.warn(ParameterWarning((penalty, "degree"), f"{{{penalty}}} without {{degree}} fits degree 1 "
+                                           "(affine); give {degree} (the paper's LASSO models are degree 4)."),
+                          stacklevel=3)
         o.degree = 1
     if o.degree != "auto" and (isinstance(o.degree, bool) or not isinstance(o.degree, int)
                                or not 1 <= o.degree <= MAX_DEGREE):
@@ -803,11 +805,11 @@ class _Fit:
             self.lines.append(mlp_cross_validation_table(model, affine_folds))
             comparison = Comparison.of(Candidate(1, "none", None), affine_folds, model.cv_["fold_scores"])
             if comparison.loses:
-                warnings.warn(f"the MLP validates worse than the affine model beyond the fold noise (margin "
-                              f"{comparison.margin:+.3g}, fold standard error {comparison.standard_error:.3g} over "
-                              f"{model.cv_['n_folds']} grouped folds): the affine model is written instead; give "
-                              "--family polynomial --degree auto to search the polynomials.", FtcalWarning,
-                              stacklevel=4)
+                warnings.warn(ParameterWarning(("family", "degree"), f"the MLP validates worse than the affine model "
+                                               f"beyond the fold noise (margin {comparison.margin:+.3g}, fold standard "
+                                               f"error {comparison.standard_error:.3g} over {model.cv_['n_folds']} "
+                                               "grouped folds): the affine model is written instead; give {family} "
+                                               "polynomial {degree} auto to search the polynomials."), stacklevel=4)
                 self.lines.append("written: the affine model (least squares, degree 1), not the MLP: the MLP "
                                   "validates worse beyond the fold noise")
                 model = CalibrationModel(degree=1).fit(data)
