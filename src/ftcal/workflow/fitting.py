@@ -806,6 +806,8 @@ class _Fit:
         When its grouped cross-validation ranks it worse than the affine model beyond the fold noise (the
         polynomial search's rule), the affine model is fitted and returned instead, and the report says so.
         """
+        import numpy as np
+
         from ..core.mlp import MLPModel, hidden_for_data, n_weights
         from ..core.model import CalibrationModel
         from ..core.select import Candidate, Comparison, cross_validate
@@ -839,26 +841,45 @@ class _Fit:
             self.lines.append(f"early stopping chose the last of the {max_iter} iterations: held-out error was "
                               "still falling (a larger --max-iter may help)")
         if model.cv_ is not None:
+            from ..core.metrics import block_error_norm_rmse, wrench_blocks
+
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", IllPosedFitWarning)  # judged by its score
                 # Scored as the MLP's folds are: the force error norm, or the mean RMSE without a force block.
-                from ..core.metrics import wrench_blocks
-
                 objective = "force" if "force" in wrench_blocks(data.output_names) else "both"
                 affine = cross_validate(data, [Candidate(1, "none", None)], n_folds=o.folds, objective=objective)
-            affine_folds = affine.score_of(Candidate(1, "none", None)).fold_scores
+            affine_score = affine.score_of(Candidate(1, "none", None))
+            affine_folds = affine_score.fold_scores
             self.lines.append(mlp_cross_validation_table(model, affine_folds))
-            comparison = Comparison.of(Candidate(1, "none", None), affine_folds, model.cv_["fold_scores"])
-            if comparison.loses:
-                warnings.warn(f"the MLP validates worse than the affine model beyond the fold noise (margin "
-                              f"{comparison.margin:+.3g}, fold standard error {comparison.standard_error:.3g} over "
-                              f"{model.cv_['n_folds']} grouped folds): the affine model is written instead; give "
-                              "--family polynomial --degree auto to search the polynomials.", FtcalWarning,
-                              stacklevel=4)
+            # Every block the network writes is judged (force and torque), each on fold scores at the iteration
+            # count the other folds chose: the polynomial search's rule, on folds that did not pick the count.
+            held = model.cv_.get("held_out_fold_mse")
+            if held is not None and wrench_blocks(data.output_names):
+                comparisons = {name: Comparison.of(Candidate(1, "none", None),
+                                                   block_error_norm_rmse(np.asarray(affine_score.fold_mse), cols),
+                                                   block_error_norm_rmse(np.asarray(held), cols))
+                               for name, cols in wrench_blocks(data.output_names).items()}
+            else:
+                comparisons = {"outputs": Comparison.of(Candidate(1, "none", None), affine_folds,
+                                                        model.cv_.get("held_out_fold_scores",
+                                                                      model.cv_["fold_scores"]))}
+            for name, c in comparisons.items():
+                self.lines.append(f"mlp {name} on folds that did not choose its iteration count: margin over np1 "
+                                  f"{c.margin:+.3g} (standard error {c.standard_error:.3g}, {c.n_folds} folds)"
+                                  + ("; WORSE beyond the fold noise" if c.loses else
+                                     "; within the fold noise" if c.within_noise else "; a win beyond the noise"))
+            lost = [name for name, c in comparisons.items() if c.loses]
+            if lost:
+                c = comparisons[lost[0]]
+                warnings.warn(f"the MLP validates worse than the affine model beyond the fold noise on "
+                              f"{' and '.join(lost)} (margin {c.margin:+.3g}, fold standard error "
+                              f"{c.standard_error:.3g} over {model.cv_['n_folds']} grouped folds): the affine model "
+                              "is written instead; give --family polynomial --degree auto to search the "
+                              "polynomials.", FtcalWarning, stacklevel=4)
                 self.lines.append("written: the affine model (least squares, degree 1), not the MLP: the MLP "
-                                  "validates worse beyond the fold noise")
+                                  f"validates worse beyond the fold noise on {' and '.join(lost)}")
                 model = CalibrationModel(degree=1).fit(data)
-            elif comparison.within_noise:
+            elif all(c.within_noise for c in comparisons.values()):
                 self.lines.append("the MLP is within the fold noise of the affine model: no evidence that it "
                                   "predicts new load cases better (the MLP is written, as asked)")
         return model, data
