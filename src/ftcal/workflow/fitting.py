@@ -267,8 +267,11 @@ def check_options(o: _Options) -> None:
 
 def _compared_with_affine(o: _Options) -> bool:
     """An explicit polynomial fit richer than affine least squares: validated against affine on grouped folds."""
-    return (o.degree != "auto" and o.family != "mlp" and o.solver != "osqp"
-            and (int(o.degree) > 1 or bool(o.lasso) or bool(o.ridge)))
+    # Also asked before check_options: a missing degree is 1, and 'auto' or a bad value is not compared here.
+    degree = 1 if o.degree is None else o.degree
+    if isinstance(degree, bool) or not isinstance(degree, int):
+        return False
+    return o.family != "mlp" and o.solver != "osqp" and (degree > 1 or bool(o.lasso) or bool(o.ridge))
 
 
 def _streams(o: _Options) -> bool:
