@@ -21,6 +21,7 @@ import numpy as np
 from benchmarks.bench_bags import CASES as BAG_CASES
 from benchmarks.bench_c import CASES as C_CASES
 from benchmarks.bench_cost import CASES as COST_CASES
+from benchmarks.bench_select_rates import SELECT_RATE_CASES
 from benchmarks.bench_floor import CASES as FLOOR_CASES
 from benchmarks.bench_live import LIVE_CASES
 from benchmarks.bench_closed_loop import CASES as CLOSED_LOOP_CASES
@@ -537,6 +538,7 @@ CASES.update(C_CASES)  # batch generated C and the c-runtime live step: benchmar
 CASES.update(PLAN_CASES)  # experiment design: benchmarks/bench_plan.py
 CASES.update(MLP_CASES)  # the MLP family against a polynomial: benchmarks/bench_mlp.py
 CASES.update(COST_CASES)  # --degree auto's estimate against its CPU: benchmarks/bench_cost.py
+CASES.update(SELECT_RATE_CASES)  # --degree auto's false wins and kept gains: benchmarks/bench_select_rates.py
 CASES.update(LIVE_CASES)  # the live calibrator: benchmarks/bench_live.py
 CASES.update(PAYLOAD_CLI_CASES)  # whole ftcal payload processes: benchmarks/bench_payload_cli.py
 CASES.update(CLUSTER_CASES)  # whole ftcal fit, one process against local:N: benchmarks/bench_cluster.py

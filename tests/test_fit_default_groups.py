@@ -60,11 +60,18 @@ def test_the_command_says_which_groups_it_used(tmp_path):
     assert "notice" not in run.stderr
 
 
-@pytest.mark.parametrize("degree", [2])
-def test_a_fixed_degree_is_not_regrouped(tmp_path, degree):
+def test_an_affine_fit_is_not_regrouped(tmp_path):
     paths = write_tables(tmp_path, with_group=True)
-    result = ftcal.fit(paths, inputs=["u1", "u2", "u3"], outputs=["Fx"], degree=degree)
+    result = ftcal.fit(paths, inputs=["u1", "u2", "u3"], outputs=["Fx"], degree=1)
     assert not any("'load' column" in note for note in result.notes)
+
+
+def test_a_fixed_degree_is_compared_with_affine_on_the_load_cases(tmp_path):
+    """Issue 44: an explicit degree above 1 is cross-validated beside affine on whole load cases."""
+    paths = write_tables(tmp_path, with_group=True)
+    result = ftcal.fit(paths, inputs=["u1", "u2", "u3"], outputs=["Fx"], degree=2)
+    assert any("'load' column" in note for note in result.notes)
+    assert any(line.startswith("grouped cross-validation of np2 against affine") for line in result.lines)
 
 
 def test_the_mlp_guard_scores_outputs_without_a_force_block(tmp_path):

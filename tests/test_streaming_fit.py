@@ -248,7 +248,9 @@ def test_degree_auto_streams_and_refits_the_winner(tmp_path):
     winner = fit_best(data, result)
     model = load_model_file(out).model
     assert model.layout_.basis.degree == winner.layout_.basis.degree
-    assert relative(model.coef_, winner.coef_) < 1e-12
+    # The search now reaches degree 5 here (it stops after two idle degrees, issue 44): its normal equations
+    # carry the two summation orders' rounding (files streamed, or the table whole) to ~1e-11.
+    assert relative(model.coef_, winner.coef_) < 1e-10
 
 
 def test_degree_auto_on_a_local_cluster_equals_the_local_run(tmp_path):

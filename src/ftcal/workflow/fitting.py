@@ -275,6 +275,18 @@ def check_options(o: _Options) -> None:
         raise ParameterError(('payload_mass', 'estimate_payload'), "{payload_mass} goes with {estimate_payload} LINK.")
 
 
+EXACT_FIT_FRACTION = 1e-6  # held-out errors below this fraction of the load span are rounding, not a loss
+
+
+def _compared_with_affine(o: _Options) -> bool:
+    """An explicit polynomial fit richer than affine least squares: validated against affine on grouped folds."""
+    # Also asked before check_options: a missing degree is 1, and 'auto' or a bad value is not compared here.
+    degree = 1 if o.degree is None else o.degree
+    if isinstance(degree, bool) or not isinstance(degree, int):
+        return False
+    return o.family != "mlp" and o.solver != "osqp" and (degree > 1 or bool(o.lasso) or bool(o.ridge))
+
+
 def _streams(o: _Options) -> bool:
     """Whether this fit streams its files (one task per file, chunk by chunk) instead of reading them whole."""
     return o.estimate_payload is None and o.solver != "osqp"
@@ -451,7 +463,7 @@ class _Fit:
         if o.group_by is not None:
             o.group_by = label_column(self.paths, o.group_by)
             return
-        if not (o.degree == "auto" or o.family == "mlp" or o.estimate_payload):
+        if not (o.degree == "auto" or o.family == "mlp" or o.estimate_payload or _compared_with_affine(o)):
             return
         column = default_label_column(self.paths, GROUP_COLUMN, self.notes)
         if column is not None:
@@ -514,11 +526,16 @@ class _Fit:
             model = fit_best(data, result, template=template)
             model.solver_info_["cross_validation"] = result.as_dict()
         else:
+            refuse_undetermined(o, data.inputs.shape[1], len(data.output_names),
+                                len(pose_cells(data.inputs, np.c_[data.inputs.min(axis=0), data.inputs.max(axis=0)])),
+                                len(np.unique(np.asarray(data.groups, dtype=str))))
             model = template.clone(degree=o.degree, solver=make_solver(o)).fit(data)
         if model.input_spread_ is None:
             model.input_spread_ = Spread.of(data.inputs)
         check_saturation(model, lambda: len(pose_cells(data.inputs, model.input_range_)),
                          len(np.unique(np.asarray(data.groups, dtype=str))))
+        if _compared_with_affine(o):
+            self._compare_with_affine(data, template)
         return model, dict(sources=self.sources, training_segments=segment_fingerprints(data))
 
     def _read_with_payload(self, inputs, outputs):
@@ -624,8 +641,13 @@ class _Fit:
                                                 inputs, outputs, o.segment_by, combine=add_statistics,
                                                 description="statistics")
                 stats = sum_statistics(parts)
+                if cells is not None:
+                    refuse_undetermined(o, n_in, len(outputs), len(cells), len(summary.group_sizes))
                 with _small_solve_blas(frame):
                     model.fit_statistics(frame, stats)
+                if _compared_with_affine(o) and frame.layout.is_static:
+                    self._compare_with_affine(StreamedStatistics(executor, paths, inputs, outputs, summary,
+                                                                 o.group_by, o.segment_by), template)
             model.input_spread_ = summary.input_spread if summary.input_spread is not None else \
                 self._input_spread(executor, frame, stats, inputs)
             from_statistics = None
@@ -753,6 +775,53 @@ class _Fit:
         self.selection = result
         return result
 
+    def _compare_with_affine(self, data, template) -> None:
+        """An explicit fit beside affine least squares on grouped folds; a warning when it validates worse.
+
+        The folds' statistics are summed Grams (one pass per fold set, never the N x p regressor); the
+        explicit candidate and the affine model are each solved once per fold (:func:`cross_validate`).
+        Skipped with fewer than two groups (nothing to hold out).
+        """
+        from ..core.dataset import Dataset
+        from ..core.select import AFFINE, Candidate, Comparison, DatasetStatistics, cross_validate
+        from ..core.select.scoring import UNITS
+
+        import numpy as np
+
+        o = self.o
+        source = DatasetStatistics(data) if isinstance(data, Dataset) else data
+        n_groups = len(source.group_sizes())
+        if n_groups < 2:
+            return
+        penalty, lam = ("lasso", o.lasso) if o.lasso else ("ridge", o.ridge) if o.ridge else ("none", None)
+        candidate = Candidate(o.degree, penalty, None if lam is None else float(lam))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # ill-posed fold fits are judged by their scores
+            result = cross_validate(source, [candidate], template=template, n_folds=o.folds)
+        ours, affine = result.score_of(candidate), result.score_of(AFFINE)
+        scorer = result.scorer
+        blocks = scorer.blocks or {"outputs": tuple(range(len(scorer.output_names)))}
+        # Errors below a millionth of the block's load span are rounding (an exact map): nothing to warn about.
+        span = (np.ptp(source.data.outputs, axis=0) if hasattr(source, "data")
+                else np.diff(np.asarray(source.summary.output_range), axis=1)[:, 0])
+        pieces, lost = [], []
+        for name, cols in blocks.items():
+            mine, theirs = scorer.block(ours.fold_mse, cols), scorer.block(affine.fold_mse, cols)
+            unit = UNITS.get(name, "")
+            comparison = Comparison.of(AFFINE, theirs, mine)
+            ratio = float(mine.mean() / max(theirs.mean(), np.finfo(float).tiny))
+            pieces.append(f"{name} {mine.mean():.4g}{(' ' + unit) if unit else ''} vs affine {theirs.mean():.4g} "
+                          f"({ratio:.3g}x)")
+            if comparison.loses and mine.mean() > EXACT_FIT_FRACTION * float(np.sqrt(np.sum(span[list(cols)] ** 2))):
+                lost.append(f"{name} {ratio:.3g}x")
+        self.lines.append(f"grouped cross-validation of {candidate.label} against affine least squares "
+                          f"({result.n_folds} folds of whole groups, {n_groups} groups): " + "; ".join(pieces))
+        if lost:
+            warnings.warn(f"{candidate.label} validates worse than the affine model beyond the fold noise on "
+                          f"{' and '.join(lost)} affine's error ({result.n_folds} grouped folds): on new load "
+                          "cases it is likely worse than the affine model. Use --degree auto, a lower --degree, "
+                          "a larger --lasso/--ridge, or record more load cases.", FtcalWarning, stacklevel=4)
+
     # ------------------------------------------------------------------ MLP
     def _fit_mlp(self, inputs, outputs):
         """Read the data whole, fit the MLP and report its grouped cross-validation beside affine least squares.
@@ -761,6 +830,8 @@ class _Fit:
         When its grouped cross-validation ranks it worse than the affine model beyond the fold noise (the
         polynomial search's rule), the affine model is fitted and returned instead, and the report says so.
         """
+        import numpy as np
+
         from ..core.mlp import MLPModel, hidden_for_data, n_weights
         from ..core.model import CalibrationModel
         from ..core.select import Candidate, Comparison, cross_validate
@@ -794,26 +865,46 @@ class _Fit:
             self.lines.append(f"early stopping chose the last of the {max_iter} iterations: held-out error was "
                               "still falling (a larger --max-iter may help)")
         if model.cv_ is not None:
+            from ..core.metrics import block_error_norm_rmse, wrench_blocks
+
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", IllPosedFitWarning)  # judged by its score
                 # Scored as the MLP's folds are: the force error norm, or the mean RMSE without a force block.
-                from ..core.metrics import wrench_blocks
-
                 objective = "force" if "force" in wrench_blocks(data.output_names) else "both"
                 affine = cross_validate(data, [Candidate(1, "none", None)], n_folds=o.folds, objective=objective)
-            affine_folds = affine.score_of(Candidate(1, "none", None)).fold_scores
+            affine_score = affine.score_of(Candidate(1, "none", None))
+            affine_folds = affine_score.fold_scores
             self.lines.append(mlp_cross_validation_table(model, affine_folds))
-            comparison = Comparison.of(Candidate(1, "none", None), affine_folds, model.cv_["fold_scores"])
-            if comparison.loses:
-                warnings.warn(ParameterWarning(("family", "degree"), f"the MLP validates worse than the affine model "
-                                               f"beyond the fold noise (margin {comparison.margin:+.3g}, fold standard "
-                                               f"error {comparison.standard_error:.3g} over {model.cv_['n_folds']} "
-                                               "grouped folds): the affine model is written instead; give {family} "
-                                               "polynomial {degree} auto to search the polynomials."), stacklevel=4)
+            # Every block the network writes is judged (force and torque), each on fold scores at the iteration
+            # count the other folds chose: the polynomial search's rule, on folds that did not pick the count.
+            held = model.cv_.get("held_out_fold_mse")
+            if held is not None and wrench_blocks(data.output_names):
+                comparisons = {name: Comparison.of(Candidate(1, "none", None),
+                                                   block_error_norm_rmse(np.asarray(affine_score.fold_mse), cols),
+                                                   block_error_norm_rmse(np.asarray(held), cols))
+                               for name, cols in wrench_blocks(data.output_names).items()}
+            else:
+                comparisons = {"outputs": Comparison.of(Candidate(1, "none", None), affine_folds,
+                                                        model.cv_.get("held_out_fold_scores",
+                                                                      model.cv_["fold_scores"]))}
+            for name, c in comparisons.items():
+                self.lines.append(f"mlp {name} on folds that did not choose its iteration count: margin over np1 "
+                                  f"{c.margin:+.3g} (standard error {c.standard_error:.3g}, {c.n_folds} folds)"
+                                  + ("; WORSE beyond the fold noise" if c.loses else
+                                     "; within the fold noise" if c.within_noise else "; a win beyond the noise"))
+            lost = [name for name, c in comparisons.items() if c.loses]
+            if lost:
+                c = comparisons[lost[0]]
+                warnings.warn(ParameterWarning(("family", "degree"), f"the MLP validates worse than the affine "
+                                               f"model beyond the fold noise on {' and '.join(lost)} (margin "
+                                               f"{c.margin:+.3g}, fold standard error {c.standard_error:.3g} over "
+                                               f"{model.cv_['n_folds']} grouped folds): the affine model is written "
+                                               "instead; give {family} polynomial {degree} auto to search the "
+                                               "polynomials."), stacklevel=4)
                 self.lines.append("written: the affine model (least squares, degree 1), not the MLP: the MLP "
-                                  "validates worse beyond the fold noise")
+                                  f"validates worse beyond the fold noise on {' and '.join(lost)}")
                 model = CalibrationModel(degree=1).fit(data)
-            elif comparison.within_noise:
+            elif all(c.within_noise for c in comparisons.values()):
                 self.lines.append("the MLP is within the fold noise of the affine model: no evidence that it "
                                   "predicts new load cases better (the MLP is written, as asked)")
         return model, data
@@ -950,6 +1041,31 @@ def training_error_from_statistics(model, frame, stats) -> dict | None:
     return metrics
 
 
+def refuse_undetermined(o: _Options, n_inputs: int, n_outputs: int, n_poses: int, n_groups: int) -> None:
+    """Refuse an explicit least-squares fit with more coefficients per output than distinct poses.
+
+    Least squares then interpolates the poses' noise: a plate of 54 rows at degree 3 (84 coefficients per
+    output) validated at 114x affine's error, with "condition number: inf" as the only hint. The message
+    names the numbers, the highest degree that fits, and the other ways out.
+    """
+    from ..core.features import MonomialBasis, RegressorLayout
+
+    if o.degree == "auto" or o.lasso or o.ridge or o.family == "mlp":
+        return
+
+    def features(degree: int) -> int:
+        return RegressorLayout(MonomialBasis(n_inputs, degree), n_outputs, o.na, o.nb).n_features
+
+    degree = int(o.degree)
+    if features(degree) <= n_poses:
+        return
+    fits = [d for d in range(1, degree) if features(d) <= n_poses]
+    lower = f"--degree {max(fits)} ({features(max(fits))} per output)" if fits else "fewer inputs"
+    raise FtcalError(f"--degree {degree}: {features(degree)} coefficients per output for {n_poses} distinct "
+                     f"poses ({n_groups} groups): least squares cannot determine them. Use {lower}, "
+                     "--lasso/--ridge or --degree auto, or record more poses.")
+
+
 def check_saturation(model, count_poses, n_groups: int) -> None:
     """Warn when the least-squares part of ``model`` has nearly as many coefficients per output as distinct poses."""
     from ..core.features import MonomialBasis, RegressorLayout
@@ -964,8 +1080,8 @@ def check_saturation(model, count_poses, n_groups: int) -> None:
         return  # ridge and LASSO are how to fit many coefficients to few poses
     layout = RegressorLayout(MonomialBasis(len(model.input_names_), max(degrees)), len(model.output_names_),
                              model.layout_.na, model.layout_.nb)
-    warn_if_saturated(layout.n_features, count_poses(), n_groups,
-                      f"The least-squares fit of degree {max(degrees)}")
+    n_features, n_poses = layout.n_features, count_poses()
+    warn_if_saturated(n_features, n_poses, n_groups, f"The least-squares fit of degree {max(degrees)}")
 
 
 def mlp_cross_validation_table(model, affine_folds) -> str:

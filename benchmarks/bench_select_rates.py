@@ -1,0 +1,121 @@
+"""Both error rates of ``--degree auto`` on simulated sensors with a known truth.
+
+``python -m benchmarks.bench_select_rates [SEEDS]``: the paper-like sensor of
+:func:`benchmarks.load_cases.make_paper_sensor` (6 channels, 40 load cases of 30 samples, a reference
+mis-measured by a constant per load case), once with an affine truth and once with the paper's level of
+nonlinearity. Per seed the default search (grouped 5-fold CV, per force/torque block) runs on the 40 load
+cases and its refitted selection is scored on 100 new load cases of the same kind (inside the training
+inputs' range), beside least squares of every degree fitted on the same data (the oracle degree is the
+best of them on the new load cases). Reports:
+
+- false wins: the share of seeds with an affine truth where a degree above 1 is chosen (target <= 5 %);
+- gain share: the selection's mean held-out gain over affine divided by the oracle degree's (target >= 90 %);
+- honesty: the printed CV error over the measured held-out error (target 0.6-1.2).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import warnings
+from contextlib import contextmanager
+
+import numpy as np
+
+from benchmarks.load_cases import make_paper_sensor
+
+NAMES = tuple(f"s{i + 1}" for i in range(6))
+BLOCKS = (slice(0, 3), slice(3, 6))
+
+
+def block_errors(model, inputs: np.ndarray, outputs: np.ndarray) -> np.ndarray:
+    """Force (N) and torque (N·m) error-norm RMSE of ``model`` on ``inputs``."""
+    p = model.predict(inputs, warn_out_of_range=False)
+    return np.array([np.sqrt(np.mean(np.sum((p[:, b] - outputs[:, b]) ** 2, axis=1))) for b in BLOCKS])
+
+
+@contextmanager
+def previous_rule(searched: int):
+    """The win margin before issue 44: two-sided t_{K-1, 1-0.025/D}, Bonferroni over the D degrees searched
+    (the same fold scores; the early stop and tie rule stay today's)."""
+    from scipy.special import stdtrit
+
+    from ftcal.core.select.scoring import Comparison
+
+    kept = Comparison.quantile
+    Comparison.quantile = property(lambda self: float(stdtrit(self.n_folds - 1, 1.0 - 0.025 / max(searched, 1))))
+    try:
+        yield
+    finally:
+        Comparison.quantile = kept
+
+
+def one_seed(seed: int, nonlinearity: float, degrees=(1, 2, 3, 4, 5), oracle_degrees=(1, 2, 3, 4),
+             n_groups: int = 40, per_group: int = 30, case_error: float = 0.02, inside_only: bool = True) -> dict:
+    """The default selection and the least-squares degrees on one simulated sensor, scored on new load cases."""
+    from ftcal.core.dataset import Dataset
+    from ftcal.core.model import CalibrationModel
+    from ftcal.core.select import fit_selection, select_model
+
+    u, y, groups, _ = make_paper_sensor(seed, n_groups=n_groups, per_group=per_group, nonlinearity=nonlinearity,
+                                        case_error=case_error)
+    fresh_u, fresh_y, _, _ = make_paper_sensor(10_000 + seed, n_groups=100, per_group=10,
+                                               nonlinearity=nonlinearity, case_error=case_error)
+    if inside_only:  # new load cases inside the training inputs' range only
+        inside = np.all((fresh_u >= u.min(axis=0)) & (fresh_u <= u.max(axis=0)), axis=1)
+        fresh_u, fresh_y = fresh_u[inside], fresh_y[inside]
+    train = Dataset.from_arrays(u, y, input_names=NAMES, groups=groups)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        least_squares = {d: block_errors(CalibrationModel(d).fit(train), fresh_u, fresh_y) for d in oracle_degrees}
+        result = select_model(train, degrees=degrees, select_per="block")
+        selected = block_errors(fit_selection(result), fresh_u, fresh_y)
+        mse = result.selection_mse()
+        printed = np.array([float(result.scorer.block(mse, cols).mean()) for cols in result.scorer.blocks.values()])
+        with previous_rule(len({s.candidate.degree for s in result.scores} - {1})):  # the same folds and scores, judged by the rule before issue 44
+            before = result.search.result(result.scores, "block")
+            previous = block_errors(fit_selection(before), fresh_u, fresh_y)
+    return {"previous": previous.tolist(),
+            "previous_richer": max(c.degree for c in before.candidate_of_output()) > 1, "seed": seed, "affine": least_squares[1].tolist(),
+            "oracle": np.min(list(least_squares.values()), axis=0).tolist(), "selected": selected.tolist(),
+            "cv": printed.tolist(), "richer": max(c.degree for c in result.candidate_of_output()) > 1,
+            "selection": result.describe_selection()}
+
+
+def rates(rows: list[dict]) -> dict:
+    """False-win share, gain share per block and the CV/held-out ratio range over ``rows`` of :func:`one_seed`."""
+    affine, oracle, selected, cv, previous = (np.array([r[k] for r in rows])
+                                              for k in ("affine", "oracle", "selected", "cv", "previous"))
+    oracle_gain = 1.0 - (oracle / affine).mean(axis=0)
+    gain = 1.0 - (selected / affine).mean(axis=0)
+    honesty = cv / selected
+    return {"seeds": len(rows), "richer": float(np.mean([r["richer"] for r in rows])),
+            "gain": gain.tolist(), "oracle_gain": oracle_gain.tolist(),
+            "gain_share": (gain / np.maximum(oracle_gain, np.finfo(float).tiny)).tolist(),
+            "previous_gain_share": ((1.0 - (previous / affine).mean(axis=0))
+                                    / np.maximum(oracle_gain, np.finfo(float).tiny)).tolist(),
+            "previous_richer": float(np.mean([r["previous_richer"] for r in rows])),
+            "worst_vs_affine": (selected / affine).max(axis=0).tolist(),
+            "cv_over_held_out": [float(honesty.min()), float(np.median(honesty)), float(honesty.max())]}
+
+
+def select_rates(nonlinearity: float, first: int, seeds: int) -> dict:
+    """The case ``make bench`` runs: :func:`rates` over seeds ``first`` .. ``first + seeds - 1``."""
+    import time
+
+    start, cpu = time.perf_counter(), time.process_time()
+    summary = rates([one_seed(s, nonlinearity) for s in range(first, first + seeds)])
+    return {**summary, "seconds": time.perf_counter() - start, "cpu_seconds": time.process_time() - cpu}
+
+
+SELECT_RATE_CASES = {"select_rates": select_rates}
+
+
+def main(seeds: int = 20, first: int = 0) -> None:
+    for label, nonlinearity in (("affine truth", 0.0), ("paper-level nonlinearity", 1.0)):
+        rows = [one_seed(s, nonlinearity) for s in range(first, first + seeds)]
+        print(json.dumps({"truth": label, "first_seed": first, **rates(rows)}), flush=True)
+
+
+if __name__ == "__main__":
+    main(*(int(a) for a in sys.argv[1:]))
