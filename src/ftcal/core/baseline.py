@@ -19,6 +19,8 @@ from .metrics import force_torque_columns, output_units
 
 # Printed ratios and spreads: 3 significant digits; errors: 4.
 RATIO_DIGITS = 3
+# Log ratios within this are ties whatever the spread (rounding, not a difference).
+LOG_TIE = 1e-9
 
 
 @dataclass(frozen=True)
@@ -132,7 +134,8 @@ def paired_verdict(scores, reference_scores) -> tuple[str, float | None, float |
     comparison = Comparison.of(None, np.asarray(reference_scores, float), np.asarray(scores, float))
     if comparison.n_folds < 2 or comparison.log_standard_error is None:
         return "ties", None, None
-    margin, noise = comparison.log_margin, comparison.quantile * comparison.log_standard_error
+    # at least a relative 1e-9: two computations of the same number differ in their last digits
+    margin, noise = comparison.log_margin, max(comparison.quantile * comparison.log_standard_error, LOG_TIE)
     return ("better" if margin > noise else ("worse" if margin < -noise else "ties")), margin, noise
 
 
