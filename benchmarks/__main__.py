@@ -261,20 +261,26 @@ def plan_section(sizes: dict) -> list[str]:
 
 def closed_loop_section(sizes: dict) -> list[str]:
     """Every condition of every closed-loop variant, per seed; the seeds' ties and the issue's targets."""
+    runs = [run_case("closed_loop", variant=variant, seeds=list(seeds), quick=sizes["closed_loop_quick"])
+            for variant, seeds in sizes["closed_loop_variants"].items()]
+    return closed_loop_lines(runs, sizes["closed_loop_quick"])
+
+
+def closed_loop_lines(runs: list[dict], quick: bool) -> list[str]:
+    """The closed-loop section's tables from :func:`benchmarks.bench_closed_loop.closed_loop` results."""
     from ftcal.sim.closed_loop import tie_lines, target_lines
 
-    variants = sizes["closed_loop_variants"]
     out = ["## Closed loop: the calibrated sensor in a MuJoCo force controller (`ftcal demo --scenario closed-loop`)",
            "", "Contact force against MuJoCo's own contact force (50 ms average) while force-controlled; phantom: the "
            "force the controller perceives in free motion. Not timed targets: the simulation's known truth. "
            "Conditions: (a) factory + one tare, (a') factory + ROS-style gravity compensation (tool identified on "
            "the factory wrench at the same poses, re-tared at the start), (b0) in-situ affine + tool, (b) ftcal "
            "degree 3 + tool, (c) (b) + `ftcal.live` bias tracking, (d) the true wrench. "
-           + ("Calibration at `--quick` size. " if sizes["closed_loop_quick"] else "")
+           + ("Calibration at `--quick` size. " if quick else "")
            + "Variants not listed were not run in this measurement.", ""]
     heads = []
-    for variant, seeds in variants.items():
-        run = run_case("closed_loop", variant=variant, seeds=list(seeds), quick=sizes["closed_loop_quick"])
+    for run in runs:
+        variant = run["variant"]
         out += [f"### {variant}: {run['description']}", "",
                 "| seed | condition | contact RMSE [N] | max error [N] | settling [s] | phantom RMS [N] | "
                 "phantom max [N] |", "|---:|---|---:|---:|---:|---:|---:|"]

@@ -160,7 +160,9 @@ def test_cli_prints_ratio_and_verdict_and_refuses_bad_input_in_one_line(tmp_path
     assert "against baseline identity" in done.stdout and "both tared (first-hold)" in done.stdout
     assert "3 fold(s) = the groups (m1, m2, m4)" in done.stdout
     fx = next(line for line in done.stdout.splitlines() if line.startswith("Fx ") and "better" in line)
-    name, model_rmse, base_rmse, ratio, _, _, unit = fx.split()  # fold ratios: "min-max"
+    name, model_rmse, base_rmse, ratio, _, margin, _, noise, _, unit = fx.split()  # fold ratios: "min-max"
+    # the model is 7x better on every fold: log ratio about log 7 = 1.9, far beyond its spread
+    assert float(margin) > 1.5 and float(noise) < float(margin)
     assert float(ratio) == pytest.approx(float(model_rmse) / float(base_rmse), rel=2e-3) and unit == "N"
     shown = json.loads(run("evaluate", "model.json", "held.parquet", "--baseline", "model.json", "--json",
                            cwd=tmp_path).stdout)["baseline"]

@@ -19,6 +19,8 @@ from .metrics import force_torque_columns, output_units
 
 # Printed ratios and spreads: 3 significant digits; errors: 4.
 RATIO_DIGITS = 3
+# Log ratios within this are ties whatever the spread (rounding, not a difference).
+LOG_TIE = 1e-9
 
 
 @dataclass(frozen=True)
@@ -81,15 +83,20 @@ class BaselineComparison:
                                                   else f", both tared ({self.tare})")
         out = [f"against baseline {self.baseline}{tare}: {len(self.folds)} fold(s) = the groups "
                f"({', '.join(self.folds)})",
-               f"{'output':<20}{model[:12]:>12}{'baseline':>12}{'ratio':>8}{'fold ratios':>16}  verdict  unit"]
+               f"{'output':<20}{model[:12]:>12}{'baseline':>12}{'ratio':>8}{'fold ratios':>16}"
+               f"{'log ratio ± spread':>20}  verdict  unit"]
         for row in self.rows:
             ratios = [m / b for m, b in zip(row.model_folds, row.baseline_folds) if b > 0]
             spread = (f"{min(ratios):.{RATIO_DIGITS}g}-{max(ratios):.{RATIO_DIGITS}g}" if len(ratios) > 1
                       else "n/a")
             ratio = "n/a" if row.ratio is None else f"{row.ratio:.{RATIO_DIGITS}g}"
+            # log(baseline / model) over the folds: > 0 the model is better; the spread is t x its standard error
+            margin = ("n/a" if row.log_margin is None
+                      else f"{row.log_margin:+.2f} ± {row.log_noise:.2f}")
             out.append(f"{row.name:<20}{_error(row.model_rmse):>12}{_error(row.baseline_rmse):>12}{ratio:>8}"
-                       f"{spread:>16}  {row.verdict:<7}  {row.unit}")
-        out.append("  verdict: the fold-by-fold log ratio's mean against t x its standard error (better/worse "
+                       f"{spread:>16}{margin:>20}  {row.verdict:<7}  {row.unit}")
+        out.append("  verdict: the fold-by-fold log ratio log(baseline/model)'s mean against its spread, t x its "
+                   "standard error (better/worse "
                    "beyond the folds' spread, ties within it" + ("; one fold: no spread, ties)" if len(self.folds)
                                                                     < 2 else ")"))
         return out
@@ -132,7 +139,8 @@ def paired_verdict(scores, reference_scores) -> tuple[str, float | None, float |
     comparison = Comparison.of(None, np.asarray(reference_scores, float), np.asarray(scores, float))
     if comparison.n_folds < 2 or comparison.log_standard_error is None:
         return "ties", None, None
-    margin, noise = comparison.log_margin, comparison.quantile * comparison.log_standard_error
+    # at least a relative 1e-9: two computations of the same number differ in their last digits
+    margin, noise = comparison.log_margin, max(comparison.quantile * comparison.log_standard_error, LOG_TIE)
     return ("better" if margin > noise else ("worse" if margin < -noise else "ties")), margin, noise
 
 
