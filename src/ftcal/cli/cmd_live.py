@@ -232,11 +232,23 @@ def run_replay(args) -> int:
         print(f"  t={when:.3f} s  {flag}: {reason}")
     if len(summary.events) > 10:
         print(f"  ... {len(summary.events) - 10} more flag(s) raised (the table's flag_names column has them all)")
+    _print_tracker(live)
     status = live.status()
     print("bias now: " + ", ".join(f"{v:.4g} ± {s:.2g}" for v, s in zip(status["bias"], status["bias_std"]))
           + f" (tool {status['tool']!r})")
     print(f"wrote {args.output}" + (f" and {args.state}" if args.state else ""))
     return 0
+
+
+def _print_tracker(live) -> None:
+    """The self-check's and the drift test's events (live.consistency, live.drift): a lock-out is never silent."""
+    kinds = [(e[1], e[2]) for e in live.events]
+    counts = {"lock-out": kinds.count(("tracker", "locked_out")), "re-acquisition": kinds.count(("tracker", "reacquired")),
+              "adaptation of the noise": kinds.count(("tracker", "adapted")), "rollback": kinds.count(("bias", "rollback"))}
+    if any(counts.values()):
+        print("tracker: " + ", ".join(f"{n} {what}{'s' if n != 1 else ''}" for what, n in counts.items() if n))
+        for when, _, kind, reason in [e for e in live.events if e[1] == "tracker" and e[2] != "adapted"][:5]:
+            print(f"  t={when:.3f} s  {kind}: {reason}")
 
 
 def _replay(args, live, table, columns, events):
