@@ -77,9 +77,9 @@ def register(sub) -> None:
                         "walk `payload --bias-drift random-walk` identified, from the first tool file that has "
                         "one, else 1 N, 0.1 N·m)")
     p.add_argument("--noise-std", type=float_list, metavar="F,T",
-                   help="per-sample noise std, force and torque, or six values (default: the noise the "
-                        "random-walk identification stored, else the first tool's residual RMS, else 0.1 N, "
-                        "0.01 N·m)")
+                   help="per-sample noise std, force and torque, or six values (default: the per-sample noise "
+                        "within the holds the random-walk identification stored, else the first tool's residual "
+                        "RMS, else 0.1 N, 0.01 N·m; the self-check raises it when the innovations say so)")
     # argparse takes "-1.5" for a value but "-1.5,2,..." for an option: let a list of signed numbers be a value
     p._negative_number_matcher = re.compile(r"^-\d*\.?\d+([eE][-+]?\d+)?(,[-+]?\d*\.?\d+([eE][-+]?\d+)?)*$")
     p.add_argument("--bias", type=signed_list, metavar="B1,...,B6",

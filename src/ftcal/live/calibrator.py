@@ -233,12 +233,12 @@ class LiveCalibrator:
         the library; ``"none"`` (no tool) is always there
     tool : the tool mounted at the start
     walk_std : ndarray of shape (6,) or None, the bias' random-walk standard deviation per √h (N/√h, N·m/√h);
-        default: the walk variance ``payload --bias-drift random-walk`` identified (the first tool file that
-        stores one), else a random-walk file's trajectory variation (older files), else
-        :data:`DEFAULT_WALK_FRACTION` × the acceptance thresholds
-    noise_std : ndarray of shape (6,) or None, per-sample noise of the calibrated wrench; default the noise
-        variance the random-walk identification stored (the first tool file that stores one), else the
-        residual RMS of the first tool file, else :data:`DEFAULT_NOISE_FRACTION` × the thresholds
+        default :func:`tracker_defaults` (the walk ``payload --bias-drift random-walk`` identified, less what a
+        fitted wander fakes; older files: the knots; else :data:`DEFAULT_WALK_FRACTION` × the thresholds)
+    noise_std : ndarray of shape (6,) or None, per-sample noise of the calibrated wrench; default
+        :func:`tracker_defaults` (the per-sample variance within the holds the random-walk identification
+        stored; older files: the larger of its block noise and the residual RMS²; else the first tool file's
+        residual RMS, else :data:`DEFAULT_NOISE_FRACTION` × the thresholds)
     initial_bias, initial_bias_std : ndarray of shape (6,) or None; default unknown (the first static,
         contact-free samples set it, tool compensated)
     gate_probability : the χ² quantile (6 dof) of the contact gate
