@@ -50,6 +50,7 @@ int replay(int n, const double *t, const double *u, const double *g, const int *
     int k, j;
     if (rt_init(&s, 1)) return -2;
     for (j = 0; j < 6; ++j) s.walk_variance[j] = walk[j];
+    rt_enable_self_check(&s);   /* its bounds follow the walk given, as LiveCalibrator(walk_std=...) */
     if (no_drift) s.drift_chi2 = HUGE_VAL;
     for (k = 0; k < n; ++k) {
         if (retare[k]) rt_retare(&s);

@@ -26,8 +26,7 @@ int replay(int n, const double *t, const double *u, const double *g, const int *
     rt_state s;
     rt_output o;
     int k, j;
-    if (rt_init(&s, 1)) return -2;
-    rt_enable_self_check(&s);
+    if (rt_init(&s, 1)) return -2;   /* the self-check is on by default */
     for (k = 0; k < n; ++k) {
 """ + STEP_AND_STORE + r"""    }
     counts[0] = (long)s.sc_adaptations;

@@ -186,3 +186,22 @@ def test_a_time_column_in_nanoseconds_is_refused(files):
                  "-o", "ns_out.parquet", cwd=root)
     assert done.returncode == 2 and "looks like nanoseconds" in done.stderr, done.stderr
     assert len(done.stderr.strip().splitlines()) == 1
+
+
+def test_a_lock_out_and_its_re_acquisition_are_said(tmp_path):
+    """A sensor drifting 3x faster than identified (tests/live_truth.py): the replay's summary says the tracker was
+    locked out and re-acquired the bias, with the times (it said only 'contact' on most samples)."""
+    import pandas as pd
+
+    import live_truth as truth
+
+    ident, oper = truth.CASES["walk 3x"]
+    save_payload(truth.identify(ident), tmp_path / "tool.json")
+    rec, _ = truth.operation(oper, duration=90.0)
+    table = {"time": rec["time"], **{c: rec["quaternion"][:, i] for i, c in enumerate(("qx", "qy", "qz", "qw"))},
+             **{c: rec["wrench"][:, i] for i, c in enumerate(("Fx", "Fy", "Fz", "Tx", "Ty", "Tz"))}}
+    pd.DataFrame(table).to_parquet(tmp_path / "drift.parquet")
+    done = ftcal("live", "--replay", "drift.parquet", "--orientation", "qx,qy,qz,qw", "--inputs", "Fx,Fy,Fz,Tx,Ty,Tz",
+                 "--tool", "tool=tool.json", "-o", "out.parquet", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert "tracker: " in done.stdout and "re-acquisition" in done.stdout and "locked_out: no bias update" in done.stdout

@@ -80,9 +80,9 @@ def register(sub) -> None:
                         "walk `payload --bias-drift random-walk` identified, from the first tool file that has "
                         "one, else 1 N, 0.1 N·m)")
     p.add_argument("--noise-std", type=float_list, metavar="F,T",
-                   help="per-sample noise std, force and torque, or six values (default: the noise the "
-                        "random-walk identification stored, else the first tool's residual RMS, else 0.1 N, "
-                        "0.01 N·m)")
+                   help="per-sample noise std, force and torque, or six values (default: the per-sample noise "
+                        "within the holds the random-walk identification stored, else the first tool's residual "
+                        "RMS, else 0.1 N, 0.01 N·m; the self-check raises it when the innovations say so)")
     # argparse takes "-1.5" for a value but "-1.5,2,..." for an option: let a list of signed numbers be a value
     p._negative_number_matcher = re.compile(r"^-\d*\.?\d+([eE][-+]?\d+)?(,[-+]?\d*\.?\d+([eE][-+]?\d+)?)*$")
     p.add_argument("--bias", type=signed_list, metavar="B1,...,B6",
@@ -257,11 +257,23 @@ def run_replay(args) -> int:
         print(f"  t={when:.3f} s  {flag}: {reason}")
     if len(summary.events) > 10:
         print(f"  ... {len(summary.events) - 10} more flag(s) raised (the table's flag_names column has them all)")
+    _print_tracker(live)
     status = live.status()
     print("bias now: " + ", ".join(f"{v:.4g} ± {s:.2g}" for v, s in zip(status["bias"], status["bias_std"]))
           + f" (tool {status['tool']!r})")
     print(f"wrote {args.output}" + (f" and {args.state}" if args.state else ""))
     return 0
+
+
+def _print_tracker(live) -> None:
+    """The self-check's and the drift test's events (live.consistency, live.drift): a lock-out is never silent."""
+    kinds = [(e[1], e[2]) for e in live.events]
+    counts = {"lock-out": kinds.count(("tracker", "locked_out")), "re-acquisition": kinds.count(("tracker", "reacquired")),
+              "adaptation of the noise": kinds.count(("tracker", "adapted")), "rollback": kinds.count(("bias", "rollback"))}
+    if any(counts.values()):
+        print("tracker: " + ", ".join(f"{n} {what}{'s' if n != 1 else ''}" for what, n in counts.items() if n))
+        for when, _, kind, reason in [e for e in live.events if e[1] == "tracker" and e[2] != "adapted"][:5]:
+            print(f"  t={when:.3f} s  {kind}: {reason}")
 
 
 def _replay(args, live, table, columns, events):

@@ -1,6 +1,7 @@
 """The self-check in the generated C runtime: :mod:`ftcal.live.consistency`, the same arithmetic in the same order.
 
-Off unless ``s->self_check = 1`` after ``NAME_init`` (as :class:`~ftcal.live.LiveCalibrator`'s ``self_check``).
+On after ``NAME_init``, as :class:`~ftcal.live.LiveCalibrator`'s default (``s->self_check = 0`` turns it off;
+``NAME_enable_self_check`` again after changing ``noise_variance`` or ``walk_variance``: they are its bounds).
 Instead of Python's ``tracker`` events the state counts them (``sc_adaptations``, ``sc_lockouts``,
 ``sc_reacquisitions``) with the last one's time, as for the drift test's rollbacks.
 """

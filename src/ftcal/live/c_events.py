@@ -25,6 +25,9 @@ EVENT_KINDS = {"TOOL_SWITCHED": (1, "tool", "switched"), "TOOL_IDENTIFYING": (2,
                "FLAG_RAISED": (5, None, "raised"), "FLAG_CLEARED": (6, None, "cleared")}
 # Python's (flag, kind) of the events the C does not log ("silent": both kinds).
 PYTHON_ONLY = (("tool", "added"), ("silent", "raised"), ("silent", "cleared"), ("state", "resumed"))
+# Python's (flag, kind) of the events the C counts in its state instead of logging (rollbacks; the self-check's
+# sc_adaptations, sc_lockouts, sc_reacquisitions, each with the last one's time).
+COUNTED = (("bias", "rollback"), ("tracker", "adapted"), ("tracker", "locked_out"), ("tracker", "reacquired"))
 
 
 def event_types(macro: str, name: str, max_events: int) -> str:

@@ -338,6 +338,12 @@ static inline int {name}_init({name}_state *s, int tool)
         memcpy(s->tool_mc[j], {name}_tool_mc[j], sizeof s->tool_mc[j]);
         s->tool_sign[j] = {name}_tool_sign[j];
     }}
+    /* the self-check on, as LiveCalibrator's default (NAME_enable_self_check again after changing noise_variance or
+       walk_variance: its bounds; s->self_check = 0 for fixed q and r) */
+    memcpy(s->sc_noise0, s->noise_variance, sizeof s->sc_noise0);
+    memcpy(s->sc_walk0, s->walk_variance, sizeof s->sc_walk0);
+    s->sc_expected_gated = {_num(1.0)} - {_num(GATE_PROBABILITY)};
+    s->self_check = 1;
     return 0;
 }}
 {log_text(name, macro)}

@@ -233,12 +233,12 @@ class LiveCalibrator:
         the library; ``"none"`` (no tool) is always there
     tool : the tool mounted at the start
     walk_std : ndarray of shape (6,) or None, the bias' random-walk standard deviation per √h (N/√h, N·m/√h);
-        default: the walk variance ``payload --bias-drift random-walk`` identified (the first tool file that
-        stores one), else a random-walk file's trajectory variation (older files), else
-        :data:`DEFAULT_WALK_FRACTION` × the acceptance thresholds
-    noise_std : ndarray of shape (6,) or None, per-sample noise of the calibrated wrench; default the noise
-        variance the random-walk identification stored (the first tool file that stores one), else the
-        residual RMS of the first tool file, else :data:`DEFAULT_NOISE_FRACTION` × the thresholds
+        default :func:`tracker_defaults` (the walk ``payload --bias-drift random-walk`` identified, less what a
+        fitted wander fakes; older files: the knots; else :data:`DEFAULT_WALK_FRACTION` × the thresholds)
+    noise_std : ndarray of shape (6,) or None, per-sample noise of the calibrated wrench; default
+        :func:`tracker_defaults` (the per-sample variance within the holds the random-walk identification
+        stored; older files: the larger of its block noise and the residual RMS²; else the first tool file's
+        residual RMS, else :data:`DEFAULT_NOISE_FRACTION` × the thresholds)
     initial_bias, initial_bias_std : ndarray of shape (6,) or None; default unknown (the first static,
         contact-free samples set it, tool compensated)
     gate_probability : the χ² quantile (6 dof) of the contact gate
@@ -251,8 +251,8 @@ class LiveCalibrator:
     state_path : JSON file the state is saved to (atomically) and resumed from when it exists
     self_check : the tracker checks itself (:mod:`ftcal.live.consistency`): r by covariance matching within
         [r₀, 25 r₀], a lock-out said in an event, and the bias re-acquired (q raised within [q₀, 100 q₀]) when
-        holds in two orientations show the same residual. Default False: the C runtime has no self-check yet, and
-        the default step is the one both run (parity to 1e-9)
+        holds in two orientations show the same residual (the C runtime's NAME_init turns its copy on too);
+        False: the fixed q and r of the defaults or overrides
     robot : gravity from joint positions, e.g. :class:`ftcal.robot.kinematics.SensorGravity` (a URDF, the
         F/T sensor, the joints given); then ``joints`` alone gives gravity (and the motion signal)
 
@@ -274,7 +274,7 @@ class LiveCalibrator:
                  adc_limits: tuple[float, float] | None = None, temperature_range: tuple[float, float] | None = None,
                  motion_window: float = HOLD_WINDOW_S, min_rate: float = MIN_ANGULAR_RATE,
                  min_hold: float = MIN_HOLD_S, gravity_magnitude: float = STANDARD_GRAVITY,
-                 state_path: str | Path | None = None, robot=None, self_check: bool = False) -> None:
+                 state_path: str | Path | None = None, robot=None, self_check: bool = True) -> None:
         if model is not None:
             if not getattr(model, "is_static", True):
                 raise FtcalError("the live calibrator takes static models (no ARX lags).")
