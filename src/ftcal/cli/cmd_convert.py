@@ -40,11 +40,14 @@ def register(sub) -> None:
     p.add_argument("--payload-file", dest="payload_files", action="append", metavar="[NAME=]TOOL.json",
                    help="c-runtime, cpp-runtime: a tool of the library compiled into the header (repeatable; "
                         "NAME defaults to the file's stem; tool 0 is none)")
-    p.add_argument("--frame", help="ros-yaml only: gripper_com_frame_id, the F/T sensor frame (default: the "
+    p.add_argument("--frame", help="ros-yaml, admittance-controller, gravity-compensation-filter: the F/T sensor "
+                                   "frame (ros-yaml: gripper_com_frame_id; default: the "
                                    "payload file's frame); ignored by ft-tools-ros2, which has no frame names, "
                                    "and by model targets")
     p.add_argument("--com-frame", help="ros-yaml only: gripper_com_child_frame_id, the name of the COM frame "
                                        "(default gripper_com)")
+    p.add_argument("--world-frame", help="gravity-compensation-filter only: world_frame, the fixed frame its "
+                                         "gravity_field is given in (default world)")
     p.set_defaults(func=run)
 
 
@@ -53,6 +56,6 @@ def run(args) -> int:
 
     result = convert(args.model, args.to, args.output, serial=args.serial, sensor=args.sensor, name=args.name,
                      single_precision=args.single_precision, frame=args.frame, com_frame=args.com_frame,
-                     payload_files=args.payload_files)
+                     payload_files=args.payload_files, world_frame=args.world_frame)
     print(result.summary())
     return 0

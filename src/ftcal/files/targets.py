@@ -101,6 +101,15 @@ TARGETS: dict[str, Target] = {
                        "force_torque_tools ft_calib YAML (payload files)"),
     "ft-tools-ros2": Target(PAYLOAD, FILE, (".yaml", ".yml"), "ftcal.files.payload_formats:write_ft_tools_ros2_yaml",
                             "ft_tools_ros2 calibration.yaml (payload files)"),
+    "admittance-controller": Target(PAYLOAD, FILE, (".yaml", ".yml"),
+                                    "ftcal.files.controller_formats:write_admittance",
+                                    "ros2_controllers admittance_controller gravity_compensation (payload files)"),
+    "gravity-compensation-filter": Target(PAYLOAD, FILE, (".yaml", ".yml"),
+                                          "ftcal.files.controller_formats:write_gravity_filter",
+                                          "control_toolbox GravityCompensation filter (payload files)"),
+    "ur-payload": Target(PAYLOAD, FILE, (".script", ".urscript", ".txt"),
+                         "ftcal.files.controller_formats:write_ur_payload",
+                         "URScript set_payload and ur_msgs SetPayload (payload files)"),
 }
 
 FAMILY_WRITERS: dict[tuple[str, str], str] = {
