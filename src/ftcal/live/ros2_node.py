@@ -185,7 +185,7 @@ class Ros2Node:
         from rcl_interfaces.msg import SetParametersResult
 
         for parameter in parameters:
-            if parameter.name == "tool":
+            if parameter.name == "tool" and str(parameter.value) != self.core.live.tool:  # not a switch to itself
                 done = self.core.command("switch_tool", str(parameter.value))
                 if not done["ok"]:
                     return SetParametersResult(successful=False, reason=done["error"])
