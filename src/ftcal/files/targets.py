@@ -94,11 +94,22 @@ TARGETS: dict[str, Target] = {
     "c": Target(MODEL, DIRECTORY, (), "ftcal.files.c_code:write_c", "C99 NAME.h + NAME.c"),
     "c-runtime": Target(MODEL, FILE, (".h",), "ftcal.live.c_runtime:write_c_runtime",
                         "C99 live step NAME.h: calibration, tool, bias filter, health (--payload-file)"),
+    "cpp-runtime": Target(MODEL, FILE, (".hpp",), "ftcal.live.cpp_runtime:write_cpp_runtime",
+                          "C++17 wrapper NAME.hpp (RAII, std::array) beside the C99 live step NAME.h"),
     "onnx": Target(MODEL, FILE, (".onnx",), "ftcal.files.onnx_graph:write_onnx", "ONNX graph (static models)"),
     "ros-yaml": Target(PAYLOAD, FILE, (".yaml", ".yml"), "ftcal.files.payload_formats:write_force_torque_tools",
                        "force_torque_tools ft_calib YAML (payload files)"),
     "ft-tools-ros2": Target(PAYLOAD, FILE, (".yaml", ".yml"), "ftcal.files.payload_formats:write_ft_tools_ros2_yaml",
                             "ft_tools_ros2 calibration.yaml (payload files)"),
+    "admittance-controller": Target(PAYLOAD, FILE, (".yaml", ".yml"),
+                                    "ftcal.files.controller_formats:write_admittance",
+                                    "ros2_controllers admittance_controller gravity_compensation (payload files)"),
+    "gravity-compensation-filter": Target(PAYLOAD, FILE, (".yaml", ".yml"),
+                                          "ftcal.files.controller_formats:write_gravity_filter",
+                                          "control_toolbox GravityCompensation filter (payload files)"),
+    "ur-payload": Target(PAYLOAD, FILE, (".script", ".urscript", ".txt"),
+                         "ftcal.files.controller_formats:write_ur_payload",
+                         "URScript set_payload and ur_msgs SetPayload (payload files)"),
 }
 
 FAMILY_WRITERS: dict[tuple[str, str], str] = {

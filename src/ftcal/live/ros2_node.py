@@ -8,7 +8,8 @@ rclpy is imported only here, when the node starts: without a sourced ROS 2 (Humb
   ``ft/raw`` (``geometry_msgs/msg/WrenchStamped``), optionally ``sensor_msgs/msg/Imu`` (gravity from its
   orientation, else minus its acceleration), ``sensor_msgs/msg/JointState`` (with a robot model) and
   ``sensor_msgs/msg/Temperature``;
-* publishes (reliable, depth 10, as ros2_controllers' force_torque_sensor_broadcaster: any subscriber matches)
+* publishes (reliable, as ros2_controllers' force_torque_sensor_broadcaster: any subscriber matches; keep last
+  :data:`OUTPUT_DEPTH`)
   ``ft/calibrated`` and ``ft/compensated`` (``WrenchStamped``, the input's header) for every wrench; ``ft/bias`` and
   ``ft/bias_std`` (``WrenchStamped``: the tracked bias and its standard deviation, stamped with the last wrench's
   stamp) and ``/diagnostics`` (``diagnostic_msgs/msg/DiagnosticArray``) every second and at once when a flag changes,
@@ -38,6 +39,9 @@ NODE_NAME = "ftcal_live"
 # that runs late (the executor's one thread, a slow step) loses none of a burst (with 5, 1 of 200 wrenches at 200 Hz
 # was lost on this 2-core machine under load).
 INPUT_DEPTH = 100
+# The wrench outputs' history (reliable, keep last): a reliable writer drops what a late reader has not acknowledged
+# once its history is full; 100 samples (50 ms at 2 kHz) give a reader under load that much slack.
+OUTPUT_DEPTH = 100
 # Parameter name -> (kind, description). The command line's option of the same name (dashes for underscores) gives
 # the default; a params file or -p overrides it. "tools" is --tool NAME=PAYLOAD.json, "tool" is --mount.
 PARAMETERS = {
@@ -185,7 +189,7 @@ class Ros2Node:
         from rcl_interfaces.msg import SetParametersResult
 
         for parameter in parameters:
-            if parameter.name == "tool":
+            if parameter.name == "tool" and str(parameter.value) != self.core.live.tool:  # not a switch to itself
                 done = self.core.command("switch_tool", str(parameter.value))
                 if not done["ok"]:
                     return SetParametersResult(successful=False, reason=done["error"])
@@ -203,7 +207,7 @@ class Ros2Node:
 
         node, s, prefix = self.node, self.settings, self.settings["prefix"].rstrip("/")
         sensor_data = QoSProfile(**{**_qos_fields(qos_profile_sensor_data), "depth": INPUT_DEPTH})
-        self.publishers = {name: node.create_publisher(WrenchStamped, f"{prefix}/{name}", 10)
+        self.publishers = {name: node.create_publisher(WrenchStamped, f"{prefix}/{name}", OUTPUT_DEPTH)
                            for name in ("calibrated", "compensated", "bias", "bias_std")}
         self.publishers["diagnostics"] = node.create_publisher(DiagnosticArray, "/diagnostics", 10)
         if (self.core.robot is None) != (s["joints_topic"] is None):

@@ -34,7 +34,8 @@ class ConvertResult(StepResult):
 
 def convert(model, to: str, output, *, serial: str | None = None, sensor: str | None = None,
             name: str | None = None, single_precision: bool = False, frame: str | None = None,
-            com_frame: str | None = None, payload_files: list[str] | None = None) -> ConvertResult:
+            com_frame: str | None = None, payload_files: list[str] | None = None,
+            world_frame: str | None = None) -> ConvertResult:
     """Write ``model`` (a model or payload file) as target ``to`` at ``output``: ``ftcal convert``.
 
     Parameters
@@ -43,7 +44,8 @@ def convert(model, to: str, output, *, serial: str | None = None, sensor: str | 
     to : a target of :data:`ftcal.files.targets.TARGETS` (``json``, ``paper-xml``, ``icub-firmware``,
         ``wbd``, ``c``, ``onnx``, ``ros-yaml``, ``ft-tools-ros2``, ...)
     output : file, or folder where the target writes several files
-    serial, sensor, name, single_precision, frame, com_frame : the target's options (``ftcal convert --help``)
+    serial, sensor, name, single_precision, frame, com_frame, world_frame : the target's options (``ftcal convert
+        --help``)
     payload_files : ``c-runtime`` only: the tool library compiled into the header, ``[NAME=]TOOL.json`` each
 
     Returns
@@ -71,5 +73,6 @@ def convert(model, to: str, output, *, serial: str | None = None, sensor: str | 
 
     written = write(model, to, output, {"serial": serial, "sensor": sensor, "name": name,
                                         "single_precision": single_precision, "frame": frame,
-                                        "com_frame": com_frame, "payload_files": payload_files})
+                                        "com_frame": com_frame, "payload_files": payload_files,
+                                        "world_frame": world_frame})
     return ConvertResult(to, [str(p) for p in written.paths], list(written.notes))

@@ -83,7 +83,7 @@ class CalibrationModel(PredictionMixin, DocumentMixin, EstimatorParams):
 
     # The model family protocol (ftcal.core.families.ModelFamily).
     family = "polynomial"
-    exports = frozenset({"json", "paper-xml", "icub-firmware", "wbd", "c", "c-runtime", "onnx"})
+    exports = frozenset({"json", "paper-xml", "icub-firmware", "wbd", "c", "c-runtime", "cpp-runtime", "onnx"})
     streams = True
 
     def __init__(self, degree: int = 1, *, basis: MonomialBasis | None = None, solver: Solver | None = None,
