@@ -1060,10 +1060,11 @@ def refuse_undetermined(o: _Options, n_inputs: int, n_outputs: int, n_poses: int
     if features(degree) <= n_poses:
         return
     fits = [d for d in range(1, degree) if features(d) <= n_poses]
-    lower = f"--degree {max(fits)} ({features(max(fits))} per output)" if fits else "fewer inputs"
-    raise FtcalError(f"--degree {degree}: {features(degree)} coefficients per output for {n_poses} distinct "
-                     f"poses ({n_groups} groups): least squares cannot determine them. Use {lower}, "
-                     "--lasso/--ridge or --degree auto, or record more poses.")
+    lower = f"{{degree}} {max(fits)} ({features(max(fits))} per output)" if fits else "fewer inputs"
+    raise ParameterError(("degree", "lasso", "ridge"),
+                         f"{{degree}} {degree}: {features(degree)} coefficients per output for {n_poses} distinct "
+                         f"poses ({n_groups} groups): least squares cannot determine them. Use {lower}, "
+                         "{lasso}/{ridge} or {degree} auto, or record more poses.")
 
 
 def check_saturation(model, count_poses, n_groups: int) -> None:

@@ -235,7 +235,7 @@ def calibrated_tables(data, calibration, notes: list[str]) -> tuple[dict, tuple[
 
     model, _, name = _model_and_segments(calibration)
     if not model.is_static or len(model.output_names_) != 6:
-        raise FtcalError(f"--calibration {name}: needs a static model with six outputs (a wrench); it has "
+        raise ParameterError("calibration", f"{{calibration}} {name}: needs a static model with six outputs (a wrench); it has "
                          f"{len(model.output_names_)} output(s)" + ("" if model.is_static else " and ARX lags") + ".")
     columns = tuple(f"{o}_calibrated" for o in model.output_names_)
     frames = {}
@@ -320,7 +320,8 @@ def identify_payload(data, *, inputs: Sequence[str] = DEFAULT_WRENCH, group_by: 
     wrench = renamed_keyword(source, "wrench", "inputs", inputs, DEFAULT_WRENCH)
     if calibration is not None:
         if tuple(wrench) != DEFAULT_WRENCH:
-            raise FtcalError("--inputs does not go with --calibration: the model names its input columns.")
+            raise ParameterError(("inputs", "calibration"),
+                                 "{inputs} does not go with {calibration}: the model names its input columns.")
         calibrated: list[str] = []
         frames, columns = calibrated_tables(data, calibration, calibrated)
         result = identify_payload(frames, inputs=columns, group_by=group_by, keep_moving=keep_moving,
