@@ -813,7 +813,7 @@ class _Fit:
         if norm_rmse_text(metrics):
             self.lines.append("training " + norm_rmse_text(metrics, units=False))
         self.lines.append("training RMSE per output: " + ", ".join(
-            f"{n} {v:.4g}" for n, v in zip(model.output_names_, metrics["rmse"])))
+            f"{n} {v:.4g}" for n, v in zip(model.output_names_, stated_rmse(model, metrics["rmse"]))))
 
     # ------------------------------------------------------------------ report
     def _report_excitation(self, spread, outputs) -> None:
@@ -853,7 +853,8 @@ class _Fit:
                               "and norm RMSE: ftcal evaluate MODEL DATA)")
         self.lines.append("training RMSE per output: " + ", ".join(
             f"{n} {v:.4g}" + (f" {u}" if u else "")
-            for n, v, u in zip(model.output_names_, metrics["rmse"], output_units(model.output_names_))))
+            for n, v, u in zip(model.output_names_, stated_rmse(model, metrics["rmse"]),
+                               output_units(model.output_names_))))
         self._warn_if_exact(model.output_names_, metrics.get("best_fit"))
 
     def _warn_if_exact(self, names, best_fit) -> None:
@@ -870,6 +871,17 @@ class _Fit:
                 f"warning: the training error of {', '.join(exact)} is ~0 of the outputs' spread (BestFit > 1 - "
                 f"{EXACT_FIT:g}): the reference is an exact function of the inputs (a reference copied from or "
                 "computed from the readings?); no measured sensor fits this well.")
+
+
+def stated_rmse(model, rmse) -> list[float]:
+    """Training RMSE per output stated to :data:`~ftcal.core.precision.SCORE` of the output's largest training
+    magnitude: an exact fit prints 0 on every CPU, not its rounding noise (1.3e-13 N here, another elsewhere)."""
+    import numpy as np
+
+    from ..core.precision import SCORE, settle
+
+    size = np.abs(np.asarray(model.output_range_, dtype=float)).max(axis=1)
+    return [settle(float(v), SCORE, b) for v, b in zip(rmse, size)]
 
 
 def error_norm_text(metrics: dict) -> str:
