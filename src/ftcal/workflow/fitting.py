@@ -415,7 +415,9 @@ class _Fit:
             prior_path, prior = str(prior), load_model(prior)
         template = CalibrationModel(na=o.na, nb=o.nb, normalization=o.normalization, prior=prior)
         with drop_incomplete() if o.drop_incomplete else nullcontext() as dropped:
-            if _streams(o) and self.dataset is None:
+            # The streamed summary counts samples and fingerprints segments by label only; rows dropped
+            # inside an ARX file split its segments, which the whole-file read (load_dataset) keeps.
+            if _streams(o) and self.dataset is None and not (o.drop_incomplete and (o.na or o.nb)):
                 model, save = self._fit_streaming(template, inputs, outputs, dropped)
             else:
                 model, save = self._fit_in_memory(template, inputs, outputs, dropped)
