@@ -327,6 +327,9 @@ def check_family_options(o: _Options) -> None:
                                    ("--prior", o.prior is not None), ("--estimate-payload", o.estimate_payload),
                                    ("--solver osqp", o.solver == "osqp"), ("--scheduler", o.scheduler),
                                    ("--normalization", o.normalization)) if on]
+    # The polynomial degree search's own options (all but --folds, which the MLP's early stopping uses).
+    given += [f"--{name.replace('_', '-')}" for name, default in SEARCH_DEFAULTS.items()
+              if name != "folds" and getattr(o, name) != default]
     if given:
         raise FtcalError(f"--family mlp does not take {', '.join(given)} (polynomial options); its own are "
                          "--hidden, --activation, --weight-decay, --max-iter and --seed.")
@@ -400,7 +403,9 @@ class _Fit:
         inputs = tuple(inputs or default_inputs(self.paths))
         outputs = tuple(outputs or DEFAULT_OUTPUTS)
         if o.family == "mlp":
-            model, data = self._fit_mlp(inputs, outputs)
+            with drop_incomplete() if o.drop_incomplete else nullcontext() as dropped:
+                model, data = self._fit_mlp(inputs, outputs)
+            self._dropped_note(dropped)
             save = dict(sources=self.sources, training_segments=segment_fingerprints(data))
             if getattr(model, "family", "polynomial") == "mlp":
                 self._report_mlp(model)
