@@ -650,7 +650,7 @@ def extra_bases(fx: dict, o) -> dict:
     model = str(fx["model"])
     return {
         "convert --to c-runtime": ("convert", lambda f: (["convert", model, "--to", "c-runtime", "--name", "cal",
-                                                          "-o", o(f, "rt.h")], [o(f, "rt.h"), o(f, "rt.c")])),
+                                                          "-o", o(f, "rt.h")], [o(f, "rt.h")])),
     }
 
 
@@ -827,7 +827,7 @@ def worker() -> None:
                 code = exc.code if isinstance(exc.code, int) else 2
             except BaseException:  # noqa: BLE001 - what the runner classifies
                 code, escaped = None, traceback.format_exc()
-        print(json.dumps({"code": code, "stderr": err.getvalue()[-4000:], "stdout": out.getvalue()[-4000:],
+        print(json.dumps({"code": code, "stderr": err.getvalue()[-300000:], "stdout": out.getvalue()[-4000:],
                           "escaped": escaped}), flush=True)
 
 
