@@ -582,7 +582,7 @@ def cases(fx: dict[str, Path], work: Path, rng: random.Random, n_random: int) ->
     for label, writer in variants("mat-v5", mat5, "bin", rng, n_random) + mat5_variants(mat5, rng, n_random):
         add("mat-v5", fx["mat-v5"], label, writer, mat_cmds)
 
-    def add_option_case(command, action, value, base):
+    def add_option_case(command, action, value, base, surface=None):
         folder = work / f"{len(out):05d}"
         argv, outputs = base(folder)
         option = max(action.option_strings, key=len)
@@ -594,7 +594,8 @@ def cases(fx: dict[str, Path], work: Path, rng: random.Random, n_random: int) ->
         if output_changed or action.dest in ("output", "html", "out"):
             outputs = []  # the output went elsewhere (or nowhere): only leftovers are checked
         path = folder / (f"hostile-{label.split('=')[-1]}" + (".csv" if action.dest != "history_dir" else ""))
-        out.append({"kind": f"option:{command}", "label": label[:80], "command": command, "folder": str(folder),
+        out.append({"kind": f"option:{surface or command}", "label": label[:80], "command": command,
+                    "folder": str(folder),
                     "path": str(path), "writer": ("option", f"{command} {label}"[:120]), "argv": argv,
                     "outputs": outputs, "check": None})
         WRITERS[("option", f"{command} {label}"[:120])] = writer
@@ -641,6 +642,28 @@ def base_invocations(fx: dict, o) -> dict:
                                 "-o", o(f, "sim")], [o(f, "sim/truth.json"), o(f, "sim/loads.toml")]),
         "live": lambda f: (["live", "--replay", str(fx["live"]), *pose, "-o", o(f, "l.parquet")], [o(f, "l.parquet")]),
     }
+
+
+def extra_bases(fx: dict, o) -> dict:
+    """Further base invocations of a subcommand, each a surface of its own: surface -> (command, callable(folder)).
+    Every option of the command is driven on each of them too."""
+    model = str(fx["model"])
+    return {
+        "convert --to c-runtime": ("convert", lambda f: (["convert", model, "--to", "c-runtime", "--name", "cal",
+                                                          "-o", o(f, "rt.h")], [o(f, "rt.h")])),
+    }
+
+
+# Surfaces driven with the EXTRA_VALUES as well (issue 39: every option of simulate and convert --to c-runtime).
+EXTRA_SURFACES = ("simulate", "convert --to c-runtime")
+EXTRA_VALUES = {
+    "number": ("inf", "-inf", "-1e308", "1e-320", "", "\x1b[2J"),
+    "structured": ("inf,inf", "-1,-1", "nan,nan,nan", "\x07\x1b[2J", "k" * 5000),
+    "columns": ("\x1b[2J", "u1,\x00"),
+    "text": ("\x1b[2J\x07", "\t\r", "-", "\x00", "\u202epwned", "k" * 100000),
+    "choice": ("", "\x1b[2J"),
+    "path": (("path", "zero"), ("path", "empty"), ("path", "dotdot")),
+}
 
 
 # Options not driven with hostile values here, each with the reason; any other option without a generator fails.
@@ -715,6 +738,12 @@ def _hostile_path(kind: str):
             path.mkdir()
         elif kind == "garbage":
             path.write_bytes(b"\x00garbage\xff" * 100)
+        elif kind == "zero":
+            os.symlink("/dev/zero", path)
+        elif kind == "empty":
+            path.write_bytes(b"")
+        elif kind == "dotdot":  # a symlink to the folder above: a directory reached through a link
+            os.symlink("..", path)
     return make
 
 
@@ -723,11 +752,11 @@ def option_cases(fx: dict, add_case, o) -> None:
     problems = uncovered(fx)
     if problems:
         raise SystemExit("adversarial.py: " + "; ".join(problems))
-    bases = base_invocations(fx, o)
-    for command, actions in parser_options().items():
-        if command not in bases:
-            continue
-        for action in actions:
+    bases = {command: (command, base) for command, base in base_invocations(fx, o).items()}
+    bases.update(extra_bases(fx, o))
+    options = parser_options()
+    for surface, (command, base) in bases.items():
+        for action in options[command]:
             option = max(action.option_strings, key=len)
             if (command, option) in EXEMPT:
                 continue
@@ -746,8 +775,11 @@ def option_cases(fx: dict, add_case, o) -> None:
                 values = [("path", v) for v in PATH_VALUES]
             else:
                 values = list(TEXT_VALUES)
+            if surface in EXTRA_SURFACES and kind != "flag":
+                values += [v if isinstance(v, tuple) else v.encode().decode("unicode_escape")
+                           for v in EXTRA_VALUES["text" if kind not in EXTRA_VALUES else kind]]
             for value in values:
-                add_case(command, action, value, bases[command])
+                add_case(command, action, value, base, surface)
 
 
 def _with_option(argv: list, action, value) -> tuple[list, bool]:
@@ -795,7 +827,7 @@ def worker() -> None:
                 code = exc.code if isinstance(exc.code, int) else 2
             except BaseException:  # noqa: BLE001 - what the runner classifies
                 code, escaped = None, traceback.format_exc()
-        print(json.dumps({"code": code, "stderr": err.getvalue()[-4000:], "stdout": out.getvalue()[-4000:],
+        print(json.dumps({"code": code, "stderr": err.getvalue()[-300000:], "stdout": out.getvalue()[-4000:],
                           "escaped": escaped}), flush=True)
 
 

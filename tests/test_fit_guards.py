@@ -114,3 +114,25 @@ def test_search_options_with_a_fixed_degree_are_refused_not_ignored(tmp_path, ca
                  "-o", str(tmp_path / "m.json")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and extra[0] in err[0] and "--degree auto" in err[0]
+
+
+@pytest.mark.parametrize("degree", ["1", "auto"])
+def test_drop_incomplete_arx_counts_and_fingerprints_the_two_segments(tmp_path, capsys, degree):
+    """The dropped row splits the file in two segments: each loses its own warm-up sample (400 − 1 dropped − 2)
+    and the model's training fingerprints are the two segments, as a table holding them as two labelled segments
+    gives (was one segment of 399 rows and 398 samples: the streamed summary bridged the gap)."""
+    data = arx_table(tmp_path / "arx.csv", gap_row=200)
+    frame = pd.read_csv(data)
+    frame["load"] = np.repeat(["a", "b"], 200)
+    frame.to_csv(data, index=False)
+    split = frame.drop(index=200).assign(seg=lambda f: np.where(f.index < 200, "s1", "s2"))
+    split.to_csv(tmp_path / "split.csv", index=False)
+    common = ["--inputs", "u1", "--outputs", "Fx", "--degree", degree, "--na", "1",
+              *(["--max-degree", "2", "--group-by", "load"] if degree == "auto" else [])]
+    assert main(["fit", str(data), *common, "--drop-incomplete", "-o", str(tmp_path / "m.json")]) == 0
+    assert main(["fit", str(tmp_path / "split.csv"), *common, "--segment-by", "seg",
+                 "-o", str(tmp_path / "s.json")]) == 0
+    got, want = (json.loads((tmp_path / n).read_text())["fit"] for n in ("m.json", "s.json"))
+    assert got["n_samples"] == want["n_samples"] == 400 - 1 - 2
+    assert [s["rows"] for s in got["training_segments"]] == [200, 199]
+    assert got["training_segments"] == want["training_segments"]

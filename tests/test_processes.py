@@ -111,3 +111,24 @@ def test_a_script_without_the_main_guard_runs_in_process_with_one_warning(tmp_pa
     assert f"{tmp_path / 'bare.py'} calls ftcal at its top level without 'if __name__ == \"__main__\":'" in bare.stderr
     assert bare.stderr.count("FtcalWarning") == 1 and "FtcalWarning" not in guarded.stderr
     np.testing.assert_array_equal(np.load(tmp_path / "bare.npy"), np.load(tmp_path / "guarded.npy"))
+
+
+def test_a_local_dask_cluster_from_a_script_without_the_guard_is_one_line(tmp_path):
+    # Dask spawns its workers too: from the top level of an unguarded script they would run it again.
+    script = tmp_path / "cluster.py"
+    script.write_text(textwrap.dedent(f"""
+        import sys
+        sys.path.insert(0, {SRC!r})
+        from ftcal.runtime.errors import FtcalError
+        from ftcal.runtime.executors import open_executor
+        try:
+            with open_executor("local:2") as executor:
+                executor.client
+        except FtcalError as exc:
+            print(exc)
+    """))
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert done.returncode == 0 and "Traceback" not in done.stderr, done.stderr
+    assert done.stdout.strip() == (f"--scheduler local:2: {script} calls ftcal at its top level without 'if __name__ "
+                                   "== \"__main__\":', and each local worker process would run the script again; put "
+                                   "the calls under that guard, or leave out the scheduler.")

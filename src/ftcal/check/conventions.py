@@ -628,9 +628,9 @@ def read_holds(paths, source, *, wrench=("u1", "u2", "u3", "u4", "u5", "u6"), gr
     from ..data.holds import concatenate_averages
     from ..data.tables import read_table
     from ..payload.kinematics import MotionSource
+    from ..payload.tables import check_wrench_columns
 
-    if len(wrench) != 6:
-        raise FtcalError(f"--inputs needs 6 wrench columns Fx,Fy,Fz,Tx,Ty,Tz; got {','.join(wrench)}.")
+    wrench = check_wrench_columns(wrench, source)
     if isinstance(source, MotionSource):
         source = source.gravity  # holds are static: gravity is all that matters
     parts = []

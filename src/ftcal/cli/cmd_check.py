@@ -87,6 +87,10 @@ def run(args) -> int:
     if args.history_serial is not None:
         if args.data or args.accept:
             raise FtcalError("--history SERIAL takes no DATA and no --accept; run it on its own.")
+        given = _given_options(args, keep=("history_serial", "history_dir"))
+        if given:
+            raise FtcalError(f"--history SERIAL prints the recorded history and does not use {', '.join(given)} "
+                             "(only --history-dir); leave them out.")
         print(sensor_history(args.history_serial, args.history_dir).summary())
         return 0
     if not args.data:
@@ -103,3 +107,14 @@ def run(args) -> int:
     for path in result.written:
         print(f"wrote {path}", file=sys.stderr)
     return result.exit_code
+
+
+def _given_options(args, keep=()) -> list[str]:
+    """The options of ``ftcal check`` that ``args`` sets to other than their defaults, but those in ``keep``
+    (dests): a mode that does not use them refuses them instead of ignoring them."""
+    import argparse
+
+    sub = argparse.ArgumentParser().add_subparsers()
+    register(sub)
+    return [max(a.option_strings, key=len) for a in sub.choices["check"]._actions
+            if a.option_strings and a.dest not in (*keep, "help") and getattr(args, a.dest, a.default) != a.default]

@@ -29,9 +29,20 @@ WRENCH_COLUMNS = ("u1", "u2", "u3", "u4", "u5", "u6")  # what the sensor reads, 
 CONTACT_COLUMNS = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
 
 
-def _check_wrench_columns(columns: Sequence[str]) -> tuple[str, ...]:
+def check_wrench_columns(columns: Sequence[str], source: KinematicsSource | None = None) -> tuple[str, ...]:
+    """Six distinct wrench columns, none of them read by the gravity ``source`` too (a wrench made of
+    orientation columns is a typo, not a measurement)."""
     if len(columns) != 6:
         raise FtcalError(f"--inputs needs 6 wrench columns Fx,Fy,Fz,Tx,Ty,Tz; got {','.join(columns)}.")
+    twice = next((c for c in columns if list(columns).count(c) > 1), None)
+    if twice is not None:
+        raise FtcalError(f"--inputs {','.join(columns)}: the wrench column {twice!r} is given twice; name six "
+                         "different columns.")
+    shared = [c for c in columns if c in set(getattr(source, "columns", ()) or ())]
+    if shared:
+        raise FtcalError(f"--inputs {','.join(columns)}: {', '.join(map(repr, shared))} {'is' if len(shared) == 1 else 'are'} also read by the gravity "
+                         "source (orientation, gravity, joint or motion columns); a wrench column must hold the "
+                         "sensor's readings.")
     return tuple(columns)
 
 
@@ -87,7 +98,7 @@ def read_payload_tables(paths: Sequence[str | os.PathLike], source: KinematicsSo
 
     if not paths:
         raise FtcalError("No data files given.")
-    wrench = _check_wrench_columns(wrench)
+    wrench = check_wrench_columns(wrench, source)
     sign = -1.0 if reaction else 1.0
     measured, kinematics, labels, times, temps = [], [], [], [], []
     for path in paths:
@@ -208,7 +219,7 @@ def compensate_table(path: str | os.PathLike, payload: PayloadParameters, source
         measured = model.predict(numeric_columns(frame, model.input_names_, Path(path), "input"),
                                  warn_out_of_range=warn_out_of_range)
     else:
-        columns = _check_wrench_columns(wrench or payload.fit.get("wrench_columns", WRENCH_COLUMNS))
+        columns = check_wrench_columns(wrench or payload.fit.get("wrench_columns", WRENCH_COLUMNS), source)
         measured = numeric_columns(frame, columns, Path(path), "wrench")
     drift = payload.drift
     time = temperature = None

@@ -433,24 +433,46 @@ def kinematics_source(*, orientation: Sequence[str] | None = None, gravity_colum
                              f"{', '.join(s.name for s in robot.ft_sensors)}.")
         chosen = robot.sensor(sensor) if sensor is not None else robot.ft_sensors[0]
         source = JointColumnsSource(robot, chosen.name, base, g, degrees)
-    elif orientation is not None:
-        if len(orientation) != 4:
-            raise FtcalError(f"--orientation needs 4 columns qx,qy,qz,qw; got {','.join(orientation)}.")
-        source = OrientationSource(tuple(orientation), g)
-    elif gravity_columns is not None:
-        if len(gravity_columns) != 3:
-            raise FtcalError(f"--gravity-columns needs 3 columns; got {','.join(gravity_columns)}.")
-        source = GravityColumnsSource(tuple(gravity_columns), g)
+    elif orientation is not None or gravity_columns is not None:
+        if orientation is not None and gravity_columns is not None:
+            raise FtcalError("give one gravity source: --orientation or --gravity-columns, not both.")
+        # The robot model's options mean nothing to a column source: refused, not ignored.
+        given = [option for option, value in (("--sensor", sensor), ("--ft-joint", ft_joint), ("--ft-frame", ft_frame),
+                                              ("--base", base), ("--degrees", degrees or None)) if value is not None]
+        if given:
+            raise FtcalError(f"{', '.join(given)} {'go' if len(given) > 1 else 'goes'} with a robot model "
+                             f"({robot_options}) and its joint columns; "
+                             "the gravity here comes from columns.")
+        if orientation is not None:
+            if len(orientation) != 4:
+                raise FtcalError(f"--orientation needs 4 columns qx,qy,qz,qw; got {','.join(orientation)}.")
+            source = OrientationSource(tuple(orientation), g)
+        else:
+            if len(gravity_columns) != 3:
+                raise FtcalError(f"--gravity-columns needs 3 columns; got {','.join(gravity_columns)}.")
+            source = GravityColumnsSource(tuple(gravity_columns), g)
     else:
         raise FtcalError("give the sensor's orientation: --orientation qx,qy,qz,qw, --gravity-columns gx,gy,gz, "
                          f"or a robot model ({robot_options}) with --sensor.")
     if not dynamic:
+        given = [option for option, value, default in (
+            ("--angular-velocity", angular_velocity, ("wx", "wy", "wz")),
+            ("--linear-acceleration", linear_acceleration, ("ax", "ay", "az")),
+            ("--angular-acceleration", angular_acceleration, None)) if _as_tuple(value) != default]
+        if given:
+            raise FtcalError(f"{', '.join(given)} {'go' if len(given) > 1 else 'goes'} with --dynamic (the motion "
+                             "columns of the inertia fit); "
+                             "a static fit does not read them.")
         return source
     for option, cols in (("--angular-velocity", angular_velocity), ("--linear-acceleration", linear_acceleration),
                          ("--angular-acceleration", angular_acceleration)):
         if cols is not None and len(cols) != 3:
             raise FtcalError(f"{option} needs 3 columns; got {','.join(cols)}.")
     return MotionSource(source, angular_velocity, linear_acceleration, angular_acceleration, time or "time")
+
+
+def _as_tuple(columns):
+    return None if columns is None else tuple(columns)
 
 
 class SensorGravity:

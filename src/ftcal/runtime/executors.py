@@ -522,6 +522,14 @@ def _open_dask(scheduler: str, connect_timeout: float, cleanup: ExitStack, n_wor
     before = set(multiprocessing.active_children())
     cleanup.callback(_deferred, lambda: _end_processes(set(multiprocessing.active_children()) - before))
     cluster = None
+    if local:
+        from .processes import spawn_reruns_main
+
+        script = spawn_reruns_main()
+        if script is not None:  # Dask spawns its workers: each would run the calling script again
+            raise FtcalError(f"--scheduler {scheduler}: {script} calls ftcal at its top level without "
+                             "'if __name__ == \"__main__\":', and each local worker process would run the script "
+                             "again; put the calls under that guard, or leave out the scheduler.")
     with signals_deferred():  # a cluster half started by Ctrl-C would be left running
         if local:
             try:

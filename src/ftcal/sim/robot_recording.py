@@ -45,6 +45,8 @@ from pathlib import Path
 import numpy as np
 
 from ..core.limits import MAX_SIMULATED_SAMPLES
+
+MIN_HOLD_SAMPLES = 2  # F/T samples a simulated hold must hold: its mean bias is written to the truth file
 from ..core.limits import SIMULATE_FORMATS as FORMATS
 from ..robot.model import RobotModel
 from ..robot.payloads import Payload
@@ -240,6 +242,9 @@ def check_session_size(robot: RobotModel, waypoints: Waypoints, config: Simulati
 
     Cheap (the motions' durations only), so callers check before they make any folder.
     """
+    if config.hold_s * config.rate < MIN_HOLD_SAMPLES:  # a hold's bias and the truth file are means over it
+        raise FtcalError(f"a hold of {config.hold_s:g} s at {config.rate:g} Hz has fewer than {MIN_HOLD_SAMPLES} F/T "
+                         f"samples; raise the rate or the hold time (hold x rate >= {MIN_HOLD_SAMPLES}).")
     _, velocity = joint_bounds(robot)
     motions = [Motion(waypoints.q[a:b], config.speed * velocity, config.hold_s, config.min_move_s)
                for a, b, _ in _runs(waypoints.load)]

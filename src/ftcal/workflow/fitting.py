@@ -351,6 +351,9 @@ def check_family_options(o: _Options) -> None:
                                    ("--prior", o.prior is not None), ("--estimate-payload", o.estimate_payload),
                                    ("--solver osqp", o.solver == "osqp"), ("--scheduler", o.scheduler),
                                    ("--normalization", o.normalization)) if on]
+    # The polynomial degree search's own options (all but --folds, which the MLP's early stopping uses).
+    given += [f"--{name.replace('_', '-')}" for name, default in SEARCH_DEFAULTS.items()
+              if name != "folds" and getattr(o, name) != default]
     if given:
         raise ParameterError(('family', 'hidden', 'activation', 'weight_decay', 'max_iter', 'seed'),
                              f"{{family}} mlp does not take {', '.join(given)} (polynomial options); its own are "
@@ -425,7 +428,9 @@ class _Fit:
         inputs = tuple(inputs or default_inputs(self.paths))
         outputs = tuple(outputs or DEFAULT_OUTPUTS)
         if o.family == "mlp":
-            model, data = self._fit_mlp(inputs, outputs)
+            with drop_incomplete() if o.drop_incomplete else nullcontext() as dropped:
+                model, data = self._fit_mlp(inputs, outputs)
+            self._dropped_note(dropped)
             save = dict(sources=self.sources, training_segments=segment_fingerprints(data))
             if getattr(model, "family", "polynomial") == "mlp":
                 self._report_mlp(model)
@@ -440,7 +445,9 @@ class _Fit:
             prior_path, prior = str(prior), load_model(prior)
         template = CalibrationModel(na=o.na, nb=o.nb, normalization=o.normalization, prior=prior)
         with drop_incomplete() if o.drop_incomplete else nullcontext() as dropped:
-            if _streams(o) and self.dataset is None:
+            # The streamed summary counts samples and fingerprints segments by label only; rows dropped
+            # inside an ARX file split its segments, which the whole-file read (load_dataset) keeps.
+            if _streams(o) and self.dataset is None and not (o.drop_incomplete and (o.na or o.nb)):
                 model, save = self._fit_streaming(template, inputs, outputs, dropped)
             else:
                 model, save = self._fit_in_memory(template, inputs, outputs, dropped)
@@ -919,7 +926,7 @@ class _Fit:
         if norm_rmse_text(metrics):
             self.lines.append("training " + norm_rmse_text(metrics, units=False))
         self.lines.append("training RMSE per output: " + ", ".join(
-            f"{n} {v:.4g}" for n, v in zip(model.output_names_, metrics["rmse"])))
+            f"{n} {v:.4g}" for n, v in zip(model.output_names_, stated_rmse(model, metrics["rmse"]))))
 
     # ------------------------------------------------------------------ report
     def _report_excitation(self, spread, outputs) -> None:
@@ -959,7 +966,8 @@ class _Fit:
                               "and norm RMSE: ftcal evaluate MODEL DATA)")
         self.lines.append("training RMSE per output: " + ", ".join(
             f"{n} {v:.4g}" + (f" {u}" if u else "")
-            for n, v, u in zip(model.output_names_, metrics["rmse"], output_units(model.output_names_))))
+            for n, v, u in zip(model.output_names_, stated_rmse(model, metrics["rmse"]),
+                               output_units(model.output_names_))))
         self._warn_if_exact(model.output_names_, metrics.get("best_fit"))
 
     def _warn_if_exact(self, names, best_fit) -> None:
@@ -976,6 +984,17 @@ class _Fit:
                 f"warning: the training error of {', '.join(exact)} is ~0 of the outputs' spread (BestFit > 1 - "
                 f"{EXACT_FIT:g}): the reference is an exact function of the inputs (a reference copied from or "
                 "computed from the readings?); no measured sensor fits this well.")
+
+
+def stated_rmse(model, rmse) -> list[float]:
+    """Training RMSE per output stated to :data:`~ftcal.core.precision.SCORE` of the output's largest training
+    magnitude: an exact fit prints 0 on every CPU, not its rounding noise (1.3e-13 N here, another elsewhere)."""
+    import numpy as np
+
+    from ..core.precision import SCORE, settle
+
+    size = np.abs(np.asarray(model.output_range_, dtype=float)).max(axis=1)
+    return [settle(float(v), SCORE, b) for v, b in zip(rmse, size)]
 
 
 def error_norm_text(metrics: dict) -> str:
