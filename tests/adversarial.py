@@ -672,11 +672,13 @@ EXEMPT = {
     ("demo", "--out"): "runs the whole demo (minutes); tests/test_demo.py",
     ("demo", "--scenario"): "runs the whole demo (minutes); tests/test_demo.py",
     ("demo", "--seed"): "runs the whole demo (minutes); tests/test_demo.py",
+    ("demo", "--variant"): "runs the whole closed-loop demo (minutes); tests/test_closed_loop.py",
+    ("demo", "--seeds"): "runs the whole closed-loop demo (minutes); tests/test_closed_loop.py",
 }
 NUMBER_TYPES = {"int", "nonnegative_int", "positive_int", "positive_float", "finite_float", "fraction"}
 NUMBER_VALUES = ("0", "-1", "nan", "1e308", "x")
 PAIR_TYPES = {"joint_pin", "joint_range", "frame_pair", "degree_value", "lambda_grid", "noise_pair", "penalty_list",
-              "safe_name", "pair", "mistake", "tool_spec", "switch_spec", "float_list"}
+              "safe_name", "pair", "mistake", "tool_spec", "switch_spec", "float_list", "signed_list"}
 PAIR_VALUES = ("", "x", "nan:1", "1e308,1e308", "1,1")
 COLUMN_VALUES = ("", "nope", "u1,u1", "u1,u2,u3,u4,u5,u6,u7", "f\npwned")
 TEXT_VALUES = ("", "nope", "f\nwrote 1 file", "k" * 3000)

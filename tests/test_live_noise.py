@@ -96,3 +96,18 @@ def test_the_c_runtime_starts_from_the_same_noise_and_walk(identified):
     stored = np.sqrt(identified.drift.walk_variance[:3])
     tracked = np.sqrt(runtime_parameters({"tool": identified})["walk_variance"][:3] * 3600.0)
     assert np.all(stored > 3 * 0.5) and np.all(tracked < 0.5 * stored), (stored, tracked)
+
+
+def test_the_variogram_fit_is_scipys_non_negative_least_squares():
+    # payload imports no SciPy (test_payload_one_pass), so the three-column NNLS is ftcal's own: SciPy is the reference
+    from scipy.optimize import nnls
+
+    from ftcal.payload.drift import _nonnegative_least_squares
+
+    rng = np.random.default_rng(3)
+    for _ in range(300):
+        a, b = rng.normal(size=(9, 3)), rng.normal(size=9)
+        x_ref, norm_ref = nnls(a, b)
+        x, norm = _nonnegative_least_squares(a, b)
+        np.testing.assert_allclose(x, x_ref, atol=1e-10)
+        assert abs(norm - norm_ref) <= 1e-10

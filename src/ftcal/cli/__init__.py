@@ -15,6 +15,7 @@ import re
 import signal
 import sys
 import threading
+import time
 import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -229,11 +230,22 @@ def _interrupt_again(unraisable, previous=sys.unraisablehook) -> None:
     """A Ctrl-C raised where Python ignores exceptions (a weakref callback of the import system, a
     ``__del__``) would be lost: the command would run on. Raise it again in the main thread."""
     if unraisable.exc_type is not None and issubclass(unraisable.exc_type, KeyboardInterrupt):
-        import _thread
-
-        _thread.interrupt_main(signal.SIGINT)
+        _interrupt_soon()
         return
     previous(unraisable)
+
+
+def _interrupt_soon() -> None:
+    """Interrupt the main thread once this hook has returned. Called from the main thread itself,
+    ``interrupt_main`` runs the handler at once, inside the hook, where its KeyboardInterrupt would be
+    ignored again ("Exception ignored in sys.unraisablehook"): a helper thread raises it a moment later."""
+    import _thread
+
+    def later() -> None:
+        time.sleep(0.01)
+        _thread.interrupt_main(signal.SIGINT)
+
+    threading.Thread(target=later, name="ftcal-interrupt", daemon=True).start()
 
 
 def main(argv: list[str] | None = None) -> int:

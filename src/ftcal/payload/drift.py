@@ -298,6 +298,31 @@ class HoldNoise:
                         self.white + self.wander)
 
 
+def _nonnegative_least_squares(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, float]:
+    """``min ‖a x − b‖`` over ``x ≥ 0`` for a few columns, exactly, by trying every support.
+
+    The optimum is the unconstrained least-squares solution on its own support (KKT), so the best
+    non-negative one among the ``2^p − 1`` supports is it; for the variogram's three columns that is
+    seven small solves, and ``ftcal payload`` keeps away from SciPy's import.
+
+    Returns
+    -------
+    (x, residual norm), as ``scipy.optimize.nnls`` returns them
+    """
+    p = a.shape[1]
+    best = (np.zeros(p), float(np.linalg.norm(b)))
+    for mask in range(1, 2 ** p):
+        support = [k for k in range(p) if mask >> k & 1]
+        x_s = np.linalg.lstsq(a[:, support], b, rcond=None)[0]
+        if np.all(x_s >= 0.0):
+            x = np.zeros(p)
+            x[support] = x_s
+            norm = float(np.linalg.norm(a @ x - b))
+            if norm < best[1]:
+                best = (x, norm)
+    return best
+
+
 def within_hold_noise(residual: np.ndarray, time_s: np.ndarray, blocks: Blocks) -> HoldNoise | None:
     """White noise, a Gauss-Markov wander and a walk fitted to the within-hold variogram.
 
@@ -324,8 +349,6 @@ def within_hold_noise(residual: np.ndarray, time_s: np.ndarray, blocks: Blocks) 
     -------
     HoldNoise, or None when no hold has 8 samples
     """
-    from scipy.optimize import nnls
-
     observed = blocks.observed()
     ends = np.r_[blocks.starts[1:], residual.shape[0]]
     edges = np.flatnonzero(np.diff(np.r_[0, observed.astype(np.int8), 0]))
@@ -362,7 +385,7 @@ def within_hold_noise(residual: np.ndarray, time_s: np.ndarray, blocks: Blocks) 
         design = np.column_stack([np.ones(len(lags)), 1.0 - np.exp(-lag_s / tau), lag_s / 2.0])
         for j in range(6):
             weight = 1.0 / np.maximum(gamma[:, j], 1e-300)
-            coef, error = nnls(design * weight[:, None], gamma[:, j] * weight)
+            coef, error = _nonnegative_least_squares(design * weight[:, None], gamma[:, j] * weight)
             if best[j] is None or error < best[j][0] - 1e-12:
                 best[j] = (error, coef, tau)
     white = np.array([b[1][0] for b in best])

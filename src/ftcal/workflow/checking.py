@@ -138,7 +138,7 @@ def check_sensor(data, *, accept=None, inputs: Sequence[str] = DEFAULT_WRENCH, g
 
         check_not_an_input(html, "--html")
     if options["dynamic"]:  # both modes read static holds: the motion columns would be ignored
-        raise FtcalError("--dynamic is for ftcal payload (the inertia fit); ftcal check reads static holds.")
+        raise ParameterError("dynamic", "{dynamic} is for ftcal payload (the inertia fit); ftcal check reads static holds.")
     if accept is None:
         for option, value in (("payload_json", payload_json), ("serial", serial),
                               ("max_force_error", max_force_error), ("max_torque_error", max_torque_error),

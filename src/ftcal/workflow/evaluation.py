@@ -337,9 +337,9 @@ def _comparison_parts(paths, dataset, model, base_inputs, outputs, segment_by, g
         n = len(frame)
         fold_column = table_label_column(list(frame.columns), group_by)
         if fold_column is not None and fold_column not in frame.columns:
-            raise FtcalError(f"{path}: no group column {fold_column!r} (--group-by).")
+            raise ParameterError("group_by", f"{path}: no group column {fold_column!r} ({{group_by}}).")
         if segment_by is not None and segment_by not in frame.columns:
-            raise FtcalError(f"{path}: no segment column {segment_by!r} (--segment-by).")
+            raise ParameterError("segment_by", f"{path}: no segment column {segment_by!r} ({{segment_by}}).")
         parts.append((numeric_columns(frame, model.input_names_, where, "input"),
                       numeric_columns(frame, base_inputs, where, "baseline input"),
                       numeric_columns(frame, outputs, where, "reference output"),

@@ -824,10 +824,12 @@ class _Fit:
         self.lines.append(f"grouped cross-validation of {candidate.label} against affine least squares "
                           f"({result.n_folds} folds of whole groups, {n_groups} groups): " + "; ".join(pieces))
         if lost:
-            warnings.warn(f"{candidate.label} validates worse than the affine model beyond the fold noise on "
-                          f"{' and '.join(lost)} affine's error ({result.n_folds} grouped folds): on new load "
-                          "cases it is likely worse than the affine model. Use --degree auto, a lower --degree, "
-                          "a larger --lasso/--ridge, or record more load cases.", FtcalWarning, stacklevel=4)
+            warnings.warn(ParameterWarning(("degree", "lasso", "ridge"),
+                                           f"{candidate.label} validates worse than the affine model beyond the fold "
+                                           f"noise on {' and '.join(lost)} affine's error ({result.n_folds} grouped "
+                                           "folds): on new load cases it is likely worse than the affine model. Use "
+                                           "{degree} auto, a lower {degree}, a larger {lasso}/{ridge}, or record "
+                                           "more load cases."), stacklevel=4)
 
     # ------------------------------------------------------------------ MLP
     def _fit_mlp(self, inputs, outputs):

@@ -210,7 +210,11 @@ def gain_note(mass: float, mass_se: float) -> str:
     torques share the error; no standard error computed from the residuals can see it.
     """
     shift = GAIN_EXAMPLE * mass
-    ratio = f", {shift / mass_se:.2g} of its standard errors" if np.isfinite(mass_se) and mass_se > 0 else ""
+    ratio = ""
+    if np.isfinite(mass_se) and mass_se > 0:
+        # beyond a thousand the count says only "far beyond", and on a noiseless fit it is rounding's quotient
+        times = shift / mass_se
+        ratio = f", {times:.2g} of its standard errors" if times < 1000 else ", over 1000 of its standard errors"
     return (f"gain: the standard errors assume the sensor's gain is right; a relative gain error e moves the mass "
             f"by about e·m = {mass:.4g} kg × e ({100 * GAIN_EXAMPLE:g} %: {shift:.2g} kg{ratio}) and the bias by "
             "e × the bias; the centre of mass does not move when forces and torques share the error")
