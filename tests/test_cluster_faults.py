@@ -337,6 +337,8 @@ def _allocator_environment() -> dict:
 def test_local_workers_keep_large_blocks_on_the_heap(cluster):
     # Dask's own default trims the heap past 64 KiB: every large temporary was mapped and unmapped
     # (issue 32). The workers' environment is what glibc reads at their start.
+    # an earlier test of this module may have killed a worker: its nanny restarts it, so wait for both
+    cluster.client.wait_for_workers(2, timeout=120)
     seen = cluster.client.run(_allocator_environment)
     assert len(seen) == 2
     for environment in seen.values():
