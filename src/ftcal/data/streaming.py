@@ -463,6 +463,7 @@ def file_statistics(path: str, basis: MonomialBasis, normalization: Normalizatio
     return scan(path, [Statistics(layout, normalization, None, inputs, outputs)])[0].value[0]
 
 
+@releases_gil
 def file_group_statistics(path: str, basis: MonomialBasis, normalization: Normalization, inputs: Sequence[str],
                           outputs: Sequence[str], group_by: str | None = None,
                           fold_of: dict[str, int] | None = None) -> dict:
