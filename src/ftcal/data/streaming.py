@@ -463,7 +463,6 @@ def file_statistics(path: str, basis: MonomialBasis, normalization: Normalizatio
     return scan(path, [Statistics(layout, normalization, None, inputs, outputs)])[0].value[0]
 
 
-@releases_gil
 def file_group_statistics(path: str, basis: MonomialBasis, normalization: Normalization, inputs: Sequence[str],
                           outputs: Sequence[str], group_by: str | None = None,
                           fold_of: dict[str, int] | None = None) -> dict:
@@ -774,8 +773,16 @@ class StreamedStatistics:
 
     def _scan(self, accumulator: Accumulator, description: str):
         """The value of one accumulator over all the files (a scan per file, merged in file order)."""
-        return self.executor.map_reduce(scan, self.paths, [accumulator], combine=add_scans,
+        task = scan if accumulator.whole_file else scan_chunks
+        return self.executor.map_reduce(task, self.paths, [accumulator], combine=add_scans,
                                         description=description)[0].value
+
+
+@releases_gil
+def scan_chunks(path: str, accumulators: Sequence[Accumulator]) -> tuple:
+    """:func:`scan` of accumulators that read chunks (static statistics): like the marked per-file functions,
+    threads under ``local:N`` (grouped statistics, 2 files x 400k rows: 0.78-0.80x the sequential wall)."""
+    return scan(path, accumulators)
 
 
 def segment_statistics(data, layout: RegressorLayout, in_norm: Normalization,
