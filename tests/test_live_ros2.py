@@ -115,13 +115,7 @@ for k in range(100):
 sent = []
 for k in range(n):
     stamp = int(round((first + k * 0.005) * 1e9))
-    m = WrenchStamped()
-    m.header.stamp.sec, m.header.stamp.nanosec = stamp // 10**9, stamp % 10**9
-    m.header.frame_id = "ft_sensor"
-    w = np.array([0.0, 0.0, -11.8, 0.0, 0.0, 0.0]) + rng.normal(size=6) * np.array(NOISE_LIST)
-    m.wrench.force.x, m.wrench.force.y, m.wrench.force.z = map(float, w[:3])
-    m.wrench.torque.x, m.wrench.torque.y, m.wrench.torque.z = map(float, w[3:])
-    pub.publish(m)
+    pub.publish(wrench(stamp))
     sent.append(stamp)
     rclpy.spin_once(node, timeout_sec=0.004)
 if then == "kill":
