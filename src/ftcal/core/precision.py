@@ -32,6 +32,12 @@ SCORE = 1e-6
 differences relative to the largest score compared, residual RMS relative to the readings' RMS (a residual
 1e-4 of the signal keeps ~1e-8 of its mean square; its square root ~1e-7 of the readings)."""
 
+MEAN_SQUARE = SCORE ** 2
+"""A mean squared error relative to the mean square of the readings it is an error of (the square of
+:data:`SCORE`): θᵀGθ − 2θᵀc + ‖y‖² cancels to ~1e-16 × ‖y‖² × the conditioning, so a fit that is exact in
+exact arithmetic (noiseless readings) scores 0 on every CPU, and candidates tied to rounding go to the
+simpler model."""
+
 SOLUTION = 1e-9
 """Least-squares results, residuals and figures derived from them, relative to their vector's scale
 (conditioning of the fits ftcal accepts stays below 1e6: 1e-16 × 1e6 × margin)."""

@@ -138,7 +138,8 @@ class CrossValidationResult:
         lines = [f"grouped cross-validation, {self.n_folds} folds, {len(self.scores)} candidates; best of each "
                  f"degree by {self.metric}:", f"  {'degree':<7}{'best candidate':<28}{head}"]
         # Ranked by scores stated to their precision: candidates tied to rounding keep their search order.
-        floor = min((s.score for s in self.scores if np.isfinite(s.score)), default=0.0)
+        finite = [s.score for s in self.scores if np.isfinite(s.score)]
+        floor = min(finite, default=0.0) or max(finite, default=0.0)  # a best score of exactly 0: the largest
         ranked = sorted(self.scores, key=lambda s: settle(s.score, SCORE, floor))
         for degree in sorted({s.candidate.degree for s in self.scores}):
             best = min((s for s in self.scores if s.candidate.degree == degree), key=lambda s: s.score)
@@ -148,7 +149,7 @@ class CrossValidationResult:
             winner = self.score_of(self.best)
             runner = next(s for s in ranked if s.candidate != self.best)
             lines.append(f"best single model {self.best.label}; runner-up {runner.candidate.label} "
-                         f"({settle(runner.score - winner.score, SCORE, winner.score):+.3g} on the objective)")
+                         f"({settle(runner.score - winner.score, SCORE, max(winner.score, runner.score)):+.3g} on the objective)")
         return "\n".join(lines + self._closing_lines())
 
     def _closing_lines(self) -> list[str]:

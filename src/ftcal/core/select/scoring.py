@@ -18,7 +18,7 @@ from ...runtime.checks import check_choice
 from ...runtime.errors import FtcalError
 from .. import metrics
 from ..limits import OBJECTIVES, SELECT_PER
-from ..precision import SCORE, settle
+from ..precision import MEAN_SQUARE, SCORE, settle
 from ..statistics import SufficientStatistics
 from .candidates import AFFINE, Candidate
 
@@ -75,8 +75,9 @@ class Scorer:
         if self.objective != "both":
             return self.block(mse, self.blocks[self.objective])
         if len(self.blocks) == 2 and self.affine is not None:
-            ratios = [self.block(mse, cols) / max(self.block(np.asarray(self.affine.fold_mse), cols).mean(),
-                                                   np.finfo(float).tiny)
+            # An exact affine fit (noiseless readings, its error 0 to precision) has no ratio: the error itself
+            # then ranks, in its units (a floor of the smallest float made any error ~1e307, ties by overflow).
+            ratios = [self.block(mse, cols) / (self.block(np.asarray(self.affine.fold_mse), cols).mean() or 1.0)
                       for cols in self.blocks.values()]
             return 0.5 * (ratios[0] + ratios[1])
         return np.sqrt(mse).mean(axis=1)
@@ -243,7 +244,10 @@ def statistics_mse(stats: SufficientStatistics, coef: np.ndarray) -> np.ndarray:
     """
     sse = (np.einsum("ij,ij->j", coef, stats.gram @ coef) - 2.0 * np.einsum("ij,ij->j", coef, stats.cross)
            + stats.target_sq)
-    return np.maximum(sse, 0.0) / max(stats.n_samples, 1)
+    n = max(stats.n_samples, 1)
+    # Stated to its precision (core.precision.MEAN_SQUARE of the readings' mean square): a fit exact in exact
+    # arithmetic scores 0 on every CPU, not a rounding residue that would pick the degree (noiseless data).
+    return np.array([settle(e, MEAN_SQUARE, s) for e, s in zip(np.maximum(sse, 0.0) / n, stats.target_sq / n)])
 
 
 def stable_choice(ordered: list[CandidateScore], part: Part, notes: list[str], family: int = 1) -> Candidate:
