@@ -90,6 +90,23 @@ def names(value, name, owner) -> None:
                                    "more than once; each column can be used once.")
 
 
+def numbers(value, name, owner) -> None:
+    """None or a non-empty list, tuple or 1-D array of finite real numbers (bool is none; the step checks their
+    range)."""
+    import math
+    import numbers as kinds
+
+    import numpy as np
+
+    if value is None:
+        return
+    items = list(value) if isinstance(value, (list, tuple)) or (isinstance(value, np.ndarray) and value.ndim == 1) \
+        else None
+    if not items or not all(isinstance(v, kinds.Real) and not isinstance(v, (bool, np.bool_)) and math.isfinite(v)
+                            for v in items):
+        _refuse(name, owner, "None or a non-empty list of finite numbers", value)
+
+
 def penalties(value, name, owner) -> None:
     if isinstance(value, str) or not isinstance(value, (list, tuple)) or not all(v in PENALTIES for v in value):
         _refuse(name, owner, f"a list of penalties from {', '.join(map(repr, PENALTIES))}", value)
@@ -104,7 +121,8 @@ def _refuse(name: str, owner: str, what: str, value) -> None:
 
 FIT = dict(inputs=names, outputs=names, lasso=number(), ridge=number(), na=whole(0), nb=whole(0),
            solver=choice(SOLVERS), normalization=choice(NORMALIZATIONS, optional=True), folds=integer,
-           penalties=penalties, select_per=choice(SELECT_PER), objective=choice(OBJECTIVES),
+           penalties=penalties, lambdas=numbers, select_per=choice(SELECT_PER),
+           objective=choice(OBJECTIVES),
            max_degree=integer, budget=number(), verbose=flag, drop_incomplete=flag,
            family=choice(("polynomial", "mlp")), segment_by=text, group_by=text, scheduler=text)
 EVALUATE = dict(mode=choice(PREDICTION_MODES), start=choice(FREE_RUN_STARTS), warmup=choice(ARX_WARMUP),

@@ -157,15 +157,17 @@ class PredictionResult(StepResult):
                       "out_of_range": self.out_of_range})
 
 
-def _model_and_segments(model) -> tuple[Any, tuple, str]:
-    """(model, its training fingerprints, its name) from a model file path or a fitted model."""
+def _model_and_segments(model, parameter: str = "model") -> tuple[Any, tuple, str]:
+    """(model, its training fingerprints, its name) from a model file path or a fitted model (``parameter``: the
+    argument it came in, named when it is neither)."""
     if isinstance(model, (str, os.PathLike)):
         from ..files.model_files import load_model_file
 
         loaded = load_model_file(model)
         return loaded.model, tuple(loaded.training_segments), str(model)
     if not hasattr(model, "predict") or not hasattr(model, "input_names_"):
-        raise FtcalError(f"model: expected a model file name or a fitted model; got {type(model).__name__}.")
+        raise ParameterError(parameter, f"{{{parameter}}}: expected a model file name or a fitted model; "
+                                        f"got {type(model).__name__}.")
     return model, (), "the model"
 
 
@@ -269,7 +271,7 @@ def baseline_predictor(baseline, model) -> tuple[Any, tuple[str, ...], str]:
                              "identity reads its first inputs as the wrench.")
         return (lambda u: np.asarray(u, float)), inputs, f"identity ({','.join(inputs)} read as "\
                                                        f"{','.join(outputs)})"
-    other, _, name = _model_and_segments(baseline)
+    other, _, name = _model_and_segments(baseline, "baseline")
     if not other.is_static:
         raise FtcalError(f"baseline {name}: an ARX model; baselines are static models (or identity).")
     missing = [n for n in outputs if n not in other.output_names_]

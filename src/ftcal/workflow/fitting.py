@@ -333,12 +333,13 @@ def whole_number(text, option: str, low: int, high: int) -> int:
 
 def check_family_options(o: _Options) -> None:
     """Options the MLP does not take, refused before any data is read; the MLP's own, checked."""
-    own = {"--hidden": o.hidden, "--activation": o.activation, "--weight-decay": o.weight_decay,
-           "--max-iter": o.max_iter, "--seed": o.seed}
+    own = {"hidden": o.hidden, "activation": o.activation, "weight_decay": o.weight_decay,
+           "max_iter": o.max_iter, "seed": o.seed}
     if o.family != "mlp":
-        given = [flag for flag, value in own.items() if value is not None]
-        if given:
-            raise ParameterError('family', f"{', '.join(given)} go with {{family}} mlp.")
+        given = [name for name, value in own.items() if value is not None]
+        if given:  # named as parameters: the CLI shows their flags (ParameterError.render)
+            named = ", ".join("{" + n + "}" for n in given)
+            raise ParameterError((*given, "family"), f"{named} go with {{family}} mlp.")
         return
     o.hidden = None if o.hidden is None else hidden_sizes(o.hidden)  # None: sized to the data
     o.activation = o.activation or "tanh"
