@@ -235,6 +235,27 @@ def test_degree_selection_holds_under_rounding_changes(tmp_path):
     check_metamorphic(tmp_path, "select", calibration_table(8, 50, 1), argv, group="load")
 
 
+@pytest.mark.parametrize("truth", [1, 2])
+def test_degree_selection_on_noiseless_readings_picks_the_true_degree_on_every_cpu(tmp_path, truth):
+    """References computed exactly from the readings: every degree at least the truth's fits them exactly, so
+    their validation errors are 0 in exact arithmetic and rounding residues (6e-09 N here) ranked them (np4
+    "best", np3 runner-up). Stated to their precision they are 0: tied, and ties go to the simpler model."""
+    rng = np.random.default_rng(7)
+    frame = calibration_table(6, 40, 5)
+    u = (frame[CHANNELS[:3]].to_numpy() - 5000.0) / 800.0
+    mixing = rng.normal(size=(3, 6))
+    frame[OUTPUTS] = u @ mixing + (0.3 * (u ** 2) @ mixing if truth == 2 else 0.0)
+    argv = lambda table: ["fit", str(table), "--inputs", "u1,u2,u3", "--degree", "auto", "--max-degree", "4",  # noqa: E731
+                          "--folds", "3", "--group-by", "load", "-o", "{dir}/model.json"]
+    check_metamorphic(tmp_path, "noiseless", frame, argv, group="load", chunked=False,
+                      ignore=("residual_autocorrelation_lag1",))
+    text = run(tmp_path, "noiseless-truth", argv(tmp_path / "noiseless-table0" / "noiseless.csv"))[0]
+    assert f"selected (per block): np{truth}\n" in text
+    for degree in range(truth, 5):
+        if re.search(rf"^  {degree} ", text, re.M):  # a degree searched: its validation errors are exactly 0
+            assert re.search(rf"^  {degree}\s+np{degree}\s+0\s+0$", text, re.M), text
+
+
 @pytest.fixture(scope="module")
 def model(tmp_path_factory) -> Path:
     folder = tmp_path_factory.mktemp("model")

@@ -705,3 +705,30 @@ def test_a_step_given_a_wrong_value_names_the_parameter_or_runs(step_inputs, dat
             one_line(exc)
         except Exception as exc:  # noqa: BLE001
             raise AssertionError(f"{step}({name}={value!r}): {type(exc).__name__}: {exc}") from exc
+
+
+# ---------------------------------------------------------------------------------- what this pass found (kept)
+@pytest.mark.parametrize("step, name, value", [
+    ("fit", "lambdas", 0.1), ("fit", "lambdas", "1e-3"), ("fit", "lambdas", [math.nan]),  # was TypeError, or taken
+    ("fit", "hidden", (4,)), ("fit", "seed", 3),  # MLP-only: the library named them '--hidden', '--seed'
+    ("evaluate", "baseline", object()),  # was "model: expected a model file name"
+])
+def test_the_wrong_values_this_pass_found_are_parameter_errors_naming_them(step_inputs, step, name, value):
+    function, args, kwargs = calls(step_inputs)[step]
+    with pytest.raises(ParameterError) as caught:
+        function(*args, **{**kwargs, name: value})
+    assert name in caught.value.parameters and "--" not in str(caught.value), str(caught.value)
+
+
+@pytest.mark.parametrize("cells, shown", [([True, False] * 60, "holds bool values such as True,"),
+                                          ([[1.0]] * 120, "holds [1.0], not a number")])
+def test_a_cell_of_the_wrong_kind_is_named_as_written_not_as_numpys_repr(step_inputs, tmp_path, capsys, cells, shown):
+    """A replayed table's boolean or list column printed np.True_ / array([1.]) (Python's words, not the user's)."""
+    from ftcal.cli import main
+
+    frame = pd.read_csv(step_inputs / "t.csv").assign(u1=cells, time=np.arange(120) * 0.01)
+    frame.to_parquet(tmp_path / "odd.parquet")
+    assert main(["live", "--replay", str(tmp_path / "odd.parquet"), "--gravity-columns", "Fx,Fy,Fz",
+                 "-o", str(tmp_path / "o.csv")]) == 2
+    err = capsys.readouterr().err
+    assert shown in err and "np." not in err and "array(" not in err and not (tmp_path / "o.csv").exists(), err

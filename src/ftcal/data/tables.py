@@ -349,7 +349,7 @@ def numeric_columns(frame, columns: Sequence[str], path: Path, role: str, *, fin
         if kind in "bMm" or (kind == "O" and column.map(_not_a_number).any()):
             first = column.iloc[int(np.argmax(column.map(_not_a_number)))] if kind == "O" else column.iloc[0]
             raise FtcalError(f"{path}: {role} column {name!r} holds {type(first).__name__} values such as "
-                             f"{first!r}, not numbers.")
+                             f"{_cell_text(first)}, not numbers.")
         try:
             values = column.to_numpy(dtype=np.float64)
         except (TypeError, ValueError):
@@ -358,7 +358,7 @@ def numeric_columns(frame, columns: Sequence[str], path: Path, role: str, *, fin
             coerced = pd.to_numeric(column, errors="coerce")
             row = int(np.flatnonzero(coerced.isna() & column.notna())[0])
             where = f"line {first_row + row + 2}" if path.suffix.lower() == ".csv" else f"row {first_row + row}"
-            raise FtcalError(f"{path}: column {name!r} {where} holds {column.iloc[row]!r}, "
+            raise FtcalError(f"{path}: column {name!r} {where} holds {_cell_text(column.iloc[row])}, "
                              "not a number.") from None
         bad = ~np.isfinite(values) if finite else np.zeros(0, dtype=bool)
         if bad.any():
@@ -375,6 +375,17 @@ def numeric_columns(frame, columns: Sequence[str], path: Path, role: str, *, fin
                              f"{MAX_CELL_MAGNITUDE:g} in magnitude: no sensor reads that, and its square overflows.")
         out[:, j] = values
     return out
+
+
+def _cell_text(value) -> str:
+    """A cell as the user wrote it: Python's repr of the plain value (``True``, ``[1.0]``, not numpy's ``np.True_``,
+    ``array([1.])``), at most 60 characters."""
+    if isinstance(value, np.generic):
+        value = value.item()
+    elif isinstance(value, np.ndarray):
+        value = value.tolist()
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def _not_a_number(value) -> bool:
