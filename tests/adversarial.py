@@ -648,14 +648,53 @@ def extra_bases(fx: dict, o) -> dict:
     """Further base invocations of a subcommand, each a surface of its own: surface -> (command, callable(folder)).
     Every option of the command is driven on each of them too."""
     model = str(fx["model"])
+    port = fx.get("peer_port", PEER_PORT)
     return {
         "convert --to c-runtime": ("convert", lambda f: (["convert", model, "--to", "c-runtime", "--name", "cal",
                                                           "-o", o(f, "rt.h")], [o(f, "rt.h")])),
+        # A real Zenoh node on 127.0.0.1 (an ephemeral port), connected to the harness's peer (:func:`peer`), which
+        # publishes wrenches, an IMU and a temperature: each option's hostile values meet real traffic.
+        "live --zenoh": ("live", lambda f: (["live", "--zenoh", "--listen", "tcp/127.0.0.1:0", "--connect",
+                                             f"tcp/127.0.0.1:{port}", "--imu-topic", "/imu", "--temperature-topic",
+                                             "/temperature", "--tool", f"tool={fx['payload']}", "--duration",
+                                             str(ZENOH_CASE_S), "--state", o(f, "state.json")], [])),
     }
 
 
+# The harness's Zenoh peer (`python tests/adversarial.py --peer PORT`) listens on a free port (run() picks it).
+PEER_PORT = 7491  # only for uncovered(), which builds no case
+ZENOH_CASE_S = 0.5  # each `live --zenoh` case runs this long (its --duration)
+
+
+def peer(port: int) -> None:
+    """A Zenoh peer on 127.0.0.1:``port`` publishing CDR ``WrenchStamped`` on ``ft/raw`` (a still sensor with the
+    fixture's tool), ``sensor_msgs/msg/Imu`` on ``imu`` (level) and ``Temperature`` on ``temperature`` at 200 Hz,
+    stamped by the wall clock, until killed."""
+    import time
+
+    import zenoh
+
+    from ftcal.live.cdr import encode_stamped
+    from ftcal.live.zenoh_node import zenoh_config
+
+    session = zenoh.open(zenoh_config(listen=(f"tcp/127.0.0.1:{port}",)))
+    wrench, imu, temperature = (session.declare_publisher(k) for k in ("ft/raw", "imu", "temperature"))
+    level = [0.0, 0.0, 0.0, 1.0] + [0.0] * 21 + [0.0, 0.0, 9.81] + [0.0] * 9
+    while True:
+        now = time.time_ns()
+        wrench.put(encode_stamped(now, "ft", [1.0, -2.0, 0.5 - 1.2 * 9.81, 0.1, 0.0, -0.1]))
+        imu.put(encode_stamped(now, "imu", level))
+        temperature.put(encode_stamped(now, "t", [30.0, 0.0]))
+        time.sleep(0.005)
+
+
 # Surfaces driven with the EXTRA_VALUES as well (issue 39: every option of simulate and convert --to c-runtime).
-EXTRA_SURFACES = ("simulate", "convert --to c-runtime")
+EXTRA_SURFACES = ("simulate", "convert --to c-runtime", "live", "live --zenoh")
+# Values not tried on a surface, each with the reason: they run as asked.
+SKIPPED_VALUES = {
+    ("live --zenoh", "--duration", "1e308"): "runs as long as asked (until Ctrl-C or SIGTERM: tests/test_live_zenoh.py)",
+    ("live --zenoh", "--duration", "inf"): "runs as long as asked, as 1e308",
+}
 EXTRA_VALUES = {
     "number": ("inf", "-inf", "-1e308", "1e-320", "", "\x1b[2J"),
     "structured": ("inf,inf", "-1,-1", "nan,nan,nan", "\x07\x1b[2J", "k" * 5000),
@@ -781,6 +820,8 @@ def option_cases(fx: dict, add_case, o) -> None:
                 values += [v if isinstance(v, tuple) else v.encode().decode("unicode_escape")
                            for v in EXTRA_VALUES["text" if kind not in EXTRA_VALUES else kind]]
             for value in values:
+                if isinstance(value, str) and (surface, option, value) in SKIPPED_VALUES:
+                    continue
                 add_case(command, action, value, base, surface)
 
 
@@ -829,6 +870,10 @@ def worker() -> None:
                 code = exc.code if isinstance(exc.code, int) else 2
             except BaseException:  # noqa: BLE001 - what the runner classifies
                 code, escaped = None, traceback.format_exc()
+        try:  # `live --rt-priority N` made this thread SCHED_FIFO (root may): the next case runs as usual
+            os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+        except (AttributeError, OSError):
+            pass
         print(json.dumps({"code": code, "stderr": err.getvalue()[-300000:], "stdout": out.getvalue()[-4000:],
                           "escaped": escaped}), flush=True)
 
@@ -968,10 +1013,19 @@ def run(sample: int | None = None, workers: int = 2, out: Path | None = None, n_
     rng = random.Random(seed)
     root = Path(tempfile.mkdtemp(prefix="ftcal-adversarial-")) if out is None else out
     fx = make_fixtures(root / "fixtures")
+    import socket
+
+    with socket.socket() as s:  # the harness's Zenoh peer (live --zenoh cases): a free port
+        s.bind(("127.0.0.1", 0))
+        fx["peer_port"] = s.getsockname()[1]
     todo = [c for c in cases(fx, root / "cases", rng, n_random) if kinds is None or c["kind"] in kinds]
     if sample is not None and sample < len(todo):
         todo = random.Random(seed).sample(todo, sample)
     env = {**os.environ, "FTCAL_PROGRESS": "0", "FTCAL_THREADS": "1", "XDG_CACHE_HOME": str(root / "cache")}
+    publisher = None
+    if any(c["kind"] == "option:live --zenoh" for c in todo):
+        publisher = subprocess.Popen([sys.executable, __file__, "--peer", str(fx["peer_port"])], env=env,
+                                     stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     for case in todo:
         folder = Path(case["folder"])
         (folder / "out").mkdir(parents=True, exist_ok=True)
@@ -997,10 +1051,15 @@ def run(sample: int | None = None, workers: int = 2, out: Path | None = None, n_
             w.stop()
 
     threads = [threading.Thread(target=drain) for _ in range(workers)]
-    for t in threads:
-        t.start()
-    for t in threads:
-        t.join()
+    try:
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+    finally:
+        if publisher is not None:
+            publisher.kill()
+            publisher.wait()
     if out is None:
         shutil.rmtree(root, ignore_errors=True)
     return records
@@ -1026,6 +1085,8 @@ if __name__ == "__main__":
     if sys.argv[1:] == ["--worker"]:
         worker()
         sys.exit(0)
+    if sys.argv[1:2] == ["--peer"]:
+        peer(int(sys.argv[2]))
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sample", type=int, help="run this many cases, drawn at random (default: all)")
     parser.add_argument("--workers", type=int, default=2)

@@ -309,6 +309,11 @@ LIVE_MAX_QUERY_BYTES = 4096
 """Longest payload of a ``ftcal live --zenoh`` queryable request (a tool name, ``start NAME``); longer ones are
 answered with an error."""
 
+LIVE_MAX_TOPIC_BYTES = 255
+"""Longest topic (or ``--prefix``) of ``ftcal live --zenoh``, in UTF-8 bytes: ROS 2's own limit on a topic name
+(``RMW_TOPIC_MAX_NAME_LENGTH``). Zenoh aborts the whole process (a Rust panic, SIGABRT) when it sends a peer the
+declaration of a key longer than its 65,535-byte batch."""
+
 LIVE_CLOCK_RESTART_MESSAGES = 100
 """``ftcal live --zenoh``: this many wrenches in a row stamped before the last one processed, in their own order, mean
 the publisher's clock restarted (e.g. simulated time): the calibrator's clock restarts on them (said in one line)."""

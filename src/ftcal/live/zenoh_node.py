@@ -55,7 +55,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.limits import LIVE_MAX_QUERY_BYTES
+from ..core.limits import LIVE_MAX_QUERY_BYTES, LIVE_MAX_TOPIC_BYTES
 from ..runtime.errors import FtcalError
 from .cdr import IMU_DOUBLES, TEMPERATURE_DOUBLES, WRENCH_DOUBLES, decode_stamped, encode_like
 from .node_core import COMMANDS, JOINT_MAX_AGE_S, MAX_JOINT_LISTS, NodeCore, tool_name  # noqa: F401 (re-exported)
@@ -200,6 +200,12 @@ class LiveNode(NodeCore):
         if (robot is None) != (options.joints_topic is None):
             raise FtcalError("--joints-topic and a robot model (--urdf) go together.")
         self.options = options
+        for flag, topic in (("--wrench-topic", options.wrench_topic), ("--imu-topic", options.imu_topic),
+                            ("--joints-topic", options.joints_topic),
+                            ("--temperature-topic", options.temperature_topic), ("--prefix", options.prefix)):
+            if topic is not None and len(topic.encode("utf-8", "surrogatepass")) > LIVE_MAX_TOPIC_BYTES:
+                raise FtcalError(f"{flag}: a topic of {len(topic.encode('utf-8', 'surrogatepass'))} bytes; at most "
+                                 f"{LIVE_MAX_TOPIC_BYTES} (ROS 2's limit; Zenoh aborts on much longer keys).")
         self.store = typestore()
         self.topics = {"wrench": (options.wrench_topic, WRENCH_TYPE), "imu": (options.imu_topic, IMU_TYPE),
                        "joints": (options.joints_topic, JOINT_STATE_TYPE),

@@ -324,6 +324,10 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
             except FtcalError:
                 if kind == candidate:
                     raise
+                if candidate == "none" and kind == "random-walk":  # asked for: the walk has nothing to fit either
+                    raise FtcalError(f"--bias-drift random-walk: {len(blocks.count)} time block(s) of at least "
+                                     f"{DRIFT_BLOCK_SECONDS:g} s: too few to fit a bias walk; record more samples, "
+                                     "or give --bias-drift none.") from None
                 if candidate == "none":
                     break  # too few time blocks to compare bias models at all
         held_out = compare_held_out(blocks, fits)
