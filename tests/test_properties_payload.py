@@ -54,8 +54,8 @@ def run(argv, outputs=()) -> int:
 @st.composite
 def shapes(draw):
     """(table, the payload command's extra options): a recording of a tool held in some poses."""
-    n_poses = draw(st.integers(1, 5))
-    kind = draw(st.sampled_from(["axes", "about-gravity", "about-x", "repeated", "random", "flip"]))
+    n_poses = draw(st.integers(2, 5) | st.integers(1, 5))
+    kind = draw(st.sampled_from(["axes", "axes", "about-x", "about-x", "flip", "random", "about-gravity", "repeated"]))
     rng = np.random.default_rng(draw(st.integers(0, 2**16)))
     if kind == "axes":
         directions = [DIRECTIONS[draw(st.sampled_from(sorted(DIRECTIONS)))] for _ in range(n_poses)]
@@ -72,7 +72,7 @@ def shapes(draw):
         rotations = [Rotation.from_euler("x", 180.0 * (k % 2), degrees=True) for k in range(n_poses)]
     else:
         rotations = list(Rotation.random(n_poses, random_state=int(rng.integers(2**31))))
-    per_pose = draw(st.integers(1, 30))
+    per_pose = draw(st.integers(20, 60) | st.integers(1, 30))  # 20 samples at 100 Hz: the shortest static hold
     gravity = np.concatenate([np.tile(r.inv().apply([0.0, 0.0, -G]), (per_pose, 1)) for r in rotations])
     force = MASS * gravity
     wrench = np.c_[force, np.cross(COM, force)] + BIAS
@@ -85,7 +85,7 @@ def shapes(draw):
     frame["pose"] = np.repeat([f"p{k}" for k in range(len(rotations))], per_pose)
     frame["time"] = np.arange(len(frame)) * 0.01
     options = ["--gravity-columns", "gx,gy,gz"]
-    temperature = draw(st.sampled_from([None, "constant", "per-pose", "free"]))
+    temperature = draw(st.sampled_from([None, None, "constant", "per-pose", "free"]))
     if temperature is not None:
         frame["T"] = {"constant": np.full(len(frame), 30.0), "per-pose": np.repeat(25.0 + 3 * np.arange(
             len(rotations)), per_pose), "free": 30 + rng.normal(size=len(frame))}[temperature]
@@ -95,7 +95,8 @@ def shapes(draw):
         options += ["--group-by", "pose"]
     if draw(st.booleans()):
         options += ["--keep-moving"]
-    if draw(st.booleans()):
+    if draw(st.booleans()):  # the sensor reports the wrench it applies on the tool
+        frame[["u1", "u2", "u3", "u4", "u5", "u6"]] *= -1.0
         options += ["--reaction"]
     return frame, options
 
