@@ -626,7 +626,8 @@ def test_the_c_step_never_writes_outside_its_state_and_refuses_or_flags(c_step, 
             values = [float.fromhex(w) if w not in ("nan", "inf", "-inf") else float(w) for w in words[2:11]]
             u, g = np.array(values[:6]), np.array(values[6:9])
             hostile = (not math.isfinite(t) or (last_time is not None and not t > last_time)
-                       or not np.all(np.abs(values) <= MAX_CELL_MAGNITUDE) or not np.any(g))
+                       or not np.all(np.abs(values) <= MAX_CELL_MAGNITUDE)
+                       or g[0] * g[0] + g[1] * g[1] + g[2] * g[2] == 0.0)  # no direction: its length underflows
             if not hostile:
                 w = model.predict(u[None, :], warn_out_of_range=False)[0]
                 hostile = not np.all(np.abs(w) <= MAX_CELL_MAGNITUDE)
@@ -747,3 +748,19 @@ def test_a_topic_longer_than_ros_allows_is_refused_before_zenoh_sees_it(option, 
         node(**{option: "/" + "k" * LIVE_MAX_TOPIC_BYTES})
     with pytest.raises(FtcalError, match=f"^{flag}: a topic of 200000 bytes"):  # UTF-8 bytes, not characters
         node(**{option: "\u00e9" * 100_000})
+
+
+@pytest.mark.parametrize("source", ["gravity", "imu"])
+@pytest.mark.parametrize("vector", [[0.0, 0.0, 5e-324], [1e-200, 0.0, 0.0], [0.0, -1e-170, 1e-170]])
+def test_a_gravity_too_short_to_give_a_direction_is_refused_by_step_as_by_run(source, vector):
+    """Found by the C step's property: step(gravity=[0, 0, 5e-324]) ended in ZeroDivisionError (the one-sample path
+    checked for an exact zero vector, then the motion test divided by a length that underflows to 0). run() and the
+    C step refuse it; step now does too, and takes a short vector whose length is still a number."""
+    live = LiveCalibrator(tools={"gripper": GRIPPER}, tool="gripper", noise_std=NOISE)
+    with pytest.raises(FtcalError, match="zero vector"):
+        live.step(0.0, wrench=np.zeros(6), **{source: vector})
+    with pytest.raises(FtcalError, match="zero vector"):
+        live.run([0.0], wrench=np.zeros((1, 6)), **{source: [vector]})
+    assert live.counters["samples"] == 0
+    result = live.step(0.0, wrench=np.zeros(6), **{source: [0.0, 0.0, 1e-150]})  # 1e-300 squared: a direction
+    assert np.all(np.isfinite(result.compensated))

@@ -742,7 +742,8 @@ class LiveCalibrator:
             if imu is not None:
                 g = -g
             if np.any(np.linalg.norm(g, axis=1) == 0.0):
-                raise FtcalError("gravity (or imu) has a zero vector; it gives no direction.")
+                raise FtcalError("gravity (or imu) has a zero vector (or one whose squared length underflows); it "
+                                 "gives no direction.")
             kind, signal = "direction", g
         if joints is not None and quaternion is None:
             signal = np.asarray(joints, dtype=float).reshape(n, -1)
@@ -909,7 +910,9 @@ class LiveCalibrator:
                 kind = "quaternion"
             else:
                 g = _plain(gravity if gravity is not None else imu, 3)
-                if g is None or g == [0.0, 0.0, 0.0]:
+                # no direction: zero, or so short that its squared length underflows (5e-324 m/s²), as run() and
+                # the C step judge it (the motion test divides by the length)
+                if g is None or g[0] * g[0] + g[1] * g[1] + g[2] * g[2] == 0.0:
                     return None
                 if imu is not None:
                     g = [-g[0], -g[1], -g[2]]
