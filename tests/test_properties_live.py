@@ -37,6 +37,7 @@ import pandas as pd
 import pytest
 from hypothesis import HealthCheck, assume, example, given, settings
 from hypothesis import strategies as st
+from scipy.spatial.transform import Rotation
 
 from ftcal.core.limits import MAX_CELL_MAGNITUDE
 from ftcal.files.payload_json import save_payload
@@ -581,7 +582,7 @@ c_ops = st.one_of(
 )
 
 
-@SOME
+@FEW
 @given(st.lists(c_ops, min_size=1, max_size=25))
 @example([("step", 0.0, [1e6, 0, 0, 0, 0, 0], [0, 0, -9.81], -1), ("step", 0.0, [5e-324] * 6, [0, 0, -9.81], 1),
           ("step", 0.0, [math.nan] * 6, [0, 0, -9.81], 1), ("step", 0.0, [0] * 6, [0, 0, 0], 1),
@@ -642,7 +643,7 @@ def test_the_c_step_never_writes_outside_its_state_and_refuses_or_flags(c_step, 
 
 # ---------------------------------------------------------------------------------- the Python steps' arguments
 WRONG = (None, object(), 1j, math.nan, -1, 0, 1e308, "x", "", b"x", True, [], ["u1", "u1"], {"a": 1}, ("x",),
-         Path("/dev/zero"), -1.5)
+         Path("/dev/null"), -1.5)  # /dev/null as an output: refused, never replaced (the device stays one)
 
 
 @pytest.fixture(scope="module")
@@ -660,6 +661,15 @@ def step_inputs(tmp_path_factory):
     from ftcal import fit
 
     fit(folder / "t.csv", degree=1, output=folder / "m.json")
+    g = np.repeat(Rotation.random(4, random_state=2).inv().apply([0.0, 0.0, -9.81]), 30, axis=0)
+    force = GRIPPER.mass * g
+    poses = pd.DataFrame(np.c_[np.c_[force, np.cross(GRIPPER.com, force)] + 0.01 * rng.normal(size=(n, 6)), g],
+                         columns=[*AXES, "gx", "gy", "gz"]).assign(time=np.arange(n) * 0.01)
+    poses.to_csv(folder / "poses.csv", index=False)
+    save_payload(GRIPPER, folder / "gripper.json")
+    from ftcal.sim.plan_arm import ARM_URDF
+
+    (folder / "arm.urdf").write_text(ARM_URDF)
     return folder
 
 
@@ -673,6 +683,12 @@ def calls(folder: Path) -> dict:
         "evaluate": (ftcal.evaluate, (m, v), {}),
         "predict": (ftcal.predict, (m, v), {"output": str(folder / "p.csv")}),
         "convert": (ftcal.convert, (m, "paper-xml", str(folder / "m.xml")), {}),
+        "identify_payload": (ftcal.identify_payload, (str(folder / "poses.csv"),),
+                             {"inputs": AXES, "gravity_columns": ("gx", "gy", "gz"), "output": str(folder / "p.json")}),
+        "compensate": (ftcal.compensate, (str(folder / "gripper.json"), str(folder / "poses.csv")),
+                       {"inputs": AXES, "gravity_columns": ("gx", "gy", "gz")}),
+        "plan_experiment": (ftcal.plan_experiment, (6,), {"urdf": str(folder / "arm.urdf"), "candidates": 100,
+                                                         "load": ["none", "tool:1@0.03,0,0.04"]}),
     }
 
 
@@ -706,6 +722,9 @@ def test_a_step_given_a_wrong_value_names_the_parameter_or_runs(step_inputs, dat
             one_line(exc)
         except Exception as exc:  # noqa: BLE001
             raise AssertionError(f"{step}({name}={value!r}): {type(exc).__name__}: {exc}") from exc
+    import stat
+
+    assert stat.S_ISCHR(os.lstat("/dev/null").st_mode)  # no step replaced the device with its output
 
 
 # ---------------------------------------------------------------------------------- what this pass found (kept)
@@ -764,3 +783,22 @@ def test_a_gravity_too_short_to_give_a_direction_is_refused_by_step_as_by_run(so
     assert live.counters["samples"] == 0
     result = live.step(0.0, wrench=np.zeros(6), **{source: [0.0, 0.0, 1e-150]})  # 1e-300 squared: a direction
     assert np.all(np.isfinite(result.compensated))
+
+
+@pytest.mark.parametrize("step", ["plan_experiment", "predict", "identify_payload"])
+def test_an_output_that_is_a_device_or_a_fifo_is_refused_never_replaced(step_inputs, tmp_path, step):
+    """Found by this pass (and it broke the machine it ran on): plan_experiment(output=Path("/dev/zero")) renamed
+    its CSV onto /dev/zero; running as root, the device node became a regular file. The atomic writer now refuses a
+    target that is a device, FIFO or socket (a symbolic link is replaced as a name, as before)."""
+    import stat
+
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    function, args, kwargs = calls(step_inputs)[step]
+    for target in ("/dev/null", str(fifo)):
+        before = os.lstat(target)
+        with pytest.raises(FtcalError, match="never replaces devices, pipes or sockets"):
+            function(*args, **{**kwargs, "output": target})
+        after = os.lstat(target)
+        assert (after.st_ino, after.st_mode) == (before.st_ino, before.st_mode)
+        assert stat.S_ISCHR(after.st_mode) or stat.S_ISFIFO(after.st_mode)

@@ -10,6 +10,7 @@ resolving symbolic links, or the same inode: a hard link).
 from __future__ import annotations
 
 import os
+import stat
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
@@ -73,6 +74,16 @@ def _temporary(target: Path) -> Iterator[Path]:
     """
     if target.is_dir():
         raise FtcalError(f"{target}: is a directory; give a file name to write.")
+    try:
+        mode = os.lstat(target).st_mode  # the name itself: a symbolic link is replaced, never what it points to
+    except (OSError, ValueError):
+        mode = None
+    if mode is not None and not (stat.S_ISREG(mode) or stat.S_ISLNK(mode)):
+        from .inputs import kind_of
+
+        # the rename would replace the device node itself (as root, /dev/zero became a CSV file)
+        raise FtcalError(f"{target}: is {kind_of(mode)}; give a file name to write (ftcal never replaces devices, "
+                         "pipes or sockets).")
     check_not_an_input(target)
     try:
         target.parent.mkdir(parents=True, exist_ok=True)

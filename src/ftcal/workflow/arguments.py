@@ -107,6 +107,58 @@ def numbers(value, name, owner) -> None:
         _refuse(name, owner, "None or a non-empty list of finite numbers", value)
 
 
+def _real(value) -> bool:
+    import math
+    import numbers as kinds
+
+    return isinstance(value, kinds.Real) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def texts(value, name, owner) -> None:
+    """A list/tuple (maybe empty) of non-empty str: load specs, payload specs."""
+    if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)) \
+            or not all(isinstance(v, str) and v for v in value):
+        _refuse(name, owner, "a list of non-empty str", value)
+
+
+def files(value, name, owner) -> None:
+    """A list/tuple (maybe empty) of file names."""
+    import os
+
+    if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)) \
+            or not all(isinstance(v, (str, os.PathLike)) and os.fspath(v) for v in value):
+        _refuse(name, owner, "a list of file names (str or Path)", value)
+
+
+def joint_ranges(value, name, owner) -> None:
+    """(joint, low, high) triples."""
+    if not isinstance(value, (list, tuple)) or not all(
+            isinstance(r, (list, tuple)) and len(r) == 3 and isinstance(r[0], str) and _real(r[1]) and _real(r[2])
+            for r in value):
+        _refuse(name, owner, "a list of (joint, low, high) with finite numbers", value)
+
+
+def joint_values(value, name, owner) -> None:
+    """A mapping joint -> value, or (joint, value) pairs."""
+    items = list(value.items()) if isinstance(value, Mapping) else value
+    if not isinstance(items, (list, tuple)) or not all(
+            isinstance(p, (list, tuple)) and len(p) == 2 and isinstance(p[0], str) and _real(p[1]) for p in items):
+        _refuse(name, owner, "a mapping of joint name to a finite number, or (joint, value) pairs", value)
+
+
+def two_numbers(value, name, owner) -> None:
+    """Two finite numbers >= 0 (force, torque)."""
+    if not isinstance(value, (list, tuple)) or len(value) != 2 or not all(_real(v) and v >= 0 for v in value):
+        _refuse(name, owner, "two finite numbers >= 0 (force, torque)", value)
+
+
+def given_names(value, name, owner) -> None:
+    """As :func:`names`, without None (a step whose default is a list of columns)."""
+    if value is None:
+        _refuse(name, owner, "a non-empty list of column names (str)", value)
+    names(value, name, owner)
+
+
 def penalties(value, name, owner) -> None:
     if isinstance(value, str) or not isinstance(value, (list, tuple)) or not all(v in PENALTIES for v in value):
         _refuse(name, owner, f"a list of penalties from {', '.join(map(repr, PENALTIES))}", value)
@@ -128,15 +180,18 @@ FIT = dict(inputs=names, outputs=names, lasso=number(), ridge=number(), na=whole
 EVALUATE = dict(mode=choice(PREDICTION_MODES), start=choice(FREE_RUN_STARTS), warmup=choice(ARX_WARMUP),
                 segment_by=text, group_by=text, scheduler=text)
 PREDICT = dict(mode=choice(PREDICTION_MODES), start=choice(FREE_RUN_STARTS), segment_by=text, scheduler=text)
-PAYLOAD = dict(inputs=names, group_by=text, keep_moving=flag, reaction=flag, frame=text,
-               temperature=text)  # bias_drift: checked by the step in its own words
-REBIAS = dict(inputs=names, keep_moving=flag, reaction=flag, temperature=text)
-COMPENSATE = dict(payload=path(), inputs=names)
-CHECK = dict(accept=path(optional=True), inputs=names, group_by=text, rate=number(), reaction=flag, max_com_distance=number(),
+PAYLOAD = dict(inputs=given_names, group_by=text, keep_moving=flag, reaction=flag, frame=text,
+               temperature=text, output=path(optional=True))  # bias_drift: checked by the step in its own words
+REBIAS = dict(inputs=given_names, keep_moving=flag, reaction=flag, temperature=text)
+COMPENSATE = dict(payload=path(), inputs=names, calibration=path(optional=True), output=path(optional=True))
+CHECK = dict(accept=path(optional=True), inputs=given_names, group_by=text, rate=number(), reaction=flag,
+             max_com_distance=number(),
              max_force_error=number(), max_torque_error=number(), max_error_percent=number(), rated_force=number(),
              rated_torque=number(), serial=text)
 PLAN = dict(poses=whole(1), objective=choice(PLAN_OBJECTIVES), degree=integer, candidates=whole(1),
-            reference_every=whole(0), seed=whole(0, 2**32 - 1))
+            reference_every=whole(0), seed=whole(0, 2**32 - 1), robot=text, ft_joint=text, ft_frame=text,
+            base=text, sensor=text, payload=texts, load=texts, joint_range=joint_ranges, fixed=joint_values,
+            noise=two_numbers, recorded=files, output=path(optional=True), html=path(optional=True))
 CONVERT = dict(model=path(), to=text, single_precision=flag, serial=text, sensor=text, name=text)
 
 

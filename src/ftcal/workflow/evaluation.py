@@ -163,6 +163,10 @@ def _model_and_segments(model, parameter: str = "model") -> tuple[Any, tuple, st
     if isinstance(model, (str, os.PathLike)):
         from ..files.model_files import load_model_file
 
+        if not os.fspath(model):
+            raise ParameterError(parameter, f"{{{parameter}}}: an empty file name; give a model file or a fitted "
+                                            "model.")
+
         loaded = load_model_file(model)
         return loaded.model, tuple(loaded.training_segments), str(model)
     if not hasattr(model, "predict") or not hasattr(model, "input_names_"):
