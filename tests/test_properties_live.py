@@ -643,12 +643,13 @@ def test_the_c_step_never_writes_outside_its_state_and_refuses_or_flags(c_step, 
 
 # ---------------------------------------------------------------------------------- the Python steps' arguments
 WRONG = (None, object(), 1j, math.nan, -1, 0, 1e308, "x", "", b"x", True, [], ["u1", "u1"], {"a": 1}, ("x",),
-         Path("/dev/null"), -1.5)  # /dev/null as an output: refused, never replaced (the device stays one)
+         "DEVICE", -1.5)  # DEVICE: a character device made for the test (as an output: refused, never replaced)
 
 
 @pytest.fixture(scope="module")
 def step_inputs(tmp_path_factory):
     folder = tmp_path_factory.mktemp("steps")
+    make_device(folder / "device")
     rng = np.random.default_rng(0)
     n = 120
     u = rng.uniform(-1, 1, (n, 6))
@@ -671,6 +672,24 @@ def step_inputs(tmp_path_factory):
 
     (folder / "arm.urdf").write_text(ARM_URDF)
     return folder
+
+
+def make_device(path: Path) -> None:
+    """A character device node like /dev/null (root may make one), else a FIFO: a target no write may replace. The
+    tests never point a write at a real device: if the refusal regressed, the copy would be replaced, not /dev/null."""
+    import stat
+
+    try:
+        os.mknod(path, stat.S_IFCHR | 0o666, os.makedev(1, 3))
+    except (PermissionError, AttributeError):
+        os.mkfifo(path)
+
+
+def special(path) -> bool:
+    import stat
+
+    mode = os.lstat(path).st_mode
+    return stat.S_ISCHR(mode) or stat.S_ISFIFO(mode)
 
 
 def calls(folder: Path) -> dict:
@@ -707,6 +726,7 @@ def test_a_step_given_a_wrong_value_names_the_parameter_or_runs(step_inputs, dat
     function, args, kwargs = table[step]
     name = data.draw(st.sampled_from(_parameters(function)), label="parameter")
     value = data.draw(st.sampled_from(WRONG), label="value")
+    value = str(step_inputs / "device") if value == "DEVICE" else value
     import warnings
 
     from ftcal.runtime.errors import FtcalWarning
@@ -722,9 +742,7 @@ def test_a_step_given_a_wrong_value_names_the_parameter_or_runs(step_inputs, dat
             one_line(exc)
         except Exception as exc:  # noqa: BLE001
             raise AssertionError(f"{step}({name}={value!r}): {type(exc).__name__}: {exc}") from exc
-    import stat
-
-    assert stat.S_ISCHR(os.lstat("/dev/null").st_mode)  # no step replaced the device with its output
+    assert special(step_inputs / "device")  # no step replaced the device with its output
 
 
 # ---------------------------------------------------------------------------------- what this pass found (kept)
@@ -785,20 +803,19 @@ def test_a_gravity_too_short_to_give_a_direction_is_refused_by_step_as_by_run(so
     assert np.all(np.isfinite(result.compensated))
 
 
-@pytest.mark.parametrize("step", ["plan_experiment", "predict", "identify_payload"])
-def test_an_output_that_is_a_device_or_a_fifo_is_refused_never_replaced(step_inputs, tmp_path, step):
-    """Found by this pass (and it broke the machine it ran on): plan_experiment(output=Path("/dev/zero")) renamed
-    its CSV onto /dev/zero; running as root, the device node became a regular file. The atomic writer now refuses a
-    target that is a device, FIFO or socket (a symbolic link is replaced as a name, as before)."""
-    import stat
-
-    fifo = tmp_path / "fifo"
+@pytest.mark.parametrize("step, suffix", [("plan_experiment", ".csv"), ("predict", ".csv"),
+                                          ("identify_payload", ".json")])
+def test_an_output_that_is_a_device_or_a_fifo_is_refused_never_replaced(step_inputs, tmp_path, step, suffix):
+    """Found by this pass (on the machine it ran on): plan_experiment(output=Path("/dev/zero")) renamed its CSV onto
+    /dev/zero; running as root, the device node became a regular file. The atomic writer now refuses a target that is
+    a device, FIFO or socket (a symbolic link is replaced as a name, as before). Tried on a device node made here."""
+    fifo, device = tmp_path / f"fifo{suffix}", tmp_path / f"device{suffix}"
     os.mkfifo(fifo)
+    make_device(device)
     function, args, kwargs = calls(step_inputs)[step]
-    for target in ("/dev/null", str(fifo)):
+    for target in (device, fifo):
         before = os.lstat(target)
         with pytest.raises(FtcalError, match="never replaces devices, pipes or sockets"):
-            function(*args, **{**kwargs, "output": target})
+            function(*args, **{**kwargs, "output": str(target)})
         after = os.lstat(target)
-        assert (after.st_ino, after.st_mode) == (before.st_ino, before.st_mode)
-        assert stat.S_ISCHR(after.st_mode) or stat.S_ISFIFO(after.st_mode)
+        assert (after.st_ino, after.st_mode) == (before.st_ino, before.st_mode) and special(target)
