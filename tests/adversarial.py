@@ -701,7 +701,7 @@ EXTRA_VALUES = {
     "columns": ("\x1b[2J", "u1,\x00"),
     "text": ("\x1b[2J\x07", "\t\r", "-", "\x00", "\u202epwned", "k" * 100000),
     "choice": ("", "\x1b[2J"),
-    "path": (("path", "zero"), ("path", "empty"), ("path", "dotdot")),
+    "path": (("path", "zero"), ("path", "empty"), ("path", "dotdot"), ("path", "device")),
 }
 
 
@@ -785,6 +785,13 @@ def _hostile_path(kind: str):
             path.write_bytes(b"")
         elif kind == "dotdot":  # a symlink to the folder above: a directory reached through a link
             os.symlink("..", path)
+        elif kind == "device":  # a character device node like /dev/null, made here (root may): never replaced
+            import stat
+
+            try:
+                os.mknod(path, stat.S_IFCHR | 0o666, os.makedev(1, 3))
+            except PermissionError:
+                os.mkfifo(path)
     return make
 
 
@@ -927,6 +934,12 @@ def classify(case: dict, result: dict) -> tuple[str, str]:
         return "hang", ""
     if "signal" in result:
         return "crash", f"signal {result['signal']}" if result["signal"] else f"worker exit {result['code']}"
+    if case["label"].endswith("=device"):
+        import stat
+
+        mode = os.lstat(case["path"]).st_mode if os.path.lexists(case["path"]) else 0
+        if not (stat.S_ISCHR(mode) or stat.S_ISFIFO(mode)):
+            return "lost", "the device node given as a path was replaced or removed"
     if result.get("escaped"):
         return "traceback", result["escaped"].strip().splitlines()[-1][:200]
     code, stderr, stdout = result["code"], result["stderr"], result.get("stdout", "")
