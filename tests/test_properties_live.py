@@ -554,7 +554,7 @@ def c_step(tmp_path_factory):
     assert main(["convert", str(folder / "m.json"), "--to", "c-runtime", "--name", "rt", "--payload-file",
                  f"gripper={folder / 'gripper.json'}", "-o", str(folder / "rt.h")]) == 0
     (folder / "driver.c").write_text(DRIVER)
-    built = subprocess.run([cc, "-std=c99", "-O1", "-g", "-fsanitize=address,undefined", "-fno-sanitize-recover=all",
+    built = subprocess.run([cc, "-std=c99", "-O0", "-g", "-fsanitize=address,undefined", "-fno-sanitize-recover=all",
                             "-Wall", "-Wextra", "driver.c", "-o", "driver", "-lm"], cwd=folder, capture_output=True,
                            text=True)
     assert built.returncode == 0, built.stderr
