@@ -435,18 +435,21 @@ def run_task(scene: Scene, sensor: SensorModel, estimator: Estimator, config: Cl
     # Temperature, bias and noise do not depend on the loop: computed for all samples at once.
     counts_of = sensor.sample_reader(temperature, bias, np.random.default_rng(noise_seed))
     jacp, jacr = np.zeros((3, m.nv)), np.zeros((3, m.nv))
-    dofs = scene.dof_index
+    dofs, qpos = _selector(scene.dof_index, m.nv), _selector(scene.qpos_index, m.nq)
     tip0 = d.site_xpos[scene.tip].copy()
 
     def read(k: int) -> tuple[np.ndarray, np.ndarray]:
         w = sensor_wrench(scene)
         return w, counts_of(k, w[None])[0]
 
+    def joint_pd(target: np.ndarray) -> np.ndarray:
+        return d.qfrc_bias[dofs] + 60.0 * (target - d.qpos[qpos]) - 6.0 * d.qvel[dofs]
+
     # Start-up: 0.5 s still at the start pose (gravity compensated), the estimator tares/starts there.
     warm = int(0.5 * config.rate)
     start_counts = []
     for k in range(warm):
-        d.qfrc_applied[dofs] = d.qfrc_bias[dofs] + 20.0 * (START_Q - d.qpos[scene.qpos_index]) - 2.0 * d.qvel[dofs]
+        d.qfrc_applied[dofs] = d.qfrc_bias[dofs] + 20.0 * (START_Q - d.qpos[qpos]) - 2.0 * d.qvel[dofs]
         mujoco.mj_step(m, d)
         if k >= warm // 2:
             start_counts.append(read(k)[1])
@@ -490,18 +493,18 @@ def run_task(scene: Scene, sensor: SensorModel, estimator: Estimator, config: Cl
             x_ref[1] += 0.05 * dt
             if t - release_t > 1.0:
                 phase, free_start = 3, t
-                free_motion = _free_motion(d.qpos[scene.qpos_index].copy())
+                free_motion = _free_motion(d.qpos[qpos].copy())
         if phase == 3 and t - free_start > 7.0:
             cycle += 1
             if cycle >= config.cycles:
                 break
-            phase, return_start, return_q = 4, t, d.qpos[scene.qpos_index].copy()
+            phase, return_start, return_q = 4, t, d.qpos[qpos].copy()
             change_counts = []
         if phase == 4:
             s = t - return_start
             u = min(s / RETURN_S, 1.0)
             target = return_q + u ** 3 * (10 - 15 * u + 6 * u * u) * (START_Q - return_q)
-            tau = d.qfrc_bias[dofs] + 60.0 * (target - d.qpos[scene.qpos_index]) - 6.0 * d.qvel[dofs]
+            tau = joint_pd(target)
             if cycle == change_at and s >= RETURN_S:  # the tool change, in the still pause
                 if not change_counts and s < RETURN_S + dt:
                     mount_tool(scene, config.second_tool)
@@ -517,9 +520,9 @@ def run_task(scene: Scene, sensor: SensorModel, estimator: Estimator, config: Cl
                 x_ref = np.array([tip0[0], tip[2]])
         elif phase == 3:
             target = free_motion(t - free_start)
-            tau = d.qfrc_bias[dofs] + 60.0 * (target - d.qpos[scene.qpos_index]) - 6.0 * d.qvel[dofs]
+            tau = joint_pd(target)
         else:
-            tau = _operational(scene, x_ref, f_des if phase == 1 else 0.0, jacp, jacr)
+            tau = _operational(scene, x_ref, f_des if phase == 1 else 0.0, jacp, jacr, dofs, qpos)
         d.qfrc_applied[dofs] = tau
         times.append(t)
         desired.append(f_des)
@@ -570,12 +573,22 @@ def _free_motion(q0: np.ndarray) -> Callable[[float], np.ndarray]:
 _STIFFNESS, _DAMPING = np.array([3000.0, 0.0, 3000.0]), np.array([250.0, 0.0, 120.0])
 
 
-def _operational(scene: Scene, x_ref: np.ndarray, f_des: float, jacp: np.ndarray, jacr: np.ndarray) -> np.ndarray:
-    """Gravity compensation + PD on the tip's x, z and pitch (tool down) + the desired force pushing down."""
+def _selector(index: np.ndarray, n: int):
+    """``index`` as a slice when it is all of ``0..n-1`` in order: the same values without a copy per control
+    step, for elementwise arithmetic (not for matmul's operands, whose memory order picks its summation)."""
+    return slice(None) if np.array_equal(index, np.arange(n)) else index
+
+
+def _operational(scene: Scene, x_ref: np.ndarray, f_des: float, jacp: np.ndarray, jacr: np.ndarray,
+                 dofs=None, qpos=None) -> np.ndarray:
+    """Gravity compensation + PD on the tip's x, z and pitch (tool down) + the desired force pushing down.
+
+    ``dofs``, ``qpos``: the scene's dof and qpos indices, or :func:`_selector`'s slices of them."""
     import mujoco
 
     m, d = scene.model, scene.data
-    dofs = scene.dof_index
+    dofs = scene.dof_index if dofs is None else dofs
+    qpos = scene.qpos_index if qpos is None else qpos
     mujoco.mj_jacSite(m, d, jacp, jacr, scene.tip)
     tip = d.site_xpos[scene.tip]
     v = jacp @ d.qvel
@@ -586,9 +599,11 @@ def _operational(scene: Scene, x_ref: np.ndarray, f_des: float, jacp: np.ndarray
     omega = jacr @ d.qvel
     # axis x (0, 0, -1), written out: np.cross costs more than the rest of the controller
     torque = 80.0 * np.array([-axis[1], axis[0], 0.0]) - 6.0 * omega
-    tau = jacp[:, dofs].T @ force + jacr[:, dofs].T @ torque + d.qfrc_bias[dofs]
+    # the Jacobians' columns by fancy index, as always: the copy's memory order picks numpy's matmul path
+    columns = scene.dof_index
+    tau = jacp[:, columns].T @ force + jacr[:, columns].T @ torque + d.qfrc_bias[dofs]
     roll = 2  # keep the wrist roll at 0 while in contact
-    tau[roll] += 20.0 * (0.0 - d.qpos[scene.qpos_index[roll]]) - 2.0 * d.qvel[dofs[roll]]
+    tau[roll] += 20.0 * (0.0 - d.qpos[scene.qpos_index[roll]]) - 2.0 * d.qvel[scene.dof_index[roll]]
     return tau
 
 

@@ -241,14 +241,23 @@ class SensorModel:
         def read(k: int, wrench: np.ndarray) -> np.ndarray:
             w = wrench if mounted is None else mounted(wrench)
             s = (w / full_scale) @ coupling_t
-            s = s + quadratic * s * np.abs(s) + cubic * s ** 3
-            s = s * gain[k] + zero[k]
-            s = s + bias[k]
-            c = s * cpfs
+            # in place, each product and sum in counts' order (IEEE products commute, sums are kept in order)
+            nonlinear = quadratic * s
+            nonlinear *= np.abs(s)
+            nonlinear += s
+            cube = s ** 3
+            cube *= cubic
+            nonlinear += cube
+            nonlinear *= gain[k]
+            nonlinear += zero[k]
+            nonlinear += bias[k]
+            nonlinear *= cpfs
             i = next(calls)
             if noise is not None:
-                c = c + noise[i]
-            return np.clip(np.rint(c), -limit, limit)
+                nonlinear += noise[i]
+            np.rint(nonlinear, out=nonlinear)
+            np.maximum(nonlinear, -limit, out=nonlinear)  # np.clip's Python wrapper costs more than the rest
+            return np.minimum(nonlinear, limit, out=nonlinear)
 
         return read
 
