@@ -328,9 +328,10 @@ def closed_loop_lines(runs: list[dict], quick: bool) -> list[str]:
                 f"contact(s), {run['per_seed'][0]['conditions'][0].get('duration_s', 0):.0f} s per condition; "
                 f"{fmt_s(run['seconds'])} wall, {fmt_s(run['cpu_seconds'])} CPU for {len(run['seeds'])} seed(s)", ""]
         if run["targets"]:
-            heads.append(f"{variant}: " + ", ".join(f"{t['what']} {t['ratio']:.2f} (≤ {t['bound']:.2g}, "
-                                                    f"{'met' if t['met'] else 'NOT MET'})" for t in run["targets"]
-                                                    if t["ratio"] is not None))
+            heads.append(f"{variant}: " + ", ".join(
+                f"{t['what']} {t['ratio']:.2f} (≤ {t['bound']:.2g}, {'met' if t['met'] else 'NOT MET'}"
+                + (f"; seeds {min(t['per_seed']):.2f}-{max(t['per_seed']):.2f}" if len(t["per_seed"]) > 1 else "")
+                + ")" for t in run["targets"] if t["ratio"] is not None))
     HEADLINE["closed_loop"] = "; ".join(heads) if heads else "no targets in the variants run"
     return out
 
