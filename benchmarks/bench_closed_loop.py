@@ -54,8 +54,8 @@ def tracking(variant: str = "long-task", seed: int = 0, cycles: int | None = Non
 
     import numpy as np
 
-    from ftcal.sim.closed_loop import (GRAVITY, ClosedLoopConfig, LiveEstimator, arm, calibrate, model_row,
-                                       run_task)
+    from ftcal.sim.closed_loop import (CYCLE_S, GRAVITY, ClosedLoopConfig, LiveEstimator, arm, calibrate,
+                                       model_row, run_task)
     from ftcal.sim.plan_arm import SENSOR
 
     config = ClosedLoopConfig.of_variant(variant, seed=seed)
@@ -65,27 +65,31 @@ def tracking(variant: str = "long-task", seed: int = 0, cycles: int | None = Non
     robot, scene = arm(config)
     calibration = calibrate(robot, sensor, config, np.random.default_rng([config.seed, 41]))
     row = model_row(calibration["model"])
-    log: dict[str, list] = {"error": [], "bias": [], "static": [], "updated": [], "rotation": [], "flags": []}
+    # preallocated per-sample record (lists of small arrays would take 0.7 GB for the long task)
+    n_max = int((config.cycles * CYCLE_S + 2.0) * config.rate)
+    error, bias, rotation = np.empty((n_max, 3)), np.empty((n_max, 3)), np.empty((n_max, 3, 3))
+    static, updated = np.zeros(n_max, bool), np.zeros(n_max, bool)
+    flags: dict[str, int] = {}
+    calls = [0]
 
     class Recorded(LiveEstimator):
-        def __call__(self, counts, temperature, rotation, true_wrench, t):
-            sample = self.live.step(t, raw=np.append(counts, temperature), gravity=rotation.T @ GRAVITY,
+        def __call__(self, counts, temperature, rotation_now, true_wrench, t):
+            sample = self.live.step(t, raw=np.append(counts, temperature), gravity=rotation_now.T @ GRAVITY,
                                     temperature=temperature)
-            log["error"].append(row(counts, temperature) - true_wrench)
-            log["bias"].append(np.asarray(sample.bias, float))
-            log["static"].append(bool(sample.static))
-            log["updated"].append(bool(sample.updated))
-            log["rotation"].append(rotation.copy())
-            log["flags"].extend(sample.flags)
-            return rotation @ np.asarray(sample.compensated)[:3]
+            k = calls[0]
+            calls[0] += 1
+            error[k] = (row(counts, temperature) - true_wrench)[:3]
+            bias[k] = np.asarray(sample.bias, float)[:3]
+            static[k], updated[k], rotation[k] = sample.static, sample.updated, rotation_now
+            for name in sample.flags:
+                flags[name] = flags.get(name, 0) + 1
+            return rotation_now @ np.asarray(sample.compensated)[:3]
 
     start, cpu = time.perf_counter(), time.process_time()
     trace = run_task(scene, sensor, Recorded(calibration["model"], calibration["payloads"]["ftcal"]), config,
                      noise_seed=config.seed * 1000 + 5)
     n = trace.time.size
-    error, bias = np.array(log["error"][:n]), np.array(log["bias"][:n])
-    rotation = np.array(log["rotation"][:n])
-    static, updated = np.array(log["static"][:n]), np.array(log["updated"][:n])
+    error, bias, rotation, static, updated = error[:n], bias[:n], rotation[:n], static[:n], updated[:n]
     world = np.einsum("nij,nj->ni", rotation, error[:, :3])
     # error left by the tracker's bias: its bias in world axes, at each sample (the tracker's start = the tare)
     left = world - np.einsum("nij,nj->ni", rotation, bias[:, :3])
@@ -111,7 +115,7 @@ def tracking(variant: str = "long-task", seed: int = 0, cycles: int | None = Non
             "untracked_force": float(np.sqrt(np.mean(np.sum(untracked ** 2, axis=1)))),
             "tracked_force": float(np.sqrt(np.mean(np.sum(tracked ** 2, axis=1)))),
             "untracked_z_last": float(untracked[-1, 2]), "tracked_z_last": float(tracked[-1, 2])}
-    out["flags"] = {f: log["flags"].count(f) for f in sorted(set(log["flags"]))}
+    out["flags"] = dict(sorted(flags.items()))
     out["seconds"], out["cpu_seconds"] = time.perf_counter() - start, time.process_time() - cpu
     return out
 

@@ -36,6 +36,12 @@ are not met, and the scenario is not tuned until they are.
 Scored against MuJoCo's own contact force (the constraint force between tip and table, not the sensor):
 contact-force RMSE and maximum error while force-controlled, settling after the first ramp, phantom force
 (RMS and maximum of the perceived force's norm) in free motion.
+
+Cost: the loop is causal (each sample's wrench depends on the controller's past), so it steps one control
+period at a time; what does not depend on the loop (the sensor's temperature gain, zero drift, bias and
+noise) is computed once per task (:meth:`SensorModel.sample_reader`, bit for bit :meth:`SensorModel.counts`
+sample by sample) and the models are read through ``row_predictor``. One long-task seed is about 4 CPU
+minutes; ``python -m benchmarks.bench_closed_loop tracking`` records what ``ftcal.live`` saw and did per phase.
 """
 
 from __future__ import annotations
