@@ -263,7 +263,33 @@ def closed_loop_section(sizes: dict) -> list[str]:
     """Every condition of every closed-loop variant, per seed; the seeds' ties and the issue's targets."""
     runs = [run_case("closed_loop", variant=variant, seeds=list(seeds), quick=sizes["closed_loop_quick"])
             for variant, seeds in sizes["closed_loop_variants"].items()]
-    return closed_loop_lines(runs, sizes["closed_loop_quick"])
+    tracked = [run_case("tracking", variant="long-task", seed=seed)
+               for seed in sizes["closed_loop_variants"].get("long-task", ())]
+    return closed_loop_lines(runs, sizes["closed_loop_quick"]) + tracking_lines(tracked)
+
+
+def tracking_lines(results: list[dict]) -> list[str]:
+    """What ``ftcal.live`` saw and did per phase of the long task (:func:`benchmarks.bench_closed_loop.tracking`)."""
+    if not results:
+        return []
+    out = ["### long-task: what the live tracker saw and did, per phase", "",
+           "`python -m benchmarks.bench_closed_loop tracking long-task SEED`: condition (c) rerun with a recorder around "
+           "`LiveCalibrator.step`. Static / updated: the share of the phase's samples the tracker called static and "
+           "updated its bias on. Error: ftcal's calibrated force minus MuJoCo's sensor force (drift and model error) "
+           "since the start pose's tare, each stretch of the phase by its mean (the 0.15 N noise averages out), RMS "
+           "over the stretches; untracked is what (b) carries, tracked what is left after (c)'s bias. In contact the "
+           "world-z error shifts the contact force one for one.", "",
+           "| seed | phase | static | updated | world-z error untracked [N] | tracked [N] | force error untracked [N] "
+           "| tracked [N] |", "|---:|---|---:|---:|---:|---:|---:|---:|"]
+    for r in results:
+        for name, ph in r["phases"].items():
+            out.append(f"| {r['seed']} | {name} | {ph['static']:.0%} | {ph['updated']:.0%} | {ph['untracked_z']:.3f} | "
+                       f"{ph['tracked_z']:.3f} | {ph['untracked_force']:.3f} | {ph['tracked_force']:.3f} |")
+    out.append("")
+    for r in results:
+        flags = ", ".join(f"{name} on {count:,} samples" for name, count in r["flags"].items()) or "none"
+        out.append(f"- seed {r['seed']}: flags raised {flags}; {fmt_s(r['cpu_seconds'])} CPU")
+    return out + [""]
 
 
 def closed_loop_lines(runs: list[dict], quick: bool) -> list[str]:
@@ -302,9 +328,10 @@ def closed_loop_lines(runs: list[dict], quick: bool) -> list[str]:
                 f"contact(s), {run['per_seed'][0]['conditions'][0].get('duration_s', 0):.0f} s per condition; "
                 f"{fmt_s(run['seconds'])} wall, {fmt_s(run['cpu_seconds'])} CPU for {len(run['seeds'])} seed(s)", ""]
         if run["targets"]:
-            heads.append(f"{variant}: " + ", ".join(f"{t['what']} {t['ratio']:.2f} (≤ {t['bound']:.2g}, "
-                                                    f"{'met' if t['met'] else 'NOT MET'})" for t in run["targets"]
-                                                    if t["ratio"] is not None))
+            heads.append(f"{variant}: " + ", ".join(
+                f"{t['what']} {t['ratio']:.2f} (≤ {t['bound']:.2g}, {'met' if t['met'] else 'NOT MET'}"
+                + (f"; seeds {min(t['per_seed']):.2f}-{max(t['per_seed']):.2f}" if len(t["per_seed"]) > 1 else "")
+                + ")" for t in run["targets"] if t["ratio"] is not None))
     HEADLINE["closed_loop"] = "; ".join(heads) if heads else "no targets in the variants run"
     return out
 

@@ -165,3 +165,27 @@ def test_a_short_long_task_with_a_tool_change_runs_every_condition(tmp_path):
     assert summary["targets"] and {t["what"] for t in summary["targets"]} >= {
         "ftcal + live / ftcal contact_rmse"}
     assert "tool B" in summary["calibration"]["tools"]["ftcal"]
+
+
+@pytest.mark.parametrize("mistake", [("none", 0.0), ("rotate-z", 30.0)])
+def test_the_loops_sample_reader_is_counts_sample_by_sample(mistake):
+    """The closed loop reads its sensor one sample at a time from precomputed temperature, bias and noise: bit for
+    bit the counts of successive one-row calls sharing one generator (reference: SensorModel.counts itself),
+    with wrenches up to 3x full scale (clipping), a mounting mistake, and calls starting part-way through the
+    recording (the noise follows the calls, as the generator's stream does, while temperature and bias follow k)."""
+    from ftcal.sim.sensor_model import SensorSpec
+
+    sensor = SensorSpec(noise=20.0, quadratic=0.015, cubic=0.02, gain_tc=-2.5e-3).draw(3, *mistake)
+    n, first = 1500, 250
+    rng = np.random.default_rng(4)
+    temperature = np.linspace(30.0, 45.0, n)
+    bias = sensor.bias(np.arange(n) / 500.0, rng)
+    wrench = rng.standard_normal((n, 6)) * sensor.spec.full_scale * rng.uniform(0.0, 3.0, (n, 1))
+    read = sensor.sample_reader(temperature, bias, np.random.default_rng(9))
+    stream = np.random.default_rng(9)
+    fast = np.vstack([read(k, wrench[k:k + 1]) for k in range(first, n)])
+    reference = np.vstack([sensor.counts(wrench[k:k + 1], temperature[k:k + 1], bias[k:k + 1], stream)
+                           for k in range(first, n)])
+    limit = np.floor(sensor.spec.saturation * (sensor.counts_per_full_scale - 1))
+    assert (np.abs(reference) == limit).any() and (np.abs(reference) < limit).any()  # both regimes are exercised
+    assert np.array_equal(fast, reference)

@@ -36,6 +36,12 @@ are not met, and the scenario is not tuned until they are.
 Scored against MuJoCo's own contact force (the constraint force between tip and table, not the sensor):
 contact-force RMSE and maximum error while force-controlled, settling after the first ramp, phantom force
 (RMS and maximum of the perceived force's norm) in free motion.
+
+Cost: the loop is causal (each sample's wrench depends on the controller's past), so it steps one control
+period at a time; what does not depend on the loop (the sensor's temperature gain, zero drift, bias and
+noise) is computed once per task (:meth:`SensorModel.sample_reader`, bit for bit :meth:`SensorModel.counts`
+sample by sample) and the models are read through ``row_predictor``. One long-task seed is about 4 CPU
+minutes; ``python -m benchmarks.bench_closed_loop tracking`` records what ``ftcal.live`` saw and did per phase.
 """
 
 from __future__ import annotations
@@ -197,8 +203,13 @@ class ToolEstimator(Estimator):
     (b) with ftcal's.
     """
 
-    def __init__(self, name: str, wrench: Callable[[np.ndarray, np.ndarray], np.ndarray], payloads: dict) -> None:
+    def __init__(self, name: str, wrench: Callable[[np.ndarray, np.ndarray], np.ndarray], payloads: dict,
+                 row: Callable[[np.ndarray, float], np.ndarray] | None = None) -> None:
+        """``row(counts (6,), temperature)``: ``wrench`` of one sample, (6,), bit for bit (a model's
+        :meth:`~ftcal.core.model.CalibrationModel.row_predictor`, without ``predict``'s per-call checks)."""
         self.name, self.wrench, self.payloads = name, wrench, payloads
+        self.row = row if row is not None else lambda counts, temperature: wrench(counts[None],
+                                                                               np.array([temperature]))[0]
         self.payload = payloads["tool"]
         self.force_bias = np.asarray(self.payload.force_bias, dtype=float)
 
@@ -211,7 +222,7 @@ class ToolEstimator(Estimator):
         self.start(counts, temperature, rotation)
 
     def __call__(self, counts, temperature, rotation, true_wrench, t) -> np.ndarray:
-        force = self.wrench(counts[None], np.array([temperature]))[0, :3] - self.force_bias
+        force = self.row(counts, temperature)[:3] - self.force_bias
         return rotation @ force - self.payload.mass * GRAVITY
 
 
@@ -267,6 +278,14 @@ class TrueEstimator(Estimator):
 
     def __call__(self, counts, temperature, rotation, true_wrench, t) -> np.ndarray:
         return rotation @ true_wrench[:3] - self.mass * GRAVITY
+
+
+def model_row(model) -> Callable[[np.ndarray, float], np.ndarray]:
+    """(counts (6,), temperature) -> the model's wrench (6,), equal to :func:`model_wrench` of that one row."""
+    one = model.row_predictor()
+    if one is None:  # a dynamic model: predict's own path
+        return lambda counts, temperature: model_wrench(model)(counts[None], np.array([temperature]))[0]
+    return lambda counts, temperature: one(np.append(counts, temperature))
 
 
 def model_wrench(model) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
@@ -415,24 +434,28 @@ def run_task(scene: Scene, sensor: SensorModel, estimator: Estimator, config: Cl
     mount_tool(scene, config.tool)
     mujoco.mj_resetData(m, d)
     _set(scene, START_Q)
-    rng = np.random.default_rng(noise_seed)
     dt = 1.0 / config.rate
     n_max = int((config.cycles * CYCLE_S + 2.0) * config.rate)
     bias = task_bias(sensor, config, n_max, noise_seed)
     temperature = np.linspace(*config.task_temperature, n_max)
+    # Temperature, bias and noise do not depend on the loop: computed for all samples at once.
+    counts_of = sensor.sample_reader(temperature, bias, np.random.default_rng(noise_seed))
     jacp, jacr = np.zeros((3, m.nv)), np.zeros((3, m.nv))
-    dofs = scene.dof_index
+    dofs, qpos = _selector(scene.dof_index, m.nv), _selector(scene.qpos_index, m.nq)
     tip0 = d.site_xpos[scene.tip].copy()
 
     def read(k: int) -> tuple[np.ndarray, np.ndarray]:
         w = sensor_wrench(scene)
-        return w, sensor.counts(w[None], temperature[k:k + 1], bias[k:k + 1], rng)[0]
+        return w, counts_of(k, w[None])[0]
+
+    def joint_pd(target: np.ndarray) -> np.ndarray:
+        return d.qfrc_bias[dofs] + 60.0 * (target - d.qpos[qpos]) - 6.0 * d.qvel[dofs]
 
     # Start-up: 0.5 s still at the start pose (gravity compensated), the estimator tares/starts there.
     warm = int(0.5 * config.rate)
     start_counts = []
     for k in range(warm):
-        d.qfrc_applied[dofs] = d.qfrc_bias[dofs] + 20.0 * (START_Q - d.qpos[scene.qpos_index]) - 2.0 * d.qvel[dofs]
+        d.qfrc_applied[dofs] = d.qfrc_bias[dofs] + 20.0 * (START_Q - d.qpos[qpos]) - 2.0 * d.qvel[dofs]
         mujoco.mj_step(m, d)
         if k >= warm // 2:
             start_counts.append(read(k)[1])
@@ -443,7 +466,7 @@ def run_task(scene: Scene, sensor: SensorModel, estimator: Estimator, config: Cl
     x_ref = np.array([tip0[0], tip0[2]])
     phase, t_contact, ramp_end, release_t = 0, None, np.nan, None
     z_integral = 0.0
-    free_q = free_start = return_start = return_q = None
+    free_motion = free_start = return_start = return_q = None
     cycle, change_at = 0, (config.cycles // 2 if config.second_tool is not None else None)
     change_counts: list = []
     k = warm
@@ -476,18 +499,18 @@ def run_task(scene: Scene, sensor: SensorModel, estimator: Estimator, config: Cl
             x_ref[1] += 0.05 * dt
             if t - release_t > 1.0:
                 phase, free_start = 3, t
-                free_q = d.qpos[scene.qpos_index].copy()
+                free_motion = _free_motion(d.qpos[qpos].copy())
         if phase == 3 and t - free_start > 7.0:
             cycle += 1
             if cycle >= config.cycles:
                 break
-            phase, return_start, return_q = 4, t, d.qpos[scene.qpos_index].copy()
+            phase, return_start, return_q = 4, t, d.qpos[qpos].copy()
             change_counts = []
         if phase == 4:
             s = t - return_start
             u = min(s / RETURN_S, 1.0)
             target = return_q + u ** 3 * (10 - 15 * u + 6 * u * u) * (START_Q - return_q)
-            tau = d.qfrc_bias[dofs] + 60.0 * (target - d.qpos[scene.qpos_index]) - 6.0 * d.qvel[dofs]
+            tau = joint_pd(target)
             if cycle == change_at and s >= RETURN_S:  # the tool change, in the still pause
                 if not change_counts and s < RETURN_S + dt:
                     mount_tool(scene, config.second_tool)
@@ -502,10 +525,10 @@ def run_task(scene: Scene, sensor: SensorModel, estimator: Estimator, config: Cl
                 tip = d.site_xpos[scene.tip]
                 x_ref = np.array([tip0[0], tip[2]])
         elif phase == 3:
-            target = _free_motion(free_q, t - free_start)
-            tau = d.qfrc_bias[dofs] + 60.0 * (target - d.qpos[scene.qpos_index]) - 6.0 * d.qvel[dofs]
+            target = free_motion(t - free_start)
+            tau = joint_pd(target)
         else:
-            tau = _operational(scene, x_ref, f_des if phase == 1 else 0.0, jacp, jacr)
+            tau = _operational(scene, x_ref, f_des if phase == 1 else 0.0, jacp, jacr, dofs, qpos)
         d.qfrc_applied[dofs] = tau
         times.append(t)
         desired.append(f_des)
@@ -538,34 +561,55 @@ def _force_plan(s: float, config: ClosedLoopConfig):
     return None
 
 
-def _free_motion(q0: np.ndarray, s: float) -> np.ndarray:
-    """Joint targets of the free motion: lift, roll and pitch the wrist both ways, come back."""
+def _free_motion(q0: np.ndarray) -> Callable[[float], np.ndarray]:
+    """Joint targets s seconds into the free motion from ``q0``: lift, roll and pitch the wrist both ways,
+    come back."""
     waypoints = np.array([q0, q0 + [-0.3, -0.2, 0.0, 0.0], q0 + [-0.3, -0.2, 1.2, 0.6], q0 + [-0.3, -0.2, -1.2, -0.5],
                           q0 + [-0.3, -0.2, 0.0, 0.0]])
-    k = min(int(s // 1.6), len(waypoints) - 2)
-    u = min(max((s - 1.6 * k) / 1.6, 0.0), 1.0)
-    blend = u ** 3 * (10 - 15 * u + 6 * u * u)
-    return waypoints[k] + blend * (waypoints[k + 1] - waypoints[k])
+    steps = waypoints[1:] - waypoints[:-1]
+
+    def target(s: float) -> np.ndarray:
+        k = min(int(s // 1.6), len(waypoints) - 2)
+        u = min(max((s - 1.6 * k) / 1.6, 0.0), 1.0)
+        return waypoints[k] + u ** 3 * (10 - 15 * u + 6 * u * u) * steps[k]
+
+    return target
 
 
-def _operational(scene: Scene, x_ref: np.ndarray, f_des: float, jacp: np.ndarray, jacr: np.ndarray) -> np.ndarray:
-    """Gravity compensation + PD on the tip's x, z and pitch (tool down) + the desired force pushing down."""
+_STIFFNESS, _DAMPING = np.array([3000.0, 0.0, 3000.0]), np.array([250.0, 0.0, 120.0])
+
+
+def _selector(index: np.ndarray, n: int):
+    """``index`` as a slice when it is all of ``0..n-1`` in order: the same values without a copy per control
+    step, for elementwise arithmetic (not for matmul's operands, whose memory order picks its summation)."""
+    return slice(None) if np.array_equal(index, np.arange(n)) else index
+
+
+def _operational(scene: Scene, x_ref: np.ndarray, f_des: float, jacp: np.ndarray, jacr: np.ndarray,
+                 dofs=None, qpos=None) -> np.ndarray:
+    """Gravity compensation + PD on the tip's x, z and pitch (tool down) + the desired force pushing down.
+
+    ``dofs``, ``qpos``: the scene's dof and qpos indices, or :func:`_selector`'s slices of them."""
     import mujoco
 
     m, d = scene.model, scene.data
-    dofs = scene.dof_index
+    dofs = scene.dof_index if dofs is None else dofs
+    qpos = scene.qpos_index if qpos is None else qpos
     mujoco.mj_jacSite(m, d, jacp, jacr, scene.tip)
     tip = d.site_xpos[scene.tip]
     v = jacp @ d.qvel
     err = np.array([x_ref[0] - tip[0], 0.0, x_ref[1] - tip[2]])
-    force = np.array([3000.0, 0.0, 3000.0]) * err - np.array([250.0, 0.0, 120.0]) * v
+    force = _STIFFNESS * err - _DAMPING * v
     force[2] -= f_des
     axis = d.site_xmat[scene.site].reshape(3, 3)[:, 2]  # tool axis, sensor z
     omega = jacr @ d.qvel
-    torque = 80.0 * np.cross(axis, np.array([0.0, 0.0, -1.0])) - 6.0 * omega
-    tau = jacp[:, dofs].T @ force + jacr[:, dofs].T @ torque + d.qfrc_bias[dofs]
+    # axis x (0, 0, -1), written out: np.cross costs more than the rest of the controller
+    torque = 80.0 * np.array([-axis[1], axis[0], 0.0]) - 6.0 * omega
+    # the Jacobians' columns by fancy index, as always: the copy's memory order picks numpy's matmul path
+    columns = scene.dof_index
+    tau = jacp[:, columns].T @ force + jacr[:, columns].T @ torque + d.qfrc_bias[dofs]
     roll = 2  # keep the wrist roll at 0 while in contact
-    tau[roll] += 20.0 * (0.0 - d.qpos[scene.qpos_index[roll]]) - 2.0 * d.qvel[dofs[roll]]
+    tau[roll] += 20.0 * (0.0 - d.qpos[scene.qpos_index[roll]]) - 2.0 * d.qvel[scene.dof_index[roll]]
     return tau
 
 
@@ -643,8 +687,8 @@ def run_seed(config: ClosedLoopConfig, extra: dict[str, Callable[[dict], Estimat
     factories: dict[str, Callable[[dict], Estimator]] = {
         "factory": lambda c: FactoryEstimator(c["sensor"]),
         "factory + gravity comp.": lambda c: ToolEstimator("factory + gravity comp.", w["factory"], p["factory"]),
-        "affine + tool": lambda c: ToolEstimator("affine + tool", w["affine"], p["affine"]),
-        "ftcal": lambda c: ToolEstimator("ftcal", w["ftcal"], p["ftcal"]),
+        "affine + tool": lambda c: ToolEstimator("affine + tool", w["affine"], p["affine"], model_row(c["affine"])),
+        "ftcal": lambda c: ToolEstimator("ftcal", w["ftcal"], p["ftcal"], model_row(c["model"])),
         "ftcal + live": lambda c: LiveEstimator(c["model"], p["ftcal"]),
         "true": lambda c: TrueEstimator(masses),
         **(extra or {}),

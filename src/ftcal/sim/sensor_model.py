@@ -214,6 +214,53 @@ class SensorModel:
         limit = np.floor(self.spec.saturation * (self.counts_per_full_scale - 1))
         return np.clip(c, -limit, limit)
 
+    def sample_reader(self, temperature: np.ndarray, bias: np.ndarray, rng: np.random.Generator | None):
+        """``read(k, wrench)``: :meth:`counts` of one wrench (1, 6) at sample ``k`` of a recording whose
+        temperature (n,), bias (n, 6) and noise are known beforehand, shape (1, 6).
+
+        For a closed loop, where each sample's wrench depends on the ones before: the per-sample parts
+        (gain, zero drift, bias, noise) are computed once for all ``n`` samples, so one sample costs the
+        load-dependent part only. The same arithmetic in the same order as :meth:`counts`, and the noise
+        drawn as one (n, 6) block (the stream of ``n`` draws of (1, 6)) and used in call order, as ``rng``
+        would be: the i-th call's counts equal the i-th of successive calls
+        ``counts(wrench, temperature[k:k+1], bias[k:k+1], rng)``, bit for bit (at most ``n`` calls).
+        """
+        temp = np.asarray(temperature, dtype=np.float64)
+        bias = np.asarray(bias, dtype=np.float64)
+        if temp.ndim != 1 or bias.shape != (temp.size, 6):
+            raise FtcalError(f"temperature must be (n,) and bias (n, 6); got {temp.shape} and {bias.shape}.")
+        dt = (temp - self.spec.reference_temperature)[:, None]
+        gain, zero = 1.0 + self.gain_tc * dt, self.offset_tc * dt
+        noise = (self.spec.noise * rng.standard_normal((temp.size, 6)) if rng is not None and self.spec.noise > 0
+                 else None)
+        full_scale, coupling_t, quadratic, cubic = self.spec.full_scale, self.coupling.T, self.quadratic, self.cubic
+        cpfs, limit = self.counts_per_full_scale, np.floor(self.spec.saturation * (self.counts_per_full_scale - 1))
+        mounted = self.mounted if self.mistake != "none" else None
+        calls = iter(range(temp.size))
+
+        def read(k: int, wrench: np.ndarray) -> np.ndarray:
+            w = wrench if mounted is None else mounted(wrench)
+            s = (w / full_scale) @ coupling_t
+            # in place, each product and sum in counts' order (IEEE products commute, sums are kept in order)
+            nonlinear = quadratic * s
+            nonlinear *= np.abs(s)
+            nonlinear += s
+            cube = s ** 3
+            cube *= cubic
+            nonlinear += cube
+            nonlinear *= gain[k]
+            nonlinear += zero[k]
+            nonlinear += bias[k]
+            nonlinear *= cpfs
+            i = next(calls)
+            if noise is not None:
+                nonlinear += noise[i]
+            np.rint(nonlinear, out=nonlinear)
+            np.maximum(nonlinear, -limit, out=nonlinear)  # np.clip's Python wrapper costs more than the rest
+            return np.minimum(nonlinear, limit, out=nonlinear)
+
+        return read
+
     def factory_wrench(self, counts: np.ndarray) -> np.ndarray:
         """The driver's wrench from counts: ``W · counts + b``, shape (n, 6)."""
         return np.asarray(counts, dtype=np.float64) @ self.factory_matrix.T + self.factory_offset
