@@ -22,9 +22,12 @@ def paper_count(degree: int, n_inputs: int = 7, n_outputs: int = 6) -> int:
 
 
 @pytest.fixture(scope="module")
-def quick_demo(tmp_path_factory):
-    out = tmp_path_factory.mktemp("demo")
-    assert main(["demo", "--quick", "--out", str(out)]) == 0
+def quick_demo(quick_demo, tmp_path_factory):
+    """A copy of the session's quick demo (conftest.py builds it once per run): its folder and summary."""
+    import shutil
+
+    out = tmp_path_factory.mktemp("demo") / "ftcal-demo"
+    shutil.copytree(quick_demo / "ftcal-demo", out)
     return out, json.loads((out / "summary.json").read_text())
 
 

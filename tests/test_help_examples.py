@@ -1,7 +1,7 @@
 """Every command's --help has examples, and each runs exactly as written after the demo.
 
-Like tests/test_readme.py: the demo runs once (at its --quick size) into a temporary folder
-standing in for the repository root; then each command's examples run, in the order of
+Like tests/test_readme.py: the examples run in a copy of the session's quick demo (conftest.py builds
+it once per run), a temporary folder standing in for the repository root; then each command's examples run, in the order of
 `ftcal --help` (the workflow), each command's in the order written.
 """
 
@@ -70,10 +70,11 @@ def test_the_options_newcomers_asked_about_say_what_they_do():
 
 
 @pytest.fixture(scope="module")
-def demo_root(tmp_path_factory) -> Path:
+def demo_root(tmp_path_factory, quick_demo) -> Path:
+    import shutil
+
     root = tmp_path_factory.mktemp("help-examples")
-    done = run_ftcal(DEMO, root)
-    assert done.returncode == 0, done.stderr
+    shutil.copytree(quick_demo / "ftcal-demo", root / "ftcal-demo")
     return root
 
 

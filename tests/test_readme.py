@@ -109,7 +109,7 @@ def test_every_file_the_code_and_docs_cite_is_in_the_repository():
     root = README.parent
     cited = re.compile(r"(?<![\w/.-])((?:[\w-]+/)*[\w-]+\.md)\b")
     missing = []
-    for path in [*root.glob("src/**/*.py"), *root.glob("tests/*.py"), *root.glob("benchmarks/*.py"),
+    for path in [*root.glob("src/**/*.py"), *root.glob("tests/**/*.py"), *root.glob("benchmarks/*.py"),
                  *root.glob("*.md"), *root.glob("docs/*.md")]:
         for name in cited.findall(path.read_text(encoding="utf-8")):
             if not (root / name).exists() and not (path.parent / name).exists():
