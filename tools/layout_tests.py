@@ -221,12 +221,16 @@ def mentions_fixed(text: str, moved: dict[str, str]) -> str:
     return text
 
 
-PYTEST_SETTINGS = 'pythonpath = ["tests", "tests/helpers"]'
+# The helpers, and the layer folders too: a test module may import another's builders (test_cli_robot.py
+# takes make_recording from test_insitu.py), wherever the rule put each.
+PYTEST_SETTINGS = "pythonpath = [" + ", ".join(f'"tests/{f}"' for f in ("", HELPERS, *LAYERS)).replace('/"', '"') + "]"
 
 
 def configured(text: str) -> str:
     """pyproject.toml with the helpers on pytest's path and one marker per layer (kept if present)."""
-    if "pythonpath" not in text:
+    if re.search(r"^pythonpath = .*$", text, re.M):
+        text = re.sub(r"^pythonpath = .*$", PYTEST_SETTINGS, text, count=1, flags=re.M)
+    else:
         text = text.replace('testpaths = ["tests"]\n', f'testpaths = ["tests"]\n{PYTEST_SETTINGS}\n', 1)
     missing = [f'    "{layer}: {LAYER_TEXT[layer]} (tests/{layer}/)",' for layer in LAYERS
                if not re.search(rf'^\s*"{layer}:', text, re.M)]
@@ -267,7 +271,7 @@ def main(argv: list[str] | None = None) -> int:
     places = plan()
     for name, place in places.items():
         print(f"tests/{name} -> tests/{place}")
-    if args.dry_run or not places:
+    if args.dry_run:
         return 0
     git = (ROOT / ".git").exists()
     for name, place in places.items():
@@ -275,9 +279,11 @@ def main(argv: list[str] | None = None) -> int:
         if not place.startswith(HELPERS + "/"):
             source.write_text(depth_fixed(source.read_text(encoding="utf-8")), encoding="utf-8")
         move(source, target, git)
+    # every file already placed, not only this run's: text merged from elsewhere may still name the old place
+    placed = {p.name: str(p.relative_to(TESTS)) for p in TESTS.glob("*/*.py")}
     for path in text_files():
         text = path.read_text(encoding="utf-8", errors="surrogateescape")
-        fixed = mentions_fixed(text, places)
+        fixed = mentions_fixed(text, placed)
         if path.name == "pyproject.toml" and path.parent == ROOT:
             fixed = configured(fixed)
         if fixed != text:
