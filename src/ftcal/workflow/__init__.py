@@ -1,7 +1,7 @@
 """The steps of the pipeline, for the CLI, the demos and Python users alike.
 
 Each step (build a dataset, fit, select, evaluate, predict, identify a payload, compensate,
-check, plan, export) takes objects or paths, plus an optional executor for streaming or Dask,
+check, plan, export, live) takes objects or paths, plus an optional executor for streaming or Dask,
 and returns a result object (:class:`ftcal.workflow.result.StepResult`) with ``summary()`` (the
 text the CLI prints), ``to_dict()``/``to_json()``, a useful ``repr`` and ``_repr_html_``.
 The CLI parses arguments, calls one step and prints its result; the demos call the same steps,
@@ -24,6 +24,8 @@ _STEPS.update(convert="export", ConvertResult="export")
 _STEPS.update(fit="fitting", FitResult="fitting")
 _STEPS.update(evaluate="evaluation", predict="evaluation", EvaluationResult="evaluation", PredictionResult="evaluation")
 _STEPS.update(report="evaluation", ReportResult="evaluation")
+_STEPS.update(LiveSetup="live", live_calibrator="live", replay_live="live", serve_zenoh="live", serve_ros2="live",
+              LiveReplayResult="live")
 
 __all__ = sorted(_STEPS)
 
