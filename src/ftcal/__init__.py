@@ -46,7 +46,8 @@ _LAZY = {"FtcalError": "runtime.errors:FtcalError", "FtcalWarning": "runtime.err
 # The steps of the pipeline (ftcal.workflow): build a dataset, fit, evaluate, predict, identify a payload,
 # compensate, check, plan, convert.
 _LAZY.update({name: f"workflow.{module}:{name}" for module, names in (
-    ("datasets", ("build_dataset", "DatasetResult")), ("fitting", ("fit", "FitResult")), ("search", ("ModelSearch",)),
+    ("datasets", ("build_dataset", "DatasetResult")), ("fitting", ("fit", "FitResult")),
+    ("search", ("ModelSearch",)),
     ("evaluation", ("evaluate", "EvaluationResult", "predict", "PredictionResult")),
     ("payload", ("identify_payload", "PayloadResult")),
     ("compensation", ("compensate", "CompensationResult")), ("checking", ("check_sensor", "CheckResult")),

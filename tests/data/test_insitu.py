@@ -8,7 +8,7 @@ from test_robot_expected import FOREARM, static_wrench
 from test_robot_model import TINY_URDF
 
 from ftcal.core.dataset import DEFAULT_INPUTS, DEFAULT_OUTPUTS
-from ftcal.insitu.recordings import InsituOptions, build_dataset, write_dataset
+from ftcal.insitu.recordings import InsituOptions, recordings_dataset as build_dataset, write_dataset
 from ftcal.robot import RobotModel, load_case_config
 from ftcal.runtime.errors import FtcalError, FtcalWarning
 

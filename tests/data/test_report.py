@@ -18,7 +18,7 @@ from ftcal.core.dataset import Dataset
 from ftcal.core.model import CalibrationModel
 from ftcal.core.select import Candidate, cross_validate
 from ftcal.core.solvers.lasso import Lasso
-from ftcal.report import ModelRun, build_report, evaluate
+from ftcal.report import ModelRun, build_report, evaluate_run as evaluate
 from ftcal.report.figures import MAX_LINE_POINTS, envelope_indices
 from ftcal.report.runs import natural_key
 from ftcal.runtime.errors import FtcalError

@@ -11,7 +11,7 @@ from test_insitu import expected_at, make_recording
 from test_logs_mat import write_v5, write_v73
 from test_robot_model import TINY_URDF
 
-from ftcal.insitu.recordings import InsituOptions, build_dataset
+from ftcal.insitu.recordings import InsituOptions, recordings_dataset as build_dataset
 from ftcal.robot import RobotModel, load_case_config
 from ftcal.runtime.errors import FtcalWarning
 from ftcal.runtime.executors import open_executor

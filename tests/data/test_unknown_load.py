@@ -21,7 +21,7 @@ from test_robot_model import TINY_URDF
 
 from ftcal.core.dataset import DEFAULT_OUTPUTS, Dataset
 from ftcal.core.model import CalibrationModel
-from ftcal.insitu.recordings import InsituOptions, build_dataset
+from ftcal.insitu.recordings import InsituOptions, recordings_dataset as build_dataset
 from ftcal.payload.unknown_load import estimate_payload, fit_with_payload, payload_column
 from ftcal.robot import Payload, RobotModel, SensorDeclaration
 from ftcal.robot.expected import expected_wrenches

@@ -8,6 +8,7 @@ the commands themselves for the CLI/Python equality.
 
 from __future__ import annotations
 
+import inspect
 import json
 import subprocess
 import sys
@@ -159,3 +160,18 @@ def test_the_live_step_is_the_command_and_tracks_a_constant_bias(tmp_path):
     lines = result.summary().replace(str(tmp_path / "py.parquet"), str(tmp_path / "cli.parquet")).splitlines()
     assert done.stdout.strip().splitlines()[1:] == lines[1:]
     pd.testing.assert_frame_equal(pd.read_parquet(tmp_path / "cli.parquet"), pd.read_parquet(tmp_path / "py.parquet"))
+
+
+def test_old_names_still_work_and_say_the_new_one(tmp_path):
+    """The shadowed lower functions and the re-tare's old argument order, kept one release."""
+    from ftcal.files.targets import convert, write_target
+    from ftcal.insitu.recordings import build_dataset, recordings_dataset
+    from ftcal.report import evaluate, evaluate_run
+    from ftcal.workflow import rebias_payload, retare
+
+    for old, new in ((convert, write_target), (build_dataset, recordings_dataset), (evaluate, evaluate_run)):
+        assert old.deprecated_for.endswith(new.__name__)
+        with pytest.warns(DeprecationWarning, match=new.__name__), pytest.raises(TypeError):
+            old()  # the same signature as the new name: no argument is an error of the call, after the notice
+    assert list(inspect.signature(retare).parameters)[:2] == ["payload", "data"]  # (subject, data)
+    assert rebias_payload.deprecated_for == "ftcal.workflow.retare(payload, data)"

@@ -20,7 +20,7 @@ import ftcal
 from ftcal.workflow.checking import check_sensor
 from ftcal.workflow.compensation import compensate
 from ftcal.workflow.datasets import build_dataset, expected
-from ftcal.workflow.payload import identify_payload, rebias_payload
+from ftcal.workflow.payload import identify_payload, retare
 
 T0 = 1_700_000_000 * 10**9
 RATE = 100.0
@@ -131,8 +131,8 @@ def test_compensate_rebias_and_check_take_a_dataframe(bag_dataset, tmp_path):
     still = from_frame.contact[table["static"].to_numpy() == 1]
     np.testing.assert_allclose(np.sqrt(np.mean(still ** 2, axis=0)), NOISE, rtol=0.3)
 
-    rebias_frame = rebias_payload(table, payload, orientation=QUATERNION)
-    rebias_file = rebias_payload(path, payload, orientation=QUATERNION)
+    rebias_frame = retare(payload, table, orientation=QUATERNION)
+    rebias_file = retare(payload, path, orientation=QUATERNION)
     for key in ("bias", "stderr", "change", "z"):
         np.testing.assert_allclose(getattr(rebias_frame, key), getattr(rebias_file, key), rtol=0, atol=1e-12)
     assert rebias_frame.summary() == rebias_file.summary().replace(str(path), "DataFrame")

@@ -265,11 +265,11 @@ def test_dataset_sensor_is_implied_by_one_declared_sensor(tmp_path, capsys):
 
 
 def test_rebias_step_equals_the_command(recorded, payload_file, tmp_path):
-    from ftcal.workflow.payload import rebias_payload
+    from ftcal.workflow.payload import retare
 
     done = run_cli(["payload", recorded["data"], *QUATERNION, "--rebias", payload_file, "-o", tmp_path / "cli.json"])
-    result = rebias_payload(recorded["data"], payload_file, orientation=("qx", "qy", "qz", "qw"),
-                            output=tmp_path / "py.json")
+    result = retare(payload_file, recorded["data"], orientation=("qx", "qy", "qz", "qw"),
+                    output=tmp_path / "py.json")
     assert done.stdout == result.summary() + "\n"
     assert numbers(json.loads((tmp_path / "cli.json").read_text())) == numbers(
         json.loads((tmp_path / "py.json").read_text()))

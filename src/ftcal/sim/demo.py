@@ -46,7 +46,7 @@ class DemoConfig:
 
 def simulate_and_read(config: DemoConfig) -> tuple[Dataset, list[dict]]:
     """Simulated recordings, read back through the in-situ pipeline."""
-    from ..insitu.recordings import InsituOptions, build_dataset
+    from ..insitu.recordings import InsituOptions, recordings_dataset
     from ..robot.loadcases import LoadCaseConfig, Mount
     from ..robot.model import RobotModel
     from ..robot.payloads import Payload
@@ -63,7 +63,7 @@ def simulate_and_read(config: DemoConfig) -> tuple[Dataset, list[dict]]:
     support = Payload(experiment.load_frame, experiment.support_kg, experiment.load_com, name="support")
     cases = LoadCaseConfig(mounts={"right": Mount(experiment.load_frame, experiment.load_com),
                                    "left": Mount("l_forearm")})
-    data = build_dataset(files, robot, experiment.sensor, payloads=[support], load_cases=cases,
+    data = recordings_dataset(files, robot, experiment.sensor, payloads=[support], load_cases=cases,
                          options=InsituOptions(derivatives=True))
     return data, [vars(m) | {"path": str(f)} for m, f in zip(manifest, files)]
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 # name -> module of this package that defines it; loaded on first use (numpy/scipy stay unloaded
 # for `ftcal --help`). Each step module adds its public names here.
 _STEPS: dict[str, str] = {"StepResult": "result"}
-_STEPS.update(identify_payload="payload", rebias_payload="payload", PayloadResult="payload", RebiasResult="payload")
+_STEPS.update(identify_payload="payload", retare="payload", rebias_payload="payload", PayloadResult="payload", RebiasResult="payload")
 _STEPS.update(compensate="compensation", CompensationResult="compensation")
 _STEPS.update(check_sensor="checking", sensor_history="checking", CheckResult="checking")
 _STEPS.update(build_dataset="datasets", expected="datasets", DatasetResult="datasets", ExpectedResult="datasets")
