@@ -176,18 +176,7 @@ def fit(data, model=None, *, payload=None, inputs: Sequence[str] | None = None, 
     2.5
     """
     if model is not None or payload is not None:
-        given = {name: value for name, value in locals().items() if name in _OBJECT_KEYWORDS}
-        chosen = {**model_keywords(model), **payload_keywords(payload)}
-        clash = [name for name in chosen if given[name] != _OBJECT_KEYWORDS[name]]
-        if clash:
-            owner = "model" if clash[0] in model_keywords(model) else "payload"
-            raise ParameterError((owner, clash[0]), f"{{{owner}}} sets {{{clash[0]}}} already; give one of them.")
-        result = fit(data, **{**given, **chosen}, executor=executor, output=output, cpu_start=cpu_start,
-                     echo=echo, inputs=inputs, outputs=outputs, drop_incomplete=drop_incomplete,
-                     segment_by=segment_by, group_by=group_by, scheduler=scheduler)
-        if callable(getattr(model, "search_keywords", None)):
-            model._found(result)  # a ModelSearch keeps what it found
-        return result
+        return _fit_object(data, model, payload, {k: v for k, v in locals().items() if k not in _NOT_KEYWORDS})
     check_arguments(FIT, locals(), "ftcal.fit")
     cpu_start = time.process_time() if cpu_start is None else cpu_start
     output = None if output is None else str(output)
@@ -216,6 +205,22 @@ _OBJECT_KEYWORDS = {"degree": None, "lasso": None, "ridge": None, "na": 0, "nb":
                     "normalization": None, "prior": None, "family": "polynomial", "hidden": None,
                     "activation": None, "weight_decay": None, "max_iter": None, "seed": None,
                     "estimate_payload": None, "payload_mass": None, **SEARCH_DEFAULTS}
+
+
+_NOT_KEYWORDS = ("data", "model", "payload")
+
+
+def _fit_object(data, model, payload, keywords: dict) -> FitResult:
+    """:func:`fit` with what ``model`` and ``payload`` stand for as keywords (refused when also given)."""
+    chosen = {**model_keywords(model), **payload_keywords(payload)}
+    clash = [name for name in chosen if keywords[name] != _OBJECT_KEYWORDS[name]]
+    if clash:
+        owner = "model" if clash[0] in model_keywords(model) else "payload"
+        raise ParameterError((owner, clash[0]), f"{{{owner}}} sets {{{clash[0]}}} already; give one of them.")
+    result = fit(data, **{**keywords, **chosen})
+    if callable(getattr(model, "search_keywords", None)):
+        model._found(result)  # a ModelSearch keeps what it found
+    return result
 
 
 def model_keywords(model) -> dict[str, Any]:
