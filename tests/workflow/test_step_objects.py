@@ -64,6 +64,8 @@ def test_a_search_is_an_estimator_whose_scores_are_a_grouped_cross_validation_by
     A = PolynomialFeatures(3).fit_transform(u)
     expected = A @ np.linalg.lstsq(A, y, rcond=None)[0]
     np.testing.assert_allclose(search.predict(u)[:, 0], expected, rtol=1e-8, atol=1e-10)
+    table = search.to_frame()
+    assert list(table["degree"]) == [1, 2, 3] and np.allclose(table["mean_test_score"], np.mean(by_hand, axis=1))
     # the same search through fit()'s keywords gives the same model and report
     keywords = ftcal.fit(frame, degree="auto", max_degree=3, penalties=(), folds=4, group_by="load", **COLUMNS)
     np.testing.assert_array_equal(keywords.model.coef_, search.best_estimator_.coef_)
@@ -80,6 +82,20 @@ def test_a_model_object_is_fitted_as_its_keywords_say(cubic, ref_features):
     same = ftcal.fit(frame, degree=3, ridge=0.5, **COLUMNS)
     np.testing.assert_array_equal(ridge.model.coef_, same.model.coef_)
     assert ridge.summary() == same.summary()
+
+
+def test_a_fit_result_holds_its_training_errors_as_numbers(cubic, ref_features):
+    u, y, _, frame = cubic
+    result = ftcal.fit(frame, ftcal.CalibrationModel(2), **COLUMNS)
+    A = ref_features(u, 2)
+    residual = A @ np.linalg.lstsq(A, y, rcond=None)[0] - y
+    table = result.to_frame()
+    assert result.n_samples == 400 and list(table.index) == ["Fx"]
+    np.testing.assert_allclose(table.loc["Fx", "rmse"], np.sqrt(np.mean(residual ** 2)), rtol=1e-8)
+    if "max_abs_error" in table:  # a streamed fit scores from the statistics, which hold no maximum
+        np.testing.assert_allclose(table.loc["Fx", "max_abs_error"], np.abs(residual).max(), rtol=1e-8)
+    np.testing.assert_allclose(table.loc["Fx", "best_fit"],
+                               1 - np.sqrt(np.mean(residual ** 2) / np.var(y)), rtol=1e-8)  # the paper's BestFit
 
 
 def test_a_network_object_is_the_mlp_family(cubic):

@@ -89,6 +89,30 @@ class FitResult(StepResult):
                       "training_metrics": model.training_metrics_, "output": self.output, "notes": self.notes,
                       "selection": self.selection.as_dict() if self.selection is not None else None})
 
+    @property
+    def n_samples(self) -> int:
+        """Rows the model was fitted on."""
+        return int(self.model.n_samples_fit_)
+
+    @property
+    def training_metrics(self) -> dict:
+        """The training errors (``model.training_metrics_``): per-output lists and the norms' RMSE."""
+        return self.model.training_metrics_
+
+    def to_frame(self):
+        """The training errors per output as a :class:`pandas.DataFrame` (one row per output).
+
+        Columns ``rmse``, ``best_fit``, ``max_abs_error`` and ``residual_autocorrelation_lag1``, the numbers
+        the report's per-output lines print; those the fit did not compute are left out (a streamed static
+        fit scores from the summed statistics, which hold no maximum error).
+        """
+        import pandas as pd
+
+        metrics = self.training_metrics
+        columns = ("rmse", "best_fit", "max_abs_error", "residual_autocorrelation_lag1")
+        return pd.DataFrame({c: metrics[c] for c in columns if metrics.get(c) is not None},
+                            index=pd.Index(metrics["outputs"], name="output"))
+
     def headline(self) -> str:
         """The model line (degree or network, solver), rather than the excitation line that comes first."""
         return next((line for line in self.lines if line.startswith("model:")), super().headline())

@@ -119,6 +119,13 @@ class ModelSearch:
         best = selection.best
         self.best_params_ = {"degree": best.degree, "penalty": best.penalty, "lambda": best.lam}
 
+    def to_frame(self):
+        """:attr:`cv_results_` as a :class:`pandas.DataFrame`, one row per candidate (fold scores in lists)."""
+        import pandas as pd
+
+        self._check_fitted()
+        return pd.DataFrame(self.cv_results_)
+
     def _check_fitted(self) -> None:
         if not hasattr(self, "best_estimator_"):
             raise NotFittedError("This ModelSearch is not fitted yet: call fit(data) first.")
