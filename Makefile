@@ -22,7 +22,7 @@ install: $(STAMP)
 demo: $(STAMP)
 	$(VENV)/bin/ftcal demo --out ftcal-demo
 
-# ROS 2 Jazzy's binary wheels and ftcal in a venv of their own for tests/test_live_ros2.py: their
+# ROS 2 Jazzy's binary wheels and ftcal in a venv of their own for tests/live/test_live_ros2.py: their
 # ros_wheels_bootstrapper .pth re-executes every Python of the venv it is in, so never in $(VENV). An install that
 # fails (no network, no wheels for this Python) does not fail the build: it leaves .failed, and the tests skip
 # with that line.
@@ -37,7 +37,7 @@ $(ROS2_STAMP): pyproject.toml setup.py
 	  && $(ROS2_VENV)/bin/python -m pip install --quiet $(ROS2_PACKAGES) \
 	  && $(ROS2_VENV)/bin/python -m pip install --quiet -e . && touch $(ROS2_STAMP); } > $(ROS2_VENV).log 2>&1 \
 	  || { mkdir -p $(ROS2_VENV); echo "the ROS 2 wheels did not install (see $(ROS2_VENV).log)" > $(ROS2_VENV)/.failed; \
-	       echo "note: ROS 2 venv not made; tests/test_live_ros2.py will skip (see $(ROS2_VENV).log)"; }
+	       echo "note: ROS 2 venv not made; tests/live/test_live_ros2.py will skip (see $(ROS2_VENV).log)"; }
 
 ros2-venv: $(ROS2_STAMP)
 

@@ -408,13 +408,13 @@ def fmt(seconds: float) -> str:
 
 
 def live_tracker(case: str, self_check: bool = False) -> dict:
-    """Issue 40's cases (``tests/live_truth.py``: an own truth generator, not ftcal's tracker model): identify the
+    """Issue 40's cases (``tests/helpers/live_truth.py``: an own truth generator, not ftcal's tracker model): identify the
     tool with ``payload --bias-drift random-walk`` on a 4-minute recording, then 3 minutes of operation at 100 Hz
     with steps, a slow ramp and touches; the tracker's contact-free error over the noise floor, false flags, flagged
     share of contacts beyond 4 floors, the largest bias move across a contact."""
     import sys
 
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "helpers"))
     import live_truth
 
     start, cpu = time.perf_counter(), time.process_time()
@@ -438,10 +438,10 @@ def tracker_section(run_case) -> tuple[list[str], str]:
     """Rows of BENCHMARKS.md for :func:`live_tracker` and the headline."""
     import sys
 
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "helpers"))
     from live_truth import CASES, OTHER_TARGETS, TARGETS
 
-    out = ["## Live tracker on simulations that break its model (issue 40's cases, `tests/live_truth.py`)", "",
+    out = ["## Live tracker on simulations that break its model (issue 40's cases, `tests/helpers/live_truth.py`)", "",
            "Identified on 4 min of holds (`payload --bias-drift random-walk`), operated 3 min at 100 Hz with steps "
            "(10, 2, 15 N), a 6 N ramp and 3 N touches. *free/floor*: contact-free compensated force RMS over the "
            "per-sample noise; *false*: contact-free static samples flagged; *contacts*: samples of contacts beyond "

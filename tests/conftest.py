@@ -1,6 +1,12 @@
-"""Shared fixtures for the fitting-engine tests: seeded data and independent references."""
+"""Shared fixtures: seeded data, independent references, the quick demo; layer markers by folder.
+
+The tests are laid out like the code (``tests/core``, ``data``, ``live``, ``workflow``, ``cli``, ``e2e``;
+``tools/layout_tests.py`` places new files): every test gets its folder's marker, so
+``pytest -m core`` runs the mathematics alone and ``-m "not e2e"`` leaves the demo out.
+"""
 
 import os
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -26,6 +32,16 @@ def sensor_like_data(rng, n, n_channels=6):
     wrench = loads * np.array([100.0, 100.0, 100.0, 10.0, 10.0, 10.0])[:n_channels]
     wrench = wrench + 5.0 * np.tanh(2.0 * loads[:, :1]) + 0.01 * (temperature[:, None] - 35.0) ** 2
     return np.c_[counts, temperature], wrench
+
+
+LAYERS = ("core", "data", "live", "workflow", "cli", "e2e")
+
+
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        layer = Path(str(item.path)).parent.name
+        if layer in LAYERS:
+            item.add_marker(getattr(pytest.mark, layer))
 
 
 @pytest.fixture(autouse=True, scope="session")
@@ -69,18 +85,41 @@ def make_sensor_data():
 DEMO_INPUTS = ("logs", "arm", "payloads.toml", "validation.parquet")
 
 
-@pytest.fixture(scope="session")
-def quick_demo(tmp_path_factory):
-    """A folder holding ``ftcal-demo/`` as `ftcal demo --out ftcal-demo --quick` writes it."""
+def build_quick_demo(root):
+    """Run `ftcal demo --out ftcal-demo --quick` in ``root``."""
     import subprocess
     import sys
-    from pathlib import Path
 
-    root = tmp_path_factory.mktemp("quick-demo")
     ftcal = str(Path(sys.executable).with_name("ftcal"))
     done = subprocess.run([ftcal, "demo", "--out", "ftcal-demo", "--quick"], cwd=root, capture_output=True,
                           text=True, timeout=1800)
     assert done.returncode == 0, done.stderr
+
+
+@pytest.fixture(scope="session")
+def quick_demo(tmp_path_factory):
+    """A folder holding ``ftcal-demo/`` as `ftcal demo --out ftcal-demo --quick` writes it, built once per run.
+
+    Under pytest-xdist the workers share one build: the first to take the lock (a file in the run's
+    common temporary folder) builds it, the others wait and read it. Tests only read it (or copy it).
+    """
+    import fcntl
+
+    if os.environ.get("PYTEST_XDIST_WORKER") is None:
+        root = tmp_path_factory.mktemp("quick-demo")
+        build_quick_demo(root)
+        return root
+    shared = tmp_path_factory.getbasetemp().parent  # the same folder for every worker of this run
+    root, done = shared / "quick-demo", shared / "quick-demo.done"
+    with open(shared / "quick-demo.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        try:
+            if not done.exists():
+                root.mkdir(exist_ok=True)
+                build_quick_demo(root)
+                done.touch()
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
     return root
 
 
@@ -128,8 +167,6 @@ def run_notebook(path, cwd):
 @pytest.fixture(scope="session")
 def notebook_run(quick_demo, tmp_path_factory):
     """docs/pipeline.ipynb executed on a copy of the quick demo: (folder, namespace, printed, shown)."""
-    from pathlib import Path
-
     folder = demo_copy(quick_demo, tmp_path_factory.mktemp("notebook"))
     namespace, printed, shown = run_notebook(Path(__file__).resolve().parents[1] / "docs" / "pipeline.ipynb",
                                              folder)

@@ -47,6 +47,7 @@ _LAZY = {"FtcalError": "runtime.errors:FtcalError", "FtcalWarning": "runtime.err
 # compensate, check, plan, convert.
 _LAZY.update({name: f"workflow.{module}:{name}" for module, names in (
     ("datasets", ("build_dataset", "DatasetResult")), ("fitting", ("fit", "FitResult")),
+    ("search", ("ModelSearch",)),
     ("evaluation", ("evaluate", "EvaluationResult", "predict", "PredictionResult")),
     ("payload", ("identify_payload", "PayloadResult")),
     ("compensation", ("compensate", "CompensationResult")), ("checking", ("check_sensor", "CheckResult")),
@@ -56,7 +57,7 @@ __all__ = ["CalibrationModel", "Dataset", "FtcalError", "FtcalWarning", "Monomia
            "RegressorLayout", "load_dataset", "load_model", "n_coefficients", "save_model"]
 __all__ += ["CheckResult", "CompensationResult", "ConvertResult", "DatasetResult", "PayloadResult", "PlanResult",
             "build_dataset", "check_sensor", "compensate", "convert", "identify_payload", "plan_experiment"]
-__all__ += ["EvaluationResult", "FitResult", "PredictionResult", "evaluate", "fit", "predict"]
+__all__ += ["EvaluationResult", "FitResult", "ModelSearch", "PredictionResult", "evaluate", "fit", "predict"]
 
 
 def __getattr__(name: str):

@@ -19,6 +19,7 @@ FLAGS = {
     "output": "-o",  # every command's output file
     "robot": "--model",  # the robot description (a URDF or a robot_descriptions name)
     "recorded": "--from",  # ftcal plan: tables of poses already recorded
+    "tools": "--tool",  # ftcal live: the tool library, one --tool NAME=PAYLOAD.json each
 }
 
 

@@ -2,7 +2,7 @@
 
 Every example runs as written from a folder where ``ftcal demo --out ftcal-demo`` ran
 (``make demo`` in the repository): the demo writes each input they name.
-tests/test_help_examples.py runs them all, command by command in this order.
+tests/e2e/test_help_examples.py runs them all, command by command in this order.
 Lines starting with ``ftcal`` are commands (``\\`` continues one); ``#`` lines explain the next.
 """
 

@@ -141,73 +141,14 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def _six(values, option: str):
-    import numpy as np
+def setup_of(args):
+    """The :class:`~ftcal.workflow.live.LiveSetup` the options describe."""
+    from ..workflow.live import LiveSetup
 
-    from ..runtime.errors import FtcalError
-
-    if values is None:
-        return None
-    if len(values) == 2:
-        return np.r_[np.full(3, values[0]), np.full(3, values[1])]
-    if len(values) == 6:
-        return np.asarray(values, dtype=float)
-    raise FtcalError(f"{option}: give two values (force, torque) or six; got {len(values)}.")
-
-
-def robot_gravity(args, joint_names, where: str):
-    """The robot model's gravity source (:class:`~ftcal.robot.kinematics.SensorGravity`) over the joints among
-    ``joint_names`` (None: all the robot's), built as ``ftcal payload`` builds its URDF source (same options,
-    same messages); None without --urdf."""
-    from ..robot.kinematics import SensorGravity, kinematics_source
-    from ..runtime.errors import FtcalError
-
-    if args.robot_urdf is None:
-        for option in ("sensor", "ft_joint", "ft_frame", "base"):
-            if getattr(args, option) is not None:
-                raise FtcalError(f"--{option.replace('_', '-')} goes with --urdf (gravity from the joints).")
-        return None
-    if args.orientation or args.gravity_columns or args.imu_columns:
-        raise FtcalError("give one gravity source: --urdf (with the joints), --orientation, --gravity-columns or "
-                         "--imu-columns.")
-    source = kinematics_source(urdf=args.robot_urdf, sensor=args.sensor, ft_joint=args.ft_joint,
-                               ft_frame=args.ft_frame, base=args.base, g=args.g, degrees=args.degrees,
-                               robot_options="--urdf PATH")
-    known = set(source.robot.joint_names)
-    names = source.robot.joint_names if joint_names is None else [n for n in joint_names if n in known]
-    if not names:
-        raise FtcalError(f"{where}: nothing named like a joint of URDF {source.robot.source} "
-                         f"(e.g. {', '.join(source.robot.joint_names[:4])}).")
-    return SensorGravity(source.robot, source.sensor, names, base=source.base, g=source.g, degrees=source.degrees,
-                         source=where)
-
-
-def build_calibrator(args, robot=None):
-    """The :class:`~ftcal.live.LiveCalibrator` the options describe (``robot``: a joints-to-gravity source)."""
-    from ..files.model_files import load_model
-    from ..files.payload_json import load_payload
-    from ..live import LiveCalibrator
-    from ..runtime.errors import FtcalError
-
-    tools = {}
-    for name, path in args.tool:
-        if name in tools or name == "none":
-            raise FtcalError(f"--tool {name}={path}: the name {name!r} is taken; give each tool its own name.")
-        tools[name] = load_payload(path)
-    mount = args.mount if args.mount is not None else next(iter(tools), "none")
-    if mount not in tools and mount != "none":
-        raise FtcalError(f"--mount {mount}: no such tool ({', '.join(['none', *tools])}).")
-    model = load_model(args.model) if args.model else None
-    for option in ("walk_std", "noise_std"):
-        values = getattr(args, option)
-        if values is not None and any(v < 0 for v in values):
-            raise FtcalError(f"--{option.replace('_', '-')}: standard deviations must be >= 0.")
-    bias = _six(args.bias, "--bias") if args.bias is not None else None
-    if args.bias is not None and len(args.bias) != 6:
-        raise FtcalError(f"--bias: give six values; got {len(args.bias)}.")
-    return LiveCalibrator(model, tools, tool=mount, walk_std=_six(args.walk_std, "--walk-std"),
-                          noise_std=_six(args.noise_std, "--noise-std"), initial_bias=bias,
-                          gravity_magnitude=args.g, state_path=args.state, robot=robot)
+    return LiveSetup(model=args.model, tools=list(args.tool), mount=args.mount, walk_std=args.walk_std,
+                     noise_std=args.noise_std, bias=args.bias, g=args.g, state=args.state, urdf=args.robot_urdf,
+                     sensor=args.sensor, ft_joint=args.ft_joint, ft_frame=args.ft_frame, base=args.base,
+                     degrees=args.degrees)
 
 
 def run(args) -> int:
@@ -231,8 +172,8 @@ def run(args) -> int:
 
 
 def run_replay(args) -> int:
-    from ..live.replay import ScriptedEvent
     from ..runtime.errors import FtcalError
+    from ..workflow.live import replay_live
     from ._gravity import check_not_input
 
     if args.output is None:
@@ -245,57 +186,16 @@ def run_replay(args) -> int:
 
         if any(Path(p).resolve() == Path(args.state).resolve() for p in inputs + [args.output]):
             raise FtcalError(f"--state {args.state}: is also an input or the output; give the state its own file.")
-    events = [ScriptedEvent(t, "retare") for t in args.retare_at] + \
-             [ScriptedEvent(t, "switch", name) for t, name in args.switch_tool]
-    with _replay_source(args) as (table, default_signal, joint_names):
-        robot = robot_gravity(args, joint_names, f"--replay {args.replay}")
-        live = build_calibrator(args, robot)
-        columns = replay_columns(args, live, default_signal)
-        summary = _replay(args, live, table, columns, events)
-    print(summary.line() + (f"; {summary.dropped} incomplete row(s) dropped" if summary.dropped else ""))
-    for when, flag, _, reason in summary.events[:10]:
-        print(f"  t={when:.3f} s  {flag}: {reason}")
-    if len(summary.events) > 10:
-        print(f"  ... {len(summary.events) - 10} more flag(s) raised (the table's flag_names column has them all)")
-    _print_tracker(live)
-    status = live.status()
-    print("bias now: " + ", ".join(f"{v:.4g} ± {s:.2g}" for v, s in zip(status["bias"], status["bias_std"]))
-          + f" (tool {status['tool']!r})")
-    print(f"wrote {args.output}" + (f" and {args.state}" if args.state else ""))
+    _refuse_zenoh_options(args)
+    _refuse_source_options(args)
+    result = replay_live(args.replay, setup_of(args), output=args.output, time=args.time, inputs=args.inputs,
+                         orientation=args.orientation, gravity_columns=args.gravity_columns,
+                         imu_columns=args.imu_columns, temperature=args.temperature, retare_at=args.retare_at,
+                         switch_tool=args.switch_tool, realtime=args.realtime, drop_incomplete=args.drop_incomplete,
+                         wrench_topic=args.wrench_topic, joints_topic=args.joints_topic, imu_topic=args.imu_topic,
+                         tf=args.tf, receive_time=args.receive_time)
+    print(result.summary())
     return 0
-
-
-def _print_tracker(live) -> None:
-    """The self-check's and the drift test's events (live.consistency, live.drift): a lock-out is never silent."""
-    kinds = [(e[1], e[2]) for e in live.events]
-    counts = {"lock-out": kinds.count(("tracker", "locked_out")), "re-acquisition": kinds.count(("tracker", "reacquired")),
-              "adaptation of the noise": kinds.count(("tracker", "adapted")), "rollback": kinds.count(("bias", "rollback"))}
-    if any(counts.values()):
-        print("tracker: " + ", ".join(f"{n} {what}{'s' if n != 1 else ''}" for what, n in counts.items() if n))
-        for when, _, kind, reason in [e for e in live.events if e[1] == "tracker" and e[2] != "adapted"][:5]:
-            print(f"  t={when:.3f} s  {kind}: {reason}")
-
-
-def _replay(args, live, table, columns, events):
-    from contextlib import nullcontext
-
-    from ..data.tables import drop_incomplete
-    from ..live.replay import replay_table
-    from ..runtime.errors import FtcalError
-
-    try:
-        # The state is saved before the output is renamed into place: a state that cannot be written leaves no output.
-        with drop_incomplete() if args.drop_incomplete else nullcontext() as dropped:
-            summary = replay_table(table, live, columns, args.output, events=events, realtime=args.realtime,
-                                   before_commit=live.save_state if args.state else None)
-        summary.dropped = sum(dropped.values()) if dropped else 0
-    except FtcalError:
-        raise  # bad input: no output, and the state file is left as it was
-    except BaseException:  # Ctrl-C, SIGTERM: keep what was processed
-        if args.state and live.last_time is not None:
-            live.save_state()
-        raise
-    return summary
 
 
 # Options only --zenoh reads, and their defaults: --replay refuses them instead of ignoring them.
@@ -312,124 +212,37 @@ def _refuse_zenoh_options(args) -> None:
                          f"{args.replay} does not read {'it' if len(given) == 1 else 'them'}.")
 
 
-class _replay_source:
-    """The table to replay (a ROS bag becomes a temporary Parquet table through ``ftcal dataset``'s reader,
-    unsmoothed), the wrench columns it has by default, and its column names (for the joints)."""
+def _refuse_source_options(args) -> None:
+    """Options of one kind of --replay source given with the other (a table's or a ROS bag's)."""
+    from pathlib import Path
 
-    def __init__(self, args) -> None:
-        self.args, self.tmp = args, None
-
-    def __enter__(self):
-        import tempfile
-        from pathlib import Path
-
-        from ..data.logs import READERS, log_format
-        from ..data.tables import table_columns
-        from ..runtime.errors import FtcalError
-
-        args = self.args
-        path = Path(args.replay)
-        _refuse_zenoh_options(args)
-        if not READERS.get(log_format(path), "").startswith("ftcal.data.bags:"):
-            if args.wrench_topic != "/ft/raw" or args.imu_topic is not None:
-                raise FtcalError(f"--{'wrench' if args.wrench_topic != '/ft/raw' else 'imu'}-topic applies to --zenoh "
-                                 f"and to ROS bags; {args.replay} is a table (give its columns).")
-            for option in ("joints_topic", "tf"):
-                if getattr(args, option) is not None:
-                    raise FtcalError(f"--{option.replace('_', '-')} applies to --zenoh and to ROS bags; "
-                                     f"{args.replay} is a table (give its columns).")
-            if args.receive_time:
-                raise FtcalError(f"--receive-time applies to ROS bags; {args.replay} is a table (its --time column "
-                                 "is the time).")
-            return args.replay, None, table_columns(args.replay)
-        from ..data.bags import BagTopics
-        from ..insitu.bags import build_bag_table, write_bag_table
-        from ..insitu.recordings import InsituOptions
-
-        if args.model is not None:
-            raise FtcalError("--model with a bag: the bag's wrench topic is the wrench; replay a table of raw "
-                             "channels with --model instead.")
-        if args.drop_incomplete:
-            raise FtcalError("--drop-incomplete applies to tables; a bag's reader refuses its NaN stretches, naming "
-                             "them.")
-        topics = BagTopics(wrench=args.wrench_topic, joints=args.joints_topic, imu=args.imu_topic, tf=args.tf,
-                           receive_time=args.receive_time)
-        table = build_bag_table([path], topics, options=InsituOptions(savgol_frame=None, temperature=False,
-                                                                      base=args.base))
-        _check_magnitudes(args, table)
-        self.tmp = tempfile.TemporaryDirectory(prefix="ftcal-live-bag-")
-        out = Path(self.tmp.name) / "bag.parquet"
-        write_bag_table(table, out)
-        has_orientation = all(c in table.columns for c in ("qx", "qy", "qz", "qw"))
-        if has_orientation and args.orientation is None and args.robot_urdf is None and args.gravity_columns is None \
-                and args.imu_columns is None:
-            args.orientation = ("qx", "qy", "qz", "qw")
-        return str(out), ("u1", "u2", "u3", "u4", "u5", "u6"), tuple(table.columns)
-
-    def __exit__(self, *exc) -> None:
-        if self.tmp is not None:
-            self.tmp.cleanup()
-
-
-def _check_magnitudes(args, table) -> None:
-    """Refuse a bag value beyond :data:`~ftcal.core.limits.MAX_CELL_MAGNITUDE` naming the bag, its topic and time
-    (the temporary table the bag becomes would name itself instead)."""
-    import numpy as np
-
-    from ..core.limits import MAX_CELL_MAGNITUDE
+    from ..data.logs import READERS, log_format
     from ..runtime.errors import FtcalError
 
-    wrench = {f"u{j + 1}": axis for j, axis in enumerate(("Fx", "Fy", "Fz", "Tx", "Ty", "Tz"))}
-    for column, values in table.columns.items():
-        values = np.asarray(values)
-        if values.dtype.kind != "f":
-            continue
-        huge = np.abs(values) > MAX_CELL_MAGNITUDE
-        if huge.any():
-            k = int(np.flatnonzero(huge)[0])
-            what = (f"the wrench on {args.wrench_topic} ({wrench[column]})" if column in wrench else
-                    f"{column!r} (from {args.imu_topic or args.joints_topic or '/tf'})")
-            raise FtcalError(f"{args.replay}: {what} holds {values[k]:g} at t={table.columns['time'][k]:.6f} s, beyond "
-                             f"{MAX_CELL_MAGNITUDE:g} in magnitude: no sensor reads that.")
-
-
-def replay_columns(args, live, default_signal=None):
-    """Which columns of --replay feed the calibrator."""
-    from ..live.replay import ReplayColumns
-    from ..runtime.errors import FtcalError
-
-    if live.model is not None:
-        signal, raw = tuple(args.inputs or live.model.input_names_), True
-        if len(signal) != len(live.model.input_names_):
-            raise FtcalError(f"--inputs {','.join(signal)}: the model reads {len(live.model.input_names_)} raw "
-                             f"input(s) ({','.join(live.model.input_names_)}); name one column for each, in that order.")
-    else:
-        first = next((p for p in live.tools.values() if p is not None), None)
-        signal = args.inputs or default_signal or tuple((first.fit.get("wrench_columns") if first else None)
-                                                        or ("u1", "u2", "u3", "u4", "u5", "u6"))
-        if len(signal) != 6:
-            raise FtcalError(f"--inputs needs 6 wrench columns without --model; got {','.join(signal)}.")
-        raw = False
-    if live.robot is not None:
-        return ReplayColumns(args.time, tuple(signal), raw, "joints", tuple(live.robot.joints), args.temperature)
-    if args.orientation is not None:
-        kind, cols, need = "quaternion", args.orientation, 4
-    elif args.gravity_columns is not None:
-        kind, cols, need = "gravity", args.gravity_columns, 3
-    elif args.imu_columns is not None:
-        kind, cols, need = "imu", args.imu_columns, 3
-    else:
-        raise FtcalError("give the sensor's orientation: --orientation qx,qy,qz,qw, --gravity-columns gx,gy,gz, "
-                         "--imu-columns ax,ay,az, or --urdf with the robot's joint columns.")
-    if len(cols) != need:
-        raise FtcalError(f"--{'orientation' if kind == 'quaternion' else kind + '-columns'} needs {need} columns; "
-                         f"got {','.join(cols)}.")
-    return ReplayColumns(args.time, tuple(signal), raw, kind, tuple(cols), args.temperature)
+    if not READERS.get(log_format(Path(args.replay)), "").startswith("ftcal.data.bags:"):
+        if args.wrench_topic != "/ft/raw" or args.imu_topic is not None:
+            raise FtcalError(f"--{'wrench' if args.wrench_topic != '/ft/raw' else 'imu'}-topic applies to --zenoh "
+                             f"and to ROS bags; {args.replay} is a table (give its columns).")
+        for option in ("joints_topic", "tf"):
+            if getattr(args, option) is not None:
+                raise FtcalError(f"--{option.replace('_', '-')} applies to --zenoh and to ROS bags; "
+                                 f"{args.replay} is a table (give its columns).")
+        if args.receive_time:
+            raise FtcalError(f"--receive-time applies to ROS bags; {args.replay} is a table (its --time column "
+                             "is the time).")
+        return
+    if args.model is not None:
+        raise FtcalError("--model with a bag: the bag's wrench topic is the wrench; replay a table of raw "
+                         "channels with --model instead.")
+    if args.drop_incomplete:
+        raise FtcalError("--drop-incomplete applies to tables; a bag's reader refuses its NaN stretches, naming "
+                         "them.")
 
 
 def run_zenoh(args) -> int:
     from ..core.limits import MAX_ROS_DOMAIN_ID, MAX_RT_PRIORITY
-    from ..live.zenoh_node import ZenohOptions, serve
+    from ..live.zenoh_node import ZenohOptions
+    from ..workflow.live import serve_zenoh
     from ..runtime.errors import FtcalError
 
     if (args.output or args.retare_at or args.switch_tool or args.realtime or args.tf or args.receive_time
@@ -446,25 +259,19 @@ def run_zenoh(args) -> int:
         raise FtcalError("--domain-id goes with --keys rmw_zenoh (zenoh-bridge-ros2dds's keys carry no domain).")
     if args.rt_priority is not None and not 1 <= args.rt_priority <= MAX_RT_PRIORITY:
         raise FtcalError(f"--rt-priority {args.rt_priority}: SCHED_FIFO priorities go from 1 to {MAX_RT_PRIORITY}.")
-    robot = robot_gravity(args, None, "--urdf")
-    live = build_calibrator(args)
     options = ZenohOptions(listen=tuple(args.listen), connect=tuple(args.connect), wrench_topic=args.wrench_topic,
                            imu_topic=args.imu_topic, joints_topic=args.joints_topic,
                            temperature_topic=args.temperature_topic, prefix=args.prefix,
                            silence=args.silence, duration=args.duration, keys=args.keys, domain_id=args.domain_id,
                            rt_priority=args.rt_priority)
-    return serve(live, options, robot=robot)
-
-
-# ROS parameter name -> the option's attribute (the others have the parameter's name).
-_ROS2_ATTRIBUTES = {"tool": "mount", "urdf": "robot_urdf"}
+    return serve_zenoh(setup_of(args), options)
 
 
 def run_ros2(args) -> int:
-    """``--ros2``: the options are the node's parameters' defaults; a params file or ``-p`` may override them, so the
-    calibrator is built from the parameters' values (ftcal.live.ros2_node)."""
-    from ..live.ros2_node import PARAMETERS, serve
+    """``--ros2``: the options are the node's parameters' defaults; a params file or ``-p`` may override them
+    (ftcal.workflow.live.serve_ros2)."""
     from ..runtime.errors import FtcalError
+    from ..workflow.live import serve_ros2
 
     if (args.output or args.retare_at or args.switch_tool or args.realtime or args.tf or args.receive_time
             or args.drop_incomplete or args.listen or args.connect or args.keys != "bridge" or args.domain_id
@@ -472,22 +279,6 @@ def run_ros2(args) -> int:
         raise FtcalError("-o, --retare-at, --switch-tool, --realtime, --tf, --receive-time, --drop-incomplete, "
                          "--listen, --connect, --keys, --domain-id and --rt-priority do not apply to --ros2 (ROS picks "
                          "the transport: RMW_IMPLEMENTATION, ROS_DOMAIN_ID); use its services (docs/live.md).")
-    settings = {name: getattr(args, _ROS2_ATTRIBUTES.get(name, name), None) for name in PARAMETERS}
-    settings["tools"] = [f"{name}={path}" for name, path in args.tool]
-    settings["identify_tool_name"] = "identified_tool"
-    settings["tool"] = args.mount if args.mount is not None else next((name for name, _ in args.tool), "none")
-
-    def build(values: dict):
-        for name, value in values.items():
-            if name == "tools":
-                try:
-                    args.tool = [tool_spec(text) for text in value or ()]
-                except argparse.ArgumentTypeError as exc:
-                    raise FtcalError(f"parameter tools: {exc}") from None
-            elif name in ("walk_std", "noise_std", "bias", "silence", "duration", "g", "degrees", "model", "state",
-                          "sensor", "ft_joint", "ft_frame", "base", "tool", "urdf") or name.endswith("_topic"):
-                setattr(args, _ROS2_ATTRIBUTES.get(name, name), value)
-        robot = robot_gravity(args, None, "--urdf")
-        return build_calibrator(args), robot  # the robot is the node's gravity source, as with --zenoh
-
-    return serve(settings, build, args.ros_args or ())
+    node = {name: getattr(args, name) for name in ("wrench_topic", "imu_topic", "joints_topic", "temperature_topic",
+                                                   "prefix", "silence", "duration")}
+    return serve_ros2(setup_of(args), node, args.ros_args or ())

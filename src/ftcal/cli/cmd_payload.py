@@ -53,7 +53,7 @@ def register(sub) -> None:
 def run(args) -> int:
     import sys
 
-    from ..workflow.payload import identify_payload, rebias_payload
+    from ..workflow.payload import identify_payload, retare
     from ..workflow.sources import DEFAULT_WRENCH
 
     require_suffix(args.output, (".json",), "-o")
@@ -72,7 +72,7 @@ def run(args) -> int:
             if given:
                 raise FtcalError(f"{option} does not apply to --rebias (the re-tare keeps {args.rebias}'s model and "
                                  "estimates one constant bias); leave it out.")
-        result = rebias_payload(args.data, args.rebias, inputs=inputs, keep_moving=args.keep_moving,
+        result = retare(args.rebias, args.data, inputs=inputs, keep_moving=args.keep_moving,
                                 reaction=args.reaction, temperature=args.temperature, **source_keywords(args))
     else:
         result = identify_payload(args.data, inputs=inputs, group_by=args.group_by,

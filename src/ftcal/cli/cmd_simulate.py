@@ -7,7 +7,7 @@ import argparse
 from ..core.limits import SIMULATE_CHANNELS, SIMULATE_MISTAKES
 from ._common import finite_float, nonnegative_int, positive_float
 from ._examples import epilog
-from ._robot import add_robot_arguments, load_robot
+from ._robot import add_robot_arguments
 
 
 def pair(text: str) -> tuple[float, float]:
@@ -93,69 +93,14 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import dataclasses
-    from pathlib import Path
+    from ..sim.simulate import simulate
 
-    from ..robot import parse_payload_spec
-    from ..runtime.errors import FtcalError
-    from ..sim.robot_recording import SimulationConfig, check_session_size, read_waypoints, simulate_session
-    from ..sim.sensor_model import SensorSpec, spec_from_json
-    from ._common import output_folder
-
-    out = Path(args.output)
-    if out.exists() and not out.is_dir():
-        raise FtcalError(f"-o {out}: exists and is not a folder; give a folder for the recordings.")
-    robot = load_robot(args)
-    robot.require_ft_sensors()
-    if args.sensor is None and len(robot.ft_sensors) > 1:
-        raise FtcalError(f"--sensor is required: URDF {robot.source} has {len(robot.ft_sensors)} F/T sensors "
-                         f"({', '.join(s.name for s in robot.ft_sensors)}).")
-    sensor_name = robot.sensor(args.sensor).name if args.sensor else robot.ft_sensors[0].name
-    loads = tuple(None if spec.strip().lower() == "none" else parse_payload_spec(spec)
-                  for spec in (args.load or ["none"]))
-    for payload in loads:
-        if payload is not None and not robot.model.isFrameNameUsed(payload.frame):
-            raise FtcalError(f"--load {payload.name}: URDF {robot.source} has no link or frame named "
-                             f"{payload.frame!r}.")
-    spec = SensorSpec()
-    if args.sensor_file:
-        from ..core.limits import MAX_TEXT_FILE_BYTES
-        from ..runtime.inputs import check_input_file
-
-        path = check_input_file(Path(args.sensor_file), "--sensor-file", max_bytes=MAX_TEXT_FILE_BYTES)
-        try:
-            text = path.read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as exc:
-            raise FtcalError(f"--sensor-file {path}: cannot read it ({exc}).") from None
-        spec = spec_from_json(text, f"--sensor-file {path}")
-    changes = {}
-    if args.noise is not None:
-        changes["noise"] = args.noise
-    if args.nonlinearity is not None:
-        if args.nonlinearity < 0:
-            raise FtcalError(f"--nonlinearity {args.nonlinearity:g}: must be >= 0.")
-        changes["quadratic"], changes["cubic"] = spec.quadratic * args.nonlinearity, spec.cubic * args.nonlinearity
-    if args.crosstalk is not None:
-        changes["crosstalk"] = args.crosstalk
-    if args.drift is not None:
-        changes["ramp"], changes["walk"] = args.drift
-    spec = dataclasses.replace(spec, **changes).check()
-    sensor = spec.draw(args.seed, *args.mistake)
-    waypoints = read_waypoints(args.plan, robot, len(loads))
-    config = SimulationConfig(hold_s=args.hold, speed=args.speed, rate=args.rate,
-                              temperature_start=args.temperature[0], temperature_end=args.temperature[1],
-                              channels=args.channels, seed=args.seed,
-                              formats=("bag", "table") if args.format == "both" else (args.format,))
-    check_session_size(robot, waypoints, config)  # before -o's folder is made
-    session = simulate_session(robot, sensor_name, waypoints, sensor, output_folder(args.output, "-o"), loads=loads,
-                               base=args.base, config=config)
-    truth = session.truth
-    for rec in truth["recordings"]:
-        print(f"{rec['name']}: {len(rec['holds'])} poses, {rec['duration_s']:.1f} s, {rec['n_samples']} F/T samples, "
-              f"load {rec['load']}")
-    mistake_text = "" if sensor.mistake == "none" else f"; mounting mistake: {sensor.mistake}" + (
-        f" {sensor.mistake_deg:g} deg" if sensor.mistake == "rotate-z" else "")
-    print(f"sensor {sensor_name}: {args.channels} channels, temperature {args.temperature[0]:g} -> "
-          f"{args.temperature[1]:g} degC{mistake_text}")
-    print("wrote " + ", ".join(session.files))
+    result = simulate(args.plan, output=args.output, urdf=args.urdf, robot=args.model, ft_joint=args.ft_joint,
+                      ft_frame=args.ft_frame, payload=tuple(args.payload), base=args.base, sensor=args.sensor,
+                      load=tuple(args.load), hold=args.hold, speed=args.speed, rate=args.rate,
+                      formats=("bag", "table") if args.format == "both" else (args.format,), channels=args.channels,
+                      sensor_file=args.sensor_file, noise=args.noise, nonlinearity=args.nonlinearity,
+                      crosstalk=args.crosstalk, drift=args.drift, temperature=args.temperature, mistake=args.mistake,
+                      seed=args.seed)
+    print(result.summary())
     return 0

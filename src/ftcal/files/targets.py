@@ -33,6 +33,7 @@ from ..core.families import check_export
 from ..core.limits import MAX_MODEL_BYTES
 from ..runtime.errors import FtcalError
 from ..runtime.inputs import check_input_file
+from ..runtime.deprecation import deprecated_alias
 
 MODEL = "ftcal-model"
 PAYLOAD = "ftcal-payload"
@@ -172,7 +173,7 @@ def check_output(name: str, spec: Target, output: Path, input_path: Path) -> Non
         raise FtcalError(f"-o {output} is the input file; choose another output path.")
 
 
-def convert(input_path: str | Path, name: str, output: str | Path, values: Mapping[str, Any]) -> Written:
+def write_target(input_path: str | Path, name: str, output: str | Path, values: Mapping[str, Any]) -> Written:
     """Read ``input_path`` and write it as target ``name`` to ``output``.
 
     Parameters
@@ -209,3 +210,7 @@ def convert(input_path: str | Path, name: str, output: str | Path, values: Mappi
         check_export(source.model, name)  # a family lists the targets it can be written to
         writer = FAMILY_WRITERS.get((name, source.model.family), writer)
     return resolve(writer)(source, output, ConvertOptions(input_path, dict(values), output_is_folder))
+
+
+# The old name, shadowed by the convert step (ftcal.convert, another signature).
+convert = deprecated_alias(write_target, "ftcal.files.targets.convert", "ftcal.files.targets.write_target")

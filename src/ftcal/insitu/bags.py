@@ -81,11 +81,11 @@ def build_bag_table(bags: Sequence[str | Path], topics: BagTopics, *, robot=None
         columns are kept with or without it.
     sensor : str or None
         F/T sensor of ``robot``.
-    payloads, load_cases : as for :func:`ftcal.insitu.recordings.build_dataset`
+    payloads, load_cases : as for :func:`ftcal.insitu.recordings.recordings_dataset`
     options : InsituOptions
         ``savgol_frame``/``savgol_order``, ``rate``, ``adc_limits``, ``base``, ``gravity``, ``workers``.
     executor : None to work here, or an executor of :mod:`ftcal.runtime.executors` (e.g. a Dask
-        cluster): one task per bag, as :func:`ftcal.insitu.recordings.build_dataset` does for logs.
+        cluster): one task per bag, as :func:`ftcal.insitu.recordings.recordings_dataset` does for logs.
 
     Returns
     -------

@@ -1,6 +1,6 @@
 """In-situ datasets: raw F/T readings against the wrenches the robot model expects.
 
-For one F/T sensor and a list of recordings, :func:`build_dataset` reads each
+For one F/T sensor and a list of recordings, :func:`recordings_dataset` reads each
 recording, puts its streams on the sensor's clock, smooths the raw channels
 and the temperature (Savitzky–Golay, optional), computes the expected wrench
 with the recording's load case attached (:mod:`ftcal.robot`) and returns a
@@ -52,6 +52,7 @@ from ..robot.loadcases import LoadCase, LoadCaseConfig
 from ..robot.model import RobotModel
 from ..robot.payloads import Payload
 from ..runtime.errors import FtcalError, FtcalWarning
+from ..runtime.deprecation import deprecated_alias
 
 
 @dataclass(frozen=True)
@@ -114,7 +115,7 @@ class LogTable:
     notes: tuple[str, ...]
 
 
-def build_dataset(recordings: Sequence[str | Path], robot: RobotModel, sensor: str, *,
+def recordings_dataset(recordings: Sequence[str | Path], robot: RobotModel, sensor: str, *,
                   payloads: Sequence[Payload] = (), load_cases: LoadCaseConfig | None = None,
                   options: InsituOptions = InsituOptions(), executor=None) -> Dataset:
     """One dataset for F/T ``sensor`` from all ``recordings`` (one segment each).
@@ -348,3 +349,8 @@ def dataset_frame(dataset: Dataset | LogTable):
     columns[SEGMENT_COLUMN] = dataset.segments
     columns[LOAD_COLUMN] = np.asarray(dataset.groups).astype(str)
     return pd.DataFrame(columns)
+
+
+# The old name, shadowed by the dataset step (ftcal.build_dataset, another signature).
+build_dataset = deprecated_alias(recordings_dataset, "ftcal.insitu.recordings.build_dataset",
+                                 "ftcal.insitu.recordings.recordings_dataset")

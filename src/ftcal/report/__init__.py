@@ -2,13 +2,13 @@
 
 Typical use, with fitted models and held-out data::
 
-    from ftcal.report import build_report, evaluate
+    from ftcal.report import build_report, evaluate_run
 
-    runs = [evaluate(model, validation, train=train) for model in models]
+    runs = [evaluate_run(model, validation, train=train) for model in models]
     build_report(runs, validation, "report.html", train=train)
 """
 
 from .html import build_report
-from .runs import ModelRun, default_name, evaluate
+from .runs import ModelRun, default_name, evaluate, evaluate_run
 
-__all__ = ["ModelRun", "build_report", "default_name", "evaluate"]
+__all__ = ["ModelRun", "build_report", "default_name", "evaluate_run"]

@@ -306,7 +306,7 @@ def build_report(runs: Sequence[ModelRun], validation: Dataset, out_path: str | 
 
     Parameters
     ----------
-    runs : models evaluated on ``validation`` (see :func:`ftcal.report.evaluate`)
+    runs : models evaluated on ``validation`` (see :func:`ftcal.report.evaluate_run`)
     validation : the data the runs were evaluated on, with outputs
     out_path : the HTML file, written atomically
     train : the training data, for the data-coverage figures and tables

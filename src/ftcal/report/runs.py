@@ -15,6 +15,7 @@ import numpy as np
 from ..core.dataset import Dataset
 from ..core.families import ModelFamily
 from ..runtime.errors import FtcalError
+from ..runtime.deprecation import deprecated_alias
 
 LASSO_SOLVERS = ("lasso", "osqp-lasso")
 RIDGE_SOLVERS = ("ridge",)
@@ -64,7 +65,7 @@ def default_name(model: ModelFamily) -> str:
     return model.label()
 
 
-def evaluate(model: ModelFamily, validation: Dataset, *, name: str | None = None,
+def evaluate_run(model: ModelFamily, validation: Dataset, *, name: str | None = None,
              train: Dataset | None = None) -> ModelRun:
     """Score ``model`` on ``validation`` (and ``train``) and keep its validation prediction.
 
@@ -101,3 +102,7 @@ def natural_key(label) -> tuple:
     """Sort ``l2kg`` before ``l10kg``: digit runs compare as numbers."""
     parts = re.split(r"(\d+(?:\.\d+)?)", str(label))
     return tuple(float(p) if i % 2 else p for i, p in enumerate(parts))
+
+
+# The old name, shadowed by the evaluate step (ftcal.evaluate, another signature).
+evaluate = deprecated_alias(evaluate_run, "ftcal.report.evaluate", "ftcal.report.evaluate_run")

@@ -1,7 +1,7 @@
 """The steps of the pipeline, for the CLI, the demos and Python users alike.
 
 Each step (build a dataset, fit, select, evaluate, predict, identify a payload, compensate,
-check, plan, export) takes objects or paths, plus an optional executor for streaming or Dask,
+check, plan, export, live) takes objects or paths, plus an optional executor for streaming or Dask,
 and returns a result object (:class:`ftcal.workflow.result.StepResult`) with ``summary()`` (the
 text the CLI prints), ``to_dict()``/``to_json()``, a useful ``repr`` and ``_repr_html_``.
 The CLI parses arguments, calls one step and prints its result; the demos call the same steps,
@@ -15,15 +15,17 @@ from __future__ import annotations
 # name -> module of this package that defines it; loaded on first use (numpy/scipy stay unloaded
 # for `ftcal --help`). Each step module adds its public names here.
 _STEPS: dict[str, str] = {"StepResult": "result"}
-_STEPS.update(identify_payload="payload", rebias_payload="payload", PayloadResult="payload", RebiasResult="payload")
+_STEPS.update(identify_payload="payload", retare="payload", rebias_payload="payload", PayloadResult="payload", RebiasResult="payload")
 _STEPS.update(compensate="compensation", CompensationResult="compensation")
 _STEPS.update(check_sensor="checking", sensor_history="checking", CheckResult="checking")
 _STEPS.update(build_dataset="datasets", expected="datasets", DatasetResult="datasets", ExpectedResult="datasets")
 _STEPS.update(plan_experiment="planning", PlanResult="planning")
 _STEPS.update(convert="export", ConvertResult="export")
-_STEPS.update(fit="fitting", FitResult="fitting")
+_STEPS.update(fit="fitting", FitResult="fitting", ModelSearch="search")
 _STEPS.update(evaluate="evaluation", predict="evaluation", EvaluationResult="evaluation", PredictionResult="evaluation")
 _STEPS.update(report="evaluation", ReportResult="evaluation")
+_STEPS.update(LiveSetup="live", live_calibrator="live", replay_live="live", serve_zenoh="live", serve_ros2="live",
+              LiveReplayResult="live")
 
 __all__ = sorted(_STEPS)
 

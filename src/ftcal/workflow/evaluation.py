@@ -670,7 +670,7 @@ def report(models: Sequence[str], data: Sequence[str], output: str | os.PathLike
     from ..data.tables import load_dataset
     from ..files.model_files import load_model_file
     from ..report import build_report
-    from ..report import evaluate as evaluate_run
+    from ..report import evaluate_run
 
     model_paths, data_paths, train_paths = [str(p) for p in models], [str(p) for p in data], [str(p) for p in train]
     loaded = [load_model_file(p) for p in model_paths]

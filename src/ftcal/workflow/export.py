@@ -69,7 +69,7 @@ def convert(model, to: str, output, *, serial: str | None = None, sensor: str | 
     True
     """
     check_arguments(CONVERT, locals(), "ftcal.convert")
-    from ..files.targets import convert as write
+    from ..files.targets import write_target as write
 
     written = write(model, to, output, {"serial": serial, "sensor": sensor, "name": name,
                                         "single_precision": single_precision, "frame": frame,

@@ -89,6 +89,30 @@ class FitResult(StepResult):
                       "training_metrics": model.training_metrics_, "output": self.output, "notes": self.notes,
                       "selection": self.selection.as_dict() if self.selection is not None else None})
 
+    @property
+    def n_samples(self) -> int:
+        """Rows the model was fitted on."""
+        return int(self.model.n_samples_fit_)
+
+    @property
+    def training_metrics(self) -> dict:
+        """The training errors (``model.training_metrics_``): per-output lists and the norms' RMSE."""
+        return self.model.training_metrics_
+
+    def to_frame(self):
+        """The training errors per output as a :class:`pandas.DataFrame` (one row per output).
+
+        Columns ``rmse``, ``best_fit``, ``max_abs_error`` and ``residual_autocorrelation_lag1``, the numbers
+        the report's per-output lines print; those the fit did not compute are left out (a streamed static
+        fit scores from the summed statistics, which hold no maximum error).
+        """
+        import pandas as pd
+
+        metrics = self.training_metrics
+        columns = ("rmse", "best_fit", "max_abs_error", "residual_autocorrelation_lag1")
+        return pd.DataFrame({c: metrics[c] for c in columns if metrics.get(c) is not None},
+                            index=pd.Index(metrics["outputs"], name="output"))
+
     def headline(self) -> str:
         """The model line (degree or network, solver), rather than the excitation line that comes first."""
         return next((line for line in self.lines if line.startswith("model:")), super().headline())
@@ -100,7 +124,7 @@ class FitResult(StepResult):
         return save_model(self.model, path, **self._save)
 
 
-def fit(data, *, inputs: Sequence[str] | None = None, outputs: Sequence[str] | None = None,
+def fit(data, model=None, *, payload=None, inputs: Sequence[str] | None = None, outputs: Sequence[str] | None = None,
         degree: int | str | None = None, lasso: float | None = None, ridge: float | None = None,
         na: int = 0, nb: int = 0, solver: str = "lstsq", normalization: str | None = None,
         folds: int = 5, penalties: Sequence[str] = ("lasso", "ridge"), lambdas: Sequence[float] | None = None,
@@ -119,6 +143,16 @@ def fit(data, *, inputs: Sequence[str] | None = None, outputs: Sequence[str] | N
         CSV/Parquet files (each one segment and group unless ``segment_by``/``group_by`` name
         columns; streamed), a DataFrame (its columns), or a :class:`~ftcal.core.dataset.Dataset`
         (fitted in memory).
+    model : CalibrationModel, MLPModel or ModelSearch, optional
+        What to fit, as an object: a polynomial model (its degree, lags, normalization, prior and solver:
+        ``LeastSquares``, ``Lasso(λ)``, ``Ridge(λ)``, ``OsqpLasso(λ)``, ``OsqpLeastSquares``), a network (its
+        hidden layers, activation, weight decay, iterations, seed) or a
+        :class:`~ftcal.workflow.search.ModelSearch` (``degree="auto"`` with its options; it keeps
+        ``best_estimator_`` and ``cv_results_``). The keywords it sets cannot be given beside it.
+        Default: the keywords below (degree 1 least squares).
+    payload : str, (str, float) or dict, optional
+        An unknown payload to identify with the calibration: its link, or (link, mass in kg), or
+        ``{"link": ..., "mass": ...}`` (the same as ``estimate_payload`` and ``payload_mass``).
     inputs, outputs : column names (default ``u1..u6,T`` or ``u1..u6``; ``Fx..Tz``)
     degree : int in 1..10, ``"auto"`` (grouped cross-validation over 1..``max_degree``) or None (1)
     lasso, ridge : float, optional
@@ -165,6 +199,8 @@ def fit(data, *, inputs: Sequence[str] | None = None, outputs: Sequence[str] | N
     >>> round(float(result.model.predict(np.array([[0.5]]))[0, 0]), 2)
     2.5
     """
+    if model is not None or payload is not None:
+        return _fit_object(data, model, payload, {k: v for k, v in locals().items() if k not in _NOT_KEYWORDS})
     check_arguments(FIT, locals(), "ftcal.fit")
     cpu_start = time.process_time() if cpu_start is None else cpu_start
     output = None if output is None else str(output)
@@ -186,6 +222,92 @@ def fit(data, *, inputs: Sequence[str] | None = None, outputs: Sequence[str] | N
         result.output = output
         result.lines.append(f"wrote {output}")
     return result
+
+
+# The keywords of fit() a model object or a payload sets, and their defaults.
+_OBJECT_KEYWORDS = {"degree": None, "lasso": None, "ridge": None, "na": 0, "nb": 0, "solver": "lstsq",
+                    "normalization": None, "prior": None, "family": "polynomial", "hidden": None,
+                    "activation": None, "weight_decay": None, "max_iter": None, "seed": None,
+                    "estimate_payload": None, "payload_mass": None, **SEARCH_DEFAULTS}
+
+
+_NOT_KEYWORDS = ("data", "model", "payload")
+
+
+def _fit_object(data, model, payload, keywords: dict) -> FitResult:
+    """:func:`fit` with what ``model`` and ``payload`` stand for as keywords (refused when also given)."""
+    chosen = {**model_keywords(model), **payload_keywords(payload)}
+    clash = [name for name in chosen if keywords[name] != _OBJECT_KEYWORDS[name]]
+    if clash:
+        owner = "model" if clash[0] in model_keywords(model) else "payload"
+        raise ParameterError((owner, clash[0]), f"{{{owner}}} sets {{{clash[0]}}} already; give one of them.")
+    result = fit(data, **{**keywords, **chosen})
+    if callable(getattr(model, "search_keywords", None)):
+        model._found(result)  # a ModelSearch keeps what it found
+    return result
+
+
+def model_keywords(model) -> dict[str, Any]:
+    """The keywords of :func:`fit` that ``model`` (CalibrationModel, MLPModel, ModelSearch or None) stands for.
+
+    Examples
+    --------
+    >>> from ftcal import CalibrationModel
+    >>> from ftcal.core.solvers.lasso import Lasso
+    >>> model_keywords(CalibrationModel(3, solver=Lasso(50.0)))
+    {'degree': 3, 'na': 0, 'nb': 0, 'normalization': None, 'prior': None, 'lasso': 50.0}
+    """
+    from ..core.mlp import MLPModel
+    from ..core.model import CalibrationModel
+    from ..core.solvers.lasso import Lasso
+    from ..core.solvers.least_squares import LeastSquares, Ridge
+    from ..core.solvers.osqp_qp import OsqpLasso, OsqpLeastSquares
+
+    if model is None:
+        return {}
+    if callable(getattr(model, "search_keywords", None)):  # a ModelSearch (which imports this module)
+        return model.search_keywords()
+    if isinstance(model, MLPModel):
+        defaults = MLPModel()
+        for name in ("early_stopping", "n_folds", "check_every", "max_samples"):
+            if getattr(model, name) != getattr(defaults, name):
+                raise ParameterError("model", f"{{model}}: fit() sets an MLP's {name} itself; fit this MLPModel "
+                                              "with its own fit(dataset).")
+        return {"family": "mlp", "hidden": tuple(model.hidden), "activation": model.activation,
+                "weight_decay": model.weight_decay, "max_iter": model.max_iter, "seed": model.seed}
+    if isinstance(model, CalibrationModel):
+        if model.basis is not None:
+            raise ParameterError("model", "{model}: fit() builds the monomial basis from the degree; fit a model "
+                                          "with its own basis with its own fit(dataset).")
+        keywords = {"degree": model.degree, "na": model.na, "nb": model.nb, "normalization": model.normalization,
+                    "prior": model.prior}
+        solver = model.solver
+        if isinstance(solver, (OsqpLasso, OsqpLeastSquares)):
+            keywords["solver"] = "osqp"
+        if isinstance(solver, (Lasso, OsqpLasso)):
+            keywords["lasso"] = solver.lam
+        elif isinstance(solver, Ridge):
+            keywords["ridge"] = solver.lam
+        elif solver is not None and not isinstance(solver, (LeastSquares, OsqpLeastSquares)):
+            raise ParameterError("model", f"{{model}}: fit() knows the solvers LeastSquares, Lasso, Ridge, "
+                                          f"OsqpLasso and OsqpLeastSquares; got {type(solver).__name__}.")
+        return keywords
+    raise ParameterError("model", "The 'model' parameter of ftcal.fit must be None, a CalibrationModel, an MLPModel "
+                                  f"or a ModelSearch. Got {type(model).__name__} instead.")
+
+
+def payload_keywords(payload) -> dict[str, Any]:
+    """``estimate_payload`` and ``payload_mass`` from :func:`fit`'s ``payload`` (a link, (link, mass), a dict)."""
+    if payload is None:
+        return {}
+    if isinstance(payload, str):
+        return {"estimate_payload": payload}
+    if isinstance(payload, dict) and set(payload) <= {"link", "mass"} and "link" in payload:
+        return {"estimate_payload": payload["link"], "payload_mass": payload.get("mass")}
+    if isinstance(payload, (tuple, list)) and len(payload) == 2 and isinstance(payload[0], str):
+        return {"estimate_payload": payload[0], "payload_mass": payload[1]}
+    raise ParameterError("payload", "The 'payload' parameter of ftcal.fit must be a link name, (link, mass) or "
+                                    f"{{'link': ..., 'mass': ...}}. Got {type(payload).__name__} instead.")
 
 
 @dataclass

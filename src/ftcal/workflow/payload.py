@@ -1,6 +1,6 @@
 """Identify a payload (bias, mass, centre of mass, inertia) and re-tare a payload file: ``ftcal payload``.
 
-:func:`identify_payload` and :func:`rebias_payload` take CSV/Parquet paths (or DataFrames) and the keywords of the
+:func:`identify_payload` and :func:`retare` take CSV/Parquet paths (or DataFrames) and the keywords of the
 command's flags, keep only the static samples by default (as the command does), and return a
 :class:`PayloadResult` / :class:`RebiasResult` whose ``summary()`` is the text the command prints
 and whose ``save(path)`` writes the payload file.
@@ -15,7 +15,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .arguments import PAYLOAD, REBIAS, check_arguments
-from ..runtime.deprecation import renamed_keyword
+from ..runtime.deprecation import deprecated_alias, renamed_keyword
 from ..runtime.errors import FtcalError, ParameterError
 from .result import StepResult
 from .sources import DEFAULT_WRENCH, gravity_source, reads_tables, source_options
@@ -498,7 +498,7 @@ def identified_bias(payload, time):
 
 @dataclass(repr=False)
 class RebiasResult(StepResult):
-    """What :func:`rebias_payload` found: the new bias, its change since identification, the updated file.
+    """What :func:`retare` found: the new bias, its change since identification, the updated file.
 
     Attributes
     ----------
@@ -536,17 +536,17 @@ class RebiasResult(StepResult):
 
 
 @reads_tables()
-def rebias_payload(data, payload, *, inputs: Sequence[str] = DEFAULT_WRENCH, keep_moving: bool = False,
+def retare(payload, data, *, inputs: Sequence[str] = DEFAULT_WRENCH, keep_moving: bool = False,
                    reaction: bool = False, temperature: str | None = None, output=None,
                    **source) -> RebiasResult:
     """Re-tare: the bias alone from new data, mass and centre of mass from a payload file (``payload --rebias``).
 
     Parameters
     ----------
+    payload : path of the payload file (``ftcal payload -o``)
     data : path, list of paths, DataFrame, list or dict of DataFrames, or Dataset
         Contact-free CSV/Parquet tables, or the same in memory (as :func:`identify_payload`; no
         ``executor`` either).
-    payload : path of the payload file (``ftcal payload -o``)
     inputs, keep_moving, reaction, **source : as :func:`identify_payload`
     temperature : must be the payload file's temperature column, or None (taken from the file)
     output : path or None; when given, the updated payload file is written there
@@ -560,14 +560,14 @@ def rebias_payload(data, payload, *, inputs: Sequence[str] = DEFAULT_WRENCH, kee
     FtcalError
         Bad input, or a sign convention or temperature column that differs from the file's.
     """
-    check_arguments(REBIAS, locals(), "ftcal.workflow.rebias_payload")
+    check_arguments(REBIAS, locals(), "ftcal.workflow.retare")
     from ..files.payload_json import load_payload, save_payload
     from ..payload.drift import BiasDrift
     from ..payload.tables import read_payload_tables, rebias
 
     wrench = renamed_keyword(source, "wrench", "inputs", inputs, DEFAULT_WRENCH)
     paths, names = data.paths, data.sources
-    options = source_options(source, "rebias_payload")
+    options = source_options(source, "retare")
     name = str(payload)
     identified = load_payload(payload)
     if reaction != identified.reaction:
@@ -630,3 +630,12 @@ def rebias_payload(data, payload, *, inputs: Sequence[str] = DEFAULT_WRENCH, kee
     if output is not None:
         save_payload(updated, output, sources=out.sources)
     return out
+
+
+def _rebias_payload(data, payload, **keywords) -> RebiasResult:
+    return retare(payload, data, **keywords)
+
+
+# The old name and order (data first): the payload is the step's subject, as in compensate(payload, data).
+rebias_payload = deprecated_alias(_rebias_payload, "ftcal.workflow.rebias_payload(data, payload)",
+                                  "ftcal.workflow.retare(payload, data)")

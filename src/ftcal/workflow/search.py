@@ -1,0 +1,140 @@
+"""A model search as an estimator (scikit-learn's ``GridSearchCV``/``LassoCV``): ``ModelSearch(...).fit(data)``.
+
+The search is today's ``degree="auto"`` selection (grouped cross-validation over degree, penalty and λ,
+:func:`ftcal.core.select.select_model`); this class only names its options once and keeps what it found,
+``best_estimator_`` (the refitted model) and ``cv_results_`` (every candidate's scores), so that
+:func:`ftcal.fit` can take it as its ``model``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+from ..core.limits import SELECTION_BUDGET_SECONDS
+from ..runtime.errors import NotFittedError
+
+
+class ModelSearch:
+    """Grouped cross-validation over polynomial degree and penalty, then a refit of the best on all the data.
+
+    Parameters
+    ----------
+    max_degree : int
+        Degrees 1..max_degree are tried (a degree is skipped when a lower one already did better).
+    penalties : sequence of {"lasso", "ridge"}
+        Penalized bases tried beside least squares.
+    lambdas : sequence of float, optional
+        λ grid (default: relative to each candidate's λ_max; the paper's grid is absolute).
+    folds : int
+        Number of grouped folds.
+    select_per : {"block", "output", "model"}
+        Choose one candidate for forces and one for torques, one per output, or one for all.
+    objective : {"both", "force", "torque"}
+        What the single best candidate is ranked by.
+    budget : float
+        CPU seconds the search may spend (degrees beyond it are dropped, said so).
+    verbose : bool
+        Report every candidate's scores, not only the summary.
+    lasso, ridge : float, optional
+        Search degree only, at this fixed penalty.
+
+    Attributes
+    ----------
+    best_estimator_ : CalibrationModel
+        The selected model, refitted on all the data.
+    cv_results_ : dict of lists
+        One entry per candidate tried: ``degree``, ``penalty``, ``lambda``, ``mean_test_score``,
+        ``mean_train_score``, ``mean_nonzero`` (coefficients), ``split_test_scores`` (score units: ``metric_``).
+    best_params_ : dict
+        The best single candidate's ``degree``, ``penalty`` and ``lambda``.
+    metric_ : str
+        What the scores measure.
+    selection_ : CrossValidationResult
+        The whole search (selection per part, comparison with affine, notes).
+    result_ : FitResult
+        What :func:`ftcal.fit` returned.
+
+    Examples
+    --------
+    >>> import numpy as np, pandas as pd
+    >>> import ftcal
+    >>> from ftcal.workflow.search import ModelSearch
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.uniform(-1, 1, (400, 1))
+    >>> frame = pd.DataFrame({"u1": u[:, 0], "Fx": 2 * u[:, 0] + u[:, 0] ** 2 + 0.01 * rng.normal(size=400),
+    ...                       "load": np.repeat(np.arange(4), 100)})
+    >>> search = ModelSearch(max_degree=3, penalties=(), folds=4).fit(frame, inputs=["u1"], outputs=["Fx"],
+    ...                                                               group_by="load")
+    >>> search.best_params_["degree"] >= 2, len(search.cv_results_["degree"]) >= 2
+    (True, True)
+    """
+
+    def __init__(self, max_degree: int = 5, *, penalties: Sequence[str] = ("lasso", "ridge"),
+                 lambdas: Sequence[float] | None = None, folds: int = 5, select_per: str = "block",
+                 objective: str = "both", budget: float = SELECTION_BUDGET_SECONDS, verbose: bool = False,
+                 lasso: float | None = None, ridge: float | None = None):
+        self.max_degree = max_degree
+        self.penalties = penalties
+        self.lambdas = lambdas
+        self.folds = folds
+        self.select_per = select_per
+        self.objective = objective
+        self.budget = budget
+        self.verbose = verbose
+        self.lasso = lasso
+        self.ridge = ridge
+
+    def get_params(self) -> dict[str, Any]:
+        """The search's options, as :func:`ftcal.fit` takes them with ``degree="auto"``."""
+        return {"max_degree": self.max_degree, "penalties": tuple(self.penalties),
+                "lambdas": None if self.lambdas is None else tuple(self.lambdas), "folds": self.folds,
+                "select_per": self.select_per, "objective": self.objective, "budget": self.budget,
+                "verbose": self.verbose, "lasso": self.lasso, "ridge": self.ridge}
+
+    def search_keywords(self) -> dict[str, Any]:
+        """The keywords of :func:`ftcal.fit` this search stands for: ``degree="auto"`` and its options."""
+        return {"degree": "auto", **self.get_params()}
+
+    def fit(self, data, **keywords) -> ModelSearch:
+        """Run the search on ``data`` (what :func:`ftcal.fit` takes; ``keywords``: its other keywords)."""
+        from .fitting import fit
+
+        fit(data, self, **keywords)  # fit() calls _found() with what it found
+        return self
+
+    def _found(self, result) -> None:
+        """Keep what :func:`ftcal.fit` found (called by it)."""
+        selection = result.selection
+        self.result_, self.selection_, self.best_estimator_ = result, selection, result.model
+        scores = selection.scores
+        self.metric_ = selection.metric
+        self.cv_results_ = {"degree": [s.candidate.degree for s in scores],
+                            "penalty": [s.candidate.penalty for s in scores],
+                            "lambda": [s.candidate.lam for s in scores],
+                            "mean_test_score": [s.score for s in scores],
+                            "mean_train_score": [s.train_score for s in scores],
+                            "mean_nonzero": [s.nonzero for s in scores],
+                            "split_test_scores": [s.fold_scores for s in scores]}
+        best = selection.best
+        self.best_params_ = {"degree": best.degree, "penalty": best.penalty, "lambda": best.lam}
+
+    def to_frame(self):
+        """:attr:`cv_results_` as a :class:`pandas.DataFrame`, one row per candidate (fold scores in lists)."""
+        import pandas as pd
+
+        self._check_fitted()
+        return pd.DataFrame(self.cv_results_)
+
+    def _check_fitted(self) -> None:
+        if not hasattr(self, "best_estimator_"):
+            raise NotFittedError("This ModelSearch is not fitted yet: call fit(data) first.")
+
+    def predict(self, u, **keywords):
+        """The best model's prediction (:meth:`CalibrationModel.predict`)."""
+        self._check_fitted()
+        return self.best_estimator_.predict(u, **keywords)
+
+    def __repr__(self) -> str:
+        given = {k: v for k, v in self.get_params().items() if v != ModelSearch().get_params()[k]}
+        return f"ModelSearch({', '.join(f'{k}={v!r}' for k, v in given.items())})"
