@@ -661,7 +661,7 @@ def extra_bases(fx: dict, o) -> dict:
     }
 
 
-# The harness's Zenoh peer (`python tests/adversarial.py --peer PORT`) listens on a free port (run() picks it).
+# The harness's Zenoh peer (`python tests/helpers/adversarial.py --peer PORT`) listens on a free port (run() picks it).
 PEER_PORT = 7491  # only for uncovered(), which builds no case
 ZENOH_CASE_S = 0.5  # each `live --zenoh` case runs this long (its --duration)
 
@@ -692,7 +692,7 @@ def peer(port: int) -> None:
 EXTRA_SURFACES = ("simulate", "convert --to c-runtime", "live", "live --zenoh")
 # Values not tried on a surface, each with the reason: they run as asked.
 SKIPPED_VALUES = {
-    ("live --zenoh", "--duration", "1e308"): "runs as long as asked (until Ctrl-C or SIGTERM: tests/test_live_zenoh.py)",
+    ("live --zenoh", "--duration", "1e308"): "runs as long as asked (until Ctrl-C or SIGTERM: tests/live/test_live_zenoh.py)",
     ("live --zenoh", "--duration", "inf"): "runs as long as asked, as 1e308",
 }
 EXTRA_VALUES = {

@@ -9,7 +9,7 @@ those numbers only on a sample whose flags change, as the flag's ``raised`` even
 flag's last raised; :mod:`ftcal.live.c_events`), so the usual sample pays one test.
 
 The reasons' fixed words are written here after the Python templates of :mod:`ftcal.live.calibrator`
-(``tests/test_c_runtime_library.py`` holds the two texts equal); names from files reach the C only
+(``tests/live/test_c_runtime_library.py`` holds the two texts equal); names from files reach the C only
 as string literals (:func:`ftcal.files.c_text.c_string`): the compiled-in tools' ``repr`` is Python's,
 emitted as literals; a tool named at run time is quoted by the C as Python's ``repr`` quotes it, exactly
 for ASCII (quote choice, ``\\\\``, ``\\n``, ``\\t``, ``\\r``, ``\\xNN``), for U+0080 to U+00A0 and

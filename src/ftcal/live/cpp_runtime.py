@@ -5,7 +5,7 @@ The wrapper owns one ``NAME_state`` (about 73 kB: allocated once, in the constru
 ``std::unique_ptr``), takes and returns ``std::array`` (raw channels, gravity in sensor axes; calibrated,
 compensated, bias and its standard deviation), and forwards re-tare, tool switching and identification in place to
 the C functions. Every call after construction is ``noexcept`` and allocates nothing. The C header compiles as C++17
-and C++20 with ``-Wall -Wextra -Werror -pedantic`` (tests/test_cpp_runtime.py builds both with g++ and runs a loop
+and C++20 with ``-Wall -Wextra -Werror -pedantic`` (tests/live/test_cpp_runtime.py builds both with g++ and runs a loop
 against the Python calibrator's numbers).
 """
 

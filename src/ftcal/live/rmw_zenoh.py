@@ -5,7 +5,7 @@ the liveliness tokens by which ROS 2 nodes on rmw_zenoh discover each other.
   ``0/ft/raw/geometry_msgs::msg::dds_::WrenchStamped_/RIHS01_8dc3…``. The DDS type name is
   ``<package>::msg::dds_::<Type>_``; the type hash is REP-2011's RIHS01, the SHA-256 of the canonical JSON
   of the type description, computed by ``rosbags`` (``Typestore.hash_rihs01``) from the message definitions
-  it ships. tests/test_live_rmw_zenoh.py checks the hashes against values published in ROS 2 sources.
+  it ships. tests/live/test_live_rmw_zenoh.py checks the hashes against values published in ROS 2 sources.
 * Attachment of every sample (rmw_zenoh_cpp ``attachment_helpers.cpp``, zenoh's ``ze_serializer``): the
   string ``sequence_number`` then an int64, ``source_timestamp`` then an int64 (ns), ``source_gid`` then 16
   bytes; a string or a byte buffer is a LEB128 length and its bytes, an int64 is 8 little-endian bytes.

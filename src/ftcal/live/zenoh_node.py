@@ -121,7 +121,7 @@ def zenoh_config(listen=(), connect=(), low_latency: bool = False):
     in Zenoh's default ``peer_to_peer`` routing a router does not forward between peers; it tells each peer where the
     others listen (gossip, one hop) and they connect to each other (``autoconnect`` to peers and routers, as rmw_zenoh's
     DEFAULT_RMW_ZENOH_SESSION_CONFIG.json5 does). With gossip off, a peer behind a router received 0 of 100 messages
-    (on: 100 of 100); with gossip on but neither peer listening, also 0 (tests/test_live_zenoh_router.py). The peers
+    (on: 100 of 100); with gossip on but neither peer listening, also 0 (tests/live/test_live_zenoh_router.py). The peers
     in ``connect`` must answer within :data:`CONNECT_TIMEOUT_MS`, else opening the session fails (:func:`open_session`
     says so in one line). ``low_latency``: :data:`TRANSPORT_SETTINGS` (else Zenoh's queued transport)."""
     import zenoh

@@ -32,7 +32,7 @@ block's moment matrix from the total and restarts the search from the estimate,
 so it costs no pass over the data. The curvature of the profile likelihood
 assumes independent samples; consecutive samples of a slow trajectory, a
 drifting bias and a systematic pose order make it several times too small in
-simulation (tests/test_unknown_load_coverage.py), so it is only kept for
+simulation (tests/data/test_unknown_load_coverage.py), so it is only kept for
 comparison (``curvature_stderr``).
 
 Scale. ``B`` absorbs any common scale of the wrench, so ``pi`` is identifiable

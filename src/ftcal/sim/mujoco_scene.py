@@ -13,7 +13,7 @@ what it cannot or need not load here, and says so:
 Sign convention: MuJoCo's ``force``/``torque`` sensors on a site of the child body report the
 wrench the parent applies on the child's subtree; ftcal (iDynTree, ``child_to_parent``) reports
 the wrench the child applies on the parent, so :func:`sensor_wrench` negates them. At a static pose
-the two engines agree (tests/test_closed_loop.py checks it to a relative 1e-6).
+the two engines agree (tests/e2e/test_closed_loop.py checks it to a relative 1e-6).
 """
 
 from __future__ import annotations
