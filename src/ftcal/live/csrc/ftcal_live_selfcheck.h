@@ -1,0 +1,252 @@
+/* ftcal_live_selfcheck.h: the self-check of the live step, ftcal.live.consistency's arithmetic in the same order.
+
+   A section of ftcal_live.h (included by it after the drift test, before NAME_retare and the step; not a header of
+   its own: it uses the state, FTL_ and FTL_M of ftcal_live.h). One C function per step of ftcal.live.consistency:
+   NAME_sc_reset (SelfCheck.reset), NAME_enable_self_check (LiveCalibrator(self_check=True)), NAME_sc_end_hold
+   (SelfCheck._end_hold), NAME_sc_observe (SelfCheck.observe_one), NAME_sc_alike (SelfCheck._alike), NAME_sc_check
+   (SelfCheck.check with LiveCalibrator._apply_self_check). The state's fields are its sc_* ones; the constants
+   (bounds, windows, lock-out time) are the configuration's sc_* fields, filled from ftcal.live.consistency.
+
+   On after NAME_init, as LiveCalibrator's default (s->self_check = 0 turns it off; NAME_enable_self_check again
+   after changing noise_variance or walk_variance: they are its bounds). Instead of Python's `tracker` events the
+   state counts them (sc_adaptations, sc_lockouts, sc_reacquisitions) with the last one's time, as for the drift
+   test's rollbacks. */
+
+static inline void FTL_(sc_reset)(FTL_(state) *s)
+{
+    int j;
+    s->sc_has_window = s->has_time;
+    s->sc_window_start = s->last_time;
+    s->sc_static = s->sc_gated = s->sc_updated = 0;
+    s->sc_nis = 0.0;
+    for (j = 0; j < 6; ++j) s->sc_e2[j] = s->sc_pred[j] = 0.0;
+    s->sc_has_update = s->has_time;
+    s->sc_last_update = s->last_time;
+    s->sc_announced = 0;
+    s->sc_in_hold = 0;
+    s->sc_n_previous = 0;
+}
+
+/* Turn the self-check on (as LiveCalibrator(self_check=True)), after any change of noise_variance / walk_variance:
+   they become its r0 and q0, the bounds it adapts within. */
+static inline void FTL_(enable_self_check)(FTL_(state) *s)
+{
+    memcpy(s->sc_noise0, s->noise_variance, sizeof s->sc_noise0);
+    memcpy(s->sc_walk0, s->walk_variance, sizeof s->sc_walk0);
+    s->sc_expected_gated = 1.0 - s->cfg.gate_probability;
+    s->self_check = 1;
+    FTL_(sc_reset)(s);
+}
+
+static inline void FTL_(sc_end_hold)(FTL_(state) *s)
+{
+    int locked = 2 * s->sc_hold_missed > s->sc_hold_n, j, k;
+    s->sc_in_hold = 0;
+    if (locked && s->sc_hold_last - s->sc_hold_start >= s->cfg.sc_min_hold_s) {
+        double norm = 0.0;
+        for (j = 0; j < 3; ++j) norm += s->sc_hold_dir[j] * s->sc_hold_dir[j];
+        norm = sqrt(norm);
+        if (norm == 0.0) norm = 1.0;
+        if (s->sc_n_previous == FTL_M(SC_KEEP_HOLDS)) {   /* keep the newest FTL_M(SC_KEEP_HOLDS) */
+            for (k = 1; k < FTL_M(SC_KEEP_HOLDS); ++k) {
+                memcpy(s->sc_prev_mean[k - 1], s->sc_prev_mean[k], sizeof s->sc_prev_mean[k]);
+                memcpy(s->sc_prev_dir[k - 1], s->sc_prev_dir[k], sizeof s->sc_prev_dir[k]);
+                s->sc_prev_n[k - 1] = s->sc_prev_n[k];
+                s->sc_prev_seconds[k - 1] = s->sc_prev_seconds[k];
+                s->sc_prev_end[k - 1] = s->sc_prev_end[k];
+            }
+            s->sc_n_previous -= 1;
+        }
+        k = s->sc_n_previous++;
+        for (j = 0; j < 6; ++j) s->sc_prev_mean[k][j] = s->sc_hold_z[j] / (double)s->sc_hold_n;
+        for (j = 0; j < 3; ++j) s->sc_prev_dir[k][j] = s->sc_hold_dir[j] / norm;
+        s->sc_prev_n[k] = s->sc_hold_n;
+        s->sc_prev_seconds[k] = s->sc_hold_last - s->sc_hold_start;
+        s->sc_prev_end[k] = s->sc_hold_last;
+    } else if (!locked) {
+        s->sc_n_previous = 0;
+    }
+}
+
+/* One sample's sums (SelfCheck.observe_one). */
+static inline void FTL_(sc_observe)(FTL_(state) *s, double time, int still, int updated, int gated, const double *z,
+                                     const double *e, const double *predicted, const double *innovation_var,
+                                     const double *direction)
+{
+    int j;
+    if (!s->sc_has_update) {
+        s->sc_has_update = 1;
+        s->sc_last_update = time;
+    }
+    if (still) {
+        s->sc_static += 1;
+        s->sc_gated += (unsigned long)gated;
+        if (updated) {
+            double nis = 0.0;
+            s->sc_updated += 1;
+            for (j = 0; j < 6; ++j) nis += e[j] * e[j] / innovation_var[j];
+            s->sc_nis += nis;
+            for (j = 0; j < 6; ++j) {
+                s->sc_e2[j] += e[j] * e[j];
+                s->sc_pred[j] += predicted[j];
+            }
+        }
+        if (!s->sc_in_hold) {
+            s->sc_in_hold = 1;
+            s->sc_hold_n = s->sc_hold_missed = 0;
+            for (j = 0; j < 6; ++j) s->sc_hold_z[j] = 0.0;
+            for (j = 0; j < 3; ++j) s->sc_hold_dir[j] = 0.0;
+            s->sc_hold_start = time;
+        }
+        s->sc_hold_n += 1;
+        s->sc_hold_missed += !updated;
+        for (j = 0; j < 6; ++j) s->sc_hold_z[j] += z[j];
+        for (j = 0; j < 3; ++j) s->sc_hold_dir[j] += direction[j];
+        s->sc_hold_last = time;
+        if (updated) s->sc_last_update = time;
+    } else if (s->sc_in_hold) {
+        FTL_(sc_end_hold)(s);
+    }
+}
+
+/* Whether locked hold k and the current one (mean, unit direction) show the same residual (SelfCheck._alike). */
+static inline int FTL_(sc_alike)(const FTL_(state) *s, int k, const double *mean, const double *direction,
+                                  double seconds, double time, const double *noise_variance, double *turn,
+                                  double *ratio)
+{
+    double c = 0.0, gap, spread[6], limit;
+    int j, a;
+    for (j = 0; j < 3; ++j) c += s->sc_prev_dir[k][j] * direction[j];
+    *turn = acos(c < -1.0 ? -1.0 : c > 1.0 ? 1.0 : c) * (180.0 / 3.141592653589793);
+    if (*turn < s->cfg.sc_min_turn_deg) return 0;
+    gap = time - s->sc_prev_end[k];
+    for (j = 0; j < 6; ++j) {
+        double mine = 1.0 / (double)s->sc_hold_n, theirs = 1.0 / (double)s->sc_prev_n[k];
+        if (s->cfg.sc_correlation_s / seconds > mine) mine = s->cfg.sc_correlation_s / seconds;
+        if (s->cfg.sc_correlation_s / s->sc_prev_seconds[k] > theirs) theirs = s->cfg.sc_correlation_s / s->sc_prev_seconds[k];
+        spread[j] = noise_variance[j] * (mine + theirs) + s->walk_variance[j] * gap;
+    }
+    limit = 2.0 * sin(*turn * (3.141592653589793 / 180.0) / 2.0) * s->cfg.sc_turn_share;
+    *ratio = 0.0;
+    for (a = 0; a < 6; a += 3) {
+        double change = 0.0, offset = 0.0, noise = 0.0, bound, r;
+        for (j = a; j < a + 3; ++j) {
+            change += (mean[j] - s->sc_prev_mean[k][j]) * (mean[j] - s->sc_prev_mean[k][j]);
+            offset += (mean[j] - s->bias[j]) * (mean[j] - s->bias[j]);
+            noise += spread[j];
+        }
+        change = sqrt(change);
+        offset = sqrt(offset);
+        bound = limit * offset;
+        if (3.0 * sqrt(noise) > bound) bound = 3.0 * sqrt(noise);
+        if (change > bound) return 0;
+        r = change / (offset > 1e-300 ? offset : 1e-300);
+        if (r > *ratio) *ratio = r;
+    }
+    return 1;
+}
+
+/* At a snapshot time, after the drift test (SelfCheck.check and LiveCalibrator._apply_self_check): r by covariance
+   matching, the lock-out counted, the bias re-acquired. */
+static inline void FTL_(sc_check)(FTL_(state) *s, double time)
+{
+    int j, k, found = -1;
+    double idle, norm, mean[6], direction[3], seconds, turn = 0.0, ratio = 0.0, noise[6];
+    memcpy(noise, s->noise_variance, sizeof noise);   /* the re-acquisition below uses r from before this check */
+    if (!s->sc_has_window) {
+        s->sc_has_window = 1;
+        s->sc_window_start = time;
+    }
+    if (time - s->sc_window_start >= s->cfg.sc_window_s) {
+        if (s->sc_updated >= (unsigned long)s->cfg.sc_min_window_samples) {
+            double n = (double)s->sc_updated, nis = s->sc_nis / n;
+            double share = (double)s->sc_gated / (double)(s->sc_static > 0 ? s->sc_static : 1);
+            int high = nis > s->cfg.sc_nis_factor * 6.0 || (share > s->cfg.sc_gated_factor * s->sc_expected_gated && share > 0.01);
+            int low = nis < 6.0 / s->cfg.sc_nis_factor;
+            if (high || low) {
+                double proposal[6];
+                int change = 0;
+                for (j = 0; j < 6; ++j) {
+                    double m = s->sc_e2[j] / n - s->sc_pred[j] / n, r0 = s->sc_noise0[j];
+                    if (m < 0.0) m = 0.0;
+                    if (m < r0) m = r0;
+                    if (m > s->cfg.sc_r_max * r0) m = s->cfg.sc_r_max * r0;
+                    if (high ? m < s->noise_variance[j] : m > s->noise_variance[j]) m = s->noise_variance[j];
+                    proposal[j] = m;
+                    if (fabs(m - s->noise_variance[j]) > 1e-3 * s->noise_variance[j]) change = 1;
+                }
+                if (change) {
+                    for (j = 0; j < 6; ++j) {
+                        double sd = sqrt(proposal[j]);   /* as Python keeps it: a std, squared when used */
+                        s->noise_variance[j] = sd * sd;
+                    }
+                    s->sc_adaptations += 1;
+                    s->sc_last_adapted = time;
+                }
+            }
+        }
+        s->sc_window_start = time;
+        s->sc_static = s->sc_gated = s->sc_updated = 0;
+        s->sc_nis = 0.0;
+        for (j = 0; j < 6; ++j) s->sc_e2[j] = s->sc_pred[j] = 0.0;
+    }
+    if (!s->sc_in_hold || !s->sc_has_update || s->sc_hold_last != time) return;
+    idle = time - s->sc_last_update;
+    if (idle <= s->cfg.sc_lock_s) {
+        s->sc_announced = 0;
+    } else if (!s->sc_announced) {
+        s->sc_announced = 1;
+        s->sc_lockouts += 1;
+        s->sc_last_lockout = time;
+    }
+    if (s->sc_n_previous == 0 || time - s->sc_hold_start < s->cfg.sc_min_hold_s || 2 * s->sc_hold_missed <= s->sc_hold_n)
+        return;
+    norm = 0.0;
+    for (j = 0; j < 3; ++j) norm += s->sc_hold_dir[j] * s->sc_hold_dir[j];
+    norm = sqrt(norm);
+    if (norm == 0.0) norm = 1.0;
+    for (j = 0; j < 6; ++j) mean[j] = s->sc_hold_z[j] / (double)s->sc_hold_n;
+    for (j = 0; j < 3; ++j) direction[j] = s->sc_hold_dir[j] / norm;
+    seconds = time - s->sc_hold_start;
+    for (k = s->sc_n_previous - 1; k >= 0; --k)
+        if (FTL_(sc_alike)(s, k, mean, direction, seconds, time, noise, &turn, &ratio)) {
+            found = k;
+            break;
+        }
+    if (found < 0) return;
+    {
+        double moved[6], share[6], span = idle + seconds;
+        double force = 0.0, torque = 0.0;
+        for (j = 0; j < 6; ++j) moved[j] = mean[j] - s->bias[j];
+        for (j = 0; j < 3; ++j) force += moved[j] * moved[j];
+        for (j = 3; j < 6; ++j) torque += moved[j] * moved[j];
+        for (j = 0; j < 6; ++j) share[j] = (j < 3 ? force : torque) / 3.0;
+        double proposal[6];
+        int change = 0;
+        if (span < 1e-9) span = 1e-9;
+        for (j = 0; j < 6; ++j) {
+            double q = s->walk_variance[j], m2 = share[j] / span;
+            if (m2 > q) q = m2;
+            if (q > s->cfg.sc_q_max * s->sc_walk0[j]) q = s->cfg.sc_q_max * s->sc_walk0[j];
+            proposal[j] = q;
+            if (fabs(q - s->walk_variance[j]) > 1e-3 * s->walk_variance[j]) change = 1;
+        }
+        if (change) memcpy(s->walk_variance, proposal, sizeof proposal);
+        for (j = 0; j < 6; ++j) {
+            double mine = 1.0 / (double)s->sc_hold_n;
+            if (s->cfg.sc_correlation_s / seconds > mine) mine = s->cfg.sc_correlation_s / seconds;
+            s->variance[j] = noise[j] * mine;
+            s->bias[j] = mean[j];
+        }
+    }
+    FTL_(drift_reset)(s);
+    s->sc_reacquisitions += 1;
+    s->sc_last_reacquired = time;
+    s->sc_last_update = time;
+    s->sc_announced = 0;
+    s->sc_n_previous = 0;
+    s->sc_hold_n = s->sc_hold_missed = 0;
+    for (j = 0; j < 6; ++j) s->sc_hold_z[j] = 0.0;
+    for (j = 0; j < 3; ++j) s->sc_hold_dir[j] = 0.0;
+    s->sc_hold_start = s->sc_hold_last = time;
+}
