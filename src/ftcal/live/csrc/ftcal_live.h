@@ -290,7 +290,7 @@ static inline int FTL_(event_count)(const FTL_(state) *s)
 /* Copy event `i` (0 = the oldest kept) into *ev: 0, or -1 (*ev untouched) for i outside 0 .. count - 1. */
 static inline int FTL_(get_event)(const FTL_(state) *s, int i, FTL_(event) *ev)
 {
-    if (i < 0 || i >= s->events_count) return -1;
+    if (i < 0 || i >= s->events_count) { return -1; }
     *ev = s->events[(s->events_start + i) % FTL_M(MAX_EVENTS)];
     return 0;
 }
@@ -324,8 +324,8 @@ static inline const char *FTL_(tool_name)(const FTL_(state) *s, int tool)
 static inline int FTL_(find_tool)(const FTL_(state) *s, const char *tool_name)
 {
     int i;
-    if (!tool_name) return -1;
-    for (i = 0; i < s->n_tools; ++i) if (strcmp(FTL_(tool_name)(s, i), tool_name) == 0) return i;
+    if (!tool_name) { return -1; }
+    for (i = 0; i < s->n_tools; ++i) { if (strcmp(FTL_(tool_name)(s, i), tool_name) == 0) { return i; } }
     return -1;
 }
 
@@ -334,11 +334,11 @@ static inline int FTL_(find_tool)(const FTL_(state) *s, const char *tool_name)
 static inline int FTL_(check_new_tool)(const FTL_(state) *s, const char *tool_name)
 {
     int n = 0;
-    if (!tool_name || !tool_name[0]) return FTL_M(TOOL_NO_NAME);
-    while (n <= FTL_M(MAX_TOOL_NAME) && tool_name[n]) ++n;
-    if (n > FTL_M(MAX_TOOL_NAME)) return FTL_M(TOOL_NAME_TOO_LONG);
-    if (strcmp(tool_name, s->cfg.no_tool) == 0) return FTL_M(TOOL_NAME_RESERVED);
-    if (FTL_(find_tool)(s, tool_name) < 0 && s->n_tools == FTL_M(MAX_TOOLS)) return FTL_M(TOOL_LIBRARY_FULL);
+    if (!tool_name || !tool_name[0]) { return FTL_M(TOOL_NO_NAME); }
+    while (n <= FTL_M(MAX_TOOL_NAME) && tool_name[n]) { ++n; }
+    if (n > FTL_M(MAX_TOOL_NAME)) { return FTL_M(TOOL_NAME_TOO_LONG); }
+    if (strcmp(tool_name, s->cfg.no_tool) == 0) { return FTL_M(TOOL_NAME_RESERVED); }
+    if (FTL_(find_tool)(s, tool_name) < 0 && s->n_tools == FTL_M(MAX_TOOLS)) { return FTL_M(TOOL_LIBRARY_FULL); }
     return FTL_M(TOOL_OK);
 }
 
@@ -347,7 +347,7 @@ static inline int FTL_(check_new_tool)(const FTL_(state) *s, const char *tool_na
 static inline int FTL_(set_tool)(FTL_(state) *s, int tool)
 {
     FTL_(event) ev;
-    if (tool < 0 || tool >= s->n_tools) return -1;
+    if (tool < 0 || tool >= s->n_tools) { return -1; }
     FTL_(call_event)(s, FTL_M(EVENT_TOOL_SWITCHED), s->tool, tool, &ev);
     FTL_(log_event)(s, &ev);
     s->tool = tool;
@@ -380,20 +380,21 @@ static inline int FTL_(drift_check)(FTL_(state) *s, double time)
         high = s->drift_count;
         while (low < high) {
             middle = (low + high) / 2;
-            if (cutoff < s->drift_time[(s->drift_start + middle) % FTL_M(DRIFT_SNAPSHOTS)]) high = middle;
-            else low = middle + 1;
+            if (cutoff < s->drift_time[(s->drift_start + middle) % FTL_M(DRIFT_SNAPSHOTS)]) { high = middle; }
+            else { low = middle + 1; }
         }
-        if (low == 0) continue;
+        if (low == 0) { continue; }
         slot = (s->drift_start + low - 1) % FTL_M(DRIFT_SNAPSHOTS);
         b0 = s->drift_bias[slot];
         p0 = s->drift_variance[slot];
         span = time - s->drift_time[slot];
-        for (j = 0; j < 6; ++j)
+        for (j = 0; j < 6; ++j) {
             chi2 += (s->bias[j] - b0[j]) * (s->bias[j] - b0[j]) / (s->walk_variance[j] * span + s->variance[j] + p0[j]);
-        if (!(chi2 > s->drift_chi2)) continue;
-        for (j = 0; j < 6; ++j) if (fabs(s->bias[j] - b0[j]) > s->accept_limit[j]) beyond = 1;
-        if (!beyond) continue;
-        for (j = 0; j < 6; ++j) if (fabs(s->bias[j] - b0[j]) > moved) moved = fabs(s->bias[j] - b0[j]);
+        }
+        if (!(chi2 > s->drift_chi2)) { continue; }
+        for (j = 0; j < 6; ++j) { if (fabs(s->bias[j] - b0[j]) > s->accept_limit[j]) { beyond = 1; } }
+        if (!beyond) { continue; }
+        for (j = 0; j < 6; ++j) { if (fabs(s->bias[j] - b0[j]) > moved) { moved = fabs(s->bias[j] - b0[j]); } }
         for (j = 0; j < 6; ++j) {   /* back to the snapshot, its variance predicted since; it is the only one left */
             s->bias[j] = b0[j];
             s->variance[j] = p0[j] + s->walk_variance[j] * span;
@@ -434,9 +435,11 @@ static inline int FTL_(retare)(FTL_(state) *s)
     FTL_(call_event)(s, FTL_M(EVENT_RETARE), s->tool, s->tool, &ev);
     ev.flag = s->flags & (FTL_M(FLAG_CONTACT) | FTL_M(FLAG_UNEXPLAINED));
     FTL_(log_event)(s, &ev);
-    for (j = 0; j < 6; ++j)
-        if (s->variance[j] < s->cfg.retare_variance * s->noise_variance[j])
+    for (j = 0; j < 6; ++j) {
+        if (s->variance[j] < s->cfg.retare_variance * s->noise_variance[j]) {
             s->variance[j] = s->cfg.retare_variance * s->noise_variance[j];
+        }
+    }
     FTL_(drift_reset)(s);
     FTL_(sc_reset)(s);
     s->retares += 1;
@@ -472,7 +475,7 @@ static inline void FTL_(motion)(FTL_(state) *s, double time, const double *direc
     memcpy(s->history_direction[last], direction, 3 * sizeof(double));
     s->history_count += 1;
     *still = rate < s->min_rate;
-    if (!*still) s->last_moving = time;
+    if (!*still) { s->last_moving = time; }
     *moving = rate < HUGE_VAL && !*still;
     *still = *still && (time - s->last_moving >= s->min_hold);
 }
@@ -490,7 +493,7 @@ static inline int FTL_(start_identification)(FTL_(state) *s, const char *tool_na
 {
     int status = FTL_(check_new_tool)(s, tool_name), index;
     FTL_(event) ev;
-    if (status) return status;
+    if (status) { return status; }
     index = FTL_(find_tool)(s, tool_name);   /* -1 for a new name */
     FTL_(call_event)(s, FTL_M(EVENT_TOOL_IDENTIFYING), index, index, &ev);
     memcpy(ev.tool_name, tool_name, strlen(tool_name) + 1);
@@ -531,16 +534,17 @@ static inline void FTL_(collect)(FTL_(state) *s, int still, const double *g, con
             s->n_holds += 1;
         }
     }
-    if (s->in_hold != 1) return;
+    if (s->in_hold != 1) { return; }
     for (j = 0; j < 3; ++j) {
         z[j] = g[j];
-        if (fabs(g[j]) > s->hold_gravity_max) s->hold_gravity_max = fabs(g[j]);
+        if (fabs(g[j]) > s->hold_gravity_max) { s->hold_gravity_max = fabs(g[j]); }
     }
     z[3] = 1.0;
-    for (j = 0; j < 6; ++j) z[4 + j] = w[j];
+    for (j = 0; j < 6; ++j) { z[4 + j] = w[j]; }
     m = s->hold_moments[s->n_holds - 1];
-    for (j = 0; j < 10; ++j)
-        for (k = j; k < 10; ++k) m[j][k] += z[j] * z[k];
+    for (j = 0; j < 10; ++j) {
+        for (k = j; k < 10; ++k) { m[j][k] += z[j] * z[k]; }
+    }
     s->hold_samples[s->n_holds - 1] += 1;
 }
 
@@ -559,7 +563,7 @@ static FTL_RARE void FTL_(flag_events)(FTL_(state) *s, unsigned flags, double ti
     for (i = 0; i < FTL_M(N_FLAGS); ++i) {
         unsigned bit = 1u << i;
         FTL_(event) ev;
-        if (!(changed & bit)) continue;
+        if (!(changed & bit)) { continue; }
         memset(&ev, 0, sizeof ev);
         ev.time = time;
         ev.sample = s->samples;
@@ -580,7 +584,7 @@ static FTL_RARE void FTL_(flag_events)(FTL_(state) *s, unsigned flags, double ti
                 int stuck = s->run[j] >= s->cfg.stuck_run && s->channel_moved[j];   /* a load change since its run began */
                 ev.channels[j] = bit == FTL_M(FLAG_DEAD) ? stuck && s->run[j] >= s->cfg.dead_run
                                                           : stuck && s->run[j] < s->cfg.dead_run;
-                if (ev.channels[j] && s->run[j] > ev.count) ev.count = s->run[j];
+                if (ev.channels[j] && s->run[j] > ev.count) { ev.count = s->run[j]; }
             }
         } else if (bit == FTL_M(FLAG_TEMPERATURE)) {
             ev.value[0] = s->cfg.temperature >= 0 ? u[s->cfg.temperature] : 0.0;
@@ -591,7 +595,7 @@ static FTL_RARE void FTL_(flag_events)(FTL_(state) *s, unsigned flags, double ti
             ev.value[0] = s->unexplained_sigma;
             ev.value[1] = s->unexplained_seconds;
             ev.value[2] = duration;
-            for (j = 0; j < 6; ++j) ev.value[3 + j] = e[j];
+            for (j = 0; j < 6; ++j) { ev.value[3 + j] = e[j]; }
         }
         if (flags & bit) {
             s->raised_ever |= bit;
@@ -614,20 +618,20 @@ static inline int FTL_(core_step)(FTL_(state) *s, double time, const double *u, 
     double m = s->tool_mass[s->tool], sign = s->tool_sign[s->tool];
     int j, still, moving, gate, beyond = 0;
     unsigned flags = 0;
-    if (!isfinite(time) || (s->has_time && !(time > s->last_time))) return -1;
-    for (j = 0; j < s->cfg.n_inputs; ++j) if (!(fabs(u[j]) <= FTL_M(MAX_MAGNITUDE))) return -1;
-    for (j = 0; j < 3; ++j) if (!(fabs(gravity[j]) <= FTL_M(MAX_MAGNITUDE))) return -1;
+    if (!isfinite(time) || (s->has_time && !(time > s->last_time))) { return -1; }
+    for (j = 0; j < s->cfg.n_inputs; ++j) { if (!(fabs(u[j]) <= FTL_M(MAX_MAGNITUDE))) { return -1; } }
+    for (j = 0; j < 3; ++j) { if (!(fabs(gravity[j]) <= FTL_M(MAX_MAGNITUDE))) { return -1; } }
     norm = sqrt(gravity[0] * gravity[0] + gravity[1] * gravity[1] + gravity[2] * gravity[2]);
-    if (norm == 0.0) return -1;
-    for (j = 0; j < 6; ++j) if (!(fabs(w[j]) <= FTL_M(MAX_MAGNITUDE))) return -1;
-    for (j = 0; j < 3; ++j) direction[j] = gravity[j] / norm;
+    if (norm == 0.0) { return -1; }
+    for (j = 0; j < 6; ++j) { if (!(fabs(w[j]) <= FTL_M(MAX_MAGNITUDE))) { return -1; } }
+    for (j = 0; j < 3; ++j) { direction[j] = gravity[j] / norm; }
     if (static_override >= 0) {
         still = static_override != 0;
         moving = !still;
     } else {
         FTL_(motion)(s, time, direction, &still, &moving);
     }
-    if (s->identifying) FTL_(collect)(s, still, gravity, w);
+    if (s->identifying) { FTL_(collect)(s, still, gravity, w); }
     /* the tool's gravity wrench: F = m g, T = (m c) x g, negated for a reaction payload */
     tool[0] = sign * (m * gravity[0]);
     tool[1] = sign * (m * gravity[1]);
@@ -655,15 +659,15 @@ static inline int FTL_(core_step)(FTL_(state) *s, double time, const double *u, 
             s->variance[j] = predicted[j];
         }
         if (!s->identifying
-            && fabs(e[j]) > fmax(s->unexplained_sigma * sqrt(innovation_var[j]), s->accept_limit[j])) beyond = 1;
+            && fabs(e[j]) > fmax(s->unexplained_sigma * sqrt(innovation_var[j]), s->accept_limit[j])) { beyond = 1; }
     }
     {
         int due = time >= s->drift_due, still_now = still && !s->identifying;
-        if (due) FTL_(drift_check)(s, time);   /* a slow contact the gate let through goes back */
+        if (due) { FTL_(drift_check)(s, time); }   /* a slow contact the gate let through goes back */
         if (s->self_check) {   /* ftcal.live.consistency, at the drift test's snapshot times */
             FTL_(sc_observe)(s, time, still_now, gate, still_now && !gate && chi2 >= s->gate_chi2, z, e, predicted,
                               innovation_var, direction);
-            if (due) FTL_(sc_check)(s, time);
+            if (due) { FTL_(sc_check)(s, time); }
         }
     }
     for (j = 0; j < 6; ++j) {
@@ -674,58 +678,60 @@ static inline int FTL_(core_step)(FTL_(state) *s, double time, const double *u, 
     for (j = 0; j < s->cfg.n_channels; ++j) {
         double x = u[s->cfg.channels[j]];
         s->run[j] = (s->has_last && x == s->last_raw[j]) ? s->run[j] + 1 : 1;
-        if (!s->has_last) s->channel_step[j] = HUGE_VAL;
-        else if (x != s->last_raw[j] && fabs(x - s->last_raw[j]) < s->channel_step[j]) s->channel_step[j] = fabs(x - s->last_raw[j]);
+        if (!s->has_last) { s->channel_step[j] = HUGE_VAL; }
+        else if (x != s->last_raw[j] && fabs(x - s->last_raw[j]) < s->channel_step[j]) { s->channel_step[j] = fabs(x - s->last_raw[j]); }
     }
     for (j = 0; j < s->cfg.n_channels; ++j) {
         int k;
         if (s->run[j] == 1) {   /* the value changed: a new run, measured from here */
-            for (k = 0; k < s->cfg.n_channels; ++k) s->channel_ref[j][k] = u[s->cfg.channels[k]];
+            for (k = 0; k < s->cfg.n_channels; ++k) { s->channel_ref[j][k] = u[s->cfg.channels[k]]; }
             s->channel_moved[j] = 0;
         } else if (!s->channel_moved[j]) {
-            for (k = 0; k < s->cfg.n_channels; ++k)
-                if (k != j && fabs(u[s->cfg.channels[k]] - s->channel_ref[j][k]) > s->cfg.load_steps * s->channel_step[k])
+            for (k = 0; k < s->cfg.n_channels; ++k) {
+                if (k != j && fabs(u[s->cfg.channels[k]] - s->channel_ref[j][k]) > s->cfg.load_steps * s->channel_step[k]) {
                     s->channel_moved[j] = 1;
+                }
+            }
         }
     }
     for (j = 0; j < s->cfg.n_channels; ++j) {
         double x = u[s->cfg.channels[j]], low, high;
         int stuck, outside;
         stuck = s->run[j] >= s->cfg.stuck_run && s->channel_moved[j];
-        if (stuck && s->run[j] >= s->cfg.dead_run) flags |= FTL_M(FLAG_DEAD);
-        else if (stuck) flags |= FTL_M(FLAG_STUCK);
+        if (stuck && s->run[j] >= s->cfg.dead_run) { flags |= FTL_M(FLAG_DEAD); }
+        else if (stuck) { flags |= FTL_M(FLAG_STUCK); }
         if (s->use_adc_limits) {
-            if (x <= s->adc_low || x >= s->adc_high) flags |= FTL_M(FLAG_SATURATED);
+            if (x <= s->adc_low || x >= s->adc_high) { flags |= FTL_M(FLAG_SATURATED); }
         } else {
             low = s->cfg.channel_range[j][0];
             high = s->cfg.channel_range[j][1];
             outside = x < low || x > high;
-            if (outside && s->run[j] >= s->cfg.saturation_run) flags |= FTL_M(FLAG_SATURATED);
+            if (outside && s->run[j] >= s->cfg.saturation_run) { flags |= FTL_M(FLAG_SATURATED); }
         }
     }
-    for (j = 0; j < s->cfg.n_channels; ++j) s->last_raw[j] = u[s->cfg.channels[j]];
+    for (j = 0; j < s->cfg.n_channels; ++j) { s->last_raw[j] = u[s->cfg.channels[j]]; }
     s->has_last = 1;
     {
         int outside = 0;
-        for (j = 0; j < s->cfg.n_inputs; ++j) if (u[j] < s->cfg.input_low[j] || u[j] > s->cfg.input_high[j]) outside = 1;
-        if (outside || FTL_(outside_span)(&s->cfg, u)) flags |= FTL_M(FLAG_OUT_OF_RANGE);
+        for (j = 0; j < s->cfg.n_inputs; ++j) { if (u[j] < s->cfg.input_low[j] || u[j] > s->cfg.input_high[j]) { outside = 1; } }
+        if (outside || FTL_(outside_span)(&s->cfg, u)) { flags |= FTL_M(FLAG_OUT_OF_RANGE); }
     }
     if (s->cfg.temperature >= 0
         && !(u[s->cfg.temperature] >= s->cfg.temperature_low && u[s->cfg.temperature] <= s->cfg.temperature_high)) {
         flags |= FTL_M(FLAG_TEMPERATURE);
     }
-    if (still && !gate && chi2 >= s->gate_chi2 && !s->identifying) flags |= FTL_M(FLAG_CONTACT);
+    if (still && !gate && chi2 >= s->gate_chi2 && !s->identifying) { flags |= FTL_M(FLAG_CONTACT); }
     if (beyond) {
         if (!s->exceeding) {
             s->exceeding = 1;
             s->exceed_start = time;
         }
-        if (time - s->exceed_start >= s->unexplained_seconds) flags |= FTL_M(FLAG_UNEXPLAINED);
+        if (time - s->exceed_start >= s->unexplained_seconds) { flags |= FTL_M(FLAG_UNEXPLAINED); }
     } else {
         s->exceeding = 0;
     }
-    if (flags != s->flags) FTL_(flag_events)(s, flags, time, time - s->exceed_start, u, e, chi2, moving);
-    if ((flags & FTL_M(FLAG_CONTACT)) && !(s->flags & FTL_M(FLAG_CONTACT))) s->contacts += 1;
+    if (flags != s->flags) { FTL_(flag_events)(s, flags, time, time - s->exceed_start, u, e, chi2, moving); }
+    if ((flags & FTL_M(FLAG_CONTACT)) && !(s->flags & FTL_M(FLAG_CONTACT))) { s->contacts += 1; }
     s->flags = flags;
     s->updates += (unsigned long)gate;
     s->samples += 1;
@@ -770,19 +776,20 @@ static inline void FTL_(id_gram)(const FTL_(config) *cf, double mo[10][10], cons
     for (i = 0; i < 6; ++i) {
         const double (*l)[4] = cf->id_maps[i];
         double lm[10][4];
-        for (p = 0; p < 10; ++p)
+        for (p = 0; p < 10; ++p) {
             for (c = 0; c < 4; ++c) {
                 lm[p][c] = 0.0;
-                for (a = 0; a < 4; ++a) lm[p][c] += l[p][a] * mo[a][c];
+                for (a = 0; a < 4; ++a) { lm[p][c] += l[p][a] * mo[a][c]; }
             }
+        }
         for (p = 0; p < 10; ++p) {
             double b = 0.0;
             for (q = 0; q < 10; ++q) {
                 double v = 0.0;
-                for (c = 0; c < 4; ++c) v += lm[p][c] * l[q][c];
+                for (c = 0; c < 4; ++c) { v += lm[p][c] * l[q][c]; }
                 gram[p][q] += w[i] * v;
             }
-            for (a = 0; a < 4; ++a) b += l[p][a] * mo[a][4 + i];
+            for (a = 0; a < 4; ++a) { b += l[p][a] * mo[a][4 + i]; }
             cross[p] += w[i] * b;
         }
     }
@@ -796,11 +803,11 @@ static inline void FTL_(id_rss)(const FTL_(config) *cf, double mo[10][10], const
         double r[4], v = mo[4 + i][4 + i];
         for (a = 0; a < 4; ++a) {
             r[a] = 0.0;
-            for (p = 0; p < 10; ++p) r[a] += cf->id_maps[i][p][a] * theta[p];
+            for (p = 0; p < 10; ++p) { r[a] += cf->id_maps[i][p][a] * theta[p]; }
         }
         for (a = 0; a < 4; ++a) {
             v -= 2.0 * r[a] * mo[a][4 + i];
-            for (c = 0; c < 4; ++c) v += r[a] * mo[a][c] * r[c];
+            for (c = 0; c < 4; ++c) { v += r[a] * mo[a][c] * r[c]; }
         }
         rss[i] = v > 0.0 ? v : 0.0;
     }
@@ -816,7 +823,7 @@ static inline void FTL_(id_axis_variance)(const FTL_(config) *cf, double mo[10][
         double scale = mo[4 + i][4 + i] / (double)n, least;
         least = 1e-24 * (scale > 1.0 ? scale : 1.0);
         variance[i] = rss[i] / ((double)n - (double)p / 6.0);
-        if (!(variance[i] >= least)) variance[i] = least;
+        if (!(variance[i] >= least)) { variance[i] = least; }
     }
 }
 
@@ -826,20 +833,22 @@ static inline void FTL_(id_eigen)(double in[10][10], double values[10], double v
     double a[10][10];
     int i, k, p, q, sweep;
     memcpy(a, in, sizeof a);
-    for (i = 0; i < 10; ++i)
-        for (k = 0; k < 10; ++k) vectors[i][k] = i == k ? 1.0 : 0.0;
+    for (i = 0; i < 10; ++i) {
+        for (k = 0; k < 10; ++k) { vectors[i][k] = i == k ? 1.0 : 0.0; }
+    }
     for (sweep = 0; sweep < 50; ++sweep) {
         double off = 0.0, total = 0.0;
-        for (p = 0; p < 10; ++p)
+        for (p = 0; p < 10; ++p) {
             for (q = 0; q < 10; ++q) {
                 total += a[p][q] * a[p][q];
-                if (p != q) off += a[p][q] * a[p][q];
+                if (p != q) { off += a[p][q] * a[p][q]; }
             }
-        if (!(off > 1e-32 * total)) break;   /* off-diagonal below 1e-16 of the matrix (Frobenius) */
-        for (p = 0; p < 9; ++p)
+        }
+        if (!(off > 1e-32 * total)) { break; }   /* off-diagonal below 1e-16 of the matrix (Frobenius) */
+        for (p = 0; p < 9; ++p) {
             for (q = p + 1; q < 10; ++q) {
                 double theta, t, c, sn;
-                if (a[p][q] == 0.0) continue;
+                if (a[p][q] == 0.0) { continue; }
                 theta = (a[q][q] - a[p][p]) / (2.0 * a[p][q]);
                 t = fabs(theta) > 1e150 ? 0.5 / theta
                     : (theta >= 0.0 ? 1.0 : -1.0) / (fabs(theta) + sqrt(theta * theta + 1.0));
@@ -862,8 +871,9 @@ static inline void FTL_(id_eigen)(double in[10][10], double values[10], double v
                 }
                 a[p][q] = a[q][p] = 0.0;   /* what the rotation makes it, without its rounding */
             }
+        }
     }
-    for (i = 0; i < 10; ++i) values[i] = a[i][i];
+    for (i = 0; i < 10; ++i) { values[i] = a[i][i]; }
 }
 
 /* Cholesky factor (lower) of a symmetric matrix in place; -1 at a pivot that is not positive. */
@@ -872,12 +882,12 @@ static inline int FTL_(id_cholesky)(double a[10][10])
     int i, j, k;
     for (j = 0; j < 10; ++j) {
         double d = a[j][j];
-        for (k = 0; k < j; ++k) d -= a[j][k] * a[j][k];
-        if (!(d > 0.0)) return -1;
+        for (k = 0; k < j; ++k) { d -= a[j][k] * a[j][k]; }
+        if (!(d > 0.0)) { return -1; }
         a[j][j] = sqrt(d);
         for (i = j + 1; i < 10; ++i) {
             double v = a[i][j];
-            for (k = 0; k < j; ++k) v -= a[i][k] * a[j][k];
+            for (k = 0; k < j; ++k) { v -= a[i][k] * a[j][k]; }
             a[i][j] = v / a[j][j];
         }
     }
@@ -891,12 +901,12 @@ static inline void FTL_(id_cholesky_solve)(double l[10][10], const double *b, do
     double y[10];
     for (i = 0; i < 10; ++i) {
         y[i] = b[i];
-        for (k = 0; k < i; ++k) y[i] -= l[i][k] * y[k];
+        for (k = 0; k < i; ++k) { y[i] -= l[i][k] * y[k]; }
         y[i] /= l[i][i];
     }
     for (i = 9; i >= 0; --i) {
         x[i] = y[i];
-        for (k = i + 1; k < 10; ++k) x[i] -= l[k][i] * x[k];
+        for (k = i + 1; k < 10; ++k) { x[i] -= l[k][i] * x[k]; }
         x[i] /= l[i][i];
     }
 }
@@ -908,25 +918,25 @@ static inline int FTL_(id_solve)(const FTL_(config) *cf, double gram[10][10], co
     double scale[10], a[10][10], rhs[10], z[10];
     int i, j;
     for (i = 0; i < 10; ++i) {
-        if (!(gram[i][i] > 0.0)) return -1;
+        if (!(gram[i][i] > 0.0)) { return -1; }
         scale[i] = 1.0 / sqrt(gram[i][i]);
     }
     for (i = 0; i < 10; ++i) {
-        for (j = 0; j < 10; ++j) a[i][j] = gram[i][j] * scale[i] * scale[j];
+        for (j = 0; j < 10; ++j) { a[i][j] = gram[i][j] * scale[i] * scale[j]; }
         rhs[i] = cross[i] * scale[i];
     }
     if (check) {
         double values[10], vectors[10][10], low = HUGE_VAL, high = 0.0;
         FTL_(id_eigen)(a, values, vectors);
         for (i = 0; i < 10; ++i) {
-            if (fabs(values[i]) < low) low = fabs(values[i]);
-            if (fabs(values[i]) > high) high = fabs(values[i]);
+            if (fabs(values[i]) < low) { low = fabs(values[i]); }
+            if (fabs(values[i]) > high) { high = fabs(values[i]); }
         }
-        if (!(high <= cf->refit_condition * low)) return -1;
+        if (!(high <= cf->refit_condition * low)) { return -1; }
     }
-    if (FTL_(id_cholesky)(a)) return -1;
+    if (FTL_(id_cholesky)(a)) { return -1; }
     FTL_(id_cholesky_solve)(a, rhs, z);
-    for (i = 0; i < 10; ++i) x[i] = z[i] * scale[i];
+    for (i = 0; i < 10; ++i) { x[i] = z[i] * scale[i]; }
     return 0;
 }
 
@@ -935,12 +945,13 @@ static inline int FTL_(id_solve)(const FTL_(config) *cf, double gram[10][10], co
 static inline void FTL_(id_hold_at_zero)(double gram[10][10], double *cross, unsigned held)
 {
     int j, k;
-    for (j = 0; j < 10; ++j)
+    for (j = 0; j < 10; ++j) {
         if (held & (1u << j)) {
-            for (k = 0; k < 10; ++k) gram[j][k] = gram[k][j] = 0.0;
+            for (k = 0; k < 10; ++k) { gram[j][k] = gram[k][j] = 0.0; }
             gram[j][j] = 1.0;
             cross[j] = 0.0;
         }
+    }
 }
 
 /* The moments of all holds, or of all but hold `without` (-1: none), made symmetric; returns the samples. */
@@ -950,21 +961,24 @@ static inline long FTL_(id_moments)(const FTL_(state) *s, int without, double mo
     int h, j, k;
     memset(mo, 0, 100 * sizeof(double));
     for (h = 0; h < s->n_holds; ++h) {
-        if (h == without) continue;
-        for (j = 0; j < 10; ++j)
-            for (k = j; k < 10; ++k) mo[j][k] += s->hold_moments[h][j][k];
+        if (h == without) { continue; }
+        for (j = 0; j < 10; ++j) {
+            for (k = j; k < 10; ++k) { mo[j][k] += s->hold_moments[h][j][k]; }
+        }
         n += s->hold_samples[h];
     }
-    for (j = 0; j < 10; ++j)
-        for (k = 0; k < j; ++k) mo[j][k] = mo[k][j];
+    for (j = 0; j < 10; ++j) {
+        for (k = 0; k < j; ++k) { mo[j][k] = mo[k][j]; }
+    }
     return n;
 }
 
 static inline void FTL_(id_hold)(const FTL_(state) *s, int h, double mo[10][10])
 {
     int j, k;
-    for (j = 0; j < 10; ++j)
-        for (k = j; k < 10; ++k) mo[j][k] = mo[k][j] = s->hold_moments[h][j][k];
+    for (j = 0; j < 10; ++j) {
+        for (k = j; k < 10; ++k) { mo[j][k] = mo[k][j] = s->hold_moments[h][j][k]; }
+    }
 }
 
 /* Put a tool identified as `tool_name` into the library (replacing a tool of that name, else in the next slot);
@@ -977,10 +991,10 @@ static inline int FTL_(add_identified)(FTL_(state) *s, const char *tool_name, co
 {
     int j, index, finite = isfinite(tool->mass) && tool->mass != 0.0, status = FTL_(check_new_tool)(s, tool_name);
     FTL_(event) ev;
-    for (j = 0; j < 3; ++j) finite = finite && isfinite(tool->com[j]) && isfinite(tool->mass * tool->com[j]);
-    for (j = 0; j < 6; ++j) finite = finite && isfinite(tool->bias[j]) && !isinf(se->bias[j] * se->bias[j]);
-    if (!finite) return -1;
-    if (status) return status;
+    for (j = 0; j < 3; ++j) { finite = finite && isfinite(tool->com[j]) && isfinite(tool->mass * tool->com[j]); }
+    for (j = 0; j < 6; ++j) { finite = finite && isfinite(tool->bias[j]) && !isinf(se->bias[j] * se->bias[j]); }
+    if (!finite) { return -1; }
+    if (status) { return status; }
     index = FTL_(find_tool)(s, tool_name);
     if (index < 0) {   /* a new name: the next slot */
         index = s->n_tools;
@@ -990,7 +1004,7 @@ static inline int FTL_(add_identified)(FTL_(state) *s, const char *tool_name, co
     s->identifying = 0;
     s->in_hold = 0;
     s->tool_mass[index] = tool->mass;
-    for (j = 0; j < 3; ++j) s->tool_mc[index][j] = tool->mass * tool->com[j];
+    for (j = 0; j < 3; ++j) { s->tool_mc[index][j] = tool->mass * tool->com[j]; }
     s->tool_sign[index] = 1.0;   /* identified from the readings themselves (reaction=False) */
     FTL_(call_event)(s, FTL_M(EVENT_TOOL_IDENTIFIED), index, index, &ev);
     ev.count = tool->n_holds;
@@ -1021,7 +1035,7 @@ static inline int FTL_(add_identified)(FTL_(state) *s, const char *tool_name, co
 static inline int FTL_(adopt_identification)(FTL_(state) *s, const FTL_(tool_fit) *tool, const FTL_(tool_se) *se,
                                               int mount)
 {
-    if (!s->identifying) return -1;
+    if (!s->identifying) { return -1; }
     return FTL_(add_identified)(s, s->identifying_name, tool, se, mount);
 }
 
@@ -1049,12 +1063,12 @@ static inline int FTL_(finish_identification)(FTL_(state) *s, FTL_(tool_fit) *ou
     long n;
     int h, i, j, k, null = 0, scored = 0, g = 0, p = 10, added;   /* p: parameters estimated (not held) */
     unsigned held = 0;
-    if (!s->identifying) return FTL_M(ID_NOT_IDENTIFYING);
+    if (!s->identifying) { return FTL_M(ID_NOT_IDENTIFYING); }
     memset(out_tool, 0, sizeof *out_tool);
     memset(out_se, 0, sizeof *out_se);
     out_tool->n_holds = s->n_holds;
     out_tool->holds_dropped = s->holds_dropped;
-    if (s->n_holds < FTL_M(MIN_HOLDS)) return FTL_M(ID_TOO_FEW_HOLDS);
+    if (s->n_holds < FTL_M(MIN_HOLDS)) { return FTL_M(ID_TOO_FEW_HOLDS); }
     s->identifying = 0;
     s->in_hold = 0;
     n = FTL_(id_moments)(s, -1, mo);
@@ -1065,29 +1079,32 @@ static inline int FTL_(finish_identification)(FTL_(state) *s, FTL_(tool_fit) *ou
         double unit = j >= 4 ? 1.0 : s->hold_gravity_max;
         double least = s->cfg.rounding_column * unit, d = gram[j][j];
         least = least * least * (double)n;
-        if (least > d) d = least;
+        if (least > d) { d = least; }
         jac[j] = 1.0 / sqrt(d > 0.0 ? d : 1.0);
     }
-    for (j = 0; j < 10; ++j)
-        for (k = 0; k < 10; ++k) part[j][k] = gram[j][k] * jac[j] * jac[k];
+    for (j = 0; j < 10; ++j) {
+        for (k = 0; k < 10; ++k) { part[j][k] = gram[j][k] * jac[j] * jac[k]; }
+    }
     FTL_(id_eigen)(part, values, vectors);
-    for (j = 0; j < 10; ++j) if (values[j] > top) top = values[j];
-    for (j = 0; j < 10; ++j) row[j] = 0.0;
-    for (k = 0; k < 10; ++k)
+    for (j = 0; j < 10; ++j) { if (values[j] > top) { top = values[j]; } }
+    for (j = 0; j < 10; ++j) { row[j] = 0.0; }
+    for (k = 0; k < 10; ++k) {
         if (values[k] <= top * s->cfg.rank_relative) {
             null += 1;
-            for (j = 0; j < 10; ++j) row[j] += vectors[j][k] * vectors[j][k];
+            for (j = 0; j < 10; ++j) { row[j] += vectors[j][k] * vectors[j][k]; }
         }
+    }
     if (null > 0) {
         /* payload.identify._choose_held: one parameter per null direction, COM first, then torque and force
            biases, the largest pivot (the first of near-equal ones); its row is projected out of the basis */
         static const int groups[3] = {1, 7, 4};
         int it, c, cols[10], nc = 0;
-        for (j = 0; j < 10; ++j) if (sqrt(row[j]) > s->cfg.null_row) out_tool->undetermined |= 1u << j;
-        if ((out_tool->undetermined & 1u) || null == 10) return FTL_M(ID_MASS_UNDETERMINED);
-        for (k = 0; k < 10; ++k) if (values[k] <= top * s->cfg.rank_relative) cols[nc++] = k;
-        for (j = 0; j < 10; ++j)
-            for (c = 0; c < nc; ++c) part[j][c] = vectors[j][cols[c]];
+        for (j = 0; j < 10; ++j) { if (sqrt(row[j]) > s->cfg.null_row) { out_tool->undetermined |= 1u << j; } }
+        if ((out_tool->undetermined & 1u) || null == 10) { return FTL_M(ID_MASS_UNDETERMINED); }
+        for (k = 0; k < 10; ++k) { if (values[k] <= top * s->cfg.rank_relative) { cols[nc++] = k; } }
+        for (j = 0; j < 10; ++j) {
+            for (c = 0; c < nc; ++c) { part[j][c] = vectors[j][cols[c]]; }
+        }
         for (it = 0; it < nc; ++it) {
             int pick = -1, grp;
             double unit[10], length = 0.0;
@@ -1096,76 +1113,80 @@ static inline int FTL_(finish_identification)(FTL_(state) *s, FTL_(tool_fit) *ou
                 for (j = 0; j < 3; ++j) {
                     int q = groups[grp] + j;
                     score[j] = -1.0;
-                    if (held & (1u << q)) continue;
+                    if (held & (1u << q)) { continue; }
                     score[j] = 0.0;
-                    for (c = 0; c < nc; ++c) score[j] += part[q][c] * part[q][c];
+                    for (c = 0; c < nc; ++c) { score[j] += part[q][c] * part[q][c]; }
                     score[j] = sqrt(score[j]);
-                    if (score[j] > best) best = score[j];
+                    if (score[j] > best) { best = score[j]; }
                 }
-                if (best > s->cfg.null_row)
-                    for (j = 0; j < 3 && pick < 0; ++j)
-                        if (score[j] >= best * (1.0 - s->cfg.canonical_tie)) pick = groups[grp] + j;
+                if (best > s->cfg.null_row) {
+                    for (j = 0; j < 3 && pick < 0; ++j) {
+                        if (score[j] >= best * (1.0 - s->cfg.canonical_tie)) { pick = groups[grp] + j; }
+                    }
+                }
             }
-            if (pick < 0) return FTL_M(ID_SINGULAR);   /* unreachable: biases alone always have a pivot */
+            if (pick < 0) { return FTL_M(ID_SINGULAR); }   /* unreachable: biases alone always have a pivot */
             held |= 1u << pick;
             p -= 1;
-            for (c = 0; c < nc; ++c) length += part[pick][c] * part[pick][c];
+            for (c = 0; c < nc; ++c) { length += part[pick][c] * part[pick][c]; }
             length = sqrt(length);
-            for (c = 0; c < nc; ++c) unit[c] = part[pick][c] / length;
+            for (c = 0; c < nc; ++c) { unit[c] = part[pick][c] / length; }
             for (j = 0; j < 10; ++j) {
                 double dot = 0.0;
-                for (c = 0; c < nc; ++c) dot += part[j][c] * unit[c];
-                for (c = 0; c < nc; ++c) part[j][c] -= dot * unit[c];
+                for (c = 0; c < nc; ++c) { dot += part[j][c] * unit[c]; }
+                for (c = 0; c < nc; ++c) { part[j][c] -= dot * unit[c]; }
             }
         }
         FTL_(id_hold_at_zero)(gram, cross, held);
         out_tool->held = held;
     }
-    if (FTL_(id_solve)(&s->cfg, gram, cross, theta0, 0)) return FTL_M(ID_SINGULAR);
+    if (FTL_(id_solve)(&s->cfg, gram, cross, theta0, 0)) { return FTL_M(ID_SINGULAR); }
     FTL_(id_axis_variance)(&s->cfg, mo, theta0, n, p, variance);
     /* weighting: per-axis 1/sigma^2 only if it predicts held-out holds no worse, and better somewhere */
-    for (i = 0; i < 6; ++i) sse_ols[i] = sse_wls[i] = 0.0;
+    for (i = 0; i < 6; ++i) { sse_ols[i] = sse_wls[i] = 0.0; }
     for (h = 0; h < s->n_holds; ++h) {
         double train[10][10], t_ols[10], t_wls[10], v[6], w[6], fold[10][10];
         long m = FTL_(id_moments)(s, h, train);
         FTL_(id_gram)(&s->cfg, train, ones, gram, cross);
         FTL_(id_hold_at_zero)(gram, cross, held);
-        if (FTL_(id_solve)(&s->cfg, gram, cross, t_ols, 1) || m * 6 - p < 6) continue;
+        if (FTL_(id_solve)(&s->cfg, gram, cross, t_ols, 1) || m * 6 - p < 6) { continue; }
         FTL_(id_axis_variance)(&s->cfg, train, t_ols, m, p, v);
-        for (i = 0; i < 6; ++i) w[i] = 1.0 / v[i];
+        for (i = 0; i < 6; ++i) { w[i] = 1.0 / v[i]; }
         FTL_(id_gram)(&s->cfg, train, w, gram, cross);
         FTL_(id_hold_at_zero)(gram, cross, held);
-        if (FTL_(id_solve)(&s->cfg, gram, cross, t_wls, 1)) continue;
+        if (FTL_(id_solve)(&s->cfg, gram, cross, t_wls, 1)) { continue; }
         FTL_(id_hold)(s, h, fold);
         FTL_(id_rss)(&s->cfg, fold, t_ols, rss);
-        for (i = 0; i < 6; ++i) sse_ols[i] += rss[i];
+        for (i = 0; i < 6; ++i) { sse_ols[i] += rss[i]; }
         FTL_(id_rss)(&s->cfg, fold, t_wls, rss);
-        for (i = 0; i < 6; ++i) sse_wls[i] += rss[i];
+        for (i = 0; i < 6; ++i) { sse_wls[i] += rss[i]; }
         scored += 1;
     }
     if (scored >= 2) {
         double ratio[2] = {0.0, 0.0};
-        for (i = 0; i < 6; ++i) ratio[i / 3] += sse_wls[i] / (sse_ols[i] > 1e-300 ? sse_ols[i] : 1e-300) / 3.0;
+        for (i = 0; i < 6; ++i) { ratio[i / 3] += sse_wls[i] / (sse_ols[i] > 1e-300 ? sse_ols[i] : 1e-300) / 3.0; }
         out_tool->weighted = fmax(ratio[0], ratio[1]) <= 1.0 + s->cfg.weighting_tie
                              && fmin(ratio[0], ratio[1]) < 1.0 - s->cfg.weighting_tie;
     }
-    for (i = 0; i < 6; ++i) weights[i] = out_tool->weighted ? 1.0 / variance[i] : 1.0;
+    for (i = 0; i < 6; ++i) { weights[i] = out_tool->weighted ? 1.0 / variance[i] : 1.0; }
     FTL_(id_gram)(&s->cfg, mo, weights, gram, cross);
     FTL_(id_hold_at_zero)(gram, cross, held);
-    if (FTL_(id_solve)(&s->cfg, gram, cross, theta, 0)) return FTL_M(ID_SINGULAR);
+    if (FTL_(id_solve)(&s->cfg, gram, cross, theta, 0)) { return FTL_M(ID_SINGULAR); }
     /* the inverse of the equilibrated weighted Gram: variance inflation, and the classical covariance's bread */
-    for (j = 0; j < 10; ++j) jac[j] = 1.0 / sqrt(gram[j][j]);
-    for (j = 0; j < 10; ++j)
-        for (k = 0; k < 10; ++k) factor[j][k] = gram[j][k] * jac[j] * jac[k];
-    if (FTL_(id_cholesky)(factor)) return FTL_M(ID_SINGULAR);
+    for (j = 0; j < 10; ++j) { jac[j] = 1.0 / sqrt(gram[j][j]); }
+    for (j = 0; j < 10; ++j) {
+        for (k = 0; k < 10; ++k) { factor[j][k] = gram[j][k] * jac[j] * jac[k]; }
+    }
+    if (FTL_(id_cholesky)(factor)) { return FTL_M(ID_SINGULAR); }
     for (k = 0; k < 10; ++k) {
         double e[10], col[10];
-        for (j = 0; j < 10; ++j) e[j] = j == k ? 1.0 : 0.0;
+        for (j = 0; j < 10; ++j) { e[j] = j == k ? 1.0 : 0.0; }
         FTL_(id_cholesky_solve)(factor, e, col);
-        for (j = 0; j < 10; ++j) inverse[j][k] = col[j];
+        for (j = 0; j < 10; ++j) { inverse[j][k] = col[j]; }
     }
-    for (j = 0; j < 10; ++j)
-        for (k = 0; k < j; ++k) inverse[j][k] = inverse[k][j] = 0.5 * (inverse[j][k] + inverse[k][j]);
+    for (j = 0; j < 10; ++j) {
+        for (k = 0; k < j; ++k) { inverse[j][k] = inverse[k][j] = 0.5 * (inverse[j][k] + inverse[k][j]); }
+    }
     /* grouped jackknife over the holds (payload.identify.robust_covariance) */
     for (h = 0; h < s->n_holds; ++h) {
         double hold_gram[10][10], hold_cross[10];
@@ -1173,57 +1194,62 @@ static inline int FTL_(finish_identification)(FTL_(state) *s, FTL_(tool_fit) *ou
         FTL_(id_gram)(&s->cfg, part, weights, hold_gram, hold_cross);
         for (j = 0; j < 10; ++j) {
             hold_cross[j] = cross[j] - hold_cross[j];
-            for (k = 0; k < 10; ++k) hold_gram[j][k] = gram[j][k] - hold_gram[j][k];
+            for (k = 0; k < 10; ++k) { hold_gram[j][k] = gram[j][k] - hold_gram[j][k]; }
         }
         FTL_(id_hold_at_zero)(hold_gram, hold_cross, held);
-        if (FTL_(id_solve)(&s->cfg, hold_gram, hold_cross, refits[g], 1) == 0) g += 1;
+        if (FTL_(id_solve)(&s->cfg, hold_gram, hold_cross, refits[g], 1) == 0) { g += 1; }
     }
     if (g >= 2) {
         double mean[10], f = t_scale[g - 1] * t_scale[g - 1] * (double)(g - 1) / (double)g;
         for (j = 0; j < 10; ++j) {
             mean[j] = 0.0;
-            for (h = 0; h < g; ++h) mean[j] += refits[h][j];
+            for (h = 0; h < g; ++h) { mean[j] += refits[h][j]; }
             mean[j] /= (double)g;
         }
-        for (j = 0; j < 10; ++j)
+        for (j = 0; j < 10; ++j) {
             for (k = 0; k < 10; ++k) {
                 double v = 0.0;
-                for (h = 0; h < g; ++h) v += (refits[h][j] - mean[j]) * (refits[h][k] - mean[k]);
+                for (h = 0; h < g; ++h) { v += (refits[h][j] - mean[j]) * (refits[h][k] - mean[k]); }
                 covariance[j][k] = f * v;
             }
+        }
         out_tool->jackknife_blocks = g;
     } else {   /* classical: bread meat bread, meat = sum_i w_i^2 sigma_i^2 A_i^T A_i */
         double meat[10][10], half[10][10], w2[6];
         FTL_(id_axis_variance)(&s->cfg, mo, theta, n, p, variance);
-        for (i = 0; i < 6; ++i) w2[i] = weights[i] * weights[i] * variance[i];
+        for (i = 0; i < 6; ++i) { w2[i] = weights[i] * weights[i] * variance[i]; }
         FTL_(id_gram)(&s->cfg, mo, w2, meat, cross);
         FTL_(id_hold_at_zero)(meat, cross, held);
-        for (j = 0; j < 10; ++j) if (held & (1u << j)) meat[j][j] = 0.0;
-        for (j = 0; j < 10; ++j)
+        for (j = 0; j < 10; ++j) { if (held & (1u << j)) { meat[j][j] = 0.0; } }
+        for (j = 0; j < 10; ++j) {
             for (k = 0; k < 10; ++k) {
                 double v = 0.0;
-                for (i = 0; i < 10; ++i) v += inverse[j][i] * jac[j] * jac[i] * meat[i][k];
+                for (i = 0; i < 10; ++i) { v += inverse[j][i] * jac[j] * jac[i] * meat[i][k]; }
                 half[j][k] = v;
             }
-        for (j = 0; j < 10; ++j)
+        }
+        for (j = 0; j < 10; ++j) {
             for (k = 0; k < 10; ++k) {
                 double v = 0.0;
-                for (i = 0; i < 10; ++i) v += half[j][i] * inverse[i][k] * jac[i] * jac[k];
+                for (i = 0; i < 10; ++i) { v += half[j][i] * inverse[i][k] * jac[i] * jac[k]; }
                 covariance[j][k] = v;
             }
+        }
     }
-    for (j = 0; j < 10; ++j)
-        for (k = 0; k < j; ++k) covariance[j][k] = covariance[k][j] = 0.5 * (covariance[j][k] + covariance[k][j]);
+    for (j = 0; j < 10; ++j) {
+        for (k = 0; k < j; ++k) { covariance[j][k] = covariance[k][j] = 0.5 * (covariance[j][k] + covariance[k][j]); }
+    }
     /* held: no estimate (infinite inflation); undetermined: said once, not as poorly excited */
     for (j = 0; j < 10; ++j) {
         out_tool->variance_inflation[j] = held & (1u << j) ? HUGE_VAL : inverse[j][j];
-        if (inverse[j][j] > s->cfg.excitation_limit && !(out_tool->undetermined & (1u << j)))
+        if (inverse[j][j] > s->cfg.excitation_limit && !(out_tool->undetermined & (1u << j))) {
             out_tool->poorly_excited |= 1u << j;
+        }
     }
     FTL_(id_rss)(&s->cfg, mo, theta, rss);
-    for (i = 0; i < 6; ++i) out_tool->residual_rms[i] = sqrt(rss[i] / (double)n);
+    for (i = 0; i < 6; ++i) { out_tool->residual_rms[i] = sqrt(rss[i] / (double)n); }
     mass = theta[0];
-    if (mass == 0.0) return FTL_M(ID_SINGULAR);
+    if (mass == 0.0) { return FTL_M(ID_SINGULAR); }
     out_tool->mass = mass;
     out_se->mass = sqrt(fmax(covariance[0][0], 0.0));
     for (j = 0; j < 3; ++j) {   /* c = (m c) / m: dc/dm = -c / m, dc/d(m c) = 1 / m */
@@ -1236,11 +1262,12 @@ static inline int FTL_(finish_identification)(FTL_(state) *s, FTL_(tool_fit) *ou
         out_tool->bias[j] = theta[4 + j];
         out_se->bias[j] = sqrt(fmax(covariance[4 + j][4 + j], 0.0));
     }
-    for (j = 1; j < 10; ++j)   /* undetermined: no standard error (NaN), as in Python */
+    for (j = 1; j < 10; ++j) {   /* undetermined: no standard error (NaN), as in Python */
         if (out_tool->undetermined & (1u << j)) {
-            if (j < 4) out_se->com[j - 1] = NAN;
-            else out_se->bias[j - 4] = NAN;
+            if (j < 4) { out_se->com[j - 1] = NAN; }
+            else { out_se->bias[j - 4] = NAN; }
         }
+    }
     added = FTL_(add_identified)(s, s->identifying_name, out_tool, out_se, mount);   /* the name was checked */
     return added == -1 ? FTL_M(ID_SINGULAR) : added;
 }
@@ -1255,7 +1282,7 @@ static inline const char *FTL_(flag_name)(unsigned bit)
 {
     static const char *const names[] = {FTL_M(FLAG_NAMES)};
     unsigned i;
-    for (i = 0; i < sizeof names / sizeof names[0]; ++i) if (bit == 1u << i) return names[i];
+    for (i = 0; i < sizeof names / sizeof names[0]; ++i) { if (bit == 1u << i) { return names[i]; } }
     return 0;
 }
 
@@ -1263,7 +1290,7 @@ static inline const char *FTL_(flag_name)(unsigned bit)
 static inline void FTL_(text_put)(char *buf, size_t len, size_t *at, const char *text, size_t n)
 {
     size_t k;
-    for (k = 0; k < n; ++k, ++*at) if (*at + 1 < len) buf[*at] = text[k];
+    for (k = 0; k < n; ++k, ++*at) { if (*at + 1 < len) { buf[*at] = text[k]; } }
 }
 
 static inline void FTL_(text_str)(char *buf, size_t len, size_t *at, const char *text)
@@ -1292,10 +1319,10 @@ static inline void FTL_(text_quoted)(char *buf, size_t len, size_t *at, const ch
     const unsigned char *p = (const unsigned char *)tool_name;
     char quote, t[8];
     int single = 0, double_quote = 0;
-    if (!p) return;
+    if (!p) { return; }
     for (; *p; ++p) {
-        if (*p == '\'') single = 1;
-        else if (*p == '"') double_quote = 1;
+        if (*p == '\'') { single = 1; }
+        else if (*p == '"') { double_quote = 1; }
     }
     quote = single && !double_quote ? '"' : '\'';
     FTL_(text_put)(buf, len, at, &quote, 1);
@@ -1305,9 +1332,9 @@ static inline void FTL_(text_quoted)(char *buf, size_t len, size_t *at, const ch
             t[0] = '\\';
             t[1] = (char)c;
             FTL_(text_put)(buf, len, at, t, 2);
-        } else if (c == '\n') FTL_(text_put)(buf, len, at, "\\n", 2);
-        else if (c == '\r') FTL_(text_put)(buf, len, at, "\\r", 2);
-        else if (c == '\t') FTL_(text_put)(buf, len, at, "\\t", 2);
+        } else if (c == '\n') { FTL_(text_put)(buf, len, at, "\\n", 2); }
+        else if (c == '\r') { FTL_(text_put)(buf, len, at, "\\r", 2); }
+        else if (c == '\t') { FTL_(text_put)(buf, len, at, "\\t", 2); }
         else if (c < 0x20u || c == 0x7fu) {
             snprintf(t, sizeof t, "\\x%02x", c);
             FTL_(text_put)(buf, len, at, t, 4);
@@ -1326,20 +1353,21 @@ static inline void FTL_(text_quoted)(char *buf, size_t len, size_t *at, const ch
 /* A tool's name quoted as Python's repr quotes a str: compiled-in tools from Python itself, run-time names here. */
 static inline void FTL_(text_tool)(const FTL_(state) *s, char *buf, size_t len, size_t *at, int tool)
 {
-    if (tool >= 0 && tool < s->cfg.n_tools) FTL_(text_str)(buf, len, at, s->cfg.tool_reprs[tool]);
-    else FTL_(text_quoted)(buf, len, at, FTL_(tool_name)(s, tool));
+    if (tool >= 0 && tool < s->cfg.n_tools) { FTL_(text_str)(buf, len, at, s->cfg.tool_reprs[tool]); }
+    else { FTL_(text_quoted)(buf, len, at, FTL_(tool_name)(s, tool)); }
 }
 
 static inline void FTL_(text_channels)(const FTL_(state) *s, char *buf, size_t len, size_t *at,
                                         const unsigned char *hit)
 {
     int j, first = 1;
-    for (j = 0; j < s->cfg.n_channels; ++j)
+    for (j = 0; j < s->cfg.n_channels; ++j) {
         if (hit[j]) {
-            if (!first) FTL_(text_str)(buf, len, at, ", ");
+            if (!first) { FTL_(text_str)(buf, len, at, ", "); }
             FTL_(text_str)(buf, len, at, FTL_(input_name)(s->cfg.channels[j]));
             first = 0;
         }
+    }
 }
 
 /* The reason of a flag's `raised` event, as LiveCalibrator words it with the numbers the event keeps. */
@@ -1400,12 +1428,12 @@ static inline void FTL_(text_reason)(const FTL_(state) *s, const FTL_(event) *ev
         FTL_(text_num)(buf, len, at, "%g", ev->value[1]);
         FTL_(text_str)(buf, len, at, " s): |compensated| = ");
         for (j = 0; j < 6; ++j) {
-            if (j) FTL_(text_str)(buf, len, at, ", ");
+            if (j) { FTL_(text_str)(buf, len, at, ", "); }
             FTL_(text_num)(buf, len, at, "%.3g", fabs(ev->value[3 + j]));
         }
     } else {
         const char *flag = FTL_(flag_name)(bit);
-        if (flag) FTL_(text_str)(buf, len, at, flag);
+        if (flag) { FTL_(text_str)(buf, len, at, flag); }
     }
 }
 
@@ -1421,13 +1449,13 @@ static inline size_t FTL_(describe_flags)(const FTL_(state) *s, unsigned mask, c
     for (i = 0; i < 32; ++i) {
         unsigned bit = 1u << i;
         const char *flag = FTL_(flag_name)(bit);
-        if (!(mask & bit) || !flag) continue;
-        if (!first) FTL_(text_str)(buf, len, &at, "; ");
+        if (!(mask & bit) || !flag) { continue; }
+        if (!first) { FTL_(text_str)(buf, len, &at, "; "); }
         first = 0;
-        if (!(s->raised_ever & bit)) FTL_(text_str)(buf, len, &at, flag);
-        else FTL_(text_reason)(s, &s->last_raised[i], buf, len, &at);
+        if (!(s->raised_ever & bit)) { FTL_(text_str)(buf, len, &at, flag); }
+        else { FTL_(text_reason)(s, &s->last_raised[i], buf, len, &at); }
     }
-    if (len > 0) buf[at < len ? at : len - 1] = '\0';
+    if (len > 0) { buf[at < len ? at : len - 1] = '\0'; }
     return at;
 }
 #endif /* FTCAL_LIVE_NO_TEXT */
@@ -1458,8 +1486,8 @@ static inline size_t FTL_(describe_event)(const FTL_(state) *s, const FTL_(event
         break;
     case FTL_M(EVENT_TOOL_IDENTIFYING):
         FTL_(text_str)(buf, len, &at, "identifying tool ");
-        if (ev->tool_to >= 0 && ev->tool_to < s->cfg.n_tools) FTL_(text_tool)(s, buf, len, &at, ev->tool_to);
-        else FTL_(text_quoted)(buf, len, &at, ev->tool_name);
+        if (ev->tool_to >= 0 && ev->tool_to < s->cfg.n_tools) { FTL_(text_tool)(s, buf, len, &at, ev->tool_to); }
+        else { FTL_(text_quoted)(buf, len, &at, ev->tool_name); }
         FTL_(text_str)(buf, len, &at, ": hold the sensor still in varied poses");
         break;
     case FTL_M(EVENT_TOOL_IDENTIFIED):
@@ -1479,15 +1507,16 @@ static inline size_t FTL_(describe_event)(const FTL_(state) *s, const FTL_(event
         FTL_(text_str)(buf, len, &at, " kept: the next static samples set the bias");
         if (ev->flag & (FTL_M(FLAG_CONTACT) | FTL_M(FLAG_UNEXPLAINED))) {  /* the flags raised at the re-tare */
             FTL_(text_str)(buf, len, &at, "; re-tare while ");
-            if (ev->flag & FTL_M(FLAG_CONTACT)) FTL_(text_str)(buf, len, &at, "contact");
-            if ((ev->flag & FTL_M(FLAG_CONTACT)) && (ev->flag & FTL_M(FLAG_UNEXPLAINED)))
+            if (ev->flag & FTL_M(FLAG_CONTACT)) { FTL_(text_str)(buf, len, &at, "contact"); }
+            if ((ev->flag & FTL_M(FLAG_CONTACT)) && (ev->flag & FTL_M(FLAG_UNEXPLAINED))) {
                 FTL_(text_str)(buf, len, &at, " and ");
-            if (ev->flag & FTL_M(FLAG_UNEXPLAINED)) FTL_(text_str)(buf, len, &at, "unexplained");
+            }
+            if (ev->flag & FTL_M(FLAG_UNEXPLAINED)) { FTL_(text_str)(buf, len, &at, "unexplained"); }
             FTL_(text_str)(buf, len, &at, s->cfg.retare_warning);
         }
         break;
     case FTL_M(EVENT_FLAG_RAISED):
-        if (flag) FTL_(text_reason)(s, ev, buf, len, &at);
+        if (flag) { FTL_(text_reason)(s, ev, buf, len, &at); }
         break;
     case FTL_M(EVENT_FLAG_CLEARED):
         if (flag) {
@@ -1498,7 +1527,7 @@ static inline size_t FTL_(describe_event)(const FTL_(state) *s, const FTL_(event
     default:
         break;
     }
-    if (len > 0) buf[at < len ? at : len - 1] = '\0';
+    if (len > 0) { buf[at < len ? at : len - 1] = '\0'; }
     return at;
 }
 #endif /* FTCAL_LIVE_NO_TEXT */

@@ -19,7 +19,7 @@ static inline void FTL_(sc_reset)(FTL_(state) *s)
     s->sc_window_start = s->last_time;
     s->sc_static = s->sc_gated = s->sc_updated = 0;
     s->sc_nis = 0.0;
-    for (j = 0; j < 6; ++j) s->sc_e2[j] = s->sc_pred[j] = 0.0;
+    for (j = 0; j < 6; ++j) { s->sc_e2[j] = s->sc_pred[j] = 0.0; }
     s->sc_has_update = s->has_time;
     s->sc_last_update = s->last_time;
     s->sc_announced = 0;
@@ -44,9 +44,9 @@ static inline void FTL_(sc_end_hold)(FTL_(state) *s)
     s->sc_in_hold = 0;
     if (locked && s->sc_hold_last - s->sc_hold_start >= s->cfg.sc_min_hold_s) {
         double norm = 0.0;
-        for (j = 0; j < 3; ++j) norm += s->sc_hold_dir[j] * s->sc_hold_dir[j];
+        for (j = 0; j < 3; ++j) { norm += s->sc_hold_dir[j] * s->sc_hold_dir[j]; }
         norm = sqrt(norm);
-        if (norm == 0.0) norm = 1.0;
+        if (norm == 0.0) { norm = 1.0; }
         if (s->sc_n_previous == FTL_M(SC_KEEP_HOLDS)) {   /* keep the newest FTL_M(SC_KEEP_HOLDS) */
             for (k = 1; k < FTL_M(SC_KEEP_HOLDS); ++k) {
                 memcpy(s->sc_prev_mean[k - 1], s->sc_prev_mean[k], sizeof s->sc_prev_mean[k]);
@@ -58,8 +58,8 @@ static inline void FTL_(sc_end_hold)(FTL_(state) *s)
             s->sc_n_previous -= 1;
         }
         k = s->sc_n_previous++;
-        for (j = 0; j < 6; ++j) s->sc_prev_mean[k][j] = s->sc_hold_z[j] / (double)s->sc_hold_n;
-        for (j = 0; j < 3; ++j) s->sc_prev_dir[k][j] = s->sc_hold_dir[j] / norm;
+        for (j = 0; j < 6; ++j) { s->sc_prev_mean[k][j] = s->sc_hold_z[j] / (double)s->sc_hold_n; }
+        for (j = 0; j < 3; ++j) { s->sc_prev_dir[k][j] = s->sc_hold_dir[j] / norm; }
         s->sc_prev_n[k] = s->sc_hold_n;
         s->sc_prev_seconds[k] = s->sc_hold_last - s->sc_hold_start;
         s->sc_prev_end[k] = s->sc_hold_last;
@@ -84,7 +84,7 @@ static inline void FTL_(sc_observe)(FTL_(state) *s, double time, int still, int 
         if (updated) {
             double nis = 0.0;
             s->sc_updated += 1;
-            for (j = 0; j < 6; ++j) nis += e[j] * e[j] / innovation_var[j];
+            for (j = 0; j < 6; ++j) { nis += e[j] * e[j] / innovation_var[j]; }
             s->sc_nis += nis;
             for (j = 0; j < 6; ++j) {
                 s->sc_e2[j] += e[j] * e[j];
@@ -94,16 +94,16 @@ static inline void FTL_(sc_observe)(FTL_(state) *s, double time, int still, int 
         if (!s->sc_in_hold) {
             s->sc_in_hold = 1;
             s->sc_hold_n = s->sc_hold_missed = 0;
-            for (j = 0; j < 6; ++j) s->sc_hold_z[j] = 0.0;
-            for (j = 0; j < 3; ++j) s->sc_hold_dir[j] = 0.0;
+            for (j = 0; j < 6; ++j) { s->sc_hold_z[j] = 0.0; }
+            for (j = 0; j < 3; ++j) { s->sc_hold_dir[j] = 0.0; }
             s->sc_hold_start = time;
         }
         s->sc_hold_n += 1;
         s->sc_hold_missed += !updated;
-        for (j = 0; j < 6; ++j) s->sc_hold_z[j] += z[j];
-        for (j = 0; j < 3; ++j) s->sc_hold_dir[j] += direction[j];
+        for (j = 0; j < 6; ++j) { s->sc_hold_z[j] += z[j]; }
+        for (j = 0; j < 3; ++j) { s->sc_hold_dir[j] += direction[j]; }
         s->sc_hold_last = time;
-        if (updated) s->sc_last_update = time;
+        if (updated) { s->sc_last_update = time; }
     } else if (s->sc_in_hold) {
         FTL_(sc_end_hold)(s);
     }
@@ -116,14 +116,14 @@ static inline int FTL_(sc_alike)(const FTL_(state) *s, int k, const double *mean
 {
     double c = 0.0, gap, spread[6], limit;
     int j, a;
-    for (j = 0; j < 3; ++j) c += s->sc_prev_dir[k][j] * direction[j];
+    for (j = 0; j < 3; ++j) { c += s->sc_prev_dir[k][j] * direction[j]; }
     *turn = acos(c < -1.0 ? -1.0 : c > 1.0 ? 1.0 : c) * (180.0 / 3.141592653589793);
-    if (*turn < s->cfg.sc_min_turn_deg) return 0;
+    if (*turn < s->cfg.sc_min_turn_deg) { return 0; }
     gap = time - s->sc_prev_end[k];
     for (j = 0; j < 6; ++j) {
         double mine = 1.0 / (double)s->sc_hold_n, theirs = 1.0 / (double)s->sc_prev_n[k];
-        if (s->cfg.sc_correlation_s / seconds > mine) mine = s->cfg.sc_correlation_s / seconds;
-        if (s->cfg.sc_correlation_s / s->sc_prev_seconds[k] > theirs) theirs = s->cfg.sc_correlation_s / s->sc_prev_seconds[k];
+        if (s->cfg.sc_correlation_s / seconds > mine) { mine = s->cfg.sc_correlation_s / seconds; }
+        if (s->cfg.sc_correlation_s / s->sc_prev_seconds[k] > theirs) { theirs = s->cfg.sc_correlation_s / s->sc_prev_seconds[k]; }
         spread[j] = noise_variance[j] * (mine + theirs) + s->walk_variance[j] * gap;
     }
     limit = 2.0 * sin(*turn * (3.141592653589793 / 180.0) / 2.0) * s->cfg.sc_turn_share;
@@ -138,10 +138,10 @@ static inline int FTL_(sc_alike)(const FTL_(state) *s, int k, const double *mean
         change = sqrt(change);
         offset = sqrt(offset);
         bound = limit * offset;
-        if (3.0 * sqrt(noise) > bound) bound = 3.0 * sqrt(noise);
-        if (change > bound) return 0;
+        if (3.0 * sqrt(noise) > bound) { bound = 3.0 * sqrt(noise); }
+        if (change > bound) { return 0; }
         r = change / (offset > 1e-300 ? offset : 1e-300);
-        if (r > *ratio) *ratio = r;
+        if (r > *ratio) { *ratio = r; }
     }
     return 1;
 }
@@ -168,12 +168,12 @@ static inline void FTL_(sc_check)(FTL_(state) *s, double time)
                 int change = 0;
                 for (j = 0; j < 6; ++j) {
                     double m = s->sc_e2[j] / n - s->sc_pred[j] / n, r0 = s->sc_noise0[j];
-                    if (m < 0.0) m = 0.0;
-                    if (m < r0) m = r0;
-                    if (m > s->cfg.sc_r_max * r0) m = s->cfg.sc_r_max * r0;
-                    if (high ? m < s->noise_variance[j] : m > s->noise_variance[j]) m = s->noise_variance[j];
+                    if (m < 0.0) { m = 0.0; }
+                    if (m < r0) { m = r0; }
+                    if (m > s->cfg.sc_r_max * r0) { m = s->cfg.sc_r_max * r0; }
+                    if (high ? m < s->noise_variance[j] : m > s->noise_variance[j]) { m = s->noise_variance[j]; }
                     proposal[j] = m;
-                    if (fabs(m - s->noise_variance[j]) > 1e-3 * s->noise_variance[j]) change = 1;
+                    if (fabs(m - s->noise_variance[j]) > 1e-3 * s->noise_variance[j]) { change = 1; }
                 }
                 if (change) {
                     for (j = 0; j < 6; ++j) {
@@ -188,9 +188,9 @@ static inline void FTL_(sc_check)(FTL_(state) *s, double time)
         s->sc_window_start = time;
         s->sc_static = s->sc_gated = s->sc_updated = 0;
         s->sc_nis = 0.0;
-        for (j = 0; j < 6; ++j) s->sc_e2[j] = s->sc_pred[j] = 0.0;
+        for (j = 0; j < 6; ++j) { s->sc_e2[j] = s->sc_pred[j] = 0.0; }
     }
-    if (!s->sc_in_hold || !s->sc_has_update || s->sc_hold_last != time) return;
+    if (!s->sc_in_hold || !s->sc_has_update || s->sc_hold_last != time) { return; }
     idle = time - s->sc_last_update;
     if (idle <= s->cfg.sc_lock_s) {
         s->sc_announced = 0;
@@ -199,42 +199,44 @@ static inline void FTL_(sc_check)(FTL_(state) *s, double time)
         s->sc_lockouts += 1;
         s->sc_last_lockout = time;
     }
-    if (s->sc_n_previous == 0 || time - s->sc_hold_start < s->cfg.sc_min_hold_s || 2 * s->sc_hold_missed <= s->sc_hold_n)
+    if (s->sc_n_previous == 0 || time - s->sc_hold_start < s->cfg.sc_min_hold_s || 2 * s->sc_hold_missed <= s->sc_hold_n) {
         return;
+    }
     norm = 0.0;
-    for (j = 0; j < 3; ++j) norm += s->sc_hold_dir[j] * s->sc_hold_dir[j];
+    for (j = 0; j < 3; ++j) { norm += s->sc_hold_dir[j] * s->sc_hold_dir[j]; }
     norm = sqrt(norm);
-    if (norm == 0.0) norm = 1.0;
-    for (j = 0; j < 6; ++j) mean[j] = s->sc_hold_z[j] / (double)s->sc_hold_n;
-    for (j = 0; j < 3; ++j) direction[j] = s->sc_hold_dir[j] / norm;
+    if (norm == 0.0) { norm = 1.0; }
+    for (j = 0; j < 6; ++j) { mean[j] = s->sc_hold_z[j] / (double)s->sc_hold_n; }
+    for (j = 0; j < 3; ++j) { direction[j] = s->sc_hold_dir[j] / norm; }
     seconds = time - s->sc_hold_start;
-    for (k = s->sc_n_previous - 1; k >= 0; --k)
+    for (k = s->sc_n_previous - 1; k >= 0; --k) {
         if (FTL_(sc_alike)(s, k, mean, direction, seconds, time, noise, &turn, &ratio)) {
             found = k;
             break;
         }
-    if (found < 0) return;
+    }
+    if (found < 0) { return; }
     {
         double moved[6], share[6], span = idle + seconds;
         double force = 0.0, torque = 0.0;
-        for (j = 0; j < 6; ++j) moved[j] = mean[j] - s->bias[j];
-        for (j = 0; j < 3; ++j) force += moved[j] * moved[j];
-        for (j = 3; j < 6; ++j) torque += moved[j] * moved[j];
-        for (j = 0; j < 6; ++j) share[j] = (j < 3 ? force : torque) / 3.0;
+        for (j = 0; j < 6; ++j) { moved[j] = mean[j] - s->bias[j]; }
+        for (j = 0; j < 3; ++j) { force += moved[j] * moved[j]; }
+        for (j = 3; j < 6; ++j) { torque += moved[j] * moved[j]; }
+        for (j = 0; j < 6; ++j) { share[j] = (j < 3 ? force : torque) / 3.0; }
         double proposal[6];
         int change = 0;
-        if (span < 1e-9) span = 1e-9;
+        if (span < 1e-9) { span = 1e-9; }
         for (j = 0; j < 6; ++j) {
             double q = s->walk_variance[j], m2 = share[j] / span;
-            if (m2 > q) q = m2;
-            if (q > s->cfg.sc_q_max * s->sc_walk0[j]) q = s->cfg.sc_q_max * s->sc_walk0[j];
+            if (m2 > q) { q = m2; }
+            if (q > s->cfg.sc_q_max * s->sc_walk0[j]) { q = s->cfg.sc_q_max * s->sc_walk0[j]; }
             proposal[j] = q;
-            if (fabs(q - s->walk_variance[j]) > 1e-3 * s->walk_variance[j]) change = 1;
+            if (fabs(q - s->walk_variance[j]) > 1e-3 * s->walk_variance[j]) { change = 1; }
         }
-        if (change) memcpy(s->walk_variance, proposal, sizeof proposal);
+        if (change) { memcpy(s->walk_variance, proposal, sizeof proposal); }
         for (j = 0; j < 6; ++j) {
             double mine = 1.0 / (double)s->sc_hold_n;
-            if (s->cfg.sc_correlation_s / seconds > mine) mine = s->cfg.sc_correlation_s / seconds;
+            if (s->cfg.sc_correlation_s / seconds > mine) { mine = s->cfg.sc_correlation_s / seconds; }
             s->variance[j] = noise[j] * mine;
             s->bias[j] = mean[j];
         }
@@ -246,7 +248,7 @@ static inline void FTL_(sc_check)(FTL_(state) *s, double time)
     s->sc_announced = 0;
     s->sc_n_previous = 0;
     s->sc_hold_n = s->sc_hold_missed = 0;
-    for (j = 0; j < 6; ++j) s->sc_hold_z[j] = 0.0;
-    for (j = 0; j < 3; ++j) s->sc_hold_dir[j] = 0.0;
+    for (j = 0; j < 6; ++j) { s->sc_hold_z[j] = 0.0; }
+    for (j = 0; j < 3; ++j) { s->sc_hold_dir[j] = 0.0; }
     s->sc_hold_start = s->sc_hold_last = time;
 }
