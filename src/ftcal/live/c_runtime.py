@@ -308,7 +308,11 @@ static inline const char *{name}_input_name(int input)
 #ifdef {macro}_NO_TEXT
 #define FTCAL_LIVE_NO_TEXT
 #endif
+#ifdef {macro}_REAL   /* e.g. -D{macro}_REAL=float: a float build of the step (times and identification stay double) */
+#define FTCAL_LIVE_REAL {macro}_REAL
+#endif
 {core_text()}
+#undef FTCAL_LIVE_REAL
 #undef FTCAL_LIVE_NO_TEXT
 #undef FTCAL_LIVE_PREFIX
 #undef FTCAL_LIVE_MACRO
@@ -329,11 +333,24 @@ static inline int {name}_init({name}_state *s, int tool)
    (m/s^2, any nonzero length for the direction), static_override -1 (motion test), 0 or 1.
    Returns 0, or -1 (state untouched, out not written) for input that is not finite or beyond
    MAX_MAGNITUDE (a calibrated wrench too), time that does not increase or a zero gravity vector. */
-static inline int {name}_step({name}_state *s, double time, const double *u, const double *gravity, int static_override,
-                              {name}_output *out)
+static inline int {name}_step({name}_state *s, double time, const {name}_real *u, const {name}_real *gravity,
+                              int static_override, {name}_output *out)
 {{
+#ifdef {macro}_REAL   /* the evaluator is double: the raw channels in, the wrench out */
+    double ud[{macro}_N_INPUTS], wd[6];
+    {name}_real w[6];
+    int j;
+    for (j = 0; j < {macro}_N_INPUTS; ++j) {{
+        ud[j] = u[j];
+    }}
+    {name}_calibrate(ud, wd);
+    for (j = 0; j < 6; ++j) {{
+        w[j] = ({name}_real)wd[j];
+    }}
+#else
     double w[6];
     {name}_calibrate(u, w);
+#endif
     return {name}_core_step(s, time, u, w, gravity, static_override, out);
 }}
 

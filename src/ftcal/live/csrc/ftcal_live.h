@@ -46,6 +46,11 @@
 #define FTL_RARE
 #endif
 
+#ifndef FTCAL_LIVE_REAL
+#define FTCAL_LIVE_REAL double
+#endif
+typedef FTCAL_LIVE_REAL FTL_(real);   /* the filter's numbers: double, or float for a float build */
+
 /* ----- configuration: what the model, the tool files and ftcal's methods fix (filled once, data only) ----- */
 typedef struct {
     int n_inputs, n_channels;        /* the model's inputs; the sensor channels among them (temperature excluded) */
@@ -104,32 +109,34 @@ typedef struct {
 
 typedef struct {
     /* settings: NAME_init sets the defaults; change them after init if needed */
-    double noise_variance[6];    /* r: per-sample noise variance of the calibrated wrench */
-    double walk_variance[6];     /* q: bias random-walk variance per second */
-    double gate_chi2;            /* contact gate, chi2 quantile with 6 dof */
-    double drift_chi2;           /* drift test: chi2 (6 dof) beyond which the bias moved faster than the walk */
-    double accept_limit[6];      /* check --accept thresholds, N and N m */
-    double unexplained_sigma, unexplained_seconds;
+    FTL_(real) noise_variance[6];    /* r: per-sample noise variance of the calibrated wrench */
+    FTL_(real) walk_variance[6];     /* q: bias random-walk variance per second */
+    FTL_(real) gate_chi2;            /* contact gate, chi2 quantile with 6 dof */
+    FTL_(real) drift_chi2;           /* drift test: chi2 (6 dof) beyond which the bias moved faster than the walk */
+    FTL_(real) accept_limit[6];      /* check --accept thresholds, N and N m */
+    FTL_(real) unexplained_sigma;
+    double unexplained_seconds;
     double motion_window, min_rate, min_hold;   /* s, rad/s, s */
     int use_adc_limits;          /* 1: saturated means a channel at adc_low/adc_high */
-    double adc_low, adc_high;
+    FTL_(real) adc_low, adc_high;
     /* state */
     int tool;
     /* the tool library: 0 .. N_TOOLS-1 compiled in (copied by NAME_init), then the tools identified in place */
     int n_tools;
-    double tool_mass[FTL_M(MAX_TOOLS)], tool_mc[FTL_M(MAX_TOOLS)][3], tool_sign[FTL_M(MAX_TOOLS)];
+    FTL_(real) tool_mass[FTL_M(MAX_TOOLS)], tool_mc[FTL_M(MAX_TOOLS)][3], tool_sign[FTL_M(MAX_TOOLS)];
     char tool_names[FTL_M(MAX_ADDED_TOOLS)][FTL_M(MAX_TOOL_NAME) + 1];
-    double bias[6], variance[6];
+    FTL_(real) bias[6], variance[6];
     int has_time;
     double last_time, last_moving;
     int history_start, history_count;
-    double history_time[FTL_M(HISTORY)], history_direction[FTL_M(HISTORY)][3];
+    double history_time[FTL_M(HISTORY)];
+    FTL_(real) history_direction[FTL_M(HISTORY)][3];
     int has_last;
-    double last_raw[FTL_M(N_CHANNELS)];
+    FTL_(real) last_raw[FTL_M(N_CHANNELS)];
     long run[FTL_M(N_CHANNELS)];
     /* a load change since each channel's run began (ftcal.live.health.LoadChange): another channel moved by more
        than cfg.load_steps of its quantisation steps (its smallest change seen, HUGE_VAL before one) */
-    double channel_step[FTL_M(N_CHANNELS)], channel_ref[FTL_M(N_CHANNELS)][FTL_M(N_CHANNELS)];
+    FTL_(real) channel_step[FTL_M(N_CHANNELS)], channel_ref[FTL_M(N_CHANNELS)][FTL_M(N_CHANNELS)];
     int channel_moved[FTL_M(N_CHANNELS)];
     int exceeding;
     double exceed_start;
@@ -138,19 +145,23 @@ typedef struct {
     /* the drift test (ftcal.live.drift): snapshots of bias and variance, oldest at drift_start, times increasing */
     double drift_due;            /* the next snapshot is taken at the first sample at or after this time */
     int drift_start, drift_count;
-    double drift_time[FTL_M(DRIFT_SNAPSHOTS)], drift_bias[FTL_M(DRIFT_SNAPSHOTS)][6];
-    double drift_variance[FTL_M(DRIFT_SNAPSHOTS)][6];
+    double drift_time[FTL_M(DRIFT_SNAPSHOTS)];
+    FTL_(real) drift_bias[FTL_M(DRIFT_SNAPSHOTS)][6];
+    FTL_(real) drift_variance[FTL_M(DRIFT_SNAPSHOTS)][6];
     unsigned long rollbacks;     /* the bias sent back by the drift test (Python's "rollback" events) */
-    double rollback_time, rollback_lag, rollback_chi2, rollback_moved;   /* the last one: the event's numbers */
+    double rollback_time, rollback_lag;
+    FTL_(real) rollback_chi2, rollback_moved;   /* the last one: the event's numbers */
     /* the self-check (ftcal_live_selfcheck.h, ftcal.live.consistency; s->self_check = 1 to run it) */
     int self_check;
-    double sc_noise0[6], sc_walk0[6], sc_expected_gated;
+    FTL_(real) sc_noise0[6], sc_walk0[6], sc_expected_gated;
     int sc_has_window, sc_has_update, sc_announced, sc_in_hold, sc_n_previous;
-    double sc_window_start, sc_nis, sc_e2[6], sc_pred[6], sc_last_update;
+    double sc_window_start, sc_last_update;
+    FTL_(real) sc_nis, sc_e2[6], sc_pred[6];
     unsigned long sc_static, sc_gated, sc_updated;
     long sc_hold_n, sc_hold_missed;
-    double sc_hold_z[6], sc_hold_dir[3], sc_hold_start, sc_hold_last;
-    double sc_prev_mean[FTL_M(SC_KEEP_HOLDS)][6], sc_prev_dir[FTL_M(SC_KEEP_HOLDS)][3];
+    FTL_(real) sc_hold_z[6], sc_hold_dir[3];
+    double sc_hold_start, sc_hold_last;
+    FTL_(real) sc_prev_mean[FTL_M(SC_KEEP_HOLDS)][6], sc_prev_dir[FTL_M(SC_KEEP_HOLDS)][3];
     double sc_prev_seconds[FTL_M(SC_KEEP_HOLDS)], sc_prev_end[FTL_M(SC_KEEP_HOLDS)];
     long sc_prev_n[FTL_M(SC_KEEP_HOLDS)];
     unsigned long sc_adaptations, sc_lockouts, sc_reacquisitions;
@@ -175,10 +186,10 @@ typedef struct {
 } FTL_(state);
 
 typedef struct {
-    double calibrated[6];    /* the model's wrench */
-    double compensated[6];   /* calibrated - tool - bias (the contact wrench) */
-    double bias[6], bias_std[6];   /* after the sample */
-    double chi2;             /* innovation chi2, 6 dof */
+    FTL_(real) calibrated[6];    /* the model's wrench */
+    FTL_(real) compensated[6];   /* calibrated - tool - bias (the contact wrench) */
+    FTL_(real) bias[6], bias_std[6];   /* after the sample */
+    FTL_(real) chi2;             /* innovation chi2, 6 dof */
     int is_static, updated;
     unsigned flags;          /* FLAG_* bits */
 } FTL_(output);
@@ -187,7 +198,7 @@ typedef struct {
 
 /* 1 when the raw inputs u lie outside the span of the training inputs (ftcal.core.excitation.span_distance):
    off the subspace they fill, or beyond span_limit in the standardised eigen-coordinates; 0 inside (or no span). */
-static inline int FTL_(outside_span)(const FTL_(config) *c, const double *u)
+static inline int FTL_(outside_span)(const FTL_(config) *c, const FTL_(real) *u)
 {
     double x[FTL_M(N_INPUTS)], distance = 0.0, off = 0.0;
     int i, k, nu = c->n_inputs;
@@ -244,7 +255,9 @@ static inline int FTL_(core_init)(FTL_(state) *s, const FTL_(config) *config, in
     s->n_tools = config->n_tools;
     for (j = 0; j < config->n_tools; ++j) {
         s->tool_mass[j] = config->tool_mass[j];
-        memcpy(s->tool_mc[j], config->tool_mc[j], sizeof s->tool_mc[j]);
+        s->tool_mc[j][0] = config->tool_mc[j][0];   /* assigned, not copied: the state's may be float */
+        s->tool_mc[j][1] = config->tool_mc[j][1];
+        s->tool_mc[j][2] = config->tool_mc[j][2];
         s->tool_sign[j] = config->tool_sign[j];
     }
     /* the self-check on, as LiveCalibrator's default (NAME_enable_self_check again after changing noise_variance or
@@ -373,8 +386,9 @@ static inline int FTL_(drift_check)(FTL_(state) *s, double time)
     int i, j, low, high, middle, slot;
     s->drift_due = time + s->cfg.snapshot_s;
     for (i = 0; i < FTL_M(DRIFT_LAGS); ++i) {
-        double cutoff = time - lags[i], span, chi2 = 0.0, moved = 0.0;
-        const double *b0, *p0;
+        double cutoff = time - lags[i], span;
+        FTL_(real) chi2 = 0.0, moved = 0.0;
+        const FTL_(real) *b0, *p0;
         int beyond = 0;
         low = 0;   /* bisect_right: low = the snapshots at or before cutoff */
         high = s->drift_count;
@@ -447,7 +461,7 @@ static inline int FTL_(retare)(FTL_(state) *s)
 }
 
 /* Motion test on the gravity direction: sets *still and *moving (ftcal.live.motion). */
-static inline void FTL_(motion)(FTL_(state) *s, double time, const double *direction, int *still, int *moving)
+static inline void FTL_(motion)(FTL_(state) *s, double time, const FTL_(real) *direction, int *still, int *moving)
 {
     double cutoff = time - s->motion_window, rate = HUGE_VAL;
     int last;
@@ -458,11 +472,11 @@ static inline void FTL_(motion)(FTL_(state) *s, double time, const double *direc
     }
     if (s->history_count >= 1 && (s->history_time[s->history_start] <= cutoff
                                   || s->history_count == FTL_M(HISTORY))) {
-        const double *y = s->history_direction[s->history_start];
-        double cx = direction[1] * y[2] - direction[2] * y[1];
-        double cy = direction[2] * y[0] - direction[0] * y[2];
-        double cz = direction[0] * y[1] - direction[1] * y[0];
-        double angle = atan2(sqrt(cx * cx + cy * cy + cz * cz),
+        const FTL_(real) *y = s->history_direction[s->history_start];
+        FTL_(real) cx = direction[1] * y[2] - direction[2] * y[1];
+        FTL_(real) cy = direction[2] * y[0] - direction[0] * y[2];
+        FTL_(real) cz = direction[0] * y[1] - direction[1] * y[0];
+        FTL_(real) angle = atan2(sqrt(cx * cx + cy * cy + cz * cz),
                              direction[0] * y[0] + direction[1] * y[1] + direction[2] * y[2]);
         rate = angle / (time - s->history_time[s->history_start]);
     }
@@ -472,7 +486,7 @@ static inline void FTL_(motion)(FTL_(state) *s, double time, const double *direc
     }
     last = (s->history_start + s->history_count) % FTL_M(HISTORY);
     s->history_time[last] = time;
-    memcpy(s->history_direction[last], direction, 3 * sizeof(double));
+    memcpy(s->history_direction[last], direction, 3 * sizeof(FTL_(real)));
     s->history_count += 1;
     *still = rate < s->min_rate;
     if (!*still) { s->last_moving = time; }
@@ -515,9 +529,9 @@ static inline void FTL_(stop_identification)(FTL_(state) *s)
 }
 
 /* One sample of the identification: called by NAME_step. */
-static inline void FTL_(collect)(FTL_(state) *s, int still, const double *g, const double *w)
+static inline void FTL_(collect)(FTL_(state) *s, int still, const FTL_(real) *g, const FTL_(real) *w)
 {
-    double z[10], (*m)[10];
+    double z[10], (*m)[10];   /* the moments stay double in a float build: the estimator needs them */
     int j, k;
     if (!still) {
         s->in_hold = 0;
@@ -555,7 +569,7 @@ static inline void FTL_(collect)(FTL_(state) *s, int still, const double *g, con
    NAME_step after the run lengths are updated; the flagged channels are found again here, so that the usual sample
    stores nothing. */
 static FTL_RARE void FTL_(flag_events)(FTL_(state) *s, unsigned flags, double time, double duration,
-                                           const double *u, const double *e, double chi2, int moving)
+                                           const FTL_(real) *u, const FTL_(real) *e, FTL_(real) chi2, int moving)
 {
     unsigned changed = flags ^ s->flags;
     int i, j;
@@ -572,7 +586,7 @@ static FTL_RARE void FTL_(flag_events)(FTL_(state) *s, unsigned flags, double ti
         ev.kind = flags & bit ? FTL_M(EVENT_FLAG_RAISED) : FTL_M(EVENT_FLAG_CLEARED);
         if (bit == FTL_M(FLAG_SATURATED) && (flags & bit)) {
             for (j = 0; j < s->cfg.n_channels; ++j) {
-                double x = u[s->cfg.channels[j]];
+                FTL_(real) x = u[s->cfg.channels[j]];
                 ev.channels[j] = s->use_adc_limits ? x <= s->adc_low || x >= s->adc_high
                     : (x < s->cfg.channel_range[j][0] || x > s->cfg.channel_range[j][1]) && s->run[j] >= s->cfg.saturation_run;
             }
@@ -610,12 +624,12 @@ static FTL_RARE void FTL_(flag_events)(FTL_(state) *s, unsigned flags, double ti
    direction), static_override -1 (motion test), 0 or 1.
    Returns 0, or -1 (state untouched, out not written) for input that is not finite or beyond
    MAX_MAGNITUDE (the wrench too), time that does not increase or a zero gravity vector. */
-static inline int FTL_(core_step)(FTL_(state) *s, double time, const double *u, const double *w,
-                                  const double *gravity, int static_override, FTL_(output) *out)
+static inline int FTL_(core_step)(FTL_(state) *s, double time, const FTL_(real) *u, const FTL_(real) *w,
+                                  const FTL_(real) *gravity, int static_override, FTL_(output) *out)
 {
-    double z[6], e[6], tool[6], direction[3], norm, dt, chi2 = 0.0, predicted[6], innovation_var[6];
-    const double *mc = s->tool_mc[s->tool];
-    double m = s->tool_mass[s->tool], sign = s->tool_sign[s->tool];
+    FTL_(real) z[6], e[6], tool[6], direction[3], norm, dt, chi2 = 0.0, predicted[6], innovation_var[6];
+    const FTL_(real) *mc = s->tool_mc[s->tool];
+    FTL_(real) m = s->tool_mass[s->tool], sign = s->tool_sign[s->tool];
     int j, still, moving, gate, beyond = 0;
     unsigned flags = 0;
     if (!isfinite(time) || (s->has_time && !(time > s->last_time))) { return -1; }
@@ -652,7 +666,7 @@ static inline int FTL_(core_step)(FTL_(state) *s, double time, const double *u, 
         out->calibrated[j] = w[j];
         out->compensated[j] = e[j];
         if (gate) {   /* Kalman update: gain P-/(P- + r) */
-            double gain = predicted[j] / innovation_var[j];
+            FTL_(real) gain = predicted[j] / innovation_var[j];
             s->bias[j] = (1.0 - gain) * s->bias[j] + gain * z[j];
             s->variance[j] = s->noise_variance[j] * predicted[j] / innovation_var[j];
         } else {     /* prediction only: a contact is never absorbed */
@@ -676,7 +690,7 @@ static inline int FTL_(core_step)(FTL_(state) *s, double time, const double *u, 
     }
     /* health: run lengths of identical values per channel (temperature excluded) */
     for (j = 0; j < s->cfg.n_channels; ++j) {
-        double x = u[s->cfg.channels[j]];
+        FTL_(real) x = u[s->cfg.channels[j]];
         s->run[j] = (s->has_last && x == s->last_raw[j]) ? s->run[j] + 1 : 1;
         if (!s->has_last) { s->channel_step[j] = HUGE_VAL; }
         else if (x != s->last_raw[j] && fabs(x - s->last_raw[j]) < s->channel_step[j]) { s->channel_step[j] = fabs(x - s->last_raw[j]); }
@@ -695,7 +709,7 @@ static inline int FTL_(core_step)(FTL_(state) *s, double time, const double *u, 
         }
     }
     for (j = 0; j < s->cfg.n_channels; ++j) {
-        double x = u[s->cfg.channels[j]], low, high;
+        FTL_(real) x = u[s->cfg.channels[j]], low, high;
         int stuck, outside;
         stuck = s->run[j] >= s->cfg.stuck_run && s->channel_moved[j];
         if (stuck && s->run[j] >= s->cfg.dead_run) { flags |= FTL_M(FLAG_DEAD); }

@@ -43,7 +43,7 @@ static inline void FTL_(sc_end_hold)(FTL_(state) *s)
     int locked = 2 * s->sc_hold_missed > s->sc_hold_n, j, k;
     s->sc_in_hold = 0;
     if (locked && s->sc_hold_last - s->sc_hold_start >= s->cfg.sc_min_hold_s) {
-        double norm = 0.0;
+        FTL_(real) norm = 0.0;
         for (j = 0; j < 3; ++j) { norm += s->sc_hold_dir[j] * s->sc_hold_dir[j]; }
         norm = sqrt(norm);
         if (norm == 0.0) { norm = 1.0; }
@@ -69,9 +69,9 @@ static inline void FTL_(sc_end_hold)(FTL_(state) *s)
 }
 
 /* One sample's sums (SelfCheck.observe_one). */
-static inline void FTL_(sc_observe)(FTL_(state) *s, double time, int still, int updated, int gated, const double *z,
-                                     const double *e, const double *predicted, const double *innovation_var,
-                                     const double *direction)
+static inline void FTL_(sc_observe)(FTL_(state) *s, double time, int still, int updated, int gated, const FTL_(real) *z,
+                                     const FTL_(real) *e, const FTL_(real) *predicted, const FTL_(real) *innovation_var,
+                                     const FTL_(real) *direction)
 {
     int j;
     if (!s->sc_has_update) {
@@ -82,7 +82,7 @@ static inline void FTL_(sc_observe)(FTL_(state) *s, double time, int still, int 
         s->sc_static += 1;
         s->sc_gated += (unsigned long)gated;
         if (updated) {
-            double nis = 0.0;
+            FTL_(real) nis = 0.0;
             s->sc_updated += 1;
             for (j = 0; j < 6; ++j) { nis += e[j] * e[j] / innovation_var[j]; }
             s->sc_nis += nis;
@@ -110,11 +110,12 @@ static inline void FTL_(sc_observe)(FTL_(state) *s, double time, int still, int 
 }
 
 /* Whether locked hold k and the current one (mean, unit direction) show the same residual (SelfCheck._alike). */
-static inline int FTL_(sc_alike)(const FTL_(state) *s, int k, const double *mean, const double *direction,
-                                  double seconds, double time, const double *noise_variance, double *turn,
-                                  double *ratio)
+static inline int FTL_(sc_alike)(const FTL_(state) *s, int k, const FTL_(real) *mean, const FTL_(real) *direction,
+                                  double seconds, double time, const FTL_(real) *noise_variance, FTL_(real) *turn,
+                                  FTL_(real) *ratio)
 {
-    double c = 0.0, gap, spread[6], limit;
+    double gap;
+    FTL_(real) c = 0.0, spread[6], limit;
     int j, a;
     for (j = 0; j < 3; ++j) { c += s->sc_prev_dir[k][j] * direction[j]; }
     *turn = acos(c < -1.0 ? -1.0 : c > 1.0 ? 1.0 : c) * (180.0 / 3.141592653589793);
@@ -129,7 +130,7 @@ static inline int FTL_(sc_alike)(const FTL_(state) *s, int k, const double *mean
     limit = 2.0 * sin(*turn * (3.141592653589793 / 180.0) / 2.0) * s->cfg.sc_turn_share;
     *ratio = 0.0;
     for (a = 0; a < 6; a += 3) {
-        double change = 0.0, offset = 0.0, noise = 0.0, bound, r;
+        FTL_(real) change = 0.0, offset = 0.0, noise = 0.0, bound, r;
         for (j = a; j < a + 3; ++j) {
             change += (mean[j] - s->sc_prev_mean[k][j]) * (mean[j] - s->sc_prev_mean[k][j]);
             offset += (mean[j] - s->bias[j]) * (mean[j] - s->bias[j]);
@@ -151,7 +152,8 @@ static inline int FTL_(sc_alike)(const FTL_(state) *s, int k, const double *mean
 static inline void FTL_(sc_check)(FTL_(state) *s, double time)
 {
     int j, k, found = -1;
-    double idle, norm, mean[6], direction[3], seconds, turn = 0.0, ratio = 0.0, noise[6];
+    double idle, seconds;
+    FTL_(real) norm, mean[6], direction[3], turn = 0.0, ratio = 0.0, noise[6];
     memcpy(noise, s->noise_variance, sizeof noise);   /* the re-acquisition below uses r from before this check */
     if (!s->sc_has_window) {
         s->sc_has_window = 1;
@@ -164,10 +166,10 @@ static inline void FTL_(sc_check)(FTL_(state) *s, double time)
             int high = nis > s->cfg.sc_nis_factor * 6.0 || (share > s->cfg.sc_gated_factor * s->sc_expected_gated && share > 0.01);
             int low = nis < 6.0 / s->cfg.sc_nis_factor;
             if (high || low) {
-                double proposal[6];
+                FTL_(real) proposal[6];
                 int change = 0;
                 for (j = 0; j < 6; ++j) {
-                    double m = s->sc_e2[j] / n - s->sc_pred[j] / n, r0 = s->sc_noise0[j];
+                    FTL_(real) m = s->sc_e2[j] / n - s->sc_pred[j] / n, r0 = s->sc_noise0[j];
                     if (m < 0.0) { m = 0.0; }
                     if (m < r0) { m = r0; }
                     if (m > s->cfg.sc_r_max * r0) { m = s->cfg.sc_r_max * r0; }
@@ -177,7 +179,7 @@ static inline void FTL_(sc_check)(FTL_(state) *s, double time)
                 }
                 if (change) {
                     for (j = 0; j < 6; ++j) {
-                        double sd = sqrt(proposal[j]);   /* as Python keeps it: a std, squared when used */
+                        FTL_(real) sd = sqrt(proposal[j]);   /* as Python keeps it: a std, squared when used */
                         s->noise_variance[j] = sd * sd;
                     }
                     s->sc_adaptations += 1;
@@ -217,17 +219,18 @@ static inline void FTL_(sc_check)(FTL_(state) *s, double time)
     }
     if (found < 0) { return; }
     {
-        double moved[6], share[6], span = idle + seconds;
-        double force = 0.0, torque = 0.0;
+        FTL_(real) moved[6], share[6];
+        double span = idle + seconds;
+        FTL_(real) force = 0.0, torque = 0.0;
         for (j = 0; j < 6; ++j) { moved[j] = mean[j] - s->bias[j]; }
         for (j = 0; j < 3; ++j) { force += moved[j] * moved[j]; }
         for (j = 3; j < 6; ++j) { torque += moved[j] * moved[j]; }
         for (j = 0; j < 6; ++j) { share[j] = (j < 3 ? force : torque) / 3.0; }
-        double proposal[6];
+        FTL_(real) proposal[6];
         int change = 0;
         if (span < 1e-9) { span = 1e-9; }
         for (j = 0; j < 6; ++j) {
-            double q = s->walk_variance[j], m2 = share[j] / span;
+            FTL_(real) q = s->walk_variance[j], m2 = share[j] / span;
             if (m2 > q) { q = m2; }
             if (q > s->cfg.sc_q_max * s->sc_walk0[j]) { q = s->cfg.sc_q_max * s->sc_walk0[j]; }
             proposal[j] = q;
