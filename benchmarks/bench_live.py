@@ -465,3 +465,59 @@ def tracker_section(run_case) -> tuple[list[str], str]:
     out += ["", "Targets (issue 40): free/floor <= 1.5 (matched) / 3 (others), false <= 1 % / 5 %, contacts >= 90 %, "
             "absorbed <= 0.3 N / 0.5 N.", ""]
     return out, f"{met} of {len(CASES)} simulated cases within all of issue 40's targets (default, self-check on)"
+
+
+def live_core(n: int, block: int = 65_536, steps: int = 5_000) -> dict:
+    """The C core (``ftcal.live.core.LiveCore``, the extension) against :class:`LiveCalibrator` on the same
+    samples (a degree-4 model of 7 inputs, raw channels and gravity, 500 Hz), in the same process: blocks of
+    ``block`` and one sample per call (``steps`` samples). Samples per CPU second of each, and their ratios."""
+    from ftcal.core.dataset import Dataset
+    from ftcal.core.model import CalibrationModel
+    from ftcal.live import LiveCalibrator
+    from ftcal.live.core import LiveCore
+    from ftcal.payload.parameters import PayloadParameters
+    from ftcal.sim.live_scenario import LiveScenario
+
+    rng = np.random.default_rng(0)
+    mix = np.eye(6) + 0.05 * rng.normal(size=(6, 6))
+    wrench = rng.uniform(-40, 40, size=(20_000, 6)) * np.r_[np.ones(3), np.full(3, 0.1)]
+    temperature = rng.uniform(20.0, 45.0, size=(20_000, 1))
+    model = CalibrationModel(4).fit(Dataset.from_arrays(np.hstack([wrench @ mix.T, temperature]), wrench))
+    rec = _recording(n)
+    u = np.column_stack([rec.wrench @ mix.T, np.full(rec.time.size, 30.0)])
+    tool = LiveScenario().tools["gripper"]
+    tools = {"gripper": PayloadParameters(tool.mass, np.asarray(tool.com), np.zeros(3), np.zeros(3), 9.81,
+                                          fit={"residual_rms": np.r_[np.full(3, 0.05), np.full(3, 0.004)]})}
+
+    def timed(work) -> float:
+        cpu = time.process_time()
+        work()
+        return time.process_time() - cpu
+
+    def calibrator_blocks():
+        live = LiveCalibrator(model, tools=tools, tool="gripper")
+        for a in range(0, n, block):
+            live.run(rec.time[a:a + block], raw=u[a:a + block], gravity=rec.gravity[a:a + block])
+
+    def core_blocks():
+        core = LiveCore(model, tools, tool=1)
+        for a in range(0, n, block):
+            core.run(rec.time[a:a + block], u[a:a + block], rec.gravity[a:a + block])
+
+    def calibrator_steps():
+        live = LiveCalibrator(model, tools=tools, tool="gripper")
+        for k in range(steps):
+            live.step(rec.time[k], raw=u[k], gravity=rec.gravity[k])
+
+    def core_steps():
+        core = LiveCore(model, tools, tool=1)
+        for k in range(steps):
+            core.run(rec.time[k:k + 1], u[k:k + 1], rec.gravity[k:k + 1])
+
+    core_blocks()  # imports, first calls
+    cpu = {name: timed(work) for name, work in (("calibrator_run", calibrator_blocks), ("core_run", core_blocks),
+                                                ("calibrator_step", calibrator_steps), ("core_step", core_steps))}
+    rate = {k: (n if k.endswith("run") else steps) / v for k, v in cpu.items()}
+    return {"cpu_seconds": sum(cpu.values()), **{f"{k}_per_cpu_s": v for k, v in rate.items()},
+            "run_ratio": rate["core_run"] / rate["calibrator_run"],
+            "step_ratio": rate["core_step"] / rate["calibrator_step"]}
