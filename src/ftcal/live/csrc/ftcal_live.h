@@ -19,9 +19,10 @@
    PREFIX_MAX_HOLDS, PREFIX_MIN_HOLDS, PREFIX_MAX_MAGNITUDE, PREFIX_HISTORY, PREFIX_DRIFT_SNAPSHOTS,
    PREFIX_DRIFT_LAGS, PREFIX_SC_KEEP_HOLDS, PREFIX_N_FLAGS, PREFIX_MAX_EVENTS, and the codes PREFIX_FLAG_*,
    PREFIX_EVENT_*, PREFIX_TOOL_*, PREFIX_ID_* (the generated header emits them from the Python constants they
-   mirror). Sizes are maxima: the configuration (FTL_(config)) says how many inputs, channels and compiled-in tools
-   there are. PREFIX_REAL (default double) is the type of the filter's numbers: a float build defines it as float
-   (times stay double). PREFIX_NO_TEXT leaves out the texts (and snprintf).
+   mirror); for the texts also PREFIX_FLAG_NAMES, PREFIX_EVENT_KIND_NAMES and a function PREFIX_input_name(int). Sizes are maxima: the configuration (FTL_(config)) says how many inputs, channels and compiled-in tools
+   there are. FTCAL_LIVE_REAL (default double; the generated header sets it from NAME_REAL) is the type of the
+   filter's numbers: a float build defines it as float (times, the configuration and the identification's moments
+   stay double). FTCAL_LIVE_NO_TEXT (from NAME_NO_TEXT) leaves out the texts (and snprintf).
 
    C99 and C++ (17, 20), fixed-size state, no allocation, no library beyond <math.h>, <string.h>, <stdint.h> (and
    <stdio.h> for the texts); every function is static, so the file can be included by several translation units
@@ -97,7 +98,8 @@ typedef struct {
     unsigned long sample;    /* samples stepped before it: a flag's event is sample number `sample`, from 0 */
     int kind;                /* EVENT_* */
     unsigned flag;           /* FLAG_RAISED, FLAG_CLEARED: the flag's bit (FLAG_*) */
-    int tool_from, tool_to;  /* TOOL_SWITCHED: the tools; TOOL_IDENTIFIED: the new tool's index (both); TOOL_IDENTIFYING:
+    int tool_from, tool_to;  /* TOOL_SWITCHED: the tools; TOOL_IDENTIFIED: the new tool's index (both);
+                                TOOL_IDENTIFYING:
                                 the index of a library tool of that name, else -1 (both); others: the tool mounted */
     long count;              /* STUCK, DEAD raised: the run length; TOOL_IDENTIFIED: the holds */
     double value[9];         /* the text's numbers: SATURATED (ADC limits used, low, high); TEMPERATURE (temperature);
@@ -588,14 +590,16 @@ static FTL_RARE void FTL_(flag_events)(FTL_(state) *s, unsigned flags, double ti
             for (j = 0; j < s->cfg.n_channels; ++j) {
                 FTL_(real) x = u[s->cfg.channels[j]];
                 ev.channels[j] = s->use_adc_limits ? x <= s->adc_low || x >= s->adc_high
-                    : (x < s->cfg.channel_range[j][0] || x > s->cfg.channel_range[j][1]) && s->run[j] >= s->cfg.saturation_run;
+                    : (x < s->cfg.channel_range[j][0] || x > s->cfg.channel_range[j][1])
+                      && s->run[j] >= s->cfg.saturation_run;
             }
             ev.value[0] = s->use_adc_limits;
             ev.value[1] = s->adc_low;
             ev.value[2] = s->adc_high;
         } else if ((bit == FTL_M(FLAG_STUCK) || bit == FTL_M(FLAG_DEAD)) && (flags & bit)) {
             for (j = 0; j < s->cfg.n_channels; ++j) {
-                int stuck = s->run[j] >= s->cfg.stuck_run && s->channel_moved[j];   /* a load change since its run began */
+                /* stuck: a load change since its run began */
+                int stuck = s->run[j] >= s->cfg.stuck_run && s->channel_moved[j];
                 ev.channels[j] = bit == FTL_M(FLAG_DEAD) ? stuck && s->run[j] >= s->cfg.dead_run
                                                           : stuck && s->run[j] < s->cfg.dead_run;
                 if (ev.channels[j] && s->run[j] > ev.count) { ev.count = s->run[j]; }
@@ -693,7 +697,9 @@ static inline int FTL_(core_step)(FTL_(state) *s, double time, const FTL_(real) 
         FTL_(real) x = u[s->cfg.channels[j]];
         s->run[j] = (s->has_last && x == s->last_raw[j]) ? s->run[j] + 1 : 1;
         if (!s->has_last) { s->channel_step[j] = HUGE_VAL; }
-        else if (x != s->last_raw[j] && fabs(x - s->last_raw[j]) < s->channel_step[j]) { s->channel_step[j] = fabs(x - s->last_raw[j]); }
+        else if (x != s->last_raw[j] && fabs(x - s->last_raw[j]) < s->channel_step[j]) {
+            s->channel_step[j] = fabs(x - s->last_raw[j]);
+        }
     }
     for (j = 0; j < s->cfg.n_channels; ++j) {
         int k;
@@ -702,7 +708,8 @@ static inline int FTL_(core_step)(FTL_(state) *s, double time, const FTL_(real) 
             s->channel_moved[j] = 0;
         } else if (!s->channel_moved[j]) {
             for (k = 0; k < s->cfg.n_channels; ++k) {
-                if (k != j && fabs(u[s->cfg.channels[k]] - s->channel_ref[j][k]) > s->cfg.load_steps * s->channel_step[k]) {
+                if (k != j
+                    && fabs(u[s->cfg.channels[k]] - s->channel_ref[j][k]) > s->cfg.load_steps * s->channel_step[k]) {
                     s->channel_moved[j] = 1;
                 }
             }
@@ -727,7 +734,11 @@ static inline int FTL_(core_step)(FTL_(state) *s, double time, const FTL_(real) 
     s->has_last = 1;
     {
         int outside = 0;
-        for (j = 0; j < s->cfg.n_inputs; ++j) { if (u[j] < s->cfg.input_low[j] || u[j] > s->cfg.input_high[j]) { outside = 1; } }
+        for (j = 0; j < s->cfg.n_inputs; ++j) {
+            if (u[j] < s->cfg.input_low[j] || u[j] > s->cfg.input_high[j]) {
+                outside = 1;
+            }
+        }
         if (outside || FTL_(outside_span)(&s->cfg, u)) { flags |= FTL_M(FLAG_OUT_OF_RANGE); }
     }
     if (s->cfg.temperature >= 0
@@ -782,7 +793,8 @@ typedef struct {
 } FTL_(tool_se);
 
 /* Weighted Gram sum_i w_i L_i Mzz L_i^T and cross products sum_i w_i L_i Mzw_i of moments M (symmetric). */
-static inline void FTL_(id_gram)(const FTL_(config) *cf, double mo[10][10], const double *w, double gram[10][10], double cross[10])
+static inline void FTL_(id_gram)(const FTL_(config) *cf, double mo[10][10], const double *w, double gram[10][10],
+                                 double cross[10])
 {
     int i, p, q, a, c;
     memset(gram, 0, 100 * sizeof(double));
@@ -828,7 +840,8 @@ static inline void FTL_(id_rss)(const FTL_(config) *cf, double mo[10][10], const
 }
 
 /* Residual variance per axis; each axis carries n of the 6 n - p degrees of freedom (payload.identify). */
-static inline void FTL_(id_axis_variance)(const FTL_(config) *cf, double mo[10][10], const double *theta, long n, int p, double *variance)
+static inline void FTL_(id_axis_variance)(const FTL_(config) *cf, double mo[10][10], const double *theta, long n,
+                                          int p, double *variance)
 {
     double rss[6];
     int i;
