@@ -1,5 +1,11 @@
 """The live calibrator's per-sample step in C99 (``ftcal convert MODEL --to c-runtime -o NAME.h``).
 
+The step is hand-written C, the core ``csrc/ftcal_live.h`` (its self-check section
+``csrc/ftcal_live_selfcheck.h``), package data shared with the extension :mod:`ftcal.live.core`. This module
+generates only what depends on the model and the tools: the evaluator, the public macros, the configuration as
+data (:func:`core_config`, written as ``NAME_default_config``: numbers and string literals) and the wrappers
+``NAME_init`` and ``NAME_step``; the header it writes holds the core's text with the prefix ``NAME``.
+
 One header, generated with the model and the tool library: the calibration (the evaluator of
 :func:`ftcal.files.c_code.static_predict_function`), the tool's gravity wrench, the gated
 random-walk bias filter of :mod:`ftcal.live.tracker` with the drift test of :mod:`ftcal.live.drift`
@@ -11,8 +17,9 @@ and payload files with its defaults (noise from the first tool file's residuals,
 first random-walk drift, ``check --accept``'s default thresholds); the configuration fields of
 the state struct can be changed after ``NAME_init``.
 
-Fixed-size state, no allocation, no library beyond ``<math.h>`` and ``<string.h>``; every
-function is ``static`` so the header can be included by one or several translation units.
+Fixed-size state, no allocation, no library beyond ``<math.h>``, ``<stdint.h>`` and ``<string.h>``; every
+function is ``static`` so the header can be included by one or several translation units (and headers of
+other prefixes beside it). ``-DNAME_REAL=float`` is a float build of the step.
 Names and units from the files reach the C only through :mod:`ftcal.files.c_text`.
 
 Identification in place (:mod:`ftcal.live.c_identify`): ``NAME_start_identification`` and
@@ -25,7 +32,7 @@ name given to ``NAME_start_identification`` (copied into a fixed slot of at most
 :data:`~ftcal.core.limits.C_RUNTIME_MAX_TOOL_NAME` bytes; :data:`~ftcal.core.limits.C_RUNTIME_MAX_TOOLS`
 slots), replacing a tool of that name (same index) or taking the next index, so indices follow
 Python's ``list(live.tools)``; ``NAME_find_tool`` looks a name up. Flags have names and Python's
-reasons as text (:mod:`ftcal.live.c_health`). Tool switches, identifications, re-tares and flags raised or
+reasons as text (the core's text section; constants in :mod:`ftcal.live.c_health`). Tool switches, identifications, re-tares and flags raised or
 cleared go into an event log, a ring of ``NAME_MAX_EVENTS`` events with Python's texts
 (:mod:`ftcal.live.c_events`).
 
