@@ -470,7 +470,8 @@ def tracker_section(run_case) -> tuple[list[str], str]:
 def live_core(n: int, block: int = 65_536, steps: int = 5_000) -> dict:
     """The C core (``ftcal.live.core.LiveCore``, the extension) against :class:`LiveCalibrator` on the same
     samples (a degree-4 model of 7 inputs, raw channels and gravity, 500 Hz), in the same process: blocks of
-    ``block`` and one sample per call (``steps`` samples). Samples per CPU second of each, and their ratios."""
+    ``block`` and one sample per call (``steps`` samples; ``core_row_step``: the model's one-row predictor and the
+    extension's call without ``LiveCore``'s numpy wrapping). Samples per CPU second of each, and their ratios."""
     from ftcal.core.dataset import Dataset
     from ftcal.core.model import CalibrationModel
     from ftcal.live import LiveCalibrator
@@ -514,9 +515,16 @@ def live_core(n: int, block: int = 65_536, steps: int = 5_000) -> dict:
         for k in range(steps):
             core.run(rec.time[k:k + 1], u[k:k + 1], rec.gravity[k:k + 1])
 
+    def core_row_steps():  # the model's one-row predictor, then one core call per sample, no numpy wrapping
+        core, one = LiveCore(model, tools, tool=1)._core, model.row_predictor()
+        out, override = np.empty((1, 27)), np.full(1, -1, np.int32)
+        for k in range(steps):
+            core.run(rec.time[k:k + 1], u[k], one(u[k]), rec.gravity[k], override, out)
+
     core_blocks()  # imports, first calls
     cpu = {name: timed(work) for name, work in (("calibrator_run", calibrator_blocks), ("core_run", core_blocks),
-                                                ("calibrator_step", calibrator_steps), ("core_step", core_steps))}
+                                                ("calibrator_step", calibrator_steps), ("core_step", core_steps),
+                                                ("core_row_step", core_row_steps))}
     rate = {k: (n if k.endswith("run") else steps) / v for k, v in cpu.items()}
     return {"cpu_seconds": sum(cpu.values()), **{f"{k}_per_cpu_s": v for k, v in rate.items()},
             "run_ratio": rate["core_run"] / rate["calibrator_run"],
