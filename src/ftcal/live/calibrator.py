@@ -458,7 +458,8 @@ class LiveCalibrator:
         """The self-check at a snapshot time: events logged, r and q replaced, the bias re-acquired; returns the
         (bias, variance) to go on with and whether anything changed."""
         events, noise, walk, acquired = self.self_check.check(t, bias, (self.noise_std ** 2).tolist(),
-                                                              self.walk_variance.tolist())
+                                                              self.walk_variance.tolist(), list(variance),
+                                                              self.drift)
         if events:
             self._log([(t, "tracker", kind, text) for kind, text in events])
         if noise is not None:
@@ -655,6 +656,7 @@ class LiveCalibrator:
                 back = self.drift.check(float(times[k]), b, p, walk, limit)
                 if back is not None:
                     b, p = back[0], back[1]
+                    part.bias[k], part.variance[k] = b, p  # the state after the sample (the self-check's too)
                     self._log([(float(times[k]), "bias", "rollback", _rollback_text(back))])
                 changed = back is not None
                 if self.self_check is not None:
@@ -691,7 +693,7 @@ class LiveCalibrator:
         s = part.innovation_variance[a:b]
         gated = ~part.updated[a:b] & (part.chi2[a:b] >= self.threshold)
         self.self_check.observe_block(times[a:b], still[a:b], part.updated[a:b], gated, z[a:b], part.innovation[a:b],
-                                      s - noise, s, direction[a:b])
+                                      s - noise, s, direction[a:b], part.bias[a:b], part.variance[a:b])
 
     def _empty(self) -> LiveResult:
         z6 = np.empty((0, 6))
@@ -960,7 +962,8 @@ class LiveCalibrator:
         if self.self_check is not None:
             size = math.sqrt(gx * gx + gy * gy + gz * gz)
             self.self_check.observe_one(t, still, updated, still and not updated and chi2 >= self.threshold, z,
-                                        innovation, predicted, innovation_var, (gx / size, gy / size, gz / size))
+                                        innovation, predicted, innovation_var, (gx / size, gy / size, gz / size), bias,
+                                        variance)
             if due:
                 bias, variance, _ = self._apply_self_check(t, bias, variance)
         # ----- health -----

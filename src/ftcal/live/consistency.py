@@ -52,6 +52,15 @@ MIN_WINDOW_SAMPLES = 100
 # r adapts within [r0, R_MAX r0]; q within [q0, Q_MAX q0] (a tenfold std).
 R_MAX = 25.0
 Q_MAX = 100.0
+# Walk matching: hold starts kept, fewest to decide, the smallest walk share of a hold start's innovation variance
+# for it to count (below it the walk is not seen over the move, e.g. under a wander), and the factor q must be off
+# by before it adapts (either way).
+WALK_KEEP = 12
+MIN_WALK_STARTS = 3
+MIN_WALK_SHARE = 0.2
+WALK_FACTOR = 2.0
+# Median of χ² with 6 degrees of freedom over 6 (scipy.special.chdtri(6, 0.5) / 6).
+CHI2_6_MEDIAN = 0.8913534
 # r adapts when the NIS mean is beyond this factor of its expectation (either way), or the gated share this
 # many times the expected 1 - gate probability (and above 1 %).
 NIS_FACTOR = 1.5
@@ -82,10 +91,14 @@ class SelfCheck:
         self.last_update = time
         self.locked_announced = False
         self.hold = None  # [n, Σz (6), Σ direction (3), start time, last time]
+        self.ref = None  # the last static sample: (bias after it and its variance, or z and None when it did not update; time)
+        self.starts = []  # hold starts, oldest first: (squared change per axis, the reference's variance or None, gap s)
+        self.new_start = False
         self.previous = []  # (mean z, unit direction, n, seconds, end time) of the last locked holds, newest last
 
     # ----- per sample, and a block's samples between two checks ------------------------------------------------
-    def observe_one(self, t, still, updated, gated, z, e, predicted, s, direction) -> None:
+    def observe_one(self, t, still, updated, gated, z, e, predicted, s, direction, bias, variance) -> None:
+        """One sample: ``bias``, ``variance`` the filter's after the sample (before a rollback)."""
         if self.last_update is None:
             self.last_update = t
         if still:
@@ -97,7 +110,9 @@ class SelfCheck:
                 self.e2 = [a + b * b for a, b in zip(self.e2, e)]
                 self.pred = [a + b for a, b in zip(self.pred, predicted)]
             if self.hold is None:
+                self._start(t, z)
                 self.hold = [0, [0.0] * 6, [0.0] * 3, t, t, 0]
+            self.ref = (bias, variance, t) if updated else (z, None, t)
             h = self.hold
             h[0] += 1
             h[5] += not updated
@@ -109,7 +124,7 @@ class SelfCheck:
         elif self.hold is not None:
             self._end_hold()
 
-    def observe_block(self, t, still, updated, gated, z, e, predicted, s, direction) -> None:
+    def observe_block(self, t, still, updated, gated, z, e, predicted, s, direction, bias, variance) -> None:
         """:meth:`observe_one` over arrays of samples (numpy), the same sums (in another order)."""
         import numpy as np
 
@@ -132,7 +147,11 @@ class SelfCheck:
             if a > pos and self.hold is not None:
                 self._end_hold()
             if self.hold is None:
+                self._start(float(t[a]), z[a].tolist())
                 self.hold = [0, [0.0] * 6, [0.0] * 3, float(t[a]), float(t[a]), 0]
+            last = b - 1
+            self.ref = ((bias[last].tolist(), variance[last].tolist(), float(t[last])) if up[last]
+                        else (z[last].tolist(), None, float(t[last])))
             self._add(t[a:b], z[a:b], direction[a:b])
             self.hold[5] += int(b - a - np.count_nonzero(up[a:b]))
             done = np.flatnonzero(up[a:b])
@@ -141,6 +160,36 @@ class SelfCheck:
             pos = b
         if pos < n and self.hold is not None:
             self._end_hold()
+
+    def _start(self, t: float, z: list) -> None:
+        """A hold starts: keep its first residual's change since the last static sample (the walk over the move)."""
+        if self.ref is None:
+            return
+        ref, variance, time = self.ref
+        self.starts = [*self.starts[1 - WALK_KEEP:], ([(a - b) * (a - b) for a, b in zip(z, ref)], variance, t - time)]
+        self.new_start = True
+
+    def _match_walk(self, noise: list, walk: list) -> tuple | None:
+        """q by covariance matching over the last hold starts (module docstring): (new q, λ, starts used) or None."""
+        factors = []
+        for change, ref, gap in self.starts:
+            ref = noise if ref is None else ref
+            total = [v + q * gap + r for v, q, r in zip(ref, walk, noise)]
+            share = sum([q * gap / s for q, s in zip(walk, total)]) / 6.0
+            if share >= MIN_WALK_SHARE:
+                rho = sum([c / s for c, s in zip(change, total)]) / 6.0
+                factors.append(1.0 + (rho / CHI2_6_MEDIAN - 1.0) / share)
+        if len(factors) < MIN_WALK_STARTS:
+            return None
+        factors.sort()
+        m = len(factors)
+        lam = 0.5 * (factors[(m - 1) // 2] + factors[m // 2])
+        if 1.0 / WALK_FACTOR < lam < WALK_FACTOR:
+            return None
+        proposal = [min(max(lam * q, q0), Q_MAX * q0) for q, q0 in zip(walk, self.walk0)]
+        if not any(abs(p - q) > 1e-3 * q for p, q in zip(proposal, walk)):
+            return None
+        return proposal, lam, m
 
     def _add(self, t, z, direction) -> None:
         h = self.hold
@@ -183,8 +232,9 @@ class SelfCheck:
         return turn, ratio
 
     # ----- at a snapshot time --------------------------------------------------------------------------------
-    def check(self, time: float, bias: list, noise: list, walk: list) -> tuple:
-        """After the drift test at ``time``.
+    def check(self, time: float, bias: list, noise: list, walk: list, variance: list, drift=None) -> tuple:
+        """After the drift test at ``time``, with the filter's state then and the drift test
+        (:class:`~ftcal.live.drift.DriftCheck`: its last rollback is undone when a walk matched since explains it).
 
         Returns
         -------
@@ -217,9 +267,32 @@ class SelfCheck:
             self.n_static = self.n_gated = self.n_updated = 0
             self.nis = 0.0
             self.e2, self.pred = [0.0] * 6, [0.0] * 6
+        if self.new_start:
+            self.new_start = False
+            matched = self._match_walk(new_noise or noise, walk)
+            if matched is not None:
+                new_walk, lam, m = matched
+                back = None if drift is None else drift.last_rollback
+                if (back is not None and self.last_update is not None and self.last_update <= back[0]
+                        and sum([(b - c) * (b - c) / (q * back[5] + p + v) for b, c, q, p, v in
+                                 zip(back[1], back[3], new_walk, back[2], back[4])]) <= drift.threshold):
+                    # no update since a rollback the matched walk explains: it was the walk, undo it
+                    drift.last_rollback = None
+                    new_bias = (list(back[1]), [p + q * (time - back[0]) for p, q in zip(back[2], new_walk)])
+                    events.append(("undone", (
+                        f"the rollback at {back[0]:.6g} s is within the walk matched since: bias back to before it")))
+                elif self.last_update is not None and time > self.last_update:
+                    # the bias walked at the new q since its last update: its variance says so
+                    idle = time - self.last_update
+                    new_bias = (list(bias), [p + max(a - b, 0.0) * idle for p, a, b in zip(variance, new_walk, walk)])
+                walk = new_walk
+                events.append(("adapted", (
+                    f"the residual changed over the last {m} moves by {lam:.3g}x the walk allowed (median, covariance "
+                    "matching): walk std now " + ", ".join(f"{math.sqrt(q * 3600.0):.3g}" for q in new_walk)
+                    + " per sqrt(h) (within 1 to 10x the identified)")))
         h = self.hold
         if h is None or self.last_update is None or h[4] != time:
-            return events, new_noise, new_walk, None
+            return events, new_noise, new_walk, new_bias
         idle = time - self.last_update
         if idle <= LOCK_S:
             self.locked_announced = False
@@ -230,7 +303,7 @@ class SelfCheck:
                 "than the walk allows; re-acquired when a hold in another orientation shows the same residual")))
         n, sz, sd, start, _, missed = h
         if not self.previous or time - start < MIN_HOLD_S or 2 * missed <= n:
-            return events, new_noise, new_walk, None
+            return events, new_noise, new_walk, new_bias
         norm = math.sqrt(sum(d * d for d in sd)) or 1.0
         mean = [v / n for v in sz]
         seconds = time - start
@@ -239,7 +312,7 @@ class SelfCheck:
             if found is not None:
                 break
         else:
-            return events, new_noise, new_walk, None
+            return events, new_noise, new_walk, new_bias
         turn, ratio = found
         variance = [r * max(1.0 / n, CORRELATION_S / seconds) for r in noise]
         moved = [a - b for a, b in zip(mean, bias)]
