@@ -10,8 +10,9 @@ from __future__ import annotations
 
 from .c_identify import _num
 from .calibrator import GATE_PROBABILITY
-from .consistency import (CORRELATION_S, GATED_FACTOR, KEEP_HOLDS, LOCK_S, MIN_HOLD_S, MIN_TURN_DEG,
-                          MIN_WINDOW_SAMPLES, NIS_FACTOR, Q_MAX, R_MAX, TURN_SHARE, WINDOW_S)
+from .consistency import (CHI2_6_MEDIAN, CORRELATION_S, GATED_FACTOR, KEEP_HOLDS, LOCK_S, MIN_HOLD_S, MIN_TURN_DEG,
+                          MIN_WALK_SHARE, MIN_WALK_STARTS, MIN_WINDOW_SAMPLES, NIS_FACTOR, Q_MAX, R_MAX, TURN_SHARE,
+                          WALK_FACTOR, WALK_KEEP, WINDOW_S)
 
 
 def selfcheck_fields(macro: str) -> str:
@@ -26,8 +27,14 @@ def selfcheck_fields(macro: str) -> str:
     double sc_hold_z[6], sc_hold_dir[3], sc_hold_start, sc_hold_last;
     double sc_prev_mean[{KEEP_HOLDS}][6], sc_prev_dir[{KEEP_HOLDS}][3], sc_prev_seconds[{KEEP_HOLDS}], sc_prev_end[{KEEP_HOLDS}];
     long sc_prev_n[{KEEP_HOLDS}];
-    unsigned long sc_adaptations, sc_lockouts, sc_reacquisitions;
-    double sc_last_adapted, sc_last_lockout, sc_last_reacquired;"""
+    /* walk matching over hold starts: the last static sample (bias after it, or z when it did not update) */
+    int sc_has_ref, sc_ref_updated, sc_n_starts, sc_new_start, sc_start_updated[{WALK_KEEP}], sc_rb_has;
+    double sc_ref[6], sc_ref_var[6], sc_ref_time;
+    double sc_start_change[{WALK_KEEP}][6], sc_start_var[{WALK_KEEP}][6], sc_start_gap[{WALK_KEEP}];
+    /* the drift test's last rollback (DriftCheck.last_rollback): time, state before it, the snapshot, span */
+    double sc_rb_time, sc_rb_bias[6], sc_rb_var[6], sc_rb_b0[6], sc_rb_p0[6], sc_rb_span;
+    unsigned long sc_adaptations, sc_lockouts, sc_reacquisitions, sc_undone;
+    double sc_last_adapted, sc_last_lockout, sc_last_reacquired, sc_last_undone;"""
 
 
 def selfcheck_text(name: str, macro: str) -> str:
@@ -48,6 +55,9 @@ static inline void {name}_sc_reset({name}_state *s)
     s->sc_announced = 0;
     s->sc_in_hold = 0;
     s->sc_n_previous = 0;
+    s->sc_has_ref = 0;
+    s->sc_n_starts = 0;
+    s->sc_new_start = 0;
 }}
 
 /* Turn the self-check on (as LiveCalibrator(self_check=True)), after any change of noise_variance / walk_variance:
@@ -96,7 +106,7 @@ static inline void {name}_sc_observe({name}_state *s, double time, int still, in
                                      const double *e, const double *predicted, const double *innovation_var,
                                      const double *direction)
 {{
-    int j;
+    int j, k;
     if (!s->sc_has_update) {{
         s->sc_has_update = 1;
         s->sc_last_update = time;
@@ -115,6 +125,25 @@ static inline void {name}_sc_observe({name}_state *s, double time, int still, in
             }}
         }}
         if (!s->sc_in_hold) {{
+            if (s->sc_has_ref) {{   /* a hold starts: its first residual's change since the last static sample */
+                if (s->sc_n_starts == {WALK_KEEP}) {{
+                    for (k = 1; k < {WALK_KEEP}; ++k) {{
+                        memcpy(s->sc_start_change[k - 1], s->sc_start_change[k], sizeof s->sc_start_change[k]);
+                        memcpy(s->sc_start_var[k - 1], s->sc_start_var[k], sizeof s->sc_start_var[k]);
+                        s->sc_start_updated[k - 1] = s->sc_start_updated[k];
+                        s->sc_start_gap[k - 1] = s->sc_start_gap[k];
+                    }}
+                    s->sc_n_starts -= 1;
+                }}
+                k = s->sc_n_starts++;
+                for (j = 0; j < 6; ++j) {{
+                    s->sc_start_change[k][j] = (z[j] - s->sc_ref[j]) * (z[j] - s->sc_ref[j]);
+                    s->sc_start_var[k][j] = s->sc_ref_var[j];
+                }}
+                s->sc_start_updated[k] = s->sc_ref_updated;
+                s->sc_start_gap[k] = time - s->sc_ref_time;
+                s->sc_new_start = 1;
+            }}
             s->sc_in_hold = 1;
             s->sc_hold_n = s->sc_hold_missed = 0;
             for (j = 0; j < 6; ++j) s->sc_hold_z[j] = 0.0;
@@ -126,6 +155,15 @@ static inline void {name}_sc_observe({name}_state *s, double time, int still, in
         for (j = 0; j < 6; ++j) s->sc_hold_z[j] += z[j];
         for (j = 0; j < 3; ++j) s->sc_hold_dir[j] += direction[j];
         s->sc_hold_last = time;
+        s->sc_has_ref = 1;
+        s->sc_ref_updated = updated;
+        s->sc_ref_time = time;
+        if (updated) {{
+            memcpy(s->sc_ref, s->bias, sizeof s->sc_ref);
+            memcpy(s->sc_ref_var, s->variance, sizeof s->sc_ref_var);
+        }} else {{
+            memcpy(s->sc_ref, z, sizeof s->sc_ref);
+        }}
         if (updated) s->sc_last_update = time;
     }} else if (s->sc_in_hold) {{
         {name}_sc_end_hold(s);
@@ -167,6 +205,42 @@ static inline int {name}_sc_alike(const {name}_state *s, int k, const double *me
         if (r > *ratio) *ratio = r;
     }}
     return 1;
+}}
+
+/* q by covariance matching over the hold starts (SelfCheck._match_walk): 1 and *lam, proposal[6] when q must change. */
+static inline int {name}_sc_match_walk(const {name}_state *s, double *lam, double *proposal)
+{{
+    double factors[{WALK_KEEP}];
+    int i, j, k, m = 0, change = 0;
+    for (k = 0; k < s->sc_n_starts; ++k) {{
+        double total[6], share = 0.0, rho = 0.0, gap = s->sc_start_gap[k];
+        for (j = 0; j < 6; ++j)
+            total[j] = (s->sc_start_updated[k] ? s->sc_start_var[k][j] : s->noise_variance[j])
+                       + s->walk_variance[j] * gap + s->noise_variance[j];
+        for (j = 0; j < 6; ++j) share += s->walk_variance[j] * gap / total[j];
+        share /= 6.0;
+        if (share >= {_num(MIN_WALK_SHARE)}) {{
+            for (j = 0; j < 6; ++j) rho += s->sc_start_change[k][j] / total[j];
+            rho /= 6.0;
+            factors[m++] = 1.0 + (rho / {_num(CHI2_6_MEDIAN)} - 1.0) / share;
+        }}
+    }}
+    if (m < {MIN_WALK_STARTS}) return 0;
+    for (i = 1; i < m; ++i) {{   /* insertion sort, then the median */
+        double x = factors[i];
+        for (k = i - 1; k >= 0 && factors[k] > x; --k) factors[k + 1] = factors[k];
+        factors[k + 1] = x;
+    }}
+    *lam = 0.5 * (factors[(m - 1) / 2] + factors[m / 2]);
+    if (1.0 / {_num(WALK_FACTOR)} < *lam && *lam < {_num(WALK_FACTOR)}) return 0;
+    for (j = 0; j < 6; ++j) {{
+        double q = *lam * s->walk_variance[j], q0 = s->sc_walk0[j];
+        if (q < q0) q = q0;
+        if (q > {_num(Q_MAX)} * q0) q = {_num(Q_MAX)} * q0;
+        proposal[j] = q;
+        if (fabs(q - s->walk_variance[j]) > 1e-3 * s->walk_variance[j]) change = 1;
+    }}
+    return change;
 }}
 
 /* At a snapshot time, after the drift test (SelfCheck.check and LiveCalibrator._apply_self_check): r by covariance
@@ -212,6 +286,36 @@ static inline void {name}_sc_check({name}_state *s, double time)
         s->sc_static = s->sc_gated = s->sc_updated = 0;
         s->sc_nis = 0.0;
         for (j = 0; j < 6; ++j) s->sc_e2[j] = s->sc_pred[j] = 0.0;
+    }}
+    if (s->sc_new_start) {{
+        double lam, proposal[6], chi2 = 0.0;
+        s->sc_new_start = 0;
+        if ({name}_sc_match_walk(s, &lam, proposal)) {{
+            if (s->sc_rb_has && s->sc_has_update && s->sc_last_update <= s->sc_rb_time) {{
+                for (j = 0; j < 6; ++j)
+                    chi2 += (s->sc_rb_bias[j] - s->sc_rb_b0[j]) * (s->sc_rb_bias[j] - s->sc_rb_b0[j])
+                            / (proposal[j] * s->sc_rb_span + s->sc_rb_var[j] + s->sc_rb_p0[j]);
+            }}
+            if (s->sc_rb_has && s->sc_has_update && s->sc_last_update <= s->sc_rb_time && chi2 <= s->drift_chi2) {{
+                for (j = 0; j < 6; ++j) {{   /* no update since a rollback the matched walk explains: undone */
+                    s->bias[j] = s->sc_rb_bias[j];
+                    s->variance[j] = s->sc_rb_var[j] + proposal[j] * (time - s->sc_rb_time);
+                }}
+                s->sc_undone += 1;
+                s->sc_last_undone = time;
+                {name}_drift_reset(s);
+            }} else if (s->sc_has_update && time > s->sc_last_update) {{
+                double idle0 = time - s->sc_last_update;
+                for (j = 0; j < 6; ++j) {{   /* the bias walked at the new q since its last update */
+                    double more = proposal[j] - s->walk_variance[j];
+                    s->variance[j] = s->variance[j] + (more > 0.0 ? more : 0.0) * idle0;
+                }}
+                {name}_drift_reset(s);
+            }}
+            memcpy(s->walk_variance, proposal, sizeof proposal);
+            s->sc_adaptations += 1;
+            s->sc_last_adapted = time;
+        }}
     }}
     if (!s->sc_in_hold || !s->sc_has_update || s->sc_hold_last != time) return;
     idle = time - s->sc_last_update;

@@ -397,6 +397,7 @@ static inline void {name}_drift_reset({name}_state *s)
     s->drift_start = 0;
     s->drift_count = 0;
     s->drift_due = -HUGE_VAL;
+    s->sc_rb_has = 0;   /* DriftCheck.reset: the last rollback forgotten */
 }}
 
 /* The drift test after the sample at `time` (ftcal.live.drift.DriftCheck.check, same order and arithmetic): compare
@@ -430,6 +431,13 @@ static inline int {name}_drift_check({name}_state *s, double time)
         for (j = 0; j < 6; ++j) if (fabs(s->bias[j] - b0[j]) > s->accept_limit[j]) beyond = 1;
         if (!beyond) continue;
         for (j = 0; j < 6; ++j) if (fabs(s->bias[j] - b0[j]) > moved) moved = fabs(s->bias[j] - b0[j]);
+        s->sc_rb_has = 1;   /* DriftCheck.last_rollback: the self-check may undo it */
+        s->sc_rb_time = time;
+        s->sc_rb_span = span;
+        memcpy(s->sc_rb_bias, s->bias, sizeof s->bias);
+        memcpy(s->sc_rb_var, s->variance, sizeof s->variance);
+        memcpy(s->sc_rb_b0, b0, sizeof s->sc_rb_b0);
+        memcpy(s->sc_rb_p0, p0, sizeof s->sc_rb_p0);
         for (j = 0; j < 6; ++j) {{   /* back to the snapshot, its variance predicted since; it is the only one left */
             s->bias[j] = b0[j];
             s->variance[j] = p0[j] + s->walk_variance[j] * span;

@@ -279,6 +279,7 @@ class SelfCheck:
                     # no update since a rollback the matched walk explains: it was the walk, undo it
                     drift.last_rollback = None
                     new_bias = (list(back[1]), [p + q * (time - back[0]) for p, q in zip(back[2], new_walk)])
+                    bias = new_bias[0]
                     events.append(("undone", (
                         f"the rollback at {back[0]:.6g} s is within the walk matched since: bias back to before it")))
                 elif self.last_update is not None and time > self.last_update:
