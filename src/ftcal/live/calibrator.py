@@ -34,7 +34,7 @@ from ..payload.parameters import PayloadParameters
 from ..runtime.errors import FtcalError
 from .health import BIT, DEAD_RUN, FLAGS, ExceedanceTimer, LoadChange, RunCounter, names_of
 from .motion import MotionDetector
-from .consistency import SelfCheck
+from .consistency import Q_MAX, R_MAX, SelfCheck
 from .drift import FALSE_ALARM, DriftCheck
 from .tracker import TrackedBlock, gate_chi2, track_block
 
@@ -1110,7 +1110,9 @@ class LiveCalibrator:
                "tool": self.tool, "bias": self.bias.tolist(), "variance": self.variance.tolist(),
                "counters": dict(self.counters), "flags": names_of(self.flags_now),
                "tools": {name: payload_document(self.tools[name]) for name in self.identified},
-               "model": self.model_fingerprint()}
+               "model": self.model_fingerprint(),
+               # optional (files without them still read): the tracker's r per sample and q per s, as adapted
+               "noise_variance": (self.noise_std ** 2).tolist(), "walk_variance": self.walk_variance.tolist()}
         if not all(np.isfinite(doc["bias"])) or not all(np.isfinite(doc["variance"])):
             raise FtcalError("the live state has non-finite values; refusing to save it.")
         return doc
@@ -1180,6 +1182,12 @@ class LiveCalibrator:
         bias, variance = six("bias"), six("variance")
         if np.any(variance < 0):
             raise bad("variance", "must be >= 0 (a variance per axis; the state keeps no cross-covariance)")
+        adapted = {}
+        for key in ("noise_variance", "walk_variance"):  # optional: the self-check's r and q when saved
+            if key in doc:
+                adapted[key] = six(key)
+                if np.any(adapted[key] <= 0):
+                    raise bad(key, "must be > 0 per axis")
         time = None if doc["time"] is None else number(doc["time"], "time")
         counters_doc = doc["counters"]
         if not isinstance(counters_doc, dict):
@@ -1219,6 +1227,15 @@ class LiveCalibrator:
             self._tool_terms.pop(name, None)
             self.identified.add(name)
         self.bias, self.variance, self.tool, self.counters = bias, variance, tool, counters
+        if self.self_check is not None and adapted:
+            # resume with the adapted r and q, within the self-check's bounds of this run's r0 and q0
+            sc = self.self_check
+            if "noise_variance" in adapted:
+                r0 = np.asarray(sc.noise0)
+                self.noise_std = np.sqrt(np.clip(adapted["noise_variance"], r0, R_MAX * r0))
+            if "walk_variance" in adapted:
+                q0 = np.asarray(sc.walk0)
+                self.walk_variance = np.clip(adapted["walk_variance"], q0, Q_MAX * q0)
         self.last_time = time
         self._restart_checks()
         self._event("state", "resumed", f"resumed from {path} at t={self.last_time}")
