@@ -58,7 +58,7 @@ Q_MAX = 100.0
 WALK_KEEP = 12
 MIN_WALK_STARTS = 3
 MIN_WALK_SHARE = 0.3
-WALK_FACTOR = 2.5
+WALK_FACTOR = 1.6
 # Median of χ² with 6 degrees of freedom over 6 (scipy.special.chdtri(6, 0.5) / 6).
 CHI2_6_MEDIAN = 0.8913534
 # r adapts when the NIS mean is beyond this factor of its expectation (either way), or the gated share this
