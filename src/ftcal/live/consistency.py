@@ -28,6 +28,17 @@ residual is bias: the bias takes the new hold's mean, q rises to cover the move 
 missed (``q_j ≥ Δb_j² / Δt``, bounded to [q₀, :data:`Q_MAX` q₀]), the drift test's snapshots restart, and an
 event ``tracker reacquired`` says by how much. A contact held through a change of pose (the same force in the
 sensor frame in two orientations: a contact that moves with the tool) cannot be told from bias.
+
+**Walk: covariance matching over the moves** (Mehra 1972's innovation-based matching, applied where the model says
+the walk shows: after a gap in updates). Between two holds a random-walk bias moves by ``N(0, q Δt)``. At the first
+static sample of a hold, ``d = z − ref`` (ref: the filter's bias after the last static sample when it updated,
+variance P, else that sample's own z, variance r) has ``E d_j² = P_j + q_j Δt + r_j = S_j``. Each of the last
+:data:`WALK_KEEP` hold starts whose walk share ``w = mean_j q_j Δt / S_j`` is at least :data:`MIN_WALK_SHARE` gives
+``λ = 1 + (mean_j d_j² / S_j / CHI2_6_MEDIAN − 1) / w``; the median of at least :data:`MIN_WALK_STARTS` (a contact
+held across one move does not move it) beyond :data:`WALK_FACTOR` either way sets q to λ q within [q₀, Q_MAX q₀]
+(event ``tracker adapted``). The bias' variance takes the walk it missed since its last update, and the drift test's
+last rollback, when the bias has not updated since and its χ² under the new q is within the drift threshold, is
+undone (event ``tracker undone``): it was judged with a q the data have shown too small.
 """
 
 from __future__ import annotations
