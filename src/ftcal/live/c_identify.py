@@ -425,6 +425,7 @@ static inline int {name}_add_identified({name}_state *s, const char *tool_name, 
         }}
         {name}_drift_reset(s);   /* the bias was set on purpose: the drift test starts again */
         {name}_sc_reset(s);      /* and the self-check */
+        s->last_fail = -HUGE_VAL;
     }}
     return 0;
 }}

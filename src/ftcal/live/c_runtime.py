@@ -66,7 +66,7 @@ from .calibrator import (GATE_PROBABILITY, NO_TOOL, RETARE_VARIANCE, UNEXPLAINED
                          tracker_defaults)
 from .drift import FALSE_ALARM, LAGS_S, SNAPSHOT_S
 from .health import BIT, DEAD_RUN, FLAGS, LOAD_STEPS
-from .tracker import gate_chi2
+from .tracker import HOLDOFF_S, gate_chi2
 
 DEFAULT_NAME = "ftcal_runtime"
 HISTORY = 1024
@@ -281,6 +281,7 @@ typedef struct {{
     int drift_start, drift_count;
     double drift_time[{macro}_DRIFT_SNAPSHOTS], drift_bias[{macro}_DRIFT_SNAPSHOTS][6];
     double drift_variance[{macro}_DRIFT_SNAPSHOTS][6];
+    double last_fail;            /* the last static sample that failed the gate (the hold-off), -HUGE_VAL: none */
     unsigned long rollbacks;     /* the bias sent back by the drift test (Python's "rollback" events) */
     double rollback_time, rollback_lag, rollback_chi2, rollback_moved;   /* the last one: the event's numbers */
 {selfcheck_fields(macro)}
@@ -325,6 +326,7 @@ static inline int {name}_init({name}_state *s, int tool)
     s->gate_chi2 = {_num(params['gate_chi2'])};
     s->drift_chi2 = {_num(params['drift_chi2'])};
     s->drift_due = -HUGE_VAL;
+    s->last_fail = -HUGE_VAL;
     s->unexplained_sigma = {_num(UNEXPLAINED_SIGMA)};
     s->unexplained_seconds = {_num(UNEXPLAINED_SECONDS)};
     s->motion_window = {_num(HOLD_WINDOW_S)};
@@ -482,6 +484,7 @@ static inline int {name}_retare({name}_state *s)
             s->variance[j] = {_num(RETARE_VARIANCE)} * s->noise_variance[j];
     {name}_drift_reset(s);
     {name}_sc_reset(s);
+    s->last_fail = -HUGE_VAL;
     s->retares += 1;
     return ev.flag;
 }}
@@ -563,7 +566,9 @@ static inline int {name}_step({name}_state *s, double time, const double *u, con
         e[j] = z[j] - s->bias[j];
         chi2 += e[j] * (e[j] / innovation_var[j]);
     }}
-    gate = still && !s->identifying && chi2 < s->gate_chi2;
+    /* the hold-off (ftcal.live.tracker.HOLDOFF_S): no update within it after a static sample failed the gate */
+    gate = still && !s->identifying && chi2 < s->gate_chi2 && time - s->last_fail >= {_num(HOLDOFF_S)};
+    if (still && !s->identifying && !(chi2 < s->gate_chi2)) s->last_fail = time;
     for (j = 0; j < 6; ++j) {{
         out->calibrated[j] = w[j];
         out->compensated[j] = e[j];

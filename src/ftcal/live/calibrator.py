@@ -36,7 +36,7 @@ from .health import BIT, DEAD_RUN, FLAGS, ExceedanceTimer, LoadChange, RunCounte
 from .motion import MotionDetector
 from .consistency import Q_MAX, R_MAX, SelfCheck
 from .drift import FALSE_ALARM, DriftCheck
-from .tracker import TrackedBlock, gate_chi2, track_block
+from .tracker import HOLDOFF_S, TrackedBlock, gate_chi2, track_block
 
 NO_TOOL = "none"
 # What a re-tare while contact or unexplained is raised risks (its event's text and retare()'s warning; the C says it too).
@@ -319,6 +319,7 @@ class LiveCalibrator:
         self.loads = LoadChange()  # a load change that should have moved a channel (quantisation-aware)
         self.unexplained_timer = ExceedanceTimer()
         self.flags_now = 0
+        self.last_fail = -math.inf  # the last static sample that failed the gate (the tracker's hold-off)
         self.events: deque = deque(maxlen=MAX_EVENTS)
         self.counters = {"samples": 0, "updates": 0, "contacts": 0, "retares": 0, "switches": 0}
         self.last_time: float | None = None
@@ -451,6 +452,7 @@ class LiveCalibrator:
     def _restart_checks(self) -> None:
         """The bias was set on purpose (or the clock restarted): the drift test and the self-check start afresh."""
         self.drift.reset()
+        self.last_fail = -math.inf
         if self.self_check is not None:
             self.self_check.reset(self.last_time)
 
@@ -647,7 +649,7 @@ class LiveCalibrator:
         while start < n:
             walk, noise = self.walk_variance.tolist(), self.noise_std ** 2
             part = track_block(z[start:], dt[start:], gate_static[start:], bias, variance, self.walk_variance,
-                               noise, self.threshold)
+                               noise, self.threshold, t[start:], self.last_fail)
             times = t[start:]
             k = int(np.searchsorted(times, self.drift.next_due)) if times[0] < self.drift.next_due else 0
             seen, cut = 0, None
@@ -669,12 +671,16 @@ class LiveCalibrator:
                     break
                 k = int(np.searchsorted(times, self.drift.next_due))
             if cut is None:
+                self.last_fail = part.last_fail
                 if self.self_check is not None:
                     self._observe(part, times, gate_static[start:], z[start:], direction[start:], noise, seen,
                                   times.size)
                 parts.append(part)
                 break
             k, b, p = cut
+            failed = gate_static[start:start + k + 1] & ~(part.chi2[:k + 1] < self.threshold)
+            if failed.any():
+                self.last_fail = max(self.last_fail, float(times[np.flatnonzero(failed)[-1]]))
             part.bias[k], part.variance[k] = b, p
             parts.append(TrackedBlock(*(getattr(part, f)[:k + 1] for f in ("bias", "variance", "innovation",
                                                                              "innovation_variance", "chi2",
@@ -946,7 +952,9 @@ class LiveCalibrator:
         k2 = self.unexplained_sigma * self.unexplained_sigma
         # |e| > max(k σ, acceptance threshold), σ = √S
         beyond = any([e * e > k2 * v and abs(e) > a for e, v, a in zip(innovation, innovation_var, limit)])
-        updated = still and chi2 < self.threshold
+        updated = still and chi2 < self.threshold and t - self.last_fail >= HOLDOFF_S
+        if still and not chi2 < self.threshold:
+            self.last_fail = t
         if updated:
             gain = [p / v for p, v in zip(predicted, innovation_var)]
             bias = [(1.0 - k) * b + k * c for k, b, c in zip(gain, bias, z)]
