@@ -282,6 +282,7 @@ typedef struct {{
     double drift_time[{macro}_DRIFT_SNAPSHOTS], drift_bias[{macro}_DRIFT_SNAPSHOTS][6];
     double drift_variance[{macro}_DRIFT_SNAPSHOTS][6];
     double last_fail;            /* the last static sample that failed the gate (the hold-off), -HUGE_VAL: none */
+    double holdoff;              /* s after it without updates (LiveCalibrator(holdoff=...)), 0: off */
     unsigned long rollbacks;     /* the bias sent back by the drift test (Python's "rollback" events) */
     double rollback_time, rollback_lag, rollback_chi2, rollback_moved;   /* the last one: the event's numbers */
 {selfcheck_fields(macro)}
@@ -327,6 +328,7 @@ static inline int {name}_init({name}_state *s, int tool)
     s->drift_chi2 = {_num(params['drift_chi2'])};
     s->drift_due = -HUGE_VAL;
     s->last_fail = -HUGE_VAL;
+    s->holdoff = {_num(HOLDOFF_S)};
     s->unexplained_sigma = {_num(UNEXPLAINED_SIGMA)};
     s->unexplained_seconds = {_num(UNEXPLAINED_SECONDS)};
     s->motion_window = {_num(HOLD_WINDOW_S)};
@@ -567,7 +569,7 @@ static inline int {name}_step({name}_state *s, double time, const double *u, con
         chi2 += e[j] * (e[j] / innovation_var[j]);
     }}
     /* the hold-off (ftcal.live.tracker.HOLDOFF_S): no update within it after a static sample failed the gate */
-    gate = still && !s->identifying && chi2 < s->gate_chi2 && time - s->last_fail >= {_num(HOLDOFF_S)};
+    gate = still && !s->identifying && chi2 < s->gate_chi2 && time - s->last_fail >= s->holdoff;
     if (still && !s->identifying && !(chi2 < s->gate_chi2)) s->last_fail = time;
     for (j = 0; j < 6; ++j) {{
         out->calibrated[j] = w[j];

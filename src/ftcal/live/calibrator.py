@@ -253,6 +253,9 @@ class LiveCalibrator:
         [r₀, 25 r₀], a lock-out said in an event, and the bias re-acquired (q raised within [q₀, 100 q₀]) when
         holds in two orientations show the same residual (the C runtime's NAME_init turns its copy on too);
         False: the fixed q and r of the defaults or overrides
+    holdoff : s after a static sample failed the gate during which no sample updates the bias
+        (:data:`ftcal.live.tracker.HOLDOFF_S`, 0.15 s: a contact's release edge, part-way down, passes the gate; after
+        a long contact the bias variance is large and one such sample would set the bias); 0: off
     robot : gravity from joint positions, e.g. :class:`ftcal.robot.kinematics.SensorGravity` (a URDF, the
         F/T sensor, the joints given); then ``joints`` alone gives gravity (and the motion signal)
 
@@ -274,7 +277,8 @@ class LiveCalibrator:
                  adc_limits: tuple[float, float] | None = None, temperature_range: tuple[float, float] | None = None,
                  motion_window: float = HOLD_WINDOW_S, min_rate: float = MIN_ANGULAR_RATE,
                  min_hold: float = MIN_HOLD_S, gravity_magnitude: float = STANDARD_GRAVITY,
-                 state_path: str | Path | None = None, robot=None, self_check: bool = True) -> None:
+                 state_path: str | Path | None = None, robot=None, self_check: bool = True,
+                 holdoff: float = HOLDOFF_S) -> None:
         if model is not None:
             if not getattr(model, "is_static", True):
                 raise FtcalError("the live calibrator takes static models (no ARX lags).")
@@ -282,6 +286,9 @@ class LiveCalibrator:
                 raise FtcalError(f"the calibration model has {len(model.output_names_)} outputs; a wrench needs 6.")
         if not 0.5 < gate_probability < 1.0:
             raise FtcalError(f"gate_probability must be in (0.5, 1); got {gate_probability}.")
+        if isinstance(holdoff, bool) or not isinstance(holdoff, (int, float)) or not 0.0 <= holdoff <= 3600.0:
+            raise FtcalError(f"holdoff must be a number of seconds in [0, 3600]; got {holdoff!r}.")
+        self.holdoff = float(holdoff)
         self._check_settings(unexplained_sigma=unexplained_sigma, unexplained_seconds=unexplained_seconds,
                              adc_limits=adc_limits, temperature_range=temperature_range, motion_window=motion_window,
                              min_rate=min_rate, min_hold=min_hold, gravity_magnitude=gravity_magnitude)
@@ -649,7 +656,7 @@ class LiveCalibrator:
         while start < n:
             walk, noise = self.walk_variance.tolist(), self.noise_std ** 2
             part = track_block(z[start:], dt[start:], gate_static[start:], bias, variance, self.walk_variance,
-                               noise, self.threshold, t[start:], self.last_fail)
+                               noise, self.threshold, t[start:], self.last_fail, self.holdoff)
             times = t[start:]
             k = int(np.searchsorted(times, self.drift.next_due)) if times[0] < self.drift.next_due else 0
             seen, cut = 0, None
@@ -952,7 +959,7 @@ class LiveCalibrator:
         k2 = self.unexplained_sigma * self.unexplained_sigma
         # |e| > max(k σ, acceptance threshold), σ = √S
         beyond = any([e * e > k2 * v and abs(e) > a for e, v, a in zip(innovation, innovation_var, limit)])
-        updated = still and chi2 < self.threshold and t - self.last_fail >= HOLDOFF_S
+        updated = still and chi2 < self.threshold and t - self.last_fail >= self.holdoff
         if still and not chi2 < self.threshold:
             self.last_fail = t
         if updated:
