@@ -39,8 +39,9 @@ int replay(int n, const double *t, const double *u, const double *g, const int *
 """
 
 
-def test_c_self_check_follows_python(tmp_path):
-    ident, oper = truth.CASES["walk 3x"]
+@pytest.mark.parametrize("case", ["walk 3x", "noise 3x"])
+def test_c_self_check_follows_python(tmp_path, case):
+    ident, oper = truth.CASES[case]
     payload = truth.identify(ident)
     rec, _ = truth.operation(oper, duration=120.0)
     model, mix = gauge_model(1)
@@ -62,6 +63,9 @@ def test_c_self_check_follows_python(tmp_path):
     rollbacks = sum(e[2] == "rollback" for e in live.events)
     assert counts.tolist() == [kinds.count("adapted"), kinds.count("locked_out"), kinds.count("reacquired"), rollbacks,
                                kinds.count("undone")]
-    # the case exercises the self-check: r and the walk adapted (covariance matching over the hold starts)
-    assert kinds.count("adapted") >= 2 and kinds.count("reacquired") >= 1
+    texts = [e[3] for e in live.events if e[1] == "tracker" and e[2] == "adapted"]
+    if case == "walk 3x":  # the case exercises the self-check: r and the walk adapted, the bias re-acquired
+        assert kinds.count("reacquired") >= 1 and any(t.startswith("the residual changed") for t in texts)
+    else:  # r 9x too small gates most samples: r from the differences of consecutive static samples
+        assert any("too few for the NIS" in t for t in texts)
     assert any(e[3].startswith("the residual changed over the last") for e in live.events if e[1] == "tracker")

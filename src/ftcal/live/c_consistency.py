@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from .c_identify import _num
 from .calibrator import GATE_PROBABILITY
-from .consistency import (CHI2_6_MEDIAN, CORRELATION_S, GATED_FACTOR, KEEP_HOLDS, LOCK_S, MIN_HOLD_S, MIN_TURN_DEG,
+from .consistency import (CHI2_6_MEDIAN, CORRELATION_S, DIFF_CAP, GATED_FACTOR, KEEP_HOLDS, LOCK_S, MIN_HOLD_S, MIN_TURN_DEG,
                           MIN_WALK_SHARE, MIN_WALK_STARTS, MIN_WINDOW_SAMPLES, NIS_FACTOR, Q_MAX, R_MAX, TURN_SHARE,
                           WALK_FACTOR, WALK_KEEP, WINDOW_S)
 
@@ -27,6 +27,9 @@ def selfcheck_fields(macro: str) -> str:
     double sc_hold_z[6], sc_hold_dir[3], sc_hold_start, sc_hold_last;
     double sc_prev_mean[{KEEP_HOLDS}][6], sc_prev_dir[{KEEP_HOLDS}][3], sc_prev_seconds[{KEEP_HOLDS}], sc_prev_end[{KEEP_HOLDS}];
     long sc_prev_n[{KEEP_HOLDS}];
+    /* r matched to the differences of consecutive static samples (clipped sums over the window, their count) */
+    double sc_diff[6], sc_last_z[6];
+    unsigned long sc_pairs;
     /* walk matching over hold starts: the last static sample (bias after it, or z when it did not update) */
     int sc_has_ref, sc_ref_updated, sc_n_starts, sc_new_start, sc_start_updated[{WALK_KEEP}], sc_rb_has;
     double sc_ref[6], sc_ref_var[6], sc_ref_time;
@@ -49,7 +52,8 @@ static inline void {name}_sc_reset({name}_state *s)
     s->sc_window_start = s->last_time;
     s->sc_static = s->sc_gated = s->sc_updated = 0;
     s->sc_nis = 0.0;
-    for (j = 0; j < 6; ++j) s->sc_e2[j] = s->sc_pred[j] = 0.0;
+    for (j = 0; j < 6; ++j) s->sc_e2[j] = s->sc_pred[j] = s->sc_diff[j] = 0.0;
+    s->sc_pairs = 0;
     s->sc_has_update = s->has_time;
     s->sc_last_update = s->last_time;
     s->sc_announced = 0;
@@ -124,6 +128,14 @@ static inline void {name}_sc_observe({name}_state *s, double time, int still, in
                 s->sc_pred[j] += predicted[j];
             }}
         }}
+        if (s->sc_in_hold) {{   /* the previous sample was static too: a difference */
+            s->sc_pairs += 1;
+            for (j = 0; j < 6; ++j) {{
+                double d = (z[j] - s->sc_last_z[j]) * (z[j] - s->sc_last_z[j]), cap = {_num(DIFF_CAP)} * s->sc_noise0[j];
+                s->sc_diff[j] += d < cap ? d : cap;
+            }}
+        }}
+        memcpy(s->sc_last_z, z, sizeof s->sc_last_z);
         if (!s->sc_in_hold) {{
             if (s->sc_has_ref) {{   /* a hold starts: its first residual's change since the last static sample */
                 if (s->sc_n_starts == {WALK_KEEP}) {{
@@ -255,17 +267,21 @@ static inline void {name}_sc_check({name}_state *s, double time)
         s->sc_window_start = time;
     }}
     if (time - s->sc_window_start >= {_num(WINDOW_S)}) {{
-        if (s->sc_updated >= {MIN_WINDOW_SAMPLES}) {{
-            double n = (double)s->sc_updated, nis = s->sc_nis / n;
+        int updates = s->sc_updated >= {MIN_WINDOW_SAMPLES}, pairs = s->sc_pairs >= {MIN_WINDOW_SAMPLES};
+        if (updates || pairs) {{
+            double n = (double)s->sc_updated, nis = updates ? s->sc_nis / n : 0.0;
             double share = (double)s->sc_gated / (double)(s->sc_static > 0 ? s->sc_static : 1);
-            int high = nis > {_num(NIS_FACTOR)} * 6.0 || (share > {_num(GATED_FACTOR)} * s->sc_expected_gated && share > 0.01);
-            int low = nis < 6.0 / {_num(NIS_FACTOR)};
+            int high = (updates && nis > {_num(NIS_FACTOR)} * 6.0)
+                       || (share > {_num(GATED_FACTOR)} * s->sc_expected_gated && share > 0.01);
+            int low = updates && nis < 6.0 / {_num(NIS_FACTOR)};
             if (high || low) {{
                 double proposal[6];
                 int change = 0;
                 for (j = 0; j < 6; ++j) {{
-                    double m = s->sc_e2[j] / n - s->sc_pred[j] / n, r0 = s->sc_noise0[j];
+                    double m = updates ? s->sc_e2[j] / n - s->sc_pred[j] / n : 0.0, r0 = s->sc_noise0[j];
                     if (m < 0.0) m = 0.0;
+                    if (high && pairs && s->sc_diff[j] / (double)s->sc_pairs / 2.0 > m)
+                        m = s->sc_diff[j] / (double)s->sc_pairs / 2.0;
                     if (m < r0) m = r0;
                     if (m > {_num(R_MAX)} * r0) m = {_num(R_MAX)} * r0;
                     if (high ? m < s->noise_variance[j] : m > s->noise_variance[j]) m = s->noise_variance[j];
@@ -285,7 +301,8 @@ static inline void {name}_sc_check({name}_state *s, double time)
         s->sc_window_start = time;
         s->sc_static = s->sc_gated = s->sc_updated = 0;
         s->sc_nis = 0.0;
-        for (j = 0; j < 6; ++j) s->sc_e2[j] = s->sc_pred[j] = 0.0;
+        for (j = 0; j < 6; ++j) s->sc_e2[j] = s->sc_pred[j] = s->sc_diff[j] = 0.0;
+        s->sc_pairs = 0;
     }}
     if (s->sc_new_start) {{
         double lam, proposal[6], chi2 = 0.0;

@@ -72,6 +72,10 @@ MIN_WALK_SHARE = 0.3
 WALK_FACTOR = 1.6
 # Median of χ² with 6 degrees of freedom over 6 (scipy.special.chdtri(6, 0.5) / 6).
 CHI2_6_MEDIAN = 0.8913534
+# r is also matched to the differences of consecutive static samples (2 r for white noise, whatever the gate did:
+# a too-small r gates most samples, and the few that update are the small ones); each squared difference is
+# clipped at this many r0 (a contact's edge is one large difference).
+DIFF_CAP = 4.0 * R_MAX
 # r adapts when the NIS mean is beyond this factor of its expectation (either way), or the gated share this
 # many times the expected 1 - gate probability (and above 1 %).
 NIS_FACTOR = 1.5
@@ -99,6 +103,7 @@ class SelfCheck:
         self.nis = 0.0
         self.e2 = [0.0] * 6
         self.pred = [0.0] * 6
+        self.diff, self.n_pairs, self.last_z = [0.0] * 6, 0, None
         self.last_update = time
         self.locked_announced = False
         self.hold = None  # [n, Σz (6), Σ direction (3), start time, last time]
@@ -120,6 +125,11 @@ class SelfCheck:
                 self.nis += sum([a * a / b for a, b in zip(e, s)])
                 self.e2 = [a + b * b for a, b in zip(self.e2, e)]
                 self.pred = [a + b for a, b in zip(self.pred, predicted)]
+            if self.hold is not None:  # the previous sample was static too: a difference
+                self.n_pairs += 1
+                self.diff = [a + min((b - c) * (b - c), DIFF_CAP * r0)
+                             for a, b, c, r0 in zip(self.diff, z, self.last_z, self.noise0)]
+            self.last_z = z
             if self.hold is None:
                 self._start(t, z)
                 self.hold = [0, [0.0] * 6, [0.0] * 3, t, t, 0]
@@ -157,6 +167,14 @@ class SelfCheck:
         for a, b in zip(edges[::2].tolist(), edges[1::2].tolist()):
             if a > pos and self.hold is not None:
                 self._end_hold()
+            cap = DIFF_CAP * np.asarray(self.noise0)
+            steps = np.diff(z[a:b], axis=0)
+            if self.hold is not None:
+                steps = np.vstack([z[a] - np.asarray(self.last_z), steps])
+            if steps.shape[0]:
+                self.n_pairs += steps.shape[0]
+                self.diff = [x + y for x, y in zip(self.diff, np.minimum(steps * steps, cap).sum(axis=0).tolist())]
+            self.last_z = z[b - 1].tolist()
             if self.hold is None:
                 self._start(float(t[a]), z[a].tolist())
                 self.hold = [0, [0.0] * 6, [0.0] * 3, float(t[a]), float(t[a]), 0]
@@ -255,13 +273,18 @@ class SelfCheck:
         if self.window_start is None:
             self.window_start = time
         if time - self.window_start >= WINDOW_S:
-            if self.n_updated >= MIN_WINDOW_SAMPLES:
-                nis = self.nis / self.n_updated
+            updates, pairs = self.n_updated >= MIN_WINDOW_SAMPLES, self.n_pairs >= MIN_WINDOW_SAMPLES
+            if updates or pairs:
+                nis = self.nis / self.n_updated if updates else math.nan
                 share = self.n_gated / max(self.n_static, 1)
-                too_high = nis > NIS_FACTOR * 6.0 or (share > GATED_FACTOR * self.expected_gated and share > 0.01)
-                too_low = nis < 6.0 / NIS_FACTOR
+                too_high = (updates and nis > NIS_FACTOR * 6.0) or (
+                    share > GATED_FACTOR * self.expected_gated and share > 0.01)
+                too_low = updates and nis < 6.0 / NIS_FACTOR
                 if too_high or too_low:
-                    matched = [max(a / self.n_updated - p / self.n_updated, 0.0) for a, p in zip(self.e2, self.pred)]
+                    matched = ([max(a / self.n_updated - p / self.n_updated, 0.0) for a, p in zip(self.e2, self.pred)]
+                               if updates else [0.0] * 6)
+                    if too_high and pairs:
+                        matched = [max(m, d / self.n_pairs / 2.0) for m, d in zip(matched, self.diff)]
                     proposal = [min(max(m, r0), R_MAX * r0) for m, r0 in zip(matched, self.noise0)]
                     if too_high:
                         proposal = [max(p, r) for p, r in zip(proposal, noise)]
@@ -270,7 +293,9 @@ class SelfCheck:
                     if any(abs(p - r) > 1e-3 * r for p, r in zip(proposal, noise)):
                         new_noise = proposal
                         events.append(("adapted", (
-                            f"NIS mean {nis:.3g} over {self.n_updated} static samples (expected 6), {100 * share:.2g} % "
+                            (f"NIS mean {nis:.3g} over {self.n_updated} static samples (expected 6), " if updates else
+                             f"{self.n_updated} static samples updated (too few for the NIS; r from the differences of "
+                             f"{self.n_pairs} consecutive static samples), ") + f"{100 * share:.2g} % "
                             f"of static samples gated (expected {100 * self.expected_gated:.2g} %): noise std "
                             + ", ".join(f"{math.sqrt(p):.3g}" for p in proposal)
                             + " (covariance matching, within 1 to 5x the identified)")))
@@ -278,6 +303,7 @@ class SelfCheck:
             self.n_static = self.n_gated = self.n_updated = 0
             self.nis = 0.0
             self.e2, self.pred = [0.0] * 6, [0.0] * 6
+            self.diff, self.n_pairs = [0.0] * 6, 0
         if self.new_start:
             self.new_start = False
             matched = self._match_walk(new_noise or noise, walk)
