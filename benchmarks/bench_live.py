@@ -432,7 +432,8 @@ LIVE_CASES["live_tracker"] = live_tracker
 # (free / floor, false flags, contacts flagged, absorbed N).
 TRACKER_BEFORE = {"matched": (1.118, 0.0010, 0.996, 0.056), "walk 3x": (9.80, 0.178, 0.949, 1.06),
                   "walk 2x + warm-up 40 N/h": (6.15, 0.113, 0.947, 1.22),
-                  "coloured + quantised": (0.58, 0.002, 0.924, 0.87)}
+                  "coloured + quantised": (0.58, 0.002, 0.924, 0.87), "noise 3x": (1.03, 0.022, 0.964, 0.08),
+                  "10-bit steps, walk 2x": (3.94, 0.057, 0.906, 1.55)}
 
 
 def tracker_section(run_case) -> tuple[list[str], str]:

@@ -23,11 +23,22 @@ def test_a_faster_walk_is_matched_and_the_bias_kept(case):
     assert "locked_out" in kinds and any(t.startswith("the residual changed over the last") for t in texts)
     # The freeze: before, nearly every contact-free static sample flagged and the bias off by > 1 N.
     assert before["false_flags"] > 0.9 and before["bias_error"] > 1.0, before
-    # Issue 40's targets for these cases: <= 5 % false flags, >= 90 % of contacts flagged; free force <= 3 floors
-    # (the 3x walk: 3.7, the first 8 s after its first rollback are locked; docs/live.md)
-    assert after["false_flags"] <= 0.05 and after["contact_flagged"] >= 0.9, after
-    assert after["free_over_floor"] <= (4.0 if case == "walk 3x" else 3.0), after
     assert after["bias_error"] < 0.2 * before["bias_error"]
+    meets_issue_40(after)
+
+
+def meets_issue_40(result, case=None):
+    """Issue 40's targets for a case other than the matched one (or the matched one's)."""
+    free, false, flagged, absorbed = truth.TARGETS.get(case, truth.OTHER_TARGETS)
+    assert result["free_over_floor"] <= free and result["false_flags"] <= false, result
+    assert result["contact_flagged"] >= flagged and result["absorbed"] <= absorbed, result
+
+
+@pytest.mark.parametrize("case", ["noise 3x", "10-bit steps, walk 2x"])
+def test_more_noise_and_coarse_steps(case):
+    """Noise 3x the identified (a too-small r gates nearly every sample: r from the differences of consecutive static
+    samples), and a sensor whose quantisation step is twice its noise, walking 2x the identified."""
+    meets_issue_40(truth.run_case(case))
 
 
 def test_the_walk_is_not_matched_under_a_wander():
@@ -66,8 +77,7 @@ def test_matched_drift_is_left_alone():
     before = truth.run_case("matched", self_check=False)
     after = truth.run_case("matched")
     assert [e for e in after["events"] if e[2] == "reacquired"] == []
-    assert after["free_over_floor"] <= 1.5 and after["false_flags"] <= 0.01 and after["contact_flagged"] >= 0.9
-    assert after["absorbed"] <= 0.3
+    meets_issue_40(after, "matched")
     assert after["free_rms"] <= 1.05 * before["free_rms"]
 
 
