@@ -12,7 +12,9 @@ estimation", IEEE PES GM 2017). Over a window of :data:`WINDOW_S` s the static s
 are left out). When the window's normalised innovation squared (NIS, mean ``Σ e²/S`` against its χ² expectation 6)
 or its share of static samples gated (expected 1 − gate probability, 0.1 %) says the filter is inconsistent,
 r goes to r̂, bounded to [r₀, :data:`R_MAX` r₀] (r₀: the one rule's, what the data showed: never below it), and an
-event ``tracker adapted`` says so with the NIS and the gated share.
+event ``tracker adapted`` says so with the NIS and the gated share. When r is too small, r̂ is at least half the
+mean squared difference of consecutive static samples (``2 r`` for white noise, whatever the gate did; each clipped
+at :data:`DIFF_CAP` r₀): an r far too small gates nearly every sample, and the few that update are the small ones.
 
 **Walk: lock-out and re-acquisition by orientation diversity.** A sensor whose bias moved faster than q allows
 (or that the drift test sent back) fails the gate on every static sample: the bias stops updating. After
