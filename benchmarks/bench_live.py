@@ -427,11 +427,13 @@ def live_tracker(case: str, self_check: bool = False) -> dict:
 
 
 LIVE_CASES["live_tracker"] = live_tracker
-# Measured on main at 564762e (before the noise rule, the self-check and the health change), same generator, same
-# seeds, in this machine's run of 2026-12-01: (free / floor, false flags, contacts flagged, absorbed N).
-TRACKER_BEFORE = {"matched": (1.118, 0.0326, 1.0, 0.056), "walk 3x": (28.06, 0.9768, 0.931, 1.755),
-                  "walk 2x + warm-up 40 N/h": (36.11, 1.0, 1.0, 0.313),
-                  "coloured + quantised": (0.715, 0.0109, 0.774, 1.391)}
+# Measured on main at d2d3f91 (before the walk matching; the self-check on, its default), same generator, same seeds,
+# in this machine's run of 2026-12-02 (a tree of d2d3f91 beside this one, `tests/live_truth.py`):
+# (free / floor, false flags, contacts flagged, absorbed N).
+TRACKER_BEFORE = {"matched": (1.118, 0.0010, 0.996, 0.056), "walk 3x": (9.80, 0.178, 0.949, 1.06),
+                  "walk 2x + warm-up 40 N/h": (6.15, 0.113, 0.947, 1.22),
+                  "coloured + quantised": (0.58, 0.002, 0.924, 0.87), "noise 3x": (1.03, 0.022, 0.964, 0.08),
+                  "10-bit steps, walk 2x": (3.94, 0.057, 0.906, 1.55)}
 
 
 def tracker_section(run_case) -> tuple[list[str], str]:
@@ -446,7 +448,7 @@ def tracker_section(run_case) -> tuple[list[str], str]:
            "(10, 2, 15 N), a 6 N ramp and 3 N touches. *free/floor*: contact-free compensated force RMS over the "
            "per-sample noise; *false*: contact-free static samples flagged; *contacts*: samples of contacts beyond "
            "4 floors flagged; *absorbed*: largest bias move across a contact less the true drift. *before*: main at "
-           "564762e (same generator and seeds).", "",
+           "d2d3f91, self-check on (same generator and seeds; before the walk matching).", "",
            "| case | tracker | free/floor | false | contacts | absorbed | rollbacks | re-acquired | CPU | targets |",
            "|---|---|---:|---:|---:|---:|---:|---:|---:|---|"]
     met = 0

@@ -27,6 +27,7 @@
 #define FTCAL_CORE_DRIFT_SNAPSHOTS 258
 #define FTCAL_CORE_DRIFT_LAGS 4
 #define FTCAL_CORE_SC_KEEP_HOLDS 4
+#define FTCAL_CORE_SC_WALK_KEEP 12
 #define FTCAL_CORE_N_FLAGS 8
 #define FTCAL_CORE_MAX_EVENTS 64
 /* the codes: ftcal.live.core checks them against the Python constants (health.BIT, c_events, c_identify) */
@@ -86,13 +87,16 @@ static const Field FIELDS[] = {
     F(gate_chi2, REAL, 1, 1, 1), F(drift_chi2, REAL, 1, 1, 1), F(gate_probability, REAL, 1, 1, 1),
     F(unexplained_sigma, REAL, 1, 1, 1), F(unexplained_seconds, REAL, 1, 1, 1), F(motion_window, REAL, 1, 1, 1),
     F(min_rate, REAL, 1, 1, 1), F(min_hold, REAL, 1, 1, 1), F(retare_variance, REAL, 1, 1, 1),
-    F(snapshot_s, REAL, 1, 1, 1), F(lags, REAL, 1, FTCAL_CORE_DRIFT_LAGS, FTCAL_CORE_DRIFT_LAGS),
+    F(holdoff, REAL, 1, 1, 1), F(snapshot_s, REAL, 1, 1, 1),
+    F(lags, REAL, 1, FTCAL_CORE_DRIFT_LAGS, FTCAL_CORE_DRIFT_LAGS),
     F(stuck_run, LONG, 1, 1, 1), F(dead_run, LONG, 1, 1, 1), F(saturation_run, LONG, 1, 1, 1),
     F(load_steps, REAL, 1, 1, 1),
     F(sc_lock_s, REAL, 1, 1, 1), F(sc_min_hold_s, REAL, 1, 1, 1), F(sc_min_turn_deg, REAL, 1, 1, 1),
     F(sc_turn_share, REAL, 1, 1, 1), F(sc_correlation_s, REAL, 1, 1, 1), F(sc_window_s, REAL, 1, 1, 1),
     F(sc_min_window_samples, LONG, 1, 1, 1), F(sc_r_max, REAL, 1, 1, 1), F(sc_q_max, REAL, 1, 1, 1),
-    F(sc_nis_factor, REAL, 1, 1, 1), F(sc_gated_factor, REAL, 1, 1, 1),
+    F(sc_nis_factor, REAL, 1, 1, 1), F(sc_gated_factor, REAL, 1, 1, 1), F(sc_diff_cap, REAL, 1, 1, 1),
+    F(sc_min_walk_starts, LONG, 1, 1, 1), F(sc_min_walk_share, REAL, 1, 1, 1), F(sc_walk_factor, REAL, 1, 1, 1),
+    F(sc_chi2_6_median, REAL, 1, 1, 1),
     F(rank_relative, REAL, 1, 1, 1), F(rounding_column, REAL, 1, 1, 1), F(null_row, REAL, 1, 1, 1),
     F(canonical_tie, REAL, 1, 1, 1), F(weighting_tie, REAL, 1, 1, 1), F(refit_condition, REAL, 1, 1, 1),
     F(excitation_limit, REAL, 1, 1, 1), F(id_maps, REAL, 60, 4, 4),
@@ -111,7 +115,7 @@ typedef struct {
 static const Setting SETTINGS[] = {
     S(noise_variance, 6), S(walk_variance, 6), S(gate_chi2, 1), S(drift_chi2, 1), S(accept_limit, 6),
     S(unexplained_sigma, 1), S(unexplained_seconds, 1), S(motion_window, 1), S(min_rate, 1), S(min_hold, 1),
-    S(adc_low, 1), S(adc_high, 1), S(bias, 6), S(variance, 6), S(tool_mass, NT), S(tool_sign, NT),
+    S(adc_low, 1), S(adc_high, 1), S(bias, 6), S(variance, 6), S(tool_mass, NT), S(tool_sign, NT), S(holdoff, 1),
 };
 #undef S
 
@@ -362,10 +366,11 @@ static PyObject *Core_set_tool(Core *self, PyObject *args)
 static PyObject *Core_counters(Core *self, PyObject *Py_UNUSED(ignored))
 {
     const ftcal_core_state *s = self->state;
-    return Py_BuildValue("{s:k,s:k,s:k,s:k,s:k,s:k,s:k,s:k,s:k,s:I,s:i}", "samples", s->samples, "updates",
+    return Py_BuildValue("{s:k,s:k,s:k,s:k,s:k,s:k,s:k,s:k,s:k,s:k,s:I,s:i}", "samples", s->samples, "updates",
                          s->updates, "contacts", s->contacts, "retares", s->retares, "switches", s->switches,
                          "rollbacks", s->rollbacks, "adaptations", s->sc_adaptations, "lockouts", s->sc_lockouts,
-                         "reacquisitions", s->sc_reacquisitions, "flags", s->flags, "tool", s->tool);
+                         "reacquisitions", s->sc_reacquisitions, "undone", s->sc_undone, "flags", s->flags,
+                         "tool", s->tool);
 }
 
 static PyObject *Core_set_self_check(Core *self, PyObject *args)
@@ -428,6 +433,7 @@ PyMODINIT_FUNC PyInit__core(void)
         || PyModule_AddIntConstant(m, "MAX_TOOLS", FTCAL_CORE_N_TOOLS) < 0
         || PyModule_AddIntConstant(m, "DRIFT_SNAPSHOTS", FTCAL_CORE_DRIFT_SNAPSHOTS) < 0
         || PyModule_AddIntConstant(m, "SC_KEEP_HOLDS", FTCAL_CORE_SC_KEEP_HOLDS) < 0
+        || PyModule_AddIntConstant(m, "SC_WALK_KEEP", FTCAL_CORE_SC_WALK_KEEP) < 0
         || PyModule_AddIntConstant(m, "MAX_HOLDS", FTCAL_CORE_MAX_HOLDS) < 0) {
         Py_DECREF(&CoreType);
         Py_DECREF(m);

@@ -5,9 +5,10 @@ Model, axis j (the random-walk model of :mod:`ftcal.payload.drift`, one sample a
     b_k = b_(k−1) + w_k,   w_k ~ N(0, q_j Δt_k)          (the sensor's bias walks)
     z_k = b_k + v_k,       v_k ~ N(0, r_j)                (z: calibrated wrench − tool's gravity wrench)
 
-A sample updates the filter only when it is *static* (the caller's motion test) and its
+A sample updates the filter only when it is *static* (the caller's motion test), its
 innovation ``e = z − b_(k−1)`` passes the χ² test ``Σ_j e_j² / S_j < threshold`` with
-``S = P⁻ + r`` (6 degrees of freedom). A sample that fails is a contact: it is reported and
+``S = P⁻ + r`` (6 degrees of freedom), and no static sample failed that test in the last
+:data:`HOLDOFF_S` s (a contact's release edge stays out). A sample that fails is a contact: it is reported and
 the bias is only predicted (``P`` grows by ``q Δt``), so a real contact is never absorbed.
 
 **Blocks with the same math as one sample at a time.** With the update decisions fixed,
@@ -27,6 +28,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+# After a static sample fails the gate, no sample updates the bias for this long (s): a contact released over tens of
+# ms passes the gate part-way down its edge, and after a long contact the bias variance is large enough that one such
+# sample would set the bias (gain near 1) to part of the contact.
+HOLDOFF_S = 0.15
 # Samples scanned together: a gate that disagrees with the guess costs a rescan of the rest of a chunk.
 CHUNK = 1024
 # Every this many rescans of one chunk, the scanned window halves (down to MIN_WINDOW samples): a gate
@@ -118,6 +123,7 @@ class TrackedBlock:
     chi2 : ndarray of shape (n,), ``Σ e² / S``
     updated : ndarray of bool, shape (n,), the sample updated the bias
     passes : int, scans used (1 when every guessed decision held)
+    last_fail : time of the last static sample that failed the gate (−inf: none), for the hold-off
     """
 
     bias: np.ndarray
@@ -127,6 +133,7 @@ class TrackedBlock:
     chi2: np.ndarray
     updated: np.ndarray
     passes: int
+    last_fail: float = -np.inf
 
 
 def _scan_segment(z, dt, update, b0, p0, q, r):
@@ -152,7 +159,8 @@ def _scan_segment(z, dt, update, b0, p0, q, r):
 
 
 def track_block(z: np.ndarray, dt: np.ndarray, static: np.ndarray, bias0: np.ndarray, variance0: np.ndarray,
-                walk: np.ndarray, noise: np.ndarray, threshold: float) -> TrackedBlock:
+                walk: np.ndarray, noise: np.ndarray, threshold: float, times: np.ndarray | None = None,
+                last_fail: float = -np.inf, holdoff: float = HOLDOFF_S) -> TrackedBlock:
     """Run the gated bias filter over a block of samples.
 
     Parameters
@@ -164,6 +172,9 @@ def track_block(z: np.ndarray, dt: np.ndarray, static: np.ndarray, bias0: np.nda
     walk : ndarray of shape (6,), walk variance per second, q
     noise : ndarray of shape (6,), per-sample noise variance, r
     threshold : χ² (6 degrees of freedom) above which a sample is a contact
+    times : ndarray of shape (n,) or None, the samples' times, for the hold-off (None: no hold-off)
+    last_fail : time of the last static sample before the block that failed the gate
+    holdoff : s after a failed static sample during which no sample updates
 
     Returns
     -------
@@ -174,12 +185,15 @@ def track_block(z: np.ndarray, dt: np.ndarray, static: np.ndarray, bias0: np.nda
                        np.zeros(n, bool), 0)
     update = static.copy()
     b, p = np.asarray(bias0, float), np.asarray(variance0, float)
+    out.last_fail = float(last_fail)
+    hold = (times, holdoff) if times is not None else None
     for begin in range(0, n, CHUNK):
-        b, p = _track_chunk(z, dt, static, update, b, p, walk, noise, threshold, out, begin, min(begin + CHUNK, n))
+        b, p = _track_chunk(z, dt, static, update, b, p, walk, noise, threshold, out, begin, min(begin + CHUNK, n),
+                            hold)
     return out
 
 
-def _track_chunk(z, dt, static, update, b, p, walk, noise, threshold, out, start, end):
+def _track_chunk(z, dt, static, update, b, p, walk, noise, threshold, out, start, end, hold=None):
     """Samples ``start:end`` of :func:`track_block`; returns the state after them."""
     passes = 0
     while start < end:
@@ -189,8 +203,16 @@ def _track_chunk(z, dt, static, update, b, p, walk, noise, threshold, out, start
         out.passes += 1
         passes += 1
         gate = static[seg] & (chi2 < threshold)
+        if hold is not None:
+            # the last failed static sample before each one: the hold-off (valid up to the first wrong guess)
+            t = hold[0][seg]
+            failed = np.where(static[seg] & ~(chi2 < threshold), t, -np.inf)
+            before = np.maximum.accumulate(np.r_[out.last_fail, failed[:-1]])
+            gate &= t - before >= hold[1]
         wrong = np.flatnonzero(gate != update[seg])
         keep = stop - start if wrong.size == 0 else int(wrong[0])
+        if hold is not None and keep:
+            out.last_fail = float(max(out.last_fail, failed[:keep].max()))
         kept = slice(start, start + keep)
         out.bias[kept], out.variance[kept], out.innovation[kept] = bias[:keep], var[:keep], e[:keep]
         out.innovation_variance[kept], out.chi2[kept], out.updated[kept] = s[:keep], chi2[:keep], update[kept]

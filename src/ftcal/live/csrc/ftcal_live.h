@@ -17,9 +17,9 @@
    FTCAL_LIVE_MACRO (the same upper-cased, prefixing every macro), and the size macros PREFIX_N_INPUTS,
    PREFIX_N_CHANNELS, PREFIX_N_TOOLS, PREFIX_MAX_ADDED_TOOLS, PREFIX_MAX_TOOLS, PREFIX_MAX_TOOL_NAME,
    PREFIX_MAX_HOLDS, PREFIX_MIN_HOLDS, PREFIX_MAX_MAGNITUDE, PREFIX_HISTORY, PREFIX_DRIFT_SNAPSHOTS,
-   PREFIX_DRIFT_LAGS, PREFIX_SC_KEEP_HOLDS, PREFIX_N_FLAGS, PREFIX_MAX_EVENTS, and the codes PREFIX_FLAG_*,
-   PREFIX_EVENT_*, PREFIX_TOOL_*, PREFIX_ID_* (the generated header emits them from the Python constants they
-   mirror); for the texts also PREFIX_FLAG_NAMES, PREFIX_EVENT_KIND_NAMES and a function PREFIX_input_name(int). Sizes are maxima: the configuration (FTL_(config)) says how many inputs, channels and compiled-in tools
+   PREFIX_DRIFT_LAGS, PREFIX_SC_KEEP_HOLDS, PREFIX_SC_WALK_KEEP, PREFIX_N_FLAGS, PREFIX_MAX_EVENTS, and the codes
+   PREFIX_FLAG_*, PREFIX_EVENT_*, PREFIX_TOOL_*, PREFIX_ID_* (the generated header emits them from the Python
+   constants they mirror); for the texts also PREFIX_FLAG_NAMES, PREFIX_EVENT_KIND_NAMES and a function PREFIX_input_name(int). Sizes are maxima: the configuration (FTL_(config)) says how many inputs, channels and compiled-in tools
    there are. FTCAL_LIVE_REAL (default double; the generated header sets it from NAME_REAL) is the type of the
    filter's numbers: a float build defines it as float (times, the configuration and the identification's moments
    stay double). FTCAL_LIVE_NO_TEXT (from NAME_NO_TEXT) leaves out the texts (and snprintf).
@@ -75,6 +75,7 @@ typedef struct {
     double noise_variance[6], walk_variance[6], accept_limit[6];
     double gate_chi2, drift_chi2, gate_probability, unexplained_sigma, unexplained_seconds;
     double motion_window, min_rate, min_hold, retare_variance;
+    double holdoff;                  /* s after a static sample failed the gate without updates (ftcal.live.tracker) */
     /* the drift test (ftcal.live.drift) */
     double snapshot_s, lags[FTL_M(DRIFT_LAGS)];
     /* health (ftcal.live.health, ftcal.data.signals) */
@@ -84,6 +85,9 @@ typedef struct {
     double sc_lock_s, sc_min_hold_s, sc_min_turn_deg, sc_turn_share, sc_correlation_s, sc_window_s;
     long sc_min_window_samples;
     double sc_r_max, sc_q_max, sc_nis_factor, sc_gated_factor;
+    double sc_diff_cap;              /* a squared difference of consecutive static samples is clipped at this x r0 */
+    long sc_min_walk_starts;         /* the walk matching: hold starts needed, */
+    double sc_min_walk_share, sc_walk_factor, sc_chi2_6_median;   /* walk share of a start, factor, median chi2_6/6 */
     /* identification in place (ftcal.payload.identify) */
     double rank_relative, rounding_column, null_row, canonical_tie, weighting_tie, refit_condition, excitation_limit;
     double id_maps[6][10][4];        /* axis i's regressor row is id_maps[i] (g, 1) */
@@ -150,6 +154,8 @@ typedef struct {
     double drift_time[FTL_M(DRIFT_SNAPSHOTS)];
     FTL_(real) drift_bias[FTL_M(DRIFT_SNAPSHOTS)][6];
     FTL_(real) drift_variance[FTL_M(DRIFT_SNAPSHOTS)][6];
+    double last_fail;            /* the last static sample that failed the gate (the hold-off), -HUGE_VAL: none */
+    double holdoff;              /* s after it without updates (LiveCalibrator(holdoff=...)), 0: off */
     unsigned long rollbacks;     /* the bias sent back by the drift test (Python's "rollback" events) */
     double rollback_time, rollback_lag;
     FTL_(real) rollback_chi2, rollback_moved;   /* the last one: the event's numbers */
@@ -166,8 +172,20 @@ typedef struct {
     FTL_(real) sc_prev_mean[FTL_M(SC_KEEP_HOLDS)][6], sc_prev_dir[FTL_M(SC_KEEP_HOLDS)][3];
     double sc_prev_seconds[FTL_M(SC_KEEP_HOLDS)], sc_prev_end[FTL_M(SC_KEEP_HOLDS)];
     long sc_prev_n[FTL_M(SC_KEEP_HOLDS)];
-    unsigned long sc_adaptations, sc_lockouts, sc_reacquisitions;
-    double sc_last_adapted, sc_last_lockout, sc_last_reacquired;
+    /* r matched to the differences of consecutive static samples (clipped sums over the window, their count) */
+    FTL_(real) sc_diff[6], sc_last_z[6];
+    unsigned long sc_pairs;
+    /* walk matching over hold starts: the last static sample (bias after it, or z when it did not update) */
+    int sc_has_ref, sc_ref_updated, sc_n_starts, sc_new_start, sc_start_updated[FTL_M(SC_WALK_KEEP)], sc_rb_has;
+    FTL_(real) sc_ref[6], sc_ref_var[6];
+    double sc_ref_time;
+    FTL_(real) sc_start_change[FTL_M(SC_WALK_KEEP)][6], sc_start_var[FTL_M(SC_WALK_KEEP)][6];
+    double sc_start_gap[FTL_M(SC_WALK_KEEP)];
+    /* the drift test's last rollback (DriftCheck.last_rollback): time, state before it, the snapshot, span */
+    double sc_rb_time, sc_rb_span;
+    FTL_(real) sc_rb_bias[6], sc_rb_var[6], sc_rb_b0[6], sc_rb_p0[6];
+    unsigned long sc_adaptations, sc_lockouts, sc_reacquisitions, sc_undone;
+    double sc_last_adapted, sc_last_lockout, sc_last_reacquired, sc_last_undone;
     /* identification in place (NAME_start_identification / NAME_finish_identification) */
     int identifying, in_hold;    /* in_hold: 0 moving, 1 collecting into the last hold, 2 a hold past the limit */
     int n_holds;
@@ -247,6 +265,8 @@ static inline int FTL_(core_init)(FTL_(state) *s, const FTL_(config) *config, in
     s->gate_chi2 = config->gate_chi2;
     s->drift_chi2 = config->drift_chi2;
     s->drift_due = -HUGE_VAL;
+    s->last_fail = -HUGE_VAL;
+    s->holdoff = config->holdoff;
     s->unexplained_sigma = config->unexplained_sigma;
     s->unexplained_seconds = config->unexplained_seconds;
     s->motion_window = config->motion_window;
@@ -376,6 +396,7 @@ static inline void FTL_(drift_reset)(FTL_(state) *s)
     s->drift_start = 0;
     s->drift_count = 0;
     s->drift_due = -HUGE_VAL;
+    s->sc_rb_has = 0;   /* DriftCheck.reset: the last rollback forgotten */
 }
 
 /* The drift test after the sample at `time` (ftcal.live.drift.DriftCheck.check, same order and arithmetic): compare
@@ -411,6 +432,13 @@ static inline int FTL_(drift_check)(FTL_(state) *s, double time)
         for (j = 0; j < 6; ++j) { if (fabs(s->bias[j] - b0[j]) > s->accept_limit[j]) { beyond = 1; } }
         if (!beyond) { continue; }
         for (j = 0; j < 6; ++j) { if (fabs(s->bias[j] - b0[j]) > moved) { moved = fabs(s->bias[j] - b0[j]); } }
+        s->sc_rb_has = 1;   /* DriftCheck.last_rollback: the self-check may undo it */
+        s->sc_rb_time = time;
+        s->sc_rb_span = span;
+        memcpy(s->sc_rb_bias, s->bias, sizeof s->sc_rb_bias);
+        memcpy(s->sc_rb_var, s->variance, sizeof s->sc_rb_var);
+        memcpy(s->sc_rb_b0, b0, sizeof s->sc_rb_b0);
+        memcpy(s->sc_rb_p0, p0, sizeof s->sc_rb_p0);
         for (j = 0; j < 6; ++j) {   /* back to the snapshot, its variance predicted since; it is the only one left */
             s->bias[j] = b0[j];
             s->variance[j] = p0[j] + s->walk_variance[j] * span;
@@ -458,6 +486,7 @@ static inline int FTL_(retare)(FTL_(state) *s)
     }
     FTL_(drift_reset)(s);
     FTL_(sc_reset)(s);
+    s->last_fail = -HUGE_VAL;
     s->retares += 1;
     return ev.flag;
 }
@@ -665,7 +694,9 @@ static inline int FTL_(core_step)(FTL_(state) *s, double time, const FTL_(real) 
         e[j] = z[j] - s->bias[j];
         chi2 += e[j] * (e[j] / innovation_var[j]);
     }
-    gate = still && !s->identifying && chi2 < s->gate_chi2;
+    /* the hold-off (ftcal.live.tracker.HOLDOFF_S): no update within it after a static sample failed the gate */
+    gate = still && !s->identifying && chi2 < s->gate_chi2 && time - s->last_fail >= s->holdoff;
+    if (still && !s->identifying && !(chi2 < s->gate_chi2)) { s->last_fail = time; }
     for (j = 0; j < 6; ++j) {
         out->calibrated[j] = w[j];
         out->compensated[j] = e[j];
@@ -1051,6 +1082,7 @@ static inline int FTL_(add_identified)(FTL_(state) *s, const char *tool_name, co
         }
         FTL_(drift_reset)(s);   /* the bias was set on purpose: the drift test starts again */
         FTL_(sc_reset)(s);      /* and the self-check */
+        s->last_fail = -HUGE_VAL;
     }
     return 0;
 }

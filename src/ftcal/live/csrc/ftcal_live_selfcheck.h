@@ -10,7 +10,7 @@
    On after NAME_init, as LiveCalibrator's default (s->self_check = 0 turns it off; NAME_enable_self_check again
    after changing noise_variance or walk_variance: they are its bounds). Instead of Python's `tracker` events the
    state counts them (sc_adaptations, sc_lockouts, sc_reacquisitions) with the last one's time, as for the drift
-   test's rollbacks. */
+   test's rollbacks, and the rollbacks the walk matching undid (sc_undone). */
 
 static inline void FTL_(sc_reset)(FTL_(state) *s)
 {
@@ -19,12 +19,16 @@ static inline void FTL_(sc_reset)(FTL_(state) *s)
     s->sc_window_start = s->last_time;
     s->sc_static = s->sc_gated = s->sc_updated = 0;
     s->sc_nis = 0.0;
-    for (j = 0; j < 6; ++j) { s->sc_e2[j] = s->sc_pred[j] = 0.0; }
+    for (j = 0; j < 6; ++j) { s->sc_e2[j] = s->sc_pred[j] = s->sc_diff[j] = 0.0; }
+    s->sc_pairs = 0;
     s->sc_has_update = s->has_time;
     s->sc_last_update = s->last_time;
     s->sc_announced = 0;
     s->sc_in_hold = 0;
     s->sc_n_previous = 0;
+    s->sc_has_ref = 0;
+    s->sc_n_starts = 0;
+    s->sc_new_start = 0;
 }
 
 /* Turn the self-check on (as LiveCalibrator(self_check=True)), after any change of noise_variance / walk_variance:
@@ -73,7 +77,7 @@ static inline void FTL_(sc_observe)(FTL_(state) *s, double time, int still, int 
                                      const FTL_(real) *e, const FTL_(real) *predicted, const FTL_(real) *innovation_var,
                                      const FTL_(real) *direction)
 {
-    int j;
+    int j, k;
     if (!s->sc_has_update) {
         s->sc_has_update = 1;
         s->sc_last_update = time;
@@ -91,7 +95,35 @@ static inline void FTL_(sc_observe)(FTL_(state) *s, double time, int still, int 
                 s->sc_pred[j] += predicted[j];
             }
         }
+        if (s->sc_in_hold) {   /* the previous sample was static too: a difference */
+            s->sc_pairs += 1;
+            for (j = 0; j < 6; ++j) {
+                FTL_(real) d = (z[j] - s->sc_last_z[j]) * (z[j] - s->sc_last_z[j]);
+                FTL_(real) cap = s->cfg.sc_diff_cap * s->sc_noise0[j];
+                s->sc_diff[j] += d < cap ? d : cap;
+            }
+        }
+        memcpy(s->sc_last_z, z, sizeof s->sc_last_z);
         if (!s->sc_in_hold) {
+            if (s->sc_has_ref) {   /* a hold starts: its first residual's change since the last static sample */
+                if (s->sc_n_starts == FTL_M(SC_WALK_KEEP)) {   /* keep the newest FTL_M(SC_WALK_KEEP) */
+                    for (k = 1; k < FTL_M(SC_WALK_KEEP); ++k) {
+                        memcpy(s->sc_start_change[k - 1], s->sc_start_change[k], sizeof s->sc_start_change[k]);
+                        memcpy(s->sc_start_var[k - 1], s->sc_start_var[k], sizeof s->sc_start_var[k]);
+                        s->sc_start_updated[k - 1] = s->sc_start_updated[k];
+                        s->sc_start_gap[k - 1] = s->sc_start_gap[k];
+                    }
+                    s->sc_n_starts -= 1;
+                }
+                k = s->sc_n_starts++;
+                for (j = 0; j < 6; ++j) {
+                    s->sc_start_change[k][j] = (z[j] - s->sc_ref[j]) * (z[j] - s->sc_ref[j]);
+                    s->sc_start_var[k][j] = s->sc_ref_var[j];
+                }
+                s->sc_start_updated[k] = s->sc_ref_updated;
+                s->sc_start_gap[k] = time - s->sc_ref_time;
+                s->sc_new_start = 1;
+            }
             s->sc_in_hold = 1;
             s->sc_hold_n = s->sc_hold_missed = 0;
             for (j = 0; j < 6; ++j) { s->sc_hold_z[j] = 0.0; }
@@ -103,6 +135,15 @@ static inline void FTL_(sc_observe)(FTL_(state) *s, double time, int still, int 
         for (j = 0; j < 6; ++j) { s->sc_hold_z[j] += z[j]; }
         for (j = 0; j < 3; ++j) { s->sc_hold_dir[j] += direction[j]; }
         s->sc_hold_last = time;
+        s->sc_has_ref = 1;
+        s->sc_ref_updated = updated;
+        s->sc_ref_time = time;
+        if (updated) {
+            memcpy(s->sc_ref, s->bias, sizeof s->sc_ref);
+            memcpy(s->sc_ref_var, s->variance, sizeof s->sc_ref_var);
+        } else {
+            memcpy(s->sc_ref, z, sizeof s->sc_ref);
+        }
         if (updated) { s->sc_last_update = time; }
     } else if (s->sc_in_hold) {
         FTL_(sc_end_hold)(s);
@@ -147,6 +188,44 @@ static inline int FTL_(sc_alike)(const FTL_(state) *s, int k, const FTL_(real) *
     return 1;
 }
 
+/* q by covariance matching over the hold starts (SelfCheck._match_walk): 1 and *lam, proposal[6] when q must change. */
+static inline int FTL_(sc_match_walk)(const FTL_(state) *s, FTL_(real) *lam, FTL_(real) *proposal)
+{
+    FTL_(real) factors[FTL_M(SC_WALK_KEEP)];
+    int i, j, k, m = 0, change = 0;
+    for (k = 0; k < s->sc_n_starts; ++k) {
+        FTL_(real) total[6], share = 0.0, rho = 0.0;
+        double gap = s->sc_start_gap[k];
+        for (j = 0; j < 6; ++j) {
+            total[j] = (s->sc_start_updated[k] ? s->sc_start_var[k][j] : s->noise_variance[j])
+                       + s->walk_variance[j] * gap + s->noise_variance[j];
+        }
+        for (j = 0; j < 6; ++j) { share += s->walk_variance[j] * gap / total[j]; }
+        share /= 6.0;
+        if (share >= s->cfg.sc_min_walk_share) {
+            for (j = 0; j < 6; ++j) { rho += s->sc_start_change[k][j] / total[j]; }
+            rho /= 6.0;
+            factors[m++] = 1.0 + (rho / s->cfg.sc_chi2_6_median - 1.0) / share;
+        }
+    }
+    if (m < s->cfg.sc_min_walk_starts) { return 0; }
+    for (i = 1; i < m; ++i) {   /* insertion sort, then the median */
+        FTL_(real) x = factors[i];
+        for (k = i - 1; k >= 0 && factors[k] > x; --k) { factors[k + 1] = factors[k]; }
+        factors[k + 1] = x;
+    }
+    *lam = 0.5 * (factors[(m - 1) / 2] + factors[m / 2]);
+    if (1.0 / s->cfg.sc_walk_factor < *lam && *lam < s->cfg.sc_walk_factor) { return 0; }
+    for (j = 0; j < 6; ++j) {
+        FTL_(real) q = *lam * s->walk_variance[j], q0 = s->sc_walk0[j];
+        if (q < q0) { q = q0; }
+        if (q > s->cfg.sc_q_max * q0) { q = s->cfg.sc_q_max * q0; }
+        proposal[j] = q;
+        if (fabs(q - s->walk_variance[j]) > 1e-3 * s->walk_variance[j]) { change = 1; }
+    }
+    return change;
+}
+
 /* At a snapshot time, after the drift test (SelfCheck.check and LiveCalibrator._apply_self_check): r by covariance
    matching, the lock-out counted, the bias re-acquired. */
 static inline void FTL_(sc_check)(FTL_(state) *s, double time)
@@ -160,17 +239,24 @@ static inline void FTL_(sc_check)(FTL_(state) *s, double time)
         s->sc_window_start = time;
     }
     if (time - s->sc_window_start >= s->cfg.sc_window_s) {
-        if (s->sc_updated >= (unsigned long)s->cfg.sc_min_window_samples) {
-            double n = (double)s->sc_updated, nis = s->sc_nis / n;
+        int updates = s->sc_updated >= (unsigned long)s->cfg.sc_min_window_samples;
+        int pairs = s->sc_pairs >= (unsigned long)s->cfg.sc_min_window_samples;
+        if (updates || pairs) {
+            double n = (double)s->sc_updated;
+            FTL_(real) nis = updates ? s->sc_nis / n : 0.0;
             double share = (double)s->sc_gated / (double)(s->sc_static > 0 ? s->sc_static : 1);
-            int high = nis > s->cfg.sc_nis_factor * 6.0 || (share > s->cfg.sc_gated_factor * s->sc_expected_gated && share > 0.01);
-            int low = nis < 6.0 / s->cfg.sc_nis_factor;
+            int high = (updates && nis > s->cfg.sc_nis_factor * 6.0)
+                       || (share > s->cfg.sc_gated_factor * s->sc_expected_gated && share > 0.01);
+            int low = updates && nis < 6.0 / s->cfg.sc_nis_factor;
             if (high || low) {
                 FTL_(real) proposal[6];
                 int change = 0;
                 for (j = 0; j < 6; ++j) {
-                    FTL_(real) m = s->sc_e2[j] / n - s->sc_pred[j] / n, r0 = s->sc_noise0[j];
+                    FTL_(real) m = updates ? s->sc_e2[j] / n - s->sc_pred[j] / n : 0.0, r0 = s->sc_noise0[j];
                     if (m < 0.0) { m = 0.0; }
+                    if (high && pairs && s->sc_diff[j] / (double)s->sc_pairs / 2.0 > m) {
+                        m = s->sc_diff[j] / (double)s->sc_pairs / 2.0;
+                    }
                     if (m < r0) { m = r0; }
                     if (m > s->cfg.sc_r_max * r0) { m = s->cfg.sc_r_max * r0; }
                     if (high ? m < s->noise_variance[j] : m > s->noise_variance[j]) { m = s->noise_variance[j]; }
@@ -190,7 +276,40 @@ static inline void FTL_(sc_check)(FTL_(state) *s, double time)
         s->sc_window_start = time;
         s->sc_static = s->sc_gated = s->sc_updated = 0;
         s->sc_nis = 0.0;
-        for (j = 0; j < 6; ++j) { s->sc_e2[j] = s->sc_pred[j] = 0.0; }
+        for (j = 0; j < 6; ++j) { s->sc_e2[j] = s->sc_pred[j] = s->sc_diff[j] = 0.0; }
+        s->sc_pairs = 0;
+    }
+    if (s->sc_new_start) {
+        FTL_(real) lam, proposal[6], chi2 = 0.0;
+        s->sc_new_start = 0;
+        if (FTL_(sc_match_walk)(s, &lam, proposal)) {
+            int undo = s->sc_rb_has && s->sc_has_update && s->sc_last_update <= s->sc_rb_time;
+            if (undo) {
+                for (j = 0; j < 6; ++j) {
+                    chi2 += (s->sc_rb_bias[j] - s->sc_rb_b0[j]) * (s->sc_rb_bias[j] - s->sc_rb_b0[j])
+                            / (proposal[j] * s->sc_rb_span + s->sc_rb_var[j] + s->sc_rb_p0[j]);
+                }
+            }
+            if (undo && chi2 <= s->drift_chi2) {
+                for (j = 0; j < 6; ++j) {   /* no update since a rollback the matched walk explains: undone */
+                    s->bias[j] = s->sc_rb_bias[j];
+                    s->variance[j] = s->sc_rb_var[j] + proposal[j] * (time - s->sc_rb_time);
+                }
+                s->sc_undone += 1;
+                s->sc_last_undone = time;
+                FTL_(drift_reset)(s);
+            } else if (s->sc_has_update && time > s->sc_last_update) {
+                double idle0 = time - s->sc_last_update;
+                for (j = 0; j < 6; ++j) {   /* the bias walked at the new q since its last update */
+                    FTL_(real) more = proposal[j] - s->walk_variance[j];
+                    s->variance[j] = s->variance[j] + (more > 0.0 ? more : 0.0) * idle0;
+                }
+                FTL_(drift_reset)(s);
+            }
+            memcpy(s->walk_variance, proposal, sizeof proposal);
+            s->sc_adaptations += 1;
+            s->sc_last_adapted = time;
+        }
     }
     if (!s->sc_in_hold || !s->sc_has_update || s->sc_hold_last != time) { return; }
     idle = time - s->sc_last_update;
