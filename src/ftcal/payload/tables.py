@@ -15,13 +15,13 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.jackknife import block_edges, t_scale
+from ..core.jackknife import COARSER_BLOCKS, block_edges, t_scale
 from ..data.tables import table_label_column
 from ..runtime.errors import FtcalError
 from .accumulate import AxisStatistics, payload_statistics
 from .compensate import contact_wrench, undetermined_samples, warn_undetermined
 from .drift import MAX_KNOTS, BiasDrift
-from .identify import PayloadFit, model_fit
+from .identify import PayloadFit, model_fit, warn_uncertain_error
 from .kinematics import Kinematics, KinematicsSource
 from .parameters import PayloadParameters
 
@@ -308,7 +308,8 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
     extra, names = covariates(None, temperature)
     groups, clusters = _groups_and_blocks(recording, dynamic, extra)
     n_groups = len(groups)
-    constant = identify_payload(groups, clusters=clusters, covariates=names, cross_validate=cross_validate)
+    constant = identify_payload(groups, clusters=clusters, covariates=names, cross_validate=cross_validate,
+                                coarser=COARSER_BLOCKS)
     held = () if constant.undetermined is None else constant.undetermined.held
     kind, selection = ("none", "") if bias_drift == "auto" and (hours is None or dynamic) else (bias_drift, "")
     fits = {}
@@ -339,7 +340,8 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
         groups, clusters = _groups_and_blocks(recording, False, extra)
         with warnings.catch_warnings():  # the constant fit said what the poses do not determine
             warnings.simplefilter("ignore", UndeterminedWarning)
-            fit = identify_payload(groups, clusters=clusters, covariates=names, cross_validate=cross_validate)
+            fit = identify_payload(groups, clusters=clusters, covariates=names, cross_validate=cross_validate,
+                                coarser=COARSER_BLOCKS)
         slope = fit.theta[10:16]
         start = fit.theta[4:10]
         end_hours = hours[-1]
@@ -366,6 +368,8 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
             residual[:, j] -= np.interp(hours, knot_hours, ss.trajectory[:, j])
         rms = np.sqrt(np.einsum("ij,ij->j", residual, residual) / recording.n_samples)
         del residual
+        if ss.jackknife is not None:
+            warn_uncertain_error(ss.jackknife, "the random-walk model's mass")
         fit = model_fit(ss.names, ss.theta, ss.covariance, residual_rms=rms, n_samples=recording.n_samples,
                         stderr_kind=_state_space_kind(ss, len(blocks.count)),
                         covariates=covariate_names, undetermined=constant.undetermined)
@@ -502,8 +506,9 @@ def _state_space_kind(ss, n_blocks: int) -> str:
         text += f"; {ss.n_moving} blocks in which the sensor turns left out, the walk spans them"
     text += ")"
     if ss.jackknife_stretches:
-        text += (f", each raised to a grouped jackknife over {ss.jackknife_stretches} contiguous stretches "
-                 "where that is larger")
+        runs = ss.jackknife.blocks if ss.jackknife is not None else (ss.jackknife_stretches,)
+        text += (f", each raised to the largest grouped jackknife over {', '.join(map(str, runs))} contiguous "
+                 "stretches where that is larger")
     return text
 
 
