@@ -265,7 +265,7 @@ def identify_payload(groups: Mapping[str, AxisStatistics], *, cross_validate: bo
         if len(clusters) > 1 else None
     covariance = None if widened is None else widened.covariance
     if widened is not None:
-        kind = stderr_words(widened)
+        kind = stderr_words(widened, len(clusters))
         warn_uncertain_error(widened, "the mass")
     else:
         variance = _axis_variance(total, theta, n, p)
@@ -470,11 +470,11 @@ def robust_covariance(wgram: np.ndarray, wcross: np.ndarray, clusters: Sequence[
     return widest_covariance(partitions)
 
 
-def stderr_words(widened: Widened) -> str:
-    """How a (widened) grouped-jackknife covariance was made, for the printout and the payload file."""
+def stderr_words(widened: Widened, n_clusters: int) -> str:
+    """How a (widened) grouped-jackknife covariance over ``n_clusters`` blocks was made, in words."""
     if len(widened.blocks) == 1:
-        return f"grouped jackknife ({widened.blocks[0]} contiguous blocks)"
-    return (f"grouped jackknife ({widened.blocks[0]} contiguous blocks; each error the largest of the jackknives "
+        return f"grouped jackknife ({n_clusters} contiguous blocks)"
+    return (f"grouped jackknife ({n_clusters} contiguous blocks; each error the largest of the jackknives "
             f"over {', '.join(map(str, widened.blocks))} blocks, the mass's {widened.ratio[0]:.2f}x "
             f"from the finest to the coarsest)")
 
@@ -545,16 +545,23 @@ def _choose_weighting(folds: list[AxisStatistics], total: AxisStatistics, p: int
     if scored < 2:
         return "ols", "too few identifiable held-out blocks: plain least squares"
     # Each axis' held-out error relative to OLS's, averaged over the force and over the torque axes
-    # (a raw sum would be decided by the noisiest axis alone).
+    # (a raw sum would be decided by the noisiest axis alone), and the force and torque error norms (what a
+    # user measures: weights that down-weight a drifting axis can win the mean and lose the norm).
     with np.errstate(divide="ignore", invalid="ignore"):  # both 0 (exact fits): a tie
         per_axis = np.where(sse["ols"] > 0, sse["wls"] / sse["ols"], np.where(sse["wls"] > 0, np.inf, 1.0))
+        norm = [_ratio(sse["wls"][k:k + 3].sum(), sse["ols"][k:k + 3].sum()) for k in (0, 3)]
     ratio = [float(np.mean(per_axis[:3])), float(np.mean(per_axis[3:]))]
     text = (f"held-out error of per-axis weighting vs plain least squares over {scored} blocks: "
-            f"forces {ratio[0]:.3f}x, torques {ratio[1]:.3f}x")
-    # Ties (within 1 %) are no evidence; the weighting must not lose on either kind of axis.
-    if max(ratio) <= 1.0 + WEIGHTING_TIE and min(ratio) < 1.0 - WEIGHTING_TIE:
+            f"forces {ratio[0]:.3f}x (norm {norm[0]:.3f}x), torques {ratio[1]:.3f}x (norm {norm[1]:.3f}x)")
+    # Ties (within 1 %) are no evidence; the weighting must not lose on either kind of axis, by either measure.
+    if max(ratio + norm) <= 1.0 + WEIGHTING_TIE and min(ratio) < 1.0 - WEIGHTING_TIE:
         return "wls", text + " (weighting kept)"
     return "ols", text + " (plain least squares kept)"
+
+
+def _ratio(a: float, b: float) -> float:
+    """a / b, 1 when both are 0 (a tie), inf when only b is."""
+    return float(a / b) if b > 0 else (np.inf if a > 0 else 1.0)
 
 
 def model_fit(names: tuple[str, ...], theta: np.ndarray, covariance: np.ndarray, *, residual_rms: np.ndarray,
