@@ -36,7 +36,8 @@ def statics(g):
 def simulate(scenario: str, seed: int, n_poses: int = 30, per_pose: int = 60, move: int = 30):
     """Gravity (N, 3), time (s) and readings (N, 6) of one recording.
 
-    ``holds``: still poses; a random-walk bias, AR(1) noise (correlated over ~1 s) and an error
+    ``sweep``: one averaged row for each of 100 poses in a systematic order (tilt and azimuth grow with
+    time) with a random-walk bias, so the drift follows the pose order. ``holds``: still poses; a random-walk bias, AR(1) noise (correlated over ~1 s) and an error
     constant over each hold (hysteresis, a cable's pull). ``moves``: the same with the sensor
     turning between holds, its reading lagging the gravity wrench by a first-order filter
     (time constant about a sample: a sensor filter or a clock offset). ``per-pose``: one averaged
@@ -44,6 +45,11 @@ def simulate(scenario: str, seed: int, n_poses: int = 30, per_pose: int = 60, mo
     """
     rng = np.random.default_rng(seed)
     directions = Rotation.random(n_poses, random_state=seed + 1).inv().apply([0.0, 0.0, -G])
+    if scenario == "sweep":  # 100 poses, one row each, in a systematic order: the drift follows the pose order
+        tilt, azimuth = np.linspace(0.1, 2.8, 100), np.linspace(0.0, 4 * np.pi, 100)
+        g = G * np.c_[np.sin(tilt) * np.cos(azimuth), np.sin(tilt) * np.sin(azimuth), -np.cos(tilt)]
+        path = BIAS + np.cumsum(rng.normal(size=(100, 6)), axis=0) * NOISE * 0.3
+        return g, np.arange(100) * 10.0, statics(g) + path + rng.normal(size=(100, 6)) * NOISE
     if scenario == "per-pose":
         time = np.arange(n_poses) * 10.0
         path = BIAS + np.cumsum(rng.normal(size=(n_poses, 6)), axis=0) * NOISE * 0.3
@@ -87,7 +93,8 @@ def block_refit_spread(g, time, wrench, model, n_blocks=5):
 
 
 CASES = [("holds", "none"), ("holds", "random-walk"), ("moves", "none"), ("moves", "random-walk"),
-         ("per-pose", "none"), ("per-pose", "random-walk"), ("holds", "linear")]
+         ("per-pose", "none"), ("per-pose", "random-walk"), ("holds", "linear"), ("sweep", "none"),
+         ("sweep", "linear"), ("sweep", "random-walk")]
 
 
 @pytest.mark.parametrize("scenario,model", CASES)
@@ -112,8 +119,9 @@ def test_a_lagging_sensor_during_moves_does_not_bias_the_random_walk_mass():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("scenario,model", [("holds", "none"), ("holds", "random-walk"), ("moves", "random-walk"),
-                                            ("per-pose", "random-walk"), ("per-pose", "auto")])
+@pytest.mark.parametrize("scenario,model", [("holds", "none"), ("holds", "random-walk"), ("moves", "none"),
+                                            ("moves", "random-walk"), ("moves", "auto"), ("per-pose", "random-walk"),
+                                            ("per-pose", "auto"), ("sweep", "none"), ("sweep", "random-walk")])
 def test_95_percent_intervals_cover_the_true_mass(scenario, model):
     z = []
     for seed in range(100):
@@ -121,6 +129,64 @@ def test_95_percent_intervals_cover_the_true_mass(scenario, model):
         fit = identify(g, time, wrench, model).fit
         z.append((fit.mass - MASS) / fit.stderr["mass"])
     assert np.mean(np.abs(z) < 1.96) >= 0.90, np.sort(np.abs(z))[-15:]
+
+
+def test_a_drift_that_follows_the_pose_order_is_covered_by_the_constant_bias_errors():
+    # Before: the 20-block jackknife alone, 53 % of 30 seeds within 1.96 standard errors (stated/5-block spread
+    # 0.65x); the drift moves neighbouring blocks together, and only the coarser jackknives see it.
+    z = []
+    for seed in range(40):
+        g, time, wrench = simulate("sweep", 1000 + seed)
+        fit = identify(g, time, wrench, "none").fit
+        z.append((fit.mass - MASS) / fit.stderr["mass"])
+    assert np.mean(np.abs(z) < 1.96) >= 0.90, np.round(z, 2)
+    assert "10, 5 blocks" in fit.stderr_kind
+
+
+def test_an_error_that_grows_with_the_blocks_is_said_to_be_uncertain():
+    # A strong drift along a sweep of the poses: the 5-block jackknife is several times the 20-block one.
+    from ftcal.runtime.errors import IllPosedFitWarning
+
+    g, time, wrench = simulate("sweep", 3)
+    wrench = wrench + np.linspace(0.0, 1.0, len(g))[:, None] ** 2 * np.array([4.0, -3.0, 6.0, 0.1, 0.1, 0.1])
+    with pytest.warns(IllPosedFitWarning, match="grows .*x from 20 to 5 contiguous blocks"):
+        identify_recording(PayloadRecording(wrench, Kinematics(g), np.full(len(g), "run", dtype=object), time,
+                                            None), bias_drift="none", time_column="time")
+
+
+def breaking(scenario: str, seed: int):
+    """A ``holds`` recording (20 poses of 40 samples) with one more assumption broken."""
+    from scipy.signal import lfilter
+
+    g, time, wrench = simulate("holds", seed, n_poses=20, per_pose=40)
+    rng = np.random.default_rng(seed + 77)
+    n = len(g)
+    if scenario == "wander":  # slow coloured wander (AR(1), τ ≈ 60 s) at 3x the white noise
+        wrench = wrench + lfilter([np.sqrt(1 - 0.9983 ** 2)], [1.0, -0.9983], rng.normal(size=(n, 6)), axis=0) \
+            * NOISE * 3
+    elif scenario == "speed-up":  # the walk runs 5x faster in the second half
+        steps = rng.normal(size=(n, 6)) * NOISE * 0.15 * (np.arange(n) > n // 2)[:, None]
+        wrench = wrench + np.cumsum(steps, axis=0)
+    elif scenario == "10-bit":  # a 10-bit converter over ±1.2x the largest reading
+        lsb = 2.4 * np.abs(wrench).max(axis=0) / 1024
+        wrench = np.round(wrench / lsb) * lsb
+    elif scenario == "gain":  # per-axis gain errors of ±1.5 % and 1 % cross-talk from Fx into Fy
+        force = wrench[:, :3].copy()
+        wrench = wrench.copy()
+        wrench[:, 0], wrench[:, 1] = 1.015 * force[:, 0], 0.985 * force[:, 1] + 0.01 * force[:, 0]
+    return g, time, wrench
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("scenario", ["wander", "speed-up", "10-bit", "gain"])
+@pytest.mark.parametrize("model", ["none", "random-walk"])
+def test_intervals_cover_the_true_mass_when_assumptions_break(scenario, model):
+    z = []
+    for seed in range(20):
+        g, time, wrench = breaking(scenario, 1000 + seed)
+        fit = identify(g, time, wrench, model).fit
+        z.append((fit.mass - MASS) / fit.stderr["mass"])
+    assert np.mean(np.abs(z) < 1.96) >= 0.85, np.round(z, 2)  # 20 seeds: 0.85 is 95 % less 2.3 binomial sd
 
 
 # ---------------------------------------------------------------- the random walk honours the groups
@@ -161,8 +227,11 @@ def test_a_drift_that_follows_the_pose_order_is_named_and_the_drift_model_truste
     wrench = statics(g) + BIAS + rng.normal(size=(len(g), 6)) * NOISE
     wrench[:, 2] += 40.0 * hours  # 1.3 N over the 2-minute recording
     result = identify(g, time, wrench, "linear")
-    assert abs(result.constant.mass - MASS) > 3 * result.constant.stderr["mass"]  # the leak is real
+    # The leak is real (2 % of the mass, 16 times the linear model's error) and the constant bias's
+    # standard error owns it: the coarser jackknives see the drift move neighbouring blocks together.
+    assert abs(result.constant.mass - MASS) > 0.015 * MASS
+    assert abs(result.constant.mass - MASS) < 3 * result.constant.stderr["mass"]
     assert abs(result.fit.mass - MASS) < 3 * result.fit.stderr["mass"]
     verdict = result.verdict()
-    assert "disagree beyond their errors" in verdict
-    assert "trust the bias linear in time" in verdict
+    assert "agree" in verdict  # within the constant bias's (now honest) error
+    assert "the bias linear in time predicts held-out time better and states the smaller error: trust it" in verdict

@@ -634,6 +634,10 @@ def drift_verdict(result: DriftResult) -> str:
     if abs(z) <= DISAGREE_STDERR:
         lines.append(f"  mass: {name} {m_f:.6g} ± {se_f:.2g} kg and constant bias {m_c:.6g} ± {se_c:.2g} kg agree "
                      f"({z:+.1f} combined standard errors)")
+        force, torque = ratios.get(chosen, (1.0, 1.0))
+        if 0.5 * (force + torque) < 1.0 - HELD_OUT_TIE and max(force, torque) <= 1.0 + HELD_OUT_WORSE \
+                and se_f < se_c:
+            lines.append(f"  the {name} predicts held-out time better and states the smaller error: trust it")
         return "\n".join(lines)
     force, torque = ratios.get(chosen, (1.0, 1.0))
     lines.append(f"  mass: {name} {m_f:.6g} ± {se_f:.2g} kg and constant bias {m_c:.6g} ± {se_c:.2g} kg disagree "
