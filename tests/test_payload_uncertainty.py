@@ -148,7 +148,7 @@ def test_an_error_that_grows_with_the_blocks_is_said_to_be_uncertain():
     from ftcal.runtime.errors import IllPosedFitWarning
 
     g, time, wrench = simulate("sweep", 3)
-    wrench = wrench + np.linspace(0.0, 1.0, len(g))[:, None] ** 2 * np.array([4.0, -3.0, 6.0, 0.1, 0.1, 0.1])
+    wrench = wrench + np.linspace(0.0, 1.0, len(g))[:, None] ** 2 * np.array([40.0, -30.0, 60.0, 1.0, 1.0, 1.0])
     with pytest.warns(IllPosedFitWarning, match="grows .*x from 20 to 5 contiguous blocks"):
         identify_recording(PayloadRecording(wrench, Kinematics(g), np.full(len(g), "run", dtype=object), time,
                                             None), bias_drift="none", time_column="time")
