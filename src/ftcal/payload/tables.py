@@ -218,7 +218,11 @@ def compensate_table(path: str | os.PathLike, payload: PayloadParameters, source
             raise FtcalError(f"the calibration model has {len(model.output_names_)} outputs; a wrench needs 6.")
         measured = model.predict(numeric_columns(frame, model.input_names_, Path(path), "input"),
                                  warn_out_of_range=warn_out_of_range)
+        loads = predicted_loads(model, measured)
+        if warn_out_of_range:
+            warn_predicted_loads(model, loads)
     else:
+        loads = None
         columns = check_wrench_columns(wrench or payload.fit.get("wrench_columns", WRENCH_COLUMNS), source)
         measured = numeric_columns(frame, columns, Path(path), "wrench")
     drift = payload.drift
@@ -234,7 +238,51 @@ def compensate_table(path: str | os.PathLike, payload: PayloadParameters, source
         out[name] = contact[:, j]
     if not warn_out_of_range:  # the caller warns once: how many samples the undetermined parameters act on
         out.attrs["undetermined_samples"] = undetermined_samples(payload, kinematics)
+        if model is not None and loads is not None:
+            # and which axes the model's wrench drives beyond its training, as plain lists (pandas compares
+            # attrs when it concatenates tables)
+            out.attrs["predicted_loads"] = [loads.n, loads.n_beyond, loads.count.tolist(), loads.low.tolist(),
+                                            loads.high.tolist()]
     return out
+
+
+def predicted_loads(model, measured: np.ndarray):
+    """:class:`~ftcal.core.ranges.LoadSums` of a model's predicted wrench against its training loads, or None
+    when the model file has no training loads."""
+    from ..core.ranges import LoadSums
+
+    output_range = getattr(model, "output_range_", None)
+    if output_range is None:
+        return None
+    return LoadSums.of(measured, np.asarray(output_range, dtype=float), model.output_names_)
+
+
+def predicted_loads_text(model, loads) -> str | None:
+    """Which axes the predicted wrench drives beyond the training loads, how far, in one sentence (or None).
+
+    ``loads`` is a LoadSums, or a list of the ``predicted_loads`` attributes of :func:`compensate_table`'s
+    tables (added up), or None."""
+    from ..core.ranges import LoadSums, loads_text
+
+    if isinstance(loads, list):
+        parts = [LoadSums(n, beyond, np.array(count), np.array(low), np.array(high))
+                 for n, beyond, count, low, high in loads]
+        loads = sum(parts[1:], parts[0]) if parts else None
+    if loads is None:
+        return None
+    return loads_text(loads.summary(np.asarray(model.output_range_, dtype=float), model.output_names_),
+                      "the predicted loads")
+
+
+def warn_predicted_loads(model, loads) -> None:
+    """Warn (OutOfRangeWarning) when the calibrated wrench extrapolates beyond the training loads."""
+    import warnings
+
+    from ..runtime.errors import OutOfRangeWarning
+
+    text = predicted_loads_text(model, loads)
+    if text:
+        warnings.warn(text, OutOfRangeWarning, stacklevel=3)
 
 
 @dataclass(frozen=True)
