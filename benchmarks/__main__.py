@@ -611,15 +611,23 @@ def selection_rates_section(sizes: dict) -> list[str]:
     for first, seeds in sizes["select_rate_seeds"]:
         for label, nl in (("affine", 0.0), ("paper-level nonlinear", 1.0)):
             rows.append((label, first, seeds, run_case("select_rates", nonlinearity=nl, first=first, seeds=seeds)))
+    # --select-per output with 4 folds: three outputs per block judged together (issue 44 measured 19 % false wins)
+    for first, seeds in sizes["select_rate_seeds"]:
+        for label, nl in (("affine, per output, 4 folds", 0.0), ("paper-level nonlinear, per output, 4 folds", 1.0)):
+            rows.append((label, first, seeds, run_case("select_rates", nonlinearity=nl, first=first, seeds=seeds,
+                                                       select_per="output", n_folds=4)))
+    per_output = [r for label, _, _, r in rows if label == "affine, per output, 4 folds"]
     affine = [r for label, _, _, r in rows if label == "affine"]
-    curved = [r for label, _, _, r in rows if label != "affine"]
+    curved = [r for label, _, _, r in rows if label == "paper-level nonlinear"]
     HEADLINE["select_rates"] = (
         f"richer model on an affine truth in {max(r['richer'] for r in affine):.0%} of seeds at worst "
         f"(target ≤ 5 %); share of the oracle degree's held-out gain kept: force "
         f"{min(r['gain_share'][0] for r in curved):.0%}-{max(r['gain_share'][0] for r in curved):.0%}, torque "
         f"{min(r['gain_share'][1] for r in curved):.0%}-{max(r['gain_share'][1] for r in curved):.0%} (target ≥ 90 %; "
         f"the rule before: force {min(r['previous_gain_share'][0] for r in curved):.0%}-"
-        f"{max(r['previous_gain_share'][0] for r in curved):.0%})")
+        f"{max(r['previous_gain_share'][0] for r in curved):.0%}); `--select-per output` with 4 folds: richer model "
+        f"on an affine truth in {min(r['richer'] for r in per_output):.0%}-{max(r['richer'] for r in per_output):.0%}"
+        " of seeds (target < 5 %)")
     out = ["## Model selection's error rates: `--degree auto` (per block) on simulated sensors with a known truth", "",
            "The paper-like sensor of `benchmarks.load_cases.make_paper_sensor` (6 channels, 40 load cases of 30 "
            "samples, the reference off by a constant per load case of 2 % of full scale), scored on 100 new load "
@@ -630,10 +638,10 @@ def selection_rates_section(sizes: dict) -> list[str]:
            "previous rule: richer / gain kept | CV / held-out error (min, median, max) | CPU |",
            "|---|---|---:|---:|---:|---:|---:|---:|"]
     for label, first, seeds, r in rows:
-        kept = ("—" if label == "affine" else
+        kept = ("—" if label.startswith("affine") else
                 f"{r['gain_share'][0]:.0%} / {r['gain_share'][1]:.0%}")
         previous = (f"{r['previous_richer']:.0%} / " +
-                    ("—" if label == "affine" else
+                    ("—" if label.startswith("affine") else
                      f"{r['previous_gain_share'][0]:.0%}, {r['previous_gain_share'][1]:.0%}"))
         honesty = ", ".join(f"{v:.2f}" for v in r["cv_over_held_out"])
         out.append(f"| {label} | {first}-{first + seeds - 1} | {r['richer']:.0%} | {kept} | "
