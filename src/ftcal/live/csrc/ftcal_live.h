@@ -1222,9 +1222,15 @@ static inline int FTL_(finish_identification)(FTL_(state) *s, FTL_(tool_fit) *ou
         scored += 1;
     }
     if (scored >= 2) {
-        double ratio[2] = {0.0, 0.0};
+        double ratio[2] = {0.0, 0.0}, num[2] = {0.0, 0.0}, den[2] = {0.0, 0.0}, norm[2];
         for (i = 0; i < 6; ++i) { ratio[i / 3] += sse_wls[i] / (sse_ols[i] > 1e-300 ? sse_ols[i] : 1e-300) / 3.0; }
-        out_tool->weighted = fmax(ratio[0], ratio[1]) <= 1.0 + s->cfg.weighting_tie
+        /* and the force and torque error norms (payload.identify._choose_weighting) */
+        for (i = 0; i < 6; ++i) {
+            num[i / 3] += sse_wls[i];
+            den[i / 3] += sse_ols[i];
+        }
+        for (i = 0; i < 2; ++i) { norm[i] = num[i] / (den[i] > 1e-300 ? den[i] : 1e-300); }
+        out_tool->weighted = fmax(fmax(ratio[0], ratio[1]), fmax(norm[0], norm[1])) <= 1.0 + s->cfg.weighting_tie
                              && fmin(ratio[0], ratio[1]) < 1.0 - s->cfg.weighting_tie;
     }
     for (i = 0; i < 6; ++i) { weights[i] = out_tool->weighted ? 1.0 / variance[i] : 1.0; }
