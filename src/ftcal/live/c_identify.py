@@ -426,6 +426,8 @@ static inline int {name}_add_identified({name}_state *s, const char *tool_name, 
         {name}_drift_reset(s);   /* the bias was set on purpose: the drift test starts again */
         {name}_sc_reset(s);      /* and the self-check */
         s->last_fail = -HUGE_VAL;
+        s->fail_start = HUGE_VAL;
+        s->fail_previous = 0;
     }}
     return 0;
 }}

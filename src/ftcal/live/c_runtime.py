@@ -66,7 +66,7 @@ from .calibrator import (GATE_PROBABILITY, NO_TOOL, RETARE_VARIANCE, UNEXPLAINED
                          tracker_defaults)
 from .drift import FALSE_ALARM, LAGS_S, SNAPSHOT_S
 from .health import BIT, DEAD_RUN, FLAGS, LOAD_STEPS
-from .tracker import HOLDOFF_S, gate_chi2
+from .tracker import HOLDOFF_S, MIN_FAIL_S, gate_chi2
 
 DEFAULT_NAME = "ftcal_runtime"
 HISTORY = 1024
@@ -281,7 +281,8 @@ typedef struct {{
     int drift_start, drift_count;
     double drift_time[{macro}_DRIFT_SNAPSHOTS], drift_bias[{macro}_DRIFT_SNAPSHOTS][6];
     double drift_variance[{macro}_DRIFT_SNAPSHOTS][6];
-    double last_fail;            /* the last static sample that failed the gate (the hold-off), -HUGE_VAL: none */
+    double last_fail, fail_start;   /* the hold-off: the last failed static sample and the start of its run */
+    int fail_previous;              /* the previous sample failed */
     double holdoff;              /* s after it without updates (LiveCalibrator(holdoff=...)), 0: off */
     unsigned long rollbacks;     /* the bias sent back by the drift test (Python's "rollback" events) */
     double rollback_time, rollback_lag, rollback_chi2, rollback_moved;   /* the last one: the event's numbers */
@@ -327,7 +328,9 @@ static inline int {name}_init({name}_state *s, int tool)
     s->gate_chi2 = {_num(params['gate_chi2'])};
     s->drift_chi2 = {_num(params['drift_chi2'])};
     s->drift_due = -HUGE_VAL;
-    s->last_fail = -HUGE_VAL;
+    s->last_fail = -HUGE_VAL;   /* NO_FAILURE */
+    s->fail_start = HUGE_VAL;
+    s->fail_previous = 0;
     s->holdoff = {_num(HOLDOFF_S)};
     s->unexplained_sigma = {_num(UNEXPLAINED_SIGMA)};
     s->unexplained_seconds = {_num(UNEXPLAINED_SECONDS)};
@@ -486,7 +489,9 @@ static inline int {name}_retare({name}_state *s)
             s->variance[j] = {_num(RETARE_VARIANCE)} * s->noise_variance[j];
     {name}_drift_reset(s);
     {name}_sc_reset(s);
-    s->last_fail = -HUGE_VAL;
+    s->last_fail = -HUGE_VAL;   /* NO_FAILURE */
+    s->fail_start = HUGE_VAL;
+    s->fail_previous = 0;
     s->retares += 1;
     return ev.flag;
 }}
@@ -569,8 +574,15 @@ static inline int {name}_step({name}_state *s, double time, const double *u, con
         chi2 += e[j] * (e[j] / innovation_var[j]);
     }}
     /* the hold-off (ftcal.live.tracker.HOLDOFF_S): no update within it after a static sample failed the gate */
-    gate = still && !s->identifying && chi2 < s->gate_chi2 && time - s->last_fail >= s->holdoff;
-    if (still && !s->identifying && !(chi2 < s->gate_chi2)) s->last_fail = time;
+    gate = still && !s->identifying && chi2 < s->gate_chi2
+           && !(s->last_fail - s->fail_start >= {_num(MIN_FAIL_S)} && time - s->last_fail < s->holdoff);
+    if (still && !s->identifying && !(chi2 < s->gate_chi2)) {{   /* a run of failures: its start and last sample */
+        if (!s->fail_previous) s->fail_start = time;
+        s->last_fail = time;
+        s->fail_previous = 1;
+    }} else {{
+        s->fail_previous = 0;
+    }}
     for (j = 0; j < 6; ++j) {{
         out->calibrated[j] = w[j];
         out->compensated[j] = e[j];
