@@ -64,8 +64,8 @@ def test_c_self_check_follows_python(tmp_path, case):
     assert counts.tolist() == [kinds.count("adapted"), kinds.count("locked_out"), kinds.count("reacquired"), rollbacks,
                                kinds.count("undone")]
     texts = [e[3] for e in live.events if e[1] == "tracker" and e[2] == "adapted"]
-    if case == "walk 3x":  # the case exercises the self-check: r and the walk adapted, the bias re-acquired
-        assert kinds.count("reacquired") >= 1 and any(t.startswith("the residual changed") for t in texts)
+    if case == "walk 3x":  # the case exercises the self-check: the walk matched over the moves
+        assert any(t.startswith("the residual changed") for t in texts)
     else:  # r 9x too small gates most samples: r from the differences of consecutive static samples
         assert any("too few for the NIS" in t for t in texts)
-    assert any(e[3].startswith("the residual changed over the last") for e in live.events if e[1] == "tracker")
+        assert kinds.count("reacquired") >= 1  # and the bias re-acquired across orientations

@@ -87,7 +87,7 @@ static const Field FIELDS[] = {
     F(gate_chi2, REAL, 1, 1, 1), F(drift_chi2, REAL, 1, 1, 1), F(gate_probability, REAL, 1, 1, 1),
     F(unexplained_sigma, REAL, 1, 1, 1), F(unexplained_seconds, REAL, 1, 1, 1), F(motion_window, REAL, 1, 1, 1),
     F(min_rate, REAL, 1, 1, 1), F(min_hold, REAL, 1, 1, 1), F(retare_variance, REAL, 1, 1, 1),
-    F(holdoff, REAL, 1, 1, 1), F(snapshot_s, REAL, 1, 1, 1),
+    F(holdoff, REAL, 1, 1, 1), F(min_fail_s, REAL, 1, 1, 1), F(snapshot_s, REAL, 1, 1, 1),
     F(lags, REAL, 1, FTCAL_CORE_DRIFT_LAGS, FTCAL_CORE_DRIFT_LAGS),
     F(stuck_run, LONG, 1, 1, 1), F(dead_run, LONG, 1, 1, 1), F(saturation_run, LONG, 1, 1, 1),
     F(load_steps, REAL, 1, 1, 1),

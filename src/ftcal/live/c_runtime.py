@@ -71,7 +71,7 @@ from .c_identify import _array, _num, identify_config, status_macros
 from .calibrator import (GATE_PROBABILITY, NO_TOOL, RETARE_VARIANCE, UNEXPLAINED_SECONDS, UNEXPLAINED_SIGMA,
                          tracker_defaults)
 from .drift import FALSE_ALARM, LAGS_S, SNAPSHOT_S
-from .tracker import HOLDOFF_S, gate_chi2
+from .tracker import HOLDOFF_S, MIN_FAIL_S, gate_chi2
 
 DEFAULT_NAME = "ftcal_runtime"
 HISTORY = 1024
@@ -180,7 +180,8 @@ def core_config(model, tools: dict, *, max_holds: int = C_RUNTIME_MAX_HOLDS) -> 
               "drift_chi2": params["drift_chi2"], "gate_probability": GATE_PROBABILITY,
               "unexplained_sigma": UNEXPLAINED_SIGMA, "unexplained_seconds": UNEXPLAINED_SECONDS,
               "motion_window": HOLD_WINDOW_S, "min_rate": MIN_ANGULAR_RATE, "min_hold": MIN_HOLD_S,
-              "retare_variance": RETARE_VARIANCE, "holdoff": HOLDOFF_S, "snapshot_s": SNAPSHOT_S, "lags": np.array(LAGS_S),
+              "retare_variance": RETARE_VARIANCE, "holdoff": HOLDOFF_S, "min_fail_s": MIN_FAIL_S,
+              "snapshot_s": SNAPSHOT_S, "lags": np.array(LAGS_S),
               **health_config(), **selfcheck_config(), **identify_config(max_holds), **events_config(),
               "no_tool": NO_TOOL}
     return config

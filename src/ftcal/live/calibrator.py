@@ -36,7 +36,7 @@ from .health import BIT, DEAD_RUN, FLAGS, ExceedanceTimer, LoadChange, RunCounte
 from .motion import MotionDetector
 from .consistency import Q_MAX, R_MAX, SelfCheck
 from .drift import FALSE_ALARM, DriftCheck
-from .tracker import HOLDOFF_S, TrackedBlock, gate_chi2, track_block
+from .tracker import HOLDOFF_S, MIN_FAIL_S, NO_FAILURE, TrackedBlock, failure_runs, gate_chi2, track_block
 
 NO_TOOL = "none"
 # What a re-tare while contact or unexplained is raised risks (its event's text and retare()'s warning; the C says it too).
@@ -253,9 +253,10 @@ class LiveCalibrator:
         [r₀, 25 r₀], a lock-out said in an event, and the bias re-acquired (q raised within [q₀, 100 q₀]) when
         holds in two orientations show the same residual (the C runtime's NAME_init turns its copy on too);
         False: the fixed q and r of the defaults or overrides
-    holdoff : s after a static sample failed the gate during which no sample updates the bias
-        (:data:`ftcal.live.tracker.HOLDOFF_S`, 0.15 s: a contact's release edge, part-way down, passes the gate; after
-        a long contact the bias variance is large and one such sample would set the bias); 0: off
+    holdoff : s after a run of static samples that failed the gate for 0.1 s or more (a contact) during which no
+        sample updates the bias (:data:`ftcal.live.tracker.HOLDOFF_S`, 0.15 s: a contact's release edge, part-way
+        down, passes the gate; after a long contact the bias variance is large and one such sample would set the
+        bias); 0: off
     robot : gravity from joint positions, e.g. :class:`ftcal.robot.kinematics.SensorGravity` (a URDF, the
         F/T sensor, the joints given); then ``joints`` alone gives gravity (and the motion signal)
 
@@ -326,7 +327,7 @@ class LiveCalibrator:
         self.loads = LoadChange()  # a load change that should have moved a channel (quantisation-aware)
         self.unexplained_timer = ExceedanceTimer()
         self.flags_now = 0
-        self.last_fail = -math.inf  # the last static sample that failed the gate (the tracker's hold-off)
+        self.failure = NO_FAILURE  # the hold-off's state (ftcal.live.tracker.failure_runs)
         self.events: deque = deque(maxlen=MAX_EVENTS)
         self.counters = {"samples": 0, "updates": 0, "contacts": 0, "retares": 0, "switches": 0}
         self.last_time: float | None = None
@@ -459,7 +460,7 @@ class LiveCalibrator:
     def _restart_checks(self) -> None:
         """The bias was set on purpose (or the clock restarted): the drift test and the self-check start afresh."""
         self.drift.reset()
-        self.last_fail = -math.inf
+        self.failure = NO_FAILURE
         if self.self_check is not None:
             self.self_check.reset(self.last_time)
 
@@ -656,7 +657,7 @@ class LiveCalibrator:
         while start < n:
             walk, noise = self.walk_variance.tolist(), self.noise_std ** 2
             part = track_block(z[start:], dt[start:], gate_static[start:], bias, variance, self.walk_variance,
-                               noise, self.threshold, t[start:], self.last_fail, self.holdoff)
+                               noise, self.threshold, t[start:], self.failure, self.holdoff)
             times = t[start:]
             k = int(np.searchsorted(times, self.drift.next_due)) if times[0] < self.drift.next_due else 0
             seen, cut = 0, None
@@ -678,7 +679,7 @@ class LiveCalibrator:
                     break
                 k = int(np.searchsorted(times, self.drift.next_due))
             if cut is None:
-                self.last_fail = part.last_fail
+                self.failure = part.carry
                 if self.self_check is not None:
                     self._observe(part, times, gate_static[start:], z[start:], direction[start:], noise, seen,
                                   times.size)
@@ -686,8 +687,8 @@ class LiveCalibrator:
                 break
             k, b, p = cut
             failed = gate_static[start:start + k + 1] & ~(part.chi2[:k + 1] < self.threshold)
-            if failed.any():
-                self.last_fail = max(self.last_fail, float(times[np.flatnonzero(failed)[-1]]))
+            last, first = failure_runs(times[:k + 1], failed, self.failure)
+            self.failure = (float(last[-1]), float(first[-1]), bool(failed[-1]))
             part.bias[k], part.variance[k] = b, p
             parts.append(TrackedBlock(*(getattr(part, f)[:k + 1] for f in ("bias", "variance", "innovation",
                                                                              "innovation_variance", "chi2",
@@ -959,9 +960,14 @@ class LiveCalibrator:
         k2 = self.unexplained_sigma * self.unexplained_sigma
         # |e| > max(k σ, acceptance threshold), σ = √S
         beyond = any([e * e > k2 * v and abs(e) > a for e, v, a in zip(innovation, innovation_var, limit)])
-        updated = still and chi2 < self.threshold and t - self.last_fail >= self.holdoff
-        if still and not chi2 < self.threshold:
-            self.last_fail = t
+        last_fail, fail_start, previous = self.failure
+        held = last_fail - fail_start >= MIN_FAIL_S and t - last_fail < self.holdoff
+        updated = still and chi2 < self.threshold and not held
+        failed = still and not chi2 < self.threshold
+        if failed:
+            self.failure = (t, fail_start if previous else t, True)
+        elif previous:
+            self.failure = (last_fail, fail_start, False)
         if updated:
             gain = [p / v for p, v in zip(predicted, innovation_var)]
             bias = [(1.0 - k) * b + k * c for k, b, c in zip(gain, bias, z)]

@@ -69,7 +69,7 @@ Q_MAX = 100.0
 # for it to count (below it the walk is not seen over the move, e.g. under a wander), and the factor q must be off
 # by before it adapts (either way).
 WALK_KEEP = 12
-MIN_WALK_STARTS = 3
+MIN_WALK_STARTS = 2
 MIN_WALK_SHARE = 0.3
 WALK_FACTOR = 1.6
 # Median of χ² with 6 degrees of freedom over 6 (scipy.special.chdtri(6, 0.5) / 6).

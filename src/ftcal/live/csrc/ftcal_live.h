@@ -76,6 +76,7 @@ typedef struct {
     double gate_chi2, drift_chi2, gate_probability, unexplained_sigma, unexplained_seconds;
     double motion_window, min_rate, min_hold, retare_variance;
     double holdoff;                  /* s after a static sample failed the gate without updates (ftcal.live.tracker) */
+    double min_fail_s;               /* ... once a run of failures lasted this long (a contact, not chance) */
     /* the drift test (ftcal.live.drift) */
     double snapshot_s, lags[FTL_M(DRIFT_LAGS)];
     /* health (ftcal.live.health, ftcal.data.signals) */
@@ -154,7 +155,8 @@ typedef struct {
     double drift_time[FTL_M(DRIFT_SNAPSHOTS)];
     FTL_(real) drift_bias[FTL_M(DRIFT_SNAPSHOTS)][6];
     FTL_(real) drift_variance[FTL_M(DRIFT_SNAPSHOTS)][6];
-    double last_fail;            /* the last static sample that failed the gate (the hold-off), -HUGE_VAL: none */
+    double last_fail, fail_start;   /* the hold-off: the last failed static sample and the start of its run */
+    int fail_previous;              /* the previous sample failed */
     double holdoff;              /* s after it without updates (LiveCalibrator(holdoff=...)), 0: off */
     unsigned long rollbacks;     /* the bias sent back by the drift test (Python's "rollback" events) */
     double rollback_time, rollback_lag;
@@ -265,7 +267,9 @@ static inline int FTL_(core_init)(FTL_(state) *s, const FTL_(config) *config, in
     s->gate_chi2 = config->gate_chi2;
     s->drift_chi2 = config->drift_chi2;
     s->drift_due = -HUGE_VAL;
-    s->last_fail = -HUGE_VAL;
+    s->last_fail = -HUGE_VAL;   /* NO_FAILURE */
+    s->fail_start = HUGE_VAL;
+    s->fail_previous = 0;
     s->holdoff = config->holdoff;
     s->unexplained_sigma = config->unexplained_sigma;
     s->unexplained_seconds = config->unexplained_seconds;
@@ -486,7 +490,9 @@ static inline int FTL_(retare)(FTL_(state) *s)
     }
     FTL_(drift_reset)(s);
     FTL_(sc_reset)(s);
-    s->last_fail = -HUGE_VAL;
+    s->last_fail = -HUGE_VAL;   /* NO_FAILURE */
+    s->fail_start = HUGE_VAL;
+    s->fail_previous = 0;
     s->retares += 1;
     return ev.flag;
 }
@@ -695,8 +701,15 @@ static inline int FTL_(core_step)(FTL_(state) *s, double time, const FTL_(real) 
         chi2 += e[j] * (e[j] / innovation_var[j]);
     }
     /* the hold-off (ftcal.live.tracker.HOLDOFF_S): no update within it after a static sample failed the gate */
-    gate = still && !s->identifying && chi2 < s->gate_chi2 && time - s->last_fail >= s->holdoff;
-    if (still && !s->identifying && !(chi2 < s->gate_chi2)) { s->last_fail = time; }
+    gate = still && !s->identifying && chi2 < s->gate_chi2
+           && !(s->last_fail - s->fail_start >= s->cfg.min_fail_s && time - s->last_fail < s->holdoff);
+    if (still && !s->identifying && !(chi2 < s->gate_chi2)) {   /* a run of failures: its start and last sample */
+        if (!s->fail_previous) { s->fail_start = time; }
+        s->last_fail = time;
+        s->fail_previous = 1;
+    } else {
+        s->fail_previous = 0;
+    }
     for (j = 0; j < 6; ++j) {
         out->calibrated[j] = w[j];
         out->compensated[j] = e[j];
@@ -1083,6 +1096,8 @@ static inline int FTL_(add_identified)(FTL_(state) *s, const char *tool_name, co
         FTL_(drift_reset)(s);   /* the bias was set on purpose: the drift test starts again */
         FTL_(sc_reset)(s);      /* and the self-check */
         s->last_fail = -HUGE_VAL;
+        s->fail_start = HUGE_VAL;
+        s->fail_previous = 0;
     }
     return 0;
 }
