@@ -10,12 +10,15 @@ Weighting: plain least squares (OLS) unless held-out evidence says otherwise.
 ``weighting="auto"`` scores OLS and two-step per-axis weighted least squares
 (each axis weighted by 1/σ² of its OLS residual) on held-out contiguous
 blocks (the ``clusters``, else the groups) and keeps the weighting only when
-it predicts held-out forces and torques no worse than OLS (1 % ties) and one of them better.
+it predicts held-out forces and torques no worse than OLS (1 % ties; per axis on
+average and on the force and torque error norms) and one of them better.
 
 Standard errors: with ``clusters`` (contiguous time blocks or poses) the
 covariance is the grouped jackknife over the clusters (cluster-robust, CR3),
 which stays honest when the residuals are correlated in time or the noise
-model is wrong; it is scaled by
+model is wrong (with ``coarser``, each standard error raised to the jackknife's
+over longer contiguous runs of clusters where larger: errors correlated over
+several clusters, such as a drift that follows the pose order); it is scaled by
 ``(t_{G−1, 0.975} / z_{0.975})²`` so that ±1.96 standard errors is a 95 %
 interval with G − 1 degrees of freedom. Without clusters it is the classical
 per-axis-heteroscedastic covariance. The centre of mass's standard error
@@ -217,9 +220,8 @@ def identify_payload(groups: Mapping[str, AxisStatistics], *, cross_validate: bo
         Once, when the poses leave some other parameters undetermined (rank-deficient
         regressor): they are held or reported as :attr:`PayloadFit.undetermined`, with the fix.
     IllPosedFitWarning
-        For each poorly excited parameter, with the kind of pose to add.
-    IllPosedFitWarning
-        When the coarsest jackknife's mass error exceeds the finest one's by more than
+        For each poorly excited parameter, with the kind of pose to add; and when the coarsest
+        jackknife's mass error exceeds the finest one's by more than
         :data:`~ftcal.core.jackknife.UNDETERMINED_ERROR` (the standard error is itself uncertain).
     """
     if weighting not in PAYLOAD_WEIGHTINGS:
