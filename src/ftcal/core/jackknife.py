@@ -140,8 +140,9 @@ def jackknife_covariance(refits: Sequence[np.ndarray]) -> np.ndarray | None:
 # Coarser partitions tried beside the finest: residuals correlated over more than one block (a drift that
 # follows the pose order, a slow wander) move neighbouring blocks together, and only merged blocks see it.
 COARSER_BLOCKS = (10, 5)
-# The coarsest partition's standard error above this multiple of the finest one's (white noise: about 0.3 % of
-# recordings, the t scale of 4 degrees of freedom included): the errors are correlated
+# The coarsest partition's standard error above this multiple of the finest one's (the t scales of 4 and 19
+# degrees of freedom alone make it 1.33; a smooth drift reaches about 3.2; short AR(1) noise crossed it in 1
+# of 200 recordings of tests/test_payload_coverage.py): the errors are correlated
 # over a fifth of the recording or more, so the recording holds only a few independent pieces of evidence and
 # its standard error is itself uncertain (a warning says so).
 UNDETERMINED_ERROR = 3.0

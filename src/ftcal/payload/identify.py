@@ -481,10 +481,13 @@ def stderr_words(widened: Widened, n_clusters: int) -> str:
             f"from the finest to the coarsest)")
 
 
+UNCERTAIN_ERROR_TEXT = "the standard error of"  # how the warning of warn_uncertain_error starts
+
+
 def warn_uncertain_error(widened: Widened, what: str) -> None:
     """Say so when the error grows with the length of the blocks left out: the data cannot determine it."""
     if widened.ratio[0] > UNDETERMINED_ERROR:
-        warnings.warn(f"the standard error of {what} grows {widened.ratio[0]:.1f}x from {widened.blocks[0]} to "
+        warnings.warn(f"{UNCERTAIN_ERROR_TEXT} {what} grows {widened.ratio[0]:.1f}x from {widened.blocks[0]} to "
                       f"{widened.blocks[-1]} contiguous blocks left out: the errors are correlated over a large part "
                       "of the recording (drift that follows the pose order, slow wander), so the recording holds "
                       f"only a few independent pieces of evidence and the error stated (the largest) is itself "

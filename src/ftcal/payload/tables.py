@@ -21,7 +21,7 @@ from ..runtime.errors import FtcalError
 from .accumulate import AxisStatistics, payload_statistics
 from .compensate import contact_wrench, undetermined_samples, warn_undetermined
 from .drift import MAX_KNOTS, BiasDrift
-from .identify import PayloadFit, model_fit, warn_uncertain_error
+from .identify import UNCERTAIN_ERROR_TEXT, PayloadFit, model_fit, warn_uncertain_error
 from .kinematics import Kinematics, KinematicsSource
 from .parameters import PayloadParameters
 
@@ -356,8 +356,16 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
     extra, names = covariates(None, temperature)
     groups, clusters = _groups_and_blocks(recording, dynamic, extra)
     n_groups = len(groups)
-    constant = identify_payload(groups, clusters=clusters, covariates=names, cross_validate=cross_validate,
-                                coarser=COARSER_BLOCKS)
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        constant = identify_payload(groups, clusters=clusters, covariates=names, cross_validate=cross_validate,
+                                    coarser=COARSER_BLOCKS)
+    # The constant fit's uncertain-error warning is said only when the constant bias is the model kept (below):
+    # a drift model that takes the drift out leaves no such error behind.
+    uncertain = [w for w in said if str(w.message).startswith(UNCERTAIN_ERROR_TEXT)]
+    for w in said:
+        if w not in uncertain:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     held = () if constant.undetermined is None else constant.undetermined.held
     kind, selection = ("none", "") if bias_drift == "auto" and (hours is None or dynamic) else (bias_drift, "")
     fits = {}
@@ -430,6 +438,9 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
                                                                 temperature))
         change = ss.trajectory[-1] - ss.trajectory[0]
         walk = np.sqrt(ss.walk_variance)
+    if kind == "none":
+        for w in uncertain:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     drift = None
     if hours is not None or temperature is not None:
         t = recording.time
