@@ -12,8 +12,10 @@ $(PY):
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 
-# setup.py builds the compiled statistics kernel (src/ftcal/core/_polynomial.c) when a C compiler is there.
-$(STAMP): $(PY) pyproject.toml setup.py src/ftcal/core/_polynomial.c
+# setup.py builds the compiled statistics kernel (src/ftcal/core/_polynomial.c) and the live step's C core
+# (src/ftcal/live/_core.c) when a C compiler is there.
+$(STAMP): $(PY) pyproject.toml setup.py src/ftcal/core/_polynomial.c src/ftcal/live/_core.c \
+	src/ftcal/live/csrc/ftcal_live.h src/ftcal/live/csrc/ftcal_live_selfcheck.h
 	$(PY) -m pip install --quiet -e ".[test]"
 	@touch $(STAMP)
 
@@ -55,4 +57,4 @@ bench: $(STAMP)
 	$(PY) -m benchmarks
 
 clean:
-	rm -rf $(VENV) $(ROS2_VENV) $(ROS2_VENV).log ftcal-demo .pytest_cache build src/ftcal/core/*.so
+	rm -rf $(VENV) $(ROS2_VENV) $(ROS2_VENV).log ftcal-demo .pytest_cache build src/ftcal/core/*.so src/ftcal/live/*.so

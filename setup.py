@@ -1,10 +1,17 @@
-"""Build script for the one compiled part of ftcal: the kernels of static polynomial models.
+"""Build script for ftcal's compiled parts: the kernels of static polynomial models and the live step's C core.
 
-Everything else is declared in pyproject.toml. The extension is optional: on a
-machine without a C compiler the build skips it and ftcal uses its numpy paths
-(same results; statistics about three times slower). See src/ftcal/core/kernels.py.
+Everything else is declared in pyproject.toml. Both extensions are optional: on a machine without a C compiler
+the build skips them; ftcal then uses its numpy paths for the kernels (same results; statistics about three
+times slower, see src/ftcal/core/kernels.py), and ftcal.live.core says how to build the live core
+(src/ftcal/live/_core.c around src/ftcal/live/csrc/ftcal_live.h, the source `convert --to c-runtime` ships).
 """
 
 from setuptools import Extension, setup
 
-setup(ext_modules=[Extension("ftcal.core._polynomial", ["src/ftcal/core/_polynomial.c"], optional=True)])
+CORE_HEADERS = ["src/ftcal/live/csrc/ftcal_live.h", "src/ftcal/live/csrc/ftcal_live_selfcheck.h"]
+
+setup(ext_modules=[
+    Extension("ftcal.core._polynomial", ["src/ftcal/core/_polynomial.c"], optional=True),
+    Extension("ftcal.live._core", ["src/ftcal/live/_core.c"], include_dirs=["src/ftcal/live/csrc"],
+              depends=CORE_HEADERS, optional=True),
+])

@@ -427,11 +427,13 @@ def live_tracker(case: str, self_check: bool = False) -> dict:
 
 
 LIVE_CASES["live_tracker"] = live_tracker
-# Measured on main at 564762e (before the noise rule, the self-check and the health change), same generator, same
-# seeds, in this machine's run of 2026-12-01: (free / floor, false flags, contacts flagged, absorbed N).
-TRACKER_BEFORE = {"matched": (1.118, 0.0326, 1.0, 0.056), "walk 3x": (28.06, 0.9768, 0.931, 1.755),
-                  "walk 2x + warm-up 40 N/h": (36.11, 1.0, 1.0, 0.313),
-                  "coloured + quantised": (0.715, 0.0109, 0.774, 1.391)}
+# Measured on main at d2d3f91 (before the walk matching; the self-check on, its default), same generator, same seeds,
+# in this machine's run of 2026-12-02 (a tree of d2d3f91 beside this one, `tests/helpers/live_truth.py`):
+# (free / floor, false flags, contacts flagged, absorbed N).
+TRACKER_BEFORE = {"matched": (1.118, 0.0010, 0.996, 0.056), "walk 3x": (9.80, 0.178, 0.949, 1.06),
+                  "walk 2x + warm-up 40 N/h": (6.15, 0.113, 0.947, 1.22),
+                  "coloured + quantised": (0.58, 0.002, 0.924, 0.87), "noise 3x": (1.03, 0.022, 0.964, 0.08),
+                  "10-bit steps, walk 2x": (3.94, 0.057, 0.906, 1.55)}
 
 
 def tracker_section(run_case) -> tuple[list[str], str]:
@@ -446,7 +448,7 @@ def tracker_section(run_case) -> tuple[list[str], str]:
            "(10, 2, 15 N), a 6 N ramp and 3 N touches. *free/floor*: contact-free compensated force RMS over the "
            "per-sample noise; *false*: contact-free static samples flagged; *contacts*: samples of contacts beyond "
            "4 floors flagged; *absorbed*: largest bias move across a contact less the true drift. *before*: main at "
-           "564762e (same generator and seeds).", "",
+           "d2d3f91, self-check on (same generator and seeds; before the walk matching).", "",
            "| case | tracker | free/floor | false | contacts | absorbed | rollbacks | re-acquired | CPU | targets |",
            "|---|---|---:|---:|---:|---:|---:|---:|---:|---|"]
     met = 0
@@ -465,3 +467,67 @@ def tracker_section(run_case) -> tuple[list[str], str]:
     out += ["", "Targets (issue 40): free/floor <= 1.5 (matched) / 3 (others), false <= 1 % / 5 %, contacts >= 90 %, "
             "absorbed <= 0.3 N / 0.5 N.", ""]
     return out, f"{met} of {len(CASES)} simulated cases within all of issue 40's targets (default, self-check on)"
+
+
+def live_core(n: int, block: int = 65_536, steps: int = 5_000) -> dict:
+    """The C core (``ftcal.live.core.LiveCore``, the extension) against :class:`LiveCalibrator` on the same
+    samples (a degree-4 model of 7 inputs, raw channels and gravity, 500 Hz), in the same process: blocks of
+    ``block`` and one sample per call (``steps`` samples; ``core_row_step``: the model's one-row predictor and the
+    extension's call without ``LiveCore``'s numpy wrapping). Samples per CPU second of each, and their ratios."""
+    from ftcal.core.dataset import Dataset
+    from ftcal.core.model import CalibrationModel
+    from ftcal.live import LiveCalibrator
+    from ftcal.live.core import LiveCore
+    from ftcal.payload.parameters import PayloadParameters
+    from ftcal.sim.live_scenario import LiveScenario
+
+    rng = np.random.default_rng(0)
+    mix = np.eye(6) + 0.05 * rng.normal(size=(6, 6))
+    wrench = rng.uniform(-40, 40, size=(20_000, 6)) * np.r_[np.ones(3), np.full(3, 0.1)]
+    temperature = rng.uniform(20.0, 45.0, size=(20_000, 1))
+    model = CalibrationModel(4).fit(Dataset.from_arrays(np.hstack([wrench @ mix.T, temperature]), wrench))
+    rec = _recording(n)
+    u = np.column_stack([rec.wrench @ mix.T, np.full(rec.time.size, 30.0)])
+    tool = LiveScenario().tools["gripper"]
+    tools = {"gripper": PayloadParameters(tool.mass, np.asarray(tool.com), np.zeros(3), np.zeros(3), 9.81,
+                                          fit={"residual_rms": np.r_[np.full(3, 0.05), np.full(3, 0.004)]})}
+
+    def timed(work) -> float:
+        cpu = time.process_time()
+        work()
+        return time.process_time() - cpu
+
+    def calibrator_blocks():
+        live = LiveCalibrator(model, tools=tools, tool="gripper")
+        for a in range(0, n, block):
+            live.run(rec.time[a:a + block], raw=u[a:a + block], gravity=rec.gravity[a:a + block])
+
+    def core_blocks():
+        core = LiveCore(model, tools, tool=1)
+        for a in range(0, n, block):
+            core.run(rec.time[a:a + block], u[a:a + block], rec.gravity[a:a + block])
+
+    def calibrator_steps():
+        live = LiveCalibrator(model, tools=tools, tool="gripper")
+        for k in range(steps):
+            live.step(rec.time[k], raw=u[k], gravity=rec.gravity[k])
+
+    def core_steps():
+        core = LiveCore(model, tools, tool=1)
+        for k in range(steps):
+            core.run(rec.time[k:k + 1], u[k:k + 1], rec.gravity[k:k + 1])
+
+    def core_row_steps():  # the model's one-row predictor, then one core call per sample, no numpy wrapping
+        core, one = LiveCore(model, tools, tool=1)._core, model.row_predictor()
+        out, override = np.empty((1, 27)), np.full(1, -1, np.int32)
+        for k in range(steps):
+            core.run(rec.time[k:k + 1], u[k], one(u[k]), rec.gravity[k], override, out)
+
+    core_blocks()  # imports, first calls
+    cpu = {name: timed(work) for name, work in (("calibrator_run", calibrator_blocks), ("core_run", core_blocks),
+                                                ("calibrator_step", calibrator_steps), ("core_step", core_steps),
+                                                ("core_row_step", core_row_steps))}
+    rate = {k: (n if k.endswith("run") else steps) / v for k, v in cpu.items()}
+    return {"cpu_seconds": sum(cpu.values()), **{f"{k}_per_cpu_s": v for k, v in rate.items()},
+            "run_ratio": rate["core_run"] / rate["calibrator_run"],
+            "step_ratio": rate["core_step"] / rate["calibrator_step"]}

@@ -51,7 +51,8 @@ def previous_rule(searched: int):
 
 
 def one_seed(seed: int, nonlinearity: float, degrees=(1, 2, 3, 4, 5), oracle_degrees=(1, 2, 3, 4),
-             n_groups: int = 40, per_group: int = 30, case_error: float = 0.02, inside_only: bool = True) -> dict:
+             n_groups: int = 40, per_group: int = 30, case_error: float = 0.02, inside_only: bool = True,
+             select_per: str = "block", n_folds: int = 5) -> dict:
     """The default selection and the least-squares degrees on one simulated sensor, scored on new load cases."""
     from ftcal.core.dataset import Dataset
     from ftcal.core.model import CalibrationModel
@@ -68,12 +69,12 @@ def one_seed(seed: int, nonlinearity: float, degrees=(1, 2, 3, 4, 5), oracle_deg
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         least_squares = {d: block_errors(CalibrationModel(d).fit(train), fresh_u, fresh_y) for d in oracle_degrees}
-        result = select_model(train, degrees=degrees, select_per="block")
+        result = select_model(train, degrees=degrees, select_per=select_per, n_folds=n_folds)
         selected = block_errors(fit_selection(result), fresh_u, fresh_y)
         mse = result.selection_mse()
         printed = np.array([float(result.scorer.block(mse, cols).mean()) for cols in result.scorer.blocks.values()])
         with previous_rule(len({s.candidate.degree for s in result.scores} - {1})):  # the same folds and scores, judged by the rule before issue 44
-            before = result.search.result(result.scores, "block")
+            before = result.search.result(result.scores, select_per)
             previous = block_errors(fit_selection(before), fresh_u, fresh_y)
     return {"previous": previous.tolist(),
             "previous_richer": max(c.degree for c in before.candidate_of_output()) > 1, "seed": seed, "affine": least_squares[1].tolist(),
@@ -99,12 +100,13 @@ def rates(rows: list[dict]) -> dict:
             "cv_over_held_out": [float(honesty.min()), float(np.median(honesty)), float(honesty.max())]}
 
 
-def select_rates(nonlinearity: float, first: int, seeds: int) -> dict:
+def select_rates(nonlinearity: float, first: int, seeds: int, select_per: str = "block", n_folds: int = 5) -> dict:
     """The case ``make bench`` runs: :func:`rates` over seeds ``first`` .. ``first + seeds - 1``."""
     import time
 
     start, cpu = time.perf_counter(), time.process_time()
-    summary = rates([one_seed(s, nonlinearity) for s in range(first, first + seeds)])
+    summary = rates([one_seed(s, nonlinearity, select_per=select_per, n_folds=n_folds)
+                     for s in range(first, first + seeds)])
     return {**summary, "seconds": time.perf_counter() - start, "cpu_seconds": time.process_time() - cpu}
 
 

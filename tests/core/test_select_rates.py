@@ -11,6 +11,7 @@ against least squares of every degree fitted on the same data. Seeds here are no
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from benchmarks.bench_select_rates import one_seed, rates
 
@@ -37,3 +38,11 @@ def test_a_paper_level_nonlinearity_keeps_most_of_the_oracle_gain():
     assert force > summary["previous_gain_share"][0] and torque > summary["previous_gain_share"][1], summary
     low, median, high = summary["cv_over_held_out"]
     assert 0.6 <= median <= 1.2 and 0.5 <= low and high <= 2.0, summary
+
+
+@pytest.mark.slow
+def test_per_output_selection_on_few_load_cases_rarely_leaves_an_affine_truth():
+    # 12 load cases in 4 folds, six outputs each judged alone: a richer model on some output in 4 of seeds 0-19
+    # before an output had to pass its block's test first (BENCHMARKS.md); 1 of 20 now.
+    rows = [one_seed(s, 0.0, degrees=DEGREES, n_groups=12, select_per="output", n_folds=4) for s in range(20)]
+    assert sum(r["richer"] for r in rows) <= 1, [r["selection"] for r in rows if r["richer"]]

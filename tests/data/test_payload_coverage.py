@@ -17,7 +17,9 @@ from ftcal.payload.accumulate import payload_statistics
 from ftcal.payload.kinematics import Kinematics
 from ftcal.payload.tables import PayloadRecording, identify_recording
 
-pytestmark = pytest.mark.slow  # 600 fits, about a minute
+# 600 fits, about a minute. Warnings about a fit are not what is tested (a recording in a few hundred may say
+# its error grows with the blocks' length: the error stated is then the largest, which coverage checks).
+pytestmark = [pytest.mark.slow, pytest.mark.filterwarnings("ignore::ftcal.runtime.errors.IllPosedFitWarning")]
 
 G = 9.81
 MASS = 1.3
@@ -76,5 +78,9 @@ def test_linear_drift_linear_model_covers():
 def test_random_walk_drift_state_space_model_covers():
     _, _, results = fit_all("random-walk", "random-walk", seed=3)
     assert coverage(results) >= 0.90
-    # A constant bias on the same recordings is confidently wrong: its intervals miss far more often.
-    assert coverage([type(r)(r.constant, r.constant, None, "", None, 0.0, None) for r in results]) < 0.6
+    # A constant bias on the same recordings takes part of the walk into the mass. Its intervals missed far
+    # more often (< 60 %) with the 20-block jackknife alone; the coarser jackknives see the walk move
+    # neighbouring blocks together and widen them until they cover, at the price of a larger error.
+    constant = [type(r)(r.constant, r.constant, None, "", None, 0.0, None) for r in results]
+    assert coverage(constant) >= 0.85
+    assert np.median([r.constant.stderr["mass"] for r in results]) > np.median([r.fit.stderr["mass"] for r in results])

@@ -1,7 +1,8 @@
 """Honest payload uncertainty: stated standard errors against the spread of delete-a-block refits and
 coverage of the truth, on simulated recordings with drift, moves between holds and one row per pose.
 
-Truth comes from hand statics (F = m g + b(t), T = c × m g + b(t)) with a known mass; the reference
+Truth comes from hand statics (F = m g + b(t), T = c × m g + b(t)) with a known mass
+(:mod:`benchmarks.payload_recordings`, shared with ``make bench``); the reference
 spread is the delete-a-contiguous-block jackknife over 5 blocks computed here from refits on the
 kept rows (the method the issue measured real data with), not from ftcal's own covariance.
 """
@@ -14,57 +15,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from scipy.signal import lfilter
-from scipy.spatial.transform import Rotation
 
+from benchmarks.payload_recordings import BIAS, MASS, NOISE, RATE_HZ, G, breaking, simulate, statics
 from ftcal.payload.kinematics import Kinematics
 from ftcal.payload.tables import PayloadRecording, identify_recording
 
 FTCAL = str(Path(sys.executable).with_name("ftcal"))
-G = 9.81
-MASS = 1.3
-COM = np.array([0.012, -0.025, 0.071])
-BIAS = np.array([3.0, -2.0, 5.0, 0.1, -0.2, 0.05])
-NOISE = np.array([0.3, 0.3, 0.3, 0.01, 0.01, 0.01])
-RATE_HZ = 10.0
-
-
-def statics(g):
-    return np.c_[MASS * g, np.cross(COM, MASS * g)]
-
-
-def simulate(scenario: str, seed: int, n_poses: int = 30, per_pose: int = 60, move: int = 30):
-    """Gravity (N, 3), time (s) and readings (N, 6) of one recording.
-
-    ``holds``: still poses; a random-walk bias, AR(1) noise (correlated over ~1 s) and an error
-    constant over each hold (hysteresis, a cable's pull). ``moves``: the same with the sensor
-    turning between holds, its reading lagging the gravity wrench by a first-order filter
-    (time constant about a sample: a sensor filter or a clock offset). ``per-pose``: one averaged
-    row per pose, 10 s apart, with a drifting bias.
-    """
-    rng = np.random.default_rng(seed)
-    directions = Rotation.random(n_poses, random_state=seed + 1).inv().apply([0.0, 0.0, -G])
-    if scenario == "per-pose":
-        time = np.arange(n_poses) * 10.0
-        path = BIAS + np.cumsum(rng.normal(size=(n_poses, 6)), axis=0) * NOISE * 0.3
-        return directions, time, statics(directions) + path + rng.normal(size=(n_poses, 6)) * NOISE
-    pieces = []
-    for i in range(n_poses):
-        pieces.append(np.repeat(directions[i][None], per_pose, axis=0))
-        if scenario == "moves" and i + 1 < n_poses:
-            s = np.linspace(0.0, 1.0, move + 2)[1:-1, None]
-            turn = directions[i] * (1 - s) + directions[i + 1] * s
-            pieces.append(G * turn / np.linalg.norm(turn, axis=1, keepdims=True))
-    g = np.concatenate(pieces)
-    n = len(g)
-    wrench = statics(g)
-    if scenario == "moves":
-        wrench = lfilter([0.5], [1.0, -0.5], wrench, axis=0, zi=0.5 * wrench[:1])[0]
-    hold = np.cumsum(np.r_[0, np.any(np.diff(g, axis=0) != 0, axis=1)])
-    wrench += rng.normal(size=(hold[-1] + 1, 6))[hold] * NOISE * 0.3
-    wrench += BIAS + np.cumsum(rng.normal(size=(n, 6)), axis=0) * NOISE * 0.03
-    wrench += lfilter([np.sqrt(1 - 0.9 ** 2)], [1.0, -0.9], rng.normal(size=(n, 6)), axis=0) * NOISE
-    return g, np.arange(n) / RATE_HZ, wrench
 
 
 def identify(g, time, wrench, model, labels=None):
@@ -87,7 +43,8 @@ def block_refit_spread(g, time, wrench, model, n_blocks=5):
 
 
 CASES = [("holds", "none"), ("holds", "random-walk"), ("moves", "none"), ("moves", "random-walk"),
-         ("per-pose", "none"), ("per-pose", "random-walk"), ("holds", "linear")]
+         ("per-pose", "none"), ("per-pose", "random-walk"), ("holds", "linear"), ("sweep", "none"),
+         ("sweep", "linear"), ("sweep", "random-walk")]
 
 
 @pytest.mark.parametrize("scenario,model", CASES)
@@ -112,8 +69,9 @@ def test_a_lagging_sensor_during_moves_does_not_bias_the_random_walk_mass():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("scenario,model", [("holds", "none"), ("holds", "random-walk"), ("moves", "random-walk"),
-                                            ("per-pose", "random-walk"), ("per-pose", "auto")])
+@pytest.mark.parametrize("scenario,model", [("holds", "none"), ("holds", "random-walk"), ("moves", "none"),
+                                            ("moves", "random-walk"), ("moves", "auto"), ("per-pose", "random-walk"),
+                                            ("per-pose", "auto"), ("sweep", "none"), ("sweep", "random-walk")])
 def test_95_percent_intervals_cover_the_true_mass(scenario, model):
     z = []
     for seed in range(100):
@@ -121,6 +79,41 @@ def test_95_percent_intervals_cover_the_true_mass(scenario, model):
         fit = identify(g, time, wrench, model).fit
         z.append((fit.mass - MASS) / fit.stderr["mass"])
     assert np.mean(np.abs(z) < 1.96) >= 0.90, np.sort(np.abs(z))[-15:]
+
+
+def test_a_drift_that_follows_the_pose_order_is_covered_by_the_constant_bias_errors():
+    # Before: the 20-block jackknife alone, 53 % of 30 seeds within 1.96 standard errors (stated/5-block spread
+    # 0.65x); the drift moves neighbouring blocks together, and only the coarser jackknives see it.
+    z = []
+    for seed in range(40):
+        g, time, wrench = simulate("sweep", 1000 + seed)
+        fit = identify(g, time, wrench, "none").fit
+        z.append((fit.mass - MASS) / fit.stderr["mass"])
+    assert np.mean(np.abs(z) < 1.96) >= 0.90, np.round(z, 2)
+    assert "10, 5 blocks" in fit.stderr_kind
+
+
+def test_an_error_that_grows_with_the_blocks_is_said_to_be_uncertain():
+    # A strong drift along a sweep of the poses: the 5-block jackknife is several times the 20-block one.
+    from ftcal.runtime.errors import IllPosedFitWarning
+
+    g, time, wrench = simulate("sweep", 3)
+    wrench = wrench + np.linspace(0.0, 1.0, len(g))[:, None] ** 2 * np.array([40.0, -30.0, 60.0, 1.0, 1.0, 1.0])
+    with pytest.warns(IllPosedFitWarning, match="grows .*x from 20 to 5 contiguous blocks"):
+        identify_recording(PayloadRecording(wrench, Kinematics(g), np.full(len(g), "run", dtype=object), time,
+                                            None), bias_drift="none", time_column="time")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("scenario", ["wander", "speed-up", "10-bit", "gain"])
+@pytest.mark.parametrize("model", ["none", "random-walk"])
+def test_intervals_cover_the_true_mass_when_assumptions_break(scenario, model):
+    z = []
+    for seed in range(20):
+        g, time, wrench = breaking(scenario, 1000 + seed)
+        fit = identify(g, time, wrench, model).fit
+        z.append((fit.mass - MASS) / fit.stderr["mass"])
+    assert np.mean(np.abs(z) < 1.96) >= 0.85, np.round(z, 2)  # 20 seeds: 0.85 is 95 % less 2.3 binomial sd
 
 
 # ---------------------------------------------------------------- the random walk honours the groups
@@ -161,8 +154,11 @@ def test_a_drift_that_follows_the_pose_order_is_named_and_the_drift_model_truste
     wrench = statics(g) + BIAS + rng.normal(size=(len(g), 6)) * NOISE
     wrench[:, 2] += 40.0 * hours  # 1.3 N over the 2-minute recording
     result = identify(g, time, wrench, "linear")
-    assert abs(result.constant.mass - MASS) > 3 * result.constant.stderr["mass"]  # the leak is real
+    # The leak is real (2 % of the mass, 16 times the linear model's error) and the constant bias's
+    # standard error owns it: the coarser jackknives see the drift move neighbouring blocks together.
+    assert abs(result.constant.mass - MASS) > 0.015 * MASS
+    assert abs(result.constant.mass - MASS) < 3 * result.constant.stderr["mass"]
     assert abs(result.fit.mass - MASS) < 3 * result.fit.stderr["mass"]
     verdict = result.verdict()
-    assert "disagree beyond their errors" in verdict
-    assert "trust the bias linear in time" in verdict
+    assert "agree" in verdict  # within the constant bias's (now honest) error
+    assert "the bias linear in time predicts held-out time better and states the smaller error: trust it" in verdict

@@ -196,6 +196,10 @@ CASES = {
     "walk 2x + warm-up 40 N/h": (World(walk=3.0), World(walk=6.0, ramp=40.0)),
     "coloured + quantised": (World(white=0.02, wander=0.25, tau=2.0, lsb=0.02, walk=3.0),
                              World(white=0.02, wander=0.25, tau=2.0, lsb=0.02, walk=3.0)),
+    # the operation's noise 3x the identified (another day, a loose cable) and a 10-bit-like sensor whose step is
+    # twice its white noise, walking 2x the identified
+    "noise 3x": (World(walk=3.0), World(white=0.15, walk=3.0)),
+    "10-bit steps, walk 2x": (World(white=0.05, lsb=0.1, walk=3.0), World(white=0.05, lsb=0.1, walk=6.0)),
 }
 # Issue 40's targets: (free force / floor, false flags, contacts flagged, bias absorbed N)
 TARGETS = {"matched": (1.5, 0.01, 0.90, 0.3)}

@@ -218,6 +218,69 @@ def test_static_override_and_saturation_follow_the_python_calibrator(tmp_path, s
     assert np.all(ref["flags"][1000:1100] & BIT["out_of_range"])
 
 
+FLOAT_DRIVER = r"""
+#include "rt.h"
+/* The same replay in a float build (-DRT_REAL=float): samples converted to float, outputs back to double. */
+int replay(int n, const double *t, const double *u, const double *g, const int *override, const int *action,
+           int tool, double *out)
+{
+    rt_state s;
+    rt_output o;
+    rt_real uf[RT_N_INPUTS], gf[3];
+    int k, j;
+    if (sizeof(rt_real) != sizeof(float) || rt_init(&s, tool)) return -2;
+    for (k = 0; k < n; ++k) {
+        (void)action;
+        for (j = 0; j < RT_N_INPUTS; ++j) uf[j] = (rt_real)u[RT_N_INPUTS * k + j];
+        for (j = 0; j < 3; ++j) gf[j] = (rt_real)g[3 * k + j];
+        if (rt_step(&s, t[k], uf, gf, override[k], &o)) return -1 - k;
+        for (j = 0; j < 6; ++j) {
+            out[27 * k + j] = o.calibrated[j];
+            out[27 * k + 6 + j] = o.compensated[j];
+            out[27 * k + 12 + j] = o.bias[j];
+            out[27 * k + 18 + j] = o.bias_std[j];
+        }
+        out[27 * k + 24] = o.chi2;
+        out[27 * k + 25] = o.is_static + 2 * o.updated;
+        out[27 * k + 26] = o.flags;
+    }
+    return 0;
+}
+"""
+
+
+def test_a_float_build_tracks_the_bias_and_flags_the_contact(tmp_path, scenario):
+    """``-DRT_REAL=float``: the same core in single precision (times stay double). Truth: the simulated bias and
+    the held contact; and it stays within float's reach of the double build."""
+    s, rec = scenario
+    model, mix = gauge_model(1)
+    tools = {name: tool_payload(tool) for name, tool in s.tools.items()}
+    header = generate_c_runtime(model, tools, name="rt")
+    (tmp_path / "rt.h").write_text(header)
+    (tmp_path / "driver.c").write_text(FLOAT_DRIVER)
+    done = subprocess.run([CC, "-O2", "-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-DRT_REAL=float",
+                           "-shared", "-fPIC", "driver.c", "-o", "float.so", "-lm"], cwd=tmp_path, capture_output=True,
+                          text=True)
+    assert done.returncode == 0, done.stderr
+    single = ctypes.CDLL(str(tmp_path / "float.so"))
+    single.replay.restype = ctypes.c_int
+    n = 5000  # before the tool swap
+    u = np.column_stack([rec.wrench[:n] @ mix.T, np.full(n, 30.0)])
+    args = (rec.time[:n], u, rec.gravity[:n], np.full(n, -1), np.zeros(n, int), 1)
+    out = replay_c(single, *args)
+    double = replay_c(build(tmp_path, header), *args)
+    flags = out[:, 26].astype(int)
+    held = (np.abs(rec.contact[:n, :3]).max(axis=1) > 5.0) & rec.holding[:n]
+    assert held.sum() > 100 and np.mean(flags[held] & BIT["contact"] != 0) > 0.95
+    settled = rec.time[:n] > 5.0
+    # the bias follows the simulated one (within 4 of its own standard deviations and 0.1 N) as the double does
+    error = np.abs(out[settled, 12:15] - rec.bias[:n][settled, :3])
+    assert np.mean(np.all(error < np.maximum(4 * out[settled, 18:21], 0.1), axis=1)) > 0.95
+    # single precision: the compensated force within 1e-4 N of the double build's on all but a few samples
+    near = np.all(np.abs(out[:, 6:9] - double[:, 6:9]) < 1e-4, axis=1)
+    assert np.mean(near) > 0.99
+
+
 def test_bad_samples_are_refused_and_leave_the_state_unchanged(tmp_path):
     model, _ = gauge_model(1)
     lib = build(tmp_path, generate_c_runtime(model, {}, name="rt"))

@@ -52,6 +52,7 @@ int replay(int n, const double *t, const double *u, const double *g, const int *
     for (j = 0; j < 6; ++j) s.walk_variance[j] = walk[j];
     rt_enable_self_check(&s);   /* its bounds follow the walk given, as LiveCalibrator(walk_std=...) */
     if (no_drift) s.drift_chi2 = HUGE_VAL;
+    s.holdoff = 0.0;   /* the drift test alone: the hold-off (which stops a fast ramp at the gate) off */
     for (k = 0; k < n; ++k) {
         if (retare[k]) rt_retare(&s);
 """ + STEP_AND_STORE + r"""        rollbacks[k] = (long)s.rollbacks;
@@ -116,7 +117,7 @@ def test_c_drift_test_rolls_back_a_ramp_contact_as_the_python_calibrator(tmp_pat
     retare_index = int(np.searchsorted(t, RETARE_AT))
     retare = np.zeros(n, int)
     retare[retare_index] = 1
-    live = LiveCalibrator(model, tools=tools, tool="gripper", walk_std=WALK)
+    live = LiveCalibrator(model, tools=tools, tool="gripper", walk_std=WALK, holdoff=0.0)
     out, rollbacks, last = replay_c(lib, t, u, gravity, retare, live.walk_variance, no_drift=False)
     ref = python_replay(live, t, u, gravity, None, {retare_index: lambda c: c.retare()})
     compare(out, ref)

@@ -111,3 +111,39 @@ def test_the_variogram_fit_is_scipys_non_negative_least_squares():
         x, norm = _nonnegative_least_squares(a, b)
         np.testing.assert_allclose(x, x_ref, atol=1e-10)
         assert abs(norm - norm_ref) <= 1e-10
+
+
+def test_the_default_chain_on_a_coloured_recording_without_contact(tmp_path):
+    """Issue 40: ``payload --time`` (auto: the random walk), then ``live --replay`` with that file, on the coloured,
+    quantised recording above (no contact): <= 1 % of static samples flagged, and the compensated force within
+    1.5x of ``compensate``'s (the offline smoother's bias at each sample)."""
+    import subprocess
+    import sys
+
+    import pandas as pd
+
+    time, gravity, wrench = still_recording()
+    table = pd.DataFrame(wrench, columns=[f"u{j}" for j in range(1, 7)])
+    table.insert(0, "time", time)
+    table[["gx", "gy", "gz"]] = gravity
+    data = tmp_path / "rec.csv"
+    table.to_csv(data, index=False)
+    ftcal = [sys.executable, "-m", "ftcal"]
+    common = ["--gravity-columns", "gx,gy,gz"]
+    for args in (["payload", str(data), *common, "--time", "time", "-o", str(tmp_path / "p.json")],
+                 ["live", "--replay", str(data), *common, "--inputs", "u1,u2,u3,u4,u5,u6",
+                  "--tool", f"t={tmp_path / 'p.json'}", "-o", str(tmp_path / "live.csv")],
+                 ["compensate", str(tmp_path / "p.json"), str(data), *common, "--time", "time",
+                  "-o", str(tmp_path / "comp.csv")]):
+        done = subprocess.run([*ftcal, *args], capture_output=True, text=True)
+        assert done.returncode == 0, done.stderr
+    live, offline = pd.read_csv(tmp_path / "live.csv"), pd.read_csv(tmp_path / "comp.csv")
+    static = live["static"].astype(bool).to_numpy()
+    assert static.mean() > 0.9
+    from ftcal.live.health import BIT
+
+    flagged = (live["flags"].to_numpy().astype(int) & (BIT["contact"] | BIT["unexplained"])) != 0
+    assert flagged[static].mean() <= 0.01
+    force = ["Fx", "Fy", "Fz"]
+    ratio = np.sqrt(np.mean(live.loc[static, force].to_numpy() ** 2) / np.mean(offline.loc[static, force].to_numpy() ** 2))
+    assert ratio <= 1.5, ratio

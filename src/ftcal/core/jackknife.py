@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -134,3 +135,83 @@ def jackknife_covariance(refits: Sequence[np.ndarray]) -> np.ndarray | None:
     spread = np.asarray(refits, dtype=np.float64) - np.mean(refits, axis=0)
     covariance = t_scale(g - 1) ** 2 * (g - 1) / g * (spread.T @ spread)
     return 0.5 * (covariance + covariance.T)
+
+
+# Coarser partitions tried beside the finest: residuals correlated over more than one block (a drift that
+# follows the pose order, a slow wander) move neighbouring blocks together, and only merged blocks see it.
+COARSER_BLOCKS = (10, 5)
+# The coarsest partition's standard error above this multiple of the finest one's (the t scales of 4 and 19
+# degrees of freedom alone make it 1.33; a smooth drift reaches about 3.2; short AR(1) noise crossed it in 1
+# of 200 recordings of tests/data/test_payload_coverage.py): the errors are correlated
+# over a fifth of the recording or more, so the recording holds only a few independent pieces of evidence and
+# its standard error is itself uncertain (a warning says so).
+UNDETERMINED_ERROR = 3.0
+
+
+def merged_partitions(n_blocks: int, coarser: Sequence[int] = COARSER_BLOCKS) -> list[np.ndarray]:
+    """Edges (in units of the ``n_blocks`` fine blocks) of the coarser partitions into contiguous runs.
+
+    Only partitions with at least 3 and fewer than ``n_blocks`` runs are returned (a 2-run jackknife has
+    one degree of freedom).
+
+    Examples
+    --------
+    >>> [e.tolist() for e in merged_partitions(20)]
+    [[0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20], [0, 4, 8, 12, 16, 20]]
+    """
+    return [block_edges(n_blocks, g) for g in coarser if 3 <= g < n_blocks]
+
+
+@dataclass(frozen=True)
+class Widened:
+    """A covariance whose standard errors are the largest over several block partitions.
+
+    Attributes
+    ----------
+    covariance : (p, p) the finest partition's correlations, each standard error raised to the widest
+    blocks : number of blocks of each partition tried, finest first
+    ratio : (p,) the coarsest partition's standard error over the finest one's (1 without coarser ones)
+    """
+
+    covariance: np.ndarray
+    blocks: tuple[int, ...]
+    ratio: np.ndarray
+
+    @property
+    def undetermined(self) -> bool:
+        """The error grows with the blocks' length beyond :data:`UNDETERMINED_ERROR`: not determined by the data."""
+        return bool(np.any(self.ratio > UNDETERMINED_ERROR))
+
+
+def widest_covariance(partitions: Sequence[Sequence[np.ndarray]]) -> Widened | None:
+    """Grouped-jackknife covariances over several partitions, each standard error the largest (t-scaled).
+
+    A jackknife over G blocks is honest when the errors of different blocks are uncorrelated; errors
+    correlated over longer stretches make it too small, and a coarser partition (fewer, longer blocks)
+    catches them at the price of fewer degrees of freedom, which its t scale pays. The correlations are the
+    finest partition's (the best determined), each variance raised to the largest partition's.
+
+    Parameters
+    ----------
+    partitions : per partition, finest first, the leave-one-block-out estimates (each of shape (p,))
+
+    Returns
+    -------
+    Widened, or None when the finest partition has fewer than two refits
+    """
+    finest = jackknife_covariance(partitions[0]) if partitions else None
+    if finest is None:
+        return None
+    se = np.sqrt(np.maximum(np.diag(finest), 0.0))
+    widest, blocks, last = se.copy(), [len(partitions[0])], se.copy()
+    for refits in partitions[1:]:
+        covariance = jackknife_covariance(refits)
+        if covariance is None or len(refits) < 3:
+            continue
+        last = np.sqrt(np.maximum(np.diag(covariance), 0.0))
+        widest = np.maximum(widest, last)
+        blocks.append(len(refits))
+    positive = se > 0
+    factor = np.where(positive, widest / np.where(positive, se, 1.0), 1.0)
+    ratio = np.where(positive, last / np.where(positive, se, 1.0), 1.0)
+    return Widened(finest * factor[:, None] * factor[None, :], tuple(blocks), ratio)

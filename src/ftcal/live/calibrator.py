@@ -34,9 +34,9 @@ from ..payload.parameters import PayloadParameters
 from ..runtime.errors import FtcalError
 from .health import BIT, DEAD_RUN, FLAGS, ExceedanceTimer, LoadChange, RunCounter, names_of
 from .motion import MotionDetector
-from .consistency import SelfCheck
+from .consistency import Q_MAX, R_MAX, SelfCheck
 from .drift import FALSE_ALARM, DriftCheck
-from .tracker import TrackedBlock, gate_chi2, track_block
+from .tracker import HOLDOFF_S, MIN_FAIL_S, NO_FAILURE, TrackedBlock, failure_runs, gate_chi2, track_block
 
 NO_TOOL = "none"
 # What a re-tare while contact or unexplained is raised risks (its event's text and retare()'s warning; the C says it too).
@@ -253,6 +253,10 @@ class LiveCalibrator:
         [r₀, 25 r₀], a lock-out said in an event, and the bias re-acquired (q raised within [q₀, 100 q₀]) when
         holds in two orientations show the same residual (the C runtime's NAME_init turns its copy on too);
         False: the fixed q and r of the defaults or overrides
+    holdoff : s after a run of static samples that failed the gate for 0.1 s or more (a contact) during which no
+        sample updates the bias (:data:`ftcal.live.tracker.HOLDOFF_S`, 0.15 s: a contact's release edge, part-way
+        down, passes the gate; after a long contact the bias variance is large and one such sample would set the
+        bias); 0: off
     robot : gravity from joint positions, e.g. :class:`ftcal.robot.kinematics.SensorGravity` (a URDF, the
         F/T sensor, the joints given); then ``joints`` alone gives gravity (and the motion signal)
 
@@ -274,7 +278,8 @@ class LiveCalibrator:
                  adc_limits: tuple[float, float] | None = None, temperature_range: tuple[float, float] | None = None,
                  motion_window: float = HOLD_WINDOW_S, min_rate: float = MIN_ANGULAR_RATE,
                  min_hold: float = MIN_HOLD_S, gravity_magnitude: float = STANDARD_GRAVITY,
-                 state_path: str | Path | None = None, robot=None, self_check: bool = True) -> None:
+                 state_path: str | Path | None = None, robot=None, self_check: bool = True,
+                 holdoff: float = HOLDOFF_S) -> None:
         if model is not None:
             if not getattr(model, "is_static", True):
                 raise FtcalError("the live calibrator takes static models (no ARX lags).")
@@ -282,6 +287,9 @@ class LiveCalibrator:
                 raise FtcalError(f"the calibration model has {len(model.output_names_)} outputs; a wrench needs 6.")
         if not 0.5 < gate_probability < 1.0:
             raise FtcalError(f"gate_probability must be in (0.5, 1); got {gate_probability}.")
+        if isinstance(holdoff, bool) or not isinstance(holdoff, (int, float)) or not 0.0 <= holdoff <= 3600.0:
+            raise FtcalError(f"holdoff must be a number of seconds in [0, 3600]; got {holdoff!r}.")
+        self.holdoff = float(holdoff)
         self._check_settings(unexplained_sigma=unexplained_sigma, unexplained_seconds=unexplained_seconds,
                              adc_limits=adc_limits, temperature_range=temperature_range, motion_window=motion_window,
                              min_rate=min_rate, min_hold=min_hold, gravity_magnitude=gravity_magnitude)
@@ -319,6 +327,7 @@ class LiveCalibrator:
         self.loads = LoadChange()  # a load change that should have moved a channel (quantisation-aware)
         self.unexplained_timer = ExceedanceTimer()
         self.flags_now = 0
+        self.failure = NO_FAILURE  # the hold-off's state (ftcal.live.tracker.failure_runs)
         self.events: deque = deque(maxlen=MAX_EVENTS)
         self.counters = {"samples": 0, "updates": 0, "contacts": 0, "retares": 0, "switches": 0}
         self.last_time: float | None = None
@@ -451,6 +460,7 @@ class LiveCalibrator:
     def _restart_checks(self) -> None:
         """The bias was set on purpose (or the clock restarted): the drift test and the self-check start afresh."""
         self.drift.reset()
+        self.failure = NO_FAILURE
         if self.self_check is not None:
             self.self_check.reset(self.last_time)
 
@@ -458,7 +468,8 @@ class LiveCalibrator:
         """The self-check at a snapshot time: events logged, r and q replaced, the bias re-acquired; returns the
         (bias, variance) to go on with and whether anything changed."""
         events, noise, walk, acquired = self.self_check.check(t, bias, (self.noise_std ** 2).tolist(),
-                                                              self.walk_variance.tolist())
+                                                              self.walk_variance.tolist(), list(variance),
+                                                              self.drift)
         if events:
             self._log([(t, "tracker", kind, text) for kind, text in events])
         if noise is not None:
@@ -646,7 +657,7 @@ class LiveCalibrator:
         while start < n:
             walk, noise = self.walk_variance.tolist(), self.noise_std ** 2
             part = track_block(z[start:], dt[start:], gate_static[start:], bias, variance, self.walk_variance,
-                               noise, self.threshold)
+                               noise, self.threshold, t[start:], self.failure, self.holdoff)
             times = t[start:]
             k = int(np.searchsorted(times, self.drift.next_due)) if times[0] < self.drift.next_due else 0
             seen, cut = 0, None
@@ -655,6 +666,7 @@ class LiveCalibrator:
                 back = self.drift.check(float(times[k]), b, p, walk, limit)
                 if back is not None:
                     b, p = back[0], back[1]
+                    part.bias[k], part.variance[k] = b, p  # the state after the sample (the self-check's too)
                     self._log([(float(times[k]), "bias", "rollback", _rollback_text(back))])
                 changed = back is not None
                 if self.self_check is not None:
@@ -667,12 +679,16 @@ class LiveCalibrator:
                     break
                 k = int(np.searchsorted(times, self.drift.next_due))
             if cut is None:
+                self.failure = part.carry
                 if self.self_check is not None:
                     self._observe(part, times, gate_static[start:], z[start:], direction[start:], noise, seen,
                                   times.size)
                 parts.append(part)
                 break
             k, b, p = cut
+            failed = gate_static[start:start + k + 1] & ~(part.chi2[:k + 1] < self.threshold)
+            last, first = failure_runs(times[:k + 1], failed, self.failure)
+            self.failure = (float(last[-1]), float(first[-1]), bool(failed[-1]))
             part.bias[k], part.variance[k] = b, p
             parts.append(TrackedBlock(*(getattr(part, f)[:k + 1] for f in ("bias", "variance", "innovation",
                                                                              "innovation_variance", "chi2",
@@ -691,7 +707,7 @@ class LiveCalibrator:
         s = part.innovation_variance[a:b]
         gated = ~part.updated[a:b] & (part.chi2[a:b] >= self.threshold)
         self.self_check.observe_block(times[a:b], still[a:b], part.updated[a:b], gated, z[a:b], part.innovation[a:b],
-                                      s - noise, s, direction[a:b])
+                                      s - noise, s, direction[a:b], part.bias[a:b], part.variance[a:b])
 
     def _empty(self) -> LiveResult:
         z6 = np.empty((0, 6))
@@ -947,7 +963,14 @@ class LiveCalibrator:
         k2 = self.unexplained_sigma * self.unexplained_sigma
         # |e| > max(k σ, acceptance threshold), σ = √S
         beyond = any([e * e > k2 * v and abs(e) > a for e, v, a in zip(innovation, innovation_var, limit)])
-        updated = still and chi2 < self.threshold
+        last_fail, fail_start, previous = self.failure
+        held = last_fail - fail_start >= MIN_FAIL_S and t - last_fail < self.holdoff
+        updated = still and chi2 < self.threshold and not held
+        failed = still and not chi2 < self.threshold
+        if failed:
+            self.failure = (t, fail_start if previous else t, True)
+        elif previous:
+            self.failure = (last_fail, fail_start, False)
         if updated:
             gain = [p / v for p, v in zip(predicted, innovation_var)]
             bias = [(1.0 - k) * b + k * c for k, b, c in zip(gain, bias, z)]
@@ -963,7 +986,8 @@ class LiveCalibrator:
         if self.self_check is not None:
             size = math.sqrt(gx * gx + gy * gy + gz * gz)
             self.self_check.observe_one(t, still, updated, still and not updated and chi2 >= self.threshold, z,
-                                        innovation, predicted, innovation_var, (gx / size, gy / size, gz / size))
+                                        innovation, predicted, innovation_var, (gx / size, gy / size, gz / size), bias,
+                                        variance)
             if due:
                 bias, variance, _ = self._apply_self_check(t, bias, variance)
         # ----- health -----
@@ -1110,7 +1134,9 @@ class LiveCalibrator:
                "tool": self.tool, "bias": self.bias.tolist(), "variance": self.variance.tolist(),
                "counters": dict(self.counters), "flags": names_of(self.flags_now),
                "tools": {name: payload_document(self.tools[name]) for name in self.identified},
-               "model": self.model_fingerprint()}
+               "model": self.model_fingerprint(),
+               # optional (files without them still read): the tracker's r per sample and q per s, as adapted
+               "noise_variance": (self.noise_std ** 2).tolist(), "walk_variance": self.walk_variance.tolist()}
         if not all(np.isfinite(doc["bias"])) or not all(np.isfinite(doc["variance"])):
             raise FtcalError("the live state has non-finite values; refusing to save it.")
         return doc
@@ -1180,6 +1206,12 @@ class LiveCalibrator:
         bias, variance = six("bias"), six("variance")
         if np.any(variance < 0):
             raise bad("variance", "must be >= 0 (a variance per axis; the state keeps no cross-covariance)")
+        adapted = {}
+        for key in ("noise_variance", "walk_variance"):  # optional: the self-check's r and q when saved
+            if key in doc:
+                adapted[key] = six(key)
+                if np.any(adapted[key] <= 0):
+                    raise bad(key, "must be > 0 per axis")
         time = None if doc["time"] is None else number(doc["time"], "time")
         counters_doc = doc["counters"]
         if not isinstance(counters_doc, dict):
@@ -1219,6 +1251,15 @@ class LiveCalibrator:
             self._tool_terms.pop(name, None)
             self.identified.add(name)
         self.bias, self.variance, self.tool, self.counters = bias, variance, tool, counters
+        if self.self_check is not None and adapted:
+            # resume with the adapted r and q, within the self-check's bounds of this run's r0 and q0
+            sc = self.self_check
+            if "noise_variance" in adapted:
+                r0 = np.asarray(sc.noise0)
+                self.noise_std = np.sqrt(np.clip(adapted["noise_variance"], r0, R_MAX * r0))
+            if "walk_variance" in adapted:
+                q0 = np.asarray(sc.walk0)
+                self.walk_variance = np.clip(adapted["walk_variance"], q0, Q_MAX * q0)
         self.last_time = time
         self._restart_checks()
         self._event("state", "resumed", f"resumed from {path} at t={self.last_time}")

@@ -12,7 +12,9 @@ estimation", IEEE PES GM 2017). Over a window of :data:`WINDOW_S` s the static s
 are left out). When the window's normalised innovation squared (NIS, mean ``Σ e²/S`` against its χ² expectation 6)
 or its share of static samples gated (expected 1 − gate probability, 0.1 %) says the filter is inconsistent,
 r goes to r̂, bounded to [r₀, :data:`R_MAX` r₀] (r₀: the one rule's, what the data showed: never below it), and an
-event ``tracker adapted`` says so with the NIS and the gated share.
+event ``tracker adapted`` says so with the NIS and the gated share. When r is too small, r̂ is at least half the
+mean squared difference of consecutive static samples (``2 r`` for white noise, whatever the gate did; each clipped
+at :data:`DIFF_CAP` r₀): an r far too small gates nearly every sample, and the few that update are the small ones.
 
 **Walk: lock-out and re-acquisition by orientation diversity.** A sensor whose bias moved faster than q allows
 (or that the drift test sent back) fails the gate on every static sample: the bias stops updating. After
@@ -28,6 +30,17 @@ residual is bias: the bias takes the new hold's mean, q rises to cover the move 
 missed (``q_j ≥ Δb_j² / Δt``, bounded to [q₀, :data:`Q_MAX` q₀]), the drift test's snapshots restart, and an
 event ``tracker reacquired`` says by how much. A contact held through a change of pose (the same force in the
 sensor frame in two orientations: a contact that moves with the tool) cannot be told from bias.
+
+**Walk: covariance matching over the moves** (Mehra 1972's innovation-based matching, applied where the model says
+the walk shows: after a gap in updates). Between two holds a random-walk bias moves by ``N(0, q Δt)``. At the first
+static sample of a hold, ``d = z − ref`` (ref: the filter's bias after the last static sample when it updated,
+variance P, else that sample's own z, variance r) has ``E d_j² = P_j + q_j Δt + r_j = S_j``. Each of the last
+:data:`WALK_KEEP` hold starts whose walk share ``w = mean_j q_j Δt / S_j`` is at least :data:`MIN_WALK_SHARE` gives
+``λ = 1 + (mean_j d_j² / S_j / CHI2_6_MEDIAN − 1) / w``; the median of at least :data:`MIN_WALK_STARTS` (a contact
+held across one move does not move it) beyond :data:`WALK_FACTOR` either way sets q to λ q within [q₀, Q_MAX q₀]
+(event ``tracker adapted``). The bias' variance takes the walk it missed since its last update, and the drift test's
+last rollback, when the bias has not updated since and its χ² under the new q is within the drift threshold, is
+undone (event ``tracker undone``): it was judged with a q the data have shown too small.
 """
 
 from __future__ import annotations
@@ -52,6 +65,19 @@ MIN_WINDOW_SAMPLES = 100
 # r adapts within [r0, R_MAX r0]; q within [q0, Q_MAX q0] (a tenfold std).
 R_MAX = 25.0
 Q_MAX = 100.0
+# Walk matching: hold starts kept, fewest to decide, the smallest walk share of a hold start's innovation variance
+# for it to count (below it the walk is not seen over the move, e.g. under a wander), and the factor q must be off
+# by before it adapts (either way).
+WALK_KEEP = 12
+MIN_WALK_STARTS = 2
+MIN_WALK_SHARE = 0.3
+WALK_FACTOR = 1.6
+# Median of χ² with 6 degrees of freedom over 6 (scipy.special.chdtri(6, 0.5) / 6).
+CHI2_6_MEDIAN = 0.8913534
+# r is also matched to the differences of consecutive static samples (2 r for white noise, whatever the gate did:
+# a too-small r gates most samples, and the few that update are the small ones); each squared difference is
+# clipped at this many r0 (a contact's edge is one large difference).
+DIFF_CAP = 4.0 * R_MAX
 # r adapts when the NIS mean is beyond this factor of its expectation (either way), or the gated share this
 # many times the expected 1 - gate probability (and above 1 %).
 NIS_FACTOR = 1.5
@@ -79,13 +105,18 @@ class SelfCheck:
         self.nis = 0.0
         self.e2 = [0.0] * 6
         self.pred = [0.0] * 6
+        self.diff, self.n_pairs, self.last_z = [0.0] * 6, 0, None
         self.last_update = time
         self.locked_announced = False
         self.hold = None  # [n, Σz (6), Σ direction (3), start time, last time]
+        self.ref = None  # the last static sample: (bias after it and its variance, or z and None when it did not update; time)
+        self.starts = []  # hold starts, oldest first: (squared change per axis, the reference's variance or None, gap s)
+        self.new_start = False
         self.previous = []  # (mean z, unit direction, n, seconds, end time) of the last locked holds, newest last
 
     # ----- per sample, and a block's samples between two checks ------------------------------------------------
-    def observe_one(self, t, still, updated, gated, z, e, predicted, s, direction) -> None:
+    def observe_one(self, t, still, updated, gated, z, e, predicted, s, direction, bias, variance) -> None:
+        """One sample: ``bias``, ``variance`` the filter's after the sample (before a rollback)."""
         if self.last_update is None:
             self.last_update = t
         if still:
@@ -96,8 +127,15 @@ class SelfCheck:
                 self.nis += sum([a * a / b for a, b in zip(e, s)])
                 self.e2 = [a + b * b for a, b in zip(self.e2, e)]
                 self.pred = [a + b for a, b in zip(self.pred, predicted)]
+            if self.hold is not None:  # the previous sample was static too: a difference
+                self.n_pairs += 1
+                self.diff = [a + min((b - c) * (b - c), DIFF_CAP * r0)
+                             for a, b, c, r0 in zip(self.diff, z, self.last_z, self.noise0)]
+            self.last_z = z
             if self.hold is None:
+                self._start(t, z)
                 self.hold = [0, [0.0] * 6, [0.0] * 3, t, t, 0]
+            self.ref = (bias, variance, t) if updated else (z, None, t)
             h = self.hold
             h[0] += 1
             h[5] += not updated
@@ -109,7 +147,7 @@ class SelfCheck:
         elif self.hold is not None:
             self._end_hold()
 
-    def observe_block(self, t, still, updated, gated, z, e, predicted, s, direction) -> None:
+    def observe_block(self, t, still, updated, gated, z, e, predicted, s, direction, bias, variance) -> None:
         """:meth:`observe_one` over arrays of samples (numpy), the same sums (in another order)."""
         import numpy as np
 
@@ -131,8 +169,20 @@ class SelfCheck:
         for a, b in zip(edges[::2].tolist(), edges[1::2].tolist()):
             if a > pos and self.hold is not None:
                 self._end_hold()
+            cap = DIFF_CAP * np.asarray(self.noise0)
+            steps = np.diff(z[a:b], axis=0)
+            if self.hold is not None:
+                steps = np.vstack([z[a] - np.asarray(self.last_z), steps])
+            if steps.shape[0]:
+                self.n_pairs += steps.shape[0]
+                self.diff = [x + y for x, y in zip(self.diff, np.minimum(steps * steps, cap).sum(axis=0).tolist())]
+            self.last_z = z[b - 1].tolist()
             if self.hold is None:
+                self._start(float(t[a]), z[a].tolist())
                 self.hold = [0, [0.0] * 6, [0.0] * 3, float(t[a]), float(t[a]), 0]
+            last = b - 1
+            self.ref = ((bias[last].tolist(), variance[last].tolist(), float(t[last])) if up[last]
+                        else (z[last].tolist(), None, float(t[last])))
             self._add(t[a:b], z[a:b], direction[a:b])
             self.hold[5] += int(b - a - np.count_nonzero(up[a:b]))
             done = np.flatnonzero(up[a:b])
@@ -141,6 +191,36 @@ class SelfCheck:
             pos = b
         if pos < n and self.hold is not None:
             self._end_hold()
+
+    def _start(self, t: float, z: list) -> None:
+        """A hold starts: keep its first residual's change since the last static sample (the walk over the move)."""
+        if self.ref is None:
+            return
+        ref, variance, time = self.ref
+        self.starts = [*self.starts[1 - WALK_KEEP:], ([(a - b) * (a - b) for a, b in zip(z, ref)], variance, t - time)]
+        self.new_start = True
+
+    def _match_walk(self, noise: list, walk: list) -> tuple | None:
+        """q by covariance matching over the last hold starts (module docstring): (new q, λ, starts used) or None."""
+        factors = []
+        for change, ref, gap in self.starts:
+            ref = noise if ref is None else ref
+            total = [v + q * gap + r for v, q, r in zip(ref, walk, noise)]
+            share = sum([q * gap / s for q, s in zip(walk, total)]) / 6.0
+            if share >= MIN_WALK_SHARE:
+                rho = sum([c / s for c, s in zip(change, total)]) / 6.0
+                factors.append(1.0 + (rho / CHI2_6_MEDIAN - 1.0) / share)
+        if len(factors) < MIN_WALK_STARTS:
+            return None
+        factors.sort()
+        m = len(factors)
+        lam = 0.5 * (factors[(m - 1) // 2] + factors[m // 2])
+        if 1.0 / WALK_FACTOR < lam < WALK_FACTOR:
+            return None
+        proposal = [min(max(lam * q, q0), Q_MAX * q0) for q, q0 in zip(walk, self.walk0)]
+        if not any(abs(p - q) > 1e-3 * q for p, q in zip(proposal, walk)):
+            return None
+        return proposal, lam, m
 
     def _add(self, t, z, direction) -> None:
         h = self.hold
@@ -183,8 +263,9 @@ class SelfCheck:
         return turn, ratio
 
     # ----- at a snapshot time --------------------------------------------------------------------------------
-    def check(self, time: float, bias: list, noise: list, walk: list) -> tuple:
-        """After the drift test at ``time``.
+    def check(self, time: float, bias: list, noise: list, walk: list, variance: list, drift=None) -> tuple:
+        """After the drift test at ``time``, with the filter's state then and the drift test
+        (:class:`~ftcal.live.drift.DriftCheck`: its last rollback is undone when a walk matched since explains it).
 
         Returns
         -------
@@ -194,13 +275,18 @@ class SelfCheck:
         if self.window_start is None:
             self.window_start = time
         if time - self.window_start >= WINDOW_S:
-            if self.n_updated >= MIN_WINDOW_SAMPLES:
-                nis = self.nis / self.n_updated
+            updates, pairs = self.n_updated >= MIN_WINDOW_SAMPLES, self.n_pairs >= MIN_WINDOW_SAMPLES
+            if updates or pairs:
+                nis = self.nis / self.n_updated if updates else math.nan
                 share = self.n_gated / max(self.n_static, 1)
-                too_high = nis > NIS_FACTOR * 6.0 or (share > GATED_FACTOR * self.expected_gated and share > 0.01)
-                too_low = nis < 6.0 / NIS_FACTOR
+                too_high = (updates and nis > NIS_FACTOR * 6.0) or (
+                    share > GATED_FACTOR * self.expected_gated and share > 0.01)
+                too_low = updates and nis < 6.0 / NIS_FACTOR
                 if too_high or too_low:
-                    matched = [max(a / self.n_updated - p / self.n_updated, 0.0) for a, p in zip(self.e2, self.pred)]
+                    matched = ([max(a / self.n_updated - p / self.n_updated, 0.0) for a, p in zip(self.e2, self.pred)]
+                               if updates else [0.0] * 6)
+                    if too_high and pairs:
+                        matched = [max(m, d / self.n_pairs / 2.0) for m, d in zip(matched, self.diff)]
                     proposal = [min(max(m, r0), R_MAX * r0) for m, r0 in zip(matched, self.noise0)]
                     if too_high:
                         proposal = [max(p, r) for p, r in zip(proposal, noise)]
@@ -209,7 +295,9 @@ class SelfCheck:
                     if any(abs(p - r) > 1e-3 * r for p, r in zip(proposal, noise)):
                         new_noise = proposal
                         events.append(("adapted", (
-                            f"NIS mean {nis:.3g} over {self.n_updated} static samples (expected 6), {100 * share:.2g} % "
+                            (f"NIS mean {nis:.3g} over {self.n_updated} static samples (expected 6), " if updates else
+                             f"{self.n_updated} static samples updated (too few for the NIS; r from the differences of "
+                             f"{self.n_pairs} consecutive static samples), ") + f"{100 * share:.2g} % "
                             f"of static samples gated (expected {100 * self.expected_gated:.2g} %): noise std "
                             + ", ".join(f"{math.sqrt(p):.3g}" for p in proposal)
                             + " (covariance matching, within 1 to 5x the identified)")))
@@ -217,9 +305,34 @@ class SelfCheck:
             self.n_static = self.n_gated = self.n_updated = 0
             self.nis = 0.0
             self.e2, self.pred = [0.0] * 6, [0.0] * 6
+            self.diff, self.n_pairs = [0.0] * 6, 0
+        if self.new_start:
+            self.new_start = False
+            matched = self._match_walk(new_noise or noise, walk)
+            if matched is not None:
+                new_walk, lam, m = matched
+                back = None if drift is None else drift.last_rollback
+                if (back is not None and self.last_update is not None and self.last_update <= back[0]
+                        and sum([(b - c) * (b - c) / (q * back[5] + p + v) for b, c, q, p, v in
+                                 zip(back[1], back[3], new_walk, back[2], back[4])]) <= drift.threshold):
+                    # no update since a rollback the matched walk explains: it was the walk, undo it
+                    drift.last_rollback = None
+                    new_bias = (list(back[1]), [p + q * (time - back[0]) for p, q in zip(back[2], new_walk)])
+                    bias = new_bias[0]
+                    events.append(("undone", (
+                        f"the rollback at {back[0]:.6g} s is within the walk matched since: bias back to before it")))
+                elif self.last_update is not None and time > self.last_update:
+                    # the bias walked at the new q since its last update: its variance says so
+                    idle = time - self.last_update
+                    new_bias = (list(bias), [p + max(a - b, 0.0) * idle for p, a, b in zip(variance, new_walk, walk)])
+                walk = new_walk
+                events.append(("adapted", (
+                    f"the residual changed over the last {m} moves by {lam:.3g}x the walk allowed (median, covariance "
+                    "matching): walk std now " + ", ".join(f"{math.sqrt(q * 3600.0):.3g}" for q in new_walk)
+                    + " per sqrt(h) (within 1 to 10x the identified)")))
         h = self.hold
         if h is None or self.last_update is None or h[4] != time:
-            return events, new_noise, new_walk, None
+            return events, new_noise, new_walk, new_bias
         idle = time - self.last_update
         if idle <= LOCK_S:
             self.locked_announced = False
@@ -230,7 +343,7 @@ class SelfCheck:
                 "than the walk allows; re-acquired when a hold in another orientation shows the same residual")))
         n, sz, sd, start, _, missed = h
         if not self.previous or time - start < MIN_HOLD_S or 2 * missed <= n:
-            return events, new_noise, new_walk, None
+            return events, new_noise, new_walk, new_bias
         norm = math.sqrt(sum(d * d for d in sd)) or 1.0
         mean = [v / n for v in sz]
         seconds = time - start
@@ -239,7 +352,7 @@ class SelfCheck:
             if found is not None:
                 break
         else:
-            return events, new_noise, new_walk, None
+            return events, new_noise, new_walk, new_bias
         turn, ratio = found
         variance = [r * max(1.0 / n, CORRELATION_S / seconds) for r in noise]
         moved = [a - b for a, b in zip(mean, bias)]

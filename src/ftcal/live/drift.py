@@ -44,11 +44,14 @@ class DriftCheck:
         self.times: list = []  # snapshot times, increasing, reaching back at least max(LAGS_S)
         self.states: list = []  # (bias, variance) at those times
         self.next_due = -math.inf
+        self.last_rollback = None
 
     def reset(self) -> None:
         """Forget the snapshots (the bias was set on purpose: re-tare, a tool identified, a resumed state)."""
         self.times, self.states = [], []
         self.next_due = -math.inf
+        # the last rollback: (time, bias and variance before it, the snapshot's bias and variance, span) or None
+        self.last_rollback = None
 
     def check(self, time: float, bias: list, variance: list, walk: list, limit: list) -> tuple | None:
         """Snapshot the state after the sample at ``time`` (due: ``time >= next_due``) and compare; ``walk``: q per
@@ -71,6 +74,7 @@ class DriftCheck:
             if chi2 > self.threshold and any([abs(b - c) > a for b, c, a in zip(bias, b0, limit)]):
                 back = (list(b0), [r + q * span for r, q in zip(p0, walk)], span, chi2,
                         max(abs(b - c) for b, c in zip(bias, b0)))
+                self.last_rollback = (time, list(bias), list(variance), list(b0), list(p0), span)
                 self.times, self.states = [time], [(tuple(back[0]), tuple(back[1]))]
                 return back
         self.times.append(time)

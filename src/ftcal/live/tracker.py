@@ -5,9 +5,10 @@ Model, axis j (the random-walk model of :mod:`ftcal.payload.drift`, one sample a
     b_k = b_(k−1) + w_k,   w_k ~ N(0, q_j Δt_k)          (the sensor's bias walks)
     z_k = b_k + v_k,       v_k ~ N(0, r_j)                (z: calibrated wrench − tool's gravity wrench)
 
-A sample updates the filter only when it is *static* (the caller's motion test) and its
+A sample updates the filter only when it is *static* (the caller's motion test), its
 innovation ``e = z − b_(k−1)`` passes the χ² test ``Σ_j e_j² / S_j < threshold`` with
-``S = P⁻ + r`` (6 degrees of freedom). A sample that fails is a contact: it is reported and
+``S = P⁻ + r`` (6 degrees of freedom), and it is not within :data:`HOLDOFF_S` s of the end of a run of
+failed static samples lasting :data:`MIN_FAIL_S` or more (a contact's release edge stays out). A sample that fails is a contact: it is reported and
 the bias is only predicted (``P`` grows by ``q Δt``), so a real contact is never absorbed.
 
 **Blocks with the same math as one sample at a time.** With the update decisions fixed,
@@ -27,6 +28,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+# After a run of static samples that failed the gate for at least MIN_FAIL_S (a contact, not a chance failure), no
+# sample updates the bias for HOLDOFF_S s: a contact released over tens of ms passes the gate part-way down its
+# edge, and after a long contact the bias variance is large enough that one such sample would set the bias (gain
+# near 1) to part of the contact. Chance failures (a bias a few σ off fails now and then) do not hold updates off.
+HOLDOFF_S = 0.15
+MIN_FAIL_S = 0.1
+# (time of the last failed static sample, start of its run of failures, the previous sample failed): none yet
+NO_FAILURE = (-np.inf, np.inf, False)
 # Samples scanned together: a gate that disagrees with the guess costs a rescan of the rest of a chunk.
 CHUNK = 1024
 # Every this many rescans of one chunk, the scanned window halves (down to MIN_WINDOW samples): a gate
@@ -118,6 +127,7 @@ class TrackedBlock:
     chi2 : ndarray of shape (n,), ``Σ e² / S``
     updated : ndarray of bool, shape (n,), the sample updated the bias
     passes : int, scans used (1 when every guessed decision held)
+    carry : the hold-off's state after the block (:data:`NO_FAILURE` before any failure)
     """
 
     bias: np.ndarray
@@ -127,6 +137,7 @@ class TrackedBlock:
     chi2: np.ndarray
     updated: np.ndarray
     passes: int
+    carry: tuple = NO_FAILURE
 
 
 def _scan_segment(z, dt, update, b0, p0, q, r):
@@ -151,8 +162,32 @@ def _scan_segment(z, dt, update, b0, p0, q, r):
     return bias, p_after, innovation, s, chi2
 
 
+def failure_runs(t: np.ndarray, failed: np.ndarray, carry: tuple) -> tuple[np.ndarray, np.ndarray]:
+    """The hold-off's state before each sample and after the last: the time of the last failed sample before it
+    and the start of that failure's run (a run of consecutive failed samples, continued from ``carry``).
+
+    Returns
+    -------
+    (last, first): arrays of shape (n + 1,); the state after samples ``:k`` is
+    ``(last[k], first[k], failed[k − 1])``
+    """
+    n = t.size
+    index = np.arange(n)
+    begins = np.maximum.accumulate(np.where(~failed, index, -1)) + 1  # a failed sample's run begins here
+    starts = t[np.minimum(begins, n - 1)] if n else t
+    if carry[2]:  # the run before the block goes on
+        starts = np.where(begins == 0, carry[1], starts)
+    newest = np.r_[-1, np.maximum.accumulate(np.where(failed, index, -1))]
+    seen = newest >= 0
+    at = np.maximum(newest, 0)
+    last = np.where(seen, t[at] if n else carry[0], carry[0])
+    first = np.where(seen, starts[at] if n else carry[1], carry[1])
+    return last, first
+
+
 def track_block(z: np.ndarray, dt: np.ndarray, static: np.ndarray, bias0: np.ndarray, variance0: np.ndarray,
-                walk: np.ndarray, noise: np.ndarray, threshold: float) -> TrackedBlock:
+                walk: np.ndarray, noise: np.ndarray, threshold: float, times: np.ndarray | None = None,
+                carry: tuple = NO_FAILURE, holdoff: float = HOLDOFF_S) -> TrackedBlock:
     """Run the gated bias filter over a block of samples.
 
     Parameters
@@ -164,6 +199,9 @@ def track_block(z: np.ndarray, dt: np.ndarray, static: np.ndarray, bias0: np.nda
     walk : ndarray of shape (6,), walk variance per second, q
     noise : ndarray of shape (6,), per-sample noise variance, r
     threshold : χ² (6 degrees of freedom) above which a sample is a contact
+    times : ndarray of shape (n,) or None, the samples' times, for the hold-off (None: no hold-off)
+    carry : the hold-off's state before the block (:attr:`TrackedBlock.carry` of the previous one)
+    holdoff : s after a run of failed static samples during which no sample updates
 
     Returns
     -------
@@ -174,12 +212,15 @@ def track_block(z: np.ndarray, dt: np.ndarray, static: np.ndarray, bias0: np.nda
                        np.zeros(n, bool), 0)
     update = static.copy()
     b, p = np.asarray(bias0, float), np.asarray(variance0, float)
+    out.carry = carry
+    hold = (times, holdoff) if times is not None else None
     for begin in range(0, n, CHUNK):
-        b, p = _track_chunk(z, dt, static, update, b, p, walk, noise, threshold, out, begin, min(begin + CHUNK, n))
+        b, p = _track_chunk(z, dt, static, update, b, p, walk, noise, threshold, out, begin, min(begin + CHUNK, n),
+                            hold)
     return out
 
 
-def _track_chunk(z, dt, static, update, b, p, walk, noise, threshold, out, start, end):
+def _track_chunk(z, dt, static, update, b, p, walk, noise, threshold, out, start, end, hold=None):
     """Samples ``start:end`` of :func:`track_block`; returns the state after them."""
     passes = 0
     while start < end:
@@ -189,8 +230,15 @@ def _track_chunk(z, dt, static, update, b, p, walk, noise, threshold, out, start
         out.passes += 1
         passes += 1
         gate = static[seg] & (chi2 < threshold)
+        if hold is not None:  # valid up to the first wrong guess, as the gate
+            t = hold[0][seg]
+            failed = static[seg] & ~(chi2 < threshold)
+            last, first = failure_runs(t, failed, out.carry)
+            gate &= ~((last[:-1] - first[:-1] >= MIN_FAIL_S) & (t - last[:-1] < hold[1]))
         wrong = np.flatnonzero(gate != update[seg])
         keep = stop - start if wrong.size == 0 else int(wrong[0])
+        if hold is not None and keep:
+            out.carry = (float(last[keep]), float(first[keep]), bool(failed[keep - 1]))
         kept = slice(start, start + keep)
         out.bias[kept], out.variance[kept], out.innovation[kept] = bias[:keep], var[:keep], e[:keep]
         out.innovation_variance[kept], out.chi2[kept], out.updated[kept] = s[:keep], chi2[:keep], update[kept]

@@ -502,6 +502,7 @@ class StateSpaceFit:
     n_moving: int = 0  # blocks left out of the fit because gravity turns within them (the walk spans them)
     jackknife_stretches: int = 0  # contiguous stretches of the grouped jackknife (0: model covariance only)
     held_out: tuple = ()  # per fold: (θ (P,), trajectory (B, 6)) fitted without it, or None
+    jackknife: object = None  # the jackknives over the stretches and runs of them (core.jackknife.Widened)
 
     @property
     def bic(self) -> float:
@@ -571,9 +572,9 @@ def fit_state_space(blocks: Blocks, kind: str, temperature: bool = False, held: 
     covariance = np.linalg.inv(scaled) * jacobi[:, None] * jacobi[None, :]
     covariance = 0.5 * (covariance + covariance.T)
     theta = covariance @ rhs
-    stretches = 0
+    stretches, widened = 0, None
     if kind == "random-walk":
-        covariance, stretches = _with_jackknife(covariance, theta, ratio, steps, noise, data, pad, observed, r,
+        covariance, stretches, widened = _with_jackknife(covariance, theta, ratio, steps, noise, data, pad, observed, r,
                                                 index, n_beta)
     # Maximum likelihood at β (noise variances re-profiled) for the BIC.
     log_lik = 0.0
@@ -600,7 +601,7 @@ def fit_state_space(blocks: Blocks, kind: str, temperature: bool = False, held: 
     held_out = _refit_without(tuple(folds), theta.size, kept, ratio, steps, noise, data, pad, observed, r, index,
                               x, blocks, kind == "linear")
     return StateSpaceFit(kind, names, theta, covariance, r, ratio * r, float(log_lik), n_free, 6 * n_observed,
-                         trajectory, end_se, n_blocks - n_observed, stretches, held_out)
+                         trajectory, end_se, n_blocks - n_observed, stretches, held_out, widened)
 
 
 def _refit_without(folds, p, kept, ratio, steps, noise, data, pad, observed, r, index, x, blocks, slope):
@@ -651,33 +652,43 @@ def _with_jackknife(covariance, theta, ratio, steps, noise, data, pad, observed,
 
     Returns
     -------
-    (covariance (P, P), number of stretches left out; 0 when too few to leave out)
+    (covariance (P, P), number of stretches left out (0 when too few to leave out), the jackknives'
+    :class:`~ftcal.core.jackknife.Widened` or None)
     """
-    from ..core.jackknife import block_edges, jackknife_covariance
+    from ..core.jackknife import COARSER_BLOCKS, block_edges, merged_partitions, widest_covariance
     from ..core.limits import ROBUST_CLUSTERS
 
     rows = np.flatnonzero(observed)
     edges = block_edges(len(rows), ROBUST_CLUSTERS)
     if len(edges) < 3:
-        return covariance, 0
-    masks = np.repeat(observed[None], len(edges) - 1, axis=0)
-    for g, (a, b) in enumerate(zip(edges[:-1], edges[1:])):
-        masks[g, rows[a:b]] = False
+        return covariance, 0, None
+    # The finest stretches, then contiguous runs of them (errors correlated over several stretches)
+    partitions = [edges] + [edges[merged] for merged in merged_partitions(len(edges) - 1, COARSER_BLOCKS)]
+    masks = []
+    for cuts in partitions:
+        for a, b in zip(cuts[:-1], cuts[1:]):
+            mask = observed.copy()
+            mask[rows[a:b]] = False
+            masks.append(mask)
+    masks = np.array(masks)
     _, cross = _filter(np.broadcast_to(ratio, (len(masks), 6)), steps, noise, data, pad, masks)
     gram, rhs = _joint_normal_equations(cross[..., 1:, 1:], cross[..., 1:, 0], r, index, pad, n_beta)
-    refits = []
-    for g in range(len(masks)):
-        scale = 1.0 / np.sqrt(np.maximum(np.diag(gram[g]), 1e-300))
-        scaled = gram[g] * scale[:, None] * scale[None, :]
-        if np.linalg.cond(scaled) < 1e12:  # else this stretch alone identifies something: it cannot be left out
-            refits.append(scale * np.linalg.solve(scaled, rhs[g] * scale))
-    jackknife = jackknife_covariance(refits)
-    if jackknife is None:
-        return covariance, 0
+    refits, at = [], 0
+    for cuts in partitions:
+        refits.append([])
+        for g in range(at, at + len(cuts) - 1):
+            scale = 1.0 / np.sqrt(np.maximum(np.diag(gram[g]), 1e-300))
+            scaled = gram[g] * scale[:, None] * scale[None, :]
+            if np.linalg.cond(scaled) < 1e12:  # else this stretch alone identifies something: it cannot be left out
+                refits[-1].append(scale * np.linalg.solve(scaled, rhs[g] * scale))
+        at += len(cuts) - 1
+    widened = widest_covariance(refits)
+    if widened is None:
+        return covariance, 0, None
     se = np.sqrt(np.maximum(np.diag(covariance), 0.0))
-    raise_to = np.sqrt(np.maximum(np.diag(jackknife), 0.0))
+    raise_to = np.sqrt(np.maximum(np.diag(widened.covariance), 0.0))
     factor = np.where(se > 0, np.maximum(1.0, raise_to / np.where(se > 0, se, 1.0)), 1.0)
-    return covariance * factor[:, None] * factor[None, :], len(refits)
+    return covariance * factor[:, None] * factor[None, :], len(refits[0]), widened
 
 
 def _choose_ratio(blocks: Blocks, steps, noise, data, pad, n_columns, observed) -> np.ndarray:

@@ -10,12 +10,15 @@ Weighting: plain least squares (OLS) unless held-out evidence says otherwise.
 ``weighting="auto"`` scores OLS and two-step per-axis weighted least squares
 (each axis weighted by 1/σ² of its OLS residual) on held-out contiguous
 blocks (the ``clusters``, else the groups) and keeps the weighting only when
-it predicts held-out forces and torques no worse than OLS (1 % ties) and one of them better.
+it predicts held-out forces and torques no worse than OLS (1 % ties; per axis on
+average and on the force and torque error norms) and one of them better.
 
 Standard errors: with ``clusters`` (contiguous time blocks or poses) the
 covariance is the grouped jackknife over the clusters (cluster-robust, CR3),
 which stays honest when the residuals are correlated in time or the noise
-model is wrong; it is scaled by
+model is wrong (with ``coarser``, each standard error raised to the jackknife's
+over longer contiguous runs of clusters where larger: errors correlated over
+several clusters, such as a drift that follows the pose order); it is scaled by
 ``(t_{G−1, 0.975} / z_{0.975})²`` so that ±1.96 standard errors is a 95 %
 interval with G − 1 degrees of freedom. Without clusters it is the classical
 per-axis-heteroscedastic covariance. The centre of mass's standard error
@@ -48,7 +51,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..core.directions import CANONICAL_TIE, canonical_sign
-from ..core.jackknife import jackknife_covariance
+from ..core.jackknife import UNDETERMINED_ERROR, Widened, merged_partitions, widest_covariance
 from ..core.limits import PAYLOAD_WEIGHTINGS
 from ..core.precision import SCORE, settle
 from ..core.solvers.base import Conditioning
@@ -180,7 +183,7 @@ def describe_parameters(names) -> str:
 
 def identify_payload(groups: Mapping[str, AxisStatistics], *, cross_validate: bool = True,
                      clusters: Sequence[AxisStatistics] = (), weighting: str = "auto",
-                     covariates: Sequence[str] = ()) -> PayloadFit:
+                     covariates: Sequence[str] = (), coarser: Sequence[int] = ()) -> PayloadFit:
     """Fit the payload and bias to statistics gathered per validation group.
 
     Parameters
@@ -197,6 +200,9 @@ def identify_payload(groups: Mapping[str, AxisStatistics], *, cross_validate: bo
     weighting : {"auto", "ols", "wls"}
         Per-axis weighting; ``auto`` keeps it only when held-out evidence chooses it.
     covariates : names of the covariates of the bias (their 6 coefficients each follow the biases)
+    coarser : numbers of contiguous runs of ``clusters`` also left out in turn
+        (:data:`~ftcal.core.jackknife.COARSER_BLOCKS`); each standard error is the largest of the
+        jackknives (:func:`~ftcal.core.jackknife.widest_covariance`). Empty: the clusters' jackknife only.
 
     Returns
     -------
@@ -214,7 +220,9 @@ def identify_payload(groups: Mapping[str, AxisStatistics], *, cross_validate: bo
         Once, when the poses leave some other parameters undetermined (rank-deficient
         regressor): they are held or reported as :attr:`PayloadFit.undetermined`, with the fix.
     IllPosedFitWarning
-        For each poorly excited parameter, with the kind of pose to add.
+        For each poorly excited parameter, with the kind of pose to add; and when the coarsest
+        jackknife's mass error exceeds the finest one's by more than
+        :data:`~ftcal.core.jackknife.UNDETERMINED_ERROR` (the standard error is itself uncertain).
     """
     if weighting not in PAYLOAD_WEIGHTINGS:
         raise FtcalError(f"weighting: {weighting!r} is not one of {', '.join(PAYLOAD_WEIGHTINGS)}.")
@@ -255,10 +263,12 @@ def identify_payload(groups: Mapping[str, AxisStatistics], *, cross_validate: bo
     inverse = np.linalg.inv(wgram * jacobi[:, None] * jacobi[None, :])
     inverse = 0.5 * (inverse + inverse.T)
     bread = inverse * jacobi[:, None] * jacobi[None, :]
-    covariance = robust_covariance(wgram, total.cross(weights), clusters, theta, weights) \
+    widened = robust_covariance(wgram, total.cross(weights), clusters, theta, weights, coarser) \
         if len(clusters) > 1 else None
-    if covariance is not None:
-        kind = f"grouped jackknife ({len(clusters)} contiguous blocks)"
+    covariance = None if widened is None else widened.covariance
+    if widened is not None:
+        kind = stderr_words(widened, len(clusters))
+        warn_uncertain_error(widened, "the mass")
     else:
         variance = _axis_variance(total, theta, n, p)
         meat = total.gram(weights ** 2 * variance)
@@ -427,30 +437,62 @@ def _axis_variance(total: AxisStatistics, theta: np.ndarray, n: int, p: int) -> 
 
 
 def robust_covariance(wgram: np.ndarray, wcross: np.ndarray, clusters: Sequence[AxisStatistics],
-                      theta: np.ndarray, weights: np.ndarray) -> np.ndarray:
+                      theta: np.ndarray, weights: np.ndarray, coarser: Sequence[int] = ()) -> Widened | None:
     """Grouped-jackknife covariance of θ, scaled to the t quantile of G − 1 degrees of freedom.
 
     ``(G − 1)/G · Σ_c (θ₋c − θ̄)(θ₋c − θ̄)ᵀ`` over the refits without each cluster
     (from the summed statistics, no pass over the data); it is the CR3
-    cluster-robust estimate, less optimistic than CR1 with few clusters.
+    cluster-robust estimate, less optimistic than CR1 with few clusters. With ``coarser``,
+    contiguous runs of clusters are left out too and each standard error is the largest
+    (:func:`~ftcal.core.jackknife.widest_covariance`): errors correlated over several clusters
+    (a drift that follows the pose order) escape the finest jackknife.
 
     Parameters
     ----------
     wgram, wcross : weighted Gram (p, p) and cross products (p,) of all samples
-    clusters : per-cluster statistics (they add up to the total)
+    clusters : per-cluster statistics (they add up to the total), in time order
     theta : (p,) the estimate
     weights : (6,) per-axis weights of the fit
+    coarser : numbers of contiguous runs of clusters to leave out as well
 
     Returns
     -------
-    ndarray of shape (p, p), or None when fewer than two clusters can be left out
+    Widened, or None when fewer than two clusters can be left out
     """
-    refits = []
-    for c in clusters:
-        refit = _refit(wgram - c.gram(weights), wcross - c.cross(weights))
-        if refit is not None:  # else this cluster alone identifies something: it cannot be left out
-            refits.append(refit)
-    return jackknife_covariance(refits)
+    grams = [c.gram(weights) for c in clusters]
+    crosses = [c.cross(weights) for c in clusters]
+    partitions = []
+    for edges in [np.arange(len(clusters) + 1)] + merged_partitions(len(clusters), coarser):
+        refits = []
+        for a, b in zip(edges[:-1], edges[1:]):
+            refit = _refit(wgram - sum(grams[a:b]), wcross - sum(crosses[a:b]))
+            if refit is not None:  # else this run alone identifies something: it cannot be left out
+                refits.append(refit)
+        partitions.append(refits)
+    return widest_covariance(partitions)
+
+
+def stderr_words(widened: Widened, n_clusters: int) -> str:
+    """How a (widened) grouped-jackknife covariance over ``n_clusters`` blocks was made, in words."""
+    if len(widened.blocks) == 1:
+        return f"grouped jackknife ({n_clusters} contiguous blocks)"
+    return (f"grouped jackknife ({n_clusters} contiguous blocks; each error the largest of the jackknives "
+            f"over {', '.join(map(str, widened.blocks))} blocks, the mass's {widened.ratio[0]:.2f}x "
+            f"from the finest to the coarsest)")
+
+
+UNCERTAIN_ERROR_TEXT = "the standard error of"  # how the warning of warn_uncertain_error starts
+
+
+def warn_uncertain_error(widened: Widened, what: str) -> None:
+    """Say so when the error grows with the length of the blocks left out: the data cannot determine it."""
+    if widened.ratio[0] > UNDETERMINED_ERROR:
+        warnings.warn(f"{UNCERTAIN_ERROR_TEXT} {what} grows {widened.ratio[0]:.1f}x from {widened.blocks[0]} to "
+                      f"{widened.blocks[-1]} contiguous blocks left out: the errors are correlated over a large part "
+                      "of the recording (drift that follows the pose order, slow wander), so the recording holds "
+                      f"only a few independent pieces of evidence and the error stated (the largest) is itself "
+                      "uncertain; record the poses in a shuffled order, revisit early poses late, or use "
+                      "--bias-drift random-walk.", IllPosedFitWarning, stacklevel=3)
 
 
 # An equilibrated Gram above this condition number has lost a direction (float64 keeps ~16 digits).
@@ -508,16 +550,23 @@ def _choose_weighting(folds: list[AxisStatistics], total: AxisStatistics, p: int
     if scored < 2:
         return "ols", "too few identifiable held-out blocks: plain least squares"
     # Each axis' held-out error relative to OLS's, averaged over the force and over the torque axes
-    # (a raw sum would be decided by the noisiest axis alone).
+    # (a raw sum would be decided by the noisiest axis alone), and the force and torque error norms (what a
+    # user measures: weights that down-weight a drifting axis can win the mean and lose the norm).
     with np.errstate(divide="ignore", invalid="ignore"):  # both 0 (exact fits): a tie
         per_axis = np.where(sse["ols"] > 0, sse["wls"] / sse["ols"], np.where(sse["wls"] > 0, np.inf, 1.0))
+        norm = [_ratio(sse["wls"][k:k + 3].sum(), sse["ols"][k:k + 3].sum()) for k in (0, 3)]
     ratio = [float(np.mean(per_axis[:3])), float(np.mean(per_axis[3:]))]
     text = (f"held-out error of per-axis weighting vs plain least squares over {scored} blocks: "
-            f"forces {ratio[0]:.3f}x, torques {ratio[1]:.3f}x")
-    # Ties (within 1 %) are no evidence; the weighting must not lose on either kind of axis.
-    if max(ratio) <= 1.0 + WEIGHTING_TIE and min(ratio) < 1.0 - WEIGHTING_TIE:
+            f"forces {ratio[0]:.3f}x (norm {norm[0]:.3f}x), torques {ratio[1]:.3f}x (norm {norm[1]:.3f}x)")
+    # Ties (within 1 %) are no evidence; the weighting must not lose on either kind of axis, by either measure.
+    if max(ratio + norm) <= 1.0 + WEIGHTING_TIE and min(ratio) < 1.0 - WEIGHTING_TIE:
         return "wls", text + " (weighting kept)"
     return "ols", text + " (plain least squares kept)"
+
+
+def _ratio(a: float, b: float) -> float:
+    """a / b, 1 when both are 0 (a tie), inf when only b is."""
+    return float(a / b) if b > 0 else (np.inf if a > 0 else 1.0)
 
 
 def model_fit(names: tuple[str, ...], theta: np.ndarray, covariance: np.ndarray, *, residual_rms: np.ndarray,

@@ -15,13 +15,13 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.jackknife import block_edges, t_scale
+from ..core.jackknife import COARSER_BLOCKS, block_edges, t_scale
 from ..data.tables import table_label_column
 from ..runtime.errors import FtcalError
 from .accumulate import AxisStatistics, payload_statistics
 from .compensate import contact_wrench, undetermined_samples, warn_undetermined
 from .drift import MAX_KNOTS, BiasDrift
-from .identify import PayloadFit, model_fit
+from .identify import UNCERTAIN_ERROR_TEXT, PayloadFit, model_fit, warn_uncertain_error
 from .kinematics import Kinematics, KinematicsSource
 from .parameters import PayloadParameters
 
@@ -218,7 +218,11 @@ def compensate_table(path: str | os.PathLike, payload: PayloadParameters, source
             raise FtcalError(f"the calibration model has {len(model.output_names_)} outputs; a wrench needs 6.")
         measured = model.predict(numeric_columns(frame, model.input_names_, Path(path), "input"),
                                  warn_out_of_range=warn_out_of_range)
+        loads = predicted_loads(model, measured)
+        if warn_out_of_range:
+            warn_predicted_loads(model, loads)
     else:
+        loads = None
         columns = check_wrench_columns(wrench or payload.fit.get("wrench_columns", WRENCH_COLUMNS), source)
         measured = numeric_columns(frame, columns, Path(path), "wrench")
     drift = payload.drift
@@ -234,7 +238,51 @@ def compensate_table(path: str | os.PathLike, payload: PayloadParameters, source
         out[name] = contact[:, j]
     if not warn_out_of_range:  # the caller warns once: how many samples the undetermined parameters act on
         out.attrs["undetermined_samples"] = undetermined_samples(payload, kinematics)
+        if model is not None and loads is not None:
+            # and which axes the model's wrench drives beyond its training, as plain lists (pandas compares
+            # attrs when it concatenates tables)
+            out.attrs["predicted_loads"] = [loads.n, loads.n_beyond, loads.count.tolist(), loads.low.tolist(),
+                                            loads.high.tolist()]
     return out
+
+
+def predicted_loads(model, measured: np.ndarray):
+    """:class:`~ftcal.core.ranges.LoadSums` of a model's predicted wrench against its training loads, or None
+    when the model file has no training loads."""
+    from ..core.ranges import LoadSums
+
+    output_range = getattr(model, "output_range_", None)
+    if output_range is None:
+        return None
+    return LoadSums.of(measured, np.asarray(output_range, dtype=float), model.output_names_)
+
+
+def predicted_loads_text(model, loads) -> str | None:
+    """Which axes the predicted wrench drives beyond the training loads, how far, in one sentence (or None).
+
+    ``loads`` is a LoadSums, or a list of the ``predicted_loads`` attributes of :func:`compensate_table`'s
+    tables (added up), or None."""
+    from ..core.ranges import LoadSums, loads_text
+
+    if isinstance(loads, list):
+        parts = [LoadSums(n, beyond, np.array(count), np.array(low), np.array(high))
+                 for n, beyond, count, low, high in loads]
+        loads = sum(parts[1:], parts[0]) if parts else None
+    if loads is None:
+        return None
+    return loads_text(loads.summary(np.asarray(model.output_range_, dtype=float), model.output_names_),
+                      "the predicted loads")
+
+
+def warn_predicted_loads(model, loads) -> None:
+    """Warn (OutOfRangeWarning) when the calibrated wrench extrapolates beyond the training loads."""
+    import warnings
+
+    from ..runtime.errors import OutOfRangeWarning
+
+    text = predicted_loads_text(model, loads)
+    if text:
+        warnings.warn(text, OutOfRangeWarning, stacklevel=3)
 
 
 @dataclass(frozen=True)
@@ -308,7 +356,16 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
     extra, names = covariates(None, temperature)
     groups, clusters = _groups_and_blocks(recording, dynamic, extra)
     n_groups = len(groups)
-    constant = identify_payload(groups, clusters=clusters, covariates=names, cross_validate=cross_validate)
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        constant = identify_payload(groups, clusters=clusters, covariates=names, cross_validate=cross_validate,
+                                    coarser=COARSER_BLOCKS)
+    # The constant fit's uncertain-error warning is said only when the constant bias is the model kept (below):
+    # a drift model that takes the drift out leaves no such error behind.
+    uncertain = [w for w in said if str(w.message).startswith(UNCERTAIN_ERROR_TEXT)]
+    for w in said:
+        if w not in uncertain:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     held = () if constant.undetermined is None else constant.undetermined.held
     kind, selection = ("none", "") if bias_drift == "auto" and (hours is None or dynamic) else (bias_drift, "")
     fits = {}
@@ -343,7 +400,8 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
         groups, clusters = _groups_and_blocks(recording, False, extra)
         with warnings.catch_warnings():  # the constant fit said what the poses do not determine
             warnings.simplefilter("ignore", UndeterminedWarning)
-            fit = identify_payload(groups, clusters=clusters, covariates=names, cross_validate=cross_validate)
+            fit = identify_payload(groups, clusters=clusters, covariates=names, cross_validate=cross_validate,
+                                coarser=COARSER_BLOCKS)
         slope = fit.theta[10:16]
         start = fit.theta[4:10]
         end_hours = hours[-1]
@@ -370,6 +428,8 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
             residual[:, j] -= np.interp(hours, knot_hours, ss.trajectory[:, j])
         rms = np.sqrt(np.einsum("ij,ij->j", residual, residual) / recording.n_samples)
         del residual
+        if ss.jackknife is not None:
+            warn_uncertain_error(ss.jackknife, "the random-walk model's mass")
         fit = model_fit(ss.names, ss.theta, ss.covariance, residual_rms=rms, n_samples=recording.n_samples,
                         stderr_kind=_state_space_kind(ss, len(blocks.count)),
                         covariates=covariate_names, undetermined=constant.undetermined)
@@ -382,6 +442,9 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
                                                                 temperature))
         change = ss.trajectory[-1] - ss.trajectory[0]
         walk = np.sqrt(ss.walk_variance)
+    if kind == "none":
+        for w in uncertain:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     drift = None
     if hours is not None or temperature is not None:
         t = recording.time
@@ -506,8 +569,9 @@ def _state_space_kind(ss, n_blocks: int) -> str:
         text += f"; {ss.n_moving} blocks in which the sensor turns left out, the walk spans them"
     text += ")"
     if ss.jackknife_stretches:
-        text += (f", each raised to a grouped jackknife over {ss.jackknife_stretches} contiguous stretches "
-                 "where that is larger")
+        runs = ss.jackknife.blocks if ss.jackknife is not None else (ss.jackknife_stretches,)
+        text += (f", each raised to the largest grouped jackknife over {', '.join(map(str, runs))} contiguous "
+                 "stretches where that is larger")
     return text
 
 
@@ -633,6 +697,10 @@ def drift_verdict(result: DriftResult) -> str:
     if abs(z) <= DISAGREE_STDERR:
         lines.append(f"  mass: {name} {m_f:.6g} ± {se_f:.2g} kg and constant bias {m_c:.6g} ± {se_c:.2g} kg agree "
                      f"({z:+.1f} combined standard errors)")
+        force, torque = ratios.get(chosen, (1.0, 1.0))
+        if 0.5 * (force + torque) < 1.0 - HELD_OUT_TIE and max(force, torque) <= 1.0 + HELD_OUT_WORSE \
+                and se_f < se_c:
+            lines.append(f"  the {name} predicts held-out time better and states the smaller error: trust it")
         return "\n".join(lines)
     force, torque = ratios.get(chosen, (1.0, 1.0))
     lines.append(f"  mass: {name} {m_f:.6g} ± {se_f:.2g} kg and constant bias {m_c:.6g} ± {se_c:.2g} kg disagree "

@@ -138,9 +138,14 @@ def compensate(payload, data, *, calibration=None, inputs: Sequence[str] | None 
         from ..core.ranges import RangeSums, describe, span_of
         from ..runtime.errors import OutOfRangeWarning
 
+        from ..payload.tables import predicted_loads_text
+
         inputs = table[list(model.input_names_)].to_numpy(dtype=float)
         ranges = RangeSums.of(inputs, model.input_range_, outside_span=span_of(model, inputs))
-        message = describe(ranges.summary(model.input_names_))
+        loads = predicted_loads_text(model, [part.attrs["predicted_loads"] for part in parts
+                                             if part.attrs.get("predicted_loads") is not None])
+        # one line: the inputs outside their training range, then the predicted loads beyond the training loads
+        message = " ".join(part for part in (describe(ranges.summary(model.input_names_)), loads) if part)
         if message:
             warnings.warn(message, OutOfRangeWarning, stacklevel=2)
     result = CompensationResult(table, names)

@@ -1,0 +1,443 @@
+/*
+ * ftcal.live._core: the live step's C core (csrc/ftcal_live.h) as a CPython extension.
+ *
+ * The same source `ftcal convert --to c-runtime` ships, compiled here with the prefix ftcal_core and maximum
+ * sizes (the configuration says how many inputs, channels and tools there are). The model is evaluated by
+ * Python's kernels; the core takes the raw channels, the wrench they give and gravity per sample. One call steps a
+ * whole block (the GIL released), so a block of samples costs one Python call.
+ *
+ * Python side: ftcal.live.core (the configuration is ftcal.live.c_runtime.core_config's dict). Optional: without
+ * a C compiler the build skips it and ftcal.live.core says how to build it.
+ */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+
+#include <stddef.h>
+
+#define FTCAL_CORE_N_INPUTS 32
+#define FTCAL_CORE_N_CHANNELS 32
+#define FTCAL_CORE_N_TOOLS 32
+#define FTCAL_CORE_MAX_ADDED_TOOLS 1
+#define FTCAL_CORE_MAX_TOOLS (FTCAL_CORE_N_TOOLS + FTCAL_CORE_MAX_ADDED_TOOLS)
+#define FTCAL_CORE_MAX_TOOL_NAME 63
+#define FTCAL_CORE_MAX_HOLDS 32
+#define FTCAL_CORE_MIN_HOLDS 3
+#define FTCAL_CORE_MAX_MAGNITUDE 1e100
+#define FTCAL_CORE_HISTORY 1024
+#define FTCAL_CORE_DRIFT_SNAPSHOTS 258
+#define FTCAL_CORE_DRIFT_LAGS 4
+#define FTCAL_CORE_SC_KEEP_HOLDS 4
+#define FTCAL_CORE_SC_WALK_KEEP 12
+#define FTCAL_CORE_N_FLAGS 8
+#define FTCAL_CORE_MAX_EVENTS 64
+/* the codes: ftcal.live.core checks them against the Python constants (health.BIT, c_events, c_identify) */
+#define FTCAL_CORE_FLAG_SATURATED 1u
+#define FTCAL_CORE_FLAG_STUCK 2u
+#define FTCAL_CORE_FLAG_DEAD 4u
+#define FTCAL_CORE_FLAG_OUT_OF_RANGE 8u
+#define FTCAL_CORE_FLAG_TEMPERATURE 16u
+#define FTCAL_CORE_FLAG_CONTACT 32u
+#define FTCAL_CORE_FLAG_UNEXPLAINED 64u
+#define FTCAL_CORE_FLAG_SILENT 128u
+#define FTCAL_CORE_EVENT_TOOL_SWITCHED 1
+#define FTCAL_CORE_EVENT_TOOL_IDENTIFYING 2
+#define FTCAL_CORE_EVENT_TOOL_IDENTIFIED 3
+#define FTCAL_CORE_EVENT_RETARE 4
+#define FTCAL_CORE_EVENT_FLAG_RAISED 5
+#define FTCAL_CORE_EVENT_FLAG_CLEARED 6
+#define FTCAL_CORE_ID_OK (0)
+#define FTCAL_CORE_ID_NOT_IDENTIFYING (-1)
+#define FTCAL_CORE_ID_TOO_FEW_HOLDS (-2)
+#define FTCAL_CORE_ID_MASS_UNDETERMINED (-3)
+#define FTCAL_CORE_ID_SINGULAR (-4)
+#define FTCAL_CORE_TOOL_OK (0)
+#define FTCAL_CORE_TOOL_NO_NAME (-5)
+#define FTCAL_CORE_TOOL_NAME_TOO_LONG (-6)
+#define FTCAL_CORE_TOOL_NAME_RESERVED (-7)
+#define FTCAL_CORE_TOOL_LIBRARY_FULL (-8)
+
+#define FTCAL_LIVE_PREFIX ftcal_core
+#define FTCAL_LIVE_MACRO FTCAL_CORE
+#define FTCAL_LIVE_NO_TEXT
+#include "ftcal_live.h"
+
+/* The configuration's numeric fields, by name: (offset, kind, rows, columns) with the C's row stride. */
+enum { REAL = 0, INT = 1, LONG = 2 };
+typedef struct {
+    const char *name;
+    size_t offset;
+    int kind;
+    Py_ssize_t rows, columns, stride;   /* a scalar is 1 x 1; columns -1: n_inputs (a square of the inputs) */
+} Field;
+
+#define F(field, kind, rows, columns, stride) {#field, offsetof(ftcal_core_config, field), kind, rows, columns, stride}
+#define NI FTCAL_CORE_N_INPUTS
+#define NC FTCAL_CORE_N_CHANNELS
+#define NT FTCAL_CORE_N_TOOLS
+static const Field FIELDS[] = {
+    F(n_inputs, INT, 1, 1, 1), F(n_channels, INT, 1, 1, 1), F(n_tools, INT, 1, 1, 1),
+    F(channels, INT, 1, NC, NC), F(channel_range, REAL, NC, 2, 2),
+    F(input_low, REAL, 1, NI, NI), F(input_high, REAL, 1, NI, NI),
+    F(temperature, INT, 1, 1, 1), F(temperature_low, REAL, 1, 1, 1), F(temperature_high, REAL, 1, 1, 1),
+    F(has_span, INT, 1, 1, 1), F(span_mean, REAL, 1, NI, NI), F(span_unit, REAL, 1, NI, NI),
+    F(span_values, REAL, 1, NI, NI), F(span_vectors, REAL, NI, -1, NI), F(span_kept, INT, 1, NI, NI),
+    F(span_off, REAL, 1, 1, 1), F(span_limit, REAL, 1, 1, 1),
+    F(tool_mass, REAL, 1, NT, NT), F(tool_mc, REAL, NT, 3, 3), F(tool_sign, REAL, 1, NT, NT),
+    F(noise_variance, REAL, 1, 6, 6), F(walk_variance, REAL, 1, 6, 6), F(accept_limit, REAL, 1, 6, 6),
+    F(gate_chi2, REAL, 1, 1, 1), F(drift_chi2, REAL, 1, 1, 1), F(gate_probability, REAL, 1, 1, 1),
+    F(unexplained_sigma, REAL, 1, 1, 1), F(unexplained_seconds, REAL, 1, 1, 1), F(motion_window, REAL, 1, 1, 1),
+    F(min_rate, REAL, 1, 1, 1), F(min_hold, REAL, 1, 1, 1), F(retare_variance, REAL, 1, 1, 1),
+    F(holdoff, REAL, 1, 1, 1), F(min_fail_s, REAL, 1, 1, 1), F(snapshot_s, REAL, 1, 1, 1),
+    F(lags, REAL, 1, FTCAL_CORE_DRIFT_LAGS, FTCAL_CORE_DRIFT_LAGS),
+    F(stuck_run, LONG, 1, 1, 1), F(dead_run, LONG, 1, 1, 1), F(saturation_run, LONG, 1, 1, 1),
+    F(load_steps, REAL, 1, 1, 1),
+    F(sc_lock_s, REAL, 1, 1, 1), F(sc_min_hold_s, REAL, 1, 1, 1), F(sc_min_turn_deg, REAL, 1, 1, 1),
+    F(sc_turn_share, REAL, 1, 1, 1), F(sc_correlation_s, REAL, 1, 1, 1), F(sc_window_s, REAL, 1, 1, 1),
+    F(sc_min_window_samples, LONG, 1, 1, 1), F(sc_r_max, REAL, 1, 1, 1), F(sc_q_max, REAL, 1, 1, 1),
+    F(sc_nis_factor, REAL, 1, 1, 1), F(sc_gated_factor, REAL, 1, 1, 1), F(sc_diff_cap, REAL, 1, 1, 1),
+    F(sc_min_walk_starts, LONG, 1, 1, 1), F(sc_min_walk_share, REAL, 1, 1, 1), F(sc_walk_factor, REAL, 1, 1, 1),
+    F(sc_chi2_6_median, REAL, 1, 1, 1),
+    F(rank_relative, REAL, 1, 1, 1), F(rounding_column, REAL, 1, 1, 1), F(null_row, REAL, 1, 1, 1),
+    F(canonical_tie, REAL, 1, 1, 1), F(weighting_tie, REAL, 1, 1, 1), F(refit_condition, REAL, 1, 1, 1),
+    F(excitation_limit, REAL, 1, 1, 1), F(id_maps, REAL, 60, 4, 4),
+    F(t_scale, REAL, 1, FTCAL_CORE_MAX_HOLDS, FTCAL_CORE_MAX_HOLDS),
+};
+#undef F
+
+/* The settings of the state (the fields NAME_init sets from the configuration and the caller may change). */
+typedef struct {
+    const char *name;
+    size_t offset;
+    int count;
+} Setting;
+
+#define S(field, count) {#field, offsetof(ftcal_core_state, field), count}
+static const Setting SETTINGS[] = {
+    S(noise_variance, 6), S(walk_variance, 6), S(gate_chi2, 1), S(drift_chi2, 1), S(accept_limit, 6),
+    S(unexplained_sigma, 1), S(unexplained_seconds, 1), S(motion_window, 1), S(min_rate, 1), S(min_hold, 1),
+    S(adc_low, 1), S(adc_high, 1), S(bias, 6), S(variance, 6), S(tool_mass, NT), S(tool_sign, NT), S(holdoff, 1),
+};
+#undef S
+
+typedef struct {
+    PyObject_HEAD
+    ftcal_core_state *state;
+} Core;
+
+/* One field of the configuration from a sequence of numbers (flattened, row-major, rows x columns at most). */
+static int set_field(ftcal_core_config *config, const Field *f, PyObject *value)
+{
+    PyObject *seq = PySequence_Fast(value, f->name);
+    Py_ssize_t n, k, cols;
+    char *base = (char *)config + f->offset;
+    if (!seq) {
+        return -1;
+    }
+    n = PySequence_Fast_GET_SIZE(seq);
+    cols = f->columns > 0 ? f->columns : config->n_inputs;
+    if (n > f->rows * cols) {
+        PyErr_Format(PyExc_ValueError, "configuration field %s: %zd values, at most %zd", f->name, n,
+                     f->rows * cols);
+        Py_DECREF(seq);
+        return -1;
+    }
+    for (k = 0; k < n; ++k) {
+        PyObject *item = PySequence_Fast_GET_ITEM(seq, k);
+        Py_ssize_t at = (k / cols) * f->stride + k % cols;
+        if (f->kind == REAL) {
+            double x = PyFloat_AsDouble(item);
+            if (x == -1.0 && PyErr_Occurred()) {
+                Py_DECREF(seq);
+                return -1;
+            }
+            ((double *)base)[at] = x;
+        } else {
+            long x = PyLong_AsLong(item);
+            if (x == -1 && PyErr_Occurred()) {
+                Py_DECREF(seq);
+                return -1;
+            }
+            if (f->kind == INT) {
+                ((int *)base)[at] = (int)x;
+            } else {
+                ((long *)base)[at] = x;
+            }
+        }
+    }
+    Py_DECREF(seq);
+    return 0;
+}
+
+static int Core_init(Core *self, PyObject *args, PyObject *kwargs)
+{
+    static char *keywords[] = {"config", "tool", NULL};
+    PyObject *dict;
+    int tool = 0;
+    size_t i;
+    ftcal_core_config config;
+    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "O!|i", keywords, &PyDict_Type, &dict, &tool)) {
+        return -1;
+    }
+    memset(&config, 0, sizeof config);
+    for (i = 0; i < sizeof FIELDS / sizeof FIELDS[0]; ++i) {
+        PyObject *value = PyDict_GetItemString(dict, FIELDS[i].name), *list;
+        int rc;
+        if (!value) {
+            PyErr_Format(PyExc_KeyError, "the configuration has no %s", FIELDS[i].name);
+            return -1;
+        }
+        list = PyObject_CallMethod(value, "tolist", NULL);   /* flat numpy arrays, numpy scalars */
+        if (!list) {
+            PyErr_Clear();
+            list = value;
+            Py_INCREF(list);
+        }
+        if (!PyList_Check(list) && !PyTuple_Check(list)) {
+            PyObject *one = PyTuple_Pack(1, list);
+            Py_DECREF(list);
+            list = one;
+            if (!list) {
+                return -1;
+            }
+        }
+        rc = set_field(&config, &FIELDS[i], list);
+        Py_DECREF(list);
+        if (rc) {
+            return -1;
+        }
+    }
+    if (config.n_inputs < 1 || config.n_inputs > FTCAL_CORE_N_INPUTS || config.n_channels < 1
+        || config.n_channels > FTCAL_CORE_N_CHANNELS || config.n_tools < 1 || config.n_tools > FTCAL_CORE_N_TOOLS) {
+        PyErr_Format(PyExc_ValueError, "the core takes 1 to %d inputs and channels and 1 to %d tools",
+                     FTCAL_CORE_N_INPUTS, FTCAL_CORE_N_TOOLS);
+        return -1;
+    }
+    if (!self->state) {
+        self->state = (ftcal_core_state *)PyMem_Calloc(1, sizeof *self->state);
+        if (!self->state) {
+            PyErr_NoMemory();
+            return -1;
+        }
+    }
+    if (ftcal_core_core_init(self->state, &config, tool)) {
+        PyErr_Format(PyExc_ValueError, "tool index %d is not in the configuration's %d tools", tool, config.n_tools);
+        return -1;
+    }
+    return 0;
+}
+
+static void Core_dealloc(Core *self)
+{
+    PyMem_Free(self->state);
+    Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+/* run(time, u, w, gravity, override, out) -> samples stepped (n, or k < n: sample k was refused, state as before) */
+static PyObject *Core_run(Core *self, PyObject *args)
+{
+    Py_buffer t, u, w, g, o, out;
+    Py_ssize_t n, k = 0, ni = self->state->cfg.n_inputs;
+    int bad = 0;
+    if (!PyArg_ParseTuple(args, "y*y*y*y*y*w*", &t, &u, &w, &g, &o, &out)) {
+        return NULL;
+    }
+    n = t.len / (Py_ssize_t)sizeof(double);
+    if (u.len != n * ni * (Py_ssize_t)sizeof(double) || w.len != n * 6 * (Py_ssize_t)sizeof(double)
+        || g.len != n * 3 * (Py_ssize_t)sizeof(double) || o.len != n * (Py_ssize_t)sizeof(int32_t)
+        || out.len != n * 27 * (Py_ssize_t)sizeof(double)) {
+        bad = 1;
+    } else {
+        const double *tp = (const double *)t.buf, *up = (const double *)u.buf, *wp = (const double *)w.buf;
+        const double *gp = (const double *)g.buf;
+        const int32_t *op = (const int32_t *)o.buf;
+        double *r = (double *)out.buf;
+        Py_BEGIN_ALLOW_THREADS
+        for (k = 0; k < n; ++k) {
+            ftcal_core_output x;
+            int j;
+            if (ftcal_core_core_step(self->state, tp[k], up + ni * k, wp + 6 * k, gp + 3 * k, op[k], &x)) {
+                break;
+            }
+            for (j = 0; j < 6; ++j) {
+                r[27 * k + j] = x.calibrated[j];
+                r[27 * k + 6 + j] = x.compensated[j];
+                r[27 * k + 12 + j] = x.bias[j];
+                r[27 * k + 18 + j] = x.bias_std[j];
+            }
+            r[27 * k + 24] = x.chi2;
+            r[27 * k + 25] = x.is_static + 2 * x.updated;
+            r[27 * k + 26] = x.flags;
+        }
+        Py_END_ALLOW_THREADS
+    }
+    PyBuffer_Release(&t);
+    PyBuffer_Release(&u);
+    PyBuffer_Release(&w);
+    PyBuffer_Release(&g);
+    PyBuffer_Release(&o);
+    PyBuffer_Release(&out);
+    if (bad) {
+        PyErr_SetString(PyExc_ValueError, "run: buffers of n samples: time, u (n x n_inputs), w (n x 6), "
+                                          "gravity (n x 3) float64, override int32, out (n x 27) float64");
+        return NULL;
+    }
+    return PyLong_FromSsize_t(k);
+}
+
+static const Setting *find_setting(const char *name)
+{
+    size_t i;
+    for (i = 0; i < sizeof SETTINGS / sizeof SETTINGS[0]; ++i) {
+        if (strcmp(SETTINGS[i].name, name) == 0) {
+            return &SETTINGS[i];
+        }
+    }
+    PyErr_Format(PyExc_KeyError, "no setting %s", name);
+    return NULL;
+}
+
+/* get(name) -> tuple of floats: a setting of the state */
+static PyObject *Core_get(Core *self, PyObject *args)
+{
+    const char *name;
+    const Setting *s;
+    PyObject *result;
+    int i;
+    if (!PyArg_ParseTuple(args, "s", &name) || !(s = find_setting(name))) {
+        return NULL;
+    }
+    result = PyTuple_New(s->count);
+    for (i = 0; result && i < s->count; ++i) {
+        PyTuple_SET_ITEM(result, i, PyFloat_FromDouble(((double *)((char *)self->state + s->offset))[i]));
+    }
+    return result;
+}
+
+/* set(name, values): a setting of the state (as many values as it has) */
+static PyObject *Core_set(Core *self, PyObject *args)
+{
+    const char *name;
+    const Setting *s;
+    PyObject *values, *seq;
+    int i;
+    if (!PyArg_ParseTuple(args, "sO", &name, &values) || !(s = find_setting(name))) {
+        return NULL;
+    }
+    seq = PySequence_Fast(values, "set: a sequence of numbers");
+    if (!seq) {
+        return NULL;
+    }
+    if (PySequence_Fast_GET_SIZE(seq) != s->count) {
+        PyErr_Format(PyExc_ValueError, "setting %s takes %d values", name, s->count);
+        Py_DECREF(seq);
+        return NULL;
+    }
+    for (i = 0; i < s->count; ++i) {
+        double x = PyFloat_AsDouble(PySequence_Fast_GET_ITEM(seq, i));
+        if (x == -1.0 && PyErr_Occurred()) {
+            Py_DECREF(seq);
+            return NULL;
+        }
+        ((double *)((char *)self->state + s->offset))[i] = x;
+    }
+    Py_DECREF(seq);
+    Py_RETURN_NONE;
+}
+
+static PyObject *Core_retare(Core *self, PyObject *Py_UNUSED(ignored))
+{
+    return PyLong_FromLong(ftcal_core_retare(self->state));
+}
+
+static PyObject *Core_set_tool(Core *self, PyObject *args)
+{
+    int tool;
+    if (!PyArg_ParseTuple(args, "i", &tool)) {
+        return NULL;
+    }
+    if (ftcal_core_set_tool(self->state, tool)) {
+        PyErr_Format(PyExc_ValueError, "tool index %d is not in the library", tool);
+        return NULL;
+    }
+    Py_RETURN_NONE;
+}
+
+/* counters() -> dict: the state's counts (samples, updates, ..., the drift test's and the self-check's) */
+static PyObject *Core_counters(Core *self, PyObject *Py_UNUSED(ignored))
+{
+    const ftcal_core_state *s = self->state;
+    return Py_BuildValue("{s:k,s:k,s:k,s:k,s:k,s:k,s:k,s:k,s:k,s:k,s:I,s:i}", "samples", s->samples, "updates",
+                         s->updates, "contacts", s->contacts, "retares", s->retares, "switches", s->switches,
+                         "rollbacks", s->rollbacks, "adaptations", s->sc_adaptations, "lockouts", s->sc_lockouts,
+                         "reacquisitions", s->sc_reacquisitions, "undone", s->sc_undone, "flags", s->flags,
+                         "tool", s->tool);
+}
+
+static PyObject *Core_set_self_check(Core *self, PyObject *args)
+{
+    int on;
+    if (!PyArg_ParseTuple(args, "p", &on)) {
+        return NULL;
+    }
+    if (on) {
+        ftcal_core_enable_self_check(self->state);
+    } else {
+        self->state->self_check = 0;
+    }
+    Py_RETURN_NONE;
+}
+
+static PyMethodDef Core_methods[] = {
+    {"run", (PyCFunction)Core_run, METH_VARARGS, "run(time, u, w, gravity, override, out) -> samples stepped"},
+    {"get", (PyCFunction)Core_get, METH_VARARGS, "get(name) -> the setting's values"},
+    {"set", (PyCFunction)Core_set, METH_VARARGS, "set(name, values)"},
+    {"retare", (PyCFunction)Core_retare, METH_NOARGS, "retare() -> the contact flags raised now"},
+    {"set_tool", (PyCFunction)Core_set_tool, METH_VARARGS, "set_tool(index)"},
+    {"counters", (PyCFunction)Core_counters, METH_NOARGS, "counters() -> dict"},
+    {"set_self_check", (PyCFunction)Core_set_self_check, METH_VARARGS, "set_self_check(on)"},
+    {NULL, NULL, 0, NULL},
+};
+
+static PyTypeObject CoreType = {
+    PyVarObject_HEAD_INIT(NULL, 0)
+    .tp_name = "ftcal.live._core.Core",
+    .tp_doc = "The live step's C core (csrc/ftcal_live.h): Core(config, tool=0), config from core_config().",
+    .tp_basicsize = sizeof(Core),
+    .tp_flags = Py_TPFLAGS_DEFAULT,
+    .tp_new = PyType_GenericNew,
+    .tp_init = (initproc)Core_init,
+    .tp_dealloc = (destructor)Core_dealloc,
+    .tp_methods = Core_methods,
+};
+
+static struct PyModuleDef module = {
+    .m_base = PyModuleDef_HEAD_INIT,
+    .m_name = "ftcal.live._core",
+    .m_doc = "The live step's C core (csrc/ftcal_live.h) for ftcal.live.core.",
+    .m_size = -1,
+};
+
+PyMODINIT_FUNC PyInit__core(void)
+{
+    PyObject *m;
+    if (PyType_Ready(&CoreType) < 0) {
+        return NULL;
+    }
+    m = PyModule_Create(&module);
+    if (!m) {
+        return NULL;
+    }
+    Py_INCREF(&CoreType);
+    if (PyModule_AddObject(m, "Core", (PyObject *)&CoreType) < 0
+        || PyModule_AddIntConstant(m, "MAX_INPUTS", FTCAL_CORE_N_INPUTS) < 0
+        || PyModule_AddIntConstant(m, "MAX_TOOLS", FTCAL_CORE_N_TOOLS) < 0
+        || PyModule_AddIntConstant(m, "DRIFT_SNAPSHOTS", FTCAL_CORE_DRIFT_SNAPSHOTS) < 0
+        || PyModule_AddIntConstant(m, "SC_KEEP_HOLDS", FTCAL_CORE_SC_KEEP_HOLDS) < 0
+        || PyModule_AddIntConstant(m, "SC_WALK_KEEP", FTCAL_CORE_SC_WALK_KEEP) < 0
+        || PyModule_AddIntConstant(m, "MAX_HOLDS", FTCAL_CORE_MAX_HOLDS) < 0) {
+        Py_DECREF(&CoreType);
+        Py_DECREF(m);
+        return NULL;
+    }
+    return m;
+}
