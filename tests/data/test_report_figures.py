@@ -19,7 +19,7 @@ from matplotlib.transforms import Bbox
 from ftcal.core.model import CalibrationModel
 from ftcal.core.select import Candidate, cross_validate
 from ftcal.core.solvers.lasso import Lasso
-from ftcal.report import evaluate, figures
+from ftcal.report import evaluate_run, figures
 from ftcal.report.html import STYLE
 from ftcal.sim.synthetic import synthetic_recordings
 
@@ -35,7 +35,7 @@ def made():
     models = {"np1": CalibrationModel(1).fit(train), "np2": CalibrationModel(2).fit(train),
               "np2 λ=1": CalibrationModel(2, solver=Lasso(1.0)).fit(train),
               "np2 λ=30": CalibrationModel(2, solver=Lasso(30.0)).fit(train)}
-    runs = [evaluate(m, validation, name=n, train=train) for n, m in models.items()]
+    runs = [evaluate_run(m, validation, name=n, train=train) for n, m in models.items()]
     cv = cross_validate(train, [Candidate(1, "none", None), Candidate(2, "none", None),
                                 Candidate(2, "lasso", 0.3), Candidate(2, "lasso", 3.0),
                                 Candidate(2, "lasso", 30.0)], n_folds=3)

@@ -819,3 +819,14 @@ def test_an_output_that_is_a_device_or_a_fifo_is_refused_never_replaced(step_inp
             function(*args, **{**kwargs, "output": str(target)})
         after = os.lstat(target)
         assert (after.st_ino, after.st_mode) == (before.st_ino, before.st_mode) and special(target)
+
+
+def test_an_integer_beyond_every_float_in_a_state_file_is_one_line(state_doc, tmp_path):
+    """Found by the property above (a 401-digit integer is a JSON int that float() cannot convert)."""
+    doc = json.loads(json.dumps(state_doc))
+    doc["bias"][0] = 10 ** 400
+    path = tmp_path / "state.json"
+    path.write_text(json.dumps(doc))
+    with pytest.raises(FtcalError, match="bias") as error:
+        resume(path)
+    one_line(error.value)

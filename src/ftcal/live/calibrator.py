@@ -1189,7 +1189,10 @@ class LiveCalibrator:
             # JSON true/false are not numbers; NaN and Infinity are what json.loads makes of NaN/Infinity tokens.
             if isinstance(value, bool) or not isinstance(value, (int, float)):
                 raise bad(field, f"must be a number; got {type(value).__name__}")
-            x = float(value)
+            try:
+                x = float(value)
+            except OverflowError:  # an integer literal beyond any float (e.g. 1 followed by 400 zeros)
+                x = float("inf")
             if not abs(x) <= MAX_CELL_MAGNITUDE:
                 raise bad(field, f"must be finite and at most {MAX_CELL_MAGNITUDE:g} in magnitude; got {value!r}")
             return x

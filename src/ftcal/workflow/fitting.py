@@ -241,7 +241,17 @@ def _fit_object(data, model, payload, keywords: dict) -> FitResult:
     if clash:
         owner = "model" if clash[0] in model_keywords(model) else "payload"
         raise ParameterError((owner, clash[0]), f"{{{owner}}} sets {{{clash[0]}}} already; give one of them.")
-    result = fit(data, **{**keywords, **chosen})
+    try:
+        result = fit(data, **{**keywords, **chosen})
+    except ParameterError as error:  # name what the caller gave: payload=, not the keyword it stands for
+        given = {name: "payload" for name in payload_keywords(payload)}
+        if error.parameter not in given:
+            raise
+        names = tuple(dict.fromkeys(given.get(name, name) for name in error.parameters))
+        template = error.template
+        for name in given:
+            template = template.replace("{" + name + "}", "{payload}")
+        raise ParameterError(names, template) from error
     if callable(getattr(model, "search_keywords", None)):
         model._found(result)  # a ModelSearch keeps what it found
     return result
