@@ -21,6 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .precision import SOLUTION
+
 
 T_EXPANSION_DOF = 500  # above this many degrees of freedom, t quantiles from their expansion in 1/ν
 
@@ -211,7 +213,10 @@ def widest_covariance(partitions: Sequence[Sequence[np.ndarray]]) -> Widened | N
         last = np.sqrt(np.maximum(np.diag(covariance), 0.0))
         widest = np.maximum(widest, last)
         blocks.append(len(refits))
-    positive = se > 0
+    # An error below the solution's precision of its estimate is rounding (a noiseless fit): not widened, ratio 1,
+    # so what is printed does not depend on the CPU's rounding.
+    scale = np.abs(np.asarray(partitions[0], dtype=np.float64)).max(axis=0)
+    positive = se > SOLUTION * scale
     factor = np.where(positive, widest / np.where(positive, se, 1.0), 1.0)
     ratio = np.where(positive, last / np.where(positive, se, 1.0), 1.0)
     return Widened(finest * factor[:, None] * factor[None, :], tuple(blocks), ratio)
