@@ -14,7 +14,8 @@ the live calibrator, its Zenoh node, its C step and the Python steps.
 * the Python steps given a wrong type or value for any parameter: a ``ParameterError`` naming it (or another
   ``FtcalError`` naming it), never ``TypeError``/``AttributeError`` from deep inside.
 
-Example budgets are small (the whole file runs in well under a minute here); ``HYPOTHESIS_PROFILE=ci`` derandomises.
+Example budgets are small (the whole file runs in well under a minute here); every run draws the same examples
+(tests/conftest.py), ``HYPOTHESIS_PROFILE=explore`` new ones.
 """
 
 from __future__ import annotations
@@ -50,9 +51,6 @@ from ftcal.runtime.errors import FtcalError, ParameterError
 
 from test_live_zenoh_node import Sample, Sink  # a Zenoh sample and publisher, without a network
 
-settings.register_profile("ci", derandomize=True, deadline=None, print_blob=True)
-if os.environ.get("HYPOTHESIS_PROFILE"):
-    settings.load_profile(os.environ["HYPOTHESIS_PROFILE"])
 FEW = settings(max_examples=40, deadline=None, suppress_health_check=list(HealthCheck))
 SOME = settings(max_examples=60, deadline=None, suppress_health_check=list(HealthCheck))
 
