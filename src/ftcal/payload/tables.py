@@ -458,7 +458,8 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
                          "block_samples": block_samples, "block_seconds": block_samples * float(np.median(np.diff(hours))) * 3600.0}
             if within is not None:
                 variances.update(sample_variance=within.sample_variance, wander_variance=within.wander,
-                                 wander_tau=within.tau, hold_seconds=within.hold_seconds)
+                                 wander_tau=within.tau, hold_seconds=within.hold_seconds,
+                                 hold_walk_variance=within.walk)
         drift = BiasDrift(kind, time_column if t is not None else None,
                           None if t is None else float(t[0]), None if t is None else float(t[-1]),
                           knot_times, knot_bias, temperature_column if temperature is not None else None,
