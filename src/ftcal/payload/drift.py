@@ -503,6 +503,35 @@ def _hold_pairs(residual, time_s, holds, step):
     return white, wander_of, walk, semi, np.maximum(independent, 1.0)
 
 
+def beside_wander(fit: StateSpaceFit, blocks: Blocks, within: HoldNoise, temperature: bool) -> np.ndarray:
+    """The random-walk fit's bias trajectory smoothed again where the holds show a wander: with the walk fitted
+    beside it (:attr:`HoldNoise.walk`) and a block-mean noise that holds it (``w / n + s² V(B)``, V the variance of
+    a B-s mean of the unit wander), so that the bias does not follow the wander (it is noise, not bias: a bias
+    following it takes a second-long touch in too). β stays the fit's. Axes without a wander keep theirs.
+
+    Returns
+    -------
+    ndarray of shape (B, 6)
+    """
+    wander = within.wander > 0
+    if fit.kind != "random-walk" or not np.any(wander):
+        return fit.trajectory
+    x = _design(blocks, False, temperature)
+    steps = np.r_[0.0, np.diff(blocks.hours)]
+    noise = blocks.count.mean() / blocks.count
+    observed = blocks.observed()
+    if np.count_nonzero(observed) <= 10:
+        observed = np.ones(len(blocks.count), bool)
+    seconds = float(np.mean(np.diff(blocks.hours))) * SECONDS_PER_HOUR if len(blocks.hours) > 1 else 1.0
+    tau = np.where(within.tau > 0, within.tau, 1.0)
+    block_noise = within.white / blocks.count.mean() + within.wander * _mean_variance(np.full(6, seconds), tau)
+    block_noise = np.maximum(block_noise, fit.noise_variance)  # never below what the block means showed
+    ratio = np.where(wander, within.walk / np.maximum(block_noise, 1e-300), fit.walk_variance / fit.noise_variance)
+    ratio = np.maximum(ratio, 1e-12)  # a walk, however slow (the smoother's p stays positive)
+    trajectory, _ = _smooth(fit.theta, x, blocks, ratio, steps, noise, False, observed)
+    return np.where(wander[None], trajectory, fit.trajectory)
+
+
 def _design(blocks: Blocks, slope: bool, temperature: bool) -> np.ndarray:
     """X of shape (B, 6, P): static regressor at the block's mean gravity plus covariate columns."""
     from .accumulate import _static_maps
