@@ -88,7 +88,7 @@ class BiasDrift:
         ``random-walk``: the time blocks' mean sample count.
     sample_variance : ndarray of shape (6,) or None
         ``random-walk``: the per-sample variance about the bias within the still holds (N², (N·m)²): white
-        noise plus a Gauss-Markov wander fitted to the within-hold variogram (:func:`within_hold_noise`), what
+        noise plus a Gauss-Markov wander fitted to the holds (:func:`within_hold_noise`), what
         the live tracker sees at its update rate. None in files written before it (as are the next four).
     wander_variance, wander_tau : ndarray of shape (6,) or None
         ``random-walk``: that wander's variance and time constant (s).
@@ -274,14 +274,14 @@ def block_means(hours: np.ndarray, gravity: np.ndarray, wrench: np.ndarray, temp
 
 @dataclass(frozen=True)
 class HoldNoise:
-    """The noise within the still holds at the sample rate (:func:`within_hold_noise`), per axis.
+    """The noise of the still holds at the sample rate (:func:`within_hold_noise`), per axis.
 
     Attributes
     ----------
     white : (6,) white (and quantisation) variance per sample
     wander : (6,) variance of a first-order Gauss-Markov wander
     tau : (6,) its time constant, s
-    walk : (6,) walk variance per hour seen within the holds
+    walk : (6,) walk variance per hour fitted beside the wander (within the holds and between their means)
     hold_seconds : mean length of the holds, s
     spread : (6,) variance about each hold's mean (walk and wander within the hold included)
     """
