@@ -302,6 +302,7 @@ class HoldNoise:
         return np.where(self.wander > self.white, np.maximum(self.white + self.wander, self.spread),
                         self.white + self.wander)
 
+
 def _nonnegative_least_squares(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, float]:
     """``min ‖a x − b‖`` over ``x ≥ 0`` for a few columns, exactly, by trying every support.
 
@@ -485,21 +486,25 @@ def _hold_pairs(residual, time_s, holds, step):
         return None
     keep = np.isin(which, used)
     i, j, gap, which = i[keep], j[keep], gap[keep], which[keep]
-    members = np.zeros((len(used), len(gap)))
-    members[np.searchsorted(used, which), np.arange(len(gap))] = 1.0
-    members /= members.sum(axis=1, keepdims=True)
-    semi = members @ (0.5 * (means[j] - means[i]) ** 2)
-    white = members @ (0.5 * (1.0 / count[i] + 1.0 / count[j]))
-    walk = members @ (0.5 * (seconds[i] / 3.0 + seconds[j] / 3.0 + gap))
+    at = np.searchsorted(used, which)
+    size = np.bincount(at, minlength=len(used)).astype(float)
+
+    def members(values):  # the mean over each bin's pairs (of a column, or of each of several)
+        if values.ndim == 2:
+            return np.column_stack([members(v) for v in values.T])
+        return np.bincount(at, weights=values, minlength=len(used)) / size
+
+    semi = members(0.5 * (means[j] - means[i]) ** 2)
+    white = members(0.5 * (1.0 / count[i] + 1.0 / count[j]))
+    walk = members(0.5 * (seconds[i] / 3.0 + seconds[j] / 3.0 + gap))
 
     def wander_of(tau):
         both = (tau * tau / (seconds[i] * seconds[j]) * -np.expm1(-seconds[i] / tau) * -np.expm1(-seconds[j] / tau)
                 * np.exp(-gap / tau))
-        return members @ (0.5 * (_mean_variance(seconds[i], tau) + _mean_variance(seconds[j], tau)) - both)
+        return members(0.5 * (_mean_variance(seconds[i], tau) + _mean_variance(seconds[j], tau)) - both)
 
     span = float(last[-1] - first[0])
-    independent = np.minimum(np.bincount(np.searchsorted(used, which)).astype(float),
-                             span / (members @ (gap + 0.5 * (seconds[i] + seconds[j]))))
+    independent = np.minimum(size, span / members(gap + 0.5 * (seconds[i] + seconds[j])))
     return white, wander_of, walk, semi, np.maximum(independent, 1.0)
 
 
