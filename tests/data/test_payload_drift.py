@@ -269,3 +269,19 @@ def test_payload_file_round_trips_the_drift_and_old_files_stay_constant(tmp_path
     assert "drift" not in json.loads((tmp_path / "old.json").read_text()) and "drift" in doc
     old = load_payload(tmp_path / "old.json")
     assert old.drift is None and np.array_equal(old.bias_of(None, None, 2), np.tile(BIAS, (2, 1)))
+
+
+def test_the_wander_fits_moments_are_the_gauss_markov_integrals():
+    """The hold-mean variance of a unit first-order Gauss-Markov process (``within_hold_noise``'s V(T)) against the
+    double integral of its autocorrelation exp(-|t - s| / τ) by the midpoint rule, and the χ² quantile of the
+    wander test (Wilson-Hilferty) against SciPy's."""
+    from scipy.stats import chi2
+
+    from ftcal.payload.drift import _chi2_quantile, _mean_variance
+
+    for length, tau in ((5.0, 2.0), (0.5, 3.0), (20.0, 0.5)):
+        t = (np.arange(2000) + 0.5) * length / 2000
+        numeric = np.mean(np.exp(-np.abs(t[:, None] - t[None]) / tau))
+        assert abs(_mean_variance(np.array([length]), tau)[0] - numeric) < 5e-3 * numeric
+    for dof in (10, 16, 30, 60):
+        assert abs(_chi2_quantile(0.999, dof) / chi2.ppf(0.999, dof) - 1.0) < 0.01

@@ -69,3 +69,26 @@ def test_c_self_check_follows_python(tmp_path, case):
     else:  # r 9x too small gates most samples: r from the differences of consecutive static samples
         assert any("too few for the NIS" in t for t in texts)
         assert kinds.count("reacquired") >= 1  # and the bias re-acquired across orientations
+
+
+def test_c_follows_python_under_a_wander(tmp_path):
+    """The update's r + D/Δt (a Gauss-Markov wander's density from the payload file) in the C core and in Python."""
+    ident, oper = truth.CASES["coloured + quantised"]
+    payload = truth.identify(ident)
+    rec, _ = truth.operation(oper, duration=60.0)
+    model, mix = gauge_model(1)
+    tools = {"tool": payload}
+    live = LiveCalibrator(model, tools=tools, tool="tool", self_check=True)
+    assert np.any(live.wander_density > 0)
+    lib = compile_driver(tmp_path, generate_c_runtime(model, tools, name="rt"), DRIVER)
+    lib.replay.restype = ctypes.c_int
+    n = rec["time"].size
+    u = np.column_stack([rec["wrench"] @ mix.T, np.full(n, 30.0)])
+    gravity = rec["gravity"]
+    out, counts = np.zeros((n, FIELDS)), np.zeros(5, np.int64)
+    arrays = [np.ascontiguousarray(x, dtype=float) for x in (rec["time"], u, gravity)]
+    rc = lib.replay(n, *(pointer(a) for a in arrays), pointer(np.full(n, -1, np.int32), ctypes.c_int), pointer(out),
+                    pointer(counts, ctypes.c_long))
+    assert rc == 0
+    ref = python_replay(live, rec["time"], u, gravity, None, {})
+    compare(out, ref)

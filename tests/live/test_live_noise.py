@@ -36,7 +36,7 @@ def gauss_markov(rng, n, sigma, tau, dt):
     return x
 
 
-def still_recording(seed=3):
+def still_recording(seed=3, wander=WANDER):
     rng = np.random.default_rng(seed)
     per = int(HOLD_S * RATE)
     n = per * HOLDS
@@ -50,20 +50,70 @@ def still_recording(seed=3):
     scale = np.r_[np.ones(3), np.full(3, 0.1)]  # torques a tenth (N·m)
     walk = np.cumsum(rng.normal(size=(n, 6)) * 0.5 / np.sqrt(3600.0 * RATE), axis=0)  # 0.5 N/√h
     wrench += np.r_[1.0, -2.0, 0.5, 0.1, 0.05, -0.1] + scale * walk
-    wrench += scale * (gauss_markov(rng, n, WANDER, TAU, 1.0 / RATE) + rng.normal(size=(n, 6)) * WHITE)
+    wrench += scale * (gauss_markov(rng, n, wander, TAU, 1.0 / RATE) + rng.normal(size=(n, 6)) * WHITE)
     wrench = np.round(wrench / (LSB * scale)) * (LSB * scale)
     return time, gravity, wrench
 
 
-@pytest.fixture(scope="module")
-def identified():
-    time, gravity, wrench = still_recording()
+def identify(time, gravity, wrench):
     recording = PayloadRecording(wrench, Kinematics(gravity), np.zeros(len(time), int), time, None)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         fit = identify_recording(recording, bias_drift="random-walk", time_column="time", cross_validate=False)
     return PayloadParameters.from_fit(fit.fit, gravity=9.81, frame=None, reaction=False,
                                       wrench_columns=("Fx", "Fy", "Fz", "Tx", "Ty", "Tz"), drift=fit.drift)
+
+
+@pytest.fixture(scope="module")
+def identified():
+    return identify(*still_recording())
+
+
+def test_the_wander_is_told_from_the_walk(identified):
+    """The walk between the holds' means grows with the gap, the wander's share stops after a few τ: the wander's
+    low-frequency density 2 s² τ (what the tracker's update takes) comes out near the truth's, and the walk
+    fitted beside it near the true 0.5 N/√h, while the block-level walk takes the wander for a walk."""
+    drift = identified.drift
+    scale = np.r_[np.ones(3), np.full(3, 0.1)]
+    wander = np.sqrt(drift.wander_variance) / scale
+    assert np.all((wander > 0.6 * WANDER) & (wander < 1.5 * WANDER)), wander
+    density = 2.0 * drift.wander_variance * drift.wander_tau / scale ** 2
+    truth = 2.0 * WANDER ** 2 * TAU
+    assert np.all((density > truth / 4) & (density < 4 * truth)), density
+    beside = np.sqrt(drift.hold_walk_variance) / scale
+    assert np.all(beside < 3 * 0.5) and np.all(np.sqrt(drift.walk_variance) / scale > 3 * 0.5), beside
+    live = LiveCalibrator(tools={"tool": identified}, tool="tool")
+    np.testing.assert_allclose(live.wander_density, 2.0 * drift.wander_variance * drift.wander_tau, rtol=1e-12)
+
+
+def test_white_noise_has_no_wander():
+    """Without a wander the fit keeps white noise and the walk (χ² test at 0.999): no density, the plain filter."""
+    drift = identify(*still_recording(wander=0.0)).drift
+    assert np.all(drift.wander_variance == 0.0) and np.all(drift.wander_tau == 0.0), drift.wander_variance
+    floor = WHITE ** 2 + LSB ** 2 / 12.0
+    np.testing.assert_allclose(drift.sample_variance[:3], floor, rtol=0.25)
+
+
+def test_a_file_without_the_walk_beside_the_wander_loads(identified, tmp_path):
+    import json
+
+    from ftcal.files.model_json import digest
+    from ftcal.files.payload_json import load_payload, save_payload
+
+    save_payload(identified, tmp_path / "new.json")
+    doc = json.loads((tmp_path / "new.json").read_text())
+    assert len(doc["drift"]["random_walk"]["hold_walk_variance"]) == 6
+    del doc["drift"]["random_walk"]["hold_walk_variance"]
+    doc["sha256"] = digest(doc)  # as a file written before the field
+    (tmp_path / "old.json").write_text(json.dumps(doc))
+    old = load_payload(tmp_path / "old.json")
+    assert old.drift.hold_walk_variance is None
+    # the older rule: the block-level walk less what the wander fakes over a block, floored at a hundredth
+    drift = old.drift
+    block, tau = drift.block_seconds, drift.wander_tau
+    fake = np.where(tau > 0, 2.0 * drift.wander_variance * -np.expm1(-block / np.where(tau > 0, tau, 1.0)) / block, 0)
+    expected = np.maximum(drift.walk_variance / 3600.0 - fake, 0.01 * drift.walk_variance / 3600.0)
+    np.testing.assert_allclose(LiveCalibrator(tools={"tool": old}, tool="tool").walk_variance, expected, rtol=1e-12)
 
 
 def test_the_stored_noise_holds_the_wander_within_a_hold(identified):
@@ -91,6 +141,7 @@ def test_the_c_runtime_starts_from_the_same_noise_and_walk(identified):
         params = runtime_parameters(tools)
         np.testing.assert_array_equal(params["noise_variance"], live.noise_std ** 2)
         np.testing.assert_array_equal(params["walk_variance"], live.walk_variance)
+        np.testing.assert_array_equal(params["wander_density"], live.wander_density)
     # The wander looks like a walk to the 1-s blocks (the stored walk is far above the true 0.5 N/√h); the tracker
     # takes out the share a Gauss-Markov wander explains (else it walks with the wander and takes touches in).
     stored = np.sqrt(identified.drift.walk_variance[:3])

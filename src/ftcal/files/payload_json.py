@@ -94,7 +94,8 @@ def drift_document(drift: BiasDrift) -> dict:
         doc["random_walk"] = {"walk_variance": jsonable(np.asarray(drift.walk_variance)),
                               "noise_variance": jsonable(np.asarray(drift.noise_variance)),
                               "block_samples": jsonable(drift.block_samples)}
-        for key in ("sample_variance", "wander_variance", "wander_tau", "block_seconds", "hold_seconds"):
+        for key in ("sample_variance", "wander_variance", "wander_tau", "block_seconds", "hold_seconds",
+                    "hold_walk_variance"):
             value = getattr(drift, key)  # optional: files written before them lack them
             if value is not None:
                 doc["random_walk"][key] = jsonable(value if np.ndim(value) == 0 else np.asarray(value))
@@ -163,10 +164,12 @@ def _parse_drift(doc: dict, source: str) -> BiasDrift:
                      *((None, None, None) if walk is None else (np.asarray(walk["walk_variance"], dtype=float),
                                                                  np.asarray(walk["noise_variance"], dtype=float),
                                                                  float(walk["block_samples"]))),
-                     *((None,) * 5 if walk is None else (
+                     *((None,) * 6 if walk is None else (
                          *(None if walk.get(k) is None else np.asarray(walk[k], float)
                            for k in ("sample_variance", "wander_variance", "wander_tau")),
-                         *(None if walk.get(k) is None else float(walk[k]) for k in ("block_seconds", "hold_seconds")))))
+                         *(None if walk.get(k) is None else float(walk[k]) for k in ("block_seconds", "hold_seconds")),
+                         None if walk.get("hold_walk_variance") is None else np.asarray(walk["hold_walk_variance"],
+                                                                                        float))))
 
 
 def _check_inertia(inertia: np.ndarray, source: str) -> None:

@@ -101,6 +101,7 @@ static const Field FIELDS[] = {
     F(canonical_tie, REAL, 1, 1, 1), F(weighting_tie, REAL, 1, 1, 1), F(refit_condition, REAL, 1, 1, 1),
     F(excitation_limit, REAL, 1, 1, 1), F(id_maps, REAL, 60, 4, 4),
     F(t_scale, REAL, 1, FTCAL_CORE_MAX_HOLDS, FTCAL_CORE_MAX_HOLDS),
+    F(wander_density, REAL, 1, 6, 6),
 };
 #undef F
 
@@ -116,6 +117,7 @@ static const Setting SETTINGS[] = {
     S(noise_variance, 6), S(walk_variance, 6), S(gate_chi2, 1), S(drift_chi2, 1), S(accept_limit, 6),
     S(unexplained_sigma, 1), S(unexplained_seconds, 1), S(motion_window, 1), S(min_rate, 1), S(min_hold, 1),
     S(adc_low, 1), S(adc_high, 1), S(bias, 6), S(variance, 6), S(tool_mass, NT), S(tool_sign, NT), S(holdoff, 1),
+    S(wander_density, 6),
 };
 #undef S
 

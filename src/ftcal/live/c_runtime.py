@@ -69,7 +69,7 @@ from .c_events import event_macros, events_config
 from .c_health import health_config, health_macros
 from .c_identify import _array, _num, identify_config, status_macros
 from .calibrator import (GATE_PROBABILITY, NO_TOOL, RETARE_VARIANCE, UNEXPLAINED_SECONDS, UNEXPLAINED_SIGMA,
-                         tracker_defaults)
+                         tracker_defaults, tracker_wander)
 from .drift import FALSE_ALARM, LAGS_S, SNAPSHOT_S
 from .tracker import HOLDOFF_S, MIN_FAIL_S, gate_chi2
 
@@ -89,13 +89,15 @@ def runtime_parameters(tools: dict) -> dict:
 
     Returns
     -------
-    dict with ``noise_variance``, ``walk_variance`` (per s), ``accept_limit`` (ndarrays of shape (6,))
+    dict with ``noise_variance``, ``walk_variance`` (per s), ``wander_density`` (N²·s: the update's r is
+    r + D / Δt), ``accept_limit`` (ndarrays of shape (6,))
     and ``gate_chi2``, ``drift_chi2`` (floats: the contact gate and the drift test's threshold)
     """
     thresholds = Thresholds()
     scale = np.repeat([thresholds.force, thresholds.torque], 3)
     noise, walk = tracker_defaults(tools.values(), thresholds)  # the one rule LiveCalibrator uses
-    return {"noise_variance": np.sqrt(noise) ** 2, "walk_variance": walk, "accept_limit": scale,
+    return {"noise_variance": np.sqrt(noise) ** 2, "walk_variance": walk,
+            "wander_density": tracker_wander(tools.values()), "accept_limit": scale,
             "gate_chi2": gate_chi2(GATE_PROBABILITY), "drift_chi2": gate_chi2(1.0 - FALSE_ALARM)}
 
 
@@ -164,7 +166,7 @@ def core_config(model, tools: dict, *, max_holds: int = C_RUNTIME_MAX_HOLDS) -> 
     mc = [[0.0] * 3] + [list(p.mass * np.asarray(p.com, dtype=float)) for p in tools.values()]
     sign = [1.0] + [-1.0 if p.reaction else 1.0 for p in tools.values()]
     for what, values in (("tool masses", mass), ("tool centres of mass", mc), ("noise", params["noise_variance"]),
-                         ("walk", params["walk_variance"])):
+                         ("walk", params["walk_variance"]), ("wander", params["wander_density"])):
         if not np.all(np.isfinite(np.asarray(values, float))):
             raise FtcalError(f"--to c-runtime: the {what} are not all finite; refusing to generate code.")
     config = {"n_inputs": nu, "n_channels": len(channels), "n_tools": len(names), "channels": np.array(channels),
@@ -183,7 +185,7 @@ def core_config(model, tools: dict, *, max_holds: int = C_RUNTIME_MAX_HOLDS) -> 
               "retare_variance": RETARE_VARIANCE, "holdoff": HOLDOFF_S, "min_fail_s": MIN_FAIL_S,
               "snapshot_s": SNAPSHOT_S, "lags": np.array(LAGS_S),
               **health_config(), **selfcheck_config(), **identify_config(max_holds), **events_config(),
-              "no_tool": NO_TOOL}
+              "no_tool": NO_TOOL, "wander_density": params["wander_density"]}
     return config
 
 

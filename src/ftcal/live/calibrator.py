@@ -139,22 +139,28 @@ def _walk_from_file(payload: PayloadParameters) -> np.ndarray | None:
     """Walk variance per second that ``payload --bias-drift random-walk`` identified (the file's
     ``drift.random_walk``), else None.
 
-    When the file stores a wander (``wander_variance``, ``wander_tau``, ``block_seconds``), the share of the
-    block-level walk that wander explains is taken out: over blocks of B s a Gauss-Markov wander of variance s²
-    moves the block means as a walk of about 2 s² (1 − exp(−B/τ)) / B per s would, and the tracker's r holds it
-    already (a tracker that walks with the wander takes a touch into the bias). Floored at a hundredth of the
-    identified walk: a walk faster than that is the self-check's to find (:mod:`ftcal.live.consistency`).
+    On the axes where the file stores a wander (``wander_variance`` > 0) and the walk fitted beside it
+    (``hold_walk_variance``, :func:`ftcal.payload.drift.within_hold_noise`), that walk: the block-level fit
+    assumes white block noise, so a wander slower than a block moves its block means as a walk would (a 0.25 N
+    wander of τ 2 s made a 3 N/√h walk 7-10 N/√h), and a tracker that walks with the wander takes a touch into
+    the bias. Files with a wander but not that walk: the share of the block-level walk a wander of variance s²
+    fakes over blocks of B s, about 2 s² (1 − exp(−B/τ)) / B per s, is taken out. Both floored at a hundredth of
+    the block-level walk: a walk faster than that is the self-check's to find (:mod:`ftcal.live.consistency`).
     """
     drift = payload.drift
     if drift is None or drift.model != "random-walk" or drift.walk_variance is None:
         return None
     walk = np.asarray(drift.walk_variance, dtype=float) / SECONDS_PER_HOUR
-    if drift.wander_variance is not None and drift.wander_tau is not None and drift.block_seconds:
-        tau = np.asarray(drift.wander_tau, float)
-        block = float(drift.block_seconds)
+    if drift.wander_variance is not None and drift.wander_tau is not None:
         wander = np.asarray(drift.wander_variance, float)
-        apparent = np.where(tau > 0, 2.0 * wander * -np.expm1(-block / np.where(tau > 0, tau, 1.0)) / block, 0.0)
-        walk = np.maximum(walk - apparent, 0.01 * walk)
+        if drift.hold_walk_variance is not None:
+            beside = np.asarray(drift.hold_walk_variance, float) / SECONDS_PER_HOUR
+            return np.where(wander > 0, np.maximum(beside, 0.01 * walk), walk)
+        if drift.block_seconds:
+            tau = np.asarray(drift.wander_tau, float)
+            block = float(drift.block_seconds)
+            apparent = np.where(tau > 0, 2.0 * wander * -np.expm1(-block / np.where(tau > 0, tau, 1.0)) / block, 0.0)
+            walk = np.maximum(walk - apparent, 0.01 * walk)
     return walk
 
 
@@ -205,6 +211,36 @@ def tracker_defaults(payloads, thresholds: Thresholds | None = None) -> tuple[np
     walk = next((w for w in [*map(_walk_from_file, files), *map(_walk_from_knots, files)] if w is not None),
                 (DEFAULT_WALK_FRACTION * scale) ** 2 / SECONDS_PER_HOUR)
     return np.maximum(np.asarray(noise, float), 1e-24), np.asarray(walk, float)
+
+
+def _wander_from_file(payload: PayloadParameters) -> np.ndarray | None:
+    """The wander's low-frequency density ``2 s² τ`` (N²·s, (N·m)²·s) a random-walk payload file stores
+    (``wander_variance``, ``wander_tau``: :func:`ftcal.payload.drift.within_hold_noise`), else None."""
+    drift = payload.drift
+    if drift is None or drift.model != "random-walk" or drift.wander_variance is None or drift.wander_tau is None:
+        return None
+    return 2.0 * np.asarray(drift.wander_variance, float) * np.asarray(drift.wander_tau, float)
+
+
+def tracker_wander(payloads) -> np.ndarray:
+    """The tracker's default wander density ``D`` (N²·s per axis; the update takes ``r + D / Δt``), by the rule of
+    :func:`tracker_defaults`: the first payload whose random-walk drift stores a wander, else zero (white noise).
+
+    Parameters
+    ----------
+    payloads : iterable of PayloadParameters (None entries are skipped), in library order
+
+    Returns
+    -------
+    ndarray of shape (6,)
+    """
+    files = [p for p in payloads if p is not None]
+    found = next((v for v in map(_noise_from_file, files) if v is not None), None)
+    if found is None:  # the noise came from elsewhere: no wander goes with it
+        return np.zeros(6)
+    first = next(p for p in files if _noise_from_file(p) is not None)
+    density = _wander_from_file(first)
+    return np.zeros(6) if density is None else np.maximum(density, 0.0)
 
 
 def _walk_from_knots(payload: PayloadParameters) -> np.ndarray | None:
@@ -313,6 +349,8 @@ class LiveCalibrator:
                           else np.sqrt(noise_default))
         self.walk_variance = (self._vector(walk_std, "walk_std") ** 2 / SECONDS_PER_HOUR if walk_std is not None
                               else walk_default)  # per second
+        # the wander's low-frequency density D = 2 s² τ (N²·s): the update's r is r + D / Δt (ftcal.live.tracker)
+        self.wander_density = tracker_wander(self.tools.values())
         self.threshold = gate_chi2(gate_probability)
         self.self_check = SelfCheck((self.noise_std ** 2).tolist(), self.walk_variance.tolist(), self.threshold,
                                     gate_probability) if self_check else None
@@ -657,7 +695,7 @@ class LiveCalibrator:
         while start < n:
             walk, noise = self.walk_variance.tolist(), self.noise_std ** 2
             part = track_block(z[start:], dt[start:], gate_static[start:], bias, variance, self.walk_variance,
-                               noise, self.threshold, t[start:], self.failure, self.holdoff)
+                               noise, self.threshold, t[start:], self.failure, self.holdoff, self.wander_density)
             times = t[start:]
             k = int(np.searchsorted(times, self.drift.next_due)) if times[0] < self.drift.next_due else 0
             seen, cut = 0, None
@@ -972,9 +1010,14 @@ class LiveCalibrator:
         elif previous:
             self.failure = (last_fail, fail_start, False)
         if updated:
-            gain = [p / v for p, v in zip(predicted, innovation_var)]
+            total, r_u = innovation_var, noise
+            density = self._wander_list()
+            if dt > 0 and density is not None:  # the update's r: r + D / Δt (the tracker's update_noise)
+                r_u = [r + d / dt if d > 0 else r for r, d in zip(noise, density)]
+                total = [p + r for p, r in zip(predicted, r_u)]
+            gain = [p / v for p, v in zip(predicted, total)]
             bias = [(1.0 - k) * b + k * c for k, b, c in zip(gain, bias, z)]
-            variance = [p * r / v for p, r, v in zip(predicted, noise, innovation_var)]
+            variance = [p * r / v for p, r, v in zip(predicted, r_u, total)]
         else:
             variance = predicted
         due = t >= self.drift.next_due
@@ -1076,6 +1119,12 @@ class LiveCalibrator:
                                      self._accept_limit.tolist()))
         return self._constants[1]
 
+    def _wander_list(self) -> list | None:
+        """The wander density D as a list, None when it is zero on every axis (refreshed if replaced)."""
+        if getattr(self, "_wander_key", None) is not self.wander_density:
+            self._wander_key = self.wander_density
+            self._wander_cached = self.wander_density.tolist() if np.any(self.wander_density) else None
+        return self._wander_cached
 
     def reason_of(self, name: str) -> str:
         """The reason logged when flag ``name`` was last raised (its name if none is logged)."""

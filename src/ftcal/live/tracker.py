@@ -5,6 +5,12 @@ Model, axis j (the random-walk model of :mod:`ftcal.payload.drift`, one sample a
     b_k = b_(k−1) + w_k,   w_k ~ N(0, q_j Δt_k)          (the sensor's bias walks)
     z_k = b_k + v_k,       v_k ~ N(0, r_j)                (z: calibrated wrench − tool's gravity wrench)
 
+A wander (first-order Gauss-Markov, variance s², time constant τ) correlates ``v`` over τ; a filter whose time
+constant is much longer than τ sees it as white noise of its low-frequency density ``D = 2 s² τ`` (N²·s). The
+update then takes ``r_u = r + D / Δt`` per sample (the white noise whose density matches at the update rate),
+the gate and the innovations keep ``S = P⁻ + r`` (what one sample shows): the bias is not pulled along by
+the wander and a contact is still judged against one sample's spread. ``D = 0``: the plain filter.
+
 A sample updates the filter only when it is *static* (the caller's motion test), its
 innovation ``e = z − b_(k−1)`` passes the χ² test ``Σ_j e_j² / S_j < threshold`` with
 ``S = P⁻ + r`` (6 degrees of freedom), and it is not within :data:`HOLDOFF_S` s of the end of a run of
@@ -140,21 +146,30 @@ class TrackedBlock:
     carry: tuple = NO_FAILURE
 
 
-def _scan_segment(z, dt, update, b0, p0, q, r):
+def update_noise(r, density, dt):
+    """The update's per-sample noise variance ``r + D / Δt`` (r where ``D`` is 0 or ``Δt`` is not positive)."""
+    if density is None or not np.any(density):
+        return r
+    dt = np.asarray(dt, float)[..., None]
+    return np.where((dt > 0) & (density > 0), r + density / np.where(dt > 0, dt, 1.0), r)
+
+
+def _scan_segment(z, dt, update, b0, p0, q, r, density=None):
     """Bias, variance and innovations over a segment whose update decisions are given."""
     n = z.shape[0]
     walk = q * dt[:, None]  # (n, 6)
     up = np.broadcast_to(update[:, None], (n, 6))
-    # Update: P ← (P + qΔt) r / (P + qΔt + r); prediction only: P ← P + qΔt.
-    alpha = np.where(up, r, 1.0)
-    beta = np.where(up, r * walk, walk)
+    r_u = update_noise(r, density, dt)  # the update's r (the gate's is r)
+    # Update: P ← (P + qΔt) r_u / (P + qΔt + r_u); prediction only: P ← P + qΔt.
+    alpha = np.where(up, r_u, 1.0)
+    beta = np.where(up, r_u * walk, walk)
     gamma = up.astype(float)
-    delta = np.where(up, walk + r, 1.0)
+    delta = np.where(up, walk + r_u, 1.0)
     p_after = mobius_scan(alpha, beta, gamma, delta, p0)
     p_before = np.vstack([p0[None], p_after[:-1]])
     predicted = p_before + walk
     s = predicted + r
-    gain = np.where(up, predicted / s, 0.0)
+    gain = np.where(up, predicted / (s if r_u is r else predicted + r_u), 0.0)
     bias = affine_scan(1.0 - gain, gain * z, b0) if n > 1 else ((1.0 - gain) * b0 + gain * z)
     b_before = np.vstack([b0[None], bias[:-1]])
     innovation = z - b_before
@@ -187,7 +202,7 @@ def failure_runs(t: np.ndarray, failed: np.ndarray, carry: tuple) -> tuple[np.nd
 
 def track_block(z: np.ndarray, dt: np.ndarray, static: np.ndarray, bias0: np.ndarray, variance0: np.ndarray,
                 walk: np.ndarray, noise: np.ndarray, threshold: float, times: np.ndarray | None = None,
-                carry: tuple = NO_FAILURE, holdoff: float = HOLDOFF_S) -> TrackedBlock:
+                carry: tuple = NO_FAILURE, holdoff: float = HOLDOFF_S, density=None) -> TrackedBlock:
     """Run the gated bias filter over a block of samples.
 
     Parameters
@@ -202,6 +217,8 @@ def track_block(z: np.ndarray, dt: np.ndarray, static: np.ndarray, bias0: np.nda
     times : ndarray of shape (n,) or None, the samples' times, for the hold-off (None: no hold-off)
     carry : the hold-off's state before the block (:attr:`TrackedBlock.carry` of the previous one)
     holdoff : s after a run of failed static samples during which no sample updates
+    density : ndarray of shape (6,) or None, the wander's low-frequency density ``D = 2 s² τ`` (N²·s): the update
+        takes ``r + D / Δt``, the gate ``r`` (None or 0: the plain filter)
 
     Returns
     -------
@@ -216,17 +233,17 @@ def track_block(z: np.ndarray, dt: np.ndarray, static: np.ndarray, bias0: np.nda
     hold = (times, holdoff) if times is not None else None
     for begin in range(0, n, CHUNK):
         b, p = _track_chunk(z, dt, static, update, b, p, walk, noise, threshold, out, begin, min(begin + CHUNK, n),
-                            hold)
+                            hold, density)
     return out
 
 
-def _track_chunk(z, dt, static, update, b, p, walk, noise, threshold, out, start, end, hold=None):
+def _track_chunk(z, dt, static, update, b, p, walk, noise, threshold, out, start, end, hold=None, density=None):
     """Samples ``start:end`` of :func:`track_block`; returns the state after them."""
     passes = 0
     while start < end:
         stop = min(end, start + max(MIN_WINDOW, CHUNK >> (passes // HALVE_EVERY)))
         seg = slice(start, stop)
-        bias, var, e, s, chi2 = _scan_segment(z[seg], dt[seg], update[seg], b, p, walk, noise)
+        bias, var, e, s, chi2 = _scan_segment(z[seg], dt[seg], update[seg], b, p, walk, noise, density)
         out.passes += 1
         passes += 1
         gate = static[seg] & (chi2 < threshold)

@@ -88,13 +88,17 @@ class BiasDrift:
         ``random-walk``: the time blocks' mean sample count.
     sample_variance : ndarray of shape (6,) or None
         ``random-walk``: the per-sample variance about the bias within the still holds (N², (N·m)²): white
-        noise plus a Gauss-Markov wander fitted to the within-hold variogram (:func:`within_hold_noise`), what
+        noise plus a Gauss-Markov wander fitted to the holds (:func:`within_hold_noise`), what
         the live tracker sees at its update rate. None in files written before it (as are the next four).
     wander_variance, wander_tau : ndarray of shape (6,) or None
         ``random-walk``: that wander's variance and time constant (s).
     block_seconds, hold_seconds : float or None
         ``random-walk``: the time blocks' mean length, s, and the mean length of the still holds
         ``sample_variance`` was measured on, s.
+    hold_walk_variance : ndarray of shape (6,) or None
+        ``random-walk``: the walk's variance per hour fitted beside the white noise and the wander to the holds
+        (:func:`within_hold_noise`: within them and between their means); ``walk_variance``, fitted on block
+        means with white block noise, also holds a wander slower than a block. None in older files.
     """
 
     model: str = "none"
@@ -115,6 +119,7 @@ class BiasDrift:
     wander_tau: np.ndarray | None = None
     block_seconds: float | None = None
     hold_seconds: float | None = None
+    hold_walk_variance: np.ndarray | None = None
 
     def bias(self, constant: np.ndarray, time: np.ndarray | None, temperature: np.ndarray | None,
              source: str = "data") -> np.ndarray:
@@ -269,14 +274,14 @@ def block_means(hours: np.ndarray, gravity: np.ndarray, wrench: np.ndarray, temp
 
 @dataclass(frozen=True)
 class HoldNoise:
-    """The noise within the still holds at the sample rate (:func:`within_hold_noise`), per axis.
+    """The noise of the still holds at the sample rate (:func:`within_hold_noise`), per axis.
 
     Attributes
     ----------
     white : (6,) white (and quantisation) variance per sample
     wander : (6,) variance of a first-order Gauss-Markov wander
     tau : (6,) its time constant, s
-    walk : (6,) walk variance per hour seen within the holds
+    walk : (6,) walk variance per hour fitted beside the wander (within the holds and between their means)
     hold_seconds : mean length of the holds, s
     spread : (6,) variance about each hold's mean (walk and wander within the hold included)
     """
@@ -323,21 +328,58 @@ def _nonnegative_least_squares(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray
     return best
 
 
+# Hold pairs whose means the wander fit compares: each hold with up to this many following holds (O(holds) work).
+PAIR_NEIGHBOURS = 64
+# The within-hold fit keeps a wander only when white noise plus a walk fail its χ² test at this probability.
+WANDER_PROBABILITY = 0.999
+_TAU_GRID = 31  # wander time constants tried, log-spaced from one sample to the median hold
+
+
+def _chi2_quantile(probability: float, dof: int) -> float:
+    """χ² quantile by the Wilson-Hilferty cube (Johnson, Kotz & Balakrishnan 1994, eq. 18.24); ``payload`` keeps
+    away from SciPy's import. Within 1 % of the exact one from 10 degrees of freedom at 0.999."""
+    from statistics import NormalDist
+
+    z = NormalDist().inv_cdf(probability)
+    k = max(int(dof), 1)
+    return float(k * (1.0 - 2.0 / (9.0 * k) + z * np.sqrt(2.0 / (9.0 * k))) ** 3)
+
+
+def _mean_variance(length: np.ndarray, tau: float) -> np.ndarray:
+    """Variance of the mean over ``length`` s of a unit-variance first-order Gauss-Markov process."""
+    x = length / tau
+    return 2.0 * (x - 1.0 + np.exp(-x)) / np.maximum(x * x, 1e-300)
+
+
 def within_hold_noise(residual: np.ndarray, time_s: np.ndarray, blocks: Blocks) -> HoldNoise | None:
-    """White noise, a Gauss-Markov wander and a walk fitted to the within-hold variogram.
+    """White noise, a Gauss-Markov wander and a walk fitted to the holds: within them and between their means.
 
     A hold is a run of contiguous still blocks (:meth:`Blocks.observed`), split where the time steps
-    by more than twice the median step (a recording of holds only). Within the holds, the empirical
-    semivariogram ``γ(L) = ½ mean (x_(i+L) − x_i)²`` at lags of 1, 2, 4, ... samples (up to half the
-    shortest hold used) is fitted per axis by non-negative least squares (relative errors), over a log
-    grid of time constants τ, with::
+    by more than twice the median step (a recording of holds only). Per axis, with white noise of
+    variance ``w`` per sample, a first-order Gauss-Markov wander of variance ``s²`` and time constant τ,
+    and a random walk of variance ``q`` per s, two sets of moments are fitted together:
 
-        γ(L) = r_white + s² (1 − exp(−L Δ / τ)) + q L Δ / 2
+    * the empirical semivariogram within the holds, ``γ(L) = ½ mean (x_(i+L) − x_i)²`` at lags of 1, 2,
+      4, ... samples (up to half the median hold)::
 
-    (white noise, first-order Gauss-Markov wander of variance s², random walk of variance q per s).
-    The block-mean noise of the state-space fit is exact for white noise only; a wander slower than a
-    block looks like walk to it, and one faster than a block but slower than a sample is missed by both
-    -- the live gate sees ``r_white + s²`` per sample.
+          γ(L) = w + s² (1 − exp(−L Δ / τ)) + q L Δ / 2
+
+    * the semivariance of the means of two holds i < j (lengths T, gap G between them), averaged over
+      pairs in log-spaced bins of G::
+
+          ½ E (m_j − m_i)² = w (1/n_i + 1/n_j) / 2 + s² (V(T_i) + V(T_j) − 2 C_ij) / 2
+                             + q (T_i / 3 + T_j / 3 + G) / 2
+
+      with ``V(T) = 2 (τ/T)² (T/τ − 1 + exp(−T/τ))`` the variance of a T-long mean of the unit wander
+      and ``C_ij = τ² / (T_i T_j) (1 − exp(−T_i/τ)) (1 − exp(−T_j/τ)) exp(−G/τ)`` the two means' covariance.
+
+    Holds a few τ long cannot tell a wander from a walk by their variogram alone (its curvature is all
+    that differs); between holds the wander's share stops growing after a few τ and the walk's keeps
+    growing with the gap, which separates them -- the variance of means against averaging time and
+    separation that the Allan variance uses (IEEE Std 952-1997, Annex C) and the Gauss-Markov and walk
+    autocovariances of Gelb, *Applied Optimal Estimation* (1974), table 4.4-1. The model is linear in
+    ``(w, s², q)`` for a given τ: non-negative least squares (relative errors) on a log grid of τ up to the
+    median hold's length (a slower wander is drift: one recording cannot tell it from a walk).
 
     Parameters
     ----------
@@ -371,6 +413,7 @@ def within_hold_noise(residual: np.ndarray, time_s: np.ndarray, blocks: Blocks) 
     longest = int(np.median(lengths)) // 2
     lags = 2 ** np.arange(int(np.log2(max(longest, 1))) + 1)
     gamma = np.zeros((len(lags), 6))
+    counts = np.zeros(len(lags))
     for i, lag in enumerate(lags):
         total, count = np.zeros(6), 0
         for c, d in holds:
@@ -379,20 +422,119 @@ def within_hold_noise(residual: np.ndarray, time_s: np.ndarray, blocks: Blocks) 
                 total += np.einsum("ij,ij->j", diff, diff)
                 count += diff.shape[0]
         gamma[i] = 0.5 * total / max(count, 1)
+        counts[i] = max(count, 1)
     lag_s = lags * step
-    best = [None] * 6
-    for tau in np.geomspace(step, max(lag_s[-1], 2.0 * step), 25):
+    # Rows weighted by their relative standard errors, about sqrt(2 L / M) for M differences at lag L (the
+    # differences are correlated over about L samples), sqrt(2 / n) for a bin of n roughly independent pairs
+    precision = np.sqrt(counts / (2.0 * lags))
+    pairs = _hold_pairs(residual, time_s, holds, step)
+    if pairs is not None:
+        precision = np.r_[precision, np.sqrt(pairs[4] / 2.0)]
+    best, plain = [None] * 6, [None] * 6
+    # τ up to the median hold: a wander slower than a hold moves the bias from hold to hold as a walk does, and
+    # over one recording the two cannot be told apart (a walk's semivariance levels off by chance); it is drift.
+    for tau in np.geomspace(step, max(float(np.median(lengths)) * step, 2.0 * step), _TAU_GRID):
         design = np.column_stack([np.ones(len(lags)), 1.0 - np.exp(-lag_s / tau), lag_s / 2.0])
+        target = gamma
+        if pairs is not None:
+            white, wander_of, walk, semi, _ = pairs
+            design = np.vstack([design, np.column_stack([white, wander_of(tau), walk])])
+            target = np.vstack([gamma, semi])
         for j in range(6):
-            weight = 1.0 / np.maximum(gamma[:, j], 1e-300)
-            coef, error = _nonnegative_least_squares(design * weight[:, None], gamma[:, j] * weight)
+            weight = precision / np.maximum(target[:, j], 1e-300)
+            coef, error = _nonnegative_least_squares(design * weight[:, None], target[:, j] * weight)
             if best[j] is None or error < best[j][0] - 1e-12:
                 best[j] = (error, coef, tau)
+            if plain[j] is None:  # white noise and walk only (the wander's column unused: τ plays no part)
+                plain[j] = _nonnegative_least_squares((design * weight[:, None])[:, [0, 2]], target[:, j] * weight)
+    # A wander only where white noise and a walk alone are rejected: the weighted residual is about χ² with
+    # rows − 2 degrees of freedom (a hold's own walk makes a wander of τ near the hold look 2-6 χ² units better).
+    limit = _chi2_quantile(WANDER_PROBABILITY, len(target) - 2)
+    for j in range(6):
+        if plain[j][1] ** 2 <= limit:
+            best[j] = (plain[j][1], np.array([plain[j][0][0], 0.0, plain[j][0][1]]), 0.0)
     white = np.array([b[1][0] for b in best])
     wander = np.array([b[1][1] for b in best])
     tau = np.array([b[2] if b[1][1] > 0 else 0.0 for b in best])
     walk = np.array([b[1][2] for b in best]) * SECONDS_PER_HOUR
     return HoldNoise(white, wander, tau, walk, float(np.mean(lengths)) * step, spread)
+
+
+def _hold_pairs(residual, time_s, holds, step):
+    """The hold-mean rows of :func:`within_hold_noise`: per bin of gaps, the mean of the white and walk design
+    columns, a function of τ giving the wander's, the mean semivariance (B, 6) and the bin's independent pairs
+    (its pairs, at most the recording's span over the bin's mean gap and hold: a walk correlates pairs that
+    overlap); None for fewer than 3 holds."""
+    if len(holds) < 3:
+        return None
+    means = np.array([residual[c:d].mean(axis=0) for c, d in holds])
+    count = np.array([d - c for c, d in holds], float)
+    seconds = count * step
+    first = np.array([time_s[c] for c, _ in holds])
+    last = np.array([time_s[d - 1] for _, d in holds]) + step
+    i, j = [], []
+    for k in range(1, min(PAIR_NEIGHBOURS, len(holds) - 1) + 1):
+        i.append(np.arange(len(holds) - k))
+        j.append(np.arange(k, len(holds)))
+    i, j = np.concatenate(i), np.concatenate(j)
+    gap = np.maximum(first[j] - last[i], 0.0)
+    edges = np.unique(np.geomspace(max(gap.min(), step), gap.max() + step, 13))
+    which = np.clip(np.searchsorted(edges, gap, side="right") - 1, 0, len(edges) - 2)
+    used, size = np.unique(which, return_counts=True)
+    used = used[size >= 3]  # a bin of one or two pairs says little
+    if used.size == 0:
+        return None
+    keep = np.isin(which, used)
+    i, j, gap, which = i[keep], j[keep], gap[keep], which[keep]
+    at = np.searchsorted(used, which)
+    size = np.bincount(at, minlength=len(used)).astype(float)
+
+    def members(values):  # the mean over each bin's pairs (of a column, or of each of several)
+        if values.ndim == 2:
+            return np.column_stack([members(v) for v in values.T])
+        return np.bincount(at, weights=values, minlength=len(used)) / size
+
+    semi = members(0.5 * (means[j] - means[i]) ** 2)
+    white = members(0.5 * (1.0 / count[i] + 1.0 / count[j]))
+    walk = members(0.5 * (seconds[i] / 3.0 + seconds[j] / 3.0 + gap))
+
+    def wander_of(tau):
+        both = (tau * tau / (seconds[i] * seconds[j]) * -np.expm1(-seconds[i] / tau) * -np.expm1(-seconds[j] / tau)
+                * np.exp(-gap / tau))
+        return members(0.5 * (_mean_variance(seconds[i], tau) + _mean_variance(seconds[j], tau)) - both)
+
+    span = float(last[-1] - first[0])
+    independent = np.minimum(size, span / members(gap + 0.5 * (seconds[i] + seconds[j])))
+    return white, wander_of, walk, semi, np.maximum(independent, 1.0)
+
+
+def beside_wander(fit: StateSpaceFit, blocks: Blocks, within: HoldNoise, temperature: bool) -> np.ndarray:
+    """The random-walk fit's bias trajectory smoothed again where the holds show a wander: with the walk fitted
+    beside it (:attr:`HoldNoise.walk`) and a block-mean noise that holds it (``w / n + s² V(B)``, V the variance of
+    a B-s mean of the unit wander), so that the bias does not follow the wander (it is noise, not bias: a bias
+    following it takes a second-long touch in too). β stays the fit's. Axes without a wander keep theirs.
+
+    Returns
+    -------
+    ndarray of shape (B, 6)
+    """
+    wander = within.wander > 0
+    if fit.kind != "random-walk" or not np.any(wander):
+        return fit.trajectory
+    x = _design(blocks, False, temperature)
+    steps = np.r_[0.0, np.diff(blocks.hours)]
+    noise = blocks.count.mean() / blocks.count
+    observed = blocks.observed()
+    if np.count_nonzero(observed) <= 10:
+        observed = np.ones(len(blocks.count), bool)
+    seconds = float(np.mean(np.diff(blocks.hours))) * SECONDS_PER_HOUR if len(blocks.hours) > 1 else 1.0
+    tau = np.where(within.tau > 0, within.tau, 1.0)
+    block_noise = within.white / blocks.count.mean() + within.wander * _mean_variance(np.full(6, seconds), tau)
+    block_noise = np.maximum(block_noise, fit.noise_variance)  # never below what the block means showed
+    ratio = np.where(wander, within.walk / np.maximum(block_noise, 1e-300), fit.walk_variance / fit.noise_variance)
+    ratio = np.maximum(ratio, 1e-12)  # a walk, however slow (the smoother's p stays positive)
+    trajectory, _ = _smooth(fit.theta, x, blocks, ratio, steps, noise, False, observed)
+    return np.where(wander[None], trajectory, fit.trajectory)
 
 
 def _design(blocks: Blocks, slope: bool, temperature: bool) -> np.ndarray:

@@ -333,8 +333,8 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
 
     from ..core.limits import BIAS_DRIFTS, DRIFT_BLOCK_SECONDS
     from ..runtime.errors import UndeterminedWarning
-    from .drift import (BiasDrift, block_means, check_temperature, choose, covariates, fit_state_space,
-                        within_hold_noise)
+    from .drift import (BiasDrift, beside_wander, block_means, check_temperature, choose, covariates,
+                        fit_state_space, within_hold_noise)
     from .identify import identify_payload
 
     if bias_drift not in BIAS_DRIFTS:
@@ -424,6 +424,11 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
         if temperature is not None:
             residual -= np.outer(temperature, ss.theta[10:16])
         within = within_hold_noise(residual, hours * 3600.0, blocks)  # what the live tracker sees
+        if within is not None:  # a wander is noise: the trajectory does not follow it
+            from dataclasses import replace
+
+            ss = replace(ss, trajectory=beside_wander(ss, blocks, within, temperature is not None))
+            knot_bias = ss.trajectory[keep]
         for j in range(6):
             residual[:, j] -= np.interp(hours, knot_hours, ss.trajectory[:, j])
         rms = np.sqrt(np.einsum("ij,ij->j", residual, residual) / recording.n_samples)
@@ -458,7 +463,8 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
                          "block_samples": block_samples, "block_seconds": block_samples * float(np.median(np.diff(hours))) * 3600.0}
             if within is not None:
                 variances.update(sample_variance=within.sample_variance, wander_variance=within.wander,
-                                 wander_tau=within.tau, hold_seconds=within.hold_seconds)
+                                 wander_tau=within.tau, hold_seconds=within.hold_seconds,
+                                 hold_walk_variance=within.walk)
         drift = BiasDrift(kind, time_column if t is not None else None,
                           None if t is None else float(t[0]), None if t is None else float(t[-1]),
                           knot_times, knot_bias, temperature_column if temperature is not None else None,

@@ -95,6 +95,8 @@ typedef struct {
     double t_scale[FTL_M(MAX_HOLDS)];   /* the jackknife's t scaling by blocks - 1 */
     /* texts (the Python templates' fixed words that live in constants) */
     const char *no_tool, *out_of_range_text, *retare_warning, *plus_minus;
+    /* the wander's low-frequency density 2 s^2 tau (ftcal.live.calibrator.tracker_wander), 0: white noise */
+    double wander_density[6];
 } FTL_(config);
 
 /* ----- the event log: a ring of MAX_EVENTS events in the state ----- */
@@ -205,6 +207,8 @@ typedef struct {
     FTL_(event) events[FTL_M(MAX_EVENTS)];
     /* the configuration the state was initialised with (a copy: the state is self-contained plain data) */
     FTL_(config) cfg;
+    /* setting: the wander's density D (N^2 s): the update takes r + D / dt, the gate r (ftcal.live.tracker) */
+    FTL_(real) wander_density[6];
 } FTL_(state);
 
 typedef struct {
@@ -260,6 +264,7 @@ static inline int FTL_(core_init)(FTL_(state) *s, const FTL_(config) *config, in
     for (j = 0; j < 6; ++j) {
         s->noise_variance[j] = config->noise_variance[j];
         s->walk_variance[j] = config->walk_variance[j];
+        s->wander_density[j] = config->wander_density[j];
         s->accept_limit[j] = config->accept_limit[j];
         s->bias[j] = 0.0;
         s->variance[j] = config->retare_variance * config->noise_variance[j];
@@ -713,10 +718,15 @@ static inline int FTL_(core_step)(FTL_(state) *s, double time, const FTL_(real) 
     for (j = 0; j < 6; ++j) {
         out->calibrated[j] = w[j];
         out->compensated[j] = e[j];
-        if (gate) {   /* Kalman update: gain P-/(P- + r) */
-            FTL_(real) gain = predicted[j] / innovation_var[j];
+        if (gate) {   /* Kalman update: gain P-/(P- + r_u), r_u = r + D / dt (a wander's density), the gate's r */
+            FTL_(real) r_u = s->noise_variance[j], total = innovation_var[j], gain;
+            if (dt > 0.0 && s->wander_density[j] > 0.0) {
+                r_u = s->noise_variance[j] + s->wander_density[j] / dt;
+                total = predicted[j] + r_u;
+            }
+            gain = predicted[j] / total;
             s->bias[j] = (1.0 - gain) * s->bias[j] + gain * z[j];
-            s->variance[j] = s->noise_variance[j] * predicted[j] / innovation_var[j];
+            s->variance[j] = r_u * predicted[j] / total;
         } else {     /* prediction only: a contact is never absorbed */
             s->variance[j] = predicted[j];
         }
