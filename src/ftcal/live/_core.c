@@ -29,7 +29,10 @@
 #define FTCAL_CORE_SC_KEEP_HOLDS 4
 #define FTCAL_CORE_SC_WALK_KEEP 12
 #define FTCAL_CORE_N_FLAGS 8
-#define FTCAL_CORE_MAX_EVENTS 64
+#define FTCAL_CORE_MAX_EVENTS 256
+/* run() pauses when fewer than this many slots are left (a sample logs at most 8 flag events and 6 of the tracker)
+   so that Python reads every event (take_events) before the ring would overwrite one */
+#define EVENTS_PER_SAMPLE 16
 /* the codes: ftcal.live.core checks them against the Python constants (health.BIT, c_events, c_identify) */
 #define FTCAL_CORE_FLAG_SATURATED 1u
 #define FTCAL_CORE_FLAG_STUCK 2u
@@ -45,6 +48,11 @@
 #define FTCAL_CORE_EVENT_RETARE 4
 #define FTCAL_CORE_EVENT_FLAG_RAISED 5
 #define FTCAL_CORE_EVENT_FLAG_CLEARED 6
+#define FTCAL_CORE_EVENT_ROLLBACK 7
+#define FTCAL_CORE_EVENT_TRACKER_ADAPTED 8
+#define FTCAL_CORE_EVENT_TRACKER_LOCKED_OUT 9
+#define FTCAL_CORE_EVENT_TRACKER_REACQUIRED 10
+#define FTCAL_CORE_EVENT_TRACKER_UNDONE 11
 #define FTCAL_CORE_ID_OK (0)
 #define FTCAL_CORE_ID_NOT_IDENTIFYING (-1)
 #define FTCAL_CORE_ID_TOO_FEW_HOLDS (-2)
@@ -232,12 +240,13 @@ static void Core_dealloc(Core *self)
     Py_TYPE(self)->tp_free((PyObject *)self);
 }
 
-/* run(time, u, w, gravity, override, out) -> samples stepped (n, or k < n: sample k was refused, state as before) */
+/* run(time, u, w, gravity, override, out) -> (samples stepped k, refused): k < n with refused 0 when the event ring
+   needs reading (take_events, then run the rest), refused 1 when sample k was refused (state as before it) */
 static PyObject *Core_run(Core *self, PyObject *args)
 {
     Py_buffer t, u, w, g, o, out;
     Py_ssize_t n, k = 0, ni = self->state->cfg.n_inputs;
-    int bad = 0;
+    int bad = 0, refused = 0;
     if (!PyArg_ParseTuple(args, "y*y*y*y*y*w*", &t, &u, &w, &g, &o, &out)) {
         return NULL;
     }
@@ -255,7 +264,11 @@ static PyObject *Core_run(Core *self, PyObject *args)
         for (k = 0; k < n; ++k) {
             ftcal_core_output x;
             int j;
+            if (self->state->events_count > FTCAL_CORE_MAX_EVENTS - EVENTS_PER_SAMPLE) {
+                break;
+            }
             if (ftcal_core_core_step(self->state, tp[k], up + ni * k, wp + 6 * k, gp + 3 * k, op[k], &x)) {
+                refused = 1;
                 break;
             }
             for (j = 0; j < 6; ++j) {
@@ -281,7 +294,151 @@ static PyObject *Core_run(Core *self, PyObject *args)
                                           "gravity (n x 3) float64, override int32, out (n x 27) float64");
         return NULL;
     }
-    return PyLong_FromSsize_t(k);
+    return Py_BuildValue("(ni)", k, refused);
+}
+
+/* take_events() -> list of (kind, time, sample, flag, count, channels, value, extra): the events logged since the
+   last call (oldest first), the ring emptied */
+static PyObject *Core_take_events(Core *self, PyObject *Py_UNUSED(ignored))
+{
+    ftcal_core_state *s = self->state;
+    PyObject *list = PyList_New(s->events_count);
+    int i, j;
+    if (!list) {
+        return NULL;
+    }
+    for (i = 0; i < s->events_count; ++i) {
+        const ftcal_core_event *ev = &s->events[(s->events_start + i) % FTCAL_CORE_MAX_EVENTS];
+        PyObject *channels = PyTuple_New(s->cfg.n_channels), *value = PyTuple_New(9), *extra = PyTuple_New(6), *item;
+        if (!channels || !value || !extra) {
+            Py_XDECREF(channels);
+            Py_XDECREF(value);
+            Py_XDECREF(extra);
+            Py_DECREF(list);
+            return NULL;
+        }
+        for (j = 0; j < s->cfg.n_channels; ++j) {
+            PyTuple_SET_ITEM(channels, j, PyBool_FromLong(ev->channels[j]));
+        }
+        for (j = 0; j < 9; ++j) {
+            PyTuple_SET_ITEM(value, j, PyFloat_FromDouble(ev->value[j]));
+        }
+        for (j = 0; j < 6; ++j) {
+            PyTuple_SET_ITEM(extra, j, PyFloat_FromDouble(ev->extra[j]));
+        }
+        item = Py_BuildValue("(idkIlNNN)", ev->kind, ev->time, ev->sample, ev->flag, ev->count, channels, value,
+                             extra);
+        if (!item) {
+            Py_DECREF(list);
+            return NULL;
+        }
+        PyList_SET_ITEM(list, i, item);
+    }
+    ftcal_core_clear_events(s);
+    return list;
+}
+
+/* mount(mass, mc, sign): the mounted tool's gravity terms (Python keeps the library: the core one slot) */
+static PyObject *Core_mount(Core *self, PyObject *args)
+{
+    double mass, mc0, mc1, mc2, sign;
+    ftcal_core_state *s = self->state;
+    if (!PyArg_ParseTuple(args, "d(ddd)d", &mass, &mc0, &mc1, &mc2, &sign)) {
+        return NULL;
+    }
+    s->tool_mass[s->tool] = mass;
+    s->tool_mc[s->tool][0] = mc0;
+    s->tool_mc[s->tool][1] = mc1;
+    s->tool_mc[s->tool][2] = mc2;
+    s->tool_sign[s->tool] = sign;
+    Py_RETURN_NONE;
+}
+
+/* identifying(on): bias updates and the contact and unexplained flags pause (Python collects the holds) */
+static PyObject *Core_identifying(Core *self, PyObject *args)
+{
+    int on;
+    if (!PyArg_ParseTuple(args, "p", &on)) {
+        return NULL;
+    }
+    self->state->identifying = on;
+    self->state->in_hold = 0;
+    self->state->n_holds = 0;
+    Py_RETURN_NONE;
+}
+
+/* adc_limits(low, high) or adc_limits(None): saturated at the ADC limits, or beyond the training range */
+static PyObject *Core_adc_limits(Core *self, PyObject *args)
+{
+    double low = 0.0, high = 0.0;
+    PyObject *first;
+    if (PyTuple_GET_SIZE(args) == 1 && (first = PyTuple_GET_ITEM(args, 0)) == Py_None) {
+        self->state->use_adc_limits = 0;
+        Py_RETURN_NONE;
+    }
+    if (!PyArg_ParseTuple(args, "dd", &low, &high)) {
+        return NULL;
+    }
+    self->state->use_adc_limits = 1;
+    self->state->adc_low = low;
+    self->state->adc_high = high;
+    Py_RETURN_NONE;
+}
+
+static PyObject *Core_restart_checks(Core *self, PyObject *Py_UNUSED(ignored))
+{
+    ftcal_core_restart_checks(self->state);
+    Py_RETURN_NONE;
+}
+
+/* set_clock(time) or set_clock(None): the time of the last sample (a state resumed), or none */
+static PyObject *Core_set_clock(Core *self, PyObject *args)
+{
+    PyObject *value;
+    double time;
+    if (!PyArg_ParseTuple(args, "O", &value)) {
+        return NULL;
+    }
+    if (value == Py_None) {
+        self->state->has_time = 0;
+        Py_RETURN_NONE;
+    }
+    time = PyFloat_AsDouble(value);
+    if (time == -1.0 && PyErr_Occurred()) {
+        return NULL;
+    }
+    self->state->has_time = 1;
+    self->state->last_time = time;
+    Py_RETURN_NONE;
+}
+
+static PyObject *Core_restart_clock(Core *self, PyObject *Py_UNUSED(ignored))
+{
+    ftcal_core_restart_clock(self->state);
+    Py_RETURN_NONE;
+}
+
+/* state() -> bytes: the whole state (plain data, its configuration included); set_state(bytes) puts one back */
+static PyObject *Core_state(Core *self, PyObject *Py_UNUSED(ignored))
+{
+    return PyBytes_FromStringAndSize((const char *)self->state, (Py_ssize_t)sizeof *self->state);
+}
+
+static PyObject *Core_set_state(Core *self, PyObject *args)
+{
+    Py_buffer b;
+    if (!PyArg_ParseTuple(args, "y*", &b)) {
+        return NULL;
+    }
+    if (b.len != (Py_ssize_t)sizeof *self->state) {
+        PyBuffer_Release(&b);
+        PyErr_Format(PyExc_ValueError, "set_state: %zd bytes, the state has %zd", b.len,
+                     (Py_ssize_t)sizeof *self->state);
+        return NULL;
+    }
+    memcpy(self->state, b.buf, sizeof *self->state);
+    PyBuffer_Release(&b);
+    Py_RETURN_NONE;
 }
 
 static const Setting *find_setting(const char *name)
@@ -395,6 +552,15 @@ static PyMethodDef Core_methods[] = {
     {"set_tool", (PyCFunction)Core_set_tool, METH_VARARGS, "set_tool(index)"},
     {"counters", (PyCFunction)Core_counters, METH_NOARGS, "counters() -> dict"},
     {"set_self_check", (PyCFunction)Core_set_self_check, METH_VARARGS, "set_self_check(on)"},
+    {"take_events", (PyCFunction)Core_take_events, METH_NOARGS, "take_events() -> the events since the last call"},
+    {"mount", (PyCFunction)Core_mount, METH_VARARGS, "mount(mass, (mc_x, mc_y, mc_z), sign)"},
+    {"identifying", (PyCFunction)Core_identifying, METH_VARARGS, "identifying(on)"},
+    {"adc_limits", (PyCFunction)Core_adc_limits, METH_VARARGS, "adc_limits(low, high) or adc_limits(None)"},
+    {"restart_checks", (PyCFunction)Core_restart_checks, METH_NOARGS, "restart_checks()"},
+    {"restart_clock", (PyCFunction)Core_restart_clock, METH_NOARGS, "restart_clock()"},
+    {"set_clock", (PyCFunction)Core_set_clock, METH_VARARGS, "set_clock(time or None)"},
+    {"state", (PyCFunction)Core_state, METH_NOARGS, "state() -> bytes"},
+    {"set_state", (PyCFunction)Core_set_state, METH_VARARGS, "set_state(bytes)"},
     {NULL, NULL, 0, NULL},
 };
 

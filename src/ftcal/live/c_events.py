@@ -22,7 +22,10 @@ from .calibrator import RETARE_WARNING
 # Python's ``kind``)
 EVENT_KINDS = {"TOOL_SWITCHED": (1, "tool", "switched"), "TOOL_IDENTIFYING": (2, "tool", "identifying"),
                "TOOL_IDENTIFIED": (3, "tool", "identified"), "RETARE": (4, "bias", "retare"),
-               "FLAG_RAISED": (5, None, "raised"), "FLAG_CLEARED": (6, None, "cleared")}
+               "FLAG_RAISED": (5, None, "raised"), "FLAG_CLEARED": (6, None, "cleared"),
+               "ROLLBACK": (7, "bias", "rollback"), "TRACKER_ADAPTED": (8, "tracker", "adapted"),
+               "TRACKER_LOCKED_OUT": (9, "tracker", "locked_out"), "TRACKER_REACQUIRED": (10, "tracker", "reacquired"),
+               "TRACKER_UNDONE": (11, "tracker", "undone")}
 # Python's (flag, kind) of the events the C does not log ("silent": both kinds).
 PYTHON_ONLY = (("tool", "added"), ("silent", "raised"), ("silent", "cleared"), ("state", "resumed"))
 # Python's (flag, kind) of the events the C counts in its state instead of logging (rollbacks; the self-check's

@@ -136,7 +136,8 @@ def core_config(model, tools: dict, *, max_holds: int = C_RUNTIME_MAX_HOLDS) -> 
 
     Parameters
     ----------
-    model : fitted static polynomial CalibrationModel with six outputs (its inputs, ranges and span)
+    model : fitted static polynomial CalibrationModel with six outputs (its inputs, ranges and span), or None: the
+        inputs are the wrench itself (six channels without a range)
     tools : mapping name → PayloadParameters (the library; ``"none"`` is tool 0)
     max_holds : the holds an identification keeps
 
@@ -151,13 +152,17 @@ def core_config(model, tools: dict, *, max_holds: int = C_RUNTIME_MAX_HOLDS) -> 
     """
     from ..report.runs import temperature_column
 
-    nu = len(model.input_names_)
-    t_col = temperature_column(model.input_names_)
-    channels = [j for j in range(nu) if j != t_col]
-    if not channels:
-        raise FtcalError("--to c-runtime: the model's only input is a temperature; the step needs sensor channels.")
-    rng = np.asarray(model.input_range_, float)
-    slack = RANGE_TOLERANCE * np.maximum(rng[:, 1] - rng[:, 0], 1.0)
+    if model is None:  # the wrench itself (LiveCalibrator without a model): six channels, no range, no span
+        nu, t_col, channels = 6, None, list(range(6))
+        rng, slack = np.tile([-np.inf, np.inf], (6, 1)), np.zeros(6)
+    else:
+        nu = len(model.input_names_)
+        t_col = temperature_column(model.input_names_)
+        channels = [j for j in range(nu) if j != t_col]
+        if not channels:
+            raise FtcalError("--to c-runtime: the model's only input is a temperature; the step needs sensor channels.")
+        rng = np.asarray(model.input_range_, float)
+        slack = RANGE_TOLERANCE * np.maximum(rng[:, 1] - rng[:, 0], 1.0)
     params = runtime_parameters(tools)
     names = [NO_TOOL, *tools]
     mass = [0.0] + [float(p.mass) for p in tools.values()]
@@ -172,7 +177,7 @@ def core_config(model, tools: dict, *, max_holds: int = C_RUNTIME_MAX_HOLDS) -> 
               "temperature": -1 if t_col is None else int(t_col),
               "temperature_low": 0.0 if t_col is None else rng[t_col, 0],
               "temperature_high": 0.0 if t_col is None else rng[t_col, 1],
-              **_span_config(model, nu),
+              **({"has_span": 0} if model is None else _span_config(model, nu)),
               "tool_mass": np.array(mass), "tool_mc": np.array(mc), "tool_sign": np.array(sign),
               "tool_names": names, "tool_reprs": [repr(t) for t in names],
               "noise_variance": params["noise_variance"], "walk_variance": params["walk_variance"],

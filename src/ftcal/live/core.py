@@ -47,6 +47,45 @@ def require_core():
     return _core
 
 
+def calibrator_config(model, temperature_range, **settings) -> dict:
+    """The core's configuration for :class:`~ftcal.live.LiveCalibrator`: ``core_config`` of ``model`` (None: the
+    wrench itself) with one tool slot (the mounted tool's terms, :meth:`LiveCore.mount`), the calibrator's settings,
+    and one input more: the temperature the health test reads (a given one, the model's temperature input, or none),
+    outside the range and span tests.
+
+    Parameters
+    ----------
+    model : CalibrationModel or None
+    temperature_range : (low, high) °C or None (no temperature flag)
+    **settings : configuration fields to set (``noise_variance``, ``walk_variance``, ``gate_chi2``, ...)
+
+    Returns
+    -------
+    dict
+    """
+    from .c_runtime import core_config
+
+    config = core_config(model, {})
+    nu = config["n_inputs"]
+    config["n_inputs"] = nu + 1
+    config["input_low"] = np.r_[config["input_low"], -np.inf]
+    config["input_high"] = np.r_[config["input_high"], np.inf]
+    if config["has_span"]:  # the temperature column: a zero row and column, not kept (no distance, no off-span part)
+        vectors = np.zeros((nu + 1, nu + 1))
+        vectors[:nu, :nu] = config["span_vectors"]
+        config.update(span_mean=np.r_[config["span_mean"], 0.0], span_unit=np.r_[config["span_unit"], 1.0],
+                      span_values=np.r_[config["span_values"], 1.0], span_vectors=vectors,
+                      span_kept=np.r_[config["span_kept"], 0])
+    else:  # the extension takes every field
+        config.update(span_mean=np.zeros(nu + 1), span_unit=np.ones(nu + 1), span_values=np.ones(nu + 1),
+                      span_vectors=np.zeros((nu + 1, nu + 1)), span_kept=np.zeros(nu + 1, int), span_off=0.0,
+                      span_limit=0.0)
+    low, high = (0.0, 0.0) if temperature_range is None else (float(v) for v in temperature_range)
+    config.update(temperature=-1 if temperature_range is None else nu, temperature_low=low, temperature_high=high)
+    config.update(settings)
+    return config
+
+
 class LiveCore:
     """One live step state in C for ``model`` and the tool library ``tools`` (``convert --to c-runtime``'s).
 
@@ -55,17 +94,23 @@ class LiveCore:
     model : fitted static polynomial CalibrationModel with six outputs
     tools : mapping name → PayloadParameters, in library order (``"none"`` is tool 0)
     tool : index of the tool mounted at the start (0 none, 1.. ``tools`` in order)
+    config : the configuration (:func:`calibrator_config`) instead of ``core_config(model, tools)``
     """
 
-    def __init__(self, model, tools: dict, tool: int = 0) -> None:
+    def __init__(self, model, tools: dict, tool: int = 0, *, config: dict | None = None) -> None:
         from .c_runtime import core_config
 
         module = require_core()
         self.model = model
-        self.n_inputs = len(model.input_names_)
+        config = core_config(model, tools) if config is None else config
+        self.n_inputs = int(config["n_inputs"])
         config = {k: np.ravel(v) if isinstance(v, np.ndarray) else v  # row-major: the C's rows (at most its sizes)
-                  for k, v in core_config(model, tools).items()}
-        self._core = module.Core(config, tool)
+                  for k, v in config.items()}
+        try:
+            self._core = module.Core(config, tool)
+        except (ValueError, KeyError, TypeError) as exc:
+            raise FtcalError(f"the live calibrator's compiled core refuses its configuration ({exc}).") from None
+        self.samples = 0  # stepped by the core: an event's sample number minus this is its index in the block
 
     def run(self, time, raw, gravity, static=None) -> dict:
         """Step a block of samples; the model's wrench from ``model.predict``.
@@ -87,30 +132,62 @@ class LiveCore:
             A sample the core refuses (not finite, beyond the magnitude limit, time not increasing, zero gravity);
             the samples before it are stepped.
         """
+        u = np.ascontiguousarray(raw, dtype=float).reshape(-1, self.n_inputs)
+        w = self.model.predict(u, warn_out_of_range=False)
+        override = None if static is None else np.asarray(static, bool).astype(np.int32)
+        return self.run_wrench(time, u, w, gravity, override)[0]
+
+    def run_wrench(self, time, u, w, gravity, override=None) -> tuple[dict, list]:
+        """Step a block whose wrench ``w`` (n, 6) is given; ``override`` int32 (n,): −1 the motion test, 0, 1.
+
+        Returns
+        -------
+        (outputs as :meth:`run`'s, the events logged as the core's tuples (kind, index in the block, time, flag,
+        count, channels, value, extra))
+        """
         t = np.ascontiguousarray(time, dtype=float).reshape(-1)
         n = t.size
-        u = np.ascontiguousarray(raw, dtype=float).reshape(n, self.n_inputs)
-        w = np.ascontiguousarray(self.model.predict(u, warn_out_of_range=False), dtype=float)
+        u = np.ascontiguousarray(u, dtype=float).reshape(n, self.n_inputs)
+        w = np.ascontiguousarray(w, dtype=float).reshape(n, 6)
         g = np.ascontiguousarray(gravity, dtype=float).reshape(n, 3)
-        override = (np.full(n, -1, np.int32) if static is None
-                    else np.ascontiguousarray(np.asarray(static, bool), dtype=np.int32))
+        override = (np.full(n, -1, np.int32) if override is None
+                    else np.ascontiguousarray(override, dtype=np.int32).reshape(n))
         out = np.empty((n, FIELDS))
-        done = self._core.run(t, u, w, g, override, out)
-        if done < n:
-            raise FtcalError(f"sample {done} of the block was refused (not finite, too large, time not increasing "
-                             "or zero gravity); the samples before it were stepped.")
+        events, done, start = [], 0, self.samples
+        while True:  # the core pauses before its event ring could overwrite an event: read them, go on
+            stepped, refused = self._core.run(t[done:], u[done:], w[done:], g[done:], override[done:], out[done:])
+            done += stepped
+            self.samples += stepped
+            events += self._take(start)
+            if refused:
+                raise FtcalError(f"sample {done} of the block was refused (not finite, too large, time not "
+                                 "increasing or zero gravity); the samples before it were stepped.")
+            if done == n:
+                break
         code = out[:, 25].astype(int)
-        return {"calibrated": out[:, 0:6], "compensated": out[:, 6:12], "bias": out[:, 12:18],
-                "bias_std": out[:, 18:24], "chi2": out[:, 24], "static": (code & 1).astype(bool),
-                "updated": (code >> 1).astype(bool), "flags": out[:, 26].astype(np.uint16)}
+        return ({"calibrated": out[:, 0:6], "compensated": out[:, 6:12], "bias": out[:, 12:18],
+                 "bias_std": out[:, 18:24], "chi2": out[:, 24], "static": (code & 1).astype(bool),
+                 "updated": (code >> 1).astype(bool), "flags": out[:, 26].astype(np.uint16)}, events)
+
+    def _take(self, start: int) -> list:
+        """The core's events since the last call: (kind, index from sample ``start``, time, flag, count, channels,
+        value, extra)."""
+        return [(kind, sample - start, time, flag, count, channels, value, extra)
+                for kind, time, sample, flag, count, channels, value, extra in self._core.take_events()]
 
     def retare(self) -> int:
         """Re-tare, tool kept; returns the contact flags raised now (0 if none)."""
-        return self._core.retare()
+        flags = self._core.retare()
+        self._core.take_events()  # the caller logs its own re-tare event
+        return flags
 
     def set_tool(self, tool: int) -> None:
         """Mount tool ``tool`` (its index in the library)."""
         self._core.set_tool(tool)
+
+    def mount(self, mass: float, mc, sign: float) -> None:
+        """The mounted tool's gravity terms: mass, mass × centre of mass (3,), sign (−1 for a reaction payload)."""
+        self._core.mount(float(mass), tuple(float(c) for c in mc), float(sign))
 
     def counters(self) -> dict:
         """The state's counts: samples, updates, contacts, retares, switches, rollbacks, the self-check's."""
@@ -119,3 +196,37 @@ class LiveCore:
     def setting(self, name: str) -> np.ndarray:
         """A setting or the bias state (``noise_variance``, ``walk_variance``, ``bias``, ``variance``, ...)."""
         return np.array(self._core.get(name))
+
+    def set(self, name: str, values) -> None:
+        """Set a setting or the bias state (as many values as :meth:`setting` gives)."""
+        self._core.set(name, np.asarray(values, float).reshape(-1).tolist())
+
+    def state(self) -> bytes:
+        """The whole state (plain data with its configuration): :meth:`set_state` puts it back."""
+        return self._core.state()
+
+    def set_state(self, state: bytes) -> None:
+        self._core.set_state(state)
+
+    def identifying(self, on: bool) -> None:
+        """Pause (True) or resume the bias updates and the contact and unexplained flags (an identification)."""
+        self._core.identifying(bool(on))
+
+    def adc_limits(self, limits) -> None:
+        """Saturated at the ADC limits (low, high), or (None) flat beyond the training range."""
+        self._core.adc_limits(*(limits if limits is not None else (None,)))
+
+    def restart_checks(self) -> None:
+        """The drift test, the self-check and the hold-off start afresh; the bias is kept."""
+        self._core.restart_checks()
+
+    def restart_clock(self) -> None:
+        """The next sample may come at any time: no motion history, the checks and timers restart."""
+        self._core.restart_clock()
+
+    def set_clock(self, time: float | None) -> None:
+        """The last sample's time (a state resumed: the next sample's Δt counts from it), or None."""
+        self._core.set_clock(time)
+
+    def set_self_check(self, on: bool) -> None:
+        self._core.set_self_check(bool(on))

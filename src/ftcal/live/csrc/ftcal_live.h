@@ -112,6 +112,8 @@ typedef struct {
                                 TOOL_IDENTIFIED (mass, its standard error) */
     unsigned char channels[FTL_M(N_CHANNELS)];   /* SATURATED, STUCK, DEAD raised: the channels flagged */
     char tool_name[FTL_M(MAX_TOOL_NAME) + 1];    /* TOOL_IDENTIFYING, TOOL_IDENTIFIED: the tool's name */
+    double extra[6];         /* TRACKER_ADAPTED: the new noise (count 0) or walk (count: the moves matched) variances;
+                                TRACKER_REACQUIRED: the walk variances after it */
 } FTL_(event);
 
 typedef struct {
@@ -320,6 +322,26 @@ static inline void FTL_(call_event)(FTL_(state) *s, int kind, int tool_from, int
     ev->tool_to = tool_to;
 }
 
+/* An event of the tracker at the sample at `time` (the drift test's rollback, the self-check's): the numbers of its
+   text in value[] (ROLLBACK: lag, chi2, moved; TRACKER_ADAPTED: NIS (NAN when too few updates), updates, pairs,
+   share gated, expected share, or the walk's factor; TRACKER_LOCKED_OUT: idle s; TRACKER_REACQUIRED: ratio, turn
+   in degrees, the largest move; TRACKER_UNDONE: the rollback's time) and extra[]. */
+static FTL_RARE void FTL_(tracker_event)(FTL_(state) *s, int kind, double time, long count, const double *value,
+                                         int n_value, const FTL_(real) *extra)
+{
+    FTL_(event) ev;
+    int j;
+    memset(&ev, 0, sizeof ev);
+    ev.time = time;
+    ev.sample = s->samples;
+    ev.kind = kind;
+    ev.tool_from = ev.tool_to = s->tool;
+    ev.count = count;
+    for (j = 0; j < n_value; ++j) { ev.value[j] = value[j]; }
+    for (j = 0; extra && j < 6; ++j) { ev.extra[j] = extra[j]; }
+    FTL_(log_event)(s, &ev);
+}
+
 /* Events kept, 0 .. FTL_M(MAX_EVENTS). */
 static inline int FTL_(event_count)(const FTL_(state) *s)
 {
@@ -457,6 +479,13 @@ static inline int FTL_(drift_check)(FTL_(state) *s, double time)
         s->rollback_lag = span;
         s->rollback_chi2 = chi2;
         s->rollback_moved = moved;
+        {
+            double numbers[3];
+            numbers[0] = span;
+            numbers[1] = chi2;
+            numbers[2] = moved;
+            FTL_(tracker_event)(s, FTL_M(EVENT_ROLLBACK), time, 0, numbers, 3, 0);
+        }
         return 1;
     }
     if (s->drift_count == FTL_M(DRIFT_SNAPSHOTS)) {   /* full: the oldest is never needed again */
@@ -495,6 +524,28 @@ static inline int FTL_(retare)(FTL_(state) *s)
     s->fail_previous = 0;
     s->retares += 1;
     return ev.flag;
+}
+
+/* The drift test, the self-check and the hold-off start afresh (the bias was set on purpose: a state resumed, a tool
+   identified and mounted); bias and variance are kept. */
+static inline void FTL_(restart_checks)(FTL_(state) *s)
+{
+    FTL_(drift_reset)(s);
+    FTL_(sc_reset)(s);
+    s->last_fail = -HUGE_VAL;   /* NO_FAILURE */
+    s->fail_start = HUGE_VAL;
+    s->fail_previous = 0;
+}
+
+/* Take the next sample at any time, as after a restart of the publisher's clock: the motion test starts without
+   history, the unexplained-wrench timer and the checks restart; bias, variance, tool and counts are kept. */
+static inline void FTL_(restart_clock)(FTL_(state) *s)
+{
+    s->has_time = 0;
+    s->history_start = s->history_count = 0;
+    s->last_moving = -HUGE_VAL;
+    s->exceeding = 0;
+    FTL_(restart_checks)(s);
 }
 
 /* Motion test on the gravity direction: sets *still and *moving (ftcal.live.motion). */
