@@ -487,7 +487,7 @@ class LiveCalibrator:
 
             payload = load_payload(payload)
         self.tools[name] = payload
-        if name == self.tool:
+        if "_core" in self.__dict__ and name == self.tool:  # the constructor mounts its tool once the core is made
             self._mount()
         if log:
             self._event("tool", "added", f"tool {name!r} added to the library ({payload.mass:.4g} kg)")
@@ -684,9 +684,9 @@ class LiveCalibrator:
         out, core_events = self._core.run_wrench(t, x, w, g, override)
         if self.identifying is not None:
             self.identifying.add(w, g, out["static"])
-        flag_events, tracker_events = self._texts(core_events, temp)
-        self._log(tracker_events)
-        self._log(flag_events)
+        logged = self._texts(core_events, temp)
+        self._log(logged)  # in the core's order: by sample, the tracker's before the flags'
+        flag_events = [e for e in logged if e[2] in ("raised", "cleared")]
         self.flags_now = int(out["flags"][-1]) | (self.flags_now & BIT["silent"])
         self.last_time = float(t[-1])
         self.counters["samples"] += n
@@ -762,13 +762,13 @@ class LiveCalibrator:
             return temp
         return None if self._temperature_input is None else u[:, self._temperature_input]
 
-    def _texts(self, core_events, temp) -> tuple[list, list]:
-        """The core's events of a block as (time, flag, kind, reason): the flags' raised and cleared (in time order,
-        flags in bit order) and the tracker's (the drift test's rollbacks, the self-check's)."""
+    def _texts(self, core_events, temp) -> list:
+        """The core's events of a block as (time, flag, kind, reason), in its order: the flags' raised and cleared
+        (flags in bit order) and the tracker's (the drift test's rollbacks, the self-check's)."""
         from .c_events import EVENT_KINDS
 
         code = {key: value[0] for key, value in EVENT_KINDS.items()}
-        flags, tracker = [], []
+        flags = tracker = []
         names = self.model.input_names_ if self.model is not None else AXES
         channels = [j for j in range(len(names)) if j != self._temperature_input]
 
@@ -807,7 +807,7 @@ class LiveCalibrator:
                 tracker.append((time, "tracker", "reacquired", reacquired_text(*value[:3], extra)))
             elif kind == code["TRACKER_UNDONE"]:
                 tracker.append((time, "tracker", "undone", undone_text(value[0])))
-        return flags, tracker
+        return flags
 
     def _saturation_why(self) -> str:
         if self.adc_limits is not None:

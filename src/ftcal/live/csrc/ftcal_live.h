@@ -1593,6 +1593,16 @@ static inline size_t FTL_(describe_flags)(const FTL_(state) *s, unsigned mask, c
 
 
 #ifndef FTCAL_LIVE_NO_TEXT
+/* Six standard deviations sqrt(v * scale) as "%.3g" joined by ", " (the self-check's texts). */
+static inline void FTL_(text_stds)(char *buf, size_t len, size_t *at, const double *v, double scale)
+{
+    int j;
+    for (j = 0; j < 6; ++j) {
+        if (j) { FTL_(text_str)(buf, len, at, ", "); }
+        FTL_(text_num)(buf, len, at, "%.3g", sqrt(v[j] * scale));
+    }
+}
+
 /* The kind of an event as LiveCalibrator's events spell it ("switched", "identifying", "identified", "retare",
    "raised", "cleared"); 0 for a value that is no FTL_M(EVENT_)*. */
 static inline const char *FTL_(event_kind_name)(int kind)
@@ -1654,6 +1664,68 @@ static inline size_t FTL_(describe_event)(const FTL_(state) *s, const FTL_(event
             FTL_(text_str)(buf, len, &at, flag);
             FTL_(text_str)(buf, len, &at, " cleared");
         }
+        break;
+    case FTL_M(EVENT_ROLLBACK):
+        FTL_(text_str)(buf, len, &at, "the bias moved up to ");
+        FTL_(text_num)(buf, len, &at, "%.3g", ev->value[2]);
+        FTL_(text_str)(buf, len, &at, " in ");
+        FTL_(text_num)(buf, len, &at, "%.3g", ev->value[0]);
+        FTL_(text_str)(buf, len, &at, " s, more than the random walk allows (chi2 ");
+        FTL_(text_num)(buf, len, &at, "%.3g", ev->value[1]);
+        FTL_(text_str)(buf, len, &at, ", 6 dof): a slow contact or a faster drift; bias and variance back to their "
+                                      "values then, predicted since");
+        break;
+    case FTL_M(EVENT_TRACKER_ADAPTED):
+        if (ev->count > 0) {   /* q matched over the moves */
+            FTL_(text_str)(buf, len, &at, "the residual changed over the last ");
+            FTL_(text_long)(buf, len, &at, ev->count);
+            FTL_(text_str)(buf, len, &at, " moves by ");
+            FTL_(text_num)(buf, len, &at, "%.3g", ev->value[0]);
+            FTL_(text_str)(buf, len, &at, "x the walk allowed (median, covariance matching): walk std now ");
+            FTL_(text_stds)(buf, len, &at, ev->extra, 3600.0);
+            FTL_(text_str)(buf, len, &at, " per sqrt(h) (within 1 to 10x the identified)");
+        } else {               /* r matched over a window */
+            if (ev->value[1] >= (double)s->cfg.sc_min_window_samples) {
+                FTL_(text_str)(buf, len, &at, "NIS mean ");
+                FTL_(text_num)(buf, len, &at, "%.3g", ev->value[0]);
+                FTL_(text_str)(buf, len, &at, " over ");
+                FTL_(text_long)(buf, len, &at, (long)ev->value[1]);
+                FTL_(text_str)(buf, len, &at, " static samples (expected 6), ");
+            } else {
+                FTL_(text_long)(buf, len, &at, (long)ev->value[1]);
+                FTL_(text_str)(buf, len, &at, " static samples updated (too few for the NIS; r from the differences of ");
+                FTL_(text_long)(buf, len, &at, (long)ev->value[2]);
+                FTL_(text_str)(buf, len, &at, " consecutive static samples), ");
+            }
+            FTL_(text_num)(buf, len, &at, "%.2g", 100.0 * ev->value[3]);
+            FTL_(text_str)(buf, len, &at, " % of static samples gated (expected ");
+            FTL_(text_num)(buf, len, &at, "%.2g", 100.0 * ev->value[4]);
+            FTL_(text_str)(buf, len, &at, " %): noise std ");
+            FTL_(text_stds)(buf, len, &at, ev->extra, 1.0);
+            FTL_(text_str)(buf, len, &at, " (covariance matching, within 1 to 5x the identified)");
+        }
+        break;
+    case FTL_M(EVENT_TRACKER_LOCKED_OUT):
+        FTL_(text_str)(buf, len, &at, "no bias update for ");
+        FTL_(text_num)(buf, len, &at, "%.3g", ev->value[0]);
+        FTL_(text_str)(buf, len, &at, " s of static samples: a held contact, or a bias that moved faster than the walk "
+                                      "allows; re-acquired when a hold in another orientation shows the same residual");
+        break;
+    case FTL_M(EVENT_TRACKER_REACQUIRED):
+        FTL_(text_str)(buf, len, &at, "the residual held alike (changed by ");
+        FTL_(text_num)(buf, len, &at, "%.2g", 100.0 * ev->value[0]);
+        FTL_(text_str)(buf, len, &at, " % of itself) over two holds ");
+        FTL_(text_num)(buf, len, &at, "%.3g", ev->value[1]);
+        FTL_(text_str)(buf, len, &at, " deg apart in gravity direction: bias, not contact; bias moved by up to ");
+        FTL_(text_num)(buf, len, &at, "%.3g", ev->value[2]);
+        FTL_(text_str)(buf, len, &at, ", walk std now ");
+        FTL_(text_stds)(buf, len, &at, ev->extra, 3600.0);
+        FTL_(text_str)(buf, len, &at, " per sqrt(h)");
+        break;
+    case FTL_M(EVENT_TRACKER_UNDONE):
+        FTL_(text_str)(buf, len, &at, "the rollback at ");
+        FTL_(text_num)(buf, len, &at, "%.6g", ev->value[0]);
+        FTL_(text_str)(buf, len, &at, " s is within the walk matched since: bias back to before it");
         break;
     default:
         break;
