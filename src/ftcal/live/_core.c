@@ -297,6 +297,88 @@ static PyObject *Core_run(Core *self, PyObject *args)
     return Py_BuildValue("(ni)", k, refused);
 }
 
+/* n doubles from a C-contiguous float64 buffer (a numpy row) or a sequence of numbers; -1 with an exception set */
+static int read_doubles(PyObject *obj, Py_ssize_t n, double *dst)
+{
+    Py_buffer b;
+    PyObject *seq;
+    Py_ssize_t k;
+    if (PyObject_CheckBuffer(obj) && PyObject_GetBuffer(obj, &b, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) == 0) {
+        int ok = b.len == n * (Py_ssize_t)sizeof(double) && b.format && strcmp(b.format, "d") == 0;
+        if (ok) {
+            memcpy(dst, b.buf, (size_t)n * sizeof(double));
+        }
+        PyBuffer_Release(&b);
+        if (ok) {
+            return 0;
+        }
+    }
+    PyErr_Clear();
+    seq = PySequence_Fast(obj, "a sequence of numbers");
+    if (!seq) {
+        return -1;
+    }
+    if (PySequence_Fast_GET_SIZE(seq) != n) {
+        Py_DECREF(seq);
+        PyErr_Format(PyExc_ValueError, "%zd numbers expected", n);
+        return -1;
+    }
+    for (k = 0; k < n; ++k) {
+        dst[k] = PyFloat_AsDouble(PySequence_Fast_GET_ITEM(seq, k));
+        if (dst[k] == -1.0 && PyErr_Occurred()) {
+            Py_DECREF(seq);
+            return -1;
+        }
+    }
+    Py_DECREF(seq);
+    return 0;
+}
+
+/* step(time, u, w, gravity, override, out) -> events logged (0 usually), or -1: refused, state as before. One sample
+   with the least Python around it: u (n_inputs), w (6), gravity (3) numpy rows or sequences; out a float64 buffer of
+   27 (run()'s columns). */
+static PyObject *Core_step(Core *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    double time, u[FTCAL_CORE_N_INPUTS], w[6], g[3];
+    long override;
+    Py_buffer out;
+    ftcal_core_output x;
+    int j, rc;
+    if (nargs != 6) {
+        PyErr_SetString(PyExc_TypeError, "step(time, u, w, gravity, override, out)");
+        return NULL;
+    }
+    time = PyFloat_AsDouble(args[0]);
+    override = PyLong_AsLong(args[4]);
+    if (PyErr_Occurred() || read_doubles(args[1], self->state->cfg.n_inputs, u) || read_doubles(args[2], 6, w)
+        || read_doubles(args[3], 3, g)) {
+        return NULL;
+    }
+    if (PyObject_GetBuffer(args[5], &out, PyBUF_WRITABLE | PyBUF_C_CONTIGUOUS) < 0) {
+        return NULL;
+    }
+    if (out.len != 27 * (Py_ssize_t)sizeof(double)) {
+        PyBuffer_Release(&out);
+        PyErr_SetString(PyExc_ValueError, "step: out takes 27 float64");
+        return NULL;
+    }
+    rc = ftcal_core_core_step(self->state, time, u, w, g, (int)override, &x);
+    if (rc == 0) {
+        double *r = (double *)out.buf;
+        for (j = 0; j < 6; ++j) {
+            r[j] = x.calibrated[j];
+            r[6 + j] = x.compensated[j];
+            r[12 + j] = x.bias[j];
+            r[18 + j] = x.bias_std[j];
+        }
+        r[24] = x.chi2;
+        r[25] = x.is_static + 2 * x.updated;
+        r[26] = x.flags;
+    }
+    PyBuffer_Release(&out);
+    return PyLong_FromLong(rc ? -1 : self->state->events_count);
+}
+
 /* take_events() -> list of (kind, time, sample, flag, count, channels, value, extra): the events logged since the
    last call (oldest first), the ring emptied */
 static PyObject *Core_take_events(Core *self, PyObject *Py_UNUSED(ignored))
@@ -552,6 +634,7 @@ static PyMethodDef Core_methods[] = {
     {"set_tool", (PyCFunction)Core_set_tool, METH_VARARGS, "set_tool(index)"},
     {"counters", (PyCFunction)Core_counters, METH_NOARGS, "counters() -> dict"},
     {"set_self_check", (PyCFunction)Core_set_self_check, METH_VARARGS, "set_self_check(on)"},
+    {"step", (PyCFunction)(void (*)(void))Core_step, METH_FASTCALL, "step(time, u, w, gravity, override, out)"},
     {"take_events", (PyCFunction)Core_take_events, METH_NOARGS, "take_events() -> the events since the last call"},
     {"mount", (PyCFunction)Core_mount, METH_VARARGS, "mount(mass, (mc_x, mc_y, mc_z), sign)"},
     {"identifying", (PyCFunction)Core_identifying, METH_VARARGS, "identifying(on)"},

@@ -38,6 +38,7 @@ from .motion import MotionDetector
 from .consistency import (Q_MAX, R_MAX, locked_out_text, noise_adapted_text, reacquired_text, undone_text,
                           walk_adapted_text)
 from .drift import FALSE_ALARM
+from .core import FIELDS
 from .tracker import HOLDOFF_S, gate_chi2
 
 NO_TOOL = "none"
@@ -610,6 +611,9 @@ class LiveCalibrator:
         """
         if static is not None and not isinstance(static, (bool, np.bool_)):
             raise FtcalError(f"static must be True, False or None; got {static!r} ({type(static).__name__}).")
+        sample = self._step_core(time, raw, wrench, gravity, quaternion, imu, joints, temperature, static)
+        if sample is not None:
+            return sample
 
         def one(x, name):
             try:
@@ -627,6 +631,74 @@ class LiveCalibrator:
         return LiveSample(float(r.time[0]), r.calibrated[0], r.compensated[0], r.bias[0], r.bias_std[0],
                           bool(r.static[0]), bool(r.updated[0]),
                           {name: reasons.get(name, self.reason_of(name)) for name in names_of(bits)}, r.tool)
+
+    def _step_core(self, time, raw, wrench, gravity, quaternion, imu, joints, temperature, static):
+        """:meth:`step` as one call of the core with the least Python around it; None when :meth:`run` must take the
+        sample (an identification, joints, a temperature given, or input the core refuses: :meth:`run` says why).
+        The core refuses before it changes anything, so :meth:`run` meets the state the sample would have met."""
+        if (self.identifying is not None or joints is not None or temperature is not None or (raw is None) == (
+                wrench is None) or (gravity is not None) + (quaternion is not None) + (imu is not None) != 1):
+            return None
+        try:
+            t = float(time)
+            if raw is not None:
+                if self.model is None:
+                    return None
+                u = raw
+                w = self._row_predict()(raw)
+            else:
+                u = w = wrench
+            override = -1 if static is None else int(bool(static))
+            if quaternion is not None:
+                qx, qy, qz, qw = (float(v) for v in quaternion)
+                norm = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
+                if not abs(norm - 1.0) <= QUATERNION_NORM_TOLERANCE:
+                    return None
+                qx, qy, qz, qw = signal = (qx / norm, qy / norm, qz / norm, qw / norm)
+                gm = -self.gravity_magnitude
+                g = (gm * (2.0 * (qx * qz - qw * qy)), gm * (2.0 * (qy * qz + qw * qx)),
+                     gm * (1.0 - 2.0 * (qx * qx + qy * qy)))
+            else:
+                g = gravity if gravity is not None else [-float(v) for v in imu]
+            if self.last_time is not None and not t > self.last_time:
+                return None
+            temp = self._temperature_fill if self._temperature_input is None else float(u[self._temperature_input])
+            x = [*(u.tolist() if isinstance(u, np.ndarray) else u), temp]
+            if quaternion is not None and static is None:  # a quaternion's angle: the Python motion test decides
+                # (it keeps the sample: first what the core would refuse, so that run() meets the same state)
+                if not all(abs(v) <= MAX_CELL_MAGNITUDE for v in [*x, *(w.tolist() if isinstance(w, np.ndarray)
+                                                                       else w)]):
+                    return None
+                override = int(self.motion.static_one(t, "quaternion", signal)[0])
+            out = np.empty(FIELDS)
+            logged = self._core.step(t, x, w, g, override, out)
+        except (TypeError, ValueError):
+            return None
+        if logged < 0:
+            return None
+        self.last_time = t
+        code, bits = int(out[25]), int(out[26])
+        self.counters["samples"] += 1
+        self.counters["updates"] += code >> 1
+        if logged:
+            events = self._texts(self._core.take_events(), [temp])
+            self._log(events)
+            self.counters["contacts"] += sum(1 for e in events if e[1] == "contact" and e[2] == "raised")
+        self.flags_now = bits | (self.flags_now & BIT["silent"])
+        return LiveSample(t, out[0:6], out[6:12], out[12:18], out[18:24], bool(code & 1), bool(code >> 1),
+                          {name: self._reasons.get(name, name) for name in FLAGS if bits & BIT[name]} if bits else {},
+                          self.tool)
+
+    def _row_predict(self):
+        """The model's one-sample predictor (:meth:`CalibrationModel.row_predictor`), made once per model."""
+        cached = getattr(self, "_row_predictor", None)
+        if cached is None or cached[0] is not self.model:
+            one = getattr(self.model, "row_predictor", lambda: None)()
+            if one is None:  # a family without one: predict()'s own path
+                model = self.model
+                one = lambda u: model.predict(np.array([u]), warn_out_of_range=False)[0]  # noqa: E731
+            cached = self._row_predictor = (self.model, one)
+        return cached[1]
 
     def run(self, time, *, raw=None, wrench=None, gravity=None, quaternion=None, imu=None, joints=None,
             temperature=None, static=None) -> LiveResult:

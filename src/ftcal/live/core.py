@@ -169,6 +169,18 @@ class LiveCore:
                  "bias_std": out[:, 18:24], "chi2": out[:, 24], "static": (code & 1).astype(bool),
                  "updated": (code >> 1).astype(bool), "flags": out[:, 26].astype(np.uint16)}, events)
 
+    def step(self, time: float, u, w, gravity, override: int, out: np.ndarray) -> int:
+        """One sample (numpy rows or sequences; ``override`` −1, 0, 1) into ``out`` (27 float64, :meth:`run`'s
+        columns): the events it logged (read them with :meth:`take_events`), or −1: refused, nothing changed."""
+        logged = self._core.step(time, u, w, gravity, override, out)
+        if logged >= 0:
+            self.samples += 1
+        return logged
+
+    def take_events(self) -> list:
+        """The events of the last :meth:`step` (index 0 is that sample)."""
+        return self._take(self.samples - 1)
+
     def _take(self, start: int) -> list:
         """The core's events since the last call: (kind, index from sample ``start``, time, flag, count, channels,
         value, extra)."""
