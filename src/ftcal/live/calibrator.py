@@ -650,7 +650,7 @@ class LiveCalibrator:
                 u = w = wrench
             override = -1 if static is None else int(bool(static))
             if quaternion is not None:
-                qx, qy, qz, qw = (float(v) for v in quaternion)
+                qx, qy, qz, qw = quaternion.tolist() if isinstance(quaternion, np.ndarray) else map(float, quaternion)
                 norm = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
                 if not abs(norm - 1.0) <= QUATERNION_NORM_TOLERANCE:
                     return None
@@ -666,8 +666,9 @@ class LiveCalibrator:
             x = [*(u.tolist() if isinstance(u, np.ndarray) else u), temp]
             if quaternion is not None and static is None:  # a quaternion's angle: the Python motion test decides
                 # (it keeps the sample: first what the core would refuse, so that run() meets the same state)
-                if not all(abs(v) <= MAX_CELL_MAGNITUDE for v in [*x, *(w.tolist() if isinstance(w, np.ndarray)
-                                                                       else w)]):
+                values = [*x, *(w.tolist() if isinstance(w, np.ndarray) else w)]
+                if not (math.isfinite(sum(values)) and max(values) <= MAX_CELL_MAGNITUDE
+                        and min(values) >= -MAX_CELL_MAGNITUDE):
                     return None
                 override = int(self.motion.static_one(t, "quaternion", signal)[0])
             out = np.empty(FIELDS)
