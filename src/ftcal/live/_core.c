@@ -24,10 +24,7 @@
 #define FTCAL_CORE_MIN_HOLDS 3
 #define FTCAL_CORE_MAX_MAGNITUDE 1e100
 #define FTCAL_CORE_HISTORY 1024
-#define FTCAL_CORE_DRIFT_SNAPSHOTS 258
 #define FTCAL_CORE_DRIFT_LAGS 4
-#define FTCAL_CORE_SC_KEEP_HOLDS 4
-#define FTCAL_CORE_SC_WALK_KEEP 12
 #define FTCAL_CORE_N_FLAGS 8
 #define FTCAL_CORE_MAX_EVENTS 256
 /* run() pauses when fewer than this many slots are left (a sample logs at most 8 flag events and 6 of the tracker)
@@ -680,9 +677,9 @@ PyMODINIT_FUNC PyInit__core(void)
     if (PyModule_AddObject(m, "Core", (PyObject *)&CoreType) < 0
         || PyModule_AddIntConstant(m, "MAX_INPUTS", FTCAL_CORE_N_INPUTS) < 0
         || PyModule_AddIntConstant(m, "MAX_TOOLS", FTCAL_CORE_N_TOOLS) < 0
-        || PyModule_AddIntConstant(m, "DRIFT_SNAPSHOTS", FTCAL_CORE_DRIFT_SNAPSHOTS) < 0
-        || PyModule_AddIntConstant(m, "SC_KEEP_HOLDS", FTCAL_CORE_SC_KEEP_HOLDS) < 0
-        || PyModule_AddIntConstant(m, "SC_WALK_KEEP", FTCAL_CORE_SC_WALK_KEEP) < 0
+        || PyModule_AddIntConstant(m, "DRIFT_SNAPSHOTS", FTCAL_LIVE_DRIFT_SNAPSHOTS) < 0
+        || PyModule_AddIntConstant(m, "SC_KEEP_HOLDS", FTCAL_LIVE_SC_KEEP_HOLDS) < 0
+        || PyModule_AddIntConstant(m, "SC_WALK_KEEP", FTCAL_LIVE_SC_WALK_KEEP) < 0
         || PyModule_AddIntConstant(m, "MAX_HOLDS", FTCAL_CORE_MAX_HOLDS) < 0) {
         Py_DECREF(&CoreType);
         Py_DECREF(m);

@@ -65,6 +65,7 @@ from ..files.targets import ConvertOptions, Written
 from ..runtime.atomic import write_text_atomic
 from ..runtime.errors import FtcalError
 from .c_consistency import selfcheck_config, selfcheck_macros
+from .c_limits import DRIFT_SNAPSHOTS
 from .c_events import event_macros, events_config
 from .c_health import health_config, health_macros
 from .c_identify import _array, _num, identify_config, status_macros
@@ -75,9 +76,9 @@ from .tracker import HOLDOFF_S, MIN_FAIL_S, gate_chi2
 
 DEFAULT_NAME = "ftcal_runtime"
 HISTORY = 1024
-# Snapshots the drift test's ring holds: snapshots are at least SNAPSHOT_S apart, so once the ring holds this many,
-# its second oldest is more than max(LAGS_S) old and the oldest can never be the newest one a lag needs.
-DRIFT_SNAPSHOTS = math.ceil(max(LAGS_S) / SNAPSHOT_S) + 2
+# DRIFT_SNAPSHOTS, the snapshots the drift test's ring holds, is declared once, in the core's text (c_limits):
+# snapshots are at least SNAPSHOT_S apart, so once the ring holds ceil(max(LAGS_S) / SNAPSHOT_S) + 2, its second
+# oldest is more than max(LAGS_S) old and the oldest can never be the newest one a lag needs (test_c_runtime_drift).
 
 
 def runtime_parameters(tools: dict) -> dict:
@@ -301,7 +302,7 @@ extern "C" {{
 #ifndef {macro}_HISTORY
 #define {macro}_HISTORY {HISTORY}
 #endif
-#define {macro}_DRIFT_SNAPSHOTS {DRIFT_SNAPSHOTS}   /* the drift test's ring: {_num(max(LAGS_S))} s of snapshots {_num(SNAPSHOT_S)} s apart */
+#define {macro}_DRIFT_SNAPSHOTS FTCAL_LIVE_DRIFT_SNAPSHOTS   /* {DRIFT_SNAPSHOTS}: the drift test's ring: {_num(max(LAGS_S))} s of snapshots {_num(SNAPSHOT_S)} s apart */
 #define {macro}_DRIFT_LAGS {len(LAGS_S)}
 {selfcheck_macros(macro)}
 {health_macros(macro)}

@@ -45,6 +45,8 @@ undone (event ``tracker undone``): it was judged with a q the data have shown to
 
 from __future__ import annotations
 
+from .c_limits import SC_KEEP_HOLDS, SC_WALK_KEEP
+
 import math
 
 # s of static samples without a bias update after which the tracker says it is locked out.
@@ -54,7 +56,7 @@ MIN_HOLD_S = 1.0
 # Two holds must differ by at least this in gravity direction (degrees) for their means to tell bias from contact.
 MIN_TURN_DEG = 20.0
 # Locked holds kept to compare a new one with (a contact hold between two bias holds does not hide them).
-KEEP_HOLDS = 4
+KEEP_HOLDS = SC_KEEP_HOLDS  # declared once, in the C core (csrc/ftcal_live.h)
 # A bias may change between the holds by at most this share of what a world-fixed contact of its size would.
 TURN_SHARE = 0.5
 # A hold mean's variance is r / n for white noise; a wander correlated over this long (s) counts once per this.
@@ -68,7 +70,7 @@ Q_MAX = 100.0
 # Walk matching: hold starts kept, fewest to decide, the smallest walk share of a hold start's innovation variance
 # for it to count (below it the walk is not seen over the move, e.g. under a wander), and the factor q must be off
 # by before it adapts (either way).
-WALK_KEEP = 12
+WALK_KEEP = SC_WALK_KEEP  # declared once, in the C core (csrc/ftcal_live.h)
 MIN_WALK_STARTS = 2
 MIN_WALK_SHARE = 0.3
 WALK_FACTOR = 1.6

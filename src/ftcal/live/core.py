@@ -37,11 +37,11 @@ def require_core():
     if _core is None:
         raise FtcalError(MISSING + ".")
     from ..core.limits import C_RUNTIME_MAX_HOLDS
-    from .c_consistency import KEEP_HOLDS, WALK_KEEP
-    from .c_runtime import DRIFT_SNAPSHOTS
+    from .c_limits import CORE_LIMITS
 
-    if (getattr(_core, "SC_WALK_KEEP", None), _core.DRIFT_SNAPSHOTS, _core.SC_KEEP_HOLDS, _core.MAX_HOLDS) != (
-            WALK_KEEP, DRIFT_SNAPSHOTS, KEEP_HOLDS, C_RUNTIME_MAX_HOLDS):
+    # the rings' sizes come from the header's text (c_limits): a build of another version's header differs
+    if ({name: getattr(_core, name, None) for name in CORE_LIMITS}, _core.MAX_HOLDS,
+            hasattr(_core.Core, "take_events")) != (CORE_LIMITS, C_RUNTIME_MAX_HOLDS, True):
         raise FtcalError("ftcal.live._core was built from other sources than this ftcal; " + MISSING[MISSING.index(
             "reinstall"):] + ".")
     return _core

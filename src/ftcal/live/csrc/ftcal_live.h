@@ -16,8 +16,8 @@
    Before the include the includer defines FTCAL_LIVE_PREFIX (the C identifier prefixing every symbol) and
    FTCAL_LIVE_MACRO (the same upper-cased, prefixing every macro), and the size macros PREFIX_N_INPUTS,
    PREFIX_N_CHANNELS, PREFIX_N_TOOLS, PREFIX_MAX_ADDED_TOOLS, PREFIX_MAX_TOOLS, PREFIX_MAX_TOOL_NAME,
-   PREFIX_MAX_HOLDS, PREFIX_MIN_HOLDS, PREFIX_MAX_MAGNITUDE, PREFIX_HISTORY, PREFIX_DRIFT_SNAPSHOTS,
-   PREFIX_DRIFT_LAGS, PREFIX_SC_KEEP_HOLDS, PREFIX_SC_WALK_KEEP, PREFIX_N_FLAGS, PREFIX_MAX_EVENTS, and the codes
+   PREFIX_MAX_HOLDS, PREFIX_MIN_HOLDS, PREFIX_MAX_MAGNITUDE, PREFIX_HISTORY,
+   PREFIX_DRIFT_LAGS, PREFIX_N_FLAGS, PREFIX_MAX_EVENTS, and the codes
    PREFIX_FLAG_*, PREFIX_EVENT_*, PREFIX_TOOL_*, PREFIX_ID_* (the generated header emits them from the Python
    constants they mirror); for the texts also PREFIX_FLAG_NAMES, PREFIX_EVENT_KIND_NAMES and a function PREFIX_input_name(int). Sizes are maxima: the configuration (FTL_(config)) says how many inputs, channels and compiled-in tools
    there are. FTCAL_LIVE_REAL (default double; the generated header sets it from NAME_REAL) is the type of the
@@ -31,6 +31,15 @@
 #include <math.h>
 #include <stdint.h>
 #include <string.h>
+
+/* The sizes of the core's own rings, declared once here (not by the includer): Python reads them from this text
+   (ftcal.live.c_limits; the generated header's NAME_DRIFT_SNAPSHOTS, NAME_SC_KEEP_HOLDS, NAME_SC_WALK_KEEP name them)
+   and the extension exports them (ftcal.live.core.require_core checks a build against this text). */
+#ifndef FTCAL_LIVE_DRIFT_SNAPSHOTS
+#define FTCAL_LIVE_DRIFT_SNAPSHOTS 258   /* the drift test's snapshots: ceil(64 s / 0.25 s) + 2 (ftcal.live.drift) */
+#define FTCAL_LIVE_SC_KEEP_HOLDS 4       /* locked holds the self-check keeps */
+#define FTCAL_LIVE_SC_WALK_KEEP 12       /* hold starts the walk matching keeps */
+#endif
 
 #if !defined(FTCAL_LIVE_PREFIX) || !defined(FTCAL_LIVE_MACRO)
 #error "define FTCAL_LIVE_PREFIX and FTCAL_LIVE_MACRO before including ftcal_live.h"
@@ -154,9 +163,9 @@ typedef struct {
     /* the drift test (ftcal.live.drift): snapshots of bias and variance, oldest at drift_start, times increasing */
     double drift_due;            /* the next snapshot is taken at the first sample at or after this time */
     int drift_start, drift_count;
-    double drift_time[FTL_M(DRIFT_SNAPSHOTS)];
-    FTL_(real) drift_bias[FTL_M(DRIFT_SNAPSHOTS)][6];
-    FTL_(real) drift_variance[FTL_M(DRIFT_SNAPSHOTS)][6];
+    double drift_time[FTCAL_LIVE_DRIFT_SNAPSHOTS];
+    FTL_(real) drift_bias[FTCAL_LIVE_DRIFT_SNAPSHOTS][6];
+    FTL_(real) drift_variance[FTCAL_LIVE_DRIFT_SNAPSHOTS][6];
     double last_fail, fail_start;   /* the hold-off: the last failed static sample and the start of its run */
     int fail_previous;              /* the previous sample failed */
     double holdoff;              /* s after it without updates (LiveCalibrator(holdoff=...)), 0: off */
@@ -173,18 +182,18 @@ typedef struct {
     long sc_hold_n, sc_hold_missed;
     FTL_(real) sc_hold_z[6], sc_hold_dir[3];
     double sc_hold_start, sc_hold_last;
-    FTL_(real) sc_prev_mean[FTL_M(SC_KEEP_HOLDS)][6], sc_prev_dir[FTL_M(SC_KEEP_HOLDS)][3];
-    double sc_prev_seconds[FTL_M(SC_KEEP_HOLDS)], sc_prev_end[FTL_M(SC_KEEP_HOLDS)];
-    long sc_prev_n[FTL_M(SC_KEEP_HOLDS)];
+    FTL_(real) sc_prev_mean[FTCAL_LIVE_SC_KEEP_HOLDS][6], sc_prev_dir[FTCAL_LIVE_SC_KEEP_HOLDS][3];
+    double sc_prev_seconds[FTCAL_LIVE_SC_KEEP_HOLDS], sc_prev_end[FTCAL_LIVE_SC_KEEP_HOLDS];
+    long sc_prev_n[FTCAL_LIVE_SC_KEEP_HOLDS];
     /* r matched to the differences of consecutive static samples (clipped sums over the window, their count) */
     FTL_(real) sc_diff[6], sc_last_z[6];
     unsigned long sc_pairs;
     /* walk matching over hold starts: the last static sample (bias after it, or z when it did not update) */
-    int sc_has_ref, sc_ref_updated, sc_n_starts, sc_new_start, sc_start_updated[FTL_M(SC_WALK_KEEP)], sc_rb_has;
+    int sc_has_ref, sc_ref_updated, sc_n_starts, sc_new_start, sc_start_updated[FTCAL_LIVE_SC_WALK_KEEP], sc_rb_has;
     FTL_(real) sc_ref[6], sc_ref_var[6];
     double sc_ref_time;
-    FTL_(real) sc_start_change[FTL_M(SC_WALK_KEEP)][6], sc_start_var[FTL_M(SC_WALK_KEEP)][6];
-    double sc_start_gap[FTL_M(SC_WALK_KEEP)];
+    FTL_(real) sc_start_change[FTCAL_LIVE_SC_WALK_KEEP][6], sc_start_var[FTCAL_LIVE_SC_WALK_KEEP][6];
+    double sc_start_gap[FTCAL_LIVE_SC_WALK_KEEP];
     /* the drift test's last rollback (DriftCheck.last_rollback): time, state before it, the snapshot, span */
     double sc_rb_time, sc_rb_span;
     FTL_(real) sc_rb_bias[6], sc_rb_var[6], sc_rb_b0[6], sc_rb_p0[6];
@@ -443,11 +452,11 @@ static inline int FTL_(drift_check)(FTL_(state) *s, double time)
         high = s->drift_count;
         while (low < high) {
             middle = (low + high) / 2;
-            if (cutoff < s->drift_time[(s->drift_start + middle) % FTL_M(DRIFT_SNAPSHOTS)]) { high = middle; }
+            if (cutoff < s->drift_time[(s->drift_start + middle) % FTCAL_LIVE_DRIFT_SNAPSHOTS]) { high = middle; }
             else { low = middle + 1; }
         }
         if (low == 0) { continue; }
-        slot = (s->drift_start + low - 1) % FTL_M(DRIFT_SNAPSHOTS);
+        slot = (s->drift_start + low - 1) % FTCAL_LIVE_DRIFT_SNAPSHOTS;
         b0 = s->drift_bias[slot];
         p0 = s->drift_variance[slot];
         span = time - s->drift_time[slot];
@@ -488,11 +497,11 @@ static inline int FTL_(drift_check)(FTL_(state) *s, double time)
         }
         return 1;
     }
-    if (s->drift_count == FTL_M(DRIFT_SNAPSHOTS)) {   /* full: the oldest is never needed again */
-        s->drift_start = (s->drift_start + 1) % FTL_M(DRIFT_SNAPSHOTS);
+    if (s->drift_count == FTCAL_LIVE_DRIFT_SNAPSHOTS) {   /* full: the oldest is never needed again */
+        s->drift_start = (s->drift_start + 1) % FTCAL_LIVE_DRIFT_SNAPSHOTS;
         s->drift_count -= 1;
     }
-    slot = (s->drift_start + s->drift_count) % FTL_M(DRIFT_SNAPSHOTS);
+    slot = (s->drift_start + s->drift_count) % FTCAL_LIVE_DRIFT_SNAPSHOTS;
     s->drift_time[slot] = time;
     memcpy(s->drift_bias[slot], s->bias, sizeof s->bias);
     memcpy(s->drift_variance[slot], s->variance, sizeof s->variance);

@@ -51,8 +51,8 @@ static inline void FTL_(sc_end_hold)(FTL_(state) *s)
         for (j = 0; j < 3; ++j) { norm += s->sc_hold_dir[j] * s->sc_hold_dir[j]; }
         norm = sqrt(norm);
         if (norm == 0.0) { norm = 1.0; }
-        if (s->sc_n_previous == FTL_M(SC_KEEP_HOLDS)) {   /* keep the newest FTL_M(SC_KEEP_HOLDS) */
-            for (k = 1; k < FTL_M(SC_KEEP_HOLDS); ++k) {
+        if (s->sc_n_previous == FTCAL_LIVE_SC_KEEP_HOLDS) {   /* keep the newest FTCAL_LIVE_SC_KEEP_HOLDS */
+            for (k = 1; k < FTCAL_LIVE_SC_KEEP_HOLDS; ++k) {
                 memcpy(s->sc_prev_mean[k - 1], s->sc_prev_mean[k], sizeof s->sc_prev_mean[k]);
                 memcpy(s->sc_prev_dir[k - 1], s->sc_prev_dir[k], sizeof s->sc_prev_dir[k]);
                 s->sc_prev_n[k - 1] = s->sc_prev_n[k];
@@ -106,8 +106,8 @@ static inline void FTL_(sc_observe)(FTL_(state) *s, double time, int still, int 
         memcpy(s->sc_last_z, z, sizeof s->sc_last_z);
         if (!s->sc_in_hold) {
             if (s->sc_has_ref) {   /* a hold starts: its first residual's change since the last static sample */
-                if (s->sc_n_starts == FTL_M(SC_WALK_KEEP)) {   /* keep the newest FTL_M(SC_WALK_KEEP) */
-                    for (k = 1; k < FTL_M(SC_WALK_KEEP); ++k) {
+                if (s->sc_n_starts == FTCAL_LIVE_SC_WALK_KEEP) {   /* keep the newest FTCAL_LIVE_SC_WALK_KEEP */
+                    for (k = 1; k < FTCAL_LIVE_SC_WALK_KEEP; ++k) {
                         memcpy(s->sc_start_change[k - 1], s->sc_start_change[k], sizeof s->sc_start_change[k]);
                         memcpy(s->sc_start_var[k - 1], s->sc_start_var[k], sizeof s->sc_start_var[k]);
                         s->sc_start_updated[k - 1] = s->sc_start_updated[k];
@@ -191,7 +191,7 @@ static inline int FTL_(sc_alike)(const FTL_(state) *s, int k, const FTL_(real) *
 /* q by covariance matching over the hold starts (SelfCheck._match_walk): 1 and *lam, proposal[6] when q must change. */
 static inline int FTL_(sc_match_walk)(const FTL_(state) *s, FTL_(real) *lam, FTL_(real) *proposal, int *moves)
 {
-    FTL_(real) factors[FTL_M(SC_WALK_KEEP)];
+    FTL_(real) factors[FTCAL_LIVE_SC_WALK_KEEP];
     int i, j, k, m = 0, change = 0;
     for (k = 0; k < s->sc_n_starts; ++k) {
         FTL_(real) total[6], share = 0.0, rho = 0.0;
