@@ -75,6 +75,9 @@ def test_without_the_extension_one_line_says_how_to_build_it(monkeypatch):
     with pytest.raises(FtcalError, match=r"not built: reinstall ftcal on a machine with a C compiler") as err:
         live_core.require_core()
     assert "\n" not in str(err.value)
+    with pytest.raises(FtcalError, match=r"not built: reinstall ftcal") as err:  # the calibrator runs on it
+        LiveCalibrator()
+    assert "\n" not in str(err.value)
 
 
 @pytest.fixture(scope="module")

@@ -29,7 +29,7 @@ import numpy as np
 from ..check.accept import Thresholds
 from ..core.limits import LIVE_MIN_HOLDS, MAX_CELL_MAGNITUDE
 from ..data.holds import HOLD_WINDOW_S, MIN_ANGULAR_RATE, MIN_HOLD_S
-from ..data.signals import SATURATION_RUN, STUCK_RUN
+from ..data.signals import SATURATION_RUN
 from ..payload.kinematics import QUATERNION_NORM_TOLERANCE, STANDARD_GRAVITY, gravity_from_quaternions
 from ..payload.parameters import PayloadParameters
 from ..runtime.errors import FtcalError
