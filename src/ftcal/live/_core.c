@@ -127,7 +127,21 @@ static const Setting SETTINGS[] = {
 typedef struct {
     PyObject_HEAD
     ftcal_core_state *state;
+    /* the calibration model for step_raw (set_model): a monomial basis evaluated by a table, as ftcal.core's kernels
+       read it (ftcal.core.kernels.step_table); n_terms 0: none */
+    Py_ssize_t n_model_inputs, n_terms, n_steps;
+    double *offset, *inv_scale, *coef, *terms;   /* coef: (6, n_terms) row-major; terms: n_terms */
+    int64_t *steps;                                /* (n_steps, 4): input, source row, destination row, rows */
 } Core;
+
+static void free_model(Core *self)
+{
+    PyMem_Free(self->offset);   /* one block: offset, inv_scale, coef, terms */
+    PyMem_Free(self->steps);
+    self->offset = self->inv_scale = self->coef = self->terms = NULL;
+    self->steps = NULL;
+    self->n_terms = self->n_steps = self->n_model_inputs = 0;
+}
 
 /* One field of the configuration from a sequence of numbers (flattened, row-major, rows x columns at most). */
 static int set_field(ftcal_core_config *config, const Field *f, PyObject *value)
@@ -233,6 +247,7 @@ static int Core_init(Core *self, PyObject *args, PyObject *kwargs)
 
 static void Core_dealloc(Core *self)
 {
+    free_model(self);
     PyMem_Free(self->state);
     Py_TYPE(self)->tp_free((PyObject *)self);
 }
@@ -331,6 +346,21 @@ static int read_doubles(PyObject *obj, Py_ssize_t n, double *dst)
     return 0;
 }
 
+/* One sample's output in run()'s 27 columns. */
+static void write_output(const ftcal_core_output *x, double *r)
+{
+    int j;
+    for (j = 0; j < 6; ++j) {
+        r[j] = x->calibrated[j];
+        r[6 + j] = x->compensated[j];
+        r[12 + j] = x->bias[j];
+        r[18 + j] = x->bias_std[j];
+    }
+    r[24] = x->chi2;
+    r[25] = x->is_static + 2 * x->updated;
+    r[26] = x->flags;
+}
+
 /* step(time, u, w, gravity, override, out) -> events logged (0 usually), or -1: refused, state as before. One sample
    with the least Python around it: u (n_inputs), w (6), gravity (3) numpy rows or sequences; out a float64 buffer of
    27 (run()'s columns). */
@@ -340,7 +370,7 @@ static PyObject *Core_step(Core *self, PyObject *const *args, Py_ssize_t nargs)
     long override;
     Py_buffer out;
     ftcal_core_output x;
-    int j, rc;
+    int rc;
     if (nargs != 6) {
         PyErr_SetString(PyExc_TypeError, "step(time, u, w, gravity, override, out)");
         return NULL;
@@ -361,16 +391,137 @@ static PyObject *Core_step(Core *self, PyObject *const *args, Py_ssize_t nargs)
     }
     rc = ftcal_core_core_step(self->state, time, u, w, g, (int)override, &x);
     if (rc == 0) {
-        double *r = (double *)out.buf;
-        for (j = 0; j < 6; ++j) {
-            r[j] = x.calibrated[j];
-            r[6 + j] = x.compensated[j];
-            r[12 + j] = x.bias[j];
-            r[18 + j] = x.bias_std[j];
+        write_output(&x, (double *)out.buf);
+    }
+    PyBuffer_Release(&out);
+    return PyLong_FromLong(rc ? -1 : self->state->events_count);
+}
+
+/* set_model(offset, inv_scale, coef, steps): the model step_raw evaluates. offset, inv_scale: float64 (n_inputs,) of
+   the input normalisation; coef: float64 (6, n_terms), the last term the constant; steps: int64 (n_steps, 4). */
+static PyObject *Core_set_model(Core *self, PyObject *args)
+{
+    Py_buffer o, v, c, st;
+    Py_ssize_t nu, p, ns, k;
+    int bad = 0;
+    if (!PyArg_ParseTuple(args, "y*y*y*y*", &o, &v, &c, &st)) {
+        return NULL;
+    }
+    nu = o.len / (Py_ssize_t)sizeof(double);
+    p = c.len / (Py_ssize_t)sizeof(double) / 6;
+    ns = st.len / (Py_ssize_t)(4 * sizeof(int64_t));
+    if (v.len != o.len || c.len != 6 * p * (Py_ssize_t)sizeof(double) || nu < 1 || nu >= self->state->cfg.n_inputs + 1
+        || p <= nu) {
+        bad = 1;
+    }
+    for (k = 0; !bad && k < ns; ++k) {   /* every row read and written inside the terms, the constant excluded */
+        const int64_t *x = (const int64_t *)st.buf + 4 * k;
+        if (x[0] < 0 || x[0] >= nu || x[3] < 0 || x[1] < 0 || x[1] + x[3] > p - 1 || x[2] < nu || x[2] + x[3] > p - 1) {
+            bad = 1;
         }
-        r[24] = x.chi2;
-        r[25] = x.is_static + 2 * x.updated;
-        r[26] = x.flags;
+    }
+    if (!bad) {
+        free_model(self);
+        self->offset = (double *)PyMem_Malloc((size_t)(2 * nu + 7 * p) * sizeof(double));
+        self->steps = (int64_t *)PyMem_Malloc((size_t)(4 * ns + 1) * sizeof(int64_t));
+        if (!self->offset || !self->steps) {
+            free_model(self);
+            bad = 2;
+        } else {
+            self->inv_scale = self->offset + nu;
+            self->coef = self->inv_scale + nu;
+            self->terms = self->coef + 6 * p;
+            memcpy(self->offset, o.buf, (size_t)nu * sizeof(double));
+            memcpy(self->inv_scale, v.buf, (size_t)nu * sizeof(double));
+            memcpy(self->coef, c.buf, (size_t)(6 * p) * sizeof(double));
+            memcpy(self->steps, st.buf, (size_t)(4 * ns) * sizeof(int64_t));
+            self->n_model_inputs = nu;
+            self->n_terms = p;
+            self->n_steps = ns;
+        }
+    }
+    PyBuffer_Release(&o);
+    PyBuffer_Release(&v);
+    PyBuffer_Release(&c);
+    PyBuffer_Release(&st);
+    if (bad == 2) {
+        return PyErr_NoMemory();
+    }
+    if (bad) {
+        PyErr_SetString(PyExc_ValueError, "set_model: offset, inv_scale (n_inputs), coef (6 x n_terms), steps "
+                                          "(n_steps x 4) within the terms");
+        return NULL;
+    }
+    Py_RETURN_NONE;
+}
+
+/* The model's wrench for the raw inputs u (set_model's table): the normalised inputs, each step's products, the
+   constant, then the coefficients' sums in term order (ftcal.core's predict kernel's arithmetic on one row). */
+static void evaluate_model(Core *self, const double *u, double *w)
+{
+    Py_ssize_t i, s, k, p = self->n_terms;
+    double *x = self->terms;
+    for (i = 0; i < self->n_model_inputs; ++i) {
+        x[i] = (u[i] - self->offset[i]) * self->inv_scale[i];
+    }
+    for (s = 0; s < self->n_steps; ++s) {
+        const int64_t *st = self->steps + 4 * s;
+        double xi = x[st[0]];
+        int64_t r;
+        for (r = 0; r < st[3]; ++r) {
+            x[st[2] + r] = x[st[1] + r] * xi;
+        }
+    }
+    x[p - 1] = 1.0;
+    for (k = 0; k < 6; ++k) {
+        const double *c = self->coef + k * p;
+        double sum = 0.0;
+        for (i = 0; i < p; ++i) {
+            sum += c[i] * x[i];
+        }
+        w[k] = sum;
+    }
+}
+
+/* step_raw(time, u, gravity, override, out): step() with the wrench of set_model's model for u (the core's inputs;
+   the model reads the first of them) evaluated in the same call. Returns as step(). */
+static PyObject *Core_step_raw(Core *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    double time, u[FTCAL_CORE_N_INPUTS], w[6], g[3];
+    long override;
+    Py_buffer out;
+    ftcal_core_output x;
+    int j, rc;
+    if (nargs != 5) {
+        PyErr_SetString(PyExc_TypeError, "step_raw(time, u, gravity, override, out)");
+        return NULL;
+    }
+    if (self->n_terms == 0) {
+        PyErr_SetString(PyExc_ValueError, "step_raw: no model (set_model)");
+        return NULL;
+    }
+    time = PyFloat_AsDouble(args[0]);
+    override = PyLong_AsLong(args[3]);
+    if (PyErr_Occurred() || read_doubles(args[1], self->state->cfg.n_inputs, u) || read_doubles(args[2], 3, g)) {
+        return NULL;
+    }
+    for (j = 0; j < self->state->cfg.n_inputs; ++j) {   /* as the core: a refused input evaluates nothing */
+        if (!(fabs(u[j]) <= FTCAL_CORE_MAX_MAGNITUDE)) {
+            return PyLong_FromLong(-1);
+        }
+    }
+    if (PyObject_GetBuffer(args[4], &out, PyBUF_WRITABLE | PyBUF_C_CONTIGUOUS) < 0) {
+        return NULL;
+    }
+    if (out.len != 27 * (Py_ssize_t)sizeof(double)) {
+        PyBuffer_Release(&out);
+        PyErr_SetString(PyExc_ValueError, "step_raw: out takes 27 float64");
+        return NULL;
+    }
+    evaluate_model(self, u, w);
+    rc = ftcal_core_core_step(self->state, time, u, w, g, (int)override, &x);
+    if (rc == 0) {
+        write_output(&x, (double *)out.buf);
     }
     PyBuffer_Release(&out);
     return PyLong_FromLong(rc ? -1 : self->state->events_count);
@@ -632,6 +783,8 @@ static PyMethodDef Core_methods[] = {
     {"counters", (PyCFunction)Core_counters, METH_NOARGS, "counters() -> dict"},
     {"set_self_check", (PyCFunction)Core_set_self_check, METH_VARARGS, "set_self_check(on)"},
     {"step", (PyCFunction)(void (*)(void))Core_step, METH_FASTCALL, "step(time, u, w, gravity, override, out)"},
+    {"set_model", (PyCFunction)Core_set_model, METH_VARARGS, "set_model(offset, inv_scale, coef, steps)"},
+    {"step_raw", (PyCFunction)(void (*)(void))Core_step_raw, METH_FASTCALL, "step_raw(time, u, gravity, override, out)"},
     {"take_events", (PyCFunction)Core_take_events, METH_NOARGS, "take_events() -> the events since the last call"},
     {"mount", (PyCFunction)Core_mount, METH_VARARGS, "mount(mass, (mc_x, mc_y, mc_z), sign)"},
     {"identifying", (PyCFunction)Core_identifying, METH_VARARGS, "identifying(on)"},

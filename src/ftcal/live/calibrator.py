@@ -423,6 +423,8 @@ class LiveCalibrator:
             min_rate=float(min_rate), min_hold=float(min_hold), holdoff=self.holdoff,
             retare_variance=RETARE_VARIANCE)
         core = LiveCore(self.model, {}, config=config)
+        # step() evaluates a polynomial model in the core's call (the same table as ftcal.core's kernels)
+        self._model_in_core = self.model is not None and core.set_model(self.model)
         core.adc_limits(self.adc_limits)
         self._temperature_fill = 0.0 if self.temperature_range is None else float(self.temperature_range[0])
         self._core = core
@@ -645,7 +647,10 @@ class LiveCalibrator:
                 if self.model is None:
                     return None
                 u = raw
-                w = self._row_predict()(raw)
+                # the model evaluated in the core's call; with a quaternion's motion test first, in Python (what
+                # the core would refuse is known before the motion test keeps the sample)
+                w = None if self._model_in_core and (quaternion is None or static is not None) \
+                    else self._row_predict()(raw)
             else:
                 u = w = wrench
             override = -1 if static is None else int(bool(static))
@@ -672,7 +677,8 @@ class LiveCalibrator:
                     return None
                 override = int(self.motion.static_one(t, "quaternion", signal)[0])
             out = np.empty(FIELDS)
-            logged = self._core.step(t, x, w, g, override, out)
+            logged = (self._core.step_raw(t, x, g, override, out) if w is None
+                      else self._core.step(t, x, w, g, override, out))
         except (TypeError, ValueError):
             return None
         if logged < 0:
@@ -687,7 +693,7 @@ class LiveCalibrator:
             self.counters["contacts"] += sum(1 for e in events if e[1] == "contact" and e[2] == "raised")
         self.flags_now = bits | (self.flags_now & BIT["silent"])
         return LiveSample(t, out[0:6], out[6:12], out[12:18], out[18:24], bool(code & 1), bool(code >> 1),
-                          {name: self._reasons.get(name, name) for name in FLAGS if bits & BIT[name]} if bits else {},
+                          {name: self._reasons.get(name, name) for name in _NAMES_OF_BITS[bits]} if bits else {},
                           self.tool)
 
     def _row_predict(self):
@@ -1078,6 +1084,8 @@ class LiveCalibrator:
 
 
 AXES = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
+# the flags' names of every combination of their bits (step's result, without a loop over the flags per sample)
+_NAMES_OF_BITS = tuple(tuple(name for name in FLAGS if bits & BIT[name]) for bits in range(1 << len(FLAGS)))
 OUT_OF_RANGE_TEXT = "inputs outside the calibration's training range or span"
 
 

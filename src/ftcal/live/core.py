@@ -177,6 +177,34 @@ class LiveCore:
             self.samples += 1
         return logged
 
+    def set_model(self, model) -> bool:
+        """Evaluate ``model`` in :meth:`step_raw` (a static polynomial: its monomial table, input normalisation and
+        coefficients, as ``ftcal.core``'s kernels read them); False, nothing set, for a model without them."""
+        from ..core.kernels import step_table
+
+        try:
+            basis = model.layout_.basis
+            if not model.layout_.is_static or len(model.output_names_) != 6:
+                return False
+            steps = step_table(basis.n_inputs, basis.degree)
+            coef = np.ascontiguousarray(np.asarray(model.coef_, float).T)
+            norm = model.input_normalization_
+            offset, inv_scale = np.asarray(norm.offset, float), 1.0 / np.asarray(norm.scale, float)
+        except (AttributeError, TypeError, ValueError):
+            return False
+        if coef.shape != (6, basis.n_terms) or offset.shape != (basis.n_inputs,):
+            return False
+        self._core.set_model(np.ascontiguousarray(offset), np.ascontiguousarray(inv_scale), coef,
+                             np.ascontiguousarray(steps, dtype=np.int64))
+        return True
+
+    def step_raw(self, time: float, u, gravity, override: int, out: np.ndarray) -> int:
+        """:meth:`step` with the wrench of :meth:`set_model`'s model for ``u`` evaluated in the same C call."""
+        logged = self._core.step_raw(time, u, gravity, override, out)
+        if logged >= 0:
+            self.samples += 1
+        return logged
+
     def take_events(self) -> list:
         """The events of the last :meth:`step` (index 0 is that sample)."""
         return self._take(self.samples - 1)
