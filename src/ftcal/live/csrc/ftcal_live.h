@@ -686,7 +686,7 @@ static FTL_RARE void FTL_(flag_events)(FTL_(state) *s, unsigned flags, double ti
                 FTL_(real) x = u[s->cfg.channels[j]];
                 ev.channels[j] = s->use_adc_limits ? x <= s->adc_low || x >= s->adc_high
                     : (x < s->cfg.channel_range[j][0] || x > s->cfg.channel_range[j][1])
-                      && s->run[j] >= s->cfg.saturation_run;
+                      && s->run[j] >= s->cfg.saturation_run && s->channel_moved[j];
             }
             ev.value[0] = s->use_adc_limits;
             ev.value[1] = s->adc_low;
@@ -831,7 +831,9 @@ static inline int FTL_(core_step)(FTL_(state) *s, double time, const FTL_(real) 
             low = s->cfg.channel_range[j][0];
             high = s->cfg.channel_range[j][1];
             outside = x < low || x > high;
-            if (outside && s->run[j] >= s->cfg.saturation_run) { flags |= FTL_M(FLAG_SATURATED); }
+            /* flat outside the training range while a load change should have moved it (a clipped channel); a
+               quantised sensor at rest holds one count outside the range without being saturated */
+            if (outside && s->run[j] >= s->cfg.saturation_run && s->channel_moved[j]) { flags |= FTL_M(FLAG_SATURATED); }
         }
     }
     for (j = 0; j < s->cfg.n_channels; ++j) { s->last_raw[j] = u[s->cfg.channels[j]]; }
