@@ -272,6 +272,12 @@ class LiveCalibrator:
     robot : gravity from joint positions, e.g. :class:`ftcal.robot.kinematics.SensorGravity` (a URDF, the
         F/T sensor, the joints given); then ``joints`` alone gives gravity (and the motion signal)
 
+    Raises
+    ------
+    FtcalError
+        A setting out of its range, a tool not in the library, a state file refused; or the compiled core
+        (``ftcal.live._core``) is not built: one line says how to build it.
+
     Examples
     --------
     >>> import numpy as np

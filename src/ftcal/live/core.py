@@ -1,10 +1,13 @@
 """The live step's C core from Python: the extension ``ftcal.live._core`` around ``csrc/ftcal_live.h``.
 
 The same C that ``ftcal convert --to c-runtime`` ships (:mod:`ftcal.live.c_runtime`), with the same
-configuration (:func:`~ftcal.live.c_runtime.core_config`), so Python and C run one step. The model is
-evaluated by Python's kernels (``model.predict``); the core takes the raw channels, their wrench and gravity
-per sample, a whole block in one call (motion test on the gravity direction, or ``static``; the gated Kalman
-filter, the drift test, the self-check and the health flags).
+configuration (:func:`~ftcal.live.c_runtime.core_config`; :func:`calibrator_config` for
+:class:`~ftcal.live.LiveCalibrator`, which runs on it), so Python and C run one step. In blocks the model is
+evaluated by Python's kernels (``model.predict``); one sample at a time :meth:`LiveCore.step_raw` evaluates a
+polynomial model in the same C call. The core takes the raw channels, their wrench and gravity per sample, a whole
+block in one call (motion test on the gravity direction, or ``static``; the gated Kalman filter, the drift test,
+the self-check and the health flags), and logs its events as codes and numbers (:meth:`LiveCore.run_wrench`
+returns them; the calibrator formats the texts).
 
 The extension is built at install where a C compiler is there (``setup.py``); without it :func:`require_core`
 raises one :class:`~ftcal.runtime.errors.FtcalError` saying how to build it.
