@@ -106,14 +106,15 @@ def gauge_model(degree: int, seed: int = 21):
     return model, mix
 
 
-def compile_driver(tmp_path, header: str, driver: str):
-    """The generated header as rt.h and ``driver`` as driver.c, built by ``cc`` (-O2, C99, every warning an error)
-    into a shared library, loaded."""
+def compile_driver(tmp_path, header: str, driver: str, defines=(), name: str = "driver"):
+    """The generated header as rt.h and ``driver`` as NAME.c, built by ``cc`` (-O2, C99, every warning an error,
+    ``-D`` each of ``defines``) into the shared library NAME.so, loaded."""
     (tmp_path / "rt.h").write_text(header)
-    (tmp_path / "driver.c").write_text(driver)
-    library = tmp_path / "driver.so"
-    done = subprocess.run([CC, "-O2", "-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-shared", "-fPIC",
-                           "driver.c", "-o", str(library), "-lm"], cwd=tmp_path, capture_output=True, text=True)
+    (tmp_path / f"{name}.c").write_text(driver)
+    library = tmp_path / f"{name}.so"
+    done = subprocess.run([CC, "-O2", "-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic",
+                           *(f"-D{d}" for d in defines), "-shared", "-fPIC", f"{name}.c", "-o", str(library), "-lm"],
+                          cwd=tmp_path, capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     return ctypes.CDLL(str(library))
 
@@ -256,13 +257,7 @@ def test_a_float_build_tracks_the_bias_and_flags_the_contact(tmp_path, scenario)
     model, mix = gauge_model(1)
     tools = {name: tool_payload(tool) for name, tool in s.tools.items()}
     header = generate_c_runtime(model, tools, name="rt")
-    (tmp_path / "rt.h").write_text(header)
-    (tmp_path / "driver.c").write_text(FLOAT_DRIVER)
-    done = subprocess.run([CC, "-O2", "-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-DRT_REAL=float",
-                           "-shared", "-fPIC", "driver.c", "-o", "float.so", "-lm"], cwd=tmp_path, capture_output=True,
-                          text=True)
-    assert done.returncode == 0, done.stderr
-    single = ctypes.CDLL(str(tmp_path / "float.so"))
+    single = compile_driver(tmp_path, header, FLOAT_DRIVER, defines=["RT_REAL=float"], name="float")
     single.replay.restype = ctypes.c_int
     n = 5000  # before the tool swap
     u = np.column_stack([rec.wrench[:n] @ mix.T, np.full(n, 30.0)])

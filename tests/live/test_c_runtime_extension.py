@@ -75,6 +75,9 @@ def test_without_the_extension_one_line_says_how_to_build_it(monkeypatch):
     with pytest.raises(FtcalError, match=r"not built: reinstall ftcal on a machine with a C compiler") as err:
         live_core.require_core()
     assert "\n" not in str(err.value)
+    with pytest.raises(FtcalError, match=r"not built: reinstall ftcal") as err:  # the calibrator runs on it
+        LiveCalibrator()
+    assert "\n" not in str(err.value)
 
 
 @pytest.fixture(scope="module")
@@ -84,3 +87,22 @@ def scenario_c():
     s = LiveScenario(duration=40.0, rate=250.0, hold_s=3.0, move_s=1.0, walk=(3.0, 0.3), ramp=(20.0, 1.0),
                      contacts=((9.3, 2.0, 10.0),), swaps=((24.0, "drill"),), seed=5)
     return s, simulate_live(s)
+
+
+def test_the_model_evaluated_in_the_core_s_call_is_the_model_s_prediction(scenario_c):
+    """``LiveCore.set_model`` + ``step_raw`` (the table of ftcal.core's kernels, evaluated in C per sample) against
+    ``model.predict`` (the compiled block kernel, or numpy), degree 3 with a temperature input, inputs beyond the
+    training range included."""
+    s, rec = scenario_c
+    model, mix = gauge_model(3)
+    n = 400
+    u = np.column_stack([rec.wrench[:n] @ mix.T * 1.5, np.linspace(10.0, 60.0, n)])  # also outside the range
+    core = live_core.LiveCore(model, {}, tool=0)
+    assert core.set_model(model)
+    out = np.empty(live_core.FIELDS)
+    got = []
+    for k in range(n):
+        assert core.step_raw(rec.time[k], u[k], rec.gravity[k], -1, out) >= 0
+        got.append(out[0:6].copy())
+    expected = model.predict(u, warn_out_of_range=False)
+    np.testing.assert_allclose(got, expected, rtol=1e-12, atol=1e-12 * np.abs(expected).max())

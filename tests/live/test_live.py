@@ -17,7 +17,6 @@ import numpy as np
 import pytest
 
 from ftcal.live import LiveCalibrator
-from ftcal.live.tracker import affine_scan, mobius_scan
 from ftcal.payload.kinematics import Kinematics
 from ftcal.payload.parameters import PayloadParameters
 from ftcal.payload.tables import PayloadRecording, identify_recording
@@ -46,23 +45,6 @@ def run_blocks(live: LiveCalibrator, rec, block: int = 20_000, events=None):
              ("bias", "bias_std", "compensated", "static", "updated", "flags", "chi2")}
     stack["events"] = [e for p in parts for e in p.events]
     return stack
-
-
-def test_scans_match_their_recursions():
-    rng = np.random.default_rng(1)
-    a, c, x0 = rng.uniform(0.2, 1.0, (300, 4)), rng.normal(size=(300, 4)), rng.normal(size=4)
-    x, loop = affine_scan(a, c, x0), []
-    prev = x0
-    for k in range(300):
-        prev = a[k] * prev + c[k]
-        loop.append(prev)
-    np.testing.assert_allclose(x, loop, rtol=1e-12, atol=1e-12)
-    m = rng.uniform(0.1, 2.0, (300, 4, 4))
-    y, loop, prev = mobius_scan(m[..., 0], m[..., 1], m[..., 2], m[..., 3], x0 ** 2), [], x0 ** 2
-    for k in range(300):
-        prev = (m[k, :, 0] * prev + m[k, :, 1]) / (m[k, :, 2] * prev + m[k, :, 3])
-        loop.append(prev)
-    np.testing.assert_allclose(y, loop, rtol=1e-10)
 
 
 def test_blocks_compute_what_single_samples_compute():

@@ -52,3 +52,31 @@ def test_a_frozen_channel_under_a_load_swing_is_stuck_and_blocks_agree_with_step
     assert not stuck[:2200].any()
     # the others swing by tens of counts within the 200 samples after the freeze: stuck from then on
     assert stuck[2200 + 200 + 50:].mean() > 0.95
+
+
+def counts_model():
+    """A linear calibration of six 10-bit channels (one count 0.05 N) fitted on loaded counts 600 to 900 only."""
+    from ftcal.core.dataset import Dataset
+    from ftcal.core.model import CalibrationModel
+
+    rng = np.random.default_rng(3)
+    x = np.round(rng.uniform(600.0, 900.0, size=(3000, 6)))
+    return CalibrationModel(1).fit(Dataset.from_arrays(x, (x - 512.0) * 0.05))
+
+
+def test_a_10_bit_sensor_at_rest_below_the_training_range_is_not_saturated():
+    """At rest (counts near 500, below the 600-900 the calibration saw) a quiet channel holds one count for hundreds
+    of samples: out of range, but no clipping (no load change moved the others); a channel pinned at the ADC's rail
+    (1023) while the load swings is saturated."""
+    model = counts_model()
+    t, x = counts(4000)
+    live = LiveCalibrator(model, noise_std=np.full(6, 0.05))
+    quiet = t < t[2000]
+    x[2500:, 5] = 1023.0  # channel 6 clipped at the rail during the swing
+    flags = live.run(t, raw=x, gravity=np.tile(DOWN, (t.size, 1))).flags
+    assert np.all(flags[quiet] & BIT["out_of_range"])  # the rest is outside the training range ...
+    assert not np.any(flags[quiet] & BIT["saturated"])  # ... and not clipping
+    assert np.mean(flags[2600:] & BIT["saturated"] != 0) > 0.95
+    steps = LiveCalibrator(model, noise_std=np.full(6, 0.05))
+    one = [sum(BIT[f] for f in steps.step(a, raw=b, gravity=DOWN).flags) for a, b in zip(t[:600], x[:600])]
+    np.testing.assert_array_equal(one, flags[:600])

@@ -145,6 +145,20 @@ def check_resumed(live: LiveCalibrator, path: Path) -> None:
     live.save_state(path.with_name("again.json"))
 
 
+def resumes_or_refuses(path) -> None:
+    """The state file at ``path`` resumes as saved (:func:`check_resumed`) or is refused in one FtcalError line;
+    anything else (another exception, 10 s or more) fails."""
+    with bounded(10):
+        try:
+            live = resume(path)
+        except FtcalError as exc:
+            one_line(exc)
+            return
+        except Exception as exc:  # noqa: BLE001
+            raise AssertionError(f"{type(exc).__name__}: {exc}") from exc
+        check_resumed(live, path)
+
+
 @SOME
 @given(st.data())
 def test_a_state_file_with_any_field_replaced_resumes_or_is_refused_in_one_line(state_doc, tmp_path_factory, data):
@@ -163,15 +177,7 @@ def test_a_state_file_with_any_field_replaced_resumes_or_is_refused_in_one_line(
         doc = _set(doc, where, data.draw(json_values, label="value"))
     path = tmp_path_factory.mktemp("s") / "state.json"
     path.write_text(json.dumps(doc, allow_nan=True).replace('"__deep__"', "[" * 100_000 + "]" * 100_000))
-    with bounded(10):
-        try:
-            live = resume(path)
-        except FtcalError as exc:
-            one_line(exc)
-            return
-        except Exception as exc:  # noqa: BLE001
-            raise AssertionError(f"{type(exc).__name__}: {exc}") from exc
-        check_resumed(live, path)
+    resumes_or_refuses(path)
 
 
 @FEW
@@ -199,15 +205,7 @@ def test_a_truncated_or_bit_flipped_state_file_resumes_or_is_refused(state_doc, 
         raw = bytearray((text[:i] + token + text[j:]).encode())
     path = tmp_path_factory.mktemp("s") / "state.json"
     path.write_bytes(bytes(raw))
-    with bounded(10):
-        try:
-            live = resume(path)
-        except FtcalError as exc:
-            one_line(exc)
-            return
-        except Exception as exc:  # noqa: BLE001
-            raise AssertionError(f"{type(exc).__name__}: {exc}") from exc
-        check_resumed(live, path)
+    resumes_or_refuses(path)
 
 
 # ---------------------------------------------------------------------------------- CDR on every key the node reads

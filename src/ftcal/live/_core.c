@@ -24,12 +24,12 @@
 #define FTCAL_CORE_MIN_HOLDS 3
 #define FTCAL_CORE_MAX_MAGNITUDE 1e100
 #define FTCAL_CORE_HISTORY 1024
-#define FTCAL_CORE_DRIFT_SNAPSHOTS 258
 #define FTCAL_CORE_DRIFT_LAGS 4
-#define FTCAL_CORE_SC_KEEP_HOLDS 4
-#define FTCAL_CORE_SC_WALK_KEEP 12
 #define FTCAL_CORE_N_FLAGS 8
-#define FTCAL_CORE_MAX_EVENTS 64
+#define FTCAL_CORE_MAX_EVENTS 256
+/* run() pauses when fewer than this many slots are left (a sample logs at most 8 flag events and 6 of the tracker)
+   so that Python reads every event (take_events) before the ring would overwrite one */
+#define EVENTS_PER_SAMPLE 16
 /* the codes: ftcal.live.core checks them against the Python constants (health.BIT, c_events, c_identify) */
 #define FTCAL_CORE_FLAG_SATURATED 1u
 #define FTCAL_CORE_FLAG_STUCK 2u
@@ -45,6 +45,11 @@
 #define FTCAL_CORE_EVENT_RETARE 4
 #define FTCAL_CORE_EVENT_FLAG_RAISED 5
 #define FTCAL_CORE_EVENT_FLAG_CLEARED 6
+#define FTCAL_CORE_EVENT_ROLLBACK 7
+#define FTCAL_CORE_EVENT_TRACKER_ADAPTED 8
+#define FTCAL_CORE_EVENT_TRACKER_LOCKED_OUT 9
+#define FTCAL_CORE_EVENT_TRACKER_REACQUIRED 10
+#define FTCAL_CORE_EVENT_TRACKER_UNDONE 11
 #define FTCAL_CORE_ID_OK (0)
 #define FTCAL_CORE_ID_NOT_IDENTIFYING (-1)
 #define FTCAL_CORE_ID_TOO_FEW_HOLDS (-2)
@@ -124,7 +129,21 @@ static const Setting SETTINGS[] = {
 typedef struct {
     PyObject_HEAD
     ftcal_core_state *state;
+    /* the calibration model for step_raw (set_model): a monomial basis evaluated by a table, as ftcal.core's kernels
+       read it (ftcal.core.kernels.step_table); n_terms 0: none */
+    Py_ssize_t n_model_inputs, n_terms, n_steps;
+    double *offset, *inv_scale, *coef, *terms;   /* coef: (6, n_terms) row-major; terms: n_terms */
+    int64_t *steps;                                /* (n_steps, 4): input, source row, destination row, rows */
 } Core;
+
+static void free_model(Core *self)
+{
+    PyMem_Free(self->offset);   /* one block: offset, inv_scale, coef, terms */
+    PyMem_Free(self->steps);
+    self->offset = self->inv_scale = self->coef = self->terms = NULL;
+    self->steps = NULL;
+    self->n_terms = self->n_steps = self->n_model_inputs = 0;
+}
 
 /* One field of the configuration from a sequence of numbers (flattened, row-major, rows x columns at most). */
 static int set_field(ftcal_core_config *config, const Field *f, PyObject *value)
@@ -230,16 +249,18 @@ static int Core_init(Core *self, PyObject *args, PyObject *kwargs)
 
 static void Core_dealloc(Core *self)
 {
+    free_model(self);
     PyMem_Free(self->state);
     Py_TYPE(self)->tp_free((PyObject *)self);
 }
 
-/* run(time, u, w, gravity, override, out) -> samples stepped (n, or k < n: sample k was refused, state as before) */
+/* run(time, u, w, gravity, override, out) -> (samples stepped k, refused): k < n with refused 0 when the event ring
+   needs reading (take_events, then run the rest), refused 1 when sample k was refused (state as before it) */
 static PyObject *Core_run(Core *self, PyObject *args)
 {
     Py_buffer t, u, w, g, o, out;
     Py_ssize_t n, k = 0, ni = self->state->cfg.n_inputs;
-    int bad = 0;
+    int bad = 0, refused = 0;
     if (!PyArg_ParseTuple(args, "y*y*y*y*y*w*", &t, &u, &w, &g, &o, &out)) {
         return NULL;
     }
@@ -257,7 +278,11 @@ static PyObject *Core_run(Core *self, PyObject *args)
         for (k = 0; k < n; ++k) {
             ftcal_core_output x;
             int j;
+            if (self->state->events_count > FTCAL_CORE_MAX_EVENTS - EVENTS_PER_SAMPLE) {
+                break;
+            }
             if (ftcal_core_core_step(self->state, tp[k], up + ni * k, wp + 6 * k, gp + 3 * k, op[k], &x)) {
+                refused = 1;
                 break;
             }
             for (j = 0; j < 6; ++j) {
@@ -283,7 +308,369 @@ static PyObject *Core_run(Core *self, PyObject *args)
                                           "gravity (n x 3) float64, override int32, out (n x 27) float64");
         return NULL;
     }
-    return PyLong_FromSsize_t(k);
+    return Py_BuildValue("(ni)", k, refused);
+}
+
+/* n doubles from a C-contiguous float64 buffer (a numpy row) or a sequence of numbers; -1 with an exception set */
+static int read_doubles(PyObject *obj, Py_ssize_t n, double *dst)
+{
+    Py_buffer b;
+    PyObject *seq;
+    Py_ssize_t k;
+    if (PyObject_CheckBuffer(obj) && PyObject_GetBuffer(obj, &b, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) == 0) {
+        int ok = b.len == n * (Py_ssize_t)sizeof(double) && b.format && strcmp(b.format, "d") == 0;
+        if (ok) {
+            memcpy(dst, b.buf, (size_t)n * sizeof(double));
+        }
+        PyBuffer_Release(&b);
+        if (ok) {
+            return 0;
+        }
+    }
+    PyErr_Clear();
+    seq = PySequence_Fast(obj, "a sequence of numbers");
+    if (!seq) {
+        return -1;
+    }
+    if (PySequence_Fast_GET_SIZE(seq) != n) {
+        Py_DECREF(seq);
+        PyErr_Format(PyExc_ValueError, "%zd numbers expected", n);
+        return -1;
+    }
+    for (k = 0; k < n; ++k) {
+        dst[k] = PyFloat_AsDouble(PySequence_Fast_GET_ITEM(seq, k));
+        if (dst[k] == -1.0 && PyErr_Occurred()) {
+            Py_DECREF(seq);
+            return -1;
+        }
+    }
+    Py_DECREF(seq);
+    return 0;
+}
+
+/* One sample's output in run()'s 27 columns. */
+static void write_output(const ftcal_core_output *x, double *r)
+{
+    int j;
+    for (j = 0; j < 6; ++j) {
+        r[j] = x->calibrated[j];
+        r[6 + j] = x->compensated[j];
+        r[12 + j] = x->bias[j];
+        r[18 + j] = x->bias_std[j];
+    }
+    r[24] = x->chi2;
+    r[25] = x->is_static + 2 * x->updated;
+    r[26] = x->flags;
+}
+
+/* step(time, u, w, gravity, override, out) -> events logged (0 usually), or -1: refused, state as before. One sample
+   with the least Python around it: u (n_inputs), w (6), gravity (3) numpy rows or sequences; out a float64 buffer of
+   27 (run()'s columns). */
+static PyObject *Core_step(Core *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    double time, u[FTCAL_CORE_N_INPUTS], w[6], g[3];
+    long override;
+    Py_buffer out;
+    ftcal_core_output x;
+    int rc;
+    if (nargs != 6) {
+        PyErr_SetString(PyExc_TypeError, "step(time, u, w, gravity, override, out)");
+        return NULL;
+    }
+    time = PyFloat_AsDouble(args[0]);
+    override = PyLong_AsLong(args[4]);
+    if (PyErr_Occurred() || read_doubles(args[1], self->state->cfg.n_inputs, u) || read_doubles(args[2], 6, w)
+        || read_doubles(args[3], 3, g)) {
+        return NULL;
+    }
+    if (PyObject_GetBuffer(args[5], &out, PyBUF_WRITABLE | PyBUF_C_CONTIGUOUS) < 0) {
+        return NULL;
+    }
+    if (out.len != 27 * (Py_ssize_t)sizeof(double)) {
+        PyBuffer_Release(&out);
+        PyErr_SetString(PyExc_ValueError, "step: out takes 27 float64");
+        return NULL;
+    }
+    rc = ftcal_core_core_step(self->state, time, u, w, g, (int)override, &x);
+    if (rc == 0) {
+        write_output(&x, (double *)out.buf);
+    }
+    PyBuffer_Release(&out);
+    return PyLong_FromLong(rc ? -1 : self->state->events_count);
+}
+
+/* set_model(offset, inv_scale, coef, steps): the model step_raw evaluates. offset, inv_scale: float64 (n_inputs,) of
+   the input normalisation; coef: float64 (6, n_terms), the last term the constant; steps: int64 (n_steps, 4). */
+static PyObject *Core_set_model(Core *self, PyObject *args)
+{
+    Py_buffer o, v, c, st;
+    Py_ssize_t nu, p, ns, k;
+    int bad = 0;
+    if (!PyArg_ParseTuple(args, "y*y*y*y*", &o, &v, &c, &st)) {
+        return NULL;
+    }
+    nu = o.len / (Py_ssize_t)sizeof(double);
+    p = c.len / (Py_ssize_t)sizeof(double) / 6;
+    ns = st.len / (Py_ssize_t)(4 * sizeof(int64_t));
+    if (v.len != o.len || c.len != 6 * p * (Py_ssize_t)sizeof(double) || nu < 1 || nu >= self->state->cfg.n_inputs + 1
+        || p <= nu) {
+        bad = 1;
+    }
+    for (k = 0; !bad && k < ns; ++k) {   /* every row read and written inside the terms, the constant excluded */
+        const int64_t *x = (const int64_t *)st.buf + 4 * k;
+        if (x[0] < 0 || x[0] >= nu || x[3] < 0 || x[1] < 0 || x[1] + x[3] > p - 1 || x[2] < nu || x[2] + x[3] > p - 1) {
+            bad = 1;
+        }
+    }
+    if (!bad) {
+        free_model(self);
+        self->offset = (double *)PyMem_Malloc((size_t)(2 * nu + 7 * p) * sizeof(double));
+        self->steps = (int64_t *)PyMem_Malloc((size_t)(4 * ns + 1) * sizeof(int64_t));
+        if (!self->offset || !self->steps) {
+            free_model(self);
+            bad = 2;
+        } else {
+            self->inv_scale = self->offset + nu;
+            self->coef = self->inv_scale + nu;
+            self->terms = self->coef + 6 * p;
+            memcpy(self->offset, o.buf, (size_t)nu * sizeof(double));
+            memcpy(self->inv_scale, v.buf, (size_t)nu * sizeof(double));
+            memcpy(self->coef, c.buf, (size_t)(6 * p) * sizeof(double));
+            memcpy(self->steps, st.buf, (size_t)(4 * ns) * sizeof(int64_t));
+            self->n_model_inputs = nu;
+            self->n_terms = p;
+            self->n_steps = ns;
+        }
+    }
+    PyBuffer_Release(&o);
+    PyBuffer_Release(&v);
+    PyBuffer_Release(&c);
+    PyBuffer_Release(&st);
+    if (bad == 2) {
+        return PyErr_NoMemory();
+    }
+    if (bad) {
+        PyErr_SetString(PyExc_ValueError, "set_model: offset, inv_scale (n_inputs), coef (6 x n_terms), steps "
+                                          "(n_steps x 4) within the terms");
+        return NULL;
+    }
+    Py_RETURN_NONE;
+}
+
+/* The model's wrench for the raw inputs u (set_model's table): the normalised inputs, each step's products, the
+   constant, then the coefficients' sums in term order (ftcal.core's predict kernel's arithmetic on one row). */
+static void evaluate_model(Core *self, const double *u, double *w)
+{
+    Py_ssize_t i, s, k, p = self->n_terms;
+    double *x = self->terms;
+    for (i = 0; i < self->n_model_inputs; ++i) {
+        x[i] = (u[i] - self->offset[i]) * self->inv_scale[i];
+    }
+    for (s = 0; s < self->n_steps; ++s) {
+        const int64_t *st = self->steps + 4 * s;
+        double xi = x[st[0]];
+        int64_t r;
+        for (r = 0; r < st[3]; ++r) {
+            x[st[2] + r] = x[st[1] + r] * xi;
+        }
+    }
+    x[p - 1] = 1.0;
+    for (k = 0; k < 6; ++k) {
+        const double *c = self->coef + k * p;
+        double sum = 0.0;
+        for (i = 0; i < p; ++i) {
+            sum += c[i] * x[i];
+        }
+        w[k] = sum;
+    }
+}
+
+/* step_raw(time, u, gravity, override, out): step() with the wrench of set_model's model for u (the core's inputs;
+   the model reads the first of them) evaluated in the same call. Returns as step(). */
+static PyObject *Core_step_raw(Core *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    double time, u[FTCAL_CORE_N_INPUTS], w[6], g[3];
+    long override;
+    Py_buffer out;
+    ftcal_core_output x;
+    int j, rc;
+    if (nargs != 5) {
+        PyErr_SetString(PyExc_TypeError, "step_raw(time, u, gravity, override, out)");
+        return NULL;
+    }
+    if (self->n_terms == 0) {
+        PyErr_SetString(PyExc_ValueError, "step_raw: no model (set_model)");
+        return NULL;
+    }
+    time = PyFloat_AsDouble(args[0]);
+    override = PyLong_AsLong(args[3]);
+    if (PyErr_Occurred() || read_doubles(args[1], self->state->cfg.n_inputs, u) || read_doubles(args[2], 3, g)) {
+        return NULL;
+    }
+    for (j = 0; j < self->state->cfg.n_inputs; ++j) {   /* as the core: a refused input evaluates nothing */
+        if (!(fabs(u[j]) <= FTCAL_CORE_MAX_MAGNITUDE)) {
+            return PyLong_FromLong(-1);
+        }
+    }
+    if (PyObject_GetBuffer(args[4], &out, PyBUF_WRITABLE | PyBUF_C_CONTIGUOUS) < 0) {
+        return NULL;
+    }
+    if (out.len != 27 * (Py_ssize_t)sizeof(double)) {
+        PyBuffer_Release(&out);
+        PyErr_SetString(PyExc_ValueError, "step_raw: out takes 27 float64");
+        return NULL;
+    }
+    evaluate_model(self, u, w);
+    rc = ftcal_core_core_step(self->state, time, u, w, g, (int)override, &x);
+    if (rc == 0) {
+        write_output(&x, (double *)out.buf);
+    }
+    PyBuffer_Release(&out);
+    return PyLong_FromLong(rc ? -1 : self->state->events_count);
+}
+
+/* take_events() -> list of (kind, time, sample, flag, count, channels, value, extra): the events logged since the
+   last call (oldest first), the ring emptied */
+static PyObject *Core_take_events(Core *self, PyObject *Py_UNUSED(ignored))
+{
+    ftcal_core_state *s = self->state;
+    PyObject *list = PyList_New(s->events_count);
+    int i, j;
+    if (!list) {
+        return NULL;
+    }
+    for (i = 0; i < s->events_count; ++i) {
+        const ftcal_core_event *ev = &s->events[(s->events_start + i) % FTCAL_CORE_MAX_EVENTS];
+        PyObject *channels = PyTuple_New(s->cfg.n_channels), *value = PyTuple_New(9), *extra = PyTuple_New(6), *item;
+        if (!channels || !value || !extra) {
+            Py_XDECREF(channels);
+            Py_XDECREF(value);
+            Py_XDECREF(extra);
+            Py_DECREF(list);
+            return NULL;
+        }
+        for (j = 0; j < s->cfg.n_channels; ++j) {
+            PyTuple_SET_ITEM(channels, j, PyBool_FromLong(ev->channels[j]));
+        }
+        for (j = 0; j < 9; ++j) {
+            PyTuple_SET_ITEM(value, j, PyFloat_FromDouble(ev->value[j]));
+        }
+        for (j = 0; j < 6; ++j) {
+            PyTuple_SET_ITEM(extra, j, PyFloat_FromDouble(ev->extra[j]));
+        }
+        item = Py_BuildValue("(idkIlNNN)", ev->kind, ev->time, ev->sample, ev->flag, ev->count, channels, value,
+                             extra);
+        if (!item) {
+            Py_DECREF(list);
+            return NULL;
+        }
+        PyList_SET_ITEM(list, i, item);
+    }
+    ftcal_core_clear_events(s);
+    return list;
+}
+
+/* mount(mass, mc, sign): the mounted tool's gravity terms (Python keeps the library: the core one slot) */
+static PyObject *Core_mount(Core *self, PyObject *args)
+{
+    double mass, mc0, mc1, mc2, sign;
+    ftcal_core_state *s = self->state;
+    if (!PyArg_ParseTuple(args, "d(ddd)d", &mass, &mc0, &mc1, &mc2, &sign)) {
+        return NULL;
+    }
+    s->tool_mass[s->tool] = mass;
+    s->tool_mc[s->tool][0] = mc0;
+    s->tool_mc[s->tool][1] = mc1;
+    s->tool_mc[s->tool][2] = mc2;
+    s->tool_sign[s->tool] = sign;
+    Py_RETURN_NONE;
+}
+
+/* identifying(on): bias updates and the contact and unexplained flags pause (Python collects the holds) */
+static PyObject *Core_identifying(Core *self, PyObject *args)
+{
+    int on;
+    if (!PyArg_ParseTuple(args, "p", &on)) {
+        return NULL;
+    }
+    self->state->identifying = on;
+    self->state->in_hold = 0;
+    self->state->n_holds = 0;
+    Py_RETURN_NONE;
+}
+
+/* adc_limits(low, high) or adc_limits(None): saturated at the ADC limits, or beyond the training range */
+static PyObject *Core_adc_limits(Core *self, PyObject *args)
+{
+    double low = 0.0, high = 0.0;
+    PyObject *first;
+    if (PyTuple_GET_SIZE(args) == 1 && (first = PyTuple_GET_ITEM(args, 0)) == Py_None) {
+        self->state->use_adc_limits = 0;
+        Py_RETURN_NONE;
+    }
+    if (!PyArg_ParseTuple(args, "dd", &low, &high)) {
+        return NULL;
+    }
+    self->state->use_adc_limits = 1;
+    self->state->adc_low = low;
+    self->state->adc_high = high;
+    Py_RETURN_NONE;
+}
+
+static PyObject *Core_restart_checks(Core *self, PyObject *Py_UNUSED(ignored))
+{
+    ftcal_core_restart_checks(self->state);
+    Py_RETURN_NONE;
+}
+
+/* set_clock(time) or set_clock(None): the time of the last sample (a state resumed), or none */
+static PyObject *Core_set_clock(Core *self, PyObject *args)
+{
+    PyObject *value;
+    double time;
+    if (!PyArg_ParseTuple(args, "O", &value)) {
+        return NULL;
+    }
+    if (value == Py_None) {
+        self->state->has_time = 0;
+        Py_RETURN_NONE;
+    }
+    time = PyFloat_AsDouble(value);
+    if (time == -1.0 && PyErr_Occurred()) {
+        return NULL;
+    }
+    self->state->has_time = 1;
+    self->state->last_time = time;
+    Py_RETURN_NONE;
+}
+
+static PyObject *Core_restart_clock(Core *self, PyObject *Py_UNUSED(ignored))
+{
+    ftcal_core_restart_clock(self->state);
+    Py_RETURN_NONE;
+}
+
+/* state() -> bytes: the whole state (plain data, its configuration included); set_state(bytes) puts one back */
+static PyObject *Core_state(Core *self, PyObject *Py_UNUSED(ignored))
+{
+    return PyBytes_FromStringAndSize((const char *)self->state, (Py_ssize_t)sizeof *self->state);
+}
+
+static PyObject *Core_set_state(Core *self, PyObject *args)
+{
+    Py_buffer b;
+    if (!PyArg_ParseTuple(args, "y*", &b)) {
+        return NULL;
+    }
+    if (b.len != (Py_ssize_t)sizeof *self->state) {
+        PyBuffer_Release(&b);
+        PyErr_Format(PyExc_ValueError, "set_state: %zd bytes, the state has %zd", b.len,
+                     (Py_ssize_t)sizeof *self->state);
+        return NULL;
+    }
+    memcpy(self->state, b.buf, sizeof *self->state);
+    PyBuffer_Release(&b);
+    Py_RETURN_NONE;
 }
 
 static const Setting *find_setting(const char *name)
@@ -397,6 +784,18 @@ static PyMethodDef Core_methods[] = {
     {"set_tool", (PyCFunction)Core_set_tool, METH_VARARGS, "set_tool(index)"},
     {"counters", (PyCFunction)Core_counters, METH_NOARGS, "counters() -> dict"},
     {"set_self_check", (PyCFunction)Core_set_self_check, METH_VARARGS, "set_self_check(on)"},
+    {"step", (PyCFunction)(void (*)(void))Core_step, METH_FASTCALL, "step(time, u, w, gravity, override, out)"},
+    {"set_model", (PyCFunction)Core_set_model, METH_VARARGS, "set_model(offset, inv_scale, coef, steps)"},
+    {"step_raw", (PyCFunction)(void (*)(void))Core_step_raw, METH_FASTCALL, "step_raw(time, u, gravity, override, out)"},
+    {"take_events", (PyCFunction)Core_take_events, METH_NOARGS, "take_events() -> the events since the last call"},
+    {"mount", (PyCFunction)Core_mount, METH_VARARGS, "mount(mass, (mc_x, mc_y, mc_z), sign)"},
+    {"identifying", (PyCFunction)Core_identifying, METH_VARARGS, "identifying(on)"},
+    {"adc_limits", (PyCFunction)Core_adc_limits, METH_VARARGS, "adc_limits(low, high) or adc_limits(None)"},
+    {"restart_checks", (PyCFunction)Core_restart_checks, METH_NOARGS, "restart_checks()"},
+    {"restart_clock", (PyCFunction)Core_restart_clock, METH_NOARGS, "restart_clock()"},
+    {"set_clock", (PyCFunction)Core_set_clock, METH_VARARGS, "set_clock(time or None)"},
+    {"state", (PyCFunction)Core_state, METH_NOARGS, "state() -> bytes"},
+    {"set_state", (PyCFunction)Core_set_state, METH_VARARGS, "set_state(bytes)"},
     {NULL, NULL, 0, NULL},
 };
 
@@ -433,9 +832,9 @@ PyMODINIT_FUNC PyInit__core(void)
     if (PyModule_AddObject(m, "Core", (PyObject *)&CoreType) < 0
         || PyModule_AddIntConstant(m, "MAX_INPUTS", FTCAL_CORE_N_INPUTS) < 0
         || PyModule_AddIntConstant(m, "MAX_TOOLS", FTCAL_CORE_N_TOOLS) < 0
-        || PyModule_AddIntConstant(m, "DRIFT_SNAPSHOTS", FTCAL_CORE_DRIFT_SNAPSHOTS) < 0
-        || PyModule_AddIntConstant(m, "SC_KEEP_HOLDS", FTCAL_CORE_SC_KEEP_HOLDS) < 0
-        || PyModule_AddIntConstant(m, "SC_WALK_KEEP", FTCAL_CORE_SC_WALK_KEEP) < 0
+        || PyModule_AddIntConstant(m, "DRIFT_SNAPSHOTS", FTCAL_LIVE_DRIFT_SNAPSHOTS) < 0
+        || PyModule_AddIntConstant(m, "SC_KEEP_HOLDS", FTCAL_LIVE_SC_KEEP_HOLDS) < 0
+        || PyModule_AddIntConstant(m, "SC_WALK_KEEP", FTCAL_LIVE_SC_WALK_KEEP) < 0
         || PyModule_AddIntConstant(m, "MAX_HOLDS", FTCAL_CORE_MAX_HOLDS) < 0) {
         Py_DECREF(&CoreType);
         Py_DECREF(m);

@@ -14,8 +14,8 @@ from .consistency import (CHI2_6_MEDIAN, CORRELATION_S, DIFF_CAP, GATED_FACTOR, 
 
 def selfcheck_macros(macro: str) -> str:
     """The self-check's size macros: the locked holds and the hold starts it keeps."""
-    return (f"#define {macro}_SC_KEEP_HOLDS {KEEP_HOLDS}   /* locked holds the self-check keeps */\n"
-            f"#define {macro}_SC_WALK_KEEP {WALK_KEEP}   /* hold starts the walk matching keeps */")
+    return (f"#define {macro}_SC_KEEP_HOLDS FTCAL_LIVE_SC_KEEP_HOLDS   /* {KEEP_HOLDS}: locked holds the self-check keeps */\n"
+            f"#define {macro}_SC_WALK_KEEP FTCAL_LIVE_SC_WALK_KEEP   /* {WALK_KEEP}: hold starts the walk matching keeps */")
 
 
 def selfcheck_config() -> dict:

@@ -1,7 +1,8 @@
 """The event log of the C core (``csrc/ftcal_live.h``, its event-log sections): kinds and texts as data.
 
 :class:`ftcal.live.LiveCalibrator` logs ``(time, flag, kind, reason)`` tuples in ``events``: tool
-switched, identifying, identified, re-tare, a flag raised or cleared. The C keeps the same events in a
+switched, identifying, identified, re-tare, a flag raised or cleared, the drift test's rollback and the
+self-check's adaptations, lock-outs, re-acquisitions and undone rollbacks. The C keeps the same events in a
 ring of ``NAME_MAX_EVENTS`` fixed-size structs in its state (:data:`~ftcal.core.limits.C_RUNTIME_MAX_EVENTS`
 unless the user defines ``NAME_MAX_EVENTS`` before the include): no allocation; past it the oldest is
 overwritten and counted (``NAME_events_dropped``). An event holds the numbers its text needs (tool
@@ -22,12 +23,16 @@ from .calibrator import RETARE_WARNING
 # Python's ``kind``)
 EVENT_KINDS = {"TOOL_SWITCHED": (1, "tool", "switched"), "TOOL_IDENTIFYING": (2, "tool", "identifying"),
                "TOOL_IDENTIFIED": (3, "tool", "identified"), "RETARE": (4, "bias", "retare"),
-               "FLAG_RAISED": (5, None, "raised"), "FLAG_CLEARED": (6, None, "cleared")}
+               "FLAG_RAISED": (5, None, "raised"), "FLAG_CLEARED": (6, None, "cleared"),
+               "ROLLBACK": (7, "bias", "rollback"), "TRACKER_ADAPTED": (8, "tracker", "adapted"),
+               "TRACKER_LOCKED_OUT": (9, "tracker", "locked_out"), "TRACKER_REACQUIRED": (10, "tracker", "reacquired"),
+               "TRACKER_UNDONE": (11, "tracker", "undone")}
 # Python's (flag, kind) of the events the C does not log ("silent": both kinds).
 PYTHON_ONLY = (("tool", "added"), ("silent", "raised"), ("silent", "cleared"), ("state", "resumed"))
-# Python's (flag, kind) of the events the C counts in its state instead of logging (rollbacks; the self-check's
-# sc_adaptations, sc_lockouts, sc_reacquisitions, each with the last one's time).
-COUNTED = (("bias", "rollback"), ("tracker", "adapted"), ("tracker", "locked_out"), ("tracker", "reacquired"))
+# Python's (flag, kind) of the events the C counts in its state instead of logging: none since the core logs the
+# drift test's rollbacks and the self-check's adaptations, lock-outs, re-acquisitions and undone rollbacks with
+# their numbers (it also counts them: rollbacks, sc_adaptations, ... with the last one's time).
+COUNTED = ()
 
 
 def event_macros(macro: str, max_events: int) -> str:

@@ -65,6 +65,7 @@ from ..files.targets import ConvertOptions, Written
 from ..runtime.atomic import write_text_atomic
 from ..runtime.errors import FtcalError
 from .c_consistency import selfcheck_config, selfcheck_macros
+from .c_limits import DRIFT_SNAPSHOTS
 from .c_events import event_macros, events_config
 from .c_health import health_config, health_macros
 from .c_identify import _array, _num, identify_config, status_macros
@@ -75,9 +76,9 @@ from .tracker import HOLDOFF_S, MIN_FAIL_S, gate_chi2
 
 DEFAULT_NAME = "ftcal_runtime"
 HISTORY = 1024
-# Snapshots the drift test's ring holds: snapshots are at least SNAPSHOT_S apart, so once the ring holds this many,
-# its second oldest is more than max(LAGS_S) old and the oldest can never be the newest one a lag needs.
-DRIFT_SNAPSHOTS = math.ceil(max(LAGS_S) / SNAPSHOT_S) + 2
+# DRIFT_SNAPSHOTS, the snapshots the drift test's ring holds, is declared once, in the core's text (c_limits):
+# snapshots are at least SNAPSHOT_S apart, so once the ring holds ceil(max(LAGS_S) / SNAPSHOT_S) + 2, its second
+# oldest is more than max(LAGS_S) old and the oldest can never be the newest one a lag needs (test_c_runtime_drift).
 
 
 def runtime_parameters(tools: dict) -> dict:
@@ -138,7 +139,8 @@ def core_config(model, tools: dict, *, max_holds: int = C_RUNTIME_MAX_HOLDS) -> 
 
     Parameters
     ----------
-    model : fitted static polynomial CalibrationModel with six outputs (its inputs, ranges and span)
+    model : fitted static polynomial CalibrationModel with six outputs (its inputs, ranges and span), or None: the
+        inputs are the wrench itself (six channels without a range)
     tools : mapping name → PayloadParameters (the library; ``"none"`` is tool 0)
     max_holds : the holds an identification keeps
 
@@ -153,13 +155,17 @@ def core_config(model, tools: dict, *, max_holds: int = C_RUNTIME_MAX_HOLDS) -> 
     """
     from ..report.runs import temperature_column
 
-    nu = len(model.input_names_)
-    t_col = temperature_column(model.input_names_)
-    channels = [j for j in range(nu) if j != t_col]
-    if not channels:
-        raise FtcalError("--to c-runtime: the model's only input is a temperature; the step needs sensor channels.")
-    rng = np.asarray(model.input_range_, float)
-    slack = RANGE_TOLERANCE * np.maximum(rng[:, 1] - rng[:, 0], 1.0)
+    if model is None:  # the wrench itself (LiveCalibrator without a model): six channels, no range, no span
+        nu, t_col, channels = 6, None, list(range(6))
+        rng, slack = np.tile([-np.inf, np.inf], (6, 1)), np.zeros(6)
+    else:
+        nu = len(model.input_names_)
+        t_col = temperature_column(model.input_names_)
+        channels = [j for j in range(nu) if j != t_col]
+        if not channels:
+            raise FtcalError("--to c-runtime: the model's only input is a temperature; the step needs sensor channels.")
+        rng = np.asarray(model.input_range_, float)
+        slack = RANGE_TOLERANCE * np.maximum(rng[:, 1] - rng[:, 0], 1.0)
     params = runtime_parameters(tools)
     names = [NO_TOOL, *tools]
     mass = [0.0] + [float(p.mass) for p in tools.values()]
@@ -174,7 +180,7 @@ def core_config(model, tools: dict, *, max_holds: int = C_RUNTIME_MAX_HOLDS) -> 
               "temperature": -1 if t_col is None else int(t_col),
               "temperature_low": 0.0 if t_col is None else rng[t_col, 0],
               "temperature_high": 0.0 if t_col is None else rng[t_col, 1],
-              **_span_config(model, nu),
+              **({"has_span": 0} if model is None else _span_config(model, nu)),
               "tool_mass": np.array(mass), "tool_mc": np.array(mc), "tool_sign": np.array(sign),
               "tool_names": names, "tool_reprs": [repr(t) for t in names],
               "noise_variance": params["noise_variance"], "walk_variance": params["walk_variance"],
@@ -298,7 +304,7 @@ extern "C" {{
 #ifndef {macro}_HISTORY
 #define {macro}_HISTORY {HISTORY}
 #endif
-#define {macro}_DRIFT_SNAPSHOTS {DRIFT_SNAPSHOTS}   /* the drift test's ring: {_num(max(LAGS_S))} s of snapshots {_num(SNAPSHOT_S)} s apart */
+#define {macro}_DRIFT_SNAPSHOTS FTCAL_LIVE_DRIFT_SNAPSHOTS   /* {DRIFT_SNAPSHOTS}: the drift test's ring: {_num(max(LAGS_S))} s of snapshots {_num(SNAPSHOT_S)} s apart */
 #define {macro}_DRIFT_LAGS {len(LAGS_S)}
 {selfcheck_macros(macro)}
 {health_macros(macro)}

@@ -5,13 +5,14 @@ See docs/live.md for the model, its gates and what each flag means. In short, fo
 1. the calibrated wrench ``w``: the model's prediction from the raw channels (or the wrench given);
 2. gravity in sensor axes from an orientation quaternion, a gravity vector or an accelerometer (IMU);
 3. the tool's gravity wrench ``Y(g) θ_tool`` (:func:`ftcal.payload.regressor.static_regressor`);
-4. ``z = w − tool``; the bias tracker (:mod:`ftcal.live.tracker`) updates on static samples whose
+4. ``z = w − tool``; the bias tracker (the C core, :mod:`ftcal.live.core`) updates on static samples whose
    innovation passes the χ² gate, and only predicts on the others;
 5. the compensated wrench is the innovation ``z − bias`` (the bias before the sample);
 6. health flags (:mod:`ftcal.live.health`).
 
 :meth:`LiveCalibrator.run` takes a block of samples and computes exactly what :meth:`LiveCalibrator.step`
-computes one at a time (the same formulas; the block's recursions are prefix scans).
+computes one at a time: both run the one C core (``csrc/ftcal_live.h``, the extension ``ftcal.live._core``) that
+``convert --to c-runtime`` ships; Python keeps the configuration, the gravity sources, files and texts.
 """
 
 from __future__ import annotations
@@ -28,15 +29,17 @@ import numpy as np
 from ..check.accept import Thresholds
 from ..core.limits import LIVE_MIN_HOLDS, MAX_CELL_MAGNITUDE
 from ..data.holds import HOLD_WINDOW_S, MIN_ANGULAR_RATE, MIN_HOLD_S
-from ..data.signals import SATURATION_RUN, STUCK_RUN
+from ..data.signals import SATURATION_RUN
 from ..payload.kinematics import QUATERNION_NORM_TOLERANCE, STANDARD_GRAVITY, gravity_from_quaternions
 from ..payload.parameters import PayloadParameters
 from ..runtime.errors import FtcalError
-from .health import BIT, DEAD_RUN, FLAGS, ExceedanceTimer, LoadChange, RunCounter, names_of
+from .health import BIT, FLAGS, names_of
 from .motion import MotionDetector
-from .consistency import Q_MAX, R_MAX, SelfCheck
-from .drift import FALSE_ALARM, DriftCheck
-from .tracker import HOLDOFF_S, MIN_FAIL_S, NO_FAILURE, TrackedBlock, failure_runs, gate_chi2, track_block
+from .consistency import (Q_MAX, R_MAX, locked_out_text, noise_adapted_text, reacquired_text, undone_text,
+                          walk_adapted_text)
+from .drift import FALSE_ALARM
+from .core import FIELDS
+from .tracker import HOLDOFF_S, gate_chi2
 
 NO_TOOL = "none"
 # What a re-tare while contact or unexplained is raised risks (its event's text and retare()'s warning; the C says it too).
@@ -58,6 +61,15 @@ RETARE_VARIANCE = 1e8
 # Events kept in memory (a long run keeps memory flat; the state file keeps the counters).
 MAX_EVENTS = 1000
 SECONDS_PER_HOUR = 3600.0
+
+
+@dataclass(frozen=True)
+class SelfCheckBounds:
+    """The self-check's reference r₀ (per sample) and q₀ (per s): it adapts r within [r₀, 25 r₀], q within
+    [q₀, 100 q₀] (:mod:`ftcal.live.consistency`)."""
+
+    noise0: list
+    walk0: list
 
 
 @dataclass
@@ -296,6 +308,12 @@ class LiveCalibrator:
     robot : gravity from joint positions, e.g. :class:`ftcal.robot.kinematics.SensorGravity` (a URDF, the
         F/T sensor, the joints given); then ``joints`` alone gives gravity (and the motion signal)
 
+    Raises
+    ------
+    FtcalError
+        A setting out of its range, a tool not in the library, a state file refused; or the compiled core
+        (``ftcal.live._core``) is not built: one line says how to build it.
+
     Examples
     --------
     >>> import numpy as np
@@ -332,8 +350,6 @@ class LiveCalibrator:
         self.model = model
         self.robot = robot
         self._reasons: dict[str, str] = {}  # flag -> the reason it was last raised with (outlives the event log)
-        self._tool_terms: dict = {}  # tool name -> (m, m·c, sign) in plain floats, for the per-sample path
-        self._constants = None  # q, r and the acceptance thresholds as lists, for the per-sample path
         self.tools: dict[str, PayloadParameters | None] = {NO_TOOL: None}
         self.identified: set[str] = set()  # tools identified in place: the state file carries them
         for name, payload in (tools or {}).items():
@@ -345,27 +361,25 @@ class LiveCalibrator:
         scale = np.repeat([self.thresholds.force, self.thresholds.torque], 3)
         self._accept_limit = scale
         noise_default, walk_default = tracker_defaults(self.tools.values(), self.thresholds)
-        self.noise_std = (np.maximum(self._vector(noise_std, "noise_std"), 1e-12) if noise_std is not None
-                          else np.sqrt(noise_default))
-        self.walk_variance = (self._vector(walk_std, "walk_std") ** 2 / SECONDS_PER_HOUR if walk_std is not None
-                              else walk_default)  # per second
+        noise = (np.maximum(self._vector(noise_std, "noise_std"), 1e-12) if noise_std is not None
+                 else np.sqrt(noise_default)) ** 2
+        walk = (self._vector(walk_std, "walk_std") ** 2 / SECONDS_PER_HOUR if walk_std is not None
+                else walk_default)  # per second
         # the wander's low-frequency density D = 2 s² τ (N²·s): the update's r is r + D / Δt (ftcal.live.tracker)
-        self.wander_density = tracker_wander(self.tools.values())
+        wander = tracker_wander(self.tools.values())
         self.threshold = gate_chi2(gate_probability)
-        self.self_check = SelfCheck((self.noise_std ** 2).tolist(), self.walk_variance.tolist(), self.threshold,
-                                    gate_probability) if self_check else None
-        self.drift = DriftCheck(gate_chi2(1.0 - FALSE_ALARM))  # the bias moving faster than the walk
         self.unexplained_sigma, self.unexplained_seconds = float(unexplained_sigma), float(unexplained_seconds)
         self.adc_limits = adc_limits
         model_temperature = self._model_temperature()
         self.temperature_range = temperature_range if temperature_range is not None else model_temperature
         self.gravity_magnitude = gravity_magnitude
-        self.motion = MotionDetector(motion_window, min_rate, min_hold)
-        self.runs = RunCounter()
-        self.loads = LoadChange()  # a load change that should have moved a channel (quantisation-aware)
-        self.unexplained_timer = ExceedanceTimer()
+        self.motion = MotionDetector(motion_window, min_rate, min_hold)  # quaternion and joint motion signals
+        self._core = self._make_core(noise, walk, wander, gate_probability, motion_window, min_rate, min_hold)
+        # the self-check's bounds r0 and q0 (LiveCalibrator(self_check=False): fixed q and r)
+        self.self_check = SelfCheckBounds(noise.tolist(), walk.tolist()) if self_check else None
+        if not self_check:
+            self._core.set_self_check(False)
         self.flags_now = 0
-        self.failure = NO_FAILURE  # the hold-off's state (ftcal.live.tracker.failure_runs)
         self.events: deque = deque(maxlen=MAX_EVENTS)
         self.counters = {"samples": 0, "updates": 0, "contacts": 0, "retares": 0, "switches": 0}
         self.last_time: float | None = None
@@ -440,6 +454,83 @@ class LiveCalibrator:
             self.bias = np.zeros(6)
             self.variance = RETARE_VARIANCE * self.noise_std ** 2
 
+    def _make_core(self, noise, walk, wander, gate_probability, motion_window, min_rate, min_hold):
+        """The C core (:class:`~ftcal.live.core.LiveCore`) with this calibrator's settings, the mounted tool in its one
+        slot; :func:`~ftcal.live.core.require_core` says in one line when the extension is not built."""
+        from .core import LiveCore, calibrator_config
+
+        config = calibrator_config(
+            self.model, self.temperature_range, noise_variance=noise, walk_variance=walk, wander_density=wander,
+            accept_limit=self._accept_limit, gate_chi2=self.threshold, drift_chi2=gate_chi2(1.0 - FALSE_ALARM),
+            gate_probability=float(gate_probability), unexplained_sigma=self.unexplained_sigma,
+            unexplained_seconds=self.unexplained_seconds, motion_window=float(motion_window),
+            min_rate=float(min_rate), min_hold=float(min_hold), holdoff=self.holdoff,
+            retare_variance=RETARE_VARIANCE)
+        core = LiveCore(self.model, {}, config=config)
+        # step() evaluates a polynomial model in the core's call (the same table as ftcal.core's kernels)
+        self._model_in_core = self.model is not None and core.set_model(self.model)
+        core.adc_limits(self.adc_limits)
+        self._temperature_fill = 0.0 if self.temperature_range is None else float(self.temperature_range[0])
+        self._core = core
+        self._mount()
+        return core
+
+    def _mount(self) -> None:
+        """The mounted tool's gravity terms into the core."""
+        payload = self.tools[self.tool]
+        if payload is None:
+            self._core.mount(0.0, (0.0, 0.0, 0.0), 1.0)
+        else:
+            mass = float(payload.mass)
+            self._core.mount(mass, mass * np.asarray(payload.com, float), -1.0 if payload.reaction else 1.0)
+
+    # the tracker's state and settings live in the core
+    @property
+    def bias(self) -> np.ndarray:
+        """ndarray of shape (6,): the bias estimate."""
+        return self._core.setting("bias")
+
+    @bias.setter
+    def bias(self, value) -> None:
+        self._core.set("bias", value)
+
+    @property
+    def variance(self) -> np.ndarray:
+        """ndarray of shape (6,): the bias estimate's variance per axis."""
+        return self._core.setting("variance")
+
+    @variance.setter
+    def variance(self, value) -> None:
+        self._core.set("variance", value)
+
+    @property
+    def noise_std(self) -> np.ndarray:
+        """ndarray of shape (6,): the per-sample noise standard deviation r½ (adapted by the self-check)."""
+        return np.sqrt(self._core.setting("noise_variance"))
+
+    @noise_std.setter
+    def noise_std(self, value) -> None:
+        self._core.set("noise_variance", np.asarray(value, float) ** 2)
+
+    @property
+    def walk_variance(self) -> np.ndarray:
+        """ndarray of shape (6,): the bias' walk variance per s, q (adapted by the self-check)."""
+        return self._core.setting("walk_variance")
+
+    @walk_variance.setter
+    def walk_variance(self, value) -> None:
+        self._core.set("walk_variance", value)
+
+    @property
+    def wander_density(self) -> np.ndarray:
+        """ndarray of shape (6,): the wander's low-frequency density ``D = 2 s² τ`` (N²·s); the update's r is
+        ``r + D / Δt`` (:mod:`ftcal.live.tracker`), zero for white noise."""
+        return self._core.setting("wander_density")
+
+    @wander_density.setter
+    def wander_density(self, value) -> None:
+        self._core.set("wander_density", value)
+
     # ----- the tool library -----------------------------------------------------------------------
     def add_tool(self, name: str, payload: PayloadParameters | str | Path, *, log: bool = True) -> None:
         """Add (or replace) a tool in the library: a payload or a payload file's path."""
@@ -453,7 +544,8 @@ class LiveCalibrator:
 
             payload = load_payload(payload)
         self.tools[name] = payload
-        self._tool_terms.pop(name, None)
+        if "_core" in self.__dict__ and name == self.tool:  # the constructor mounts its tool once the core is made
+            self._mount()
         if log:
             self._event("tool", "added", f"tool {name!r} added to the library ({payload.mass:.4g} kg)")
 
@@ -462,6 +554,7 @@ class LiveCalibrator:
         if name not in self.tools:
             raise FtcalError(f"tool {name!r} is not in the library ({', '.join(self.tools)}).")
         old, self.tool = self.tool, name
+        self._mount()
         self.counters["switches"] += 1
         self._event("tool", "switched", f"tool {old!r} -> {name!r}")
 
@@ -476,8 +569,7 @@ class LiveCalibrator:
             caused it, the next static samples take it into the bias (nothing can tell it from a bias
             the calibrator has just forgotten); it is also in the event's text.
         """
-        self.variance = np.maximum(self.variance, RETARE_VARIANCE * self.noise_std ** 2)
-        self._restart_checks()
+        self._core.retare()  # the variance to RETARE_VARIANCE r at least, the checks afresh
         self.counters["retares"] += 1
         raised = [name for name in ("contact", "unexplained") if self.flags_now & BIT[name]]
         warning = f"re-tare while {' and '.join(raised)} is raised: {RETARE_WARNING}" if raised else None
@@ -490,34 +582,13 @@ class LiveCalibrator:
         "moving"), the unexplained-wrench timer restarts; bias, variance, tool and counters are kept (a
         transport calls this when its publisher's clock restarted)."""
         self.motion = MotionDetector(self.motion.window, self.motion.min_rate, self.motion.min_hold)
-        self.unexplained_timer = ExceedanceTimer()
+        self._core.restart_clock()
         self.last_time = None
-        self._restart_checks()
         self._event("clock", "restarted", reason)
 
     def _restart_checks(self) -> None:
         """The bias was set on purpose (or the clock restarted): the drift test and the self-check start afresh."""
-        self.drift.reset()
-        self.failure = NO_FAILURE
-        if self.self_check is not None:
-            self.self_check.reset(self.last_time)
-
-    def _apply_self_check(self, t: float, bias: list, variance: list) -> tuple[list, list, bool]:
-        """The self-check at a snapshot time: events logged, r and q replaced, the bias re-acquired; returns the
-        (bias, variance) to go on with and whether anything changed."""
-        events, noise, walk, acquired = self.self_check.check(t, bias, (self.noise_std ** 2).tolist(),
-                                                              self.walk_variance.tolist(), list(variance),
-                                                              self.drift)
-        if events:
-            self._log([(t, "tracker", kind, text) for kind, text in events])
-        if noise is not None:
-            self.noise_std = np.sqrt(np.asarray(noise, float))
-        if walk is not None:
-            self.walk_variance = np.asarray(walk, float)
-        if acquired is not None:
-            bias, variance = list(acquired[0]), list(acquired[1])
-            self.drift.reset()
-        return bias, variance, noise is not None or walk is not None or acquired is not None
+        self._core.restart_checks()
 
     # ----- identification in place ----------------------------------------------------------------
     def start_identification(self, name: str) -> None:
@@ -525,6 +596,7 @@ class LiveCalibrator:
         if not isinstance(name, str) or not name or name == NO_TOOL:
             raise FtcalError(f"a tool needs a name other than {NO_TOOL!r}; got {name!r}.")
         self.identifying = _Identification(name)
+        self._core.identifying(True)
         self._event("tool", "identifying", f"identifying tool {name!r}: hold the sensor still in varied poses")
 
     def finish_identification(self, *, mount: bool = True, save_to: str | Path | None = None) -> PayloadParameters:
@@ -560,6 +632,7 @@ class LiveCalibrator:
                              f"{LIVE_MIN_HOLDS} "
                              "in different orientations are needed.")
         self.identifying = None
+        self._core.identifying(False)
         total = holds[0]
         for h in holds[1:]:
             total = total + h
@@ -588,18 +661,13 @@ class LiveCalibrator:
              joints=None, temperature=None, static=None) -> LiveSample:
         """Process one sample; the arguments are those of :meth:`run` for a single sample (vectors, scalars).
 
-        One sample runs in plain Python floats (no numpy for 6-vectors): the same formulas as
-        :meth:`run`, whose block recursions are prefix scans. Input it cannot take that way (an
-        identification in progress, or input :meth:`run` rejects, for its message) goes through
-        :meth:`run`.
-
         Returns
         -------
         LiveSample
         """
         if static is not None and not isinstance(static, (bool, np.bool_)):
             raise FtcalError(f"static must be True, False or None; got {static!r} ({type(static).__name__}).")
-        sample = self._step_one(time, raw, wrench, gravity, quaternion, imu, joints, temperature, static)
+        sample = self._step_core(time, raw, wrench, gravity, quaternion, imu, joints, temperature, static)
         if sample is not None:
             return sample
 
@@ -619,6 +687,79 @@ class LiveCalibrator:
         return LiveSample(float(r.time[0]), r.calibrated[0], r.compensated[0], r.bias[0], r.bias_std[0],
                           bool(r.static[0]), bool(r.updated[0]),
                           {name: reasons.get(name, self.reason_of(name)) for name in names_of(bits)}, r.tool)
+
+    def _step_core(self, time, raw, wrench, gravity, quaternion, imu, joints, temperature, static):
+        """:meth:`step` as one call of the core with the least Python around it; None when :meth:`run` must take the
+        sample (an identification, joints, a temperature given, or input the core refuses: :meth:`run` says why).
+        The core refuses before it changes anything, so :meth:`run` meets the state the sample would have met."""
+        if (self.identifying is not None or joints is not None or temperature is not None or (raw is None) == (
+                wrench is None) or (gravity is not None) + (quaternion is not None) + (imu is not None) != 1):
+            return None
+        try:
+            t = float(time)
+            if raw is not None:
+                if self.model is None:
+                    return None
+                u = raw
+                # the model evaluated in the core's call; with a quaternion's motion test first, in Python (what
+                # the core would refuse is known before the motion test keeps the sample)
+                w = None if self._model_in_core and (quaternion is None or static is not None) \
+                    else self._row_predict()(raw)
+            else:
+                u = w = wrench
+            override = -1 if static is None else int(bool(static))
+            if quaternion is not None:
+                qx, qy, qz, qw = quaternion.tolist() if isinstance(quaternion, np.ndarray) else map(float, quaternion)
+                norm = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
+                if not abs(norm - 1.0) <= QUATERNION_NORM_TOLERANCE:
+                    return None
+                qx, qy, qz, qw = signal = (qx / norm, qy / norm, qz / norm, qw / norm)
+                gm = -self.gravity_magnitude
+                g = (gm * (2.0 * (qx * qz - qw * qy)), gm * (2.0 * (qy * qz + qw * qx)),
+                     gm * (1.0 - 2.0 * (qx * qx + qy * qy)))
+            else:
+                g = gravity if gravity is not None else [-float(v) for v in imu]
+            if self.last_time is not None and not t > self.last_time:
+                return None
+            temp = self._temperature_fill if self._temperature_input is None else float(u[self._temperature_input])
+            x = [*(u.tolist() if isinstance(u, np.ndarray) else u), temp]
+            if quaternion is not None and static is None:  # a quaternion's angle: the Python motion test decides
+                # (it keeps the sample: first what the core would refuse, so that run() meets the same state)
+                values = [*x, *(w.tolist() if isinstance(w, np.ndarray) else w)]
+                if not (math.isfinite(sum(values)) and max(values) <= MAX_CELL_MAGNITUDE
+                        and min(values) >= -MAX_CELL_MAGNITUDE):
+                    return None
+                override = int(self.motion.static_one(t, "quaternion", signal)[0])
+            out = np.empty(FIELDS)
+            logged = (self._core.step_raw(t, x, g, override, out) if w is None
+                      else self._core.step(t, x, w, g, override, out))
+        except (TypeError, ValueError):
+            return None
+        if logged < 0:
+            return None
+        self.last_time = t
+        code, bits = int(out[25]), int(out[26])
+        self.counters["samples"] += 1
+        self.counters["updates"] += code >> 1
+        if logged:
+            events = self._texts(self._core.take_events(), [temp])
+            self._log(events)
+            self.counters["contacts"] += sum(1 for e in events if e[1] == "contact" and e[2] == "raised")
+        self.flags_now = bits | (self.flags_now & BIT["silent"])
+        return LiveSample(t, out[0:6], out[6:12], out[12:18], out[18:24], bool(code & 1), bool(code >> 1),
+                          {name: self._reasons.get(name, name) for name in _NAMES_OF_BITS[bits]} if bits else {},
+                          self.tool)
+
+    def _row_predict(self):
+        """The model's one-sample predictor (:meth:`CalibrationModel.row_predictor`), made once per model."""
+        cached = getattr(self, "_row_predictor", None)
+        if cached is None or cached[0] is not self.model:
+            one = getattr(self.model, "row_predictor", lambda: None)()
+            if one is None:  # a family without one: predict()'s own path
+                model = self.model
+                one = lambda u: model.predict(np.array([u]), warn_out_of_range=False)[0]  # noqa: E731
+            cached = self._row_predictor = (self.model, one)
+        return cached[1]
 
     def run(self, time, *, raw=None, wrench=None, gravity=None, quaternion=None, imu=None, joints=None,
             temperature=None, static=None) -> LiveResult:
@@ -663,89 +804,29 @@ class LiveCalibrator:
             still = given.astype(bool).reshape(-1)
             if still.size != n:
                 raise FtcalError(f"static has {still.size} values for {n} samples.")
-            moving = ~still
-        else:
-            still, moving = self.motion.static(t, kind, signal)
-        payload = self.tools[self.tool]
-        z = w - tool_wrench(payload, g)
-        dt = np.empty(n)
-        dt[0] = 0.0 if self.last_time is None else t[0] - self.last_time
-        dt[1:] = t[1:] - t[:-1]
-        gate_static = still & (self.identifying is None)
-        tracked = self._track(t, z, dt, gate_static, g)
+            override = still.astype(np.int32)
+        elif kind == "direction":
+            override = None  # the core's motion test on the gravity direction
+        else:  # a quaternion's angle or the fastest joint: the motion test in Python, its decision to the core
+            override = self.motion.static(t, kind, signal)[0].astype(np.int32)
+        temp = self._temperature(temperature, u, n)
+        x = np.empty((n, u.shape[1] + 1))
+        x[:, :-1] = u
+        x[:, -1] = self._temperature_fill if temp is None else np.where(
+            temp >= -MAX_CELL_MAGNITUDE, np.minimum(temp, MAX_CELL_MAGNITUDE), MAX_CELL_MAGNITUDE)  # NaN: outside
+        out, core_events = self._core.run_wrench(t, x, w, g, override)
         if self.identifying is not None:
-            self.identifying.add(w, g, still)
-        flags, reasons = self._health(t, u, w, temperature, still, moving, tracked)
-        self.bias, self.variance = tracked.bias[-1].copy(), tracked.variance[-1].copy()
+            self.identifying.add(w, g, out["static"])
+        logged = self._texts(core_events, temp)
+        self._log(logged)  # in the core's order: by sample, the tracker's before the flags'
+        flag_events = [e for e in logged if e[2] in ("raised", "cleared")]
+        self.flags_now = int(out["flags"][-1]) | (self.flags_now & BIT["silent"])
         self.last_time = float(t[-1])
         self.counters["samples"] += n
-        self.counters["updates"] += int(tracked.updated.sum())
-        events = self._flag_events(t, flags, reasons)
-        self.counters["contacts"] += sum(1 for e in events if e[1] == "contact" and e[2] == "raised")
-        return LiveResult(t, w, tracked.innovation, tracked.bias, np.sqrt(tracked.variance), still, tracked.updated,
-                          tracked.chi2, flags, self.tool, events)
-
-    def _track(self, t, z, dt, gate_static, g) -> TrackedBlock:
-        """:func:`~ftcal.live.tracker.track_block` with the drift test (:mod:`ftcal.live.drift`) and the self-check
-        (:mod:`ftcal.live.consistency`) at the snapshot times: where the bias goes back, is re-acquired, or q or r
-        change, the rest of the block is tracked again from there."""
-        n, start, parts = t.size, 0, []
-        bias, variance, limit = self.bias, self.variance, self._accept_limit.tolist()
-        direction = g / np.linalg.norm(g, axis=1, keepdims=True) if self.self_check is not None else None
-        while start < n:
-            walk, noise = self.walk_variance.tolist(), self.noise_std ** 2
-            part = track_block(z[start:], dt[start:], gate_static[start:], bias, variance, self.walk_variance,
-                               noise, self.threshold, t[start:], self.failure, self.holdoff, self.wander_density)
-            times = t[start:]
-            k = int(np.searchsorted(times, self.drift.next_due)) if times[0] < self.drift.next_due else 0
-            seen, cut = 0, None
-            while k < times.size:
-                b, p = part.bias[k].tolist(), part.variance[k].tolist()
-                back = self.drift.check(float(times[k]), b, p, walk, limit)
-                if back is not None:
-                    b, p = back[0], back[1]
-                    part.bias[k], part.variance[k] = b, p  # the state after the sample (the self-check's too)
-                    self._log([(float(times[k]), "bias", "rollback", _rollback_text(back))])
-                changed = back is not None
-                if self.self_check is not None:
-                    self._observe(part, times, gate_static[start:], z[start:], direction[start:], noise, seen, k + 1)
-                    seen = k + 1
-                    b, p, adapted = self._apply_self_check(float(times[k]), b, p)
-                    changed = changed or adapted
-                if changed:
-                    cut = (k, b, p)
-                    break
-                k = int(np.searchsorted(times, self.drift.next_due))
-            if cut is None:
-                self.failure = part.carry
-                if self.self_check is not None:
-                    self._observe(part, times, gate_static[start:], z[start:], direction[start:], noise, seen,
-                                  times.size)
-                parts.append(part)
-                break
-            k, b, p = cut
-            failed = gate_static[start:start + k + 1] & ~(part.chi2[:k + 1] < self.threshold)
-            last, first = failure_runs(times[:k + 1], failed, self.failure)
-            self.failure = (float(last[-1]), float(first[-1]), bool(failed[-1]))
-            part.bias[k], part.variance[k] = b, p
-            parts.append(TrackedBlock(*(getattr(part, f)[:k + 1] for f in ("bias", "variance", "innovation",
-                                                                             "innovation_variance", "chi2",
-                                                                             "updated")), part.passes))
-            bias, variance, start = part.bias[k].copy(), part.variance[k].copy(), start + k + 1
-        if len(parts) == 1:
-            return parts[0]
-        return TrackedBlock(*(np.concatenate([getattr(p, f) for p in parts]) for f in
-                              ("bias", "variance", "innovation", "innovation_variance", "chi2", "updated")),
-                            sum(p.passes for p in parts))
-
-    def _observe(self, part, times, still, z, direction, noise, a, b) -> None:
-        """Samples a:b of a tracked part into the self-check's sums."""
-        if b <= a:
-            return
-        s = part.innovation_variance[a:b]
-        gated = ~part.updated[a:b] & (part.chi2[a:b] >= self.threshold)
-        self.self_check.observe_block(times[a:b], still[a:b], part.updated[a:b], gated, z[a:b], part.innovation[a:b],
-                                      s - noise, s, direction[a:b], part.bias[a:b], part.variance[a:b])
+        self.counters["updates"] += int(np.count_nonzero(out["updated"]))
+        self.counters["contacts"] += sum(1 for e in flag_events if e[1] == "contact" and e[2] == "raised")
+        return LiveResult(t, w, out["compensated"], out["bias"], out["bias_std"], out["static"], out["updated"],
+                          out["chi2"], out["flags"], self.tool, flag_events)
 
     def _empty(self) -> LiveResult:
         z6 = np.empty((0, 6))
@@ -805,66 +886,61 @@ class LiveCalibrator:
             kind = "joints"
         return g, kind, signal
 
-    def _health(self, t, u, w, temperature, still, moving, tracked):
-        n = t.size
-        flags = np.zeros(n, np.uint16)
-        reasons: dict = {}  # flag -> function of a sample index giving the reason
-        names = self.model.input_names_ if self.model is not None else ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
-        t_col = self._temperature_input
-        channels = [j for j in range(u.shape[1]) if j != t_col]
-        x = u[:, channels]
-        run, changed = self.runs.update(x)
-        stuck = (run >= STUCK_RUN) & self.loads.update(x, changed)
-        dead = stuck & (run >= DEAD_RUN)
-
-        def set_flag(name, mask_by_channel, text):
-            hit = mask_by_channel.any(axis=1) if mask_by_channel.ndim == 2 else mask_by_channel
-            if hit.any():
-                flags[hit] |= BIT[name]
-                reasons[name] = lambda k: text(k, mask_by_channel[k] if mask_by_channel.ndim == 2 else None)
-
-        def channel_names(row):
-            return ", ".join(names[channels[j]] for j in np.flatnonzero(row))
-
-        why = self._saturation_why()
-        if self.adc_limits is not None:
-            low, high = self.adc_limits
-            saturated = (x <= low) | (x >= high)
-        elif self.model is not None:
-            rng = self.model.input_range_[channels]
-            outside = (x < rng[:, 0]) | (x > rng[:, 1])
-            saturated = outside & (run >= SATURATION_RUN)
-        else:
-            saturated = np.zeros_like(x, bool)
-        set_flag("saturated", saturated, lambda k, row: _saturated_text(channel_names(row), why))
-        set_flag("stuck", stuck & ~dead, lambda k, row: _stuck_text(channel_names(row), int(run[k][row].max())))
-        set_flag("dead", dead, lambda k, row: _dead_text(channel_names(row), int(run[k][row].max())))
-        if self.model is not None:
-            outside = np.asarray(self.model.out_of_range(u), bool)
-            set_flag("out_of_range", outside, lambda k, _: OUT_OF_RANGE_TEXT)
-        temp = None
+    def _temperature(self, temperature, u, n) -> np.ndarray | None:
+        """The temperature the health test reads: the one given, else the model's temperature input, else None."""
         if temperature is not None:
             temp = np.asarray(temperature, dtype=float).reshape(-1)
             if temp.size != n:
                 raise FtcalError(f"temperature has {temp.size} values for {n} samples.")
-        elif t_col is not None:
-            temp = u[:, t_col]
-        if temp is not None and self.temperature_range is not None:
-            lo, hi = self.temperature_range
-            hot = ~((temp >= lo) & (temp <= hi))
-            set_flag("temperature", hot, lambda k, _: _temperature_text(temp[k], lo, hi))
-        contact = still & ~tracked.updated & (tracked.chi2 >= self.threshold) & (self.identifying is None)
-        set_flag("contact", contact, lambda k, _: self._contact_text(tracked.chi2[k]))
-        sigma = np.sqrt(tracked.innovation_variance)
-        limit = self._accept_limit
-        beyond = (np.abs(tracked.innovation) > np.maximum(self.unexplained_sigma * sigma, limit)).any(axis=1)
-        if self.identifying is not None:
-            beyond[:] = False
-        duration = self.unexplained_timer.update(t, beyond)
-        unexplained = duration >= self.unexplained_seconds
-        set_flag("unexplained", unexplained, lambda k, _: self._unexplained_text(duration[k],
-                                                                                  tracked.innovation[k].tolist()))
-        return flags, reasons
+            return temp
+        return None if self._temperature_input is None else u[:, self._temperature_input]
+
+    def _texts(self, core_events, temp) -> list:
+        """The core's events of a block as (time, flag, kind, reason), in its order: the flags' raised and cleared
+        (flags in bit order) and the tracker's (the drift test's rollbacks, the self-check's)."""
+        from .c_events import EVENT_KINDS
+
+        code = {key: value[0] for key, value in EVENT_KINDS.items()}
+        flags = tracker = []
+        names = self.model.input_names_ if self.model is not None else AXES
+        channels = [j for j in range(len(names)) if j != self._temperature_input]
+
+        def listed(mask):
+            return ", ".join(names[channels[j]] for j, on in enumerate(mask) if on)
+
+        for kind, k, time, bit, count, mask, value, extra in core_events:
+            if kind in (code["FLAG_RAISED"], code["FLAG_CLEARED"]):
+                name = FLAGS[bit.bit_length() - 1]
+                if kind == code["FLAG_CLEARED"]:
+                    flags.append((time, name, "cleared", f"{name} cleared"))
+                    continue
+                if name == "saturated":
+                    text = _saturated_text(listed(mask), self._saturation_why())
+                elif name == "stuck":
+                    text = _stuck_text(listed(mask), count)
+                elif name == "dead":
+                    text = _dead_text(listed(mask), count)
+                elif name == "out_of_range":
+                    text = OUT_OF_RANGE_TEXT
+                elif name == "temperature":
+                    text = _temperature_text(float(temp[k]), *self.temperature_range)
+                elif name == "contact":
+                    text = self._contact_text(value[0])
+                else:
+                    text = self._unexplained_text(value[2], list(value[3:9]))
+                flags.append((time, name, "raised", text))
+            elif kind == code["ROLLBACK"]:
+                tracker.append((time, "bias", "rollback", _rollback_text((None, None, *value[:3]))))
+            elif kind == code["TRACKER_ADAPTED"]:
+                tracker.append((time, "tracker", "adapted", walk_adapted_text(count, value[0], extra) if count else
+                                noise_adapted_text(value[0], int(value[1]), int(value[2]), value[3], value[4], extra)))
+            elif kind == code["TRACKER_LOCKED_OUT"]:
+                tracker.append((time, "tracker", "locked_out", locked_out_text(value[0])))
+            elif kind == code["TRACKER_REACQUIRED"]:
+                tracker.append((time, "tracker", "reacquired", reacquired_text(*value[:3], extra)))
+            elif kind == code["TRACKER_UNDONE"]:
+                tracker.append((time, "tracker", "undone", undone_text(value[0])))
+        return flags
 
     def _saturation_why(self) -> str:
         if self.adc_limits is not None:
@@ -880,277 +956,9 @@ class LiveCalibrator:
                 f"{duration:.3g} s (> {self.unexplained_seconds:g} s): |compensated| = "
                 + ", ".join(f"{abs(v):.3g}" for v in innovation))
 
-    # ----- one sample in plain floats -------------------------------------------------------------
-    def _tool_terms_of(self, name: str) -> tuple[float, tuple, float]:
-        """(m, m·c, sign) of a tool as plain floats: its gravity wrench is sign·(m g, (m c) × g)."""
-        terms = self._tool_terms.get(name)
-        if terms is None:
-            payload = self.tools[name]
-            if payload is None:
-                terms = (0.0, (0.0, 0.0, 0.0), 1.0)
-            else:
-                mass = float(payload.mass)
-                terms = (mass, tuple(mass * float(c) for c in payload.com), -1.0 if payload.reaction else 1.0)
-            self._tool_terms[name] = terms
-        return terms
-
-    def _row_predict(self):
-        """The model's one-sample predictor (:meth:`CalibrationModel.row_predictor`), made once per model."""
-        cached = getattr(self, "_row_predictor", None)
-        if cached is None or cached[0] is not self.model:
-            one = getattr(self.model, "row_predictor", lambda: None)()
-            if one is None:  # a family or an ARX model without one: predict()'s own path
-                model = self.model
-                one = lambda u: model.predict(np.array([u]), warn_out_of_range=False)[0]  # noqa: E731
-            cached = self._row_predictor = (self.model, one)
-        return cached[1]
-
-    def _row_outside(self):
-        """The model's one-sample range-and-span test (:meth:`CalibrationModel.row_range_test`), made once."""
-        cached = getattr(self, "_row_range_test", None)
-        if cached is None or cached[0] is not self.model:
-            test = getattr(self.model, "row_range_test", lambda: None)()
-            if test is None:  # a family without one: out_of_range() on one row
-                model = self.model
-                test = lambda u: bool(model.out_of_range(np.array([u]))[0])  # noqa: E731
-            cached = self._row_range_test = (self.model, test)
-        return cached[1]
-
-    def _step_one(self, time, raw, wrench, gravity, quaternion, imu, joints, temperature,
-                  static) -> LiveSample | None:
-        """:meth:`step` in plain floats; None when :meth:`run` must take the sample (see :meth:`step`).
-
-        Every check comes before the first change of state, so a sample handed on to :meth:`run`
-        meets the state it would have met.
-        """
-        if self.identifying is not None:
-            return None
-        try:
-            t = float(time)
-            if (raw is None) == (wrench is None):
-                return None
-            if raw is not None:
-                if self.model is None:
-                    return None
-                u = _plain(raw, len(self.model.input_names_))
-                if u is None:
-                    return None
-                w = _plain(self._row_predict()(u).tolist(), 6)
-                if w is None:
-                    return None
-            else:
-                u = w = _plain(wrench, 6)
-                if w is None:
-                    return None
-            sources = (gravity is not None) + (quaternion is not None) + (imu is not None)
-            if sources == 0 and joints is not None and self.robot is not None:
-                q = _plain(joints, len(self.robot.joints))
-                if q is None:
-                    return None
-                g, kind, signal = self.robot.one(q), "joints", tuple(q)
-            elif sources != 1:
-                return None
-            elif quaternion is not None:
-                q = _plain(quaternion, 4)
-                if q is None:
-                    return None
-                norm = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
-                if abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE:
-                    return None
-                qx, qy, qz, qw = signal = (q[0] / norm, q[1] / norm, q[2] / norm, q[3] / norm)
-                gm = -self.gravity_magnitude
-                g = (gm * (2.0 * (qx * qz - qw * qy)), gm * (2.0 * (qy * qz + qw * qx)),
-                     gm * (1.0 - 2.0 * (qx * qx + qy * qy)))
-                kind = "quaternion"
-            else:
-                g = _plain(gravity if gravity is not None else imu, 3)
-                # no direction: zero, or so short that its squared length underflows (5e-324 m/s²), as run() and
-                # the C step judge it (the motion test divides by the length)
-                if g is None or g[0] * g[0] + g[1] * g[1] + g[2] * g[2] == 0.0:
-                    return None
-                if imu is not None:
-                    g = [-g[0], -g[1], -g[2]]
-                kind, signal = "direction", tuple(g)
-            if joints is not None and quaternion is None and kind != "joints":
-                signal = _plain(joints, None)
-                if signal is None:
-                    return None
-                kind, signal = "joints", tuple(signal)
-            temp = None if temperature is None else float(temperature)
-        except (TypeError, ValueError):
-            return None
-        if not math.isfinite(t) or (self.last_time is not None and t <= self.last_time):
-            return None
-        # ----- valid: from here on the state changes -----
-        if static is not None:
-            still = bool(static)
-            moving = not still
-        else:
-            still, moving = self.motion.static_one(t, kind, signal)
-        mass, (m0, m1, m2), sign = self._tool_terms_of(self.tool)
-        gx, gy, gz = g
-        tool = (mass * gx, mass * gy, mass * gz, m1 * gz - m2 * gy, m2 * gx - m0 * gz, m0 * gy - m1 * gx)
-        dt = 0.0 if self.last_time is None else t - self.last_time
-        bias, variance = self.bias.tolist(), self.variance.tolist()
-        walk, noise, limit = self._plain_constants()
-        z = [a - sign * b for a, b in zip(w, tool)]
-        predicted = [p + q * dt for p, q in zip(variance, walk)]
-        innovation_var = [p + r for p, r in zip(predicted, noise)]
-        innovation = [a - b for a, b in zip(z, bias)]
-        chi2 = sum([e * (e / v) for e, v in zip(innovation, innovation_var)])
-        k2 = self.unexplained_sigma * self.unexplained_sigma
-        # |e| > max(k σ, acceptance threshold), σ = √S
-        beyond = any([e * e > k2 * v and abs(e) > a for e, v, a in zip(innovation, innovation_var, limit)])
-        last_fail, fail_start, previous = self.failure
-        held = last_fail - fail_start >= MIN_FAIL_S and t - last_fail < self.holdoff
-        updated = still and chi2 < self.threshold and not held
-        failed = still and not chi2 < self.threshold
-        if failed:
-            self.failure = (t, fail_start if previous else t, True)
-        elif previous:
-            self.failure = (last_fail, fail_start, False)
-        if updated:
-            total, r_u = innovation_var, noise
-            density = self._wander_list()
-            if dt > 0 and density is not None:  # the update's r: r + D / Δt (the tracker's update_noise)
-                r_u = [r + d / dt if d > 0 else r for r, d in zip(noise, density)]
-                total = [p + r for p, r in zip(predicted, r_u)]
-            gain = [p / v for p, v in zip(predicted, total)]
-            bias = [(1.0 - k) * b + k * c for k, b, c in zip(gain, bias, z)]
-            variance = [p * r / v for p, r, v in zip(predicted, r_u, total)]
-        else:
-            variance = predicted
-        due = t >= self.drift.next_due
-        if due:
-            back = self.drift.check(t, bias, variance, walk, limit)
-            if back is not None:
-                bias, variance = back[0], back[1]
-                self._log([(t, "bias", "rollback", _rollback_text(back))])
-        if self.self_check is not None:
-            size = math.sqrt(gx * gx + gy * gy + gz * gz)
-            self.self_check.observe_one(t, still, updated, still and not updated and chi2 >= self.threshold, z,
-                                        innovation, predicted, innovation_var, (gx / size, gy / size, gz / size), bias,
-                                        variance)
-            if due:
-                bias, variance, _ = self._apply_self_check(t, bias, variance)
-        # ----- health -----
-        t_col = self._temperature_input
-        x = u if t_col is None else [v for j, v in enumerate(u) if j != t_col]
-        run, changed = self.runs.update_one(x)
-        stuck = [r >= STUCK_RUN and m for r, m in zip(run, self.loads.update_one(x, changed))]
-        bits = 0
-        texts = {}
-        if self.adc_limits is not None:
-            low, high = self.adc_limits
-            saturated = [v <= low or v >= high for v in x]
-        elif self.model is not None:
-            ranges = self.model.input_range_.tolist()
-            channels = [j for j in range(len(u)) if j != t_col]
-            saturated = [(v < ranges[c][0] or v > ranges[c][1]) and r >= SATURATION_RUN
-                         for v, c, r in zip(x, channels, run)]
-        else:
-            saturated = None
-
-        def listed(mask):
-            names = self.model.input_names_ if self.model is not None else AXES
-            return ", ".join(names[j] for j, m in zip([j for j in range(len(u)) if j != t_col], mask) if m)
-
-        if saturated is not None and any(saturated):
-            bits |= BIT["saturated"]
-            texts["saturated"] = lambda: _saturated_text(listed(saturated), self._saturation_why())
-        if any(stuck):
-            dead = [s and r >= DEAD_RUN for s, r in zip(stuck, run)]
-            only = [s and not d for s, d in zip(stuck, dead)]
-            if any(only):
-                bits |= BIT["stuck"]
-                texts["stuck"] = lambda: _stuck_text(listed(only), max(r for r, m in zip(run, only) if m))
-            if any(dead):
-                bits |= BIT["dead"]
-                texts["dead"] = lambda: _dead_text(listed(dead), max(r for r, m in zip(run, dead) if m))
-        if self.model is not None and self._row_outside()(u):
-            bits |= BIT["out_of_range"]
-            texts["out_of_range"] = lambda: OUT_OF_RANGE_TEXT
-        if temp is None and t_col is not None:
-            temp = u[t_col]
-        if temp is not None and self.temperature_range is not None:
-            lo, hi = self.temperature_range
-            if not lo <= temp <= hi:
-                bits |= BIT["temperature"]
-                texts["temperature"] = lambda: _temperature_text(temp, lo, hi)
-        if still and not updated and chi2 >= self.threshold:
-            bits |= BIT["contact"]
-            texts["contact"] = lambda: self._contact_text(chi2)
-        duration = self.unexplained_timer.update_one(t, beyond)
-        if duration >= self.unexplained_seconds:
-            bits |= BIT["unexplained"]
-            texts["unexplained"] = lambda: self._unexplained_text(duration, innovation)
-        # ----- events, state, result -----
-        silent = self.flags_now & BIT["silent"]
-        before = self.flags_now & ~BIT["silent"]
-        reasons = {}
-        if bits != before:
-            events = []
-            for name in FLAGS:
-                bit = BIT[name]
-                if name != "silent" and (bits & bit) != (before & bit):
-                    if bits & bit:
-                        reasons[name] = texts[name]()
-                        events.append((t, name, "raised", reasons[name]))
-                    else:
-                        events.append((t, name, "cleared", f"{name} cleared"))
-            self._log(events)
-            self.counters["contacts"] += "contact" in reasons
-        self.flags_now = bits | silent
-        # New arrays every sample (never changed in place), so the result may share them.
-        self.bias, self.variance = np.array(bias), np.array(variance)
-        self.last_time = t
-        self.counters["samples"] += 1
-        self.counters["updates"] += updated
-        flags = {name: reasons[name] if name in reasons else self._reasons.get(name, name)
-                 for name in FLAGS if bits & BIT[name]} if bits else {}
-        return LiveSample(t, np.array(w), np.array(innovation), self.bias, np.sqrt(self.variance), still, updated,
-                          flags, self.tool)
-
-    def _plain_constants(self) -> tuple[list, list, list]:
-        """Walk variances q, noise variances r and acceptance thresholds as lists (refreshed if replaced)."""
-        key = (id(self.walk_variance), id(self.noise_std), id(self._accept_limit))
-        if self._constants is None or self._constants[0] != key:
-            self._constants = (key, (self.walk_variance.tolist(), (self.noise_std ** 2).tolist(),
-                                     self._accept_limit.tolist()))
-        return self._constants[1]
-
-    def _wander_list(self) -> list | None:
-        """The wander density D as a list, None when it is zero on every axis (refreshed if replaced)."""
-        if getattr(self, "_wander_key", None) is not self.wander_density:
-            self._wander_key = self.wander_density
-            self._wander_cached = self.wander_density.tolist() if np.any(self.wander_density) else None
-        return self._wander_cached
-
     def reason_of(self, name: str) -> str:
         """The reason logged when flag ``name`` was last raised (its name if none is logged)."""
         return self._reasons.get(name, name)
-
-    def _flag_events(self, t, flags, reasons) -> list:
-        """Raised and cleared flags over the block (transitions only), logged and returned."""
-        events = []
-        previous = np.empty_like(flags)
-        previous[0] = self.flags_now & ~BIT["silent"]
-        previous[1:] = flags[:-1]
-        if not np.any(flags != previous):  # nothing raised or cleared (the usual sample)
-            self.flags_now = (int(flags[-1]) & ~BIT["silent"]) | (self.flags_now & BIT["silent"])
-            return events
-        for name in FLAGS:
-            if name == "silent":
-                continue
-            bit = BIT[name]
-            on, before = (flags & bit) != 0, (previous & bit) != 0
-            for k in np.flatnonzero(on != before):
-                kind = "raised" if on[k] else "cleared"
-                events.append((float(t[k]), name, kind, reasons[name](k) if on[k] else f"{name} cleared"))
-        events.sort(key=lambda e: e[0])
-        self.flags_now = (int(flags[-1]) & ~BIT["silent"]) | (self.flags_now & BIT["silent"])
-        self._log(events)
-        return events
 
     def _log(self, events) -> None:
         self.events.extend(events)
@@ -1300,9 +1108,9 @@ class LiveCalibrator:
             if self.tools.get(name) is not None:
                 self._event("tool", "replaced", f"tool {name!r} as identified in place (from {path}), not as its file")
             self.tools[name] = payload
-            self._tool_terms.pop(name, None)
             self.identified.add(name)
         self.bias, self.variance, self.tool, self.counters = bias, variance, tool, counters
+        self._mount()
         if self.self_check is not None and adapted:
             # resume with the adapted r and q, within the self-check's bounds of this run's r0 and q0
             sc = self.self_check
@@ -1313,6 +1121,7 @@ class LiveCalibrator:
                 q0 = np.asarray(sc.walk0)
                 self.walk_variance = np.clip(adapted["walk_variance"], q0, Q_MAX * q0)
         self.last_time = time
+        self._core.set_clock(time)
         self._restart_checks()
         self._event("state", "resumed", f"resumed from {path} at t={self.last_time}")
 
@@ -1329,6 +1138,8 @@ class LiveCalibrator:
 
 
 AXES = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
+# the flags' names of every combination of their bits (step's result, without a loop over the flags per sample)
+_NAMES_OF_BITS = tuple(tuple(name for name in FLAGS if bits & BIT[name]) for bits in range(1 << len(FLAGS)))
 OUT_OF_RANGE_TEXT = "inputs outside the calibration's training range or span"
 
 
@@ -1352,23 +1163,6 @@ def _dead_text(channels: str, run: int) -> str:
 
 def _temperature_text(temperature: float, low: float, high: float) -> str:
     return f"temperature {temperature:.4g} outside the calibration's {low:.4g} to {high:.4g}"
-
-
-def _plain(values, size: int | None) -> list | None:
-    """A sample's vector as a list of finite floats of the given size, or None (then
-    :meth:`LiveCalibrator.run` takes the sample and says what is wrong)."""
-    if isinstance(values, np.ndarray):
-        out = values.ravel().tolist()
-        if values.dtype != np.float64:
-            out = [*map(float, out)]
-    else:
-        out = [*map(float, values)]
-    # A sum is finite only if every term is (an overflowing sum sends a finite sample to run(): slower, same result);
-    # beyond MAX_CELL_MAGNITUDE squares overflow (run() says which input).
-    if (size is not None and len(out) != size) or not math.isfinite(sum(out)) or (
-            out and (max(out) > MAX_CELL_MAGNITUDE or min(out) < -MAX_CELL_MAGNITUDE)):
-        return None
-    return out
 
 
 def _finite(x: np.ndarray, name: str) -> None:

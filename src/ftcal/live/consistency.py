@@ -45,6 +45,8 @@ undone (event ``tracker undone``): it was judged with a q the data have shown to
 
 from __future__ import annotations
 
+from .c_limits import SC_KEEP_HOLDS, SC_WALK_KEEP
+
 import math
 
 # s of static samples without a bias update after which the tracker says it is locked out.
@@ -54,7 +56,7 @@ MIN_HOLD_S = 1.0
 # Two holds must differ by at least this in gravity direction (degrees) for their means to tell bias from contact.
 MIN_TURN_DEG = 20.0
 # Locked holds kept to compare a new one with (a contact hold between two bias holds does not hide them).
-KEEP_HOLDS = 4
+KEEP_HOLDS = SC_KEEP_HOLDS  # declared once, in the C core (csrc/ftcal_live.h)
 # A bias may change between the holds by at most this share of what a world-fixed contact of its size would.
 TURN_SHARE = 0.5
 # A hold mean's variance is r / n for white noise; a wander correlated over this long (s) counts once per this.
@@ -68,7 +70,7 @@ Q_MAX = 100.0
 # Walk matching: hold starts kept, fewest to decide, the smallest walk share of a hold start's innovation variance
 # for it to count (below it the walk is not seen over the move, e.g. under a wander), and the factor q must be off
 # by before it adapts (either way).
-WALK_KEEP = 12
+WALK_KEEP = SC_WALK_KEEP  # declared once, in the C core (csrc/ftcal_live.h)
 MIN_WALK_STARTS = 2
 MIN_WALK_SHARE = 0.3
 WALK_FACTOR = 1.6
@@ -294,13 +296,8 @@ class SelfCheck:
                         proposal = [min(p, r) for p, r in zip(proposal, noise)]
                     if any(abs(p - r) > 1e-3 * r for p, r in zip(proposal, noise)):
                         new_noise = proposal
-                        events.append(("adapted", (
-                            (f"NIS mean {nis:.3g} over {self.n_updated} static samples (expected 6), " if updates else
-                             f"{self.n_updated} static samples updated (too few for the NIS; r from the differences of "
-                             f"{self.n_pairs} consecutive static samples), ") + f"{100 * share:.2g} % "
-                            f"of static samples gated (expected {100 * self.expected_gated:.2g} %): noise std "
-                            + ", ".join(f"{math.sqrt(p):.3g}" for p in proposal)
-                            + " (covariance matching, within 1 to 5x the identified)")))
+                        events.append(("adapted", noise_adapted_text(nis, self.n_updated, self.n_pairs, share,
+                                                                     self.expected_gated, proposal)))
             self.window_start = time
             self.n_static = self.n_gated = self.n_updated = 0
             self.nis = 0.0
@@ -319,17 +316,13 @@ class SelfCheck:
                     drift.last_rollback = None
                     new_bias = (list(back[1]), [p + q * (time - back[0]) for p, q in zip(back[2], new_walk)])
                     bias = new_bias[0]
-                    events.append(("undone", (
-                        f"the rollback at {back[0]:.6g} s is within the walk matched since: bias back to before it")))
+                    events.append(("undone", undone_text(back[0])))
                 elif self.last_update is not None and time > self.last_update:
                     # the bias walked at the new q since its last update: its variance says so
                     idle = time - self.last_update
                     new_bias = (list(bias), [p + max(a - b, 0.0) * idle for p, a, b in zip(variance, new_walk, walk)])
                 walk = new_walk
-                events.append(("adapted", (
-                    f"the residual changed over the last {m} moves by {lam:.3g}x the walk allowed (median, covariance "
-                    "matching): walk std now " + ", ".join(f"{math.sqrt(q * 3600.0):.3g}" for q in new_walk)
-                    + " per sqrt(h) (within 1 to 10x the identified)")))
+                events.append(("adapted", walk_adapted_text(m, lam, new_walk)))
         h = self.hold
         if h is None or self.last_update is None or h[4] != time:
             return events, new_noise, new_walk, new_bias
@@ -338,9 +331,7 @@ class SelfCheck:
             self.locked_announced = False
         elif not self.locked_announced:
             self.locked_announced = True
-            events.append(("locked_out", (
-                f"no bias update for {idle:.3g} s of static samples: a held contact, or a bias that moved faster "
-                "than the walk allows; re-acquired when a hold in another orientation shows the same residual")))
+            events.append(("locked_out", locked_out_text(idle)))
         n, sz, sd, start, _, missed = h
         if not self.previous or time - start < MIN_HOLD_S or 2 * missed <= n:
             return events, new_noise, new_walk, new_bias
@@ -363,12 +354,44 @@ class SelfCheck:
         if any(abs(a - b) > 1e-3 * b for a, b in zip(proposal, walk)):
             new_walk = proposal
         new_bias = (mean, variance)
-        events.append(("reacquired", (
-            f"the residual held alike (changed by {100 * ratio:.2g} % of itself) over two holds {turn:.3g} deg "
-            f"apart in gravity direction: bias, not contact; bias moved by up to {max(abs(m) for m in moved):.3g}, walk std now "
-            + ", ".join(f"{math.sqrt(q * 3600.0):.3g}" for q in (new_walk or walk)) + " per sqrt(h)")))
+        events.append(("reacquired", reacquired_text(ratio, turn, max(abs(m) for m in moved), new_walk or walk)))
         self.last_update = time
         self.locked_announced = False
         self.previous = []
         self.hold = [0, [0.0] * 6, [0.0] * 3, time, time, 0]
         return events, new_noise, new_walk, new_bias
+
+
+# ----- the events' texts (SelfCheck's, and LiveCalibrator's from the C core's numbers) --------------------------------
+def noise_adapted_text(nis: float, n_updated: int, n_pairs: int, share: float, expected: float, noise) -> str:
+    """``tracker adapted`` for r: the window's NIS (NaN: too few updates), its counts, the share gated, the new r."""
+    return ((f"NIS mean {nis:.3g} over {n_updated} static samples (expected 6), " if n_updated >= MIN_WINDOW_SAMPLES
+             else f"{n_updated} static samples updated (too few for the NIS; r from the differences of "
+             f"{n_pairs} consecutive static samples), ") + f"{100 * share:.2g} % "
+            f"of static samples gated (expected {100 * expected:.2g} %): noise std "
+            + ", ".join(f"{math.sqrt(p):.3g}" for p in noise) + " (covariance matching, within 1 to 5x the identified)")
+
+
+def walk_adapted_text(moves: int, factor: float, walk) -> str:
+    """``tracker adapted`` for q: the moves matched, their median factor, the new q per s."""
+    return (f"the residual changed over the last {moves} moves by {factor:.3g}x the walk allowed (median, covariance "
+            "matching): walk std now " + ", ".join(f"{math.sqrt(q * 3600.0):.3g}" for q in walk)
+            + " per sqrt(h) (within 1 to 10x the identified)")
+
+
+def undone_text(time: float) -> str:
+    """``tracker undone``: the drift test's rollback at ``time`` s."""
+    return f"the rollback at {time:.6g} s is within the walk matched since: bias back to before it"
+
+
+def locked_out_text(idle: float) -> str:
+    """``tracker locked_out`` after ``idle`` s of static samples without an update."""
+    return (f"no bias update for {idle:.3g} s of static samples: a held contact, or a bias that moved faster "
+            "than the walk allows; re-acquired when a hold in another orientation shows the same residual")
+
+
+def reacquired_text(ratio: float, turn: float, moved: float, walk) -> str:
+    """``tracker reacquired``: the holds' change relative to the residual, their turn in degrees, the largest move."""
+    return (f"the residual held alike (changed by {100 * ratio:.2g} % of itself) over two holds {turn:.3g} deg "
+            f"apart in gravity direction: bias, not contact; bias moved by up to {moved:.3g}, walk std now "
+            + ", ".join(f"{math.sqrt(q * 3600.0):.3g}" for q in walk) + " per sqrt(h)")

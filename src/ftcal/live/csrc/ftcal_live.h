@@ -16,8 +16,8 @@
    Before the include the includer defines FTCAL_LIVE_PREFIX (the C identifier prefixing every symbol) and
    FTCAL_LIVE_MACRO (the same upper-cased, prefixing every macro), and the size macros PREFIX_N_INPUTS,
    PREFIX_N_CHANNELS, PREFIX_N_TOOLS, PREFIX_MAX_ADDED_TOOLS, PREFIX_MAX_TOOLS, PREFIX_MAX_TOOL_NAME,
-   PREFIX_MAX_HOLDS, PREFIX_MIN_HOLDS, PREFIX_MAX_MAGNITUDE, PREFIX_HISTORY, PREFIX_DRIFT_SNAPSHOTS,
-   PREFIX_DRIFT_LAGS, PREFIX_SC_KEEP_HOLDS, PREFIX_SC_WALK_KEEP, PREFIX_N_FLAGS, PREFIX_MAX_EVENTS, and the codes
+   PREFIX_MAX_HOLDS, PREFIX_MIN_HOLDS, PREFIX_MAX_MAGNITUDE, PREFIX_HISTORY,
+   PREFIX_DRIFT_LAGS, PREFIX_N_FLAGS, PREFIX_MAX_EVENTS, and the codes
    PREFIX_FLAG_*, PREFIX_EVENT_*, PREFIX_TOOL_*, PREFIX_ID_* (the generated header emits them from the Python
    constants they mirror); for the texts also PREFIX_FLAG_NAMES, PREFIX_EVENT_KIND_NAMES and a function PREFIX_input_name(int). Sizes are maxima: the configuration (FTL_(config)) says how many inputs, channels and compiled-in tools
    there are. FTCAL_LIVE_REAL (default double; the generated header sets it from NAME_REAL) is the type of the
@@ -31,6 +31,15 @@
 #include <math.h>
 #include <stdint.h>
 #include <string.h>
+
+/* The sizes of the core's own rings, declared once here (not by the includer): Python reads them from this text
+   (ftcal.live.c_limits; the generated header's NAME_DRIFT_SNAPSHOTS, NAME_SC_KEEP_HOLDS, NAME_SC_WALK_KEEP name them)
+   and the extension exports them (ftcal.live.core.require_core checks a build against this text). */
+#ifndef FTCAL_LIVE_DRIFT_SNAPSHOTS
+#define FTCAL_LIVE_DRIFT_SNAPSHOTS 258   /* the drift test's snapshots: ceil(64 s / 0.25 s) + 2 (ftcal.live.drift) */
+#define FTCAL_LIVE_SC_KEEP_HOLDS 4       /* locked holds the self-check keeps */
+#define FTCAL_LIVE_SC_WALK_KEEP 12       /* hold starts the walk matching keeps */
+#endif
 
 #if !defined(FTCAL_LIVE_PREFIX) || !defined(FTCAL_LIVE_MACRO)
 #error "define FTCAL_LIVE_PREFIX and FTCAL_LIVE_MACRO before including ftcal_live.h"
@@ -114,6 +123,8 @@ typedef struct {
                                 TOOL_IDENTIFIED (mass, its standard error) */
     unsigned char channels[FTL_M(N_CHANNELS)];   /* SATURATED, STUCK, DEAD raised: the channels flagged */
     char tool_name[FTL_M(MAX_TOOL_NAME) + 1];    /* TOOL_IDENTIFYING, TOOL_IDENTIFIED: the tool's name */
+    double extra[6];         /* TRACKER_ADAPTED: the new noise (count 0) or walk (count: the moves matched) variances;
+                                TRACKER_REACQUIRED: the walk variances after it */
 } FTL_(event);
 
 typedef struct {
@@ -154,9 +165,9 @@ typedef struct {
     /* the drift test (ftcal.live.drift): snapshots of bias and variance, oldest at drift_start, times increasing */
     double drift_due;            /* the next snapshot is taken at the first sample at or after this time */
     int drift_start, drift_count;
-    double drift_time[FTL_M(DRIFT_SNAPSHOTS)];
-    FTL_(real) drift_bias[FTL_M(DRIFT_SNAPSHOTS)][6];
-    FTL_(real) drift_variance[FTL_M(DRIFT_SNAPSHOTS)][6];
+    double drift_time[FTCAL_LIVE_DRIFT_SNAPSHOTS];
+    FTL_(real) drift_bias[FTCAL_LIVE_DRIFT_SNAPSHOTS][6];
+    FTL_(real) drift_variance[FTCAL_LIVE_DRIFT_SNAPSHOTS][6];
     double last_fail, fail_start;   /* the hold-off: the last failed static sample and the start of its run */
     int fail_previous;              /* the previous sample failed */
     double holdoff;              /* s after it without updates (LiveCalibrator(holdoff=...)), 0: off */
@@ -173,18 +184,18 @@ typedef struct {
     long sc_hold_n, sc_hold_missed;
     FTL_(real) sc_hold_z[6], sc_hold_dir[3];
     double sc_hold_start, sc_hold_last;
-    FTL_(real) sc_prev_mean[FTL_M(SC_KEEP_HOLDS)][6], sc_prev_dir[FTL_M(SC_KEEP_HOLDS)][3];
-    double sc_prev_seconds[FTL_M(SC_KEEP_HOLDS)], sc_prev_end[FTL_M(SC_KEEP_HOLDS)];
-    long sc_prev_n[FTL_M(SC_KEEP_HOLDS)];
+    FTL_(real) sc_prev_mean[FTCAL_LIVE_SC_KEEP_HOLDS][6], sc_prev_dir[FTCAL_LIVE_SC_KEEP_HOLDS][3];
+    double sc_prev_seconds[FTCAL_LIVE_SC_KEEP_HOLDS], sc_prev_end[FTCAL_LIVE_SC_KEEP_HOLDS];
+    long sc_prev_n[FTCAL_LIVE_SC_KEEP_HOLDS];
     /* r matched to the differences of consecutive static samples (clipped sums over the window, their count) */
     FTL_(real) sc_diff[6], sc_last_z[6];
     unsigned long sc_pairs;
     /* walk matching over hold starts: the last static sample (bias after it, or z when it did not update) */
-    int sc_has_ref, sc_ref_updated, sc_n_starts, sc_new_start, sc_start_updated[FTL_M(SC_WALK_KEEP)], sc_rb_has;
+    int sc_has_ref, sc_ref_updated, sc_n_starts, sc_new_start, sc_start_updated[FTCAL_LIVE_SC_WALK_KEEP], sc_rb_has;
     FTL_(real) sc_ref[6], sc_ref_var[6];
     double sc_ref_time;
-    FTL_(real) sc_start_change[FTL_M(SC_WALK_KEEP)][6], sc_start_var[FTL_M(SC_WALK_KEEP)][6];
-    double sc_start_gap[FTL_M(SC_WALK_KEEP)];
+    FTL_(real) sc_start_change[FTCAL_LIVE_SC_WALK_KEEP][6], sc_start_var[FTCAL_LIVE_SC_WALK_KEEP][6];
+    double sc_start_gap[FTCAL_LIVE_SC_WALK_KEEP];
     /* the drift test's last rollback (DriftCheck.last_rollback): time, state before it, the snapshot, span */
     double sc_rb_time, sc_rb_span;
     FTL_(real) sc_rb_bias[6], sc_rb_var[6], sc_rb_b0[6], sc_rb_p0[6];
@@ -325,6 +336,26 @@ static inline void FTL_(call_event)(FTL_(state) *s, int kind, int tool_from, int
     ev->tool_to = tool_to;
 }
 
+/* An event of the tracker at the sample at `time` (the drift test's rollback, the self-check's): the numbers of its
+   text in value[] (ROLLBACK: lag, chi2, moved; TRACKER_ADAPTED: NIS (NAN when too few updates), updates, pairs,
+   share gated, expected share, or the walk's factor; TRACKER_LOCKED_OUT: idle s; TRACKER_REACQUIRED: ratio, turn
+   in degrees, the largest move; TRACKER_UNDONE: the rollback's time) and extra[]. */
+static FTL_RARE void FTL_(tracker_event)(FTL_(state) *s, int kind, double time, long count, const double *value,
+                                         int n_value, const FTL_(real) *extra)
+{
+    FTL_(event) ev;
+    int j;
+    memset(&ev, 0, sizeof ev);
+    ev.time = time;
+    ev.sample = s->samples;
+    ev.kind = kind;
+    ev.tool_from = ev.tool_to = s->tool;
+    ev.count = count;
+    for (j = 0; j < n_value; ++j) { ev.value[j] = value[j]; }
+    for (j = 0; extra && j < 6; ++j) { ev.extra[j] = extra[j]; }
+    FTL_(log_event)(s, &ev);
+}
+
 /* Events kept, 0 .. FTL_M(MAX_EVENTS). */
 static inline int FTL_(event_count)(const FTL_(state) *s)
 {
@@ -426,11 +457,11 @@ static inline int FTL_(drift_check)(FTL_(state) *s, double time)
         high = s->drift_count;
         while (low < high) {
             middle = (low + high) / 2;
-            if (cutoff < s->drift_time[(s->drift_start + middle) % FTL_M(DRIFT_SNAPSHOTS)]) { high = middle; }
+            if (cutoff < s->drift_time[(s->drift_start + middle) % FTCAL_LIVE_DRIFT_SNAPSHOTS]) { high = middle; }
             else { low = middle + 1; }
         }
         if (low == 0) { continue; }
-        slot = (s->drift_start + low - 1) % FTL_M(DRIFT_SNAPSHOTS);
+        slot = (s->drift_start + low - 1) % FTCAL_LIVE_DRIFT_SNAPSHOTS;
         b0 = s->drift_bias[slot];
         p0 = s->drift_variance[slot];
         span = time - s->drift_time[slot];
@@ -462,13 +493,20 @@ static inline int FTL_(drift_check)(FTL_(state) *s, double time)
         s->rollback_lag = span;
         s->rollback_chi2 = chi2;
         s->rollback_moved = moved;
+        {
+            double numbers[3];
+            numbers[0] = span;
+            numbers[1] = chi2;
+            numbers[2] = moved;
+            FTL_(tracker_event)(s, FTL_M(EVENT_ROLLBACK), time, 0, numbers, 3, 0);
+        }
         return 1;
     }
-    if (s->drift_count == FTL_M(DRIFT_SNAPSHOTS)) {   /* full: the oldest is never needed again */
-        s->drift_start = (s->drift_start + 1) % FTL_M(DRIFT_SNAPSHOTS);
+    if (s->drift_count == FTCAL_LIVE_DRIFT_SNAPSHOTS) {   /* full: the oldest is never needed again */
+        s->drift_start = (s->drift_start + 1) % FTCAL_LIVE_DRIFT_SNAPSHOTS;
         s->drift_count -= 1;
     }
-    slot = (s->drift_start + s->drift_count) % FTL_M(DRIFT_SNAPSHOTS);
+    slot = (s->drift_start + s->drift_count) % FTCAL_LIVE_DRIFT_SNAPSHOTS;
     s->drift_time[slot] = time;
     memcpy(s->drift_bias[slot], s->bias, sizeof s->bias);
     memcpy(s->drift_variance[slot], s->variance, sizeof s->variance);
@@ -500,6 +538,28 @@ static inline int FTL_(retare)(FTL_(state) *s)
     s->fail_previous = 0;
     s->retares += 1;
     return ev.flag;
+}
+
+/* The drift test, the self-check and the hold-off start afresh (the bias was set on purpose: a state resumed, a tool
+   identified and mounted); bias and variance are kept. */
+static inline void FTL_(restart_checks)(FTL_(state) *s)
+{
+    FTL_(drift_reset)(s);
+    FTL_(sc_reset)(s);
+    s->last_fail = -HUGE_VAL;   /* NO_FAILURE */
+    s->fail_start = HUGE_VAL;
+    s->fail_previous = 0;
+}
+
+/* Take the next sample at any time, as after a restart of the publisher's clock: the motion test starts without
+   history, the unexplained-wrench timer and the checks restart; bias, variance, tool and counts are kept. */
+static inline void FTL_(restart_clock)(FTL_(state) *s)
+{
+    s->has_time = 0;
+    s->history_start = s->history_count = 0;
+    s->last_moving = -HUGE_VAL;
+    s->exceeding = 0;
+    FTL_(restart_checks)(s);
 }
 
 /* Motion test on the gravity direction: sets *still and *moving (ftcal.live.motion). */
@@ -631,7 +691,7 @@ static FTL_RARE void FTL_(flag_events)(FTL_(state) *s, unsigned flags, double ti
                 FTL_(real) x = u[s->cfg.channels[j]];
                 ev.channels[j] = s->use_adc_limits ? x <= s->adc_low || x >= s->adc_high
                     : (x < s->cfg.channel_range[j][0] || x > s->cfg.channel_range[j][1])
-                      && s->run[j] >= s->cfg.saturation_run;
+                      && s->run[j] >= s->cfg.saturation_run && s->channel_moved[j];
             }
             ev.value[0] = s->use_adc_limits;
             ev.value[1] = s->adc_low;
@@ -781,7 +841,9 @@ static inline int FTL_(core_step)(FTL_(state) *s, double time, const FTL_(real) 
             low = s->cfg.channel_range[j][0];
             high = s->cfg.channel_range[j][1];
             outside = x < low || x > high;
-            if (outside && s->run[j] >= s->cfg.saturation_run) { flags |= FTL_M(FLAG_SATURATED); }
+            /* flat outside the training range while a load change should have moved it (a clipped channel); a
+               quantised sensor at rest holds one count outside the range without being saturated */
+            if (outside && s->run[j] >= s->cfg.saturation_run && s->channel_moved[j]) { flags |= FTL_M(FLAG_SATURATED); }
         }
     }
     for (j = 0; j < s->cfg.n_channels; ++j) { s->last_raw[j] = u[s->cfg.channels[j]]; }
@@ -1552,6 +1614,16 @@ static inline size_t FTL_(describe_flags)(const FTL_(state) *s, unsigned mask, c
 
 
 #ifndef FTCAL_LIVE_NO_TEXT
+/* Six standard deviations sqrt(v * scale) as "%.3g" joined by ", " (the self-check's texts). */
+static inline void FTL_(text_stds)(char *buf, size_t len, size_t *at, const double *v, double scale)
+{
+    int j;
+    for (j = 0; j < 6; ++j) {
+        if (j) { FTL_(text_str)(buf, len, at, ", "); }
+        FTL_(text_num)(buf, len, at, "%.3g", sqrt(v[j] * scale));
+    }
+}
+
 /* The kind of an event as LiveCalibrator's events spell it ("switched", "identifying", "identified", "retare",
    "raised", "cleared"); 0 for a value that is no FTL_M(EVENT_)*. */
 static inline const char *FTL_(event_kind_name)(int kind)
@@ -1613,6 +1685,68 @@ static inline size_t FTL_(describe_event)(const FTL_(state) *s, const FTL_(event
             FTL_(text_str)(buf, len, &at, flag);
             FTL_(text_str)(buf, len, &at, " cleared");
         }
+        break;
+    case FTL_M(EVENT_ROLLBACK):
+        FTL_(text_str)(buf, len, &at, "the bias moved up to ");
+        FTL_(text_num)(buf, len, &at, "%.3g", ev->value[2]);
+        FTL_(text_str)(buf, len, &at, " in ");
+        FTL_(text_num)(buf, len, &at, "%.3g", ev->value[0]);
+        FTL_(text_str)(buf, len, &at, " s, more than the random walk allows (chi2 ");
+        FTL_(text_num)(buf, len, &at, "%.3g", ev->value[1]);
+        FTL_(text_str)(buf, len, &at, ", 6 dof): a slow contact or a faster drift; bias and variance back to their "
+                                      "values then, predicted since");
+        break;
+    case FTL_M(EVENT_TRACKER_ADAPTED):
+        if (ev->count > 0) {   /* q matched over the moves */
+            FTL_(text_str)(buf, len, &at, "the residual changed over the last ");
+            FTL_(text_long)(buf, len, &at, ev->count);
+            FTL_(text_str)(buf, len, &at, " moves by ");
+            FTL_(text_num)(buf, len, &at, "%.3g", ev->value[0]);
+            FTL_(text_str)(buf, len, &at, "x the walk allowed (median, covariance matching): walk std now ");
+            FTL_(text_stds)(buf, len, &at, ev->extra, 3600.0);
+            FTL_(text_str)(buf, len, &at, " per sqrt(h) (within 1 to 10x the identified)");
+        } else {               /* r matched over a window */
+            if (ev->value[1] >= (double)s->cfg.sc_min_window_samples) {
+                FTL_(text_str)(buf, len, &at, "NIS mean ");
+                FTL_(text_num)(buf, len, &at, "%.3g", ev->value[0]);
+                FTL_(text_str)(buf, len, &at, " over ");
+                FTL_(text_long)(buf, len, &at, (long)ev->value[1]);
+                FTL_(text_str)(buf, len, &at, " static samples (expected 6), ");
+            } else {
+                FTL_(text_long)(buf, len, &at, (long)ev->value[1]);
+                FTL_(text_str)(buf, len, &at, " static samples updated (too few for the NIS; r from the differences of ");
+                FTL_(text_long)(buf, len, &at, (long)ev->value[2]);
+                FTL_(text_str)(buf, len, &at, " consecutive static samples), ");
+            }
+            FTL_(text_num)(buf, len, &at, "%.2g", 100.0 * ev->value[3]);
+            FTL_(text_str)(buf, len, &at, " % of static samples gated (expected ");
+            FTL_(text_num)(buf, len, &at, "%.2g", 100.0 * ev->value[4]);
+            FTL_(text_str)(buf, len, &at, " %): noise std ");
+            FTL_(text_stds)(buf, len, &at, ev->extra, 1.0);
+            FTL_(text_str)(buf, len, &at, " (covariance matching, within 1 to 5x the identified)");
+        }
+        break;
+    case FTL_M(EVENT_TRACKER_LOCKED_OUT):
+        FTL_(text_str)(buf, len, &at, "no bias update for ");
+        FTL_(text_num)(buf, len, &at, "%.3g", ev->value[0]);
+        FTL_(text_str)(buf, len, &at, " s of static samples: a held contact, or a bias that moved faster than the walk "
+                                      "allows; re-acquired when a hold in another orientation shows the same residual");
+        break;
+    case FTL_M(EVENT_TRACKER_REACQUIRED):
+        FTL_(text_str)(buf, len, &at, "the residual held alike (changed by ");
+        FTL_(text_num)(buf, len, &at, "%.2g", 100.0 * ev->value[0]);
+        FTL_(text_str)(buf, len, &at, " % of itself) over two holds ");
+        FTL_(text_num)(buf, len, &at, "%.3g", ev->value[1]);
+        FTL_(text_str)(buf, len, &at, " deg apart in gravity direction: bias, not contact; bias moved by up to ");
+        FTL_(text_num)(buf, len, &at, "%.3g", ev->value[2]);
+        FTL_(text_str)(buf, len, &at, ", walk std now ");
+        FTL_(text_stds)(buf, len, &at, ev->extra, 3600.0);
+        FTL_(text_str)(buf, len, &at, " per sqrt(h)");
+        break;
+    case FTL_M(EVENT_TRACKER_UNDONE):
+        FTL_(text_str)(buf, len, &at, "the rollback at ");
+        FTL_(text_num)(buf, len, &at, "%.6g", ev->value[0]);
+        FTL_(text_str)(buf, len, &at, " s is within the walk matched since: bias back to before it");
         break;
     default:
         break;

@@ -51,8 +51,8 @@ static inline void FTL_(sc_end_hold)(FTL_(state) *s)
         for (j = 0; j < 3; ++j) { norm += s->sc_hold_dir[j] * s->sc_hold_dir[j]; }
         norm = sqrt(norm);
         if (norm == 0.0) { norm = 1.0; }
-        if (s->sc_n_previous == FTL_M(SC_KEEP_HOLDS)) {   /* keep the newest FTL_M(SC_KEEP_HOLDS) */
-            for (k = 1; k < FTL_M(SC_KEEP_HOLDS); ++k) {
+        if (s->sc_n_previous == FTCAL_LIVE_SC_KEEP_HOLDS) {   /* keep the newest FTCAL_LIVE_SC_KEEP_HOLDS */
+            for (k = 1; k < FTCAL_LIVE_SC_KEEP_HOLDS; ++k) {
                 memcpy(s->sc_prev_mean[k - 1], s->sc_prev_mean[k], sizeof s->sc_prev_mean[k]);
                 memcpy(s->sc_prev_dir[k - 1], s->sc_prev_dir[k], sizeof s->sc_prev_dir[k]);
                 s->sc_prev_n[k - 1] = s->sc_prev_n[k];
@@ -106,8 +106,8 @@ static inline void FTL_(sc_observe)(FTL_(state) *s, double time, int still, int 
         memcpy(s->sc_last_z, z, sizeof s->sc_last_z);
         if (!s->sc_in_hold) {
             if (s->sc_has_ref) {   /* a hold starts: its first residual's change since the last static sample */
-                if (s->sc_n_starts == FTL_M(SC_WALK_KEEP)) {   /* keep the newest FTL_M(SC_WALK_KEEP) */
-                    for (k = 1; k < FTL_M(SC_WALK_KEEP); ++k) {
+                if (s->sc_n_starts == FTCAL_LIVE_SC_WALK_KEEP) {   /* keep the newest FTCAL_LIVE_SC_WALK_KEEP */
+                    for (k = 1; k < FTCAL_LIVE_SC_WALK_KEEP; ++k) {
                         memcpy(s->sc_start_change[k - 1], s->sc_start_change[k], sizeof s->sc_start_change[k]);
                         memcpy(s->sc_start_var[k - 1], s->sc_start_var[k], sizeof s->sc_start_var[k]);
                         s->sc_start_updated[k - 1] = s->sc_start_updated[k];
@@ -189,9 +189,9 @@ static inline int FTL_(sc_alike)(const FTL_(state) *s, int k, const FTL_(real) *
 }
 
 /* q by covariance matching over the hold starts (SelfCheck._match_walk): 1 and *lam, proposal[6] when q must change. */
-static inline int FTL_(sc_match_walk)(const FTL_(state) *s, FTL_(real) *lam, FTL_(real) *proposal)
+static inline int FTL_(sc_match_walk)(const FTL_(state) *s, FTL_(real) *lam, FTL_(real) *proposal, int *moves)
 {
-    FTL_(real) factors[FTL_M(SC_WALK_KEEP)];
+    FTL_(real) factors[FTCAL_LIVE_SC_WALK_KEEP];
     int i, j, k, m = 0, change = 0;
     for (k = 0; k < s->sc_n_starts; ++k) {
         FTL_(real) total[6], share = 0.0, rho = 0.0;
@@ -208,6 +208,7 @@ static inline int FTL_(sc_match_walk)(const FTL_(state) *s, FTL_(real) *lam, FTL
             factors[m++] = 1.0 + (rho / s->cfg.sc_chi2_6_median - 1.0) / share;
         }
     }
+    *moves = m;
     if (m < s->cfg.sc_min_walk_starts) { return 0; }
     for (i = 1; i < m; ++i) {   /* insertion sort, then the median */
         FTL_(real) x = factors[i];
@@ -264,12 +265,19 @@ static inline void FTL_(sc_check)(FTL_(state) *s, double time)
                     if (fabs(m - s->noise_variance[j]) > 1e-3 * s->noise_variance[j]) { change = 1; }
                 }
                 if (change) {
+                    double numbers[5];
                     for (j = 0; j < 6; ++j) {
                         FTL_(real) sd = sqrt(proposal[j]);   /* as Python keeps it: a std, squared when used */
                         s->noise_variance[j] = sd * sd;
                     }
                     s->sc_adaptations += 1;
                     s->sc_last_adapted = time;
+                    numbers[0] = updates ? nis : NAN;
+                    numbers[1] = (double)s->sc_updated;
+                    numbers[2] = (double)s->sc_pairs;
+                    numbers[3] = share;
+                    numbers[4] = s->sc_expected_gated;
+                    FTL_(tracker_event)(s, FTL_M(EVENT_TRACKER_ADAPTED), time, 0, numbers, 5, proposal);
                 }
             }
         }
@@ -281,8 +289,9 @@ static inline void FTL_(sc_check)(FTL_(state) *s, double time)
     }
     if (s->sc_new_start) {
         FTL_(real) lam, proposal[6], chi2 = 0.0;
+        int moves = 0;
         s->sc_new_start = 0;
-        if (FTL_(sc_match_walk)(s, &lam, proposal)) {
+        if (FTL_(sc_match_walk)(s, &lam, proposal, &moves)) {
             int undo = s->sc_rb_has && s->sc_has_update && s->sc_last_update <= s->sc_rb_time;
             if (undo) {
                 for (j = 0; j < 6; ++j) {
@@ -297,6 +306,7 @@ static inline void FTL_(sc_check)(FTL_(state) *s, double time)
                 }
                 s->sc_undone += 1;
                 s->sc_last_undone = time;
+                FTL_(tracker_event)(s, FTL_M(EVENT_TRACKER_UNDONE), time, 0, &s->sc_rb_time, 1, 0);
                 FTL_(drift_reset)(s);
             } else if (s->sc_has_update && time > s->sc_last_update) {
                 double idle0 = time - s->sc_last_update;
@@ -309,6 +319,10 @@ static inline void FTL_(sc_check)(FTL_(state) *s, double time)
             memcpy(s->walk_variance, proposal, sizeof proposal);
             s->sc_adaptations += 1;
             s->sc_last_adapted = time;
+            {
+                double factor = lam;
+                FTL_(tracker_event)(s, FTL_M(EVENT_TRACKER_ADAPTED), time, moves, &factor, 1, proposal);
+            }
         }
     }
     if (!s->sc_in_hold || !s->sc_has_update || s->sc_hold_last != time) { return; }
@@ -319,6 +333,7 @@ static inline void FTL_(sc_check)(FTL_(state) *s, double time)
         s->sc_announced = 1;
         s->sc_lockouts += 1;
         s->sc_last_lockout = time;
+        FTL_(tracker_event)(s, FTL_M(EVENT_TRACKER_LOCKED_OUT), time, 0, &idle, 1, 0);
     }
     if (s->sc_n_previous == 0 || time - s->sc_hold_start < s->cfg.sc_min_hold_s || 2 * s->sc_hold_missed <= s->sc_hold_n) {
         return;
@@ -341,7 +356,12 @@ static inline void FTL_(sc_check)(FTL_(state) *s, double time)
         FTL_(real) moved[6], share[6];
         double span = idle + seconds;
         FTL_(real) force = 0.0, torque = 0.0;
+        double numbers[3];
         for (j = 0; j < 6; ++j) { moved[j] = mean[j] - s->bias[j]; }
+        numbers[0] = ratio;
+        numbers[1] = turn;
+        numbers[2] = 0.0;
+        for (j = 0; j < 6; ++j) { if (fabs(moved[j]) > numbers[2]) { numbers[2] = fabs(moved[j]); } }
         for (j = 0; j < 3; ++j) { force += moved[j] * moved[j]; }
         for (j = 3; j < 6; ++j) { torque += moved[j] * moved[j]; }
         for (j = 0; j < 6; ++j) { share[j] = (j < 3 ? force : torque) / 3.0; }
@@ -362,6 +382,7 @@ static inline void FTL_(sc_check)(FTL_(state) *s, double time)
             s->variance[j] = noise[j] * mine;
             s->bias[j] = mean[j];
         }
+        FTL_(tracker_event)(s, FTL_M(EVENT_TRACKER_REACQUIRED), time, 0, numbers, 3, s->walk_variance);
     }
     FTL_(drift_reset)(s);
     s->sc_reacquisitions += 1;
