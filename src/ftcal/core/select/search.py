@@ -68,9 +68,10 @@ def cross_validate(data: "Dataset | GroupedStatistics", candidates: Sequence[Can
 
     Notes
     -----
-    Candidates whose mean score is within 1% or one (paired, fold-to-fold)
-    standard error of the best count as tied; ties go to fewer nonzero
-    coefficients. Input normalization uses the ranges of all the data.
+    Candidates whose mean score is within 1% of the best count as tied; ties go
+    to fewer nonzero coefficients. A win over the affine model must exceed the
+    fold noise (:func:`~.scoring.stable_choice`). Input normalization uses the
+    ranges of all the data.
     """
     if not candidates:
         raise FtcalError("No candidate models to cross-validate.")
@@ -125,9 +126,9 @@ def select_model(data: "Dataset | GroupedStatistics", *, template: CalibrationMo
     -------
     CrossValidationResult
         Emits a :class:`SelectionLossWarning` when the selection validates worse than the
-        affine model on a block by more than two fold standard errors, and a
+        affine model on a block beyond the fold noise (the one-sided t test), and a
         :class:`~ftcal.runtime.errors.FtcalWarning` when a selection of higher degree beats
-        affine by less than that on every block.
+        affine by less than the selection's bar (:attr:`~.scoring.Comparison.quantile`) on every block.
     """
     penalties = tuple(penalties)
     for penalty in penalties:
@@ -189,9 +190,10 @@ def select_model(data: "Dataset | GroupedStatistics", *, template: CalibrationMo
             and all(c.within_noise for c in comparisons.values())):
         margins = ", ".join(f"{name} {c.margin:+.3g} (standard error {c.standard_error:.3g})"
                             for name, c in comparisons.items())
+        bar = next(iter(comparisons.values())).quantile
         warnings.warn(
             f"The selection ({result.describe_selection()}) beats the affine model by less than the fold noise "
-            f"(t quantile of {result.n_folds} folds times the standard error of the fold-to-fold differences: "
+            f"({bar:.3g} standard errors of the fold-to-fold log ratios over {result.n_folds} folds: "
             f"{margins}): the choice is within the noise of "
             f"{result.n_folds} folds. Consider the simpler model or record more load cases.",
             FtcalWarning, stacklevel=2)
