@@ -87,7 +87,7 @@ class CrossValidationResult:
         affine = self.score_of(AFFINE) if any(s.candidate == AFFINE for s in self.scores) else None
         if affine is None:
             return {}
-        rule = selection_rule(self.n_folds)
+        rule = selection_rule(self.n_folds, n_groups=len(self.search.fold_of) if self.search is not None else None)
         if not scorer.blocks:
             return {"outputs": Comparison.of(AFFINE, np.sqrt(np.asarray(affine.fold_mse)).mean(axis=1),
                                              np.sqrt(mse).mean(axis=1), rule=rule)}

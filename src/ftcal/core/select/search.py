@@ -389,11 +389,13 @@ class _Search:
     def result(self, ordered: list[CandidateScore], select_per: str = "model", skipped: tuple[int, ...] = (),
                notes: list[str] | None = None) -> CrossValidationResult:
         self.stable_notes = []
-        best = stable_choice(ordered, Part("model", tuple(range(len(self.scorer.output_names)))), self.stable_notes)
+        n_groups = len(self.fold_of)
+        best = stable_choice(ordered, Part("model", tuple(range(len(self.scorer.output_names)))), self.stable_notes,
+                             n_groups=n_groups)
         parts = self.scorer.parts(select_per)
         gates = self.gates(ordered, parts)
         selection = [(part, best if part.name == "model" else gates.get(part.name) or
-                      stable_choice(ordered, part, self.stable_notes, self.family(part, parts)))
+                      stable_choice(ordered, part, self.stable_notes, self.family(part, parts), n_groups))
                      for part in parts]
         if select_per == "model":
             self.stable_notes = self.stable_notes[:1]
@@ -414,7 +416,8 @@ class _Search:
             return held
         for name, cols in self.scorer.blocks.items():
             outputs = [part for part in parts if len(part.columns) == 1 and part.columns[0] in cols]
-            if not outputs or stable_choice(ordered, Part(name, tuple(cols)), [], len(self.scorer.blocks)) != AFFINE:
+            if not outputs or stable_choice(ordered, Part(name, tuple(cols)), [], len(self.scorer.blocks),
+                                            len(self.fold_of)) != AFFINE:
                 continue
             for part in outputs:
                 held[part.name] = AFFINE
