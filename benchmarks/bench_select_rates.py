@@ -45,7 +45,7 @@ def previous_rule():
     def tied_within_one_standard_error(folds, best_folds):
         difference = np.asarray(folds) - np.asarray(best_folds)
         noise = np.std(difference, ddof=1) / np.sqrt(difference.size) if difference.size > 1 else 0.0
-        return kept_tied(folds, best_folds) or difference.mean() <= noise
+        return kept[1](folds, best_folds) or difference.mean() <= noise
 
     kept = scoring.SELECTION_RULE, scoring.tied, scoring.MIN_GROUPS_PER_FOLD
     scoring.SELECTION_RULE, scoring.tied, scoring.MIN_GROUPS_PER_FOLD = "t-test", tied_within_one_standard_error, 0

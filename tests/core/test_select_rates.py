@@ -31,11 +31,13 @@ def test_a_paper_level_nonlinearity_keeps_most_of_the_oracle_gain():
     summary = rates([one_seed(s, 1.0, degrees=DEGREES) for s in SEEDS])
     # The paper's degree-4 gain on force was 54 % (4.58 N -> 2.09 N); the simulation is at that level.
     assert all(0.3 <= g <= 0.7 for g in summary["oracle_gain"]), summary
-    # Torque keeps nine tenths; force, whose folds disagree more (a fold of edge load cases), three quarters
-    # here (one seed in eight keeps affine on ambiguous folds), and more than the rule before on the same folds.
+    # Both blocks keep nine tenths of the oracle's gain (issue 44's target). The rule before (t test at 5 %,
+    # ties within one standard error to fewer nonzeros), judging the same folds, kept about four fifths on
+    # force: one seed in eight kept affine on folds that disagree (a fold of edge load cases).
     force, torque = summary["gain_share"]
-    assert torque >= 0.9 and force >= 0.75, summary
-    assert force > summary["previous_gain_share"][0] and torque > summary["previous_gain_share"][1], summary
+    assert torque >= 0.9 and force >= 0.9, summary
+    assert force > summary["previous_gain_share"][0] + 0.05, summary
+    assert torque >= summary["previous_gain_share"][1] - 0.02, summary
     low, median, high = summary["cv_over_held_out"]
     assert 0.6 <= median <= 1.2 and 0.5 <= low and high <= 2.0, summary
 
