@@ -648,6 +648,11 @@ def selection_rates_section(sizes: dict) -> list[str]:
         for label, nl in (("affine, 12 load cases", 0.0), ("paper-level nonlinear, 12 load cases", 1.0)):
             rows.append((label, first, seeds, run_case("select_rates", nonlinearity=nl, first=first, seeds=seeds,
                                                        n_groups=12)))
+    # A small table: 54 rows, one a load case (the oracle: least squares of degree 1 or 2)
+    for first, seeds in sizes["select_rate_seeds"]:
+        for label, nl in (("affine, 54 rows", 0.0), ("paper-level nonlinear, 54 rows", 1.0)):
+            rows.append((label, first, seeds, run_case("select_rates", nonlinearity=nl, first=first, seeds=seeds,
+                                                       n_groups=54, per_group=1)))
     small = [r for label, _, _, r in rows if label == "affine, 12 load cases"]
     per_output = [r for label, _, _, r in rows if label == "affine, per output, 4 folds"]
     affine = [r for label, _, _, r in rows if label == "affine"]

@@ -106,12 +106,15 @@ def rates(rows: list[dict]) -> dict:
 
 
 def select_rates(nonlinearity: float, first: int, seeds: int, select_per: str = "block", n_folds: int = 5,
-                 n_groups: int = 40) -> dict:
-    """The case ``make bench`` runs: :func:`rates` over seeds ``first`` .. ``first + seeds - 1``."""
+                 n_groups: int = 40, per_group: int = 30) -> dict:
+    """The case ``make bench`` runs: :func:`rates` over seeds ``first`` .. ``first + seeds - 1`` (one sample a load
+    case: a small table, whose oracle is least squares of degree 1 or 2, the degrees it can fit)."""
     import time
 
     start, cpu = time.perf_counter(), time.process_time()
-    summary = rates([one_seed(s, nonlinearity, select_per=select_per, n_folds=n_folds, n_groups=n_groups)
+    oracle = (1, 2) if per_group == 1 else (1, 2, 3, 4)
+    summary = rates([one_seed(s, nonlinearity, select_per=select_per, n_folds=n_folds, n_groups=n_groups,
+                              per_group=per_group, oracle_degrees=oracle)
                      for s in range(first, first + seeds)])
     return {**summary, "seconds": time.perf_counter() - start, "cpu_seconds": time.process_time() - cpu}
 

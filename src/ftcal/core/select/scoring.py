@@ -6,17 +6,17 @@ scored by their error-norm RMSE, the whole model by the objective (:class:`Score
 :func:`stable_choice` picks the candidate of a part: the best score (ties within 1 % go to
 fewer nonzeros), kept only when it beats the affine model beyond the fold noise.
 
-The fold noise of one decision (a block, or the whole model, over 5 folds or more) is the
-one-standard-error rule (Breiman, Friedman, Olshen & Stone 1984, *Classification and Regression
-Trees*, §3.4.3; Hastie, Tibshirani & Friedman 2009, *The Elements of Statistical Learning*, §7.10):
+The fold noise of one decision (a block, or the whole model, over 5 folds or more of 4 groups a fold
+or more) is the one-standard-error rule (Breiman, Friedman, Olshen & Stone 1984, *Classification and
+Regression Trees*, §3.4.3; Hastie, Tibshirani & Friedman 2009, *The Elements of Statistical Learning*, §7.10):
 the affine model, the simplest, is kept unless the best candidate beats it by more than one standard
 error, here of the paired fold log ratio log(affine / candidate), and that standard error corrected
 for the training sets the folds share (Nadeau & Bengio 2003, *Inference for the Generalization
 Error*, Machine Learning 52: the variance of a mean over K splits is σ² (1/K + n_test/n_train), not
 σ²/K; for K balanced folds n_test/n_train = 1/(K − 1), so the corrected standard error is
 √(1 + K/(K − 1)) ≈ 1.5 naive ones at 5 folds). Several parts judged together (the outputs of a block,
-:meth:`Comparison.quantile`) or fewer than 5 folds keep the one-sided t test at 5 % with a Bonferroni
-factor, which their false-win rates need. Measured on simulated sensors with a known truth
+:meth:`Comparison.quantile`) or few folds (:func:`few_folds`) keep the one-sided t test at 5 % with a
+Bonferroni factor, which their false-win rates need. Measured on simulated sensors with a known truth
 (``benchmarks/bench_select_rates.py``, BENCHMARKS.md): see :data:`SELECTION_RULE`.
 """
 
@@ -38,7 +38,8 @@ from .candidates import AFFINE, Candidate
 # Candidates within 1 % of the best score count as tied (and go to fewer nonzeros). Not one standard error:
 # a nonzero count does not rank penalties (a heavy-λ LASSO has few nonzeros and biased coefficients), and
 # the sparsest candidate within one standard error validated 1.36x the affine model's force error on new
-# load cases where the best scored 0.75x (seed 21, BENCHMARKS.md); parsimony is the affine test's job.
+# load cases where the best scored 0.75x (seed 21 of benchmarks/bench_select_rates.py); parsimony is the
+# affine test's job.
 TIE_TOLERANCE = 0.01
 # One-sided level of a claimed win over the affine model where the t test applies (several parts judged
 # together, or few folds).
