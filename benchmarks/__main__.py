@@ -689,15 +689,16 @@ def selection_rates_section(sizes: dict) -> list[str]:
         out.append(f"| {label} | {first}-{first + seeds - 1} | {r['richer']:.0%} | {kept} | "
                    f"{r['oracle_gain'][0]:.0%} / {r['oracle_gain'][1]:.0%} | {previous} | {honesty} | "
                    f"{fmt_s(r['cpu_seconds'])} |")
-    return out + ["", "Folds of fewer than 4 load cases (12 load cases in 5 folds) and `--select-per output` are judged by "
-                  "the t test (Bonferroni over the degrees searched, or over the outputs of a block) rather than the "
-                  "one-standard-error rule: there the best candidate's fold log ratio reached 4.7 standard errors on "
-                  "an affine truth. `--select-per output` with 12 load cases in 4 folds, seeds 0-19 (measured "
-                  "2026-12-02 with `one_seed(..., n_groups=12, select_per=\"output\", n_folds=4)`): a richer model "
-                  "in 5 % of seeds (20 % before an output had to pass its block's test first). Not met with 12 load cases "
-                  "in 5 folds: a richer model is still chosen on an affine truth in some seeds (the rule before: more), "
-                  "and the gain kept there is lower than before: fold log ratios of 2-3 load cases a fold mislead "
-                  "both ways (nested cross-validation, which scores the selection itself, is the step left).", ""]
+    return out + ["", "Folds of fewer than 4 load cases (12 load cases in 5 folds) and `--select-per output` are "
+                  "judged by the t test (Bonferroni over the degrees searched, or over the outputs of a block) rather "
+                  "than the one-standard-error rule: there the best candidate's fold log ratio reached 4.7 standard "
+                  "errors on an affine truth. `--select-per output` with 12 load cases in 4 folds, seeds 0-19 "
+                  "(measured 2026-12-02 with `one_seed(..., n_groups=12, select_per=\"output\", n_folds=4)`): a "
+                  "richer model in 5 % of seeds (20 % before an output had to pass its block's test first). Not met "
+                  "with 12 load cases in 5 folds: a richer model is still chosen on an affine truth in some seeds "
+                  "(the rule before: more), and the gain kept there is lower than before: fold log ratios of 2-3 "
+                  "load cases a fold mislead both ways (nested cross-validation, which scores the selection itself, "
+                  "is the step left).", ""]
 
 
 def payload_errors_section(sizes: dict) -> list[str]:

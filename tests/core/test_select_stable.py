@@ -141,7 +141,8 @@ def test_ties_within_one_percent_go_to_fewer_nonzeros_and_wider_ones_do_not():
     affine = np.full(5, 2.0)
     best = np.array([1.0, 1.1, 0.9, 1.0, 1.05])
     # Degree 2 (fewer nonzeros) 0.5 % worse than degree 3 on average: tied, the sparser is kept.
-    close = scores_of([(AFFINE, affine), (Candidate(3, "none", None), best), (Candidate(2, "none", None), best * 1.005)])
+    close = scores_of([(AFFINE, affine), (Candidate(3, "none", None), best),
+                       (Candidate(2, "none", None), best * 1.005)])
     assert stable_choice(close, force, [], n_groups=40).degree == 2
     # 5 % worse, within one paired standard error of the best's folds (noise 0.3 in one fold): not tied.
     wide = best * 1.05 + np.array([0.3, -0.3, 0.0, 0.0, 0.0])
