@@ -31,11 +31,13 @@ def test_a_paper_level_nonlinearity_keeps_most_of_the_oracle_gain():
     summary = rates([one_seed(s, 1.0, degrees=DEGREES) for s in SEEDS])
     # The paper's degree-4 gain on force was 54 % (4.58 N -> 2.09 N); the simulation is at that level.
     assert all(0.3 <= g <= 0.7 for g in summary["oracle_gain"]), summary
-    # Torque keeps nine tenths; force, whose folds disagree more (a fold of edge load cases), three quarters
-    # here (one seed in eight keeps affine on ambiguous folds), and more than the rule before on the same folds.
+    # Both blocks keep nine tenths of the oracle's gain (issue 44's target). The rule before (t test at 5 %,
+    # ties within one standard error to fewer nonzeros), judging the same folds, kept about four fifths on
+    # force: one seed in eight kept affine on folds that disagree (a fold of edge load cases).
     force, torque = summary["gain_share"]
-    assert torque >= 0.9 and force >= 0.75, summary
-    assert force > summary["previous_gain_share"][0] and torque > summary["previous_gain_share"][1], summary
+    assert torque >= 0.9 and force >= 0.9, summary
+    assert force > summary["previous_gain_share"][0] + 0.05, summary
+    assert torque >= summary["previous_gain_share"][1] - 0.02, summary
     low, median, high = summary["cv_over_held_out"]
     assert 0.6 <= median <= 1.2 and 0.5 <= low and high <= 2.0, summary
 
@@ -46,3 +48,14 @@ def test_per_output_selection_on_few_load_cases_rarely_leaves_an_affine_truth():
     # before an output had to pass its block's test first (BENCHMARKS.md); 1 of 20 now.
     rows = [one_seed(s, 0.0, degrees=DEGREES, n_groups=12, select_per="output", n_folds=4) for s in range(20)]
     assert sum(r["richer"] for r in rows) <= 1, [r["selection"] for r in rows if r["richer"]]
+
+
+@pytest.mark.slow
+def test_few_load_cases_a_fold_are_judged_by_the_t_test_over_the_degrees():
+    # 12 load cases in 5 folds (2-3 a fold), affine truth: the one-standard-error rule would let through a best
+    # candidate whose fold log ratio is heavy-tailed (4.7 standard errors in one seed of 40); there the t test
+    # with the degrees searched as a Bonferroni factor judges, and chooses a richer model less often than the
+    # t test alone did (BENCHMARKS.md: 10 % against 20 % on seeds 0-19).
+    rows = [one_seed(s, 0.0, degrees=DEGREES, n_groups=12) for s in range(20)]
+    now, before = sum(r["richer"] for r in rows), sum(r["previous_richer"] for r in rows)
+    assert now <= 2 and now < before, [(r["selection"], r["previous_richer"]) for r in rows]

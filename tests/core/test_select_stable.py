@@ -95,3 +95,58 @@ def test_the_selection_does_not_lose_to_affine_on_new_load_cases_of_the_same_kin
 def test_a_real_curvature_is_still_found():
     result = quiet_select(sensor(5, n_groups=16, curvature=3.0, case_error=0.05), select_per="output")
     assert all(c.degree >= 2 for c in result.candidate_of_output())
+
+
+def scores_of(folds_by_candidate):
+    """CandidateScores whose force block scores ``folds`` per fold (each force output's MSE is folds² / 3)."""
+    from ftcal.core.select import CandidateScore, Scorer
+
+    scorer = Scorer(OUTPUTS)
+    out = []
+    for candidate, folds in folds_by_candidate:
+        mse = [np.r_[np.full(3, f ** 2 / 3.0), np.ones(3)] for f in folds]
+        nonzero = [np.full(6, 4 if candidate == AFFINE else 10 * candidate.degree)] * len(folds)
+        out.append(CandidateScore(candidate, scorer, mse, mse, nonzero))
+    return out
+
+
+def test_one_decision_wins_by_one_corrected_standard_error():
+    from scipy.stats import t as student_t
+
+    from ftcal.core.select import Candidate, Part, stable_choice
+
+    # Nadeau & Bengio (2003): a K-fold mean's variance is σ²(1/K + n_test/n_train), n_test/n_train = 1/(K − 1)
+    # for balanced folds; one such standard error in naive ones (σ/√K): 1.5 at 5 folds.
+    for k in (5, 10):
+        c = Comparison.of(AFFINE, np.arange(1.0, k + 1.0) + 1.0, np.arange(1.0, k + 1.0), rule="one-se")
+        assert abs(c.quantile - np.sqrt((1 / k + 1 / (k - 1)) / (1 / k))) < 1e-12
+    # Five folds whose log ratio (affine / cubic) has mean / standard error 1.8: above 1.5, below t_{4, 0.95}.
+    log_ratio = np.array([0.8, -0.2, 0.5, 0.6, 0.0])
+    t = log_ratio.mean() / (np.std(log_ratio, ddof=1) / np.sqrt(5))
+    assert 1.5 < t < student_t.ppf(0.95, 4)
+    affine_folds = np.full(5, 2.0)
+    scores = scores_of([(AFFINE, affine_folds), (Candidate(3, "none", None), affine_folds / np.exp(log_ratio))])
+    force = Part("force", (0, 1, 2))
+    assert stable_choice(scores, force, [], n_groups=40).degree == 3  # 8 load cases a fold: one corrected SE
+    notes = []
+    assert stable_choice(scores, force, notes, n_groups=12) == AFFINE  # 2-3 a fold: the t test, degrees searched
+    assert "one-sided t quantile" in notes[0]
+    assert stable_choice(scores, force, [], family=3, n_groups=40) == AFFINE  # three parts judged together
+
+
+def test_ties_within_one_percent_go_to_fewer_nonzeros_and_wider_ones_do_not():
+    from ftcal.core.select import Candidate, Part, stable_choice
+
+    force = Part("force", (0, 1, 2))
+    affine = np.full(5, 2.0)
+    best = np.array([1.0, 1.1, 0.9, 1.0, 1.05])
+    # Degree 2 (fewer nonzeros) 0.5 % worse than degree 3 on average: tied, the sparser is kept.
+    close = scores_of([(AFFINE, affine), (Candidate(3, "none", None), best),
+                       (Candidate(2, "none", None), best * 1.005)])
+    assert stable_choice(close, force, [], n_groups=40).degree == 2
+    # 5 % worse, within one paired standard error of the best's folds (noise 0.3 in one fold): not tied.
+    wide = best * 1.05 + np.array([0.3, -0.3, 0.0, 0.0, 0.0])
+    difference = wide - best
+    assert difference.mean() <= np.std(difference, ddof=1) / np.sqrt(5)
+    far = scores_of([(AFFINE, affine), (Candidate(3, "none", None), best), (Candidate(2, "none", None), wide)])
+    assert stable_choice(far, force, [], n_groups=40).degree == 3

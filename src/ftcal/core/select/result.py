@@ -9,7 +9,7 @@ import numpy as np
 
 from ..precision import SCORE, settle
 from .candidates import AFFINE, Candidate
-from .scoring import UNITS, CandidateScore, Comparison, Scorer
+from .scoring import UNITS, CandidateScore, Comparison, Scorer, selection_rule
 
 
 @dataclass
@@ -81,15 +81,17 @@ class CrossValidationResult:
         return Comparison.of(reference.candidate, reference.fold_scores, self.score_of(self.best).fold_scores)
 
     def block_comparisons(self) -> dict[str, Comparison]:
-        """The selection against the affine model on each block (force, torque), or on the mean RMSE."""
+        """The selection against the affine model on each block (force, torque), or on the mean RMSE; "within
+        the fold noise" by the selection's rule for one decision (:func:`~.scoring.selection_rule`)."""
         scorer, mse = self.scorer, self.selection_mse()
         affine = self.score_of(AFFINE) if any(s.candidate == AFFINE for s in self.scores) else None
         if affine is None:
             return {}
+        rule = selection_rule(self.n_folds, n_groups=len(self.search.fold_of) if self.search is not None else None)
         if not scorer.blocks:
             return {"outputs": Comparison.of(AFFINE, np.sqrt(np.asarray(affine.fold_mse)).mean(axis=1),
-                                             np.sqrt(mse).mean(axis=1))}
-        return {name: Comparison.of(AFFINE, scorer.block(affine.fold_mse, cols), scorer.block(mse, cols))
+                                             np.sqrt(mse).mean(axis=1), rule=rule)}
+        return {name: Comparison.of(AFFINE, scorer.block(affine.fold_mse, cols), scorer.block(mse, cols), rule=rule)
                 for name, cols in scorer.blocks.items()}
 
     def losses(self) -> list[str]:

@@ -3,8 +3,21 @@
 A candidate's fold scores come from its per-output mean squared errors; blocks are
 scored by their error-norm RMSE, the whole model by the objective (:class:`Scorer`).
 :class:`Comparison` is a margin over a reference with its fold-to-fold noise, and
-:func:`stable_choice` picks the candidate of a part: ties go to fewer nonzeros, and a
-win over the affine model within the fold noise keeps the affine model.
+:func:`stable_choice` picks the candidate of a part: the best score (ties within 1 % go to
+fewer nonzeros), kept only when it beats the affine model beyond the fold noise.
+
+The fold noise of one decision (a block, or the whole model, over 5 folds or more of 4 groups a fold
+or more) is the one-standard-error rule (Breiman, Friedman, Olshen & Stone 1984, *Classification and
+Regression Trees*, §3.4.3; Hastie, Tibshirani & Friedman 2009, *The Elements of Statistical Learning*, §7.10):
+the affine model, the simplest, is kept unless the best candidate beats it by more than one standard
+error, here of the paired fold log ratio log(affine / candidate), and that standard error corrected
+for the training sets the folds share (Nadeau & Bengio 2003, *Inference for the Generalization
+Error*, Machine Learning 52: the variance of a mean over K splits is σ² (1/K + n_test/n_train), not
+σ²/K; for K balanced folds n_test/n_train = 1/(K − 1), so the corrected standard error is
+√(1 + K/(K − 1)) ≈ 1.5 naive ones at 5 folds). Several parts judged together (the outputs of a block,
+:meth:`Comparison.quantile`) or few folds (:func:`few_folds`) keep the one-sided t test at 5 % with a
+Bonferroni factor, which their false-win rates need. Measured on simulated sensors with a known truth
+(``benchmarks/bench_select_rates.py``, BENCHMARKS.md): see :data:`SELECTION_RULE`.
 """
 
 from __future__ import annotations
@@ -22,14 +35,32 @@ from ..precision import MEAN_SQUARE, SCORE, settle
 from ..statistics import SufficientStatistics
 from .candidates import AFFINE, Candidate
 
-TIE_TOLERANCE = 0.01  # candidates within 1% of the best score count as tied
-# One-sided level of a claimed win over the affine model. On simulated load cases with an affine truth a
-# richer model is chosen in <= 5 % of seeds at this level; 0.025 / degrees kept half the real gains away.
+# Candidates within 1 % of the best score count as tied (and go to fewer nonzeros). Not one standard error:
+# a nonzero count does not rank penalties (a heavy-λ LASSO has few nonzeros and biased coefficients), and
+# the sparsest candidate within one standard error validated 1.36x the affine model's force error on new
+# load cases where the best scored 0.75x (seed 21 of benchmarks/bench_select_rates.py); parsimony is the
+# affine test's job.
+TIE_TOLERANCE = 0.01
+# One-sided level of a claimed win over the affine model where the t test applies (several parts judged
+# together, or few folds).
 WIN_LEVEL = 0.05
 # Below this many folds (3 degrees of freedom or fewer, a fold of one or two load cases) the fold log ratio
 # is far from normal: at 4 folds of 8 load cases the one-sided test alone chose a richer model on an
-# affine truth in 10 % of seeds; there the level is also divided by the degrees searched (2 %).
+# affine truth in 10 % of seeds; there the level is also divided by the degrees searched (2 %), and the
+# one-standard-error rule (a lower bar) is not used.
 FOLDS_WITHOUT_DEGREE_CORRECTION = 5
+# Fewer load cases (groups) than this per fold count as few folds too (the t test with the degrees searched as a
+# Bonferroni factor, not the one-standard-error rule): with 12 load cases in 5 folds (2-3 per fold) and an
+# affine truth, the best candidate's fold log ratio exceeded 4 standard errors in 2 of 40 seeds and the
+# one-standard-error rule chose a richer model in 25 % of them (the t test at 5 %: 17.5 %; with the degree
+# factor: 7.5 %); with 20 (4 per fold) no richer candidate came within one standard error in 40 seeds.
+MIN_GROUPS_PER_FOLD = 4
+# The rule of one decision over enough folds and groups (not few_folds): "one-se" (the corrected
+# one-standard-error rule of the module docstring) or "t-test" (one-sided t at WIN_LEVEL, the rule before
+# issue 44 item 1; the benchmark judges the same folds by it). 40 load cases, seeds 0-59 in three sets: the
+# share of the oracle degree's force gain kept 96/94/98 % (t test: 92/79/90 %), torque 99/120/108 %
+# (96/109/105 %); with an affine truth neither chose a richer model in any of the 60 seeds.
+SELECTION_RULE = "one-se"
 UNITS = {"force": "N", "torque": "N·m"}
 
 
@@ -174,16 +205,27 @@ class Comparison:
     searched: int = 1  # parts judged together (outputs of one block with select_per="output"): a Bonferroni factor
     log_margin: float | None = None  # mean over folds of log(reference score / selection score)
     log_standard_error: float | None = None  # its standard error (None: a score not positive)
+    rule: str = "t-test"  # "one-se": the selection's rule for one decision (see selection_rule)
 
     @property
     def quantile(self) -> float:
-        """``t_{K−1, 1 − WIN_LEVEL/M}`` for K folds and M parts judged together (2 when K is unknown): a win
-        is claimed when the mean fold log ratio exceeds it in standard errors, a one-sided test at
-        :data:`WIN_LEVEL` (M = 1: 6.31 for 2 folds, 2.13 for 5, 1.83 for 10; M = 3 over 5 folds: 3.00).
+        """How many (naive, fold-to-fold) standard errors a win must exceed (2 when K is unknown).
+
+        ``rule="t-test"``: ``t_{K−1, 1 − WIN_LEVEL/M}`` for K folds and M parts judged together, a
+        one-sided test at :data:`WIN_LEVEL` (M = 1: 6.31 for 2 folds, 2.13 for 5, 1.83 for 10; M = 3
+        over 5 folds: 3.00). ``rule="one-se"``: one standard error corrected for the training sets the
+        folds share (Nadeau & Bengio 2003), √(1 + K/(K − 1)) naive ones (1.50 for 5 folds, 1.45 for 10).
 
         The degrees searched are not counted: their fold log ratios move together (they are scored on the
         same held-out groups), so a correction per degree counts one comparison several times and gave the
         real gains away (the measured false-win and gain rates are in BENCHMARKS.md)."""
+        if self.rule == "one-se" and self.n_folds >= 2:
+            return corrected_standard_errors(self.n_folds)
+        return self.test_quantile
+
+    @property
+    def test_quantile(self) -> float:
+        """``t_{K−1, 1 − WIN_LEVEL/M}`` whatever the rule (2 when K is unknown): the bar of a claimed loss."""
         if self.n_folds < 2:
             return 2.0
         from scipy.special import stdtrit  # not scipy.stats: a second of imports
@@ -205,14 +247,15 @@ class Comparison:
 
     @property
     def loses(self) -> bool:
-        """Worse than the reference by more than the fold noise (on the log ratio when defined)."""
+        """Worse than the reference by more than the fold noise (on the log ratio when defined), by the t test
+        whatever the rule: a loss is a warning, and the one-standard-error rule is a bar for a win only."""
         if self.log_standard_error is not None:
-            return self.log_margin < -self.quantile * self.log_standard_error
-        return self.margin < -self.noise
+            return self.log_margin < -self.test_quantile * self.log_standard_error
+        return self.margin < -self.test_quantile * self.standard_error
 
     @classmethod
     def of(cls, reference: Candidate, reference_folds: np.ndarray, folds: np.ndarray,
-           searched: int = 1) -> "Comparison":
+           searched: int = 1, rule: str = "t-test") -> "Comparison":
         reference_folds, folds = np.asarray(reference_folds, dtype=float), np.asarray(folds, dtype=float)
         difference = reference_folds - folds
         n = difference.size
@@ -225,7 +268,32 @@ class Comparison:
         if n > 1 and np.all(reference_folds > 0) and np.all(folds > 0):
             ratio = settle(np.log(reference_folds / folds), SCORE, 1.0)
             log_margin, log_se = float(ratio.mean()), settle(float(np.std(ratio, ddof=1) / np.sqrt(n)), SCORE, 1.0)
-        return cls(reference, float(difference.mean()), spread, spread / np.sqrt(n), n, searched, log_margin, log_se)
+        return cls(reference, float(difference.mean()), spread, spread / np.sqrt(n), n, searched, log_margin, log_se,
+                   rule)
+
+
+def corrected_standard_errors(n_folds: int) -> float:
+    """One standard error of a K-fold mean corrected for overlapping training sets, in naive standard errors.
+
+    Nadeau & Bengio (2003): the variance of the mean of K split-wise differences is σ² (1/K + n_test/n_train)
+    rather than σ²/K; with K folds balanced by sample count (:func:`~ftcal.core.select.folds.fold_of_groups`)
+    n_test/n_train = 1/(K − 1), so the ratio of the two standard errors is √(1 + K/(K − 1)).
+    """
+    return float(np.sqrt(1.0 + n_folds / (n_folds - 1.0)))
+
+
+def few_folds(n_folds: int, n_groups: int | None = None) -> bool:
+    """Fewer than :data:`FOLDS_WITHOUT_DEGREE_CORRECTION` folds, or fewer than :data:`MIN_GROUPS_PER_FOLD`
+    groups per fold (``n_groups`` None: unknown, not counted): fold log ratios far from normal."""
+    return n_folds < FOLDS_WITHOUT_DEGREE_CORRECTION or (n_groups is not None
+                                                         and n_groups < MIN_GROUPS_PER_FOLD * n_folds)
+
+
+def selection_rule(n_folds: int, family: int = 1, n_groups: int | None = None) -> str:
+    """The rule a claimed win over the affine model is judged by: ``"one-se"`` for one decision over enough
+    folds and groups (not :func:`few_folds`; under :data:`SELECTION_RULE`), else ``"t-test"`` (with
+    ``family`` parts judged together, a Bonferroni factor)."""
+    return SELECTION_RULE if family <= 1 and not few_folds(n_folds, n_groups) else "t-test"
 
 
 def statistics_mse(stats: SufficientStatistics, coef: np.ndarray) -> np.ndarray:
@@ -250,25 +318,27 @@ def statistics_mse(stats: SufficientStatistics, coef: np.ndarray) -> np.ndarray:
     return np.array([settle(e, MEAN_SQUARE, s) for e, s in zip(np.maximum(sse, 0.0) / n, stats.target_sq / n)])
 
 
-def stable_choice(ordered: list[CandidateScore], part: Part, notes: list[str], family: int = 1) -> Candidate:
-    """The best candidate for ``part``; ties (within 1% or one paired standard error) go to fewer nonzeros.
+def tied(folds: np.ndarray, best_folds: np.ndarray) -> bool:
+    """``folds`` score within :data:`TIE_TOLERANCE` of the best candidate's on average."""
+    return float(np.mean(folds)) <= float(np.mean(best_folds)) * (1 + TIE_TOLERANCE)
+
+
+def stable_choice(ordered: list[CandidateScore], part: Part, notes: list[str], family: int = 1,
+                  n_groups: int | None = None) -> Candidate:
+    """The best candidate for ``part``; ties (within 1 %) go to fewer nonzeros.
 
     A win over the affine model within the fold noise keeps the affine model, and says so in ``notes``:
     the mean fold log ratio (affine / candidate) must exceed :attr:`Comparison.quantile` standard errors,
-    with ``family`` parts judged together (a Bonferroni factor, e.g. the three outputs of a block), or the
-    degrees searched if more, below :data:`FOLDS_WITHOUT_DEGREE_CORRECTION` folds.
+    by the rule of :func:`selection_rule`: one corrected standard error for one decision over 5 folds or
+    more of ``n_groups`` groups (4 a fold or more), else the one-sided t test with ``family`` parts judged
+    together (a Bonferroni factor, e.g. the three outputs of a block), or the degrees searched if more,
+    when the folds are few (:func:`few_folds`).
     """
     folds = {id(s): s.part_scores(part) for s in ordered}
     best = min(ordered, key=lambda s: folds[id(s)].mean())
     best_folds = folds[id(best)]
-
-    def tied(s: CandidateScore) -> bool:
-        difference = folds[id(s)] - best_folds
-        noise = np.std(difference, ddof=1) / np.sqrt(difference.size) if difference.size > 1 else 0.0
-        return difference.mean() + best_folds.mean() <= best_folds.mean() * (1 + TIE_TOLERANCE) \
-            or difference.mean() <= noise
-
-    chosen = min((s for s in ordered if tied(s)), key=lambda s: (s.part_nonzero(part), folds[id(s)].mean()))
+    chosen = min((s for s in ordered if tied(folds[id(s)], best_folds)),
+                 key=lambda s: (s.part_nonzero(part), folds[id(s)].mean()))
     # The stable choice: a win over affine least squares must exceed the fold noise (t-scaled), else a
     # held-out set of another kind (a new orientation, a new load) can reverse it. One test per part, of the
     # best candidate: the sparsest tie is then kept for parsimony (judging the sparse tie itself kept affine
@@ -276,9 +346,10 @@ def stable_choice(ordered: list[CandidateScore], part: Part, notes: list[str], f
     affine = next((s for s in ordered if s.candidate == AFFINE), None)
     if affine is None or chosen is affine:
         return chosen.candidate
-    if len(folds[id(affine)]) < FOLDS_WITHOUT_DEGREE_CORRECTION:
+    rule = selection_rule(len(folds[id(affine)]), family, n_groups)
+    if few_folds(len(folds[id(affine)]), n_groups):
         family = max(family, len({s.candidate.degree for s in ordered} - {AFFINE.degree}))
-    comparison = Comparison.of(AFFINE, folds[id(affine)], best_folds, family)
+    comparison = Comparison.of(AFFINE, folds[id(affine)], best_folds, family, rule)
     # Exact (0 to precision) in every held-out fold where affine is not: a win no fold noise explains (the log
     # ratio is infinite in each fold; noiseless readings of a nonlinear truth).
     if not comparison.within_noise or (not np.any(best_folds) and np.all(folds[id(affine)] > 0)):
@@ -287,7 +358,9 @@ def stable_choice(ordered: list[CandidateScore], part: Part, notes: list[str], f
         notes.append(
             f"{part.name}: {AFFINE.label} kept; {best.candidate.label} beats it by "
             f"{comparison.margin:+.3g} on average over {comparison.n_folds} folds, within their noise "
-            f"(one-sided t quantile {comparison.quantile:.3g} at {WIN_LEVEL:g}"
-            + (f" over {family} parts or degrees" if family > 1 else "")
+            + (f"(one standard error corrected for the shared training sets, {comparison.quantile:.3g}"
+               if rule == "one-se" else
+               f"(one-sided t quantile {comparison.quantile:.3g} at {WIN_LEVEL:g}"
+               + (f" over {family} parts or degrees" if family > 1 else ""))
             + " x the standard error of the fold-by-fold log ratio)")
     return AFFINE

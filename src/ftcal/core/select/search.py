@@ -68,9 +68,10 @@ def cross_validate(data: "Dataset | GroupedStatistics", candidates: Sequence[Can
 
     Notes
     -----
-    Candidates whose mean score is within 1% or one (paired, fold-to-fold)
-    standard error of the best count as tied; ties go to fewer nonzero
-    coefficients. Input normalization uses the ranges of all the data.
+    Candidates whose mean score is within 1% of the best count as tied; ties go
+    to fewer nonzero coefficients. A win over the affine model must exceed the
+    fold noise (:func:`~.scoring.stable_choice`). Input normalization uses the
+    ranges of all the data.
     """
     if not candidates:
         raise FtcalError("No candidate models to cross-validate.")
@@ -125,9 +126,9 @@ def select_model(data: "Dataset | GroupedStatistics", *, template: CalibrationMo
     -------
     CrossValidationResult
         Emits a :class:`SelectionLossWarning` when the selection validates worse than the
-        affine model on a block by more than two fold standard errors, and a
+        affine model on a block beyond the fold noise (the one-sided t test), and a
         :class:`~ftcal.runtime.errors.FtcalWarning` when a selection of higher degree beats
-        affine by less than that on every block.
+        affine by less than the selection's bar (:attr:`~.scoring.Comparison.quantile`) on every block.
     """
     penalties = tuple(penalties)
     for penalty in penalties:
@@ -189,9 +190,10 @@ def select_model(data: "Dataset | GroupedStatistics", *, template: CalibrationMo
             and all(c.within_noise for c in comparisons.values())):
         margins = ", ".join(f"{name} {c.margin:+.3g} (standard error {c.standard_error:.3g})"
                             for name, c in comparisons.items())
+        bar = next(iter(comparisons.values())).quantile
         warnings.warn(
             f"The selection ({result.describe_selection()}) beats the affine model by less than the fold noise "
-            f"(t quantile of {result.n_folds} folds times the standard error of the fold-to-fold differences: "
+            f"({bar:.3g} standard errors of the fold-to-fold log ratios over {result.n_folds} folds: "
             f"{margins}): the choice is within the noise of "
             f"{result.n_folds} folds. Consider the simpler model or record more load cases.",
             FtcalWarning, stacklevel=2)
@@ -387,11 +389,13 @@ class _Search:
     def result(self, ordered: list[CandidateScore], select_per: str = "model", skipped: tuple[int, ...] = (),
                notes: list[str] | None = None) -> CrossValidationResult:
         self.stable_notes = []
-        best = stable_choice(ordered, Part("model", tuple(range(len(self.scorer.output_names)))), self.stable_notes)
+        n_groups = len(self.fold_of)
+        best = stable_choice(ordered, Part("model", tuple(range(len(self.scorer.output_names)))), self.stable_notes,
+                             n_groups=n_groups)
         parts = self.scorer.parts(select_per)
         gates = self.gates(ordered, parts)
         selection = [(part, best if part.name == "model" else gates.get(part.name) or
-                      stable_choice(ordered, part, self.stable_notes, self.family(part, parts)))
+                      stable_choice(ordered, part, self.stable_notes, self.family(part, parts), n_groups))
                      for part in parts]
         if select_per == "model":
             self.stable_notes = self.stable_notes[:1]
@@ -412,7 +416,8 @@ class _Search:
             return held
         for name, cols in self.scorer.blocks.items():
             outputs = [part for part in parts if len(part.columns) == 1 and part.columns[0] in cols]
-            if not outputs or stable_choice(ordered, Part(name, tuple(cols)), [], len(self.scorer.blocks)) != AFFINE:
+            if not outputs or stable_choice(ordered, Part(name, tuple(cols)), [], len(self.scorer.blocks),
+                                            len(self.fold_of)) != AFFINE:
                 continue
             for part in outputs:
                 held[part.name] = AFFINE
