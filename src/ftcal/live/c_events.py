@@ -17,7 +17,7 @@ time), the ``silent`` flag's (a transport's) and ``("state", "resumed")`` (state
 from __future__ import annotations
 
 from ..files.c_text import c_string
-from .calibrator import RETARE_WARNING
+from .defaults import RETARE_WARNING
 
 # name of the C constant NAME_EVENT_<name> → (its value, Python's ``flag`` field or None for the flag's name,
 # Python's ``kind``)

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from ..data.signals import SATURATION_RUN, STUCK_RUN
 from ..files.c_text import c_string
-from .calibrator import OUT_OF_RANGE_TEXT
+from .defaults import OUT_OF_RANGE_TEXT
 from .health import BIT, DEAD_RUN, FLAGS, LOAD_STEPS
 
 

@@ -69,7 +69,7 @@ from .c_limits import DRIFT_SNAPSHOTS
 from .c_events import event_macros, events_config
 from .c_health import health_config, health_macros
 from .c_identify import _array, _num, identify_config, status_macros
-from .calibrator import (GATE_PROBABILITY, NO_TOOL, RETARE_VARIANCE, UNEXPLAINED_SECONDS, UNEXPLAINED_SIGMA,
+from .defaults import (GATE_PROBABILITY, NO_TOOL, RETARE_VARIANCE, UNEXPLAINED_SECONDS, UNEXPLAINED_SIGMA,
                          tracker_defaults, tracker_wander)
 from .drift import FALSE_ALARM, LAGS_S, SNAPSHOT_S
 from .tracker import HOLDOFF_S, MIN_FAIL_S, gate_chi2

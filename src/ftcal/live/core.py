@@ -15,12 +15,14 @@ raises one :class:`~ftcal.runtime.errors.FtcalError` saying how to build it.
 
 from __future__ import annotations
 
+import importlib
+
 import numpy as np
 
 from ..runtime.errors import FtcalError
 
-try:
-    from . import _core
+try:  # the extension by its full name (``from . import _core`` reads as an import of the package ftcal.live itself)
+    _core = importlib.import_module("ftcal.live._core")
 except ImportError:  # built at install where a C compiler is available
     _core = None
 

@@ -104,7 +104,7 @@ typedef struct {
     double t_scale[FTL_M(MAX_HOLDS)];   /* the jackknife's t scaling by blocks - 1 */
     /* texts (the Python templates' fixed words that live in constants) */
     const char *no_tool, *out_of_range_text, *retare_warning, *plus_minus;
-    /* the wander's low-frequency density 2 s^2 tau (ftcal.live.calibrator.tracker_wander), 0: white noise */
+    /* the wander's low-frequency density 2 s^2 tau (ftcal.live.defaults.tracker_wander), 0: white noise */
     double wander_density[6];
 } FTL_(config);
 
