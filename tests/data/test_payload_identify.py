@@ -219,7 +219,7 @@ def test_mass_sign_checks():
     bare = BIAS + rng.normal(size=(len(gravity), 6)) * NOISE  # nothing mounted: bias only
     with pytest.raises(FtcalError, match="not distinguishable from zero"):
         check_mass_sign(fit(gravity, bare))
-    with pytest.raises(FtcalError, match="negative: .*re-run with --reaction"):
+    with pytest.raises(FtcalError, match="negative: .*re-run with reaction"):
         check_mass_sign(fit(gravity, -readings(gravity, rng)))
     check_mass_sign(fit(gravity, readings(gravity, rng)))
 

@@ -191,7 +191,7 @@ class MLPModel(EstimatorParams):
             self.cv_ = self._early_stopping(data, x, t, out_norm, sizes, start, options)
             iterations = self.cv_["iterations"]
         elif self.early_stopping:
-            warnings.warn("Early stopping needs at least two groups (load cases or files, --group-by); the "
+            warnings.warn("Early stopping needs at least two groups (load cases, files or a group column); the "
                           f"network trained for all {iterations} iterations.", EarlyStoppingWarning, stacklevel=2)
         params, self.n_iter_ = _train(x, t, sizes, start, options, iterations)
         self.weights_, self.biases_ = _unpack(params, sizes)

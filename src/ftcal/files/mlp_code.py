@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from ..runtime.atomic import write_texts_atomic, write_with
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, ParameterError
 from .c_code import DEFAULT_NAME, GeneratedC, _in_range, _Literals, _string_array
 from .c_text import c_comment, c_identifier
 from .model_json import ModelFile, ftcal_version
@@ -171,7 +171,7 @@ def build_mlp_onnx(model, *, sha256: str | None = None, input_units=None, output
 def write_c(source: ModelFile, output: Path, options: ConvertOptions) -> Written:
     """Registry writer (``--to c`` of an mlp model file): ``output/NAME.h`` and ``output/NAME.c``."""
     if options.get("single_precision", False):
-        raise FtcalError("--float is for polynomial models; an MLP is generated in double precision.")
+        raise ParameterError('single_precision', "{single_precision} is for polynomial models; an MLP is generated in double precision.")
     name = c_identifier(options.get("name", DEFAULT_NAME))
     sha256 = hashlib.sha256(options.input_path.read_bytes()).hexdigest()
     code = generate_mlp_c(source.model, name=name, sha256=sha256, source_name=options.input_path.name,
@@ -179,7 +179,8 @@ def write_c(source: ModelFile, output: Path, options: ConvertOptions) -> Written
     paths = (output / f"{name}.h", output / f"{name}.c")
     for path in paths:
         if path.resolve() == options.input_path.resolve():
-            raise FtcalError(f"{path} is the input file; choose another --name or -o directory.")
+            raise ParameterError(('name', 'output'), f"{path} is the input file; choose another {{name}} or "
+                                 "{output} directory.")
     write_texts_atomic({paths[0]: code.header, paths[1]: code.source})  # both files or neither
     return Written(paths)
 

@@ -24,7 +24,7 @@ import numpy as np
 from ..core.features import n_monomials
 from ..core.model import CalibrationModel
 from ..runtime.atomic import write_with
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, ParameterError
 from .c_code import check_finite
 from .model_json import ModelFile, ftcal_version
 from .targets import ConvertOptions, Written
@@ -58,8 +58,8 @@ def build_onnx(model: CalibrationModel, *, sha256: str | None = None, input_unit
     model._check_fitted()
     layout = model.layout_
     if not layout.is_static:
-        raise FtcalError(f"--to onnx takes static models; this one is ARX (na={layout.na}, nb={layout.nb}), "
-                         "whose free run needs state between samples: use --to c (NAME_init / NAME_step).")
+        raise ParameterError('to', f"{{to}} onnx takes static models; this one is ARX (na={layout.na}, nb={layout.nb}), "
+                         "whose free run needs state between samples: use {to} c (NAME_init / NAME_step).")
     check_finite(model)
     nu, ny = len(model.input_names_), len(model.output_names_)
     degree = layout.basis.degree

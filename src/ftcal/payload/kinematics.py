@@ -28,7 +28,7 @@ from typing import Protocol
 
 import numpy as np
 
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, ParameterError
 
 STANDARD_GRAVITY = 9.81  # m/s², the default of --g
 QUATERNION_COLUMNS = ("qx", "qy", "qz", "qw")
@@ -230,8 +230,8 @@ class MotionSource:
             alpha = _columns(frame, self.angular_acceleration, source, "angular acceleration")
         else:
             if self.time not in frame.columns:
-                raise FtcalError(f"{source}: no {self.time!r} column to differentiate angular velocity; "
-                                 "give --time COL or --angular-acceleration COLS.")
+                raise ParameterError(('time', 'angular_acceleration'), f"{source}: no {self.time!r} column to differentiate angular velocity; "
+                                 "give {time} COL or {angular_acceleration} COLS.")
             t = _columns(frame, (self.time,), source, "time")[:, 0]
             alpha = angular_acceleration_from(omega, t, source=source, time_column=self.time)
         proper = None

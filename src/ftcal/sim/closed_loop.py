@@ -59,7 +59,7 @@ from ..payload.parameters import PayloadParameters
 from ..robot.model import RobotModel
 from ..robot.payloads import Payload
 from ..runtime.atomic import write_text_atomic
-from ..runtime.errors import FtcalError, IllPosedFitWarning, OutOfRangeWarning
+from ..runtime.errors import FtcalError, ParameterError, IllPosedFitWarning, OutOfRangeWarning
 from .mujoco_scene import Scene, Tool, build_scene, sensor_wrench
 from .plan_arm import ARM_URDF, SENSOR
 from .sensor_model import SensorModel, SensorSpec
@@ -140,7 +140,7 @@ class ClosedLoopConfig:
     def of_variant(cls, variant: str, **changes) -> "ClosedLoopConfig":
         """The configuration of a named variant (:data:`VARIANTS`), with ``changes`` on top."""
         if variant not in VARIANTS:
-            raise FtcalError(f"--variant {variant}: unknown; choose one of {', '.join(VARIANTS)}.")
+            raise ParameterError('variant', f"{{variant}} {variant}: unknown; choose one of {', '.join(VARIANTS)}.")
         return cls(variant=variant, **{**VARIANTS[variant][0], **changes})
 
 

@@ -518,7 +518,7 @@ def predict(model, data, *, output: str | os.PathLike | None = None, mode: str =
                 from ..runtime.atomic import check_not_an_input
                 from ..data.tables import write_table
 
-                check_not_an_input(Path(output), "-o")
+                check_not_an_input(Path(output))
                 write_table(frame, output)
                 frame = None
         else:
@@ -586,7 +586,7 @@ def _predict_streaming(paths, model, output, mode, start, segment_by, scheduler,
     from ..runtime.executors import open_executor
 
     target = Path(output)
-    check_not_an_input(target, "-o")
+    check_not_an_input(target)
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
         folder = tempfile.mkdtemp(prefix=f".{target.name}.parts-", dir=target.parent)
