@@ -168,13 +168,13 @@ def test_single_rows_and_constant_outputs_give_the_defined_values():
 
 @pytest.fixture
 def counted_sums(monkeypatch):
-    """Rows given to every metrics.ErrorSums.of call (the streamed subclass's calls included), in order."""
+    """Rows given to every metrics.ErrorSums.of call (the streamed evaluation's included), in order."""
     rows = []
     original = metrics.ErrorSums.of.__func__
 
-    def counting(cls, y, prediction, output_names):
+    def counting(cls, y, prediction, output_names, *counts):
         rows.append(len(y))
-        return original(cls, y, prediction, output_names)
+        return original(cls, y, prediction, output_names, *counts)
 
     monkeypatch.setattr(metrics.ErrorSums, "of", classmethod(counting))
     return rows
