@@ -110,3 +110,37 @@ def test_an_ill_posed_fit_warns_with_parameter_names():
     assert not any("--" in t for t in texts), texts
     shown = [cli_message(w.message) for w in caught if "under-determined" in str(w.message)]
     assert "--lasso" in shown[0] and "--ridge" in shown[0]
+
+
+def _named_parameters():
+    """Every parameter a library ParameterError or ParameterWarning names by a literal (``"degree"`` or
+    ``("urdf", "robot")``), with where."""
+    kinds = {"ParameterError", "ParameterWarning", "IllPosedParameterWarning"}
+    for rel, path in _library_files():
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if (isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in kinds
+                    and node.args):
+                first = node.args[0]
+                items = first.elts if isinstance(first, ast.Tuple) else [first]
+                for item in items:
+                    if isinstance(item, ast.Constant) and isinstance(item.value, str):
+                        yield item.value, f"{rel}:{node.lineno}"
+
+
+def test_every_named_parameter_is_a_flag_of_some_command():
+    # The CLI shows a parameter as flag_of(parameter): that must be an option some command takes, or
+    # the message would send the user to a flag that does not exist.
+    import argparse
+
+    from ftcal.cli import build_parser
+
+    options = set()
+    root = build_parser()
+    for action in root._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in action.choices.values():
+                options.update(o for a in sub._actions for o in a.option_strings)
+    named = dict(_named_parameters())
+    assert len(named) > 40  # the scan reads the library's ParameterErrors
+    unknown = {name: where for name, where in named.items() if flag_of(name) not in options}
+    assert unknown == {}, unknown

@@ -20,6 +20,7 @@ FLAGS = {
     "robot": "--model",  # the robot description (a URDF or a robot_descriptions name)
     "recorded": "--from",  # ftcal plan: tables of poses already recorded
     "tools": "--tool",  # ftcal live: the tool library, one --tool NAME=PAYLOAD.json each
+    "single_precision": "--float",  # ftcal convert: float code
 }
 
 
