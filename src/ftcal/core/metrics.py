@@ -18,12 +18,8 @@ from __future__ import annotations
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
-
-if TYPE_CHECKING:  # ranges imports this module
-    from .ranges import RangeSums
 
 POSE_CELL_CAP = 100_000  # beyond this many distinct poses no polynomial ftcal fits is near saturation
 
@@ -366,11 +362,11 @@ class ErrorSums:
     n_out_of_range: int | None = None
     training_segments: frozenset = frozenset()
     pose_cells: frozenset = frozenset()
-    ranges: RangeSums | None = None
+    ranges: object = None  # a RangeSums or None (ftcal.core.ranges imports this module, not the other way)
 
     @classmethod
     def of(cls, y: np.ndarray, prediction: np.ndarray, output_names: Sequence[str],
-           n_out_of_range: int | None = None, ranges: RangeSums | None = None) -> "ErrorSums":
+           n_out_of_range: int | None = None, ranges=None) -> "ErrorSums":
         """Sums of one block of rows, centred at the block's means.
 
         Parameters

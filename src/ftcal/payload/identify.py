@@ -181,7 +181,7 @@ def describe_parameters(names) -> str:
     return ", ".join(LABELS.get(n, n) for n in names)
 
 
-def identify_payload(groups: Mapping[str, AxisStatistics], *, cross_validate: bool = True,
+def identify_from_statistics(groups: Mapping[str, AxisStatistics], *, cross_validate: bool = True,
                      clusters: Sequence[AxisStatistics] = (), weighting: str = "auto",
                      covariates: Sequence[str] = (), coarser: Sequence[int] = ()) -> PayloadFit:
     """Fit the payload and bias to statistics gathered per validation group.
@@ -696,3 +696,9 @@ def _cross_validate(groups: Mapping[str, AxisStatistics], total: AxisStatistics,
         rms = np.sqrt(stats.residual_sum_of_squares(theta) / stats.n_samples)
         out.append(GroupResidual(str(label), stats.n_samples, rms))
     return tuple(out)
+
+
+# The old name of identify_from_statistics, which the step ftcal.identify_payload (other arguments) shadowed.
+# Not yet a deprecated_alias: ftcal.live.calibrator (rewritten on another branch) still calls it, and a
+# DeprecationWarning there would fail its tests; make it one when that call moves to the new name.
+identify_payload = identify_from_statistics

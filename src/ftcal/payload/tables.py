@@ -335,7 +335,7 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
     from ..runtime.errors import UndeterminedWarning
     from .drift import (BiasDrift, block_means, check_temperature, choose, covariates, fit_state_space,
                         within_hold_noise)
-    from .identify import identify_payload
+    from .identify import identify_from_statistics
 
     if bias_drift not in BIAS_DRIFTS:
         raise ParameterError('bias_drift', f"{{bias_drift}}: {bias_drift!r} is not one of {', '.join(BIAS_DRIFTS)}.")
@@ -358,7 +358,7 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
     n_groups = len(groups)
     with warnings.catch_warnings(record=True) as said:
         warnings.simplefilter("always")
-        constant = identify_payload(groups, clusters=clusters, covariates=names, cross_validate=cross_validate,
+        constant = identify_from_statistics(groups, clusters=clusters, covariates=names, cross_validate=cross_validate,
                                     coarser=COARSER_BLOCKS)
     # The constant fit's uncertain-error warning is said only when the constant bias is the model kept (below):
     # a drift model that takes the drift out leaves no such error behind.
@@ -400,7 +400,7 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
         groups, clusters = _groups_and_blocks(recording, False, extra)
         with warnings.catch_warnings():  # the constant fit said what the poses do not determine
             warnings.simplefilter("ignore", UndeterminedWarning)
-            fit = identify_payload(groups, clusters=clusters, covariates=names, cross_validate=cross_validate,
+            fit = identify_from_statistics(groups, clusters=clusters, covariates=names, cross_validate=cross_validate,
                                 coarser=COARSER_BLOCKS)
         slope = fit.theta[10:16]
         start = fit.theta[4:10]

@@ -1,6 +1,6 @@
 """Plan an experiment: candidates → information → greedy D-optimal design → execution order.
 
-:func:`plan_experiment` draws the candidate configurations, evaluates every one
+:func:`design_experiment` draws the candidate configurations, evaluates every one
 under every load, chooses the poses (starting from the information of any
 recorded data), orders them for execution, and compares the design with a
 random one of the same size drawn from the same seed stream.
@@ -206,7 +206,7 @@ def _score(request: PlanRequest, start: np.ndarray, added: np.ndarray, all_rows:
     return DesignScore(log_det(total), standard_errors=errors)
 
 
-def plan_experiment(robot: RobotModel, request: PlanRequest, recorded: Sequence[Recorded] = ()) -> Plan:
+def design_experiment(robot: RobotModel, request: PlanRequest, recorded: Sequence[Recorded] = ()) -> Plan:
     """Design ``request.n_poses`` poses, ordered for execution, and score them against a random design.
 
     Parameters
@@ -232,7 +232,7 @@ def plan_experiment(robot: RobotModel, request: PlanRequest, recorded: Sequence[
     >>> from ftcal.robot import RobotModel, parse_payload_spec
     >>> from ftcal.sim.plan_arm import ARM_URDF
     >>> robot = RobotModel.from_text(ARM_URDF)
-    >>> plan = plan_experiment(robot, PlanRequest((None, parse_payload_spec("tool:2@0,0,0.05")), 12,
+    >>> plan = design_experiment(robot, PlanRequest((None, parse_payload_spec("tool:2@0,0,0.05")), 12,
     ...                                           n_candidates=500))
     >>> plan.planned.log_det > plan.random.log_det
     True

@@ -27,7 +27,7 @@ def read_recorded(path: str | Path, robot: RobotModel, sensor: str, *, base: str
     """Expected wrench (columns Fx..Tz), sensor-frame gravity (joint columns) and ``load`` of a table.
 
     Any of them may be missing; the objective that needs one says so
-    (:func:`ftcal.plan.experiment.plan_experiment`). A table with joint columns must hold every joint on
+    (:func:`ftcal.plan.experiment.design_experiment`). A table with joint columns must hold every joint on
     the chain from the base to the sensor (they turn gravity in the sensor frame); others are 0.
 
     Raises

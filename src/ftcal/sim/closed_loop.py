@@ -330,7 +330,7 @@ def calibrate(robot: RobotModel, sensor: SensorModel, config: ClosedLoopConfig,
     """
     from ..core.model import CalibrationModel
     from ..payload.accumulate import payload_statistics
-    from ..payload.identify import identify_payload
+    from ..payload.identify import identify_from_statistics
     from ..payload.kinematics import Kinematics
     from ..robot.expected import expected_wrenches
     from ..robot.kinematics import sensor_kinematics
@@ -382,7 +382,7 @@ def calibrate(robot: RobotModel, sensor: SensorModel, config: ClosedLoopConfig,
         t = -60.0 - 30.0 * k + np.arange(len(wrench)) / config.rate
         counts = sensor.counts(wrench, temperature, sensor.bias(t, rng), rng)
         for name, read in wrenches.items():
-            fit = identify_payload({"all": payload_statistics(read(counts, temperature), Kinematics(gravity))},
+            fit = identify_from_statistics({"all": payload_statistics(read(counts, temperature), Kinematics(gravity))},
                                    cross_validate=False)
             payloads[name][tool_name] = PayloadParameters.from_fit(
                 fit, gravity=float(np.linalg.norm(GRAVITY)), frame=SENSOR, reaction=False,
