@@ -44,7 +44,7 @@ from ..core.model import CalibrationModel
 from ..core.ranges import RANGE_TOLERANCE
 from ..runtime.atomic import write_texts_atomic
 from ..runtime.errors import FtcalError, ParameterError
-from .c_text import c_comment, c_identifier, c_string
+from .c_text import c_comment, c_identifier, c_string, described
 from .model_json import ModelFile, ftcal_version
 from .targets import ConvertOptions, Written
 
@@ -288,10 +288,6 @@ def _pairwise(parts: list, add):
 
 def _header_comment(model, name, single, sha256, source_name, input_units, output_units) -> str:
     layout = model.layout_
-
-    def described(names, units):
-        units = units or (None,) * len(names)
-        return ", ".join(n if u is None else f"{n} [{u}]" for n, u in zip(names, units))
 
     kind = f"degree {layout.basis.degree}" + ("" if layout.is_static else f", ARX na={layout.na} nb={layout.nb}")
     lines = [f"{name}: ftcal calibration model, {kind}, {np.count_nonzero(model.coef_)} nonzero coefficients,",

@@ -40,6 +40,12 @@ MAX_IDENTIFIER = 63
 """Longest ``--name``: C99 guarantees 63 significant characters in an internal identifier."""
 
 
+def described(names, units, sep: str = ", ") -> str:
+    """``"Fx [N], T"``: each name with its unit in brackets when it has one (generated code and ONNX metadata)."""
+    units = units or (None,) * len(names)
+    return sep.join(n if u is None else f"{n} [{u}]" for n, u in zip(names, units))
+
+
 def printable_ascii(text: str) -> str:
     """``text`` with every character outside printable ASCII (and the backslash) spelled ``<U+XXXX>``."""
     return "".join(ch if " " <= ch <= "~" and ch != "\\" else f"<U+{ord(ch):04X}>" for ch in str(text))
