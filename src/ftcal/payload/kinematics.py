@@ -135,10 +135,10 @@ def gravity_from_quaternions(quaternions: np.ndarray, g: float = STANDARD_GRAVIT
         raise FtcalError(f"{source}: quaternion columns {','.join(columns)} are not unit length at row {row} "
                          f"(norm {norm[row]:.6g}; {int(bad.sum())} row(s) off by more than "
                          f"{QUATERNION_NORM_TOLERANCE:g}); give x,y,z,w in ROS order.")
-    x, y, z, w = (q / norm[:, None]).T
+    from ..data.holds import rotation_matrices  # the one quaternion -> rotation formula
+
     # Third row of R (sensor to world): the world z axis in sensor coordinates.
-    up = np.column_stack([2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y)])
-    return -g * up
+    return -g * rotation_matrices(q / norm[:, None])[:, 2, :]
 
 
 @dataclass(frozen=True)
