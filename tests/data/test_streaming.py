@@ -109,7 +109,7 @@ def test_error_sums_of_any_split_equal_the_metrics_of_the_whole():
     prediction = y + rng.normal(size=y.shape).cumsum(axis=0) * 0.1  # correlated residuals
     cuts = [0, 1, 2, 90, 333, 500]  # includes blocks of one row
     parts = [ErrorSums.of(y[a:b], prediction[a:b], DEFAULT_OUTPUTS, 0) for a, b in zip(cuts[:-1], cuts[1:])]
-    got = tree_reduce(parts, add_error_sums).summary(DEFAULT_OUTPUTS)
+    got = tree_reduce(parts, add_error_sums).to_dict(DEFAULT_OUTPUTS)
     expected = metrics.summarize(y, prediction, DEFAULT_OUTPUTS)
     for key in expected:
         if key == "outputs":
@@ -127,12 +127,12 @@ def test_dask_results_are_identical_to_the_local_run(files, cluster):
     paths, model, _ = files
     local = LocalExecutor().map_reduce(file_error_sums, paths, model, combine=add_error_sums)
     remote = cluster.map_reduce(file_error_sums, paths, model, combine=add_error_sums)
-    assert json.dumps(remote.summary(model.output_names_)) == json.dumps(local.summary(model.output_names_))
+    assert json.dumps(remote.to_dict(model.output_names_)) == json.dumps(local.to_dict(model.output_names_))
     data = whole(paths)
     reference = model.metrics(Dataset.from_arrays(data[list(INPUTS)].to_numpy(), data[list(DEFAULT_OUTPUTS)].to_numpy(),
                                                 input_names=INPUTS, output_names=DEFAULT_OUTPUTS),
                             warn_out_of_range=False)
-    assert np.allclose(remote.summary(model.output_names_)["rmse"], reference["rmse"], rtol=1e-12, atol=0)
+    assert np.allclose(remote.to_dict(model.output_names_)["rmse"], reference["rmse"], rtol=1e-12, atol=0)
 
 
 def test_dask_errors_are_one_clear_line(files, cluster, tmp_path):

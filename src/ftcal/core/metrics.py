@@ -285,7 +285,7 @@ def summarize(y_true: np.ndarray, y_pred: np.ndarray, output_names: Sequence[str
     >>> summarize(np.array([[0.0], [0.0]]), np.array([[3.0], [-3.0]]), ["a"])["rmse"]
     [3.0]
     """
-    return ErrorSums.of(y_true, y_pred, output_names).summary(output_names)
+    return ErrorSums.of(y_true, y_pred, output_names).to_dict(output_names)
 
 
 @dataclass
@@ -335,7 +335,7 @@ class ErrorSums:
     --------
     >>> import numpy as np
     >>> y, p = np.array([[1.0], [2.0], [4.0]]), np.zeros((3, 1))
-    >>> split = (ErrorSums.of(y[:1], p[:1], ["a"]) + ErrorSums.of(y[1:], p[1:], ["a"])).summary(["a"])
+    >>> split = (ErrorSums.of(y[:1], p[:1], ["a"]) + ErrorSums.of(y[1:], p[1:], ["a"])).to_dict(["a"])
     >>> split["max_abs_error"], round(split["rmse"][0] ** 2 * 3, 9)  # Σ r² = 1 + 4 + 16
     ([4.0], 21.0)
 
@@ -430,7 +430,7 @@ class ErrorSums:
         ends = (self.r_first - self.r_centre) + (self.r_last - self.r_centre)
         return self.r_dev_lag - shift * (2 * self.r_dev_sum - ends) + (self.n - 1) * shift * shift
 
-    def summary(self, output_names: Sequence[str]) -> dict:
+    def to_dict(self, output_names: Sequence[str]) -> dict:
         """The metrics of :func:`summarize` (a JSON-ready dict; NaN metrics become None or NaN as there),
         and ``n_out_of_range`` when the sums counted it.
 
@@ -462,6 +462,22 @@ class ErrorSums:
                 "force_error_norm_rmse": root_mean(self.error_norm_sq[0]),
                 "torque_error_norm_rmse": root_mean(self.error_norm_sq[1]),
                 **({} if self.n_out_of_range is None else {"n_out_of_range": int(self.n_out_of_range)})}
+
+
+    def summary(self, output_names: Sequence[str]) -> dict:
+        """Deprecated: :meth:`to_dict` (``summary()`` renders text across ftcal; the numbers are ``to_dict``)."""
+        _renamed("ErrorSums.summary", "ErrorSums.to_dict")
+        return self.to_dict(output_names)
+
+
+def _renamed(old: str, new: str) -> None:
+    """The DeprecationWarning of a renamed method (as :func:`ftcal.runtime.deprecation.deprecated_alias` words it)."""
+    import warnings
+
+    from ..runtime.deprecation import REMOVED_IN
+
+    warnings.warn(f"{old} is deprecated and will be removed in ftcal {REMOVED_IN}; use {new}.", DeprecationWarning,
+                  stacklevel=3)
 
 
 def capped_union(a: frozenset, b: frozenset) -> frozenset:

@@ -269,7 +269,7 @@ class MLPModel(EstimatorParams):
         u = check_finite_matrix(data.select_inputs(self.input_names_), "inputs", len(self.input_names_),
                                 self.input_names_)
         if warn_out_of_range:  # one message, how far on which channel (as the polynomial family says it)
-            message = describe(RangeSums.of(u, self.input_range_).summary(self.input_names_))
+            message = describe(RangeSums.of(u, self.input_range_).to_dict(self.input_names_))
             if message:
                 warnings.warn(message, OutOfRangeWarning, stacklevel=2)
         out = self.output_normalization_

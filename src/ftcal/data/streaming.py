@@ -189,7 +189,7 @@ class Summary(Accumulator):
         self._sums.add(chunk)
 
     def _finish(self) -> "FileSummary":
-        return self._sums.summary()
+        return self._sums.result()
 
     def _drop(self) -> None:
         del self._sums
@@ -688,7 +688,7 @@ class _SummaryAccumulator:
                                  "sha256": ""})
         self.digest = digest
 
-    def summary(self) -> FileSummary:
+    def result(self) -> FileSummary:
         self.fingerprints[-1]["sha256"] = self.digest.hexdigest()
         for fingerprint, rows in zip(self.fingerprints, self.lengths):
             fingerprint["rows"] = rows

@@ -270,7 +270,7 @@ def predicted_loads_text(model, loads) -> str | None:
         loads = sum(parts[1:], parts[0]) if parts else None
     if loads is None:
         return None
-    return loads_text(loads.summary(np.asarray(model.output_range_, dtype=float), model.output_names_),
+    return loads_text(loads.to_dict(np.asarray(model.output_range_, dtype=float), model.output_names_),
                       "the predicted loads")
 
 

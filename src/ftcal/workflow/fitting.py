@@ -804,9 +804,9 @@ class _Fit:
                                        description="training metrics")
         main, other = sums if isinstance(sums, tuple) else (sums, None)
         check_saturation(model, lambda: len(main.pose_cells), len(summary.group_sizes))
-        model.training_metrics_ = main.summary(outputs)
+        model.training_metrics_ = main.to_dict(outputs)
         if other is not None:
-            model.training_metrics_["free_run"] = other.summary(outputs)
+            model.training_metrics_["free_run"] = other.to_dict(outputs)
             del model.training_metrics_["free_run"]["n_out_of_range"]
         return model, dict(sources=self.sources, training_segments=summary.fingerprints)
 
