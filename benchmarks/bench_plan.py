@@ -1,7 +1,7 @@
 """``ftcal plan``'s design time: ``n_poses`` poses from ``n_candidates`` configurations × 4 loads.
 
 The robot is the 4-joint arm of ``ftcal demo --scenario plan``; loads as in that
-scenario. Timed: the whole :func:`ftcal.plan.plan_experiment` (candidates, one
+scenario. Timed: the whole :func:`ftcal.plan.design_experiment` (candidates, one
 batched iDynTree pass per load, information, greedy design, order, scores),
 with the candidate pass and the design reported apart. The robot model is
 built before the clock starts. Target (issue 19): 60 poses from 10⁴ candidates
@@ -20,7 +20,7 @@ def plan_design(n_poses: int, n_candidates: int, objective: str = "calibration",
     """Plan with the demo arm and its four loads; seconds of the whole call and of its two phases."""
     import numpy as np
 
-    from ftcal.plan import PlanRequest, plan_experiment
+    from ftcal.plan import PlanRequest, design_experiment
     from ftcal.plan import experiment as experiment_module
     from ftcal.robot import RobotModel
     from ftcal.sim.demo_plan import CALIBRATION_LOADS, _loads
@@ -41,7 +41,7 @@ def plan_design(n_poses: int, n_candidates: int, objective: str = "calibration",
     experiment_module.candidate_poses = timed_candidates
     try:
         start, cpu = time.perf_counter(), time.process_time()
-        plan = plan_experiment(robot, request)
+        plan = design_experiment(robot, request)
         seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
     finally:
         experiment_module.candidate_poses = original

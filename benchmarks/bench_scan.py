@@ -109,7 +109,7 @@ def child(which: str, paths: list[str], degree: int) -> dict:
             peak = int(line.split()[1]) / 1024
     return {"cpu_s": end.ru_utime + end.ru_stime - start.ru_utime - start.ru_stime, "peak_rss_mb": peak,
             "rows": int(sum(summary.segment_lengths)), "gram_trace": float(np.trace(stats.gram)),
-            "cells": len(cells), "rmse": sums.summary(OUTPUTS)["rmse"]}
+            "cells": len(cells), "rmse": sums.to_dict(OUTPUTS)["rmse"]}
 
 
 def run_child_case(which: str, paths: list[str], degree: int) -> dict:

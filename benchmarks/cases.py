@@ -309,13 +309,13 @@ def make_payload_data(n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
 def ftcal_payload(n: int) -> dict:
     """Quaternions → gravity, streaming per-axis statistics, weighted fit with standard errors."""
     from ftcal.payload.accumulate import payload_statistics
-    from ftcal.payload.identify import identify_payload
+    from ftcal.payload.identify import identify_from_statistics
     from ftcal.payload.kinematics import Kinematics, gravity_from_quaternions
 
     q, wrench = make_payload_data(n)
     start = time.perf_counter()
     gravity = gravity_from_quaternions(q)
-    fit = identify_payload({"all": payload_statistics(wrench, Kinematics(gravity))})
+    fit = identify_from_statistics({"all": payload_statistics(wrench, Kinematics(gravity))})
     seconds = time.perf_counter() - start
     return {"seconds": seconds, "mass": fit.mass}
 

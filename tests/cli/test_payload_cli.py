@@ -290,8 +290,13 @@ def test_oversized_payload_file_is_refused_before_reading(capsys, data, tmp_path
           "too large for a payload file", tmp_path / "c.parquet")
 
 
-def test_compensate_warns_once_for_all_files_about_inputs_out_of_range(capsys, tmp_path):
-    """A calibration model trained on the lower 80 % of r1: both files hold rows beyond it, one warning."""
+def _compensate_beyond_training(capsys, tmp_path, quantile: float):
+    """Compensate two files with a calibration model trained on r1 up to its ``quantile``.
+
+    The raw channels are the recorded wrench minus 3 (an offset wrench, so the model's wrench is the
+    recorded one); the two files are the halves of one table, so both hold rows beyond the training
+    range. Returns the command's stderr, the wrench, the training rows and the table's length.
+    """
     from ftcal.core.dataset import Dataset
     from ftcal.core.model import CalibrationModel
     from ftcal.files.model_files import save_model
@@ -299,9 +304,8 @@ def test_compensate_warns_once_for_all_files_about_inputs_out_of_range(capsys, t
     frame = poses_frame(seed=4)
     wrench = frame[["u1", "u2", "u3", "u4", "u5", "u6"]].to_numpy()
     names = ["r1", "r2", "r3", "r4", "r5", "r6"]
-    raw = wrench - 3.0  # raw channels: an offset wrench
-    cut = np.quantile(raw[:, 0], 0.8)
-    inside = raw[:, 0] <= cut
+    raw = wrench - 3.0
+    inside = raw[:, 0] <= np.quantile(raw[:, 0], quantile)
     save_model(CalibrationModel(1).fit(Dataset.from_arrays(raw[inside], wrench[inside], input_names=tuple(names))),
                tmp_path / "cal.json")
     frame.to_csv(tmp_path / "poses.csv", index=False)
@@ -311,44 +315,27 @@ def test_compensate_warns_once_for_all_files_about_inputs_out_of_range(capsys, t
     half = len(table) // 2
     table.iloc[:half].to_csv(tmp_path / "a.csv", index=False)
     table.iloc[half:].to_csv(tmp_path / "b.csv", index=False)
+    assert np.sum(~inside[:half]) and np.sum(~inside[half:])  # both files hold some
     with warnings.catch_warnings():
         warnings.simplefilter("always", FtcalWarning)
         assert main(["compensate", str(payload), str(tmp_path / "a.csv"), str(tmp_path / "b.csv"), "--model",
                      str(tmp_path / "cal.json"), "--orientation", "qx,qy,qz,qw", "-o", str(tmp_path / "out.csv")]) == 0
-    err = capsys.readouterr().err
+    return capsys.readouterr().err, wrench, inside, len(table)
+
+
+def test_compensate_warns_once_for_all_files_about_inputs_out_of_range(capsys, tmp_path):
+    """A calibration model trained on the lower 80 % of r1: both files hold rows beyond it, one warning."""
+    err, _, inside, n_rows = _compensate_beyond_training(capsys, tmp_path, 0.8)
     lines = [line for line in err.splitlines() if "outside the training range" in line]
-    n_out = int(np.sum(~inside))
-    assert np.sum(~inside[:half]) and np.sum(~inside[half:])  # both files hold some
     assert len(lines) == 1, err
-    assert lines[0].startswith(f"warning: {n_out} of {len(table)} samples have inputs outside") and "r1 up to" in lines[0]
+    assert lines[0].startswith(f"warning: {np.sum(~inside)} of {n_rows} samples have inputs outside")
+    assert "r1 up to" in lines[0]
 
 
 def test_compensate_names_the_axes_its_model_drives_beyond_the_training_loads(capsys, tmp_path):
     """A calibration model trained on the lower half of r1 (so of Fx): the compensated files load Fx far beyond
     it; the one warning names Fx, the largest predicted load and the training loads' edge."""
-    from ftcal.core.dataset import Dataset
-    from ftcal.core.model import CalibrationModel
-    from ftcal.files.model_files import save_model
-
-    frame = poses_frame(seed=4)
-    wrench = frame[["u1", "u2", "u3", "u4", "u5", "u6"]].to_numpy()
-    names = ["r1", "r2", "r3", "r4", "r5", "r6"]
-    raw = wrench - 3.0  # raw channels: an offset wrench, so the model's wrench is the recorded one
-    inside = raw[:, 0] <= np.quantile(raw[:, 0], 0.5)
-    save_model(CalibrationModel(1).fit(Dataset.from_arrays(raw[inside], wrench[inside], input_names=tuple(names))),
-               tmp_path / "cal.json")
-    frame.to_csv(tmp_path / "poses.csv", index=False)
-    payload = tmp_path / "p.json"
-    run(capsys, ["payload", tmp_path / "poses.csv", "--orientation", "qx,qy,qz,qw", "-o", payload])
-    table = pd.concat([frame[["qx", "qy", "qz", "qw"]], pd.DataFrame(raw, columns=names)], axis=1)
-    half = len(table) // 2
-    table.iloc[:half].to_csv(tmp_path / "a.csv", index=False)
-    table.iloc[half:].to_csv(tmp_path / "b.csv", index=False)
-    with warnings.catch_warnings():
-        warnings.simplefilter("always", FtcalWarning)
-        assert main(["compensate", str(payload), str(tmp_path / "a.csv"), str(tmp_path / "b.csv"), "--model",
-                     str(tmp_path / "cal.json"), "--orientation", "qx,qy,qz,qw", "-o", str(tmp_path / "out.csv")]) == 0
-    err = capsys.readouterr().err
+    err, wrench, inside, _ = _compensate_beyond_training(capsys, tmp_path, 0.5)
     lines = [line for line in err.splitlines() if "beyond the training loads" in line]
     assert len(lines) == 1, err  # one warning for both files, beside the inputs outside their range
     assert "outside the training range" in lines[0]

@@ -123,13 +123,13 @@ def test_in_memory_equals_streamed_in_many_chunks_and_the_direct_computation(cas
     parts = [metrics.ErrorSums.of(y[a:b], prediction[a:b], NAMES) for a, b in zip(cuts[:-1], cuts[1:])]
     for streamed in (tree_reduce(parts, metrics.ErrorSums.__add__), functools.reduce(metrics.ErrorSums.__add__, parts),
                      functools.reduce(lambda a, b: b + a, parts[::-1])):  # three association orders
-        summary = streamed.summary(NAMES)
+        summary = streamed.to_dict(NAMES)
         assert summary["n_samples"] == N_ROWS and summary["outputs"] == list(NAMES)
         _assert_metrics(summary, {key: np.asarray(value, dtype=float) for key, value in in_memory.items()
                                   if key not in ("n_samples", "outputs")})
     truth = _direct(y, prediction)
     _assert_metrics(in_memory, truth)
-    _assert_metrics(tree_reduce(parts, metrics.ErrorSums.__add__).summary(NAMES), truth)
+    _assert_metrics(tree_reduce(parts, metrics.ErrorSums.__add__).to_dict(NAMES), truth)
 
 
 def test_raw_sums_lose_digits_where_the_centred_sums_do_not():
@@ -146,7 +146,7 @@ def test_raw_sums_lose_digits_where_the_centred_sums_do_not():
     cuts = _cuts(rng, N_ROWS)
     streamed = tree_reduce([metrics.ErrorSums.of(y[a:b], prediction[a:b], NAMES)
                             for a, b in zip(cuts[:-1], cuts[1:])], metrics.ErrorSums.__add__)
-    np.testing.assert_allclose(streamed.summary(NAMES)["residual_autocorrelation_lag1"], acf, rtol=1e-12, atol=0)
+    np.testing.assert_allclose(streamed.to_dict(NAMES)["residual_autocorrelation_lag1"], acf, rtol=1e-12, atol=0)
     np.testing.assert_allclose(metrics.summarize(y, prediction, NAMES)["residual_autocorrelation_lag1"], acf,
                                rtol=1e-12, atol=0)
 
@@ -158,7 +158,7 @@ def test_single_rows_and_constant_outputs_give_the_defined_values():
     assert one_row["residual_autocorrelation_lag1"] == [0.0, 0.0]  # no lag pair: 0, as documented
     assert one_row["best_fit"] == [None, None]  # a constant output has no variance
     split = (metrics.ErrorSums.of(y[:1], prediction[:1], ("a", "b"))
-             + metrics.ErrorSums.of(y[1:], prediction[1:], ("a", "b"))).summary(("a", "b"))
+             + metrics.ErrorSums.of(y[1:], prediction[1:], ("a", "b"))).to_dict(("a", "b"))
     assert split["best_fit"][1] is None and split["force_norm_rmse"] is None
     # column a by hand: r = (1, 3, 2), mean 2, centred (-1, 1, 0): acf(1) = (-1·1 + 1·0) / 2 = -0.5
     assert split["residual_autocorrelation_lag1"][0] == pytest.approx(-0.5, abs=1e-15)
@@ -168,13 +168,13 @@ def test_single_rows_and_constant_outputs_give_the_defined_values():
 
 @pytest.fixture
 def counted_sums(monkeypatch):
-    """Rows given to every metrics.ErrorSums.of call (the streamed subclass's calls included), in order."""
+    """Rows given to every metrics.ErrorSums.of call (the streamed evaluation's included), in order."""
     rows = []
     original = metrics.ErrorSums.of.__func__
 
-    def counting(cls, y, prediction, output_names):
+    def counting(cls, y, prediction, output_names, *counts):
         rows.append(len(y))
-        return original(cls, y, prediction, output_names)
+        return original(cls, y, prediction, output_names, *counts)
 
     monkeypatch.setattr(metrics.ErrorSums, "of", classmethod(counting))
     return rows
@@ -200,7 +200,7 @@ def test_in_memory_and_streamed_evaluation_both_go_through_the_error_sums(tmp_pa
     streamed = streaming.file_error_sums(str(path), model)
     assert isinstance(streamed, metrics.ErrorSums) and streamed.n_out_of_range == in_memory["n_out_of_range"]
     assert sum(counted_sums) == 3000 and len(counted_sums) >= 5  # 700-row chunks (threads may split them)
-    summary = streamed.summary(model.output_names_)
+    summary = streamed.to_dict(model.output_names_)
     assert summary["n_out_of_range"] == 0
     _assert_metrics(summary, {key: np.asarray(value, dtype=float) for key, value in in_memory.items()
                               if key not in ("n_samples", "outputs", "n_out_of_range")})

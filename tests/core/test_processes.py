@@ -129,6 +129,6 @@ def test_a_local_dask_cluster_from_a_script_without_the_guard_is_one_line(tmp_pa
     """))
     done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120, cwd=tmp_path)
     assert done.returncode == 0 and "Traceback" not in done.stderr, done.stderr
-    assert done.stdout.strip() == (f"--scheduler local:2: {script} calls ftcal at its top level without 'if __name__ "
+    assert done.stdout.strip() == (f"scheduler local:2: {script} calls ftcal at its top level without 'if __name__ "
                                    "== \"__main__\":', and each local worker process would run the script again; put "
                                    "the calls under that guard, or leave out the scheduler.")

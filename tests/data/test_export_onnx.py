@@ -59,7 +59,7 @@ def test_arx_is_refused_with_a_pointer_to_c(tmp_path, capsys):
     data = Dataset.from_arrays(u, y)
     path = tmp_path / "arx.json"
     save_model(CalibrationModel(1, na=1).fit(data), path)
-    with pytest.raises(FtcalError, match="use --to c"):
+    with pytest.raises(FtcalError, match="use to c"):
         build_onnx(CalibrationModel(1, na=1).fit(data))
     assert main(["convert", str(path), "--to", "onnx", "-o", str(tmp_path / "m.onnx")]) == 2
     err = capsys.readouterr().err.strip().splitlines()

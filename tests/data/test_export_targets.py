@@ -33,7 +33,7 @@ def test_input_kind_comes_from_the_format_field(tmp_path):
     assert targets.input_kind(model_path) == targets.MODEL
     assert targets.input_kind(payload) == targets.PAYLOAD
     assert targets.input_kind(xml) == targets.MODEL
-    with pytest.raises(FtcalError, match="p.json is an ftcal-payload file; --to c takes an ftcal-model file"):
+    with pytest.raises(FtcalError, match="p.json is an ftcal-payload file; to c takes an ftcal-model file"):
         targets.write_target(payload, "c", tmp_path / "out", {})
     assert not (tmp_path / "out").exists()
 

@@ -381,7 +381,7 @@ def test_garbage_scheduler_addresses_and_answers_are_one_line(tmp_path, capfd):
     thread = threading.Thread(target=answer_garbage, daemon=True)
     thread.start()
     try:
-        with pytest.raises(FtcalError, match="--scheduler tcp://127.0.0.1"):
+        with pytest.raises(FtcalError, match="^scheduler tcp://127.0.0.1"):
             with open_executor(f"tcp://127.0.0.1:{server.getsockname()[1]}", connect_timeout=3):
                 pass
     finally:

@@ -106,7 +106,7 @@ def test_holds_stay_inside_segments_and_time_must_increase():
     holds = find_holds(t, orientation=q, segments=np.repeat([0, 1], 100))
     np.testing.assert_array_equal(holds.hold, np.repeat([0, 1], 100))
     with pytest.raises(FtcalError, match=r"run.csv: column 'stamp' does not increase at row 100; sort the table "
-                                         r"by time \(or, for a ROS bag, rebuild it with --receive-time\)"):
+                                         r"by time \(or, for a ROS bag, rebuild it with receive_time\)"):
         find_holds(t, orientation=q, where="run.csv", time_column="stamp")
     with pytest.raises(FtcalError, match="no orientation, gravity, joint or wrench columns"):
         find_holds(t[:100])

@@ -107,7 +107,7 @@ def test_errors(tmp_path, tiny):
     other = RobotModel.from_text(TINY_URDF.replace('"shoulder"', '"shoulder_pitch"'), "other.urdf")
     with pytest.raises(FtcalError, match="joint\\(s\\) 'shoulder' not in URDF other.urdf"):
         build_dataset([rec], other, "arm_ft", options=NO_FILTER)
-    with pytest.raises(FtcalError, match="both --imu"):
+    with pytest.raises(FtcalError, match="both imu"):
         build_dataset([rec], tiny, "arm_ft", options=InsituOptions(imu="x"))
     with pytest.raises(FtcalError, match="No recordings"):
         build_dataset([], tiny, "arm_ft")

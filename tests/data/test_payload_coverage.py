@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from scipy.signal import lfilter
 
-from ftcal.payload.identify import identify_payload
+from ftcal.payload.identify import identify_from_statistics
 from ftcal.payload.accumulate import payload_statistics
 from ftcal.payload.kinematics import Kinematics
 from ftcal.payload.tables import PayloadRecording, identify_recording
@@ -66,7 +66,7 @@ def test_no_drift_correlated_noise_auto_keeps_constant_bias_and_covers():
     assert chosen.count("none") >= 0.9 * RECORDINGS  # the simpler model when there is no drift
     assert coverage(results) >= 0.90
     # The scenario is hard: textbook (independent-noise) standard errors cover far less often.
-    textbook = [identify_payload({"run": payload_statistics(w, Kinematics(g))}, weighting="ols") for w in wrench]
+    textbook = [identify_from_statistics({"run": payload_statistics(w, Kinematics(g))}, weighting="ols") for w in wrench]
     assert np.mean([abs(f.mass - MASS) <= 1.96 * f.stderr["mass"] for f in textbook]) < 0.8
 
 

@@ -7,7 +7,7 @@ from test_payload_regressor import COM, IXX, IXY, IXZ, IYY, IYZ, IZZ, MASS, ONE_
 
 from ftcal.payload.accumulate import payload_statistics
 from ftcal.payload.compensate import contact_wrench, payload_wrench
-from ftcal.payload.identify import identify_payload
+from ftcal.payload.identify import identify_from_statistics
 from ftcal.payload.kinematics import Kinematics
 from ftcal.payload.parameters import PayloadParameters
 from ftcal.payload.regressor import inertia_matrix
@@ -37,7 +37,7 @@ def test_dynamic_fit_recovers_urdf_inertia(simulated):
     # 20 contiguous blocks: held-out evidence for the weighting and cluster-robust standard errors.
     blocks = [payload_statistics(measured[i], kinematics.take(i), dynamic=True)
               for i in np.array_split(np.arange(len(measured)), 20)]
-    fit = identify_payload({"all": payload_statistics(measured, kinematics, dynamic=True)}, clusters=blocks)
+    fit = identify_from_statistics({"all": payload_statistics(measured, kinematics, dynamic=True)}, clusters=blocks)
     assert fit.weighting == "wls", fit.weighting_evidence  # torques are 25x less noisy than forces: weighting wins held out
     rot = Rotation.from_euler("xyz", RPY).as_matrix()
     inertia_com = rot @ inertia_matrix([IXX, IXY, IXZ, IYY, IYZ, IZZ]) @ rot.T
@@ -71,7 +71,7 @@ def test_rotation_about_one_axis_leaves_inertia_undetermined():
     wrench = rng.normal(size=(n, 6))
     with pytest.warns(UndeterminedWarning, match=r"Ixx is not determined: .*about the sensor's x axis.*"
                                                   r"Not determined: Ixx, Ixy, Iyy"):
-        result = identify_payload({"a": payload_statistics(wrench, kinematics, dynamic=True)})
+        result = identify_from_statistics({"a": payload_statistics(wrench, kinematics, dynamic=True)})
     assert np.all(np.isnan(result.stderr["inertia"]))
 
 

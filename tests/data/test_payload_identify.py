@@ -7,7 +7,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from ftcal.payload.accumulate import payload_statistics
-from ftcal.payload.identify import identify_payload
+from ftcal.payload.identify import identify_from_statistics
 from ftcal.payload.kinematics import (
     GravityColumnsSource,
     Kinematics,
@@ -39,7 +39,7 @@ def random_gravity(n_poses, per_pose, seed):
 def fit(gravity, wrench, n_groups=1):
     parts = np.array_split(np.arange(len(gravity)), n_groups)
     groups = {f"g{k}": payload_statistics(wrench[idx], Kinematics(gravity[idx])) for k, idx in enumerate(parts)}
-    return identify_payload(groups)
+    return identify_from_statistics(groups)
 
 
 # ---------------------------------------------------------------- gravity sources
@@ -122,7 +122,7 @@ def dense_regressor(gravity):
 def test_stderr_matches_textbook_weighted_covariance():
     rng = np.random.default_rng(2)
     gravity = random_gravity(30, 20, seed=8)
-    result = identify_payload({"all": payload_statistics(readings(gravity, rng), Kinematics(gravity))},
+    result = identify_from_statistics({"all": payload_statistics(readings(gravity, rng), Kinematics(gravity))},
                               weighting="wls")
     a = dense_regressor(gravity)
     weights = np.tile(1.0 / NOISE ** 2, len(gravity))  # the true per-axis noise
@@ -219,7 +219,7 @@ def test_mass_sign_checks():
     bare = BIAS + rng.normal(size=(len(gravity), 6)) * NOISE  # nothing mounted: bias only
     with pytest.raises(FtcalError, match="not distinguishable from zero"):
         check_mass_sign(fit(gravity, bare))
-    with pytest.raises(FtcalError, match="negative: .*re-run with --reaction"):
+    with pytest.raises(FtcalError, match="negative: .*re-run with reaction"):
         check_mass_sign(fit(gravity, -readings(gravity, rng)))
     check_mass_sign(fit(gravity, readings(gravity, rng)))
 

@@ -18,7 +18,7 @@ from ftcal.cli import main
 from ftcal.files.model_json import digest
 from ftcal.files.payload_json import load_payload, parse_payload
 from ftcal.payload.accumulate import payload_statistics
-from ftcal.payload.identify import identify_payload
+from ftcal.payload.identify import identify_from_statistics
 from ftcal.payload.kinematics import Kinematics
 from ftcal.runtime.errors import FtcalError, FtcalWarning, UndeterminedWarning
 
@@ -57,13 +57,13 @@ def frame_of(rotations, seed, per_pose=PER_POSE, contact=None):
 
 
 def fit_blocks(gravity, wrench, n_blocks=20):
-    """identify_payload as ftcal payload calls it: grouped jackknife over contiguous blocks."""
+    """identify_from_statistics as ftcal payload calls it: grouped jackknife over contiguous blocks."""
     edges = np.linspace(0, len(gravity), n_blocks + 1).astype(int)
     blocks = [payload_statistics(wrench[a:b], Kinematics(gravity[a:b])) for a, b in zip(edges[:-1], edges[1:])]
     total = blocks[0]
     for b in blocks[1:]:
         total = total + b
-    return identify_payload({"all": total}, clusters=blocks, cross_validate=False)
+    return identify_from_statistics({"all": total}, clusters=blocks, cross_validate=False)
 
 
 def run(capsys, argv, allowed=()):
@@ -271,7 +271,7 @@ def test_drift_confounded_with_the_pose_order_is_refused():
     wrench = statics(gravity) + np.random.default_rng(0).normal(size=(len(t), 6)) * NOISE
     stats = payload_statistics(wrench, Kinematics(gravity), extra=t[:, None])
     with pytest.raises(FtcalError, match=r"leave the bias's time coefficients undetermined .*revisit early poses"):
-        identify_payload({"a": stats}, covariates=("time",))
+        identify_from_statistics({"a": stats}, covariates=("time",))
 
 
 def test_only_undetermined_parameters_may_lack_a_standard_error(tmp_path, capsys):

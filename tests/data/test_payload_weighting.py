@@ -4,7 +4,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ftcal.payload.accumulate import payload_statistics
-from ftcal.payload.identify import identify_payload
+from ftcal.payload.identify import identify_from_statistics
 from ftcal.payload.kinematics import Kinematics
 
 G = 9.81
@@ -19,7 +19,7 @@ def fit(noise, seed, weighting="auto"):
     w = np.c_[MASS * g, np.cross(COM, MASS * g)] + BIAS + rng.normal(size=(len(g), 6)) * noise
     blocks = [payload_statistics(w[i], Kinematics(g[i])) for i in np.array_split(np.arange(len(g)), 20)]
     total = payload_statistics(w, Kinematics(g))
-    return identify_payload({"all": total}, clusters=blocks, weighting=weighting)
+    return identify_from_statistics({"all": total}, clusters=blocks, weighting=weighting)
 
 
 def test_equal_noise_keeps_plain_least_squares():
@@ -82,7 +82,7 @@ def test_weights_that_lose_the_held_out_force_norm_are_not_kept():
         w = np.c_[MASS * g, np.cross(COM, MASS * g)] + BIAS + rng.normal(size=(len(g), 6)) * noise
         w[:, 2] += np.cumsum(rng.normal(size=len(g))) * 0.1
         blocks = [payload_statistics(w[i], Kinematics(g[i])) for i in np.array_split(np.arange(len(g)), 20)]
-        result = identify_payload({"all": payload_statistics(w, Kinematics(g))}, clusters=blocks)
+        result = identify_from_statistics({"all": payload_statistics(w, Kinematics(g))}, clusters=blocks)
         norm = held_out_force_norms(g, w)
         if result.weighting == "wls":  # kept weights never lose the held-out force norm (numpy's own refits)
             assert norm <= 1.02, (seed, norm, result.weighting_evidence)

@@ -20,7 +20,7 @@ from scipy.spatial.transform import Rotation
 from sklearn.preprocessing import PolynomialFeatures
 
 from ftcal.cli import main
-from ftcal.plan import PlanRequest, plan_experiment
+from ftcal.plan import PlanRequest, design_experiment
 from ftcal.plan.design import greedy_design, greedy_design_factored
 from ftcal.plan.information import payload_blocks, payload_rows
 from ftcal.plan.order import short_path
@@ -86,7 +86,7 @@ def sensor_height(q: np.ndarray) -> np.ndarray:
 def test_planned_poses_respect_limits_pins_and_height(arm):
     request = PlanRequest((None, parse_payload_spec(HEAVY)), 25, degree=2, ranges={"elbow_pitch": (-1.0, 0.5)},
                           fixed={"wrist_roll": 0.3}, min_height=0.9, n_candidates=2000, seed=3)
-    plan = plan_experiment(arm, request)
+    plan = design_experiment(arm, request)
     q, load, reference, _ = plan.table()
     assert set(plan.space.free) == {"shoulder_pitch", "elbow_pitch", "wrist_pitch"}
     for j, name in enumerate(arm.joint_names):
@@ -110,7 +110,7 @@ def _restricted_log_det(features: np.ndarray, basis: np.ndarray) -> float:
 @pytest.mark.parametrize("degree", [1, 2])
 def test_planned_calibration_information_beats_100_random_designs(arm, degree):
     loads = (None, parse_payload_spec("tool:1@0.03,0,0.04"), parse_payload_spec(HEAVY))
-    plan = plan_experiment(arm, PlanRequest(loads, 30, degree=degree, n_candidates=1500, seed=1))
+    plan = design_experiment(arm, PlanRequest(loads, 30, degree=degree, n_candidates=1500, seed=1))
     w = plan.candidates.wrench.reshape(-1, 6)  # candidate (configuration, load) pairs, configuration-major
     # Monomials by scikit-learn on forces in N and torques in N·dm (any affine rescaling spans the same
     # polynomials; the rescaling only keeps the numbers near one)
@@ -141,7 +141,7 @@ def _payload_regressor_by_hand(gravity: np.ndarray, load: np.ndarray, n_loads: i
 
 def test_planned_payload_information_beats_100_random_designs(arm):
     loads = (None, parse_payload_spec(HEAVY))
-    plan = plan_experiment(arm, PlanRequest(loads, 14, objective="payload", n_candidates=1500, noise=(1.0, 1.0)))
+    plan = design_experiment(arm, PlanRequest(loads, 14, objective="payload", n_candidates=1500, noise=(1.0, 1.0)))
     g = plan.candidates.gravity
     n = plan.candidates.n_configurations
 

@@ -5,7 +5,7 @@ import pandas as pd
 import pytest
 
 from ftcal.cli import main
-from ftcal.plan import PlanRequest, plan_experiment
+from ftcal.plan import PlanRequest, design_experiment
 from ftcal.robot import RobotModel, parse_payload_spec
 from ftcal.runtime.errors import FtcalError
 from ftcal.sim.plan_arm import ARM_URDF
@@ -45,7 +45,7 @@ def test_a_design_beyond_the_work_limit_is_refused_before_any_work():
     """Degree 10 over the 6 wrench axes: C(16, 6) = 8008 parameters; 8008³ alone is 5·10¹¹ operations."""
     robot = RobotModel.from_text(ARM_URDF)
     with pytest.raises(FtcalError, match="8008 parameters"):
-        plan_experiment(robot, PlanRequest((None,), 10, degree=10, n_candidates=100))
+        design_experiment(robot, PlanRequest((None,), 10, degree=10, n_candidates=100))
 
 
 def test_a_recorded_table_with_absurd_wrenches_is_refused(capsys, tmp_path, arm):

@@ -179,7 +179,7 @@ def test_declared_sensor_survives_worker_processes(monkeypatch):
 
 def test_no_sensor_lists_the_fixed_joints():
     robot = RobotModel.load(PANDA)
-    with pytest.raises(FtcalError, match=r"--ft-joint JOINT.*panda_joint8, panda_hand_joint, panda_hand_tcp_joint"):
+    with pytest.raises(FtcalError, match=r"ft_joint JOINT.*panda_joint8, panda_hand_joint, panda_hand_tcp_joint"):
         robot.sensor("anything")
     with pytest.raises(FtcalError, match="no six-axis F/T sensor"):
         expected_wrenches(robot, np.zeros((1, len(robot.joint_names))))

@@ -117,7 +117,7 @@ def test_one_scan_of_every_file_equals_pandas_on_the_whole_table(tables, chunk_r
     grid = np.clip(np.floor((u - u.min(axis=0)) / (u.max(axis=0) - u.min(axis=0)) * POSE_BINS), 0, POSE_BINS - 1)
     assert len(cells.value) == len(np.unique(grid, axis=0))
     residual = y - model.predict(u, warn_out_of_range=False)
-    metrics = errors.value.summary(OUTPUTS)
+    metrics = errors.value.to_dict(OUTPUTS)
     close(metrics["rmse"], np.sqrt(np.mean(residual ** 2, axis=0)))
     close(metrics["max_abs_error"], np.abs(residual).max(axis=0))
     assert metrics["n_samples"] == len(whole)
@@ -175,7 +175,7 @@ def test_arx_whole_file_accumulators_read_the_file_once_and_share_it_with_chunke
     data = frames[2]
     expected = arx.metrics(Dataset.from_arrays(data[list(INPUTS)].to_numpy(), data[list(OUTPUTS)].to_numpy(),
                                                input_names=INPUTS, output_names=OUTPUTS), warn_out_of_range=False)
-    close(main.summary(OUTPUTS)["rmse"], expected["rmse"], 1e-10)
+    close(main.to_dict(OUTPUTS)["rmse"], expected["rmse"], 1e-10)
     x = data[list(INPUTS)].to_numpy()
     low, high = arx.input_range_[:, 0], arx.input_range_[:, 1]
     grid = np.clip(np.floor((x - low) / (high - low) * POSE_BINS), 0, POSE_BINS - 1)

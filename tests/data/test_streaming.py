@@ -109,7 +109,7 @@ def test_error_sums_of_any_split_equal_the_metrics_of_the_whole():
     prediction = y + rng.normal(size=y.shape).cumsum(axis=0) * 0.1  # correlated residuals
     cuts = [0, 1, 2, 90, 333, 500]  # includes blocks of one row
     parts = [ErrorSums.of(y[a:b], prediction[a:b], DEFAULT_OUTPUTS, 0) for a, b in zip(cuts[:-1], cuts[1:])]
-    got = tree_reduce(parts, add_error_sums).summary(DEFAULT_OUTPUTS)
+    got = tree_reduce(parts, add_error_sums).to_dict(DEFAULT_OUTPUTS)
     expected = metrics.summarize(y, prediction, DEFAULT_OUTPUTS)
     for key in expected:
         if key == "outputs":
@@ -127,18 +127,18 @@ def test_dask_results_are_identical_to_the_local_run(files, cluster):
     paths, model, _ = files
     local = LocalExecutor().map_reduce(file_error_sums, paths, model, combine=add_error_sums)
     remote = cluster.map_reduce(file_error_sums, paths, model, combine=add_error_sums)
-    assert json.dumps(remote.summary(model.output_names_)) == json.dumps(local.summary(model.output_names_))
+    assert json.dumps(remote.to_dict(model.output_names_)) == json.dumps(local.to_dict(model.output_names_))
     data = whole(paths)
     reference = model.metrics(Dataset.from_arrays(data[list(INPUTS)].to_numpy(), data[list(DEFAULT_OUTPUTS)].to_numpy(),
                                                 input_names=INPUTS, output_names=DEFAULT_OUTPUTS),
                             warn_out_of_range=False)
-    assert np.allclose(remote.summary(model.output_names_)["rmse"], reference["rmse"], rtol=1e-12, atol=0)
+    assert np.allclose(remote.to_dict(model.output_names_)["rmse"], reference["rmse"], rtol=1e-12, atol=0)
 
 
 def test_dask_errors_are_one_clear_line(files, cluster, tmp_path):
     paths, model, _ = files
     with pytest.raises(FtcalError, match=r"missing\.parquet: the Dask worker on .* cannot read this file; with "
-                                         r"--scheduler the paths must be visible to every worker"):
+                                         r"scheduler the paths must be visible to every worker"):
         cluster.map(file_error_sums, [paths[0], str(tmp_path / "missing.parquet")], model)
     with pytest.raises(FtcalError, match=r"a Dask worker died while running"):
         cluster.map(lambda path: os._exit(1), [paths[0]])  # the worker process exits: retried once, then an error
@@ -149,12 +149,12 @@ def test_unreachable_scheduler_and_bad_addresses():
     with socket.socket() as probe:  # a loopback port that nothing listens on
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]
-    with pytest.raises(FtcalError, match=rf"--scheduler tcp://127.0.0.1:{port}: cannot reach the Dask scheduler "
+    with pytest.raises(FtcalError, match=rf"^scheduler tcp://127.0.0.1:{port}: cannot reach the Dask scheduler "
                                          r"within 1 s"):
         with open_executor(f"tcp://127.0.0.1:{port}", connect_timeout=1):
             pass
     for text in ("local:0", "local:x", "127.0.0.1:8786"):
-        with pytest.raises(FtcalError, match="--scheduler"):
+        with pytest.raises(FtcalError, match="^scheduler"):
             parse_scheduler(text)
 
 
@@ -191,7 +191,7 @@ def test_an_existing_cluster_whose_workers_run_another_ftcal_is_refused(tmp_path
         try:
             with Client(cluster.scheduler_address, timeout=30) as client:
                 client.wait_for_workers(1, timeout=60)
-            with pytest.raises(FtcalError, match=rf"--scheduler {cluster.scheduler_address}: worker tcp://\S+ runs "
+            with pytest.raises(FtcalError, match=rf"^scheduler {cluster.scheduler_address}: worker tcp://\S+ runs "
                                                  r"ftcal 99.0 but this client runs \S+; install the same versions"):
                 with open_executor(cluster.scheduler_address):
                     pass

@@ -148,7 +148,7 @@ def test_rigid_tool_on_a_wrist_cannot_fix_the_scale():
     raw = true @ np.linalg.inv(np.eye(6) + 0.1 * np.ones((6, 6))).T
     y = payload_regressor(robot, "ee_fixed_joint", "ee_link", q, base="base_link", static=True)
     data = Dataset.from_arrays(raw, known, input_names=INPUTS, output_names=DEFAULT_OUTPUTS)
-    with pytest.raises(FtcalError, match="trade against the calibration's gains.*--payload-mass"):
+    with pytest.raises(FtcalError, match="trade against the calibration's gains.*payload_mass"):
         fit_with_payload(data, y, "ee_link")
 
 

@@ -20,7 +20,7 @@ import pytest
 from ftcal.live import LiveCalibrator
 from ftcal.live.c_identify import STATUS
 from ftcal.live.c_runtime import generate_c_runtime
-from ftcal.payload.identify import identify_payload
+from ftcal.payload.identify import identify_from_statistics
 from ftcal.runtime.errors import FtcalError, UndeterminedWarning
 from ftcal.sim.live_scenario import LiveScenario, Tool, simulate_live
 
@@ -150,7 +150,7 @@ class Finishes:
             total = holds[0]
             for h in holds[1:]:
                 total = total + h
-            fit = identify_payload({"tool": total}, clusters=holds, cross_validate=False)
+            fit = identify_from_statistics({"tool": total}, clusters=holds, cross_validate=False)
             self.results.append((payload, fit, len(holds)))
         return act
 

@@ -182,10 +182,14 @@ def test_old_names_still_work_and_say_the_new_one(tmp_path):
     """The shadowed lower functions and the re-tare's old argument order, kept one release."""
     from ftcal.files.targets import convert, write_target
     from ftcal.insitu.recordings import build_dataset, recordings_dataset
+    from ftcal.payload import identify
+    from ftcal.plan import design_experiment, plan_experiment
     from ftcal.report import evaluate, evaluate_run
     from ftcal.workflow import rebias_payload, retare
 
-    for old, new in ((convert, write_target), (build_dataset, recordings_dataset), (evaluate, evaluate_run)):
+    for old, new in ((convert, write_target), (build_dataset, recordings_dataset), (evaluate, evaluate_run),
+                     (plan_experiment, design_experiment),
+                     (identify.identify_payload, identify.identify_from_statistics)):
         assert old.deprecated_for.endswith(new.__name__)
         with pytest.warns(DeprecationWarning, match=new.__name__), pytest.raises(TypeError):
             old()  # the same signature as the new name: no argument is an error of the call, after the notice

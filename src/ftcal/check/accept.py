@@ -19,7 +19,7 @@ import numpy as np
 from ..core.limits import MAX_FORCE_ERROR, MAX_TORQUE_ERROR
 from ..core.metrics import force_torque_columns
 from ..data.tables import table_label_column
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, ParameterError
 
 # A stuck run covering this fraction of the recording is a dead channel.
 DEAD_FRACTION = 0.9
@@ -347,12 +347,12 @@ def read_test_data(paths: Sequence[str | os.PathLike], model, *, payload=None, s
     from ..payload.compensate import contact_wrench
 
     if not model.is_static:
-        raise FtcalError("ftcal check --accept takes static models (no ARX lags); evaluate ARX models with "
+        raise ParameterError('accept', "ftcal check {accept} takes static models (no ARX lags); evaluate ARX models with "
                          "ftcal evaluate.")
     if len(model.output_names_) != 6:
         raise FtcalError(f"the calibration model has {len(model.output_names_)} outputs; a wrench needs 6.")
     if payload is not None and source is None:
-        raise FtcalError("--payload needs the sensor's orientation (--orientation, --gravity-columns or --urdf).")
+        raise ParameterError(('payload', 'orientation', 'gravity_columns', 'urdf'), "{payload} needs the sensor's orientation ({orientation}, {gravity_columns} or {urdf}).")
     errors, references, labels, issues, inputs, files, times = [], [], [], [], [], [], []
     for path in paths:
         path = Path(path)
@@ -369,7 +369,7 @@ def read_test_data(paths: Sequence[str | os.PathLike], model, *, payload=None, s
         if column is None:
             label = np.full(len(frame), str(path), dtype=object)
         elif column not in frame.columns:
-            raise FtcalError(f"{path}: no pose column {column!r} (--group-by); the file has "
+            raise ParameterError('group_by', f"{path}: no pose column {column!r} ({{group_by}}); the file has "
                              f"{', '.join(map(str, frame.columns))}.")
         else:
             label = frame[column].astype(str).to_numpy(dtype=object)

@@ -34,7 +34,7 @@ from ..core.limits import (FINDING_CONFIDENCE, HOLD_SAMPLE_RATE, MAX_COM_DISTANC
                            MIN_TOOL_MASS)
 from ..data.tables import table_label_column
 from ..payload.regressor import static_regressor
-from ..runtime.errors import FtcalError, FtcalWarning
+from ..runtime.errors import FtcalError, ParameterError, FtcalWarning
 from ..data.holds import HoldAverages
 
 AXES = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
@@ -659,7 +659,7 @@ def _table_holds(frame, path: str, gravity: np.ndarray, source, *, wrench, group
     if time_column in frame.columns:
         t = numeric_columns(frame, (time_column,), Path(path), "time")[:, 0]
     elif time is not None:
-        raise FtcalError(f"{path}: no time column {time!r} (--time); the file has "
+        raise ParameterError('time', f"{path}: no time column {time!r} ({{time}}); the file has "
                          f"{', '.join(map(str, frame.columns))}.")
     else:
         t = np.arange(len(frame)) / rate
@@ -667,7 +667,7 @@ def _table_holds(frame, path: str, gravity: np.ndarray, source, *, wrench, group
     group_by = table_label_column(list(frame.columns), group_by)
     if group_by is not None:
         if group_by not in frame.columns:
-            raise FtcalError(f"{path}: no hold column {group_by!r} (--group-by); the file has "
+            raise ParameterError('group_by', f"{path}: no hold column {group_by!r} ({{group_by}}); the file has "
                              f"{', '.join(map(str, frame.columns))}.")
         labels = frame[group_by].astype(str).to_numpy(dtype=object)
     holds = find_holds(t, gravity=gravity, segments=labels, where=str(path), time_column=time_column)

@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..runtime.errors import FtcalError, FtcalWarning
+from ..runtime.errors import FtcalError, ParameterError, FtcalWarning
 
 DATABASE_NAME = "history.sqlite"
 FORMAT = "ftcal-history"
@@ -220,12 +220,12 @@ class History:
         self._connection: sqlite3.Connection | None = None
         if read_only:
             if not self.path.is_file() and not self.path.exists():
-                raise FtcalError(f"--history-dir {self.folder}: no history database ({DATABASE_NAME}) there.")
+                raise ParameterError('history_dir', f"{{history_dir}} {self.folder}: no history database ({DATABASE_NAME}) there.")
         else:
             try:
                 self.folder.mkdir(parents=True, exist_ok=True)
             except OSError as exc:
-                raise FtcalError(f"--history-dir {self.folder}: cannot make the folder ({exc.strerror}"
+                raise ParameterError('history_dir', f"{{history_dir}} {self.folder}: cannot make the folder ({exc.strerror}"
                                  + ("; read-only storage" if exc.errno == errno.EROFS else "") + ").") from None
         exists = self.path.exists() or self.path.is_symlink()
         if exists:
@@ -260,16 +260,16 @@ class History:
             except OSError as exc:
                 raise FtcalError(f"{path}: cannot read it ({exc.strerror}).") from None
             if not stat.S_ISREG(mode):
-                raise FtcalError(f"{path}: not a regular file (a FIFO, device or folder); ftcal keeps its history "
-                                 "in a plain file: choose another --history-dir.")
+                raise ParameterError('history_dir', f"{path}: not a regular file (a FIFO, device or folder); ftcal keeps its history "
+                                 "in a plain file: choose another {history_dir}.")
         try:
             with open(self.path, "rb") as fh:
                 head = fh.read(len(_SQLITE_MAGIC))
         except OSError as exc:
             raise FtcalError(f"{self.path}: cannot read it ({exc.strerror}).") from None
         if head and head != _SQLITE_MAGIC:
-            raise FtcalError(f"{self.path}: not an SQLite file, so not an ftcal history; move it aside or choose "
-                             "another --history-dir.")
+            raise ParameterError('history_dir', f"{self.path}: not an SQLite file, so not an ftcal history; move it aside or choose "
+                             "another {history_dir}.")
 
     def _uri(self, immutable: bool = False) -> str:
         from urllib.parse import quote
@@ -305,12 +305,12 @@ class History:
             return True  # an empty database (another writer is making the history): an empty history
         if application not in (0, APPLICATION_ID) or "meta" not in tables:
             what = f"application id {application:#x}" if application else f"tables {', '.join(sorted(tables)[:5])}"
-            raise FtcalError(f"{self.path}: another application's SQLite database ({what}), not an ftcal history; "
-                             "ftcal will not add to it: choose another --history-dir.")
+            raise ParameterError('history_dir', f"{self.path}: another application's SQLite database ({what}), not an ftcal history; "
+                             "ftcal will not add to it: choose another {history_dir}.")
         fmt = dict(conn.execute("SELECT key, value FROM meta").fetchall())
         if fmt.get("format") != FORMAT or not _TABLES <= tables:
-            raise FtcalError(f"{self.path}: an SQLite database of format {fmt.get('format')!r}, not an ftcal history; "
-                             "ftcal will not add to it: choose another --history-dir.")
+            raise ParameterError('history_dir', f"{self.path}: an SQLite database of format {fmt.get('format')!r}, not an ftcal history; "
+                             "ftcal will not add to it: choose another {history_dir}.")
         if fmt.get("format_version") != FORMAT_VERSION:
             raise FtcalError(f"{self.path}: ftcal history version {fmt.get('format_version')}; this ftcal "
                              f"reads version {FORMAT_VERSION}.")
@@ -348,13 +348,14 @@ class History:
                               f"{wait:g} s); try again when it has finished. Nothing was changed.")
         if "readonly" in low or "read-only" in low or name.startswith("SQLITE_READONLY") or (
                 "unable to open" in low and not os.access(self.folder, os.W_OK)):
-            return FtcalError(f"{self.path}: the history is on read-only storage or not writable by you "
-                              f"(SQLite: {text}); nothing was recorded. Record to a writable --history-dir.")
+            return ParameterError("history_dir", f"{self.path}: the history is on read-only storage or not "
+                                  f"writable by you (SQLite: {text}); nothing was recorded. Record to a writable "
+                                  "{history_dir}.")
         if "full" in low or name in ("SQLITE_FULL", "SQLITE_IOERR") or name.startswith("SQLITE_IOERR"):
             return FtcalError(f"{self.path}: cannot write the history (SQLite: {text}); nothing was recorded.")
         if "not a database" in low or name == "SQLITE_NOTADB":
-            return FtcalError(f"{self.path}: SQLite cannot read it as a database ({text}); not a usable ftcal "
-                              "history: move it aside or choose another --history-dir.")
+            return ParameterError("history_dir", f"{self.path}: SQLite cannot read it as a database ({text}); not "
+                                  "a usable ftcal history: move it aside or choose another {history_dir}.")
         check = self._integrity()
         if check is not None:
             return FtcalError(f"{self.path}: not an intact ftcal history database (integrity check: {check}); "

@@ -379,7 +379,7 @@ def run(argv: list[str] | None) -> int:
             check_input_paths(args)
             for option in OUTPUT_OPTIONS:
                 if getattr(args, option, None):
-                    check_not_an_input(getattr(args, option), f"--{option}")
+                    check_not_an_input(getattr(args, option), option)
             return int(args.func(args) or 0)
     except FtcalError as exc:
         from ._common import cli_message

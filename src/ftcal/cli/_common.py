@@ -20,6 +20,7 @@ FLAGS = {
     "robot": "--model",  # the robot description (a URDF or a robot_descriptions name)
     "recorded": "--from",  # ftcal plan: tables of poses already recorded
     "tools": "--tool",  # ftcal live: the tool library, one --tool NAME=PAYLOAD.json each
+    "single_precision": "--float",  # ftcal convert: float code
 }
 
 
@@ -83,19 +84,32 @@ def float_list(text: str) -> tuple[float, ...]:
     return tuple(positive_float(part) for part in text.split(","))
 
 
+# The --segment-by and --group-by help of the commands that read tables (add_label_options).
+SEGMENT_HELP = ("column whose runs of equal values are separate segments (default: the 'segment' column "
+                "ftcal dataset writes when every file has one, else one per file)")
+ARX_SEGMENT_HELP = ("column separating segments (ARX; default: the 'segment' column ftcal dataset writes when "
+                    "every file has one)")
+GROUP_HELP = ("column naming validation groups, e.g. the load case (default: one per file; for fit "
+              "--degree auto, --family mlp or --estimate-payload, the 'load' column ftcal dataset "
+              "writes when every file has one)")
+
+
+def add_label_options(parser: argparse.ArgumentParser, segment_help: str | None = SEGMENT_HELP,
+                      group_help: str | None = GROUP_HELP) -> None:
+    """``--segment-by COL`` and ``--group-by COL`` (each left out when its help is None)."""
+    if segment_help is not None:
+        parser.add_argument("--segment-by", metavar="COL", help=segment_help)
+    if group_help is not None:
+        parser.add_argument("--group-by", metavar="COL", help=group_help)
+
+
 def add_column_options(parser: argparse.ArgumentParser, outputs: bool = True) -> None:
     parser.add_argument("--inputs", type=column_list, metavar="C1,C2,...",
                         help=f"input columns (default {','.join(DEFAULT_INPUTS)}; T is optional)")
     if outputs:
         parser.add_argument("--outputs", type=column_list, metavar="C1,...",
                             help=f"reference output columns (default {','.join(DEFAULT_OUTPUTS)})")
-    parser.add_argument("--segment-by", metavar="COL",
-                        help="column whose runs of equal values are separate segments (default: the 'segment' column "
-                             "ftcal dataset writes when every file has one, else one per file)")
-    parser.add_argument("--group-by", metavar="COL",
-                        help="column naming validation groups, e.g. the load case (default: one per file; for fit "
-                             "--degree auto, --family mlp or --estimate-payload, the 'load' column ftcal dataset "
-                             "writes when every file has one)")
+    add_label_options(parser)
 
 
 def default_inputs(paths: Sequence[str]) -> tuple[str, ...]:

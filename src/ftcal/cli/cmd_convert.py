@@ -13,10 +13,9 @@ def safe_name(text: str) -> str:
     from ..runtime.errors import FtcalError
 
     try:
-        return check_safe_name(text, "")
-    except FtcalError:
-        raise argparse.ArgumentTypeError(f"{text!r}: use 1 to 64 letters, digits, '_', '-' or '.' (not first); "
-                                         "it becomes part of a file name") from None
+        return check_safe_name(text)
+    except FtcalError as exc:  # argparse adds its own stop
+        raise argparse.ArgumentTypeError(str(exc).rstrip(".")) from None
 
 
 def register(sub) -> None:

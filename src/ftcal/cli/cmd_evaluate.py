@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from ..core.limits import ARX_WARMUP, FREE_RUN_STARTS, PREDICTION_MODES, TARE_MODES
-from ._common import add_scheduler_option, print_json
+from ._common import ARX_SEGMENT_HELP, add_label_options, add_scheduler_option, print_json
 from ._examples import epilog
 
 
@@ -23,11 +23,9 @@ def register(sub) -> None:
     p.add_argument("--warmup", choices=ARX_WARMUP, default="drop",
                    help="ARX metrics: drop (default, as the paper's code) or keep the first max(na,nb) rows "
                         "of each segment")
-    p.add_argument("--segment-by", metavar="COL", help="column separating segments (ARX; default: the 'segment' "
-                                                       "column ftcal dataset writes when every file has one)")
-    p.add_argument("--group-by", metavar="COL",
-                   help="groups of the baseline comparison, one fold each (default: the 'load' column ftcal "
-                        "dataset writes when every file has one, else one per file)")
+    add_label_options(p, ARX_SEGMENT_HELP,
+                      "groups of the baseline comparison, one fold each (default: the 'load' column ftcal "
+                      "dataset writes when every file has one, else one per file)")
     p.add_argument("--baseline", metavar="identity|MODEL",
                    help="compare with a baseline on the same samples: 'identity' (the model's first six inputs "
                         "already are the wrench: the vendor's matrix) or another model file; prints each "

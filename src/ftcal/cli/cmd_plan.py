@@ -106,7 +106,7 @@ def run(args: argparse.Namespace) -> int:
     require_suffix(args.output, (".csv",), "-o")
     if args.html:
         require_suffix(args.html, (".html", ".htm"), "--html")
-        check_not_an_input(args.html, "--html")
+        check_not_an_input(args.html, "html")
     result = plan_experiment(args.poses, **robot_keywords(args), base=args.base, sensor=args.sensor,
                              load=tuple(args.load),
                              objective=args.objective, degree=args.degree, joint_range=tuple(args.joint_range),

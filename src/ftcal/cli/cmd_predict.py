@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from ..core.limits import FREE_RUN_STARTS, PREDICTION_MODES
-from ._common import add_scheduler_option, require_suffix
+from ._common import ARX_SEGMENT_HELP, add_label_options, add_scheduler_option, require_suffix
 from ._examples import epilog
 
 
@@ -23,8 +23,7 @@ def register(sub) -> None:
                         "first max(na,nb) rows predict 0) or measured (the first measured output when DATA "
                         "holds the output columns, else the steady state of the first input, as the "
                         "generated C code's NAME_init(s, u0, NULL))")
-    p.add_argument("--segment-by", metavar="COL", help="column separating segments (ARX; default: the 'segment' "
-                                                       "column ftcal dataset writes when every file has one)")
+    add_label_options(p, ARX_SEGMENT_HELP, group_help=None)
     add_scheduler_option(p)
     p.set_defaults(func=run)
 

@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from ..core.limits import TARE_MODES
-from ._common import column_list
+from ._common import add_label_options, column_list
 from ._examples import epilog
 
 MODEL_SUFFIXES = (".json", ".xml")
@@ -30,12 +30,8 @@ def register(sub) -> None:
                    help="input columns to read (default: every input any model uses)")
     p.add_argument("--outputs", type=column_list, metavar="C1,...",
                    help="reference output columns (default: the models' outputs)")
-    p.add_argument("--segment-by", metavar="COL",
-                   help="column whose runs of equal values are separate segments (default: the 'segment' column "
-                        "ftcal dataset writes when every file has one, else one per file)")
-    p.add_argument("--group-by", metavar="COL",
-                   help="column naming groups, e.g. the load case (default: the 'load' column ftcal dataset "
-                        "writes when every file has one, else one per file)")
+    add_label_options(p, group_help="column naming groups, e.g. the load case (default: the 'load' column ftcal "
+                                    "dataset writes when every file has one, else one per file)")
     p.add_argument("--title", default="ftcal calibration report", help="page title")
     p.add_argument("--baseline", metavar="identity|MODEL",
                    help="add a section comparing every model with a baseline, as ftcal evaluate --baseline: "

@@ -31,8 +31,9 @@ def run(args: argparse.Namespace) -> int:
                      str(len(robot.links_beyond(s, base))), f"{robot.mass_beyond(s, base):.4f}"))
     if len(rows) == 1:
         from ..robot.declare import no_sensor_hint
+        from ._common import flag_of
 
-        print(f"F/T sensors: none; {no_sensor_hint(robot.urdf_text)}")
+        print(f"F/T sensors: none; {no_sensor_hint(robot.urdf_text, flag_of)}")
     else:
         print(f"F/T sensors ({len(rows) - 1}):")
         widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]

@@ -172,7 +172,7 @@ def output_excitation(spread: Spread, names: Sequence[str]) -> OutputExcitation:
         raise FtcalError(f"the reference outputs {','.join(names)} are constant"
                          + (f" and ~0 (largest mean {size:.2g})" if size < ZERO_REFERENCE_WRENCH else "")
                          + ": nothing to fit a calibration to; record several loads or poses"
-                         + (" (a zero reference is a load case with no payload: see 'ftcal dataset --payload-file')"
+                         + (" (a zero reference is a load case with no payload: see `ftcal dataset --payload-file`)"
                             if size < ZERO_REFERENCE_WRENCH else "") + ".")
     scaled = cov * scale[:, None] * scale[None, :]
     values, vectors = np.linalg.eigh(0.5 * (scaled + scaled.T))

@@ -21,7 +21,7 @@ from __future__ import annotations
 import importlib
 from typing import Any, ClassVar, Protocol, runtime_checkable
 
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, ParameterError
 
 DEFAULT_FAMILY = "polynomial"
 """The family of a model file without a ``family`` field (every file written before families existed)."""
@@ -151,5 +151,5 @@ def check_export(model: object, target: str) -> None:
     """Refuse, in one line, a ``ftcal convert`` target the model's family cannot be written to."""
     exports = getattr(model, "exports", frozenset())
     if target not in exports:
-        raise FtcalError(f"--to {target}: the {getattr(model, 'family', '?')} family cannot be exported there; "
+        raise ParameterError('to', f"{{to}} {target}: the {getattr(model, 'family', '?')} family cannot be exported there; "
                          f"it exports {', '.join(sorted(exports))}.")

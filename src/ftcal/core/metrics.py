@@ -21,6 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+POSE_CELL_CAP = 100_000  # beyond this many distinct poses no polynomial ftcal fits is near saturation
+
 FORCE_UNIT, TORQUE_UNIT = "N", "N·m"
 
 # The one name of each metric (keys of `ftcal evaluate --json`), as the CLI, the report and docs/metrics.md print it.
@@ -283,7 +285,7 @@ def summarize(y_true: np.ndarray, y_pred: np.ndarray, output_names: Sequence[str
     >>> summarize(np.array([[0.0], [0.0]]), np.array([[3.0], [-3.0]]), ["a"])["rmse"]
     [3.0]
     """
-    return ErrorSums.of(y_true, y_pred, output_names).summary(output_names)
+    return ErrorSums.of(y_true, y_pred, output_names).to_dict(output_names)
 
 
 @dataclass
@@ -318,12 +320,22 @@ class ErrorSums:
         Σ (‖v‖ − ‖v̂‖)² for the force and torque triples, NaN where the outputs have none.
     error_norm_sq : ndarray of shape (2,)
         Σ ‖v − v̂‖², NaN alike.
+    n_out_of_range : int or None
+        Rows with inputs outside the training range, when counted (a streamed evaluation counts them;
+        :func:`summarize` does not, and its callers add the model's count).
+    training_segments : frozenset
+        Indices of the model's training fingerprints found in the rows (a streamed evaluation).
+    pose_cells : frozenset
+        Occupied cells of the pose grid, when counted, at most :data:`POSE_CELL_CAP` (``fit``'s
+        saturation warning).
+    ranges : RangeSums or None
+        Which inputs left the training range, how far, and the error there.
 
     Examples
     --------
     >>> import numpy as np
     >>> y, p = np.array([[1.0], [2.0], [4.0]]), np.zeros((3, 1))
-    >>> split = (ErrorSums.of(y[:1], p[:1], ["a"]) + ErrorSums.of(y[1:], p[1:], ["a"])).summary(["a"])
+    >>> split = (ErrorSums.of(y[:1], p[:1], ["a"]) + ErrorSums.of(y[1:], p[1:], ["a"])).to_dict(["a"])
     >>> split["max_abs_error"], round(split["rmse"][0] ** 2 * 3, 9)  # Σ r² = 1 + 4 + 16
     ([4.0], 21.0)
 
@@ -347,9 +359,14 @@ class ErrorSums:
     max_abs: np.ndarray
     norm_sq: np.ndarray
     error_norm_sq: np.ndarray
+    n_out_of_range: int | None = None
+    training_segments: frozenset = frozenset()
+    pose_cells: frozenset = frozenset()
+    ranges: object = None  # a RangeSums or None (ftcal.core.ranges imports this module, not the other way)
 
     @classmethod
-    def of(cls, y: np.ndarray, prediction: np.ndarray, output_names: Sequence[str]) -> "ErrorSums":
+    def of(cls, y: np.ndarray, prediction: np.ndarray, output_names: Sequence[str],
+           n_out_of_range: int | None = None, ranges=None) -> "ErrorSums":
         """Sums of one block of rows, centred at the block's means.
 
         Parameters
@@ -357,6 +374,8 @@ class ErrorSums:
         y, prediction : ndarray of shape (m, n_outputs), m >= 1
         output_names : sequence of str
             To find the force and torque triples (:func:`force_torque_columns`).
+        n_out_of_range : rows of the block with inputs outside the training range, if counted
+        ranges : the block's :class:`~ftcal.core.ranges.RangeSums`, optional
 
         Returns
         -------
@@ -378,13 +397,10 @@ class ErrorSums:
         return cls(len(y), y_centre, y_dev.sum(axis=0), np.einsum("ij,ij->j", y_dev, y_dev),
                    r_centre, r_dev.sum(axis=0), np.einsum("ij,ij->j", r_dev, r_dev),
                    np.einsum("ij,ij->j", r_dev[1:], r_dev[:-1]), r[0].copy(), r[-1].copy(),
-                   np.einsum("ij,ij->j", r, r), np.abs(r).max(axis=0), norm_sq, error_norm_sq)
+                   np.einsum("ij,ij->j", r, r), np.abs(r).max(axis=0), norm_sq, error_norm_sq,
+                   n_out_of_range, ranges=ranges)
 
     def __add__(self, other: "ErrorSums") -> "ErrorSums":
-        return ErrorSums(**self._merged_fields(other))
-
-    def _merged_fields(self, other: "ErrorSums") -> dict:
-        """The fields of ``self + other`` (for subclasses that add fields of their own)."""
         n = self.n + other.n
         y_centre = _common_centre(self.n, self.y_centre, self.y_dev_sum, other.n, other.y_centre, other.y_dev_sum)
         r_centre = _common_centre(self.n, self.r_centre, self.r_dev_sum, other.n, other.r_centre, other.r_dev_sum)
@@ -392,12 +408,17 @@ class ErrorSums:
         r_a, r_b = (_recentred(s.n, s.r_centre, s.r_dev_sum, s.r_dev_sq, r_centre) for s in (self, other))
         # the one lag pair across the join: a's last row, b's first row
         join = (self.r_last - r_centre) * (other.r_first - r_centre)
-        return dict(n=n, y_centre=y_centre, y_dev_sum=y_a[0] + y_b[0], y_dev_sq=y_a[1] + y_b[1],
-                    r_centre=r_centre, r_dev_sum=r_a[0] + r_b[0], r_dev_sq=r_a[1] + r_b[1],
-                    r_dev_lag=self._lag_about(r_centre) + other._lag_about(r_centre) + join,
-                    r_first=self.r_first, r_last=other.r_last, sse=self.sse + other.sse,
-                    max_abs=np.maximum(self.max_abs, other.max_abs), norm_sq=self.norm_sq + other.norm_sq,
-                    error_norm_sq=self.error_norm_sq + other.error_norm_sq)
+        counted = (None if self.n_out_of_range is None and other.n_out_of_range is None
+                   else (self.n_out_of_range or 0) + (other.n_out_of_range or 0))
+        return ErrorSums(n=n, y_centre=y_centre, y_dev_sum=y_a[0] + y_b[0], y_dev_sq=y_a[1] + y_b[1],
+                         r_centre=r_centre, r_dev_sum=r_a[0] + r_b[0], r_dev_sq=r_a[1] + r_b[1],
+                         r_dev_lag=self._lag_about(r_centre) + other._lag_about(r_centre) + join,
+                         r_first=self.r_first, r_last=other.r_last, sse=self.sse + other.sse,
+                         max_abs=np.maximum(self.max_abs, other.max_abs), norm_sq=self.norm_sq + other.norm_sq,
+                         error_norm_sq=self.error_norm_sq + other.error_norm_sq, n_out_of_range=counted,
+                         training_segments=self.training_segments | other.training_segments,
+                         pose_cells=capped_union(self.pose_cells, other.pose_cells),
+                         ranges=None if self.ranges is None or other.ranges is None else self.ranges + other.ranges)
 
     def _lag_about(self, centre: np.ndarray) -> np.ndarray:
         """Σ_t (r_t − centre)(r_(t+1) − centre) over this block's n − 1 pairs (exact identity, any centre).
@@ -409,8 +430,9 @@ class ErrorSums:
         ends = (self.r_first - self.r_centre) + (self.r_last - self.r_centre)
         return self.r_dev_lag - shift * (2 * self.r_dev_sum - ends) + (self.n - 1) * shift * shift
 
-    def summary(self, output_names: Sequence[str]) -> dict:
-        """The metrics of :func:`summarize` (a JSON-ready dict; NaN metrics become None or NaN as there).
+    def to_dict(self, output_names: Sequence[str]) -> dict:
+        """The metrics of :func:`summarize` (a JSON-ready dict; NaN metrics become None or NaN as there),
+        and ``n_out_of_range`` when the sums counted it.
 
         Parameters
         ----------
@@ -438,7 +460,29 @@ class ErrorSums:
                 "residual_autocorrelation_lag1": acf.tolist(),
                 "force_norm_rmse": root_mean(self.norm_sq[0]), "torque_norm_rmse": root_mean(self.norm_sq[1]),
                 "force_error_norm_rmse": root_mean(self.error_norm_sq[0]),
-                "torque_error_norm_rmse": root_mean(self.error_norm_sq[1])}
+                "torque_error_norm_rmse": root_mean(self.error_norm_sq[1]),
+                **({} if self.n_out_of_range is None else {"n_out_of_range": int(self.n_out_of_range)})}
+
+
+    def summary(self, output_names: Sequence[str]) -> dict:
+        """Deprecated: :meth:`to_dict` (``summary()`` renders text across ftcal; the numbers are ``to_dict``)."""
+        _renamed("ErrorSums.summary", "ErrorSums.to_dict")
+        return self.to_dict(output_names)
+
+
+def _renamed(old: str, new: str) -> None:
+    """The DeprecationWarning of a renamed method (as :func:`ftcal.runtime.deprecation.deprecated_alias` words it)."""
+    import warnings
+
+    from ..runtime.deprecation import REMOVED_IN
+
+    warnings.warn(f"{old} is deprecated and will be removed in ftcal {REMOVED_IN}; use {new}.", DeprecationWarning,
+                  stacklevel=3)
+
+
+def capped_union(a: frozenset, b: frozenset) -> frozenset:
+    """Pose cells of two blocks, stopped growing at :data:`POSE_CELL_CAP`."""
+    return a | b if len(a) < POSE_CELL_CAP else a
 
 
 def _common_centre(n_a: int, centre_a: np.ndarray, dev_sum_a: np.ndarray, n_b: int, centre_b: np.ndarray,

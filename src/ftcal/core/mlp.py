@@ -191,7 +191,7 @@ class MLPModel(EstimatorParams):
             self.cv_ = self._early_stopping(data, x, t, out_norm, sizes, start, options)
             iterations = self.cv_["iterations"]
         elif self.early_stopping:
-            warnings.warn("Early stopping needs at least two groups (load cases or files, --group-by); the "
+            warnings.warn("Early stopping needs at least two groups (load cases, files or a group column); the "
                           f"network trained for all {iterations} iterations.", EarlyStoppingWarning, stacklevel=2)
         params, self.n_iter_ = _train(x, t, sizes, start, options, iterations)
         self.weights_, self.biases_ = _unpack(params, sizes)
@@ -269,7 +269,7 @@ class MLPModel(EstimatorParams):
         u = check_finite_matrix(data.select_inputs(self.input_names_), "inputs", len(self.input_names_),
                                 self.input_names_)
         if warn_out_of_range:  # one message, how far on which channel (as the polynomial family says it)
-            message = describe(RangeSums.of(u, self.input_range_).summary(self.input_names_))
+            message = describe(RangeSums.of(u, self.input_range_).to_dict(self.input_names_))
             if message:
                 warnings.warn(message, OutOfRangeWarning, stacklevel=2)
         out = self.output_normalization_

@@ -168,6 +168,11 @@ class RangeSums:
                          None if self.loads is None or other.loads is None else self.loads + other.loads)
 
     def summary(self, input_names: Sequence[str]) -> dict:
+        """Deprecated: :meth:`to_dict`."""
+        metrics._renamed("RangeSums.summary", "RangeSums.to_dict")
+        return self.to_dict(input_names)
+
+    def to_dict(self, input_names: Sequence[str]) -> dict:
         """JSON-ready: per input outside the range its count and largest excursion, and the split errors.
 
         Keys: ``n_samples``, ``n_out_of_range``, ``inputs`` ({name: {"samples", "max_excursion"}},
@@ -327,6 +332,11 @@ class LoadSums:
                         np.minimum(self.low, other.low), np.maximum(self.high, other.high))
 
     def summary(self, output_range: np.ndarray, output_names: Sequence[str]) -> dict:
+        """Deprecated: :meth:`to_dict`."""
+        metrics._renamed("LoadSums.summary", "LoadSums.to_dict")
+        return self.to_dict(output_range, output_names)
+
+    def to_dict(self, output_range: np.ndarray, output_names: Sequence[str]) -> dict:
         """JSON-ready: ``n_samples``, ``n_beyond`` and, per output with loads beyond its training loads,
         ``{"samples", "low", "high", "training_low", "training_high"}`` under ``outputs``."""
         return {"n_samples": self.n, "n_beyond": self.n_beyond,

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..runtime.checks import check_float
-from ..runtime.errors import FtcalError, FtcalWarning
+from ..runtime.errors import FtcalError, FtcalWarning, ParameterError
 from .recording import Recording, Stream
 from .signals import check_finite
 from .tf_chain import QUATERNION_COLUMNS
@@ -71,9 +71,9 @@ def timing(stream: Stream) -> StreamReport:
     if np.any(dt <= 0):
         k = int(np.argmax(dt <= 0))
         # Header stamps that repeat or go back are a driver's; the bag's receive time still increases.
-        fix = ("time the messages by the bag's receive time with --receive-time, or sort the bag by stamp"
+        fix = ("time the messages by the bag's receive time with {receive_time}, or sort the bag by stamp"
                if stream.clock == "header stamps" else "sort the samples by time")
-        raise FtcalError(f"{stream.name}: timestamps do not increase at sample {k + 1} "
+        raise ParameterError("receive_time", f"{stream.name}: timestamps do not increase at sample {k + 1} "
                          f"(t={stream.time[k]:.6f} then {stream.time[k + 1]:.6f}); {fix}.")
     period = float(np.median(dt))
     gaps = dt > 1.5 * period

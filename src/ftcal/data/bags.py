@@ -42,7 +42,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.limits import MAX_BAG_TIMESTAMP_NS, MAX_TEXT_FILE_BYTES
-from ..runtime.errors import FtcalError, FtcalWarning
+from ..runtime.errors import FtcalError, ParameterError, FtcalWarning
 from ..runtime.inputs import check_folder_files, check_input_file
 from .recording import Recording, Stream
 from .tf_chain import QUATERNION_COLUMNS, TransformTree, check_unit_quaternions
@@ -403,13 +403,13 @@ def read_bag(path: Path, topics: BagTopics | None = None) -> Recording:
         non-unit quaternions, or a tf chain that does not connect the two frames.
     """
     if topics is None:
-        raise FtcalError(f"Bag {path}: name the F/T topic (--wrench-topic); see 'ftcal topics {path}'.")
+        raise ParameterError('wrench_topic', f"Bag {path}: name the F/T topic ({{wrench_topic}}); see 'ftcal topics {path}'.")
     path = Path(path)
     with open_bag(path) as reader:
         by_topic = reader.topics
-        wanted = {"--wrench-topic": (topics.wrench, WRENCH_TYPES), "--joints-topic": (topics.joints, JOINT_TYPES),
-                  "--temperature-topic": (topics.temperature, TEMPERATURE_TYPES),
-                  "--imu-topic": (topics.imu, IMU_TYPES)}
+        wanted = {"wrench_topic": (topics.wrench, WRENCH_TYPES), "joints_topic": (topics.joints, JOINT_TYPES),
+                  "temperature_topic": (topics.temperature, TEMPERATURE_TYPES),
+                  "imu_topic": (topics.imu, IMU_TYPES)}
         for option, (topic, types) in wanted.items():
             if topic is not None:
                 _check_topic(path, by_topic, topic, types, option)
@@ -447,8 +447,8 @@ def _tf_frames(path: Path, topics: BagTopics, ft: Stream) -> tuple[str, str]:
     wrench_frame = ft.frame.lstrip("/") if ft.frame else None
     if frame is None:
         if not wrench_frame:
-            raise FtcalError(f"Bag {path}: topic {topics.wrench!r} names no frame (header.frame_id); "
-                             f"give the sensor frame as --tf {base}:SENSOR_FRAME.")
+            raise ParameterError('tf', f"Bag {path}: topic {topics.wrench!r} names no frame (header.frame_id); "
+                             f"give the sensor frame as {{tf}} {base}:SENSOR_FRAME.")
         return base, wrench_frame
     if wrench_frame and wrench_frame != frame:
         warnings.warn(f"Bag {path}: {topics.wrench} is expressed in frame {wrench_frame!r} (header.frame_id) but "
@@ -457,16 +457,16 @@ def _tf_frames(path: Path, topics: BagTopics, ft: Stream) -> tuple[str, str]:
     return base, frame
 
 
-def _check_topic(path: Path, by_topic: dict, topic: str, types: tuple[str, ...], option: str) -> None:
+def _check_topic(path: Path, by_topic: dict, topic: str, types: tuple[str, ...], parameter: str) -> None:
     if topic not in by_topic:
         have = ", ".join(sorted(by_topic)) or "none"
-        raise FtcalError(f"Bag {path}: no topic {topic!r} ({option}); the bag has: {have}.")
+        raise ParameterError(parameter, f"Bag {path}: no topic {topic!r} ({{{parameter}}}); the bag has: {have}.")
     msgtype = by_topic[topic].msgtype
     if msgtype not in types:
-        raise FtcalError(f"Bag {path}: topic {topic!r} has type {msgtype}; {option} needs "
-                         f"{' or '.join(types)}.")
+        raise ParameterError(parameter, f"Bag {path}: topic {topic!r} has type {msgtype}; {{{parameter}}} needs "
+                             f"{' or '.join(types)}.")
     if by_topic[topic].msgcount == 0:
-        raise FtcalError(f"Bag {path}: topic {topic!r} ({option}) has no messages.")
+        raise ParameterError(parameter, f"Bag {path}: topic {topic!r} ({{{parameter}}}) has no messages.")
 
 
 def _stamps(header_ns: np.ndarray | None, receive_ns: np.ndarray, receive_time: bool) -> tuple[np.ndarray, str]:
@@ -733,12 +733,12 @@ def _read_tf(path: Path, reader, by_topic: dict, receive_time: bool) -> Transfor
     present = [t for t in TF_TOPICS if t in by_topic]
     if not present:
         have = ", ".join(sorted(by_topic)) or "none"
-        raise FtcalError(f"Bag {path}: --tf needs /tf or /tf_static; the bag has: {have}.")
+        raise ParameterError('tf', f"Bag {path}: {{tf}} needs /tf or /tf_static; the bag has: {have}.")
     tree = TransformTree(f"Bag {path}")
     for topic in present:
         info = by_topic[topic]
         if info.msgtype not in TF_TYPES:
-            raise FtcalError(f"Bag {path}: topic {topic!r} has type {info.msgtype}; --tf needs {TF_TYPES[0]}.")
+            raise ParameterError('tf', f"Bag {path}: topic {topic!r} has type {info.msgtype}; {{tf}} needs {TF_TYPES[0]}.")
         for stamp, msg in _deserialized(reader, info):
             for t in msg.transforms:
                 header = _header_ns(t)

@@ -37,7 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, ParameterError
 
 # Rolling window of the motion signal, s: long enough to average noise, short beside a hold.
 HOLD_WINDOW_S = 0.1
@@ -191,8 +191,8 @@ def find_holds(time: np.ndarray, *, orientation: np.ndarray | None = None, gravi
     for a, b in zip(bounds[:-1], bounds[1:]):
         bad = np.flatnonzero(np.diff(time[a:b]) <= 0)
         if bad.size:
-            raise FtcalError(f"{where}: column {time_column!r} does not increase at row {a + bad[0] + 1}; "
-                             "sort the table by time (or, for a ROS bag, rebuild it with --receive-time).")
+            raise ParameterError('receive_time', f"{where}: column {time_column!r} does not increase at row {a + bad[0] + 1}; "
+                             "sort the table by time (or, for a ROS bag, rebuild it with {receive_time}).")
     jumps = np.zeros(n, dtype=bool)
     travel = None
     if orientation is not None:

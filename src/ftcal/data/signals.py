@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..runtime.checks import check_int
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, ParameterError
 from .recording import Stream
 
 # A noisy analog channel does not repeat its exact extreme value this many times in a row
@@ -96,8 +96,8 @@ def smooth(x: np.ndarray, frame: int = 101, order: int = 3, where: str = "data")
         raise FtcalError(f"The 'savgol_frame' parameter must be odd and larger than the order ({order}). "
                          f"Got {frame} instead.")
     if x.shape[0] < frame:
-        raise FtcalError(f"{where}: {x.shape[0]} samples is fewer than the Savitzky–Golay frame ({frame}); "
-                         f"use a smaller --savgol-frame or --no-filter.")
+        raise ParameterError(('savgol_frame', 'no_filter'), f"{where}: {x.shape[0]} samples is fewer than the Savitzky–Golay frame ({frame}); "
+                         f"use a smaller {{savgol_frame}} or {{no_filter}}.")
     return savgol_filter(x, frame, order, axis=0)
 
 

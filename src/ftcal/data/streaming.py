@@ -20,12 +20,12 @@ import copy
 import functools
 import os
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from ..core import metrics
+from ..core.metrics import POSE_CELL_CAP, ErrorSums, capped_union
 from ..core.excitation import Spread
 from ..core.features import MonomialBasis, RegressorLayout
 from ..core.normalization import Normalization
@@ -35,8 +35,6 @@ from ..runtime.errors import FtcalError
 from ..runtime.executors import releases_gil
 from ..runtime.threads import map_ranges, single_threaded_blas
 from .table_chunks import TableChunk, iter_table_chunks, table_has_columns
-
-POSE_CELL_CAP = 100_000  # beyond this many distinct poses no polynomial ftcal fits is near saturation
 
 
 # ---------------------------------------------------------------------------------------------- the scan
@@ -164,11 +162,6 @@ def add_scans(a: tuple, b: tuple) -> tuple:
     return tuple(x + y for x, y in zip(a, b))
 
 
-def _capped_union(a: frozenset, b: frozenset) -> frozenset:
-    """Pose cells of two blocks, stopped growing at ``POSE_CELL_CAP``."""
-    return a | b if len(a) < POSE_CELL_CAP else a
-
-
 class Summary(Accumulator):
     """:class:`FileSummary`: ranges, segment lengths and fingerprints, group sizes, spreads (a fit's first pass).
 
@@ -196,7 +189,7 @@ class Summary(Accumulator):
         self._sums.add(chunk)
 
     def _finish(self) -> "FileSummary":
-        return self._sums.summary()
+        return self._sums.result()
 
     def _drop(self) -> None:
         del self._sums
@@ -332,7 +325,7 @@ class PoseCells(Accumulator):
     def _drop(self) -> None:
         del self._cells
 
-    _merge = staticmethod(_capped_union)
+    _merge = staticmethod(capped_union)
 
 
 class InputSpread(Accumulator):
@@ -569,7 +562,7 @@ def add_fold_parts(a: list[list], b: list[list]) -> list[list]:
 
 def add_statistics_and_poses(a: tuple[list, frozenset], b: tuple[list, frozenset]) -> tuple[list, frozenset]:
     """Two files' :func:`file_statistics_and_poses`, ``b``'s after ``a``'s (the lists keep the row order)."""
-    return a[0] + b[0], _capped_union(a[1], b[1])
+    return a[0] + b[0], capped_union(a[1], b[1])
 
 
 def add_summary_statistics_and_poses(a: tuple, b: tuple) -> tuple:
@@ -638,7 +631,6 @@ class FileSummary:
                            add(self.input_spread, other.input_spread), ranges)
 
 
-
 class _SummaryAccumulator:
     """:func:`file_summary` of the chunks of one file, added in file order."""
 
@@ -696,7 +688,7 @@ class _SummaryAccumulator:
                                  "sha256": ""})
         self.digest = digest
 
-    def summary(self) -> FileSummary:
+    def result(self) -> FileSummary:
         self.fingerprints[-1]["sha256"] = self.digest.hexdigest()
         for fingerprint, rows in zip(self.fingerprints, self.lengths):
             fingerprint["rows"] = rows
@@ -719,7 +711,6 @@ def _group_counts(path: str, chunk, group_by: str | None) -> dict[str, int]:
         return {str(Path(path)): chunk.n_rows}
     labels, counts = np.unique(chunk.labels[group_by].astype(str), return_counts=True)
     return dict(zip(labels.tolist(), counts.tolist()))
-
 
 
 class StreamedStatistics:
@@ -795,50 +786,6 @@ def segment_statistics(data, layout: RegressorLayout, in_norm: Normalization,
     accumulator = StatisticsAccumulator(layout, in_norm, out_norm)
     accumulator.add(data.inputs, data.outputs, data.segment_bounds())
     return accumulator.parts()
-
-
-
-
-@dataclass
-class ErrorSums(metrics.ErrorSums):
-    """:class:`ftcal.core.metrics.ErrorSums` of consecutive rows of files, with what ``evaluate`` reports besides.
-
-    The metric sums, their centred merge and :meth:`summary` are those of the in-memory
-    evaluation (:func:`ftcal.core.metrics.summarize`); this class only adds the rows
-    outside the training range, the training segments found and the pose cells.
-    """
-
-    n_out_of_range: int = 0
-    training_segments: frozenset = frozenset()  # indices of the model's training fingerprints found
-    pose_cells: frozenset = frozenset()  # occupied cells of the pose grid, when counted (see file_error_sums)
-    ranges: RangeSums | None = None  # which inputs left the training range, how far, the error there
-
-    @classmethod
-    def of(cls, y: np.ndarray, prediction: np.ndarray, output_names: Sequence[str],
-           n_out_of_range: int = 0, ranges: RangeSums | None = None) -> "ErrorSums":
-        """Sums of one block of rows.
-
-        Parameters
-        ----------
-        y, prediction : ndarray of shape (m, ny), m >= 1
-        output_names : names, to find the force and torque triples
-        n_out_of_range : rows of the block with inputs outside the training range
-        ranges : the block's :class:`~ftcal.core.ranges.RangeSums`, optional
-        """
-        return replace(super().of(y, prediction, output_names), n_out_of_range=n_out_of_range, ranges=ranges)
-
-    def __add__(self, other: "ErrorSums") -> "ErrorSums":
-        return ErrorSums(**self._merged_fields(other), n_out_of_range=self.n_out_of_range + other.n_out_of_range,
-                         training_segments=self.training_segments | other.training_segments,
-                         pose_cells=self.pose_cells | other.pose_cells if len(self.pose_cells) < POSE_CELL_CAP
-                         else self.pose_cells,
-                         ranges=None if self.ranges is None or other.ranges is None else self.ranges + other.ranges)
-
-    def summary(self, output_names: Sequence[str]) -> dict:
-        """The metrics of :func:`ftcal.core.metrics.summarize`, plus ``n_out_of_range``."""
-        return {**super().summary(output_names), "n_out_of_range": self.n_out_of_range}
-
-
 
 
 class SegmentFinder:

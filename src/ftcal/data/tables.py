@@ -21,7 +21,7 @@ from ..core.limits import MAX_CELL_MAGNITUDE, MAX_HEADER_BYTES, MAX_TABLE_COLUMN
 from ..runtime.atomic import atomic_path
 from ..runtime.checks import check_path
 from ..runtime.deprecation import deprecated_alias, old_spelling
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, ParameterError
 from ..runtime.inputs import check_input_file
 from .parquet_checks import PLAIN_NUMBERS as _PLAIN_NUMBERS
 from .parquet_checks import FooterCheck, locate_unreadable
@@ -364,9 +364,9 @@ def numeric_columns(frame, columns: Sequence[str], path: Path, role: str, *, fin
         if bad.any():
             row = int(np.flatnonzero(bad)[0])
             where = f"line {first_row + row + 2}" if path.suffix.lower() == ".csv" else f"row {first_row + row}"
-            raise FtcalError(f"{path}: column {name!r} has {int(bad.sum())} empty, NaN or infinite "
-                             f"cell(s), first at {where}. ('ftcal fit --drop-incomplete' drops rows with empty "
-                             "cells.)")
+            raise ParameterError("drop_incomplete", f"{path}: column {name!r} has {int(bad.sum())} empty, NaN or "
+                                 f"infinite cell(s), first at {where}. (The fit's {{drop_incomplete}} drops rows "
+                                 "with empty cells.)")
         huge = np.abs(values) > MAX_CELL_MAGNITUDE if finite else bad
         if huge.any():
             row = int(np.flatnonzero(huge)[0])

@@ -16,7 +16,7 @@ from collections import deque
 
 import numpy as np
 
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, ParameterError
 from .recording import Stream
 
 QUATERNION_COLUMNS = ("qx", "qy", "qz", "qw")
@@ -92,8 +92,8 @@ class TransformTree:
                     queue.append(there)
         if base not in neighbours or frame not in previous:
             known = ", ".join(self.frames()) or "none"
-            raise FtcalError(f"{self.where}: no tf chain from {base!r} to {frame!r} (frames known: {known}); "
-                             "without one, record the joints: --joints-topic with --urdf gives the orientation "
+            raise ParameterError(('joints_topic', 'urdf'), f"{self.where}: no tf chain from {base!r} to {frame!r} (frames known: {known}); "
+                             "without one, record the joints: {joints_topic} with {urdf} gives the orientation "
                              "from the robot model.")
         edges = []
         while (step := previous[frame]) is not None:

@@ -43,8 +43,8 @@ from ..core.conversion import sample_training_box
 from ..core.model import CalibrationModel
 from ..core.ranges import RANGE_TOLERANCE
 from ..runtime.atomic import write_texts_atomic
-from ..runtime.errors import FtcalError
-from .c_text import c_comment, c_identifier, c_string
+from ..runtime.errors import FtcalError, ParameterError
+from .c_text import c_comment, c_identifier, c_string, described
 from .model_json import ModelFile, ftcal_version
 from .targets import ConvertOptions, Written
 
@@ -156,7 +156,7 @@ def generate_c(model: CalibrationModel, *, name: str = DEFAULT_NAME, single_prec
     check_finite(model)
     layout = model.layout_
     if single_precision and not layout.is_static:
-        raise FtcalError("--float is for static models; an ARX model's free run feeds its rounding back "
+        raise ParameterError('single_precision', "{single_precision} is for static models; an ARX model's free run feeds its rounding back "
                          "into every later sample, so generate it in double precision.")
     lit = _Literals(single_precision)
     plan = _plan(model)
@@ -288,10 +288,6 @@ def _pairwise(parts: list, add):
 
 def _header_comment(model, name, single, sha256, source_name, input_units, output_units) -> str:
     layout = model.layout_
-
-    def described(names, units):
-        units = units or (None,) * len(names)
-        return ", ".join(n if u is None else f"{n} [{u}]" for n, u in zip(names, units))
 
     kind = f"degree {layout.basis.degree}" + ("" if layout.is_static else f", ARX na={layout.na} nb={layout.nb}")
     lines = [f"{name}: ftcal calibration model, {kind}, {np.count_nonzero(model.coef_)} nonzero coefficients,",
@@ -533,6 +529,7 @@ def write_c(source: ModelFile, output: Path, options: ConvertOptions) -> Written
     paths = (output / f"{name}.h", output / f"{name}.c")
     for path in paths:
         if path.resolve() == options.input_path.resolve():
-            raise FtcalError(f"{path} is the input file; choose another --name or -o directory.")
+            raise ParameterError(('name', 'output'), f"{path} is the input file; choose another {{name}} or "
+                                 "{output} directory.")
     write_texts_atomic({paths[0]: code.header, paths[1]: code.source})  # both files or neither
     return Written(paths, tuple(notes))

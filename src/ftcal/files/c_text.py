@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import re
 
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, ParameterError
 
 _IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 _C_KEYWORDS = frozenset(
@@ -38,6 +38,12 @@ _CPP_KEYWORDS = frozenset(
     "virtual wchar_t xor xor_eq char8_t char16_t char32_t".split())
 MAX_IDENTIFIER = 63
 """Longest ``--name``: C99 guarantees 63 significant characters in an internal identifier."""
+
+
+def described(names, units, sep: str = ", ") -> str:
+    """``"Fx [N], T"``: each name with its unit in brackets when it has one (generated code and ONNX metadata)."""
+    units = units or (None,) * len(names)
+    return sep.join(n if u is None else f"{n} [{u}]" for n, u in zip(names, units))
 
 
 def printable_ascii(text: str) -> str:
@@ -87,7 +93,7 @@ def c_string(text: str) -> str:
     return '"' + "".join(out) + '"'
 
 
-def c_identifier(name: str, option: str = "--name") -> str:
+def c_identifier(name: str, parameter: str = "name") -> str:
     """``name`` if it can prefix C identifiers, macros and file names; :class:`FtcalError` otherwise.
 
     Raises
@@ -99,7 +105,7 @@ def c_identifier(name: str, option: str = "--name") -> str:
     if (not isinstance(name, str) or not _IDENTIFIER.fullmatch(name) or len(name) > MAX_IDENTIFIER
             or name in _C_KEYWORDS or name in _CPP_KEYWORDS or name.startswith("__")
             or re.match(r"_[A-Z]", name)):
-        raise FtcalError(f"{option} {printable_ascii(repr(name))[:80]} is not a C identifier (1 to {MAX_IDENTIFIER} "
+        raise ParameterError(parameter, f"{{{parameter}}} {printable_ascii(repr(name))[:80]} is not a C identifier (1 to {MAX_IDENTIFIER} "
                          "letters, digits and underscores, not starting with a digit, not a C or C++ keyword, "
                          "not starting with '__' or '_' and a capital).")
     return name

@@ -33,7 +33,7 @@ import numpy as np
 
 from ..payload.parameters import PayloadParameters
 from ..runtime.atomic import write_text_atomic
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, ParameterError
 from .ros_yaml import _float, _list, _string
 from .targets import ConvertOptions, Written
 
@@ -47,13 +47,13 @@ DEFAULT_WORLD_FRAME = "world"
 
 def _checked(payload: PayloadParameters, target: str, frame: str | None = None, need_frame: bool = True) -> str:
     if payload.reaction:
-        raise FtcalError(f"--to {target} expects a sensor that reads +m·g (ftcal's convention); this payload was "
-                         "identified with --reaction, which its parameters cannot represent.")
+        raise ParameterError(('to', 'reaction'), f"{{to}} {target} expects a sensor that reads +m·g (ftcal's convention); this payload was "
+                         "identified with {reaction}, which its parameters cannot represent.")
     if not np.isfinite(payload.mass) or payload.mass <= 0:
-        raise FtcalError(f"--to {target}: the tool's mass must be > 0; the payload has {payload.mass} kg.")
+        raise ParameterError('to', f"{{to}} {target}: the tool's mass must be > 0; the payload has {payload.mass} kg.")
     frame = frame or payload.frame
     if need_frame and not frame:
-        raise FtcalError(f"--to {target} needs the sensor frame's name: identify with --frame NAME or give --frame.")
+        raise ParameterError(('to', 'frame'), f"{{to}} {target} needs the sensor frame's name: identify with {{frame}} NAME or give {{frame}}.")
     return frame or ""
 
 

@@ -32,8 +32,8 @@ ADC_RANGE = (-32768, 32767)  # signed 16-bit counts, what the board reads
 COUNT_UNITS = frozenset({"count", "counts", "adc", "adc counts", "lsb"})
 # What to do instead, ending every refusal that comes from the model's inputs.
 FIT_INSTEAD = ("Fit a degree-1 model on the six raw ADC-count channels only (after `make demo`: "
-               "ftcal fit ftcal-demo/train-adc.parquet --inputs u1,u2,u3,u4,u5,u6 -o affine-adc.json), "
-               "or export a model of the board's wrench output (and temperature) with --to wbd.")
+               "`ftcal fit ftcal-demo/train-adc.parquet --inputs u1,u2,u3,u4,u5,u6 -o affine-adc.json`), "
+               "or export a model of the board's wrench output (and temperature) as target wbd.")
 
 
 @dataclass(frozen=True)
@@ -64,7 +64,7 @@ def firmware_filename(serial: str) -> str:
         ``serial`` is not 1 to 64 letters, digits, ``-``, ``_`` or ``.`` (not starting with ``.``):
         a name used in a path must not lead out of the output folder.
     """
-    check_safe_name(serial, "--serial")
+    check_safe_name(serial, "serial")
     return f"matrix_{serial}.txt"
 
 

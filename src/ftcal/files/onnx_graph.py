@@ -24,8 +24,9 @@ import numpy as np
 from ..core.features import n_monomials
 from ..core.model import CalibrationModel
 from ..runtime.atomic import write_with
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, ParameterError
 from .c_code import check_finite
+from .c_text import described
 from .model_json import ModelFile, ftcal_version
 from .targets import ConvertOptions, Written
 
@@ -52,16 +53,15 @@ def build_onnx(model: CalibrationModel, *, sha256: str | None = None, input_unit
     FtcalError
         ARX models, non-finite coefficients.
     """
-    import onnx
-    from onnx import TensorProto, helper, numpy_helper
+    from onnx import helper, numpy_helper
 
     model._check_fitted()
     layout = model.layout_
     if not layout.is_static:
-        raise FtcalError(f"--to onnx takes static models; this one is ARX (na={layout.na}, nb={layout.nb}), "
-                         "whose free run needs state between samples: use --to c (NAME_init / NAME_step).")
+        raise ParameterError('to', f"{{to}} onnx takes static models; this one is ARX (na={layout.na}, nb={layout.nb}), "
+                         "whose free run needs state between samples: use {to} c (NAME_init / NAME_step).")
     check_finite(model)
-    nu, ny = len(model.input_names_), len(model.output_names_)
+    nu = len(model.input_names_)
     degree = layout.basis.degree
     inn = model.input_normalization_
     nodes, initializers = [], []
@@ -95,6 +95,17 @@ def build_onnx(model: CalibrationModel, *, sha256: str | None = None, input_unit
     features = node("Concat", blocks, "monomials", axis=1) if len(blocks) > 1 else x
     product = node("MatMul", [features, constant("coefficients", np.ascontiguousarray(model.coef_[:-1]))], "product")
     node("Add", [product, constant("offset", np.ascontiguousarray(model.coef_[-1]))], OUTPUT)
+    return checked_onnx(nodes, initializers, model, f"degree {degree}", sha256, input_units, output_units)
+
+
+def checked_onnx(nodes, initializers, model, kind: str, sha256: str | None, input_units, output_units):
+    """The checked ``onnx.ModelProto`` of graph ``nodes`` (``u`` float64 [N, n_inputs] -> ``y``) of any family:
+    producer, IR version, ``kind`` in its doc string, and the metadata block (inputs and outputs with units,
+    the model file's sha256)."""
+    import onnx
+    from onnx import TensorProto, helper
+
+    nu, ny = len(model.input_names_), len(model.output_names_)
     graph = helper.make_graph(
         nodes, "ftcal_model",
         [helper.make_tensor_value_info(INPUT, TensorProto.DOUBLE, ["N", nu])],
@@ -102,15 +113,10 @@ def build_onnx(model: CalibrationModel, *, sha256: str | None = None, input_unit
         initializers)
     onnx_model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", OPSET)],
                                    producer_name="ftcal", producer_version=ftcal_version(),
-                                   doc_string=f"ftcal calibration model, degree {degree}: u -> y")
+                                   doc_string=f"ftcal calibration model, {kind}: u -> y")
     onnx_model.ir_version = IR_VERSION
-
-    def described(names, units):
-        units = units or (None,) * len(names)
-        return ",".join(n if u is None else f"{n} [{u}]" for n, u in zip(names, units))
-
-    metadata = {"inputs": described(model.input_names_, input_units),
-                "outputs": described(model.output_names_, output_units)}
+    metadata = {"inputs": described(model.input_names_, input_units, ","),
+                "outputs": described(model.output_names_, output_units, ",")}
     if sha256:
         metadata["model_sha256"] = sha256
     helper.set_model_props(onnx_model, metadata)

@@ -32,7 +32,7 @@ import numpy as np
 
 from ..payload.parameters import PayloadParameters
 from ..runtime.atomic import write_text_atomic
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, ParameterError
 
 DEFAULT_COM_FRAME = "gripper_com"
 
@@ -96,8 +96,8 @@ def ros_yaml_text(payload: PayloadParameters, *, frame: str | None = None,
     """
     frame = frame or payload.frame
     if not frame:
-        raise FtcalError("the ft_calib YAML needs the sensor frame name (gripper_com_frame_id): "
-                         "identify with --frame NAME or give the frame when converting.")
+        raise ParameterError('frame', "the ft_calib YAML needs the sensor frame name (gripper_com_frame_id): "
+                         "identify with {frame} NAME or give the frame when converting.")
     if payload.mass <= 0:
         raise FtcalError(f"gripper_mass must be > 0 for gravity_compensation; the payload has {payload.mass} kg.")
     sign = -1.0 if payload.reaction else 1.0
@@ -119,8 +119,8 @@ def ft_tools_ros2_text(payload: PayloadParameters) -> str:
         readings in ftcal's sign convention and a positive mass.
     """
     if payload.reaction:
-        raise FtcalError("ft_tools_ros2 expects the sensor to read +m·g (ftcal's convention); this payload "
-                         "was identified with --reaction, which that package cannot represent.")
+        raise ParameterError('reaction', "ft_tools_ros2 expects the sensor to read +m·g (ftcal's convention); this payload "
+                         "was identified with {reaction}, which that package cannot represent.")
     return (f"mass: {_float(payload.mass)}\n"
             f"sensor_frame_to_com: {_list(payload.com)}\n"
             f"force_offset: {_list(payload.force_bias)}\n"

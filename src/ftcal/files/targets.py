@@ -31,7 +31,7 @@ from typing import Any
 
 from ..core.families import check_export
 from ..core.limits import MAX_MODEL_BYTES
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, ParameterError
 from ..runtime.inputs import check_input_file
 from ..runtime.deprecation import deprecated_alias
 
@@ -133,7 +133,7 @@ def target(name: str) -> Target:
     try:
         return TARGETS[name]
     except KeyError:
-        raise FtcalError(f"--to {name}: unknown target; choose one of {', '.join(TARGETS)}.") from None
+        raise ParameterError('to', f"{{to}} {name}: unknown target; choose one of {', '.join(TARGETS)}.") from None
 
 
 def input_kind(path: str | Path) -> str:
@@ -164,13 +164,13 @@ def check_output(name: str, spec: Target, output: Path, input_path: Path) -> Non
     """Refuse an output the target cannot write, before anything is read or written."""
     if spec.output == FILE:
         if output.is_dir():
-            raise FtcalError(f"-o {output} is a directory; --to {name} writes a file.")
+            raise ParameterError(('output', 'to'), f"{{output}} {output} is a directory; {{to}} {name} writes a file.")
         if spec.suffixes and not output.name.lower().endswith(spec.suffixes):
-            raise FtcalError(f"-o {output}: must end in {' or '.join(spec.suffixes)}.")
+            raise ParameterError('output', f"{{output}} {output}: must end in {' or '.join(spec.suffixes)}.")
     elif spec.output == DIRECTORY and output.exists() and not output.is_dir():
-        raise FtcalError(f"-o {output} is a file; --to {name} writes files into a directory.")
+        raise ParameterError(('output', 'to'), f"{{output}} {output} is a file; {{to}} {name} writes files into a directory.")
     if output.exists() and output.resolve() == input_path.resolve():
-        raise FtcalError(f"-o {output} is the input file; choose another output path.")
+        raise ParameterError('output', f"{{output}} {output} is the input file; choose another output path.")
 
 
 def write_target(input_path: str | Path, name: str, output: str | Path, values: Mapping[str, Any]) -> Written:
@@ -197,11 +197,11 @@ def write_target(input_path: str | Path, name: str, output: str | Path, values: 
     output_is_folder = str(output).endswith(("/", os.sep))
     input_path, output = Path(input_path), Path(output)
     if output_is_folder and spec.output == FILE:
-        raise FtcalError(f"-o {output}{os.sep} names a folder; --to {name} writes a file.")
+        raise ParameterError(('output', 'to'), f"{{output}} {output}{os.sep} names a folder; {{to}} {name} writes a file.")
     check_output(name, spec, output, input_path)
     kind = input_kind(input_path)
     if kind != spec.accepts:
-        raise FtcalError(f"{input_path} is an {kind} file; --to {name} takes an {spec.accepts} file.")
+        raise ParameterError('to', f"{input_path} is an {kind} file; {{to}} {name} takes an {spec.accepts} file.")
     if kind not in INPUT_READERS:
         raise FtcalError(f"{input_path}: this ftcal cannot read {kind} files.")
     source = resolve(INPUT_READERS[kind])(input_path)

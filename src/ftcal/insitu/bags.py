@@ -45,7 +45,7 @@ from ..robot.expected import warn_if_zero_reference
 from ..robot.kinematics import require_chain_joints
 from ..robot.loadcases import LoadCaseConfig
 from ..robot.payloads import Payload
-from ..runtime.errors import FtcalError, FtcalWarning
+from ..runtime.errors import FtcalError, ParameterError, FtcalWarning
 from .recordings import InsituOptions
 
 
@@ -99,16 +99,18 @@ def build_bag_table(bags: Sequence[str | Path], topics: BagTopics, *, robot=None
     """
     if not bags:
         raise FtcalError("No bags given.")
-    unsupported = {"--dynamic": options.derivatives, "--imu/--imu-frame (YARP logs; use --imu-topic)": options.imu,
-                   "--align-first-sample without --urdf/--model": options.align_first_sample and robot is None}
-    for option, given in unsupported.items():
+    unsupported = {("dynamic",): ("{dynamic}", options.derivatives),
+                   ("imu", "imu_frame", "imu_topic"): ("{imu}/{imu_frame} (YARP logs; use {imu_topic})", options.imu),
+                   ("align_first_sample", "urdf", "robot"): ("{align_first_sample} without {urdf}/{robot}",
+                                                             options.align_first_sample and robot is None)}
+    for parameters, (what, given) in unsupported.items():
         if given:
-            raise FtcalError(f"{option} is not available for ROS bags.")
+            raise ParameterError(parameters, f"{what} is not available for ROS bags.")
     if robot is not None:
         if sensor is None:
-            raise FtcalError("--sensor is required with --urdf/--model.")
+            raise ParameterError(('sensor', 'urdf', 'robot'), "{sensor} is required with {urdf}/{robot}.")
         if topics.joints is None:
-            raise FtcalError("--joints-topic is required with --urdf/--model (the expected wrench needs the joints).")
+            raise ParameterError(('joints_topic', 'urdf', 'robot'), "{joints_topic} is required with {urdf}/{robot} (the expected wrench needs the joints).")
         robot.sensor(sensor)
         robot.base_frame(options.base)
     config = load_cases or LoadCaseConfig()

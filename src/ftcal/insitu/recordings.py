@@ -51,7 +51,7 @@ from ..robot.kinematics import require_wrench_joints
 from ..robot.loadcases import LoadCase, LoadCaseConfig
 from ..robot.model import RobotModel
 from ..robot.payloads import Payload
-from ..runtime.errors import FtcalError, FtcalWarning
+from ..runtime.errors import FtcalError, ParameterError, FtcalWarning
 from ..runtime.deprecation import deprecated_alias
 
 
@@ -162,7 +162,7 @@ def build_log_table(recordings: Sequence[str | Path], robot: RobotModel, sensor:
     if not recordings:
         raise FtcalError("No recordings given.")
     if (options.imu is None) != (options.imu_frame is None):
-        raise FtcalError("Give both --imu (stream name) and --imu-frame (URDF frame), or neither.")
+        raise ParameterError(('imu', 'imu_frame'), "Give both {imu} (stream name) and {imu_frame} (URDF frame), or neither.")
     ft_sensor = robot.sensor(sensor)  # fail early on an unknown sensor
     robot.base_frame(options.base)
     config = load_cases or LoadCaseConfig()

@@ -4,7 +4,7 @@ The C (hand-written in ``csrc/ftcal_live.h``) of :meth:`ftcal.live.LiveCalibrato
 identifying, each static hold's moments ``Σ z zᵀ`` of ``z = (g, 1, w)`` (gravity in sensor axes, the
 calibrated wrench) go into a fixed array of :data:`~ftcal.core.limits.C_RUNTIME_MAX_HOLDS` holds; the
 bias filter and the contact and unexplained flags pause, as in Python. ``NAME_finish_identification``
-then runs what :func:`ftcal.payload.identify.identify_payload` runs for that call (static parameters
+then runs what :func:`ftcal.payload.identify.identify_from_statistics` runs for that call (static parameters
 θ = [m, m·c, force bias, torque bias], ``weighting="auto"``, the holds as clusters, no
 cross-validation), on fixed-size 10 × 10 matrices:
 

@@ -466,7 +466,7 @@ class LiveCalibrator:
     def finish_identification(self, *, mount: bool = True, save_to: str | Path | None = None) -> PayloadParameters:
         """Identify the tool from the holds collected since :meth:`start_identification`.
 
-        The batch estimator of ``ftcal payload`` (:func:`ftcal.payload.identify.identify_payload`) runs on
+        The batch estimator of ``ftcal payload`` (:func:`ftcal.payload.identify.identify_from_statistics`) runs on
         the holds' statistics, with cluster-robust standard errors over the holds and its excitation
         check (its warnings are raised as usual). The tool joins the library; with ``mount`` it is
         mounted and the bias takes the identified value and variance.
@@ -485,7 +485,7 @@ class LiveCalibrator:
         FtcalError
             Not identifying, or too few holds (at least three) or poses that leave the mass undetermined.
         """
-        from ..payload.identify import identify_payload
+        from ..payload.identify import identify_from_statistics
 
         job = self.identifying
         if job is None:
@@ -500,7 +500,7 @@ class LiveCalibrator:
         total = holds[0]
         for h in holds[1:]:
             total = total + h
-        fit = identify_payload({job.name: total}, clusters=holds, cross_validate=False)
+        fit = identify_from_statistics({job.name: total}, clusters=holds, cross_validate=False)
         columns = tuple(self.model.output_names_) if self.model is not None else ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
         payload = PayloadParameters.from_fit(fit, gravity=self.gravity_magnitude, frame=None, reaction=False,
                                              wrench_columns=columns)

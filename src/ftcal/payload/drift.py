@@ -4,7 +4,7 @@ Two time models join the constant bias of :mod:`ftcal.payload.identify`:
 
 * ``linear``: the bias is affine in time (and optionally in temperature). These
   are six extra regressor columns per covariate, fitted exactly by least squares
-  on the per-axis statistics (:func:`covariates`, then ``identify_payload``).
+  on the per-axis statistics (:func:`covariates`, then ``identify_from_statistics``).
 * ``random-walk``: the six biases are independent random walks, estimated jointly
   with the mass and first moment as a linear-Gaussian state-space model. The fit
   runs on **per-block averages**: the recording is cut into at most

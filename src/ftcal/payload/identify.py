@@ -56,7 +56,8 @@ from ..core.limits import PAYLOAD_WEIGHTINGS
 from ..core.precision import SCORE, settle
 from ..core.solvers.base import Conditioning
 from ..core.statistics import SufficientStatistics
-from ..runtime.errors import FtcalError, IllPosedFitWarning, UndeterminedWarning
+from ..runtime.deprecation import deprecated_alias
+from ..runtime.errors import FtcalError, ParameterError, IllPosedFitWarning, IllPosedParameterWarning, UndeterminedWarning
 from .accumulate import AxisStatistics
 from .regressor import DYNAMIC_PARAMETERS, STATIC_PARAMETERS, inertia_about_com, inertia_matrix
 
@@ -181,7 +182,7 @@ def describe_parameters(names) -> str:
     return ", ".join(LABELS.get(n, n) for n in names)
 
 
-def identify_payload(groups: Mapping[str, AxisStatistics], *, cross_validate: bool = True,
+def identify_from_statistics(groups: Mapping[str, AxisStatistics], *, cross_validate: bool = True,
                      clusters: Sequence[AxisStatistics] = (), weighting: str = "auto",
                      covariates: Sequence[str] = (), coarser: Sequence[int] = ()) -> PayloadFit:
     """Fit the payload and bias to statistics gathered per validation group.
@@ -360,8 +361,8 @@ def find_undetermined(total: AxisStatistics, names: tuple[str, ...], n_base: int
                          + f"): nothing to identify; {_COVARIATE_HINT if drift else _GRAVITY_HINT}.")
     if any(names.index(q) >= n_base for q in parameters):
         drift = sorted({q.split("_", 1)[1] for q in parameters if names.index(q) >= n_base})
-        raise FtcalError(f"the poses leave the bias's {' and '.join(drift)} coefficients undetermined (regressor rank "
-                         f"{rank} of {len(names)}): {_COVARIATE_HINT}, or use --bias-drift none.")
+        raise ParameterError('bias_drift', f"the poses leave the bias's {' and '.join(drift)} coefficients undetermined (regressor rank "
+                         f"{rank} of {len(names)}): {_COVARIATE_HINT}, or use {{bias_drift}} none.")
     held = _choose_held(basis, names)
     # Directions in θ units, one per held parameter: moving it by 1 and the others along.
     directions = jacobi[:, None] * basis
@@ -487,12 +488,12 @@ UNCERTAIN_ERROR_TEXT = "the standard error of"  # how the warning of warn_uncert
 def warn_uncertain_error(widened: Widened, what: str) -> None:
     """Say so when the error grows with the length of the blocks left out: the data cannot determine it."""
     if widened.ratio[0] > UNDETERMINED_ERROR:
-        warnings.warn(f"{UNCERTAIN_ERROR_TEXT} {what} grows {widened.ratio[0]:.1f}x from {widened.blocks[0]} to "
+        warnings.warn(IllPosedParameterWarning("bias_drift", f"{UNCERTAIN_ERROR_TEXT} {what} grows {widened.ratio[0]:.1f}x from {widened.blocks[0]} to "
                       f"{widened.blocks[-1]} contiguous blocks left out: the errors are correlated over a large part "
                       "of the recording (drift that follows the pose order, slow wander), so the recording holds "
                       f"only a few independent pieces of evidence and the error stated (the largest) is itself "
                       "uncertain; record the poses in a shuffled order, revisit early poses late, or use "
-                      "--bias-drift random-walk.", IllPosedFitWarning, stacklevel=3)
+                      "{bias_drift} random-walk."), stacklevel=3)
 
 
 # An equilibrated Gram above this condition number has lost a direction (float64 keeps ~16 digits).
@@ -614,8 +615,8 @@ def check_mass_sign(fit: PayloadFit) -> None:
     """
     se = fit.stderr["mass"]
     if fit.mass < 0 and -fit.mass > SIGNIFICANT_STDERR * se:
-        raise FtcalError(f"the estimated mass is {fit.mass:.6g} ± {se:.2g} kg, negative: the sensor reports the "
-                         "opposite sign convention (the wrench it applies on the tool); re-run with --reaction.")
+        raise ParameterError('reaction', f"the estimated mass is {fit.mass:.6g} ± {se:.2g} kg, negative: the sensor reports the "
+                         "opposite sign convention (the wrench it applies on the tool); re-run with {reaction}.")
     if fit.mass <= SIGNIFICANT_STDERR * se:
         raise FtcalError(f"the estimated mass {fit.mass:.6g} ± {se:.2g} kg is not distinguishable from zero: "
                          "no payload to identify (check the wrench columns and the orientation source).")
@@ -696,3 +697,8 @@ def _cross_validate(groups: Mapping[str, AxisStatistics], total: AxisStatistics,
         rms = np.sqrt(stats.residual_sum_of_squares(theta) / stats.n_samples)
         out.append(GroupResidual(str(label), stats.n_samples, rms))
     return tuple(out)
+
+
+# The old name of identify_from_statistics, which the step ftcal.identify_payload (other arguments) shadowed.
+identify_payload = deprecated_alias(identify_from_statistics, "ftcal.payload.identify.identify_payload",
+                                    "ftcal.payload.identify.identify_from_statistics")

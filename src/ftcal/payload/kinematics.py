@@ -28,7 +28,7 @@ from typing import Protocol
 
 import numpy as np
 
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, ParameterError
 
 STANDARD_GRAVITY = 9.81  # m/s², the default of --g
 QUATERNION_COLUMNS = ("qx", "qy", "qz", "qw")
@@ -135,10 +135,10 @@ def gravity_from_quaternions(quaternions: np.ndarray, g: float = STANDARD_GRAVIT
         raise FtcalError(f"{source}: quaternion columns {','.join(columns)} are not unit length at row {row} "
                          f"(norm {norm[row]:.6g}; {int(bad.sum())} row(s) off by more than "
                          f"{QUATERNION_NORM_TOLERANCE:g}); give x,y,z,w in ROS order.")
-    x, y, z, w = (q / norm[:, None]).T
+    from ..data.holds import rotation_matrices  # the one quaternion -> rotation formula
+
     # Third row of R (sensor to world): the world z axis in sensor coordinates.
-    up = np.column_stack([2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y)])
-    return -g * up
+    return -g * rotation_matrices(q / norm[:, None])[:, 2, :]
 
 
 @dataclass(frozen=True)
@@ -230,8 +230,8 @@ class MotionSource:
             alpha = _columns(frame, self.angular_acceleration, source, "angular acceleration")
         else:
             if self.time not in frame.columns:
-                raise FtcalError(f"{source}: no {self.time!r} column to differentiate angular velocity; "
-                                 "give --time COL or --angular-acceleration COLS.")
+                raise ParameterError(('time', 'angular_acceleration'), f"{source}: no {self.time!r} column to differentiate angular velocity; "
+                                 "give {time} COL or {angular_acceleration} COLS.")
             t = _columns(frame, (self.time,), source, "time")[:, 0]
             alpha = angular_acceleration_from(omega, t, source=source, time_column=self.time)
         proper = None

@@ -17,7 +17,7 @@ import numpy as np
 
 from ..core.jackknife import COARSER_BLOCKS, block_edges, t_scale
 from ..data.tables import table_label_column
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, ParameterError
 from .accumulate import AxisStatistics, payload_statistics
 from .compensate import contact_wrench, undetermined_samples, warn_undetermined
 from .drift import MAX_KNOTS, BiasDrift
@@ -33,14 +33,14 @@ def check_wrench_columns(columns: Sequence[str], source: KinematicsSource | None
     """Six distinct wrench columns, none of them read by the gravity ``source`` too (a wrench made of
     orientation columns is a typo, not a measurement)."""
     if len(columns) != 6:
-        raise FtcalError(f"--inputs needs 6 wrench columns Fx,Fy,Fz,Tx,Ty,Tz; got {','.join(columns)}.")
+        raise ParameterError('inputs', f"{{inputs}} needs 6 wrench columns Fx,Fy,Fz,Tx,Ty,Tz; got {','.join(columns)}.")
     twice = next((c for c in columns if list(columns).count(c) > 1), None)
     if twice is not None:
-        raise FtcalError(f"--inputs {','.join(columns)}: the wrench column {twice!r} is given twice; name six "
+        raise ParameterError('inputs', f"{{inputs}} {','.join(columns)}: the wrench column {twice!r} is given twice; name six "
                          "different columns.")
     shared = [c for c in columns if c in set(getattr(source, "columns", ()) or ())]
     if shared:
-        raise FtcalError(f"--inputs {','.join(columns)}: {', '.join(map(repr, shared))} {'is' if len(shared) == 1 else 'are'} also read by the gravity "
+        raise ParameterError('inputs', f"{{inputs}} {','.join(columns)}: {', '.join(map(repr, shared))} {'is' if len(shared) == 1 else 'are'} also read by the gravity "
                          "source (orientation, gravity, joint or motion columns); a wrench column must hold the "
                          "sensor's readings.")
     return tuple(columns)
@@ -270,7 +270,7 @@ def predicted_loads_text(model, loads) -> str | None:
         loads = sum(parts[1:], parts[0]) if parts else None
     if loads is None:
         return None
-    return loads_text(loads.summary(np.asarray(model.output_range_, dtype=float), model.output_names_),
+    return loads_text(loads.to_dict(np.asarray(model.output_range_, dtype=float), model.output_names_),
                       "the predicted loads")
 
 
@@ -335,18 +335,18 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
     from ..runtime.errors import UndeterminedWarning
     from .drift import (BiasDrift, beside_wander, block_means, check_temperature, choose, covariates,
                         fit_state_space, within_hold_noise)
-    from .identify import identify_payload
+    from .identify import identify_from_statistics
 
     if bias_drift not in BIAS_DRIFTS:
-        raise FtcalError(f"--bias-drift: {bias_drift!r} is not one of {', '.join(BIAS_DRIFTS)}.")
+        raise ParameterError('bias_drift', f"{{bias_drift}}: {bias_drift!r} is not one of {', '.join(BIAS_DRIFTS)}.")
     timed = bias_drift in ("linear", "random-walk")
     if timed and recording.time is None:
-        raise FtcalError(f"--bias-drift {bias_drift} needs the time column: give --time COL.")
+        raise ParameterError(('bias_drift', 'time'), f"{{bias_drift}} {bias_drift} needs the time column: give {{time}} COL.")
     if timed and dynamic:
-        raise FtcalError(f"--bias-drift {bias_drift} works with static poses only; leave out --dynamic "
-                         "or use --bias-drift none.")
+        raise ParameterError(('bias_drift', 'dynamic'), f"{{bias_drift}} {bias_drift} works with static poses only; leave out {{dynamic}} "
+                         "or use {bias_drift} none.")
     if dynamic and recording.temperature is not None:
-        raise FtcalError("--temperature works with static poses only; leave out --dynamic or --temperature.")
+        raise ParameterError(('temperature', 'dynamic'), "{temperature} works with static poses only; leave out {dynamic} or {temperature}.")
     temperature = None
     if recording.temperature is not None:
         check_temperature(recording.temperature, temperature_column)
@@ -358,7 +358,7 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
     n_groups = len(groups)
     with warnings.catch_warnings(record=True) as said:
         warnings.simplefilter("always")
-        constant = identify_payload(groups, clusters=clusters, covariates=names, cross_validate=cross_validate,
+        constant = identify_from_statistics(groups, clusters=clusters, covariates=names, cross_validate=cross_validate,
                                     coarser=COARSER_BLOCKS)
     # The constant fit's uncertain-error warning is said only when the constant bias is the model kept (below):
     # a drift model that takes the drift out leaves no such error behind.
@@ -382,9 +382,9 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
                 if kind == candidate:
                     raise
                 if candidate == "none" and kind == "random-walk":  # asked for: the walk has nothing to fit either
-                    raise FtcalError(f"--bias-drift random-walk: {len(blocks.count)} time block(s) of at least "
+                    raise ParameterError('bias_drift', f"{{bias_drift}} random-walk: {len(blocks.count)} time block(s) of at least "
                                      f"{DRIFT_BLOCK_SECONDS:g} s: too few to fit a bias walk; record more samples, "
-                                     "or give --bias-drift none.") from None
+                                     "or give {bias_drift} none.") from None
                 if candidate == "none":
                     break  # too few time blocks to compare bias models at all
         held_out = compare_held_out(blocks, fits)
@@ -400,7 +400,7 @@ def identify_recording(recording: PayloadRecording, *, bias_drift: str = "auto",
         groups, clusters = _groups_and_blocks(recording, False, extra)
         with warnings.catch_warnings():  # the constant fit said what the poses do not determine
             warnings.simplefilter("ignore", UndeterminedWarning)
-            fit = identify_payload(groups, clusters=clusters, covariates=names, cross_validate=cross_validate,
+            fit = identify_from_statistics(groups, clusters=clusters, covariates=names, cross_validate=cross_validate,
                                 coarser=COARSER_BLOCKS)
         slope = fit.theta[10:16]
         start = fit.theta[4:10]

@@ -57,7 +57,7 @@ from ..core.dataset import Dataset
 from ..core.directions import order_by_size
 from ..core.jackknife import block_edges, jackknife_covariance
 from ..core.limits import ROBUST_CLUSTERS
-from ..runtime.errors import FtcalError, IllPosedFitWarning
+from ..runtime.errors import FtcalError, IllPosedFitWarning, IllPosedParameterWarning, ParameterError
 from .regressor import INERTIAL_PARAMETERS
 
 # Relative eigenvalue of the (scaled) likelihood curvature below which a direction is unidentifiable.
@@ -165,7 +165,7 @@ def estimate_payload(data: Dataset, payload: np.ndarray, link: str, *,
     names = INERTIAL_PARAMETERS[:k]
     free = np.arange(k) if payload_mass is None else np.arange(1, k)
     if payload_mass is not None and not (np.isfinite(payload_mass) and payload_mass > 0):
-        raise FtcalError(f"--payload-mass must be a finite number > 0 kg; got {payload_mass!r}.")
+        raise ParameterError('payload_mass', f"{{payload_mass}} must be a finite number > 0 kg; got {payload_mass!r}.")
     n, extra = u.shape[0], u.shape[1] - N_CHANNELS
     kf = len(free)
     if n <= 6 + 1 + extra + kf:
@@ -174,19 +174,20 @@ def estimate_payload(data: Dataset, payload: np.ndarray, link: str, *,
     blocks, scale = _moments(u, w, y, payload_mass, edges)
     moments = blocks.sum(axis=0)
     if payload_mass is None and _known_is_a_payload(moments, kf):
-        raise FtcalError(_unidentifiable_message(link, ["m"], True))
+        raise ParameterError("payload_mass", _unidentifiable_message(link, ["m"], True))
     criterion = _criterion(moments, n, kf, extra)
     result = _search(criterion, np.zeros(kf))
     with np.errstate(invalid="ignore", over="ignore"):
         hessian = _hessian(criterion, result.x)
     if not (np.isfinite(result.x).all() and np.isfinite(hessian).all()):
-        raise FtcalError(_unidentifiable_message(link, [names[j] for j in free[:2]], payload_mass is None))
+        raise ParameterError("payload_mass", _unidentifiable_message(link, [names[j] for j in free[:2]],
+                                                                     payload_mass is None))
     # Negative log-likelihood = (n / 2) · criterion + const: its curvature gives the covariance.
     d = np.sqrt(np.clip(np.abs(np.diag(hessian)), 1e-300, None))
     eig, vecs = np.linalg.eigh(hessian / np.outer(d, d))
     if eig[0] <= RANK_TOLERANCE * eig[-1]:
         worst = [names[free[j]] for j in order_by_size(vecs[:, 0])[:2]]
-        raise FtcalError(_unidentifiable_message(link, worst, payload_mass is None))
+        raise ParameterError("payload_mass", _unidentifiable_message(link, worst, payload_mass is None))
     covariance = np.linalg.inv(hessian / np.outer(d, d)) / np.outer(d, d) * (2.0 / n)
     refits = _leave_blocks_out(blocks, np.diff(edges), kf, extra, result.x, hessian)
     jackknife = jackknife_covariance(refits)
@@ -212,9 +213,9 @@ def estimate_payload(data: Dataset, payload: np.ndarray, link: str, *,
                       f"value); record poses that turn {link} about other axes relative to gravity, or that move "
                       "the robot's own links beyond the sensor relative to it.", IllPosedFitWarning, stacklevel=2)
     if values[0] <= 0:
-        warnings.warn(f"The estimated payload mass on {link} is {values[0]:.4g} kg (not positive): the data "
-                      "do not determine it; give --payload-mass or record more varied poses.",
-                      IllPosedFitWarning, stacklevel=2)
+        warnings.warn(IllPosedParameterWarning("payload_mass", f"The estimated payload mass on {link} is "
+                                               f"{values[0]:.4g} kg (not positive): the data do not determine it; "
+                                               "give {payload_mass} or record more varied poses."), stacklevel=2)
     return PayloadEstimate(link, names, values, stderr, kind, curvature)
 
 
@@ -376,7 +377,7 @@ def fit_with_payload(data: Dataset, payload: np.ndarray, link: str, *, degree: i
 
 
 def _unidentifiable_message(link: str, parameters: list[str], mass_free: bool) -> str:
-    advice = "record poses that move them" + (", or give the payload's mass with --payload-mass KG" if mass_free else "")
+    advice = "record poses that move them" + (", or give the payload's mass with {payload_mass} KG" if mass_free else "")
     return (f"The payload on {link} cannot be separated from the calibration: {' and '.join(parameters)} trade "
             f"against the calibration's gains. The scale comes from the robot's own links beyond the sensor "
             f"that move relative to {link} (e.g. a hand beyond wrist joints); {advice}.")

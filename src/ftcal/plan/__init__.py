@@ -12,6 +12,10 @@ May import :mod:`ftcal.insitu`, :mod:`ftcal.report`, :mod:`ftcal.files`,
 and :mod:`ftcal.runtime`.
 """
 
-from .experiment import Plan, PlanRequest, Recorded, plan_experiment
+from ..runtime.deprecation import deprecated_alias
+from .experiment import Plan, PlanRequest, Recorded, design_experiment
 
-__all__ = ["Plan", "PlanRequest", "Recorded", "plan_experiment"]
+# The old name, which the step ftcal.plan_experiment (other arguments) shadowed.
+plan_experiment = deprecated_alias(design_experiment, "ftcal.plan.plan_experiment", "ftcal.plan.design_experiment")
+
+__all__ = ["Plan", "PlanRequest", "Recorded", "design_experiment"]

@@ -22,7 +22,7 @@ from ..robot.expected import expected_wrenches
 from ..robot.kinematics import sensor_poses
 from ..robot.model import RobotModel
 from ..robot.payloads import Payload
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, ParameterError
 
 GRAVITY = (0.0, 0.0, -9.81)
 # Draw at most this many batches of configurations while looking for ones above the minimum height.
@@ -131,22 +131,22 @@ def joint_space(robot: RobotModel, sensor: str, base: str | None = None, *,
     fixed = {k: float(v) for k, v in (fixed or {}).items()}
     known = set(robot.joint_names)
     chain = chain_joints(robot, sensor, base)
-    for option, names in (("--joint-range", ranges), ("--fixed", fixed)):
+    for parameter, names in (("joint_range", ranges), ("fixed", fixed)):
         for name in names:
             if name not in known:
-                raise FtcalError(f"{option} {name}: no movable joint of that name in URDF {robot.source} "
+                raise ParameterError(parameter, f"{{{parameter}}} {name}: no movable joint of that name in URDF {robot.source} "
                                  f"(its joints: {', '.join(robot.joint_names[:8])}"
                                  f"{', ...' if len(robot.joint_names) > 8 else ''}).")
     for name in ranges:
         if name not in chain:
-            raise FtcalError(f"--joint-range {name}: the joint is not on the chain from the base to the sensor, "
+            raise ParameterError('joint_range', f"{{joint_range}} {name}: the joint is not on the chain from the base to the sensor, "
                              f"so it does not move the sensor (chain: {', '.join(chain) or 'none'}).")
         if name in fixed:
-            raise FtcalError(f"--joint-range {name}: the joint is also pinned with --fixed; give one of them.")
+            raise ParameterError(('joint_range', 'fixed'), f"{{joint_range}} {name}: the joint is also pinned with {{fixed}}; give one of them.")
     for name, value in fixed.items():
         lo, hi = joint_limits(robot, name)
         if not lo <= value <= hi:
-            raise FtcalError(f"--fixed {name}={value:g}: outside the joint's URDF limits [{lo:g}, {hi:g}] rad.")
+            raise ParameterError('fixed', f"{{fixed}} {name}={value:g}: outside the joint's URDF limits [{lo:g}, {hi:g}] rad.")
     free = tuple(n for n in chain if n not in fixed)
     if not free:
         raise FtcalError(f"no joint left to move the sensor: the chain from the base to the sensor "
@@ -157,7 +157,7 @@ def joint_space(robot: RobotModel, sensor: str, base: str | None = None, *,
         if name in ranges:
             lo, hi = max(lo, ranges[name][0]), min(hi, ranges[name][1])
             if not lo < hi:
-                raise FtcalError(f"--joint-range {name}:{ranges[name][0]:g}:{ranges[name][1]:g}: empty within "
+                raise ParameterError('joint_range', f"{{joint_range}} {name}:{ranges[name][0]:g}:{ranges[name][1]:g}: empty within "
                                  f"the URDF limits {joint_limits(robot, name)} rad.")
         lower[i], upper[i] = lo, hi
     return JointSpace(robot.joint_names, free, lower, upper, fixed)

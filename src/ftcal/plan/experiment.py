@@ -1,6 +1,6 @@
 """Plan an experiment: candidates → information → greedy D-optimal design → execution order.
 
-:func:`plan_experiment` draws the candidate configurations, evaluates every one
+:func:`design_experiment` draws the candidate configurations, evaluates every one
 under every load, chooses the poses (starting from the information of any
 recorded data), orders them for execution, and compares the design with a
 random one of the same size drawn from the same seed stream.
@@ -18,7 +18,7 @@ from ..core.limits import (MAX_DEGREE, MAX_PLAN_CANDIDATES, MAX_PLAN_POSES, MAX_
 from ..robot.model import RobotModel
 from ..robot.payloads import Payload
 from ..runtime.checks import check_choice, check_float, check_int
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, ParameterError
 from ..runtime.threads import single_threaded_blas
 from .candidates import Candidates, JointSpace, candidate_poses, joint_space
 from .design import greedy_design, greedy_design_factored, random_design
@@ -73,7 +73,7 @@ class PlanRequest:
     def __post_init__(self) -> None:
         owner = "PlanRequest"
         if not self.loads:
-            raise FtcalError("give at least one load (--load SPEC, or --load none for nothing mounted).")
+            raise ParameterError('load', "give at least one load ({load} SPEC, or {load} none for nothing mounted).")
         check_int(self.n_poses, "n_poses", owner, 1, MAX_PLAN_POSES)
         check_choice(self.objective, "objective", owner, PLAN_OBJECTIVES)
         check_int(self.degree, "degree", owner, 1, MAX_DEGREE)
@@ -176,19 +176,19 @@ def _recorded_rows(request: PlanRequest, recorded: Sequence[Recorded], n_loads: 
     for data in recorded:
         if scaling is not None:
             if data.wrench is None:
-                raise FtcalError(f"--from {data.source}: no expected wrench columns Fx..Tz, which a "
+                raise ParameterError('recorded', f"{{recorded}} {data.source}: no expected wrench columns Fx..Tz, which a "
                                  f"calibration plan needs.")
             parts.append(calibration_rows(data.wrench, request.degree, scaling))
         else:
             if data.gravity is None:
-                raise FtcalError(f"--from {data.source}: no joint columns of the robot, which a payload "
+                raise ParameterError('recorded', f"{{recorded}} {data.source}: no joint columns of the robot, which a payload "
                                  f"plan needs for the sensor's orientation.")
             load = np.zeros(data.n_poses, dtype=np.int64) if data.load is None else data.load
             if n_loads > 1 and data.load is None:
-                raise FtcalError(f"--from {data.source}: no 'load' column, and {n_loads} loads are given; "
-                                 f"add a column with the 0-based --load index of each row.")
+                raise ParameterError(('recorded', 'load'), f"{{recorded}} {data.source}: no 'load' column, and {n_loads} loads are given; "
+                                 f"add a column with the 0-based {{load}} index of each row.")
             if load.size and (load.min() < 0 or load.max() >= n_loads):
-                raise FtcalError(f"--from {data.source}: column 'load' must hold --load indices 0..{n_loads - 1}.")
+                raise ParameterError(('recorded', 'load'), f"{{recorded}} {data.source}: column 'load' must hold {{load}} indices 0..{n_loads - 1}.")
             parts.append(payload_rows(data.gravity, load, n_loads, request.noise))
     return np.concatenate(parts)
 
@@ -206,7 +206,7 @@ def _score(request: PlanRequest, start: np.ndarray, added: np.ndarray, all_rows:
     return DesignScore(log_det(total), standard_errors=errors)
 
 
-def plan_experiment(robot: RobotModel, request: PlanRequest, recorded: Sequence[Recorded] = ()) -> Plan:
+def design_experiment(robot: RobotModel, request: PlanRequest, recorded: Sequence[Recorded] = ()) -> Plan:
     """Design ``request.n_poses`` poses, ordered for execution, and score them against a random design.
 
     Parameters
@@ -232,7 +232,7 @@ def plan_experiment(robot: RobotModel, request: PlanRequest, recorded: Sequence[
     >>> from ftcal.robot import RobotModel, parse_payload_spec
     >>> from ftcal.sim.plan_arm import ARM_URDF
     >>> robot = RobotModel.from_text(ARM_URDF)
-    >>> plan = plan_experiment(robot, PlanRequest((None, parse_payload_spec("tool:2@0,0,0.05")), 12,
+    >>> plan = design_experiment(robot, PlanRequest((None, parse_payload_spec("tool:2@0,0,0.05")), 12,
     ...                                           n_candidates=500))
     >>> plan.planned.log_det > plan.random.log_det
     True
@@ -246,9 +246,9 @@ def plan_experiment(robot: RobotModel, request: PlanRequest, recorded: Sequence[
                                  base=request.base, min_height=request.min_height)
     n_available = candidates.n_configurations * candidates.n_loads
     if request.n_poses > n_available:
-        where = f" with the sensor above --min-height {request.min_height:g} m" if request.min_height is not None else ""
-        raise FtcalError(f"--poses {request.n_poses}: only {n_available} candidate poses ({candidates.n_configurations} "
-                         f"configurations{where} x {candidates.n_loads} load(s)); raise --candidates or lower --poses.")
+        where = f" with the sensor above {{min_height}} {request.min_height:g} m" if request.min_height is not None else ""
+        raise ParameterError(('poses', 'candidates', 'min_height'), f"{{poses}} {request.n_poses}: only {n_available} candidate poses ({candidates.n_configurations} "
+                         f"configurations{where} x {candidates.n_loads} load(s)); raise {{candidates}} or lower {{poses}}.")
     # Many small products: multi-threaded BLAS only spins (see ftcal.runtime.threads).
     with single_threaded_blas():
         return _design(request, recorded, space, candidates, rng)
@@ -314,9 +314,9 @@ def _check_work(request: PlanRequest) -> None:
     if work <= MAX_PLAN_WORK:
         return
     fits = int((MAX_PLAN_WORK - float(p) ** 3) / (n_loads * r * p * p))
-    lower = (f"lower --candidates to {fits} or less, or --degree" if fits >= request.n_poses
-             else "lower --degree")
-    raise FtcalError(f"--degree {request.degree} with {request.n_candidates} candidate configurations x {n_loads} "
+    lower = (f"lower {{candidates}} to {fits} or less, or {{degree}}" if fits >= request.n_poses
+             else "lower {degree}")
+    raise ParameterError(('degree', 'candidates'), f"{{degree}} {request.degree} with {request.n_candidates} candidate configurations x {n_loads} "
                      f"load(s): {p} parameters, about {work:.1e} operations (the limit is {MAX_PLAN_WORK:.0e}, "
                      f"minutes of CPU); {lower}.")
 
@@ -329,11 +329,11 @@ def _check_loads_beyond(robot: RobotModel, sensor: str, request: PlanRequest) ->
         if load is None:
             continue
         if not model.isFrameNameUsed(load.frame):
-            raise FtcalError(f"--load {load.name or load.frame}: URDF {robot.source} has no link or frame named "
+            raise ParameterError('load', f"{{load}} {load.name or load.frame}: URDF {robot.source} has no link or frame named "
                              f"{load.frame!r}.")
         link = model.getLinkName(model.getFrameLink(model.getFrameIndex(load.frame)))
         if link not in beyond:
-            raise FtcalError(f"--load {load.name or load.frame}: {load.frame!r} is on the base side of sensor "
+            raise ParameterError('load', f"{{load}} {load.name or load.frame}: {load.frame!r} is on the base side of sensor "
                              f"{sensor!r} (link {link!r}); the sensor does not carry it. Attach loads to a link "
                              f"beyond the sensor: {', '.join(sorted(beyond)[:6])}.")
 
@@ -341,6 +341,6 @@ def _check_loads_beyond(robot: RobotModel, sensor: str, request: PlanRequest) ->
 def _only_sensor(robot: RobotModel) -> str:
     robot.require_ft_sensors()
     if len(robot.ft_sensors) > 1:
-        raise FtcalError(f"URDF {robot.source} has {len(robot.ft_sensors)} F/T sensors; choose one with --sensor "
+        raise ParameterError('sensor', f"URDF {robot.source} has {len(robot.ft_sensors)} F/T sensors; choose one with {{sensor}} "
                          f"({', '.join(s.name for s in robot.ft_sensors)}).")
     return robot.ft_sensors[0].name

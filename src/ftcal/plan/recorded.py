@@ -16,7 +16,7 @@ from ..core.limits import MAX_WRENCH
 from ..data.tables import numeric_columns, read_table
 from ..robot.kinematics import require_chain_joints, sensor_poses
 from ..robot.model import RobotModel
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, ParameterError
 from .candidates import GRAVITY
 from .experiment import Plan, Recorded
 
@@ -27,7 +27,7 @@ def read_recorded(path: str | Path, robot: RobotModel, sensor: str, *, base: str
     """Expected wrench (columns Fx..Tz), sensor-frame gravity (joint columns) and ``load`` of a table.
 
     Any of them may be missing; the objective that needs one says so
-    (:func:`ftcal.plan.experiment.plan_experiment`). A table with joint columns must hold every joint on
+    (:func:`ftcal.plan.experiment.design_experiment`). A table with joint columns must hold every joint on
     the chain from the base to the sensor (they turn gravity in the sensor frame); others are 0.
 
     Raises
@@ -38,26 +38,27 @@ def read_recorded(path: str | Path, robot: RobotModel, sensor: str, *, base: str
     path = Path(path)
     frame = read_table(path)
     if frame.shape[0] == 0:
-        raise FtcalError(f"--from {path}: the table has no rows.")
+        raise ParameterError('recorded', f"{{recorded}} {path}: the table has no rows.")
     wrench = gravity = load = None
     if all(c in frame.columns for c in DEFAULT_OUTPUTS):
         wrench = numeric_columns(frame, DEFAULT_OUTPUTS, path, "expected wrench")
         if np.abs(wrench).max() > MAX_WRENCH:  # beyond any sensor; its monomials would overflow to inf/NaN
-            raise FtcalError(f"--from {path}: expected wrench values beyond {MAX_WRENCH:g} N or N·m; not a recording "
+            raise ParameterError('recorded', f"{{recorded}} {path}: expected wrench values beyond {MAX_WRENCH:g} N or N·m; not a recording "
                              "of a force/torque sensor.")
     joints = [c for c in frame.columns if c in robot.joint_names]
     if joints:
-        require_chain_joints(robot, joints, robot.base_frame(base)[1], sensor, f"--from {path}")
+        require_chain_joints(robot, joints, robot.base_frame(base)[1], sensor, f"{{recorded}} {path}",
+                             parameters=("recorded",))
         q = robot.joint_matrix(joints, numeric_columns(frame, joints, path, "joint"), str(path))
         rotation = sensor_poses(robot, sensor, q, base=base)[:, :3, :3]
         gravity = np.einsum("nji,j->ni", rotation, np.asarray(GRAVITY))
     if LOAD_COLUMN in frame.columns:
         values = numeric_columns(frame, [LOAD_COLUMN], path, "load")[:, 0]
         if not np.all(values == np.round(values)):
-            raise FtcalError(f"--from {path}: column 'load' must hold whole numbers (0-based --load indices).")
+            raise ParameterError(('recorded', 'load'), f"{{recorded}} {path}: column 'load' must hold whole numbers (0-based {{load}} indices).")
         load = values.astype(np.int64)
     if wrench is None and gravity is None:
-        raise FtcalError(f"--from {path}: neither expected wrench columns ({','.join(DEFAULT_OUTPUTS)}) nor joint "
+        raise ParameterError('recorded', f"{{recorded}} {path}: neither expected wrench columns ({','.join(DEFAULT_OUTPUTS)}) nor joint "
                          f"columns of URDF {robot.source}; nothing to build on.")
     return Recorded(str(path), wrench, gravity, load)
 

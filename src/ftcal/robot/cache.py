@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ..runtime.atomic import write_with
-from ..runtime.errors import FtcalError, FtcalWarning
+from ..runtime.errors import FtcalError, FtcalWarning, ParameterWarning
 from ..runtime.inputs import check_input_file
 from .model import RobotModel
 
@@ -115,8 +115,9 @@ def cached(key: str, sensors: Sequence[str], n_samples: int, compute: Callable[[
     try:
         write_with(path, write)
     except (FtcalError, OSError) as exc:
-        warnings.warn(f"could not write the expected-wrench cache entry {path}: {exc} "
-                      "(use --cache-dir to choose a writable folder, or --no-cache).", FtcalWarning, stacklevel=2)
+        warnings.warn(ParameterWarning(("cache_dir", "no_cache"), f"could not write the expected-wrench cache entry "
+                                       f"{path}: {exc} (use {{cache_dir}} to choose a writable folder, or "
+                                       "{no_cache})."), stacklevel=2)
     return wrenches
 
 

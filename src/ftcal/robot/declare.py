@@ -34,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, ParameterError
 
 # A massless child link would become a frame (and its joint disappear); this mass keeps it a
 # link. Its weight, 1e-11 N, is far below any F/T sensor's resolution.
@@ -104,10 +104,10 @@ def prepare_urdf(text: str, source: str, declared: tuple[SensorDeclaration, ...]
                 added.append(_from_gazebo(tag, joint, source))
                 native.add(joint)
     for decl in declared:
-        _check_joint(joints, decl.joint, source, "--ft-joint")
+        _check_joint(joints, decl.joint, source, "{ft_joint}", "ft_joint")
         if decl.joint in native:
-            raise FtcalError(f"URDF {source} already has an F/T sensor on joint {decl.joint!r}; "
-                             f"use it by name instead of declaring one (--ft-joint).")
+            raise ParameterError('ft_joint', f"URDF {source} already has an F/T sensor on joint {decl.joint!r}; "
+                             f"use it by name instead of declaring one ({{ft_joint}}).")
         origin = None
         if decl.frame is not None:
             child = joints[decl.joint].find("child").get("link")
@@ -135,11 +135,12 @@ def fixed_joints(text: str) -> tuple[str, ...]:
     return tuple(j.get("name") for j in root.findall("joint") if j.get("type") == "fixed")
 
 
-def no_sensor_hint(text: str) -> str:
-    """How to declare an F/T sensor on this URDF, naming its fixed joints."""
+def no_sensor_hint(text: str, name_of=lambda name: "{" + name + "}") -> str:
+    """How to declare an F/T sensor on this URDF, naming its fixed joints; the parameters ``ft_joint`` and
+    ``ft_frame`` are written ``name_of(name)`` (``{name}`` for a :class:`ParameterError`, a flag in the CLI)."""
     candidates = fixed_joints(text)
     listed = ", ".join(candidates[:12]) + (", ..." if len(candidates) > 12 else "") if candidates else "none"
-    return (f"declare one with --ft-joint JOINT (optionally --ft-frame LINK) on a fixed joint "
+    return (f"declare one with {name_of('ft_joint')} JOINT (optionally {name_of('ft_frame')} LINK) on a fixed joint "
             f"(this URDF's fixed joints: {listed}), or add a Gazebo <sensor type=\"force_torque\"> tag")
 
 
@@ -148,12 +149,17 @@ def _parent_joint(sensor: ET.Element) -> str | None:
     return None if parent is None else parent.get("joint")
 
 
-def _check_joint(joints: dict, name: str | None, source: str, what: str) -> None:
+def _check_joint(joints: dict, name: str | None, source: str, what: str, parameter: str | None = None) -> None:
+    """Refuse a sensor joint that is not a fixed joint of the URDF; naming ``parameter`` (as ``{name}`` in
+    ``what``) when the caller's parameter gave it."""
+    def refuse(message):
+        raise ParameterError(parameter, message) if parameter else FtcalError(message)
+
     if name not in joints:
-        raise FtcalError(f"{what}: URDF {source} has no joint named {name!r}; its fixed joints are: "
+        refuse(f"{what}: URDF {source} has no joint named {name!r}; its fixed joints are: "
                          f"{', '.join(n for n, j in joints.items() if j.get('type') == 'fixed') or 'none'}.")
     if joints[name].get("type") != "fixed":
-        raise FtcalError(f"{what}: joint {name!r} of URDF {source} is {joints[name].get('type')}, not fixed; "
+        refuse(f"{what}: joint {name!r} of URDF {source} is {joints[name].get('type')}, not fixed; "
                          f"a six-axis F/T sensor sits on a fixed joint.")
 
 
@@ -267,8 +273,8 @@ def _rigid_transform(root: ET.Element, child: str, frame: str, source: str, join
                 queue.append(nxt)
     if frame not in seen:
         if frame not in {link.get("name") for link in root.findall("link")}:
-            raise FtcalError(f"--ft-frame {frame!r}: URDF {source} has no link named {frame!r}.")
-        raise FtcalError(f"--ft-frame {frame!r} is not rigidly attached (through fixed joints only) to "
-                         f"{child!r}, the child link of --ft-joint {joint!r} in URDF {source}.")
+            raise ParameterError('ft_frame', f"{{ft_frame}} {frame!r}: URDF {source} has no link named {frame!r}.")
+        raise ParameterError(('ft_frame', 'ft_joint'), f"{{ft_frame}} {frame!r} is not rigidly attached (through fixed joints only) to "
+                         f"{child!r}, the child link of {{ft_joint}} {joint!r} in URDF {source}.")
     h = seen[frame]
     return h[:3, 3], _matrix_rpy(h[:3, :3])

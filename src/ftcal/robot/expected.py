@@ -50,7 +50,7 @@ import numpy as np
 
 from ..core.limits import ZERO_REFERENCE_WRENCH
 from ..runtime.checks import check_int
-from ..runtime.errors import FtcalError, FtcalWarning
+from ..runtime.errors import FtcalError, FtcalWarning, ParameterWarning
 from ..runtime.processes import WorkerProcesses
 from ..runtime.progress import progress_bar
 from .declare import SensorDeclaration
@@ -202,10 +202,11 @@ def warn_if_zero_reference(expected: np.ndarray, where: str, sensor: str, case: 
     """
     size = float(np.abs(expected).max(initial=0.0)) if expected.size else 0.0
     if size < ZERO_REFERENCE_WRENCH:
-        warnings.warn(f"{where}: the reference wrench is zero in every sample (max |Fx..Tz| = {size:.2g}): nothing "
-                      f"hangs beyond sensor {sensor!r} in the robot model and load case {case!r} attaches no payload; "
-                      "a fit on it learns a sensor that reads zero. Give the load with --payload or --payload-file.",
-                      FtcalWarning, stacklevel=3)
+        warnings.warn(ParameterWarning(("payload", "payload_file"), f"{where}: the reference wrench is zero in every "
+                                       f"sample (max |Fx..Tz| = {size:.2g}): nothing hangs beyond sensor {sensor!r} in "
+                                       f"the robot model and load case {case!r} attaches no payload; a fit on it "
+                                       "learns a sensor that reads zero. Give the load with {payload} or "
+                                       "{payload_file}."), stacklevel=3)
 
 
 def check_joints(robot: RobotModel, values: np.ndarray, what: str, n: int | None = None) -> np.ndarray:

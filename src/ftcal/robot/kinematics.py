@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, ParameterError
 from .expected import GRAVITY, FloatingBase, check_joints
 from .model import RobotModel
 
@@ -131,7 +131,8 @@ def _prepare(robot: RobotModel, q, dq, ddq, floating):
     return q, dq, ddq
 
 
-def require_chain_joints(robot: RobotModel, given: Sequence[str], base: str, sensor: str, where: str) -> None:
+def require_chain_joints(robot: RobotModel, given: Sequence[str], base: str, sensor: str, where: str,
+                         parameters: Sequence[str] = ()) -> None:
     """Refuse data that lack a joint on the chain from ``base`` to F/T ``sensor``.
 
     A joint without data is held at 0 rad (:meth:`RobotModel.joint_matrix`): off that chain that
@@ -140,18 +141,19 @@ def require_chain_joints(robot: RobotModel, given: Sequence[str], base: str, sen
     Raises
     ------
     FtcalError
-        Naming ``where``, the missing joints, the base and the sensor.
+        Naming ``where``, the missing joints, the base and the sensor; a :class:`ParameterError` of
+        ``parameters`` when they are given (``where`` then writes them as ``{name}``).
     """
     chain = robot.chain_joints(base, _sensor_frame(robot, sensor)[0])
     missing = [j for j in chain if j not in set(given)]
     if missing:
-        raise FtcalError(f"{where}: no data for joint(s) {', '.join(map(repr, missing))}, on the chain from base "
-                         f"{base!r} to sensor {sensor!r}: gravity in the sensor frame depends on them, and a joint "
-                         "without data would be held at 0 rad (joints off that chain may be left out).")
+        _refuse(parameters, f"{where}: no data for joint(s) {', '.join(map(repr, missing))}, on the chain from base "
+                f"{base!r} to sensor {sensor!r}: gravity in the sensor frame depends on them, and a joint "
+                "without data would be held at 0 rad (joints off that chain may be left out).")
 
 
 def require_wrench_joints(robot: RobotModel, given: Sequence[str], base: str, sensors: Sequence[str], where: str,
-                          hint: str = "") -> None:
+                          hint: str = "", parameters: Sequence[str] = ()) -> None:
     """Refuse data that lack a joint the expected wrench of any of ``sensors`` depends on.
 
     That is every joint on the chain from ``base`` to the sensor (it turns gravity in the sensor frame) and
@@ -166,6 +168,8 @@ def require_wrench_joints(robot: RobotModel, given: Sequence[str], base: str, se
     sensors : F/T sensor (or sensor joint) names
     where : the data's name in the message
     hint : what the user can do instead, appended to the message
+    parameters : the caller's parameters that ``where`` and ``hint`` write as ``{name}`` (a
+        :class:`ParameterError`), or none
 
     Raises
     ------
@@ -180,9 +184,14 @@ def require_wrench_joints(robot: RobotModel, given: Sequence[str], base: str, se
         missing += [j for j in needed if j not in given_set and j not in missing]
     if missing:
         shown = ", ".join(map(repr, missing[:8])) + (f" and {len(missing) - 8} more" if len(missing) > 8 else "")
-        raise FtcalError(f"{where}: no data for joint(s) {shown}; the expected wrench of sensor(s) "
-                         f"{', '.join(sensors)} depends on them (they turn gravity in the sensor frame or move the "
-                         f"mass beyond it), and a joint without data would be held at 0 rad{hint}.")
+        _refuse(parameters, f"{where}: no data for joint(s) {shown}; the expected wrench of sensor(s) "
+                f"{', '.join(sensors)} depends on them (they turn gravity in the sensor frame or move the "
+                f"mass beyond it), and a joint without data would be held at 0 rad{hint}.")
+
+
+def _refuse(parameters: Sequence[str], message: str):
+    """Raise ``message``: naming ``parameters`` (as ``{name}``) when there are any."""
+    raise ParameterError(tuple(parameters), message) if parameters else FtcalError(message)
 
 
 def _sensor_frame(robot: RobotModel, sensor: str) -> tuple[str, np.ndarray]:
@@ -395,7 +404,7 @@ def kinematics_source(*, orientation: Sequence[str] | None = None, gravity_colum
                       angular_velocity: Sequence[str] | None = ("wx", "wy", "wz"),
                       linear_acceleration: Sequence[str] | None = ("ax", "ay", "az"),
                       angular_acceleration: Sequence[str] | None = None, time: str | None = None,
-                      robot_options: str = "--urdf PATH or --model NAME"):
+                      robot_parameters: Sequence[str] = ("urdf", "robot")):
     """The gravity (and motion) source of ``ftcal payload``, ``check`` and ``compensate``.
 
     Exactly one of: quaternion ``orientation`` columns (x, y, z, w), ``gravity_columns`` (sensor
@@ -405,7 +414,8 @@ def kinematics_source(*, orientation: Sequence[str] | None = None, gravity_colum
 
     Parameters
     ----------
-    robot_options : how the calling command spells its robot-model options, for messages
+    robot_parameters : the caller's parameters that give the robot model, for messages (``robot`` is
+        ``robot_name``: the steps' name for it)
 
     Returns
     -------
@@ -419,55 +429,65 @@ def kinematics_source(*, orientation: Sequence[str] | None = None, gravity_colum
     from ..payload.kinematics import GravityColumnsSource, MotionSource, OrientationSource
     from .declare import SensorDeclaration
 
+    # Messages name the step's parameters ({name}, ParameterError): the CLI shows them as its flags.
+    robot_text = " or ".join("{" + n + "}" + {"urdf": " PATH", "robot": " NAME"}.get(n, "") for n in robot_parameters)
     if urdf is not None or robot_name is not None:
         if orientation is not None or gravity_columns is not None:
-            raise FtcalError(f"give one gravity source: a robot model ({robot_options}), --orientation or "
-                             "--gravity-columns.")
+            raise ParameterError((*robot_parameters, "orientation", "gravity_columns"),
+                                 f"give one gravity source: a robot model ({robot_text}), {{orientation}} or "
+                                 "{gravity_columns}.")
         if ft_joint is None and ft_frame is not None:
-            raise FtcalError("--ft-frame needs --ft-joint (the fixed joint the sensor sits on).")
+            raise ParameterError(("ft_frame", "ft_joint"),
+                                 "{ft_frame} needs {ft_joint} (the fixed joint the sensor sits on).")
         declared = () if ft_joint is None else (SensorDeclaration(ft_joint, ft_frame),)
         robot = RobotModel.load(urdf=urdf, name=robot_name, declared=declared)
         robot.require_ft_sensors()
         if sensor is None and len(robot.ft_sensors) > 1:
-            raise FtcalError(f"--sensor: URDF {robot.source} has {len(robot.ft_sensors)} F/T sensors; name one of "
-                             f"{', '.join(s.name for s in robot.ft_sensors)}.")
+            raise ParameterError("sensor", f"{{sensor}}: URDF {robot.source} has {len(robot.ft_sensors)} F/T "
+                                 f"sensors; name one of {', '.join(s.name for s in robot.ft_sensors)}.")
         chosen = robot.sensor(sensor) if sensor is not None else robot.ft_sensors[0]
         source = JointColumnsSource(robot, chosen.name, base, g, degrees)
     elif orientation is not None or gravity_columns is not None:
         if orientation is not None and gravity_columns is not None:
-            raise FtcalError("give one gravity source: --orientation or --gravity-columns, not both.")
+            raise ParameterError(("orientation", "gravity_columns"),
+                                 "give one gravity source: {orientation} or {gravity_columns}, not both.")
         # The robot model's options mean nothing to a column source: refused, not ignored.
-        given = [option for option, value in (("--sensor", sensor), ("--ft-joint", ft_joint), ("--ft-frame", ft_frame),
-                                              ("--base", base), ("--degrees", degrees or None)) if value is not None]
+        given = [name for name, value in (("sensor", sensor), ("ft_joint", ft_joint), ("ft_frame", ft_frame),
+                                          ("base", base), ("degrees", degrees or None)) if value is not None]
         if given:
-            raise FtcalError(f"{', '.join(given)} {'go' if len(given) > 1 else 'goes'} with a robot model "
-                             f"({robot_options}) and its joint columns; "
-                             "the gravity here comes from columns.")
+            raise ParameterError((*given, *robot_parameters),
+                                 f"{', '.join('{' + n + '}' for n in given)} {'go' if len(given) > 1 else 'goes'} "
+                                 f"with a robot model ({robot_text}) and its joint columns; "
+                                 "the gravity here comes from columns.")
         if orientation is not None:
             if len(orientation) != 4:
-                raise FtcalError(f"--orientation needs 4 columns qx,qy,qz,qw; got {','.join(orientation)}.")
+                raise ParameterError("orientation", f"{{orientation}} needs 4 columns qx,qy,qz,qw; "
+                                     f"got {','.join(orientation)}.")
             source = OrientationSource(tuple(orientation), g)
         else:
             if len(gravity_columns) != 3:
-                raise FtcalError(f"--gravity-columns needs 3 columns; got {','.join(gravity_columns)}.")
+                raise ParameterError("gravity_columns", f"{{gravity_columns}} needs 3 columns; "
+                                     f"got {','.join(gravity_columns)}.")
             source = GravityColumnsSource(tuple(gravity_columns), g)
     else:
-        raise FtcalError("give the sensor's orientation: --orientation qx,qy,qz,qw, --gravity-columns gx,gy,gz, "
-                         f"or a robot model ({robot_options}) with --sensor.")
+        raise ParameterError(("orientation", "gravity_columns", *robot_parameters, "sensor"),
+                             "give the sensor's orientation: {orientation} qx,qy,qz,qw, {gravity_columns} gx,gy,gz, "
+                             f"or a robot model ({robot_text}) with {{sensor}}.")
     if not dynamic:
-        given = [option for option, value, default in (
-            ("--angular-velocity", angular_velocity, ("wx", "wy", "wz")),
-            ("--linear-acceleration", linear_acceleration, ("ax", "ay", "az")),
-            ("--angular-acceleration", angular_acceleration, None)) if _as_tuple(value) != default]
+        given = [name for name, value, default in (
+            ("angular_velocity", angular_velocity, ("wx", "wy", "wz")),
+            ("linear_acceleration", linear_acceleration, ("ax", "ay", "az")),
+            ("angular_acceleration", angular_acceleration, None)) if _as_tuple(value) != default]
         if given:
-            raise FtcalError(f"{', '.join(given)} {'go' if len(given) > 1 else 'goes'} with --dynamic (the motion "
-                             "columns of the inertia fit); "
-                             "a static fit does not read them.")
+            raise ParameterError((*given, "dynamic"),
+                                 f"{', '.join('{' + n + '}' for n in given)} {'go' if len(given) > 1 else 'goes'} "
+                                 "with {dynamic} (the motion columns of the inertia fit); "
+                                 "a static fit does not read them.")
         return source
-    for option, cols in (("--angular-velocity", angular_velocity), ("--linear-acceleration", linear_acceleration),
-                         ("--angular-acceleration", angular_acceleration)):
+    for name, cols in (("angular_velocity", angular_velocity), ("linear_acceleration", linear_acceleration),
+                       ("angular_acceleration", angular_acceleration)):
         if cols is not None and len(cols) != 3:
-            raise FtcalError(f"{option} needs 3 columns; got {','.join(cols)}.")
+            raise ParameterError(name, f"{{{name}}} needs 3 columns; got {','.join(cols)}.")
     return MotionSource(source, angular_velocity, linear_acceleration, angular_acceleration, time or "time")
 
 

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..core.limits import MAX_TEXT_FILE_BYTES
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, ParameterError
 from ..runtime.inputs import check_input_file
 from ._quiet import captured_stderr
 from .declare import SensorDeclaration, no_sensor_hint, prepare_urdf
@@ -98,7 +98,7 @@ class RobotModel:
              declared: Sequence[SensorDeclaration] = ()) -> "RobotModel":
         """Load from a URDF path, or an iCub model by name (``icub-models``), with ``declared`` F/T sensors."""
         if (urdf is None) == (name is None):
-            raise FtcalError("Give exactly one of a URDF path (--urdf) or a robot model name (--model).")
+            raise ParameterError(('urdf', 'robot'), "Give exactly one of a URDF path ({urdf}) or a robot model name ({robot}).")
         path = Path(urdf) if urdf is not None else icub_model_path(str(name))
         check_input_file(path, "URDF", max_bytes=MAX_TEXT_FILE_BYTES)
         try:
@@ -116,7 +116,8 @@ class RobotModel:
     def require_ft_sensors(self) -> None:
         """Raise FtcalError, naming the fixed joints to declare one on, if the model has no F/T sensor."""
         if not self.ft_sensors:
-            raise FtcalError(f"URDF {self.source} has no six-axis F/T sensor; {no_sensor_hint(self.urdf_text)}.")
+            raise ParameterError(("ft_joint", "ft_frame"),
+                                 f"URDF {self.source} has no six-axis F/T sensor; {no_sensor_hint(self.urdf_text)}.")
 
     def sensor(self, name: str) -> FTSensor:
         """The F/T sensor called ``name`` (sensor or joint name)."""
@@ -248,9 +249,9 @@ class RobotModel:
             beyond = np.maximum(low - column, column - high)
             j = int(np.argmax(beyond))
             if beyond[j] > JOINT_LIMIT_SLACK:
-                raise FtcalError(f"{where}: joint {name!r} holds {column[j]:g}, {beyond[j]:g} beyond its URDF limits "
+                raise ParameterError('degrees', f"{where}: joint {name!r} holds {column[j]:g}, {beyond[j]:g} beyond its URDF limits "
                                  f"[{low:g}, {high:g}] (radians expected: are the joints in degrees? give "
-                                 "--degrees).")
+                                 "{degrees}).")
 
     def total_mass(self) -> float:
         m = self.model
@@ -265,7 +266,7 @@ def icub_model_path(name: str) -> Path:
         return Path(icub_models.get_model_file(name))
     except FileNotFoundError:
         known = ", ".join(sorted(icub_models.get_robot_names()))
-        raise FtcalError(f"Unknown robot model {name!r} (--model); icub-models has: {known}.") from None
+        raise ParameterError('robot', f"Unknown robot model {name!r} ({{robot}}); icub-models has: {known}.") from None
 
 
 def _dof_joint_names(model) -> tuple[str, ...]:

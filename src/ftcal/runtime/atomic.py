@@ -15,7 +15,7 @@ from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
-from .errors import FtcalError
+from .errors import FtcalError, ParameterError
 
 # (st_dev, st_ino) of each protected input file -> the name it was given by
 _PROTECTED: dict[tuple[int, int], str] = {}
@@ -41,13 +41,13 @@ def protected_inputs(paths: Iterable[str | os.PathLike]) -> Iterator[None]:
             _PROTECTED.pop(identity, None)
 
 
-def check_not_an_input(target: str | os.PathLike, option: str = "output") -> None:
+def check_not_an_input(target: str | os.PathLike, parameter: str = "output") -> None:
     """Raise :class:`FtcalError` if ``target`` is the same file as a protected input.
 
     Parameters
     ----------
     target : the output path (it may not exist yet)
-    option : how the user gave it, for the message (e.g. ``-o``)
+    parameter : the parameter that gave it, for the message (the CLI shows its flag, e.g. ``-o``)
 
     Raises
     ------
@@ -61,8 +61,8 @@ def check_not_an_input(target: str | os.PathLike, option: str = "output") -> Non
     given = _PROTECTED.get((info.st_dev, info.st_ino))
     if given is not None:
         same = "" if os.fspath(target) == given else f" (the same file as {given})"
-        raise FtcalError(f"{option} {os.fspath(target)}: is also an input of this command{same}; "
-                         "choose another output name.")
+        raise ParameterError(parameter, f"{{{parameter}}} {os.fspath(target)}: is also an input of this "
+                             f"command{same}; choose another output name.")
 
 
 @contextmanager

@@ -78,15 +78,16 @@ def check_finite_matrix(array: object, name: str, n_columns: int | None = None,
 _SAFE_NAME = re.compile(r"[A-Za-z0-9_\-][A-Za-z0-9_.\-]{0,63}")
 
 
-def check_safe_name(value: str, option: str) -> str:
+def check_safe_name(value: str, parameter: str | None = None) -> str:
     """Return ``value`` if it can be part of a file name: 1-64 letters, digits, ``_ - .``, not starting with ``.``.
 
     Raises
     ------
     FtcalError
-        Anything else (``/``, ``..``, spaces, control characters, an empty name).
+        Anything else (``/``, ``..``, spaces, control characters, an empty name); a
+        :class:`ParameterError` naming ``parameter`` when it is given.
     """
     if isinstance(value, str) and _SAFE_NAME.fullmatch(value):
         return value
-    raise FtcalError(f"{option} {value!r}: use 1 to 64 letters, digits, '_', '-' or '.' (not first); "
-                     "it becomes part of a file name.")
+    why = f"{value!r}: use 1 to 64 letters, digits, '_', '-' or '.' (not first); it becomes part of a file name."
+    raise ParameterError(parameter, f"{{{parameter}}} {why}") if parameter else FtcalError(why)

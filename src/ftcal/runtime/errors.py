@@ -96,6 +96,10 @@ class IllPosedFitWarning(FtcalWarning):
     """The fit is rank-deficient, ill-conditioned or under-determined."""
 
 
+class IllPosedParameterWarning(ParameterWarning, IllPosedFitWarning):
+    """An :class:`IllPosedFitWarning` whose advice names parameters (``{name}``, as :class:`ParameterWarning`)."""
+
+
 class UndeterminedWarning(IllPosedFitWarning):
     """The data determine only some parameters; the others are held at a stated default and reported undetermined."""
 

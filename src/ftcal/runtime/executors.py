@@ -44,7 +44,7 @@ from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import ExitStack, contextmanager
 from typing import Any, TypeVar, Union
 
-from .errors import FtcalError
+from .errors import FtcalError, ParameterError
 from .progress import progress_bar
 from .threads import single_threaded_blas
 
@@ -265,9 +265,9 @@ class DaskExecutor:
                 elif without_workers_since is None:
                     without_workers_since = time.monotonic()
                 elif time.monotonic() - without_workers_since > NO_WORKERS_TIMEOUT_S:
-                    raise FtcalError(f"the Dask cluster at {self.client.scheduler.address} has had no worker for "
+                    raise ParameterError('scheduler', f"the Dask cluster at {self.client.scheduler.address} has had no worker for "
                                      f"{NO_WORKERS_TIMEOUT_S:.0f} s with {len(pending)} task(s) left; start workers "
-                                     "or run without --scheduler.")
+                                     "or run without {scheduler}.")
 
     def _explain(self, exc: BaseException) -> BaseException:
         """The cluster's own errors as one-line FtcalErrors naming the files; the tasks' FtcalErrors pass through."""
@@ -318,8 +318,8 @@ def _run_on_worker(function, task: tuple, args: tuple):
     if not os.access(path, os.R_OK):
         import socket
 
-        raise FtcalError(f"{os.fspath(path)}: the Dask worker on {socket.gethostname()} cannot read this file; "
-                         "with --scheduler the paths must be visible to every worker at the same place "
+        raise ParameterError('scheduler', f"{os.fspath(path)}: the Dask worker on {socket.gethostname()} cannot read this file; "
+                         "with {scheduler} the paths must be visible to every worker at the same place "
                          "(a shared file system).")
     return function(*task, *args)
 
@@ -432,10 +432,10 @@ def parse_scheduler(text: str) -> str:
     if text.startswith(LOCAL_PREFIX):
         count = text[len(LOCAL_PREFIX):]
         if not count.isdigit() or not 1 <= int(count) <= MAX_LOCAL_WORKERS:
-            raise FtcalError(f"--scheduler {text}: local:N needs N worker processes, 1 to {MAX_LOCAL_WORKERS}.")
+            raise ParameterError('scheduler', f"{{scheduler}} {text}: local:N needs N worker processes, 1 to {MAX_LOCAL_WORKERS}.")
         return text
     if "://" not in text or not text.split("://", 1)[1]:
-        raise FtcalError(f"--scheduler {text}: expected a scheduler address such as tcp://host:8786, "
+        raise ParameterError('scheduler', f"{{scheduler}} {text}: expected a scheduler address such as tcp://host:8786, "
                          "or local:N for N local worker processes.")
     return text
 
@@ -495,7 +495,7 @@ def _open_dask(scheduler: str, connect_timeout: float, cleanup: ExitStack, n_wor
         import dask
         from distributed import LocalCluster
     except ImportError:
-        raise FtcalError(f"--scheduler {scheduler}: needs Dask distributed; install it with "
+        raise ParameterError('scheduler', f"{{scheduler}} {scheduler}: needs Dask distributed; install it with "
                          "pip install 'ftcal[dask]'.") from None
 
     # A local scheduler hands each worker one batch at a time (worker-saturation 1): when a worker
@@ -527,7 +527,7 @@ def _open_dask(scheduler: str, connect_timeout: float, cleanup: ExitStack, n_wor
 
         script = spawn_reruns_main()
         if script is not None:  # Dask spawns its workers: each would run the calling script again
-            raise FtcalError(f"--scheduler {scheduler}: {script} calls ftcal at its top level without "
+            raise ParameterError('scheduler', f"{{scheduler}} {scheduler}: {script} calls ftcal at its top level without "
                              "'if __name__ == \"__main__\":', and each local worker process would run the script "
                              "again; put the calls under that guard, or leave out the scheduler.")
     with signals_deferred():  # a cluster half started by Ctrl-C would be left running
@@ -537,7 +537,7 @@ def _open_dask(scheduler: str, connect_timeout: float, cleanup: ExitStack, n_wor
                                        dashboard_address=":0", silence_logs=logging.CRITICAL)
             except Exception as exc:  # noqa: BLE001 - e.g. a worker process that could not start
                 detail = str(exc).splitlines()[0] if str(exc) else "no detail"
-                raise FtcalError(f"--scheduler {scheduler}: the local Dask cluster did not start "
+                raise ParameterError('scheduler', f"{{scheduler}} {scheduler}: the local Dask cluster did not start "
                                  f"({type(exc).__name__}: {detail}); nothing was written.") from None
             cleanup.callback(_deferred, _close_quietly, cluster)
             _restore_environment(before_environ)
@@ -571,15 +571,15 @@ def _connect(address, scheduler: str, connect_timeout: float):
     try:
         return Client(address, timeout=connect_timeout)
     except (OSError, TimeoutError) as exc:
-        raise FtcalError(f"--scheduler {scheduler}: cannot reach the Dask scheduler within "
+        raise ParameterError('scheduler', f"{{scheduler}} {scheduler}: cannot reach the Dask scheduler within "
                          f"{connect_timeout:g} s ({type(exc).__name__}); check the address and "
                          "that `dask scheduler` runs there.") from None
     except ValueError as exc:  # Dask's own address parser: a bad scheme, host or port
-        raise FtcalError(f"--scheduler {scheduler}: not a Dask scheduler address "
+        raise ParameterError('scheduler', f"{{scheduler}} {scheduler}: not a Dask scheduler address "
                          f"({str(exc).splitlines()[0] if str(exc) else type(exc).__name__}).") from None
     except Exception as exc:  # noqa: BLE001 - whatever answered sent garbage (Dask then
         # asked for exabytes: MemoryError, or failed to decode: many types)
-        raise FtcalError(f"--scheduler {scheduler}: what answered there is not a Dask scheduler "
+        raise ParameterError('scheduler', f"{{scheduler}} {scheduler}: what answered there is not a Dask scheduler "
                          f"({type(exc).__name__} while connecting); check the address.") from None
 
 
@@ -657,13 +657,13 @@ def check_versions(client, scheduler: str) -> None:
     try:
         theirs = client.run(_versions)
     except Exception as exc:  # noqa: BLE001 - e.g. workers that cannot import ftcal at all
-        raise FtcalError(f"--scheduler {scheduler}: the workers cannot run ftcal tasks ({type(exc).__name__}: "
+        raise ParameterError('scheduler', f"{{scheduler}} {scheduler}: the workers cannot run ftcal tasks ({type(exc).__name__}: "
                          f"{str(exc).splitlines()[0] if str(exc) else 'no detail'}); install this ftcal on them.") \
             from None
     for worker, versions in sorted(theirs.items()):
         for package, version in mine.items():
             if versions.get(package) != version:
-                raise FtcalError(f"--scheduler {scheduler}: worker {worker} runs {package} "
+                raise ParameterError('scheduler', f"{{scheduler}} {scheduler}: worker {worker} runs {package} "
                                  f"{versions.get(package)} but this client runs {version}; install the same "
                                  "versions on the workers.")
 

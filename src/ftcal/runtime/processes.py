@@ -29,7 +29,7 @@ from collections.abc import Callable, Iterable, Iterator
 from multiprocessing.connection import wait
 from typing import Any
 
-from .errors import FtcalError, FtcalWarning
+from .errors import FtcalError, FtcalWarning, ParameterError
 
 STOP_TIMEOUT_S = 10.0  # a worker told to stop after a clean run gets this long before it is killed
 
@@ -136,9 +136,9 @@ class WorkerProcesses:
                 try:
                     index, ok, value = connection.recv()
                 except (EOFError, OSError):
-                    raise FtcalError(f"a worker process died while computing job {busy[connection]} "
+                    raise ParameterError('workers', f"a worker process died while computing job {busy[connection]} "
                                      "(possibly out of memory); nothing was written. Retry with fewer "
-                                     "--workers.") from None
+                                     "{workers}.") from None
                 if not ok:
                     raise value
                 del busy[connection]

@@ -59,7 +59,7 @@ from ..payload.parameters import PayloadParameters
 from ..robot.model import RobotModel
 from ..robot.payloads import Payload
 from ..runtime.atomic import write_text_atomic
-from ..runtime.errors import FtcalError, IllPosedFitWarning, OutOfRangeWarning
+from ..runtime.errors import FtcalError, ParameterError, IllPosedFitWarning, OutOfRangeWarning
 from .mujoco_scene import Scene, Tool, build_scene, sensor_wrench
 from .plan_arm import ARM_URDF, SENSOR
 from .sensor_model import SensorModel, SensorSpec
@@ -140,7 +140,7 @@ class ClosedLoopConfig:
     def of_variant(cls, variant: str, **changes) -> "ClosedLoopConfig":
         """The configuration of a named variant (:data:`VARIANTS`), with ``changes`` on top."""
         if variant not in VARIANTS:
-            raise FtcalError(f"--variant {variant}: unknown; choose one of {', '.join(VARIANTS)}.")
+            raise ParameterError('variant', f"{{variant}} {variant}: unknown; choose one of {', '.join(VARIANTS)}.")
         return cls(variant=variant, **{**VARIANTS[variant][0], **changes})
 
 
@@ -330,7 +330,7 @@ def calibrate(robot: RobotModel, sensor: SensorModel, config: ClosedLoopConfig,
     """
     from ..core.model import CalibrationModel
     from ..payload.accumulate import payload_statistics
-    from ..payload.identify import identify_payload
+    from ..payload.identify import identify_from_statistics
     from ..payload.kinematics import Kinematics
     from ..robot.expected import expected_wrenches
     from ..robot.kinematics import sensor_kinematics
@@ -382,7 +382,7 @@ def calibrate(robot: RobotModel, sensor: SensorModel, config: ClosedLoopConfig,
         t = -60.0 - 30.0 * k + np.arange(len(wrench)) / config.rate
         counts = sensor.counts(wrench, temperature, sensor.bias(t, rng), rng)
         for name, read in wrenches.items():
-            fit = identify_payload({"all": payload_statistics(read(counts, temperature), Kinematics(gravity))},
+            fit = identify_from_statistics({"all": payload_statistics(read(counts, temperature), Kinematics(gravity))},
                                    cross_validate=False)
             payloads[name][tool_name] = PayloadParameters.from_fit(
                 fit, gravity=float(np.linalg.norm(GRAVITY)), frame=SENSOR, reaction=False,

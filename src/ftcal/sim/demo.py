@@ -21,9 +21,10 @@ import numpy as np
 
 from ..core import metrics
 from ..core.dataset import Dataset
-from ..core.select import PAPER_LAMBDAS, Candidate, fit_candidates
+from ..core.select import PAPER_LAMBDAS, Candidate
 from ..runtime.atomic import write_text_atomic
 from ..runtime.progress import progress_bar
+from ..workflow.search import fit_candidates
 
 PAPER_VALIDATION = {1: 4.5809, 2: 4.0141, 3: 2.6663, 4: 2.0921, 5: 2.2843}
 PAPER_TRAIN = {1: 5.0423, 2: 3.1166, 3: 2.0531, 4: 1.4565, 5: 1.1809}
@@ -99,10 +100,10 @@ def run_demo(config: DemoConfig = DemoConfig()) -> dict:
     data, manifest = simulate_and_read(config)
     train, validation = split_held_out(data, manifest)
     wanted = candidates(config)
-    # The candidates' shared statistics pass (fit_candidates): fitting each through ftcal.fit would add each explicit
-    # degree's grouped comparison with affine (3.6x the CPU), which the demo's held-out recordings already make.
+    # The step that fits candidates from one statistics pass per degree: fitting each through ftcal.fit would add
+    # each explicit degree's grouped comparison with affine (3.6x the CPU), which the held-out recordings make here.
     with progress_bar("fitting models", len(wanted)) as advance:
-        models = fit_candidates(train, wanted, advance=advance)
+        models = fit_candidates(train, wanted, advance=advance).models
     rows, runs = [], []
     for candidate in wanted:
         model = models[candidate]

@@ -31,9 +31,9 @@ import numpy as np
 from ..core.model import CalibrationModel
 from ..data.tables import write_table
 from ..payload.accumulate import payload_statistics
-from ..payload.identify import identify_payload
+from ..payload.identify import identify_from_statistics
 from ..payload.kinematics import Kinematics
-from ..plan import PlanRequest, plan_experiment
+from ..plan import PlanRequest, design_experiment
 from ..plan.candidates import candidate_poses
 from ..plan.design import random_design
 from ..plan.recorded import plan_frame
@@ -124,7 +124,7 @@ def _identify_repeatedly(gravity: np.ndarray, truth: dict, noise: tuple[float, f
         readings = clean + sigma * rng.standard_normal(clean.shape)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", IllPosedFitWarning)
-            fit = identify_payload({"all": payload_statistics(readings, kinematics)}, cross_validate=False)
+            fit = identify_from_statistics({"all": payload_statistics(readings, kinematics)}, cross_validate=False)
         errors["mass"].append(fit.mass - truth["mass"])
         errors["com"].append(float(np.linalg.norm(fit.com - truth["com"])))
         errors["force_bias"].append(float(np.linalg.norm(fit.force_bias - truth["force_bias"])))
@@ -143,7 +143,7 @@ def run_plan_demo(config: PlanDemoConfig = PlanDemoConfig()) -> dict:
 
     request = PlanRequest(_loads(CALIBRATION_LOADS), config.n_poses, degree=2, sensor=SENSOR,
                           min_height=config.min_height, n_candidates=config.n_candidates, seed=config.seed)
-    plan = plan_experiment(robot, request)
+    plan = design_experiment(robot, request)
     write_table(plan_frame(plan), out / "plan.csv")
     held_out = candidate_poses(robot, SENSOR, plan.space, request.loads, config.n_validation, rng,
                                min_height=config.min_height)
@@ -168,7 +168,7 @@ def run_plan_demo(config: PlanDemoConfig = PlanDemoConfig()) -> dict:
     truth = {"mass": mass, "com": com, "force_bias": np.array(FORCE_BIAS), "torque_bias": np.array(TORQUE_BIAS)}
     payload_request = replace(request, loads=(tool,), n_poses=config.payload_poses, objective="payload",
                               noise=config.payload_noise)
-    payload_plan = plan_experiment(robot, payload_request)
+    payload_plan = design_experiment(robot, payload_request)
     gravity = payload_plan.candidates.gravity
     random_picks = [payload_plan.random_configuration] + [
         random_design(gravity.shape[0], config.payload_poses, rng) for _ in range(config.random_designs - 1)]

@@ -51,7 +51,7 @@ from ..core.limits import SIMULATE_FORMATS as FORMATS
 from ..robot.model import RobotModel
 from ..robot.payloads import Payload
 from ..runtime.atomic import write_text_atomic
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, ParameterError
 from .arm_bag import START_NS, TEMPERATURE_RATE
 from .sensor_model import CHANNELS, SensorModel
 
@@ -150,8 +150,8 @@ def read_waypoints(path: str | Path, robot: RobotModel, n_loads: int) -> Waypoin
         values = numeric_columns(frame, [LOAD_COLUMN], path, "load")[:, 0]
         bad = np.flatnonzero((values != np.round(values)) | (values < 0) | (values >= n_loads))
         if bad.size:
-            raise FtcalError(f"plan {path}: column 'load' row {bad[0] + 1} is {values[bad[0]]:g}; it must be a whole "
-                             f"number in [0, {n_loads}) indexing the {n_loads} --load option(s) (default: none).")
+            raise ParameterError('load', f"plan {path}: column 'load' row {bad[0] + 1} is {values[bad[0]]:g}; it must be a whole "
+                             f"number in [0, {n_loads}) indexing the {n_loads} {{load}} option(s) (default: none).")
         load = values.astype(np.int64)
     else:
         load = np.zeros(len(q), dtype=np.int64)

@@ -21,7 +21,8 @@ _STEPS.update(check_sensor="checking", sensor_history="checking", CheckResult="c
 _STEPS.update(build_dataset="datasets", expected="datasets", DatasetResult="datasets", ExpectedResult="datasets")
 _STEPS.update(plan_experiment="planning", PlanResult="planning")
 _STEPS.update(convert="export", ConvertResult="export")
-_STEPS.update(fit="fitting", FitResult="fitting", ModelSearch="search")
+_STEPS.update(fit="fitting", FitResult="fitting", ModelSearch="search", fit_candidates="search",
+              CandidatesResult="search")
 _STEPS.update(evaluate="evaluation", predict="evaluation", EvaluationResult="evaluation", PredictionResult="evaluation")
 _STEPS.update(report="evaluation", ReportResult="evaluation")
 _STEPS.update(LiveSetup="live", live_calibrator="live", replay_live="live", serve_zenoh="live", serve_ros2="live",

@@ -136,7 +136,7 @@ def check_sensor(data, *, accept=None, inputs: Sequence[str] = DEFAULT_WRENCH, g
     if html is not None:
         from ..runtime.atomic import check_not_an_input
 
-        check_not_an_input(html, "--html")
+        check_not_an_input(html, "html")
     if options["dynamic"]:  # both modes read static holds: the motion columns would be ignored
         raise ParameterError("dynamic", "{dynamic} is for ftcal payload (the inertia fit); ftcal check reads static holds.")
     if accept is None:
@@ -231,14 +231,14 @@ def thresholds_for(model, model_name: str, limits):
         if rated_force is not None or rated_torque is not None:
             force = rated_force or force
             torque = rated_torque or torque
-            origin = "--rated-force/--rated-torque"
+            origin = "the rated force/torque given"
         # A model without a training range (paper XML, null ranges) must not make the threshold infinite.
-        for value, option in ((force, "--rated-force N"), (torque, "--rated-torque NM")):
+        for value, rated, unit in ((force, "rated_force", "N"), (torque, "rated_torque", "NM")):
             if not (math.isfinite(value) and value > 0):
-                raise ParameterError(('max_error_percent', 'max_force_error', 'max_torque_error'),
-                                     f"{{max_error_percent}}: {model_name} has no finite training output range to take "
-                                 f"the percentage of; give {option} (or absolute {{max_force_error}}/"
-                                 "{max_torque_error}).")
+                raise ParameterError(('max_error_percent', rated, 'max_force_error', 'max_torque_error'),
+                                     f"{{max_error_percent}}: {model_name} has no finite training output range to "
+                                     f"take the percentage of; give {{{rated}}} {unit} (or absolute "
+                                     "{max_force_error}/{max_torque_error}).")
         return Thresholds.from_percent(max_error_percent, force, torque, origin)
     if rated_force is not None or rated_torque is not None:
         raise ParameterError(('rated_force', 'rated_torque', 'max_error_percent'),

@@ -145,7 +145,7 @@ def compensate(payload, data, *, calibration=None, inputs: Sequence[str] | None 
         loads = predicted_loads_text(model, [part.attrs["predicted_loads"] for part in parts
                                              if part.attrs.get("predicted_loads") is not None])
         # one line: the inputs outside their training range, then the predicted loads beyond the training loads
-        message = " ".join(part for part in (describe(ranges.summary(model.input_names_)), loads) if part)
+        message = " ".join(part for part in (describe(ranges.to_dict(model.input_names_)), loads) if part)
         if message:
             warnings.warn(message, OutOfRangeWarning, stacklevel=2)
     result = CompensationResult(table, names)

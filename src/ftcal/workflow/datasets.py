@@ -137,9 +137,9 @@ def build_dataset(logs, *, urdf=None, robot: str | None = None, sensor: str | No
     given = {"wrench_topic": wrench_topic, "joints_topic": joints_topic, "temperature_topic": temperature_topic,
              "imu_topic": imu_topic, "tf": tf, "receive_time": receive_time}
     if not any(is_bag):
-        named = [f"--{o.replace('_', '-')}" for o in BAG_OPTIONS if given[o] not in (None, False)]
+        named = [o for o in BAG_OPTIONS if given[o] not in (None, False)]
         if named:
-            raise FtcalError(f"{named[0]} applies to ROS bags only; {paths[0]} is not a bag.")
+            raise ParameterError(named[0], f"{{{named[0]}}} applies to ROS bags only; {paths[0]} is not a bag.")
         if urdf is None and robot is None:
             raise ParameterError(('urdf', 'robot'), "{urdf} or {robot} is required for .mat/.csv/.parquet logs.")
     if any(is_bag) and estimate_payload:
@@ -215,7 +215,7 @@ class ExpectedResult(StepResult):
         write_table(self.table, Path(path))
 
 
-@reads_tables("joints", "--joints", dataset="refuse")
+@reads_tables("joints", "joints", dataset="refuse")
 def expected(joints, *, urdf=None, robot: str | None = None, ft_joint: str | None = None,
              ft_frame: str | None = None, payload: Sequence[str] = (), base: str | None = None,
              sensor: Sequence[str] = (), gravity: Sequence[float] = (0.0, 0.0, -9.81), degrees: bool = False,
@@ -295,8 +295,9 @@ def joints_file_wrenches(joints, robot, workers, base, gravity, degrees, cache, 
     table = read_table(Path(joints))
     joint_cols = [c for c in table.columns if c != "time"]
     if missing_joints != "zero" and set(joint_cols) <= set(robot.joint_names):  # else joint_matrix names them
-        require_wrench_joints(robot, joint_cols, base, sensors, f"--joints {joints}",
-                              " (give their columns, or --missing-joints zero if they are at 0 rad)")
+        require_wrench_joints(robot, joint_cols, base, sensors, f"{{joints}} {joints}",
+                              " (give their columns, or {missing_joints} zero if they are at 0 rad)",
+                              parameters=("joints", "missing_joints"))
     values = numeric_columns(table, joint_cols, Path(joints), "joint")
     if degrees:
         values = np.deg2rad(values)

@@ -387,7 +387,7 @@ def _evaluate_whole(paths, dataset, model, training_segments, name, mode, start,
 
 def load_summary(model, loads) -> dict | None:
     """:meth:`~ftcal.core.ranges.LoadSums.summary` of the reference loads, None without them."""
-    return None if loads is None else loads.summary(model.output_range_, model.output_names_)
+    return None if loads is None else loads.to_dict(model.output_range_, model.output_names_)
 
 
 def range_summary(model, data, mode: str, start: str, warmup: str) -> dict:
@@ -404,7 +404,7 @@ def range_summary(model, data, mode: str, start: str, warmup: str) -> dict:
     inputs = data.select_inputs(model.input_names_)
     y = data.outputs[:, [data.output_names.index(n) for n in model.output_names_]]
     return RangeSums.of(inputs, model.input_range_, y, prediction, model.output_names_, scored=rows,
-                        outside_span=span_of(model, inputs)).summary(model.input_names_)
+                        outside_span=span_of(model, inputs)).to_dict(model.input_names_)
 
 
 def _evaluate_streaming(paths, model, training_segments, name, mode, start, warmup, segment_by, scheduler,
@@ -423,11 +423,11 @@ def _evaluate_streaming(paths, model, training_segments, name, mode, start, warm
                          f"max(na, nb) = {model.layout_.max_lag} rows.")
     main, other = sums if isinstance(sums, tuple) else (sums, None)
     warn_training_segments(sorted(main.training_segments), training_segments, name)
-    summary = main.summary(model.output_names_)
-    summary["out_of_range"] = main.ranges.summary(model.input_names_) if main.n_out_of_range else None
+    summary = main.to_dict(model.output_names_)
+    summary["out_of_range"] = main.ranges.to_dict(model.input_names_) if main.n_out_of_range else None
     summary["loads_beyond_training"] = load_summary(model, None if main.ranges is None else main.ranges.loads)
     if other is not None:
-        second = other.summary(model.output_names_)
+        second = other.to_dict(model.output_names_)
         del second["n_out_of_range"]
         second.pop("out_of_range", None)
         summary["free_run" if mode == "one-step" else "one_step"] = second
@@ -518,17 +518,17 @@ def predict(model, data, *, output: str | os.PathLike | None = None, mode: str =
                 from ..runtime.atomic import check_not_an_input
                 from ..data.tables import write_table
 
-                check_not_an_input(Path(output), "-o")
+                check_not_an_input(Path(output))
                 write_table(frame, output)
                 frame = None
         else:
             n_rows, ranges = _predict_streaming(paths, model, output, mode, start, segment_by, scheduler,
                                                 executor)
             frame = None
-    out_of_range = ranges.summary(model.input_names_) if ranges is not None else None
+    out_of_range = ranges.to_dict(model.input_names_) if ranges is not None else None
     # One warning for the whole call (as CalibrationModel.predict on data read whole), never per file.
     message = out_of_range and describe(out_of_range)
-    loads = ranges and ranges.loads and loads_text(ranges.loads.summary(model.output_range_, model.output_names_),
+    loads = ranges and ranges.loads and loads_text(ranges.loads.to_dict(model.output_range_, model.output_names_),
                                                    "the predicted loads")
     message = " ".join(part for part in (message, loads) if part)  # one line: inputs, then loads
     if message:
@@ -586,7 +586,7 @@ def _predict_streaming(paths, model, output, mode, start, segment_by, scheduler,
     from ..runtime.executors import open_executor
 
     target = Path(output)
-    check_not_an_input(target, "-o")
+    check_not_an_input(target)
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
         folder = tempfile.mkdtemp(prefix=f".{target.name}.parts-", dir=target.parent)

@@ -452,14 +452,14 @@ def weight_decay_value(text) -> float:
     return value
 
 
-def whole_number(text, option: str, low: int, high: int) -> int:
-    """An int in [low, high]; one-line FtcalError otherwise."""
+def whole_number(text, parameter: str, low: int, high: int) -> int:
+    """An int in [low, high]; one-line :class:`ParameterError` naming ``parameter`` otherwise."""
     try:
         value = int(text)
     except (TypeError, ValueError):
         value = low - 1
     if not low <= value <= high:
-        raise FtcalError(f"{option} {text}: must be a whole number in {low}..{high}.")
+        raise ParameterError(parameter, f"{{{parameter}}} {text}: must be a whole number in {low}..{high}.")
     return value
 
 
@@ -477,20 +477,20 @@ def check_family_options(o: _Options) -> None:
     o.activation = o.activation or "tanh"
     o.weight_decay = weight_decay_value("1e-4" if o.weight_decay is None else o.weight_decay)
     # None: 400, or 2000 for a small network on few rows (sized in _fit_mlp, where the rows are known).
-    o.max_iter = None if o.max_iter is None else whole_number(o.max_iter, "--max-iter", 1, MLP_MAX_ITER)
-    o.seed = whole_number("0" if o.seed is None else o.seed, "--seed", 0, 2**32 - 1)
-    given = [flag for flag, on in (("--degree", o.degree is not None), ("--lasso", o.lasso),
-                                   ("--ridge", o.ridge), ("--na", o.na), ("--nb", o.nb),
-                                   ("--prior", o.prior is not None), ("--estimate-payload", o.estimate_payload),
-                                   ("--solver osqp", o.solver == "osqp"), ("--scheduler", o.scheduler),
-                                   ("--normalization", o.normalization)) if on]
-    # The polynomial degree search's own options (all but --folds, which the MLP's early stopping uses).
-    given += [f"--{name.replace('_', '-')}" for name, default in SEARCH_DEFAULTS.items()
-              if name != "folds" and getattr(o, name) != default]
+    o.max_iter = None if o.max_iter is None else whole_number(o.max_iter, "max_iter", 1, MLP_MAX_ITER)
+    o.seed = whole_number("0" if o.seed is None else o.seed, "seed", 0, 2**32 - 1)
+    given = [name for name, on in (("degree", o.degree is not None), ("lasso", o.lasso),
+                                   ("ridge", o.ridge), ("na", o.na), ("nb", o.nb),
+                                   ("prior", o.prior is not None), ("estimate_payload", o.estimate_payload),
+                                   ("solver", o.solver == "osqp"), ("scheduler", o.scheduler),
+                                   ("normalization", o.normalization)) if on]
+    # The polynomial degree search's own options (all but folds, which the MLP's early stopping uses).
+    given += [name for name, default in SEARCH_DEFAULTS.items() if name != "folds" and getattr(o, name) != default]
     if given:
-        raise ParameterError(('family', 'hidden', 'activation', 'weight_decay', 'max_iter', 'seed'),
-                             f"{{family}} mlp does not take {', '.join(given)} (polynomial options); its own are "
-                         "{hidden}, {activation}, {weight_decay}, {max_iter} and {seed}.")
+        named = ", ".join("{" + n + "}" + (" osqp" if n == "solver" else "") for n in given)
+        raise ParameterError(("family", *given, "hidden", "activation", "weight_decay", "max_iter", "seed"),
+                             f"{{family}} mlp does not take {named} (polynomial options); its own are "
+                             "{hidden}, {activation}, {weight_decay}, {max_iter} and {seed}.")
     if o.folds < 2:
         raise ParameterError('folds', f"{{folds}} must be at least 2; got {o.folds}.")
 
@@ -804,9 +804,9 @@ class _Fit:
                                        description="training metrics")
         main, other = sums if isinstance(sums, tuple) else (sums, None)
         check_saturation(model, lambda: len(main.pose_cells), len(summary.group_sizes))
-        model.training_metrics_ = main.summary(outputs)
+        model.training_metrics_ = main.to_dict(outputs)
         if other is not None:
-            model.training_metrics_["free_run"] = other.summary(outputs)
+            model.training_metrics_["free_run"] = other.to_dict(outputs)
             del model.training_metrics_["free_run"]["n_out_of_range"]
         return model, dict(sources=self.sources, training_segments=summary.fingerprints)
 
@@ -991,12 +991,12 @@ class _Fit:
                               f"weights for {data.n_samples} rows x {n_out} outputs (at most one weight per "
                               f"{MLP_EQUATIONS_PER_WEIGHT} equations where the data allow; --hidden overrides)")
         if n_weights(n_in, hidden, n_out) * MLP_EQUATIONS_PER_WEIGHT > equations:
-            fix = "leave --hidden out to size it to the data" if o.hidden is not None else \
+            fix = "leave {hidden} out to size it to the data" if o.hidden is not None else \
                 "even the smallest network sized to the outputs is large for these rows"
-            warnings.warn(f"hidden layers {','.join(map(str, hidden))}: {n_weights(n_in, hidden, n_out)} weights "
-                          f"for {data.n_samples} rows x {n_out} outputs (fewer than {MLP_EQUATIONS_PER_WEIGHT} "
-                          f"equations per weight): the network can fit the noise; {fix}.", FtcalWarning,
-                          stacklevel=4)
+            warnings.warn(ParameterWarning("hidden", f"hidden layers {','.join(map(str, hidden))}: "
+                                           f"{n_weights(n_in, hidden, n_out)} weights for {data.n_samples} rows x "
+                                           f"{n_out} outputs (fewer than {MLP_EQUATIONS_PER_WEIGHT} equations per "
+                                           f"weight): the network can fit the noise; {fix}."), stacklevel=4)
         max_iter = o.max_iter
         if max_iter is None:  # a small problem converges slowly but cheaply: let early stopping see further
             small = min(data.n_samples, 20_000) * n_weights(n_in, hidden, n_out) <= SMALL_MLP_WORK

@@ -82,7 +82,7 @@ class LiveSetup:
             return None
         source = kinematics_source(urdf=str(self.urdf), sensor=self.sensor, ft_joint=self.ft_joint,
                                    ft_frame=self.ft_frame, base=self.base, g=self.g, degrees=self.degrees,
-                                   robot_options="--urdf PATH")
+                                   robot_parameters=("urdf",))
         known = set(source.robot.joint_names)
         names = source.robot.joint_names if joint_names is None else [n for n in joint_names if n in known]
         if not names:

@@ -106,7 +106,7 @@ def plan_experiment(poses: int, *, urdf=None, robot: str | None = None, ft_joint
     """
     check_arguments(PLAN, locals(), "ftcal.plan_experiment")
     from ..plan import PlanRequest
-    from ..plan import plan_experiment as design
+    from ..plan import design_experiment as design
     from ..plan.recorded import plan_frame, read_recorded
     from ..robot import parse_payload_spec
 

@@ -9,10 +9,12 @@ The search is today's ``degree="auto"`` selection (grouped cross-validation over
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 from ..core.limits import SELECTION_BUDGET_SECONDS
 from ..runtime.errors import NotFittedError
+from .result import StepResult
 
 
 class ModelSearch:
@@ -138,3 +140,76 @@ class ModelSearch:
     def __repr__(self) -> str:
         given = {k: v for k, v in self.get_params().items() if v != ModelSearch().get_params()[k]}
         return f"ModelSearch({', '.join(f'{k}={v!r}' for k, v in given.items())})"
+
+
+@dataclass(repr=False)
+class CandidatesResult(StepResult):
+    """What :func:`fit_candidates` fitted: one model per candidate, each on all of the data.
+
+    Attributes
+    ----------
+    models : dict of Candidate to CalibrationModel
+        In the order the candidates were given.
+    n_samples : int
+        Rows the models were fitted on.
+    """
+
+    models: dict
+    n_samples: int
+
+    def summary(self) -> str:
+        from ..core.metrics import format_metric
+
+        lines = [f"{len(self.models)} candidate(s) fitted on {self.n_samples} samples from one statistics pass "
+                 "per degree"]
+        for candidate, model in self.models.items():
+            force = (model.training_metrics_ or {}).get("force_norm_rmse")
+            lines.append(f"  {candidate.label:<24} {int(model.coef_.size)} coefficients"
+                         + (f", training {format_metric('force_norm_rmse', force, 4)}" if force is not None else ""))
+        return "\n".join(lines)
+
+    def to_dict(self) -> dict:
+        return {"n_samples": self.n_samples,
+                "models": [{"label": c.label, "degree": c.degree, "penalty": c.penalty, "lambda": c.lam,
+                            "n_coefficients": int(m.coef_.size)} for c, m in self.models.items()]}
+
+
+def fit_candidates(data, candidates: Sequence, *, advance=None) -> CandidatesResult:
+    """Fit several polynomial candidates on all of ``data`` from one statistics pass per degree.
+
+    The demos' step: where :func:`ftcal.fit` with each explicit degree would also run that degree's
+    grouped comparison with affine (a second pass and a warning per candidate), this fits the given
+    candidates only, the LASSO ones of a degree as one warm-started λ path
+    (:func:`ftcal.core.select.fit_candidates`). Scoring them is the caller's: held-out recordings,
+    or :class:`ModelSearch` for grouped cross-validation.
+
+    Parameters
+    ----------
+    data : Dataset, or what :func:`ftcal.fit` reads (paths, DataFrames), with reference outputs
+    candidates : sequence of :class:`~ftcal.core.select.Candidate` (degree, penalty, λ)
+    advance : callable, optional
+        Called with 1 after each candidate (a progress bar).
+
+    Returns
+    -------
+    CandidatesResult
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from ftcal import Dataset
+    >>> from ftcal.core.select import Candidate
+    >>> u = np.random.default_rng(0).normal(size=(200, 2))
+    >>> data = Dataset.from_arrays(u, u @ [[1.0, 0.5], [0.0, 2.0]] + 0.1 * u ** 2)
+    >>> result = fit_candidates(data, [Candidate(1, "none", None), Candidate(2, "none", None)])
+    >>> [model.coef_.shape for model in result.models.values()]
+    [(3, 2), (6, 2)]
+    """
+    from ..core.select import fit_candidates as fit_all
+    from ..data.tables import load_dataset
+    from .sources import tables_of
+
+    with tables_of(data) as (paths, dataset, _):
+        dataset = dataset if dataset is not None else load_dataset(paths)
+        models = fit_all(dataset, list(candidates), advance=advance)
+    return CandidatesResult({c: models[c] for c in candidates}, dataset.n_samples)

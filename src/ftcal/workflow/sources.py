@@ -55,13 +55,13 @@ def source_options(given: Mapping[str, Any], step: str) -> dict[str, Any]:
     return {**SOURCE_OPTIONS, **given}
 
 
-def gravity_source(options: Mapping[str, Any], robot_options: str = "--urdf PATH or --model NAME"):
+def gravity_source(options: Mapping[str, Any], robot_parameters: Sequence[str] = ("urdf", "robot")):
     """The :class:`~ftcal.payload.kinematics.KinematicsSource` the options describe.
 
     Parameters
     ----------
     options : the keywords of :data:`SOURCE_OPTIONS` (see :func:`source_options`)
-    robot_options : how the caller spells its robot-model options, for messages
+    robot_parameters : the caller's parameters that give the robot model, for messages
 
     Returns
     -------
@@ -81,7 +81,7 @@ def gravity_source(options: Mapping[str, Any], robot_options: str = "--urdf PATH
                              dynamic=o["dynamic"], angular_velocity=_columns(o["angular_velocity"]),
                              linear_acceleration=_columns(o["linear_acceleration"]),
                              angular_acceleration=_columns(o["angular_acceleration"]), time=o["time"],
-                             robot_options=robot_options)
+                             robot_parameters=robot_parameters)
 
 
 def _columns(value: Sequence[str] | str | None) -> tuple[str, ...] | None:

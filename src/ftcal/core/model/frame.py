@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...runtime.errors import FtcalError, IllPosedFitWarning
+from ...runtime.errors import FtcalError, IllPosedFitWarning, IllPosedParameterWarning, ParameterError
 from ..dataset import Dataset
 from ..features import RegressorLayout
 from ..limits import MAX_GRAM_BYTES
@@ -70,8 +70,8 @@ def check_gram_size(layout: RegressorLayout) -> None:
     need = 8 * p * p
     if need > MAX_GRAM_BYTES:
         arx = "" if layout.is_static else f", na={layout.na}, nb={layout.nb}"
-        lower = "--degree" if layout.is_static else "--degree, --na or --nb"
-        raise FtcalError(f"degree {layout.basis.degree}{arx} over {layout.basis.n_inputs} inputs has {p:,} "
+        lower = "{degree}" if layout.is_static else "{degree}, {na} or {nb}"
+        raise ParameterError(("degree", "na", "nb"), f"degree {layout.basis.degree}{arx} over {layout.basis.n_inputs} inputs has {p:,} "
                          f"coefficients per output ({p * layout.n_outputs:,} in all); its Gram matrix alone needs "
                          f"{need / 1e9:.1f} GB, above the limit of {MAX_GRAM_BYTES / 1e9:.0f} GB: lower {lower}.")
 
@@ -81,25 +81,22 @@ def warn_if_ill_posed(input_names: Sequence[str], span: np.ndarray, layout: Regr
     """Warn (:class:`~ftcal.runtime.errors.IllPosedFitWarning`): fewer rows than coefficients, or a constant input."""
     p = layout.n_features
     if n_rows < p:
-        warnings.warn(
-            f"The fit is under-determined: {n_rows} samples for {p} coefficients per output. "
-            "Lower the degree, add recordings, or use --lasso/--ridge.",
-            IllPosedFitWarning, stacklevel=5)
+        warnings.warn(IllPosedParameterWarning(
+            ("lasso", "ridge"), f"The fit is under-determined: {n_rows} samples for {p} coefficients per output. "
+            "Lower the degree, add recordings, or use {lasso}/{ridge}."), stacklevel=5)
     for name, width in zip(input_names, span):
         if width == 0:
-            warnings.warn(
-                f"Input {name!r} is constant in the training data, so its terms duplicate the "
-                "offset; drop it with --inputs or record data where it varies.",
-                IllPosedFitWarning, stacklevel=5)
+            warnings.warn(IllPosedParameterWarning(
+                "inputs", f"Input {name!r} is constant in the training data, so its terms duplicate the "
+                "offset; drop it with {inputs} or record data where it varies."), stacklevel=5)
 
 
 def dense_regressor(data: Dataset, frame: FitFrame) -> tuple[np.ndarray, np.ndarray]:
     """The dense regressor and targets of ``data`` in ``frame``'s solve basis, segment by segment (OSQP only)."""
     layout = frame.layout
     if frame.n_rows * layout.n_features > DENSE_LIMIT_CELLS:
-        raise FtcalError(
-            f"The OSQP solver needs the dense {frame.n_rows} × {layout.n_features} regressor "
-            f"({frame.n_rows * layout.n_features * 8 / 1e9:.1f} GB); use --solver lstsq, which never builds it.")
+        raise ParameterError('solver', f"The OSQP solver needs the dense {frame.n_rows} × {layout.n_features} regressor "
+            f"({frame.n_rows * layout.n_features * 8 / 1e9:.1f} GB); use {{solver}} lstsq, which never builds it.")
     u_norm = frame.solve_input_normalization.apply(data.inputs)
     y_norm = frame.solve_output_normalization.apply(data.outputs)
     blocks, targets = [], []

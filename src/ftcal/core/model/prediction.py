@@ -181,7 +181,7 @@ class PredictionMixin:
 
     def _warn_out_of_range(self, ranges: RangeSums, stacklevel: int) -> None:
         """One warning for one cause: inputs outside the training range, and those outside its span."""
-        message = describe(ranges.summary(self.input_names_))
+        message = describe(ranges.to_dict(self.input_names_))
         if message:
             warnings.warn(message, OutOfRangeWarning, stacklevel=stacklevel)
 

@@ -15,7 +15,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from ...runtime.checks import check_choice, check_int
-from ...runtime.errors import FtcalError, IllPosedFitWarning, NotFittedError
+from ...runtime.errors import FtcalError, ParameterError, IllPosedFitWarning, IllPosedParameterWarning, NotFittedError
 from ...runtime.progress import progress_bar
 from ..dataset import Dataset
 from ..estimator import EstimatorParams
@@ -319,7 +319,7 @@ class CalibrationModel(PredictionMixin, DocumentMixin, EstimatorParams):
                              f"Got {prior!r} instead.")
         prior._check_fitted()
         if self._solver().penalty == "none":
-            raise FtcalError("A prior changes only penalized fits; use it with --ridge or --lasso.")
+            raise ParameterError(('ridge', 'lasso'), "A prior changes only penalized fits; use it with {ridge} or {lasso}.")
         if prior.input_names_ != frame.input_names or prior.output_names_ != frame.output_names:
             raise FtcalError(f"The prior maps {','.join(prior.input_names_)} -> {','.join(prior.output_names_)}; "
                              f"the data has {','.join(frame.input_names)} -> {','.join(frame.output_names)}.")
@@ -361,16 +361,15 @@ class CalibrationModel(PredictionMixin, DocumentMixin, EstimatorParams):
             return  # ridge and LASSO penalties make collinear problems well posed
         p = layout.n_features
         if self.rank_ < p:
-            warnings.warn(
-                f"The regressor has rank {self.rank_} < {p} columns (collinear or constant inputs, "
-                "or too high a degree for this data); the minimum-norm solution was used. "
-                "Lower the degree, add varied data, or use --ridge/--lasso.",
-                IllPosedFitWarning, stacklevel=3)
+            warnings.warn(IllPosedParameterWarning(
+                ("ridge", "lasso"), f"The regressor has rank {self.rank_} < {p} columns (collinear or constant "
+                "inputs, or too high a degree for this data); the minimum-norm solution was used. "
+                "Lower the degree, add varied data, or use {ridge}/{lasso}."), stacklevel=3)
         elif self.condition_number_ > CONDITION_WARNING:
-            warnings.warn(
-                f"The regressor is ill-conditioned (condition number {self.condition_number_:.2g}); "
-                "coefficients are poorly determined. Lower the degree or use --ridge/--lasso.",
-                IllPosedFitWarning, stacklevel=3)
+            warnings.warn(IllPosedParameterWarning(
+                ("ridge", "lasso"), f"The regressor is ill-conditioned (condition number "
+                f"{self.condition_number_:.2g}); coefficients are poorly determined. Lower the degree or use "
+                "{ridge}/{lasso}."), stacklevel=3)
 
     def _check_fitted(self) -> None:
         if not hasattr(self, "coef_"):

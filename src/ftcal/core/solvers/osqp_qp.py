@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...runtime.errors import FtcalError
+from ...runtime.errors import FtcalError, ParameterError
 from .base import ScaledProblem, SolverResult
 
 DEFAULT_EPS = 1e-4
@@ -32,8 +32,8 @@ def _solve_qp(P, q, A, lower, upper, eps: float, max_iter: int):
     result = problem.solve(raise_error=False)  # we check the status ourselves
     status = str(result.info.status)
     if "solved" not in status.lower():
-        raise FtcalError(f"OSQP did not solve the problem (status: {status}); "
-                         "use --solver lstsq, or a lower degree.")
+        raise ParameterError('solver', f"OSQP did not solve the problem (status: {status}); "
+                         "use {solver} lstsq, or a lower degree.")
     return result.x, int(result.info.iter)
 
 

@@ -1186,7 +1186,7 @@ static inline int FTL_(adopt_identification)(FTL_(state) *s, const FTL_(tool_fit
 }
 
 /* Identify the tool from the holds collected since NAME_start_identification: mass, centre of mass and bias
-   with the standard errors of LiveCalibrator.finish_identification (ftcal.payload.identify.identify_payload).
+   with the standard errors of LiveCalibrator.finish_identification (ftcal.payload.identify.identify_from_statistics).
    Holds past FTL_M(MAX_HOLDS) were left out (out_tool->holds_dropped counts them).
    On success (0) the tool is in the library under the name given to NAME_start_identification (NAME_find_tool
    gives its index); with `mount` it is mounted and the bias takes the
