@@ -214,7 +214,7 @@ def test_a_consumer_that_stops_reading_never_stalls_the_node(tmp_path):
     endpoint = f"tcp/127.0.0.1:{port}"
     node = subprocess.Popen([FTCAL, "live", "--zenoh", "--listen", endpoint, "--noise-std", "0.05,0.004"],
                             cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    frozen = None
+    frozen = session = None
     rate, seconds = 2000, 14
     try:
         assert "listening on ft/raw" in node.stdout.readline()
@@ -238,13 +238,17 @@ def test_a_consumer_that_stops_reading_never_stalls_the_node(tmp_path):
                 time.sleep(ahead)
         time.sleep(0.5)
         sub.undeclare()
-        session.close()
     finally:
         if frozen is not None:
             frozen.kill()
             frozen.communicate()
         node.send_signal(signal.SIGTERM)
         _, err = node.communicate(timeout=60)
+        if session is not None:
+            try:  # this test's own session, closed after the node is gone: on a loaded machine its close can time
+                session.close()  # out waiting for the dead peer, which is not the node's behaviour under test
+            except zenoh.ZError:
+                pass
     answered = np.array([t for stamp, t in arrivals if stamp < 1_000_000_000 + rate * seconds * 500_000])
     windows = np.histogram(answered - start, bins=np.arange(0, seconds + 1, 2))[0]
     # each 2 s window holds its 4,000 answers give or take the few that cross a window's edge
