@@ -461,7 +461,7 @@ static PyObject *Core_set_model(Core *self, PyObject *args)
    constant, then the coefficients' sums in term order (ftcal.core's predict kernel's arithmetic on one row). */
 static void evaluate_model(Core *self, const double *u, double *w)
 {
-    Py_ssize_t i, s, k, p = self->n_terms;
+    Py_ssize_t i, s, p = self->n_terms;
     double *x = self->terms;
     for (i = 0; i < self->n_model_inputs; ++i) {
         x[i] = (u[i] - self->offset[i]) * self->inv_scale[i];
@@ -475,13 +475,20 @@ static void evaluate_model(Core *self, const double *u, double *w)
         }
     }
     x[p - 1] = 1.0;
-    for (k = 0; k < 6; ++k) {
-        const double *c = self->coef + k * p;
-        double sum = 0.0;
+    {   /* the six sums side by side: each adds its terms in term order as one sum alone would (the same numbers),
+           but six independent chains instead of one chain of 6p dependent additions (about 4x faster) */
+        const double *c0 = self->coef, *c1 = c0 + p, *c2 = c1 + p, *c3 = c2 + p, *c4 = c3 + p, *c5 = c4 + p;
+        double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0, s4 = 0.0, s5 = 0.0;
         for (i = 0; i < p; ++i) {
-            sum += c[i] * x[i];
+            double xi = x[i];
+            s0 += c0[i] * xi;
+            s1 += c1[i] * xi;
+            s2 += c2[i] * xi;
+            s3 += c3[i] * xi;
+            s4 += c4[i] * xi;
+            s5 += c5[i] * xi;
         }
-        w[k] = sum;
+        w[0] = s0; w[1] = s1; w[2] = s2; w[3] = s3; w[4] = s4; w[5] = s5;
     }
 }
 
