@@ -536,6 +536,78 @@ static PyObject *Core_step_raw(Core *self, PyObject *const *args, Py_ssize_t nar
     return PyLong_FromLong(rc ? -1 : self->state->events_count);
 }
 
+/* sample(time, u, raw, gravity, gravity_sign, last, temperature, fill, override) -> None, or (time, code, flags,
+   events logged, bytearray of 24 float64: calibrated, compensated, bias, bias_std). LiveCalibrator.step's common
+   call in one C call: u the n_inputs - 1 raw channels (raw true: the wrench of set_model's model for them) or the
+   wrench; gravity (3) times gravity_sign (-1: an accelerometer); the core's last input the temperature u[temperature]
+   or, for temperature -1, fill. None, nothing changed, for input it does not take (not numbers, the wrong count,
+   not finite, too large, time not after last (None: any), zero gravity): the caller's own path says why. */
+static PyObject *Core_sample(Core *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    double time, u[FTCAL_CORE_N_INPUTS], w[6], g[3], sign, fill, *r;
+    long raw, temperature, override;
+    ftcal_core_output x;
+    PyObject *buf, *result;
+    int j, n;
+    if (nargs != 9) {
+        PyErr_SetString(PyExc_TypeError, "sample(time, u, raw, gravity, gravity_sign, last, temperature, fill, "
+                                         "override)");
+        return NULL;
+    }
+    n = self->state->cfg.n_inputs - 1;
+    time = PyFloat_AsDouble(args[0]);
+    raw = PyLong_AsLong(args[2]);
+    sign = PyFloat_AsDouble(args[4]);
+    temperature = PyLong_AsLong(args[6]);
+    fill = PyFloat_AsDouble(args[7]);
+    override = PyLong_AsLong(args[8]);
+    if (PyErr_Occurred() || (raw && self->n_terms == 0) || (!raw && (n != 6 || temperature >= 0))
+        || temperature >= n || read_doubles(args[1], n, u) || read_doubles(args[3], 3, g)) {
+        PyErr_Clear();
+        Py_RETURN_NONE;
+    }
+    if (args[5] != Py_None) {
+        double last = PyFloat_AsDouble(args[5]);
+        if (PyErr_Occurred()) {
+            PyErr_Clear();
+            Py_RETURN_NONE;
+        }
+        if (!(time > last)) {
+            Py_RETURN_NONE;
+        }
+    }
+    u[n] = temperature >= 0 ? u[temperature] : fill;
+    for (j = 0; j < 3; ++j) {
+        g[j] *= sign;
+    }
+    if (raw) {
+        for (j = 0; j <= n; ++j) {   /* as the core: a refused input evaluates nothing */
+            if (!(fabs(u[j]) <= FTCAL_CORE_MAX_MAGNITUDE)) {
+                Py_RETURN_NONE;
+            }
+        }
+        evaluate_model(self, u, w);
+    } else {
+        memcpy(w, u, sizeof w);
+    }
+    if (ftcal_core_core_step(self->state, time, u, w, g, (int)override, &x)) {
+        Py_RETURN_NONE;
+    }
+    if (!(buf = PyByteArray_FromStringAndSize(NULL, 24 * (Py_ssize_t)sizeof(double)))) {
+        return NULL;
+    }
+    r = (double *)PyByteArray_AS_STRING(buf);
+    for (j = 0; j < 6; ++j) {
+        r[j] = x.calibrated[j];
+        r[6 + j] = x.compensated[j];
+        r[12 + j] = x.bias[j];
+        r[18 + j] = x.bias_std[j];
+    }
+    result = Py_BuildValue("(diiiN)", time, x.is_static + 2 * x.updated, (int)x.flags, self->state->events_count,
+                           buf);
+    return result;
+}
+
 /* take_events() -> list of (kind, time, sample, flag, count, channels, value, extra): the events logged since the
    last call (oldest first), the ring emptied */
 static PyObject *Core_take_events(Core *self, PyObject *Py_UNUSED(ignored))
@@ -794,6 +866,9 @@ static PyMethodDef Core_methods[] = {
     {"step", (PyCFunction)(void (*)(void))Core_step, METH_FASTCALL, "step(time, u, w, gravity, override, out)"},
     {"set_model", (PyCFunction)Core_set_model, METH_VARARGS, "set_model(offset, inv_scale, coef, steps)"},
     {"step_raw", (PyCFunction)(void (*)(void))Core_step_raw, METH_FASTCALL, "step_raw(time, u, gravity, override, out)"},
+    {"sample", (PyCFunction)(void (*)(void))Core_sample, METH_FASTCALL,
+     "sample(time, u, raw, gravity, gravity_sign, last, temperature, fill, override) -> None or (time, code, flags, "
+     "events, bytearray)"},
     {"take_events", (PyCFunction)Core_take_events, METH_NOARGS, "take_events() -> the events since the last call"},
     {"mount", (PyCFunction)Core_mount, METH_VARARGS, "mount(mass, (mc_x, mc_y, mc_z), sign)"},
     {"identifying", (PyCFunction)Core_identifying, METH_VARARGS, "identifying(on)"},

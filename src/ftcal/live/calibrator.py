@@ -22,6 +22,7 @@ import math
 from collections import deque
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from operator import itemgetter
 from pathlib import Path
 
 import numpy as np
@@ -107,9 +108,20 @@ class LiveResult:
         return self.time.size
 
 
-@dataclass(frozen=True)
-class LiveSample:
-    """One sample's result (:meth:`LiveCalibrator.step`).
+def _views(index: int):
+    """A LiveSample's array field ``index`` (0 calibrated .. 3 bias_std): a view of the core's 24 numbers, made when
+    read (a step builds none of them), or the array given."""
+    def get(self) -> np.ndarray:
+        values = tuple.__getitem__(self, 5)
+        if isinstance(values, bytearray):
+            return np.frombuffer(values, float, 6, 48 * index)
+        return values[index]
+
+    return property(get)
+
+
+class LiveSample(tuple):
+    """One sample's result (:meth:`LiveCalibrator.step`), immutable.
 
     Attributes
     ----------
@@ -120,15 +132,26 @@ class LiveSample:
     tool : str
     """
 
-    time: float
-    calibrated: np.ndarray
-    compensated: np.ndarray
-    bias: np.ndarray
-    bias_std: np.ndarray
-    static: bool
-    updated: bool
-    flags: dict
-    tool: str
+    # a tuple: made in one call (a step's cost is mostly Python's; a dataclass's nine setattrs were a sixth of it)
+    __slots__ = ()
+
+    def __new__(cls, time, calibrated, compensated, bias, bias_std, static, updated, flags, tool):
+        return tuple.__new__(cls, (time, static, updated, flags, tool, (calibrated, compensated, bias, bias_std)))
+
+    time = property(itemgetter(0))
+    static = property(itemgetter(1))
+    updated = property(itemgetter(2))
+    flags = property(itemgetter(3))
+    tool = property(itemgetter(4))
+    calibrated, compensated, bias, bias_std = (_views(k) for k in range(4))
+
+    def __repr__(self) -> str:
+        return (f"LiveSample(time={self.time!r}, calibrated={self.calibrated!r}, compensated={self.compensated!r}, "
+                f"bias={self.bias!r}, bias_std={self.bias_std!r}, static={self.static!r}, updated={self.updated!r}, "
+                f"flags={self.flags!r}, tool={self.tool!r})")
+
+
+_NEW_SAMPLE = tuple.__new__
 
 
 def tool_wrench(payload: PayloadParameters | None, gravity: np.ndarray) -> np.ndarray:
@@ -665,6 +688,10 @@ class LiveCalibrator:
         -------
         LiveSample
         """
+        if quaternion is None and joints is None and temperature is None and self.identifying is None:
+            sample = self._sample(time, raw, wrench, gravity, imu, static)
+            if sample is not None:
+                return sample
         if static is not None and not isinstance(static, (bool, np.bool_)):
             raise FtcalError(f"static must be True, False or None; got {static!r} ({type(static).__name__}).")
         sample = self._step_core(time, raw, wrench, gravity, quaternion, imu, joints, temperature, static)
@@ -687,6 +714,53 @@ class LiveCalibrator:
         return LiveSample(float(r.time[0]), r.calibrated[0], r.compensated[0], r.bias[0], r.bias_std[0],
                           bool(r.static[0]), bool(r.updated[0]),
                           {name: reasons.get(name, self.reason_of(name)) for name in names_of(bits)}, r.tool)
+
+    def _sample(self, time, raw, wrench, gravity, imu, static):
+        """:meth:`step`'s common call (raw or wrench, gravity or imu, no temperature) in one call of the core's
+        ``sample`` (conversions, checks, the model, the step); None when :meth:`_step_core` must take it (the same
+        state: the core refuses before it changes anything)."""
+        if raw is not None:
+            if wrench is not None or not self._model_in_core:
+                return None
+            u, is_raw = raw, 1
+        elif wrench is not None:
+            u, is_raw = wrench, 0
+        else:
+            return None
+        if gravity is not None:
+            if imu is not None:
+                return None
+            g, sign = gravity, 1.0
+        elif imu is not None:
+            g, sign = imu, -1.0
+        else:
+            return None
+        if static is None:
+            override = -1
+        elif static is True or static is False:
+            override = int(static)
+        else:
+            return None
+        core = self._core
+        j = self._temperature_input
+        r = core._core.sample(time, u, is_raw, g, sign, self.last_time, -1 if j is None else j,
+                              self._temperature_fill, override)
+        if r is None:
+            return None
+        t, code, bits, logged, values = r
+        core.samples += 1
+        self.last_time = t
+        counters = self.counters
+        counters["samples"] += 1
+        counters["updates"] += code >> 1
+        if logged:
+            events = self._texts(core.take_events(), [self._temperature_fill if j is None else float(u[j])])
+            self._log(events)
+            counters["contacts"] += sum(1 for e in events if e[1] == "contact" and e[2] == "raised")
+        self.flags_now = bits | (self.flags_now & _SILENT)
+        return _NEW_SAMPLE(LiveSample, (t, code & 1 == 1, code > 1, {name: self._reasons.get(name, name) for name in
+                                                                    _NAMES_OF_BITS[bits]} if bits else {},
+                                        self.tool, values))
 
     def _step_core(self, time, raw, wrench, gravity, quaternion, imu, joints, temperature, static):
         """:meth:`step` as one call of the core with the least Python around it; None when :meth:`run` must take the
@@ -1139,6 +1213,7 @@ class LiveCalibrator:
 
 AXES = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
 # the flags' names of every combination of their bits (step's result, without a loop over the flags per sample)
+_SILENT = BIT["silent"]
 _NAMES_OF_BITS = tuple(tuple(name for name in FLAGS if bits & BIT[name]) for bits in range(1 << len(FLAGS)))
 OUT_OF_RANGE_TEXT = "inputs outside the calibration's training range or span"
 
