@@ -495,6 +495,9 @@ class LiveCalibrator:
         core.adc_limits(self.adc_limits)
         self._temperature_fill = 0.0 if self.temperature_range is None else float(self.temperature_range[0])
         self._core = core
+        # step()'s common call (the core's sample(); its temperature input: the model's, or -1: the fill)
+        self._sample = (core._core.sample, -1 if self._temperature_input is None else self._temperature_input,
+                        self._temperature_fill)
         self._mount()
         return core
 
@@ -688,10 +691,29 @@ class LiveCalibrator:
         -------
         LiveSample
         """
-        if quaternion is None and joints is None and temperature is None and self.identifying is None:
-            sample = self._sample(time, raw, wrench, gravity, imu, static)
-            if sample is not None:
-                return sample
+        if (quaternion is None and joints is None and temperature is None and (raw is None) != (wrench is None)
+                and (gravity is None) != (imu is None) and (static is None or static is True or static is False)
+                and self.identifying is None):
+            # the common call in one call of the core (conversions, checks, the model, the step; Core.sample); None:
+            # the paths below take it (and say why; the core refuses before it changes anything)
+            sample, j, fill = self._sample
+            r = sample(time, wrench if raw is None else raw, raw is not None, gravity if imu is None else imu,
+                       1.0 if imu is None else -1.0, self.last_time, j, fill, -1 if static is None else int(static))
+            if r is not None:
+                t, code, bits, logged, values = r
+                self._core.samples += 1
+                self.last_time = t
+                counters = self.counters
+                counters["samples"] += 1
+                counters["updates"] += code >> 1
+                if logged:
+                    events = self._texts(self._core.take_events(), [fill if j < 0 else float(raw[j])])
+                    self._log(events)
+                    counters["contacts"] += sum(1 for e in events if e[1] == "contact" and e[2] == "raised")
+                self.flags_now = bits | (self.flags_now & _SILENT)
+                return _NEW_SAMPLE(LiveSample, (t, code & 1 == 1, code > 1, {
+                    name: self._reasons.get(name, name) for name in _NAMES_OF_BITS[bits]} if bits else {},
+                    self.tool, values))
         if static is not None and not isinstance(static, (bool, np.bool_)):
             raise FtcalError(f"static must be True, False or None; got {static!r} ({type(static).__name__}).")
         sample = self._step_core(time, raw, wrench, gravity, quaternion, imu, joints, temperature, static)
@@ -714,53 +736,6 @@ class LiveCalibrator:
         return LiveSample(float(r.time[0]), r.calibrated[0], r.compensated[0], r.bias[0], r.bias_std[0],
                           bool(r.static[0]), bool(r.updated[0]),
                           {name: reasons.get(name, self.reason_of(name)) for name in names_of(bits)}, r.tool)
-
-    def _sample(self, time, raw, wrench, gravity, imu, static):
-        """:meth:`step`'s common call (raw or wrench, gravity or imu, no temperature) in one call of the core's
-        ``sample`` (conversions, checks, the model, the step); None when :meth:`_step_core` must take it (the same
-        state: the core refuses before it changes anything)."""
-        if raw is not None:
-            if wrench is not None or not self._model_in_core:
-                return None
-            u, is_raw = raw, 1
-        elif wrench is not None:
-            u, is_raw = wrench, 0
-        else:
-            return None
-        if gravity is not None:
-            if imu is not None:
-                return None
-            g, sign = gravity, 1.0
-        elif imu is not None:
-            g, sign = imu, -1.0
-        else:
-            return None
-        if static is None:
-            override = -1
-        elif static is True or static is False:
-            override = int(static)
-        else:
-            return None
-        core = self._core
-        j = self._temperature_input
-        r = core._core.sample(time, u, is_raw, g, sign, self.last_time, -1 if j is None else j,
-                              self._temperature_fill, override)
-        if r is None:
-            return None
-        t, code, bits, logged, values = r
-        core.samples += 1
-        self.last_time = t
-        counters = self.counters
-        counters["samples"] += 1
-        counters["updates"] += code >> 1
-        if logged:
-            events = self._texts(core.take_events(), [self._temperature_fill if j is None else float(u[j])])
-            self._log(events)
-            counters["contacts"] += sum(1 for e in events if e[1] == "contact" and e[2] == "raised")
-        self.flags_now = bits | (self.flags_now & _SILENT)
-        return _NEW_SAMPLE(LiveSample, (t, code & 1 == 1, code > 1, {name: self._reasons.get(name, name) for name in
-                                                                    _NAMES_OF_BITS[bits]} if bits else {},
-                                        self.tool, values))
 
     def _step_core(self, time, raw, wrench, gravity, quaternion, imu, joints, temperature, static):
         """:meth:`step` as one call of the core with the least Python around it; None when :meth:`run` must take the
