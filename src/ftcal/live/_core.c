@@ -608,6 +608,94 @@ static PyObject *Core_sample(Core *self, PyObject *const *args, Py_ssize_t nargs
     return result;
 }
 
+/* sample_quaternion(time, wrench, quaternion, last, fill, gravity_magnitude, tolerance, motion) -> as sample().
+   LiveCalibrator.step's call with a wrench and an orientation quaternion (x y z w, sensor to world, world z up):
+   the quaternion normalised (None beyond tolerance of unit length) and gravity from it in the Python path's
+   arithmetic; when the core would take the sample, the motion test motion(time, "quaternion", unit quaternion) ->
+   (static, moving) decides static, then the step (the temperature input: fill). */
+static PyObject *Core_sample_quaternion(Core *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    static PyObject *kind = NULL;
+    double time, u[FTCAL_CORE_N_INPUTS], q[4], g[3], norm, gm, fill, tolerance, *r;
+    ftcal_core_output x;
+    PyObject *buf, *decision;
+    int j, still;
+    if (nargs != 8) {
+        PyErr_SetString(PyExc_TypeError, "sample_quaternion(time, wrench, quaternion, last, fill, gravity_magnitude, "
+                                         "tolerance, motion)");
+        return NULL;
+    }
+    if (!kind && !(kind = PyUnicode_InternFromString("quaternion"))) {
+        return NULL;
+    }
+    time = PyFloat_AsDouble(args[0]);
+    fill = PyFloat_AsDouble(args[4]);
+    gm = -PyFloat_AsDouble(args[5]);
+    tolerance = PyFloat_AsDouble(args[6]);
+    if (PyErr_Occurred() || self->state->cfg.n_inputs != 7 || read_doubles(args[1], 6, u)
+        || read_doubles(args[2], 4, q)) {
+        PyErr_Clear();
+        Py_RETURN_NONE;
+    }
+    if (args[3] != Py_None) {
+        double last = PyFloat_AsDouble(args[3]);
+        if (PyErr_Occurred()) {
+            PyErr_Clear();
+            Py_RETURN_NONE;
+        }
+        if (!(time > last)) {
+            Py_RETURN_NONE;
+        }
+    }
+    norm = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+    if (!(fabs(norm - 1.0) <= tolerance)) {
+        Py_RETURN_NONE;
+    }
+    for (j = 0; j < 4; ++j) {
+        q[j] = q[j] / norm;
+    }
+    g[0] = gm * (2.0 * (q[0] * q[2] - q[3] * q[1]));
+    g[1] = gm * (2.0 * (q[1] * q[2] + q[3] * q[0]));
+    g[2] = gm * (1.0 - 2.0 * (q[0] * q[0] + q[1] * q[1]));
+    u[6] = fill;
+    /* what the core would refuse, before the motion test keeps the sample (its history then as the Python path's) */
+    for (j = 0; j < 7; ++j) {
+        if (!(fabs(u[j]) <= FTCAL_CORE_MAX_MAGNITUDE)) {
+            Py_RETURN_NONE;
+        }
+    }
+    if (!isfinite(time)) {
+        Py_RETURN_NONE;
+    }
+    decision = PyObject_CallFunction(args[7], "dO(dddd)", time, kind, q[0], q[1], q[2], q[3]);
+    if (!decision) {
+        return NULL;
+    }
+    still = PyTuple_Check(decision) && PyTuple_GET_SIZE(decision) >= 1 ? PyObject_IsTrue(PyTuple_GET_ITEM(decision, 0))
+                                                                         : -1;
+    Py_DECREF(decision);
+    if (still < 0) {
+        if (!PyErr_Occurred()) {
+            PyErr_SetString(PyExc_TypeError, "sample_quaternion: motion must return (static, moving)");
+        }
+        return NULL;
+    }
+    if (ftcal_core_core_step(self->state, time, u, u, g, still, &x)) {
+        Py_RETURN_NONE;
+    }
+    if (!(buf = PyByteArray_FromStringAndSize(NULL, 24 * (Py_ssize_t)sizeof(double)))) {
+        return NULL;
+    }
+    r = (double *)PyByteArray_AS_STRING(buf);
+    for (j = 0; j < 6; ++j) {
+        r[j] = x.calibrated[j];
+        r[6 + j] = x.compensated[j];
+        r[12 + j] = x.bias[j];
+        r[18 + j] = x.bias_std[j];
+    }
+    return Py_BuildValue("(diiiN)", time, x.is_static + 2 * x.updated, (int)x.flags, self->state->events_count, buf);
+}
+
 /* take_events() -> list of (kind, time, sample, flag, count, channels, value, extra): the events logged since the
    last call (oldest first), the ring emptied */
 static PyObject *Core_take_events(Core *self, PyObject *Py_UNUSED(ignored))
@@ -869,6 +957,8 @@ static PyMethodDef Core_methods[] = {
     {"sample", (PyCFunction)(void (*)(void))Core_sample, METH_FASTCALL,
      "sample(time, u, raw, gravity, gravity_sign, last, temperature, fill, override) -> None or (time, code, flags, "
      "events, bytearray)"},
+    {"sample_quaternion", (PyCFunction)(void (*)(void))Core_sample_quaternion, METH_FASTCALL,
+     "sample_quaternion(time, wrench, quaternion, last, fill, gravity_magnitude, tolerance, motion) -> as sample"},
     {"take_events", (PyCFunction)Core_take_events, METH_NOARGS, "take_events() -> the events since the last call"},
     {"mount", (PyCFunction)Core_mount, METH_VARARGS, "mount(mass, (mc_x, mc_y, mc_z), sign)"},
     {"identifying", (PyCFunction)Core_identifying, METH_VARARGS, "identifying(on)"},

@@ -691,14 +691,20 @@ class LiveCalibrator:
         -------
         LiveSample
         """
-        if (quaternion is None and joints is None and temperature is None and (raw is None) != (wrench is None)
-                and (gravity is None) != (imu is None) and (static is None or static is True or static is False)
-                and self.identifying is None):
-            # the common call in one call of the core (conversions, checks, the model, the step; Core.sample); None:
+        if (joints is None and temperature is None and (raw is None) != (wrench is None)
+                and (static is None or static is True or static is False) and self.identifying is None):
+            # the common calls in one call of the core (conversions, checks, the model, the step; Core.sample); None:
             # the paths below take it (and say why; the core refuses before it changes anything)
             sample, j, fill = self._sample
-            r = sample(time, wrench if raw is None else raw, raw is not None, gravity if imu is None else imu,
-                       1.0 if imu is None else -1.0, self.last_time, j, fill, -1 if static is None else int(static))
+            if quaternion is None:
+                r = None if (gravity is None) == (imu is None) else sample(
+                    time, wrench if raw is None else raw, raw is not None, gravity if imu is None else imu,
+                    1.0 if imu is None else -1.0, self.last_time, j, fill, -1 if static is None else int(static))
+            else:  # a wrench (a model's is Python's here) and the Python motion test on the quaternion's angle
+                r = None if raw is not None or static is not None or gravity is not None or imu is not None else \
+                    self._core._core.sample_quaternion(time, wrench, quaternion, self.last_time, fill,
+                                                       self.gravity_magnitude, QUATERNION_NORM_TOLERANCE,
+                                                       self.motion.static_one)
             if r is not None:
                 t, code, bits, logged, values = r
                 self._core.samples += 1
