@@ -536,22 +536,88 @@ static PyObject *Core_step_raw(Core *self, PyObject *const *args, Py_ssize_t nar
     return PyLong_FromLong(rc ? -1 : self->state->events_count);
 }
 
-/* sample(time, u, raw, gravity, gravity_sign, last, temperature, fill, override) -> None, or (time, code, flags,
-   events logged, bytearray of 24 float64: calibrated, compensated, bias, bias_std). LiveCalibrator.step's common
+/* The type sample() and sample_quaternion() return (LiveSample: a tuple subclass), set once by set_sample_type. */
+static PyObject *sample_type = NULL;
+
+static PyObject *set_sample_type(PyObject *Py_UNUSED(module), PyObject *type)
+{
+    if (!PyType_Check(type) || !PyType_IsSubtype((PyTypeObject *)type, &PyTuple_Type)) {
+        PyErr_SetString(PyExc_TypeError, "set_sample_type: a tuple subclass");
+        return NULL;
+    }
+    Py_INCREF(type);
+    Py_XSETREF(sample_type, type);
+    Py_RETURN_NONE;
+}
+
+/* (sample, flags, events logged): sample an instance of sample_type, (time, static, updated, {}, tool, bytearray of
+   24 float64: calibrated, compensated, bias, bias_std); the caller fills the dict when flags are raised. */
+static PyObject *sample_result(Core *self, double time, const ftcal_core_output *x, PyObject *tool)
+{
+    PyObject *buf, *sample, *result, *item[5];
+    double *r;
+    int j;
+    if (!sample_type) {
+        PyErr_SetString(PyExc_RuntimeError, "sample: set_sample_type first");
+        return NULL;
+    }
+    if (!(buf = PyByteArray_FromStringAndSize(NULL, 24 * (Py_ssize_t)sizeof(double)))) {
+        return NULL;
+    }
+    r = (double *)PyByteArray_AS_STRING(buf);
+    for (j = 0; j < 6; ++j) {
+        r[j] = x->calibrated[j];
+        r[6 + j] = x->compensated[j];
+        r[12 + j] = x->bias[j];
+        r[18 + j] = x->bias_std[j];
+    }
+    item[0] = PyFloat_FromDouble(time);
+    item[1] = PyBool_FromLong(x->is_static);
+    item[2] = PyBool_FromLong(x->updated);
+    item[3] = PyDict_New();
+    sample = ((PyTypeObject *)sample_type)->tp_alloc((PyTypeObject *)sample_type, 6);
+    result = PyTuple_New(3);
+    if (!item[0] || !item[3] || !sample || !result) {
+        Py_XDECREF(item[0]);
+        Py_DECREF(item[1]);
+        Py_DECREF(item[2]);
+        Py_XDECREF(item[3]);
+        Py_XDECREF(sample);
+        Py_XDECREF(result);
+        Py_DECREF(buf);
+        return NULL;
+    }
+    for (j = 0; j < 4; ++j) {
+        PyTuple_SET_ITEM(sample, j, item[j]);
+    }
+    Py_INCREF(tool);
+    PyTuple_SET_ITEM(sample, 4, tool);
+    PyTuple_SET_ITEM(sample, 5, buf);
+    PyTuple_SET_ITEM(result, 0, sample);
+    PyTuple_SET_ITEM(result, 1, PyLong_FromLong((long)x->flags));
+    PyTuple_SET_ITEM(result, 2, PyLong_FromLong(self->state->events_count));
+    if (!PyTuple_GET_ITEM(result, 1) || !PyTuple_GET_ITEM(result, 2)) {
+        Py_DECREF(result);
+        return NULL;
+    }
+    return result;
+}
+
+/* sample(time, u, raw, gravity, gravity_sign, last, temperature, fill, override, tool) -> None, or sample_result's
+   (sample, flags, events logged). LiveCalibrator.step's common
    call in one C call: u the n_inputs - 1 raw channels (raw true: the wrench of set_model's model for them) or the
    wrench; gravity (3) times gravity_sign (-1: an accelerometer); the core's last input the temperature u[temperature]
    or, for temperature -1, fill. None, nothing changed, for input it does not take (not numbers, the wrong count,
    not finite, too large, time not after last (None: any), zero gravity): the caller's own path says why. */
 static PyObject *Core_sample(Core *self, PyObject *const *args, Py_ssize_t nargs)
 {
-    double time, u[FTCAL_CORE_N_INPUTS], w[6], g[3], sign, fill, *r;
+    double time, u[FTCAL_CORE_N_INPUTS], w[6], g[3], sign, fill;
     long raw, temperature, override;
     ftcal_core_output x;
-    PyObject *buf, *result;
     int j, n;
-    if (nargs != 9) {
+    if (nargs != 10) {
         PyErr_SetString(PyExc_TypeError, "sample(time, u, raw, gravity, gravity_sign, last, temperature, fill, "
-                                         "override)");
+                                         "override, tool)");
         return NULL;
     }
     n = self->state->cfg.n_inputs - 1;
@@ -593,22 +659,10 @@ static PyObject *Core_sample(Core *self, PyObject *const *args, Py_ssize_t nargs
     if (ftcal_core_core_step(self->state, time, u, w, g, (int)override, &x)) {
         Py_RETURN_NONE;
     }
-    if (!(buf = PyByteArray_FromStringAndSize(NULL, 24 * (Py_ssize_t)sizeof(double)))) {
-        return NULL;
-    }
-    r = (double *)PyByteArray_AS_STRING(buf);
-    for (j = 0; j < 6; ++j) {
-        r[j] = x.calibrated[j];
-        r[6 + j] = x.compensated[j];
-        r[12 + j] = x.bias[j];
-        r[18 + j] = x.bias_std[j];
-    }
-    result = Py_BuildValue("(diiiN)", time, x.is_static + 2 * x.updated, (int)x.flags, self->state->events_count,
-                           buf);
-    return result;
+    return sample_result(self, time, &x, args[9]);
 }
 
-/* sample_quaternion(time, wrench, quaternion, last, fill, gravity_magnitude, tolerance, motion) -> as sample().
+/* sample_quaternion(time, wrench, quaternion, last, fill, gravity_magnitude, tolerance, motion, tool) -> as sample().
    LiveCalibrator.step's call with a wrench and an orientation quaternion (x y z w, sensor to world, world z up):
    the quaternion normalised (None beyond tolerance of unit length) and gravity from it in the Python path's
    arithmetic; when the core would take the sample, the motion test motion(time, "quaternion", unit quaternion) ->
@@ -616,13 +670,13 @@ static PyObject *Core_sample(Core *self, PyObject *const *args, Py_ssize_t nargs
 static PyObject *Core_sample_quaternion(Core *self, PyObject *const *args, Py_ssize_t nargs)
 {
     static PyObject *kind = NULL;
-    double time, u[FTCAL_CORE_N_INPUTS], q[4], g[3], norm, gm, fill, tolerance, *r;
+    double time, u[FTCAL_CORE_N_INPUTS], q[4], g[3], norm, gm, fill, tolerance;
     ftcal_core_output x;
-    PyObject *buf, *decision;
+    PyObject *decision;
     int j, still;
-    if (nargs != 8) {
+    if (nargs != 9) {
         PyErr_SetString(PyExc_TypeError, "sample_quaternion(time, wrench, quaternion, last, fill, gravity_magnitude, "
-                                         "tolerance, motion)");
+                                         "tolerance, motion, tool)");
         return NULL;
     }
     if (!kind && !(kind = PyUnicode_InternFromString("quaternion"))) {
@@ -683,17 +737,7 @@ static PyObject *Core_sample_quaternion(Core *self, PyObject *const *args, Py_ss
     if (ftcal_core_core_step(self->state, time, u, u, g, still, &x)) {
         Py_RETURN_NONE;
     }
-    if (!(buf = PyByteArray_FromStringAndSize(NULL, 24 * (Py_ssize_t)sizeof(double)))) {
-        return NULL;
-    }
-    r = (double *)PyByteArray_AS_STRING(buf);
-    for (j = 0; j < 6; ++j) {
-        r[j] = x.calibrated[j];
-        r[6 + j] = x.compensated[j];
-        r[12 + j] = x.bias[j];
-        r[18 + j] = x.bias_std[j];
-    }
-    return Py_BuildValue("(diiiN)", time, x.is_static + 2 * x.updated, (int)x.flags, self->state->events_count, buf);
+    return sample_result(self, time, &x, args[8]);
 }
 
 /* take_events() -> list of (kind, time, sample, flag, count, channels, value, extra): the events logged since the
@@ -955,10 +999,11 @@ static PyMethodDef Core_methods[] = {
     {"set_model", (PyCFunction)Core_set_model, METH_VARARGS, "set_model(offset, inv_scale, coef, steps)"},
     {"step_raw", (PyCFunction)(void (*)(void))Core_step_raw, METH_FASTCALL, "step_raw(time, u, gravity, override, out)"},
     {"sample", (PyCFunction)(void (*)(void))Core_sample, METH_FASTCALL,
-     "sample(time, u, raw, gravity, gravity_sign, last, temperature, fill, override) -> None or (time, code, flags, "
-     "events, bytearray)"},
+     "sample(time, u, raw, gravity, gravity_sign, last, temperature, fill, override, tool) -> None or (sample, flags, "
+     "events)"},
     {"sample_quaternion", (PyCFunction)(void (*)(void))Core_sample_quaternion, METH_FASTCALL,
-     "sample_quaternion(time, wrench, quaternion, last, fill, gravity_magnitude, tolerance, motion) -> as sample"},
+     "sample_quaternion(time, wrench, quaternion, last, fill, gravity_magnitude, tolerance, motion, tool) -> as "
+     "sample"},
     {"take_events", (PyCFunction)Core_take_events, METH_NOARGS, "take_events() -> the events since the last call"},
     {"mount", (PyCFunction)Core_mount, METH_VARARGS, "mount(mass, (mc_x, mc_y, mc_z), sign)"},
     {"identifying", (PyCFunction)Core_identifying, METH_VARARGS, "identifying(on)"},
@@ -983,11 +1028,17 @@ static PyTypeObject CoreType = {
     .tp_methods = Core_methods,
 };
 
+static PyMethodDef module_methods[] = {
+    {"set_sample_type", set_sample_type, METH_O, "set_sample_type(type): the tuple subclass sample() returns"},
+    {NULL, NULL, 0, NULL},
+};
+
 static struct PyModuleDef module = {
     .m_base = PyModuleDef_HEAD_INIT,
     .m_name = "ftcal.live._core",
     .m_doc = "The live step's C core (csrc/ftcal_live.h) for ftcal.live.core.",
     .m_size = -1,
+    .m_methods = module_methods,
 };
 
 PyMODINIT_FUNC PyInit__core(void)

@@ -39,7 +39,7 @@ from .motion import MotionDetector
 from .consistency import (Q_MAX, R_MAX, locked_out_text, noise_adapted_text, reacquired_text, undone_text,
                           walk_adapted_text)
 from .drift import FALSE_ALARM
-from .core import FIELDS
+from .core import FIELDS, require_core
 from .tracker import HOLDOFF_S, gate_chi2
 
 NO_TOOL = "none"
@@ -149,9 +149,6 @@ class LiveSample(tuple):
         return (f"LiveSample(time={self.time!r}, calibrated={self.calibrated!r}, compensated={self.compensated!r}, "
                 f"bias={self.bias!r}, bias_std={self.bias_std!r}, static={self.static!r}, updated={self.updated!r}, "
                 f"flags={self.flags!r}, tool={self.tool!r})")
-
-
-_NEW_SAMPLE = tuple.__new__
 
 
 def tool_wrench(payload: PayloadParameters | None, gravity: np.ndarray) -> np.ndarray:
@@ -495,7 +492,9 @@ class LiveCalibrator:
         core.adc_limits(self.adc_limits)
         self._temperature_fill = 0.0 if self.temperature_range is None else float(self.temperature_range[0])
         self._core = core
-        # step()'s common call (the core's sample(); its temperature input: the model's, or -1: the fill)
+        # step()'s common call (the core's sample(), which returns a LiveSample; its temperature input: the model's,
+        # or -1: the fill)
+        require_core().set_sample_type(LiveSample)
         self._sample = (core._core.sample, -1 if self._temperature_input is None else self._temperature_input,
                         self._temperature_fill)
         self._mount()
@@ -699,27 +698,28 @@ class LiveCalibrator:
             if quaternion is None:
                 r = None if (gravity is None) == (imu is None) else sample(
                     time, wrench if raw is None else raw, raw is not None, gravity if imu is None else imu,
-                    1.0 if imu is None else -1.0, self.last_time, j, fill, -1 if static is None else int(static))
+                    1.0 if imu is None else -1.0, self.last_time, j, fill, -1 if static is None else int(static),
+                    self.tool)
             else:  # a wrench (a model's is Python's here) and the Python motion test on the quaternion's angle
                 r = None if raw is not None or static is not None or gravity is not None or imu is not None else \
                     self._core._core.sample_quaternion(time, wrench, quaternion, self.last_time, fill,
                                                        self.gravity_magnitude, QUATERNION_NORM_TOLERANCE,
-                                                       self.motion.static_one)
+                                                       self.motion.static_one, self.tool)
             if r is not None:
-                t, code, bits, logged, values = r
+                result, bits, logged = r
                 self._core.samples += 1
-                self.last_time = t
+                self.last_time = result[0]
                 counters = self.counters
                 counters["samples"] += 1
-                counters["updates"] += code >> 1
+                counters["updates"] += result[2]
                 if logged:
                     events = self._texts(self._core.take_events(), [fill if j < 0 else float(raw[j])])
                     self._log(events)
                     counters["contacts"] += sum(1 for e in events if e[1] == "contact" and e[2] == "raised")
                 self.flags_now = bits | (self.flags_now & _SILENT)
-                return _NEW_SAMPLE(LiveSample, (t, code & 1 == 1, code > 1, {
-                    name: self._reasons.get(name, name) for name in _NAMES_OF_BITS[bits]} if bits else {},
-                    self.tool, values))
+                if bits:
+                    result[3].update({name: self._reasons.get(name, name) for name in _NAMES_OF_BITS[bits]})
+                return result
         if static is not None and not isinstance(static, (bool, np.bool_)):
             raise FtcalError(f"static must be True, False or None; got {static!r} ({type(static).__name__}).")
         sample = self._step_core(time, raw, wrench, gravity, quaternion, imu, joints, temperature, static)
