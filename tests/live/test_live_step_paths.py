@@ -6,6 +6,9 @@ recordings with a contact; the LiveSample they return is immutable and its array
 
 from __future__ import annotations
 
+import copy
+import pickle
+
 import numpy as np
 import pytest
 
@@ -92,3 +95,6 @@ def test_the_sample_a_step_returns_is_immutable_and_its_arrays_are_its_own():
     assert first.bias.shape == first.bias_std.shape == (6,) and isinstance(first.static, bool)
     with pytest.raises(AttributeError):
         first.bias = np.zeros(6)
+    for again in (pickle.loads(pickle.dumps(second)), copy.deepcopy(second)):
+        assert isinstance(again, LiveSample) and again.time == second.time and again.flags == second.flags
+        np.testing.assert_array_equal(again.compensated, second.compensated)

@@ -145,6 +145,10 @@ class LiveSample(tuple):
     tool = property(itemgetter(4))
     calibrated, compensated, bias, bias_std = (_views(k) for k in range(4))
 
+    def __getnewargs__(self) -> tuple:  # pickle and copy: the constructor's arguments, not the tuple's items
+        return (self.time, self.calibrated, self.compensated, self.bias, self.bias_std, self.static, self.updated,
+                self.flags, self.tool)
+
     def __repr__(self) -> str:
         return (f"LiveSample(time={self.time!r}, calibrated={self.calibrated!r}, compensated={self.compensated!r}, "
                 f"bias={self.bias!r}, bias_std={self.bias_std!r}, static={self.static!r}, updated={self.updated!r}, "
