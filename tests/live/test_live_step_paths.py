@@ -84,6 +84,22 @@ def test_raw_channels_step_as_run_with_the_model_s_predict():
     assert steps_live.counters == run_live.counters
 
 
+def test_a_model_with_a_temperature_input_steps_a_row_as_a_list_through_contacts():
+    rec, tools = _scenario()
+    rng = np.random.default_rng(6)
+    wrench = rng.uniform(-40, 40, size=(4_000, 6)) * np.r_[np.ones(3), np.full(3, 0.1)]
+    temperature = rng.uniform(20.0, 45.0, size=(4_000, 1))
+    model = CalibrationModel(2).fit(Dataset.from_arrays(np.hstack([wrench, temperature]), wrench))
+    u = np.column_stack([rec.wrench, np.full(rec.time.size, 30.0)])
+    rows, lists = (LiveCalibrator(model, tools=tools, tool="gripper") for _ in range(2))
+    assert rows._temperature_input == 6
+    for t, x, g in zip(rec.time, u, rec.gravity):  # a (1, 7) row: the events' temperature read from it too
+        a, b = rows.step(t, raw=x[None, :], gravity=g), lists.step(float(t), raw=x.tolist(), gravity=g.tolist())
+        np.testing.assert_array_equal(a.bias, b.bias)
+        assert a.flags == b.flags
+    assert rows.counters == lists.counters and rows.counters["contacts"] >= 1
+
+
 def test_the_sample_a_step_returns_is_immutable_and_its_arrays_are_its_own():
     rec, tools = _scenario()
     live = LiveCalibrator(tools=tools, tool="gripper")

@@ -717,7 +717,7 @@ class LiveCalibrator:
                 counters["samples"] += 1
                 counters["updates"] += result[2]
                 if logged:
-                    events = self._texts(self._core.take_events(), [fill if j < 0 else float(raw[j])])
+                    events = self._texts(self._core.take_events(), [fill if j < 0 else float(np.ravel(raw)[j])])
                     self._log(events)
                     counters["contacts"] += sum(1 for e in events if e[1] == "contact" and e[2] == "raised")
                 self.flags_now = bits | (self.flags_now & _SILENT)
