@@ -604,10 +604,9 @@ static PyObject *sample_result(Core *self, double time, const ftcal_core_output 
 }
 
 /* sample(time, u, raw, gravity, gravity_sign, last, temperature, fill, override, tool) -> None, or sample_result's
-   (sample, flags, events logged). LiveCalibrator.step's common
-   call in one C call: u the n_inputs - 1 raw channels (raw true: the wrench of set_model's model for them) or the
-   wrench; gravity (3) times gravity_sign (-1: an accelerometer); the core's last input the temperature u[temperature]
-   or, for temperature -1, fill. None, nothing changed, for input it does not take (not numbers, the wrong count,
+   (sample, flags, events logged). LiveCalibrator.step's common call in one C call: u the n_inputs - 1 raw channels
+   (raw true: the wrench of set_model's model for them) or the wrench; gravity (3) times gravity_sign (-1: an
+   accelerometer); the core's last input the temperature u[temperature] or, for temperature -1, fill. None, nothing changed, for input it does not take (not numbers, the wrong count,
    not finite, too large, time not after last (None: any), zero gravity): the caller's own path says why. */
 static PyObject *Core_sample(Core *self, PyObject *const *args, Py_ssize_t nargs)
 {
