@@ -22,6 +22,7 @@ import math
 from collections import deque
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from operator import itemgetter
 from pathlib import Path
 
 import numpy as np
@@ -41,7 +42,7 @@ from .defaults import (DEFAULT_NOISE_FRACTION, DEFAULT_WALK_FRACTION, GATE_PROBA
                        RETARE_VARIANCE, RETARE_WARNING, SECONDS_PER_HOUR, UNEXPLAINED_SECONDS, UNEXPLAINED_SIGMA,
                        tracker_defaults, tracker_wander)
 from .drift import FALSE_ALARM
-from .core import FIELDS
+from .core import FIELDS, require_core
 from .tracker import HOLDOFF_S, gate_chi2
 
 STATE_FORMAT = "ftcal-live-state"
@@ -94,9 +95,20 @@ class LiveResult:
         return self.time.size
 
 
-@dataclass(frozen=True)
-class LiveSample:
-    """One sample's result (:meth:`LiveCalibrator.step`).
+def _views(index: int):
+    """A LiveSample's array field ``index`` (0 calibrated .. 3 bias_std): a view of the core's 24 numbers, made when
+    read (a step builds none of them), or the array given."""
+    def get(self) -> np.ndarray:
+        values = tuple.__getitem__(self, 5)
+        if isinstance(values, bytearray):
+            return np.frombuffer(values, float, 6, 48 * index)
+        return values[index]
+
+    return property(get)
+
+
+class LiveSample(tuple):
+    """One sample's result (:meth:`LiveCalibrator.step`), immutable.
 
     Attributes
     ----------
@@ -107,15 +119,27 @@ class LiveSample:
     tool : str
     """
 
-    time: float
-    calibrated: np.ndarray
-    compensated: np.ndarray
-    bias: np.ndarray
-    bias_std: np.ndarray
-    static: bool
-    updated: bool
-    flags: dict
-    tool: str
+    # a tuple: made in one call (a step's cost is mostly Python's; a dataclass's nine setattrs were a sixth of it)
+    __slots__ = ()
+
+    def __new__(cls, time, calibrated, compensated, bias, bias_std, static, updated, flags, tool):
+        return tuple.__new__(cls, (time, static, updated, flags, tool, (calibrated, compensated, bias, bias_std)))
+
+    time = property(itemgetter(0))
+    static = property(itemgetter(1))
+    updated = property(itemgetter(2))
+    flags = property(itemgetter(3))
+    tool = property(itemgetter(4))
+    calibrated, compensated, bias, bias_std = (_views(k) for k in range(4))
+
+    def __getnewargs__(self) -> tuple:  # pickle and copy: the constructor's arguments, not the tuple's items
+        return (self.time, self.calibrated, self.compensated, self.bias, self.bias_std, self.static, self.updated,
+                self.flags, self.tool)
+
+    def __repr__(self) -> str:
+        return (f"LiveSample(time={self.time!r}, calibrated={self.calibrated!r}, compensated={self.compensated!r}, "
+                f"bias={self.bias!r}, bias_std={self.bias_std!r}, static={self.static!r}, updated={self.updated!r}, "
+                f"flags={self.flags!r}, tool={self.tool!r})")
 
 
 def tool_wrench(payload: PayloadParameters | None, gravity: np.ndarray) -> np.ndarray:
@@ -336,6 +360,11 @@ class LiveCalibrator:
         core.adc_limits(self.adc_limits)
         self._temperature_fill = 0.0 if self.temperature_range is None else float(self.temperature_range[0])
         self._core = core
+        # step()'s common call (the core's sample(), which returns a LiveSample; its temperature input: the model's,
+        # or -1: the fill)
+        require_core().set_sample_type(LiveSample)
+        self._sample = (core._core.sample, -1 if self._temperature_input is None else self._temperature_input,
+                        self._temperature_fill)
         self._mount()
         return core
 
@@ -529,6 +558,36 @@ class LiveCalibrator:
         -------
         LiveSample
         """
+        if (joints is None and temperature is None and (raw is None) != (wrench is None)
+                and (static is None or static is True or static is False) and self.identifying is None):
+            # the common calls in one call of the core (conversions, checks, the model, the step; Core.sample); None:
+            # the paths below take it (and say why; the core refuses before it changes anything)
+            sample, j, fill = self._sample
+            if quaternion is None:
+                r = None if (gravity is None) == (imu is None) else sample(
+                    time, wrench if raw is None else raw, raw is not None, gravity if imu is None else imu,
+                    1.0 if imu is None else -1.0, self.last_time, j, fill, -1 if static is None else int(static),
+                    self.tool)
+            else:  # a wrench (a model's is Python's here) and the Python motion test on the quaternion's angle
+                r = None if raw is not None or static is not None or gravity is not None or imu is not None else \
+                    self._core._core.sample_quaternion(time, wrench, quaternion, self.last_time, fill,
+                                                       self.gravity_magnitude, QUATERNION_NORM_TOLERANCE,
+                                                       self.motion.static_one, self.tool)
+            if r is not None:
+                result, bits, logged = r
+                self._core.samples += 1
+                self.last_time = result[0]
+                counters = self.counters
+                counters["samples"] += 1
+                counters["updates"] += result[2]
+                if logged:
+                    events = self._texts(self._core.take_events(), [fill if j < 0 else float(np.ravel(raw)[j])])
+                    self._log(events)
+                    counters["contacts"] += sum(1 for e in events if e[1] == "contact" and e[2] == "raised")
+                self.flags_now = bits | (self.flags_now & _SILENT)
+                if bits:
+                    result[3].update({name: self._reasons.get(name, name) for name in _NAMES_OF_BITS[bits]})
+                return result
         if static is not None and not isinstance(static, (bool, np.bool_)):
             raise FtcalError(f"static must be True, False or None; got {static!r} ({type(static).__name__}).")
         sample = self._step_core(time, raw, wrench, gravity, quaternion, imu, joints, temperature, static)
@@ -1003,6 +1062,7 @@ class LiveCalibrator:
 
 AXES = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
 # the flags' names of every combination of their bits (step's result, without a loop over the flags per sample)
+_SILENT = BIT["silent"]
 _NAMES_OF_BITS = tuple(tuple(name for name in FLAGS if bits & BIT[name]) for bits in range(1 << len(FLAGS)))
 
 

@@ -46,7 +46,8 @@ def require_core():
 
     # the rings' sizes come from the header's text (c_limits): a build of another version's header differs
     if ({name: getattr(_core, name, None) for name in CORE_LIMITS}, _core.MAX_HOLDS,
-            hasattr(_core.Core, "take_events")) != (CORE_LIMITS, C_RUNTIME_MAX_HOLDS, True):
+            hasattr(_core.Core, "take_events") and hasattr(_core, "set_sample_type")) != (CORE_LIMITS,
+                                                                                         C_RUNTIME_MAX_HOLDS, True):
         raise FtcalError("ftcal.live._core was built from other sources than this ftcal; " + MISSING[MISSING.index(
             "reinstall"):] + ".")
     return _core
