@@ -20,30 +20,35 @@ def run(args) -> int:
 
     # A valid static polynomial JSON file is summarized without numpy; anything else is loaded fully
     # (which refuses an invalid file with its message).
-    facts = light_summary(args.model, args.terms) or summary(args.model, args.terms)
-    polynomial = facts["polynomial"]
-    lam = facts["lambda"]
-    print(f"{args.model}: {facts['kind']}, {facts['n_inputs']} inputs -> {facts['n_outputs']} outputs")
-    print(f"{'coefficients' if polynomial else 'parameters'} {facts['n_coefficients']}, nonzero {facts['n_nonzero']}; "
-          f"solver {facts['solver'] or 'unknown'}" + (f", lambda {lam:g}" if lam else ""))
-    if polynomial:
-        print(f"raw-input coefficients with |value| > 1e-9 (the paper's count): {facts['raw_nonzero']}")
-    if facts["created_utc"]:
-        print(f"created {facts['created_utc']} by ftcal {facts['ftcal_version']}; "
-              f"trained on {facts['n_samples']} samples from {facts['n_sources']} file(s)")
-    if facts["prior"]:
-        print(f"shrunk toward the prior {facts['prior']['source']} (sha256 {facts['prior']['file_sha256'][:12]}…)")
-    print("training ranges:")
-    for name, unit, low, high in facts["inputs"]:
-        print(f"  {single_line(name):<8} {low:>14.6g} .. {high:<14.6g} {single_line(unit or '')}")
-    if norm_rmse_text(facts["metrics"]):
-        print("training " + norm_rmse_text(facts["metrics"], ".4g"))
-    if not polynomial:
-        return 0
-    print(f"largest terms (coefficients of {'raw inputs' if facts['raw_basis'] else 'normalized features'}):")
-    for output, term, value in facts["largest"]:
-        print(f"  {single_line(output):<6} {single_line(term):<28} {value: .6g}")
+    print(report(args.model, light_summary(args.model, args.terms) or summary(args.model, args.terms)), end="")
     return 0
+
+
+def report(name: str, facts: dict) -> str:
+    """The text ``info`` prints for the :func:`summary` ``facts`` of the model file ``name``."""
+    polynomial, lam = facts["polynomial"], facts["lambda"]
+    lines = [f"{name}: {facts['kind']}, {facts['n_inputs']} inputs -> {facts['n_outputs']} outputs",
+             f"{'coefficients' if polynomial else 'parameters'} {facts['n_coefficients']}, "
+             f"nonzero {facts['n_nonzero']}; solver {facts['solver'] or 'unknown'}" + (f", lambda {lam:g}" if lam else "")]
+    if polynomial:
+        lines.append(f"raw-input coefficients with |value| > 1e-9 (the paper's count): {facts['raw_nonzero']}")
+    if facts["created_utc"]:
+        lines.append(f"created {facts['created_utc']} by ftcal {facts['ftcal_version']}; "
+                     f"trained on {facts['n_samples']} samples from {facts['n_sources']} file(s)")
+    if facts["prior"]:
+        lines.append(f"shrunk toward the prior {facts['prior']['source']} "
+                     f"(sha256 {facts['prior']['file_sha256'][:12]}…)")
+    lines.append("training ranges:")
+    for variable, unit, low, high in facts["inputs"]:
+        lines.append(f"  {single_line(variable):<8} {low:>14.6g} .. {high:<14.6g} {single_line(unit or '')}")
+    if norm_rmse_text(facts["metrics"]):
+        lines.append("training " + norm_rmse_text(facts["metrics"], ".4g"))
+    if polynomial:
+        basis = "raw inputs" if facts["raw_basis"] else "normalized features"
+        lines.append(f"largest terms (coefficients of {basis}):")
+        for output, term, value in facts["largest"]:
+            lines.append(f"  {single_line(output):<6} {single_line(term):<28} {value: .6g}")
+    return "\n".join(lines) + "\n"
 
 
 def summary(path: str, n_terms: int) -> dict:

@@ -44,7 +44,8 @@ def light_summary(path: str | Path, n_terms: int) -> dict | None:
     """
     path = Path(path)
     try:
-        head = path.open("rb").read(512).lstrip(b"\xef\xbb\xbf \t\r\n")[:1]
+        with path.open("rb") as fh:
+            head = fh.read(512).lstrip(b"\xef\xbb\xbf \t\r\n")[:1]
         if head != b"{":
             return None
         doc = parse_json(read_document_text(path), str(path))
