@@ -51,7 +51,8 @@ def test_an_arx_model_file_still_goes_through_the_full_loader(tmp_path):
     rng = np.random.default_rng(1)
     u = rng.normal(size=(300, 2))
     path = tmp_path / "arx.json"
-    save_model(CalibrationModel(1, na=1, nb=1).fit(Dataset.from_arrays(u, u + 0.01 * rng.normal(size=u.shape))), path)
+    model = CalibrationModel(1, na=1, nb=1).fit(Dataset.from_arrays(u, u + 0.01 * rng.normal(size=u.shape)))
+    save_model(model, path)
     assert {"ftcal.files.model_files", "numpy"} <= imported("info", str(path))
 
 

@@ -95,6 +95,24 @@ def test_a_1e_12_perturbation_prints_the_same_text(tmp_path, name):
     assert report("m", light) == report("m", light_moved) == report("m", summary(str(moved), 10))
 
 
+@pytest.mark.parametrize("degree", [1, 3])
+def test_fitting_inputs_perturbed_by_1e_12_prints_the_same_text(tmp_path, degree):
+    rng = np.random.default_rng(11)
+    data = _data(rng)
+    u, y = data.inputs, data.outputs
+    moved = Dataset.from_arrays(u * (1.0 + 1e-12 * rng.normal(size=u.shape)), y, input_names=data.input_names,
+                                output_names=data.output_names)
+    texts = []
+    for which in (data, moved):
+        doc = model_document(CalibrationModel(degree).fit(which))
+        doc["created"] = DOCUMENTS["degree 1"]["created"]
+        doc["sha256"] = digest(doc)
+        light = light_summary(write(tmp_path, doc), 10)
+        assert light is not None
+        texts.append(report("m", light))
+    assert texts[0] == texts[1]
+
+
 def test_jacobi_eigenvalues_match_numpy():
     rng = np.random.default_rng(5)
     for n in (1, 2, 3, 7):

@@ -29,7 +29,8 @@ def report(name: str, facts: dict) -> str:
     polynomial, lam = facts["polynomial"], facts["lambda"]
     lines = [f"{name}: {facts['kind']}, {facts['n_inputs']} inputs -> {facts['n_outputs']} outputs",
              f"{'coefficients' if polynomial else 'parameters'} {facts['n_coefficients']}, "
-             f"nonzero {facts['n_nonzero']}; solver {facts['solver'] or 'unknown'}" + (f", lambda {lam:g}" if lam else "")]
+             f"nonzero {facts['n_nonzero']}; solver {facts['solver'] or 'unknown'}"
+             + (f", lambda {lam:g}" if lam else "")]
     if polynomial:
         lines.append(f"raw-input coefficients with |value| > 1e-9 (the paper's count): {facts['raw_nonzero']}")
     if facts["created_utc"]:
@@ -67,7 +68,8 @@ def summary(path: str, n_terms: int) -> dict:
     polynomial = model.family == "polynomial"  # terms and raw coefficients exist for polynomials only
     arx = f", ARX na={info['na']} nb={info['nb']}" if info["na"] or info["nb"] else ""
     facts = {
-        "kind": f"polynomial degree {info['degree']}{arx}" if polynomial else f"{model.label()} ({model.family} family)",
+        "kind": (f"polynomial degree {info['degree']}{arx}" if polynomial
+                 else f"{model.label()} ({model.family} family)"),
         "polynomial": polynomial, "n_inputs": info["n_inputs"], "n_outputs": info["n_outputs"],
         "n_coefficients": info["n_coefficients"], "n_nonzero": info["n_nonzero"],
         "solver": model.solver_info_.get("name"), "lambda": model.solver_info_.get("lambda"),

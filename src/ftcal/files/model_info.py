@@ -12,6 +12,7 @@ So the light path never words an error, and never accepts a file the loader refu
 from __future__ import annotations
 
 import math
+import sys
 from itertools import combinations_with_replacement, product
 from math import comb
 from pathlib import Path
@@ -23,10 +24,10 @@ PER_OUTPUT_METRICS = ("rmse", "best_fit", "max_abs_error", "residual_autocorrela
 RAW_THRESHOLD = 1e-9  # the paper's count of raw-input coefficients: |value| > 1e-9
 # Far from float64's overflow (1.8e308): a plain-Python bound below it proves numpy's prediction finite.
 _SAFE = 1e300
-# Plain Python and numpy (sparse products, other summation orders) round differently; a raw coefficient
-# within this fraction of its summed |parts| of the threshold is left to numpy (a sum of n float64 products
-# errs by at most about n * 2.2e-16 of that: 1e-12 covers thousands of terms).
-_ROUNDING = 1e-12
+# Plain Python and numpy (sparse products, other summation orders) round differently: a sum of n parts,
+# each a product of about 3 * degree roundings, errs by at most (n + 3 * degree) * epsilon of the summed
+# |parts|; a raw coefficient within 4 times that of the threshold is left to numpy.
+_ROUNDING = 4 * sys.float_info.epsilon
 
 
 def light_summary(path: str | Path, n_terms: int) -> dict | None:
@@ -61,7 +62,8 @@ def _summary(doc: dict, n_terms: int) -> dict | None:
         return None
     spec, inputs, outputs, fit = doc["model"], doc["inputs"], doc["outputs"], doc["fit"]
     degree, nu, ny = spec["degree"], len(inputs), len(outputs)
-    if spec["na"] or spec["nb"] or not 1 <= degree <= MAX_DEGREE or spec["normalization"] not in NORMALIZATIONS:
+    if (not (nu and ny) or spec["na"] or spec["nb"] or not 1 <= degree <= MAX_DEGREE
+            or spec["normalization"] not in NORMALIZATIONS):
         return None
     if not _envelope_ok(doc, inputs, outputs, fit, nu):
         return None
@@ -75,7 +77,7 @@ def _summary(doc: dict, n_terms: int) -> dict | None:
     in_off, in_scale = [v["offset"] for v in inputs], [v["scale"] for v in inputs]
     if not _prediction_finite(doc, coef, combos, degree):
         return None
-    raw = _raw_nonzero(coef, exponents, in_off, in_scale)
+    raw = _raw_nonzero(coef, exponents, in_off, in_scale, degree)
     order = _largest(coef, ny, max(n_terms, 0))
     if raw is None or order is None:
         return None
@@ -144,7 +146,9 @@ def covariance_acceptable(cov: list[list[float]]) -> bool:
         return False
     eigen = jacobi_eigenvalues(cov)
     frobenius = math.sqrt(sum(x * x for row in cov for x in row))
-    return eigen is not None and min(eigen) >= -COVARIANCE_NEGATIVE * size * n + 1e-12 * n * frobenius
+    if eigen is None or not all(math.isfinite(x) for x in (*eigen, frobenius)):
+        return False
+    return min(eigen) >= -COVARIANCE_NEGATIVE * size * n + 1e-12 * n * frobenius
 
 
 def jacobi_eigenvalues(a: list[list[float]], sweeps: int = 50) -> list[float] | None:
@@ -195,13 +199,14 @@ def _prediction_finite(doc: dict, coef: list, combos: list, degree: int) -> bool
     return len(coef) == len(combos)
 
 
-def _raw_nonzero(coef: list, exponents: list, offset: list, scale: list) -> int | None:
+def _raw_nonzero(coef: list, exponents: list, offset: list, scale: list, degree: int) -> int | None:
     """How many raw-input coefficients exceed :data:`RAW_THRESHOLD` in magnitude (``to_raw``'s substitution
     ``u = (x - offset) / scale`` expanded binomially); None when one is too near the threshold to tell."""
     column_of = {tuple(e): c for c, e in enumerate(exponents)}
     ny = len(coef[0]) if coef else 0
     total = [[0.0] * ny for _ in coef]
     parts = [[0.0] * ny for _ in coef]
+    summands = [0] * len(coef)
     for c, e in enumerate(exponents):
         used = [i for i, k in enumerate(e) if k]
         for ks in product(*(range(e[i] + 1) for i in used)):
@@ -211,15 +216,16 @@ def _raw_nonzero(coef: list, exponents: list, offset: list, scale: list) -> int 
                 factor *= comb(e[i], ki) * (-offset[i]) ** (e[i] - ki) / scale[i] ** e[i]
                 k[i] = ki
             row = column_of[tuple(k)]
+            summands[row] += 1
             for j in range(ny):
                 total[row][j] += factor * coef[c][j]
                 parts[row][j] += abs(factor * coef[c][j])
     count = 0
-    for row_t, row_p in zip(total, parts):
+    for row_t, row_p, n in zip(total, parts, summands):
         for value, bound in zip(row_t, row_p):
             if not (math.isfinite(value) and math.isfinite(bound)):
                 return None
-            if abs(abs(value) - RAW_THRESHOLD) <= _ROUNDING * bound + 1e-300:
+            if abs(abs(value) - RAW_THRESHOLD) <= (n + 3 * degree) * _ROUNDING * bound + 1e-300:
                 return None
             count += abs(value) > RAW_THRESHOLD
     return count
