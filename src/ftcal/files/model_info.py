@@ -75,7 +75,7 @@ def _summary(doc: dict, n_terms: int) -> dict | None:
         return None
     names = [v["name"] for v in inputs]
     in_off, in_scale = [v["offset"] for v in inputs], [v["scale"] for v in inputs]
-    if not _prediction_finite(doc, coef, combos, degree):
+    if not _prediction_finite(doc, coef, degree):
         return None
     raw = _raw_nonzero(coef, exponents, in_off, in_scale, degree)
     order = _largest(coef, ny, max(n_terms, 0))
@@ -177,7 +177,7 @@ def jacobi_eigenvalues(a: list[list[float]], sweeps: int = 50) -> list[float] | 
     return None
 
 
-def _prediction_finite(doc: dict, coef: list, combos: list, degree: int) -> bool:
+def _prediction_finite(doc: dict, coef: list, degree: int) -> bool:
     """True when the prediction at the training range's ends and centre is surely finite in numpy: every
     monomial of normalized inputs (and each partial product) is at most max(1, |z|)^degree, so a bound of
     their weighted sum far below float64's overflow proves it (the loader's own check decides the rest)."""
@@ -196,7 +196,7 @@ def _prediction_finite(doc: dict, coef: list, combos: list, degree: int) -> bool
         bound = reach * sum(abs(row[col]) for row in coef) * 2.0 * out["scale"] + abs(out["offset"])
         if not bound < _SAFE:
             return False
-    return len(coef) == len(combos)
+    return True
 
 
 def _raw_nonzero(coef: list, exponents: list, offset: list, scale: list, degree: int) -> int | None:
