@@ -1,7 +1,7 @@
 """Light commands stay light (issue 43, item 5): what ``ftcal info MODEL`` and ``ftcal --help`` import.
 
-scipy.sparse is still imported by ``info`` (the raw-input coefficient count goes through
-:func:`ftcal.core.conversion.to_raw`'s sparse substitution matrix), so it is not asserted here.
+``info`` reads a valid static polynomial JSON model file without numpy (:mod:`ftcal.files.model_info`);
+other families, ARX models and invalid files go through the full loader, which imports numpy.
 
 An invariant, not a time: the real command runs in a fresh interpreter with ``-X importtime``, whose
 report names every module the process imported; the heavy libraries a model file's description does
@@ -41,10 +41,19 @@ def model_file(tmp_path_factory):
     return str(path)
 
 
-def test_info_imports_neither_pyarrow_nor_jsonschema(model_file):
+def test_info_imports_no_numerical_library(model_file):
     modules = imported("info", model_file)
-    assert "ftcal.files.model_files" in modules and "numpy" in modules  # the report is the real run's
-    assert "pyarrow" not in modules and "jsonschema" not in modules
+    assert {"ftcal.files.model_info", "ftcal.files.json_document"} <= modules  # the report is the real run's
+    assert not modules & {"numpy", "scipy", "pyarrow", "jsonschema", "pandas"}
+
+
+def test_an_arx_model_file_still_goes_through_the_full_loader(tmp_path):
+    rng = np.random.default_rng(1)
+    u = rng.normal(size=(300, 2))
+    path = tmp_path / "arx.json"
+    model = CalibrationModel(1, na=1, nb=1).fit(Dataset.from_arrays(u, u + 0.01 * rng.normal(size=u.shape)))
+    save_model(model, path)
+    assert {"ftcal.files.model_files", "numpy"} <= imported("info", str(path))
 
 
 def test_an_invalid_model_file_still_gets_jsonschema_s_message(model_file, tmp_path):

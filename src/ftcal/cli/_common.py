@@ -145,8 +145,8 @@ def require_suffix(path: str, suffixes: Sequence[str], option: str) -> None:
 
 
 def norm_rmse_text(metrics: dict, spec: str = ".4f", units: bool = True) -> str:
-    """:func:`ftcal.core.metrics.norm_rmse_text`, imported when called (numpy stays unloaded for ``--help``)."""
-    from ..core.metrics import norm_rmse_text as text
+    """:func:`ftcal.core.metrics_text.norm_rmse_text` (numpy-free; imported when called)."""
+    from ..core.metrics_text import norm_rmse_text as text
 
     return text(metrics, spec, units)
 

@@ -16,46 +16,82 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    from ..files.model_info import light_summary
+
+    # A valid static polynomial JSON file is summarized without numpy; anything else is loaded fully
+    # (which refuses an invalid file with its message).
+    print(report(args.model, light_summary(args.model, args.terms) or summary(args.model, args.terms)), end="")
+    return 0
+
+
+def report(name: str, facts: dict) -> str:
+    """The text ``info`` prints for the :func:`summary` ``facts`` of the model file ``name``."""
+    polynomial, lam = facts["polynomial"], facts["lambda"]
+    lines = [f"{name}: {facts['kind']}, {facts['n_inputs']} inputs -> {facts['n_outputs']} outputs",
+             f"{'coefficients' if polynomial else 'parameters'} {facts['n_coefficients']}, "
+             f"nonzero {facts['n_nonzero']}; solver {facts['solver'] or 'unknown'}"
+             + (f", lambda {lam:g}" if lam else "")]
+    if polynomial:
+        lines.append(f"raw-input coefficients with |value| > 1e-9 (the paper's count): {facts['raw_nonzero']}")
+    if facts["created_utc"]:
+        lines.append(f"created {facts['created_utc']} by ftcal {facts['ftcal_version']}; "
+                     f"trained on {facts['n_samples']} samples from {facts['n_sources']} file(s)")
+    if facts["prior"]:
+        lines.append(f"shrunk toward the prior {facts['prior']['source']} "
+                     f"(sha256 {facts['prior']['file_sha256'][:12]}…)")
+    lines.append("training ranges:")
+    for variable, unit, low, high in facts["inputs"]:
+        lines.append(f"  {single_line(variable):<8} {low:>14.6g} .. {high:<14.6g} {single_line(unit or '')}")
+    if norm_rmse_text(facts["metrics"]):
+        lines.append("training " + norm_rmse_text(facts["metrics"], ".4g"))
+    if polynomial:
+        basis = "raw inputs" if facts["raw_basis"] else "normalized features"
+        lines.append(f"largest terms (coefficients of {basis}):")
+        for output, term, value in facts["largest"]:
+            lines.append(f"  {single_line(output):<6} {single_line(term):<28} {value: .6g}")
+    return "\n".join(lines) + "\n"
+
+
+def summary(path: str, n_terms: int) -> dict:
+    """What ``info`` prints, from the fully loaded model file (any family and format).
+
+    :func:`ftcal.files.model_info.light_summary` gives the same keys without numpy for static polynomial
+    JSON files.
+    """
     import numpy as np
 
     from ..files.model_files import load_model_file
 
-    loaded = load_model_file(args.model)
+    loaded = load_model_file(path)
     model = loaded.model
     info = model.describe()
-    lam = model.solver_info_.get("lambda")
     polynomial = model.family == "polynomial"  # terms and raw coefficients exist for polynomials only
     arx = f", ARX na={info['na']} nb={info['nb']}" if info["na"] or info["nb"] else ""
-    kind = f"polynomial degree {info['degree']}{arx}" if polynomial else f"{model.label()} ({model.family} family)"
-    print(f"{args.model}: {kind}, {info['n_inputs']} inputs -> {info['n_outputs']} outputs")
-    print(f"{'coefficients' if polynomial else 'parameters'} {info['n_coefficients']}, nonzero {info['n_nonzero']}; "
-          f"solver {model.solver_info_.get('name') or 'unknown'}" + (f", lambda {lam:g}" if lam else ""))
-    if polynomial:
-        from ..core.conversion import to_raw
-
-        raw_nonzero = int(np.sum(np.abs(to_raw(model)) > 1e-9))
-        print(f"raw-input coefficients with |value| > 1e-9 (the paper's count): {raw_nonzero}")
-    if loaded.created_utc:
-        print(f"created {loaded.created_utc} by ftcal {loaded.ftcal_version}; "
-              f"trained on {model.n_samples_fit_} samples from {len(loaded.sources)} file(s)")
-    if loaded.prior:
-        print(f"shrunk toward the prior {loaded.prior['source']} (sha256 {loaded.prior['file_sha256'][:12]}…)")
-    print("training ranges:")
-    for name, unit, (low, high) in zip(model.input_names_, loaded.input_units, model.input_range_):
-        print(f"  {single_line(name):<8} {low:>14.6g} .. {high:<14.6g} {single_line(unit or '')}")
-    metrics = model.training_metrics_ or {}
-    if norm_rmse_text(metrics):
-        print("training " + norm_rmse_text(metrics, ".4g"))
+    facts = {
+        "kind": (f"polynomial degree {info['degree']}{arx}" if polynomial
+                 else f"{model.label()} ({model.family} family)"),
+        "polynomial": polynomial, "n_inputs": info["n_inputs"], "n_outputs": info["n_outputs"],
+        "n_coefficients": info["n_coefficients"], "n_nonzero": info["n_nonzero"],
+        "solver": model.solver_info_.get("name"), "lambda": model.solver_info_.get("lambda"),
+        "created_utc": loaded.created_utc, "ftcal_version": loaded.ftcal_version,
+        "n_samples": model.n_samples_fit_, "n_sources": len(loaded.sources), "prior": loaded.prior,
+        "inputs": [(name, unit, low, high)
+                   for name, unit, (low, high) in zip(model.input_names_, loaded.input_units, model.input_range_)],
+        "metrics": model.training_metrics_ or {},
+    }
     if not polynomial:
-        return 0
+        return facts
+    from ..core.conversion import to_raw
+
+    facts["raw_nonzero"] = int(np.sum(np.abs(to_raw(model)) > 1e-9))
     names = model.layout_.column_names(model.input_names_, model.output_names_)
     # Features are normalized to about [-1, 1], so |coefficient| measures a term's contribution.
     magnitude = np.abs(model.coef_)
-    order = np.argsort(-magnitude, axis=None)[:max(args.terms, 0)]
+    order = np.argsort(-magnitude, axis=None)[:max(n_terms, 0)]
     norm = model.input_normalization_
-    basis = "raw inputs" if not (norm.offset.any() or (norm.scale != 1).any()) else "normalized features"
-    print(f"largest terms (coefficients of {basis}):")
+    facts["raw_basis"] = not (norm.offset.any() or (norm.scale != 1).any())
+    facts["largest"] = []
     for flat in order:
         row, col = np.unravel_index(flat, magnitude.shape)
-        print(f"  {single_line(model.output_names_[col]):<6} {single_line(names[row]):<28} {model.coef_[row, col]: .6g}")
-    return 0
+        facts["largest"].append((model.output_names_[col], names[row], model.coef_[row, col]))
+    return facts

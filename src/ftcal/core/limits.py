@@ -154,6 +154,13 @@ POSE_BINS = 20
 # against these before it allocates or loops.
 
 MAX_MODEL_BYTES = 100 * 10**6
+# A model file's envelope (ftcal.files.model_json.check_envelope_consistency; ftcal.files.model_info mirrors
+# it without numpy): the smallest normalization scale (float64's smallest normal number, numpy's finfo.tiny),
+# and how far a stored input covariance may be from symmetric (relative to its largest |variance|) and
+# below positive semi-definite (its smallest eigenvalue, relative to that variance times the size).
+MIN_SCALE = 2.2250738585072014e-308
+COVARIANCE_ASYMMETRY = 1e-9
+COVARIANCE_NEGATIVE = 1e-9
 """Largest model or payload file (JSON or paper XML): degree 10 over 7 inputs is ~2 MB of text."""
 
 MAX_TEXT_FILE_BYTES = 50 * 10**6

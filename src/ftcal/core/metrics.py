@@ -21,6 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .metrics_text import norm_rmse_text  # noqa: F401  (its home: numpy-free, for ftcal info)
+
 POSE_CELL_CAP = 100_000  # beyond this many distinct poses no polynomial ftcal fits is near saturation
 
 FORCE_UNIT, TORQUE_UNIT = "N", "N·m"
@@ -504,21 +506,6 @@ def _recentred(n: int, centre: np.ndarray, dev_sum: np.ndarray, dev_sq: np.ndarr
 def _json_list(values: np.ndarray) -> list:
     """Floats for JSON, with None where a value is undefined (NaN)."""
     return [float(v) if np.isfinite(v) else None for v in values]
-
-
-def norm_rmse_text(metrics: dict, spec: str = ".4f", units: bool = True) -> str:
-    """``force-norm RMSE … N, torque-norm RMSE … N·m`` from training metrics; either may be absent
-    (force-only or torque-only outputs); '' when both are.
-
-    Examples
-    --------
-    >>> norm_rmse_text({"force_norm_rmse": 1.5, "torque_norm_rmse": None})
-    'force-norm RMSE 1.5000 N'
-    """
-    parts = [f"{what}-norm RMSE {metrics[key]:{spec}}" + (f" {unit}" if units else "")
-             for what, key, unit in (("force", "force_norm_rmse", "N"), ("torque", "torque_norm_rmse", "N·m"))
-             if metrics.get(key) is not None]
-    return ", ".join(parts)
 
 
 def statistics_training_error(gram: np.ndarray, cross: np.ndarray, target_sq: np.ndarray,

@@ -17,27 +17,21 @@ import json
 from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import datetime, timezone
-from functools import cache
-from importlib import resources
 from pathlib import Path
 
 import numpy as np
 
 from ..core.families import DEFAULT_FAMILY, ModelFamily, family_class, family_of
-from ..core.limits import MAX_MODEL_BYTES
+from ..core.limits import COVARIANCE_ASYMMETRY, COVARIANCE_NEGATIVE, MIN_SCALE
 from ..core.normalization import Normalization
 from ..runtime.atomic import write_text_atomic
 from ..runtime.deprecation import deprecated_alias
 from ..runtime.errors import FtcalError
-from ..runtime.inputs import check_input_file
+from .json_document import (  # noqa: F401  (the strict reader, schema and digest: one source, re-exported)
+    _MAX_INT_DIGITS, _MESSAGE_LIMIT, FORMAT, FORMAT_VERSION, SCHEMA_RESOURCE, _schema, _validator, check_document,
+    check_model_size, check_version, digest, ftcal_version, parse_json, read_document_text)
 
-FORMAT = "ftcal-model"
 PER_OUTPUT_METRICS = ("rmse", "best_fit", "max_abs_error", "residual_autocorrelation_lag1")
-FORMAT_VERSION = "1.0"
-SCHEMA_RESOURCE = "schemas/model-1.json"
-_MESSAGE_LIMIT = 160
-# Integers in a model file are counts and exponents; longer ones are hostile (and slow to parse).
-_MAX_INT_DIGITS = 18
 
 
 @dataclass(frozen=True)
@@ -159,20 +153,6 @@ def jsonable(value):
     return str(value)
 
 
-def ftcal_version() -> str:
-    """The running ftcal's version (recorded in the files ftcal writes)."""
-    from .. import __version__
-
-    return __version__
-
-
-def digest(doc: dict) -> str:
-    """sha256 hex digest of the canonical JSON of ``doc`` without its ``sha256`` field."""
-    content = {k: v for k, v in doc.items() if k != "sha256"}
-    canonical = json.dumps(content, sort_keys=True, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
-    return hashlib.sha256(canonical.encode("utf-8")).hexdigest()
-
-
 def format_document(doc: dict) -> str:
     """Indented JSON with each flat list (a coefficient row, an exponent row) on one line."""
     return _format(doc, 0) + "\n"
@@ -189,22 +169,6 @@ def _format(value, depth: int) -> str:
 
 
 # ---------------------------------------------------------------- reading
-def check_model_size(path: Path, kind: str = "model") -> None:
-    """Refuse a ``kind`` file larger than :data:`MAX_MODEL_BYTES` before reading it."""
-    check_input_file(path, f"{kind} file", max_bytes=MAX_MODEL_BYTES)
-
-
-def read_document_text(path: Path, kind: str = "model") -> str:
-    """The UTF-8 text of an ftcal JSON document, size-checked first; one-line errors naming ``kind``."""
-    check_model_size(path, kind)
-    try:
-        return path.read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        raise FtcalError(f"{path}: not a JSON {kind} file (not UTF-8 text at byte {exc.start}).") from None
-    except OSError as exc:
-        raise FtcalError(f"Cannot read {kind} file {path}: {exc.strerror}.") from None
-
-
 def read_model_json(path: str | Path) -> ModelFile:
     """Read a native JSON model file: the model, its units, data sources and creation metadata.
 
@@ -225,138 +189,6 @@ def parse_model(text: str, source: str = "<model>") -> ModelFile:
     check_version(doc, source)
     check_document(doc, source)
     return _build(doc, source)
-
-
-def check_document(doc: dict, source: str, resource: str = SCHEMA_RESOURCE, kind: str = "model") -> None:
-    """Validate ``doc`` against the packaged schema ``resource``, then its sha256 digest.
-
-    Raises
-    ------
-    FtcalError
-        Naming ``source``, where the document breaks the schema, or that the
-        content no longer matches its digest.
-    """
-    from .schema_subset import Unsupported, is_valid
-
-    try:
-        valid = is_valid(_schema(resource), doc)
-    except Unsupported:
-        valid = False
-    if not valid:  # jsonschema finds the error and words it (imported only then: 0.2-0.3 s)
-        import jsonschema
-
-        error = jsonschema.exceptions.best_match(_validator(resource).iter_errors(doc))
-    if not valid and error is not None:
-        message = error.message if len(error.message) <= _MESSAGE_LIMIT else error.message[:_MESSAGE_LIMIT] + "…"
-        raise FtcalError(f"{source}: invalid {kind} file at {error.json_path}: {message}.")
-    try:
-        sealed = digest(doc)
-    except UnicodeEncodeError as exc:  # a JSON escape of a lone surrogate: it has no UTF-8
-        raise FtcalError(f"{source}: a string holds U+{ord(exc.object[exc.start]):04X}, a lone surrogate, "
-                         f"which is not text; not a valid {kind} file.") from None
-    if sealed != doc["sha256"]:
-        raise FtcalError(f"{source}: the sha256 digest does not match the content: the file was modified "
-                         f"after it was written. Re-export it from the original {kind}.")
-
-
-def parse_json(text: str, source: str, fmt: str = FORMAT, kind: str = "model") -> dict:
-    """Parse an ftcal JSON file strictly: finite floats, bounded integers, no repeated keys.
-
-    Parameters
-    ----------
-    text : the file's text
-    source : the file's name, for messages
-    fmt : the ``format`` field the document must have
-    kind : what the file is (``"model"``, ``"payload"``), for messages
-
-    Returns
-    -------
-    dict, the document
-
-    Raises
-    ------
-    FtcalError
-        Invalid JSON, NaN/Infinity, an overflowing number, an integer of more than 18
-        digits, a key repeated in one object, too deep nesting, or another ``format``.
-    """
-
-    def reject_constant(name: str):
-        raise FtcalError(f"{source}: {name} is not valid JSON ({kind} files write unknown numbers as null).")
-
-    def finite_float(text: str) -> float:
-        value = float(text)
-        if not np.isfinite(value):
-            raise FtcalError(f"{source}: the number {text[:40]} overflows float64.")
-        return value
-
-    def small_int(text: str) -> int:
-        if len(text.lstrip("-")) > _MAX_INT_DIGITS:
-            raise FtcalError(f"{source}: the integer {text[:20]}… has more than {_MAX_INT_DIGITS} digits.")
-        return int(text)
-
-    def unique_keys(pairs: list[tuple[str, object]]) -> dict:
-        # A parser keeping the first of two equal keys would see other values than the digest covers.
-        keys = [k for k, _ in pairs]
-        if len(set(keys)) != len(keys):
-            twice = next(k for k in keys if keys.count(k) > 1)
-            raise FtcalError(f"{source}: the key {twice!r} appears twice in one JSON object.")
-        return dict(pairs)
-
-    try:
-        doc = json.loads(text, parse_constant=reject_constant, parse_float=finite_float, parse_int=small_int,
-                         object_pairs_hook=unique_keys)
-    except json.JSONDecodeError as exc:
-        raise FtcalError(f"{source}: not valid JSON: {exc.msg} at line {exc.lineno}, column {exc.colno}.") from None
-    except RecursionError:
-        raise FtcalError(f"{source}: JSON nested too deeply to be a {kind} file.") from None
-    if not isinstance(doc, dict) or doc.get("format") != fmt:
-        raise FtcalError(f"{source}: not an ftcal {kind} file (expected a JSON object with "
-                         f"\"format\": \"{fmt}\").")
-    return doc
-
-
-def check_version(doc: dict, source: str, supported: str = FORMAT_VERSION) -> None:
-    """Refuse a document whose ``format_version`` is not ``supported``, saying whether it is newer.
-
-    Parameters
-    ----------
-    doc : the parsed document
-    source : the file's name, for messages
-    supported : the version this ftcal reads
-
-    Raises
-    ------
-    FtcalError
-    """
-    version = doc.get("format_version")
-    if version == supported:
-        return
-    try:
-        newer = tuple(map(int, str(version).split("."))) > tuple(map(int, supported.split(".")))
-    except ValueError:
-        newer = False
-    if newer:
-        raise FtcalError(f"{source}: format_version {version} is newer than this ftcal ({ftcal_version()}) "
-                         f"reads (up to {supported}); upgrade ftcal to load it.")
-    raise FtcalError(f"{source}: unknown format_version {version!r}; this ftcal reads {supported}.")
-
-
-@cache
-def _schema(resource: str = SCHEMA_RESOURCE) -> dict:
-    """The packaged schema ``resource``, parsed."""
-    return json.loads(resources.files("ftcal").joinpath(resource).read_text(encoding="utf-8"))
-
-
-@cache
-def _validator(resource: str = SCHEMA_RESOURCE):
-    """The schema validator (jsonschema is imported only when a document is not valid: it words the error)."""
-    import jsonschema
-
-    schema = _schema(resource)
-    # JSON integers only: jsonschema would also accept 2.0 as an "integer".
-    strict = jsonschema.Draft202012Validator.TYPE_CHECKER.redefine(
-        "integer", lambda _, value: isinstance(value, int) and not isinstance(value, bool))
-    return jsonschema.validators.extend(jsonschema.Draft202012Validator, type_checker=strict)(schema)
 
 
 def _build(doc: dict, source: str) -> ModelFile:
@@ -396,7 +228,7 @@ def check_envelope_consistency(doc: dict, source: str) -> None:
     FtcalError
         Naming ``source``, the field (JSON path) and what is wrong with it.
     """
-    tiny = np.finfo(np.float64).tiny
+    tiny = MIN_SCALE
     for what in ("inputs", "outputs"):
         for k, variable in enumerate(doc[what]):
             where = f"{source}: {what}[{k}] ({variable['name']!r})"
@@ -428,9 +260,9 @@ def check_envelope_consistency(doc: dict, source: str) -> None:
             return  # wrong shapes or nulls: the family's reader names them
         if cov.ndim == 2 and cov.shape[0] == cov.shape[1] and np.isfinite(cov).all():
             size = max(float(np.abs(np.diag(cov)).max(initial=0.0)), tiny)
-            if np.abs(cov - cov.T).max(initial=0.0) > 1e-9 * size:
+            if np.abs(cov - cov.T).max(initial=0.0) > COVARIANCE_ASYMMETRY * size:
                 raise FtcalError(f"{source}: fit.input_spread.covariance is not symmetric.")
-            if cov.size and np.linalg.eigvalsh(cov).min() < -1e-9 * size * len(cov):
+            if cov.size and np.linalg.eigvalsh(cov).min() < -COVARIANCE_NEGATIVE * size * len(cov):
                 raise FtcalError(f"{source}: fit.input_spread.covariance has a negative variance direction "
                                  "(not positive semi-definite).")
 
