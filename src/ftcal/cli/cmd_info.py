@@ -87,7 +87,8 @@ def summary(path: str, n_terms: int) -> dict:
     names = model.layout_.column_names(model.input_names_, model.output_names_)
     # Features are normalized to about [-1, 1], so |coefficient| measures a term's contribution.
     magnitude = np.abs(model.coef_)
-    order = np.argsort(-magnitude, axis=None)[:max(n_terms, 0)]
+    # stable: equal magnitudes (a LASSO's exact zeros) listed in term order on every CPU (AVX-512 sorts ties its own way)
+    order = np.argsort(-magnitude, axis=None, kind="stable")[:max(n_terms, 0)]
     norm = model.input_normalization_
     facts["raw_basis"] = not (norm.offset.any() or (norm.scale != 1).any())
     facts["largest"] = []

@@ -79,7 +79,7 @@ def _summary(doc: dict, n_terms: int) -> dict | None:
         return None
     raw = _raw_nonzero(coef, exponents, in_off, in_scale, degree)
     order = _largest(coef, ny, max(n_terms, 0))
-    if raw is None or order is None:
+    if raw is None:
         return None
     created, solver = doc["created"], fit["solver"]
     term_names = ["·".join(n if e == 1 else f"{n}^{e}" for n, e in zip(names, row) if e) or "1" for row in exponents]
@@ -231,12 +231,8 @@ def _raw_nonzero(coef: list, exponents: list, offset: list, scale: list, degree:
     return count
 
 
-def _largest(coef: list, ny: int, n: int) -> list[int] | None:
-    """Flat indices (row-major) of the ``n`` largest |coefficients|, largest first; None on a tie that
-    decides the listing (numpy's argsort orders ties its own way)."""
+def _largest(coef: list, ny: int, n: int) -> list[int]:
+    """Flat indices (row-major) of the ``n`` largest |coefficients|, largest first, ties in term order (Python's
+    sort is stable, as the loader's ``argsort(kind="stable")``)."""
     magnitude = [abs(x) for row in coef for x in row]
-    order = sorted(range(len(magnitude)), key=lambda f: -magnitude[f])
-    shown = [magnitude[f] for f in order[:n + 1]]
-    if any(a == b for a, b in zip(shown, shown[1:])):
-        return None
-    return order[:n]
+    return sorted(range(len(magnitude)), key=lambda f: -magnitude[f])[:n]
