@@ -47,3 +47,14 @@ def test_the_written_line_comes_from_output(tmp_path):
     target = tmp_path / "m.json"
     result = ftcal.fit(_table(0), inputs=["u1"], outputs=["Fx"], output=target)
     assert result.lines[-1] == f"wrote {target}" and result.lines[:-1] == replace(result, output=None).lines
+
+
+def test_the_selection_text_is_rendered_from_the_selection():
+    # Four load cases of a cubic sensor: degree="auto" runs the grouped search; its verdict is printed.
+    frame = pd.concat([_table(seed, n=40).assign(load=f"L{seed}") for seed in range(4)], ignore_index=True)
+    result = ftcal.fit(frame, inputs=["u1"], outputs=["Fx"], degree="auto", group_by="load", max_degree=3)
+    verdict = result.selection.verdict()
+    assert verdict in result.summary() and not any(verdict in line for line in result.preamble)
+    # A selection that chose otherwise renders its own verdict in the same place.
+    other = replace(result.selection, best=result.selection.scores[-1].candidate, selection=[])
+    assert replace(result, selection=other).summary().count(other.verdict()) == 1

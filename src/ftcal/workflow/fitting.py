@@ -52,7 +52,8 @@ class FitResult(StepResult):
     output : str or None
         The model file written, or None (``result.save(path)`` writes it later).
     preamble : list of str
-        The report's lines before the model's (excitation, cross-validation, the search), as printed.
+        The report's lines before the model's (excitation, cross-validation, the search's cost and span),
+        as printed, less the selection's own text, which :attr:`selection` renders.
     lines : list of str
         The report, line by line (standard output of ``ftcal fit``): :attr:`preamble`, then the model,
         coefficients and training errors rendered from :attr:`model` (:func:`model_report`), then
@@ -60,7 +61,8 @@ class FitResult(StepResult):
     notes : list of str
         Side remarks (standard error of ``ftcal fit``): samples read, rows dropped, warnings.
     selection : CrossValidationResult or None
-        The ``degree="auto"`` search, when it ran.
+        The ``degree="auto"`` search, when it ran: its scores per candidate and part (``cv_results_``-like),
+        the choice and the verdict; the report prints its :meth:`summary` (its ``table()`` with ``verbose``).
 
     Examples
     --------
@@ -79,11 +81,18 @@ class FitResult(StepResult):
     notes: list[str] = field(default_factory=list)
     selection: Any = None
     _save: dict = field(default_factory=dict)
+    # Where the selection's text stands in the report: (line of the preamble, notes it had then, verbose).
+    # The search adds notes for the model file after it printed (span, cost); the report shows those apart.
+    _selection_at: tuple | None = None
 
     @property
     def lines(self) -> list[str]:
         """The report, line by line: the stored :attr:`preamble`, then what the typed fields render."""
-        return [*self.preamble, *model_report(self.model), *([written_line(self.output)] if self.output else [])]
+        preamble = list(self.preamble)
+        if self._selection_at is not None:
+            at, n_notes, verbose = self._selection_at
+            preamble.insert(at, selection_text(replace(self.selection, notes=self.selection.notes[:n_notes]), verbose))
+        return [*preamble, *model_report(self.model), *([written_line(self.output)] if self.output else [])]
 
     def summary(self) -> str:
         return "\n".join(self.lines)
@@ -554,6 +563,7 @@ class _Fit:
         self.lines: list[str] = _EchoedLines(echo)
         self.notes: list[str] = []
         self.selection = None
+        self._selection_at = None
 
     # ------------------------------------------------------------------ entry
     def run(self, inputs, outputs) -> FitResult:
@@ -622,7 +632,7 @@ class _Fit:
                               "--group-by COL for another")
 
     def _result(self, model, save: dict) -> FitResult:
-        return FitResult(model, None, list(self.lines), self.notes, self.selection, save)
+        return FitResult(model, None, list(self.lines), self.notes, self.selection, save, self._selection_at)
 
     def _report_model(self, model) -> None:
         """Print the model's lines (:func:`model_report`); the result renders them again from the model, so
@@ -921,7 +931,10 @@ class _Fit:
                 budget = SearchBudget(o.budget, planned, clock=lambda: time.process_time() - o.cpu_start)
                 result = select_model(data, degrees=degrees, penalties=o.penalties, lambdas=o.lambdas,
                                       relative=not paper, budget=budget, advance=advance, **options)
-        self.lines.append(result.table() if o.verbose else result.summary())
+        # Printed now; the result renders it again from the selection (not stored with the preamble).
+        if self.lines.echo is not None:
+            self.lines.echo(selection_text(result, o.verbose))
+        self._selection_at = (len(self.lines), len(result.notes), bool(o.verbose))
         ranges = group_output_ranges(data.data.outputs, data.data.groups) if isinstance(data, DatasetStatistics) \
             else getattr(getattr(data, "summary", None), "group_output_ranges", None)
         if ranges and result.search is not None:
@@ -1101,6 +1114,11 @@ class _Fit:
                 f"warning: the training error of {', '.join(exact)} is ~0 of the outputs' spread (BestFit > 1 - "
                 f"{EXACT_FIT:g}): the reference is an exact function of the inputs (a reference copied from or "
                 "computed from the readings?); no measured sensor fits this well.")
+
+
+def selection_text(selection, verbose: bool = False) -> str:
+    """The report's text of a ``degree="auto"`` search: its summary, or with ``verbose`` its full table."""
+    return selection.table() if verbose else selection.summary()
 
 
 def written_line(output: str) -> str:
