@@ -27,7 +27,7 @@ FLAG = re.compile(r"(?<![\w-])--[a-z][a-z0-9-]+")
 # The layers above the steps speak to the command line (cli) or are the demos (sim).
 ABOVE_THE_STEPS = {"cli", "sim"}
 # Files other branches rewrite in this session; their flags are theirs to rename (see the branch report).
-PENDING = {"live", "core/select/folds.py", "core/select/poses.py", "core/select/search.py", "payload/drift.py"}
+PENDING: set[str] = set()
 
 
 def _flag_sites(path: Path) -> list[str]:

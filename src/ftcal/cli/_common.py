@@ -21,6 +21,7 @@ FLAGS = {
     "recorded": "--from",  # ftcal plan: tables of poses already recorded
     "tools": "--tool",  # ftcal live: the tool library, one --tool NAME=PAYLOAD.json each
     "single_precision": "--float",  # ftcal convert: float code
+    "payload_files": "--payload-file",  # ftcal convert --to c-runtime: one --payload-file [NAME=]TOOL.json each
 }
 
 

@@ -63,7 +63,7 @@ from ..files.c_text import c_comment, c_identifier, c_string, printable_ascii
 from ..files.model_json import ModelFile, ftcal_version
 from ..files.targets import ConvertOptions, Written
 from ..runtime.atomic import write_text_atomic
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, ParameterError
 from .c_consistency import selfcheck_config, selfcheck_macros
 from .c_limits import DRIFT_SNAPSHOTS
 from .c_events import event_macros, events_config
@@ -163,7 +163,8 @@ def core_config(model, tools: dict, *, max_holds: int = C_RUNTIME_MAX_HOLDS) -> 
         t_col = temperature_column(model.input_names_)
         channels = [j for j in range(nu) if j != t_col]
         if not channels:
-            raise FtcalError("--to c-runtime: the model's only input is a temperature; the step needs sensor channels.")
+            raise ParameterError("to", "{to} c-runtime: the model's only input is a temperature; the step needs "
+                                       "sensor channels.")
         rng = np.asarray(model.input_range_, float)
         slack = RANGE_TOLERANCE * np.maximum(rng[:, 1] - rng[:, 0], 1.0)
     params = runtime_parameters(tools)
@@ -174,7 +175,7 @@ def core_config(model, tools: dict, *, max_holds: int = C_RUNTIME_MAX_HOLDS) -> 
     for what, values in (("tool masses", mass), ("tool centres of mass", mc), ("noise", params["noise_variance"]),
                          ("walk", params["walk_variance"]), ("wander", params["wander_density"])):
         if not np.all(np.isfinite(np.asarray(values, float))):
-            raise FtcalError(f"--to c-runtime: the {what} are not all finite; refusing to generate code.")
+            raise ParameterError("to", f"{{to}} c-runtime: the {what} are not all finite; refusing to generate code.")
     config = {"n_inputs": nu, "n_channels": len(channels), "n_tools": len(names), "channels": np.array(channels),
               "channel_range": rng[channels], "input_low": rng[:, 0] - slack, "input_high": rng[:, 1] + slack,
               "temperature": -1 if t_col is None else int(t_col),
@@ -250,17 +251,19 @@ def generate_c_runtime(model, tools: dict, *, name: str = DEFAULT_NAME, sha256: 
     if not isinstance(max_holds, int) or not LIVE_MIN_HOLDS <= max_holds <= C_RUNTIME_MAX_HOLDS:
         raise FtcalError(f"max_holds must be an int in [{LIVE_MIN_HOLDS}, {C_RUNTIME_MAX_HOLDS}]; got {max_holds!r}.")
     if len(model.output_names_) != 6:
-        raise FtcalError(f"--to c-runtime: the model has {len(model.output_names_)} outputs; a wrench needs 6.")
+        raise ParameterError("to", f"{{to}} c-runtime: the model has {len(model.output_names_)} outputs; "
+                                   "a wrench needs 6.")
     predict = static_predict_function(model, f"static inline void {name}_calibrate")
     macro, nu = name.upper(), len(model.input_names_)
     for tool in tools:
         if not isinstance(tool, str) or not tool or tool == NO_TOOL or "\0" in tool:
-            raise FtcalError(f"--to c-runtime: tool {printable_ascii(repr(tool))[:80]} needs a name other than "
-                             f"{NO_TOOL!r}, without NUL characters.")
+            raise ParameterError("to", f"{{to}} c-runtime: tool {printable_ascii(repr(tool))[:80]} needs a name "
+                                 f"other than {NO_TOOL!r}, without NUL characters.")
         size = len(tool.encode("utf-8", "surrogatepass"))
         if size > C_RUNTIME_MAX_TOOL_NAME:  # a longer literal may not compile (C99 guarantees 4095 bytes)
-            raise FtcalError(f"--to c-runtime: tool {printable_ascii(repr(tool))[:80]} has a name of {size} bytes; at "
-                             f"most {C_RUNTIME_MAX_TOOL_NAME} (UTF-8), as for a name given at run time.")
+            raise ParameterError("to", f"{{to}} c-runtime: tool {printable_ascii(repr(tool))[:80]} has a name "
+                                 f"of {size} bytes; at most {C_RUNTIME_MAX_TOOL_NAME} (UTF-8), as for a name given at "
+                                 "run time.")
     config = core_config(model, tools, max_holds=max_holds)
     sources = list(tool_sources or [None] * len(tools))
     comment = c_comment([
@@ -394,17 +397,18 @@ def write_c_runtime(source: ModelFile, output: Path, options: ConvertOptions) ->
         default = DEFAULT_NAME
     name = c_identifier(options.get("name", default))
     if getattr(source.model, "family", "polynomial") != "polynomial" or not source.model.layout_.is_static:
-        raise FtcalError("--to c-runtime takes a static polynomial model (no ARX lags).")
+        raise ParameterError("to", "{to} c-runtime takes a static polynomial model (no ARX lags).")
     tools, files = {}, []
     for spec in options.get("payload_files", []) or []:
         tool, sep, path = str(spec).partition("=")
         if not sep:
             tool, path = Path(spec).stem, spec
         if not tool or tool == NO_TOOL:
-            raise FtcalError(f"--payload-file {spec}: a tool needs a name other than {NO_TOOL!r}.")
+            raise ParameterError("payload_files", f"{{payload_files}} {spec}: a tool needs a name other than "
+                                                  f"{NO_TOOL!r}.")
         if tool in tools:
-            raise FtcalError(f"--payload-file {spec}: the name {tool!r} is taken; give each tool its own name "
-                             "(NAME=FILE).")
+            raise ParameterError("payload_files", f"{{payload_files}} {spec}: the name {tool!r} is taken; give each "
+                                 "tool its own name (NAME=FILE).")
         if Path(path).resolve() == output.resolve():
             raise FtcalError(f"-o {output} is the input file {path}; choose another output path.")
         tools[tool] = load_payload(path)

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ..data.tables import parquet_write_options
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, ParameterError
 from .calibrator import LiveCalibrator, LiveResult
 from .health import names_of
 
@@ -187,11 +187,11 @@ def replay_table(path: str | os.PathLike, live: LiveCalibrator, columns: ReplayC
     output = Path(output)
     suffix = output.suffix.lower()
     if suffix not in (".csv", ".parquet"):
-        raise FtcalError(f"-o {output}: the replay's output must end in .csv or .parquet.")
+        raise ParameterError("output", f"{{output}} {output}: the replay's output must end in .csv or .parquet.")
     for event in events:
         if event.action == "switch" and event.argument not in live.tools:
-            raise FtcalError(f"--switch-tool {event.time:g}:{event.argument}: no tool {event.argument!r} in the "
-                             f"library ({', '.join(live.tools)}).")
+            raise ParameterError("switch_tool", f"{{switch_tool}} {event.time:g}:{event.argument}: no tool "
+                                 f"{event.argument!r} in the library ({', '.join(live.tools)}).")
     names = (columns.time, *columns.signal, *columns.gravity) + ((columns.temperature,) if columns.temperature else ())
     if len(set(names)) != len(names):
         raise FtcalError(f"{path}: a column is named twice among {', '.join(names)}.")

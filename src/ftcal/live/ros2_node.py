@@ -30,7 +30,7 @@ from __future__ import annotations
 import math
 import threading
 
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, ParameterError
 from .health import names_of
 from .node_core import NodeCore
 
@@ -142,7 +142,7 @@ class Ros2Node:
             rclpy.init(args=["ftcal", "--ros-args", *ros_args] if ros_args else ["ftcal"], context=self.context,
                        signal_handler_options=SignalHandlerOptions.NO)
         except Exception as exc:  # rcl's error on a bad --ros-args (an unknown rule, a missing params file)
-            raise FtcalError(f"--ros-args: {str(exc).splitlines()[0]}") from None
+            raise ParameterError("ros_args", f"{{ros_args}}: {str(exc).splitlines()[0]}") from None
         try:
             self.node = rclpy.create_node(NODE_NAME, context=self.context)
             self.settings = self._declare(settings)

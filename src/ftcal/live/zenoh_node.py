@@ -56,7 +56,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.limits import LIVE_MAX_QUERY_BYTES, LIVE_MAX_TOPIC_BYTES
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, ParameterError
 from .cdr import IMU_DOUBLES, TEMPERATURE_DOUBLES, WRENCH_DOUBLES, decode_stamped, encode_like
 from .node_core import COMMANDS, JOINT_MAX_AGE_S, MAX_JOINT_LISTS, NodeCore, tool_name  # noqa: F401 (re-exported)
 
@@ -156,12 +156,13 @@ def open_session(listen=(), connect=(), low_latency: bool = False):
         text = str(exc)
         if "Address already in use" in text or "Can not create a new" in text:
             where = next((e for e in listen or (DEFAULT_ENDPOINT,) if e in text), ", ".join(listen) or DEFAULT_ENDPOINT)
-            raise FtcalError(f"--listen {where}: the address is in use (another ftcal live, or a Zenoh router: "
-                             "give --listen tcp/127.0.0.1:PORT with a free port, or --connect to that router).") from None
+            raise ParameterError(("listen", "connect"), f"{{listen}} {where}: the address is in use (another ftcal "
+                                 "live, or a Zenoh router: give {listen} tcp/127.0.0.1:PORT with a free port, or "
+                                 "{connect} to that router).") from None
         if "Unable to connect" in text:
-            raise FtcalError(f"--connect {', '.join(connect)}: nothing answered within {CONNECT_TIMEOUT_MS / 1000:g} s "
-                             "(start the router first, e.g. ros2 run rmw_zenoh_cpp rmw_zenohd, or check the "
-                             "endpoint).") from None
+            raise ParameterError("connect", f"{{connect}} {', '.join(connect)}: nothing answered within "
+                                 f"{CONNECT_TIMEOUT_MS / 1000:g} s (start the router first, e.g. ros2 run "
+                                 "rmw_zenoh_cpp rmw_zenohd, or check the endpoint).") from None
         first = text.split(" at /", 1)[0].splitlines()[0] if text else type(exc).__name__
         raise FtcalError(f"Zenoh could not open the session: {first}") from None
 
@@ -198,14 +199,14 @@ class LiveNode(NodeCore):
 
     def __init__(self, live, options: ZenohOptions, *, robot=None, echo=print) -> None:
         if (robot is None) != (options.joints_topic is None):
-            raise FtcalError("--joints-topic and a robot model (--urdf) go together.")
+            raise ParameterError(("joints_topic", "urdf"), "{joints_topic} and a robot model ({urdf}) go together.")
         self.options = options
-        for flag, topic in (("--wrench-topic", options.wrench_topic), ("--imu-topic", options.imu_topic),
-                            ("--joints-topic", options.joints_topic),
-                            ("--temperature-topic", options.temperature_topic), ("--prefix", options.prefix)):
+        for name, topic in (("wrench_topic", options.wrench_topic), ("imu_topic", options.imu_topic),
+                            ("joints_topic", options.joints_topic),
+                            ("temperature_topic", options.temperature_topic), ("prefix", options.prefix)):
             if topic is not None and len(topic.encode("utf-8", "surrogatepass")) > LIVE_MAX_TOPIC_BYTES:
-                raise FtcalError(f"{flag}: a topic of {len(topic.encode('utf-8', 'surrogatepass'))} bytes; at most "
-                                 f"{LIVE_MAX_TOPIC_BYTES} (ROS 2's limit; Zenoh aborts on much longer keys).")
+                raise ParameterError(name, f"{{{name}}}: a topic of {len(topic.encode('utf-8', 'surrogatepass'))} "
+                                           f"bytes; at most {LIVE_MAX_TOPIC_BYTES} (ROS 2's limit; Zenoh aborts on much longer keys).")
         self.store = typestore()
         self.topics = {"wrench": (options.wrench_topic, WRENCH_TYPE), "imu": (options.imu_topic, IMU_TYPE),
                        "joints": (options.joints_topic, JOINT_STATE_TYPE),

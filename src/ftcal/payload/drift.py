@@ -40,7 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..runtime.errors import FtcalError
+from ..runtime.errors import FtcalError, ParameterError
 from .regressor import STATIC_PARAMETERS
 
 SECONDS_PER_HOUR = 3600.0
@@ -176,8 +176,8 @@ def check_time(time: np.ndarray, column: str, source: str) -> None:
 def check_temperature(temperature: np.ndarray, column: str) -> None:
     """Refuse a constant temperature column (no temperature coefficient can be fitted)."""
     if np.ptp(temperature) == 0.0:
-        raise FtcalError(f"--temperature {column}: the column is constant ({temperature[0]:g}); "
-                         "the bias cannot be fitted against it (leave --temperature out).")
+        raise ParameterError("temperature", f"{{temperature}} {column}: the column is constant ({temperature[0]:g}); "
+                             "the bias cannot be fitted against it (leave {temperature} out).")
 
 
 def covariates(hours: np.ndarray | None, temperature: np.ndarray | None) -> tuple[np.ndarray | None, tuple[str, ...]]:

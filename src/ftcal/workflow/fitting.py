@@ -51,12 +51,18 @@ class FitResult(StepResult):
         The fitted model (its ``training_metrics_`` hold the training errors).
     output : str or None
         The model file written, or None (``result.save(path)`` writes it later).
+    preamble : list of str
+        The report's lines before the model's (excitation, cross-validation, the search's cost and span),
+        as printed, less the selection's own text, which :attr:`selection` renders.
     lines : list of str
-        The report, line by line (standard output of ``ftcal fit``).
+        The report, line by line (standard output of ``ftcal fit``): :attr:`preamble`, then the model,
+        coefficients and training errors rendered from :attr:`model` (:func:`model_report`), then
+        ``wrote FILE`` when :attr:`output` is set.
     notes : list of str
         Side remarks (standard error of ``ftcal fit``): samples read, rows dropped, warnings.
     selection : CrossValidationResult or None
-        The ``degree="auto"`` search, when it ran.
+        The ``degree="auto"`` search, when it ran: its scores per candidate and part (``cv_results_``-like),
+        the choice and the verdict; the report prints its :meth:`summary` (its ``table()`` with ``verbose``).
 
     Examples
     --------
@@ -71,10 +77,22 @@ class FitResult(StepResult):
 
     model: Any
     output: str | None
-    lines: list[str]
+    preamble: list[str]
     notes: list[str] = field(default_factory=list)
     selection: Any = None
     _save: dict = field(default_factory=dict)
+    # Where the selection's text stands in the report: (line of the preamble, notes it had then, verbose).
+    # The search adds notes for the model file after it printed (span, cost); the report shows those apart.
+    _selection_at: tuple | None = None
+
+    @property
+    def lines(self) -> list[str]:
+        """The report, line by line: the stored :attr:`preamble`, then what the typed fields render."""
+        preamble = list(self.preamble)
+        if self._selection_at is not None:
+            at, n_notes, verbose = self._selection_at
+            preamble.insert(at, selection_text(replace(self.selection, notes=self.selection.notes[:n_notes]), verbose))
+        return [*preamble, *model_report(self.model), *([written_line(self.output)] if self.output else [])]
 
     def summary(self) -> str:
         return "\n".join(self.lines)
@@ -220,7 +238,8 @@ def fit(data, model=None, *, payload=None, inputs: Sequence[str] | None = None, 
     if output is not None:
         result.save(output)
         result.output = output
-        result.lines.append(f"wrote {output}")
+        if echo is not None:
+            echo(written_line(output))
     return result
 
 
@@ -544,6 +563,7 @@ class _Fit:
         self.lines: list[str] = _EchoedLines(echo)
         self.notes: list[str] = []
         self.selection = None
+        self._selection_at = None
 
     # ------------------------------------------------------------------ entry
     def run(self, inputs, outputs) -> FitResult:
@@ -566,7 +586,7 @@ class _Fit:
             self._dropped_note(dropped)
             save = dict(sources=self.sources, training_segments=segment_fingerprints(data))
             if getattr(model, "family", "polynomial") == "mlp":
-                self._report_mlp(model)
+                self._report_model(model)
             else:  # the MLP lost to the affine model beyond the fold noise: that is what was written
                 self._report_fit(model)
             return self._result(model, save)
@@ -612,7 +632,14 @@ class _Fit:
                               "--group-by COL for another")
 
     def _result(self, model, save: dict) -> FitResult:
-        return FitResult(model, None, self.lines, self.notes, self.selection, save)
+        return FitResult(model, None, list(self.lines), self.notes, self.selection, save, self._selection_at)
+
+    def _report_model(self, model) -> None:
+        """Print the model's lines (:func:`model_report`); the result renders them again from the model, so
+        they are not stored with the preamble."""
+        if self.lines.echo is not None:
+            for line in model_report(model):
+                self.lines.echo(line)
 
     def _read_note(self, n_samples: int, inputs, outputs, extra: str = "") -> None:
         files = len(self.paths) if self.paths else len(self.sources)
@@ -904,7 +931,10 @@ class _Fit:
                 budget = SearchBudget(o.budget, planned, clock=lambda: time.process_time() - o.cpu_start)
                 result = select_model(data, degrees=degrees, penalties=o.penalties, lambdas=o.lambdas,
                                       relative=not paper, budget=budget, advance=advance, **options)
-        self.lines.append(result.table() if o.verbose else result.summary())
+        # Printed now; the result renders it again from the selection (not stored with the preamble).
+        if self.lines.echo is not None:
+            self.lines.echo(selection_text(result, o.verbose))
+        self._selection_at = (len(self.lines), len(result.notes), bool(o.verbose))
         ranges = group_output_ranges(data.data.outputs, data.data.groups) if isinstance(data, DatasetStatistics) \
             else getattr(getattr(data, "summary", None), "group_output_ranges", None)
         if ranges and result.search is not None:
@@ -1051,18 +1081,6 @@ class _Fit:
                                   "predicts new load cases better (the MLP is written, as asked)")
         return model, data
 
-    def _report_mlp(self, model) -> None:
-        from ..core.metrics import norm_rmse_text
-
-        info = model.describe()
-        metrics = model.training_metrics_
-        self.lines.append(f"model: {model.label()}, {info['n_coefficients']} weights, {model.n_iter_} L-BFGS "
-                          f"iterations, samples: {model.n_samples_fit_}")
-        if norm_rmse_text(metrics):
-            self.lines.append("training " + norm_rmse_text(metrics, units=False))
-        self.lines.append("training RMSE per output: " + ", ".join(
-            f"{n} {v:.4g}" for n, v in zip(model.output_names_, stated_rmse(model, metrics["rmse"]))))
-
     # ------------------------------------------------------------------ report
     def _report_excitation(self, spread, outputs) -> None:
         """Report how far the reference wrenches excite each direction; warn, with the fix, when some are not.
@@ -1079,31 +1097,8 @@ class _Fit:
             warnings.warn(message, IllPosedFitWarning, stacklevel=4)
 
     def _report_fit(self, model) -> None:
-        from ..core.metrics import norm_rmse_text, output_units
-
-        info = model.describe()
-        metrics = model.training_metrics_
-        lam = model.solver_info_.get("lambda")
-        self.lines.append(f"model: degree {info['degree']}"
-                          + (f", ARX na={info['na']} nb={info['nb']}" if info["na"] or info["nb"] else "")
-                          + f", solver {model.solver_info_.get('name')}" + (f" lambda={lam:g}" if lam else ""))
-        self.lines.append(f"coefficients: {info['n_coefficients']} ({info['n_nonzero']} nonzero); samples: "
-                          f"{model.n_samples_fit_}; condition number: {model.condition_number_:.3g}")
-        if lam:
-            from ..core.conversion import to_raw
-
-            raw_count = int((abs(to_raw(model)) > 1e-9).sum())
-            self.lines.append(f"raw-input coefficients with |value| > 1e-9 (the paper's count): {raw_count}")
-        if norm_rmse_text(metrics):
-            self.lines.append("training " + norm_rmse_text(metrics))
-        elif error_norm_text(metrics):  # training errors from the sufficient statistics
-            self.lines.append("training " + error_norm_text(metrics) + " (from the fit's statistics; max |error| "
-                              "and norm RMSE: ftcal evaluate MODEL DATA)")
-        self.lines.append("training RMSE per output: " + ", ".join(
-            f"{n} {v:.4g}" + (f" {u}" if u else "")
-            for n, v, u in zip(model.output_names_, stated_rmse(model, metrics["rmse"]),
-                               output_units(model.output_names_))))
-        self._warn_if_exact(model.output_names_, metrics.get("best_fit"))
+        self._report_model(model)
+        self._warn_if_exact(model.output_names_, model.training_metrics_.get("best_fit"))
 
     def _warn_if_exact(self, names, best_fit) -> None:
         """Say loudly when the training error is ~0 of the outputs' spread: no real sensor fits that well.
@@ -1119,6 +1114,62 @@ class _Fit:
                 f"warning: the training error of {', '.join(exact)} is ~0 of the outputs' spread (BestFit > 1 - "
                 f"{EXACT_FIT:g}): the reference is an exact function of the inputs (a reference copied from or "
                 "computed from the readings?); no measured sensor fits this well.")
+
+
+def selection_text(selection, verbose: bool = False) -> str:
+    """The report's text of a ``degree="auto"`` search: its summary, or with ``verbose`` its full table."""
+    return selection.table() if verbose else selection.summary()
+
+
+def written_line(output: str) -> str:
+    """The report's last line once the model file is written."""
+    return f"wrote {output}"
+
+
+def model_report(model) -> list[str]:
+    """The report's lines about a fitted model, rendered from its numbers: the model (degree, ARX lags and
+    solver, or the network), its coefficients, and the training errors per output.
+
+    Parameters
+    ----------
+    model : fitted CalibrationModel or MLPModel
+
+    Returns
+    -------
+    list of str
+        What ``ftcal fit`` prints after the excitation and any cross-validation.
+    """
+    from ..core.metrics import norm_rmse_text, output_units
+
+    info = model.describe()
+    metrics = model.training_metrics_
+    rmse = stated_rmse(model, metrics["rmse"])
+    if getattr(model, "family", "polynomial") == "mlp":
+        lines = [f"model: {model.label()}, {info['n_coefficients']} weights, {model.n_iter_} L-BFGS "
+                 f"iterations, samples: {model.n_samples_fit_}"]
+        if norm_rmse_text(metrics):
+            lines.append("training " + norm_rmse_text(metrics, units=False))
+        return lines + ["training RMSE per output: " + ", ".join(
+            f"{n} {v:.4g}" for n, v in zip(model.output_names_, rmse))]
+    lam = model.solver_info_.get("lambda")
+    lines = [f"model: degree {info['degree']}"
+             + (f", ARX na={info['na']} nb={info['nb']}" if info["na"] or info["nb"] else "")
+             + f", solver {model.solver_info_.get('name')}" + (f" lambda={lam:g}" if lam else ""),
+             f"coefficients: {info['n_coefficients']} ({info['n_nonzero']} nonzero); samples: "
+             f"{model.n_samples_fit_}; condition number: {model.condition_number_:.3g}"]
+    if lam:
+        from ..core.conversion import to_raw
+
+        raw_count = int((abs(to_raw(model)) > 1e-9).sum())
+        lines.append(f"raw-input coefficients with |value| > 1e-9 (the paper's count): {raw_count}")
+    if norm_rmse_text(metrics):
+        lines.append("training " + norm_rmse_text(metrics))
+    elif error_norm_text(metrics):  # training errors from the sufficient statistics
+        lines.append("training " + error_norm_text(metrics) + " (from the fit's statistics; max |error| "
+                     "and norm RMSE: ftcal evaluate MODEL DATA)")
+    return lines + ["training RMSE per output: " + ", ".join(
+        f"{n} {v:.4g}" + (f" {u}" if u else "")
+        for n, v, u in zip(model.output_names_, rmse, output_units(model.output_names_)))]
 
 
 def stated_rmse(model, rmse) -> list[float]:

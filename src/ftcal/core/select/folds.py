@@ -13,7 +13,7 @@ from typing import Protocol
 import numpy as np
 
 from ...runtime.checks import check_int
-from ...runtime.errors import FtcalError
+from ...runtime.errors import ParameterError
 from ...runtime.progress import progress_bar
 from ..dataset import Dataset
 from ..model import CalibrationModel, FitFrame
@@ -64,8 +64,8 @@ def fold_of_groups(sizes: dict[str, int], n_folds: int = 5, seed: int = 0) -> di
     labels = np.array(sorted(sizes), dtype=str)
     counts = np.array([sizes[g] for g in labels])
     if labels.size < 2:
-        raise FtcalError("Cross-validation needs at least 2 groups (recordings or load cases); "
-                         "the data has 1. Pass more files or name a group column with --group-by.")
+        raise ParameterError("group_by", "Cross-validation needs at least 2 groups (recordings or load cases); "
+                               "the data has 1. Pass more files or name a group column with {group_by}.")
     n_folds = check_int(n_folds, "n_folds", "cross_validate", 2)
     n_folds = min(n_folds, labels.size)
     order = np.random.default_rng(seed).permutation(labels.size)

@@ -6,11 +6,11 @@ import warnings
 
 import numpy as np
 
-from ...runtime.errors import FtcalWarning
+from ...runtime.errors import ParameterWarning
 from ..limits import POSE_BINS, SATURATION_RATIO
 
 
-class SaturationWarning(FtcalWarning):
+class SaturationWarning(ParameterWarning):
     """A least-squares fit has nearly as many coefficients per output as distinct poses."""
 
 
@@ -63,8 +63,9 @@ def warn_if_saturated(n_coefficients: int, n_poses: int, n_groups: int, what: st
     """
     if n_coefficients <= SATURATION_RATIO * n_poses:
         return False
-    warnings.warn(
+    warnings.warn(SaturationWarning(
+        ("degree", "ridge", "lasso"),
         f"{what} is near saturation: {n_coefficients} coefficients per output for {n_poses} distinct poses "
         f"({n_groups} groups); it can fit the poses' noise and validate worse than affine. Lower the degree, "
-        "use --ridge/--lasso (or --degree auto), or record more poses.", SaturationWarning, stacklevel=2)
+        "use {ridge}/{lasso} (or {degree} auto), or record more poses."), stacklevel=2)
     return True

@@ -11,7 +11,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from ...runtime.checks import check_int
-from ...runtime.errors import FtcalError, FtcalWarning, IllPosedFitWarning
+from ...runtime.errors import FtcalError, FtcalWarning, IllPosedFitWarning, ParameterWarning
 from ...runtime.threads import single_threaded_blas, worker_count
 from ..dataset import Dataset
 from ..model import CalibrationModel, FitFrame
@@ -33,7 +33,7 @@ from .scoring import CandidateScore, Part, Scorer, stable_choice, statistics_mse
 STOP_AFTER = 2
 
 
-class SelectionLossWarning(FtcalWarning):
+class SelectionLossWarning(ParameterWarning):
     """The selected model validates worse than the affine model on a block, beyond the fold noise."""
 
 
@@ -180,11 +180,13 @@ def select_model(data: "Dataset | GroupedStatistics", *, template: CalibrationMo
     result = search.result(ordered, select_per, skipped, notes)
     lost = result.losses()
     if lost:
-        warnings.warn(f"The selection ({result.describe_selection()}) validates worse than the affine model on "
+        warnings.warn(SelectionLossWarning(
+                      ("select_per", "objective"),
+                      f"The selection ({result.describe_selection()}) validates worse than the affine model on "
                       f"{' and '.join(lost)} beyond the fold noise (more than the t quantile of {result.n_folds} folds "
                       "times the fold standard error). "
-                      "Select per block or per output (--select-per), or use --objective both.",
-                      SelectionLossWarning, stacklevel=2)
+                      "Select per block or per output ({select_per}), or use {objective} both."),
+                      stacklevel=2)
     comparisons = result.block_comparisons()
     if (comparisons and max(c.degree for c in result.candidate_of_output()) > 1
             and all(c.within_noise for c in comparisons.values())):
