@@ -281,7 +281,7 @@ def test_convert_payload_to_ros_files(capsys, data):
 
 
 def test_oversized_payload_file_is_refused_before_reading(capsys, data, tmp_path):
-    from ftcal.files.model_json import MAX_MODEL_BYTES
+    from ftcal.core.limits import MAX_MODEL_BYTES
 
     huge = tmp_path / "huge.json"
     with open(huge, "wb") as fh:

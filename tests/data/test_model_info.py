@@ -2,7 +2,7 @@
 
 Reference: the full loader (:func:`ftcal.files.model_files.load_model_file`, numpy, scipy's sparse
 substitution for the raw coefficients, numpy's argsort and eigvalsh) and the text ``info`` printed from
-it before the light path existed (:func:`ftcal.cli.cmd_info.summary`, unchanged). On written model files
+it before the light path existed (:func:`ftcal.cli.cmd_info.loaded_facts`, unchanged). On written model files
 the light path must be taken and print the same bytes; on mutated, re-signed documents (so that the
 digest passes and the loader's later checks are reached) it must give up on every file the loader
 refuses, and otherwise print what the loader's path prints.
@@ -16,11 +16,11 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from ftcal.cli.cmd_info import report, summary
+from ftcal.cli.cmd_info import loaded_facts, report
 from ftcal.core.dataset import Dataset
 from ftcal.core.model import CalibrationModel
 from ftcal.core.solvers.lasso import Lasso
-from ftcal.files.model_info import covariance_acceptable, jacobi_eigenvalues, light_summary
+from ftcal.files.model_info import covariance_acceptable, jacobi_eigenvalues, light_facts
 from ftcal.files.model_json import digest, format_document, model_document
 from ftcal.runtime.errors import FtcalError
 
@@ -53,14 +53,14 @@ def write(tmp_path, doc, name="model.json"):
 
 
 def full_text(path, terms=10):
-    return report(str(path), summary(str(path), terms))
+    return report(str(path), loaded_facts(str(path), terms))
 
 
 @pytest.mark.parametrize("name", sorted(DOCUMENTS))
 @pytest.mark.parametrize("terms", [10, 3, 0, 1000])
 def test_the_light_path_is_taken_and_prints_the_loaders_text(tmp_path, name, terms):
     path = write(tmp_path, DOCUMENTS[name])
-    light = light_summary(path, terms)
+    light = light_facts(path, terms)
     assert light is not None
     assert report(str(path), light) == full_text(path, terms)
 
@@ -87,9 +87,9 @@ def test_a_1e_12_perturbation_prints_the_same_text(tmp_path, name):
     rng = np.random.default_rng(3)
     path = write(tmp_path, DOCUMENTS[name])
     moved = write(tmp_path, _perturbed(DOCUMENTS[name], rng), "moved.json")
-    light, light_moved = light_summary(path, 10), light_summary(moved, 10)
+    light, light_moved = light_facts(path, 10), light_facts(moved, 10)
     assert light is not None and light_moved is not None
-    assert report("m", light) == report("m", light_moved) == report("m", summary(str(moved), 10))
+    assert report("m", light) == report("m", light_moved) == report("m", loaded_facts(str(moved), 10))
 
 
 @pytest.mark.parametrize("degree", [1, 3])
@@ -104,7 +104,7 @@ def test_fitting_inputs_perturbed_by_1e_12_prints_the_same_text(tmp_path, degree
         doc = model_document(CalibrationModel(degree).fit(which))
         doc["created"] = DOCUMENTS["degree 1"]["created"]
         doc["sha256"] = digest(doc)
-        light = light_summary(write(tmp_path, doc), 10)
+        light = light_facts(write(tmp_path, doc), 10)
         assert light is not None
         texts.append(report("m", light))
     assert texts[0] == texts[1]
@@ -169,7 +169,7 @@ def test_the_light_path_never_accepts_what_the_loader_refuses(tmp_path, name, da
     doc["sha256"] = digest(doc)
     path = tmp_path / "mutated.json"
     path.write_text(json.dumps(doc), encoding="utf-8")
-    light = light_summary(path, 10)
+    light = light_facts(path, 10)
     try:
         expected = full_text(path)
     except FtcalError:
@@ -197,9 +197,9 @@ def test_ftcal_info_refuses_what_the_loader_refuses_with_its_message(tmp_path, c
     doc["sha256"] = digest(doc)
     path = write(tmp_path, doc)
     with pytest.raises(FtcalError) as loader:
-        summary(str(path), 10)
+        loaded_facts(str(path), 10)
     assert message in str(loader.value)
-    assert light_summary(path, 10) is None
+    assert light_facts(path, 10) is None
     assert main(["info", str(path)]) == 2
     err = capsys.readouterr().err
     assert str(loader.value) in err and "Traceback" not in err

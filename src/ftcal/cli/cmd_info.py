@@ -16,11 +16,11 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from ..files.model_info import light_summary
+    from ..files.model_info import light_facts
 
     # A valid static polynomial JSON file is summarized without numpy; anything else is loaded fully
     # (which refuses an invalid file with its message).
-    print(report(args.model, light_summary(args.model, args.terms) or summary(args.model, args.terms)), end="")
+    print(report(args.model, light_facts(args.model, args.terms) or loaded_facts(args.model, args.terms)), end="")
     return 0
 
 
@@ -52,10 +52,10 @@ def report(name: str, facts: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def summary(path: str, n_terms: int) -> dict:
+def loaded_facts(path: str, n_terms: int) -> dict:
     """What ``info`` prints, from the fully loaded model file (any family and format).
 
-    :func:`ftcal.files.model_info.light_summary` gives the same keys without numpy for static polynomial
+    :func:`ftcal.files.model_info.light_facts` gives the same keys without numpy for static polynomial
     JSON files.
     """
     import numpy as np

@@ -30,7 +30,7 @@ _SAFE = 1e300
 _ROUNDING = 4 * sys.float_info.epsilon
 
 
-def light_summary(path: str | Path, n_terms: int) -> dict | None:
+def light_facts(path: str | Path, n_terms: int) -> dict | None:
     """The plain values ``ftcal info`` prints for the model file at ``path``, or None (load it fully).
 
     Parameters
@@ -41,7 +41,7 @@ def light_summary(path: str | Path, n_terms: int) -> dict | None:
     Returns
     -------
     dict or None
-        The keys of :func:`ftcal.cli.cmd_info.summary`'s result.
+        The keys of :func:`ftcal.cli.cmd_info.loaded_facts`'s result.
     """
     path = Path(path)
     try:
