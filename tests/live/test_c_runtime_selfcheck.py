@@ -39,13 +39,9 @@ int replay(int n, const double *t, const double *u, const double *g, const int *
 """
 
 
-@pytest.mark.parametrize("case", ["walk 3x", "noise 3x"])
-def test_c_self_check_follows_python(tmp_path, case):
-    ident, oper = truth.CASES[case]
-    payload = truth.identify(ident)
-    rec, _ = truth.operation(oper, duration=120.0)
-    model, mix = gauge_model(1)
-    tools = {"tool": payload}
+def c_replay(tmp_path, model, tools, rec, mix):
+    """The generated C runtime over a recording: raw inputs (the wrench through the gauge mix, 30 °C), gravity, and
+    the C's outputs per sample and its event counters."""
     lib = compile_driver(tmp_path, generate_c_runtime(model, tools, name="rt"), DRIVER)
     lib.replay.restype = ctypes.c_int
     n = rec["time"].size
@@ -56,6 +52,17 @@ def test_c_self_check_follows_python(tmp_path, case):
     rc = lib.replay(n, *(pointer(a) for a in arrays), pointer(np.full(n, -1, np.int32), ctypes.c_int), pointer(out),
                     pointer(counts, ctypes.c_long))
     assert rc == 0
+    return u, gravity, out, counts
+
+
+@pytest.mark.parametrize("case", ["walk 3x", "noise 3x"])
+def test_c_self_check_follows_python(tmp_path, case):
+    ident, oper = truth.CASES[case]
+    payload = truth.identify(ident)
+    rec, _ = truth.operation(oper, duration=120.0)
+    model, mix = gauge_model(1)
+    tools = {"tool": payload}
+    u, gravity, out, counts = c_replay(tmp_path, model, tools, rec, mix)
     live = LiveCalibrator(model, tools=tools, tool="tool", self_check=True)
     ref = python_replay(live, rec["time"], u, gravity, None, {})
     compare(out, ref)
@@ -80,15 +87,6 @@ def test_c_follows_python_under_a_wander(tmp_path):
     tools = {"tool": payload}
     live = LiveCalibrator(model, tools=tools, tool="tool", self_check=True)
     assert np.any(live.wander_density > 0)
-    lib = compile_driver(tmp_path, generate_c_runtime(model, tools, name="rt"), DRIVER)
-    lib.replay.restype = ctypes.c_int
-    n = rec["time"].size
-    u = np.column_stack([rec["wrench"] @ mix.T, np.full(n, 30.0)])
-    gravity = rec["gravity"]
-    out, counts = np.zeros((n, FIELDS)), np.zeros(5, np.int64)
-    arrays = [np.ascontiguousarray(x, dtype=float) for x in (rec["time"], u, gravity)]
-    rc = lib.replay(n, *(pointer(a) for a in arrays), pointer(np.full(n, -1, np.int32), ctypes.c_int), pointer(out),
-                    pointer(counts, ctypes.c_long))
-    assert rc == 0
+    u, gravity, out, counts = c_replay(tmp_path, model, tools, rec, mix)
     ref = python_replay(live, rec["time"], u, gravity, None, {})
     compare(out, ref)
