@@ -333,55 +333,76 @@ def group_output_ranges(outputs: np.ndarray, groups: np.ndarray) -> dict:
             for label in np.unique(labels).tolist()}
 
 
-def held_out_span(ranges: dict, fold_of: dict, names: Sequence[str]) -> str:
-    """What grouped cross-validation measured: whether any held-out fold loaded an output beyond the
-    other folds' span, in words (one line).
+@dataclass(frozen=True)
+class HeldOutSpan:
+    """What grouped cross-validation measured: whether any held-out fold loaded an output beyond the other
+    folds' span (:meth:`of`); its text (``str()``) is one line of ``ftcal fit``'s report.
 
     The cross-validated error is an honest forecast for new load cases like the held-out ones. When no
     fold ever reached beyond what the rest of the data covered, it only measured interpolation: loads
     beyond the training span (a larger load, an axis the data hardly load) can err far more (52× on a
     real sensor whose evaluation loaded a new axis).
 
-    Parameters
+    Attributes
     ----------
-    ranges : group label (str) -> ndarray of shape (n_outputs, 2), each output's min and max in the group
-        (:func:`group_output_ranges`)
-    fold_of : group label (str) -> fold index
-    names : output names
-
-    Returns
-    -------
-    str
+    names : tuple of str, the outputs
+    low, high : ndarray of shape (n_outputs,), each output's training span (all groups)
+    probed : tuple of str
+        Outputs some held-out fold loaded beyond the other folds' span by at least
+        :data:`EXTRAPOLATION_FRACTION` of their width.
+    unloaded : tuple of str
+        Outputs whose span is under :data:`EXTRAPOLATION_FRACTION` of their block's widest (hardly loaded).
     """
-    labels = sorted(ranges)
-    fold = np.array([fold_of[g] for g in labels])
-    lows = np.array([ranges[g][:, 0] for g in labels])
-    highs = np.array([ranges[g][:, 1] for g in labels])
-    low, high = lows.min(axis=0), highs.max(axis=0)
-    # An axis is judged against the widest of its block (forces, torques): noise on an unloaded axis is no load.
-    block = [str(n)[:1] if str(n)[:1] in ("F", "T") else str(n) for n in names]
-    widest = {b: max(high[j] - low[j] for j in range(len(names)) if block[j] == b) for b in set(block)}
-    width = np.maximum(np.array([max(high[j] - low[j], EXTRAPOLATION_FRACTION * widest[block[j]])
-                                 for j in range(len(names))]), 1e-300)
-    unloaded = [n for j, n in enumerate(names) if high[j] - low[j] < EXTRAPOLATION_FRACTION * widest[block[j]]]
-    reach = np.zeros(len(names))
-    for k in np.unique(fold):
-        held, rest = fold == k, fold != k
-        if not rest.any():
-            continue
-        beyond = np.maximum(highs[held].max(axis=0) - highs[rest].max(axis=0),
-                            lows[rest].min(axis=0) - lows[held].min(axis=0))
-        reach = np.maximum(reach, beyond / width)
-    spans = ", ".join(f"{n} {a:.3g}..{b:.3g}" for n, a, b in zip(names, low, high))
-    probed = [n for n, r in zip(names, reach) if r >= EXTRAPOLATION_FRACTION and n not in unloaded]
-    hardly = ("; the data hardly load " + ", ".join(unloaded) + " (span under "
-              f"{100 * EXTRAPOLATION_FRACTION:g} % of their block's widest): no fold measured an error for loads "
-              "along them") if unloaded else ""
-    if not probed:
-        return ("cross-validated error: measured inside the training loads' span (" + spans + "); no held-out "
-                "fold reached beyond the other folds' loads, so it does not forecast loads beyond that span"
-                + hardly)
-    inside = [n for n in names if n not in probed and n not in unloaded]
-    return ("cross-validated error: held-out folds reached beyond the other folds' loads on "
-            + ", ".join(probed) + (f" (only interpolated on {', '.join(inside)})" if inside else "")
-            + "; training span " + spans + hardly)
+
+    names: tuple[str, ...]
+    low: np.ndarray
+    high: np.ndarray
+    probed: tuple[str, ...]
+    unloaded: tuple[str, ...]
+
+    @classmethod
+    def of(cls, ranges: dict, fold_of: dict, names: Sequence[str]) -> "HeldOutSpan":
+        """The span measured by folds ``fold_of`` (group label (str) -> fold index) over ``ranges`` (group
+        label (str) -> ndarray (n_outputs, 2), each output's min and max in the group:
+        :func:`group_output_ranges`)."""
+        names = tuple(str(n) for n in names)
+        labels = sorted(ranges)
+        fold = np.array([fold_of[g] for g in labels])
+        lows = np.array([ranges[g][:, 0] for g in labels])
+        highs = np.array([ranges[g][:, 1] for g in labels])
+        low, high = lows.min(axis=0), highs.max(axis=0)
+        # An axis is judged against the widest of its block (forces, torques): noise on an unloaded axis is no load.
+        block = [n[:1] if n[:1] in ("F", "T") else n for n in names]
+        widest = {b: max(high[j] - low[j] for j in range(len(names)) if block[j] == b) for b in set(block)}
+        width = np.maximum(np.array([max(high[j] - low[j], EXTRAPOLATION_FRACTION * widest[block[j]])
+                                     for j in range(len(names))]), 1e-300)
+        unloaded = tuple(n for j, n in enumerate(names) if high[j] - low[j] < EXTRAPOLATION_FRACTION * widest[block[j]])
+        reach = np.zeros(len(names))
+        for k in np.unique(fold):
+            held, rest = fold == k, fold != k
+            if not rest.any():
+                continue
+            beyond = np.maximum(highs[held].max(axis=0) - highs[rest].max(axis=0),
+                                lows[rest].min(axis=0) - lows[held].min(axis=0))
+            reach = np.maximum(reach, beyond / width)
+        probed = tuple(n for n, r in zip(names, reach) if r >= EXTRAPOLATION_FRACTION and n not in unloaded)
+        return cls(names, low, high, probed, unloaded)
+
+    def __str__(self) -> str:
+        spans = ", ".join(f"{n} {a:.3g}..{b:.3g}" for n, a, b in zip(self.names, self.low, self.high))
+        hardly = ("; the data hardly load " + ", ".join(self.unloaded) + " (span under "
+                  f"{100 * EXTRAPOLATION_FRACTION:g} % of their block's widest): no fold measured an error for loads "
+                  "along them") if self.unloaded else ""
+        if not self.probed:
+            return ("cross-validated error: measured inside the training loads' span (" + spans + "); no held-out "
+                    "fold reached beyond the other folds' loads, so it does not forecast loads beyond that span"
+                    + hardly)
+        inside = [n for n in self.names if n not in self.probed and n not in self.unloaded]
+        return ("cross-validated error: held-out folds reached beyond the other folds' loads on "
+                + ", ".join(self.probed) + (f" (only interpolated on {', '.join(inside)})" if inside else "")
+                + "; training span " + spans + hardly)
+
+
+def held_out_span(ranges: dict, fold_of: dict, names: Sequence[str]) -> str:
+    """The text of :class:`HeldOutSpan` ``.of(ranges, fold_of, names)`` (one line)."""
+    return str(HeldOutSpan.of(ranges, fold_of, names))

@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from .arguments import FIT, check_arguments
+from .fit_report import AffineComparison, BlockVersusAffine, MLPReport, MLPValidation, NetworkSize, SearchCost
 from ..core.columns import DEFAULT_OUTPUTS, LOAD_COLUMN
 from ..core.limits import (MAX_DEGREE, MAX_LAG, MLP_EQUATIONS_PER_WEIGHT, MLP_MAX_ITER, MLP_MAX_LAYERS,
                            MLP_MAX_UNITS, PAPER_LAMBDAS, SELECTION_BUDGET_SECONDS)
@@ -43,7 +44,8 @@ SEARCH_DEFAULTS = {"folds": 5, "penalties": ("lasso", "ridge"), "lambdas": None,
 
 @dataclass(repr=False)
 class FitResult(StepResult):
-    """What :func:`fit` returns: the fitted model and the report ``ftcal fit`` prints.
+    """What :func:`fit` returns: the fitted model and what the fit measured; :meth:`summary` renders the
+    report ``ftcal fit`` prints from these fields.
 
     Attributes
     ----------
@@ -51,18 +53,30 @@ class FitResult(StepResult):
         The fitted model (its ``training_metrics_`` hold the training errors).
     output : str or None
         The model file written, or None (``result.save(path)`` writes it later).
-    preamble : list of str
-        The report's lines before the model's (excitation, cross-validation, the search's cost and span),
-        as printed, less the selection's own text, which :attr:`selection` renders.
-    lines : list of str
-        The report, line by line (standard output of ``ftcal fit``): :attr:`preamble`, then the model,
-        coefficients and training errors rendered from :attr:`model` (:func:`model_report`), then
-        ``wrote FILE`` when :attr:`output` is set.
     notes : list of str
         Side remarks (standard error of ``ftcal fit``): samples read, rows dropped, warnings.
     selection : CrossValidationResult or None
         The ``degree="auto"`` search, when it ran: its scores per candidate and part (``cv_results_``-like),
-        the choice and the verdict; the report prints its :meth:`summary` (its ``table()`` with ``verbose``).
+        the choice and the verdict; the report prints its :meth:`summary` (its ``table()`` with :attr:`verbose`).
+    payload : PayloadEstimate or None
+        The payload identified with the calibration (``estimate_payload``).
+    excitation : OutputExcitation or None
+        How far the reference wrenches excite each direction (every polynomial fit).
+    search_cost : SearchCost or None
+        The search's predicted CPU and memory against the budget, and the degrees dropped for them.
+    span : HeldOutSpan or None
+        Whether the search's held-out folds loaded any output beyond the other folds' span.
+    versus_affine : AffineComparison or None
+        An explicit fit richer than affine beside affine least squares on grouped folds.
+    mlp : MLPReport or None
+        The MLP family's network sizing and validation against the affine model.
+    verbose : bool
+        Print the search's full table rather than its summary.
+    lines : list of str
+        The report, line by line (standard output of ``ftcal fit``), rendered from the fields above in
+        that order (payload, excitation, cost, selection, span, comparison with affine, MLP), then the
+        model, coefficients and training errors from :attr:`model` (:func:`model_report`), then
+        ``wrote FILE`` when :attr:`output` is set.
 
     Examples
     --------
@@ -71,28 +85,38 @@ class FitResult(StepResult):
     >>> u = np.linspace(-1.0, 1.0, 30)
     >>> result = ftcal.fit(pd.DataFrame({"u1": u, "Fx": 4.0 * u + 0.02 * np.cos(25 * u)}),
     ...                    inputs=["u1"], outputs=["Fx"])
-    >>> result.model.describe()["degree"], result.to_dict()["n_samples"]
-    (1, 30)
+    >>> result.model.describe()["degree"], result.to_dict()["n_samples"], result.excitation.n_excited
+    (1, 30, 1)
     """
 
     model: Any
-    output: str | None
-    preamble: list[str]
+    output: str | None = None
     notes: list[str] = field(default_factory=list)
     selection: Any = None
+    payload: Any = None
+    excitation: Any = None
+    search_cost: Any = None
+    span: Any = None
+    versus_affine: Any = None
+    mlp: Any = None
+    verbose: bool = False
     _save: dict = field(default_factory=dict)
-    # Where the selection's text stands in the report: (line of the preamble, notes it had then, verbose).
-    # The search adds notes for the model file after it printed (span, cost); the report shows those apart.
-    _selection_at: tuple | None = None
+
+    @property
+    def preamble(self) -> list[str]:
+        """The report's lines before the model's, rendered from the typed fields."""
+        return [*(self.payload.lines() if self.payload is not None else []),
+                *([self.excitation.summary()] if self.excitation is not None else []),
+                *(self.search_cost.lines() if self.search_cost is not None else []),
+                *([selection_text(self.selection, self.verbose)] if self.selection is not None else []),
+                *([str(self.span)] if self.span is not None else []),
+                *([self.versus_affine.summary()] if self.versus_affine is not None else []),
+                *(self.mlp.lines() if self.mlp is not None else [])]
 
     @property
     def lines(self) -> list[str]:
-        """The report, line by line: the stored :attr:`preamble`, then what the typed fields render."""
-        preamble = list(self.preamble)
-        if self._selection_at is not None:
-            at, n_notes, verbose = self._selection_at
-            preamble.insert(at, selection_text(replace(self.selection, notes=self.selection.notes[:n_notes]), verbose))
-        return [*preamble, *model_report(self.model), *([written_line(self.output)] if self.output else [])]
+        """The report, line by line: :attr:`preamble`, the model's lines, the file written."""
+        return [*self.preamble, *model_report(self.model), *([written_line(self.output)] if self.output else [])]
 
     def summary(self) -> str:
         return "\n".join(self.lines)
@@ -102,10 +126,17 @@ class FitResult(StepResult):
 
         model = self.model
         info = model.describe()
+
+        def typed(value):
+            return None if value is None else value.to_dict() if hasattr(value, "to_dict") else plain(value)
+
         return plain({"family": getattr(model, "family", "polynomial"), "model": info,
                       "solver": getattr(model, "solver_info_", {}), "n_samples": model.n_samples_fit_,
                       "training_metrics": model.training_metrics_, "output": self.output, "notes": self.notes,
-                      "selection": self.selection.as_dict() if self.selection is not None else None})
+                      "selection": self.selection.as_dict() if self.selection is not None else None,
+                      "payload": typed(self.payload), "excitation": typed(self.excitation),
+                      "search_cost": typed(self.search_cost), "span": typed(self.span),
+                      "versus_affine": typed(self.versus_affine), "mlp": typed(self.mlp)})
 
     @property
     def n_samples(self) -> int:
@@ -533,23 +564,6 @@ def make_solver(o: _Options):
 GROUP_COLUMN = LOAD_COLUMN
 
 
-class _EchoedLines(list):
-    """The report's lines; each one added is also handed to ``echo`` at once (when given)."""
-
-    def __init__(self, echo: Callable[[str], None] | None) -> None:
-        super().__init__()
-        self.echo = echo
-
-    def append(self, line: str) -> None:
-        super().append(line)
-        if self.echo is not None:
-            self.echo(line)
-
-    def extend(self, lines) -> None:
-        for line in lines:
-            self.append(line)
-
-
 class _Fit:
     """One run of :func:`fit`: the options, the data, and the report as it grows."""
 
@@ -560,10 +574,10 @@ class _Fit:
         self.dataset = dataset
         self.sources = sources
         self.executor = executor
-        self.lines: list[str] = _EchoedLines(echo)
+        self.echo = echo
         self.notes: list[str] = []
-        self.selection = None
-        self._selection_at = None
+        # The report's typed parts, as FitResult holds them (each printed through echo once known).
+        self.parts: dict[str, Any] = {}
 
     # ------------------------------------------------------------------ entry
     def run(self, inputs, outputs) -> FitResult:
@@ -632,14 +646,30 @@ class _Fit:
                               "--group-by COL for another")
 
     def _result(self, model, save: dict) -> FitResult:
-        return FitResult(model, None, list(self.lines), self.notes, self.selection, save, self._selection_at)
+        return FitResult(model, None, self.notes, verbose=bool(self.o.verbose), _save=save, **self.parts)
+
+    def _show(self, lines) -> None:
+        """Print report lines as soon as they are known (``echo``); the result renders them again from its fields."""
+        if self.echo is not None:
+            for line in lines:
+                self.echo(line)
+
+    def _keep(self, name: str, part, lines) -> None:
+        """Keep one typed part of the report (a :class:`FitResult` field) and print its ``lines`` now."""
+        self.parts[name] = part
+        self._show(lines)
+
+    def _selection_record(self, result) -> dict:
+        """The search as the model file records it: its notes followed by the held-out span and the cost."""
+        record = result.as_dict()
+        span, cost = self.parts.get("span"), self.parts["search_cost"]
+        record["notes"] = [*record["notes"], *([str(span)] if span is not None else []), cost.planned.describe(),
+                           *([cost.note] if cost.note else [])]
+        return record
 
     def _report_model(self, model) -> None:
-        """Print the model's lines (:func:`model_report`); the result renders them again from the model, so
-        they are not stored with the preamble."""
-        if self.lines.echo is not None:
-            for line in model_report(model):
-                self.lines.echo(line)
+        """Print the model's lines (:func:`model_report`); the result renders them from the model."""
+        self._show(model_report(model))
 
     def _read_note(self, n_samples: int, inputs, outputs, extra: str = "") -> None:
         files = len(self.paths) if self.paths else len(self.sources)
@@ -691,7 +721,7 @@ class _Fit:
 
             result = self._cross_validation(data, template, data.n_samples, len(inputs))
             model = fit_best(data, result, template=template)
-            model.solver_info_["cross_validation"] = result.as_dict()
+            model.solver_info_["cross_validation"] = self._selection_record(result)
         else:
             refuse_undetermined(o, data.inputs.shape[1], len(data.output_names),
                                 len(pose_cells(data.inputs, np.c_[data.inputs.min(axis=0), data.inputs.max(axis=0)])),
@@ -735,7 +765,7 @@ class _Fit:
         regressor = data.outputs[:, len(outputs):].reshape(data.n_samples, len(outputs), k)
         data = replace(data, outputs=known, output_names=tuple(outputs))
         estimate = estimate_payload(data, regressor, link, payload_mass=o.payload_mass)
-        self.lines.extend(estimate.lines())
+        self._keep("payload", estimate, estimate.lines())
         return replace(data, outputs=known + regressor @ estimate.values)
 
     # ------------------------------------------------------------------ streamed
@@ -788,7 +818,7 @@ class _Fit:
                 source = StreamedStatistics(executor, paths, inputs, outputs, summary, o.group_by, o.segment_by)
                 result = self._cross_validation(source, template, sum(summary.segment_lengths), n_in)
                 model = fit_selection(result)
-                model.solver_info_["cross_validation"] = result.as_dict()
+                model.solver_info_["cross_validation"] = self._selection_record(result)
             else:
                 from ..data.streaming import file_layout_statistics
 
@@ -890,7 +920,7 @@ class _Fit:
         """The ``degree="auto"`` search over ``data`` (a Dataset or streamed statistics), its cost and summary
         reported."""
         from ..core.dataset import Dataset
-        from ..core.excitation import group_output_ranges, held_out_span
+        from ..core.excitation import HeldOutSpan, group_output_ranges
         from ..core.limits import SELECTION_MEMORY_BYTES
         from ..core.select import (
             Candidate,
@@ -914,11 +944,9 @@ class _Fit:
                                  n_lambdas=n_lambdas, na=o.na, nb=o.nb,
                                  n_bases=1 if template.normalization == "center" or fixed or not penalties else 2,
                                  spent_seconds=time.process_time() - o.cpu_start)
-        degrees, note = estimate.within(o.budget, SELECTION_MEMORY_BYTES)
-        planned = estimate.restricted(degrees)
-        self.lines.append(planned.describe() + f" (--budget {o.budget:g} s)")
-        if note:
-            self.lines.append(note)
+        cost = SearchCost(estimate, o.budget, SELECTION_MEMORY_BYTES)
+        self._keep("search_cost", cost, cost.lines())
+        degrees, planned = cost.degrees, cost.planned
         options = dict(template=template, n_folds=o.folds, select_per=o.select_per, objective=o.objective)
         # One bar over the whole search: (candidate, fold) fits, as many as the estimate plans.
         with progress_bar("search", planned.candidates * planned.n_folds * len(degrees)) as advance:
@@ -931,18 +959,12 @@ class _Fit:
                 budget = SearchBudget(o.budget, planned, clock=lambda: time.process_time() - o.cpu_start)
                 result = select_model(data, degrees=degrees, penalties=o.penalties, lambdas=o.lambdas,
                                       relative=not paper, budget=budget, advance=advance, **options)
-        # Printed now; the result renders it again from the selection (not stored with the preamble).
-        if self.lines.echo is not None:
-            self.lines.echo(selection_text(result, o.verbose))
-        self._selection_at = (len(self.lines), len(result.notes), bool(o.verbose))
+        self._keep("selection", result, [selection_text(result, o.verbose)])
         ranges = group_output_ranges(data.data.outputs, data.data.groups) if isinstance(data, DatasetStatistics) \
             else getattr(getattr(data, "summary", None), "group_output_ranges", None)
         if ranges and result.search is not None:
-            span = held_out_span(ranges, result.search.fold_of, data.output_names)
-            self.lines.append(str(span))
-            result.notes.append(span)
-        result.notes.extend([planned.describe()] + ([note] if note else []))  # for the model file
-        self.selection = result
+            span = HeldOutSpan.of(ranges, result.search.fold_of, data.output_names)
+            self._keep("span", span, [str(span)])
         return result
 
     def _compare_with_affine(self, data, template) -> None:
@@ -980,12 +1002,11 @@ class _Fit:
             unit = UNITS.get(name, "")
             comparison = Comparison.of(AFFINE, theirs, mine)
             ratio = float(mine.mean() / max(theirs.mean(), np.finfo(float).tiny))
-            pieces.append(f"{name} {mine.mean():.4g}{(' ' + unit) if unit else ''} vs affine {theirs.mean():.4g} "
-                          f"({ratio:.3g}x)")
+            pieces.append(BlockVersusAffine(name, unit, float(mine.mean()), float(theirs.mean())))
             if comparison.loses and mine.mean() > EXACT_FIT_FRACTION * float(np.sqrt(np.sum(span[list(cols)] ** 2))):
                 lost.append(f"{name} {ratio:.3g}x")
-        self.lines.append(f"grouped cross-validation of {candidate.label} against affine least squares "
-                          f"({result.n_folds} folds of whole groups, {n_groups} groups): " + "; ".join(pieces))
+        versus = AffineComparison(candidate.label, result.n_folds, n_groups, tuple(pieces))
+        self._keep("versus_affine", versus, [versus.summary()])
         if lost:
             warnings.warn(ParameterWarning(("degree", "lasso", "ridge"),
                                            f"{candidate.label} validates worse than the affine model beyond the fold "
@@ -1014,12 +1035,11 @@ class _Fit:
         self._read_note(data.n_samples, inputs, outputs)
         n_in, n_out = len(inputs), len(outputs)
         equations = data.n_samples * n_out
-        hidden = o.hidden
+        hidden, network = o.hidden, None
         if hidden is None:
             hidden = hidden_for_data(data.n_samples, n_in, n_out)
-            self.lines.append(f"network {n_in}-{'-'.join(map(str, hidden))}-{n_out}: {n_weights(n_in, hidden, n_out)} "
-                              f"weights for {data.n_samples} rows x {n_out} outputs (at most one weight per "
-                              f"{MLP_EQUATIONS_PER_WEIGHT} equations where the data allow; --hidden overrides)")
+            network = NetworkSize(n_in, tuple(hidden), n_out, n_weights(n_in, hidden, n_out), data.n_samples)
+            self._show([network.line()])
         if n_weights(n_in, hidden, n_out) * MLP_EQUATIONS_PER_WEIGHT > equations:
             fix = "leave {hidden} out to size it to the data" if o.hidden is not None else \
                 "even the smallest network sized to the outputs is large for these rows"
@@ -1033,9 +1053,7 @@ class _Fit:
             max_iter = 2000 if small else 400
         model = MLPModel(hidden, activation=o.activation, weight_decay=o.weight_decay,
                          max_iter=max_iter, n_folds=o.folds, seed=o.seed).fit(data)
-        if model.cv_ is not None and model.cv_["iterations"] >= max_iter:
-            self.lines.append(f"early stopping chose the last of the {max_iter} iterations: held-out error was "
-                              "still falling (a larger --max-iter may help)")
+        self.parts["mlp"] = MLPReport(network)
         if model.cv_ is not None:
             from ..core.metrics import block_error_norm_rmse, wrench_blocks
 
@@ -1046,7 +1064,6 @@ class _Fit:
                 affine = cross_validate(data, [Candidate(1, "none", None)], n_folds=o.folds, objective=objective)
             affine_score = affine.score_of(Candidate(1, "none", None))
             affine_folds = affine_score.fold_scores
-            self.lines.append(mlp_cross_validation_table(model, affine_folds))
             # Every block the network writes is judged (force and torque), each on fold scores at the iteration
             # count the other folds chose: the polynomial search's rule, on folds that did not pick the count.
             held = model.cv_.get("held_out_fold_mse")
@@ -1059,12 +1076,11 @@ class _Fit:
                 comparisons = {"outputs": Comparison.of(Candidate(1, "none", None), affine_folds,
                                                         model.cv_.get("held_out_fold_scores",
                                                                       model.cv_["fold_scores"]))}
-            for name, c in comparisons.items():
-                self.lines.append(f"mlp {name} on folds that did not choose its iteration count: margin over np1 "
-                                  f"{c.margin:+.3g} (standard error {c.standard_error:.3g}, {c.n_folds} folds)"
-                                  + ("; WORSE beyond the fold noise" if c.loses else
-                                     "; within the fold noise" if c.within_noise else "; a win beyond the noise"))
-            lost = [name for name, c in comparisons.items() if c.loses]
+            validation = MLPValidation(model.label(), model.cv_["metric"], int(model.cv_["iterations"]), max_iter,
+                                       tuple(float(v) for v in model.cv_["fold_scores"]),
+                                       tuple(float(v) for v in affine_folds), comparisons)
+            self._keep("mlp", MLPReport(network, validation), validation.lines())
+            lost = validation.lost
             if lost:
                 c = comparisons[lost[0]]
                 warnings.warn(ParameterWarning(("family", "degree"), f"the MLP validates worse than the affine "
@@ -1073,12 +1089,7 @@ class _Fit:
                                                f"{model.cv_['n_folds']} grouped folds): the affine model is written "
                                                "instead; give {family} polynomial {degree} auto to search the "
                                                "polynomials."), stacklevel=4)
-                self.lines.append("written: the affine model (least squares, degree 1), not the MLP: the MLP "
-                                  f"validates worse beyond the fold noise on {' and '.join(lost)}")
                 model = CalibrationModel(degree=1).fit(data)
-            elif all(c.within_noise for c in comparisons.values()):
-                self.lines.append("the MLP is within the fold noise of the affine model: no evidence that it "
-                                  "predicts new load cases better (the MLP is written, as asked)")
         return model, data
 
     # ------------------------------------------------------------------ report
@@ -1091,7 +1102,7 @@ class _Fit:
         from ..runtime.errors import IllPosedFitWarning
 
         excitation = output_excitation(spread, tuple(outputs))
-        self.lines.append(excitation.summary())
+        self._keep("excitation", excitation, [excitation.summary()])
         message = excitation.warning()
         if message is not None:
             warnings.warn(message, IllPosedFitWarning, stacklevel=4)
@@ -1288,20 +1299,3 @@ def check_saturation(model, count_poses, n_groups: int) -> None:
                              model.layout_.na, model.layout_.nb)
     n_features, n_poses = layout.n_features, count_poses()
     warn_if_saturated(n_features, n_poses, n_groups, f"The least-squares fit of degree {max(degrees)}")
-
-
-def mlp_cross_validation_table(model, affine_folds) -> str:
-    """The MLP's held-out scores beside affine least squares on the same grouped folds."""
-    import numpy as np
-
-    from ..core.select import AFFINE, Comparison
-
-    cv = model.cv_
-    mlp_folds = np.asarray(cv["fold_scores"])
-    versus = Comparison.of(AFFINE, affine_folds, mlp_folds)  # stated to the scores' precision
-    lines = [f"{'model':<24} {'validation':>11}   ({cv['metric']}, {cv['n_folds']} grouped folds)",
-             f" {'np1':<23} {np.mean(affine_folds):>11.4f}",
-             f"*{model.label():<23} {mlp_folds.mean():>11.4f}   (early stop at {cv['iterations']} iterations)",
-             f"mlp margin over np1 {versus.margin:+.3g} on average over {cv['n_folds']} folds "
-             f"(fold-to-fold spread {versus.spread:.3g}, standard error {versus.standard_error:.3g})"]
-    return "\n".join(lines)
