@@ -1,6 +1,7 @@
-"""ftcal's JSON documents (model and payload files) read strictly, validated by their packaged schema and
-sealed by a sha256 digest, without numpy: ``ftcal info`` reads a model file through this module alone
-(:mod:`ftcal.files.model_info`), :mod:`ftcal.files.model_json` builds the model from what it returns."""
+"""ftcal's JSON documents (model and payload files; the live state file's model digest) read strictly,
+validated by their packaged schema and sealed by a sha256 digest, without numpy: ``ftcal info`` reads a
+model file through this module alone (:mod:`ftcal.files.model_info`), :mod:`ftcal.files.model_json`
+builds the model from what it returns."""
 
 from __future__ import annotations
 

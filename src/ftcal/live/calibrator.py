@@ -31,6 +31,7 @@ from ..check.accept import Thresholds
 from ..core.limits import LIVE_MIN_HOLDS, MAX_CELL_MAGNITUDE
 from ..data.holds import HOLD_WINDOW_S, MIN_ANGULAR_RATE, MIN_HOLD_S
 from ..data.signals import SATURATION_RUN
+from ..files.state_json import check_state_envelope, model_digest, state_envelope
 from ..payload.kinematics import QUATERNION_NORM_TOLERANCE, STANDARD_GRAVITY, gravity_from_quaternions
 from ..payload.parameters import PayloadParameters
 from ..runtime.errors import FtcalError
@@ -45,8 +46,6 @@ from .drift import FALSE_ALARM
 from .core import FIELDS, require_core
 from .tracker import HOLDOFF_S, gate_chi2
 
-STATE_FORMAT = "ftcal-live-state"
-STATE_VERSION = "1.0"
 # Events kept in memory (a long run keeps memory flat; the state file keeps the counters).
 MAX_EVENTS = 1000
 
@@ -910,7 +909,7 @@ class LiveCalibrator:
         place (the others come from their payload files)."""
         from ..files.payload_json import payload_document
 
-        doc = {"format": STATE_FORMAT, "format_version": STATE_VERSION, "time": self.last_time,
+        doc = {**state_envelope(), "time": self.last_time,
                "tool": self.tool, "bias": self.bias.tolist(), "variance": self.variance.tolist(),
                "counters": dict(self.counters), "flags": names_of(self.flags_now),
                "tools": {name: payload_document(self.tools[name]) for name in self.identified},
@@ -959,8 +958,7 @@ class LiveCalibrator:
             # ValueError: JSONDecodeError, and an integer beyond Python's 4300 digits
             why = "nested too deeply" if isinstance(exc, RecursionError) else exc
             raise FtcalError(f"{path}: cannot read the live state ({why}).") from None
-        if not isinstance(doc, dict) or doc.get("format") != STATE_FORMAT or doc.get("format_version") != STATE_VERSION:
-            raise FtcalError(f"{path}: not a live state file ({STATE_FORMAT} {STATE_VERSION}).")
+        check_state_envelope(doc, path)
 
         def bad(field: str, what: str):
             return FtcalError(f"{path}: the live state's {field!r} {what}.")
@@ -1051,13 +1049,7 @@ class LiveCalibrator:
     def model_fingerprint(self) -> str | None:
         """sha256 of the calibration model's inputs, outputs and model-file fields (None without a model): the state
         file records it, so that a state is never resumed with a bias that belongs to another model."""
-        if self.model is None:
-            return None
-        import hashlib
-
-        content = {"inputs": list(self.model.input_names_), "outputs": list(self.model.output_names_),
-                   "model": self.model.to_document()}
-        return hashlib.sha256(json.dumps(content, sort_keys=True, default=repr).encode("utf-8")).hexdigest()
+        return model_digest(self.model)
 
 
 AXES = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")

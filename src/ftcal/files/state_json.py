@@ -1,0 +1,40 @@
+"""The live state file's envelope (``ftcal live --state``): its format and version, and the digest of the
+calibration model it was written for, from the same canonical-JSON digest as model and payload files
+(:func:`ftcal.files.json_document.digest`).
+
+The fields inside (bias, covariance, tool, counters) are the live calibrator's, checked one by one by
+:meth:`ftcal.live.calibrator.LiveCalibrator.load_state`.
+"""
+
+from __future__ import annotations
+
+from ..runtime.errors import FtcalError
+from .json_document import digest
+
+STATE_FORMAT = "ftcal-live-state"
+STATE_VERSION = "1.0"
+
+
+def state_envelope() -> dict:
+    """The fields every live state file starts with."""
+    return {"format": STATE_FORMAT, "format_version": STATE_VERSION}
+
+
+def check_state_envelope(doc, source) -> None:
+    """Refuse what is not a live state file of this version, in one line naming ``source``."""
+    if not isinstance(doc, dict) or doc.get("format") != STATE_FORMAT or doc.get("format_version") != STATE_VERSION:
+        raise FtcalError(f"{source}: not a live state file ({STATE_FORMAT} {STATE_VERSION}).")
+
+
+def model_digest(model) -> str | None:
+    """sha256 of a calibration model's inputs, outputs and model-file fields (None without a model).
+
+    The canonical JSON of :func:`~ftcal.files.json_document.digest` (non-finite numbers as null, as the
+    model file writes them): a state is never resumed with a bias that belongs to another model.
+    """
+    if model is None:
+        return None
+    from .model_json import jsonable
+
+    return digest(jsonable({"inputs": list(model.input_names_), "outputs": list(model.output_names_),
+                            "model": model.to_document()}))
