@@ -101,17 +101,35 @@ class StaticRows:
         return holds.static
 
 
-def payload_excitation(groups) -> str:
-    """One line: the relative singular values of the payload regressor, and how many directions they determine."""
+@dataclass(frozen=True)
+class PayloadExcitation:
+    """How far the poses determine the payload's parameters (:func:`~ftcal.core.excitation.regressor_excitation`).
+
+    Attributes
+    ----------
+    singular_values : ndarray, of the payload regressor with columns scaled to unit norm, relative, descending
+    n_determined : int, the directions at or above :data:`~ftcal.core.excitation.UNEXCITED`
+    """
+
+    singular_values: np.ndarray
+    n_determined: int
+
+    def summary(self) -> str:
+        """One line: the relative singular values, and how many directions they determine."""
+        return (f"excitation: the poses determine {self.n_determined} of {len(self.singular_values)} parameter "
+                f"directions (relative singular values of the payload regressor, columns scaled to unit norm: "
+                f"{', '.join(f'{v:.2g}' for v in self.singular_values)})")
+
+
+def payload_excitation(groups) -> PayloadExcitation:
+    """The excitation of the payload regressor summed over ``groups`` (group -> its statistics)."""
     from ..core.excitation import regressor_excitation
 
     total = None
     for stats in groups.values():
         total = stats if total is None else total + stats
     singular, n_determined = regressor_excitation(total.gram())
-    return (f"excitation: the poses determine {n_determined} of {len(singular)} parameter directions (relative "
-            f"singular values of the payload regressor, columns scaled to unit norm: "
-            f"{', '.join(f'{v:.2g}' for v in singular)})")
+    return PayloadExcitation(singular, n_determined)
 
 
 def _axes(values, per: str = "") -> str:
@@ -135,7 +153,7 @@ class PayloadResult(StepResult):
     payload : PayloadParameters, what ``save`` writes
     fit : PayloadFit, the chosen model's fit (mass, com, bias, standard errors, cross-validation)
     drift : DriftResult, the bias model and its comparison with a constant bias
-    excitation : str, one line on how well the poses determine the parameters
+    excitation : PayloadExcitation, how well the poses determine the parameters (one line of the text)
     notes : list of str, how the samples and groups were chosen (printed first)
     sources : list of str, the tables
 
@@ -159,7 +177,7 @@ class PayloadResult(StepResult):
     payload: object
     fit: object
     drift: object
-    excitation: str
+    excitation: PayloadExcitation
     notes: list[str] = field(default_factory=list)
     sources: list[str] = field(default_factory=list)
     scale: tuple[float, float] | None = None  # RMS of the force and torque readings: what the figures are stated to
@@ -177,7 +195,7 @@ class PayloadResult(StepResult):
     def summary(self) -> str:
         return "\n".join([*self.notes, *_fit_lines(self.fit, self.drift.n_groups, self.payload.gravity, self.scale),
                           gain_note(self.fit.mass, self.fit.stderr["mass"]), *_drift_lines(self.drift),
-                          self.excitation])
+                          self.excitation.summary()])
 
     def to_dict(self) -> dict:
         from .result import plain
@@ -188,6 +206,8 @@ class PayloadResult(StepResult):
                "n_groups": self.drift.n_groups, "gravity": self.payload.gravity, "residual_rms": fit.residual_rms,
                "condition_number": fit.condition_number, "weighting": fit.weighting,
                "bias_model": "none" if self.drift.drift is None else self.drift.drift.model,
+               "excitation": {"singular_values": self.excitation.singular_values,
+                              "n_determined": self.excitation.n_determined},
                "notes": list(self.notes), "sources": list(self.sources)}
         return plain(out)
 
@@ -507,6 +527,11 @@ class RebiasResult(StepResult):
         New bias (N, N·m), its standard error, the change since identification and that change in
         combined standard errors (NaN where the identification left the bias undetermined).
     drift_rate : ndarray of shape (6,) or None, per hour since the identification's recording ended
+    hours : float or None, hours from the identification's recording's end to this one's mean time
+    n_samples : int, the samples the bias was re-estimated from
+    stderr_kind : str, how the new bias's standard errors were found
+    notes : list of str, how the static samples were chosen (printed first)
+    sources : list of str, the payload file, then the tables
     """
 
     payload: object
@@ -515,18 +540,50 @@ class RebiasResult(StepResult):
     change: np.ndarray
     z: np.ndarray
     drift_rate: np.ndarray | None
-    lines: list[str] = field(default_factory=list)
     sources: list[str] = field(default_factory=list)
+    n_samples: int = 0
+    stderr_kind: str = ""
+    hours: float | None = None
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def drifted(self) -> list[str]:
+        """The axes whose bias moved by more than :data:`REBIAS_SIGNIFICANT` combined standard errors."""
+        return [a for a, zi in zip(AXIS_NAMES, self.z) if abs(zi) > REBIAS_SIGNIFICANT]
 
     def summary(self) -> str:
-        return "\n".join(self.lines)
+        name = self.sources[0] if self.sources else "the payload file"
+        lines = list(self.notes)
+        lines.append(f"bias re-estimated from {self.n_samples} samples with mass {self.payload.mass:.6g} kg and the "
+                     f"centre of mass of {name} held fixed ({self.stderr_kind})")
+        for a, new, se, d, zi in zip(AXIS_NAMES, self.bias, self.stderr, self.change, self.z):
+            unit = "N" if a[0] == "F" else "N·m"
+            if np.isnan(zi):  # undetermined at identification: the value follows the file's convention
+                lines.append(f"  {a + ' bias':<10}{new:>12.6g} {unit}   undetermined by the identification poses "
+                             f"(consistent with {name}'s convention; change {d:+.4g} {unit} not comparable)")
+                continue
+            lines.append(f"  {a + ' bias':<10}{new:>12.6g} ± {se:.2g} {unit}   change since identification "
+                         f"{d:+.4g} {unit} ({zi:+.1f} standard errors)")
+        if self.drift_rate is not None:
+            lines.append(f"  drift rate since identification ({self.hours:.3g} h): " + _axes(self.drift_rate, "/h"))
+        else:
+            lines.append("  drift rate: unknown (needs --time, and a payload file whose recording ended before this "
+                         "one)")
+        if self.drifted:
+            lines.append("  the bias moved more than the identification's uncertainty explains "
+                         f"({REBIAS_SIGNIFICANT:g} standard errors) on {', '.join(self.drifted)}: the sensor drifted; "
+                         "compensate with the new file")
+        else:
+            lines.append("  the change is within what the identification's uncertainty explains")
+        return "\n".join(lines)
 
     def to_dict(self) -> dict:
         from .result import plain
 
         return plain({"bias": self.bias, "stderr": self.stderr, "change": self.change, "z": self.z,
-                      "drift_rate": self.drift_rate, "mass": self.payload.mass, "com": self.payload.com,
-                      "sources": self.sources})
+                      "drift_rate": self.drift_rate, "hours": self.hours, "drifted": self.drifted,
+                      "n_samples": self.n_samples, "mass": self.payload.mass, "com": self.payload.com,
+                      "notes": self.notes, "sources": self.sources})
 
     def save(self, path) -> None:
         """Write the updated payload file (atomically)."""
@@ -586,36 +643,17 @@ def retare(payload, data, *, inputs: Sequence[str] = DEFAULT_WRENCH, keep_moving
         joints=options["urdf"] is not None or options["robot"] is not None, degrees=options["degrees"])
     recording = read_payload_tables(paths, gravity_from, wrench=wrench, reaction=identified.reaction,
                                     time=options["time"], temperature=own_temperature, select=static)
-    lines = [f"static samples: {data.named(line)}" for line in (() if static is None else static.notes)]
+    notes = [f"static samples: {data.named(line)}" for line in (() if static is None else static.notes)]
     found = rebias(recording, identified)
     old = identified_bias(identified, recording.time)
     old_se = np.r_[identified.stderr["force_bias"], identified.stderr["torque_bias"]]
     change = found.bias - old
     z = change / np.sqrt(found.stderr ** 2 + old_se ** 2)
-    lines.append(f"bias re-estimated from {recording.n_samples} samples with mass {identified.mass:.6g} kg and the "
-                 f"centre of mass of {name} held fixed ({found.stderr_kind})")
-    for a, new, se, d, zi in zip(AXIS_NAMES, found.bias, found.stderr, change, z):
-        unit = "N" if a[0] == "F" else "N·m"
-        if np.isnan(zi):  # undetermined at identification: the value follows the file's convention
-            lines.append(f"  {a + ' bias':<10}{new:>12.6g} {unit}   undetermined by the identification poses "
-                         f"(consistent with {name}'s convention; change {d:+.4g} {unit} not comparable)")
-            continue
-        lines.append(f"  {a + ' bias':<10}{new:>12.6g} ± {se:.2g} {unit}   change since identification "
-                     f"{d:+.4g} {unit} ({zi:+.1f} standard errors)")
     end = identified.drift.time_end if identified.drift is not None else None
-    rate = None
+    rate = hours = None
     if recording.time is not None and end is not None and recording.time[0] > end:
         hours = (float(np.mean(recording.time)) - end) / 3600.0
         rate = change / hours
-        lines.append(f"  drift rate since identification ({hours:.3g} h): " + _axes(rate, "/h"))
-    else:
-        lines.append("  drift rate: unknown (needs --time, and a payload file whose recording ended before this one)")
-    beyond = [a for a, zi in zip(AXIS_NAMES, z) if abs(zi) > REBIAS_SIGNIFICANT]
-    if beyond:
-        lines.append(f"  the bias moved more than the identification's uncertainty explains ({REBIAS_SIGNIFICANT:g} "
-                     f"standard errors) on {', '.join(beyond)}: the sensor drifted; compensate with the new file")
-    else:
-        lines.append("  the change is within what the identification's uncertainty explains")
     t = recording.time
     drift = BiasDrift("none", options["time"] if t is not None else None, None if t is None else float(t[0]),
                       None if t is None else float(t[-1]),
@@ -626,7 +664,8 @@ def retare(payload, data, *, inputs: Sequence[str] = DEFAULT_WRENCH, keep_moving
     new_se = np.where(np.isnan(old_se), np.nan, found.stderr)  # still undetermined where it was
     stderr = dict(identified.stderr, force_bias=new_se[:3], torque_bias=new_se[3:])
     updated = replace(identified, force_bias=found.bias[:3], torque_bias=found.bias[3:], stderr=stderr, drift=drift)
-    out = RebiasResult(updated, found.bias, found.stderr, change, z, rate, lines, [name, *names])
+    out = RebiasResult(updated, found.bias, found.stderr, change, z, rate, [name, *names], recording.n_samples,
+                       found.stderr_kind, hours, notes)
     if output is not None:
         save_payload(updated, output, sources=out.sources)
     return out
