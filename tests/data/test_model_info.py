@@ -2,7 +2,7 @@
 
 Reference: the full loader (:func:`ftcal.files.model_files.load_model_file`, numpy, scipy's sparse
 substitution for the raw coefficients, numpy's argsort and eigvalsh) and the text ``info`` printed from
-it before the light path existed (:func:`ftcal.cli.cmd_info.loaded_facts`, unchanged). On written model files
+it before the light path existed (:func:`ftcal.files.model_info.loaded_facts`, unchanged). On written model files
 the light path must be taken and print the same bytes; on mutated, re-signed documents (so that the
 digest passes and the loader's later checks are reached) it must give up on every file the loader
 refuses, and otherwise print what the loader's path prints.
@@ -16,11 +16,11 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from ftcal.cli.cmd_info import loaded_facts, report
+from ftcal.cli.cmd_info import report
 from ftcal.core.dataset import Dataset
 from ftcal.core.model import CalibrationModel
 from ftcal.core.solvers.lasso import Lasso
-from ftcal.files.model_info import covariance_acceptable, jacobi_eigenvalues, light_facts
+from ftcal.files.model_info import covariance_acceptable, jacobi_eigenvalues, light_facts, loaded_facts
 from ftcal.files.model_json import digest, format_document, model_document
 from ftcal.runtime.errors import FtcalError
 

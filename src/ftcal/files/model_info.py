@@ -7,6 +7,7 @@ only to *accept*: whatever it cannot prove the full loader accepts (another fami
 prediction or raw coefficient near a limit, a tie in the largest terms, any failed check) returns None,
 and ``info`` loads the file with the full loader, which refuses it with its own message or prints it.
 So the light path never words an error, and never accepts a file the loader refuses.
+:func:`loaded_facts` gives the same keys from the full loader (numpy, imported when it is called).
 """
 
 from __future__ import annotations
@@ -41,7 +42,7 @@ def light_facts(path: str | Path, n_terms: int) -> dict | None:
     Returns
     -------
     dict or None
-        The keys of :func:`ftcal.cli.cmd_info.loaded_facts`'s result.
+        The keys of :func:`loaded_facts`'s result.
     """
     path = Path(path)
     try:
@@ -236,3 +237,50 @@ def _largest(coef: list, ny: int, n: int) -> list[int]:
     sort is stable, as the loader's ``argsort(kind="stable")``)."""
     magnitude = [abs(x) for row in coef for x in row]
     return sorted(range(len(magnitude)), key=lambda f: -magnitude[f])[:n]
+
+
+def loaded_facts(path: str, n_terms: int) -> dict:
+    """What ``info`` prints, from the fully loaded model file (any family and format).
+
+    :func:`light_facts` gives the same keys without numpy for static polynomial JSON files; this one
+    imports numpy and the full loader, when it is called.
+    """
+    import numpy as np
+
+    from .model_files import load_model_file
+
+    loaded = load_model_file(path)
+    model = loaded.model
+    info = model.describe()
+    polynomial = model.family == "polynomial"  # terms and raw coefficients exist for polynomials only
+    arx = f", ARX na={info['na']} nb={info['nb']}" if info["na"] or info["nb"] else ""
+    facts = {
+        "kind": (f"polynomial degree {info['degree']}{arx}" if polynomial
+                 else f"{model.label()} ({model.family} family)"),
+        "polynomial": polynomial, "n_inputs": info["n_inputs"], "n_outputs": info["n_outputs"],
+        "n_coefficients": info["n_coefficients"], "n_nonzero": info["n_nonzero"],
+        "solver": model.solver_info_.get("name"), "lambda": model.solver_info_.get("lambda"),
+        "created_utc": loaded.created_utc, "ftcal_version": loaded.ftcal_version,
+        "n_samples": model.n_samples_fit_, "n_sources": len(loaded.sources), "prior": loaded.prior,
+        "inputs": [(name, unit, low, high)
+                   for name, unit, (low, high) in zip(model.input_names_, loaded.input_units, model.input_range_)],
+        "metrics": model.training_metrics_ or {},
+    }
+    if not polynomial:
+        return facts
+    from ..core.conversion import to_raw
+
+    facts["raw_nonzero"] = int(np.sum(np.abs(to_raw(model)) > 1e-9))
+    names = model.layout_.column_names(model.input_names_, model.output_names_)
+    # Features are normalized to about [-1, 1], so |coefficient| measures a term's contribution.
+    magnitude = np.abs(model.coef_)
+    # stable: equal magnitudes (a LASSO's exact zeros) listed in term order on every CPU (AVX-512 sorts ties its
+    # own way)
+    order = np.argsort(-magnitude, axis=None, kind="stable")[:max(n_terms, 0)]
+    norm = model.input_normalization_
+    facts["raw_basis"] = not (norm.offset.any() or (norm.scale != 1).any())
+    facts["largest"] = []
+    for flat in order:
+        row, col = np.unravel_index(flat, magnitude.shape)
+        facts["largest"].append((model.output_names_[col], names[row], model.coef_[row, col]))
+    return facts
