@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -24,40 +24,95 @@ from .sources import DEFAULT_WRENCH, gravity_source, reads_tables, source_option
 MAX_POSES_PRINTED = 8
 
 
+@dataclass(frozen=True)
+class ConventionsRun:
+    """What the conventions check's text takes beside its report.
+
+    Attributes
+    ----------
+    n_holds : int, the static holds read
+    scales : (float, float), RMS of the force and torque readings: the residuals are stated to
+        :data:`~ftcal.core.precision.SOLUTION` of them (a fit of exactly zero torques prints 0 N·m)
+    reaction : bool, the sign declared (a fix that adds ``--reaction`` then says to leave it out)
+    notes : tuple of str, the report's notes with the tables' names
+    """
+
+    n_holds: int
+    scales: tuple[float, float]
+    reaction: bool = False
+    notes: tuple[str, ...] = ()
+
+    def stated(self, pair) -> tuple[float, float]:
+        """(force, torque) residuals stated to the readings' precision."""
+        from ..core.precision import SOLUTION, settle
+
+        return tuple(settle(v, SOLUTION, scale) for v, scale in zip(pair, self.scales))
+
+
+@dataclass(frozen=True)
+class AcceptanceRun:
+    """What the acceptance test's text takes beside its result (which holds the errors and thresholds).
+
+    Attributes
+    ----------
+    model_name : str, the model file tested
+    retare : str or None, the re-tare verdict of a failed test (:func:`ftcal.check.accept.retare_verdict`)
+    recorded : (str, str, int) or None, the history file, the sensor serial and its calibrations recorded
+    """
+
+    model_name: str
+    retare: str | None = None
+    recorded: tuple[str, str, int] | None = None
+
+
+@dataclass(frozen=True)
+class HistoryRun:
+    """What a sensor's history text takes beside its calibration records: its acceptance tests and drift."""
+
+    serial: str
+    acceptances: tuple = ()
+    drift: object = None
+
+
 @dataclass(repr=False)
 class CheckResult(StepResult):
-    """What a check found: the printed lines, whether it passed, and the report object behind them.
+    """What a check found: whether it passed, the report object behind it; :meth:`summary` renders the text.
 
     Attributes
     ----------
     mode : {"conventions", "acceptance", "history"}
     passed : bool, no finding (conventions) / the calibration passes (acceptance)
     report : the check's own report (``ConventionReport``, ``AcceptanceResult`` or the history's records)
-    lines : list of str, the text of :meth:`summary`
     written : list of str, files written (HTML page)
+    run : ConventionsRun, AcceptanceRun or HistoryRun
+        The mode's other numbers the text states (holds, thresholds, history).
 
     Examples
     --------
-    >>> result = CheckResult("acceptance", False, None, ["FAIL (1 of 4 pose(s) over threshold, 0 channel issue(s))"])
-    >>> result.exit_code
-    1
-    >>> result
-    <CheckResult: FAIL (1 of 4 pose(s) over threshold, 0 channel issue(s))>
+    >>> result = CheckResult("history", True, [], run=HistoryRun("FT-1"))
+    >>> result.exit_code, result.summary().splitlines()[0]
+    (0, 'sensor FT-1: 0 calibration(s), 0 acceptance test(s)')
     """
 
     mode: str
     passed: bool
     report: object
-    lines: list[str] = field(default_factory=list)
     written: list[str] = field(default_factory=list)
+    run: object = None
 
     @property
     def exit_code(self) -> int:
         """0 no finding / pass, 1 findings / fail (the command's exit code)."""
         return 0 if self.passed else 1
 
+    @property
+    def lines(self) -> list[str]:
+        """The text of :meth:`summary`, line by line."""
+        return self.summary().split("\n")
+
     def summary(self) -> str:
-        return "\n".join(self.lines)
+        render = {"conventions": _conventions_lines, "acceptance": _acceptance_lines, "history": _history_lines}
+        return "\n".join(render[self.mode](self.report, self.run))
 
     def to_dict(self) -> dict:
         from .result import plain
@@ -168,15 +223,9 @@ def check_sensor(data, *, accept=None, inputs: Sequence[str] = DEFAULT_WRENCH, g
                        serial=serial, history_dir=history_dir)
 
 
-def _residual_precision(wrench):
-    """(force RMS, torque RMS) -> the same stated to :data:`~ftcal.core.precision.SOLUTION` of the readings'
-    RMS per block: a fit of exactly zero torques leaves 0 N·m, not 5.8e-21."""
-    import numpy as np
-
-    from ..core.precision import SOLUTION, settle
-
-    scales = [float(np.sqrt(np.mean(wrench[:, block] ** 2))) for block in (slice(0, 3), slice(3, 6))]
-    return lambda pair: tuple(settle(v, SOLUTION, scale) for v, scale in zip(pair, scales))
+def _reading_scales(wrench) -> tuple[float, float]:
+    """RMS of the force and of the torque readings: what :meth:`ConventionsRun.stated` states residuals to."""
+    return tuple(float(np.sqrt(np.mean(wrench[:, block] ** 2))) for block in (slice(0, 3), slice(3, 6)))
 
 
 def _conventions(tables, options, *, wrench, group_by, rate, reaction, max_com_distance, html) -> CheckResult:
@@ -187,31 +236,36 @@ def _conventions(tables, options, *, wrench, group_by, rate, reaction, max_com_d
                        time=options["time"], rate=rate)
     report = check_conventions(holds, wrench_columns=tuple(wrench), max_com_distance=max_com_distance,
                                source=", ".join(names))
-    stated = _residual_precision(holds.wrench)
-    force, torque = stated(report.residual)
-    lines = [f"{holds.n_holds} static holds; payload-fit residual RMS as declared {force:.4g} N, {torque:.4g} N·m; "
-             f"tool mass {report.mass:.4g} ± {report.mass_stderr:.2g} kg (with the fixes below; a constant bias: "
-             "if the bias drifts, `ftcal payload --time COL --bias-drift auto` compares bias models and says which "
-             "mass to trust)"]
-    for k, f in enumerate(report.findings, 1):
-        fix = f.fix
-        if reaction and f.reaction:
-            fix = fix.replace("--reaction", "leave out --reaction", 1)
-        lines.append(f"finding {k}: {f.kind} (confidence {100 * f.confidence:.2f} %): {f.message}")
-        lines.append(f"  fix: {fix}")
-        before, after = stated(f.before), stated(f.after)
-        lines.append(f"  residual RMS before {before[0]:.4g} N, {before[1]:.4g} N·m; after {after[0]:.4g} N, "
-                     f"{after[1]:.4g} N·m")
-    lines += [f"note: {tables.named(note)}" for note in report.notes]
-    if not report.findings:
-        lines.append("no finding: sign, axes, frame, zeroing and torque reference look as declared")
+    run = ConventionsRun(holds.n_holds, _reading_scales(holds.wrench), bool(reaction),
+                         tuple(tables.named(note) for note in report.notes))
     written = []
     if html is not None:
         from ..check.page import conventions_page
 
         conventions_page(report, html, source=", ".join(names))
         written.append(str(html))
-    return CheckResult("conventions", not report.findings, report, lines, written)
+    return CheckResult("conventions", not report.findings, report, written, run)
+
+
+def _conventions_lines(report, run: ConventionsRun) -> list[str]:
+    force, torque = run.stated(report.residual)
+    lines = [f"{run.n_holds} static holds; payload-fit residual RMS as declared {force:.4g} N, {torque:.4g} N·m; "
+             f"tool mass {report.mass:.4g} ± {report.mass_stderr:.2g} kg (with the fixes below; a constant bias: "
+             "if the bias drifts, `ftcal payload --time COL --bias-drift auto` compares bias models and says which "
+             "mass to trust)"]
+    for k, f in enumerate(report.findings, 1):
+        fix = f.fix
+        if run.reaction and f.reaction:
+            fix = fix.replace("--reaction", "leave out --reaction", 1)
+        lines.append(f"finding {k}: {f.kind} (confidence {100 * f.confidence:.2f} %): {f.message}")
+        lines.append(f"  fix: {fix}")
+        before, after = run.stated(f.before), run.stated(f.after)
+        lines.append(f"  residual RMS before {before[0]:.4g} N, {before[1]:.4g} N·m; after {after[0]:.4g} N, "
+                     f"{after[1]:.4g} N·m")
+    lines += [f"note: {note}" for note in run.notes]
+    if not report.findings:
+        lines.append("no finding: sign, axes, frame, zeroing and torque reference look as declared")
+    return lines
 
 
 def thresholds_for(model, model_name: str, limits):
@@ -250,7 +304,7 @@ def thresholds_for(model, model_name: str, limits):
 
 def _acceptance(tables, accept, options, *, group_by, html, payload_json, limits, serial,
                 history_dir) -> CheckResult:
-    from ..check.accept import acceptance_test, axis_limits, read_test_data, retare_verdict
+    from ..check.accept import acceptance_test, read_test_data, retare_verdict
     from ..files.model_files import load_model_file
     from ..runtime.atomic import write_text_atomic
 
@@ -273,26 +327,7 @@ def _acceptance(tables, accept, options, *, group_by, html, payload_json, limits
         rows=rows)
     labels, issues, problems = tables.named_labels(labels), tables.named(issues), tables.named(problems)
     result = acceptance_test(error, labels, model.output_names_, thresholds, issues, reference, problems)
-    limits_per_axis = axis_limits(result.outputs, thresholds)
-    lines = [f"acceptance of {model_name} on {error.shape[0]} samples in {len(result.poses)} pose(s); thresholds "
-             f"{thresholds.force:.4g} N, {thresholds.torque:.4g} N·m RMS per axis and pose ({thresholds.origin})",
-             f"{'axis':<8}{'RMS error':>12}{'max |err|':>12}{'threshold':>12}"]
-    for name, r, m, lim in zip(result.outputs, result.rmse, result.max_abs_error, limits_per_axis):
-        lines.append(f"{name:<8}{r:>12.4g}{m:>12.4g}{lim:>12.4g}{'  over' if r > lim else ''}")
-    failed = sorted(result.failed_poses, key=lambda p: -float((p.rmse / limits_per_axis).max()))
-    for pose in failed[:MAX_POSES_PRINTED]:
-        lines.append(f"pose {pose.label} ({pose.n_samples} samples) fails on {', '.join(pose.failed)}: "
-                     + "  ".join(f"{a} {v:.4g}" for a, v in zip(result.outputs, pose.rmse)))
-    if len(failed) > MAX_POSES_PRINTED:
-        lines.append(f"... {len(failed) - MAX_POSES_PRINTED} more failing pose(s)")
-    lines += [f"channel: {issue}" for issue in result.channel_issues]
-    lines += [f"unusable: {problem}" for problem in result.problems]
-    retare = retare_verdict(result, rows["file"], rows["time"])
-    if retare is not None:
-        lines.append(retare)
-    lines.append("PASS" if result.passed else f"FAIL ({len(failed)} of {len(result.poses)} pose(s) over threshold, "
-                                              f"{len(result.channel_issues)} channel issue(s)"
-                 + (f", {len(result.problems)} reason(s) the test cannot pass" if result.problems else "") + ")")
+    run = AcceptanceRun(model_name, retare_verdict(result, rows["file"], rows["time"]))
     page = None
     if html is not None:  # made before anything is recorded: a run that fails is not in the history
         from ..check.page import acceptance_page_text
@@ -305,20 +340,52 @@ def _acceptance(tables, accept, options, *, group_by, html, payload_json, limits
 
     if serial is not None:
         # The page is written inside the history's transaction: if it fails, nothing is recorded.
-        message = _record(model, model_name, names, result, thresholds, serial, history_dir, lines,
-                          before_commit=write_page)
+        message, recorded = _record(model, model_name, names, result, thresholds, serial, history_dir,
+                                    before_commit=write_page)
+        run = replace(run, recorded=recorded)
         if message:
             from ..check.history import DriftWarning
 
             warnings.warn(message, DriftWarning, stacklevel=3)
     else:
         write_page()
-    return CheckResult("acceptance", result.passed, result, lines, [str(html)] if page is not None else [])
+    return CheckResult("acceptance", result.passed, result, [str(html)] if page is not None else [], run)
 
 
-def _record(model, model_name, paths, result, thresholds, serial, history_dir, lines,
-            before_commit=None) -> str | None:
-    """Append the calibration (if new) and the result to the history; a drift warning, or None.
+def _acceptance_lines(result, run: AcceptanceRun) -> list[str]:
+    from ..check.accept import axis_limits
+
+    thresholds = result.thresholds
+    limits_per_axis = axis_limits(result.outputs, thresholds)
+    lines = [f"acceptance of {run.model_name} on {result.error.shape[0]} samples in {len(result.poses)} pose(s); "
+             f"thresholds {thresholds.force:.4g} N, {thresholds.torque:.4g} N·m RMS per axis and pose "
+             f"({thresholds.origin})",
+             f"{'axis':<8}{'RMS error':>12}{'max |err|':>12}{'threshold':>12}"]
+    for name, r, m, lim in zip(result.outputs, result.rmse, result.max_abs_error, limits_per_axis):
+        lines.append(f"{name:<8}{r:>12.4g}{m:>12.4g}{lim:>12.4g}{'  over' if r > lim else ''}")
+    failed = sorted(result.failed_poses, key=lambda p: -float((p.rmse / limits_per_axis).max()))
+    for pose in failed[:MAX_POSES_PRINTED]:
+        lines.append(f"pose {pose.label} ({pose.n_samples} samples) fails on {', '.join(pose.failed)}: "
+                     + "  ".join(f"{a} {v:.4g}" for a, v in zip(result.outputs, pose.rmse)))
+    if len(failed) > MAX_POSES_PRINTED:
+        lines.append(f"... {len(failed) - MAX_POSES_PRINTED} more failing pose(s)")
+    lines += [f"channel: {issue}" for issue in result.channel_issues]
+    lines += [f"unusable: {problem}" for problem in result.problems]
+    if run.retare is not None:
+        lines.append(run.retare)
+    lines.append("PASS" if result.passed else f"FAIL ({len(failed)} of {len(result.poses)} pose(s) over threshold, "
+                                              f"{len(result.channel_issues)} channel issue(s)"
+                 + (f", {len(result.problems)} reason(s) the test cannot pass" if result.problems else "") + ")")
+    if run.recorded is not None:
+        path, serial, n_records = run.recorded
+        lines.append(f"recorded in {path} for sensor {serial} ({n_records} calibration(s))")
+    return lines
+
+
+def _record(model, model_name, paths, result, thresholds, serial, history_dir,
+            before_commit=None) -> tuple[str | None, tuple[str, str, int]]:
+    """Append the calibration (if new) and the result to the history; a drift warning (or None), and
+    (the history file, ``serial``, its calibrations recorded).
 
     ``before_commit()`` runs inside the transaction (the other outputs): if it fails, nothing is recorded."""
     from ..check.history import History, calibration_summary, default_history_dir, drift
@@ -334,8 +401,8 @@ def _record(model, model_name, paths, result, thresholds, serial, history_dir, l
             if before_commit is not None:
                 before_commit()
         records = history.calibrations(serial)
-        lines.append(f"recorded in {history.path} for sensor {serial} ({len(records)} calibration(s))")
-    return _drift_message(drift(records), serial) if new else None
+        recorded = (str(history.path), serial, len(records))
+    return (_drift_message(drift(records), serial) if new else None), recorded
 
 
 def _drift_message(result, serial: str) -> str | None:
@@ -370,7 +437,7 @@ def sensor_history(serial: str, history_dir=None) -> CheckResult:
     import os
     from pathlib import Path
 
-    from ..check.history import DATABASE_NAME, DRIFT_KEYS, DRIFT_UNITS, DriftWarning, History, default_history_dir, drift
+    from ..check.history import DATABASE_NAME, DriftWarning, History, default_history_dir, drift
 
     folder = Path(history_dir or default_history_dir())
     if not os.path.lexists(folder / DATABASE_NAME):
@@ -384,15 +451,25 @@ def sensor_history(serial: str, history_dir=None) -> CheckResult:
             known = history.serials()
             raise ParameterError('history', f"{{history}} {serial}: no record in {history.path}"
                              + (f"; sensors recorded: {', '.join(known)}." if known else " (empty history)."))
-    lines = [f"sensor {serial}: {len(records)} calibration(s), {len(results)} acceptance test(s)",
+    result = drift(records)
+    message = _drift_message(result, serial)
+    if message:
+        warnings.warn(message, DriftWarning, stacklevel=2)
+    return CheckResult("history", True, records, run=HistoryRun(serial, tuple(results), result))
+
+
+def _history_lines(records, run: HistoryRun) -> list[str]:
+    from ..check.history import DRIFT_KEYS, DRIFT_UNITS
+
+    lines = [f"sensor {run.serial}: {len(records)} calibration(s), {len(run.acceptances)} acceptance test(s)",
              f"{'recorded (UTC)':<28}{'model sha256':<14}{'|force bias| N':>15}{'|torque bias| N·m':>19}"
              f"{'gain norm':>11}"]
     for r in records:
         s = r.summary
         lines.append(f"{r.recorded_utc[:26]:<28}{s.model_sha256[:12]:<14}{np.linalg.norm(s.bias[:3]):>15.4g}"
                      f"{np.linalg.norm(s.bias[3:]):>19.4g}{np.linalg.norm(s.gain):>11.4g}")
-    result = drift(records)
-    if result.changes:
+    result = run.drift
+    if result is not None and result.changes:
         lines.append("drift between consecutive calibrations:")
         for c in result.changes:
             lines.append(f"  {c['recorded_utc'][:26]}: " + "  ".join(
@@ -402,10 +479,7 @@ def sensor_history(serial: str, history_dir=None) -> CheckResult:
         else:
             lines.append("  normal change (3 × RMS of the earlier ones): " + "  ".join(
                 f"{k.replace('_', ' ')} {result.normal[k]:.4g}" for k in DRIFT_KEYS))
-    for a in results:
+    for a in run.acceptances:
         lines.append(f"acceptance {a.recorded_utc[:26]} model {a.model_sha256[:12]}: "
                      f"{'PASS' if a.passed else 'FAIL'}, RMS " + " ".join(f"{v:.3g}" for v in a.rmse))
-    message = _drift_message(result, serial)
-    if message:
-        warnings.warn(message, DriftWarning, stacklevel=2)
-    return CheckResult("history", True, records, lines)
+    return lines
