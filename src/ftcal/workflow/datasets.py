@@ -24,7 +24,7 @@ class DatasetResult(StepResult):
     ----------
     table : LogTable (robot logs) or BagTable (ROS bags); ``save`` writes it
     kind : {"logs", "bags"}
-    description : str, what the table holds ("N samples from K recording(s), ...")
+    n_recordings : int, the recordings (robot logs or bags) read
     notes : list of str, one line per thing noticed (printed first)
 
     Examples
@@ -32,14 +32,14 @@ class DatasetResult(StepResult):
     >>> import numpy as np
     >>> from ftcal.insitu.bags import BagTable
     >>> table = BagTable({"time": np.arange(3.0), "u1": np.zeros(3)}, ())
-    >>> result = DatasetResult(table, "bags", "3 samples from 1 bag(s), columns time,u1")
-    >>> result.n_samples, result.columns
-    (3, ['time', 'u1'])
+    >>> result = DatasetResult(table, "bags", 1)
+    >>> result.n_samples, result.columns, result.description
+    (3, ['time', 'u1'], '3 samples from 1 bag(s), columns time,u1')
     """
 
     table: object
     kind: str
-    description: str
+    n_recordings: int
     notes: list[str] = field(default_factory=list)
 
     @property
@@ -62,6 +62,27 @@ class DatasetResult(StepResult):
 
         return dataset_frame(self.table)
 
+    @property
+    def load_cases(self) -> list[str]:
+        """The load cases of a dataset from robot logs, sorted (none from bags)."""
+        return sorted(set(map(str, self.table.dataset.groups))) if self.kind == "logs" else []
+
+    @property
+    def n_holds(self) -> int:
+        """The static holds of a dataset from robot logs (0 from bags)."""
+        if self.kind != "logs" or not self.n_samples:
+            return 0
+        return int(self.table.columns["hold"].max()) + 1
+
+    @property
+    def description(self) -> str:
+        """What the table holds, in one line (the last of :meth:`summary`)."""
+        if self.kind == "bags":
+            return (f"{self.n_samples} samples from {self.n_recordings} bag(s), columns "
+                    f"{single_line(','.join(self.table.columns))}")
+        return (f"{self.n_samples} samples from {self.n_recordings} recording(s), "
+                f"load case(s) {', '.join(self.load_cases)}, {self.n_holds} static hold(s)")
+
     def summary(self) -> str:
         return "\n".join([*self.notes, self.description])
 
@@ -69,6 +90,7 @@ class DatasetResult(StepResult):
         from .result import plain
 
         return plain({"kind": self.kind, "n_samples": self.n_samples, "columns": self.columns,
+                      "n_recordings": self.n_recordings, "load_cases": self.load_cases, "n_holds": self.n_holds,
                       "description": self.description, "notes": self.notes})
 
     def save(self, path) -> None:
@@ -175,18 +197,11 @@ def build_dataset(logs, *, urdf=None, robot: str | None = None, sensor: str | No
         topics = BagTopics(wrench_topic, joints_topic, temperature_topic, imu_topic, tf, receive_time=receive_time)
         table = build_bag_table(paths, topics, robot=model, sensor=sensor, payloads=payloads, load_cases=config,
                                 options=options, executor=executor)
-        description = (f"{table.n_samples} samples from {len(paths)} bag(s), columns "
-                       f"{single_line(','.join(table.columns))}")
-        result = DatasetResult(table, "bags", description, notes + [single_line(n) for n in table.notes])
+        result = DatasetResult(table, "bags", len(paths), notes + [single_line(n) for n in table.notes])
     else:
         table = build_log_table(paths, model, sensor, payloads=payloads, load_cases=config, options=options,
                                 executor=executor)
-        dataset = table.dataset
-        groups = sorted(set(map(str, dataset.groups)))
-        n_holds = int(table.columns["hold"].max()) + 1 if dataset.n_samples else 0
-        description = (f"{dataset.n_samples} samples from {len(paths)} recording(s), "
-                       f"load case(s) {', '.join(groups)}, {n_holds} static hold(s)")
-        result = DatasetResult(table, "logs", description, notes + [single_line(n) for n in table.notes])
+        result = DatasetResult(table, "logs", len(paths), notes + [single_line(n) for n in table.notes])
     if output is not None:
         result.save(output)
     return result
