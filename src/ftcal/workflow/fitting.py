@@ -1001,10 +1001,10 @@ class _Fit:
             mine, theirs = scorer.block(ours.fold_mse, cols), scorer.block(affine.fold_mse, cols)
             unit = UNITS.get(name, "")
             comparison = Comparison.of(AFFINE, theirs, mine)
-            ratio = float(mine.mean() / max(theirs.mean(), np.finfo(float).tiny))
-            pieces.append(BlockVersusAffine(name, unit, float(mine.mean()), float(theirs.mean())))
+            block = BlockVersusAffine(name, unit, float(mine.mean()), float(theirs.mean()))
+            pieces.append(block)
             if comparison.loses and mine.mean() > EXACT_FIT_FRACTION * float(np.sqrt(np.sum(span[list(cols)] ** 2))):
-                lost.append(f"{name} {ratio:.3g}x")
+                lost.append(f"{name} {block.ratio:.3g}x")
         versus = AffineComparison(candidate.label, result.n_folds, n_groups, tuple(pieces))
         self._keep("versus_affine", versus, [versus.summary()])
         if lost:
