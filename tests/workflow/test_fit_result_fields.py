@@ -137,6 +137,8 @@ def test_the_search_renders_its_cost_selection_and_span_from_its_fields():
     assert f"(--budget {first_only:g} s)" in tight.summary()
     assert any(line.startswith(f"degrees {dropped} not tried") for line in tight.lines)
     assert not any("not tried: estimated" in line for line in result.lines)
+    assert result.search_cost.to_frame()["searched"].tolist() == [True, True, True]
+    assert tight.search_cost.to_frame()["searched"].tolist() == [True, False, False]
     assert result.to_dict()["search_cost"]["degrees"] == [1, 2, 3]
     # The model file records the search's notes followed by the span and the estimate (as before).
     notes = result.model.solver_info_["cross_validation"]["notes"]
@@ -185,6 +187,7 @@ def test_the_mlp_lines_are_rendered_from_its_size_and_folds():
     assert network.n_rows == len(frame) and result.lines[0] == network.line()
     assert validation.n_folds == 4 and len(validation.affine_fold_scores) == 4
     mean = np.mean(validation.fold_scores)
+    assert validation.to_frame()["mlp"].mean() == pytest.approx(mean)
     assert f"{mean:>11.4f}" in result.summary()
     # Other fold scores (twice the error) render their own mean; a smaller network its own size.
     doubled = replace(validation, fold_scores=tuple(2 * v for v in validation.fold_scores))

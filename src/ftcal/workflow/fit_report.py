@@ -58,6 +58,17 @@ class SearchCost:
         """The estimate against the budget, then :attr:`note` (when something was dropped)."""
         return [self.planned.describe() + f" (--budget {self.budget:g} s)"] + ([self.note] if self.note else [])
 
+    def to_frame(self):
+        """One row per degree asked: predicted search and final-fit CPU seconds, peak statistics bytes, and
+        whether the degree was searched."""
+        import pandas as pd
+
+        e = self.estimate
+        return pd.DataFrame({"search_seconds": list(e.seconds),
+                             "final_seconds": list(e.final_seconds) or [0.0] * len(e.degrees),
+                             "peak_bytes": list(e.peak_bytes), "searched": [d in self.degrees for d in e.degrees]},
+                            index=pd.Index(list(e.degrees), name="degree"))
+
     def to_dict(self) -> dict:
         planned = self.planned
         return plain({"degrees": self.degrees, "dropped_degrees": self.dropped, "budget_seconds": self.budget,
@@ -195,6 +206,13 @@ class MLPValidation:
             lines.append("the MLP is within the fold noise of the affine model: no evidence that it "
                          "predicts new load cases better (the MLP is written, as asked)")
         return lines
+
+    def to_frame(self):
+        """One row per grouped fold: the MLP's held-out score and affine least squares' (:attr:`metric`)."""
+        import pandas as pd
+
+        return pd.DataFrame({"mlp": list(self.fold_scores), "affine": list(self.affine_fold_scores)},
+                            index=pd.RangeIndex(self.n_folds, name="fold"))
 
     def to_dict(self) -> dict:
         return plain({"label": self.label, "metric": self.metric, "iterations": self.iterations,
