@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from ._examples import epilog
-from ._robot import add_robot_arguments, load_robot
+from ._robot import add_robot_arguments, robot_keywords
 
 
 def register(subparsers) -> None:
@@ -19,25 +19,9 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    robot = load_robot(args)
-    _, base = robot.base_frame(args.base)
-    print(f"model: {robot.source}")
-    print(f"base frame: {base}; total mass {robot.total_mass():.4f} kg")
-    if robot.payloads:
-        print("payloads: " + "; ".join(f"{p.mass:g} kg on {p.frame}" for p in robot.payloads))
-    rows = [("sensor", "joint", "parent link", "child link", "links beyond", "mass beyond [kg]")]
-    for s in robot.ft_sensors:
-        rows.append((s.name, s.joint, s.parent_link, s.child_link,
-                     str(len(robot.links_beyond(s, base))), f"{robot.mass_beyond(s, base):.4f}"))
-    if len(rows) == 1:
-        from ..robot.declare import no_sensor_hint
-        from ._common import flag_of
+    from ..workflow.datasets import robot_sensors
+    from ._common import flag_of
 
-        print(f"F/T sensors: none; {no_sensor_hint(robot.urdf_text, flag_of)}")
-    else:
-        print(f"F/T sensors ({len(rows) - 1}):")
-        widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
-        for r in rows:
-            print("  " + "  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip())
-    print(f"joints ({len(robot.joint_names)}): " + ", ".join(robot.joint_names))
+    result = robot_sensors(**robot_keywords(args), base=args.base)
+    print("\n".join(result.lines(flag_of)))
     return 0

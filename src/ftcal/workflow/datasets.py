@@ -334,3 +334,86 @@ def _remote_wrenches(joints, description, workers, *settings):
     from ..insitu.recordings import robot_from_description
 
     return joints_file_wrenches(joints, robot_from_description(*description), workers, *settings)
+
+
+@dataclass(repr=False)
+class SensorsResult(StepResult):
+    """A robot model's six-axis F/T sensors, the mass beyond each seen from the base frame, and its joints.
+
+    Attributes
+    ----------
+    robot : RobotModel, with its payloads
+    base : str, the base frame the masses beyond the sensors are seen from
+
+    Examples
+    --------
+    >>> result = robot_sensors(robot="iCubGenova04")
+    >>> result.sensors[0]["name"], result.summary().splitlines()[0].startswith("model: ")
+    ('l_leg_ft', True)
+    """
+
+    robot: object
+    base: str
+
+    @property
+    def sensors(self) -> list[dict]:
+        """One dict per sensor: name, joint, parent and child link, links beyond it and their mass (kg)."""
+        robot, base = self.robot, self.base
+        return [{"name": s.name, "joint": s.joint, "parent_link": s.parent_link, "child_link": s.child_link,
+                 "links_beyond": len(robot.links_beyond(s, base)), "mass_beyond": float(robot.mass_beyond(s, base))}
+                for s in robot.ft_sensors]
+
+    def lines(self, name_of=str) -> list[str]:
+        """The text, line by line; ``name_of`` names the parameters of the hint given without a sensor (the
+        parameter itself by default; the CLI passes its flag names)."""
+        from ..robot.declare import no_sensor_hint
+
+        robot = self.robot
+        lines = [f"model: {robot.source}", f"base frame: {self.base}; total mass {robot.total_mass():.4f} kg"]
+        if robot.payloads:
+            lines.append("payloads: " + "; ".join(f"{p.mass:g} kg on {p.frame}" for p in robot.payloads))
+        rows = [("sensor", "joint", "parent link", "child link", "links beyond", "mass beyond [kg]")]
+        rows += [(s["name"], s["joint"], s["parent_link"], s["child_link"], str(s["links_beyond"]),
+                  f"{s['mass_beyond']:.4f}") for s in self.sensors]
+        if len(rows) == 1:
+            lines.append(f"F/T sensors: none; {no_sensor_hint(robot.urdf_text, name_of)}")
+        else:
+            lines.append(f"F/T sensors ({len(rows) - 1}):")
+            widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+            lines += ["  " + "  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in rows]
+        lines.append(f"joints ({len(robot.joint_names)}): " + ", ".join(robot.joint_names))
+        return lines
+
+    def summary(self) -> str:
+        return "\n".join(self.lines())
+
+    def to_dict(self) -> dict:
+        from .result import plain
+
+        robot = self.robot
+        return plain({"model": robot.source, "base": self.base, "total_mass": robot.total_mass(),
+                      "payloads": [{"frame": p.frame, "mass": p.mass} for p in robot.payloads],
+                      "sensors": self.sensors, "joints": list(robot.joint_names)})
+
+
+def robot_sensors(*, urdf=None, robot: str | None = None, ft_joint: str | None = None, ft_frame: str | None = None,
+                  payload: Sequence[str] = (), base: str | None = None) -> SensorsResult:
+    """A robot model's F/T sensors, joints and the mass beyond each sensor: ``ftcal sensors``.
+
+    Parameters
+    ----------
+    urdf, robot, ft_joint, ft_frame, payload : the robot model (:func:`ftcal.workflow.sources.robot_model`)
+    base : the base frame (default ``root_link``, else the model's default base link)
+
+    Returns
+    -------
+    SensorsResult
+
+    Raises
+    ------
+    FtcalError
+        No robot model, a URDF that does not parse, an unknown base frame.
+    """
+    model = robot_model(urdf=urdf, robot=robot, ft_joint=ft_joint, ft_frame=ft_frame, payload=payload)
+    _, name = model.base_frame(base)
+    return SensorsResult(model, name)
