@@ -59,5 +59,17 @@ def test_one_coefficient_changed_is_another_model(tmp_path):
 @pytest.mark.parametrize("doc", [[], {"format": "ftcal-model", "format_version": "1.0"},
                                  {"format": STATE_FORMAT, "format_version": "9.9"}])
 def test_what_is_not_a_state_file_of_this_version_is_one_line(doc):
-    with pytest.raises(FtcalError, match=r"^s\.json: not a live state file \(ftcal-live-state 1\.0\)\.$"):
+    with pytest.raises(FtcalError, match=r"^s\.json: not a live state file \(ftcal-live-state 1\.1\)\.$"):
         check_state_envelope(doc, "s.json")
+
+
+def test_a_state_file_of_the_earlier_digest_is_named_not_called_another_model(tmp_path):
+    # A 1.0 file hashed its model with json.dumps(default=repr): its digest matches no model, so it is named as an
+    # earlier file (one line) rather than refused as another model's.
+    model = load_model(save_model(_model(), tmp_path / "m.json"))
+    LiveCalibrator(model, noise_std=NOISE).save_state(tmp_path / "state.json")
+    doc = json.loads((tmp_path / "state.json").read_text())
+    doc["format_version"] = "1.0"
+    (tmp_path / "state.json").write_text(json.dumps(doc))
+    with pytest.raises(FtcalError, match=r"^\S*state\.json: a live state file of an earlier ftcal \(ftcal-live-state 1\.0\)[^\n]*$"):
+        LiveCalibrator(model, noise_std=NOISE, state_path=tmp_path / "state.json")

@@ -12,7 +12,10 @@ from ..runtime.errors import FtcalError
 from .json_document import digest
 
 STATE_FORMAT = "ftcal-live-state"
-STATE_VERSION = "1.0"
+# 1.1: the model digest is json_document.digest (1.0 hashed json.dumps(default=repr)), so a 1.0 file's digest
+# cannot be checked against any model and is refused by name rather than as "another model".
+STATE_VERSION = "1.1"
+EARLIER_VERSIONS = ("1.0",)
 
 
 def state_envelope() -> dict:
@@ -22,6 +25,10 @@ def state_envelope() -> dict:
 
 def check_state_envelope(doc, source) -> None:
     """Refuse what is not a live state file of this version, in one line naming ``source``."""
+    if isinstance(doc, dict) and doc.get("format") == STATE_FORMAT and doc.get("format_version") in EARLIER_VERSIONS:
+        raise FtcalError(f"{source}: a live state file of an earlier ftcal ({STATE_FORMAT} {doc['format_version']}), "
+                         f"whose model check this version cannot verify; move it away and start without it "
+                         f"(the bias is re-identified from the first holds).")
     if not isinstance(doc, dict) or doc.get("format") != STATE_FORMAT or doc.get("format_version") != STATE_VERSION:
         raise FtcalError(f"{source}: not a live state file ({STATE_FORMAT} {STATE_VERSION}).")
 
