@@ -47,7 +47,10 @@ ros2-venv: $(ROS2_STAMP)
 # once); every test writes under its own tmp_path, ports are picked free, Dask dashboards bind ":0".
 # TEST_WORKERS=0 runs in one process.
 TEST_WORKERS ?= 2
+# Bytecode first (as for bench): with PYTHONDONTWRITEBYTECODE set, each of the suite's `ftcal` child processes
+# would compile every module it imports again.
 test: $(STAMP) ros2-venv
+	$(PY) -m compileall -q src
 	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile
 
 # Bytecode first, as a wheel install has it: with PYTHONDONTWRITEBYTECODE set, an editable

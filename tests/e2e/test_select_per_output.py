@@ -185,16 +185,16 @@ def test_saturation_warns_for_30_poses_and_28_coefficients(tmp_path, capsys):
 
 
 @pytest.mark.slow
-def test_no_saturation_warning_on_the_demo(tmp_path, capsys):
+def test_no_saturation_warning_on_the_demo(quick_demo, tmp_path, capsys):
+    """On the session's quick demo (conftest.py builds it once per run; read only here)."""
     from ftcal.cli import main
 
-    assert main(["demo", "--quick", "--out", str(tmp_path / "demo")]) == 0
     capsys.readouterr()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         warnings.simplefilter("always", SaturationWarning)
         for degree in ("1", "4"):  # least squares up to 330 coefficients per output, on the demo's trajectories
-            assert main(["fit", str(tmp_path / "demo" / "train.parquet"), "--group-by", "load", "--degree",
+            assert main(["fit", str(quick_demo / "ftcal-demo" / "train.parquet"), "--group-by", "load", "--degree",
                          degree, "-o", str(tmp_path / f"np{degree}.json")]) == 0
     assert "saturation" not in capsys.readouterr().err
 

@@ -340,9 +340,16 @@ def test_every_flag_is_described_as_python_describes_it(tmp_path, adc):
     assert lib.flag_name(1 << len(FLAGS)) is None
 
 
-def test_describe_flags_is_snprintf_style(tmp_path):
+@pytest.fixture(scope="module")
+def toolless_lib(tmp_path_factory):
+    """The driver over a degree-1 gauge model with no compiled-in tool, compiled once for the tests that only call
+    ``fill``/``describe`` (which start from ``fill``'s fresh state) or ``quoted`` (its own state, initialised per call)."""
     model, _ = gauge_model(1)
-    lib = build(tmp_path, generate_c_runtime(model, {}, name="rt"))
+    return build(tmp_path_factory.mktemp("toolless"), generate_c_runtime(model, {}, name="rt"))
+
+
+def test_describe_flags_is_snprintf_style(toolless_lib):
+    lib = toolless_lib
     lib.fill(0, pointer(np.zeros(1, np.int32), ctypes.c_int))
     full = "saturated; contact; silent"  # never raised: each flag's name, in bit order; other bits skipped
     mask = BIT["silent"] | BIT["contact"] | BIT["saturated"] | (1 << 20)
@@ -385,9 +392,8 @@ def test_run_time_names_are_checked_and_the_library_has_fixed_size(tmp_path):
 
 @pytest.mark.parametrize("name", ["plain", "it's", 'say "hi"', "both ' and \"", "back\\slash", "tab\tnl\ncr\r",
                                   "\x01\x1f\x7f", HOSTILE, "caf\u00e9", "nb\u00a0sp\u00ad\u0085", "??=??/"])
-def test_a_run_time_name_is_read_back_and_quoted_as_python_quotes_it(tmp_path, name):
-    model, _ = gauge_model(1)
-    lib = build(tmp_path, generate_c_runtime(model, {}, name="rt"))
+def test_a_run_time_name_is_read_back_and_quoted_as_python_quotes_it(toolless_lib, name):
+    lib = toolless_lib
     buf = ctypes.create_string_buffer(512)
     assert lib.quoted(name.encode(), buf, 512) > 0
     assert buf.value.decode() == repr(name)
