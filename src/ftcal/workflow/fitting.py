@@ -913,7 +913,7 @@ class _Fit:
                                  min(o.folds, n_groups), penalties=penalties,
                                  n_lambdas=n_lambdas, na=o.na, nb=o.nb,
                                  n_bases=1 if template.normalization == "center" or fixed or not penalties else 2,
-                                 spent_seconds=time.process_time() - o.cpu_start)
+                                 spent_seconds=time.process_time() - o.cpu_start, n_groups=n_groups)
         degrees, note = estimate.within(o.budget, SELECTION_MEMORY_BYTES)
         planned = estimate.restricted(degrees)
         self.lines.append(planned.describe() + f" (--budget {o.budget:g} s)")
