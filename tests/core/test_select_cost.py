@@ -92,6 +92,31 @@ def test_the_estimate_counts_folds_times_candidates():
     assert fewer.total_seconds == pytest.approx(1.5 + fewer.search_seconds + fewer.final_seconds[-1])
 
 
+def test_the_estimate_counts_the_pair_fits_of_nested_cross_validation():
+    # Few load cases a fold (12 in 5 folds): every candidate is also fitted on the complement of each pair of
+    # folds, C(5, 2) = 10 training sets beside the 5 of the folds; 20 load cases (4 a fold) have none.
+    flat = estimate_cost(360, 6, 6, (1, 2, 3), 5, n_groups=20)
+    nested = estimate_cost(360, 6, 6, (1, 2, 3), 5, n_groups=12)
+    assert flat.units == estimate_cost(360, 6, 6, (1, 2, 3), 5).units
+    assert [b for _, b in nested.units] == [3 * b for _, b in flat.units]  # (5 + 10) / 5
+    assert [a for a, _ in nested.units] == [a for a, _ in flat.units]  # no statistics pass more
+    assert nested.final_seconds == pytest.approx(flat.final_seconds)  # one refit, whatever the folds
+
+
+def test_the_search_counts_the_pair_fits_it_makes(rng):
+    # The work the search counts against the estimate (the budget's pace): with nested cross-validation
+    # the solve units are those of 15 training sets a candidate, as the estimate plans.
+    data = _cases(rng, n_groups=12, per_group=30)
+    result = _quiet(select_model, data, degrees=(1, 2), penalties=(), stop_early=False)
+    plain = _quiet(select_model, _cases(np.random.default_rng(1), n_groups=20, per_group=18), degrees=(1, 2),
+                   penalties=(), stop_early=False)
+    assert result.search.nested and not plain.search.nested
+    # Least squares only: every candidate costs the same on each training set (no path events), so the
+    # counted solve units are in the ratio of the training sets, 15 : 5.
+    assert result.search.work["solve"] == 3 * plain.search.work["solve"]
+    assert all(len(s.inner_mse) == 5 * 4 for s in result.scores)  # (outer k, inner j), j != k
+
+
 def test_lasso_path_on_ill_conditioned_monomials_is_exact_in_tens_of_events_per_lambda(rng):
     # Raw ADC-like counts in a narrow band: degree-3 monomials nearly collinear after max-abs scaling.
     x = rng.uniform(-1, 1, (400, 3))
@@ -135,8 +160,9 @@ def test_the_budget_counts_only_this_commands_cpu_when_main_runs_inside_another_
 
     rng = np.random.default_rng(0)
     u = rng.normal(size=(600, 3))
+    # 20 load cases of 30 rows: 4 a fold, no nested cross-validation (whose pair fits triple the solves).
     frame = pd.DataFrame(u, columns=["u1", "u2", "u3"]).assign(
-        Fx=u @ [1.0, 2.0, 3.0] + 0.01 * rng.normal(size=600), group=np.repeat(np.arange(6), 100))
+        Fx=u @ [1.0, 2.0, 3.0] + 0.01 * rng.normal(size=600), group=np.repeat(np.arange(20), 30))
     frame.to_csv(tmp_path / "t.csv", index=False)
     start = time.process_time()
     while time.process_time() - start < 2.0:

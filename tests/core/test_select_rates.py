@@ -59,3 +59,21 @@ def test_few_load_cases_a_fold_are_judged_by_the_t_test_over_the_degrees():
     rows = [one_seed(s, 0.0, degrees=DEGREES, n_groups=12) for s in range(20)]
     now, before = sum(r["richer"] for r in rows), sum(r["previous_richer"] for r in rows)
     assert now <= 2 and now < before, [(r["selection"], r["previous_richer"]) for r in rows]
+
+
+@pytest.mark.slow
+def test_nested_cross_validation_on_few_load_cases_a_fold_keeps_an_affine_truth_and_most_of_a_real_gain():
+    # 12 load cases in 5 folds (2-3 a fold): the best candidate's own test let a richer model through on an
+    # affine truth in 4 of 58 seeds (0-57, BENCHMARKS.md); the selection procedure must now also beat affine on
+    # the outer folds it never saw. Seeds 200-239, not the benchmark's: issue 44's bar (<= 5 %, 2 of 40 seeds),
+    # and no more often than the same folds judged without the nested test.
+    rows = [one_seed(s, 0.0, degrees=DEGREES, n_groups=12) for s in range(200, 240)]
+    assert all(r["nested"] for r in rows)
+    now, flat = sum(r["richer"] for r in rows), sum(r["flat_richer"] for r in rows)
+    assert now <= 2 and now <= flat, [(r["seed"], r["selection"]) for r in rows if r["richer"]]
+    # A paper-level nonlinearity: the nested test costs little of the gain the rule before it kept on the same
+    # folds (offline, seeds 0-42: force 54 % -> 47 % of the oracle's, torque 68 % -> 68 %).
+    summary = rates([one_seed(s, 1.0, degrees=DEGREES, n_groups=12) for s in range(200, 220)])
+    for block in (0, 1):
+        assert summary["gain_share"][block] >= 0.75 * summary["flat_gain_share"][block], summary
+        assert summary["gain_share"][block] > 0.2, summary

@@ -150,3 +150,55 @@ def test_ties_within_one_percent_go_to_fewer_nonzeros_and_wider_ones_do_not():
     assert difference.mean() <= np.std(difference, ddof=1) / np.sqrt(5)
     far = scores_of([(AFFINE, affine), (Candidate(3, "none", None), best), (Candidate(2, "none", None), wide)])
     assert stable_choice(far, force, [], n_groups=40).degree == 3
+
+
+def with_inner(scores, inner_of):
+    """``scores`` with nested scores: ``inner_of(candidate, k)`` is the force score of each inner fold j != k."""
+    for s in scores:
+        for k in range(len(s.fold_mse)):
+            for j in range(len(s.fold_mse)):
+                if j != k:
+                    f = inner_of(s.candidate, k)
+                    s.inner_mse[(k, j)] = np.r_[np.full(3, f ** 2 / 3.0), np.ones(3)]
+                    s.inner_nonzero[(k, j)] = s.fold_nonzero[0]
+    return scores
+
+
+def test_nested_cross_validation_keeps_affine_when_the_procedure_wins_on_one_fold_only():
+    from ftcal.core.select import Candidate, Part, stable_choice
+    from ftcal.core.select.scoring import nested_comparison
+
+    # Over all five folds the cubic beats affine clearly (log ratio 0.7-0.9 a fold: 11 standard errors), but the
+    # cross-validation within the training folds picks it only when fold 0 is held out: elsewhere the cubic
+    # validates worse (3.0 against 2.0) on the other folds. The procedure's held-out fold scores are then the
+    # cubic's on fold 0 and affine's on folds 1-4: log ratio [0.8, 0, 0, 0, 0], mean 0.16, standard error
+    # 0.358 / √5 = 0.16, one standard error in naive ones (1.0) below the corrected bar √(1 + 5/4) = 1.5.
+    cubic = Candidate(3, "none", None)
+    log_ratio = np.array([0.8, 0.7, 0.9, 0.75, 0.85])
+    affine_folds = np.full(5, 2.0)
+    force = Part("force", (0, 1, 2))
+    scores = with_inner(scores_of([(AFFINE, affine_folds), (cubic, affine_folds / np.exp(log_ratio))]),
+                        lambda c, k: 2.0 if c == AFFINE else (1.0 if k == 0 else 3.0))
+    nested = nested_comparison(scores, force)
+    procedure = np.log(affine_folds / np.r_[affine_folds[0] / np.exp(0.8), affine_folds[1:]])
+    assert abs(nested.log_margin - procedure.mean()) < 1e-6
+    assert abs(nested.log_standard_error - np.std(procedure, ddof=1) / np.sqrt(5)) < 1e-6
+    assert abs(nested.quantile - 1.5) < 1e-12 and nested.within_noise
+    notes = []
+    assert stable_choice(scores, force, notes, n_groups=12) == AFFINE
+    # The margin printed is the procedure's in the scores' units: (2 − 2 e^−0.8) / 5 N over the five folds.
+    assert "nested cross-validation" in notes[0] and f"never saw by {(2 - 2 / np.exp(0.8)) / 5:+.3g}," in notes[0], notes
+    # When every training set's own cross-validation picks the cubic too, the procedure is the cubic: it wins.
+    agree = with_inner(scores_of([(AFFINE, affine_folds), (cubic, affine_folds / np.exp(log_ratio))]),
+                       lambda c, k: 2.0 if c == AFFINE else 1.0)
+    assert stable_choice(agree, force, [], n_groups=12) == cubic
+    # Without nested scores (the search computes them only for few load cases a fold) the test is the one before.
+    plain = scores_of([(AFFINE, affine_folds), (cubic, affine_folds / np.exp(log_ratio))])
+    assert nested_comparison(plain, force) is None and stable_choice(plain, force, [], n_groups=12) == cubic
+
+
+def test_nested_cross_validation_runs_for_few_load_cases_a_fold_only():
+    from ftcal.core.select.scoring import nested_folds
+
+    assert nested_folds(5, 12) and nested_folds(5, 19) and not nested_folds(5, 20) and not nested_folds(5, 54)
+    assert not nested_folds(3, 6) and not nested_folds(5, None)  # an inner CV of 2 folds; groups unknown

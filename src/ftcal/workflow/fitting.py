@@ -943,7 +943,7 @@ class _Fit:
                                  min(o.folds, n_groups), penalties=penalties,
                                  n_lambdas=n_lambdas, na=o.na, nb=o.nb,
                                  n_bases=1 if template.normalization == "center" or fixed or not penalties else 2,
-                                 spent_seconds=time.process_time() - o.cpu_start)
+                                 spent_seconds=time.process_time() - o.cpu_start, n_groups=n_groups)
         cost = SearchCost(estimate, o.budget, SELECTION_MEMORY_BYTES)
         self._keep("search_cost", cost, cost.lines())
         degrees, planned = cost.degrees, cost.planned

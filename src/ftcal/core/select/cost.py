@@ -16,6 +16,7 @@ import numpy as np
 from ..features import MonomialBasis, RegressorLayout
 from ..statistics import moment_plan
 from .candidates import DEFAULT_PENALTIES, LASSO_POINTS, RIDGE_POINTS
+from .scoring import nested_folds
 
 
 def statistics_work(layout: RegressorLayout, n_rows: int, n_folds: int) -> int:
@@ -164,7 +165,8 @@ SECONDS_PER_UNIT = {"statistics": 1.8e-10, "solve": 1.1e-10}
 
 def estimate_cost(n_samples: int, n_inputs: int, n_outputs: int, degrees: Sequence[int], n_folds: int, *,
                   penalties: Sequence[str] = DEFAULT_PENALTIES, n_lambdas: int | None = None, na: int = 0,
-                  nb: int = 0, n_bases: int | None = None, spent_seconds: float = 0.0) -> CostEstimate:
+                  nb: int = 0, n_bases: int | None = None, spent_seconds: float = 0.0,
+                  n_groups: int | None = None) -> CostEstimate:
     """Predict the work of :func:`select_model` before it starts: candidates × folds × Gram size.
 
     Parameters
@@ -180,6 +182,9 @@ def estimate_cost(n_samples: int, n_inputs: int, n_outputs: int, degrees: Sequen
         penalties (solved in the stored basis) differ, the default when there are penalties.
     spent_seconds : float
         CPU already used by the caller (start-up, earlier passes), counted in the total.
+    n_groups : int, optional
+        Groups (load cases) in the data: with few a fold (:func:`~.scoring.nested_folds`) every candidate is
+        also solved on each pair of folds' complement, K(K − 1)/2 fits more (nested cross-validation).
 
     Returns
     -------
@@ -191,6 +196,8 @@ def estimate_cost(n_samples: int, n_inputs: int, n_outputs: int, degrees: Sequen
     """
     degrees = sorted(set(degrees))
     units, seconds, peaks, finals = [], [], [], []
+    # Training sets per degree: one per fold, and one per pair of folds under nested cross-validation.
+    trainings = n_folds + (n_folds * (n_folds - 1) // 2 if nested_folds(n_folds, n_groups) else 0)
     per_degree = 1 + sum(n_lambdas if n_lambdas is not None else (LASSO_POINTS if p == "lasso" else RIDGE_POINTS)
                          for p in penalties)
     n_bases = n_bases if n_bases is not None else (2 if penalties else 1)
@@ -207,17 +214,17 @@ def estimate_cost(n_samples: int, n_inputs: int, n_outputs: int, degrees: Sequen
             events = (FULL_PATH_EVENTS_PER_SQRT_P * np.sqrt(p) * n_outputs / points
                       if penalty == "lasso" and n_lambdas is not None else None)
             solve += points * candidate_work(p, n_outputs, penalty, events)
-        solve *= n_folds
+        solve *= trainings
         units.append((stats, solve))
         seconds.append(stats * SECONDS_PER_UNIT["statistics"] + solve * SECONDS_PER_UNIT["solve"])
         # The refit of the selection (one more candidate of each kind on all the data) and the metrics pass.
-        refit = solve / n_folds / per_degree * (1 + len(penalties))
+        refit = solve / trainings / per_degree * (1 + len(penalties))
         finals.append(refit * SECONDS_PER_UNIT["solve"]
                       + (rows * p * n_outputs * METRICS_PER_CELL + rows * ROW_COST) * SECONDS_PER_UNIT["statistics"])
         # Kept: each fold's statistics per basis; while scored: training sums and scaled problems per basis
         # and fold, and the eigenvectors.
         kept += n_bases * n_folds * p * p * 8.0
-        peaks.append(kept + (2 * n_bases + 1) * n_folds * p * p * 8.0)
+        peaks.append(kept + (2 * n_bases + 1) * trainings * p * p * 8.0)
     return CostEstimate(tuple(degrees), tuple(units), tuple(seconds), tuple(peaks), per_degree, n_folds,
                         float(spent_seconds), tuple(finals))
 

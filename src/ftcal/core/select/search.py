@@ -24,7 +24,7 @@ from .candidates import (AFFINE, DEFAULT_DEGREES, DEFAULT_PENALTIES, LASSO_DECAD
 from .cost import SearchBudget, candidate_work, decomposition_work, statistics_work
 from .folds import DatasetStatistics, GroupedStatistics, fold_of_groups
 from .result import CrossValidationResult
-from .scoring import CandidateScore, Part, Scorer, stable_choice, statistics_mse
+from .scoring import CandidateScore, Part, Scorer, nested_folds, stable_choice, statistics_mse
 
 
 # Degrees in a row that improve no part before the search stops. Two, not one: a sensor whose
@@ -217,6 +217,8 @@ class _Search:
         self.fold_of = fold_of_groups(data.group_sizes(), n_folds, seed)
         self.n_folds = max(self.fold_of.values()) + 1
         self.scorer = Scorer(data.output_names, objective)
+        # Few groups a fold: every candidate is also fitted on each pair of folds' complement (nested CV).
+        self.nested = nested_folds(self.n_folds, len(self.fold_of))
         self.scores: dict[Candidate, CandidateScore] = {}
         self.work = {"statistics": 0, "solve": 0}  # units counted as they are done (see estimate_cost)
         self._stats: dict[tuple[int, str], list[SufficientStatistics]] = {}
@@ -345,17 +347,44 @@ class _Search:
                     entry.fold_nonzero.append(nonzero)
                     if candidate == AFFINE:
                         self.scorer.affine = entry
+            if self.nested:
+                self._score_pairs(key, group, parts)
 
-    def _fold(self, key, group, parts: list[SufficientStatistics], f: int) -> list[tuple]:
-        """(candidate, validation MSE, training MSE, nonzeros per output, LASSO path events) of ``group``, fold ``f``."""
+    def _score_pairs(self, key, group, parts: list[SufficientStatistics]) -> None:
+        """Nested cross-validation's fits: on every fold but j and k, validated on j and on k (one fit serves the
+        inner fold j of outer fold k and the inner fold k of outer fold j), for each pair j < k."""
+        pairs = [(j, k) for j in range(self.n_folds) for k in range(j + 1, self.n_folds)]
+        p, ny = parts[0].n_features, parts[0].cross.shape[1]
+        penalized = any(c.penalty != "none" for c, _, _ in group)
+        decompositions = sum((key, pair) not in self._eigen for pair in pairs) if penalized else 0
+        self.work["solve"] += decompositions * decomposition_work(p)
+        with warnings.catch_warnings(), single_threaded_blas(scipy=True):
+            warnings.simplefilter("ignore", IllPosedFitWarning)
+            with ThreadPoolExecutor(min(worker_count(), len(pairs))) as pool:
+                rows = list(pool.map(lambda pair: self._fold(key, group, parts, pair), pairs))
+        for (j, k), pair_rows in zip(pairs, rows):
+            for candidate, (mse_j, mse_k), _, nonzero, events in pair_rows:
+                self.work["solve"] += candidate_work(p, ny, candidate.penalty, events)
+                entry = self.scores[candidate]
+                entry.inner_mse[(k, j)], entry.inner_mse[(j, k)] = mse_j, mse_k
+                entry.inner_nonzero[(k, j)] = entry.inner_nonzero[(j, k)] = nonzero
+
+    def _fold(self, key, group, parts: list[SufficientStatistics], f: "int | tuple[int, int]") -> list[tuple]:
+        """(candidate, validation MSE, training MSE, nonzeros per output, LASSO path events) of ``group``, fold ``f``.
+
+        ``f`` a pair of folds (nested cross-validation): fitted on the other folds, and the validation MSE is
+        the pair of the two folds' (the training MSE is not computed: None)."""
+        held = f if isinstance(f, tuple) else (f,)
         if (key, f) not in self._train:
-            train = sum_statistics([parts[g] for g in range(len(parts)) if g != f])
+            train = sum_statistics([parts[g] for g in range(len(parts)) if g not in held])
             self._train[(key, f)] = (train, ScaledProblem.from_statistics(train))
         train, problem = self._train[(key, f)]
         rows = []
         for (candidate, _, _), result, prior in self._solve(problem, group, (key, f)):
             coef = (result.coef + (0.0 if prior is None else prior)) / problem.column_scale[:, None]
-            rows.append((candidate, statistics_mse(parts[f], coef), statistics_mse(train, coef),
+            validation = tuple(statistics_mse(parts[g], coef) for g in held)
+            rows.append((candidate, validation if len(held) > 1 else validation[0],
+                         None if len(held) > 1 else statistics_mse(train, coef),
                          np.count_nonzero(coef, axis=0), result.info.get("events")))
         return rows
 
