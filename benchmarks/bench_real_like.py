@@ -69,6 +69,7 @@ def one_case(sensor: str, split: str, seed: int = 0, paths: tuple | None = None)
     refused = {name: 0 for name in chosen}
     cpu = {name: 0.0 for name in ("ols", *chosen)}
     fold_ratios = {name: [] for name in chosen}
+    broken = {name: [] for name in chosen}  # outer folds where a claimed win over affine measured a loss
     for f, held in enumerate(masks):
         train = table.dataset(~held)
         start = time.process_time()
@@ -78,7 +79,7 @@ def one_case(sensor: str, split: str, seed: int = 0, paths: tuple | None = None)
         errors["ols"][held] = base
         for name in chosen:
             start = time.process_time()
-            model, flagged, _ = run_path(train, PATHS[name])
+            model, flagged, lines = run_path(train, PATHS[name])
             cpu[name] += time.process_time() - start
             said[name] += bool(flagged)
             if model is None:  # refused: nothing written, the user is told why
@@ -91,6 +92,8 @@ def one_case(sensor: str, split: str, seed: int = 0, paths: tuple | None = None)
             fold_ratios[name].append(ratio.tolist())
             if np.any(ratio > 1 + LOSS_MARGIN) and not flagged:
                 silent[name].append(f)
+            if any("a win beyond the noise" in line for line in lines) and np.any(ratio > 1.0):
+                broken[name].append(f)
     ols_rmse = block_rmse(errors["ols"])
     out = {"sensor": sensor, "split": split, "seed": seed, "n_folds": len(masks), "rows": table.n_samples,
            "ols_rmse": ols_rmse.tolist(), "paths": {}}
@@ -99,7 +102,8 @@ def one_case(sensor: str, split: str, seed: int = 0, paths: tuple | None = None)
         out["paths"][name] = {"ratio": None if refused[name] else (block_rmse(e) / ols_rmse).tolist(),
                               "refused_folds": refused[name],
                               "said_folds": said[name], "silent_loss_folds": silent[name],
-                              "fold_ratios": fold_ratios[name], "cpu_seconds": cpu[name]}
+                              "fold_ratios": fold_ratios[name], "broken_claim_folds": broken[name],
+                              "cpu_seconds": cpu[name]}
     out["ols_cpu_seconds"] = cpu["ols"]
     return out
 
