@@ -980,9 +980,14 @@ class _Fit:
             unit = UNITS.get(name, "")
             comparison = Comparison.of(AFFINE, theirs, mine)
             ratio = float(mine.mean() / max(theirs.mean(), np.finfo(float).tiny))
+            exact = mine.mean() <= EXACT_FIT_FRACTION * float(np.sqrt(np.sum(span[list(cols)] ** 2)))
+            # The verdict in words, so a fit that does not beat affine says so even without a warning.
+            verdict = ("worse beyond the fold noise" if comparison.loses and not exact else
+                       "a win beyond the fold noise" if exact or not comparison.within_noise else
+                       "within the fold noise: no evidence it beats affine")
             pieces.append(f"{name} {mine.mean():.4g}{(' ' + unit) if unit else ''} vs affine {theirs.mean():.4g} "
-                          f"({ratio:.3g}x)")
-            if comparison.loses and mine.mean() > EXACT_FIT_FRACTION * float(np.sqrt(np.sum(span[list(cols)] ** 2))):
+                          f"({ratio:.3g}x) {verdict}")
+            if comparison.loses and not exact:
                 lost.append(f"{name} {ratio:.3g}x")
         self.lines.append(f"grouped cross-validation of {candidate.label} against affine least squares "
                           f"({result.n_folds} folds of whole groups, {n_groups} groups): " + "; ".join(pieces))
