@@ -761,14 +761,14 @@ def real_like_section(sizes: dict) -> list[str]:
            "`benchmarks/bench_real_like.py` on the simulators of `ftcal.sim.real_like` (physics, not ftcal's "
            "model: an 8-photodiode optical sensor with erfc occlusion curves, 47 hung-weight load cases in 6 "
            "orientations, LED drift, AR(1) noise, 12 bits; a six-bridge plate, 60 averaged loads at 5 levels; a "
-           "soft fingertip, magnet dipole and 8 saturating Hall sensors, 418 loads in 19 directions; references "
-           "off by a constant per load case). Each path is `ftcal.fit` on the kept rows of each outer fold (their "
+           "soft fingertip, magnet dipole and 8 saturating Hall sensors, 418 loads in 19 presses of one direction "
+           "each, a press its load case; references off by an error per load case). Each path is `ftcal.fit` on the kept rows of each outer fold (their "
            "load cases as its validation groups), scored on the held-out rows against the reference: force / "
            "torque error-norm RMSE over all held-out rows divided by OLS's (`degree=1` on the same rows); in "
            "brackets, the outer folds where the path said it does not beat affine (a refusal, a warning naming "
-           "the affine model, or the affine model written instead of the network) and the folds it lost by "
-           "more than 10 % without saying so (for `degree=\"auto\"` paths nothing is said: they are not "
-           "explicit).", "",
+           "the affine model, a comparison line without a win, or the affine model written instead of the "
+           "network) and the folds it lost by more than 10 % without saying so (the `degree=\"auto\"` "
+           "paths are not explicit: their counts are for information).", "",
            "| sensor, split (seed) | OLS force / torque | " + " | ".join(names) + " | CPU |",
            "|---|---:|" + "---:|" * len(names) + "---:|"]
     for r in results:

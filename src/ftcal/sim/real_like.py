@@ -314,7 +314,7 @@ def fingertip_sensor(seed: int = 0, n_directions: int = 19, per_direction: int =
     Loads: ``n_directions`` load directions (a contact point on the dome, up to 45 degrees off its
     apex, pushed within 25 degrees of its inward normal), each at ``per_direction`` magnitudes from
     0.2 to 6 N; ``T = r × F`` about the sensor's base. The reference is a commercial sensor's
-    reading: the truth plus a constant error per load (0.5 % gain, 0.02 N and 0.3 N·mm offsets, times
+    reading: the truth plus an error drawn per load (0.5 % gain, 0.02 N and 0.3 N·mm offsets, times
     ``reference_error``).
 
     Parameters
@@ -327,7 +327,8 @@ def fingertip_sensor(seed: int = 0, n_directions: int = 19, per_direction: int =
     Returns
     -------
     RealLikeTable
-        Inputs ``v1..v8`` (volts), one row and one load case per load, labels ``direction``.
+        Inputs ``v1..v8`` (volts), one row per load; a load case is one press (a direction's ramp), so
+        ``groups`` are the load directions, also labelled ``direction``.
     """
     owner = "fingertip_sensor"
     n_directions = check_int(n_directions, "n_directions", owner, 1)
@@ -370,9 +371,10 @@ def fingertip_sensor(seed: int = 0, n_directions: int = 19, per_direction: int =
         field[:, c] = b @ axis[c]
     volts = 1.65 + 1.4 * np.tanh(field / 0.012) + ar1_noise(rng, field.shape, 0.002 * noise, 0.8)
     codes = quantise(volts, 0.0, 3.3, 12) * (3.3 / 4096)
-    groups = np.array([f"load{i:03d}" for i in range(n)])
-    return RealLikeTable("fingertip", codes, reference, truth, groups,
-                         {"direction": np.array([f"d{d:02d}" for d in which])}, tuple(f"v{i}" for i in range(1, 9)))
+    # A load case is one press: a direction's ramp of magnitudes, recorded in one go
+    direction = np.array([f"d{d:02d}" for d in which])
+    return RealLikeTable("fingertip", codes, reference, truth, direction, {"direction": direction},
+                         tuple(f"v{i}" for i in range(1, 9)))
 
 
 def _unit_perpendicular(rng: np.random.Generator, vectors: np.ndarray) -> np.ndarray:
