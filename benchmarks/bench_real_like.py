@@ -35,13 +35,14 @@ def block_rmse(error: np.ndarray) -> np.ndarray:
     return np.array([np.sqrt(np.mean(np.sum(error[:, b] ** 2, axis=1))) for b in (slice(0, 3), slice(3, 6))])
 
 
-SAYS_NO_WIN = ("within the fold noise", "worse beyond the fold noise", "WORSE beyond the fold noise")
+SAYS_NO_WIN = ("within the fold noise", "worse beyond the fold noise", "WORSE beyond the fold noise",
+               "validates worse than the affine model")
 
 
 def says_it_loses(caught, model, lines) -> bool:
     """The fit says it does not beat affine: a warning naming the affine model (the grouped comparison,
-    saturation, the MLP guard), a comparison line without a win (within the fold noise, or worse), or
-    the affine model written in the network's place."""
+    saturation, the MLP guard), a comparison line or report warning without a win (within the fold noise,
+    worse on average, or worse), or the affine model written in the network's place."""
     named = any("affine" in str(w.message) for w in caught)
     printed = any(word in line for line in lines for word in SAYS_NO_WIN)
     written = getattr(model, "family", "polynomial") == "polynomial" and getattr(model, "degree", 0) == 1
@@ -59,7 +60,7 @@ def run_path(train, options: dict):
             result = ftcal.fit(train, **options)
         except FtcalError as exc:
             return None, True, [f"refused: {exc}"]
-    lines = [str(line) for line in result.lines]
+    lines = [str(line) for line in (*result.lines, *result.notes)]
     return result.model, says_it_loses(caught, result.model, lines), lines
 
 

@@ -126,11 +126,14 @@ def explicit_fold_outcomes(table, split, options):
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             try:
-                model = ftcal.fit(train, **options).model
+                result = ftcal.fit(train, **options)
             except FtcalError:
                 out.append((None, True))  # refused, with its numbers: nothing silent
                 continue
-        said = any("affine" in str(w.message) for w in caught)
+        model = result.model
+        # A warning naming the affine model, or a warning line of the report (worse on average, within noise)
+        said = any("affine" in str(w.message) for w in caught) or any(
+            note.startswith("warning:") and "affine" in note for note in result.notes)
         ratio = []
         for m in (model, ols):
             error = m.predict(table.inputs[held], warn_out_of_range=False) - table.reference[held]
@@ -139,12 +142,39 @@ def explicit_fold_outcomes(table, split, options):
     return out
 
 
-@pytest.mark.parametrize("options", [dict(degree=2), dict(degree=3), dict(degree=3, lasso=10.0),
-                                     dict(degree=2, ridge=1.0)], ids=["deg2", "deg3", "deg3-lasso10", "deg2-ridge1"])
-def test_every_explicit_path_on_the_plate_beats_affine_or_says_that_it_does_not(options):
-    # 48 training loads a fold, one load level held out: degree 3 (84 coefficients an output) cannot be
-    # determined, LASSO and ridge can be fitted but need not beat affine.
-    table = bench_plate(seed=0)
-    for ratio, said in explicit_fold_outcomes(table, "level", options):
+EXPLICIT = [dict(degree=2), dict(degree=3), dict(degree=3, lasso=10.0), dict(degree=2, ridge=1.0)]
+EXPLICIT_IDS = ["deg2", "deg3", "deg3-lasso10", "deg2-ridge1"]
+
+
+@pytest.mark.parametrize("options", EXPLICIT, ids=EXPLICIT_IDS)
+@pytest.mark.parametrize("sensor, split", [("plate", "level"), ("fingertip", "direction")])
+def test_every_explicit_path_beats_affine_or_says_that_it_does_not(sensor, split, options):
+    # The plate: 48 training loads a fold, one load level held out (degree 3, 84 coefficients an output,
+    # cannot be determined); the fingertip: whole presses held out, where degree 2 measured 1.7x OLS on
+    # force and degree 3 88x. LASSO and ridge can be fitted but need not beat affine.
+    table = bench_plate(seed=0) if sensor == "plate" else fingertip_sensor(seed=0)
+    for ratio, said in explicit_fold_outcomes(table, split, options):
         if ratio is not None and np.any(ratio > 1.25):  # a loss well beyond the spread of the folds' ratios
             assert said, (options, ratio)
+
+
+@pytest.mark.slow
+def test_the_default_is_not_worse_than_ols_beyond_the_fold_noise_on_the_plate():
+    """``degree="auto"`` against OLS per held-out load level: the mean log ratio of their held-out errors
+    stays below the one-sided 95 % t bound of its fold-to-fold spread (5 folds)."""
+    import ftcal
+    from scipy.stats import t
+
+    table = bench_plate(seed=0)
+    logs = []
+    for held in held_out_masks(table, "level"):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            models = [ftcal.fit(table.dataset(~held), degree=d).model for d in ("auto", 1)]
+        errors = [m.predict(table.inputs[held], warn_out_of_range=False) - table.reference[held] for m in models]
+        logs.append([np.log(np.sqrt(np.mean(np.sum(errors[0][:, b] ** 2, axis=1)))
+                            / np.sqrt(np.mean(np.sum(errors[1][:, b] ** 2, axis=1)))) for b in (slice(0, 3),
+                                                                                               slice(3, 6))])
+    logs = np.array(logs)
+    bound = t.ppf(0.95, len(logs) - 1) * logs.std(axis=0, ddof=1) / np.sqrt(len(logs))
+    assert np.all(logs.mean(axis=0) < bound), (logs.mean(axis=0), bound)
