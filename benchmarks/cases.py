@@ -22,6 +22,7 @@ from benchmarks.bench_bags import CASES as BAG_CASES
 from benchmarks.bench_c import CASES as C_CASES
 from benchmarks.bench_cost import CASES as COST_CASES
 from benchmarks.bench_select_rates import SELECT_RATE_CASES
+from benchmarks.bench_real_like import REAL_LIKE_CASES
 from benchmarks.bench_payload_errors import PAYLOAD_ERROR_CASES
 from benchmarks.bench_floor import CASES as FLOOR_CASES
 from benchmarks.bench_live import LIVE_CASES
@@ -540,6 +541,7 @@ CASES.update(PLAN_CASES)  # experiment design: benchmarks/bench_plan.py
 CASES.update(MLP_CASES)  # the MLP family against a polynomial: benchmarks/bench_mlp.py
 CASES.update(COST_CASES)  # --degree auto's estimate against its CPU: benchmarks/bench_cost.py
 CASES.update(SELECT_RATE_CASES)  # --degree auto's false wins and kept gains: benchmarks/bench_select_rates.py
+CASES.update(REAL_LIKE_CASES)  # every path on real-like simulated sensors against OLS: benchmarks/bench_real_like.py
 CASES.update(PAYLOAD_ERROR_CASES)  # payload standard errors' coverage per bias model: benchmarks/bench_payload_errors.py
 CASES.update(LIVE_CASES)  # the live calibrator: benchmarks/bench_live.py
 CASES.update(PAYLOAD_CLI_CASES)  # whole ftcal payload processes: benchmarks/bench_payload_cli.py

@@ -86,6 +86,9 @@ class BlockVersusAffine:
     unit: str
     error: float
     affine_error: float
+    # The verdict in words (a win / within the fold noise / worse beyond it), so a fit that does not beat
+    # affine says so even without a warning.
+    verdict: str = ""
 
     @property
     def ratio(self) -> float:
@@ -94,7 +97,8 @@ class BlockVersusAffine:
 
     def text(self) -> str:
         unit = f" {self.unit}" if self.unit else ""
-        return f"{self.name} {self.error:.4g}{unit} vs affine {self.affine_error:.4g} ({self.ratio:.3g}x)"
+        verdict = f" {self.verdict}" if self.verdict else ""
+        return f"{self.name} {self.error:.4g}{unit} vs affine {self.affine_error:.4g} ({self.ratio:.3g}x){verdict}"
 
 
 @dataclass(frozen=True)
@@ -119,7 +123,7 @@ class AffineComparison:
 
     def to_dict(self) -> dict:
         return plain({"candidate": self.candidate, "n_folds": self.n_folds, "n_groups": self.n_groups,
-                      "blocks": [{"name": b.name, "unit": b.unit, "error": b.error, "affine_error": b.affine_error,
+                      "blocks": [{"name": b.name, "unit": b.unit, "error": b.error, "affine_error": b.affine_error, "verdict": b.verdict,
                                   "ratio": b.ratio} for b in self.blocks]})
 
     def to_frame(self):

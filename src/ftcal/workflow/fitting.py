@@ -976,7 +976,7 @@ class _Fit:
         """
         from ..core.dataset import Dataset
         from ..core.select import AFFINE, Candidate, Comparison, DatasetStatistics, cross_validate
-        from ..core.select.scoring import UNITS
+        from ..core.select.scoring import TIE_TOLERANCE, UNITS
 
         import numpy as np
 
@@ -996,17 +996,31 @@ class _Fit:
         # Errors below a millionth of the block's load span are rounding (an exact map): nothing to warn about.
         span = (np.ptp(source.data.outputs, axis=0) if hasattr(source, "data")
                 else np.diff(np.asarray(source.summary.output_range), axis=1)[:, 0])
-        pieces, lost = [], []
+        pieces, lost, worse = [], [], []
         for name, cols in blocks.items():
             mine, theirs = scorer.block(ours.fold_mse, cols), scorer.block(affine.fold_mse, cols)
             unit = UNITS.get(name, "")
             comparison = Comparison.of(AFFINE, theirs, mine)
-            block = BlockVersusAffine(name, unit, float(mine.mean()), float(theirs.mean()))
+            exact = mine.mean() <= EXACT_FIT_FRACTION * float(np.sqrt(np.sum(span[list(cols)] ** 2)))
+            verdict = ("worse beyond the fold noise" if comparison.loses and not exact else
+                       "a win beyond the fold noise" if exact or not comparison.within_noise else
+                       "within the fold noise: no evidence it beats affine")
+            block = BlockVersusAffine(name, unit, float(mine.mean()), float(theirs.mean()), verdict)
             pieces.append(block)
-            if comparison.loses and mine.mean() > EXACT_FIT_FRACTION * float(np.sqrt(np.sum(span[list(cols)] ** 2))):
+            if comparison.loses and not exact:
                 lost.append(f"{name} {block.ratio:.3g}x")
+            elif not exact and mine.mean() > theirs.mean() * (1 + TIE_TOLERANCE):
+                worse.append(f"{name} {block.ratio:.3g}x")
         versus = AffineComparison(candidate.label, result.n_folds, n_groups, tuple(pieces))
         self._keep("versus_affine", versus, [versus.summary()])
+        if worse and not lost:
+            # Worse on average but within the noise of few folds (3 load cases a fold: a fold claimed 1.37x
+            # and measured 1.70x on new load directions): a warning line of the report, not a Python warning
+            # (no evidence either way), so a fit that does not beat affine never reads as a normal one.
+            self.notes.append(f"warning: {candidate.label} validates worse than the affine model on average on "
+                              f"{' and '.join(worse)} affine's error, within the noise of {result.n_folds} grouped "
+                              "folds: no evidence it beats the affine model on new load cases (degree auto, a lower "
+                              "degree, a larger lasso or ridge, or more load cases decide it)")
         if lost:
             warnings.warn(ParameterWarning(("degree", "lasso", "ridge"),
                                            f"{candidate.label} validates worse than the affine model beyond the fold "
