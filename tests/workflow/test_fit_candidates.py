@@ -45,3 +45,20 @@ def test_tables_in_memory_read_as_ftcal_fit_reads_them():
     from_data = fit_candidates(data, [Candidate(2, "none", None)]).models[Candidate(2, "none", None)]
     np.testing.assert_allclose(from_frame.predict(u), from_data.predict(u), rtol=0, atol=1e-9)
     assert "1 candidate(s) fitted on 400 samples" in fit_candidates(frame, [Candidate(1, "none", None)]).summary()
+
+
+def test_an_estimator_candidate_is_fitted_as_it_stands():
+    """A network among the candidates is a template: its clone, fitted as its own fit does (the step sizes nothing)."""
+    from ftcal.core.mlp import MLPModel
+
+    _, u, wrench = _sensor(n=300, seed=7)
+    data = Dataset.from_arrays(u, wrench, input_names=INPUTS, output_names=OUTPUTS,
+                               groups=np.repeat(np.arange(3), 100))
+    options = {"max_iter": 30, "max_samples": 200, "seed": 4}
+    network = MLPModel((5,), **options)
+    result = fit_candidates(data, [network, Candidate(1, "none", None)])
+    assert list(result.models) == [network, Candidate(1, "none", None)] and not hasattr(network, "weights_")
+    alone = MLPModel((5,), **options).fit(data)
+    np.testing.assert_array_equal(result.models[network].predict(u), alone.predict(u))
+    assert result.models[network].n_iter_ == alone.n_iter_
+    assert "mlp 5 tanh" in result.summary() and result.to_dict()["models"][0]["family"] == "mlp"

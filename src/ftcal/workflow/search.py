@@ -148,7 +148,7 @@ class CandidatesResult(StepResult):
 
     Attributes
     ----------
-    models : dict of Candidate to CalibrationModel
+    models : dict of Candidate (or the estimator template given) to fitted model
         In the order the candidates were given.
     n_samples : int
         Rows the models were fitted on.
@@ -164,29 +164,41 @@ class CandidatesResult(StepResult):
                  "per degree"]
         for candidate, model in self.models.items():
             force = (model.training_metrics_ or {}).get("force_norm_rmse")
-            lines.append(f"  {candidate.label:<24} {int(model.coef_.size)} coefficients"
+            lines.append(f"  {_label(candidate, model):<24} {model.describe()['n_coefficients']} coefficients"
                          + (f", training {format_metric('force_norm_rmse', force, 4)}" if force is not None else ""))
         return "\n".join(lines)
 
     def to_dict(self) -> dict:
         return {"n_samples": self.n_samples,
-                "models": [{"label": c.label, "degree": c.degree, "penalty": c.penalty, "lambda": c.lam,
-                            "n_coefficients": int(m.coef_.size)} for c, m in self.models.items()]}
+                "models": [{"label": _label(c, m), "family": m.family, "degree": getattr(c, "degree", None),
+                            "penalty": getattr(c, "penalty", None), "lambda": getattr(c, "lam", None),
+                            "n_coefficients": m.describe()["n_coefficients"]} for c, m in self.models.items()]}
+
+
+def _label(candidate, model) -> str:
+    """A polynomial candidate's label (``np4 lasso λ=50``), or the fitted estimator's own (``mlp 16 tanh``)."""
+    from ..core.select import Candidate
+
+    return candidate.label if isinstance(candidate, Candidate) else model.label()
 
 
 def fit_candidates(data, candidates: Sequence, *, advance=None) -> CandidatesResult:
-    """Fit several polynomial candidates on all of ``data`` from one statistics pass per degree.
+    """Fit several candidates on all of ``data``: the polynomials from one statistics pass per degree.
 
     The demos' step: where :func:`ftcal.fit` with each explicit degree would also run that degree's
     grouped comparison with affine (a second pass and a warning per candidate), this fits the given
     candidates only, the LASSO ones of a degree as one warm-started λ path
-    (:func:`ftcal.core.select.fit_candidates`). Scoring them is the caller's: held-out recordings,
-    or :class:`ModelSearch` for grouped cross-validation.
+    (:func:`ftcal.core.select.fit_candidates`). A candidate that is an estimator (an
+    :class:`~ftcal.core.mlp.MLPModel`, say) is a template: a clone of it is fitted as it stands, with its own
+    ``fit(dataset)``, unlike :func:`ftcal.fit`, which sizes a network's training itself and may write the affine
+    model instead.
+    Scoring them is the caller's: held-out recordings, or :class:`ModelSearch` for grouped cross-validation.
 
     Parameters
     ----------
     data : Dataset, or what :func:`ftcal.fit` reads (paths, DataFrames), with reference outputs
-    candidates : sequence of :class:`~ftcal.core.select.Candidate` (degree, penalty, λ)
+    candidates : sequence of :class:`~ftcal.core.select.Candidate` (degree, penalty, λ) or estimators
+        An estimator has ``clone()`` and ``fit(dataset) -> self``; its clone is fitted after the polynomials.
     advance : callable, optional
         Called with 1 after each candidate (a progress bar).
 
@@ -198,18 +210,28 @@ def fit_candidates(data, candidates: Sequence, *, advance=None) -> CandidatesRes
     --------
     >>> import numpy as np
     >>> from ftcal import Dataset
+    >>> from ftcal.core.mlp import MLPModel
     >>> from ftcal.core.select import Candidate
     >>> u = np.random.default_rng(0).normal(size=(200, 2))
     >>> data = Dataset.from_arrays(u, u @ [[1.0, 0.5], [0.0, 2.0]] + 0.1 * u ** 2)
-    >>> result = fit_candidates(data, [Candidate(1, "none", None), Candidate(2, "none", None)])
-    >>> [model.coef_.shape for model in result.models.values()]
-    [(3, 2), (6, 2)]
+    >>> network = MLPModel((4,), early_stopping=False, max_iter=20)
+    >>> result = fit_candidates(data, [Candidate(1, "none", None), Candidate(2, "none", None), network])
+    >>> [model.describe()["n_coefficients"] for model in result.models.values()]
+    [6, 12, 22]
+    >>> result.models[network] is not network  # the template stays unfitted
+    True
     """
-    from ..core.select import fit_candidates as fit_all
+    from ..core.select import Candidate, fit_candidates as fit_all
     from ..data.tables import load_dataset
     from .sources import tables_of
 
+    polynomials = [c for c in candidates if isinstance(c, Candidate)]
     with tables_of(data) as (paths, dataset, _):
         dataset = dataset if dataset is not None else load_dataset(paths)
-        models = fit_all(dataset, list(candidates), advance=advance)
+        models = fit_all(dataset, polynomials, advance=advance) if polynomials else {}
+        for estimator in candidates:
+            if not isinstance(estimator, Candidate):
+                models[estimator] = estimator.clone().fit(dataset)
+                if advance is not None:
+                    advance(1)
     return CandidatesResult({c: models[c] for c in candidates}, dataset.n_samples)
