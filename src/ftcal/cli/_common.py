@@ -152,23 +152,6 @@ def norm_rmse_text(metrics: dict, spec: str = ".4f", units: bool = True) -> str:
     return text(metrics, spec, units)
 
 
-def output_folder(path: str, option: str = "--out"):
-    """A writable folder, made if missing; one-line errors naming ``option`` (how the command takes it)."""
-    import os
-    from pathlib import Path
-
-    out = Path(path)
-    if out.exists() and not out.is_dir():
-        raise FtcalError(f"{option} {out}: exists and is not a folder; give a folder for the files.")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise FtcalError(f"{option} {out}: cannot create the folder ({exc.strerror or exc}).") from None
-    if not os.access(out, os.W_OK | os.X_OK):
-        raise FtcalError(f"{option} {out}: the folder is not writable.")
-    return out
-
-
 def frame_pair(text: str) -> tuple[str, str | None]:
     """``--tf BASE[:SENSOR_FRAME]`` (dataset, live): the base frame and the sensor frame (None: the wrench's)."""
     base, sep, frame = text.partition(":")

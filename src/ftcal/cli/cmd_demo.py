@@ -2,10 +2,8 @@
 
 from __future__ import annotations
 
-from ._common import nonnegative_int, output_folder
+from ._common import nonnegative_int
 from ._examples import epilog
-
-SCENARIOS = ("paper", "arm", "plan", "live", "closed-loop")
 
 
 def register(sub) -> None:
@@ -35,82 +33,8 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from ..runtime.errors import FtcalError
-    from ..sim.demo import DemoConfig, format_tables, run_demo
-    from ..sim.demo_arm import BAG_NAME, write_demo_bag
+    from ..sim.demos import demo
 
-    if args.scenario not in SCENARIOS:
-        raise FtcalError(f"--scenario {args.scenario}: unknown scenario; choose one of {', '.join(SCENARIOS)}.")
-    if args.scenario == "arm":
-        return run_arm(args)
-    if args.scenario == "plan":
-        return run_plan(args)
-    if args.scenario == "live":
-        return run_live(args)
-    if args.scenario == "closed-loop":
-        return run_closed_loop(args)
-    if args.variant != "standard" or args.seeds != 1:
-        raise FtcalError("--variant and --seeds go with --scenario closed-loop.")
-    out = output_folder(args.out or "ftcal-demo")
-    summary = run_demo(DemoConfig(out_dir=out, seed=args.seed, quick=args.quick))
-    print(format_tables(summary))
-    print(f"\n{summary['n_train_samples']} training / {summary['n_validation_samples']} validation samples; "
-          f"done in {summary['elapsed_s']:.0f} s")
-    print(f"wrote {out / 'summary.json'} and {out / 'report.html'}")
-    print(f"wrote {write_demo_bag(out / BAG_NAME).path} (ROS 2 bag of the arm scenario, see --scenario arm)")
-    return 0
-
-
-def run_arm(args) -> int:
-    import dataclasses
-
-    from ..sim.demo_arm import ARM_DEMO_SCENARIO, ARM_QUICK, ArmDemoConfig, format_arm_tables, run_arm_demo
-
-    scenario = dataclasses.replace(ARM_DEMO_SCENARIO, seed=args.seed, **(ARM_QUICK if args.quick else {}))
-    summary = run_arm_demo(ArmDemoConfig(out_dir=output_folder(args.out or "ftcal-arm-demo"), scenario=scenario))
-    print(format_arm_tables(summary))
-    print(f"\n{summary['n_samples']} samples; done in {summary['elapsed_s']:.0f} s")
-    print("wrote " + ", ".join(summary["files"]))
-    return 0
-
-
-def run_plan(args) -> int:
-    import dataclasses
-
-    from ..sim.demo_plan import PLAN_QUICK, PlanDemoConfig, format_plan_tables, run_plan_demo
-
-    config = PlanDemoConfig(out_dir=output_folder(args.out or "ftcal-plan-demo"), seed=args.seed)
-    summary = run_plan_demo(dataclasses.replace(config, **(PLAN_QUICK if args.quick else {})))
-    print(format_plan_tables(summary))
-    print(f"\ndone in {summary['elapsed_s']:.0f} s")
-    print("wrote " + ", ".join(summary["files"]))
-    return 0
-
-
-def run_live(args) -> int:
-    from ..sim.demo_live import LiveDemoConfig, format_live_tables, run_live_demo
-
-    config = LiveDemoConfig(out_dir=output_folder(args.out or "ftcal-live-demo"), seed=args.seed, quick=args.quick)
-    summary = run_live_demo(config)
-    print(format_live_tables(summary))
-    print(f"\ndone in {summary['elapsed_s']:.0f} s")
-    print("wrote " + ", ".join(summary["files"]))
-    return 0
-
-
-def run_closed_loop(args) -> int:
-    import dataclasses
-
-    from ..runtime.errors import FtcalError
-    from ..sim.closed_loop import CLOSED_LOOP_QUICK, ClosedLoopConfig, format_closed_loop, run_closed_loop
-
-    if args.seeds < 1:
-        raise FtcalError(f"--seeds {args.seeds}: must be at least 1.")
-    config = ClosedLoopConfig.of_variant(args.variant, out_dir=output_folder(args.out or "ftcal-closed-loop-demo"),
-                                         seed=args.seed)
-    summary = run_closed_loop(dataclasses.replace(config, **(CLOSED_LOOP_QUICK if args.quick else {})),
-                              seeds=tuple(range(args.seed, args.seed + args.seeds)))
-    print(format_closed_loop(summary))
-    print(f"\ndone in {summary['elapsed_s']:.0f} s ({summary['cpu_s']:.0f} s CPU)")
-    print("wrote " + ", ".join(summary["files"]))
+    print(demo(args.scenario, out=args.out, seed=args.seed, quick=args.quick, variant=args.variant,
+               seeds=args.seeds).summary())
     return 0

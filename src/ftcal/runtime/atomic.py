@@ -65,6 +65,37 @@ def check_not_an_input(target: str | os.PathLike, parameter: str = "output") -> 
                              f"command{same}; choose another output name.")
 
 
+def output_folder(path: str | os.PathLike, parameter: str = "output") -> Path:
+    """A writable folder for a step's files, made if missing.
+
+    Parameters
+    ----------
+    path : the folder
+    parameter : str
+        The step's parameter that gave it, named in the error (the CLI shows its flag).
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    ParameterError
+        ``path`` is something other than a folder, cannot be made, or is not writable.
+    """
+    out = Path(path)
+    name = "{" + parameter + "}"
+    if out.exists() and not out.is_dir():
+        raise ParameterError(parameter, f"{name} {out}: exists and is not a folder; give a folder for the files.")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ParameterError(parameter, f"{name} {out}: cannot create the folder ({exc.strerror or exc}).") from None
+    if not os.access(out, os.W_OK | os.X_OK):
+        raise ParameterError(parameter, f"{name} {out}: the folder is not writable.")
+    return out
+
+
 @contextmanager
 def _temporary(target: Path) -> Iterator[Path]:
     """Yield a new empty temporary file beside ``target``; it is removed on exit unless renamed away.

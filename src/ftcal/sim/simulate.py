@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ..runtime.atomic import output_folder
 from ..runtime.errors import FtcalError, ParameterError
 from ..workflow.result import StepResult
 
@@ -56,17 +57,6 @@ class SimulationResult(StepResult):
         from ..workflow.result import plain
 
         return plain({f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name != "truth"})
-
-
-def _folder(out: Path) -> Path:
-    """``out`` made if missing and writable (as the CLI's output folders, messages naming ``output``)."""
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise ParameterError("output", f"{{output}} {out}: cannot create the folder ({exc.strerror or exc}).") from None
-    if not os.access(out, os.W_OK | os.X_OK):
-        raise ParameterError("output", f"{{output}} {out}: the folder is not writable.")
-    return out
 
 
 def _sensor_spec(sensor_file, *, noise=None, nonlinearity=None, crosstalk=None, drift=None):
@@ -174,7 +164,7 @@ def simulate(plan: str | os.PathLike, *, output: str | os.PathLike, urdf: str | 
     config = SimulationConfig(hold_s=hold, speed=speed, rate=rate, temperature_start=temperature[0],
                               temperature_end=temperature[1], channels=channels, seed=seed, formats=tuple(formats))
     check_session_size(model, waypoints, config)  # before the output folder is made
-    session = simulate_session(model, sensor_name, waypoints, simulated, _folder(out),
+    session = simulate_session(model, sensor_name, waypoints, simulated, output_folder(out),
                                loads=loads, base=base, config=config)
     return SimulationResult(sensor_name, channels, tuple(temperature), simulated.mistake, simulated.mistake_deg,
                             list(session.truth["recordings"]), list(session.files), session.truth)
