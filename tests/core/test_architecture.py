@@ -149,7 +149,6 @@ BELOW_THE_STEPS = {
     "ftcal.cli.cmd_convert": {"ftcal.files.targets"},  # the targets' registry names --to's choices
     "ftcal.cli.cmd_info": {"ftcal.files.model_info"},  # a numpy-free read of a model file, then its text
     "ftcal.cli.cmd_live": {"ftcal.data.logs", "ftcal.live.zenoh_node"},  # which --replay source, the node's options
-    "ftcal.cli.cmd_topics": {"ftcal.data.bags"},  # a bag's topics, listed
 }
 
 

@@ -226,6 +226,12 @@ def test_topics_command(tmp_path, capfd, kind):
     rows = {line.split()[0]: line.split() for line in out[2:]}
     assert rows["/ft"][1:] == ["geometry_msgs/msg/WrenchStamped", "101", "100"]
     assert rows["/temp"][1:] == ["sensor_msgs/msg/Temperature", "11", "10"]
+    # The command prints its step's summary; the step's JSON holds the same numbers.
+    from ftcal.workflow import bag_topics
+
+    result = bag_topics(path)
+    assert result.summary().splitlines() == out
+    assert [(t["name"], t["count"]) for t in result.to_dict()["topics"]] == [("/ft", 101), ("/temp", 11)]
 
 
 def arm_bag(kind, tmp_path, *, n=300, temperature=True, imu=True, tf=True, joints=False):

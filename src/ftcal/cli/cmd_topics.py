@@ -18,16 +18,7 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..data.bags import list_topics
-    from ._common import single_line
+    from ..workflow.datasets import bag_topics
 
-    summaries = list_topics(args.bag)
-    rows = [("topic", "type", "count", "rate [Hz]")]
-    rows += [(single_line(s.name), single_line(s.msgtype), str(s.count), "-" if s.rate is None else f"{s.rate:.6g}")
-             for s in summaries]
-    widths = [max(len(r[i]) for r in rows) for i in range(4)]
-    print(f"{single_line(args.bag)}: {len(summaries)} topic(s)")
-    for r in rows:
-        print("  " + "  ".join([r[0].ljust(widths[0]), r[1].ljust(widths[1]), r[2].rjust(widths[2]),
-                                r[3].rjust(widths[3])]).rstrip())
+    print(bag_topics(args.bag).summary())
     return 0

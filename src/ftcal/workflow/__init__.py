@@ -19,7 +19,7 @@ _STEPS.update(identify_payload="payload", retare="payload", rebias_payload="payl
 _STEPS.update(compensate="compensation", CompensationResult="compensation")
 _STEPS.update(check_sensor="checking", sensor_history="checking", CheckResult="checking")
 _STEPS.update(build_dataset="datasets", expected="datasets", DatasetResult="datasets", ExpectedResult="datasets",
-              robot_sensors="datasets", SensorsResult="datasets")
+              robot_sensors="datasets", SensorsResult="datasets", bag_topics="datasets", TopicsResult="datasets")
 _STEPS.update(plan_experiment="planning", PlanResult="planning")
 _STEPS.update(convert="export", ConvertResult="export")
 _STEPS.update(fit="fitting", FitResult="fitting", ModelSearch="search", fit_candidates="search",

@@ -417,3 +417,56 @@ def robot_sensors(*, urdf=None, robot: str | None = None, ft_joint: str | None =
     model = robot_model(urdf=urdf, robot=robot, ft_joint=ft_joint, ft_frame=ft_frame, payload=payload)
     _, name = model.base_frame(base)
     return SensorsResult(model, name)
+
+
+@dataclass(repr=False)
+class TopicsResult(StepResult):
+    """A ROS bag's topics: what :func:`bag_topics` read.
+
+    Attributes
+    ----------
+    bag : str, the bag as given
+    topics : list of TopicSummary (name, msgtype, count, rate in Hz or None), sorted by name
+    """
+
+    bag: str
+    topics: list
+
+    def summary(self) -> str:
+        rows = [("topic", "type", "count", "rate [Hz]")]
+        rows += [(single_line(s.name), single_line(s.msgtype), str(s.count),
+                  "-" if s.rate is None else f"{s.rate:.6g}") for s in self.topics]
+        widths = [max(len(r[i]) for r in rows) for i in range(4)]
+        lines = [f"{single_line(self.bag)}: {len(self.topics)} topic(s)"]
+        lines += ["  " + "  ".join([r[0].ljust(widths[0]), r[1].ljust(widths[1]), r[2].rjust(widths[2]),
+                                    r[3].rjust(widths[3])]).rstrip() for r in rows]
+        return "\n".join(lines)
+
+    def to_dict(self) -> dict:
+        from .result import plain
+
+        return plain({"bag": self.bag, "topics": [{"name": s.name, "msgtype": s.msgtype, "count": s.count,
+                                                   "rate": s.rate} for s in self.topics]})
+
+
+def bag_topics(bag: str | Path) -> TopicsResult:
+    """The topics of a ROS 1 .bag, a ROS 2 bag folder, a .db3 or an .mcap file: ``ftcal topics``.
+
+    Parameters
+    ----------
+    bag : path
+        The bag; its topics' message type, count and mean receive rate are read
+        (:func:`ftcal.data.bags.list_topics`).
+
+    Returns
+    -------
+    TopicsResult
+
+    Raises
+    ------
+    FtcalError
+        If the bag cannot be opened.
+    """
+    from ..data.bags import list_topics
+
+    return TopicsResult(str(bag), list_topics(bag))
