@@ -177,6 +177,31 @@ def test_replay_refuses_what_only_zenoh_reads(files, args, message):
     assert not (root / "zenoh_only.parquet").exists()
 
 
+@pytest.mark.parametrize("args, message", [
+    (("--zenoh", "--keys", "rmw_zenoh", "--domain-id", "233"), "--domain-id 233: ROS 2 domain ids go from 0 to 232"),
+    (("--zenoh", "--domain-id", "3"), "--domain-id goes with --keys rmw_zenoh"),
+    (("--zenoh", "--rt-priority", "0"), "--rt-priority 0: SCHED_FIFO priorities go from 1 to 99"),
+    (("--zenoh", "--joints-topic", "/joint_states"), "--joints-topic and --urdf go together"),
+    (("--zenoh", "--imu-topic", "/imu", "--joints-topic", "/joint_states", "--urdf", "robot.urdf"),
+     "give one gravity source: --imu-topic, or --joints-topic with --urdf"),
+    (("--replay", "bag", "--model", "cal.json", "-o", "out.parquet"), "--model with a bag"),
+    (("--replay", "bag", "--drop-incomplete", "--orientation", "qx,qy,qz,qw", "-o", "out.parquet"),
+     "--drop-incomplete applies to tables"),
+])
+def test_the_steps_refusals_name_the_flags(tmp_path, monkeypatch, capsys, args, message):
+    # The step (ftcal.workflow.live) names its parameters; the command prints them as its flags.
+    from ftcal.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "bag").mkdir()  # a folder: a ROS 2 bag by its kind, refused before it is read
+    (tmp_path / "cal.json").write_text("{}")
+    (tmp_path / "robot.urdf").write_text("<robot/>")
+    assert main(["live", *args]) == 2
+    err = capsys.readouterr().err
+    assert message in err and len(err.strip().splitlines()) == 1, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bag", "cal.json", "robot.urdf"]
+
+
 def test_a_time_column_in_nanoseconds_is_refused(files):
     root, rec = files
     frame = rec.frame()

@@ -148,7 +148,6 @@ STEP_LAYERS = ("ftcal.workflow", "ftcal.sim.simulate", "ftcal.sim.demos", "ftcal
 BELOW_THE_STEPS = {
     "ftcal.cli.cmd_convert": {"ftcal.files.targets"},  # the targets' registry names --to's choices
     "ftcal.cli.cmd_info": {"ftcal.files.model_info"},  # a numpy-free read of a model file, then its text
-    "ftcal.cli.cmd_live": {"ftcal.data.logs", "ftcal.live.zenoh_node"},  # which --replay source, the node's options
 }
 
 

@@ -98,6 +98,39 @@ def test_fit_refusals_name_the_parameter_and_the_cli_its_flag(keywords, paramete
     assert flag_of(parameter) in cli_message(caught.value)
 
 
+@pytest.mark.parametrize("setup, options, parameter, says", [
+    ({}, dict(keys="rmw_zenoh", domain_id=233), "domain_id", "domain_id 233: ROS 2 domain ids go from 0 to 232"),
+    ({}, dict(domain_id=3), "domain_id", "domain_id goes with keys rmw_zenoh"),
+    ({}, dict(rt_priority=0), "rt_priority", "rt_priority 0: SCHED_FIFO priorities go from 1 to 99"),
+    ({}, dict(rt_priority=100), "rt_priority", "rt_priority 100: SCHED_FIFO priorities go from 1 to 99"),
+    ({}, dict(keys="dds"), "keys", "keys must be 'bridge' or 'rmw_zenoh'"),
+    ({}, dict(joints_topic="/joint_states"), "joints_topic", "joints_topic and urdf go together"),
+    # Refused before the URDF is read: the file need not exist.
+    (dict(urdf="robot.urdf"), dict(imu_topic="/imu", joints_topic="/joint_states"), "imu_topic",
+     "give one gravity source"),
+])
+def test_serve_zenoh_refusals_name_the_parameter_and_the_cli_its_flag(setup, options, parameter, says):
+    from ftcal.workflow.live import LiveSetup, serve_zenoh
+
+    with pytest.raises(ParameterError) as caught:
+        serve_zenoh(LiveSetup(**setup), **options)  # refused before Zenoh is imported or a session opened
+    text = str(caught.value)
+    assert says in text and "--" not in text and caught.value.parameter == parameter, text
+    assert flag_of(parameter) in cli_message(caught.value)
+
+
+def test_replay_live_refuses_a_model_or_drop_incomplete_with_a_bag(tmp_path):
+    from ftcal.workflow.live import LiveSetup, replay_live
+
+    for setup, keywords, parameter in ((LiveSetup(model="cal.json"), {}, "model"),
+                                       (LiveSetup(), dict(drop_incomplete=True), "drop_incomplete")):
+        with pytest.raises(ParameterError) as caught:  # by the suffix, before the bag is opened
+            replay_live(tmp_path / "run.mcap", setup, output=tmp_path / "out.parquet", **keywords)
+        assert caught.value.parameter == parameter and "--" not in str(caught.value)
+        assert cli_message(caught.value).startswith(flag_of(parameter) + " ")
+    assert not (tmp_path / "out.parquet").exists()
+
+
 def test_an_ill_posed_fit_warns_with_parameter_names():
     # 6 rows for the 28 coefficients of a degree-2 model over 6 inputs: under-determined (the fit
     # step refuses it outright; the model warns and fits the minimum-norm solution).

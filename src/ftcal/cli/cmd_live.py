@@ -213,58 +213,39 @@ def _refuse_zenoh_options(args) -> None:
 
 
 def _refuse_source_options(args) -> None:
-    """Options of one kind of --replay source given with the other (a table's or a ROS bag's)."""
-    from pathlib import Path
-
-    from ..data.logs import READERS, log_format
+    """A ROS bag's options with a --replay table (the message names --zenoh, so the check is the CLI's; a table's
+    options with a bag are the step's to refuse: ftcal.workflow.live.replay_live)."""
     from ..runtime.errors import FtcalError
+    from ..workflow.live import replays_a_bag
 
-    if not READERS.get(log_format(Path(args.replay)), "").startswith("ftcal.data.bags:"):
-        if args.wrench_topic != "/ft/raw" or args.imu_topic is not None:
-            raise FtcalError(f"--{'wrench' if args.wrench_topic != '/ft/raw' else 'imu'}-topic applies to --zenoh "
-                             f"and to ROS bags; {args.replay} is a table (give its columns).")
-        for option in ("joints_topic", "tf"):
-            if getattr(args, option) is not None:
-                raise FtcalError(f"--{option.replace('_', '-')} applies to --zenoh and to ROS bags; "
-                                 f"{args.replay} is a table (give its columns).")
-        if args.receive_time:
-            raise FtcalError(f"--receive-time applies to ROS bags; {args.replay} is a table (its --time column "
-                             "is the time).")
+    if replays_a_bag(args.replay):
         return
-    if args.model is not None:
-        raise FtcalError("--model with a bag: the bag's wrench topic is the wrench; replay a table of raw "
-                         "channels with --model instead.")
-    if args.drop_incomplete:
-        raise FtcalError("--drop-incomplete applies to tables; a bag's reader refuses its NaN stretches, naming "
-                         "them.")
+    if args.wrench_topic != "/ft/raw" or args.imu_topic is not None:
+        raise FtcalError(f"--{'wrench' if args.wrench_topic != '/ft/raw' else 'imu'}-topic applies to --zenoh "
+                         f"and to ROS bags; {args.replay} is a table (give its columns).")
+    for option in ("joints_topic", "tf"):
+        if getattr(args, option) is not None:
+            raise FtcalError(f"--{option.replace('_', '-')} applies to --zenoh and to ROS bags; "
+                             f"{args.replay} is a table (give its columns).")
+    if args.receive_time:
+        raise FtcalError(f"--receive-time applies to ROS bags; {args.replay} is a table (its --time column "
+                         "is the time).")
 
 
 def run_zenoh(args) -> int:
-    from ..core.limits import MAX_ROS_DOMAIN_ID, MAX_RT_PRIORITY
-    from ..live.zenoh_node import ZenohOptions
-    from ..workflow.live import serve_zenoh
+    """``--zenoh``: the options combined with --replay's are refused here; their values are checked by the step
+    (ftcal.workflow.live.serve_zenoh)."""
     from ..runtime.errors import FtcalError
+    from ..workflow.live import serve_zenoh
 
     if (args.output or args.retare_at or args.switch_tool or args.realtime or args.tf or args.receive_time
             or args.drop_incomplete):
         raise FtcalError("-o, --retare-at, --switch-tool, --realtime, --tf, --receive-time and --drop-incomplete go "
                          "with --replay; live, use the queryables (see docs/live.md).")
-    if (args.joints_topic is None) != (args.robot_urdf is None):
-        raise FtcalError("--joints-topic and --urdf go together: gravity from the joint states and the robot model.")
-    if args.joints_topic and args.imu_topic:
-        raise FtcalError("give one gravity source: --imu-topic, or --joints-topic with --urdf.")
-    if args.domain_id > MAX_ROS_DOMAIN_ID:
-        raise FtcalError(f"--domain-id {args.domain_id}: ROS 2 domain ids go from 0 to {MAX_ROS_DOMAIN_ID}.")
-    if args.domain_id and args.keys != "rmw_zenoh":
-        raise FtcalError("--domain-id goes with --keys rmw_zenoh (zenoh-bridge-ros2dds's keys carry no domain).")
-    if args.rt_priority is not None and not 1 <= args.rt_priority <= MAX_RT_PRIORITY:
-        raise FtcalError(f"--rt-priority {args.rt_priority}: SCHED_FIFO priorities go from 1 to {MAX_RT_PRIORITY}.")
-    options = ZenohOptions(listen=tuple(args.listen), connect=tuple(args.connect), wrench_topic=args.wrench_topic,
-                           imu_topic=args.imu_topic, joints_topic=args.joints_topic,
-                           temperature_topic=args.temperature_topic, prefix=args.prefix,
-                           silence=args.silence, duration=args.duration, keys=args.keys, domain_id=args.domain_id,
-                           rt_priority=args.rt_priority)
-    return serve_zenoh(setup_of(args), options)
+    return serve_zenoh(setup_of(args), listen=tuple(args.listen), connect=tuple(args.connect),
+                       wrench_topic=args.wrench_topic, imu_topic=args.imu_topic, joints_topic=args.joints_topic,
+                       temperature_topic=args.temperature_topic, prefix=args.prefix, silence=args.silence,
+                       duration=args.duration, keys=args.keys, domain_id=args.domain_id, rt_priority=args.rt_priority)
 
 
 def run_ros2(args) -> int:

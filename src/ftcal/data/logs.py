@@ -46,6 +46,11 @@ def log_format(path: Path) -> str:
     return "/" if path.is_dir() else path.suffix.lower()
 
 
+def is_bag(path: str | Path) -> bool:
+    """Whether ``path`` is a ROS bag (a file or folder :data:`READERS` gives to :mod:`ftcal.data.bags`)."""
+    return READERS.get(log_format(Path(path)), "").startswith("ftcal.data.bags:")
+
+
 def read_recording(path: str | Path, joint_units: str = "rad", **options: Any) -> Recording:
     """Read a recording with the reader registered for its suffix.
 

@@ -55,7 +55,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.limits import LIVE_MAX_QUERY_BYTES, LIVE_MAX_TOPIC_BYTES
+from ..core.limits import (LIVE_KEY_CONVENTIONS, LIVE_MAX_QUERY_BYTES, LIVE_MAX_TOPIC_BYTES, MAX_ROS_DOMAIN_ID,
+                           MAX_RT_PRIORITY)
 from ..runtime.errors import FtcalError, ParameterError
 from .cdr import IMU_DOUBLES, TEMPERATURE_DOUBLES, WRENCH_DOUBLES, decode_stamped, encode_like
 from .node_core import COMMANDS, JOINT_MAX_AGE_S, MAX_JOINT_LISTS, NodeCore, tool_name  # noqa: F401 (re-exported)
@@ -96,7 +97,16 @@ def topic_key(topic: str) -> str:
 
 @dataclass(frozen=True)
 class ZenohOptions:
-    """Endpoints, topics and timing of :func:`serve`."""
+    """Endpoints, topics and timing of :func:`serve`, checked when built.
+
+    Raises
+    ------
+    ParameterError
+        Two gravity sources (``imu_topic`` and ``joints_topic``), ``keys`` not one of
+        :data:`~ftcal.core.limits.LIVE_KEY_CONVENTIONS`, a ``domain_id`` outside 0 to
+        :data:`~ftcal.core.limits.MAX_ROS_DOMAIN_ID` or without ``keys="rmw_zenoh"``, an ``rt_priority`` outside 1 to
+        :data:`~ftcal.core.limits.MAX_RT_PRIORITY`.
+    """
 
     listen: tuple[str, ...] = ()
     connect: tuple[str, ...] = ()
@@ -111,6 +121,24 @@ class ZenohOptions:
     domain_id: int = 0
     rt_priority: int | None = None  # SCHED_FIFO priority of the node's threads
     low_latency: bool = False  # ask for Zenoh's low-latency transport (TRANSPORT_SETTINGS; a frozen consumer stalls it)
+
+    def __post_init__(self) -> None:
+        # Checked here, the one place every caller (workflow.live.serve_zenoh, serve, LiveNode) goes through.
+        if self.joints_topic is not None and self.imu_topic is not None:
+            raise ParameterError(("imu_topic", "joints_topic", "urdf"),
+                                 "give one gravity source: {imu_topic}, or {joints_topic} with {urdf}.")
+        if self.keys not in LIVE_KEY_CONVENTIONS:
+            raise ParameterError("keys", f"{{keys}} must be {' or '.join(map(repr, LIVE_KEY_CONVENTIONS))}; "
+                                         f"got {self.keys!r}.")
+        if not 0 <= self.domain_id <= MAX_ROS_DOMAIN_ID:
+            raise ParameterError("domain_id", f"{{domain_id}} {self.domain_id}: ROS 2 domain ids go from 0 to "
+                                              f"{MAX_ROS_DOMAIN_ID}.")
+        if self.domain_id and self.keys != "rmw_zenoh":
+            raise ParameterError(("domain_id", "keys"), "{domain_id} goes with {keys} rmw_zenoh "
+                                                        "(zenoh-bridge-ros2dds's keys carry no domain).")
+        if self.rt_priority is not None and not 1 <= self.rt_priority <= MAX_RT_PRIORITY:
+            raise ParameterError("rt_priority", f"{{rt_priority}} {self.rt_priority}: SCHED_FIFO priorities go from 1 "
+                                                f"to {MAX_RT_PRIORITY}.")
 
 
 def zenoh_config(listen=(), connect=(), low_latency: bool = False):
@@ -217,10 +245,8 @@ class LiveNode(NodeCore):
             from .rmw_zenoh import data_key
 
             ros_key = lambda topic, msgtype: data_key(options.domain_id, topic, msgtype)  # noqa: E731
-        elif options.keys == "bridge":
+        else:  # "bridge" (ZenohOptions checked keys)
             ros_key = lambda topic, msgtype: topic_key(topic)  # noqa: E731
-        else:
-            raise FtcalError(f"keys must be 'bridge' or 'rmw_zenoh'; got {options.keys!r}.")
         self.keys = {name: None if topic is None else ros_key(topic, msgtype)
                      for name, (topic, msgtype) in self.topics.items()}
         self.keys.update({name: f"{topic_key(options.prefix)}/{name}" for name in

@@ -147,12 +147,12 @@ def build_dataset(logs, *, urdf=None, robot: str | None = None, sensor: str | No
     ...
     ftcal.runtime.errors.FtcalError: LOG: no file given.
     """
-    from ..data.logs import READERS, log_format
+    from ..data.logs import is_bag as bag
     from ..insitu.recordings import InsituOptions, build_log_table
     from ..robot import load_case_config, parse_payload_spec
 
     paths = logs.paths
-    is_bag = [READERS.get(log_format(Path(p)), "").startswith("ftcal.data.bags:") for p in paths]
+    is_bag = [bag(p) for p in paths]
     if any(is_bag) and not all(is_bag):
         raise FtcalError(f"LOG {paths[is_bag.index(False)]}: mix of ROS bags and other logs; "
                          "build one dataset per kind.")

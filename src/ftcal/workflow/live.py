@@ -207,15 +207,21 @@ class _Source:
     tmp: Any = field(default=None, repr=False)
 
 
+def replays_a_bag(data: str | os.PathLike) -> bool:
+    """Whether :func:`replay_live` reads ``data`` as a ROS bag (by its topics), else as a table (by its columns)."""
+    from ..data.logs import is_bag
+
+    return is_bag(data)
+
+
 def _open_source(data, *, wrench_topic, joints_topic, imu_topic, tf, receive_time, base, gravity_given) -> _Source:
     import tempfile
     from pathlib import Path
 
-    from ..data.logs import READERS, log_format
     from ..data.tables import table_columns
 
     path = Path(data)
-    if not READERS.get(log_format(path), "").startswith("ftcal.data.bags:"):
+    if not replays_a_bag(path):
         return _Source(str(data), None, tuple(table_columns(str(data))))
     from ..data.bags import BagTopics
     from ..insitu.bags import build_bag_table, write_bag_table
@@ -316,6 +322,8 @@ def replay_live(data: str | os.PathLike, setup: LiveSetup, *, output: str | os.P
 
     Raises
     ------
+    ParameterError
+        A bag with ``setup.model`` or ``drop_incomplete``.
     FtcalError
         Unreadable inputs, wrong columns, a tool or gravity source that does not fit. The state file is
         saved on Ctrl-C or SIGTERM (what was processed), and left as it was on bad input.
@@ -325,6 +333,13 @@ def replay_live(data: str | os.PathLike, setup: LiveSetup, *, output: str | os.P
     from ..data.tables import drop_incomplete as dropping
     from ..live.replay import ScriptedEvent, replay_table
 
+    if replays_a_bag(data):
+        if setup.model is not None:
+            raise ParameterError("model", "{model} with a bag: the bag's wrench topic is the wrench; replay a table of "
+                                          "raw channels with {model} instead.")
+        if drop_incomplete:
+            raise ParameterError("drop_incomplete", "{drop_incomplete} applies to tables; a bag's reader refuses its "
+                                                    "NaN stretches, naming them.")
     events = [ScriptedEvent(t, "retare") for t in retare_at] + [ScriptedEvent(t, "switch", n) for t, n in switch_tool]
     gravity_given = any(v is not None for v in (orientation, gravity_columns, imu_columns, setup.urdf))
     source = _open_source(data, wrench_topic=wrench_topic, joints_topic=joints_topic, imu_topic=imu_topic, tf=tf,
@@ -363,13 +378,35 @@ def replay_live(data: str | os.PathLike, setup: LiveSetup, *, output: str | os.P
                             status["tool"], str(output), None if setup.state is None else str(setup.state))
 
 
-def serve_zenoh(setup: LiveSetup, options) -> int:
-    """Serve the live calibrator of ``setup`` over Zenoh (:class:`~ftcal.live.zenoh_node.ZenohOptions`) until
-    ``options.duration`` or Ctrl-C; gravity from ``options.joints_topic`` with ``setup.urdf``."""
-    from ..live.zenoh_node import serve
+def serve_zenoh(setup: LiveSetup, **options) -> int:
+    """Serve the live calibrator of ``setup`` over Zenoh until ``duration`` or Ctrl-C.
 
+    Parameters
+    ----------
+    setup : the calibrator's model, tools, noise, bias, state file and robot model
+    **options : the fields of :class:`~ftcal.live.zenoh_node.ZenohOptions` (``listen``, ``connect``, ``wrench_topic``,
+        ``imu_topic``, ``joints_topic``, ``temperature_topic``, ``prefix``, ``silence``, ``duration``, ``keys``,
+        ``domain_id``, ``rt_priority``, ``low_latency``); gravity from ``joints_topic`` with ``setup.urdf``
+
+    Returns
+    -------
+    int
+        The exit code (0).
+
+    Raises
+    ------
+    ParameterError
+        ``joints_topic`` without ``setup.urdf`` or the other way round, and the values
+        :class:`~ftcal.live.zenoh_node.ZenohOptions` refuses; checked before anything is loaded or opened.
+    """
+    from ..live.zenoh_node import ZenohOptions, serve
+
+    if (options.get("joints_topic") is None) != (setup.urdf is None):
+        raise ParameterError(("joints_topic", "urdf"), "{joints_topic} and {urdf} go together: gravity from the joint "
+                                                       "states and the robot model.")
+    checked = ZenohOptions(**options)
     robot = setup.robot_gravity(None, f"urdf {setup.urdf}")
-    return serve(setup.calibrator(), options, robot=robot)
+    return serve(setup.calibrator(), checked, robot=robot)
 
 
 # ROS parameter -> the setup's field where the names differ.
