@@ -147,7 +147,6 @@ STEP_LAYERS = ("ftcal.workflow", "ftcal.sim.simulate", "ftcal.sim.demos", "ftcal
 # Commands that still reach below the steps, each for a reason (issue 43 lists them); the list only shrinks.
 BELOW_THE_STEPS = {
     "ftcal.cli.cmd_convert": {"ftcal.files.targets"},  # the targets' registry names --to's choices
-    "ftcal.cli.cmd_info": {"ftcal.files.model_info"},  # a numpy-free read of a model file, then its text
 }
 
 

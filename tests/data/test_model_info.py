@@ -16,7 +16,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from ftcal.cli.cmd_info import report
+from ftcal.workflow.info import report
 from ftcal.core.dataset import Dataset
 from ftcal.core.model import CalibrationModel
 from ftcal.core.solvers.lasso import Lasso

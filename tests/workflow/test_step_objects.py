@@ -149,6 +149,22 @@ def test_the_simulate_step_is_the_command(tmp_path):
     assert len(recording["holds"]) == 2 and recording["n_samples"] > 2 * 9
 
 
+def test_the_info_step_is_the_command(tmp_path, cubic):
+    from ftcal.files.model_files import save_model
+    from ftcal.workflow.info import model_info
+
+    u, y, _, _ = cubic
+    path = tmp_path / "m.json"
+    save_model(ftcal.CalibrationModel(2).fit(u, y[:, None]), path)
+    result = model_info(path, terms=3)
+    done = subprocess.run([FTCAL, "info", str(path), "--terms", "3"], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout == result.summary() + "\n"
+    # degree 2 over 2 inputs: C(4, 2) = 6 coefficients (by hand); three largest terms listed
+    assert result.facts["n_coefficients"] == 6 and len(result.facts["largest"]) == 3
+    assert json.loads(result.to_json())["facts"]["polynomial"] is True
+
+
 def test_the_live_step_is_the_command_and_tracks_a_constant_bias(tmp_path):
     from ftcal.workflow.live import LiveSetup, replay_live
 

@@ -10,6 +10,10 @@ from __future__ import annotations
 MAX_DEGREE = 10
 """Highest polynomial degree np (degree 5 over 7 inputs is already 792 terms per output)."""
 
+INFO_TERMS = 10
+"""How many of a polynomial model's largest terms ``ftcal info`` (:func:`ftcal.workflow.info.model_info`) lists by
+default."""
+
 MAX_LAG = 50
 """Highest ARX order na (past outputs) and nb (input lags)."""
 

@@ -26,6 +26,7 @@ _STEPS.update(fit="fitting", FitResult="fitting", ModelSearch="search", fit_cand
               CandidatesResult="search")
 _STEPS.update(evaluate="evaluation", predict="evaluation", EvaluationResult="evaluation", PredictionResult="evaluation")
 _STEPS.update(report="evaluation", ReportResult="evaluation")
+_STEPS.update(model_info="info", ModelInfoResult="info")
 _STEPS.update(LiveSetup="live", live_calibrator="live", replay_live="live", serve_zenoh="live", serve_ros2="live",
               LiveReplayResult="live", replays_a_bag="live")
 

@@ -2,14 +2,11 @@
 
 from __future__ import annotations
 
-import dataclasses
-import html
 import json
 import math
+import sys
 from pathlib import Path
 from typing import Any
-
-import numpy as np
 
 
 def plain(value: Any) -> Any:
@@ -25,15 +22,17 @@ def plain(value: Any) -> Any:
     """
     if isinstance(value, StepResult):
         return value.to_dict()
-    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+    # A module not imported yet holds no value (``ftcal info`` imports neither numpy nor dataclasses).
+    dataclasses, np = sys.modules.get("dataclasses"), sys.modules.get("numpy")
+    if dataclasses is not None and dataclasses.is_dataclass(value) and not isinstance(value, type):
         return _fields(value)
     if isinstance(value, dict):
         return {str(k): plain(v) for k, v in value.items()}
     if isinstance(value, (list, tuple, set, frozenset)):
         return [plain(v) for v in value]
-    if isinstance(value, np.ndarray):
+    if np is not None and isinstance(value, np.ndarray):
         return plain(value.tolist())
-    if isinstance(value, np.generic):
+    if np is not None and isinstance(value, np.generic):
         return plain(value.item())
     if isinstance(value, float):
         return value if math.isfinite(value) else None
@@ -45,6 +44,8 @@ def plain(value: Any) -> Any:
 
 
 def _fields(value: Any) -> dict:
+    import dataclasses
+
     return {f.name: plain(getattr(value, f.name)) for f in dataclasses.fields(value)
             if not f.name.startswith("_")}
 
@@ -76,7 +77,8 @@ class StepResult:
 
     def to_dict(self) -> dict:
         """The result as JSON-ready Python (finite floats, lists, strings; ``None`` for no value)."""
-        if dataclasses.is_dataclass(self):
+        dataclasses = sys.modules.get("dataclasses")
+        if dataclasses is not None and dataclasses.is_dataclass(self):
             return _fields(self)
         raise NotImplementedError(f"{type(self).__name__} must define to_dict()")
 
@@ -98,4 +100,6 @@ class StepResult:
         return f"<{type(self).__name__}: {self.headline()}{more}>"
 
     def _repr_html_(self) -> str:
+        import html
+
         return f"<pre>{html.escape(self.summary())}</pre>"
