@@ -328,12 +328,13 @@ def calibrate(robot: RobotModel, sensor: SensorModel, config: ClosedLoopConfig,
     poses), the wrench functions (``factory``, ``affine``, ``ftcal``) and the tools identified on each of them
     (``payloads[wrench][tool]``, ``PayloadParameters``; ``payload`` is ftcal's first tool).
     """
-    from ..core.model import CalibrationModel
+    from ..core.dataset import Dataset
     from ..payload.accumulate import payload_statistics
     from ..payload.identify import identify_from_statistics
     from ..payload.kinematics import Kinematics
     from ..robot.expected import expected_wrenches
     from ..robot.kinematics import sensor_kinematics
+    from ..workflow import fit
     from .robot_recording import joint_bounds
 
     limits, _ = joint_bounds(robot)
@@ -362,8 +363,8 @@ def calibrate(robot: RobotModel, sensor: SensorModel, config: ClosedLoopConfig,
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", IllPosedFitWarning)
         warnings.simplefilter("ignore", OutOfRangeWarning)
-        model = CalibrationModel(degree=config.degree).fit(train_u, train_y)
-        affine = CalibrationModel(degree=1).fit(train_u, train_y)
+        training = Dataset.from_arrays(train_u, train_y)  # u1..u6, T -> Fx..Tz
+        model, affine = (fit(training, degree=degree).model for degree in (config.degree, 1))
         rmse = {name: float(np.sqrt(np.mean((m.predict(valid_u, warn_out_of_range=False) - valid_y)[:, :3] ** 2)))
                 for name, m in (("nonlinear", model), ("affine", affine))}
     wrenches = {"factory": lambda counts, temperature: sensor.factory_wrench(counts),
@@ -382,10 +383,12 @@ def calibrate(robot: RobotModel, sensor: SensorModel, config: ClosedLoopConfig,
         t = -60.0 - 30.0 * k + np.arange(len(wrench)) / config.rate
         counts = sensor.counts(wrench, temperature, sensor.bias(t, rng), rng)
         for name, read in wrenches.items():
-            fit = identify_from_statistics({"all": payload_statistics(read(counts, temperature), Kinematics(gravity))},
+            # Not the payload step (identify_payload): its grouped, jackknifed fit gives other last digits, and
+            # the loop carries any change into every figure; this is the least-squares fit beneath it.
+            identified = identify_from_statistics({"all": payload_statistics(read(counts, temperature), Kinematics(gravity))},
                                    cross_validate=False)
             payloads[name][tool_name] = PayloadParameters.from_fit(
-                fit, gravity=float(np.linalg.norm(GRAVITY)), frame=SENSOR, reaction=False,
+                identified, gravity=float(np.linalg.norm(GRAVITY)), frame=SENSOR, reaction=False,
                 wrench_columns=("Fx", "Fy", "Fz", "Tx", "Ty", "Tz"))
     return {"model": model, "affine": affine, "validation_force_rmse": rmse, "payload": payloads["ftcal"]["tool"],
             "payloads": payloads, "wrenches": wrenches}
