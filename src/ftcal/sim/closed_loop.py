@@ -227,21 +227,18 @@ class ToolEstimator(Estimator):
 
 
 class LiveEstimator(Estimator):
-    """(c) ftcal's model with ``ftcal.live.LiveCalibrator`` tracking the bias (its public API only): the tool
-    library holds both tools, a tool change is ``switch_tool``; the bias starts from the start pose's
-    re-tare as (b)'s."""
+    """(c) ftcal's model with ``ftcal.live.LiveCalibrator`` tracking the bias (its public API only, built by the
+    :func:`~ftcal.workflow.live.live_calibrator` step): the tool library holds both tools, a tool change is
+    ``switch_tool``; the bias starts from the start pose's re-tare as (b)'s."""
 
     name = "ftcal + live"
 
     def __init__(self, model, payloads: dict) -> None:
-        try:
-            from ..live import LiveCalibrator  # type: ignore[attr-defined]
-        except ImportError as exc:
-            raise NotAvailable(f"ftcal.live is not importable here ({exc.name or exc})") from None
         self.model, self.payloads, self.live = model, payloads, None
-        self._factory = LiveCalibrator
 
     def start(self, counts, temperature, rotation) -> None:
+        from ..workflow import live_calibrator
+
         payload = self.payloads["tool"]
         raw = np.column_stack([counts, temperature])
         with warnings.catch_warnings():
@@ -250,8 +247,9 @@ class LiveEstimator(Estimator):
         g = rotation.T @ GRAVITY
         tool_wrench = np.r_[payload.mass * g, payload.mass * np.cross(np.asarray(payload.com), g)]
         try:
-            self.live = self._factory(self.model, tools=dict(self.payloads), tool="tool",
-                                      initial_bias=reading - tool_wrench)
+            self.live = live_calibrator(self.model, dict(self.payloads), mount="tool", bias=reading - tool_wrench)
+        except ImportError as exc:  # the step imports ftcal.live (and its C core) only now
+            raise NotAvailable(f"ftcal.live is not importable here ({exc.name or exc})") from None
         except Exception as exc:  # an API this scenario was not written against
             raise NotAvailable(f"ftcal.live.LiveCalibrator could not be set up ({exc})") from None
 
@@ -385,8 +383,8 @@ def calibrate(robot: RobotModel, sensor: SensorModel, config: ClosedLoopConfig,
         for name, read in wrenches.items():
             # Not the payload step (identify_payload): its grouped, jackknifed fit gives other last digits, and
             # the loop carries any change into every figure; this is the least-squares fit beneath it.
-            identified = identify_from_statistics({"all": payload_statistics(read(counts, temperature), Kinematics(gravity))},
-                                   cross_validate=False)
+            statistics = payload_statistics(read(counts, temperature), Kinematics(gravity))
+            identified = identify_from_statistics({"all": statistics}, cross_validate=False)
             payloads[name][tool_name] = PayloadParameters.from_fit(
                 identified, gravity=float(np.linalg.norm(GRAVITY)), frame=SENSOR, reaction=False,
                 wrench_columns=("Fx", "Fy", "Fz", "Tx", "Ty", "Tz"))
