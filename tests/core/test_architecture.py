@@ -167,6 +167,7 @@ STEP_INTERNALS = ("ftcal.core.model", "ftcal.core.metrics", "ftcal.insitu", "ftc
 DEMOS_BELOW_THE_STEPS = {
     # the network's and the firmware's validation metrics; the split datasets' files; the report page
     "ftcal.sim.demo": {"ftcal.core.metrics", "ftcal.insitu.recordings", "ftcal.report"},
+    # two names (the axes, the wrench columns); the scenario's own page
     "ftcal.sim.demo_arm": {"ftcal.payload.identify", "ftcal.payload.tables", "ftcal.report.figures",
                            "ftcal.report.html", "ftcal.report.tables"},
     # the payload file as the demo has always written it (without the step's gain note); the flag bits
