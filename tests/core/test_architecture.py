@@ -156,3 +156,34 @@ def test_a_command_reaches_the_library_through_its_steps():
                       and not any(t == layer or t.startswith(layer + ".") for layer in STEP_LAYERS)}
              for module, targets in graph().items() if module.startswith("ftcal.cli.cmd_")}
     assert {module: targets for module, targets in below.items() if targets} == BELOW_THE_STEPS
+
+
+# What the steps wrap: a demo reaching these goes below the steps (issue 43: "every demo composed from steps only").
+STEP_INTERNALS = ("ftcal.core.model", "ftcal.core.metrics", "ftcal.insitu", "ftcal.report", "ftcal.files",
+                  "ftcal.payload", "ftcal.live", "ftcal.plan")
+# What each demo still imports from them, each for the reason its comment or docstring gives; the list only shrinks.
+DEMOS_BELOW_THE_STEPS = {
+    # the network's and the firmware's validation metrics; the split datasets' files; the report page
+    "ftcal.sim.demo": {"ftcal.core.metrics", "ftcal.insitu.recordings", "ftcal.report"},
+    # two names (the axes, the wrench columns); the scenario's own page
+    "ftcal.sim.demo_arm": {"ftcal.payload.identify", "ftcal.payload.tables", "ftcal.report.figures",
+                           "ftcal.report.html", "ftcal.report.tables"},
+    # the payload file as the demo has always written it (without the step's gain note); the flag bits
+    "ftcal.sim.demo_live": {"ftcal.files.payload_json", "ftcal.live.health", "ftcal.payload.parameters"},
+    # the payload draws' least-squares fit; the validation poses and the random designs
+    "ftcal.sim.demo_plan": {"ftcal.payload.accumulate", "ftcal.payload.identify", "ftcal.payload.kinematics",
+                            "ftcal.plan.candidates", "ftcal.plan.design"},
+    # the tools' least-squares fit; the scenario's own page
+    "ftcal.sim.closed_loop": {"ftcal.payload.accumulate", "ftcal.payload.identify", "ftcal.payload.kinematics",
+                              "ftcal.payload.parameters", "ftcal.report.figures", "ftcal.report.html",
+                              "ftcal.report.tables"},
+}
+
+
+def test_a_demo_reaches_the_library_through_its_steps():
+    """The demos compose steps; what they still take from below the steps is the list above, no more."""
+    modules = graph()
+    below = {demo: {t for t in modules[demo]
+                    if any(t == layer or t.startswith(layer + ".") for layer in STEP_INTERNALS)}
+             for demo in DEMOS_BELOW_THE_STEPS}
+    assert below == DEMOS_BELOW_THE_STEPS

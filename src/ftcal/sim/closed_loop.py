@@ -227,21 +227,18 @@ class ToolEstimator(Estimator):
 
 
 class LiveEstimator(Estimator):
-    """(c) ftcal's model with ``ftcal.live.LiveCalibrator`` tracking the bias (its public API only): the tool
-    library holds both tools, a tool change is ``switch_tool``; the bias starts from the start pose's
-    re-tare as (b)'s."""
+    """(c) ftcal's model with ``ftcal.live.LiveCalibrator`` tracking the bias (its public API only, built by the
+    :func:`~ftcal.workflow.live.live_calibrator` step): the tool library holds both tools, a tool change is
+    ``switch_tool``; the bias starts from the start pose's re-tare as (b)'s."""
 
     name = "ftcal + live"
 
     def __init__(self, model, payloads: dict) -> None:
-        try:
-            from ..live import LiveCalibrator  # type: ignore[attr-defined]
-        except ImportError as exc:
-            raise NotAvailable(f"ftcal.live is not importable here ({exc.name or exc})") from None
         self.model, self.payloads, self.live = model, payloads, None
-        self._factory = LiveCalibrator
 
     def start(self, counts, temperature, rotation) -> None:
+        from ..workflow import live_calibrator
+
         payload = self.payloads["tool"]
         raw = np.column_stack([counts, temperature])
         with warnings.catch_warnings():
@@ -250,8 +247,9 @@ class LiveEstimator(Estimator):
         g = rotation.T @ GRAVITY
         tool_wrench = np.r_[payload.mass * g, payload.mass * np.cross(np.asarray(payload.com), g)]
         try:
-            self.live = self._factory(self.model, tools=dict(self.payloads), tool="tool",
-                                      initial_bias=reading - tool_wrench)
+            self.live = live_calibrator(self.model, dict(self.payloads), mount="tool", bias=reading - tool_wrench)
+        except ImportError as exc:  # the step imports ftcal.live (and its C core) only now
+            raise NotAvailable(f"ftcal.live is not importable here ({exc.name or exc})") from None
         except Exception as exc:  # an API this scenario was not written against
             raise NotAvailable(f"ftcal.live.LiveCalibrator could not be set up ({exc})") from None
 
@@ -328,12 +326,13 @@ def calibrate(robot: RobotModel, sensor: SensorModel, config: ClosedLoopConfig,
     poses), the wrench functions (``factory``, ``affine``, ``ftcal``) and the tools identified on each of them
     (``payloads[wrench][tool]``, ``PayloadParameters``; ``payload`` is ftcal's first tool).
     """
-    from ..core.model import CalibrationModel
+    from ..core.dataset import Dataset
     from ..payload.accumulate import payload_statistics
     from ..payload.identify import identify_from_statistics
     from ..payload.kinematics import Kinematics
     from ..robot.expected import expected_wrenches
     from ..robot.kinematics import sensor_kinematics
+    from ..workflow import fit
     from .robot_recording import joint_bounds
 
     limits, _ = joint_bounds(robot)
@@ -362,8 +361,8 @@ def calibrate(robot: RobotModel, sensor: SensorModel, config: ClosedLoopConfig,
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", IllPosedFitWarning)
         warnings.simplefilter("ignore", OutOfRangeWarning)
-        model = CalibrationModel(degree=config.degree).fit(train_u, train_y)
-        affine = CalibrationModel(degree=1).fit(train_u, train_y)
+        training = Dataset.from_arrays(train_u, train_y)  # u1..u6, T -> Fx..Tz
+        model, affine = (fit(training, degree=degree).model for degree in (config.degree, 1))
         rmse = {name: float(np.sqrt(np.mean((m.predict(valid_u, warn_out_of_range=False) - valid_y)[:, :3] ** 2)))
                 for name, m in (("nonlinear", model), ("affine", affine))}
     wrenches = {"factory": lambda counts, temperature: sensor.factory_wrench(counts),
@@ -382,10 +381,12 @@ def calibrate(robot: RobotModel, sensor: SensorModel, config: ClosedLoopConfig,
         t = -60.0 - 30.0 * k + np.arange(len(wrench)) / config.rate
         counts = sensor.counts(wrench, temperature, sensor.bias(t, rng), rng)
         for name, read in wrenches.items():
-            fit = identify_from_statistics({"all": payload_statistics(read(counts, temperature), Kinematics(gravity))},
-                                   cross_validate=False)
+            # Not the payload step (identify_payload): its grouped, jackknifed fit gives other last digits, and
+            # the loop carries any change into every figure; this is the least-squares fit beneath it.
+            statistics = payload_statistics(read(counts, temperature), Kinematics(gravity))
+            identified = identify_from_statistics({"all": statistics}, cross_validate=False)
             payloads[name][tool_name] = PayloadParameters.from_fit(
-                fit, gravity=float(np.linalg.norm(GRAVITY)), frame=SENSOR, reaction=False,
+                identified, gravity=float(np.linalg.norm(GRAVITY)), frame=SENSOR, reaction=False,
                 wrench_columns=("Fx", "Fy", "Fz", "Tx", "Ty", "Tz"))
     return {"model": model, "affine": affine, "validation_force_rmse": rmse, "payload": payloads["ftcal"]["tool"],
             "payloads": payloads, "wrenches": wrenches}

@@ -28,6 +28,8 @@ from .live_scenario import LiveScenario, simulate_live
 SWAP_AT = 61.0  # s, one second into a hold
 CONTACT_AT = 30.5  # s, half a second into a hold
 RETARE_AT = 100.0  # s, the README's scripted re-tare (inside a hold)
+AXES = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
+GRAVITY = ("gx", "gy", "gz")  # the gravity columns handed to the payload step
 NAMES = {"recording": "live.parquet", "replayed": "replayed.parquet", "summary": "summary.json"}
 
 
@@ -46,29 +48,38 @@ def _operation(config: LiveDemoConfig) -> LiveScenario:
 
 def identify_tool(name: str, scenario: LiveScenario, seed: int):
     """Identify one tool offline from static poses, as ``ftcal payload --bias-drift random-walk`` does."""
-    from ..payload.kinematics import Kinematics
     from ..payload.parameters import PayloadParameters
-    from ..payload.tables import PayloadRecording, identify_recording
 
     tools = {name: scenario.tools[name]}
     rec = simulate_live(dataclasses.replace(scenario, duration=180.0, rate=100.0, hold_s=4.0, move_s=1.0,
                                             tools=tools, swaps=(), contacts=(), seed=seed))
-    keep = rec.holding
-    recording = PayloadRecording(rec.wrench[keep], Kinematics(rec.gravity[keep]), np.zeros(keep.sum(), int),
-                                 rec.time[keep], None)
+    result = _identified(rec, rec.holding)
+    # Built from the step's fit rather than its `payload`, which adds the gain note to the file's fit record.
+    return PayloadParameters.from_fit(result.fit, gravity=9.81, frame="ft_sensor", reaction=False,
+                                      wrench_columns=AXES, drift=result.drift.drift)
+
+
+def _identified(rec, keep):
+    """The payload step (bias as a random walk, one group) on the samples ``keep`` of a simulated recording.
+
+    The samples are the simulation's holds, so all are kept (``keep_moving``) rather than found again."""
+    import pandas as pd
+
+    from ..workflow import identify_payload
+
+    frame = pd.DataFrame({"time": rec.time[keep], **{a: rec.wrench[keep, j] for j, a in enumerate(AXES)},
+                          **{c: rec.gravity[keep, j] for j, c in enumerate(GRAVITY)}})
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        result = identify_recording(recording, bias_drift="random-walk", time_column="time", cross_validate=False)
-    return PayloadParameters.from_fit(result.fit, gravity=9.81, frame="ft_sensor", reaction=False,
-                                      wrench_columns=("Fx", "Fy", "Fz", "Tx", "Ty", "Tz"), drift=result.drift)
+        return identify_payload(frame, inputs=AXES, keep_moving=True, bias_drift="random-walk",
+                                gravity_columns=GRAVITY)
 
 
 def run_live_demo(config: LiveDemoConfig = LiveDemoConfig()) -> dict:
     """Run the scenario, write its files into ``config.out_dir`` and return the summary."""
     from ..files.payload_json import save_payload
-    from ..live import LiveCalibrator
-    from ..live.replay import ReplayColumns, ScriptedEvent, replay_table
     from ..runtime.atomic import write_text_atomic
+    from ..workflow import LiveSetup, replay_live
 
     started = time.perf_counter()
     out = Path(config.out_dir)
@@ -83,10 +94,9 @@ def run_live_demo(config: LiveDemoConfig = LiveDemoConfig()) -> dict:
 
     write_table(rec.frame(), out / NAMES["recording"])
     files.append(str(out / NAMES["recording"]))
-    live = LiveCalibrator(tools=payloads, tool="gripper")
-    columns = ReplayColumns("time", ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz"), False, "quaternion", ("qx", "qy", "qz", "qw"))
-    replay = replay_table(out / NAMES["recording"], live, columns, out / NAMES["replayed"],
-                          events=[ScriptedEvent(SWAP_AT, "switch", "drill")])
+    replay = replay_live(out / NAMES["recording"], LiveSetup(tools=payloads, mount="gripper"),
+                         output=out / NAMES["replayed"], inputs=AXES,
+                         orientation=("qx", "qy", "qz", "qw"), switch_tool=[(SWAP_AT, "drill")]).replay
     files.append(str(out / NAMES["replayed"]))
     summary = score(rec, out / NAMES["replayed"], scenario)
     summary.update({"n_samples": int(rec.time.size), "replay_samples_per_s": replay.n_samples / replay.seconds,
@@ -105,13 +115,10 @@ def score(rec, replayed: Path, scenario: LiveScenario) -> dict:
     import pandas as pd
 
     from ..live.health import BIT
-    from ..payload.kinematics import Kinematics
-    from ..payload.tables import PayloadRecording, identify_recording
 
     table = pd.read_parquet(replayed)
-    axes = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
-    bias = table[[f"bias_{a}" for a in axes]].to_numpy()
-    compensated = table[list(axes)].to_numpy()
+    bias = table[[f"bias_{a}" for a in AXES]].to_numpy()
+    compensated = table[list(AXES)].to_numpy()
     flags = table["flags"].to_numpy()
     known = np.arange(rec.time.size) >= int(np.argmax(table["updated"].to_numpy()))
     online = np.sqrt(np.mean((bias - rec.bias)[known] ** 2, axis=0))
@@ -119,12 +126,7 @@ def score(rec, replayed: Path, scenario: LiveScenario) -> dict:
     keep = rec.holding & ~np.any(rec.contact != 0, axis=1)
     # The offline smoother needs one tool: fit it on the samples before the swap.
     first = keep & (rec.tool == rec.tool[0])
-    recording = PayloadRecording(rec.wrench[first], Kinematics(rec.gravity[first]), np.zeros(first.sum(), int),
-                                 rec.time[first], None)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        drift = identify_recording(recording, bias_drift="random-walk", time_column="time",
-                                   cross_validate=False).drift
+    drift = _identified(rec, first).drift.drift
     before = known & (rec.time <= rec.time[first][-1]) & (rec.time >= rec.time[first][0])
     smoothed = np.column_stack([np.interp(rec.time, drift.knot_times, drift.knot_bias[:, j]) for j in range(6)])
     smoother = np.sqrt(np.mean((smoothed - rec.bias)[before] ** 2, axis=0))
@@ -148,7 +150,7 @@ def format_live_tables(summary: dict) -> str:
     def row(label, values, fmt="{:9.4f}"):
         return f"{label:<38}" + "".join(fmt.format(v) for v in values)
 
-    lines = [f"{'bias error, RMS (N, N·m)':<38}" + "".join(f"{a:>9}" for a in ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")),
+    lines = [f"{'bias error, RMS (N, N·m)':<38}" + "".join(f"{a:>9}" for a in AXES),
              row("live tracker", summary["bias_rms_online"]),
              row("no tracking (held at the first tare)", summary["bias_rms_untracked"]),
              row("live, first tool only", summary["bias_rms_online_first_tool"]),

@@ -8,8 +8,10 @@ The search is today's ``degree="auto"`` selection (grouped cross-validation over
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from ..core.limits import SELECTION_BUDGET_SECONDS
@@ -156,6 +158,14 @@ class CandidatesResult(StepResult):
 
     models: dict
     n_samples: int
+    _save: dict = field(default_factory=dict)  # what each model file records: the sources, their fingerprints
+
+    def save(self, candidate, path: str | os.PathLike) -> Path:
+        """Write ``candidate``'s model file (JSON, atomically) with the data's sources and training
+        fingerprints, as :meth:`FitResult.save <ftcal.workflow.fitting.FitResult.save>` does."""
+        from ..files.model_files import save_model
+
+        return save_model(self.models[candidate], path, **self._save)
 
     def summary(self) -> str:
         from ..core.metrics import format_metric
@@ -221,12 +231,13 @@ def fit_candidates(data, candidates: Sequence, *, advance=None) -> CandidatesRes
     >>> result.models[network] is not network  # the template stays unfitted
     True
     """
+    from ..core.fingerprint import segment_fingerprints
     from ..core.select import Candidate, fit_candidates as fit_all
     from ..data.tables import load_dataset
     from .sources import tables_of
 
     polynomials = [c for c in candidates if isinstance(c, Candidate)]
-    with tables_of(data) as (paths, dataset, _):
+    with tables_of(data) as (paths, dataset, names):
         dataset = dataset if dataset is not None else load_dataset(paths)
         models = fit_all(dataset, polynomials, advance=advance) if polynomials else {}
         for estimator in candidates:
@@ -234,4 +245,6 @@ def fit_candidates(data, candidates: Sequence, *, advance=None) -> CandidatesRes
                 models[estimator] = estimator.clone().fit(dataset)
                 if advance is not None:
                     advance(1)
-    return CandidatesResult({c: models[c] for c in candidates}, dataset.n_samples)
+        save = dict(sources=list(names) if paths else list(dataset.sources),
+                    training_segments=segment_fingerprints(dataset))
+    return CandidatesResult({c: models[c] for c in candidates}, dataset.n_samples, save)
