@@ -24,7 +24,7 @@ from .candidates import (AFFINE, DEFAULT_DEGREES, DEFAULT_PENALTIES, LASSO_DECAD
 from .cost import SearchBudget, candidate_work, decomposition_work, statistics_work
 from .folds import DatasetStatistics, GroupedStatistics, fold_of_groups
 from .result import CrossValidationResult
-from .scoring import CandidateScore, Part, Scorer, nested_folds, stable_choice, statistics_mse
+from .scoring import CandidateScore, Part, Scorer, anchored_choice, nested_folds, stable_choice, statistics_mse
 
 
 # Degrees in a row that improve no part before the search stops. Two, not one: a sensor whose
@@ -426,12 +426,21 @@ class _Search:
         parts = self.scorer.parts(select_per)
         gates = self.gates(ordered, parts)
         selection = [(part, best if part.name == "model" else gates.get(part.name) or
-                      stable_choice(ordered, part, self.stable_notes, self.family(part, parts), n_groups))
+                      self.block_choice(ordered, part, parts, best, n_groups))
                      for part in parts]
         if select_per == "model":
             self.stable_notes = self.stable_notes[:1]
         return CrossValidationResult(ordered, best, self.scorer.metric, self.n_folds, skipped, select_per,
                                      selection, [self.fold_note()] + list(notes or []) + self.stable_notes, self)
+
+    def block_choice(self, ordered: list[CandidateScore], part: Part, parts: list[Part], best: Candidate,
+                     n_groups: int) -> Candidate:
+        """The stable choice of one part; a force or torque block chosen alone is anchored at the whole model's
+        choice ``best`` (:func:`~.scoring.anchored_choice`)."""
+        own = stable_choice(ordered, part, self.stable_notes, self.family(part, parts), n_groups)
+        if part.name not in self.scorer.blocks:
+            return own
+        return anchored_choice(ordered, part, own, best, self.stable_notes, n_groups)
 
     def gates(self, ordered: list[CandidateScore], parts: list[Part]) -> dict[str, Candidate]:
         """Outputs held at the affine model because their block keeps it (choosing per output only).
