@@ -239,3 +239,5 @@ def test_a_block_takes_the_whole_models_choice_unless_its_own_beats_it_beyond_th
     assert anchored_choice([affine, score(joint, [4.0] * 5)], torque, AFFINE, joint, []) == AFFINE
     # The whole model kept affine: nothing to anchor at.
     assert anchored_choice(ordered, torque, own, AFFINE, []) == own
+    # Without evidence (every block kept affine alone) the anchor makes nothing richer.
+    assert anchored_choice([affine, score(joint, [2.0] * 5)], torque, AFFINE, joint, [], evidence=False) == AFFINE

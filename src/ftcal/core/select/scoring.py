@@ -445,15 +445,16 @@ def stable_choice(ordered: list[CandidateScore], part: Part, notes: list[str], f
 
 
 def anchored_choice(ordered: list[CandidateScore], part: Part, own: Candidate, anchor: Candidate, notes: list[str],
-                    n_groups: int | None = None) -> Candidate:
+                    n_groups: int | None = None, evidence: bool = True) -> Candidate:
     """A block's candidate given the whole model's stable choice ``anchor``: the block's ``own`` stable choice
     only when it beats the anchor on the block beyond the fold noise (the rule of :func:`selection_rule`), else
     the anchor, when it validates better than affine on the block on average, by more than a tie (else ``own``).
+    A block that kept affine alone takes the anchor only with ``evidence`` (another block left affine alone).
 
     Why: a block chosen alone is picked from every candidate by its own three outputs, and its winner's curse is
     larger than the whole model's, chosen by six; on held-out load levels a torque block's own degree-3 pick lost
     to the whole model's degree 2 (and a torque block that kept affine lost the whole model's gain)."""
-    if not ANCHOR_BLOCKS or anchor == AFFINE or own == anchor:
+    if not ANCHOR_BLOCKS or anchor == AFFINE or own == anchor or (own == AFFINE and not evidence):
         return own
     scores = {s.candidate: s for s in ordered}
     anchor_folds, affine_folds = scores[anchor].part_scores(part), scores[AFFINE].part_scores(part)
