@@ -24,7 +24,8 @@ import numpy as np
 # (sensor, split, paths): the issue's splits; the MLP only where the issue ran it (it costs most).
 CASES = (("optical", "cases"), ("optical", "orientation"), ("plate", "level"), ("plate", "tenths"),
          ("fingertip", "tenths"), ("fingertip", "direction"))
-PATHS = {"default": dict(degree="auto"), "select_per model": dict(degree="auto", select_per="model"),
+PATHS = {"default": dict(degree="auto"), "default, each block alone": dict(degree="auto", anchor_blocks=False),
+         "select_per model": dict(degree="auto", select_per="model"),
          "degree 2": dict(degree=2), "degree 3": dict(degree=3), "degree 3, lasso 10": dict(degree=3, lasso=10.0),
          "degree 2, ridge 1": dict(degree=2, ridge=1.0), "mlp": dict(family="mlp", seed=0)}
 LOSS_MARGIN = 0.10  # an outer fold lost: held-out error above OLS's by more than this fraction
@@ -51,10 +52,16 @@ def says_it_loses(caught, model, lines) -> bool:
 
 def run_path(train, options: dict):
     """(model or None when refused, said-so flag, the report's lines) of one ``ftcal.fit`` call."""
+    from contextlib import nullcontext
+
     import ftcal
     from ftcal.runtime.errors import FtcalError
 
-    with warnings.catch_warnings(record=True) as caught:
+    from benchmarks.bench_select_rates import unanchored_rule
+
+    options = dict(options)
+    rule = nullcontext() if options.pop("anchor_blocks", True) else unanchored_rule()  # the rule before, same data
+    with warnings.catch_warnings(record=True) as caught, rule:
         warnings.simplefilter("always")
         try:
             result = ftcal.fit(train, **options)

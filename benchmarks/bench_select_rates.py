@@ -13,7 +13,8 @@ best of them on the new load cases). Reports:
 - honesty: the printed CV error over the measured held-out error (target 0.6-1.2).
 
 Beside the rule now, the same folds and scores are judged by two rules before it: the one before issue 44
-item 1 (:func:`previous_rule`) and the one before nested cross-validation (:func:`flat_rule`).
+item 1 (:func:`previous_rule`), the one before nested cross-validation (:func:`flat_rule`) and each block chosen
+alone, before the anchor at the whole model's choice (:func:`unanchored_rule`).
 """
 
 from __future__ import annotations
@@ -50,26 +51,41 @@ def previous_rule():
         noise = np.std(difference, ddof=1) / np.sqrt(difference.size) if difference.size > 1 else 0.0
         return kept[1](folds, best_folds) or difference.mean() <= noise
 
-    kept = scoring.SELECTION_RULE, scoring.tied, scoring.MIN_GROUPS_PER_FOLD, scoring.NESTED
-    scoring.SELECTION_RULE, scoring.tied, scoring.MIN_GROUPS_PER_FOLD, scoring.NESTED = (
-        "t-test", tied_within_one_standard_error, 0, False)
+    kept = scoring.SELECTION_RULE, scoring.tied, scoring.MIN_GROUPS_PER_FOLD, scoring.NESTED, scoring.ANCHOR_BLOCKS
+    scoring.SELECTION_RULE, scoring.tied, scoring.MIN_GROUPS_PER_FOLD, scoring.NESTED, scoring.ANCHOR_BLOCKS = (
+        "t-test", tied_within_one_standard_error, 0, False, False)
     try:
         yield
     finally:
-        scoring.SELECTION_RULE, scoring.tied, scoring.MIN_GROUPS_PER_FOLD, scoring.NESTED = kept
+        scoring.SELECTION_RULE, scoring.tied, scoring.MIN_GROUPS_PER_FOLD, scoring.NESTED, scoring.ANCHOR_BLOCKS = kept
 
 
 @contextmanager
 def flat_rule():
     """The rule before nested cross-validation: the same tests of the best candidate against affine, no test of
-    the selection procedure on the folds it never saw (the nested scores are computed, and ignored)."""
+    the selection procedure on the folds it never saw (the nested scores are computed, and ignored), each block
+    chosen alone (the anchor came later)."""
     from ftcal.core.select import scoring
 
-    kept, scoring.NESTED = scoring.NESTED, False
+    kept = scoring.NESTED, scoring.ANCHOR_BLOCKS
+    scoring.NESTED, scoring.ANCHOR_BLOCKS = False, False
     try:
         yield
     finally:
-        scoring.NESTED = kept
+        scoring.NESTED, scoring.ANCHOR_BLOCKS = kept
+
+
+@contextmanager
+def unanchored_rule():
+    """Each block chosen alone: the rule before a block was anchored at the whole model's choice (the same fold
+    scores; :func:`ftcal.core.select.scoring.anchored_choice` off)."""
+    from ftcal.core.select import scoring
+
+    kept, scoring.ANCHOR_BLOCKS = scoring.ANCHOR_BLOCKS, False
+    try:
+        yield
+    finally:
+        scoring.ANCHOR_BLOCKS = kept
 
 
 def one_seed(seed: int, nonlinearity: float, degrees=(1, 2, 3, 4, 5), oracle_degrees=(1, 2, 3, 4),
@@ -101,7 +117,12 @@ def one_seed(seed: int, nonlinearity: float, degrees=(1, 2, 3, 4, 5), oracle_deg
         with flat_rule():
             unnested = result.search.result(result.scores, select_per)
             flat = block_errors(fit_selection(unnested), fresh_u, fresh_y)
-    return {"previous": previous.tolist(), "flat": flat.tolist(), "nested": bool(result.search.nested),
+        with unanchored_rule():
+            alone_result = result.search.result(result.scores, select_per)
+            alone = block_errors(fit_selection(alone_result), fresh_u, fresh_y)
+    return {"previous": previous.tolist(), "flat": flat.tolist(), "alone": alone.tolist(),
+            "alone_richer": max(c.degree for c in alone_result.candidate_of_output()) > 1,
+            "nested": bool(result.search.nested),
             "flat_richer": max(c.degree for c in unnested.candidate_of_output()) > 1,
             "previous_richer": max(c.degree for c in before.candidate_of_output()) > 1, "seed": seed, "affine": least_squares[1].tolist(),
             "oracle": np.min(list(least_squares.values()), axis=0).tolist(), "selected": selected.tolist(),
@@ -111,8 +132,8 @@ def one_seed(seed: int, nonlinearity: float, degrees=(1, 2, 3, 4, 5), oracle_deg
 
 def rates(rows: list[dict]) -> dict:
     """False-win share, gain share per block and the CV/held-out ratio range over ``rows`` of :func:`one_seed`."""
-    affine, oracle, selected, cv, previous, flat = (np.array([r[k] for r in rows])
-                                                    for k in ("affine", "oracle", "selected", "cv", "previous", "flat"))
+    affine, oracle, selected, cv, previous, flat, alone = (
+        np.array([r[k] for r in rows]) for k in ("affine", "oracle", "selected", "cv", "previous", "flat", "alone"))
     oracle_gain = 1.0 - (oracle / affine).mean(axis=0)
     gain = 1.0 - (selected / affine).mean(axis=0)
     honesty = cv / selected
@@ -125,13 +146,18 @@ def rates(rows: list[dict]) -> dict:
             "flat_gain_share": ((1.0 - (flat / affine).mean(axis=0))
                                 / np.maximum(oracle_gain, np.finfo(float).tiny)).tolist(),
             "flat_richer": float(np.mean([r["flat_richer"] for r in rows])),
+            "alone_gain_share": ((1.0 - (alone / affine).mean(axis=0))
+                                 / np.maximum(oracle_gain, np.finfo(float).tiny)).tolist(),
+            "alone_richer": float(np.mean([r["alone_richer"] for r in rows])),
             "nested": float(np.mean([r["nested"] for r in rows])),
             # Sums for pooling seed sets: gain shares pool as ratios of summed gains, not means of shares.
             "sums": {"seeds": len(rows), "richer": int(sum(r["richer"] for r in rows)),
                      "flat_richer": int(sum(r["flat_richer"] for r in rows)),
+                     "alone_richer": int(sum(r["alone_richer"] for r in rows)),
                      "previous_richer": int(sum(r["previous_richer"] for r in rows)),
                      **{k: (v / affine).sum(axis=0).tolist() for k, v in
-                        (("selected", selected), ("oracle", oracle), ("flat", flat), ("previous", previous))}},
+                        (("selected", selected), ("oracle", oracle), ("flat", flat), ("previous", previous),
+                         ("alone", alone))}},
             "worst_vs_affine": (selected / affine).max(axis=0).tolist(),
             "cv_over_held_out": [float(honesty.min()), float(np.median(honesty)), float(honesty.max())]}
 

@@ -73,7 +73,10 @@ def test_nested_cross_validation_on_few_load_cases_a_fold_keeps_an_affine_truth_
     assert now <= 2 and now <= flat, [(r["seed"], r["selection"]) for r in rows if r["richer"]]
     # A paper-level nonlinearity: the nested test costs little of the gain the rule before it kept on the same
     # folds (offline, seeds 0-42: force 54 % -> 47 % of the oracle's, torque 68 % -> 68 %).
+    # Each block anchored at the whole model's choice (scoring.anchored_choice) keeps more of it than each block
+    # chosen alone on the same folds (offline, these seeds: force 97 % against 86 %, torque 90 % against 73 %).
     summary = rates([one_seed(s, 1.0, degrees=DEGREES, n_groups=12) for s in range(200, 220)])
     for block in (0, 1):
         assert summary["gain_share"][block] >= 0.75 * summary["flat_gain_share"][block], summary
         assert summary["gain_share"][block] > 0.2, summary
+        assert summary["gain_share"][block] > summary["alone_gain_share"][block] + 0.05, summary

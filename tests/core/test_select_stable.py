@@ -202,3 +202,42 @@ def test_nested_cross_validation_runs_for_few_load_cases_a_fold_only():
 
     assert nested_folds(5, 12) and nested_folds(5, 19) and not nested_folds(5, 20) and not nested_folds(5, 54)
     assert not nested_folds(3, 6) and not nested_folds(5, None)  # an inner CV of 2 folds; groups unknown
+
+
+def test_a_block_takes_the_whole_models_choice_unless_its_own_beats_it_beyond_the_fold_noise():
+    # Hand-built fold MSEs (5 folds of 4+ load cases: the corrected one-standard-error rule, √(1 + 5/4) = 1.5
+    # naive standard errors of the fold log ratio). Force: columns 0-2, torque: 3-5; a block's score per fold
+    # is √Σ MSE over its outputs, so an MSE of m on each output scores √(3 m).
+    from ftcal.core.select.candidates import Candidate
+    from ftcal.core.select.scoring import CandidateScore, Part, Scorer, anchored_choice
+
+    scorer = Scorer(OUTPUTS)
+    torque = Part("torque", (3, 4, 5))
+
+    def score(candidate, torque_mse):
+        folds = [np.r_[np.ones(3), np.full(3, m)] for m in torque_mse]
+        return CandidateScore(candidate, scorer, folds, folds, [np.ones(6)] * len(folds))
+
+    joint, own = Candidate(2, "none", None), Candidate(3, "none", None)
+    affine = score(AFFINE, [4.0] * 5)
+    # The whole model's choice halves affine's torque MSE in every fold; the block's own pick is 2 % better than
+    # that on average with a spread that puts it within one corrected standard error: the joint choice is kept.
+    wobbly = score(own, [1.9, 2.1, 1.8, 2.2, 1.8])
+    notes: list[str] = []
+    ordered = [affine, score(joint, [2.0] * 5), wobbly]
+    assert anchored_choice(ordered, torque, own, joint, notes) == joint
+    assert "torque: np2 (the whole model's choice) kept" in notes[0]
+    # The block's own pick consistently a quarter of the joint choice's MSE (log ratio ln 2 per fold on the score,
+    # no spread): a win beyond any noise, kept.
+    ordered = [affine, score(joint, [2.0] * 5), score(own, [0.5] * 5)]
+    assert anchored_choice(ordered, torque, own, joint, []) == own
+    # The block kept affine on its own, and the whole model's choice validates better on the block: taken.
+    notes = []
+    assert anchored_choice([affine, score(joint, [2.0] * 5)], torque, AFFINE, joint, notes) == joint
+    assert "used; it validates better than np1" in notes[0]
+    # ... but not when it is no better than affine on this block (within a tie, 1 %): the block's choice stays.
+    assert anchored_choice([affine, score(joint, [4.0] * 5)], torque, AFFINE, joint, []) == AFFINE
+    # The whole model kept affine: nothing to anchor at.
+    assert anchored_choice(ordered, torque, own, AFFINE, []) == own
+    # Without evidence (every block kept affine alone) the anchor makes nothing richer.
+    assert anchored_choice([affine, score(joint, [2.0] * 5)], torque, AFFINE, joint, [], evidence=False) == AFFINE

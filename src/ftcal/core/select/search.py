@@ -24,7 +24,7 @@ from .candidates import (AFFINE, DEFAULT_DEGREES, DEFAULT_PENALTIES, LASSO_DECAD
 from .cost import SearchBudget, candidate_work, decomposition_work, statistics_work
 from .folds import DatasetStatistics, GroupedStatistics, fold_of_groups
 from .result import CrossValidationResult
-from .scoring import CandidateScore, Part, Scorer, nested_folds, stable_choice, statistics_mse
+from .scoring import CandidateScore, Part, Scorer, anchored_choice, nested_folds, stable_choice, statistics_mse
 
 
 # Degrees in a row that improve no part before the search stops. Two, not one: a sensor whose
@@ -425,9 +425,14 @@ class _Search:
                              n_groups=n_groups)
         parts = self.scorer.parts(select_per)
         gates = self.gates(ordered, parts)
-        selection = [(part, best if part.name == "model" else gates.get(part.name) or
-                      stable_choice(ordered, part, self.stable_notes, self.family(part, parts), n_groups))
-                     for part in parts]
+        own = [(part, best if part.name == "model" else gates.get(part.name) or
+                stable_choice(ordered, part, self.stable_notes, self.family(part, parts), n_groups))
+               for part in parts]
+        # The anchor never makes a richer selection where every block alone kept affine: at 12 load cases and an
+        # affine truth it did so in 1 of 60 seeds (5.0 % against 3.3 %), the whole model's test passing alone.
+        evidence = any(c != AFFINE for p, c in own if p.name in self.scorer.blocks)
+        selection = [(part, anchored_choice(ordered, part, c, best, self.stable_notes, n_groups, evidence)
+                      if part.name in self.scorer.blocks else c) for part, c in own]
         if select_per == "model":
             self.stable_notes = self.stable_notes[:1]
         return CrossValidationResult(ordered, best, self.scorer.metric, self.n_folds, skipped, select_per,
