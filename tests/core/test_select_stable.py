@@ -134,6 +134,25 @@ def test_one_decision_wins_by_one_corrected_standard_error():
     assert stable_choice(scores, force, [], family=3, n_groups=40) == AFFINE  # three parts judged together
 
 
+def test_an_mlp_claim_needs_the_corrected_resampled_t_test():
+    from scipy.stats import t as student_t
+
+    # Nadeau & Bengio's corrected resampled t test: t_{K-1, 0.95} in standard errors of variance
+    # σ²(1/K + 1/(K − 1)). Five fold log ratios (affine / MLP) at 2.6 naive standard errors, as the two claims
+    # of the real-like fingertip that lost on their outer fold: a win by the naive t test, not by the corrected one.
+    log_ratio = np.array([0.9, 0.1, 0.6, 0.05, 0.7])
+    t = log_ratio.mean() / (np.std(log_ratio, ddof=1) / np.sqrt(5))
+    bar = student_t.ppf(0.95, 4) * np.sqrt((1 / 5 + 1 / 4) / (1 / 5))
+    assert student_t.ppf(0.95, 4) < t < bar
+    affine, mlp = np.full(5, 2.0), 2.0 / np.exp(log_ratio)
+    naive = Comparison.of(AFFINE, affine, mlp)
+    corrected = Comparison.of(AFFINE, affine, mlp, rule="corrected-t")
+    assert not naive.within_noise and corrected.within_noise
+    assert abs(corrected.quantile - bar) < 1e-9
+    # Losses are judged by the t test under every rule (a loss is a warning, not a claim).
+    assert Comparison.of(AFFINE, mlp, affine, rule="corrected-t").loses
+
+
 def test_ties_within_one_percent_go_to_fewer_nonzeros_and_wider_ones_do_not():
     from ftcal.core.select import Candidate, Part, stable_choice
 
