@@ -1000,7 +1000,7 @@ class _Fit:
         for name, cols in blocks.items():
             mine, theirs = scorer.block(ours.fold_mse, cols), scorer.block(affine.fold_mse, cols)
             unit = UNITS.get(name, "")
-            comparison = Comparison.of(AFFINE, theirs, mine)
+            comparison = Comparison.of(AFFINE, theirs, mine, rule="corrected-t")  # not searched for: as the MLP's
             exact = mine.mean() <= EXACT_FIT_FRACTION * float(np.sqrt(np.sum(span[list(cols)] ** 2)))
             verdict = ("worse beyond the fold noise" if comparison.loses and not exact else
                        "a win beyond the fold noise" if exact or not comparison.within_noise else
@@ -1042,6 +1042,7 @@ class _Fit:
         from ..core.mlp import MLPModel, hidden_for_data, n_weights
         from ..core.model import CalibrationModel
         from ..core.select import Candidate, Comparison, cross_validate
+        from ..core.select.scoring import TIE_TOLERANCE
         from ..runtime.errors import IllPosedFitWarning
 
         o = self.o
@@ -1084,19 +1085,26 @@ class _Fit:
             # fingertip, seed 1, benchmarks/bench_real_like.py); a loss stays the t test's, as the search's.
             held = model.cv_.get("held_out_fold_mse")
             if held is not None and wrench_blocks(data.output_names):
-                comparisons = {name: Comparison.of(Candidate(1, "none", None),
-                                                   block_error_norm_rmse(np.asarray(affine_score.fold_mse), cols),
-                                                   block_error_norm_rmse(np.asarray(held), cols), rule="corrected-t")
-                               for name, cols in wrench_blocks(data.output_names).items()}
+                folds = {name: (block_error_norm_rmse(np.asarray(affine_score.fold_mse), cols),
+                                block_error_norm_rmse(np.asarray(held), cols))
+                         for name, cols in wrench_blocks(data.output_names).items()}
             else:
-                comparisons = {"outputs": Comparison.of(Candidate(1, "none", None), affine_folds,
-                                                        model.cv_.get("held_out_fold_scores",
-                                                                      model.cv_["fold_scores"]), rule="corrected-t")}
+                folds = {"outputs": (np.asarray(affine_folds), np.asarray(model.cv_.get("held_out_fold_scores",
+                                                                                         model.cv_["fold_scores"])))}
+            comparisons = {name: Comparison.of(Candidate(1, "none", None), theirs, mine, rule="corrected-t")
+                           for name, (theirs, mine) in folds.items()}
             validation = MLPValidation(model.label(), model.cv_["metric"], int(model.cv_["iterations"]), max_iter,
                                        tuple(float(v) for v in model.cv_["fold_scores"]),
                                        tuple(float(v) for v in affine_folds), comparisons)
             self._keep("mlp", MLPReport(network, validation), validation.lines())
             lost = validation.lost
+            worse = [f"{name} {mine.mean() / theirs.mean():.3g}x" for name, (theirs, mine) in folds.items()
+                     if mine.mean() > theirs.mean() * (1 + TIE_TOLERANCE)]
+            if worse and not lost:  # as an explicit degree's: no fit that does not beat affine reads as a normal one
+                self.notes.append(f"warning: the MLP validates worse than the affine model on average on "
+                                  f"{' and '.join(worse)} affine's error, within the noise of {model.cv_['n_folds']} "
+                                  "grouped folds: no evidence it beats the affine model on new load cases (the "
+                                  "polynomial search, degree auto, or more load cases decide it)")
             if lost:
                 c = comparisons[lost[0]]
                 warnings.warn(ParameterWarning(("family", "degree"), f"the MLP validates worse than the affine "
