@@ -1081,7 +1081,7 @@ class _Fit:
             affine_folds = affine_score.fold_scores
             # Every block the network writes is judged (force and torque), each on fold scores at the iteration
             # count the other folds chose (folds that did not pick the count). A claimed win needs the corrected
-            # resampled t test: the naive t test's claims failed on the outer fold in 2 of 14 (real-like
+            # resampled t test: the naive t test's claimed block wins failed on their outer fold in 2 of 7 (real-like
             # fingertip, seed 1, benchmarks/bench_real_like.py); a loss stays the t test's, as the search's.
             held = model.cv_.get("held_out_fold_mse")
             if held is not None and wrench_blocks(data.output_names):
